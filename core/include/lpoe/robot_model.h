@@ -1,0 +1,87 @@
+// The Local Product of Exponentials robot model (paper eqs. (1), (6), (7)):
+//
+//   T_0,tool(q) = T_0,1(0) exp(s_1^ q_1) T_1,2(0) exp(s_2^ q_2) ... T_n-1,n(0) exp(s_n^ q_n) T_n,tool
+//
+// Each joint i has a local frame T_{i-1,i}(0) (its "origin", in the parent's coordinates) and a fixed
+// twist s_i = (omega, v) expressed in its own frame. Tools are frames fixed to the last link; a laser
+// tracker measures the origin of a tool (a retro-reflector) and, for pose data, its orientation.
+//
+// All kinematic errors live in the local frames (paper section 3.1): the calibration parameters are
+// the n joint origins and the tool origins, each perturbed on the right (eq. (19)).
+#ifndef LPOE_ROBOT_MODEL_H_
+#define LPOE_ROBOT_MODEL_H_
+
+#include <string>
+#include <vector>
+
+#include "lpoe/se3.h"
+#include "lpoe/status.h"
+
+namespace lpoe {
+
+enum class JointType { kRevolute, kPrismatic };
+
+const char* JointTypeName(JointType type);
+
+struct Joint {
+  std::string name;
+  JointType type = JointType::kRevolute;
+  SE3d origin;                                                // T_{i-1,i}(0)
+  Vector6d twist = (Vector6d() << 0, 0, 1, 0, 0, 0).finished();  // (omega, v) in the joint frame
+};
+
+struct Tool {
+  std::string name;
+  SE3d origin;  // T_{n,tool}, in the last joint's frame
+};
+
+// Tolerances used by Validate() on twists.
+constexpr double kTwistTolerance = 1e-6;
+
+class RobotModel {
+ public:
+  std::string name;
+  std::vector<Joint> joints;
+  std::vector<Tool> tools;
+
+  int num_joints() const { return static_cast<int>(joints.size()); }
+  int num_tools() const { return static_cast<int>(tools.size()); }
+  // Local frames that carry calibration parameters: the joint origins, then the tools.
+  int num_frames() const { return num_joints() + num_tools(); }
+
+  // Index of the tool called `name`, or -1.
+  int FindTool(const std::string& tool_name) const;
+
+  // Checks that the model is usable: at least one joint and one tool, unique names, finite numbers,
+  // orthonormal rotations, and twists of the declared type (revolute: |omega| = 1, omega . v = 0;
+  // prismatic: omega = 0, |v| = 1).
+  Status Validate() const;
+};
+
+// The default twist of a joint type about/along local z.
+Vector6d DefaultTwist(JointType type);
+
+// The nominal "cobot6" of DESIGN.md section 2 (paper Table 1), with one tool at `tool_xyz` (mm) in the
+// joint-6 frame.
+RobotModel MakeCobot6(const Eigen::Vector3d& tool_xyz = Eigen::Vector3d(40, 0, 60));
+
+// Builds an LPoE model from standard Denavit-Hartenberg parameters (a, alpha, d, theta offset), one
+// row per joint, joints revolute about local z. The frames follow the DH chain:
+// T_{i-1,i}(0) = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i) expressed so that joint i turns about the
+// z axis of frame i-1 (the DH convention), i.e. the local frame of joint i is DH frame i-1.
+struct DhRow {
+  double a = 0, alpha = 0, d = 0, theta = 0;
+  JointType type = JointType::kRevolute;
+};
+RobotModel MakeFromStandardDh(const std::string& name, const std::vector<DhRow>& rows,
+                              const SE3d& tool);
+
+// A UR5-like arm (standard DH, mm), a 7-joint arm, and a 6-joint arm with a prismatic joint: the
+// test robots of the acceptance criteria.
+RobotModel MakeUr5Like();
+RobotModel MakeSevenJointArm();
+RobotModel MakeArmWithPrismatic();
+
+}  // namespace lpoe
+
+#endif  // LPOE_ROBOT_MODEL_H_

@@ -1,0 +1,163 @@
+#include "lpoe/parameterization.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include <Eigen/SVD>
+#include <glog/logging.h>
+
+namespace lpoe {
+namespace {
+
+constexpr double kNullTolerance = 1e-9;
+const char* const kAxisNames[6] = {"rx", "ry", "rz", "tx", "ty", "tz"};
+
+// An orthonormal basis of span(P), where P is an orthogonal projector of rank `rank`, built from the
+// canonical directions it keeps best, so that for axis-aligned twists the basis vectors are the
+// canonical (omega, v) directions themselves and carry readable names.
+Eigen::MatrixXd CanonicalBasis(const Matrix6d& P, int rank) {
+  std::vector<int> order(6);
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return P(a, a) > P(b, b) + 1e-12; });
+  Eigen::MatrixXd B(6, rank);
+  int k = 0;
+  for (int idx : order) {
+    if (k == rank) break;
+    Vector6d v = P.col(idx);
+    for (int j = 0; j < k; ++j) v -= B.col(j).dot(v) * B.col(j);
+    const double norm = v.norm();
+    if (norm < 1e-6) continue;
+    B.col(k++) = v / norm;
+  }
+  CHECK_EQ(k, rank) << "could not build a basis of the projector";
+  return B;
+}
+
+std::string DirectionName(const Vector6d& v) {
+  int best = 0;
+  v.cwiseAbs().maxCoeff(&best);
+  std::string name = kAxisNames[best];
+  if (std::abs(v(best)) < 1.0 - 1e-9) name += "~";  // not axis-aligned: dominant component only
+  return name;
+}
+
+std::string FrameName(const RobotModel& model, int frame) {
+  return frame < model.num_joints() ? model.joints[frame].name
+                                    : model.tools[frame - model.num_joints()].name;
+}
+
+}  // namespace
+
+const char* ParameterizationName(ParameterizationKind kind) {
+  return kind == ParameterizationKind::kIdentifiable ? "identifiable" : "full";
+}
+
+bool ParseParameterization(const std::string& text, ParameterizationKind* kind) {
+  if (text == "identifiable") {
+    *kind = ParameterizationKind::kIdentifiable;
+    return true;
+  }
+  if (text == "full") {
+    *kind = ParameterizationKind::kFull;
+    return true;
+  }
+  return false;
+}
+
+Eigen::MatrixXd TwistCentralizer(const Vector6d& twist) {
+  const Matrix6d ad = LieBracketMatrix(twist);
+  Eigen::JacobiSVD<Matrix6d> svd(ad, Eigen::ComputeFullV);
+  const double scale = std::max(1.0, svd.singularValues()(0));
+  int rank = 0;
+  for (int k = 0; k < 6; ++k) rank += svd.singularValues()(k) > kNullTolerance * scale;
+  const Eigen::MatrixXd N = svd.matrixV().rightCols(6 - rank);
+  return CanonicalBasis(N * N.transpose(), 6 - rank);
+}
+
+Eigen::MatrixXd IdentifiableJointBasis(const Vector6d& twist) {
+  const Eigen::MatrixXd N = TwistCentralizer(twist);
+  const Matrix6d P = Matrix6d::Identity() - N * N.transpose();
+  return CanonicalBasis(P, 6 - static_cast<int>(N.cols()));
+}
+
+Parameterization MakeParameterization(const RobotModel& model, ParameterizationKind kind,
+                                      DataKind data) {
+  Parameterization p;
+  p.kind = kind;
+  p.data = data;
+  const int n = model.num_joints();
+  for (int f = 0; f < model.num_frames(); ++f) {
+    Eigen::MatrixXd lost;  // 6 x k directions data cannot see
+    std::string reason;
+    if (f < n) {
+      lost = TwistCentralizer(model.joints[f].twist);
+      reason = model.joints[f].type == JointType::kRevolute
+                   ? "commutes with the joint's rotation (about or along its own axis): absorbed "
+                     "by the next frame"
+                   : "commutes with the joint's translation (its rotation about the sliding axis "
+                     "and any translation): absorbed by the next frame";
+    } else if (data == DataKind::kPosition) {
+      lost = Eigen::MatrixXd::Zero(6, 3);
+      lost.topRows<3>().setIdentity();
+      reason = "the orientation of a measured point is not observed by position data";
+    } else {
+      lost = Eigen::MatrixXd::Zero(6, 0);
+    }
+    for (int c = 0; c < lost.cols(); ++c) {
+      Direction d;
+      d.frame = f;
+      d.vector = lost.col(c);
+      d.name = FrameName(model, f) + "." + DirectionName(d.vector);
+      d.reason = reason;
+      p.unidentifiable.push_back(d);
+    }
+    Eigen::MatrixXd basis;
+    if (kind == ParameterizationKind::kFull) {
+      basis = Eigen::MatrixXd::Identity(6, 6);
+    } else {
+      const Matrix6d P = Matrix6d::Identity() - lost * lost.transpose();
+      basis = CanonicalBasis(P, 6 - static_cast<int>(lost.cols()));
+    }
+    p.offset.push_back(p.num_parameters);
+    p.num_parameters += static_cast<int>(basis.cols());
+    for (int c = 0; c < basis.cols(); ++c) {
+      Direction d;
+      d.frame = f;
+      d.vector = basis.col(c);
+      d.name = FrameName(model, f) + "." + DirectionName(d.vector);
+      p.parameters.push_back(d);
+    }
+    p.basis.push_back(std::move(basis));
+  }
+  return p;
+}
+
+void ApplyUpdate(const Parameterization& p, const Eigen::VectorXd& x, RobotModel* model) {
+  CHECK_EQ(x.size(), p.num_parameters);
+  const int n = model->num_joints();
+  for (int f = 0; f < model->num_frames(); ++f) {
+    const Eigen::MatrixXd& B = p.basis[f];
+    if (B.cols() == 0) continue;
+    const Vector6d dp = B * x.segment(p.offset[f], B.cols());
+    SE3d& T = f < n ? model->joints[f].origin : model->tools[f - n].origin;
+    T = T * ExpSE3(dp);  // eq. (19)
+  }
+}
+
+Eigen::VectorXd ParameterDifference(const Parameterization& p, const RobotModel& a,
+                                    const RobotModel& b) {
+  CHECK_EQ(a.num_frames(), b.num_frames());
+  const int n = a.num_joints();
+  Eigen::VectorXd x(p.num_parameters);
+  for (int f = 0; f < a.num_frames(); ++f) {
+    const SE3d& Ta = f < n ? a.joints[f].origin : a.tools[f - n].origin;
+    const SE3d& Tb = f < n ? b.joints[f].origin : b.tools[f - n].origin;
+    const Vector6d d = LogSE3(Ta.Inverse() * Tb);
+    x.segment(p.offset[f], p.basis[f].cols()) = p.basis[f].transpose() * d;
+  }
+  return x;
+}
+
+}  // namespace lpoe

@@ -1,0 +1,168 @@
+#include "lpoe/simulation.h"
+
+#include <cmath>
+#include <random>
+
+#include <glog/logging.h>
+
+#include "lpoe/kinematics.h"
+
+namespace lpoe {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Portable random numbers: the standard distributions are implementation-defined, and data sets
+// generated from a seed must be the same everywhere.
+class Random {
+ public:
+  explicit Random(uint64_t seed) : engine_(seed) {}
+  double Uniform() { return static_cast<double>(engine_() >> 11) * 0x1.0p-53; }  // [0, 1)
+  double Uniform(double lo, double hi) { return lo + (hi - lo) * Uniform(); }
+  double Gaussian() {  // Box-Muller
+    if (has_spare_) {
+      has_spare_ = false;
+      return spare_;
+    }
+    double u1 = Uniform();
+    while (u1 <= 0.0) u1 = Uniform();
+    const double u2 = Uniform();
+    const double r = std::sqrt(-2.0 * std::log(u1));
+    spare_ = r * std::sin(2 * kPi * u2);
+    has_spare_ = true;
+    return r * std::cos(2 * kPi * u2);
+  }
+
+ private:
+  std::mt19937_64 engine_;
+  bool has_spare_ = false;
+  double spare_ = 0;
+};
+
+// Makes a twist valid for its joint type: unit omega with omega . v = 0, or omega = 0 and unit v.
+Vector6d NormalizeTwist(JointType type, Vector6d s) {
+  if (type == JointType::kRevolute) {
+    Eigen::Vector3d w = s.head<3>().normalized();
+    Eigen::Vector3d v = s.tail<3>();
+    v -= w.dot(v) * w;
+    s << w, v;
+  } else {
+    s.head<3>().setZero();
+    s.tail<3>().normalize();
+  }
+  return s;
+}
+
+}  // namespace
+
+KinematicErrors PaperTable2Errors() {
+  KinematicErrors e;
+  const double dp[7][6] = {{0, 0.001, 0.002, 2, 1.5, 0.5},      {0, 0.002, 0.003, -2, 1.2, 2.4},
+                           {0.001, 0.004, 0.003, 2, -1, 2},     {0.001, 0.005, 0.002, 2, 1.5, -1},
+                           {0.002, 0.003, 0, -1, 1.6, 2.3},     {0.003, 0.001, -0.004, 2, 3, 1},
+                           {0.005, 0.002, -0.003, 1.6, 2, 3.2}};
+  for (const auto& row : dp) e.frame.push_back(Eigen::Map<const Vector6d>(row));
+  // Table 2's ds' column is written (v, omega) (DESIGN.md section 1): its non-zero entries tilt the
+  // unit rotation axis. Stored here in our (omega, v) order.
+  auto tilt = [](double wx, double wy, double wz) {
+    Vector6d s;
+    s << wx, wy, wz, 0, 0, 0;
+    return s;
+  };
+  e.twist = {tilt(0, std::sin(0.01), -1 + std::cos(0.01)),
+             tilt(0, -std::sin(0.015), -1 + std::cos(0.015)),
+             tilt(std::sin(0.023), 0, -1 + std::cos(0.023)),
+             tilt(-std::sin(0.004), 0, -1 + std::cos(0.004)),
+             tilt(0, std::sin(0.031), -1 + std::cos(0.031)),
+             tilt(std::sin(0.013), 0, -1 + std::cos(0.013))};
+  e.joint_zero = {0, 0.03, 0.01, 0.02, 0.015, 0.02};
+  return e;
+}
+
+KinematicErrors RandomErrors(const RobotModel& model, double rot, double trans, double tilt,
+                             double zero, uint64_t seed) {
+  Random rng(seed);
+  KinematicErrors e;
+  for (int f = 0; f < model.num_frames(); ++f) {
+    Vector6d d;
+    for (int k = 0; k < 3; ++k) d(k) = rng.Uniform(-rot, rot);
+    for (int k = 3; k < 6; ++k) d(k) = rng.Uniform(-trans, trans);
+    e.frame.push_back(d);
+  }
+  for (const Joint& j : model.joints) {
+    // Tilt the axis (rotation part for revolute, direction for prismatic) about a random
+    // perpendicular by an angle in [-tilt, tilt].
+    const Eigen::Vector3d axis =
+        j.type == JointType::kRevolute ? j.twist.head<3>() : j.twist.tail<3>();
+    Eigen::Vector3d r(rng.Gaussian(), rng.Gaussian(), rng.Gaussian());
+    r -= r.dot(axis) * axis;
+    r.normalize();
+    const Eigen::Vector3d tilted = ExpSO3(Eigen::Vector3d(rng.Uniform(-tilt, tilt) * r)) * axis;
+    Vector6d ds = Vector6d::Zero();
+    if (j.type == JointType::kRevolute) {
+      ds.head<3>() = tilted - axis;
+    } else {
+      ds.tail<3>() = tilted - axis;
+    }
+    e.twist.push_back(ds);
+    e.joint_zero.push_back(rng.Uniform(-zero, zero));
+  }
+  return e;
+}
+
+RobotModel ApplyErrors(const RobotModel& nominal, const KinematicErrors& errors) {
+  CHECK_EQ(static_cast<int>(errors.frame.size()), nominal.num_frames());
+  CHECK_EQ(static_cast<int>(errors.twist.size()), nominal.num_joints());
+  RobotModel actual = nominal;
+  const int n = nominal.num_joints();
+  for (int f = 0; f < nominal.num_frames(); ++f) {
+    SE3d& T = f < n ? actual.joints[f].origin : actual.tools[f - n].origin;
+    T = T * ExpSE3(errors.frame[f]);  // eq. (33)
+  }
+  for (int i = 0; i < n; ++i) {
+    Joint& j = actual.joints[i];
+    j.twist = NormalizeTwist(j.type, j.twist + errors.twist[i]);
+  }
+  return actual;
+}
+
+MeasurementSet SimulateMeasurements(const RobotModel& actual, const std::vector<double>& joint_zero,
+                                    const SimulationOptions& options) {
+  const int n = actual.num_joints();
+  CHECK(joint_zero.empty() || static_cast<int>(joint_zero.size()) == n);
+  std::vector<double> lo = options.lower, hi = options.upper;
+  if (lo.empty()) {
+    for (const Joint& j : actual.joints) {
+      const bool rev = j.type == JointType::kRevolute;
+      lo.push_back(rev ? -kPi : -100.0);
+      hi.push_back(rev ? kPi : 100.0);
+    }
+  }
+  CHECK_EQ(static_cast<int>(lo.size()), n);
+  CHECK_EQ(static_cast<int>(hi.size()), n);
+
+  Random rng(options.seed);
+  MeasurementSet data(n);
+  data.Reserve(options.count);
+  std::vector<double> q(n), q_actual(n);
+  for (int r = 0; r < options.count; ++r) {
+    for (int i = 0; i < n; ++i) {
+      q[i] = rng.Uniform(lo[i], hi[i]);
+      q_actual[i] = q[i] + (joint_zero.empty() ? 0.0 : joint_zero[i]);
+    }
+    const int target = options.all_tools ? r % actual.num_tools() : 0;
+    SE3d pose = ToolPose(actual, q_actual.data(), target);  // eq. (34)
+    for (int k = 0; k < 3; ++k) pose.t(k) += options.noise_sigma * rng.Gaussian();
+    if (options.pose) {
+      Eigen::Vector3d w;
+      for (int k = 0; k < 3; ++k) w(k) = options.orientation_noise_sigma * rng.Gaussian();
+      pose.R = pose.R * ExpSO3(w);
+      data.AddPose(q.data(), pose, target);
+    } else {
+      data.Add(q.data(), pose.t, target);
+    }
+  }
+  return data;
+}
+
+}  // namespace lpoe

@@ -1,0 +1,65 @@
+// Calibration: identify the local frames of a robot model from measurements. Two solvers sit behind
+// one result type:
+//   * the paper's linearized iterative least squares (pose-based eqs. (17)-(24), position-based
+//     eqs. (26)-(32)), in linear_solver.h;
+//   * a Ceres problem with an SE(3) manifold per local frame, in ceres_solver.h.
+#ifndef LPOE_CALIBRATION_H_
+#define LPOE_CALIBRATION_H_
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lpoe/measurements.h"
+#include "lpoe/parameterization.h"
+#include "lpoe/robot_model.h"
+#include "lpoe/statistics.h"
+
+namespace lpoe {
+
+// One row of the convergence history (the paper's Fig. 6). Errors are those of the model *before*
+// the step of this iteration is applied, on the identification data; the last record is the final
+// model (step_norm 0).
+struct IterationRecord {
+  int iteration = 0;
+  double cost = 0;        // 0.5 * sum of squared residuals (mm^2; pose data mixes rad^2)
+  double max_error = 0;   // mm, largest position error norm
+  double mean_error = 0;  // mm, mean position error norm
+  double step_norm = 0;   // ||x|| of the update computed at this iteration
+};
+
+enum class Termination {
+  kConverged,          // ||x|| < eps (linear) or a Ceres convergence criterion
+  kMaxIterations,      // stopped at the iteration limit without converging
+  kNotIdentifiable,    // too few rows or degenerate poses: nothing was solved
+  kNumericalFailure,   // non-finite values or a step that could not reduce the cost
+};
+
+const char* TerminationName(Termination t);
+
+struct CalibrationResult {
+  Termination termination = Termination::kNumericalFailure;
+  std::string message;  // one line a user can act on
+  RobotModel model;     // the calibrated model (the input model when nothing was solved)
+  Parameterization parameterization;
+  std::vector<IterationRecord> history;
+  int iterations = 0;
+  double final_cost = 0;
+
+  // Identifiability of the linearized problem at the nominal model (column-scaled Jacobian).
+  int rank = 0;
+  double condition_number = 0;
+  Eigen::VectorXd singular_values;  // of the column-scaled Jacobian, descending
+
+  // Covariance of the identified parameters in the tangent space (num_parameters square), when the
+  // solver computed one (mm / rad units of the basis). Empty otherwise.
+  Eigen::MatrixXd covariance;
+  double wall_time_seconds = 0;
+
+  bool converged() const { return termination == Termination::kConverged; }
+};
+
+}  // namespace lpoe
+
+#endif  // LPOE_CALIBRATION_H_

@@ -1,0 +1,46 @@
+// The paper's linearized iterative least squares (Fig. 5).
+//
+// Each iteration linearizes the error model around the current local frames,
+//   position data (eqs. (29)-(31)):  y = P_measured - P_model = J x,  J = [-P^ I3] [Ad_G_1 ... Ad_G_n+1]
+//   pose data (eqs. (18)-(22)):      y = log(T_measured T_model^-1)^vee = A x,  A = [Ad_G_1 ...]
+// solves for x in least squares, and updates T_f <- T_f exp((B_f x_f)^) (eq. (19)), until ||x|| < eps.
+//
+// x lives in the chosen parameterization: `identifiable` (per frame only the directions data can see,
+// DESIGN.md section 3; J^T J is then full rank on exciting data) or `full` (6 per frame, the paper's
+// 42 for cobot6; J^T J is singular and the step is the minimum-norm pseudo-inverse solution).
+//
+// The columns of J are scaled to unit norm before solving (rotation columns carry lever arms of ~1 m,
+// translation columns ~1), and the rank and condition number of the scaled J decide whether the data
+// can identify the parameters at all: data that cannot is refused, never "solved".
+#ifndef LPOE_LINEAR_SOLVER_H_
+#define LPOE_LINEAR_SOLVER_H_
+
+#include "lpoe/calibration.h"
+
+namespace lpoe {
+
+struct LinearSolverOptions {
+  ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
+  // Use the measured orientations too (pose-based model, eqs. (17)-(24)); requires pose data.
+  bool use_orientation = false;
+  // Weight of the orientation residual (rad) against the position residual (mm) in pose mode: an
+  // orientation error of 1 rad counts as `orientation_weight` mm. Default: 1000 mm per rad (a 1 m arm).
+  double orientation_weight = 1000.0;
+  int max_iterations = 30;
+  // Stop when ||x|| < step_tolerance (x mixes rad and mm; both are small near convergence).
+  double step_tolerance = 1e-10;
+  // Refuse the data when the condition number of the column-scaled Jacobian exceeds this: the
+  // parameters are then not determined by the data (degenerate or too few poses).
+  double max_condition_number = 1e8;
+  // Relative singular-value threshold of the pseudo-inverse (full parameterization).
+  double pseudo_inverse_tolerance = 1e-9;
+  // Print one line per iteration to stderr (LOG(INFO)).
+  bool verbose = false;
+};
+
+CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSet& data,
+                                  const LinearSolverOptions& options = LinearSolverOptions());
+
+}  // namespace lpoe
+
+#endif  // LPOE_LINEAR_SOLVER_H_

@@ -1,0 +1,311 @@
+#include "lpoe/linear_solver.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+#include <glog/logging.h>
+
+#include "lpoe/kinematics.h"
+
+namespace lpoe {
+namespace {
+
+// Step halvings tried when a Gauss-Newton step raises the cost.
+constexpr int kMaxHalvings = 12;
+// A step is accepted if it does not raise the cost by more than this relative amount (round-off).
+constexpr double kCostIncreaseTolerance = 1e-10;
+
+// The linearized problem at one model: either its normal equations (identifiable
+// parameterization) or its stacked Jacobian (full parameterization, for the pseudo-inverse).
+struct Linearization {
+  Eigen::MatrixXd H;        // J^T J (num_parameters square)
+  Eigen::VectorXd g;        // J^T y
+  Eigen::MatrixXd J;        // stacked J, full parameterization only
+  Eigen::VectorXd y;        // stacked y, full parameterization only
+  double cost = 0;          // 0.5 |y|^2
+  double max_error = 0;     // mm, position error norm
+  double mean_error = 0;    // mm
+  bool finite = true;
+};
+
+Linearization Linearize(const RobotModel& model, const MeasurementSet& data,
+                        const Parameterization& p, const LinearSolverOptions& options,
+                        bool stack) {
+  const int P = p.num_parameters;
+  const int F = model.num_frames();
+  const int m = options.use_orientation ? 6 : 3;
+  Linearization lin;
+  lin.H.setZero(P, P);
+  lin.g.setZero(P);
+  if (stack) {
+    lin.J.setZero(static_cast<Eigen::Index>(m) * data.size(), P);
+    lin.y.setZero(static_cast<Eigen::Index>(m) * data.size());
+  }
+  Eigen::MatrixXd J_frames;
+  Eigen::MatrixXd Jb(m, P);
+  Eigen::VectorXd y(m);
+  double sum_error = 0;
+  for (int r = 0; r < data.size(); ++r) {
+    const double* q = data.q(r);
+    const int tool = data.target(r);
+    Eigen::Vector3d position_error;
+    if (options.use_orientation) {
+      const SE3d T = ToolPoseJacobian(model, q, tool, &J_frames);
+      y = LogSE3(data.pose(r) * T.Inverse());  // eq. (17)
+      position_error = data.position(r) - T.t;
+      // Weight the rotation rows: 1 rad counts as orientation_weight mm.
+      y.head<3>() *= options.orientation_weight;
+      J_frames.topRows<3>() *= options.orientation_weight;
+    } else {
+      const Eigen::Vector3d P_model = ToolPositionJacobian(model, q, tool, &J_frames);
+      y = data.position(r) - P_model;  // eq. (30)
+      position_error = y;
+    }
+    // Restrict to the calibrated directions: Jb = J_frames * blockdiag(basis_f).
+    for (int f = 0; f < F; ++f) {
+      const Eigen::MatrixXd& B = p.basis[f];
+      if (B.cols() == 0) continue;
+      Jb.middleCols(p.offset[f], B.cols()).noalias() = J_frames.middleCols(6 * f, 6) * B;
+    }
+    lin.H.selfadjointView<Eigen::Lower>().rankUpdate(Jb.transpose());
+    lin.g.noalias() += Jb.transpose() * y;
+    if (stack) {
+      lin.J.middleRows(static_cast<Eigen::Index>(m) * r, m) = Jb;
+      lin.y.segment(static_cast<Eigen::Index>(m) * r, m) = y;
+    }
+    lin.cost += 0.5 * y.squaredNorm();
+    const double e = position_error.norm();
+    lin.max_error = std::max(lin.max_error, e);
+    sum_error += e;
+  }
+  lin.H.triangularView<Eigen::StrictlyUpper>() = lin.H.transpose();
+  lin.mean_error = data.empty() ? 0.0 : sum_error / data.size();
+  lin.finite = std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
+  return lin;
+}
+
+// Column scaling D = diag(1 / |column j of J|) (Jacobi preconditioning): rotation columns carry
+// lever arms of ~10^3 mm, translation columns ~1.
+Eigen::VectorXd ColumnScale(const Eigen::MatrixXd& H) {
+  Eigen::VectorXd d(H.rows());
+  for (int j = 0; j < H.rows(); ++j) d(j) = H(j, j) > 0 ? 1.0 / std::sqrt(H(j, j)) : 1.0;
+  return d;
+}
+
+struct Identifiability {
+  int rank = 0;
+  double condition = std::numeric_limits<double>::infinity();
+  Eigen::VectorXd singular_values;  // descending
+  Eigen::VectorXd weakest;          // scaled-parameter direction of the smallest singular value
+};
+
+Identifiability Analyze(const Eigen::MatrixXd& H) {
+  const Eigen::VectorXd d = ColumnScale(H);
+  const Eigen::MatrixXd Hs = d.asDiagonal() * H * d.asDiagonal();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Hs);
+  Identifiability out;
+  const int P = static_cast<int>(H.rows());
+  out.singular_values.resize(P);
+  for (int k = 0; k < P; ++k) {
+    out.singular_values(k) = std::sqrt(std::max(0.0, eig.eigenvalues()(P - 1 - k)));
+  }
+  const double smax = out.singular_values(0);
+  // Numerical rank of the scaled Jacobian; sqrt(eps) relative since we work on J^T J.
+  const double tol = smax * 1e-8;
+  for (int k = 0; k < P; ++k) out.rank += out.singular_values(k) > tol;
+  const double smin = out.singular_values(P - 1);
+  out.condition = smin > 0 ? smax / smin : std::numeric_limits<double>::infinity();
+  out.weakest = eig.eigenvectors().col(0);
+  return out;
+}
+
+std::string WeakestDirections(const Parameterization& p, const Eigen::VectorXd& v) {
+  std::vector<int> idx(v.size());
+  for (int k = 0; k < v.size(); ++k) idx[k] = k;
+  std::sort(idx.begin(), idx.end(), [&](int a, int b) { return std::abs(v(a)) > std::abs(v(b)); });
+  std::ostringstream os;
+  for (int k = 0; k < std::min<int>(3, static_cast<int>(idx.size())); ++k) {
+    if (k) os << ", ";
+    os << p.parameters[idx[k]].name;
+  }
+  return os.str();
+}
+
+// Least-squares step x of J x = y.
+Eigen::VectorXd SolveStep(const Linearization& lin, const LinearSolverOptions& options) {
+  const Eigen::VectorXd d = ColumnScale(lin.H);
+  if (options.parameterization == ParameterizationKind::kFull) {
+    // Minimum-norm solution of the rank-deficient system (the paper's eq. (32) read as a
+    // pseudo-inverse), on the column-scaled stacked Jacobian for accuracy.
+    const Eigen::MatrixXd Js = lin.J * d.asDiagonal();
+    Eigen::BDCSVD<Eigen::MatrixXd> svd(Js, Eigen::ComputeThinU | Eigen::ComputeThinV);
+    svd.setThreshold(options.pseudo_inverse_tolerance);
+    // The minimum-norm solution in scaled coordinates; mapped back by d.
+    return d.asDiagonal() * svd.solve(lin.y);
+  }
+  const Eigen::MatrixXd Hs = d.asDiagonal() * lin.H * d.asDiagonal();
+  const Eigen::VectorXd gs = d.asDiagonal() * lin.g;
+  Eigen::LLT<Eigen::MatrixXd> llt(Hs);
+  if (llt.info() != Eigen::Success) return Eigen::VectorXd::Constant(lin.g.size(), NAN);
+  return d.asDiagonal() * llt.solve(gs);
+}
+
+IterationRecord Record(int iteration, const Linearization& lin) {
+  IterationRecord r;
+  r.iteration = iteration;
+  r.cost = lin.cost;
+  r.max_error = lin.max_error;
+  r.mean_error = lin.mean_error;
+  return r;
+}
+
+}  // namespace
+
+const char* TerminationName(Termination t) {
+  switch (t) {
+    case Termination::kConverged:
+      return "converged";
+    case Termination::kMaxIterations:
+      return "not converged (iteration limit)";
+    case Termination::kNotIdentifiable:
+      return "not identifiable";
+    case Termination::kNumericalFailure:
+      return "numerical failure";
+  }
+  return "unknown";
+}
+
+CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSet& data,
+                                  const LinearSolverOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  CalibrationResult result;
+  result.model = nominal;
+  auto finish = [&](Termination t, const std::string& message) {
+    result.termination = t;
+    result.message = message;
+    result.wall_time_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return result;
+  };
+
+  const DataKind kind = options.use_orientation ? DataKind::kPose : DataKind::kPosition;
+  CHECK_EQ(data.num_joints(), nominal.num_joints()) << "measurements do not match the model";
+  for (int r = 0; r < data.size(); ++r) {
+    CHECK(data.target(r) >= 0 && data.target(r) < nominal.num_tools()) << "bad target in row " << r;
+  }
+  if (options.use_orientation && !data.has_orientation()) {
+    return finish(Termination::kNotIdentifiable,
+                  "pose-based calibration needs measured orientations (quat_x..quat_w columns)");
+  }
+  result.parameterization = MakeParameterization(nominal, options.parameterization, kind);
+  const Parameterization& p = result.parameterization;
+  // Unknowns the data must determine: the identifiable count, whichever parameterization is solved.
+  const int identifiable = p.num_parameters - (options.parameterization == ParameterizationKind::kFull
+                                                   ? static_cast<int>(p.unidentifiable.size())
+                                                   : 0);
+  const int per_row = options.use_orientation ? 6 : 3;
+  const long equations = static_cast<long>(per_row) * data.size();
+  if (equations < identifiable) {
+    std::ostringstream os;
+    os << data.size() << " measurements give " << equations << " equations, fewer than the "
+       << identifiable << " identifiable parameters; at least "
+       << (identifiable + per_row - 1) / per_row
+       << " configurations are needed (several times that for a reliable calibration)";
+    return finish(Termination::kNotIdentifiable, os.str());
+  }
+
+  const bool stack = options.parameterization == ParameterizationKind::kFull;
+  RobotModel model = nominal;
+  Linearization lin = Linearize(model, data, p, options, stack);
+  if (!lin.finite) {
+    return finish(Termination::kNumericalFailure,
+                  "non-finite residuals or Jacobian at the nominal model (check the input values)");
+  }
+  result.history.push_back(Record(0, lin));
+
+  // Identifiability in the calibrated directions, at the nominal model. For the full
+  // parameterization this is analyzed in the identifiable basis (the full J^T J is singular by
+  // construction).
+  auto analyze = [&](const RobotModel& at, const Linearization& l) {
+    if (options.parameterization == ParameterizationKind::kIdentifiable) return Analyze(l.H);
+    LinearSolverOptions o = options;
+    o.parameterization = ParameterizationKind::kIdentifiable;
+    const Parameterization pi = MakeParameterization(at, o.parameterization, kind);
+    return Analyze(Linearize(at, data, pi, o, false).H);
+  };
+  {
+    const Identifiability id = analyze(model, lin);
+    result.rank = id.rank;
+    result.condition_number = id.condition;
+    result.singular_values = id.singular_values;
+    if (id.rank < identifiable || !(id.condition <= options.max_condition_number)) {
+      const Parameterization pi = MakeParameterization(nominal, ParameterizationKind::kIdentifiable,
+                                                       kind);
+      std::ostringstream os;
+      os << "the data cannot identify the model: the column-scaled Jacobian has rank " << id.rank
+         << " of " << identifiable << " and condition number " << id.condition << " (limit "
+         << options.max_condition_number << "); weakest directions: "
+         << WeakestDirections(pi, id.weakest)
+         << ". The poses are too few or too similar: measure configurations that move every joint";
+      return finish(Termination::kNotIdentifiable, os.str());
+    }
+  }
+
+  for (int it = 1; it <= options.max_iterations; ++it) {
+    const Eigen::VectorXd x = SolveStep(lin, options);
+    if (!x.allFinite()) {
+      return finish(Termination::kNumericalFailure,
+                    "the least-squares step is not finite (numerically singular normal equations)");
+    }
+    const double step = x.norm();
+    result.history.back().step_norm = step;
+    if (options.verbose) {
+      LOG(INFO) << "iteration " << it - 1 << ": max " << lin.max_error << " mm, mean "
+                << lin.mean_error << " mm, |x| " << step;
+    }
+    if (step < options.step_tolerance) {
+      result.model = model;
+      result.iterations = it - 1;
+      result.final_cost = lin.cost;
+      return finish(Termination::kConverged, "converged: |x| below the step tolerance");
+    }
+    // Gauss-Newton step with backtracking: a step that raises the cost is halved.
+    bool accepted = false;
+    double alpha = 1.0;
+    for (int h = 0; h <= kMaxHalvings && !accepted; ++h, alpha *= 0.5) {
+      RobotModel candidate = model;
+      ApplyUpdate(p, alpha * x, &candidate);
+      Linearization next = Linearize(candidate, data, p, options, stack);
+      if (next.finite && next.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
+        model = std::move(candidate);
+        lin = std::move(next);
+        accepted = true;
+      }
+    }
+    if (!accepted) {
+      result.model = model;
+      result.iterations = it - 1;
+      result.final_cost = lin.cost;
+      std::ostringstream os;
+      os << "no step along the least-squares direction reduces the cost (|x| = " << step
+         << "); the linearization is not valid here (check units, angle_unit and the base frame)";
+      return finish(Termination::kNumericalFailure, os.str());
+    }
+    result.history.push_back(Record(it, lin));
+  }
+  result.model = model;
+  result.iterations = options.max_iterations;
+  result.final_cost = lin.cost;
+  std::ostringstream os;
+  os << "not converged after " << options.max_iterations << " iterations (last |x| = "
+     << result.history.back().step_norm << ")";
+  return finish(Termination::kMaxIterations, os.str());
+}
+
+}  // namespace lpoe

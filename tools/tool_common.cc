@@ -1,0 +1,108 @@
+#include "tool_common.h"
+
+#include <cstdio>
+#include <cstdlib>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+
+#include <gflags/gflags.h>
+#include <glog/logging.h>
+
+DECLARE_bool(help);
+DECLARE_bool(helpfull);
+DECLARE_bool(helpshort);
+
+namespace lpoe {
+namespace tools {
+
+void InitTool(const char* usage, int* argc, char*** argv) {
+  gflags::SetUsageMessage(usage);
+  gflags::SetVersionString("0.1.0");
+  gflags::ParseCommandLineNonHelpFlags(argc, argv, /*remove_flags=*/true);
+  if (FLAGS_help || FLAGS_helpfull || FLAGS_helpshort) {
+    std::string name = (*argv)[0];
+    const size_t slash = name.find_last_of('/');
+    if (slash != std::string::npos) name = name.substr(slash + 1);
+    if (FLAGS_helpfull) {
+      gflags::ShowUsageWithFlags((*argv)[0]);
+    } else {
+      std::cout << gflags::ProgramUsage() << "\n\nFlags:\n";
+      std::vector<gflags::CommandLineFlagInfo> flags;
+      gflags::GetAllFlags(&flags);
+      for (const auto& f : flags) {
+        if (f.filename.find(name) == std::string::npos) continue;
+        std::cout << "  --" << f.name << " (" << f.description << ")\n      type: " << f.type
+                  << "  default: " << (f.type == "string" ? "\"" + f.default_value + "\""
+                                                            : f.default_value)
+                  << "\n";
+      }
+    }
+    std::exit(kExitOk);
+  }
+  gflags::HandleCommandLineHelpFlags();
+  FLAGS_logtostderr = true;
+  google::InitGoogleLogging((*argv)[0]);
+}
+
+std::string DataDir() {
+  if (const char* env = std::getenv("LPOE_DATA_DIR")) return env;
+  return LPOE_DATA_DIR;
+}
+
+bool ParseAngleUnit(const std::string& text, AngleUnit* unit) {
+  if (text == "rad") {
+    *unit = AngleUnit::kRadians;
+    return true;
+  }
+  if (text == "deg") {
+    *unit = AngleUnit::kDegrees;
+    return true;
+  }
+  return false;
+}
+
+int ExitCodeFor(Termination t) {
+  switch (t) {
+    case Termination::kConverged:
+      return kExitOk;
+    case Termination::kMaxIterations:
+      return kExitNotConverged;
+    case Termination::kNotIdentifiable:
+      return kExitNotIdentifiable;
+    case Termination::kNumericalFailure:
+      return kExitNumerical;
+  }
+  return kExitNumerical;
+}
+
+void PrintIterationTable(std::ostream& os, const CalibrationResult& result) {
+  char line[160];
+  os << "iteration   max error [mm]   mean error [mm]        cost        |x|\n";
+  for (const IterationRecord& r : result.history) {
+    std::snprintf(line, sizeof(line), "%9d %16.6f %17.6f %11.4e %10.3e\n", r.iteration,
+                  r.max_error, r.mean_error, r.cost, r.step_norm);
+    os << line;
+  }
+}
+
+void PrintBeforeAfter(std::ostream& os, const std::string& title, const ErrorStatistics& before,
+                      const ErrorStatistics& after) {
+  char line[200];
+  os << title << " (" << after.count << " points), |measured - predicted| in mm\n";
+  os << "        |        before calibration          |         after calibration\n";
+  os << "  axis  |    max      mean       rms      p95  |    max      mean       rms      p95\n";
+  const char* names[4] = {"x", "y", "z", "norm"};
+  for (int a = 0; a < 4; ++a) {
+    const AxisStatistics& b = a < 3 ? before.axis[a] : before.norm;
+    const AxisStatistics& c = a < 3 ? after.axis[a] : after.norm;
+    std::snprintf(line, sizeof(line),
+                  "  %-5s | %8.4f %8.4f %8.4f %8.4f | %8.4f %8.4f %8.4f %8.4f\n", names[a],
+                  b.max_abs, b.mean_abs, b.rms, b.p95_abs, c.max_abs, c.mean_abs, c.rms,
+                  c.p95_abs);
+    os << line;
+  }
+}
+
+}  // namespace tools
+}  // namespace lpoe

@@ -1,0 +1,50 @@
+// Shared pieces of the command-line tools: exit codes, --help handling, tables.
+#ifndef LPOE_TOOLS_TOOL_COMMON_H_
+#define LPOE_TOOLS_TOOL_COMMON_H_
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "lpoe/calibration.h"
+#include "lpoe/io.h"
+#include "lpoe/statistics.h"
+
+namespace lpoe {
+namespace tools {
+
+// Exit codes of every tool (documented in the README).
+enum ExitCode {
+  kExitOk = 0,
+  kExitUsage = 1,            // bad or conflicting flags
+  kExitInput = 2,            // an input file is missing or malformed
+  kExitNotIdentifiable = 3,  // the data cannot identify the model
+  kExitNotConverged = 4,     // iteration limit reached
+  kExitNumerical = 5,        // non-finite values or a step that cannot reduce the cost
+  kExitOutput = 6,           // an output file could not be written
+  kExitDisagree = 7,         // lpoe_compare: the solvers disagree
+};
+
+// Parses flags; on --help / --helpfull prints the usage message and this tool's flags only and
+// exits 0. Initializes glog to stderr.
+void InitTool(const char* usage, int* argc, char*** argv);
+
+// The directory of the shipped data (data/ in the source tree).
+std::string DataDir();
+
+bool ParseAngleUnit(const std::string& text, AngleUnit* unit);
+
+// Exit code for a calibration termination.
+int ExitCodeFor(Termination t);
+
+// Prints the convergence history (the paper's Fig. 6).
+void PrintIterationTable(std::ostream& os, const CalibrationResult& result);
+
+// Prints before/after statistics per axis and norm.
+void PrintBeforeAfter(std::ostream& os, const std::string& title, const ErrorStatistics& before,
+                      const ErrorStatistics& after);
+
+}  // namespace tools
+}  // namespace lpoe
+
+#endif  // LPOE_TOOLS_TOOL_COMMON_H_
