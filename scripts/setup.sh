@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Installs the Debian packages lpoe-calib needs. Idempotent: does nothing (quietly) when they are
+# all there. Runs apt-get through sudo when not root.
+set -euo pipefail
+
+PACKAGES=(
+  cmake g++ make
+  libeigen3-dev libceres-dev libgoogle-glog-dev libgflags-dev
+  libyaml-cpp-dev          # robot model files (YAML with line numbers in errors)
+  libgtest-dev libbenchmark-dev
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "setup: installing ${missing[*]}" >&2
+$SUDO apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
