@@ -7,6 +7,7 @@
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -21,8 +22,6 @@
 #include <system_error>
 #include <utility>
 #include <vector>
-
-#include <yaml-cpp/yaml.h>
 
 namespace lpoe {
 namespace {
@@ -120,10 +119,11 @@ void AppendNumber(double v, std::string* out) {
   out->append(buf, r.ptr);
 }
 
-std::string NumberString(double v) {
-  std::string s;
-  AppendNumber(v, &s);
-  return s;
+// Short form for messages.
+std::string ShortNumber(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", v);
+  return buf;
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -165,9 +165,11 @@ class ModelYamlReader {
     const MapEntry* tools = Find(top, "tools");
     if (name == nullptr) return Error(root_line, "missing key 'name'", "name: <robot name>");
     if (joints == nullptr) {
-      return Error(root_line, "missing key 'joints'", "a list 'joints:' of revolute/prismatic joints");
+      return Error(root_line, "missing key 'joints'",
+                   "a list 'joints:' of revolute/prismatic joints");
     }
-    if (tools == nullptr) return Error(root_line, "missing key 'tools'", "a list 'tools:' of tool frames");
+    if (tools == nullptr)
+      return Error(root_line, "missing key 'tools'", "a list 'tools:' of tool frames");
 
     RobotModel out;
     s = ReadString(*name, /*allow_empty=*/true, &out.name);
@@ -183,8 +185,9 @@ class ModelYamlReader {
       if (!s.ok()) return s;
       for (size_t k = 0; k < out.joints.size(); ++k) {
         if (out.joints[k].name == joint.name) {
-          return Error(line, "duplicate joint name " + Quote(joint.name) + " (first on line " +
-                                 std::to_string(joint_lines[k]) + ")",
+          return Error(line,
+                       "duplicate joint name " + Quote(joint.name) + " (first on line " +
+                           std::to_string(joint_lines[k]) + ")",
                        "unique joint names");
         }
       }
@@ -202,15 +205,17 @@ class ModelYamlReader {
       if (!s.ok()) return s;
       for (size_t k = 0; k < out.tools.size(); ++k) {
         if (out.tools[k].name == tool.name) {
-          return Error(line, "duplicate tool name " + Quote(tool.name) + " (first on line " +
-                                 std::to_string(tool_lines[k]) + ")",
+          return Error(line,
+                       "duplicate tool name " + Quote(tool.name) + " (first on line " +
+                           std::to_string(tool_lines[k]) + ")",
                        "unique tool names");
         }
       }
       for (size_t k = 0; k < out.joints.size(); ++k) {
         if (out.joints[k].name == tool.name) {
-          return Error(line, "tool name " + Quote(tool.name) + " is also the name of the joint on line " +
-                                 std::to_string(joint_lines[k]),
+          return Error(line,
+                       "tool name " + Quote(tool.name) + " is also the name of the joint on line " +
+                           std::to_string(joint_lines[k]),
                        "names unique across joints and tools");
         }
       }
@@ -242,7 +247,8 @@ class ModelYamlReader {
                  std::vector<MapEntry>* out) const {
     const int line = LineOf(node, fallback_line);
     if (!node.IsMap()) {
-      return Error(line, what + " is not a mapping", std::string("a mapping with keys ") + allowed_text);
+      return Error(line, what + " is not a mapping",
+                   std::string("a mapping with keys ") + allowed_text);
     }
     out->clear();
     for (YAML::const_iterator it = node.begin(); it != node.end(); ++it) {
@@ -262,8 +268,9 @@ class ModelYamlReader {
       }
       for (const MapEntry& prev : *out) {
         if (prev.key == e.key) {
-          return Error(e.line, "duplicate key " + Quote(e.key) + " in " + what +
-                                   " (first on line " + std::to_string(prev.line) + ")",
+          return Error(e.line,
+                       "duplicate key " + Quote(e.key) + " in " + what + " (first on line " +
+                           std::to_string(prev.line) + ")",
                        "each key once");
         }
       }
@@ -272,7 +279,8 @@ class ModelYamlReader {
     return Status::Ok();
   }
 
-  Status ReadList(const MapEntry& entry, const std::string& item, const std::string& expected) const {
+  Status ReadList(const MapEntry& entry, const std::string& item,
+                  const std::string& expected) const {
     const int line = LineOf(entry.value, entry.line);
     if (!entry.value.IsSequence()) {
       return Error(line, "'" + entry.key + "' is not a list", "a non-empty list of " + expected);
@@ -286,7 +294,8 @@ class ModelYamlReader {
   Status ReadString(const MapEntry& entry, bool allow_empty, std::string* out) const {
     const int line = LineOf(entry.value, entry.line);
     if (!entry.value.IsScalar()) {
-      return Error(line, "'" + entry.key + "' is not a string", "a name such as " + entry.key + ": joint1");
+      return Error(line, "'" + entry.key + "' is not a string",
+                   "a name such as " + entry.key + ": joint1");
     }
     *out = entry.value.Scalar();
     if (!allow_empty && out->empty()) {
@@ -302,7 +311,8 @@ class ModelYamlReader {
       case NumberParse::kOk:
         return Status::Ok();
       case NumberParse::kNonFinite:
-        return Error(line, what + " is not finite (" + Quote(text) + ")", "a finite decimal number");
+        return Error(line, what + " is not finite (" + Quote(text) + ")",
+                     "a finite decimal number");
       case NumberParse::kNotANumber:
         break;
     }
@@ -317,11 +327,13 @@ class ModelYamlReader {
       const std::string got = entry.value.IsSequence()
                                   ? "a list of " + std::to_string(entry.value.size())
                                   : std::string("not a list");
-      return Error(line, what + " is " + got, "a list of " + std::to_string(n) + " numbers " + expected);
+      return Error(line, what + " is " + got,
+                   "a list of " + std::to_string(n) + " numbers " + expected);
     }
     for (int i = 0; i < n; ++i) {
       const YAML::Node item = entry.value[i];
-      Status s = ReadNumber(item, LineOf(item, line), what + " entry " + std::to_string(i + 1), &out[i]);
+      Status s =
+          ReadNumber(item, LineOf(item, line), what + " entry " + std::to_string(i + 1), &out[i]);
       if (!s.ok()) return s;
     }
     return Status::Ok();
@@ -330,7 +342,8 @@ class ModelYamlReader {
   Status ReadOrigin(const MapEntry& entry, SE3d* origin) const {
     const int line = LineOf(entry.value, entry.line);
     std::vector<MapEntry> keys;
-    Status s = ReadMap(entry.value, line, "'origin'", {"xyz", "rpy", "quaternion"}, kOriginKeys, &keys);
+    Status s =
+        ReadMap(entry.value, line, "'origin'", {"xyz", "rpy", "quaternion"}, kOriginKeys, &keys);
     if (!s.ok()) return s;
     const MapEntry* xyz = Find(keys, "xyz");
     const MapEntry* rpy = Find(keys, "rpy");
@@ -356,10 +369,9 @@ class ModelYamlReader {
       if (!s.ok()) return s;
       const double norm = q.norm();
       if (!(std::abs(norm - 1.0) <= kQuaternionNormTolerance)) {
-        return Error(LineOf(quat->value, quat->line),
-                     "'quaternion' has norm " + NumberString(norm),
+        return Error(LineOf(quat->value, quat->line), "'quaternion' has norm " + ShortNumber(norm),
                      "a unit quaternion [x, y, z, w] (norm within " +
-                         NumberString(kQuaternionNormTolerance) + " of 1)");
+                         ShortNumber(kQuaternionNormTolerance) + " of 1)");
       }
       out.R = QuaternionToRotation<double>(q / norm);
     } else {
@@ -376,14 +388,16 @@ class ModelYamlReader {
     if (type == JointType::kRevolute) {
       if (std::abs(w.norm() - 1.0) > kTwistTolerance ||
           std::abs(w.dot(v)) > kTwistTolerance * std::max(1.0, v.norm())) {
-        return Error(line, "the twist of a revolute joint has |omega| = " + NumberString(w.norm()) +
-                               " and omega . v = " + NumberString(w.dot(v)),
+        return Error(line,
+                     "the twist of a revolute joint has |omega| = " + ShortNumber(w.norm()) +
+                         " and omega . v = " + ShortNumber(w.dot(v)),
                      "|omega| = 1 and omega . v = 0 (twist is [omega, v])");
       }
     } else {
       if (w.norm() > kTwistTolerance || std::abs(v.norm() - 1.0) > kTwistTolerance) {
-        return Error(line, "the twist of a prismatic joint has |omega| = " + NumberString(w.norm()) +
-                               " and |v| = " + NumberString(v.norm()),
+        return Error(line,
+                     "the twist of a prismatic joint has |omega| = " + ShortNumber(w.norm()) +
+                         " and |v| = " + ShortNumber(v.norm()),
                      "omega = 0 and |v| = 1 (twist is [omega, v])");
       }
     }
@@ -394,7 +408,8 @@ class ModelYamlReader {
     const int line = LineOf(node, fallback_line);
     *joint_line = line;
     std::vector<MapEntry> keys;
-    Status s = ReadMap(node, line, "a joint", {"name", "type", "origin", "twist"}, kJointKeys, &keys);
+    Status s =
+        ReadMap(node, line, "a joint", {"name", "type", "origin", "twist"}, kJointKeys, &keys);
     if (!s.ok()) return s;
     const MapEntry* name = Find(keys, "name");
     const MapEntry* type = Find(keys, "type");
@@ -409,7 +424,8 @@ class ModelYamlReader {
       return Error(line, who + " has no 'origin'", "origin: {xyz: [x, y, z], rpy: [r, p, y]}");
     }
     const int type_line = LineOf(type->value, type->line);
-    if (!type->value.IsScalar()) return Error(type_line, who + ": 'type' is not a name", "revolute or prismatic");
+    if (!type->value.IsScalar())
+      return Error(type_line, who + ": 'type' is not a name", "revolute or prismatic");
     const std::string& t = type->value.Scalar();
     if (t == "revolute") {
       joint->type = JointType::kRevolute;
@@ -465,9 +481,10 @@ std::string YamlName(const std::string& name) {
   if (plain) {
     // Words YAML would read as null, booleans or special floats, and leading characters that start
     // other tokens.
-    static const char* const kSpecial[] = {"null", "Null", "NULL", "true", "True", "TRUE", "false",
-                                           "False", "FALSE", "yes", "Yes", "YES", "no", "No", "NO",
-                                           "on", "On", "ON", "off", "Off", "OFF", "y", "Y", "n", "N"};
+    static const char* const kSpecial[] = {
+        "null", "Null", "NULL", "true", "True", "TRUE", "false", "False", "FALSE",
+        "yes",  "Yes",  "YES",  "no",   "No",   "NO",   "on",    "On",    "ON",
+        "off",  "Off",  "OFF",  "y",    "Y",    "n",    "N"};
     for (const char* w : kSpecial) plain = plain && name != w;
     plain = plain && name[0] != '-' && name[0] != '.';
   }
@@ -509,7 +526,8 @@ void AppendOrigin(const SE3d& origin, std::string* out) {
   // rpy for humans only; the reader ignores comments and the quaternion is what round-trips.
   const Eigen::Vector3d rpy = RpyFromRotation(origin.R);
   char buf[96];
-  std::snprintf(buf, sizeof(buf), "  # rpy: [%.9g, %.9g, %.9g]", rpy(0), rpy(1), rpy(2));
+  std::snprintf(buf, sizeof(buf), "  # rpy: [%.9g, %.9g, %.9g]", rpy(0) + 0.0, rpy(1) + 0.0,
+                rpy(2) + 0.0);  // + 0.0 turns -0 into 0
   *out += buf;
   *out += '\n';
 }
@@ -590,7 +608,8 @@ class CsvHeader {
       }
       int* slot = nullptr;
       if (lower.size() >= 2 && lower[0] == 'q' && lower[1] >= '1' && lower[1] <= '9' &&
-          std::all_of(lower.begin() + 1, lower.end(), [](char ch) { return ch >= '0' && ch <= '9'; })) {
+          std::all_of(lower.begin() + 1, lower.end(),
+                      [](char ch) { return ch >= '0' && ch <= '9'; })) {
         int k = 0;
         const auto r = std::from_chars(lower.data() + 1, lower.data() + lower.size(), k);
         if (r.ec != std::errc() || k > num_joints) {
@@ -641,13 +660,14 @@ class CsvHeader {
       if (xyz_column[a] < 0) add_missing(std::string(1, static_cast<char>('x' + a)));
     }
     if (!missing.empty()) {
-      return LineError(source, line_number, "missing column" +
-                                                std::string(missing.find(',') != std::string::npos ? "s " : " ") +
-                                                missing,
+      return LineError(source, line_number,
+                       "missing column" +
+                           std::string(missing.find(',') != std::string::npos ? "s " : " ") +
+                           missing,
                        expected);
     }
-    const int num_quat = static_cast<int>(std::count_if(quat_column, quat_column + 4,
-                                                        [](int c) { return c >= 0; }));
+    const int num_quat =
+        static_cast<int>(std::count_if(quat_column, quat_column + 4, [](int c) { return c >= 0; }));
     if (num_quat != 0 && num_quat != 4) {
       for (int k = 0; k < 4; ++k) {
         if (quat_column[k] < 0) add_missing(kQuatNames[k]);
@@ -767,9 +787,11 @@ Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
   return ParseMeasurementsCsv(text, source, model, unit, data, nullptr);
 }
 
-Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
-                            const RobotModel& model, AngleUnit unit, MeasurementSet* data,
-                            CsvReadReport* report) {
+namespace {
+
+Status ParseMeasurementsCsvImpl(const std::string& text, const std::string& source,
+                                const RobotModel& model, AngleUnit unit, MeasurementSet* data,
+                                CsvReadReport* report) {
   const int n = model.num_joints();
   std::string_view rest(text);
   if (rest.size() >= 3 && rest.substr(0, 3) == "\xEF\xBB\xBF") rest.remove_prefix(3);
@@ -787,8 +809,11 @@ Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
   int header_line = 0;
   int line_number = 0;
   MeasurementSet out(n);
-  out.Reserve(static_cast<int>(std::min<size_t>(
-      std::count(rest.begin(), rest.end(), '\n') + 1, static_cast<size_t>(1) << 30)));
+  // One row per line at most, and a row has at least n + 3 one-character fields and their commas:
+  // the second bound keeps a file of blank lines from reserving gigabytes.
+  const size_t max_rows = std::min<size_t>(std::count(rest.begin(), rest.end(), '\n') + 1,
+                                           rest.size() / (2 * static_cast<size_t>(n + 3)) + 1);
+  out.Reserve(static_cast<int>(std::min<size_t>(max_rows, static_cast<size_t>(1) << 30)));
   CsvReadReport local_report;
 
   std::vector<std::string_view> fields;
@@ -815,8 +840,7 @@ Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
     SplitFields(line, &fields);
     const std::vector<Column>& columns = header.columns();
     if (fields.size() != columns.size()) {
-      return LineError(source, line_number,
-                       std::to_string(fields.size()) + " fields",
+      return LineError(source, line_number, std::to_string(fields.size()) + " fields",
                        std::to_string(columns.size()) + " as in the header on line " +
                            std::to_string(header_line));
     }
@@ -827,8 +851,7 @@ Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
       if (col.kind == ColumnKind::kTarget) {
         target = ResolveTarget(field, model);
         if (target < 0) {
-          return LineError(source, line_number,
-                           "column 'target': unknown tool " + Quote(field),
+          return LineError(source, line_number, "column 'target': unknown tool " + Quote(field),
                            "a tool name (" + ToolList(model) + ") or an index from 0 to " +
                                std::to_string(model.num_tools() - 1));
         }
@@ -847,9 +870,10 @@ Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
       switch (col.kind) {
         case ColumnKind::kQ:
           if (std::abs(v) > kMaxAbsJointValue) {
-            return LineError(source, line_number,
-                             "column " + Quote(col.name) + ": value " + Quote(field) + " is absurd",
-                             "|q| <= " + NumberString(kMaxAbsJointValue));
+            return LineError(
+                source, line_number,
+                "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
+                "a joint value of magnitude at most " + ShortNumber(kMaxAbsJointValue));
           }
           q[col.joint] = v * scale[col.joint];
           break;
@@ -857,9 +881,10 @@ Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
         case ColumnKind::kY:
         case ColumnKind::kZ:
           if (std::abs(v) > kMaxAbsPositionMm) {
-            return LineError(source, line_number,
-                             "column " + Quote(col.name) + ": value " + Quote(field) + " is absurd",
-                             "a position in mm with magnitude <= " + NumberString(kMaxAbsPositionMm));
+            return LineError(
+                source, line_number,
+                "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
+                "a position of magnitude at most " + ShortNumber(kMaxAbsPositionMm) + " mm");
           }
           position(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kX)) = v;
           break;
@@ -882,8 +907,7 @@ Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
     if (header.has_orientation()) {
       const double norm = quat.norm();
       if (!(norm >= kMinMeasuredQuaternionNorm) || !std::isfinite(norm)) {
-        return LineError(source, line_number,
-                         "quat_x..quat_w have norm " + NumberString(norm),
+        return LineError(source, line_number, "quat_x..quat_w have norm " + ShortNumber(norm),
                          "a unit quaternion (norm near 1)");
       }
       out.AddPose(q.data(), SE3d(QuaternionToRotation<double>(quat / norm), position), target,
@@ -894,8 +918,9 @@ Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
   }
 
   if (!have_header) {
-    return LineError(source, std::max(line_number, 1), "no header line (the file is empty)",
-                     "a header with columns " + ExpectedColumns(n) + ", then one row per measurement");
+    return LineError(
+        source, std::max(line_number, 1), "no header line (the file is empty)",
+        "a header with columns " + ExpectedColumns(n) + ", then one row per measurement");
   }
   if (out.empty()) {
     const std::string skipped =
@@ -908,6 +933,19 @@ Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
   *data = std::move(out);
   if (report != nullptr) *report = std::move(local_report);
   return Status::Ok();
+}
+
+}  // namespace
+
+Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
+                            const RobotModel& model, AngleUnit unit, MeasurementSet* data,
+                            CsvReadReport* report) {
+  try {
+    return ParseMeasurementsCsvImpl(text, source, model, unit, data, report);
+  } catch (const std::exception& e) {  // std::bad_alloc on absurdly large input
+    return LineError(source, 1, std::string("cannot read the measurements: ") + e.what(),
+                     "a measurements CSV that fits in memory");
+  }
 }
 
 Status ReadMeasurements(const std::string& path, const RobotModel& model, AngleUnit unit,
@@ -994,7 +1032,8 @@ Status WriteFileAtomically(const std::string& path, const std::string& contents)
   const int fd = ::mkstemp(&tmp[0]);
   if (fd < 0) {
     const int err = errno;
-    return Status::Error(path + ": cannot create a temporary file " + tmp + ": " + std::strerror(err));
+    return Status::Error(path + ": cannot create a temporary file " + tmp + ": " +
+                         std::strerror(err));
   }
   auto fail = [&](const char* what, int err) {
     ::close(fd);
@@ -1029,7 +1068,9 @@ Status WriteFileAtomically(const std::string& path, const std::string& contents)
   }
   // Make the rename itself durable (best effort: some file systems refuse to open directories).
   const size_t slash = path.rfind('/');
-  const std::string dir = slash == std::string::npos ? "." : slash == 0 ? "/" : path.substr(0, slash);
+  const std::string dir = slash == std::string::npos ? "."
+                          : slash == 0               ? "/"
+                                                     : path.substr(0, slash);
   const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dfd >= 0) {
     ::fsync(dfd);
@@ -1038,32 +1079,57 @@ Status WriteFileAtomically(const std::string& path, const std::string& contents)
   return Status::Ok();
 }
 
-Status ReadFile(const std::string& path, std::string* contents) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) {
+namespace {
+
+// Closes a descriptor on every path out, exceptions included.
+class FileDescriptor {
+ public:
+  explicit FileDescriptor(int fd) : fd_(fd) {}
+  ~FileDescriptor() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  FileDescriptor(const FileDescriptor&) = delete;
+  FileDescriptor& operator=(const FileDescriptor&) = delete;
+  int get() const { return fd_; }
+
+ private:
+  int fd_;
+};
+
+Status ReadFileImpl(const std::string& path, std::string* contents) {
+  const FileDescriptor fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+  if (fd.get() < 0) {
     const int err = errno;
     return Status::Error(path + ": cannot open: " + std::strerror(err));
   }
   std::string text;
   struct stat st;
-  if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
+  if (::fstat(fd.get(), &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
     text.reserve(static_cast<size_t>(st.st_size));
   }
   char buf[1 << 16];
   while (true) {
-    const ssize_t r = ::read(fd, buf, sizeof(buf));
+    const ssize_t r = ::read(fd.get(), buf, sizeof(buf));
     if (r < 0) {
       if (errno == EINTR) continue;
       const int err = errno;
-      ::close(fd);
       return Status::Error(path + ": cannot read: " + std::strerror(err));
     }
     if (r == 0) break;
     text.append(buf, static_cast<size_t>(r));
   }
-  ::close(fd);
   *contents = std::move(text);
   return Status::Ok();
+}
+
+}  // namespace
+
+Status ReadFile(const std::string& path, std::string* contents) {
+  try {
+    return ReadFileImpl(path, contents);
+  } catch (const std::exception& e) {  // std::bad_alloc on a file larger than memory
+    return Status::Error(path + ": cannot read: " + e.what());
+  }
 }
 
 }  // namespace lpoe

@@ -138,9 +138,9 @@ std::string WeakestDirections(const Parameterization& p, const Eigen::VectorXd& 
 }
 
 // Least-squares step x of J x = y.
-Eigen::VectorXd SolveStep(const Linearization& lin, const LinearSolverOptions& options) {
+Eigen::VectorXd SolveStep(const Linearization& lin, bool full, const LinearSolverOptions& options) {
   const Eigen::VectorXd d = ColumnScale(lin.H);
-  if (options.parameterization == ParameterizationKind::kFull) {
+  if (full) {
     // Minimum-norm solution of the rank-deficient system (the paper's eq. (32) read as a
     // pseudo-inverse), on the column-scaled stacked Jacobian for accuracy.
     const Eigen::MatrixXd Js = lin.J * d.asDiagonal();
@@ -203,12 +203,15 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     return finish(Termination::kNotIdentifiable,
                   "pose-based calibration needs measured orientations (quat_x..quat_w columns)");
   }
-  result.parameterization = MakeParameterization(nominal, options.parameterization, kind);
+  const bool override_basis = options.parameterization_override != nullptr;
+  result.parameterization = override_basis
+                                ? *options.parameterization_override
+                                : MakeParameterization(nominal, options.parameterization, kind);
   const Parameterization& p = result.parameterization;
+  const bool full = !override_basis && options.parameterization == ParameterizationKind::kFull;
   // Unknowns the data must determine: the identifiable count, whichever parameterization is solved.
-  const int identifiable = p.num_parameters - (options.parameterization == ParameterizationKind::kFull
-                                                   ? static_cast<int>(p.unidentifiable.size())
-                                                   : 0);
+  const int identifiable =
+      p.num_parameters - (full ? static_cast<int>(p.unidentifiable.size()) : 0);
   const int per_row = options.use_orientation ? 6 : 3;
   const long equations = static_cast<long>(per_row) * data.size();
   if (equations < identifiable) {
@@ -220,7 +223,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     return finish(Termination::kNotIdentifiable, os.str());
   }
 
-  const bool stack = options.parameterization == ParameterizationKind::kFull;
+  const bool stack = full;
   RobotModel model = nominal;
   Linearization lin = Linearize(model, data, p, options, stack);
   if (!lin.finite) {
@@ -233,7 +236,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   // parameterization this is analyzed in the identifiable basis (the full J^T J is singular by
   // construction).
   auto analyze = [&](const RobotModel& at, const Linearization& l) {
-    if (options.parameterization == ParameterizationKind::kIdentifiable) return Analyze(l.H);
+    if (!full) return Analyze(l.H);
     LinearSolverOptions o = options;
     o.parameterization = ParameterizationKind::kIdentifiable;
     const Parameterization pi = MakeParameterization(at, o.parameterization, kind);
@@ -245,8 +248,8 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     result.condition_number = id.condition;
     result.singular_values = id.singular_values;
     if (id.rank < identifiable || !(id.condition <= options.max_condition_number)) {
-      const Parameterization pi = MakeParameterization(nominal, ParameterizationKind::kIdentifiable,
-                                                       kind);
+      const Parameterization pi =
+          full ? MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind) : p;
       std::ostringstream os;
       os << "the data cannot identify the model: the column-scaled Jacobian has rank " << id.rank
          << " of " << identifiable << " and condition number " << id.condition << " (limit "
@@ -258,7 +261,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   }
 
   for (int it = 1; it <= options.max_iterations; ++it) {
-    const Eigen::VectorXd x = SolveStep(lin, options);
+    const Eigen::VectorXd x = SolveStep(lin, full, options);
     if (!x.allFinite()) {
       return finish(Termination::kNumericalFailure,
                     "the least-squares step is not finite (numerically singular normal equations)");
@@ -273,6 +276,16 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       result.model = model;
       result.iterations = it - 1;
       result.final_cost = lin.cost;
+      if (options.compute_covariance && !full) {
+        const long dof = static_cast<long>(per_row) * data.size() - p.num_parameters;
+        if (dof > 0) {
+          const double s2 = 2.0 * lin.cost / static_cast<double>(dof);
+          const Eigen::VectorXd d = ColumnScale(lin.H);
+          const Eigen::MatrixXd Hs = d.asDiagonal() * lin.H * d.asDiagonal();
+          const Eigen::MatrixXd inv = Hs.llt().solve(Eigen::MatrixXd::Identity(Hs.rows(), Hs.cols()));
+          result.covariance = s2 * (d.asDiagonal() * inv * d.asDiagonal());
+        }
+      }
       return finish(Termination::kConverged, "converged: |x| below the step tolerance");
     }
     // Gauss-Newton step with backtracking: a step that raises the cost is halved.
@@ -304,7 +317,8 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   result.final_cost = lin.cost;
   std::ostringstream os;
   os << "not converged after " << options.max_iterations << " iterations (last |x| = "
-     << result.history.back().step_norm << ")";
+     << result.history[result.history.size() - 2].step_norm << ", tolerance "
+     << options.step_tolerance << ")";
   return finish(Termination::kMaxIterations, os.str());
 }
 

@@ -36,8 +36,8 @@ struct CsvReadReport {
   int skipped_zero_rows = 0;
   std::vector<int> skipped_lines;
 };
-// As above, and fills `report` (may be null). The overload without a report forwards here with null.
-// On error `data` and `report` are left unchanged.
+// As above, and fills `report` (may be null). The overload without a report forwards here with
+// null. On error `data` and `report` are left unchanged.
 Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
                             const RobotModel& model, AngleUnit unit, MeasurementSet* data,
                             CsvReadReport* report);

@@ -36,6 +36,12 @@ struct LinearSolverOptions {
   double pseudo_inverse_tolerance = 1e-9;
   // Print one line per iteration to stderr (LOG(INFO)).
   bool verbose = false;
+  // Solve only these directions instead of `parameterization` (e.g. the base and tool frames during
+  // registration, see registration.h). Not owned; must outlive the call.
+  const Parameterization* parameterization_override = nullptr;
+  // Estimate the covariance of the identified parameters at the solution:
+  // s^2 (J^T J)^-1 with the a-posteriori variance factor s^2 = |y|^2 / (rows - parameters).
+  bool compute_covariance = true;
 };
 
 CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSet& data,

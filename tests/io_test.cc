@@ -1,0 +1,581 @@
+// Tests of the file formats (DESIGN.md section 5): YAML robot models and CSV measurements, their
+// round trips, and the error messages on malformed input (tests/data/bad/, listed in MANIFEST).
+#include "lpoe/io.h"
+
+#include <gtest/gtest.h>
+#include <stdlib.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "lpoe/kinematics.h"
+#include "lpoe/measurements.h"
+#include "lpoe/robot_model.h"
+#include "lpoe/se3.h"
+
+namespace lpoe {
+namespace {
+
+namespace fs = std::filesystem;
+
+// DESIGN.md section 5: a written model reproduces forward kinematics to this after a round trip.
+constexpr double kRoundTripToleranceMm = 1e-9;
+// Rotations go through a quaternion with 17 digits: a few ulps.
+constexpr double kRotationRoundTripTolerance = 1e-14;
+// rpy and quaternion spellings of one rotation, both written with 17 digits.
+constexpr double kRpyQuaternionTolerance = 1e-14;
+constexpr int kRandomConfigurations = 200;
+constexpr double kPrismaticRangeMm = 200.0;
+// Parsing speed: 10^6 rows well under a second (checked in optimized builds only).
+constexpr int kSpeedRows = 1000000;
+constexpr double kMaxSecondsForSpeedRows = 1.0;
+constexpr int kMinBadFiles = 20;
+
+const std::string kBadDir = std::string(LPOE_TEST_DATA_DIR) + "/bad";
+
+std::vector<double> RandomQ(const RobotModel& model, std::mt19937* rng) {
+  std::uniform_real_distribution<double> angle(-M_PI, M_PI);
+  std::uniform_real_distribution<double> slide(-kPrismaticRangeMm, kPrismaticRangeMm);
+  std::vector<double> q(model.num_joints());
+  for (int j = 0; j < model.num_joints(); ++j) {
+    q[j] = model.joints[j].type == JointType::kPrismatic ? slide(*rng) : angle(*rng);
+  }
+  return q;
+}
+
+// cobot6 with joint 3 made prismatic along a tilted direction, joint 1 turning about a tilted axis
+// that does not pass through its frame origin, and a second, rotated tool whose name needs quoting.
+RobotModel MakeModelWithPrismaticAndTiltedTwist() {
+  RobotModel m = MakeCobot6();
+  m.name = "cobot6 variant";
+  m.joints[2].type = JointType::kPrismatic;
+  m.joints[2].twist << 0, 0, 0, 0.6, 0, 0.8;
+  const Eigen::Vector3d omega(0, std::sin(0.01), std::cos(0.01));
+  const Eigen::Vector3d point(5, -3, 0);
+  m.joints[0].twist.head<3>() = omega;
+  m.joints[0].twist.tail<3>() = -omega.cross(point);
+  m.tools.push_back(Tool{"smr #2: side", SE3d(RotationFromRpy(0.3, -1.2, 2.9),
+                                              Eigen::Vector3d(10.5, -20.25, 30.125))});
+  return m;
+}
+
+void ExpectSameKinematics(const RobotModel& expected, const RobotModel& actual, unsigned seed) {
+  ASSERT_EQ(expected.num_joints(), actual.num_joints());
+  ASSERT_EQ(expected.num_tools(), actual.num_tools());
+  EXPECT_EQ(expected.name, actual.name);
+  for (int j = 0; j < expected.num_joints(); ++j) {
+    EXPECT_EQ(expected.joints[j].name, actual.joints[j].name);
+    EXPECT_EQ(expected.joints[j].type, actual.joints[j].type);
+    EXPECT_EQ(expected.joints[j].twist, actual.joints[j].twist) << "joint " << j;
+    EXPECT_EQ(expected.joints[j].origin.t, actual.joints[j].origin.t) << "joint " << j;
+    EXPECT_LE((expected.joints[j].origin.R - actual.joints[j].origin.R).norm(),
+              kRotationRoundTripTolerance);
+  }
+  std::mt19937 rng(seed);
+  double worst_mm = 0;
+  for (int k = 0; k < kRandomConfigurations; ++k) {
+    const std::vector<double> q = RandomQ(expected, &rng);
+    for (int t = 0; t < expected.num_tools(); ++t) {
+      EXPECT_EQ(expected.tools[t].name, actual.tools[t].name);
+      const SE3d a = ToolPose(expected, q.data(), t);
+      const SE3d b = ToolPose(actual, q.data(), t);
+      worst_mm = std::max(worst_mm, (a.t - b.t).norm());
+      EXPECT_LE((a.R - b.R).norm(), kRotationRoundTripTolerance);
+    }
+  }
+  EXPECT_LE(worst_mm, kRoundTripToleranceMm);
+}
+
+// A scratch directory, removed at the end of the test.
+class ScratchDir {
+ public:
+  ScratchDir() {
+    std::string tmpl = (fs::temp_directory_path() / "lpoe_io_test.XXXXXX").string();
+    if (::mkdtemp(&tmpl[0]) != nullptr) path_ = tmpl;
+  }
+  ~ScratchDir() {
+    std::error_code ec;
+    if (!path_.empty()) fs::remove_all(path_, ec);
+  }
+  const std::string& path() const { return path_; }
+  std::vector<std::string> Entries() const {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(path_))
+      names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+
+ private:
+  std::string path_;
+};
+
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+MeasurementSet SimulatedMeasurements(const RobotModel& model, int rows, bool pose, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0, 0.02);
+  MeasurementSet data(model.num_joints());
+  for (int r = 0; r < rows; ++r) {
+    const std::vector<double> q = RandomQ(model, &rng);
+    const int tool = r % model.num_tools();
+    SE3d X = ToolPose(model, q.data(), tool);
+    X.t += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    if (pose) {
+      data.AddPose(q.data(), X, tool);
+    } else {
+      data.Add(q.data(), X.t, tool);
+    }
+  }
+  return data;
+}
+
+TEST(Io, YamlRoundTripCobot6) {
+  const RobotModel model = MakeCobot6();
+  const std::string yaml = RobotModelToYaml(model);
+  RobotModel back;
+  const Status s = ParseRobotModelYaml(yaml, "cobot6.yaml", &back);
+  ASSERT_TRUE(s.ok()) << s.message() << "\n" << yaml;
+  ExpectSameKinematics(model, back, 1);
+}
+
+TEST(Io, YamlRoundTripPrismaticAndTiltedTwist) {
+  const RobotModel model = MakeModelWithPrismaticAndTiltedTwist();
+  ASSERT_TRUE(model.Validate().ok()) << model.Validate().message();
+  const std::string yaml = RobotModelToYaml(model);
+  RobotModel back;
+  const Status s = ParseRobotModelYaml(yaml, "variant.yaml", &back);
+  ASSERT_TRUE(s.ok()) << s.message() << "\n" << yaml;
+  ExpectSameKinematics(model, back, 2);
+}
+
+TEST(Io, YamlRoundTripShippedTestRobots) {
+  for (const RobotModel& model : {MakeUr5Like(), MakeSevenJointArm(), MakeArmWithPrismatic()}) {
+    RobotModel back;
+    const Status s = ParseRobotModelYaml(RobotModelToYaml(model), model.name + ".yaml", &back);
+    ASSERT_TRUE(s.ok()) << s.message();
+    ExpectSameKinematics(model, back, 3);
+  }
+}
+
+TEST(Io, YamlFileRoundTrip) {
+  ScratchDir dir;
+  ASSERT_FALSE(dir.path().empty());
+  const std::string path = dir.path() + "/model.yaml";
+  const RobotModel model = MakeModelWithPrismaticAndTiltedTwist();
+  ASSERT_TRUE(WriteRobotModel(path, model).ok());
+  RobotModel back;
+  const Status s = ReadRobotModel(path, &back);
+  ASSERT_TRUE(s.ok()) << s.message();
+  ExpectSameKinematics(model, back, 4);
+  EXPECT_EQ(dir.Entries(), std::vector<std::string>{"model.yaml"});
+}
+
+TEST(Io, RpyAndQuaternionAgree) {
+  const double roll = 0.3, pitch = -1.2, yaw = 2.9;
+  const Eigen::Vector4d q = RotationToQuaternion<double>(RotationFromRpy(roll, pitch, yaw));
+  char quat[200];
+  std::snprintf(quat, sizeof(quat), "[%.17g, %.17g, %.17g, %.17g]", q(0), q(1), q(2), q(3));
+  const std::string head =
+      "name: one_joint\n"
+      "joints:\n"
+      "  - name: joint1\n"
+      "    type: revolute\n"
+      "    origin: {xyz: [1, 2, 3], ";
+  const std::string tail =
+      "}\n"
+      "tools:\n"
+      "  - name: smr1\n"
+      "    origin: {xyz: [40, 0, 60], rpy: [0, 0, 0]}\n";
+  RobotModel from_rpy, from_quat;
+  Status s = ParseRobotModelYaml(head + "rpy: [0.3, -1.2, 2.9]" + tail, "rpy.yaml", &from_rpy);
+  ASSERT_TRUE(s.ok()) << s.message();
+  s = ParseRobotModelYaml(head + "quaternion: " + quat + tail, "quat.yaml", &from_quat);
+  ASSERT_TRUE(s.ok()) << s.message();
+  EXPECT_LE((from_rpy.joints[0].origin.R - from_quat.joints[0].origin.R).norm(),
+            kRpyQuaternionTolerance);
+  EXPECT_LE((from_rpy.joints[0].origin.R - RotationFromRpy(roll, pitch, yaw)).norm(),
+            kRpyQuaternionTolerance);
+  // Omitted twist: the default of the joint type.
+  EXPECT_EQ(from_rpy.joints[0].twist, DefaultTwist(JointType::kRevolute));
+  for (double angle : {-2.0, 0.0, 1.0}) {
+    const SE3d a = ToolPose(from_rpy, &angle);
+    const SE3d b = ToolPose(from_quat, &angle);
+    EXPECT_LE((a.t - b.t).norm(), kRoundTripToleranceMm);
+  }
+}
+
+TEST(Io, YamlNearUnitQuaternionIsNormalized) {
+  // Norm 1 + 1e-5: a rounding artefact, accepted and normalized. (Far from unit: see bad/.)
+  const std::string yaml =
+      "name: one_joint\n"
+      "joints:\n"
+      "  - {name: slide, type: prismatic, origin: {xyz: [0, 0, 0], quaternion: [0, 0, 0, "
+      "1.00001]}}\n"
+      "tools:\n"
+      "  - {name: smr1, origin: {xyz: [0, 0, 10], rpy: [0, 0, 0]}}\n";
+  RobotModel model;
+  const Status s = ParseRobotModelYaml(yaml, "near_unit.yaml", &model);
+  ASSERT_TRUE(s.ok()) << s.message();
+  EXPECT_LE((model.joints[0].origin.R - Eigen::Matrix3d::Identity()).norm(), 1e-15);
+  EXPECT_EQ(model.joints[0].twist, DefaultTwist(JointType::kPrismatic));
+}
+
+TEST(Io, ModelErrorLeavesOutputUntouched) {
+  RobotModel model = MakeCobot6();
+  const Status s = ParseRobotModelYaml("name: x\njoints: []\ntools: []\n", "empty.yaml", &model);
+  EXPECT_FALSE(s.ok());
+  EXPECT_EQ(model.num_joints(), 6);
+}
+
+void ExpectSameMeasurements(const MeasurementSet& a, const MeasurementSet& b) {
+  ASSERT_EQ(a.size(), b.size());
+  ASSERT_EQ(a.num_joints(), b.num_joints());
+  ASSERT_EQ(a.has_orientation(), b.has_orientation());
+  for (int r = 0; r < a.size(); ++r) {
+    for (int j = 0; j < a.num_joints(); ++j) EXPECT_EQ(a.q(r)[j], b.q(r)[j]) << "row " << r;
+    EXPECT_EQ(a.position(r), b.position(r)) << "row " << r;
+    EXPECT_EQ(a.target(r), b.target(r)) << "row " << r;
+    if (a.has_orientation()) {
+      EXPECT_LE((a.orientation(r) - b.orientation(r)).norm(), kRotationRoundTripTolerance);
+    }
+  }
+}
+
+TEST(Io, CsvRoundTripExact) {
+  const RobotModel model = MakeModelWithPrismaticAndTiltedTwist();
+  const MeasurementSet data = SimulatedMeasurements(model, 100, /*pose=*/false, 5);
+  const std::string csv = MeasurementsToCsv(model, data, "simulated\nsecond line");
+  EXPECT_EQ(csv.rfind("# simulated\n# second line\nq1,q2,q3,q4,q5,q6,x,y,z,target\n", 0), 0u)
+      << csv;
+  MeasurementSet back;
+  const Status s = ParseMeasurementsCsv(csv, "sim.csv", model, AngleUnit::kRadians, &back);
+  ASSERT_TRUE(s.ok()) << s.message();
+  ExpectSameMeasurements(data, back);
+  // Two comment lines and the header come first: data row r is on line r + 4.
+  EXPECT_EQ(back.source_line(0), 4);
+  EXPECT_EQ(back.source_line(99), 103);
+}
+
+TEST(Io, CsvPoseRoundTrip) {
+  const RobotModel model = MakeModelWithPrismaticAndTiltedTwist();
+  const MeasurementSet data = SimulatedMeasurements(model, 50, /*pose=*/true, 6);
+  ScratchDir dir;
+  ASSERT_FALSE(dir.path().empty());
+  const std::string path = dir.path() + "/pose.csv";
+  ASSERT_TRUE(WriteMeasurements(path, model, data).ok());
+  EXPECT_NE(ReadAll(path).find(",target,quat_x,quat_y,quat_z,quat_w\n"), std::string::npos);
+  MeasurementSet back;
+  const Status s = ReadMeasurements(path, model, AngleUnit::kRadians, &back);
+  ASSERT_TRUE(s.ok()) << s.message();
+  ExpectSameMeasurements(data, back);
+}
+
+TEST(Io, CsvColumnOrderTargetsAndSpaces) {
+  const RobotModel model = MakeModelWithPrismaticAndTiltedTwist();
+  const std::string csv =
+      "target, z, y, x, q6, q5, q4, q3, q2, q1\n"
+      "smr1, 3, 2, 1, 0.6, 0.5, 0.4, 0.3, 0.2, 0.1\n"
+      "1, 6, 5, 4, 0, 0, 0, 0, 0, +1.5e-1\n"
+      "smr #2: side, 9, 8, 7, 0, 0, 0, 0, 0, 0\n";
+  MeasurementSet data;
+  const Status s = ParseMeasurementsCsv(csv, "order.csv", model, AngleUnit::kRadians, &data);
+  ASSERT_TRUE(s.ok()) << s.message();
+  ASSERT_EQ(data.size(), 3);
+  EXPECT_EQ(data.position(0), Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(data.q(0)[0], 0.1);
+  EXPECT_EQ(data.q(0)[5], 0.6);
+  EXPECT_EQ(data.target(0), 0);
+  EXPECT_EQ(data.target(1), 1);
+  EXPECT_EQ(data.q(1)[0], 0.15);
+  EXPECT_EQ(data.target(2), 1);
+  EXPECT_FALSE(data.has_orientation());
+}
+
+TEST(Io, CsvDegreesConvertRevoluteJointsOnly) {
+  const RobotModel model = MakeModelWithPrismaticAndTiltedTwist();  // joint 3 is prismatic
+  const std::string csv =
+      "q1,q2,q3,q4,q5,q6,x,y,z\n"
+      "90,-45,12.5,180,0,1,100,200,300\n";
+  MeasurementSet deg;
+  const Status s = ParseMeasurementsCsv(csv, "deg.csv", model, AngleUnit::kDegrees, &deg);
+  ASSERT_TRUE(s.ok()) << s.message();
+  ASSERT_EQ(deg.size(), 1);
+  EXPECT_DOUBLE_EQ(deg.q(0)[0], M_PI / 2);
+  EXPECT_DOUBLE_EQ(deg.q(0)[1], -M_PI / 4);
+  EXPECT_EQ(deg.q(0)[2], 12.5);  // mm, untouched
+  EXPECT_DOUBLE_EQ(deg.q(0)[3], M_PI);
+  EXPECT_DOUBLE_EQ(deg.q(0)[5], M_PI / 180);
+  EXPECT_EQ(deg.position(0), Eigen::Vector3d(100, 200, 300));  // positions are never converted
+  MeasurementSet rad;
+  ASSERT_TRUE(ParseMeasurementsCsv(csv, "deg.csv", model, AngleUnit::kRadians, &rad).ok());
+  EXPECT_EQ(rad.q(0)[0], 90.0);
+}
+
+TEST(Io, CsvAcceptsCrlfAndBom) {
+  const RobotModel model = MakeCobot6();
+  const std::string csv =
+      "\xEF\xBB\xBF# exported on Windows\r\n"
+      "q1,q2,q3,q4,q5,q6,x,y,z,target\r\n"
+      "\r\n"
+      "0.1,0.2,0.3,0.4,0.5,0.6,1,2,3,smr1\r\n"
+      "  # indented comment\r\n"
+      "0.1,0.2,0.3,0.4,0.5,0.6,4,5,6,0\r\n";
+  MeasurementSet data;
+  const Status s = ParseMeasurementsCsv(csv, "windows.csv", model, AngleUnit::kRadians, &data);
+  ASSERT_TRUE(s.ok()) << s.message();
+  ASSERT_EQ(data.size(), 2);
+  EXPECT_EQ(data.position(0), Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(data.position(1), Eigen::Vector3d(4, 5, 6));
+  EXPECT_EQ(data.source_line(0), 4);
+  EXPECT_EQ(data.source_line(1), 6);
+  EXPECT_EQ(data.target(0), 0);
+  EXPECT_EQ(data.target(1), 0);
+}
+
+TEST(Io, CsvSkipsZeroRowsAndReportsThem) {
+  const RobotModel model = MakeCobot6();
+  const std::string csv =
+      "q1,q2,q3,q4,q5,q6,x,y,z\n"
+      "0.1,0.2,0.3,0.4,0.5,0.6,1,2,3\n"
+      "0.1,0.2,0.3,0.4,0.5,0.6,0,0,0\n"
+      "# beam lost again\n"
+      "0.1,0.2,0.3,0.4,0.5,0.6,0,-0,0.0\n"
+      "0.1,0.2,0.3,0.4,0.5,0.6,0,0,7\n";
+  MeasurementSet data;
+  CsvReadReport report;
+  Status s = ParseMeasurementsCsv(csv, "dirty.csv", model, AngleUnit::kRadians, &data, &report);
+  ASSERT_TRUE(s.ok()) << s.message();
+  EXPECT_EQ(data.size(), 2);
+  EXPECT_EQ(data.source_line(1), 6);
+  EXPECT_EQ(report.skipped_zero_rows, 2);
+  EXPECT_EQ(report.skipped_lines, (std::vector<int>{3, 5}));
+  // Without a report the rows are skipped all the same.
+  MeasurementSet again;
+  s = ParseMeasurementsCsv(csv, "dirty.csv", model, AngleUnit::kRadians, &again);
+  ASSERT_TRUE(s.ok()) << s.message();
+  EXPECT_EQ(again.size(), 2);
+}
+
+TEST(Io, CsvErrorLeavesOutputUntouched) {
+  const RobotModel model = MakeCobot6();
+  MeasurementSet data = SimulatedMeasurements(model, 3, false, 7);
+  CsvReadReport report;
+  report.skipped_zero_rows = 42;
+  const Status s = ParseMeasurementsCsv("q1,q2,q3,q4,q5,q6,x,y,z\n0,0,0,0,0,0,0,0,0\n1,2\n",
+                                        "short.csv", model, AngleUnit::kRadians, &data, &report);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("short.csv:3: 2 fields; expected 9"), std::string::npos)
+      << s.message();
+  EXPECT_EQ(data.size(), 3);
+  EXPECT_EQ(report.skipped_zero_rows, 42);
+}
+
+std::map<std::string, std::string> ReadManifest() {
+  std::map<std::string, std::string> manifest;
+  std::ifstream in(kBadDir + "/MANIFEST");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    const size_t tab = line.find('\t');
+    if (tab == std::string::npos) {
+      ADD_FAILURE() << "MANIFEST line without a tab: " << line;
+      continue;
+    }
+    manifest[line.substr(0, tab)] = line.substr(tab + 1);
+  }
+  return manifest;
+}
+
+// True when `message` holds "<name>:<digits>: ".
+bool NamesFileAndLine(const std::string& message, const std::string& name) {
+  for (size_t at = message.find(name + ":"); at != std::string::npos;
+       at = message.find(name + ":", at + 1)) {
+    size_t i = at + name.size() + 1;
+    const size_t digits_begin = i;
+    while (i < message.size() && std::isdigit(static_cast<unsigned char>(message[i]))) ++i;
+    if (i > digits_begin && message.compare(i, 2, ": ") == 0) return true;
+  }
+  return false;
+}
+
+TEST(Io, BadFilesAreRejectedWithFileLineAndReason) {
+  const std::map<std::string, std::string> manifest = ReadManifest();
+  const RobotModel cobot6 = MakeCobot6();
+  int checked = 0;
+  for (const auto& entry : fs::directory_iterator(kBadDir)) {
+    const std::string name = entry.path().filename().string();
+    const std::string ext = entry.path().extension().string();
+    if (ext != ".yaml" && ext != ".csv") continue;
+    SCOPED_TRACE(name);
+    const auto it = manifest.find(name);
+    ASSERT_NE(it, manifest.end()) << name << " is not listed in MANIFEST";
+    Status s;
+    if (ext == ".yaml") {
+      RobotModel model;
+      s = ReadRobotModel(entry.path().string(), &model);
+    } else {
+      MeasurementSet data;
+      CsvReadReport report;
+      s = ReadMeasurements(entry.path().string(), cobot6, AngleUnit::kRadians, &data, &report);
+    }
+    ASSERT_FALSE(s.ok()) << name << " was accepted";
+    EXPECT_TRUE(NamesFileAndLine(s.message(), name)) << s.message();
+    EXPECT_NE(s.message().find("; expected "), std::string::npos) << s.message();
+    EXPECT_NE(s.message().find(it->second), std::string::npos)
+        << "message: " << s.message() << "\nwanted: " << it->second;
+    ++checked;
+  }
+  EXPECT_GE(checked, kMinBadFiles);
+  for (const auto& [name, substring] : manifest) {
+    EXPECT_TRUE(fs::exists(kBadDir + "/" + name)) << "MANIFEST lists a missing file " << name;
+  }
+  EXPECT_EQ(static_cast<size_t>(checked), manifest.size());
+}
+
+TEST(Io, MissingFileNamesPathAndReason) {
+  const std::string path = kBadDir + "/does_not_exist.yaml";
+  RobotModel model;
+  Status s = ReadRobotModel(path, &model);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find(path), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("No such file or directory"), std::string::npos) << s.message();
+  MeasurementSet data;
+  s = ReadMeasurements(kBadDir + "/does_not_exist.csv", MakeCobot6(), AngleUnit::kRadians, &data);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("does_not_exist.csv"), std::string::npos) << s.message();
+  std::string text;
+  s = ReadFile(kBadDir, &text);  // a directory
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find(kBadDir), std::string::npos) << s.message();
+}
+
+TEST(Io, WriteFileAtomically) {
+  ScratchDir dir;
+  ASSERT_FALSE(dir.path().empty());
+  const std::string path = dir.path() + "/out.txt";
+  ASSERT_TRUE(WriteFileAtomically(path, "first\n").ok());
+  EXPECT_EQ(ReadAll(path), "first\n");
+  ASSERT_TRUE(WriteFileAtomically(path, "second\n").ok());
+  EXPECT_EQ(ReadAll(path), "second\n");
+  std::string text;
+  ASSERT_TRUE(ReadFile(path, &text).ok());
+  EXPECT_EQ(text, "second\n");
+  EXPECT_EQ(dir.Entries(), std::vector<std::string>{"out.txt"});
+
+  // A missing directory: an error naming the path, nothing created.
+  Status s = WriteFileAtomically(dir.path() + "/no/such/dir/out.txt", "x");
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("no/such/dir/out.txt"), std::string::npos) << s.message();
+
+  // The rename fails (the target is a non-empty directory): the temporary file is removed.
+  fs::create_directory(dir.path() + "/sub");
+  std::ofstream(dir.path() + "/sub/keep") << "keep";
+  s = WriteFileAtomically(dir.path() + "/sub", "x");
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(dir.Entries(), (std::vector<std::string>{"out.txt", "sub"}));
+  EXPECT_EQ(ReadAll(dir.path() + "/sub/keep"), "keep");
+}
+
+// Readers never throw or abort, whatever the bytes: corrupt valid files at random and parse them.
+TEST(Io, CorruptedInputNeverThrows) {
+  const RobotModel model = MakeModelWithPrismaticAndTiltedTwist();
+  const std::string yaml = RobotModelToYaml(model);
+  const std::string csv =
+      MeasurementsToCsv(model, SimulatedMeasurements(model, 5, /*pose=*/true, 9), "corrupt me");
+  constexpr int kTrials = 3000;
+  const std::string alphabet = "0123456789.,:-+[]{}#'\"\n\r\t eE_xyzqnaif\xEF\xBB\xBF";
+  std::mt19937 rng(10);
+  int accepted_yaml = 0, accepted_csv = 0;
+  for (int trial = 0; trial < kTrials; ++trial) {
+    for (const std::string* original : {&yaml, &csv}) {
+      std::string text = *original;
+      const int edits = 1 + static_cast<int>(rng() % 4);
+      for (int e = 0; e < edits && !text.empty(); ++e) {
+        const size_t at = rng() % text.size();
+        switch (rng() % 4) {
+          case 0:
+            text[at] = alphabet[rng() % alphabet.size()];
+            break;
+          case 1:
+            text.erase(at, 1 + rng() % 8);
+            break;
+          case 2:
+            text.insert(at, 1, alphabet[rng() % alphabet.size()]);
+            break;
+          default:
+            text.resize(at);
+            break;
+        }
+      }
+      if (original == &yaml) {
+        RobotModel parsed;
+        Status s;
+        EXPECT_NO_THROW(s = ParseRobotModelYaml(text, "fuzz.yaml", &parsed));
+        if (s.ok()) {
+          ++accepted_yaml;
+          EXPECT_TRUE(parsed.Validate().ok());
+        } else {
+          EXPECT_TRUE(NamesFileAndLine(s.message(), "fuzz.yaml")) << s.message();
+        }
+      } else {
+        MeasurementSet parsed;
+        Status s;
+        EXPECT_NO_THROW(
+            s = ParseMeasurementsCsv(text, "fuzz.csv", model, AngleUnit::kRadians, &parsed));
+        if (s.ok()) {
+          ++accepted_csv;
+        } else {
+          EXPECT_TRUE(NamesFileAndLine(s.message(), "fuzz.csv")) << s.message();
+        }
+      }
+    }
+  }
+  RecordProperty("accepted_yaml", accepted_yaml);
+  RecordProperty("accepted_csv", accepted_csv);
+}
+
+TEST(Io, CsvParsesManyRowsQuickly) {
+  const RobotModel model = MakeCobot6();
+  std::string csv = "q1,q2,q3,q4,q5,q6,x,y,z\n";
+  csv.reserve(static_cast<size_t>(kSpeedRows) * 110);
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> u(-1000, 1000);
+  char line[256];
+  for (int r = 0; r < kSpeedRows; ++r) {
+    const int len =
+        std::snprintf(line, sizeof(line), "%.9f,%.9f,%.9f,%.9f,%.9f,%.9f,%.6f,%.6f,%.6f\n",
+                      u(rng) / 400, u(rng) / 400, u(rng) / 400, u(rng) / 400, u(rng) / 400,
+                      u(rng) / 400, u(rng), u(rng), u(rng) + 1500);
+    csv.append(line, len);
+  }
+  MeasurementSet data;
+  const auto start = std::chrono::steady_clock::now();
+  const Status s = ParseMeasurementsCsv(csv, "big.csv", model, AngleUnit::kRadians, &data);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_TRUE(s.ok()) << s.message();
+  EXPECT_EQ(data.size(), kSpeedRows);
+  RecordProperty("parse_seconds", std::to_string(seconds));
+  std::printf("parsed %d rows in %.3f s\n", kSpeedRows, seconds);
+#ifdef NDEBUG
+  EXPECT_LT(seconds, kMaxSecondsForSpeedRows);
+#endif
+}
+
+}  // namespace
+}  // namespace lpoe
