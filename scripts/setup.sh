@@ -7,7 +7,10 @@ PACKAGES=(
   cmake g++ make
   libeigen3-dev libceres-dev libgoogle-glog-dev libgflags-dev
   libyaml-cpp-dev          # robot model files (YAML with line numbers in errors)
+  libtinyxml2-dev          # URDF robot models
+  nlohmann-json3-dev       # the JSON calibration report (header-only)
   libgtest-dev libbenchmark-dev
+  libpng-dev               # report plots (tools/plot.cc)
 )
 
 missing=()

@@ -1,21 +1,27 @@
 // lpoe_calibrate: identify the local frames of a robot from tracker measurements.
 //
-// Reads a nominal model (YAML) and measurements (CSV), runs the chosen solver, prints the convergence
-// table and before/after errors on the identification and verification sets, and writes the
-// calibrated model. With no arguments it calibrates the shipped section-4 data set.
+// Reads a nominal model (YAML) and measurements (CSV), registers the model to the measurement frame,
+// runs the chosen solver, prints the identifiability report, the convergence table and before/after
+// errors on the identification and verification sets, and writes the calibrated model, a JSON
+// report and plots. With no arguments it calibrates the shipped section-4 data set.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <iostream>
-#include <numeric>
-#include <random>
 #include <string>
+#include <sys/stat.h>
 
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 
+#include "lpoe/analysis.h"
 #include "lpoe/io.h"
 #include "lpoe/linear_solver.h"
+#include "lpoe/registration.h"
 #include "lpoe/statistics.h"
+#include "plot.h"
+#include "report.h"
 #include "tool_common.h"
 
 DEFINE_string(model, "", "Nominal robot model (YAML). Default: data/cobot6.yaml.");
@@ -27,9 +33,16 @@ DEFINE_string(verify, "",
               "default measurements: data/section4/verification.csv.");
 DEFINE_double(holdout, 0.0,
               "Instead of --verify: hold out this fraction of the measurements (0 <= f < 1), "
-              "chosen at random with --holdout_seed, for verification.");
-DEFINE_uint64(holdout_seed, 1, "Seed of the --holdout split.");
+              "chosen at random with --split_seed, for verification.");
+DEFINE_int32(kfold, 0,
+             "Also run k-fold cross-validation with this many folds (>= 2; 0 = off) on the "
+             "identification set and report each fold's held-out errors.");
+DEFINE_uint64(split_seed, 1, "Seed of the --holdout and --kfold splits.");
 DEFINE_string(output, "", "Write the calibrated model here (YAML). Nothing is written on failure.");
+DEFINE_string(report, "", "Write a machine-readable JSON report here (schema in the README).");
+DEFINE_string(plots_dir, "lpoe_plots",
+              "Directory for the PNG plots (convergence, per-axis errors, histogram); created if "
+              "missing. Empty: no plots.");
 DEFINE_string(solver, "linear", "linear: the paper's iterative least squares.");
 DEFINE_string(parameterization, "identifiable",
               "identifiable: only the directions the data can see (27 for a 6R arm with position "
@@ -39,6 +52,11 @@ DEFINE_string(data_kind, "auto",
               "position | pose | auto: pose-based calibration (paper eqs. 17-24) uses the measured "
               "orientations; auto picks pose when the CSV has quat_* columns.");
 DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in the CSV files: rad | deg.");
+DEFINE_bool(register, true,
+            "Register the model to the measurement frame first (rigid fit, then base and tool "
+            "frames): needed when the tracker frame is not the robot base.");
+DEFINE_double(outlier_threshold, 5.0,
+              "List points whose error after the fit exceeds this many robust sigmas.");
 DEFINE_int32(max_iterations, 30, "Iteration limit.");
 DEFINE_double(step_tolerance, 1e-10, "Convergence: stop when |x| falls below this.");
 DEFINE_double(max_condition, 1e8,
@@ -47,32 +65,137 @@ DEFINE_double(max_condition, 1e8,
 namespace lpoe {
 namespace {
 
+using tools::kExitInput;
+using tools::kExitOk;
+using tools::kExitOutput;
+using tools::kExitUsage;
+
 constexpr char kUsage[] =
     "Calibrates the local frames of a serial robot (Local Product of Exponentials, Gao et al. "
     "2022) from measured tool positions.\n\n"
     "  lpoe_calibrate                          # the shipped section-4 data set\n"
-    "  lpoe_calibrate --model=robot.yaml --measurements=points.csv --holdout=0.3 \\\n"
-    "                 --output=calibrated.yaml\n\n"
-    "Units: mm and rad (joint values may be given in degrees with --angle_unit=deg).\n"
+    "  lpoe_calibrate --model=robot.yaml --measurements=points.csv --angle_unit=deg \\\n"
+    "                 --holdout=0.3 --output=calibrated.yaml --report=report.json\n\n"
+    "Units: mm and rad (joint values may be given in degrees with --angle_unit=deg). The\n"
+    "measurements may be in any rigid frame (e.g. the tracker's): the calibrated model is\n"
+    "expressed in the measurement frame.\n"
     "Exit codes: 0 converged, 1 bad flags, 2 bad input file, 3 data cannot identify the model,\n"
     "4 iteration limit reached, 5 numerical failure, 6 output not written.";
 
-// Deterministic shuffle (the standard distributions are implementation-defined).
-std::vector<int> ShuffledRows(int n, uint64_t seed) {
-  std::vector<int> rows(n);
-  std::iota(rows.begin(), rows.end(), 0);
-  std::mt19937_64 rng(seed);
-  for (int i = n - 1; i > 0; --i) {
-    const int j = static_cast<int>(rng() % static_cast<uint64_t>(i + 1));
-    std::swap(rows[i], rows[j]);
+struct Job {
+  RobotModel nominal;
+  MeasurementSet identification, verification;
+  bool use_orientation = false;
+  ParameterizationKind kind = ParameterizationKind::kIdentifiable;
+};
+
+// Prints a progress line to stderr once a run has taken more than a second.
+class Progress {
+ public:
+  explicit Progress(std::string what) : what_(std::move(what)) {}
+  ~Progress() {
+    if (shown_) std::cerr << "\n";
   }
-  return rows;
+  void Update(const IterationRecord& r) {
+    const double t = std::chrono::duration<double>(Clock::now() - start_).count();
+    if (t < 1.0) return;
+    shown_ = true;
+    char line[160];
+    std::snprintf(line, sizeof(line), "\r%s: iteration %d, max error %.4f mm, %.1f s", what_.c_str(),
+                  r.iteration, r.max_error, t);
+    std::cerr << line << std::flush;
+  }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  std::string what_;
+  Clock::time_point start_ = Clock::now();
+  bool shown_ = false;
+};
+
+// Registration (optional) then the chosen solver. `registration` may be null.
+CalibrationResult Solve(const Job& job, const MeasurementSet& data, const std::string& what,
+                        RegistrationReport* registration, RobotModel* rigid_nominal) {
+  RobotModel start = job.nominal;
+  if (rigid_nominal) *rigid_nominal = job.nominal;
+  if (FLAGS_register) {
+    RegistrationReport local;
+    RegistrationReport& rep = registration ? *registration : local;
+    if (Status s = RegisterToMeasurements(job.nominal, data, &start, &rep); !s.ok()) {
+      CalibrationResult failed;
+      failed.model = job.nominal;
+      failed.termination = Termination::kNotIdentifiable;
+      failed.message = s.message();
+      return failed;
+    }
+    if (rigid_nominal && rep.moved) {
+      rigid_nominal->joints[0].origin = rep.T_measurement_base * job.nominal.joints[0].origin;
+    }
+  }
+  Progress progress(what);
+  LinearSolverOptions options;
+  options.parameterization = job.kind;
+  options.use_orientation = job.use_orientation;
+  options.max_iterations = FLAGS_max_iterations;
+  options.step_tolerance = FLAGS_step_tolerance;
+  options.max_condition_number = FLAGS_max_condition;
+  options.on_iteration = [&](const IterationRecord& r) { progress.Update(r); };
+  CalibrationResult result = CalibrateLinear(start, data, options);
+  // The history starts from the registered model; errors before calibration are reported
+  // separately against the nominal model.
+  return result;
+}
+
+void PrintIdentifiability(const IdentifiabilityReport& id) {
+  std::cout << "identifiability: " << id.num_parameters << " parameters, rank " << id.rank
+            << ", condition number of the column-scaled Jacobian " << id.condition_number << "\n";
+  if (id.singular_values.size() > 0) {
+    const auto& s = id.singular_values;
+    std::cout << "  singular values: largest " << s(0) << ", smallest " << s(s.size() - 1) << "\n";
+  }
+  std::cout << "  not identifiable from this data kind (" << id.unidentifiable.size()
+            << " directions, left out):\n";
+  std::string last_reason;
+  std::string names;
+  auto flush = [&]() {
+    if (!names.empty()) std::cout << "    " << names << ": " << last_reason << "\n";
+    names.clear();
+  };
+  for (const Direction& d : id.unidentifiable) {
+    if (d.reason != last_reason) {
+      flush();
+      last_reason = d.reason;
+    }
+    names += (names.empty() ? "" : ", ") + d.name;
+  }
+  flush();
+  if (id.standard_deviation.size() > 0) {
+    // The least certain parameters, as a quick read; all of them are in the JSON report.
+    std::vector<int> order(id.standard_deviation.size());
+    for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int>(k);
+    std::sort(order.begin(), order.end(), [&](int a, int b) {
+      return id.standard_deviation(a) > id.standard_deviation(b);
+    });
+    std::cout << "  largest standard deviations (rad or mm):";
+    for (int k = 0; k < std::min<int>(4, static_cast<int>(order.size())); ++k) {
+      std::cout << " " << id.parameter_names[order[k]] << " " << id.standard_deviation(order[k]);
+    }
+    std::cout << "\n  most correlated pairs:";
+    for (const CorrelatedPair& c : id.most_correlated) {
+      std::cout << " " << c.a << "/" << c.b << " " << c.correlation << ";";
+    }
+    std::cout << "\n";
+  }
+  for (const std::string& w : id.warnings) std::cout << "  warning: " << w << "\n";
+}
+
+bool EnsureDirectory(const std::string& dir) {
+  struct stat st;
+  if (stat(dir.c_str(), &st) == 0) return S_ISDIR(st.st_mode);
+  return mkdir(dir.c_str(), 0755) == 0;
 }
 
 int Run() {
-  using tools::kExitInput;
-  using tools::kExitOutput;
-  using tools::kExitUsage;
   const std::string data_dir = tools::DataDir();
   const bool default_data = FLAGS_measurements.empty();
   const std::string model_path = FLAGS_model.empty() ? data_dir + "/cobot6.yaml" : FLAGS_model;
@@ -85,12 +208,12 @@ int Run() {
 
   // ---- Flags.
   AngleUnit unit;
+  Job job;
   if (!tools::ParseAngleUnit(FLAGS_angle_unit, &unit)) {
     std::cerr << "error: --angle_unit must be rad or deg, got '" << FLAGS_angle_unit << "'\n";
     return kExitUsage;
   }
-  ParameterizationKind kind;
-  if (!ParseParameterization(FLAGS_parameterization, &kind)) {
+  if (!ParseParameterization(FLAGS_parameterization, &job.kind)) {
     std::cerr << "error: --parameterization must be identifiable or full, got '"
               << FLAGS_parameterization << "'\n";
     return kExitUsage;
@@ -112,115 +235,239 @@ int Run() {
     std::cerr << "error: give either --verify or --holdout, not both\n";
     return kExitUsage;
   }
-  if (FLAGS_max_iterations < 1 || !(FLAGS_step_tolerance > 0) || !(FLAGS_max_condition > 1)) {
-    std::cerr << "error: --max_iterations must be >= 1, --step_tolerance > 0, --max_condition > 1\n";
+  if (FLAGS_kfold == 1 || FLAGS_kfold < 0 || FLAGS_kfold > 100) {
+    std::cerr << "error: --kfold must be 0 (off) or between 2 and 100, got " << FLAGS_kfold << "\n";
     return kExitUsage;
   }
-  for (const std::string& in : {model_path, meas_path, verify_path}) {
-    if (!FLAGS_output.empty() && FLAGS_output == in) {
-      std::cerr << "error: --output would overwrite the input file " << in << "\n";
-      return kExitUsage;
+  if (FLAGS_max_iterations < 1 || FLAGS_max_iterations > 100000 ||
+      !(FLAGS_step_tolerance > 0) || !(FLAGS_max_condition > 1) ||
+      !(FLAGS_outlier_threshold > 0)) {
+    std::cerr << "error: --max_iterations must be in [1, 100000], --step_tolerance > 0, "
+                 "--max_condition > 1, --outlier_threshold > 0\n";
+    return kExitUsage;
+  }
+  for (const std::string& out : {FLAGS_output, FLAGS_report}) {
+    for (const std::string& in : {model_path, meas_path, verify_path}) {
+      if (!out.empty() && tools::SameFile(out, in)) {
+        std::cerr << "error: an output would overwrite the input file " << in << "\n";
+        return kExitUsage;
+      }
     }
+  }
+  if (!FLAGS_output.empty() && tools::SameFile(FLAGS_output, FLAGS_report)) {
+    std::cerr << "error: --output and --report name the same file\n";
+    return kExitUsage;
   }
 
   // ---- Inputs.
-  RobotModel nominal;
-  if (Status s = ReadRobotModel(model_path, &nominal); !s.ok()) {
+  tools::RunSummary summary;
+  if (Status s = ReadRobotModel(model_path, &job.nominal); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
   MeasurementSet all;
-  CsvReadReport report;
-  if (Status s = ReadMeasurements(meas_path, nominal, unit, &all, &report); !s.ok()) {
+  if (Status s = ReadMeasurements(meas_path, job.nominal, unit, &all, &summary.skipped); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
-  if (report.skipped_zero_rows > 0) {
-    std::cerr << "warning: " << meas_path << ": skipped " << report.skipped_zero_rows
-              << " row(s) of zeros (lost beam)\n";
+  if (summary.skipped.skipped_zero_rows > 0) {
+    std::cerr << "warning: " << meas_path << ": skipped " << summary.skipped.skipped_zero_rows
+              << " row(s) with no measurement (lost beam) at line(s)";
+    const auto& lines = summary.skipped.skipped_lines;
+    for (size_t k = 0; k < std::min<size_t>(lines.size(), 20); ++k) std::cerr << " " << lines[k];
+    if (lines.size() > 20) std::cerr << " ...";
+    std::cerr << "\n";
   }
-  MeasurementSet identification, verification;
   if (!verify_path.empty()) {
-    identification = std::move(all);
-    if (Status s = ReadMeasurements(verify_path, nominal, unit, &verification, nullptr); !s.ok()) {
+    job.identification = std::move(all);
+    CsvReadReport verify_skipped;
+    if (Status s = ReadMeasurements(verify_path, job.nominal, unit, &job.verification,
+                                    &verify_skipped);
+        !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
+    summary.verification_source = verify_path;
   } else if (FLAGS_holdout > 0.0) {
-    const std::vector<int> rows = ShuffledRows(all.size(), FLAGS_holdout_seed);
-    const int held = static_cast<int>(std::lround(FLAGS_holdout * all.size()));
-    std::vector<int> id_rows(rows.begin() + held, rows.end());
-    std::vector<int> ver_rows(rows.begin(), rows.begin() + held);
-    std::sort(id_rows.begin(), id_rows.end());
-    std::sort(ver_rows.begin(), ver_rows.end());
-    identification = all.Subset(id_rows);
-    verification = all.Subset(ver_rows);
+    std::vector<int> id_rows, ver_rows;
+    HoldoutSplit(all.size(), FLAGS_holdout, FLAGS_split_seed, &id_rows, &ver_rows);
+    job.identification = all.Subset(id_rows);
+    job.verification = all.Subset(ver_rows);
+    summary.verification_source = "holdout";
   } else {
-    identification = std::move(all);
+    job.identification = std::move(all);
   }
 
-  bool use_orientation = identification.has_orientation();
-  if (FLAGS_data_kind == "position") use_orientation = false;
-  if (FLAGS_data_kind == "pose" && !identification.has_orientation()) {
+  job.use_orientation = job.identification.has_orientation();
+  if (FLAGS_data_kind == "position") job.use_orientation = false;
+  if (FLAGS_data_kind == "pose" && !job.identification.has_orientation()) {
     std::cerr << "error: --data_kind=pose needs quat_x,quat_y,quat_z,quat_w columns in "
               << meas_path << "\n";
     return kExitUsage;
   }
 
-  std::cout << "model:          " << model_path << " (" << nominal.num_joints() << " joints, "
-            << nominal.num_tools() << " tool" << (nominal.num_tools() > 1 ? "s" : "") << ")\n"
-            << "identification: " << meas_path << " (" << identification.size() << " rows)\n";
-  if (!verification.empty()) {
+  std::cout << "model:          " << model_path << " (" << job.nominal.num_joints()
+            << " joints, " << job.nominal.num_tools() << " tool"
+            << (job.nominal.num_tools() > 1 ? "s" : "") << ")\n"
+            << "identification: " << meas_path << " (" << job.identification.size() << " rows)\n";
+  if (!job.verification.empty()) {
     std::cout << "verification:   "
               << (verify_path.empty() ? "held out from the identification file" : verify_path)
-              << " (" << verification.size() << " rows)\n";
+              << " (" << job.verification.size() << " rows)\n";
   }
-  std::cout << "solver:         " << FLAGS_solver << ", " << ParameterizationName(kind)
-            << " parameterization, " << (use_orientation ? "pose" : "position") << " data\n\n";
+  std::cout << "solver:         " << FLAGS_solver << ", " << ParameterizationName(job.kind)
+            << " parameterization, " << (job.use_orientation ? "pose" : "position") << " data\n";
 
   // ---- Solve.
-  LinearSolverOptions options;
-  options.parameterization = kind;
-  options.use_orientation = use_orientation;
-  options.max_iterations = FLAGS_max_iterations;
-  options.step_tolerance = FLAGS_step_tolerance;
-  options.max_condition_number = FLAGS_max_condition;
-  const CalibrationResult result = CalibrateLinear(nominal, identification, options);
-
+  RobotModel before_model;
+  const CalibrationResult result =
+      Solve(job, job.identification, "calibrating", &summary.registration, &before_model);
+  summary.registered = FLAGS_register;
+  if (FLAGS_register && result.termination != Termination::kNotIdentifiable) {
+    std::cout << summary.registration.message << "\n";
+    if (summary.registration.moved) {
+      std::cout << "(the measurements are not in the model's base frame: 'before calibration' "
+                   "below is the nominal model after the rigid fit)\n";
+    }
+  }
+  std::cout << "\n";
   if (result.termination == Termination::kNotIdentifiable) {
     std::cerr << "error: " << result.message << "\n";
     return tools::ExitCodeFor(result.termination);
   }
-  std::cout << "parameters:     " << result.parameterization.num_parameters << " ("
-            << result.rank << " identifiable by the data, condition number of the scaled "
-            << "Jacobian " << result.condition_number << ")\n\n";
+  summary.result = result;
+  summary.identifiability = AnalyzeIdentifiability(job.nominal, job.identification, result);
+  PrintIdentifiability(summary.identifiability);
+  std::cout << "\n";
   tools::PrintIterationTable(std::cout, result);
   std::cout << "\n";
-  tools::PrintBeforeAfter(std::cout, "identification set", PositionErrorStatistics(nominal, identification),
-                          PositionErrorStatistics(result.model, identification));
-  if (!verification.empty()) {
+  summary.identification_before = PositionErrorStatistics(before_model, job.identification);
+  summary.identification_after = PositionErrorStatistics(result.model, job.identification);
+  tools::PrintBeforeAfter(std::cout, "identification set", summary.identification_before,
+                          summary.identification_after);
+  if (!job.verification.empty()) {
+    summary.has_verification = true;
+    summary.verification_before = PositionErrorStatistics(before_model, job.verification);
+    summary.verification_after = PositionErrorStatistics(result.model, job.verification);
     std::cout << "\n";
-    tools::PrintBeforeAfter(std::cout, "verification set", PositionErrorStatistics(nominal, verification),
-                            PositionErrorStatistics(result.model, verification));
+    tools::PrintBeforeAfter(std::cout, "verification set", summary.verification_before,
+                            summary.verification_after);
   }
-  std::cout << "\nresult: " << TerminationName(result.termination) << " after " << result.iterations
-            << " iteration(s), " << result.wall_time_seconds * 1e3 << " ms";
+
+  // ---- Points that do not fit.
+  summary.outliers = FindOutliers(result.model, job.identification, FLAGS_outlier_threshold,
+                                  &summary.robust_sigma);
+  if (!summary.outliers.empty()) {
+    std::cout << "\n" << summary.outliers.size() << " point(s) fit worse than "
+              << FLAGS_outlier_threshold << " robust sigmas (" << summary.robust_sigma
+              << " mm per axis); they were used, check them:\n";
+    for (size_t k = 0; k < std::min<size_t>(summary.outliers.size(), 20); ++k) {
+      const Outlier& o = summary.outliers[k];
+      std::cout << "  " << meas_path << ":" << o.line << ": error " << o.error << " mm ("
+                << o.sigmas << " sigma)\n";
+    }
+  }
+
+  // ---- k-fold cross-validation.
+  if (FLAGS_kfold >= 2) {
+    const auto folds = KFolds(job.identification.size(), FLAGS_kfold, FLAGS_split_seed);
+    std::cout << "\n" << FLAGS_kfold << "-fold cross-validation (held-out position error, mm)\n"
+              << "  fold  rows   termination        max      mean       rms       p95\n";
+    std::vector<Eigen::Vector3d> pooled;
+    for (int f = 0; f < FLAGS_kfold; ++f) {
+      const MeasurementSet train =
+          job.identification.Subset(Complement(job.identification.size(), folds[f]));
+      const MeasurementSet test = job.identification.Subset(folds[f]);
+      const CalibrationResult r =
+          Solve(job, train, "fold " + std::to_string(f + 1), nullptr, nullptr);
+      tools::FoldResult fr;
+      fr.fold = f + 1;
+      fr.identification_rows = train.size();
+      fr.termination = TerminationName(r.termination);
+      const std::vector<Eigen::Vector3d> e = PositionErrors(r.model, test);
+      pooled.insert(pooled.end(), e.begin(), e.end());
+      fr.verification_after = ComputeStatistics(e);
+      char line[200];
+      std::snprintf(line, sizeof(line), "  %4d %5d   %-16s %8.4f %9.4f %9.4f %9.4f\n", fr.fold,
+                    fr.identification_rows, r.converged() ? "converged" : "FAILED",
+                    fr.verification_after.norm.max_abs, fr.verification_after.norm.mean_abs,
+                    fr.verification_after.norm.rms, fr.verification_after.norm.p95_abs);
+      std::cout << line;
+      summary.folds.push_back(fr);
+    }
+    const ErrorStatistics all_folds = ComputeStatistics(pooled);
+    char line[200];
+    std::snprintf(line, sizeof(line), "   all %5d   %-16s %8.4f %9.4f %9.4f %9.4f\n",
+                  job.identification.size(), "", all_folds.norm.max_abs,
+                  all_folds.norm.mean_abs, all_folds.norm.rms, all_folds.norm.p95_abs);
+    std::cout << line;
+  }
+
+  std::cout << "\nresult: " << TerminationName(result.termination) << " after "
+            << result.iterations << " iteration(s), " << result.wall_time_seconds * 1e3 << " ms\n";
   if (!result.converged()) {
-    std::cout << "\n";
     std::cerr << "error: " << result.message << "; no output written\n";
     return tools::ExitCodeFor(result.termination);
   }
-  if (FLAGS_output.empty()) {
-    std::cout << " (use --output=FILE to save the calibrated model)\n";
-    return tools::kExitOk;
+
+  // ---- Outputs (each written atomically; the model first, the report last so that it lists
+  // everything written).
+  if (!FLAGS_output.empty()) {
+    if (Status s = WriteRobotModel(FLAGS_output, result.model); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitOutput;
+    }
+    summary.outputs.push_back(FLAGS_output);
   }
-  if (Status s = WriteRobotModel(FLAGS_output, result.model); !s.ok()) {
-    std::cout << "\n";
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
+  if (!FLAGS_plots_dir.empty()) {
+    if (!EnsureDirectory(FLAGS_plots_dir)) {
+      std::cerr << "error: cannot create the plot directory " << FLAGS_plots_dir << "\n";
+      return kExitOutput;
+    }
+    std::vector<int> it;
+    std::vector<double> mx, mn;
+    for (const IterationRecord& r : result.history) {
+      it.push_back(r.iteration);
+      mx.push_back(r.max_error);
+      mn.push_back(r.mean_error);
+    }
+    const MeasurementSet& shown = job.verification.empty() ? job.identification : job.verification;
+    const std::vector<Eigen::Vector3d> eb = PositionErrors(before_model, shown);
+    const std::vector<Eigen::Vector3d> ea = PositionErrors(result.model, shown);
+    std::vector<double> nb, na;
+    for (const auto& e : eb) nb.push_back(e.norm());
+    for (const auto& e : ea) na.push_back(e.norm());
+    const std::string d = FLAGS_plots_dir + "/";
+    for (const auto& [path, status] :
+         {std::pair<std::string, Status>{d + "convergence.png", tools::WriteConvergencePlot(d + "convergence.png", it, mx, mn)},
+          {d + "axis_errors.png", tools::WriteAxisErrorPlot(d + "axis_errors.png", eb, ea)},
+          {d + "error_histogram.png", tools::WriteErrorHistogram(d + "error_histogram.png", nb, na)}}) {
+      if (!status.ok()) {
+        std::cerr << "error: " << status.message() << "\n";
+        return kExitOutput;
+      }
+      summary.outputs.push_back(path);
+    }
   }
-  std::cout << "; calibrated model written to " << FLAGS_output << "\n";
-  return tools::kExitOk;
+  if (!FLAGS_report.empty()) {
+    summary.model_path = model_path;
+    summary.measurements_path = meas_path;
+    summary.solver = FLAGS_solver;
+    summary.parameterization = ParameterizationName(job.kind);
+    summary.data_kind = job.use_orientation ? "pose" : "position";
+    summary.angle_unit = FLAGS_angle_unit;
+    summary.outputs.push_back(FLAGS_report);
+    if (Status s = WriteFileAtomically(FLAGS_report, tools::RunSummaryToJson(summary)); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitOutput;
+    }
+  }
+  if (summary.outputs.empty()) {
+    std::cout << "(use --output=FILE to save the calibrated model)\n";
+  } else {
+    for (const std::string& o : summary.outputs) std::cout << "wrote " << o << "\n";
+  }
+  return kExitOk;
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <iomanip>
 #include <iostream>
 #include <sstream>
+#include <sys/stat.h>
 
 #include <gflags/gflags.h>
 #include <glog/logging.h>
@@ -60,6 +61,14 @@ bool ParseAngleUnit(const std::string& text, AngleUnit* unit) {
     return true;
   }
   return false;
+}
+
+bool SameFile(const std::string& a, const std::string& b) {
+  if (a.empty() || b.empty()) return false;
+  if (a == b) return true;
+  struct stat sa, sb;
+  if (stat(a.c_str(), &sa) != 0 || stat(b.c_str(), &sb) != 0) return false;
+  return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
 }
 
 int ExitCodeFor(Termination t) {

@@ -34,6 +34,9 @@ std::string DataDir();
 
 bool ParseAngleUnit(const std::string& text, AngleUnit* unit);
 
+// True when both paths name the same existing file (same device and inode), or are equal strings.
+bool SameFile(const std::string& a, const std::string& b);
+
 // Exit code for a calibration termination.
 int ExitCodeFor(Termination t);
 

@@ -7,17 +7,18 @@
 namespace lpoe {
 
 Eigen::Vector3d RpyFromRotation(const Eigen::Matrix3d& R) {
-  // R = Rz(y) Ry(p) Rx(r): R(2,0) = -sin p, R(2,1) = cos p sin r, R(2,2) = cos p cos r,
-  // R(1,0) = sin y cos p, R(0,0) = cos y cos p.
-  const double sp = -R(2, 0);
-  const double cp = std::hypot(R(0, 0), R(1, 0));
-  const double pitch = std::atan2(sp, cp);
-  if (cp < 1e-12) {
-    // Gimbal lock: only yaw -/+ roll is defined; put it all in yaw.
-    const double yaw = std::atan2(-R(0, 1), R(1, 1));
-    return Eigen::Vector3d(0.0, pitch, yaw);
-  }
-  return Eigen::Vector3d(std::atan2(R(2, 1), R(2, 2)), pitch, std::atan2(R(1, 0), R(0, 0)));
+  // R = Rz(yaw) Ry(pitch) Rx(roll). Reading roll and yaw off small matrix entries loses precision
+  // near gimbal lock; instead take yaw first, then roll and pitch from Rz(-yaw) R = Ry(pitch) Rx(roll),
+  // whose entries used here are of order one, so any error in yaw (ill-defined at gimbal lock) is
+  // absorbed by roll and the rotation is reproduced exactly.
+  const double yaw = std::atan2(R(1, 0), R(0, 0));
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  const double m00 = c * R(0, 0) + s * R(1, 0);   //  cos(pitch) >= 0
+  const double m11 = -s * R(0, 1) + c * R(1, 1);  //  cos(roll)
+  const double m12 = -s * R(0, 2) + c * R(1, 2);  // -sin(roll)
+  const double pitch = std::atan2(-R(2, 0), m00);
+  const double roll = std::atan2(-m12, m11);
+  return Eigen::Vector3d(roll, pitch, yaw);
 }
 
 Eigen::Matrix3d ProjectToRotation(const Eigen::Matrix3d& M) {

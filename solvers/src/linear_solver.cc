@@ -311,6 +311,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       return finish(Termination::kNumericalFailure, os.str());
     }
     result.history.push_back(Record(it, lin));
+    if (options.on_iteration) options.on_iteration(result.history.back());
   }
   result.model = model;
   result.iterations = options.max_iterations;

@@ -15,6 +15,8 @@
 #ifndef LPOE_LINEAR_SOLVER_H_
 #define LPOE_LINEAR_SOLVER_H_
 
+#include <functional>
+
 #include "lpoe/calibration.h"
 
 namespace lpoe {
@@ -42,6 +44,8 @@ struct LinearSolverOptions {
   // Estimate the covariance of the identified parameters at the solution:
   // s^2 (J^T J)^-1 with the a-posteriori variance factor s^2 = |y|^2 / (rows - parameters).
   bool compute_covariance = true;
+  // Called after every iteration (e.g. for a progress line).
+  std::function<void(const IterationRecord&)> on_iteration;
 };
 
 CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSet& data,

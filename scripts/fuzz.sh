@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets (fuzz/) with clang in build-fuzz and runs each for the given number of
+# seconds (default 60): fuzz_csv (measurements CSV), fuzz_yaml (robot model YAML), fuzz_urdf (robot
+# model URDF). Each run starts from a copy of the committed seed corpus fuzz/corpus/<kind>/ in
+# build-fuzz/corpus/ (the committed corpus is never modified). Fails on any crash, sanitizer report,
+# leak, timeout (> 10 s per input) or out-of-memory (> 2048 MB); the reproducer is left in
+# build-fuzz/artifacts/<target>/ and its log in build-fuzz/logs/. To replay one:
+#   build-fuzz/fuzz/fuzz_csv build-fuzz/artifacts/fuzz_csv/crash-...
+# Fixed findings go into fuzz/corpus/<kind>/ as regression seeds.
+#
+#   bash scripts/fuzz.sh [seconds]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds="${1:-60}"
+if ! [[ "$seconds" =~ ^[0-9]+$ ]] || [ "$seconds" -lt 1 ]; then
+  echo "usage: scripts/fuzz.sh [seconds >= 1]" >&2
+  exit 1
+fi
+bash scripts/setup.sh
+
+build=build-fuzz
+# Only lpoe_core's sources are compiled (instrumented, as lpoe_core_fuzz) plus the fuzz targets.
+CC=clang CXX=clang++ cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLPOE_FUZZ=ON \
+  -DBUILD_TESTING=OFF -DLPOE_BUILD_BENCHMARKS=OFF -DLPOE_BUILD_TOOLS=OFF >/dev/null
+cmake --build "$build" -j2 --target lpoe_fuzz
+
+export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
+export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
+failed=()
+for kind in csv yaml urdf; do
+  target="fuzz_$kind"
+  exe="$build/fuzz/$target"
+  if [ ! -x "$exe" ]; then
+    echo "fuzz: $target was not built (see the cmake output), skipped" >&2
+    failed+=("$target (not built)")
+    continue
+  fi
+  work="$build/corpus/$kind"
+  artifacts="$build/artifacts/$target/"
+  log="$build/logs/$target.log"
+  mkdir -p "$work" "$artifacts" "$(dirname "$log")"
+  cp -f fuzz/corpus/"$kind"/* "$work"/
+  echo "fuzz: $target for ${seconds}s (corpus $work, log $log)"
+  if "$exe" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=8192 \
+      -dict="fuzz/$kind.dict" -artifact_prefix="$artifacts" -print_final_stats=1 \
+      "$work" >"$log" 2>&1; then
+    grep -E '^stat::number_of_executed_units|^stat::new_units_added|^Done ' "$log" | tr '\n' ' ' \
+      | sed 's/^/  /'; echo
+  else
+    echo "fuzz: $target FAILED; last lines of $log:" >&2
+    tail -n 60 "$log" >&2
+    failed+=("$target")
+  fi
+done
+if [ ${#failed[@]} -gt 0 ]; then
+  echo "fuzz: failures: ${failed[*]} (reproducers in $build/artifacts/)" >&2
+  exit 1
+fi
+echo "fuzz: no findings"

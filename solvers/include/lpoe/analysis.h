@@ -1,0 +1,74 @@
+// What a user needs to trust a calibration: identifiability of the parameters by the data,
+// uncertainty and correlation of the identified ones, points that do not fit, and data splits for
+// verification.
+#ifndef LPOE_ANALYSIS_H_
+#define LPOE_ANALYSIS_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lpoe/calibration.h"
+#include "lpoe/measurements.h"
+#include "lpoe/robot_model.h"
+
+namespace lpoe {
+
+struct CorrelatedPair {
+  std::string a, b;
+  double correlation = 0;
+};
+
+struct IdentifiabilityReport {
+  int num_parameters = 0;
+  int rank = 0;
+  double condition_number = 0;
+  Eigen::VectorXd singular_values;            // column-scaled Jacobian, descending
+  std::vector<Direction> unidentifiable;      // directions no data can determine, with reasons
+  std::vector<std::string> parameter_names;   // identified directions
+  Eigen::VectorXd standard_deviation;         // of each identified direction (rad / mm); empty
+                                              // when no covariance was computed
+  std::vector<CorrelatedPair> most_correlated;  // largest |correlation| first
+  std::vector<std::string> warnings;          // poorly exciting data, e.g. a joint that barely moves
+};
+
+// Revolute joints moving less than this over the data set are flagged (rad); prismatic: mm.
+constexpr double kMinRevoluteExcursion = 0.35;  // 20 degrees
+constexpr double kMinPrismaticExcursion = 20.0;
+// Condition numbers of the column-scaled Jacobian above this are flagged (still solved).
+constexpr double kWarnConditionNumber = 1e4;
+
+IdentifiabilityReport AnalyzeIdentifiability(const RobotModel& nominal, const MeasurementSet& data,
+                                             const CalibrationResult& result, int max_pairs = 5);
+
+// Points whose error stays far out after the fit: |e| > threshold * s, with s a robust (median
+// absolute deviation) estimate of the per-axis noise. Listed, never silently dropped.
+struct Outlier {
+  int row = 0;
+  int line = 0;      // line in the input file (0 when unknown)
+  double error = 0;  // mm
+  double sigmas = 0;
+};
+std::vector<Outlier> FindOutliers(const RobotModel& model, const MeasurementSet& data,
+                                  double threshold = 5.0, double* robust_sigma = nullptr);
+
+// Seeded random splits (portable: the same everywhere for a seed).
+std::vector<int> ShuffledIndices(int n, uint64_t seed);
+// Rows held out for verification (a fraction of n, rounded) and the rest, both in file order.
+void HoldoutSplit(int n, double fraction, uint64_t seed, std::vector<int>* identification,
+                  std::vector<int>* verification);
+// k folds of a shuffled order; fold i's verification rows, in file order.
+std::vector<std::vector<int>> KFolds(int n, int k, uint64_t seed);
+// The complement of `rows` in [0, n).
+std::vector<int> Complement(int n, const std::vector<int>& rows);
+
+// Position-error covariance predicted at configuration q from the covariance of the identified
+// parameters: J_q C J_q^T with J_q the position Jacobian restricted to the parameterization.
+Eigen::Matrix3d PredictedPositionCovariance(const CalibrationResult& result, const double* q,
+                                            int tool);
+
+}  // namespace lpoe
+
+#endif  // LPOE_ANALYSIS_H_

@@ -1,0 +1,153 @@
+#include "lpoe/analysis.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <sstream>
+
+#include <glog/logging.h>
+
+#include "lpoe/kinematics.h"
+#include "lpoe/statistics.h"
+
+namespace lpoe {
+
+IdentifiabilityReport AnalyzeIdentifiability(const RobotModel& nominal, const MeasurementSet& data,
+                                             const CalibrationResult& result, int max_pairs) {
+  IdentifiabilityReport r;
+  const Parameterization& p = result.parameterization;
+  r.num_parameters = p.num_parameters;
+  r.rank = result.rank;
+  r.condition_number = result.condition_number;
+  r.singular_values = result.singular_values;
+  r.unidentifiable = p.unidentifiable;
+  for (const Direction& d : p.parameters) r.parameter_names.push_back(d.name);
+
+  const Eigen::MatrixXd& C = result.covariance;
+  if (C.rows() == p.num_parameters && C.rows() > 0) {
+    r.standard_deviation = C.diagonal().cwiseMax(0.0).cwiseSqrt();
+    std::vector<CorrelatedPair> pairs;
+    for (int i = 0; i < C.rows(); ++i) {
+      for (int j = i + 1; j < C.cols(); ++j) {
+        const double denom = r.standard_deviation(i) * r.standard_deviation(j);
+        if (!(denom > 0)) continue;
+        pairs.push_back({r.parameter_names[i], r.parameter_names[j], C(i, j) / denom});
+      }
+    }
+    const size_t keep = std::min<size_t>(pairs.size(), std::max(0, max_pairs));
+    std::partial_sort(pairs.begin(), pairs.begin() + keep, pairs.end(),
+                      [](const CorrelatedPair& a, const CorrelatedPair& b) {
+                        return std::abs(a.correlation) > std::abs(b.correlation);
+                      });
+    pairs.resize(keep);
+    r.most_correlated = std::move(pairs);
+  }
+
+  // Excitation: a joint that barely moves leaves its frame poorly determined.
+  for (int i = 0; i < nominal.num_joints() && !data.empty(); ++i) {
+    double lo = data.q(0)[i], hi = lo;
+    for (int k = 1; k < data.size(); ++k) {
+      lo = std::min(lo, data.q(k)[i]);
+      hi = std::max(hi, data.q(k)[i]);
+    }
+    const bool revolute = nominal.joints[i].type == JointType::kRevolute;
+    const double limit = revolute ? kMinRevoluteExcursion : kMinPrismaticExcursion;
+    if (hi - lo < limit) {
+      std::ostringstream os;
+      os << nominal.joints[i].name << " barely moves over the data ("
+         << (revolute ? (hi - lo) * 180.0 / M_PI : hi - lo) << (revolute ? " deg" : " mm")
+         << " range, less than " << (revolute ? limit * 180.0 / M_PI : limit)
+         << (revolute ? " deg" : " mm")
+         << "): the parameters near it are poorly determined; add poses that move it";
+      r.warnings.push_back(os.str());
+    }
+  }
+  if (r.condition_number > kWarnConditionNumber) {
+    std::ostringstream os;
+    os << "the column-scaled Jacobian is poorly conditioned (condition number "
+       << r.condition_number << " > " << kWarnConditionNumber
+       << "): the data excite some directions weakly";
+    r.warnings.push_back(os.str());
+  }
+  return r;
+}
+
+std::vector<Outlier> FindOutliers(const RobotModel& model, const MeasurementSet& data,
+                                  double threshold, double* robust_sigma) {
+  const std::vector<Eigen::Vector3d> e = PositionErrors(model, data);
+  std::vector<double> comps;
+  comps.reserve(3 * e.size());
+  for (const auto& v : e) {
+    for (int a = 0; a < 3; ++a) comps.push_back(std::abs(v(a)));
+  }
+  std::vector<Outlier> out;
+  if (comps.empty()) return out;
+  std::nth_element(comps.begin(), comps.begin() + comps.size() / 2, comps.end());
+  const double sigma = std::max(1.4826 * comps[comps.size() / 2], 1e-9);
+  if (robust_sigma) *robust_sigma = sigma;
+  // |e| of a 3-D Gaussian exceeds 5 sigma with probability ~2e-5.
+  for (int k = 0; k < data.size(); ++k) {
+    const double n = e[k].norm();
+    if (n > threshold * sigma) out.push_back({k, data.source_line(k), n, n / sigma});
+  }
+  std::sort(out.begin(), out.end(),
+            [](const Outlier& a, const Outlier& b) { return a.error > b.error; });
+  return out;
+}
+
+std::vector<int> ShuffledIndices(int n, uint64_t seed) {
+  std::vector<int> rows(n);
+  std::iota(rows.begin(), rows.end(), 0);
+  std::mt19937_64 rng(seed);
+  for (int i = n - 1; i > 0; --i) {
+    const int j = static_cast<int>(rng() % static_cast<uint64_t>(i + 1));
+    std::swap(rows[i], rows[j]);
+  }
+  return rows;
+}
+
+std::vector<int> Complement(int n, const std::vector<int>& rows) {
+  std::vector<char> used(n, 0);
+  for (int r : rows) used[r] = 1;
+  std::vector<int> out;
+  for (int r = 0; r < n; ++r) {
+    if (!used[r]) out.push_back(r);
+  }
+  return out;
+}
+
+void HoldoutSplit(int n, double fraction, uint64_t seed, std::vector<int>* identification,
+                  std::vector<int>* verification) {
+  const std::vector<int> order = ShuffledIndices(n, seed);
+  const int held = static_cast<int>(std::lround(fraction * n));
+  verification->assign(order.begin(), order.begin() + held);
+  std::sort(verification->begin(), verification->end());
+  *identification = Complement(n, *verification);
+}
+
+std::vector<std::vector<int>> KFolds(int n, int k, uint64_t seed) {
+  CHECK_GE(k, 2);
+  const std::vector<int> order = ShuffledIndices(n, seed);
+  std::vector<std::vector<int>> folds(k);
+  for (int i = 0; i < n; ++i) folds[i % k].push_back(order[i]);
+  for (auto& f : folds) std::sort(f.begin(), f.end());
+  return folds;
+}
+
+Eigen::Matrix3d PredictedPositionCovariance(const CalibrationResult& result, const double* q,
+                                            int tool) {
+  const Parameterization& p = result.parameterization;
+  CHECK_EQ(result.covariance.rows(), p.num_parameters) << "no covariance in this result";
+  Eigen::MatrixXd J_frames;
+  ToolPositionJacobian(result.model, q, tool, &J_frames);
+  Eigen::MatrixXd J(3, p.num_parameters);
+  for (int f = 0; f < result.model.num_frames(); ++f) {
+    const Eigen::MatrixXd& B = p.basis[f];
+    if (B.cols() == 0) continue;
+    J.middleCols(p.offset[f], B.cols()) = J_frames.middleCols(6 * f, 6) * B;
+  }
+  return J * result.covariance * J.transpose();
+}
+
+}  // namespace lpoe

@@ -1,0 +1,312 @@
+#include "lpoe/ceres_solver.h"
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <sstream>
+#include <utility>
+#include <vector>
+
+#include <ceres/ceres.h>
+#include <glog/logging.h>
+
+#include "identifiability.h"
+#include "lpoe/pose_residual.h"
+#include "lpoe/position_residual.h"
+#include "lpoe/se3_manifold.h"
+
+namespace lpoe {
+namespace {
+
+using Block = std::array<double, kSe3AmbientSize>;
+
+bool ParseLinearSolver(const std::string& name, ceres::LinearSolverType* type) {
+  return ceres::StringToLinearSolverType(name, type);
+}
+
+// The frames of `model` replaced by the parameter blocks that exist (the others keep theirs).
+RobotModel ModelFromBlocks(const RobotModel& base, const std::vector<Block>& blocks,
+                           const std::vector<bool>& used) {
+  RobotModel model = base;
+  const int n = model.num_joints();
+  for (int f = 0; f < model.num_frames(); ++f) {
+    if (!used[f]) continue;
+    SE3d& T = f < n ? model.joints[f].origin : model.tools[f - n].origin;
+    T = Se3FromArray(blocks[f].data());
+  }
+  return model;
+}
+
+// Records the history (IterationRecord per accepted step) with the state of the blocks, which Ceres
+// updates every iteration (update_state_every_iteration).
+class HistoryCallback : public ceres::IterationCallback {
+ public:
+  HistoryCallback(const RobotModel& base, const MeasurementSet& data,
+                  const std::vector<Block>& blocks, const std::vector<bool>& used, double cost_scale,
+                  std::vector<IterationRecord>* history)
+      : base_(base),
+        data_(data),
+        blocks_(blocks),
+        used_(used),
+        cost_scale_(cost_scale),
+        history_(history) {}
+
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
+    if (summary.iteration > 0 && !summary.step_is_successful) return ceres::SOLVER_CONTINUE;
+    const ErrorStatistics stats = PositionErrorStatistics(ModelFromBlocks(base_, blocks_, used_), data_);
+    IterationRecord r;
+    r.iteration = summary.iteration;
+    r.cost = summary.cost * cost_scale_;
+    r.max_error = stats.norm.max_abs;
+    r.mean_error = stats.norm.mean_abs;
+    r.step_norm = summary.iteration > 0 ? summary.step_norm : 0.0;
+    history_->push_back(r);
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const RobotModel& base_;
+  const MeasurementSet& data_;
+  const std::vector<Block>& blocks_;
+  const std::vector<bool>& used_;
+  double cost_scale_;
+  std::vector<IterationRecord>* history_;
+};
+
+Termination MapTermination(ceres::TerminationType t) {
+  switch (t) {
+    case ceres::CONVERGENCE:
+    case ceres::USER_SUCCESS:
+      return Termination::kConverged;
+    case ceres::NO_CONVERGENCE:
+      return Termination::kMaxIterations;
+    case ceres::FAILURE:
+    case ceres::USER_FAILURE:
+      return Termination::kNumericalFailure;
+  }
+  return Termination::kNumericalFailure;
+}
+
+}  // namespace
+
+Status ValidateCeresSolverOptions(const CeresSolverOptions& options) {
+  ceres::LinearSolverType type;
+  if (!ParseLinearSolver(options.linear_solver, &type)) {
+    return Status::Error("unknown Ceres linear solver '" + options.linear_solver +
+                         "' (dense_qr, dense_normal_cholesky, sparse_normal_cholesky, dense_schur, "
+                         "sparse_schur, iterative_schur, cgnr)");
+  }
+  {
+    // Also catches solvers this Ceres build lacks (e.g. sparse ones without SuiteSparse).
+    ceres::Solver::Options probe;
+    probe.linear_solver_type = type;
+    std::string error;
+    if (!probe.IsValid(&error)) {
+      return Status::Error("Ceres linear solver '" + options.linear_solver + "': " + error);
+    }
+  }
+  if (options.loss != "none" && options.loss != "huber" && options.loss != "cauchy") {
+    return Status::Error("loss must be none, huber or cauchy, got '" + options.loss + "'");
+  }
+  if (!(options.sigma > 0) || !std::isfinite(options.sigma)) {
+    return Status::Error("sigma must be a positive number of mm");
+  }
+  if (!(options.loss_scale > 0) || !std::isfinite(options.loss_scale)) {
+    return Status::Error("loss_scale must be a positive number of mm");
+  }
+  if (!(options.orientation_weight > 0) || !std::isfinite(options.orientation_weight)) {
+    return Status::Error("orientation_weight must be positive");
+  }
+  if (options.max_iterations < 1) return Status::Error("max_iterations must be >= 1");
+  if (options.num_threads < 1) return Status::Error("num_threads must be >= 1");
+  return Status::Ok();
+}
+
+CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet& data,
+                                 const CeresSolverOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  CalibrationResult result;
+  result.model = nominal;
+  auto finish = [&](Termination t, const std::string& message) {
+    result.termination = t;
+    result.message = message;
+    result.wall_time_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return result;
+  };
+
+  {
+    const Status s = ValidateCeresSolverOptions(options);
+    CHECK(s.ok()) << s.message();
+  }
+  CHECK_EQ(data.num_joints(), nominal.num_joints()) << "measurements do not match the model";
+  for (int r = 0; r < data.size(); ++r) {
+    CHECK(data.target(r) >= 0 && data.target(r) < nominal.num_tools()) << "bad target in row " << r;
+  }
+  if (options.use_orientation && !data.has_orientation()) {
+    return finish(Termination::kNotIdentifiable,
+                  "pose-based calibration needs measured orientations (quat_x..quat_w columns)");
+  }
+  const DataKind kind = options.use_orientation ? DataKind::kPose : DataKind::kPosition;
+  const bool full = options.parameterization == ParameterizationKind::kFull;
+  result.parameterization = MakeParameterization(nominal, options.parameterization, kind);
+  const Parameterization& p = result.parameterization;
+  const int per_row = options.use_orientation ? 6 : 3;
+  int identifiable = 0;  // parameters the data must determine (identifiable directions, used frames)
+
+  // ---- Parameter blocks: every joint frame, and the tools that some row measures.
+  const int n = nominal.num_joints();
+  const int F = nominal.num_frames();
+  std::vector<Block> blocks(F);
+  std::vector<bool> used(F, false);
+  for (int f = 0; f < F; ++f) {
+    Se3ToArray(f < n ? nominal.joints[f].origin : nominal.tools[f - n].origin, blocks[f].data());
+  }
+  for (int i = 0; i < n; ++i) used[i] = true;
+  for (int r = 0; r < data.size(); ++r) used[n + data.target(r)] = true;
+
+  // ---- The identifiability check of the linear solver (same thresholds, same messages), on the
+  // identifiable directions of the frames that are solved (unmeasured tools are not).
+  {
+    const Parameterization all =
+        full ? MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind) : p;
+    Parameterization solved;  // the directions of the used frames, for the message
+    std::vector<int> columns;
+    for (int f = 0; f < F; ++f) {
+      if (!used[f]) continue;
+      for (int c = 0; c < all.basis[f].cols(); ++c) {
+        columns.push_back(all.offset[f] + c);
+        solved.parameters.push_back(all.parameters[all.offset[f] + c]);
+      }
+    }
+    solved.num_parameters = static_cast<int>(columns.size());
+    identifiable = solved.num_parameters;
+    const long equations = static_cast<long>(per_row) * data.size();
+    if (equations < identifiable) {
+      return finish(Termination::kNotIdentifiable,
+                    internal::TooFewEquationsMessage(data.size(), equations, identifiable, per_row));
+    }
+    const Eigen::MatrixXd H_all = internal::NormalMatrix(nominal, data, all, options.use_orientation,
+                                                         options.orientation_weight);
+    Eigen::MatrixXd H(identifiable, identifiable);
+    for (int a = 0; a < identifiable; ++a) {
+      for (int b = 0; b < identifiable; ++b) H(a, b) = H_all(columns[a], columns[b]);
+    }
+    if (!H.allFinite()) {
+      return finish(Termination::kNumericalFailure,
+                    "non-finite residuals or Jacobian at the nominal model (check the input values)");
+    }
+    const internal::Identifiability id = internal::Analyze(H);
+    result.rank = id.rank;
+    result.condition_number = id.condition;
+    result.singular_values = id.singular_values;
+    if (id.rank < identifiable || !(id.condition <= options.max_condition_number)) {
+      return finish(Termination::kNotIdentifiable,
+                    internal::NotIdentifiableMessage(id, identifiable,
+                                                     options.max_condition_number, solved));
+    }
+  }
+
+  ceres::Problem problem;
+  ceres::LossFunction* loss = nullptr;  // shared by all residual blocks; owned by the problem
+  const double whitened_scale = options.loss_scale / options.sigma;
+  if (options.loss == "huber") loss = new ceres::HuberLoss(whitened_scale);
+  if (options.loss == "cauchy") loss = new ceres::CauchyLoss(whitened_scale);
+
+  const auto shared_model = std::make_shared<const RobotModel>(nominal);
+  std::vector<double*> parameters(n + 1);
+  for (int i = 0; i < n; ++i) parameters[i] = blocks[i].data();
+  for (int r = 0; r < data.size(); ++r) {
+    parameters[n] = blocks[n + data.target(r)].data();
+    ceres::CostFunction* cost =
+        options.use_orientation
+            ? PoseResidual::Create(shared_model, data.q(r), data.pose(r), options.sigma,
+                                   options.orientation_weight)
+            : PositionResidual::Create(shared_model, data.q(r), data.position(r), options.sigma);
+    problem.AddResidualBlock(cost, loss, parameters);
+  }
+  std::vector<const double*> covariance_blocks;
+  for (int f = 0; f < F; ++f) {
+    if (!used[f]) continue;
+    problem.SetManifold(blocks[f].data(), new Se3Manifold(p.basis[f]));
+    covariance_blocks.push_back(blocks[f].data());
+  }
+
+  // ---- Solve.
+  ceres::Solver::Options solver_options;
+  CHECK(ParseLinearSolver(options.linear_solver, &solver_options.linear_solver_type));
+  solver_options.minimizer_type = ceres::TRUST_REGION;
+  solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.num_threads = options.num_threads;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.minimizer_progress_to_stdout = options.verbose;
+  solver_options.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
+  solver_options.update_state_every_iteration = true;
+  const double cost_scale = options.sigma * options.sigma;
+  HistoryCallback callback(nominal, data, blocks, used, cost_scale, &result.history);
+  solver_options.callbacks.push_back(&callback);
+
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+  if (options.verbose) LOG(INFO) << summary.FullReport();
+
+  result.model = ModelFromBlocks(nominal, blocks, used);
+  result.iterations = summary.num_successful_steps + summary.num_unsuccessful_steps;
+  result.final_cost = summary.final_cost * cost_scale;
+  const Termination termination = MapTermination(summary.termination_type);
+  std::string message = "ceres: " + summary.message;
+  if (termination == Termination::kNumericalFailure) {
+    return finish(termination, message);
+  }
+
+  // ---- Covariance in the tangent spaces, in the parameterization's order.
+  if (options.compute_covariance && termination == Termination::kConverged) {
+    ceres::Covariance::Options cov_options;
+    cov_options.algorithm_type = ceres::DENSE_SVD;
+    cov_options.num_threads = options.num_threads;
+    // Full parameterization: the gauge directions are a known null space; take the
+    // pseudo-inverse (singular values below min_reciprocal_condition_number are dropped).
+    cov_options.null_space_rank = full ? -1 : 0;
+    ceres::Covariance covariance(cov_options);
+    std::vector<std::pair<const double*, const double*>> pairs;
+    for (const double* a : covariance_blocks) pairs.emplace_back(a, a);
+    int tangent = 0;
+    for (int f = 0; f < F; ++f) tangent += used[f] ? static_cast<int>(p.basis[f].cols()) : 0;
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> C(tangent, tangent);
+    if (covariance.Compute(covariance_blocks, &problem) &&
+        covariance.GetCovarianceMatrixInTangentSpace(covariance_blocks, C.data())) {
+      result.covariance = Eigen::MatrixXd::Zero(p.num_parameters, p.num_parameters);
+      // Rows of C follow covariance_blocks (used frames in order); scatter to p's offsets.
+      std::vector<int> c_offset;
+      std::vector<int> frames;
+      int at = 0;
+      for (int f = 0; f < F; ++f) {
+        if (!used[f]) continue;
+        frames.push_back(f);
+        c_offset.push_back(at);
+        at += static_cast<int>(p.basis[f].cols());
+      }
+      for (size_t a = 0; a < frames.size(); ++a) {
+        for (size_t b = 0; b < frames.size(); ++b) {
+          const int ka = static_cast<int>(p.basis[frames[a]].cols());
+          const int kb = static_cast<int>(p.basis[frames[b]].cols());
+          result.covariance.block(p.offset[frames[a]], p.offset[frames[b]], ka, kb) =
+              C.block(c_offset[a], c_offset[b], ka, kb);
+        }
+      }
+      if (options.a_posteriori_covariance) {
+        const long dof = static_cast<long>(per_row) * data.size() - identifiable;
+        if (dof > 0) result.covariance *= 2.0 * summary.final_cost / static_cast<double>(dof);
+      }
+    } else {
+      message += "; covariance not computed (rank-deficient Jacobian at the solution)";
+    }
+  }
+  return finish(termination, message);
+}
+
+}  // namespace lpoe

@@ -1,0 +1,243 @@
+// End-to-end tests of the lpoe_calibrate program (and lpoe_simulate, which makes its input): exit
+// codes, what is printed, and that a written model reads back and predicts like the in-process
+// calibration. Each test runs the built binaries in its own temporary directory.
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "lpoe/io.h"
+#include "lpoe/kinematics.h"
+#include "lpoe/linear_solver.h"
+#include "lpoe/statistics.h"
+
+#ifndef LPOE_CALIBRATE_PATH
+#error "LPOE_CALIBRATE_PATH must name the lpoe_calibrate binary"
+#endif
+#ifndef LPOE_SIMULATE_PATH
+#error "LPOE_SIMULATE_PATH must name the lpoe_simulate binary"
+#endif
+
+namespace lpoe {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kExitOk = 0;
+constexpr int kExitUsage = 1;
+constexpr int kExitInput = 2;
+constexpr int kExitNotIdentifiable = 3;
+constexpr int kExitNotConverged = 4;
+// The tool's model must predict like the in-process calibration of the same data (mm) ...
+constexpr double kSameCalibrationTolerance = 1e-6;
+// ... and like the simulated actual robot, to within the noise, per axis (mm).
+constexpr double kHeldOutPerAxisMax = 0.15;
+constexpr double kNoiseSigma = 0.03;
+
+struct Output {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+std::string ReadText(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::string Quote(const std::string& s) { return "'" + s + "'"; }
+
+// A temporary directory that every test works in (the tools may write default outputs, e.g. plots,
+// to the working directory).
+class CalibrateTool : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string pattern = (fs::temp_directory_path() / "lpoe_calibrate_test_XXXXXX").string();
+    ASSERT_NE(mkdtemp(pattern.data()), nullptr);
+    dir_ = pattern;
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+
+  Output Run(const std::string& binary, const std::string& args) {
+    const std::string out = (dir_ / "stdout.txt").string(), err = (dir_ / "stderr.txt").string();
+    const std::string command = "cd " + Quote(dir_.string()) + " && " + Quote(binary) + " " + args +
+                                " >" + Quote(out) + " 2>" + Quote(err);
+    const int status = std::system(command.c_str());
+    Output o;
+    o.exit_code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
+    o.out = ReadText(out);
+    o.err = ReadText(err);
+    return o;
+  }
+  Output Calibrate(const std::string& args) { return Run(LPOE_CALIBRATE_PATH, args); }
+
+  // Section-4-like data: cobot6, Table 2 errors, 70 + 30 rows with noise, and the nominal and actual
+  // models.
+  void Simulate(double sigma = kNoiseSigma, int count = 100, int verify_count = 30) {
+    std::ostringstream args;
+    args << "--count=" << count << " --noise_sigma=" << sigma << " --seed=11 --out=" << Path("id.csv")
+         << " --model_out=" << Path("nominal.yaml") << " --actual_out=" << Path("actual.yaml");
+    if (verify_count > 0) {
+      args << " --verify_count=" << verify_count << " --verify_out=" << Path("ver.csv");
+    }
+    const Output o = Run(LPOE_SIMULATE_PATH, args.str());
+    ASSERT_EQ(o.exit_code, kExitOk) << o.err;
+  }
+
+  std::string Path(const std::string& name) const { return Quote((dir_ / name).string()); }
+  std::string RawPath(const std::string& name) const { return (dir_ / name).string(); }
+  bool Exists(const std::string& name) const { return fs::exists(dir_ / name); }
+
+  fs::path dir_;
+};
+
+TEST_F(CalibrateTool, DefaultRunPrintsTheTableAndTheVerificationSet) {
+  const Output o = Calibrate("");
+  ASSERT_EQ(o.exit_code, kExitOk) << o.out << o.err;
+  EXPECT_NE(o.out.find("iteration"), std::string::npos) << o.out;
+  EXPECT_NE(o.out.find("max error [mm]"), std::string::npos) << o.out;
+  EXPECT_NE(o.out.find("identification set"), std::string::npos) << o.out;
+  EXPECT_NE(o.out.find("verification set"), std::string::npos) << o.out;
+  EXPECT_NE(o.out.find("converged"), std::string::npos) << o.out;
+}
+
+TEST_F(CalibrateTool, OutputReadsBackAndPredictsLikeTheLibrary) {
+  Simulate();
+  const Output o = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" + Path("id.csv") +
+                             " --verify=" + Path("ver.csv") + " --output=" + Path("calibrated.yaml"));
+  ASSERT_EQ(o.exit_code, kExitOk) << o.out << o.err;
+  EXPECT_NE(o.out.find("verification set"), std::string::npos);
+
+  RobotModel nominal, calibrated, actual;
+  ASSERT_TRUE(ReadRobotModel(RawPath("nominal.yaml"), &nominal).ok());
+  const Status read = ReadRobotModel(RawPath("calibrated.yaml"), &calibrated);
+  ASSERT_TRUE(read.ok()) << read.message();
+  ASSERT_TRUE(ReadRobotModel(RawPath("actual.yaml"), &actual).ok());
+  MeasurementSet identification, verification;
+  ASSERT_TRUE(ReadMeasurements(RawPath("id.csv"), nominal, AngleUnit::kRadians, &identification).ok());
+  ASSERT_TRUE(ReadMeasurements(RawPath("ver.csv"), nominal, AngleUnit::kRadians, &verification).ok());
+  ASSERT_EQ(identification.size(), 70);
+  ASSERT_EQ(verification.size(), 30);
+
+  // The same calibration in process converges to the same predictions.
+  const CalibrationResult result = CalibrateLinear(nominal, identification);
+  ASSERT_TRUE(result.converged()) << result.message;
+  double worst_same = 0;
+  for (const MeasurementSet* set : {&identification, &verification}) {
+    for (int r = 0; r < set->size(); ++r) {
+      worst_same = std::max(worst_same, (ToolPosition(calibrated, set->q(r)) -
+                                         ToolPosition(result.model, set->q(r)))
+                                            .norm());
+    }
+  }
+  EXPECT_LE(worst_same, kSameCalibrationTolerance);
+
+  // And it predicts the held-out measurements to within the noise.
+  const ErrorStatistics after = PositionErrorStatistics(calibrated, verification);
+  for (int a = 0; a < 3; ++a) EXPECT_LE(after.axis[a].max_abs, kHeldOutPerAxisMax) << "axis " << a;
+  const ErrorStatistics before = PositionErrorStatistics(nominal, verification);
+  EXPECT_GT(before.norm.max_abs, 10 * after.norm.max_abs);
+  // Against the noise-free actual robot, the error is the estimation error only.
+  double worst_actual = 0;
+  for (int r = 0; r < verification.size(); ++r) {
+    worst_actual = std::max(worst_actual, (ToolPosition(calibrated, verification.q(r)) -
+                                           ToolPosition(actual, verification.q(r)))
+                                              .norm());
+  }
+  EXPECT_LE(worst_actual, 3 * kNoiseSigma);
+}
+
+TEST_F(CalibrateTool, TooFewRowsExitsNotIdentifiableWithoutOutput) {
+  Simulate(kNoiseSigma, /*count=*/8, /*verify_count=*/0);
+  const Output o = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" +
+                             Path("id.csv") + " --output=" + Path("out.yaml"));
+  EXPECT_EQ(o.exit_code, kExitNotIdentifiable) << o.out << o.err;
+  EXPECT_FALSE(Exists("out.yaml"));
+  EXPECT_FALSE(o.err.empty());
+}
+
+TEST_F(CalibrateTool, IdenticalPosesExitNotIdentifiableWithoutOutput) {
+  Simulate(0.0, /*count=*/10, /*verify_count=*/0);
+  // Keep the header and repeat the first row 40 times.
+  std::istringstream in(ReadText(RawPath("id.csv")));
+  std::string line, header, row;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    if (header.empty()) {
+      header = line;
+    } else {
+      row = line;
+      break;
+    }
+  }
+  ASSERT_FALSE(row.empty());
+  {
+    std::ofstream out(RawPath("same.csv"));
+    out << header << "\n";
+    for (int k = 0; k < 40; ++k) out << row << "\n";
+  }
+  const Output o = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" +
+                             Path("same.csv") + " --output=" + Path("out.yaml"));
+  EXPECT_EQ(o.exit_code, kExitNotIdentifiable) << o.out << o.err;
+  EXPECT_FALSE(Exists("out.yaml"));
+  EXPECT_FALSE(o.err.empty());
+}
+
+TEST_F(CalibrateTool, MissingFileExitsWithInputErrorNamingIt) {
+  Simulate();
+  const std::string missing = RawPath("no_such_measurements.csv");
+  Output o = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" + Quote(missing) +
+                       " --output=" + Path("out.yaml"));
+  EXPECT_EQ(o.exit_code, kExitInput) << o.out << o.err;
+  EXPECT_NE(o.err.find("no_such_measurements.csv"), std::string::npos) << o.err;
+  EXPECT_FALSE(Exists("out.yaml"));
+
+  o = Calibrate("--model=" + Path("no_such_model.yaml") + " --measurements=" + Path("id.csv"));
+  EXPECT_EQ(o.exit_code, kExitInput) << o.out << o.err;
+  EXPECT_NE(o.err.find("no_such_model.yaml"), std::string::npos) << o.err;
+}
+
+TEST_F(CalibrateTool, BadFlagValuesExitWithUsageError) {
+  for (const std::string flag : {"--angle_unit=gradians", "--parameterization=bogus",
+                                 "--max_iterations=0", "--holdout=1.5", "--data_kind=both"}) {
+    const Output o = Calibrate(flag + " --output=" + Path("out.yaml"));
+    EXPECT_EQ(o.exit_code, kExitUsage) << flag << "\n" << o.out << o.err;
+    EXPECT_FALSE(o.err.empty()) << flag;
+    EXPECT_FALSE(Exists("out.yaml")) << flag;
+  }
+}
+
+TEST_F(CalibrateTool, IterationLimitExitsNotConvergedWithoutOutput) {
+  Simulate();
+  const Output o = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" +
+                             Path("id.csv") + " --max_iterations=1 --output=" + Path("out.yaml"));
+  EXPECT_EQ(o.exit_code, kExitNotConverged) << o.out << o.err;
+  EXPECT_FALSE(Exists("out.yaml"));
+}
+
+TEST_F(CalibrateTool, OutputEqualToAnInputIsRefused) {
+  Simulate();
+  const std::string model_before = ReadText(RawPath("nominal.yaml"));
+  const std::string csv_before = ReadText(RawPath("id.csv"));
+  for (const std::string& target : {std::string("nominal.yaml"), std::string("id.csv")}) {
+    const Output o = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" +
+                               Path("id.csv") + " --output=" + Path(target));
+    EXPECT_EQ(o.exit_code, kExitUsage) << target << "\n" << o.out << o.err;
+    EXPECT_NE(o.err.find(target), std::string::npos) << o.err;
+  }
+  EXPECT_EQ(ReadText(RawPath("nominal.yaml")), model_before);
+  EXPECT_EQ(ReadText(RawPath("id.csv")), csv_before);
+}
+
+}  // namespace
+}  // namespace lpoe

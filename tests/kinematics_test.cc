@@ -1,0 +1,276 @@
+// Tests of kinematics.h: the analytic Jacobians of the error model (eqs. (18), (29)) against central
+// finite differences of right perturbations of every local frame, and the templated chain
+// (ChainPose / ChainPosition) against the double forward kinematics, by value and, instantiated
+// with ceres::Jet, by derivative.
+#include "lpoe/kinematics.h"
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <ceres/jet.h>
+#include <gtest/gtest.h>
+
+#include "lpoe/robot_model.h"
+#include "lpoe/se3.h"
+#include "test_util.h"
+
+namespace lpoe {
+
+// Explicit instantiation of the chain with a Jet (STYLE.md: one template for double and Jet).
+using Jet6 = ceres::Jet<double, 6>;
+template SE3<Jet6> ChainPose<Jet6>(const RobotModel& model, const SE3<Jet6>* joint_origins,
+                                   const SE3<Jet6>& tool_origin, const double* q);
+template Vector3<Jet6> ChainPosition<Jet6>(const RobotModel& model, const SE3<Jet6>* joint_origins,
+                                           const Vector3<Jet6>& tool_point, const double* q);
+
+namespace {
+
+using testing::FrameOf;
+using testing::NamedRobot;
+using testing::PerturbFrame;
+using testing::TestRandom;
+
+constexpr int kConfigurations = 20;
+constexpr uint64_t kSeed = 4242;
+// Central differences: with a step of 1e-4 the truncation error of the rotation columns (lever arms
+// ~1e3 mm) is ~1e-9 relative and the round-off ~1e-8 relative.
+constexpr double kFdStep = 1e-4;
+constexpr double kFdRelativeTolerance = 1e-6;
+// Agreement between two evaluations of the same chain (different order of products).
+constexpr double kValueRelativeTolerance = 1e-12;
+// Jet derivatives against the analytic Jacobian: both exact, so only round-off separates them.
+constexpr double kJetRelativeTolerance = 1e-10;
+
+// Enough Jet components for 8 local frames (the 7-joint arm with one tool).
+constexpr int kMaxFrames = 8;
+using JetAll = ceres::Jet<double, 6 * kMaxFrames>;
+
+std::vector<NamedRobot> Robots() { return testing::TestRobotsWithTiltedVariants(kSeed); }
+
+// Per column: |a - b|max <= tolerance * max(1, |b|max).
+void ExpectColumnsNear(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b, double tolerance,
+                       const std::string& what) {
+  ASSERT_EQ(a.rows(), b.rows());
+  ASSERT_EQ(a.cols(), b.cols());
+  for (int c = 0; c < a.cols(); ++c) {
+    const double scale = std::max(1.0, b.col(c).cwiseAbs().maxCoeff());
+    EXPECT_LE((a.col(c) - b.col(c)).cwiseAbs().maxCoeff(), tolerance * scale)
+        << what << ", column " << c << " (frame " << c / 6 << ", direction " << c % 6 << ")\n"
+        << "analytic " << a.col(c).transpose() << "\nreference " << b.col(c).transpose();
+  }
+}
+
+Eigen::MatrixXd PositionJacobianByFiniteDifferences(const RobotModel& model, const double* q,
+                                                    int tool) {
+  Eigen::MatrixXd J(3, 6 * model.num_frames());
+  for (int f = 0; f < model.num_frames(); ++f) {
+    for (int k = 0; k < 6; ++k) {
+      const Vector6d h = kFdStep * Vector6d::Unit(k);
+      J.col(6 * f + k) = (ToolPosition(PerturbFrame(model, f, h), q, tool) -
+                          ToolPosition(PerturbFrame(model, f, -h), q, tool)) /
+                         (2 * kFdStep);
+    }
+  }
+  return J;
+}
+
+// d/d dp of log(T(perturbed) T^-1)^vee.
+Eigen::MatrixXd PoseJacobianByFiniteDifferences(const RobotModel& model, const double* q,
+                                                int tool) {
+  const SE3d T_inverse = ToolPose(model, q, tool).Inverse();
+  Eigen::MatrixXd J(6, 6 * model.num_frames());
+  for (int f = 0; f < model.num_frames(); ++f) {
+    for (int k = 0; k < 6; ++k) {
+      const Vector6d h = kFdStep * Vector6d::Unit(k);
+      J.col(6 * f + k) = (LogSE3(ToolPose(PerturbFrame(model, f, h), q, tool) * T_inverse) -
+                          LogSE3(ToolPose(PerturbFrame(model, f, -h), q, tool) * T_inverse)) /
+                         (2 * kFdStep);
+    }
+  }
+  return J;
+}
+
+TEST(Kinematics, JointMotionIsTheExponentialOfTheTwist) {
+  TestRandom rng(kSeed);
+  for (const NamedRobot& robot : Robots()) {
+    for (const Joint& joint : robot.model.joints) {
+      for (int trial = 0; trial < kConfigurations; ++trial) {
+        const double q = joint.type == JointType::kRevolute ? rng.Uniform(-testing::kPi, testing::kPi)
+                                                            : rng.Uniform(-100, 100);
+        const SE3d expected = ExpSE3(Vector6d(joint.twist * q));
+        const SE3d actual = JointMotion(joint, q);
+        EXPECT_LT(testing::RelativeMaxDifference(actual.Matrix(), expected.Matrix()), 1e-12)
+            << robot.name << " " << joint.name << " q = " << q;
+      }
+    }
+  }
+}
+
+TEST(Kinematics, ToolPositionJacobianMatchesFiniteDifferences) {
+  TestRandom rng(kSeed + 1);
+  for (const NamedRobot& robot : Robots()) {
+    ASSERT_TRUE(robot.model.Validate().ok()) << robot.name << ": " << robot.model.Validate().message();
+    for (int trial = 0; trial < kConfigurations; ++trial) {
+      const std::vector<double> q = rng.Configuration(robot.model);
+      Eigen::MatrixXd J;
+      const Eigen::Vector3d P = ToolPositionJacobian(robot.model, q.data(), 0, &J);
+      EXPECT_LT((P - ToolPosition(robot.model, q.data())).norm(), 1e-9) << robot.name;
+      ExpectColumnsNear(J, PositionJacobianByFiniteDifferences(robot.model, q.data(), 0),
+                        kFdRelativeTolerance, robot.name);
+    }
+  }
+}
+
+TEST(Kinematics, ToolPoseJacobianMatchesFiniteDifferences) {
+  TestRandom rng(kSeed + 2);
+  for (const NamedRobot& robot : Robots()) {
+    for (int trial = 0; trial < kConfigurations; ++trial) {
+      const std::vector<double> q = rng.Configuration(robot.model);
+      Eigen::MatrixXd J;
+      const SE3d T = ToolPoseJacobian(robot.model, q.data(), 0, &J);
+      EXPECT_LT(testing::RelativeMaxDifference(T.Matrix(), ToolPose(robot.model, q.data()).Matrix()),
+                kValueRelativeTolerance)
+          << robot.name;
+      ExpectColumnsNear(J, PoseJacobianByFiniteDifferences(robot.model, q.data(), 0),
+                        kFdRelativeTolerance, robot.name);
+    }
+  }
+}
+
+TEST(Kinematics, JacobiansOfASecondToolIgnoreTheFirst) {
+  RobotModel model = MakeCobot6();
+  model.tools.push_back(Tool{"smr2", SE3d(RotationFromRpy(0.3, -0.2, 1.0),
+                                          Eigen::Vector3d(-50, 30, 80))});
+  ASSERT_TRUE(model.Validate().ok());
+  TestRandom rng(kSeed + 3);
+  for (int trial = 0; trial < kConfigurations; ++trial) {
+    const std::vector<double> q = rng.Configuration(model);
+    for (int tool = 0; tool < 2; ++tool) {
+      Eigen::MatrixXd Jp, Jpose;
+      ToolPositionJacobian(model, q.data(), tool, &Jp);
+      ToolPoseJacobian(model, q.data(), tool, &Jpose);
+      ASSERT_EQ(Jp.cols(), 6 * 8);
+      // The columns of the other tool are exactly zero; finite differences agree everywhere.
+      const int other = 6 * (6 + 1 - tool);
+      EXPECT_EQ(Jp.middleCols(other, 6).cwiseAbs().maxCoeff(), 0.0);
+      EXPECT_EQ(Jpose.middleCols(other, 6).cwiseAbs().maxCoeff(), 0.0);
+      ExpectColumnsNear(Jp, PositionJacobianByFiniteDifferences(model, q.data(), tool),
+                        kFdRelativeTolerance, "position, tool " + std::to_string(tool));
+      ExpectColumnsNear(Jpose, PoseJacobianByFiniteDifferences(model, q.data(), tool),
+                        kFdRelativeTolerance, "pose, tool " + std::to_string(tool));
+    }
+  }
+}
+
+TEST(Kinematics, ChainPositionEqualsToolPosition) {
+  TestRandom rng(kSeed + 4);
+  for (const NamedRobot& robot : Robots()) {
+    const RobotModel& m = robot.model;
+    std::vector<SE3d> origins;
+    for (const Joint& j : m.joints) origins.push_back(j.origin);
+    for (int trial = 0; trial < kConfigurations; ++trial) {
+      const std::vector<double> q = rng.Configuration(m);
+      const Eigen::Vector3d expected = ToolPosition(m, q.data());
+      const double scale = std::max(1.0, expected.norm());
+      EXPECT_LT((ChainPosition(m, origins.data(), m.tools[0].origin.t, q.data()) - expected).norm(),
+                kValueRelativeTolerance * scale)
+          << robot.name;
+      EXPECT_LT(testing::RelativeMaxDifference(
+                    ChainPose(m, origins.data(), m.tools[0].origin, q.data()).Matrix(),
+                    ToolPose(m, q.data()).Matrix()),
+                kValueRelativeTolerance)
+          << robot.name;
+    }
+  }
+}
+
+// Frames perturbed by Jet infinitesimals: frame f carries derivative components 6 f .. 6 f + 5.
+template <typename J>
+void SeededFrames(const RobotModel& m, std::vector<SE3<J>>* origins, SE3<J>* tool) {
+  origins->clear();
+  for (int f = 0; f < m.num_frames(); ++f) {
+    Vector6<J> delta;
+    for (int k = 0; k < 6; ++k) delta(k) = J(0.0, 6 * f + k);
+    const SE3<J> X = FrameOf(m, f).template cast<J>() * ExpSE3(delta);
+    if (f < m.num_joints()) {
+      origins->push_back(X);
+    } else if (f == m.num_joints()) {
+      *tool = X;
+    }
+  }
+}
+
+TEST(Kinematics, JetChainPoseMatchesValuesAndAnalyticJacobians) {
+  TestRandom rng(kSeed + 5);
+  for (const NamedRobot& robot : Robots()) {
+    const RobotModel& m = robot.model;
+    ASSERT_LE(m.num_frames(), kMaxFrames);
+    const int columns = 6 * m.num_frames();
+    std::vector<SE3<JetAll>> origins;
+    SE3<JetAll> tool;
+    SeededFrames(m, &origins, &tool);
+    for (int trial = 0; trial < kConfigurations / 4; ++trial) {
+      const std::vector<double> q = rng.Configuration(m);
+      const SE3<JetAll> X = ChainPose(m, origins.data(), tool, q.data());
+      const SE3d T = ToolPose(m, q.data());
+
+      // Values.
+      Eigen::Matrix4d value;
+      const Matrix4<JetAll> XM = X.Matrix();
+      for (int r = 0; r < 4; ++r) {
+        for (int c = 0; c < 4; ++c) value(r, c) = XM(r, c).a;
+      }
+      EXPECT_LT(testing::RelativeMaxDifference(value, T.Matrix()), kValueRelativeTolerance)
+          << robot.name;
+
+      // Position derivative == ToolPositionJacobian.
+      Eigen::MatrixXd Jp, Jpose;
+      ToolPositionJacobian(m, q.data(), 0, &Jp);
+      ToolPoseJacobian(m, q.data(), 0, &Jpose);
+      Eigen::MatrixXd autodiff_p(3, columns);
+      for (int r = 0; r < 3; ++r) autodiff_p.row(r) = X.t(r).v.head(columns).transpose();
+      ExpectColumnsNear(autodiff_p, Jp, kJetRelativeTolerance, robot.name + " position");
+
+      // ChainPosition gives the same derivative.
+      const Vector3<JetAll> P = ChainPosition(m, origins.data(), tool.t, q.data());
+      for (int r = 0; r < 3; ++r) autodiff_p.row(r) = P(r).v.head(columns).transpose();
+      ExpectColumnsNear(autodiff_p, Jp, kJetRelativeTolerance, robot.name + " ChainPosition");
+
+      // Pose derivative: d log(T(dp) T^-1)^vee / d dp == ToolPoseJacobian.
+      const Vector6<JetAll> y = LogSE3(X * T.Inverse().cast<JetAll>());
+      Eigen::MatrixXd autodiff_pose(6, columns);
+      for (int r = 0; r < 6; ++r) {
+        EXPECT_LT(std::abs(y(r).a), 1e-9) << robot.name;
+        autodiff_pose.row(r) = y(r).v.head(columns).transpose();
+      }
+      ExpectColumnsNear(autodiff_pose, Jpose, kJetRelativeTolerance, robot.name + " pose");
+    }
+  }
+}
+
+TEST(Kinematics, JetChainWithSixComponentsDifferentiatesOneFrame) {
+  // The explicitly instantiated Jet<double, 6> chain, differentiating one frame at a time.
+  TestRandom rng(kSeed + 6);
+  const RobotModel m = MakeCobot6();
+  const std::vector<double> q = rng.Configuration(m);
+  Eigen::MatrixXd Jp;
+  ToolPositionJacobian(m, q.data(), 0, &Jp);
+  for (int f = 0; f < m.num_frames(); ++f) {
+    std::vector<SE3<Jet6>> origins;
+    SE3<Jet6> tool = m.tools[0].origin.cast<Jet6>();
+    for (const Joint& j : m.joints) origins.push_back(j.origin.cast<Jet6>());
+    Vector6<Jet6> delta;
+    for (int k = 0; k < 6; ++k) delta(k) = Jet6(0.0, k);
+    SE3<Jet6>& X = f < m.num_joints() ? origins[f] : tool;
+    X = X * ExpSE3(delta);
+    const Vector3<Jet6> P = ChainPosition(m, origins.data(), tool.t, q.data());
+    Eigen::MatrixXd autodiff(3, 6);
+    for (int r = 0; r < 3; ++r) autodiff.row(r) = P(r).v.transpose();
+    ExpectColumnsNear(autodiff, Jp.middleCols(6 * f, 6), kJetRelativeTolerance,
+                      "frame " + std::to_string(f));
+  }
+}
+
+}  // namespace
+}  // namespace lpoe

@@ -1,0 +1,222 @@
+#include <memory>
+#include <random>
+#include <vector>
+
+#include <ceres/gradient_checker.h>
+#include <gtest/gtest.h>
+
+#include "lpoe/kinematics.h"
+#include "lpoe/parameterization.h"
+#include "lpoe/pose_residual.h"
+#include "lpoe/position_residual.h"
+#include "lpoe/se3_manifold.h"
+#include "lpoe/simulation.h"
+
+namespace lpoe {
+namespace {
+
+constexpr int kNumConfigurations = 10;
+constexpr double kSigma = 0.05;               // mm
+constexpr double kOrientationWeight = 500.0;  // mm per rad
+// GradientChecker: autodiff against numeric differentiation, relative.
+constexpr double kGradientCheckPrecision = 1e-6;
+// Autodiff (through the manifold) against the analytic Jacobians of kinematics.h, relative.
+constexpr double kJacobianTolerance = 1e-9;
+
+using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// cobot6 with a second tool, so that residuals on tool 1 are exercised too.
+RobotModel TwoToolCobot() {
+  RobotModel model = MakeCobot6();
+  Tool second;
+  second.name = "smr2";
+  second.origin = SE3d(RotationFromRpy(0.3, -0.2, 0.5), Eigen::Vector3d(-30, 25, 80));
+  model.tools.push_back(second);
+  return model;
+}
+
+// The same with every frame and axis perturbed, so that no Jacobian entry is a near-cancellation
+// (GradientChecker judges each entry relative to itself).
+RobotModel PerturbedTwoToolCobot() {
+  const RobotModel model = TwoToolCobot();
+  return ApplyErrors(model, RandomErrors(model, 0.05, 5.0, 0.05, 0.0, 17));
+}
+
+std::vector<double> RandomQ(int n, std::mt19937_64* rng) {
+  std::uniform_real_distribution<double> u(-M_PI, M_PI);
+  std::vector<double> q(n);
+  for (double& v : q) v = u(*rng);
+  return q;
+}
+
+// Parameter blocks [joints..., tool] as 7-arrays, and their manifolds.
+struct Blocks {
+  std::vector<std::vector<double>> storage;
+  std::vector<const double*> pointers;
+  std::vector<std::unique_ptr<Se3Manifold>> manifolds;
+  std::vector<const ceres::Manifold*> manifold_pointers;
+  std::vector<int> frames;  // frame index of each block
+};
+
+Blocks MakeBlocks(const RobotModel& model, const Parameterization& p, int tool) {
+  Blocks b;
+  const int n = model.num_joints();
+  for (int i = 0; i <= n; ++i) b.frames.push_back(i < n ? i : n + tool);
+  for (int f : b.frames) {
+    const SE3d& T = f < n ? model.joints[f].origin : model.tools[f - n].origin;
+    b.storage.emplace_back(kSe3AmbientSize);
+    Se3ToArray(T, b.storage.back().data());
+    b.manifolds.push_back(std::make_unique<Se3Manifold>(p.basis[f]));
+  }
+  for (auto& s : b.storage) b.pointers.push_back(s.data());
+  for (auto& m : b.manifolds) b.manifold_pointers.push_back(m.get());
+  return b;
+}
+
+// Autodiff Jacobian of `cost` in the tangent spaces of the blocks, num_residuals x num_parameters
+// in the parameterization's column order.
+Eigen::MatrixXd TangentJacobian(const ceres::CostFunction& cost, const Blocks& b,
+                                const Parameterization& p, Eigen::VectorXd* residuals) {
+  const int m = cost.num_residuals();
+  residuals->resize(m);
+  std::vector<RowMajor> ambient(b.pointers.size(), RowMajor(m, kSe3AmbientSize));
+  std::vector<double*> jac;
+  for (auto& a : ambient) jac.push_back(a.data());
+  EXPECT_TRUE(cost.Evaluate(b.pointers.data(), residuals->data(), jac.data()));
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(m, p.num_parameters);
+  for (size_t i = 0; i < b.pointers.size(); ++i) {
+    const int k = b.manifolds[i]->TangentSize();
+    RowMajor plus(kSe3AmbientSize, k);
+    EXPECT_TRUE(b.manifolds[i]->PlusJacobian(b.pointers[i], plus.data()));
+    out.middleCols(p.offset[b.frames[i]], k) = ambient[i] * plus;
+  }
+  return out;
+}
+
+Eigen::MatrixXd Restrict(const Eigen::MatrixXd& J_frames, const Parameterization& p) {
+  Eigen::MatrixXd out(J_frames.rows(), p.num_parameters);
+  for (size_t f = 0; f < p.basis.size(); ++f) {
+    out.middleCols(p.offset[f], p.basis[f].cols()) = J_frames.middleCols(6 * f, 6) * p.basis[f];
+  }
+  return out;
+}
+
+double RelativeDifference(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return (a - b).norm() / b.norm();
+}
+
+TEST(PositionResidual, GradientCheckerPasses) {
+  const RobotModel model = PerturbedTwoToolCobot();
+  const auto shared = std::make_shared<const RobotModel>(model);
+  std::mt19937_64 rng(1);
+  for (ParameterizationKind kind : {ParameterizationKind::kIdentifiable, ParameterizationKind::kFull}) {
+    const Parameterization p = MakeParameterization(model, kind, DataKind::kPosition);
+    for (int trial = 0; trial < kNumConfigurations; ++trial) {
+      const int tool = trial % 2;
+      const std::vector<double> q = RandomQ(model.num_joints(), &rng);
+      const Eigen::Vector3d measured = ToolPosition(model, q.data(), tool) + Eigen::Vector3d(1, -2, 0.5);
+      std::unique_ptr<ceres::CostFunction> cost(
+          PositionResidual::Create(shared, q.data(), measured, kSigma));
+      const Blocks b = MakeBlocks(model, p, tool);
+      ceres::NumericDiffOptions numeric;
+      ceres::GradientChecker checker(cost.get(), &b.manifold_pointers, numeric);
+      ceres::GradientChecker::ProbeResults results;
+      EXPECT_TRUE(checker.Probe(b.pointers.data(), kGradientCheckPrecision, &results))
+          << results.error_log;
+    }
+  }
+}
+
+TEST(PositionResidual, MatchesAnalyticJacobianAndValue) {
+  const RobotModel model = TwoToolCobot();
+  const auto shared = std::make_shared<const RobotModel>(model);
+  std::mt19937_64 rng(2);
+  for (ParameterizationKind kind : {ParameterizationKind::kIdentifiable, ParameterizationKind::kFull}) {
+    const Parameterization p = MakeParameterization(model, kind, DataKind::kPosition);
+    for (int trial = 0; trial < kNumConfigurations; ++trial) {
+      const int tool = trial % 2;
+      const std::vector<double> q = RandomQ(model.num_joints(), &rng);
+      const Eigen::Vector3d measured(100, 200, 300);
+      std::unique_ptr<ceres::CostFunction> cost(
+          PositionResidual::Create(shared, q.data(), measured, kSigma));
+      const Blocks b = MakeBlocks(model, p, tool);
+      Eigen::VectorXd r;
+      const Eigen::MatrixXd J_auto = TangentJacobian(*cost, b, p, &r);
+      Eigen::MatrixXd J_frames;
+      const Eigen::Vector3d P = ToolPositionJacobian(model, q.data(), tool, &J_frames);
+      const Eigen::MatrixXd J_analytic = Restrict(J_frames, p) / kSigma;
+      EXPECT_LT(RelativeDifference(J_auto, J_analytic), kJacobianTolerance);
+      EXPECT_LT((r - (P - measured) / kSigma).norm(), 1e-9 * r.norm());
+    }
+  }
+}
+
+TEST(PoseResidual, GradientCheckerPasses) {
+  const RobotModel model = PerturbedTwoToolCobot();
+  const auto shared = std::make_shared<const RobotModel>(model);
+  const Parameterization p =
+      MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPose);
+  std::mt19937_64 rng(3);
+  for (int trial = 0; trial < kNumConfigurations; ++trial) {
+    const int tool = trial % 2;
+    const std::vector<double> q = RandomQ(model.num_joints(), &rng);
+    const SE3d measured =
+        ToolPose(model, q.data(), tool) * ExpSE3(Vector6d((Vector6d() << 0.01, -0.02, 0.005, 1, 2, -1).finished()));
+    std::unique_ptr<ceres::CostFunction> cost(
+        PoseResidual::Create(shared, q.data(), measured, kSigma, kOrientationWeight));
+    const Blocks b = MakeBlocks(model, p, tool);
+    ceres::NumericDiffOptions numeric;
+    ceres::GradientChecker checker(cost.get(), &b.manifold_pointers, numeric);
+    ceres::GradientChecker::ProbeResults results;
+    EXPECT_TRUE(checker.Probe(b.pointers.data(), kGradientCheckPrecision, &results))
+        << results.error_log;
+  }
+}
+
+// At a perfect fit (y = 0, where the log's Jacobian is the identity) the residual's Jacobian is
+// -diag(w, w, w, 1, 1, 1) A B / sigma with A the adjoint stack of eq. (18).
+TEST(PoseResidual, MatchesAnalyticJacobianAtTheFit) {
+  const RobotModel model = TwoToolCobot();
+  const auto shared = std::make_shared<const RobotModel>(model);
+  std::mt19937_64 rng(4);
+  for (ParameterizationKind kind : {ParameterizationKind::kIdentifiable, ParameterizationKind::kFull}) {
+    const Parameterization p = MakeParameterization(model, kind, DataKind::kPose);
+    for (int trial = 0; trial < kNumConfigurations; ++trial) {
+      const int tool = trial % 2;
+      const std::vector<double> q = RandomQ(model.num_joints(), &rng);
+      Eigen::MatrixXd J_frames;
+      const SE3d pose = ToolPoseJacobian(model, q.data(), tool, &J_frames);
+      std::unique_ptr<ceres::CostFunction> cost(
+          PoseResidual::Create(shared, q.data(), pose, kSigma, kOrientationWeight));
+      const Blocks b = MakeBlocks(model, p, tool);
+      Eigen::VectorXd r;
+      const Eigen::MatrixXd J_auto = TangentJacobian(*cost, b, p, &r);
+      Eigen::MatrixXd J_analytic = -Restrict(J_frames, p) / kSigma;
+      J_analytic.topRows<3>() *= kOrientationWeight;
+      EXPECT_LT(RelativeDifference(J_auto, J_analytic), kJacobianTolerance);
+      EXPECT_LT(r.norm(), 1e-8);
+    }
+  }
+}
+
+TEST(PoseResidual, ValueIsWeightedLogOfTheError) {
+  const RobotModel model = MakeCobot6();
+  const auto shared = std::make_shared<const RobotModel>(model);
+  const Parameterization p =
+      MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPose);
+  std::mt19937_64 rng(5);
+  const std::vector<double> q = RandomQ(model.num_joints(), &rng);
+  const Vector6d error = (Vector6d() << 0.002, -0.001, 0.003, 0.5, -0.25, 1.0).finished();
+  const SE3d measured = ExpSE3(error) * ToolPose(model, q.data(), 0);
+  std::unique_ptr<ceres::CostFunction> cost(
+      PoseResidual::Create(shared, q.data(), measured, kSigma, kOrientationWeight));
+  const Blocks b = MakeBlocks(model, p, 0);
+  Eigen::VectorXd r(6);
+  ASSERT_TRUE(cost->Evaluate(b.pointers.data(), r.data(), nullptr));
+  Vector6d expected = error / kSigma;
+  expected.head<3>() *= kOrientationWeight;
+  EXPECT_LT((r - expected).norm(), 1e-9 * expected.norm());
+}
+
+}  // namespace
+}  // namespace lpoe
