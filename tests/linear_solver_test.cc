@@ -245,8 +245,12 @@ TEST(LinearSolver, HistoryIsRecordedAndTheErrorDecreases) {
     EXPECT_LT(result.history[1].max_error, result.history[0].max_error);
     for (size_t k = 0; k < result.history.size(); ++k) {
       EXPECT_EQ(result.history[k].iteration, static_cast<int>(k));
-      if (k > 0) EXPECT_LE(result.history[k].cost, result.history[k - 1].cost);
-      if (k + 1 < result.history.size()) EXPECT_GT(result.history[k].step_norm, 0.0);
+      if (k > 0) {
+        EXPECT_LE(result.history[k].cost, result.history[k - 1].cost);
+      }
+      if (k + 1 < result.history.size()) {
+        EXPECT_GT(result.history[k].step_norm, 0.0);
+      }
     }
     EXPECT_LT(result.history.back().step_norm, options.step_tolerance);
     EXPECT_NEAR(result.final_cost, result.history.back().cost, 1e-12);

@@ -20,11 +20,14 @@
 #include "lpoe/linear_solver.h"
 #include "lpoe/registration.h"
 #include "lpoe/statistics.h"
+#include "lpoe/urdf.h"
 #include "plot.h"
 #include "report.h"
 #include "tool_common.h"
 
-DEFINE_string(model, "", "Nominal robot model (YAML). Default: data/cobot6.yaml.");
+DEFINE_string(model, "",
+              "Nominal robot model: YAML, or URDF when the name ends in .urdf (metres converted to "
+              "mm, fixed joints folded in). Default: data/cobot6.yaml.");
 DEFINE_string(measurements, "",
               "Identification measurements (CSV: q1..qN,x,y,z[,target][,quat_x..quat_w]). "
               "Default: data/section4/identification.csv.");
@@ -39,6 +42,7 @@ DEFINE_int32(kfold, 0,
              "identification set and report each fold's held-out errors.");
 DEFINE_uint64(split_seed, 1, "Seed of the --holdout and --kfold splits.");
 DEFINE_string(output, "", "Write the calibrated model here (YAML). Nothing is written on failure.");
+DEFINE_string(urdf_output, "", "Also write the calibrated model as URDF (metres, joint origins with rpy).");
 DEFINE_string(report, "", "Write a machine-readable JSON report here (schema in the README).");
 DEFINE_string(plots_dir, "lpoe_plots",
               "Directory for the PNG plots (convergence, per-axis errors, histogram); created if "
@@ -246,7 +250,7 @@ int Run() {
                  "--max_condition > 1, --outlier_threshold > 0\n";
     return kExitUsage;
   }
-  for (const std::string& out : {FLAGS_output, FLAGS_report}) {
+  for (const std::string& out : {FLAGS_output, FLAGS_report, FLAGS_urdf_output}) {
     for (const std::string& in : {model_path, meas_path, verify_path}) {
       if (!out.empty() && tools::SameFile(out, in)) {
         std::cerr << "error: an output would overwrite the input file " << in << "\n";
@@ -261,7 +265,10 @@ int Run() {
 
   // ---- Inputs.
   tools::RunSummary summary;
-  if (Status s = ReadRobotModel(model_path, &job.nominal); !s.ok()) {
+  const bool urdf = model_path.size() >= 5 && model_path.compare(model_path.size() - 5, 5, ".urdf") == 0;
+  if (Status s = urdf ? ReadRobotModelUrdf(model_path, &job.nominal)
+                      : ReadRobotModel(model_path, &job.nominal);
+      !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
@@ -418,6 +425,13 @@ int Run() {
       return kExitOutput;
     }
     summary.outputs.push_back(FLAGS_output);
+  }
+  if (!FLAGS_urdf_output.empty()) {
+    if (Status s = WriteRobotModelUrdf(FLAGS_urdf_output, result.model); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitOutput;
+    }
+    summary.outputs.push_back(FLAGS_urdf_output);
   }
   if (!FLAGS_plots_dir.empty()) {
     if (!EnsureDirectory(FLAGS_plots_dir)) {
