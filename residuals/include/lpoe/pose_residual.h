@@ -29,7 +29,7 @@ namespace lpoe {
 class PoseResidual {
  public:
   static constexpr int kNumResiduals = 6;
-  static constexpr int kStride = 7;  // see PositionResidual::kStride
+  static constexpr int kStride = 2;  // see PositionResidual::kStride
   using CostFunction = ceres::DynamicAutoDiffCostFunction<PoseResidual, kStride>;
 
   // `model` supplies the twists; `q` holds model->num_joints() values; sigma > 0 (mm);

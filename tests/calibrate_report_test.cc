@@ -1,0 +1,94 @@
+// The default lpoe_calibrate run produces the report a user reads (issue 4): plots as PNG images of
+// the expected size with content, and a JSON report following the README's schema.
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+namespace {
+
+constexpr int kPlotWidth = 1000;
+constexpr int kConvergenceHeight = 600;
+constexpr int kAxisErrorsHeight = 900;
+constexpr long kMinPngBytes = 4000;  // a blank 1000x600 PNG compresses to ~3 KB
+
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Width and height from the PNG signature and IHDR chunk.
+bool PngSize(const std::string& bytes, int* w, int* h) {
+  static const unsigned char kSig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (bytes.size() < 24 || bytes.compare(0, 8, reinterpret_cast<const char*>(kSig), 8) != 0 ||
+      bytes.compare(12, 4, "IHDR") != 0) {
+    return false;
+  }
+  auto be32 = [&](size_t o) {
+    return (static_cast<unsigned char>(bytes[o]) << 24) |
+           (static_cast<unsigned char>(bytes[o + 1]) << 16) |
+           (static_cast<unsigned char>(bytes[o + 2]) << 8) | static_cast<unsigned char>(bytes[o + 3]);
+  };
+  *w = static_cast<int>(be32(16));
+  *h = static_cast<int>(be32(20));
+  return true;
+}
+
+class CalibrateReport : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    char tmpl[] = "/tmp/lpoe_report_XXXXXX";
+    ASSERT_NE(mkdtemp(tmpl), nullptr);
+    dir_ = tmpl;
+  }
+  void TearDown() override { std::system(("rm -rf " + dir_).c_str()); }
+  std::string dir_;
+};
+
+TEST_F(CalibrateReport, DefaultRunWritesPlotsAndJson) {
+  const std::string cmd = "cd " + dir_ + " && " LPOE_CALIBRATE_PATH " --report=report.json > out.txt 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << ReadAll(dir_ + "/out.txt");
+  struct Expected {
+    const char* name;
+    int w, h;
+  };
+  for (const Expected& e : {Expected{"convergence.png", kPlotWidth, kConvergenceHeight},
+                            Expected{"axis_errors.png", kPlotWidth, kAxisErrorsHeight},
+                            Expected{"error_histogram.png", kPlotWidth, kConvergenceHeight}}) {
+    const std::string bytes = ReadAll(dir_ + "/lpoe_plots/" + e.name);
+    int w = 0, h = 0;
+    ASSERT_TRUE(PngSize(bytes, &w, &h)) << e.name << " is not a PNG";
+    EXPECT_EQ(w, e.w) << e.name;
+    EXPECT_EQ(h, e.h) << e.name;
+    EXPECT_GT(static_cast<long>(bytes.size()), kMinPngBytes) << e.name << " looks empty";
+  }
+  const nlohmann::json j = nlohmann::json::parse(ReadAll(dir_ + "/report.json"));
+  EXPECT_EQ(j["schema"], "lpoe-calib/report/1");
+  EXPECT_TRUE(j["solver"]["converged"].get<bool>());
+  EXPECT_EQ(j["identifiability"]["unidentifiable"].size(), 15u);
+  EXPECT_EQ(j["identifiability"]["rank"], 27);
+  EXPECT_EQ(j["identifiability"]["identified"].size(), 27u);
+  EXPECT_LT(j["verification"]["after"]["x"]["max"].get<double>(), 0.15);
+  EXPECT_GT(j["verification"]["before"]["x"]["max"].get<double>(), 1.0);
+  EXPECT_GE(j["history"].size(), 2u);
+  EXPECT_EQ(j["calibrated_frames"].size(), 7u);
+}
+
+TEST_F(CalibrateReport, UrdfOutputReadsBack) {
+  const std::string cmd = "cd " + dir_ + " && " LPOE_CALIBRATE_PATH
+                          " --plots_dir= --output=cal.yaml --urdf_output=cal.urdf > out.txt 2>&1"
+                          " && " LPOE_CALIBRATE_PATH " --plots_dir= --model=cal.urdf --noregister"
+                          " --max_iterations=3 > again.txt 2>&1";
+  // Calibrating again from the calibrated URDF starts at the optimum: converged at once.
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << ReadAll(dir_ + "/out.txt") << ReadAll(dir_ + "/again.txt");
+  const std::string again = ReadAll(dir_ + "/again.txt");
+  EXPECT_NE(again.find("converged after 0 iteration"), std::string::npos) << again;
+}
+
+}  // namespace
