@@ -220,17 +220,19 @@ TEST(CeresSolver, APosterioriCovarianceScalesByVarianceFactor) {
 TEST(CeresSolver, RobustLossResistsGrossErrors) {
   const DataSet clean = SectionFour(kPaperSigma, 41);
   DataSet dirty = clean;
-  // Gross errors on every 1/kOutlierFraction-th row, in a varying direction.
-  const int step = static_cast<int>(std::lround(1.0 / kOutlierFraction));
-  int outliers = 0;
-  for (int r = step / 2; r < dirty.identification.size(); r += step, ++outliers) {
+  // Gross errors on ceil(5%) of the rows, spread evenly, magnitudes across [kGrossMin, kGrossMax],
+  // in varying directions.
+  const int rows = dirty.identification.size();
+  const int outliers = static_cast<int>(std::ceil(kOutlierFraction * rows));
+  for (int k = 0; k < outliers; ++k) {
+    const int r = (2 * k + 1) * rows / (2 * outliers);
     const double magnitude =
-        kGrossMinMm + (kGrossMaxMm - kGrossMinMm) * (outliers % 4) / 3.0;
+        kGrossMinMm + (kGrossMaxMm - kGrossMinMm) * k / std::max(1, outliers - 1);
     const Eigen::Vector3d direction =
         Eigen::Vector3d(std::cos(r), std::sin(r), 0.5 * std::cos(3.0 * r)).normalized();
     dirty.identification.mutable_position(r) += magnitude * direction;
   }
-  ASSERT_GE(outliers, 3);
+  ASSERT_EQ(outliers, 4);
 
   const CeresSolverOptions plain = CeresOptions();
   const double clean_error =

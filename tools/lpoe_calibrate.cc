@@ -16,6 +16,7 @@
 #include <glog/logging.h>
 
 #include "lpoe/analysis.h"
+#include "lpoe/ceres_solver.h"
 #include "lpoe/io.h"
 #include "lpoe/linear_solver.h"
 #include "lpoe/registration.h"
@@ -47,7 +48,18 @@ DEFINE_string(report, "", "Write a machine-readable JSON report here (schema in 
 DEFINE_string(plots_dir, "lpoe_plots",
               "Directory for the PNG plots (convergence, per-axis errors, histogram); created if "
               "missing. Empty: no plots.");
-DEFINE_string(solver, "linear", "linear: the paper's iterative least squares.");
+DEFINE_string(solver, "linear",
+              "linear: the paper's iterative least squares; ceres: Levenberg-Marquardt on SE(3) "
+              "manifolds (robust losses, a-priori covariance).");
+DEFINE_string(loss, "none",
+              "Ceres solver: robust loss against gross errors in the data: none | huber | cauchy.");
+DEFINE_double(loss_scale, 1.0,
+              "Ceres solver: scale of the robust loss in mm (errors above it are down-weighted).");
+DEFINE_double(sigma, 1.0,
+              "Ceres solver: measurement noise per axis in mm (residual whitening; sets the scale "
+              "of the covariance). Not given: the covariance is scaled by the noise estimated "
+              "from the residuals, as with the linear solver.");
+DEFINE_int32(threads, 0, "Ceres solver: threads (0: all hardware threads).");
 DEFINE_string(parameterization, "identifiable",
               "identifiable: only the directions the data can see (27 for a 6R arm with position "
               "data); full: 6 per local frame, solved as a minimum-norm pseudo-inverse (the "
@@ -117,6 +129,22 @@ class Progress {
   bool shown_ = false;
 };
 
+// The Ceres solver's options from the flags (validated in Run()).
+CeresSolverOptions CeresOptionsFromFlags(const Job& job) {
+  CeresSolverOptions options;
+  options.parameterization = job.kind;
+  options.use_orientation = job.use_orientation;
+  options.max_iterations = FLAGS_max_iterations;
+  options.max_condition_number = FLAGS_max_condition;
+  options.loss = FLAGS_loss;
+  options.loss_scale = FLAGS_loss_scale;
+  options.sigma = FLAGS_sigma;
+  // Without a stated noise level, estimate it from the residuals (as the linear solver does).
+  options.a_posteriori_covariance = gflags::GetCommandLineFlagInfoOrDie("sigma").is_default;
+  if (FLAGS_threads > 0) options.num_threads = FLAGS_threads;
+  return options;
+}
+
 // Registration (optional) then the chosen solver. `registration` may be null.
 CalibrationResult Solve(const Job& job, const MeasurementSet& data, const std::string& what,
                         RegistrationReport* registration, RobotModel* rigid_nominal) {
@@ -137,6 +165,10 @@ CalibrationResult Solve(const Job& job, const MeasurementSet& data, const std::s
     }
   }
   Progress progress(what);
+  if (FLAGS_solver == "ceres") {
+    const CeresSolverOptions options = CeresOptionsFromFlags(job);
+    return CalibrateCeres(start, data, options);
+  }
   LinearSolverOptions options;
   options.parameterization = job.kind;
   options.use_orientation = job.use_orientation;
@@ -222,8 +254,20 @@ int Run() {
               << FLAGS_parameterization << "'\n";
     return kExitUsage;
   }
-  if (FLAGS_solver != "linear") {
-    std::cerr << "error: --solver must be linear, got '" << FLAGS_solver << "'\n";
+  if (FLAGS_solver != "linear" && FLAGS_solver != "ceres") {
+    std::cerr << "error: --solver must be linear or ceres, got '" << FLAGS_solver << "'\n";
+    return kExitUsage;
+  }
+  if (FLAGS_threads < 0) {
+    std::cerr << "error: --threads must be >= 0, got " << FLAGS_threads << "\n";
+    return kExitUsage;
+  }
+  if (Status s = ValidateCeresSolverOptions(CeresOptionsFromFlags(job)); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
+  }
+  if (FLAGS_solver == "linear" && FLAGS_loss != "none") {
+    std::cerr << "error: --loss needs --solver=ceres (the linear solver is plain least squares)\n";
     return kExitUsage;
   }
   if (FLAGS_data_kind != "auto" && FLAGS_data_kind != "position" && FLAGS_data_kind != "pose") {

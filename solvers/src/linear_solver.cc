@@ -11,6 +11,7 @@
 #include <Eigen/SVD>
 #include <glog/logging.h>
 
+#include "identifiability.h"
 #include "lpoe/kinematics.h"
 
 namespace lpoe {
@@ -90,52 +91,10 @@ Linearization Linearize(const RobotModel& model, const MeasurementSet& data,
   return lin;
 }
 
-// Column scaling D = diag(1 / |column j of J|) (Jacobi preconditioning): rotation columns carry
-// lever arms of ~10^3 mm, translation columns ~1.
-Eigen::VectorXd ColumnScale(const Eigen::MatrixXd& H) {
-  Eigen::VectorXd d(H.rows());
-  for (int j = 0; j < H.rows(); ++j) d(j) = H(j, j) > 0 ? 1.0 / std::sqrt(H(j, j)) : 1.0;
-  return d;
-}
-
-struct Identifiability {
-  int rank = 0;
-  double condition = std::numeric_limits<double>::infinity();
-  Eigen::VectorXd singular_values;  // descending
-  Eigen::VectorXd weakest;          // scaled-parameter direction of the smallest singular value
-};
-
-Identifiability Analyze(const Eigen::MatrixXd& H) {
-  const Eigen::VectorXd d = ColumnScale(H);
-  const Eigen::MatrixXd Hs = d.asDiagonal() * H * d.asDiagonal();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Hs);
-  Identifiability out;
-  const int P = static_cast<int>(H.rows());
-  out.singular_values.resize(P);
-  for (int k = 0; k < P; ++k) {
-    out.singular_values(k) = std::sqrt(std::max(0.0, eig.eigenvalues()(P - 1 - k)));
-  }
-  const double smax = out.singular_values(0);
-  // Numerical rank of the scaled Jacobian; sqrt(eps) relative since we work on J^T J.
-  const double tol = smax * 1e-8;
-  for (int k = 0; k < P; ++k) out.rank += out.singular_values(k) > tol;
-  const double smin = out.singular_values(P - 1);
-  out.condition = smin > 0 ? smax / smin : std::numeric_limits<double>::infinity();
-  out.weakest = eig.eigenvectors().col(0);
-  return out;
-}
-
-std::string WeakestDirections(const Parameterization& p, const Eigen::VectorXd& v) {
-  std::vector<int> idx(v.size());
-  for (int k = 0; k < v.size(); ++k) idx[k] = k;
-  std::sort(idx.begin(), idx.end(), [&](int a, int b) { return std::abs(v(a)) > std::abs(v(b)); });
-  std::ostringstream os;
-  for (int k = 0; k < std::min<int>(3, static_cast<int>(idx.size())); ++k) {
-    if (k) os << ", ";
-    os << p.parameters[idx[k]].name;
-  }
-  return os.str();
-}
+// The identifiability check shared with the Ceres solver (identifiability.h).
+using internal::Analyze;
+using internal::ColumnScale;
+using internal::Identifiability;
 
 // Least-squares step x of J x = y.
 Eigen::VectorXd SolveStep(const Linearization& lin, bool full, const LinearSolverOptions& options) {
@@ -215,12 +174,8 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   const int per_row = options.use_orientation ? 6 : 3;
   const long equations = static_cast<long>(per_row) * data.size();
   if (equations < identifiable) {
-    std::ostringstream os;
-    os << data.size() << " measurements give " << equations << " equations, fewer than the "
-       << identifiable << " identifiable parameters; at least "
-       << (identifiable + per_row - 1) / per_row
-       << " configurations are needed (several times that for a reliable calibration)";
-    return finish(Termination::kNotIdentifiable, os.str());
+    return finish(Termination::kNotIdentifiable,
+                  internal::TooFewEquationsMessage(data.size(), equations, identifiable, per_row));
   }
 
   const bool stack = full;
@@ -250,13 +205,9 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     if (id.rank < identifiable || !(id.condition <= options.max_condition_number)) {
       const Parameterization pi =
           full ? MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind) : p;
-      std::ostringstream os;
-      os << "the data cannot identify the model: the column-scaled Jacobian has rank " << id.rank
-         << " of " << identifiable << " and condition number " << id.condition << " (limit "
-         << options.max_condition_number << "); weakest directions: "
-         << WeakestDirections(pi, id.weakest)
-         << ". The poses are too few or too similar: measure configurations that move every joint";
-      return finish(Termination::kNotIdentifiable, os.str());
+      return finish(Termination::kNotIdentifiable,
+                    internal::NotIdentifiableMessage(id, identifiable,
+                                                     options.max_condition_number, pi));
     }
   }
 
