@@ -11,6 +11,7 @@ PACKAGES=(
   nlohmann-json3-dev       # the JSON calibration report (header-only)
   libgtest-dev libbenchmark-dev
   libpng-dev               # report plots (tools/plot.cc)
+  clang libclang-rt-14-dev # scripts/fuzz.sh (libFuzzer) and scripts/ci_sanitize.sh (ASan + UBSan)
 )
 
 missing=()

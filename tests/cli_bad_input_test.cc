@@ -172,13 +172,8 @@ std::vector<BadFile> ReadManifest() {
   return files;
 }
 
-std::string TestName(const ::testing::TestParamInfo<BadFile>& info) {
-  std::string name = info.param.file;
-  for (char& c : name) {
-    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-  }
-  return name;
-}
+// ctest shows a parameterized test by what PrintTo prints (gtest_discover_tests' pretty names).
+void PrintTo(const BadFile& b, std::ostream* os) { *os << b.file; }
 
 class CliBadInput : public ::testing::TestWithParam<BadFile> {};
 
@@ -220,7 +215,7 @@ TEST_P(CliBadInput, ExitsTwoNamingFileAndLineAndWritesNothing) {
       << "left behind: " << ::testing::PrintToString(ListDir(outputs.path()));
 }
 
-INSTANTIATE_TEST_SUITE_P(TestsDataBad, CliBadInput, ::testing::ValuesIn(ReadManifest()), TestName);
+INSTANTIATE_TEST_SUITE_P(TestsDataBad, CliBadInput, ::testing::ValuesIn(ReadManifest()));
 
 // ---- A failing run leaves previous outputs alone.
 
@@ -322,6 +317,8 @@ struct FlagCase {
   std::vector<std::string> must_mention;
 };
 
+void PrintTo(const FlagCase& c, std::ostream* os) { *os << c.name; }
+
 class CliBadFlags : public ::testing::TestWithParam<FlagCase> {};
 
 TEST_P(CliBadFlags, ExitsOneNamingTheFlag) {
@@ -352,7 +349,6 @@ INSTANTIATE_TEST_SUITE_P(
         FlagCase{"verify_and_holdout",
                  {"--verify=" + kGoodVerification, "--holdout=0.3"},
                  {"--verify", "--holdout"}},
-        FlagCase{"unknown_flag", {"--no_such_flag=1"}, {"no_such_flag"}}),
-    [](const ::testing::TestParamInfo<FlagCase>& info) { return info.param.name; });
+        FlagCase{"unknown_flag", {"--no_such_flag=1"}, {"no_such_flag"}}));
 
 }  // namespace

@@ -1,10 +1,13 @@
 #include "lpoe/linear_solver.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <thread>
+#include <vector>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -35,55 +38,153 @@ struct Linearization {
   bool finite = true;
 };
 
+// Poses per block of stacked rows handed to one symmetric rank-k update (H += A^T A, a blocked
+// SYRK): large enough to amortize Eigen's packing, small enough to stay in L1/L2.
+constexpr int kBlockPoses = 64;
+// The rows are cut into at most kMaxChunks contiguous chunks of at least kMinChunkPoses poses, a
+// partition that depends on the row count only. Each chunk accumulates its own partial sums; they
+// are added in chunk order. So the result is bit-identical whatever the number of threads and
+// whichever thread takes which chunk.
+constexpr int kMaxChunks = 64;
+constexpr int kMinChunkPoses = 1024;
+// Below this many poses everything runs on the calling thread.
+constexpr int kMinPosesForThreads = 2000;
+
+// Partial sums of one chunk of rows.
+struct ChunkSums {
+  Eigen::MatrixXd H;  // lower triangle
+  Eigen::VectorXd g;
+  double cost = 0;
+  double max_error = 0;
+  double sum_error = 0;
+};
+
+// Per-thread scratch (allocated once per thread and Linearize call, never per row).
+struct Scratch {
+  Eigen::MatrixXd A;  // m * kBlockPoses x P stacked Jacobian rows
+  Eigen::VectorXd Y;  // m * kBlockPoses residuals
+  std::vector<FrameRt> frames;
+};
+
+// Accumulates rows [begin, end) into `sums` (and into the stacked J and y when `lin` stacks).
+void AccumulateRows(const BasisJacobian& bj, const MeasurementSet& data,
+                    const LinearSolverOptions& options, int begin, int end, Scratch* scratch,
+                    ChunkSums* sums, Linearization* stacked) {
+  const int m = options.use_orientation ? 6 : 3;
+  const int P = bj.num_parameters();
+  const int ld = m * kBlockPoses;
+  double* A = scratch->A.data();
+  double* Y = scratch->Y.data();
+  FrameRt* frames = scratch->frames.data();
+  const double w = options.orientation_weight;
+  for (int r0 = begin; r0 < end; r0 += kBlockPoses) {
+    const int count = std::min(kBlockPoses, end - r0);
+    for (int k = 0; k < count; ++k) {
+      const int r = r0 + k;
+      const double* q = data.q(r);
+      const int tool = data.target(r);
+      double* Jr = A + m * k;
+      double* y = Y + m * k;
+      double e_sq;
+      if (options.use_orientation) {
+        const SE3d T = bj.Pose(q, tool, Jr, ld, frames);
+        Vector6d yr = LogSE3(data.pose(r) * T.Inverse());  // eq. (17)
+        e_sq = (data.position(r) - T.t).squaredNorm();
+        // Weight the rotation rows: 1 rad counts as orientation_weight mm.
+        yr.head<3>() *= w;
+        for (int c = 0; c < P; ++c) {
+          double* col = Jr + static_cast<std::ptrdiff_t>(c) * ld;
+          col[0] *= w;
+          col[1] *= w;
+          col[2] *= w;
+        }
+        for (int i = 0; i < 6; ++i) y[i] = yr(i);
+        sums->cost += 0.5 * yr.squaredNorm();
+      } else {
+        const Eigen::Vector3d P_model = bj.Position(q, tool, Jr, ld, frames);
+        const Eigen::Vector3d yr = data.position(r) - P_model;  // eq. (30)
+        y[0] = yr(0);
+        y[1] = yr(1);
+        y[2] = yr(2);
+        e_sq = yr.squaredNorm();
+        sums->cost += 0.5 * e_sq;
+      }
+      const double e = std::sqrt(e_sq);
+      sums->max_error = std::max(sums->max_error, e);
+      sums->sum_error += e;
+    }
+    const int rows = m * count;
+    const auto Ab = scratch->A.topRows(rows);
+    sums->H.selfadjointView<Eigen::Lower>().rankUpdate(Ab.transpose());
+    sums->g.noalias() += Ab.transpose() * scratch->Y.head(rows);
+    if (stacked != nullptr) {
+      stacked->J.middleRows(static_cast<Eigen::Index>(m) * r0, rows) = Ab;
+      stacked->y.segment(static_cast<Eigen::Index>(m) * r0, rows) = scratch->Y.head(rows);
+    }
+  }
+}
+
+// Linearizes the error model over all rows: J^T J, J^T y, cost and errors, and with `stack` the
+// stacked J and y. The rows are processed in the fixed chunks above, on up to two threads (or as
+// many as the hardware has), with no allocation per row.
 Linearization Linearize(const RobotModel& model, const MeasurementSet& data,
                         const Parameterization& p, const LinearSolverOptions& options,
                         bool stack) {
   const int P = p.num_parameters;
-  const int F = model.num_frames();
   const int m = options.use_orientation ? 6 : 3;
+  const int N = data.size();
   Linearization lin;
   lin.H.setZero(P, P);
   lin.g.setZero(P);
   if (stack) {
-    lin.J.setZero(static_cast<Eigen::Index>(m) * data.size(), P);
-    lin.y.setZero(static_cast<Eigen::Index>(m) * data.size());
+    lin.J.setZero(static_cast<Eigen::Index>(m) * N, P);
+    lin.y.setZero(static_cast<Eigen::Index>(m) * N);
   }
-  Eigen::MatrixXd J_frames;
-  Eigen::MatrixXd Jb(m, P);
-  Eigen::VectorXd y(m);
+  const BasisJacobian bj(model, p);
+
+  const int chunks = std::max(1, std::min(kMaxChunks, N / kMinChunkPoses));
+  const int chunk_size = N == 0 ? 0 : (N + chunks - 1) / chunks;
+  std::vector<ChunkSums> sums(chunks);
+  auto make_scratch = [&]() {
+    Scratch s;
+    s.A.resize(static_cast<Eigen::Index>(m) * kBlockPoses, P);
+    s.Y.resize(static_cast<Eigen::Index>(m) * kBlockPoses);
+    s.frames.resize(model.num_joints() + 1);
+    return s;
+  };
+  auto run_chunk = [&](int c, Scratch* scratch) {
+    ChunkSums& cs = sums[c];
+    cs.H.setZero(P, P);
+    cs.g.setZero(P);
+    const int begin = std::min(N, c * chunk_size);
+    const int end = std::min(N, begin + chunk_size);
+    AccumulateRows(bj, data, options, begin, end, scratch, &cs, stack ? &lin : nullptr);
+  };
+  const int hardware = static_cast<int>(std::thread::hardware_concurrency());
+  const int threads = N < kMinPosesForThreads ? 1 : std::max(1, std::min(hardware, chunks));
+  if (threads == 1) {
+    Scratch scratch = make_scratch();
+    for (int c = 0; c < chunks; ++c) run_chunk(c, &scratch);
+  } else {
+    // Chunks are taken in any order; each writes only its own sums (and its own rows of J, y).
+    std::atomic<int> next(0);
+    auto worker = [&]() {
+      Scratch scratch = make_scratch();
+      for (int c = next.fetch_add(1); c < chunks; c = next.fetch_add(1)) run_chunk(c, &scratch);
+    };
+    std::vector<std::thread> pool;
+    for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+    worker();
+    for (std::thread& t : pool) t.join();
+  }
+  // Fixed-order reduction.
   double sum_error = 0;
-  for (int r = 0; r < data.size(); ++r) {
-    const double* q = data.q(r);
-    const int tool = data.target(r);
-    Eigen::Vector3d position_error;
-    if (options.use_orientation) {
-      const SE3d T = ToolPoseJacobian(model, q, tool, &J_frames);
-      y = LogSE3(data.pose(r) * T.Inverse());  // eq. (17)
-      position_error = data.position(r) - T.t;
-      // Weight the rotation rows: 1 rad counts as orientation_weight mm.
-      y.head<3>() *= options.orientation_weight;
-      J_frames.topRows<3>() *= options.orientation_weight;
-    } else {
-      const Eigen::Vector3d P_model = ToolPositionJacobian(model, q, tool, &J_frames);
-      y = data.position(r) - P_model;  // eq. (30)
-      position_error = y;
-    }
-    // Restrict to the calibrated directions: Jb = J_frames * blockdiag(basis_f).
-    for (int f = 0; f < F; ++f) {
-      const Eigen::MatrixXd& B = p.basis[f];
-      if (B.cols() == 0) continue;
-      Jb.middleCols(p.offset[f], B.cols()).noalias() = J_frames.middleCols(6 * f, 6) * B;
-    }
-    lin.H.selfadjointView<Eigen::Lower>().rankUpdate(Jb.transpose());
-    lin.g.noalias() += Jb.transpose() * y;
-    if (stack) {
-      lin.J.middleRows(static_cast<Eigen::Index>(m) * r, m) = Jb;
-      lin.y.segment(static_cast<Eigen::Index>(m) * r, m) = y;
-    }
-    lin.cost += 0.5 * y.squaredNorm();
-    const double e = position_error.norm();
-    lin.max_error = std::max(lin.max_error, e);
-    sum_error += e;
+  for (const ChunkSums& cs : sums) {
+    lin.H += cs.H;
+    lin.g += cs.g;
+    lin.cost += cs.cost;
+    lin.max_error = std::max(lin.max_error, cs.max_error);
+    sum_error += cs.sum_error;
   }
   lin.H.triangularView<Eigen::StrictlyUpper>() = lin.H.transpose();
   lin.mean_error = data.empty() ? 0.0 : sum_error / data.size();

@@ -7,16 +7,64 @@
 #ifndef LPOE_KINEMATICS_H_
 #define LPOE_KINEMATICS_H_
 
+#include <cmath>
 #include <vector>
 
+#include "lpoe/parameterization.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/se3.h"
 
 namespace lpoe {
 
+// sin(x) and cos(x) in one call: glibc's sincos where available (one argument reduction for both).
+inline void SinCos(double x, double* s, double* c) {
+#if defined(__GNUC__) && defined(__GLIBC__)
+  __builtin_sincos(x, s, c);
+#else
+  *s = std::sin(x);
+  *c = std::cos(x);
+#endif
+}
+
+// True for a revolute joint whose twist is exactly (0, 0, 1, 0, 0, 0): its motion is Rz(q) with no
+// translation, which the fast paths below apply as a 2-column rotation update.
+inline bool IsRevoluteZ(const Joint& joint) {
+  const Vector6d& s = joint.twist;
+  return joint.type == JointType::kRevolute && s(0) == 0 && s(1) == 0 && s(2) == 1 && s(3) == 0 &&
+         s(4) == 0 && s(5) == 0;
+}
+
 // exp(s^ q) for a joint of the given twist. Revolute joints about local z (the common case) take a
 // closed form with one sin/cos pair.
 SE3d JointMotion(const Joint& joint, double q);
+
+namespace internal {
+
+// R <- R Rz(q) given c = cos q, s = sin q: only columns 0 and 1 change (12 multiplications instead
+// of a 3x3 product).
+template <typename T>
+inline void RightMultiplyRotZ(double c, double s, Matrix3<T>* R) {
+  for (int r = 0; r < 3; ++r) {
+    const T a = (*R)(r, 0);
+    const T b = (*R)(r, 1);
+    (*R)(r, 0) = c * a + s * b;
+    (*R)(r, 1) = c * b - s * a;
+  }
+}
+
+// X <- X exp(s^ q) for joint i of `model`.
+template <typename T>
+inline void ApplyJointMotion(const Joint& joint, double q, SE3<T>* X) {
+  if (IsRevoluteZ(joint)) {
+    double s, c;
+    SinCos(q, &s, &c);
+    RightMultiplyRotZ(c, s, &X->R);
+  } else {
+    *X = *X * JointMotion(joint, q).template cast<T>();
+  }
+}
+
+}  // namespace internal
 
 // T_0,tool(q) = prod_i T_{i-1,i}(0) exp(s_i^ q_i) * T_n,tool with the local frames given by
 // `joint_origins[0..n)` and `tool_origin` (paper eq. (7)). `q` holds n joint values.
@@ -26,21 +74,33 @@ SE3<T> ChainPose(const RobotModel& model, const SE3<T>* joint_origins, const SE3
   SE3<T> X = joint_origins[0];
   for (int i = 0; i < model.num_joints(); ++i) {
     if (i > 0) X = X * joint_origins[i];
-    X = X * JointMotion(model.joints[i], q[i]).template cast<T>();
+    internal::ApplyJointMotion(model.joints[i], q[i], &X);
   }
   return X * tool_origin;
 }
 
-// Position-only variant (eq. (26)): P = T_0,n(q) * p_tool. Saves the last rotation product.
+// Position-only variant (eq. (26)): P = T_0,n(q) * p_tool, evaluated from the tool back to the base
+// with vectors only, p <- T_{i-1,i}(0) (exp(s_i^ q_i) p): 9 + 4 multiplications per revolute-z joint
+// and no rotation products.
 template <typename T>
 Vector3<T> ChainPosition(const RobotModel& model, const SE3<T>* joint_origins,
                          const Vector3<T>& tool_point, const double* q) {
-  SE3<T> X = joint_origins[0];
-  for (int i = 0; i < model.num_joints(); ++i) {
-    if (i > 0) X = X * joint_origins[i];
-    X = X * JointMotion(model.joints[i], q[i]).template cast<T>();
+  Vector3<T> p = tool_point;
+  for (int i = model.num_joints() - 1; i >= 0; --i) {
+    const Joint& joint = model.joints[i];
+    if (IsRevoluteZ(joint)) {
+      double s, c;
+      SinCos(q[i], &s, &c);
+      const T x = p(0);
+      p(0) = c * x - s * p(1);
+      p(1) = s * x + c * p(1);
+    } else {
+      const SE3d M = JointMotion(joint, q[i]);
+      p = M.R.template cast<T>() * p + M.t.template cast<T>();
+    }
+    p = joint_origins[i].R * p + joint_origins[i].t;
   }
-  return X * tool_point;
+  return p;
 }
 
 // Convenience forms on the model's own frames (double).
@@ -65,6 +125,68 @@ Eigen::Vector3d ToolPositionJacobian(const RobotModel& model, const double* q, i
 // (paper eq. (18)): J = [Ad_G_0 ... Ad_G_tool], 6 x 6 * num_frames. Returns T_0,tool(q).
 SE3d ToolPoseJacobian(const RobotModel& model, const double* q, int tool,
                       Eigen::MatrixXd* J_pose_frames);
+
+// ---- Fast double paths for repeated evaluation (the solvers' inner loops, the benchmarks).
+
+// A frame as rotation and translation, left uninitialized (scratch space: no per-call set-up).
+struct FrameRt {
+  Eigen::Matrix3d R;
+  Eigen::Vector3d t;
+};
+
+// A robot model prepared for many evaluations: which joints are revolute about local z is decided
+// once (the model-independent checks leave the loop). Like Pinocchio's Model/Data split, it refers to
+// `model` without owning it: the model must outlive the chain; its frames may change between calls,
+// its joint types and twists may not. Evaluation allocates nothing and gives the values of ToolPose,
+// ToolPosition and PerturbationFrames to round-off.
+class KinematicChain {
+ public:
+  explicit KinematicChain(const RobotModel& model);
+
+  const RobotModel& model() const { return *model_; }
+  int num_joints() const { return static_cast<int>(z_revolute_.size()); }
+
+  SE3d Pose(const double* q, int tool = 0) const;
+  Eigen::Vector3d Position(const double* q, int tool = 0) const;
+  // The perturbation frames G_0..G_n-1 and G_tool (as PerturbationFrames) into frames[0..n]; the
+  // tool position is frames[n].t.
+  void Frames(const double* q, int tool, FrameRt* frames) const;
+
+ private:
+  const RobotModel* model_;
+  std::vector<unsigned char> z_revolute_;
+};
+
+// The error-model Jacobians restricted to a parameterization's bases, dP/dx = J_p_frames
+// blockdiag(B_f) (eq. (29)) and d log(..)/dx = [Ad_G_f] blockdiag(B_f) (eq. (18)), in one pass with
+// the forward kinematics, without forming the 3 x 6F (or 6 x 6F) frame Jacobian. Bases whose columns
+// are canonical directions (the revolute-z joints' rx, ry, tx, ty and the tools' tx, ty, tz of the
+// identifiable parameterization, the identity of the full one) select columns instead of multiplying.
+// Refers to `model` and `p` without owning them (see KinematicChain). Evaluation allocates nothing.
+class BasisJacobian {
+ public:
+  BasisJacobian(const RobotModel& model, const Parameterization& p);
+
+  int num_parameters() const { return num_parameters_; }
+
+  // Writes the 3 x num_parameters position Jacobian column-major with leading dimension `ld` >= 3
+  // (J[c * ld + r]); returns P. `frames` is scratch for num_joints() + 1 frames.
+  Eigen::Vector3d Position(const double* q, int tool, double* J, int ld, FrameRt* frames) const;
+  // Writes the 6 x num_parameters pose Jacobian (rows (omega, v)) the same way; returns T_0,tool(q).
+  SE3d Pose(const double* q, int tool, double* J, int ld, FrameRt* frames) const;
+
+ private:
+  struct FramePlan {
+    int offset = 0;
+    int cols = 0;
+    std::vector<int> select;  // canonical column of each basis direction, or empty: general basis
+    Eigen::Matrix<double, 6, Eigen::Dynamic> basis;
+  };
+  KinematicChain chain_;
+  int num_parameters_ = 0;
+  int num_joints_ = 0;
+  std::vector<FramePlan> plan_;  // one per frame of the model
+};
 
 }  // namespace lpoe
 

@@ -20,7 +20,7 @@ namespace lpoe {
 
 // One row of the convergence history (the paper's Fig. 6). Errors are those of the model *before*
 // the step of this iteration is applied, on the identification data; the last record is the final
-// model (step_norm 0).
+// model, whose step_norm is the step found below the tolerance (not applied).
 struct IterationRecord {
   int iteration = 0;
   double cost = 0;        // 0.5 * sum of squared residuals (mm^2; pose data mixes rad^2)
