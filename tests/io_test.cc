@@ -355,15 +355,17 @@ TEST(Io, CsvSkipsZeroRowsAndReportsThem) {
       "0.1,0.2,0.3,0.4,0.5,0.6,0,0,0\n"
       "# beam lost again\n"
       "0.1,0.2,0.3,0.4,0.5,0.6,0,-0,0.0\n"
-      "0.1,0.2,0.3,0.4,0.5,0.6,0,0,7\n";
+      "0.1,0.2,0.3,0.4,0.5,0.6,0,0,7\n"
+      "0.1,0.2,0.3,0.4,0.5,0.6,NaN,2,3\n"
+      "0.1,0.2,0.3,0.4,0.5,0.6,1,inf,3\n";
   MeasurementSet data;
   CsvReadReport report;
   Status s = ParseMeasurementsCsv(csv, "dirty.csv", model, AngleUnit::kRadians, &data, &report);
   ASSERT_TRUE(s.ok()) << s.message();
   EXPECT_EQ(data.size(), 2);
   EXPECT_EQ(data.source_line(1), 6);
-  EXPECT_EQ(report.skipped_zero_rows, 2);
-  EXPECT_EQ(report.skipped_lines, (std::vector<int>{3, 5}));
+  EXPECT_EQ(report.skipped_zero_rows, 4);
+  EXPECT_EQ(report.skipped_lines, (std::vector<int>{3, 5, 7, 8}));
   // Without a report the rows are skipped all the same.
   MeasurementSet again;
   s = ParseMeasurementsCsv(csv, "dirty.csv", model, AngleUnit::kRadians, &again);

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -77,6 +78,16 @@ std::string_view Trim(std::string_view s) {
 }
 
 enum class NumberParse { kOk, kNotANumber, kNonFinite };
+
+// "nan", "NaN", "inf", "-Infinity"...: what trackers write for a lost beam (an overflowing number
+// such as 1e999 is not one of these and stays an error).
+bool IsNanOrInfText(std::string_view field) {
+  std::string t;
+  for (char c : field) {
+    if (c != '+' && c != '-') t.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
+  }
+  return t == "nan" || t == "inf" || t == "infinity";
+}
 
 // Parses a whole (already trimmed) field as a decimal double. Accepts a leading '+'. "nan", "inf",
 // YAML's ".inf"/".nan" and overflowing values are reported as non-finite.
@@ -845,6 +856,7 @@ Status ParseMeasurementsCsvImpl(const std::string& text, const std::string& sour
                            std::to_string(header_line));
     }
     int target = 0;
+    bool lost_beam = false;
     for (size_t c = 0; c < fields.size(); ++c) {
       const Column& col = columns[c];
       const std::string_view field = Trim(fields[c]);
@@ -859,6 +871,13 @@ Status ParseMeasurementsCsvImpl(const std::string& text, const std::string& sour
       }
       double v = 0;
       const NumberParse r = ParseDouble(field, &v);
+      const bool is_position = col.kind == ColumnKind::kX || col.kind == ColumnKind::kY ||
+                               col.kind == ColumnKind::kZ;
+      if (r == NumberParse::kNonFinite && is_position && IsNanOrInfText(field)) {
+        // A tracker that lost the beam may export NaN/Inf: the row is skipped like a row of zeros.
+        lost_beam = true;
+        continue;
+      }
       if (r != NumberParse::kOk) {
         const std::string what =
             field.empty() ? "column " + Quote(col.name) + " is empty"
@@ -898,8 +917,8 @@ Status ParseMeasurementsCsvImpl(const std::string& text, const std::string& sour
           break;
       }
     }
-    if (position(0) == 0.0 && position(1) == 0.0 && position(2) == 0.0) {
-      // Lost beam: skipped and reported, not an error.
+    if (lost_beam || (position(0) == 0.0 && position(1) == 0.0 && position(2) == 0.0)) {
+      // Lost beam (zeros or non-finite x, y, z): skipped and reported, not an error.
       ++local_report.skipped_zero_rows;
       local_report.skipped_lines.push_back(line_number);
       continue;
@@ -925,7 +944,7 @@ Status ParseMeasurementsCsvImpl(const std::string& text, const std::string& sour
   if (out.empty()) {
     const std::string skipped =
         local_report.skipped_zero_rows > 0
-            ? " (" + std::to_string(local_report.skipped_zero_rows) + " rows of zeros skipped)"
+            ? " (" + std::to_string(local_report.skipped_zero_rows) + " rows without a measurement skipped)"
             : std::string();
     return LineError(source, header_line, "no measurement rows after the header" + skipped,
                      "at least one row of measurements");

@@ -55,27 +55,7 @@ std::string WeakestDirections(const Parameterization& p, const Eigen::VectorXd& 
 Eigen::MatrixXd NormalMatrix(const RobotModel& model, const MeasurementSet& data,
                              const Parameterization& p, bool use_orientation,
                              double orientation_weight) {
-  const int P = p.num_parameters;
-  const int m = use_orientation ? 6 : 3;
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
-  Eigen::MatrixXd J_frames;
-  Eigen::MatrixXd Jb(m, P);
-  for (int r = 0; r < data.size(); ++r) {
-    if (use_orientation) {
-      ToolPoseJacobian(model, data.q(r), data.target(r), &J_frames);
-      J_frames.topRows<3>() *= orientation_weight;
-    } else {
-      ToolPositionJacobian(model, data.q(r), data.target(r), &J_frames);
-    }
-    for (int f = 0; f < model.num_frames(); ++f) {
-      const Eigen::MatrixXd& B = p.basis[f];
-      if (B.cols() == 0) continue;
-      Jb.middleCols(p.offset[f], B.cols()).noalias() = J_frames.middleCols(6 * f, 6) * B;
-    }
-    H.selfadjointView<Eigen::Lower>().rankUpdate(Jb.transpose());
-  }
-  H.triangularView<Eigen::StrictlyUpper>() = H.transpose();
-  return H;
+  return NormalEquationsOf(model, data, p, use_orientation, orientation_weight, false).H;
 }
 
 std::string TooFewEquationsMessage(int rows, long equations, int identifiable, int per_row) {

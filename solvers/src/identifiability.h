@@ -33,10 +33,32 @@ Identifiability Analyze(const Eigen::MatrixXd& H);
 std::string WeakestDirections(const Parameterization& p, const Eigen::VectorXd& v);
 
 // J^T J of the stacked error-model Jacobian at `model`, restricted to p's bases: position rows
-// (eq. (29)) or pose rows (eq. (18), rotation rows times orientation_weight).
+// (eq. (29)) or pose rows (eq. (18), rotation rows times orientation_weight). The same matrix, bit
+// for bit, as NormalEquationsOf(...).H, so that both solvers' identifiability checks agree exactly.
 Eigen::MatrixXd NormalMatrix(const RobotModel& model, const MeasurementSet& data,
                              const Parameterization& p, bool use_orientation,
                              double orientation_weight);
+
+// The linearized problem at one model over all rows (defined in linear_solver.cc).
+struct NormalEquations {
+  Eigen::MatrixXd H;      // J^T J (num_parameters square)
+  Eigen::VectorXd g;      // J^T y
+  Eigen::MatrixXd J;      // stacked J, only when asked for (`stack`)
+  Eigen::VectorXd y;      // stacked y, only when asked for
+  double cost = 0;        // 0.5 |y|^2
+  double max_error = 0;   // mm, position error norm
+  double mean_error = 0;  // mm
+  bool finite = true;
+};
+
+// Residuals y (position: P_measured - P_model, eq. (30); pose: log(T_measured T_model^-1), eq. (17),
+// rotation rows times orientation_weight) and their Jacobian in p's bases, accumulated as normal
+// equations. The rows are processed in fixed contiguous chunks (a partition that depends on the row
+// count only), possibly on several threads, and the chunks' partial sums are added in order: the
+// result is bit-identical whatever the number of threads and their timing. No allocation per row.
+NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
+                                  const Parameterization& p, bool use_orientation,
+                                  double orientation_weight, bool stack);
 
 // The messages both solvers give when refusing data.
 std::string TooFewEquationsMessage(int rows, long equations, int identifiable, int per_row);

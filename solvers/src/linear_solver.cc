@@ -25,18 +25,7 @@ constexpr int kMaxHalvings = 12;
 // A step is accepted if it does not raise the cost by more than this relative amount (round-off).
 constexpr double kCostIncreaseTolerance = 1e-10;
 
-// The linearized problem at one model: either its normal equations (identifiable
-// parameterization) or its stacked Jacobian (full parameterization, for the pseudo-inverse).
-struct Linearization {
-  Eigen::MatrixXd H;        // J^T J (num_parameters square)
-  Eigen::VectorXd g;        // J^T y
-  Eigen::MatrixXd J;        // stacked J, full parameterization only
-  Eigen::VectorXd y;        // stacked y, full parameterization only
-  double cost = 0;          // 0.5 |y|^2
-  double max_error = 0;     // mm, position error norm
-  double mean_error = 0;    // mm
-  bool finite = true;
-};
+using Linearization = internal::NormalEquations;
 
 // Poses per block of stacked rows handed to one symmetric rank-k update (H += A^T A, a blocked
 // SYRK): large enough to amortize Eigen's packing, small enough to stay in L1/L2.
@@ -67,16 +56,16 @@ struct Scratch {
 };
 
 // Accumulates rows [begin, end) into `sums` (and into the stacked J and y when `lin` stacks).
-void AccumulateRows(const BasisJacobian& bj, const MeasurementSet& data,
-                    const LinearSolverOptions& options, int begin, int end, Scratch* scratch,
+void AccumulateRows(const BasisJacobian& bj, const MeasurementSet& data, bool use_orientation,
+                    double orientation_weight, int begin, int end, Scratch* scratch,
                     ChunkSums* sums, Linearization* stacked) {
-  const int m = options.use_orientation ? 6 : 3;
+  const int m = use_orientation ? 6 : 3;
   const int P = bj.num_parameters();
   const int ld = m * kBlockPoses;
   double* A = scratch->A.data();
   double* Y = scratch->Y.data();
   FrameRt* frames = scratch->frames.data();
-  const double w = options.orientation_weight;
+  const double w = orientation_weight;
   for (int r0 = begin; r0 < end; r0 += kBlockPoses) {
     const int count = std::min(kBlockPoses, end - r0);
     for (int k = 0; k < count; ++k) {
@@ -86,7 +75,7 @@ void AccumulateRows(const BasisJacobian& bj, const MeasurementSet& data,
       double* Jr = A + m * k;
       double* y = Y + m * k;
       double e_sq;
-      if (options.use_orientation) {
+      if (use_orientation) {
         const SE3d T = bj.Pose(q, tool, Jr, ld, frames);
         Vector6d yr = LogSE3(data.pose(r) * T.Inverse());  // eq. (17)
         e_sq = (data.position(r) - T.t).squaredNorm();
@@ -124,14 +113,15 @@ void AccumulateRows(const BasisJacobian& bj, const MeasurementSet& data,
   }
 }
 
-// Linearizes the error model over all rows: J^T J, J^T y, cost and errors, and with `stack` the
-// stacked J and y. The rows are processed in the fixed chunks above, on up to two threads (or as
-// many as the hardware has), with no allocation per row.
-Linearization Linearize(const RobotModel& model, const MeasurementSet& data,
-                        const Parameterization& p, const LinearSolverOptions& options,
-                        bool stack) {
+}  // namespace
+
+namespace internal {
+
+NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
+                                  const Parameterization& p, bool use_orientation,
+                                  double orientation_weight, bool stack) {
   const int P = p.num_parameters;
-  const int m = options.use_orientation ? 6 : 3;
+  const int m = use_orientation ? 6 : 3;
   const int N = data.size();
   Linearization lin;
   lin.H.setZero(P, P);
@@ -158,7 +148,8 @@ Linearization Linearize(const RobotModel& model, const MeasurementSet& data,
     cs.g.setZero(P);
     const int begin = std::min(N, c * chunk_size);
     const int end = std::min(N, begin + chunk_size);
-    AccumulateRows(bj, data, options, begin, end, scratch, &cs, stack ? &lin : nullptr);
+    AccumulateRows(bj, data, use_orientation, orientation_weight, begin, end, scratch, &cs,
+                   stack ? &lin : nullptr);
   };
   const int hardware = static_cast<int>(std::thread::hardware_concurrency());
   const int threads = N < kMinPosesForThreads ? 1 : std::max(1, std::min(hardware, chunks));
@@ -190,6 +181,17 @@ Linearization Linearize(const RobotModel& model, const MeasurementSet& data,
   lin.mean_error = data.empty() ? 0.0 : sum_error / data.size();
   lin.finite = std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
   return lin;
+}
+
+}  // namespace internal
+
+namespace {
+
+Linearization Linearize(const RobotModel& model, const MeasurementSet& data,
+                        const Parameterization& p, const LinearSolverOptions& options,
+                        bool stack) {
+  return internal::NormalEquationsOf(model, data, p, options.use_orientation,
+                                     options.orientation_weight, stack);
 }
 
 // The identifiability check shared with the Ceres solver (identifiability.h).

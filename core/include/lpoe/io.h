@@ -30,8 +30,9 @@ Status WriteRobotModel(const std::string& path, const RobotModel& model);
 Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
                             const RobotModel& model, AngleUnit unit, MeasurementSet* data);
 
-// What a CSV reader dropped without failing: rows whose x, y and z are all exactly 0 (a laser
-// tracker that lost the beam writes such rows). `skipped_lines` holds their 1-based line numbers.
+// What a CSV reader dropped without failing: rows whose x, y and z are all exactly 0 or any of them
+// NaN/Inf (a laser tracker that lost the beam writes such rows; non-finite joint values remain
+// errors). `skipped_lines` holds their 1-based line numbers.
 struct CsvReadReport {
   int skipped_zero_rows = 0;
   std::vector<int> skipped_lines;
