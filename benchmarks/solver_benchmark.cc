@@ -100,6 +100,22 @@ BENCHMARK_REGISTER_F(Calibration, BM_CalibrateCeres)
     ->Arg(70)->Arg(1000)->Arg(10000)->Arg(100000)
     ->Unit(benchmark::kMicrosecond);
 
+// The same on one thread (Ceres's default here is every hardware thread): small problems pay
+// for the thread pool.
+BENCHMARK_DEFINE_F(Calibration, BM_CalibrateCeresOneThread)(benchmark::State& state) {
+  CeresSolverOptions options;
+  options.a_posteriori_covariance = true;
+  options.num_threads = 1;
+  for (auto _ : state) {
+    const CalibrationResult r = CalibrateCeres(nominal_, *data_, options);
+    CHECK(r.converged()) << r.message;
+    benchmark::DoNotOptimize(r.model.joints[0].origin.t.data());
+  }
+  SetRows(state, data_->size());
+}
+BENCHMARK_REGISTER_F(Calibration, BM_CalibrateCeresOneThread)
+    ->Arg(70)->Arg(1000)->Unit(benchmark::kMicrosecond);
+
 // lpoe_calibrate's registration (rigid fit, then base and tool frames) on data in the base frame.
 BENCHMARK_DEFINE_F(Calibration, BM_RegisterToMeasurements)(benchmark::State& state) {
   for (auto _ : state) {

@@ -2,6 +2,7 @@
 //   <file>:<line>: <what is wrong>; expected <what>
 // with 1-based line numbers. Nothing here throws out of the API: yaml-cpp exceptions are caught at
 // the top of each reader, and the CSV reader is written without exceptions.
+#include "parse_util.h"
 #include "lpoe/io.h"
 
 #include <fcntl.h>
@@ -39,36 +40,9 @@ constexpr double kMaxAbsPositionMm = 1e6;
 constexpr double kMaxAbsJointValue = 1e4;
 constexpr double kDegreesToRadians = 3.14159265358979323846 / 180.0;
 
-Status LineError(const std::string& source, int line, const std::string& what,
-                 const std::string& expected) {
-  std::string msg = source;
-  msg += ':';
-  msg += std::to_string(line < 1 ? 1 : line);
-  msg += ": ";
-  msg += what;
-  msg += "; expected ";
-  msg += expected;
-  return Status::Error(std::move(msg));
-}
+using internal::LineError;
 
-std::string Quote(std::string_view s) {
-  // Shown in messages; long or binary junk is cut so that a message stays one readable line.
-  constexpr size_t kMaxShown = 40;
-  std::string out = "'";
-  for (size_t i = 0; i < s.size() && i < kMaxShown; ++i) {
-    const unsigned char c = static_cast<unsigned char>(s[i]);
-    if (c < 0x20 || c == 0x7f) {
-      char buf[8];
-      std::snprintf(buf, sizeof(buf), "\\x%02x", c);
-      out += buf;
-    } else {
-      out += static_cast<char>(c);
-    }
-  }
-  if (s.size() > kMaxShown) out += "...";
-  out += "'";
-  return out;
-}
+std::string Quote(std::string_view s) { return internal::Quote(s, 40); }
 
 std::string_view Trim(std::string_view s) {
   size_t b = 0, e = s.size();

@@ -202,9 +202,10 @@ inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q
 
 template <typename IsZ>
 inline SE3d PoseOf(const RobotModel& model, const double* q, int tool, IsZ is_z) {
-  SE3d X;
-  ForwardPass(model, q, is_z, &model.tools[tool].origin, &X.R, &X.t, nullptr);
-  return X;
+  Eigen::Matrix3d R;  // uninitialized, unlike SE3d's members
+  Eigen::Vector3d t;
+  ForwardPass(model, q, is_z, &model.tools[tool].origin, &R, &t, nullptr);
+  return SE3d(R, t);
 }
 
 template <typename IsZ>
@@ -323,17 +324,25 @@ SE3d ToolPoseJacobian(const RobotModel& model, const double* q, int tool,
 KinematicChain::KinematicChain(const RobotModel& model) : model_(&model) {
   CHECK_GT(model.num_joints(), 0);
   z_revolute_.resize(model.num_joints());
-  for (int i = 0; i < model.num_joints(); ++i) z_revolute_[i] = IsRevoluteZ(model.joints[i]);
+  all_z_ = true;
+  for (int i = 0; i < model.num_joints(); ++i) {
+    z_revolute_[i] = IsRevoluteZ(model.joints[i]);
+    all_z_ = all_z_ && z_revolute_[i];
+  }
 }
 
 SE3d KinematicChain::Pose(const double* q, int tool) const {
   DCHECK(tool >= 0 && tool < model_->num_tools());
+  if (all_z_) return PoseOf(*model_, q, tool, [](int) { return true; });
   const unsigned char* z = z_revolute_.data();
   return PoseOf(*model_, q, tool, [z](int i) { return z[i] != 0; });
 }
 
 Eigen::Vector3d KinematicChain::Position(const double* q, int tool) const {
   DCHECK(tool >= 0 && tool < model_->num_tools());
+  if (all_z_) {
+    return BackwardPosition(*model_, q, [](int) { return true; }, model_->tools[tool].origin.t);
+  }
   const unsigned char* z = z_revolute_.data();
   return BackwardPosition(*model_, q, [z](int i) { return z[i] != 0; },
                           model_->tools[tool].origin.t);
@@ -341,6 +350,7 @@ Eigen::Vector3d KinematicChain::Position(const double* q, int tool) const {
 
 void KinematicChain::Frames(const double* q, int tool, FrameRt* frames) const {
   DCHECK(tool >= 0 && tool < model_->num_tools());
+  if (all_z_) return FramesOf(*model_, q, tool, [](int) { return true; }, frames);
   const unsigned char* z = z_revolute_.data();
   FramesOf(*model_, q, tool, [z](int i) { return z[i] != 0; }, frames);
 }

@@ -1,6 +1,7 @@
 // URDF import and export of serial-chain robot models (see lpoe/urdf.h). Errors read
 //   <file>:<line>: <what is wrong>; expected <what>
 // with the line of the XML element at fault. Nothing throws out of the API.
+#include "parse_util.h"
 #include "lpoe/urdf.h"
 
 #include <tinyxml2.h>
@@ -33,35 +34,9 @@ constexpr double kMinAxisNorm = 1e-9;
 // Placeholder prismatic limit written on export (metres); the model carries no limits.
 constexpr double kPlaceholderPrismaticLimit = 1.0;
 
-Status LineError(const std::string& source, int line, const std::string& what,
-                 const std::string& expected) {
-  std::string msg = source;
-  msg += ':';
-  msg += std::to_string(line < 1 ? 1 : line);
-  msg += ": ";
-  msg += what;
-  msg += "; expected ";
-  msg += expected;
-  return Status::Error(std::move(msg));
-}
+using internal::LineError;
 
-std::string Quote(std::string_view s) {
-  constexpr size_t kMaxShown = 60;
-  std::string out = "'";
-  for (size_t i = 0; i < s.size() && i < kMaxShown; ++i) {
-    const unsigned char c = static_cast<unsigned char>(s[i]);
-    if (c < 0x20 || c == 0x7f) {
-      char buf[8];
-      std::snprintf(buf, sizeof(buf), "\\x%02x", c);
-      out += buf;
-    } else {
-      out += static_cast<char>(c);
-    }
-  }
-  if (s.size() > kMaxShown) out += "...";
-  out += "'";
-  return out;
-}
+std::string Quote(std::string_view s) { return internal::Quote(s, 60); }
 
 bool IsSpace(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; }
 

@@ -155,6 +155,7 @@ class KinematicChain {
  private:
   const RobotModel* model_;
   std::vector<unsigned char> z_revolute_;
+  bool all_z_ = false;  // every joint revolute about z: the loops take no per-joint branch
 };
 
 // The error-model Jacobians restricted to a parameterization's bases, dP/dx = J_p_frames
