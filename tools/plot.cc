@@ -987,14 +987,33 @@ Status WriteAxisErrorPlot(const std::string& path, const std::vector<Eigen::Vect
     const char* names[2] = {"before", "after"};
     const uint32_t colors[2] = {kColorBefore, kColorAfter};
     for (int k = 0; k < 2; ++k) {
+      const std::vector<Eigen::Vector3d>& set = *sets[k];
+      const size_t n = set.size();
       Series s;
       s.rgb = colors[k];
-      s.markers = sets[k]->size() <= 80;
-      for (size_t i = 0; i < sets[k]->size(); ++i) {
-        s.x.push_back(static_cast<double>(i));
-        s.y.push_back((*sets[k])[i][a]);
+      s.markers = n <= 80;
+      std::vector<double> all(n);
+      for (size_t i = 0; i < n; ++i) all[i] = set[i][a];
+      s.label = Summary(names[k], all, /*rms=*/true);
+      // More poses than pixel columns: keep the minimum and maximum of each column's poses (in
+      // pose order), which draws the same image as every point at a fraction of the cost.
+      const size_t columns = static_cast<size_t>(std::max(width, 1));
+      const size_t per_column = n > 2 * columns ? (n + columns - 1) / columns : 1;
+      s.x.reserve(per_column > 1 ? 2 * columns : n);
+      s.y.reserve(s.x.capacity());
+      for (size_t begin = 0; begin < n; begin += per_column) {
+        const size_t end = std::min(n, begin + per_column);
+        size_t lo = begin, hi = begin;
+        for (size_t i = begin; i < end; ++i) {
+          if (all[i] < all[lo]) lo = i;
+          if (all[i] > all[hi]) hi = i;
+        }
+        for (size_t i : {std::min(lo, hi), std::max(lo, hi)}) {
+          if (!s.x.empty() && s.x.back() == static_cast<double>(i)) continue;
+          s.x.push_back(static_cast<double>(i));
+          s.y.push_back(all[i]);
+        }
       }
-      s.label = Summary(names[k], s.y, /*rms=*/true);
       p.series.push_back(std::move(s));
     }
   }

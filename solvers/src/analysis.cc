@@ -12,6 +12,24 @@
 #include "lpoe/statistics.h"
 
 namespace lpoe {
+namespace {
+
+// P(|e| > t) for e ~ N(0, I3): erfc(t / sqrt 2) + sqrt(2 / pi) t exp(-t^2 / 2).
+double Chi3Survival(double t) {
+  return std::erfc(t / std::sqrt(2.0)) + std::sqrt(2.0 / M_PI) * t * std::exp(-0.5 * t * t);
+}
+
+// t with Chi3Survival(t) = p, by bisection (p in (0, 1)).
+double Chi3Quantile(double p) {
+  double lo = 0, hi = 40;
+  for (int k = 0; k < 100; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (Chi3Survival(mid) > p ? lo : hi) = mid;
+  }
+  return hi;
+}
+
+}  // namespace
 
 IdentifiabilityReport AnalyzeIdentifiability(const RobotModel& nominal, const MeasurementSet& data,
                                              const CalibrationResult& result, int max_pairs) {
@@ -86,10 +104,13 @@ std::vector<Outlier> FindOutliers(const RobotModel& model, const MeasurementSet&
   std::nth_element(comps.begin(), comps.begin() + comps.size() / 2, comps.end());
   const double sigma = std::max(1.4826 * comps[comps.size() / 2], 1e-9);
   if (robust_sigma) *robust_sigma = sigma;
-  // |e| of a 3-D Gaussian exceeds 5 sigma with probability ~2e-5.
+  // |e| of a 3-D Gaussian exceeds 5 sigma with probability ~1e-5, so large data sets would list
+  // noise as outliers: raise the threshold to the level pure noise reaches once in 100 data sets of
+  // this size (chi distribution with 3 degrees of freedom).
+  const double t = std::max(threshold, Chi3Quantile(0.01 / std::max(1, data.size())));
   for (int k = 0; k < data.size(); ++k) {
     const double n = e[k].norm();
-    if (n > threshold * sigma) out.push_back({k, data.source_line(k), n, n / sigma});
+    if (n > t * sigma) out.push_back({k, data.source_line(k), n, n / sigma});
   }
   std::sort(out.begin(), out.end(),
             [](const Outlier& a, const Outlier& b) { return a.error > b.error; });

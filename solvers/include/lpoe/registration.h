@@ -33,6 +33,10 @@ struct RegistrationReport {
   std::string message;
 };
 
+// Larger data sets are registered on this many evenly spaced rows (the rms figures of the report
+// are then those of the subset).
+constexpr int kMaxRegistrationRows = 10000;
+
 // Runs stages 1 and 2 and returns the registered model in `registered` (the input to stage 3).
 Status RegisterToMeasurements(const RobotModel& nominal, const MeasurementSet& data,
                               RobotModel* registered, RegistrationReport* report);
