@@ -19,4 +19,7 @@ cmake --build "$build" -j2
 
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
-ctest --test-dir "$build" --output-on-failure -j2 --timeout 900
+# Every test except Install.* (tests/CMakeLists.txt): that one installs the package and builds a
+# downstream project against it without sanitizer flags, which cannot link sanitizer-instrumented
+# libraries; it checks packaging, not memory safety, and runs in the normal build.
+ctest --test-dir "$build" --output-on-failure -j2 --timeout 900 -E '^Install\.'

@@ -451,4 +451,10 @@ SE3d BasisJacobian::Pose(const double* q, int tool, double* J, int ld, FrameRt* 
   return SE3d(frames[n].R, frames[n].t);
 }
 
+// The forward-kinematics templates, instantiated for double here (the tests instantiate them for
+// ceres::Jet; the residuals library for its own Jets).
+template SE3d ChainPose<double>(const RobotModel&, const SE3d*, const SE3d&, const double*);
+template Eigen::Vector3d ChainPosition<double, SE3d>(const RobotModel&, const SE3d*,
+                                                     const Eigen::Vector3d&, const double*);
+
 }  // namespace lpoe

@@ -18,7 +18,7 @@ namespace lpoe {
 
 // sin(x) and cos(x) in one call: glibc's sincos where available (one argument reduction for both).
 inline void SinCos(double x, double* s, double* c) {
-#if defined(__GNUC__) && defined(__GLIBC__)
+#if defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__)
   __builtin_sincos(x, s, c);
 #else
   *s = std::sin(x);
@@ -82,8 +82,10 @@ SE3<T> ChainPose(const RobotModel& model, const SE3<T>* joint_origins, const SE3
 // Position-only variant (eq. (26)): P = T_0,n(q) * p_tool, evaluated from the tool back to the base
 // with vectors only, p <- T_{i-1,i}(0) (exp(s_i^ q_i) p): 9 + 4 multiplications per revolute-z joint
 // and no rotation products.
-template <typename T>
-Vector3<T> ChainPosition(const RobotModel& model, const SE3<T>* joint_origins,
+// `Frame` is SE3<T> or any transform acting on a Vector3<T> with operator* (e.g.
+// QuaternionTransform<T>, used by the autodiff residual).
+template <typename T, typename Frame = SE3<T>>
+Vector3<T> ChainPosition(const RobotModel& model, const Frame* joint_origins,
                          const Vector3<T>& tool_point, const double* q) {
   Vector3<T> p = tool_point;
   for (int i = model.num_joints() - 1; i >= 0; --i) {
@@ -98,7 +100,7 @@ Vector3<T> ChainPosition(const RobotModel& model, const SE3<T>* joint_origins,
       const SE3d M = JointMotion(joint, q[i]);
       p = M.R.template cast<T>() * p + M.t.template cast<T>();
     }
-    p = joint_origins[i].R * p + joint_origins[i].t;
+    p = joint_origins[i] * p;
   }
   return p;
 }

@@ -117,6 +117,22 @@ struct SE3 {
 
 using SE3d = SE3<double>;
 
+// A rigid transform stored as a unit quaternion (x, y, z, w) and a translation, as the Ceres
+// parameter blocks hold it ([qx qy qz qw tx ty tz]). Acting on a point costs 18 multiplications and
+// needs no rotation matrix, which is what the autodiff position residual evaluates dozens of times
+// per Jacobian. The quaternion must be of unit norm (the SE(3) manifold keeps it so).
+template <typename T>
+struct QuaternionTransform {
+  const T* q;  // x, y, z, w
+  const T* t;
+  Vector3<T> operator*(const Vector3<T>& p) const {
+    // p' = p + 2 w (v x p) + 2 v x (v x p), v = (x, y, z).
+    const Vector3<T> v(q[0], q[1], q[2]);
+    const Vector3<T> u = T(2) * v.cross(p);
+    return p + q[3] * u + v.cross(u) + Vector3<T>(t[0], t[1], t[2]);
+  }
+};
+
 // Coefficients of Rodrigues' formula: A = sin(th)/th, B = (1 - cos th)/th^2, C = (th - sin th)/th^3,
 // from th^2 so that no square root of zero is taken.
 template <typename T>

@@ -33,6 +33,8 @@ class PositionResidual {
   // measured on the 6R chain (49 parameters, -O3, no -march): stride 1: 46 us per Jacobian,
   // 2: 19 us, 4: 51 us, 7: 90 us, 8: 90 us. Jet<double, 2> fills one SSE register and inlines.
   static constexpr int kStride = 2;
+  // Chains up to this many joints keep their frames on the stack.
+  static constexpr int kMaxStackJoints = 16;
   using CostFunction = ceres::DynamicAutoDiffCostFunction<PositionResidual, kStride>;
 
   // `model` supplies the joints' twists (its frames are ignored: they are the parameters); `q` holds
@@ -46,12 +48,20 @@ class PositionResidual {
 
   template <typename T>
   bool operator()(T const* const* parameters, T* residuals) const {
+    // The frames act on the point straight from their quaternions (no rotation matrices): the
+    // manifold keeps each block's quaternion of unit norm.
     const int n = model_->num_joints();
-    std::vector<SE3<T>> frames(n);
-    for (int i = 0; i < n; ++i) frames[i] = Se3FromArray(parameters[i]);
+    QuaternionTransform<T> stack_frames[kMaxStackJoints];
+    std::vector<QuaternionTransform<T>> heap_frames;
+    QuaternionTransform<T>* frames = stack_frames;
+    if (n > kMaxStackJoints) {
+      heap_frames.resize(n);
+      frames = heap_frames.data();
+    }
+    for (int i = 0; i < n; ++i) frames[i] = {parameters[i], parameters[i] + 4};
     const T* tool = parameters[n];
     const Vector3<T> p_tool(tool[4], tool[5], tool[6]);
-    const Vector3<T> P = ChainPosition(*model_, frames.data(), p_tool, q_.data());
+    const Vector3<T> P = ChainPosition<T>(*model_, frames, p_tool, q_.data());
     for (int k = 0; k < 3; ++k) residuals[k] = (P(k) - T(measured_(k))) * T(inverse_sigma_);
     return true;
   }
