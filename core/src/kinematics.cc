@@ -451,6 +451,19 @@ SE3d BasisJacobian::Pose(const double* q, int tool, double* J, int ld, FrameRt* 
   return SE3d(frames[n].R, frames[n].t);
 }
 
+JointMotions::JointMotions(const RobotModel& model, const double* q)
+    : motions_(model.num_joints()) {
+  for (int i = 0; i < model.num_joints(); ++i) {
+    Motion& m = motions_[i];
+    m.revolute_z = IsRevoluteZ(model.joints[i]);
+    if (m.revolute_z) {
+      SinCos(q[i], &m.s, &m.c);
+    } else {
+      m.general = JointMotion(model.joints[i], q[i]);
+    }
+  }
+}
+
 // The forward-kinematics templates, instantiated for double here (the tests instantiate them for
 // ceres::Jet; the residuals library for its own Jets).
 template SE3d ChainPose<double>(const RobotModel&, const SE3d*, const SE3d&, const double*);

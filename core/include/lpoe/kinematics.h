@@ -79,6 +79,51 @@ SE3<T> ChainPose(const RobotModel& model, const SE3<T>* joint_origins, const SE3
   return X * tool_origin;
 }
 
+// The joint motions exp(s_i^ q_i) of one configuration, computed once: the autodiff residuals
+// evaluate the chain many times per Jacobian at a fixed q, and the sin/cos calls would otherwise
+// dominate. Revolute-z joints keep (sin, cos); other joints their motion.
+class JointMotions {
+ public:
+  JointMotions(const RobotModel& model, const double* q);
+
+  // p <- exp(s_i^ q_i) p.
+  template <typename T>
+  void Apply(int i, Vector3<T>* p) const {
+    const Motion& m = motions_[i];
+    if (m.revolute_z) {
+      const T x = (*p)(0);
+      (*p)(0) = m.c * x - m.s * (*p)(1);
+      (*p)(1) = m.s * x + m.c * (*p)(1);
+    } else {
+      *p = m.general.R.template cast<T>() * *p + m.general.t.template cast<T>();
+    }
+  }
+
+ private:
+  struct Motion {
+    bool revolute_z = false;
+    double s = 0, c = 1;
+    SE3d general;
+  };
+  std::vector<Motion> motions_;
+};
+
+namespace internal {
+
+// The position chain from the tool back to the base; `apply_motion(i, &p)` applies joint i's motion.
+template <typename T, typename Frame, typename ApplyMotion>
+Vector3<T> ChainPositionBackward(int num_joints, const Frame* joint_origins,
+                                 const Vector3<T>& tool_point, const ApplyMotion& apply_motion) {
+  Vector3<T> p = tool_point;
+  for (int i = num_joints - 1; i >= 0; --i) {
+    apply_motion(i, &p);
+    p = joint_origins[i] * p;
+  }
+  return p;
+}
+
+}  // namespace internal
+
 // Position-only variant (eq. (26)): P = T_0,n(q) * p_tool, evaluated from the tool back to the base
 // with vectors only, p <- T_{i-1,i}(0) (exp(s_i^ q_i) p): 9 + 4 multiplications per revolute-z joint
 // and no rotation products.
@@ -87,22 +132,29 @@ SE3<T> ChainPose(const RobotModel& model, const SE3<T>* joint_origins, const SE3
 template <typename T, typename Frame = SE3<T>>
 Vector3<T> ChainPosition(const RobotModel& model, const Frame* joint_origins,
                          const Vector3<T>& tool_point, const double* q) {
-  Vector3<T> p = tool_point;
-  for (int i = model.num_joints() - 1; i >= 0; --i) {
-    const Joint& joint = model.joints[i];
-    if (IsRevoluteZ(joint)) {
-      double s, c;
-      SinCos(q[i], &s, &c);
-      const T x = p(0);
-      p(0) = c * x - s * p(1);
-      p(1) = s * x + c * p(1);
-    } else {
-      const SE3d M = JointMotion(joint, q[i]);
-      p = M.R.template cast<T>() * p + M.t.template cast<T>();
-    }
-    p = joint_origins[i] * p;
-  }
-  return p;
+  return internal::ChainPositionBackward<T>(
+      model.num_joints(), joint_origins, tool_point, [&](int i, Vector3<T>* p) {
+        const Joint& joint = model.joints[i];
+        if (IsRevoluteZ(joint)) {
+          double s, c;
+          SinCos(q[i], &s, &c);
+          const T x = (*p)(0);
+          (*p)(0) = c * x - s * (*p)(1);
+          (*p)(1) = s * x + c * (*p)(1);
+        } else {
+          const SE3d M = JointMotion(joint, q[i]);
+          *p = M.R.template cast<T>() * *p + M.t.template cast<T>();
+        }
+      });
+}
+
+// The same chain with the joint motions precomputed.
+template <typename T, typename Frame = SE3<T>>
+Vector3<T> ChainPosition(const JointMotions& motions, int num_joints, const Frame* joint_origins,
+                         const Vector3<T>& tool_point) {
+  return internal::ChainPositionBackward<T>(
+      num_joints, joint_origins, tool_point,
+      [&](int i, Vector3<T>* p) { motions.Apply(i, p); });
 }
 
 // Convenience forms on the model's own frames (double).

@@ -42,7 +42,7 @@ class PositionResidual {
   PositionResidual(std::shared_ptr<const RobotModel> model, const double* q,
                    const Eigen::Vector3d& measured, double sigma)
       : model_(std::move(model)),
-        q_(q, q + model_->num_joints()),
+        motions_(*model_, q),
         measured_(measured),
         inverse_sigma_(1.0 / sigma) {}
 
@@ -61,7 +61,7 @@ class PositionResidual {
     for (int i = 0; i < n; ++i) frames[i] = {parameters[i], parameters[i] + 4};
     const T* tool = parameters[n];
     const Vector3<T> p_tool(tool[4], tool[5], tool[6]);
-    const Vector3<T> P = ChainPosition<T>(*model_, frames, p_tool, q_.data());
+    const Vector3<T> P = ChainPosition<T>(motions_, n, frames, p_tool);
     for (int k = 0; k < 3; ++k) residuals[k] = (P(k) - T(measured_(k))) * T(inverse_sigma_);
     return true;
   }
@@ -73,7 +73,7 @@ class PositionResidual {
 
  private:
   std::shared_ptr<const RobotModel> model_;
-  std::vector<double> q_;
+  JointMotions motions_;  // exp(s_i^ q_i) at this row's q, computed once
   Eigen::Vector3d measured_;
   double inverse_sigma_;
 };
