@@ -166,7 +166,8 @@ CalibrationResult Solve(const Job& job, const MeasurementSet& data, const std::s
   }
   Progress progress(what);
   if (FLAGS_solver == "ceres") {
-    const CeresSolverOptions options = CeresOptionsFromFlags(job);
+    CeresSolverOptions options = CeresOptionsFromFlags(job);
+    options.on_iteration = [&](const IterationRecord& r) { progress.Update(r); };
     return CalibrateCeres(start, data, options);
   }
   LinearSolverOptions options;

@@ -44,13 +44,15 @@ class HistoryCallback : public ceres::IterationCallback {
  public:
   HistoryCallback(const RobotModel& base, const MeasurementSet& data,
                   const std::vector<Block>& blocks, const std::vector<bool>& used, double cost_scale,
-                  std::vector<IterationRecord>* history)
+                  std::vector<IterationRecord>* history,
+                  std::function<void(const IterationRecord&)> on_iteration)
       : base_(base),
         data_(data),
         blocks_(blocks),
         used_(used),
         cost_scale_(cost_scale),
-        history_(history) {}
+        history_(history),
+        on_iteration_(std::move(on_iteration)) {}
 
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
     if (summary.iteration > 0 && !summary.step_is_successful) return ceres::SOLVER_CONTINUE;
@@ -62,6 +64,7 @@ class HistoryCallback : public ceres::IterationCallback {
     r.mean_error = stats.norm.mean_abs;
     r.step_norm = summary.iteration > 0 ? summary.step_norm : 0.0;
     history_->push_back(r);
+    if (on_iteration_) on_iteration_(r);
     return ceres::SOLVER_CONTINUE;
   }
 
@@ -72,6 +75,7 @@ class HistoryCallback : public ceres::IterationCallback {
   const std::vector<bool>& used_;
   double cost_scale_;
   std::vector<IterationRecord>* history_;
+  std::function<void(const IterationRecord&)> on_iteration_;
 };
 
 Termination MapTermination(ceres::TerminationType t) {
@@ -247,7 +251,8 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   solver_options.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
   solver_options.update_state_every_iteration = true;
   const double cost_scale = options.sigma * options.sigma;
-  HistoryCallback callback(nominal, data, blocks, used, cost_scale, &result.history);
+  HistoryCallback callback(nominal, data, blocks, used, cost_scale, &result.history,
+                           options.on_iteration);
   solver_options.callbacks.push_back(&callback);
 
   ceres::Solver::Summary summary;

@@ -19,6 +19,7 @@
 #define LPOE_CERES_SOLVER_H_
 
 #include <algorithm>
+#include <functional>
 #include <string>
 #include <thread>
 
@@ -63,6 +64,8 @@ struct CeresSolverOptions {
   // condition number, as CalibrateLinear does.
   double max_condition_number = 1e8;
   // Ceres's per-iteration progress on stdout.
+  // Called after every accepted iteration (e.g. for a progress line).
+  std::function<void(const IterationRecord&)> on_iteration;
   bool verbose = false;
 };
 
