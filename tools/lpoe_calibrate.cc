@@ -69,8 +69,9 @@ DEFINE_string(data_kind, "auto",
               "orientations; auto picks pose when the CSV has quat_* columns.");
 DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in the CSV files: rad | deg.");
 DEFINE_bool(register, true,
-            "Register the model to the measurement frame first (rigid fit, then base and tool "
-            "frames): needed when the tracker frame is not the robot base.");
+            "Register the model to the measurement frame first when the measurements are not in "
+            "its base frame (a rigid fit that moves the base by more than 50 mm or 0.05 rad): "
+            "rigid fit, then base and tool frames, then everything.");
 DEFINE_double(outlier_threshold, 5.0,
               "List points whose error after the fit exceeds this many robust sigmas.");
 DEFINE_int32(max_iterations, 30, "Iteration limit.");
@@ -160,7 +161,10 @@ CalibrationResult Solve(const Job& job, const MeasurementSet& data, const std::s
       failed.message = s.message();
       return failed;
     }
-    if (rigid_nominal && rep.moved) {
+    if (!rep.moved) {
+      // The data are in the base frame already: start from the nominal model, as the paper does.
+      start = job.nominal;
+    } else if (rigid_nominal) {
       rigid_nominal->joints[0].origin = rep.T_measurement_base * job.nominal.joints[0].origin;
     }
   }
@@ -376,7 +380,15 @@ int Run() {
       Solve(job, job.identification, "calibrating", &summary.registration, &before_model);
   summary.registered = FLAGS_register;
   if (FLAGS_register && result.termination != Termination::kNotIdentifiable) {
-    std::cout << summary.registration.message << "\n";
+    const RegistrationReport& reg = summary.registration;
+    if (reg.moved) {
+      std::cout << reg.message << "\n";
+    } else {
+      std::cout << "registration: not needed, the data are in the model's base frame (a rigid fit "
+                   "would move the base by only "
+                << reg.T_measurement_base.t.norm() << " mm and "
+                << LogSO3(reg.T_measurement_base.R).norm() << " rad)\n";
+    }
     if (summary.registration.moved) {
       std::cout << "(the measurements are not in the model's base frame: 'before calibration' "
                    "below is the nominal model after the rigid fit)\n";

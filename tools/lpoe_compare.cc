@@ -151,6 +151,7 @@ int Run() {
       std::cerr << "error: " << s.message() << "\n";
       return tools::ExitCodeFor(Termination::kNotIdentifiable);
     }
+    if (!report.moved) start = nominal;  // already in the base frame, as lpoe_calibrate does
   }
 
   // ---- Both solvers, same start, same data.

@@ -56,7 +56,8 @@ std::string RunSummaryToJson(const RunSummary& s) {
   }
   j["history"] = history;
   if (s.registered) {
-    j["registration"] = {{"T_measurement_base", PoseJson(s.registration.T_measurement_base)},
+    j["registration"] = {{"applied", s.registration.moved},
+                         {"T_measurement_base", PoseJson(s.registration.T_measurement_base)},
                          {"rms_nominal", s.registration.rms_nominal},
                          {"rms_rigid", s.registration.rms_rigid},
                          {"rms_base_tools", s.registration.rms_base_tools}};

@@ -115,7 +115,7 @@ Status RegisterToMeasurements(const RobotModel& nominal, const MeasurementSet& a
   if (Status s = FitRigidTransform(predicted, measured, &T); !s.ok()) return s;
   r.T_measurement_base = T;
   const double angle = LogSO3(T.R).norm();
-  r.moved = T.t.norm() > 1.0 || angle > 1e-3;
+  r.moved = T.t.norm() > kFrameMismatchMm || angle > kFrameMismatchRad;
   RobotModel model = nominal;
   model.joints[0].origin = T * model.joints[0].origin;
   r.rms_rigid = Rms(model, data);

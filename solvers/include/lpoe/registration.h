@@ -29,9 +29,15 @@ struct RegistrationReport {
   double rms_nominal = 0;      // mm, nominal model as given
   double rms_rigid = 0;        // mm, after stage 1
   double rms_base_tools = 0;   // mm, after stage 2
-  bool moved = false;          // stage 1 moved the base by more than 1 mm or 1 mrad
+  // Stage 1 moved the base by more than kFrameMismatchMm or kFrameMismatchRad: the measurements are
+  // not in the model's base frame. Smaller moves only absorb kinematic errors of the robot itself.
+  bool moved = false;
   std::string message;
 };
+
+// A rigid fit beyond these means the measurement frame is not the model's base frame.
+constexpr double kFrameMismatchMm = 50.0;
+constexpr double kFrameMismatchRad = 0.05;
 
 // Larger data sets are registered on this many evenly spaced rows (the rms figures of the report
 // are then those of the subset).
