@@ -80,15 +80,11 @@ std::string Num(double v, const char* format = "%.6g") {
 }
 
 int Run() {
-  const std::string data_dir = tools::DataDir();
-  const bool default_data = FLAGS_measurements.empty();
-  const std::string model_path = FLAGS_model.empty() ? data_dir + "/cobot6.yaml" : FLAGS_model;
-  const std::string meas_path =
-      default_data ? data_dir + "/section4/identification.csv" : FLAGS_measurements;
-  std::string verify_path = FLAGS_verify;
-  if (default_data && verify_path.empty() && FLAGS_holdout == 0.0) {
-    verify_path = data_dir + "/section4/verification.csv";
-  }
+  const tools::InputPaths paths =
+      tools::ResolveInputPaths(FLAGS_model, FLAGS_measurements, FLAGS_verify, FLAGS_holdout != 0.0);
+  const std::string& model_path = paths.model;
+  const std::string& meas_path = paths.measurements;
+  const std::string& verify_path = paths.verify;
 
   AngleUnit unit;
   if (!tools::ParseAngleUnit(FLAGS_angle_unit, &unit)) {

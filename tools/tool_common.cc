@@ -51,6 +51,20 @@ std::string DataDir() {
   return LPOE_DATA_DIR;
 }
 
+InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& measurements_flag,
+                             const std::string& verify_flag, bool holdout) {
+  const std::string data_dir = DataDir();
+  const bool default_data = measurements_flag.empty();
+  InputPaths p;
+  p.model = model_flag.empty() ? data_dir + "/cobot6.yaml" : model_flag;
+  p.measurements = default_data ? data_dir + "/section4/identification.csv" : measurements_flag;
+  p.verify = verify_flag;
+  if (default_data && p.verify.empty() && !holdout) {
+    p.verify = data_dir + "/section4/verification.csv";
+  }
+  return p;
+}
+
 bool ParseAngleUnit(const std::string& text, AngleUnit* unit) {
   if (text == "rad") {
     *unit = AngleUnit::kRadians;

@@ -34,6 +34,14 @@ std::string DataDir();
 
 bool ParseAngleUnit(const std::string& text, AngleUnit* unit);
 
+// The input files of a run. With no --measurements, the shipped section-4 data set: the nominal
+// cobot6, its identification rows and (unless a hold-out is asked for) its verification rows.
+struct InputPaths {
+  std::string model, measurements, verify;
+};
+InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& measurements_flag,
+                             const std::string& verify_flag, bool holdout);
+
 // True when both paths name the same existing file (same device and inode), or are equal strings.
 bool SameFile(const std::string& a, const std::string& b);
 
