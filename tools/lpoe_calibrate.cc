@@ -505,10 +505,14 @@ int Run() {
     for (const auto& e : eb) nb.push_back(e.norm());
     for (const auto& e : ea) na.push_back(e.norm());
     const std::string d = FLAGS_plots_dir + "/";
-    for (const auto& [path, status] :
-         {std::pair<std::string, Status>{d + "convergence.png", tools::WriteConvergencePlot(d + "convergence.png", it, mx, mn)},
-          {d + "axis_errors.png", tools::WriteAxisErrorPlot(d + "axis_errors.png", eb, ea)},
-          {d + "error_histogram.png", tools::WriteErrorHistogram(d + "error_histogram.png", nb, na)}}) {
+    const std::string set_name = job.verification.empty() ? "identification" : "verification";
+    const std::pair<std::string, Status> plots[] = {
+        {d + "convergence.png", tools::WriteConvergencePlot(d + "convergence.png", it, mx, mn)},
+        {d + "axis_errors.png",
+         tools::WriteAxisErrorPlot(d + "axis_errors.png", eb, ea, 1000, 900, set_name)},
+        {d + "error_histogram.png", tools::WriteErrorHistogram(d + "error_histogram.png", nb, na)},
+    };
+    for (const auto& [path, status] : plots) {
       if (!status.ok()) {
         std::cerr << "error: " << status.message() << "\n";
         return kExitOutput;

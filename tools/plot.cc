@@ -973,12 +973,13 @@ Status WriteConvergencePlot(const std::string& path, const std::vector<int>& ite
 }
 
 Status WriteAxisErrorPlot(const std::string& path, const std::vector<Eigen::Vector3d>& before,
-                          const std::vector<Eigen::Vector3d>& after, int width, int height) {
+                          const std::vector<Eigen::Vector3d>& after, int width, int height,
+                          const std::string& set_name) {
   static const char* kAxis[3] = {"x", "y", "z"};
   std::vector<Panel> panels(3);
   for (int a = 0; a < 3; ++a) {
     Panel& p = panels[a];
-    p.title = std::string(kAxis[a]) + " position error per verification pose";
+    p.title = std::string(kAxis[a]) + " position error per " + set_name + " pose";
     p.y_label = std::string(kAxis[a]) + " error [mm]";
     if (a == 2) p.x_label = "pose index";
     p.integer_x = true;

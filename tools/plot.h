@@ -67,9 +67,11 @@ Status WriteConvergencePlot(const std::string& path, const std::vector<int>& ite
 
 // Figs. 7/9: signed x, y, z position error (mm) per pose index, before and after, three panels.
 // `before` and `after` may differ in length (either may be empty). Default size 1000 x 900.
+// `set_name` names the poses in the titles ("verification", or "identification" when there is no
+// verification set).
 Status WriteAxisErrorPlot(const std::string& path, const std::vector<Eigen::Vector3d>& before,
                           const std::vector<Eigen::Vector3d>& after, int width = 1000,
-                          int height = 900);
+                          int height = 900, const std::string& set_name = "verification");
 
 // Histogram of the position error norm (mm) before/after. Uses log-spaced bins when the two
 // distributions differ by more than 10x (typical after a calibration), so both stay visible.
