@@ -310,44 +310,19 @@ int Run() {
 
   // ---- Inputs.
   tools::RunSummary summary;
-  const bool urdf = model_path.size() >= 5 && model_path.compare(model_path.size() - 5, 5, ".urdf") == 0;
-  if (Status s = urdf ? ReadRobotModelUrdf(model_path, &job.nominal)
-                      : ReadRobotModel(model_path, &job.nominal);
-      !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitInput;
-  }
-  MeasurementSet all;
-  if (Status s = ReadMeasurements(meas_path, job.nominal, unit, &all, &summary.skipped); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitInput;
-  }
-  if (summary.skipped.skipped_zero_rows > 0) {
-    std::cerr << "warning: " << meas_path << ": skipped " << summary.skipped.skipped_zero_rows
-              << " row(s) with no measurement (lost beam) at line(s)";
-    const auto& lines = summary.skipped.skipped_lines;
-    for (size_t k = 0; k < std::min<size_t>(lines.size(), 20); ++k) std::cerr << " " << lines[k];
-    if (lines.size() > 20) std::cerr << " ...";
-    std::cerr << "\n";
-  }
-  if (!verify_path.empty()) {
-    job.identification = std::move(all);
-    CsvReadReport verify_skipped;
-    if (Status s = ReadMeasurements(verify_path, job.nominal, unit, &job.verification,
-                                    &verify_skipped);
+  {
+    tools::Inputs in;
+    if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, unit, FLAGS_holdout,
+                                     FLAGS_split_seed, &in);
         !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
-    summary.verification_source = verify_path;
-  } else if (FLAGS_holdout > 0.0) {
-    std::vector<int> id_rows, ver_rows;
-    HoldoutSplit(all.size(), FLAGS_holdout, FLAGS_split_seed, &id_rows, &ver_rows);
-    job.identification = all.Subset(id_rows);
-    job.verification = all.Subset(ver_rows);
-    summary.verification_source = "holdout";
-  } else {
-    job.identification = std::move(all);
+    job.nominal = std::move(in.nominal);
+    job.identification = std::move(in.identification);
+    job.verification = std::move(in.verification);
+    summary.skipped = std::move(in.skipped);
+    summary.verification_source = std::move(in.verification_source);
   }
 
   job.use_orientation = job.identification.has_orientation();

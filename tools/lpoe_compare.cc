@@ -21,7 +21,9 @@
 #include "lpoe/statistics.h"
 #include "tool_common.h"
 
-DEFINE_string(model, "", "Nominal robot model (YAML). Default: data/cobot6.yaml.");
+DEFINE_string(model, "",
+              "Nominal robot model: YAML, or URDF when the name ends in .urdf. Default: "
+              "data/cobot6.yaml.");
 DEFINE_string(measurements, "",
               "Identification measurements (CSV). Default: data/section4/identification.csv.");
 DEFINE_string(verify, "",
@@ -111,30 +113,16 @@ int Run() {
   }
 
   // ---- Inputs.
-  RobotModel nominal;
-  if (Status s = ReadRobotModel(model_path, &nominal); !s.ok()) {
+  tools::Inputs in;
+  if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, unit, FLAGS_holdout,
+                                   FLAGS_split_seed, &in);
+      !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
-  MeasurementSet all, identification, verification;
-  if (Status s = ReadMeasurements(meas_path, nominal, unit, &all); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitInput;
-  }
-  if (!verify_path.empty()) {
-    identification = std::move(all);
-    if (Status s = ReadMeasurements(verify_path, nominal, unit, &verification); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitInput;
-    }
-  } else if (FLAGS_holdout > 0.0) {
-    std::vector<int> id_rows, ver_rows;
-    HoldoutSplit(all.size(), FLAGS_holdout, FLAGS_split_seed, &id_rows, &ver_rows);
-    identification = all.Subset(id_rows);
-    verification = all.Subset(ver_rows);
-  } else {
-    identification = std::move(all);
-  }
+  const RobotModel& nominal = in.nominal;
+  const MeasurementSet& identification = in.identification;
+  const MeasurementSet& verification = in.verification;
   // Without held-out data, the comparison is made on the identification rows.
   const bool held_out = !verification.empty();
   const MeasurementSet& check = held_out ? verification : identification;

@@ -1,5 +1,6 @@
 #include "tool_common.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <iomanip>
@@ -9,6 +10,9 @@
 
 #include <gflags/gflags.h>
 #include <glog/logging.h>
+
+#include "lpoe/analysis.h"
+#include "lpoe/urdf.h"
 
 DECLARE_bool(help);
 DECLARE_bool(helpfull);
@@ -63,6 +67,46 @@ InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& m
     p.verify = data_dir + "/section4/verification.csv";
   }
   return p;
+}
+
+Status LoadInputs(const std::string& model_path, const std::string& measurements_path,
+                  const std::string& verify_path, AngleUnit unit, double holdout,
+                  uint64_t split_seed, Inputs* in) {
+  const bool urdf = model_path.size() >= 5 &&
+                    model_path.compare(model_path.size() - 5, 5, ".urdf") == 0;
+  if (Status s = urdf ? ReadRobotModelUrdf(model_path, &in->nominal)
+                      : ReadRobotModel(model_path, &in->nominal);
+      !s.ok()) {
+    return s;
+  }
+  MeasurementSet all;
+  if (Status s = ReadMeasurements(measurements_path, in->nominal, unit, &all, &in->skipped);
+      !s.ok()) {
+    return s;
+  }
+  if (in->skipped.skipped_zero_rows > 0) {
+    std::cerr << "warning: " << measurements_path << ": skipped " << in->skipped.skipped_zero_rows
+              << " row(s) with no measurement (lost beam) at line(s)";
+    const auto& lines = in->skipped.skipped_lines;
+    for (size_t k = 0; k < std::min<size_t>(lines.size(), 20); ++k) std::cerr << " " << lines[k];
+    if (lines.size() > 20) std::cerr << " ...";
+    std::cerr << "\n";
+  }
+  if (!verify_path.empty()) {
+    in->identification = std::move(all);
+    in->verification_source = verify_path;
+    return ReadMeasurements(verify_path, in->nominal, unit, &in->verification);
+  }
+  if (holdout > 0.0) {
+    std::vector<int> id_rows, ver_rows;
+    HoldoutSplit(all.size(), holdout, split_seed, &id_rows, &ver_rows);
+    in->identification = all.Subset(id_rows);
+    in->verification = all.Subset(ver_rows);
+    in->verification_source = "holdout";
+    return Status::Ok();
+  }
+  in->identification = std::move(all);
+  return Status::Ok();
 }
 
 bool ParseAngleUnit(const std::string& text, AngleUnit* unit) {

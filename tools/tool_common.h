@@ -2,6 +2,7 @@
 #ifndef LPOE_TOOLS_TOOL_COMMON_H_
 #define LPOE_TOOLS_TOOL_COMMON_H_
 
+#include <cstdint>
 #include <iosfwd>
 #include <string>
 #include <vector>
@@ -33,6 +34,21 @@ void InitTool(const char* usage, int* argc, char*** argv);
 std::string DataDir();
 
 bool ParseAngleUnit(const std::string& text, AngleUnit* unit);
+
+// The model and measurements of a run, split into identification and verification rows.
+struct Inputs {
+  RobotModel nominal;
+  MeasurementSet identification, verification;
+  CsvReadReport skipped;            // lost-beam rows of the identification file
+  std::string verification_source;  // the --verify path, "holdout" or empty
+};
+
+// Reads the model (YAML, or URDF when the name ends in .urdf) and the measurements, warns about
+// skipped lost-beam rows on stderr, and splits off the verification rows (the `verify` file, or a
+// seeded random `holdout` fraction). On failure returns the message of the bad file.
+Status LoadInputs(const std::string& model_path, const std::string& measurements_path,
+                  const std::string& verify_path, AngleUnit unit, double holdout,
+                  uint64_t split_seed, Inputs* inputs);
 
 // The input files of a run. With no --measurements, the shipped section-4 data set: the nominal
 // cobot6, its identification rows and (unless a hold-out is asked for) its verification rows.
