@@ -69,6 +69,11 @@ Status RobotModel::Validate() const {
     }
     const std::string rot = CheckRotation(j.origin.R);
     if (!rot.empty()) return Status::Error(where + ": origin " + rot);
+    if (std::isnan(j.lower) || std::isnan(j.upper) || !(j.lower <= j.upper)) {
+      std::ostringstream ls;
+      ls << where << ": limits [" << j.lower << ", " << j.upper << "] must satisfy lower <= upper";
+      return Status::Error(ls.str());
+    }
     const Eigen::Vector3d w = j.twist.head<3>();
     const Eigen::Vector3d v = j.twist.tail<3>();
     std::ostringstream os;

@@ -11,6 +11,8 @@
 #ifndef LPOE_ROBOT_MODEL_H_
 #define LPOE_ROBOT_MODEL_H_
 
+#include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -28,6 +30,10 @@ struct Joint {
   JointType type = JointType::kRevolute;
   SE3d origin;                                                // T_{i-1,i}(0)
   Vector6d twist = (Vector6d() << 0, 0, 1, 0, 0, 0).finished();  // (omega, v) in the joint frame
+  // Joint limits (rad for revolute, mm for prismatic joints); infinite when the model gives none.
+  double lower = -std::numeric_limits<double>::infinity();
+  double upper = std::numeric_limits<double>::infinity();
+  bool has_limits() const { return std::isfinite(lower) || std::isfinite(upper); }
 };
 
 struct Tool {
