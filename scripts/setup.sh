@@ -10,7 +10,9 @@ PACKAGES=(
   libtinyxml2-dev          # URDF robot models
   nlohmann-json3-dev       # the JSON calibration report (header-only)
   libgtest-dev libbenchmark-dev
-  libpng-dev               # report plots (tools/plot.cc)
+  libpng-dev               # plot_test reads the written PNG images back
+  libplplot-dev plplot-driver-cairo pkg-config  # report plots (tools/plot.cc): PLplot, PNG via cairo
+  chromium                 # report_html_test renders the HTML report headless
   clang libclang-rt-14-dev # scripts/fuzz.sh (libFuzzer) and scripts/ci_sanitize.sh (ASan + UBSan)
 )
 
