@@ -175,6 +175,22 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
   }
   h += "</table>\n";
 
+  // ---- lpoe_compare: the two solvers.
+  if (j.contains("comparison")) {
+    const Json& c = j["comparison"];
+    h += "<h2>Linear (paper) and Ceres solver on the same data</h2>\n<p>" +
+         std::string(c["agree"].get<bool>() ? "The predicted positions agree within the tolerance."
+                                            : "<span class=\"flag\">The predicted positions "
+                                              "disagree.</span>") +
+         " The rest of this page shows the Ceres calibration.</p>\n<table>\n"
+         "<tr><th></th><th>linear</th><th>ceres</th><th>|difference|</th></tr>\n";
+    for (const Json& r : c["rows"])
+      h += "<tr><td>" + Esc(Str(r["quantity"])) + "</td><td>" + Esc(Str(r["linear"])) +
+           "</td><td>" + Esc(Str(r["ceres"])) + "</td><td>" + Esc(Str(r["difference"])) +
+           "</td></tr>\n";
+    h += "</table>\n";
+  }
+
   // ---- Plots.
   PlotInput in;
   for (const auto* set : {&summary.identification_points, &summary.verification_points}) {
@@ -221,65 +237,65 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
        "describe (compliance, gear errors, thermal drift). Scatter plots show at most " +
        std::to_string(kMaxScatterPoints) +
        " points each (per set, the smallest and largest error of consecutive groups).</p>\n";
-  {
-    Figure f;
-    f.columns = 3;
-    f.width = 1000;
-    const int nj = model.num_joints();
-    f.height = 300 * ((nj + 2) / 3);
-    for (int q = 0; q < nj; ++q) {
-      const bool revolute = model.joints[q].type == JointType::kRevolute;
-      Panel p;
-      p.title = "error after calibration vs " + model.joints[q].name;
-      p.x_label = model.joints[q].name + (revolute ? " [deg]" : " [mm]");
-      p.y_label = "error [mm]";
-      Series a = Scatter("identification", kColorAfter), b = Scatter("verification", kColorBefore);
-      for (auto [rows, s] : {std::pair{&rows_id, &a}, std::pair{&rows_ver, &b}}) {
-        for (int r : *rows) {
-          const double v = in.points[r]->q[q];
-          s->x.push_back(revolute ? v * 180.0 / M_PI : v);
-          s->y.push_back(in.after_norm[r]);
-        }
-      }
-      if (q > 0) a.label = b.label = "";
-      p.series = {a, b};
-      f.panels.push_back(p);
-    }
-    if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
-  }
   // Positions in the robot's base frame (the measurement frame when there was no registration).
   const SE3d T_base_measurement = summary.registered && summary.registration.moved
                                       ? summary.registration.T_measurement_base.Inverse()
                                       : SE3d();
   {
+    // The error after calibration against each joint value and against the reach.
     Figure f;
     f.columns = 3;
     f.width = 1000;
-    f.height = 340;
-    Panel reach;
-    reach.title = "error after calibration vs reach";
-    reach.x_label = "distance from the base origin [mm]";
-    reach.y_label = "error [mm]";
-    Series a = Scatter("identification", kColorAfter), b = Scatter("verification", kColorBefore);
+    const int nj = model.num_joints();
+    f.height = 290 * ((nj + 3) / 3);
+    for (int q = 0; q <= nj; ++q) {
+      const bool reach = q == nj;
+      const bool revolute = !reach && model.joints[q].type == JointType::kRevolute;
+      Panel p;
+      p.title = reach ? std::string("error after calibration vs reach")
+                      : "error after calibration vs " + model.joints[q].name;
+      p.x_label = reach ? std::string("distance from the base origin [mm]")
+                        : model.joints[q].name + (revolute ? " [deg]" : " [mm]");
+      p.y_label = "error [mm]";
+      Series a = Scatter(q == 0 ? "identification" : "", kColorAfter);
+      Series b = Scatter(q == 0 ? "verification" : "", kColorBefore);
+      for (auto [rows, s] : {std::pair{&rows_id, &a}, std::pair{&rows_ver, &b}}) {
+        for (int r : *rows) {
+          const PointResidual& pt = *in.points[r];
+          s->x.push_back(reach ? (T_base_measurement * pt.measured).norm()
+                               : revolute ? pt.q[q] * 180.0 / M_PI : pt.q[q]);
+          s->y.push_back(in.after_norm[r]);
+        }
+      }
+      p.series = {a, b};
+      f.panels.push_back(p);
+    }
+    if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
+  }
+  {
+    // The workspace from the top and from the side, points colored by the error.
+    Figure f;
+    f.columns = 2;
+    f.width = 1000;
+    f.height = 460;
     double lo = 1e300, hi = -1e300;
     for (double e : in.after_norm) {
       lo = std::min(lo, e);
       hi = std::max(hi, e);
     }
     Panel top, side;
-    top.title = "workspace from the top (color: error)";
+    top.title = "workspace from the top";
     top.x_label = "x [mm]";
     top.y_label = "y [mm]";
-    side.title = "workspace from the side (color: error)";
+    side.title = "workspace from the side";
     side.x_label = "x [mm]";
     side.y_label = "z [mm]";
     top.equal_axes = side.equal_axes = true;
+    top.color_label = "error after calibration [mm]";  // one bar: both views share the scale
     Series ct = Scatter("", 0), cs = Scatter("", 0);
-    for (auto [rows, s] : {std::pair{&rows_id, &a}, std::pair{&rows_ver, &b}}) {
+    for (const std::vector<int>* rows : {&rows_id, &rows_ver}) {
       for (int r : *rows) {
         const Eigen::Vector3d pb = T_base_measurement * in.points[r]->measured;
-        s->x.push_back(pb.norm());
-        s->y.push_back(in.after_norm[r]);
         ct.x.push_back(pb.x());
         ct.y.push_back(pb.y());
         cs.x.push_back(pb.x());
@@ -292,19 +308,12 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
       s->color_min = lo;
       s->color_max = hi;
     }
-    reach.series = {a, b};
     top.series = {ct};
     side.series = {cs};
-    f.panels = {reach, top, side};
+    f.panels = {top, side};
     if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
-    if (lo <= hi) {
-      h += "<p class=\"note\">Workspace colors: error after calibration from " +
-           Fmt("%.4f", lo) +
-           " mm (<span style=\"color:#450054\">&#9670; dark blue</span>) through teal to " +
-           Fmt("%.4f", hi) +
-           " mm (<span style=\"color:#d0b000\">&#9670; yellow</span>). Positions in the robot's "
-           "base frame.</p>\n";
-    }
+    h += "<p class=\"note\">Measured positions in the robot's base frame, identification and "
+         "verification points, colored by the error after calibration (one color scale for both views).</p>\n";
   }
 
   // ---- Parameters.

@@ -202,6 +202,23 @@ void DrawLegend(const Panel& p, const std::vector<int>& slots) {
   plscol0a(0, 255, 255, 255, 1.0);
 }
 
+// The continuous color scale of `s` beside the plot, labelled `label`.
+void DrawColorBar(const Series& s, const std::string& label) {
+  PLFLT w, h;
+  PLINT label_opts[1] = {PL_COLORBAR_LABEL_RIGHT};
+  const char* labels[1] = {label.c_str()};
+  const char* axis_opts[1] = {"bcvtm"};
+  PLFLT ticks[1] = {0};
+  PLINT sub_ticks[1] = {0};
+  PLINT n_values[1] = {2};
+  PLFLT range[2] = {s.color_min, s.color_max > s.color_min ? s.color_max : s.color_min + 1e-9};
+  const PLFLT* values[1] = {range};
+  plcol0(kColorText);
+  plcolorbar(&w, &h, PL_COLORBAR_GRADIENT, PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, 0.03, 0.0,
+             0.04, 0.9, 0, kColorText, 1, 0, 0, 0, 0, 1, label_opts, labels, 1, axis_opts, ticks,
+             sub_ticks, n_values, values);
+}
+
 void RenderPanel(const Panel& p, const Figure& fig, int* next_slot) {
   // The data as plotted (log10 on log axes), the window, the legend's head room.
   std::vector<std::vector<double>> xs(p.series.size()), ys(p.series.size());
@@ -222,11 +239,15 @@ void RenderPanel(const Panel& p, const Figure& fig, int* next_slot) {
   Window(ry, 0.05, bars && !p.log_y, &y0, &y1);
   if (has_legend) y1 += 0.18 * (y1 - y0);  // head room for the legend row
 
+  const Series* colored = nullptr;
+  for (const Series& s : p.series)
+    if (!s.color_value.empty()) colored = &s;
   pladv(0);
   plschr(0, 0.75);
+  plvsta();
+  if (colored) plvpor(0.14, 0.80, 0.14, 0.88);  // room for the color bar on the right
   if (p.equal_axes) {
     // Same scale on both axes: widen the shorter range to the viewport's aspect.
-    plvsta();
     PLFLT vx0, vx1, vy0, vy1;
     plgvpd(&vx0, &vx1, &vy0, &vy1);
     const double aspect = ((vy1 - vy0) * fig.height) / ((vx1 - vx0) * fig.width);
@@ -236,8 +257,6 @@ void RenderPanel(const Panel& p, const Figure& fig, int* next_slot) {
     x1 = cx + half;
     y0 = cy - half * aspect;
     y1 = cy + half * aspect;
-  } else {
-    plvsta();
   }
   plwind(x0, x1, y0, y1);
 
@@ -280,6 +299,7 @@ void RenderPanel(const Panel& p, const Figure& fig, int* next_slot) {
   pllab(p.x_label.c_str(), p.y_label.c_str(), p.title.c_str());
   plschr(0, 0.75);
   DrawLegend(p, slots);
+  if (colored) DrawColorBar(*colored, p.color_label);
 }
 
 // PLplot's svg driver writes one attribute per line; inline SVGs in one HTML page also need
@@ -351,6 +371,8 @@ Status RenderFigure(const Figure& fig, ImageFormat format, std::string* bytes) {
   plssub(fig.columns, rows);
   plinit();
   plfontld(1);
+  plsxax(6, 0);  // up to 6 digits before the labels switch to a common (x10^n) factor
+  plsyax(6, 0);
   int next_slot = kFirstSeriesColor;
   for (const Panel& p : fig.panels) RenderPanel(p, fig, &next_slot);
   plend1();  // writes the page and closes `memory`
@@ -444,7 +466,7 @@ Figure ConvergenceFigure(const std::vector<int>& iteration, const std::vector<do
   Figure f;
   f.panels = {p};
   f.width = 1000;
-  f.height = 500;
+  f.height = 600;
   return f;
 }
 
@@ -455,7 +477,7 @@ Figure AxisErrorFigure(const std::vector<Eigen::Vector3d>& before,
   constexpr int kMaxPoints = 1200;  // per series: min/max envelope beyond this
   Figure f;
   f.width = 1000;
-  f.height = 800;
+  f.height = 900;
   const std::vector<Eigen::Vector3d>* sets[2] = {&before, &after};
   const char* names[2] = {"before calibration", "after calibration"};
   for (int k = 0; k < 2; ++k) {

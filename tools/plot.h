@@ -56,6 +56,7 @@ struct Panel {
   bool zero_line = false;  // a thin line at y = 0 (signed errors)
   bool log_x = false;      // decades; values <= 0 are left out
   bool equal_axes = false;  // same scale on x and y (workspace views)
+  std::string color_label;  // label of the color bar drawn for a series with color values
   std::vector<Series> series;
 };
 

@@ -97,6 +97,9 @@ void AddPointResiduals(const RobotModel& before, const RobotModel& after,
 
 Verdict ProvisionalVerdict(const RunSummary& s) {
   char buf[400];
+  if (!s.solvers_agree) {
+    return {"fail", "the linear and the Ceres solver disagree on the predicted positions"};
+  }
   if (!s.result.converged()) {
     return {"fail", std::string("the solver did not converge (") +
                         TerminationName(s.result.termination) + ")"};
@@ -178,6 +181,35 @@ Status WritePlotFiles(const std::string& dir, RunSummary* s) {
     s->outputs.push_back(path);
   }
   return Status::Ok();
+}
+
+Status WriteComparisonHtmlReport(const std::string& path, const ComparisonRun& run) {
+  RunSummary s;
+  s.tool_name = "lpoe_compare";
+  s.model_path = run.model_path;
+  s.measurements_path = run.measurements_path;
+  s.verification_source = run.verification_source;
+  s.angle_unit = run.angle_unit;
+  s.solver = "ceres";
+  s.parameterization = run.parameterization;
+  s.data_kind = run.ceres->parameterization.data == DataKind::kPose ? "pose" : "position";
+  s.registered = run.registration != nullptr;
+  if (run.registration) s.registration = *run.registration;
+  s.result = *run.ceres;
+  s.identifiability = AnalyzeIdentifiability(*run.nominal, *run.identification, *run.ceres);
+  s.identification_before = PositionErrorStatistics(*run.start, *run.identification);
+  s.identification_after = PositionErrorStatistics(run.ceres->model, *run.identification);
+  s.has_verification = !run.verification->empty();
+  if (s.has_verification) {
+    s.verification_before = PositionErrorStatistics(*run.start, *run.verification);
+    s.verification_after = PositionErrorStatistics(run.ceres->model, *run.verification);
+  }
+  constexpr double kOutlierSigmas = 5.0;  // lpoe_calibrate's default --outlier_threshold
+  s.outliers = FindOutliers(run.ceres->model, *run.identification, kOutlierSigmas, &s.robust_sigma);
+  AddPointResiduals(*run.start, run.ceres->model, *run.identification, *run.verification, &s);
+  s.comparison = run.rows;
+  s.solvers_agree = run.agree;
+  return WriteHtmlReport(path, &s);
 }
 
 Status WriteHtmlReport(const std::string& path, RunSummary* s) {
@@ -345,6 +377,16 @@ Json BuildJson(const RunSummary& s) {
   }
   j["identifiability"]["correlated_above_0_9"] = high;
 
+  if (!s.comparison.empty()) {
+    Json rows = Json::array();
+    for (const RunSummary::ComparisonRow& r : s.comparison) {
+      rows.push_back({{"quantity", r.quantity},
+                      {"linear", r.linear},
+                      {"ceres", r.ceres},
+                      {"difference", r.difference}});
+    }
+    j["comparison"] = {{"agree", s.solvers_agree}, {"rows", rows}};
+  }
   j["points"] = {{"identification", PointsJson(model, s.identification_points)},
                  {"verification", PointsJson(model, s.verification_points)}};
   return j;

@@ -58,7 +58,33 @@ struct RunSummary {
   RobotModel before_model;
   std::vector<PointResidual> identification_points, verification_points;
   std::string tool_name = "lpoe_calibrate";
+
+  // lpoe_compare: the two solvers side by side (rows: quantity, linear, ceres, |difference|) and
+  // whether their predicted positions agree within the tolerance.
+  struct ComparisonRow {
+    std::string quantity, linear, ceres, difference;
+  };
+  std::vector<ComparisonRow> comparison;
+  bool solvers_agree = true;
 };
+
+// lpoe_compare's run: the Ceres calibration summarized as lpoe_calibrate's (statistics, per-point
+// residuals, identifiability, outliers at 5 robust sigmas) plus the comparison rows.
+struct ComparisonRun {
+  std::string model_path, measurements_path, verification_source, angle_unit, parameterization;
+  const RobotModel* nominal = nullptr;
+  const RobotModel* start = nullptr;  // the nominal model after registration (when there was one)
+  const MeasurementSet* identification = nullptr;
+  const MeasurementSet* verification = nullptr;
+  const RegistrationReport* registration = nullptr;  // null: not registered
+  const CalibrationResult* linear = nullptr;
+  const CalibrationResult* ceres = nullptr;
+  std::vector<RunSummary::ComparisonRow> rows;
+  bool agree = true;
+};
+
+// Writes lpoe_compare's HTML report to `path` atomically.
+Status WriteComparisonHtmlReport(const std::string& path, const ComparisonRun& run);
 
 // Fills before_model and the per-point residuals of the identification and verification sets.
 void AddPointResiduals(const RobotModel& before, const RobotModel& after,
