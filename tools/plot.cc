@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 
@@ -302,8 +303,9 @@ void RenderPanel(const Panel& p, const Figure& fig, int* next_slot) {
   if (colored) DrawColorBar(*colored, p.color_label);
 }
 
-// PLplot's svg driver writes one attribute per line; inline SVGs in one HTML page also need
-// unique ids. This collapses the indentation and prefixes the ids with a per-figure tag.
+// PLplot's svg driver writes one attribute per line and every character of a text as a character
+// reference (&#x30;). This collapses the indentation and writes printable ASCII as itself (a
+// third of the size, and the page's text becomes searchable).
 std::string CompactSvg(const std::string& svg) {
   std::string out;
   out.reserve(svg.size());
@@ -311,6 +313,17 @@ std::string CompactSvg(const std::string& svg) {
   if (i == std::string::npos) i = 0;  // drop the XML declaration and DOCTYPE (inline use)
   for (; i < svg.size(); ++i) {
     const char c = svg[i];
+    if (c == '&' && svg.compare(i, 3, "&#x") == 0) {
+      const size_t end = svg.find(';', i);
+      if (end != std::string::npos && end - i <= 8) {
+        const long code = std::strtol(svg.substr(i + 3, end - i - 3).c_str(), nullptr, 16);
+        if (code >= 0x20 && code < 0x7F && std::strchr("<>&\"'", static_cast<int>(code)) == nullptr) {
+          out.push_back(static_cast<char>(code));
+          i = end;
+          continue;
+        }
+      }
+    }
     if (c == '\n') {
       while (i + 1 < svg.size() && svg[i + 1] == ' ') ++i;
       if (!out.empty() && out.back() != '>' && out.back() != ' ') out.push_back(' ');
