@@ -2,6 +2,7 @@
 // (headless chromium) to a non-blank image, carries the JSON report's figures, is well-formed
 // (a strict parser), is the same bytes on every run, and stays below 5 MB with 10^5 points.
 #include <sys/stat.h>
+#include <sys/wait.h>
 
 #include <cmath>
 #include <cstdio>
@@ -157,6 +158,16 @@ TEST_F(ReportHtml, ComparePageIsWellFormed) {
   EXPECT_NE(html.find("Linear (paper) and Ceres solver"), std::string::npos);
   EXPECT_NE(html.find("predicted positions (mm)"), std::string::npos);
   EXPECT_NE(html.find("lpoe_compare"), std::string::npos);
+  // An unwritable page is exit code 6; a page that would overwrite an input is refused (1).
+  int rc = Run(LPOE_COMPARE_PATH " --html_report=no_such_dir/c.html", "d.txt");
+  EXPECT_EQ(WEXITSTATUS(rc), 6) << ReadAll(dir_ + "/d.txt");
+  ASSERT_TRUE(WriteAll(dir_ + "/points.csv", ReadAll(LPOE_DATA_DIR "/section4/identification.csv")));
+  rc = Run(LPOE_COMPARE_PATH " --measurements=points.csv --html_report=points.csv", "e.txt");
+  EXPECT_EQ(WEXITSTATUS(rc), 1) << ReadAll(dir_ + "/e.txt");
+  EXPECT_EQ(ReadAll(dir_ + "/points.csv"),
+            ReadAll(LPOE_DATA_DIR "/section4/identification.csv"));
+  rc = Run(LPOE_CALIBRATE_PATH " --plots_dir= --report=r.json --html_report=r.json", "f.txt");
+  EXPECT_EQ(WEXITSTATUS(rc), 1) << ReadAll(dir_ + "/f.txt");
 }
 
 // A synthetic run of 10^5 points (the section-4 robot, 0.03 mm noise): the page stays below 5 MB

@@ -303,6 +303,11 @@ int Run() {
     std::cerr << "error: --output and --report name the same file\n";
     return kExitUsage;
   }
+  if (!FLAGS_html_report.empty() && (tools::SameFile(FLAGS_html_report, FLAGS_report) ||
+                                     tools::SameFile(FLAGS_html_report, FLAGS_output))) {
+    std::cerr << "error: --html_report names the same file as --report or --output\n";
+    return kExitUsage;
+  }
 
   // ---- Inputs.
   tools::RunSummary summary;

@@ -116,6 +116,13 @@ int Run() {
     return kExitUsage;
   }
 
+  for (const std::string& in : {model_path, meas_path, verify_path}) {
+    if (!FLAGS_html_report.empty() && tools::SameFile(FLAGS_html_report, in)) {
+      std::cerr << "error: --html_report would overwrite the input file " << in << "\n";
+      return kExitUsage;
+    }
+  }
+
   // ---- Inputs.
   tools::Inputs in;
   if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, unit, FLAGS_holdout,
