@@ -143,6 +143,10 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
   const Json& verdict = j["verdict"];
   const std::string level = Str(verdict["level"]);
   h += "<h1>Calibration report: " + Esc(name) + "</h1>\n";
+  h += "<p class=\"note\">" + Esc(Str(j["tool"]["name"])) + " " + Esc(Str(j["tool"]["version"])) +
+       " &middot; " + Esc(Str(j["solver"]["name"])) + " solver, " +
+       Esc(Str(j["solver"]["data"])) + " data &middot; model " + Esc(Str(j["inputs"]["model"])) +
+       " &middot; measurements " + Esc(Str(j["inputs"]["measurements"])) + "</p>\n";
   h += "<div class=\"verdict " + Esc(level) + "\"><b>" + Esc(level) + "</b>" +
        Esc(Str(verdict["reason"])) + "</div>\n";
   const bool has_ver = !j["verification"].is_null();
