@@ -3,7 +3,10 @@
 // every run; failures leave nothing behind.
 #include "plot.h"
 
+#include <gtest/gtest.h>
+#include <png.h>
 #include <sys/stat.h>
+#include <tinyxml2.h>
 
 #include <cmath>
 #include <cstdio>
@@ -14,10 +17,6 @@
 #include <regex>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
-#include <png.h>
-#include <tinyxml2.h>
 
 namespace lpoe {
 namespace tools {
@@ -281,11 +280,12 @@ TEST(PlotTest, EdgeCasesStillRender) {
   const double inf = std::numeric_limits<double>::infinity();
   // Empty series, all-equal values, NaN/inf, zeros and negatives on a log axis, one point.
   const Panel empty = MakePanel("empty", false, false, {MakeSeries("nothing", {}, {}, 0xFF0000)});
-  const Panel flat = MakePanel(
-      "flat", false, true, {MakeSeries("flat", {0, 1, 2, 3}, {2.5, 2.5, 2.5, 2.5}, 0x009E73, true)});
-  const Panel logp = MakePanel("log", true, false,
-                               {MakeSeries("mixed", {0, 1, 2, 3, 4, 5},
-                                           {1.0, 0.0, -2.0, nan, 0.01, inf}, 0xCC79A7, true)});
+  const Panel flat =
+      MakePanel("flat", false, true,
+                {MakeSeries("flat", {0, 1, 2, 3}, {2.5, 2.5, 2.5, 2.5}, 0x009E73, true)});
+  const Panel logp = MakePanel(
+      "log", true, false,
+      {MakeSeries("mixed", {0, 1, 2, 3, 4, 5}, {1.0, 0.0, -2.0, nan, 0.01, inf}, 0xCC79A7, true)});
   const Panel single =
       MakePanel("single point", true, false, {MakeSeries("one", {3}, {0.5}, 0x0072B2, true)});
   Figure f;
@@ -355,13 +355,15 @@ TEST(PlotTest, WritesSamplesWhenAsked) {
   if (dir == nullptr || *dir == '\0') GTEST_SKIP() << "LPOE_PLOT_SAMPLE_DIR not set";
   const std::string d = std::string(dir) + "/";
   const ReportData r = MakeReportData(60);
-  EXPECT_TRUE(WriteFigurePng(d + "convergence.png", ConvergenceFigure(r.iteration, r.max_err,
-                                                                       r.mean_err)).ok());
+  EXPECT_TRUE(
+      WriteFigurePng(d + "convergence.png", ConvergenceFigure(r.iteration, r.max_err, r.mean_err))
+          .ok());
   EXPECT_TRUE(WriteFigurePng(d + "axis_errors.png", AxisErrorFigure(r.before, r.after)).ok());
-  EXPECT_TRUE(WriteFigurePng(d + "histogram.png",
-                             ErrorHistogramFigure(r.before_norm, r.after_norm)).ok());
+  EXPECT_TRUE(
+      WriteFigurePng(d + "histogram.png", ErrorHistogramFigure(r.before_norm, r.after_norm)).ok());
   const ReportData many = MakeReportData(3000);
-  EXPECT_TRUE(WriteFigurePng(d + "axis_errors_3000.png", AxisErrorFigure(many.before, many.after)).ok());
+  EXPECT_TRUE(
+      WriteFigurePng(d + "axis_errors_3000.png", AxisErrorFigure(many.before, many.after)).ok());
 }
 
 }  // namespace

@@ -1,6 +1,8 @@
 // The HTML report a person reads (issue 15): the default job's page renders in a real browser
 // (headless chromium) to a non-blank image, carries the JSON report's figures, is well-formed
 // (a strict parser), is the same bytes on every run, and stays below 5 MB with 10^5 points.
+#include <gtest/gtest.h>
+#include <png.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 
@@ -9,12 +11,9 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
-
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
-#include <png.h>
 
 #include "lpoe/io.h"
 #include "lpoe/simulation.h"
@@ -124,10 +123,11 @@ TEST_F(ReportHtml, DefaultJobPageCarriesTheJsonFiguresAndIsDeterministic) {
   if (std::system("command -v chromium > /dev/null 2>&1") != 0)
     GTEST_SKIP() << "chromium is not installed (scripts/setup.sh installs it): not rendered";
   const std::string shot = dir_ + "/shot.png";
-  const std::string cmd = "chromium --headless --no-sandbox --disable-gpu --hide-scrollbars "
-                          "--screenshot=" + shot + " --window-size=" +
-                          std::to_string(kShotWidth) + "," + std::to_string(kShotHeight) +
-                          " file://" + dir_ + "/r.html";
+  const std::string cmd =
+      "chromium --headless --no-sandbox --disable-gpu --hide-scrollbars "
+      "--screenshot=" +
+      shot + " --window-size=" + std::to_string(kShotWidth) + "," + std::to_string(kShotHeight) +
+      " file://" + dir_ + "/r.html";
   ASSERT_EQ(Run(cmd, "chromium.txt"), 0) << ReadAll(dir_ + "/chromium.txt");
   png_image image;
   std::memset(&image, 0, sizeof image);
@@ -161,11 +161,11 @@ TEST_F(ReportHtml, ComparePageIsWellFormed) {
   // An unwritable page is exit code 6; a page that would overwrite an input is refused (1).
   int rc = Run(LPOE_COMPARE_PATH " --html_report=no_such_dir/c.html", "d.txt");
   EXPECT_EQ(WEXITSTATUS(rc), 6) << ReadAll(dir_ + "/d.txt");
-  ASSERT_TRUE(WriteAll(dir_ + "/points.csv", ReadAll(LPOE_DATA_DIR "/section4/identification.csv")));
+  ASSERT_TRUE(
+      WriteAll(dir_ + "/points.csv", ReadAll(LPOE_DATA_DIR "/section4/identification.csv")));
   rc = Run(LPOE_COMPARE_PATH " --measurements=points.csv --html_report=points.csv", "e.txt");
   EXPECT_EQ(WEXITSTATUS(rc), 1) << ReadAll(dir_ + "/e.txt");
-  EXPECT_EQ(ReadAll(dir_ + "/points.csv"),
-            ReadAll(LPOE_DATA_DIR "/section4/identification.csv"));
+  EXPECT_EQ(ReadAll(dir_ + "/points.csv"), ReadAll(LPOE_DATA_DIR "/section4/identification.csv"));
   rc = Run(LPOE_CALIBRATE_PATH " --plots_dir= --report=r.json --html_report=r.json", "f.txt");
   EXPECT_EQ(WEXITSTATUS(rc), 1) << ReadAll(dir_ + "/f.txt");
 }

@@ -4,10 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "plot.h"
 #include "report.h"
@@ -27,11 +26,20 @@ std::string Esc(const std::string& text) {
   out.reserve(text.size());
   for (char c : text) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out.push_back(c);
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out.push_back(c);
     }
   }
   return out;
@@ -65,7 +73,7 @@ const char* kStatsHead =
     "<th>RMS x</th><th>RMS y</th><th>RMS z</th></tr>\n";
 
 struct PlotInput {
-  std::vector<double> after_norm;      // all points, identification first
+  std::vector<double> after_norm;  // all points, identification first
   std::vector<const PointResidual*> points;
   std::vector<bool> verification;
 };
@@ -118,7 +126,9 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
   h.reserve(1 << 20);
   const std::string name = model.name.empty() ? std::string("robot") : model.name;
   h += "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\"/>\n"
-       "<title>Calibration report: " + Esc(name) + "</title>\n<style>\n"
+       "<title>Calibration report: " +
+       Esc(name) +
+       "</title>\n<style>\n"
        "body{font-family:'DejaVu Sans',Helvetica,Arial,sans-serif;color:#222;max-width:1080px;"
        "margin:24px auto;padding:0 16px;line-height:1.4}\n"
        "h1{font-size:24px;margin:0 0 8px}h2{font-size:18px;border-bottom:1px solid #ccc;"
@@ -144,9 +154,9 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
   const std::string level = Str(verdict["level"]);
   h += "<h1>Calibration report: " + Esc(name) + "</h1>\n";
   h += "<p class=\"note\">" + Esc(Str(j["tool"]["name"])) + " " + Esc(Str(j["tool"]["version"])) +
-       " &middot; " + Esc(Str(j["solver"]["name"])) + " solver, " +
-       Esc(Str(j["solver"]["data"])) + " data &middot; model " + Esc(Str(j["inputs"]["model"])) +
-       " &middot; measurements " + Esc(Str(j["inputs"]["measurements"])) + "</p>\n";
+       " &middot; " + Esc(Str(j["solver"]["name"])) + " solver, " + Esc(Str(j["solver"]["data"])) +
+       " data &middot; model " + Esc(Str(j["inputs"]["model"])) + " &middot; measurements " +
+       Esc(Str(j["inputs"]["measurements"])) + "</p>\n";
   h += "<div class=\"verdict " + Esc(level) + "\"><b>" + Esc(level) + "</b>" +
        Esc(Str(verdict["reason"])) + "</div>\n";
   const bool has_ver = !j["verification"].is_null();
@@ -266,8 +276,9 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
       for (auto [rows, s] : {std::pair{&rows_id, &a}, std::pair{&rows_ver, &b}}) {
         for (int r : *rows) {
           const PointResidual& pt = *in.points[r];
-          s->x.push_back(reach ? (T_base_measurement * pt.measured).norm()
-                               : revolute ? pt.q[q] * 180.0 / M_PI : pt.q[q]);
+          s->x.push_back(reach      ? (T_base_measurement * pt.measured).norm()
+                         : revolute ? pt.q[q] * 180.0 / M_PI
+                                    : pt.q[q]);
           s->y.push_back(in.after_norm[r]);
         }
       }
@@ -317,13 +328,14 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
     f.panels = {top, side};
     if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
     h += "<p class=\"note\">Measured positions in the robot's base frame, identification and "
-         "verification points, colored by the error after calibration (one color scale for both views).</p>\n";
+         "verification points, colored by the error after calibration (one color scale for both "
+         "views).</p>\n";
   }
 
   // ---- Parameters.
   const Json& idj = j["identifiability"];
   h += "<h2>Parameter changes against the model before calibration</h2>\n";
-  h += "<p class=\"note\">Right perturbation of each local frame, " 
+  h += "<p class=\"note\">Right perturbation of each local frame, "
        "<code>log(T<sub>before</sub><sup>-1</sup> T<sub>after</sub>)</code>, "
        "along the identified directions (rad for rotations, mm for translations), with the "
        "standard deviation from the covariance.</p>\n<table>\n"
@@ -349,8 +361,9 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
          "separate; their individual values mean little):</p>\n<table>\n"
          "<tr><th>parameter</th><th>parameter</th><th>correlation</th></tr>\n";
     for (const Json& c : idj["correlated_above_0_9"])
-      h += "<tr><td>" + Esc(Str(c["a"])) + "</td><td>" + Esc(Str(c["b"])) + "</td><td class=\"flag\">" +
-           Fmt("%.4f", c["correlation"].get<double>()) + "</td></tr>\n";
+      h += "<tr><td>" + Esc(Str(c["a"])) + "</td><td>" + Esc(Str(c["b"])) +
+           "</td><td class=\"flag\">" + Fmt("%.4f", c["correlation"].get<double>()) +
+           "</td></tr>\n";
     h += "</table>\n";
   } else {
     h += "<p>No pair of parameters correlates above 0.9.</p>\n";
@@ -376,9 +389,8 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
          " mm per axis). They were used; check them.</p>\n<table>\n"
          "<tr><th>file:line</th><th>error [mm]</th><th>sigmas</th></tr>\n";
     for (const Json& o : outl["points"])
-      h += "<tr><td>" + Esc(Str(j["inputs"]["measurements"])) + ":" + Str(o["line"]) +
-           "</td><td>" + Mm(o["error"]) + "</td><td>" + Fmt("%.1f", o["sigmas"].get<double>()) +
-           "</td></tr>\n";
+      h += "<tr><td>" + Esc(Str(j["inputs"]["measurements"])) + ":" + Str(o["line"]) + "</td><td>" +
+           Mm(o["error"]) + "</td><td>" + Fmt("%.1f", o["sigmas"].get<double>()) + "</td></tr>\n";
     h += "</table>\n";
   }
 
@@ -398,7 +410,8 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
                     Str(sol["data"]) + " data");
   row("result", Str(sol["termination"]) + " after " + Str(sol["iterations"]) + " iteration(s)");
   row("tool", Str(j["tool"]["name"]) + " " + Str(j["tool"]["version"]));
-  h += "</table>\n<p class=\"note\">Generated by lpoe-calib. The JSON report (<code>--report</code>) "
+  h += "</table>\n<p class=\"note\">Generated by lpoe-calib. The JSON report "
+       "(<code>--report</code>) "
        "holds every figure of this page and the per-point residuals.</p>\n</body>\n</html>\n";
   *out = std::move(h);
   return Status::Ok();

@@ -1,5 +1,6 @@
 #include "plot.h"
 
+#include <plplot.h>
 #include <stdio.h>  // open_memstream (POSIX)
 
 #include <algorithm>
@@ -8,8 +9,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
-
-#include <plplot.h>
 
 #include "lpoe/io.h"
 
@@ -102,8 +101,8 @@ void Window(const Range& r, double pad, bool include_zero, double* lo, double* h
 
 // A filled marker (diamond) of kMarkerRadiusPx at every finite point. Drawn as polygons so the
 // SVG stays small (one element per point).
-void DrawMarkers(const std::vector<double>& x, const std::vector<double>& y,
-                 const Series& s, int page_w, int page_h, int color_slot) {
+void DrawMarkers(const std::vector<double>& x, const std::vector<double>& y, const Series& s,
+                 int page_w, int page_h, int color_slot) {
   PLFLT vx0, vx1, vy0, vy1, wx0, wx1, wy0, wy1;
   plgvpd(&vx0, &vx1, &vy0, &vy1);
   plgvpw(&wx0, &wx1, &wy0, &wy1);
@@ -215,8 +214,8 @@ void DrawColorBar(const Series& s, const std::string& label) {
   PLFLT range[2] = {s.color_min, s.color_max > s.color_min ? s.color_max : s.color_min + 1e-9};
   const PLFLT* values[1] = {range};
   plcol0(kColorText);
-  plcolorbar(&w, &h, PL_COLORBAR_GRADIENT, PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, 0.03, 0.0,
-             0.04, 0.9, 0, kColorText, 1, 0, 0, 0, 0, 1, label_opts, labels, 1, axis_opts, ticks,
+  plcolorbar(&w, &h, PL_COLORBAR_GRADIENT, PL_POSITION_RIGHT | PL_POSITION_OUTSIDE, 0.03, 0.0, 0.04,
+             0.9, 0, kColorText, 1, 0, 0, 0, 0, 1, label_opts, labels, 1, axis_opts, ticks,
              sub_ticks, n_values, values);
 }
 
@@ -317,7 +316,8 @@ std::string CompactSvg(const std::string& svg) {
       const size_t end = svg.find(';', i);
       if (end != std::string::npos && end - i <= 8) {
         const long code = std::strtol(svg.substr(i + 3, end - i - 3).c_str(), nullptr, 16);
-        if (code >= 0x20 && code < 0x7F && std::strchr("<>&\"'", static_cast<int>(code)) == nullptr) {
+        if (code >= 0x20 && code < 0x7F &&
+            std::strchr("<>&\"'", static_cast<int>(code)) == nullptr) {
           out.push_back(static_cast<char>(code));
           i = end;
           continue;
@@ -326,8 +326,10 @@ std::string CompactSvg(const std::string& svg) {
     }
     if (c == '\n') {
       while (i + 1 < svg.size() && svg[i + 1] == ' ') ++i;
-      if (!out.empty() && out.back() != '>' && out.back() != ' ') out.push_back(' ');
-      else if (!out.empty() && out.back() == '>') out.push_back('\n');
+      if (!out.empty() && out.back() != '>' && out.back() != ' ')
+        out.push_back(' ');
+      else if (!out.empty() && out.back() == '>')
+        out.push_back('\n');
       continue;
     }
     out.push_back(c);
@@ -546,10 +548,9 @@ Figure ErrorHistogramFigure(const std::vector<double>& before_norm,
     p.title = std::string("Position error norm, ") + names[k];
     p.x_label = "position error norm [mm]";
     p.y_label = "poses";
-    const std::string label =
-        n == 0 ? std::string("no data")
-               : "n=" + std::to_string(n) + ", mean " + Num(sum / n) + " mm, max " + Num(mx) +
-                     " mm";
+    const std::string label = n == 0 ? std::string("no data")
+                                     : "n=" + std::to_string(n) + ", mean " + Num(sum / n) +
+                                           " mm, max " + Num(mx) + " mm";
     p.series.push_back(HistogramSeries(label, *sets[k], bins, colors[k]));
     f.panels.push_back(std::move(p));
   }

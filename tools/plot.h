@@ -13,12 +13,11 @@
 #ifndef LPOE_TOOLS_PLOT_H_
 #define LPOE_TOOLS_PLOT_H_
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "lpoe/status.h"
 
@@ -51,11 +50,11 @@ struct Series {
 
 struct Panel {
   std::string title, x_label, y_label;  // labels carry their unit, e.g. "error [mm]"
-  bool log_y = false;      // decades; values <= 0 are left out
-  bool integer_x = false;  // x ticks at whole numbers only (iterations, pose indices)
-  bool zero_line = false;  // a thin line at y = 0 (signed errors)
-  bool log_x = false;      // decades; values <= 0 are left out
-  bool equal_axes = false;  // same scale on x and y (workspace views)
+  bool log_y = false;                   // decades; values <= 0 are left out
+  bool integer_x = false;               // x ticks at whole numbers only (iterations, pose indices)
+  bool zero_line = false;               // a thin line at y = 0 (signed errors)
+  bool log_x = false;                   // decades; values <= 0 are left out
+  bool equal_axes = false;              // same scale on x and y (workspace views)
   std::string color_label;  // label of the color bar drawn for a series with color values
   std::vector<Series> series;
 };
