@@ -149,19 +149,16 @@ Verdict ProvisionalVerdict(const RunSummary& s) {
 
 std::string RunSummaryToJson(const RunSummary& s) { return BuildJson(s).dump(2) + "\n"; }
 
-Status WritePlotFiles(const std::string& dir, RunSummary* s) {
-  struct stat st;
-  if (::stat(dir.c_str(), &st) != 0 ? ::mkdir(dir.c_str(), 0755) != 0 : !S_ISDIR(st.st_mode))
-    return Status::Error(dir + ": cannot create the plot directory");
+Status RenderPlotFiles(const RunSummary& s, std::vector<std::pair<std::string, std::string>>* files) {
   std::vector<int> it;
   std::vector<double> mx, mn;
-  for (const IterationRecord& r : s->result.history) {
+  for (const IterationRecord& r : s.result.history) {
     it.push_back(r.iteration);
     mx.push_back(r.max_error);
     mn.push_back(r.mean_error);
   }
-  const bool ver = !s->verification_points.empty();
-  const std::vector<PointResidual>& shown = ver ? s->verification_points : s->identification_points;
+  const bool ver = !s.verification_points.empty();
+  const std::vector<PointResidual>& shown = ver ? s.verification_points : s.identification_points;
   std::vector<Eigen::Vector3d> eb, ea;
   std::vector<double> nb, na;
   for (const PointResidual& p : shown) {
@@ -170,14 +167,30 @@ Status WritePlotFiles(const std::string& dir, RunSummary* s) {
     nb.push_back(p.before.norm());
     na.push_back(p.after.norm());
   }
-  const std::pair<std::string, Figure> plots[] = {
-      {"convergence.png", ConvergenceFigure(it, mx, mn)},
-      {"axis_errors.png", AxisErrorFigure(eb, ea, ver ? "verification" : "identification")},
-      {"error_histogram.png", ErrorHistogramFigure(nb, na)},
+  const std::pair<const char*, Figure> plots[] = {
+      {kPlotFileNames[0], ConvergenceFigure(it, mx, mn)},
+      {kPlotFileNames[1], AxisErrorFigure(eb, ea, ver ? "verification" : "identification")},
+      {kPlotFileNames[2], ErrorHistogramFigure(nb, na)},
   };
+  files->clear();
   for (const auto& [name, figure] : plots) {
+    std::string bytes;
+    if (Status st = RenderFigure(figure, ImageFormat::kPng, &bytes); !st.ok())
+      return Status::Error(std::string(name) + ": " + st.message());
+    files->emplace_back(name, std::move(bytes));
+  }
+  return Status::Ok();
+}
+
+Status WritePlotFiles(const std::string& dir, RunSummary* s) {
+  struct stat st;
+  if (::stat(dir.c_str(), &st) != 0 ? ::mkdir(dir.c_str(), 0755) != 0 : !S_ISDIR(st.st_mode))
+    return Status::Error(dir + ": cannot create the plot directory");
+  std::vector<std::pair<std::string, std::string>> files;
+  if (Status r = RenderPlotFiles(*s, &files); !r.ok()) return Status::Error(dir + "/" + r.message());
+  for (const auto& [name, bytes] : files) {
     const std::string path = dir + "/" + name;
-    if (Status st = WriteFigurePng(path, figure); !st.ok()) return st;
+    if (Status w = WriteFileAtomically(path, bytes); !w.ok()) return w;
     s->outputs.push_back(path);
   }
   return Status::Ok();

@@ -3,6 +3,7 @@
 #define LPOE_TOOLS_REPORT_H_
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lpoe/analysis.h"
@@ -110,8 +111,16 @@ std::string RunSummaryToJson(const RunSummary& summary);
 // well below 5 MB. Fails only when a plot cannot be rendered.
 Status RunSummaryToHtml(const RunSummary& summary, std::string* html);
 
-// The plot files (convergence.png, axis_errors.png, error_histogram.png) of a run into `dir`
-// (created if missing), each written atomically; appends the paths written to summary->outputs.
+// The plot files of a run: the paper's Fig. 6, Figs. 7/9 and the error histogram, as PNG.
+constexpr const char* kPlotFileNames[3] = {"convergence.png", "axis_errors.png",
+                                           "error_histogram.png"};
+
+// Renders the plot files (name, PNG bytes) in the order of kPlotFileNames.
+Status RenderPlotFiles(const RunSummary& summary,
+                       std::vector<std::pair<std::string, std::string>>* files);
+
+// Writes them into `dir` (created if missing), each atomically; appends the paths written to
+// summary->outputs.
 Status WritePlotFiles(const std::string& dir, RunSummary* summary);
 
 // Writes the HTML report to `path` atomically and appends it to summary->outputs.
