@@ -159,6 +159,16 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
        Esc(Str(j["inputs"]["measurements"])) + "</p>\n";
   h += "<div class=\"verdict " + Esc(level) + "\"><b>" + Esc(level) + "</b>" +
        Esc(Str(verdict["reason"])) + "</div>\n";
+  if (verdict.contains("checks") && !verdict["checks"].empty()) {
+    h += "<details><summary>Plausibility checks</summary><table>\n<tr><th>check</th><th>level"
+         "</th><th>value</th><th>limit</th><th>message</th></tr>\n";
+    for (const Json& c : verdict["checks"]) {
+      h += "<tr><td>" + Esc(Str(c["name"])) + "</td><td>" + Esc(Str(c["level"])) + "</td><td>" +
+           Sci(c["value"]) + "</td><td>" + Sci(c["limit"]) + "</td><td style=\"text-align:left\">" +
+           Esc(Str(c["message"])) + "</td></tr>\n";
+    }
+    h += "</table></details>\n";
+  }
   const bool has_ver = !j["verification"].is_null();
   const Json& main_set = has_ver ? j["verification"] : j["identification"];
   const std::string set_name = has_ver ? "verification" : "identification";
