@@ -365,7 +365,7 @@ TEST(Io, CsvSkipsZeroRowsAndReportsThem) {
   EXPECT_EQ(data.size(), 2);
   EXPECT_EQ(data.source_line(1), 6);
   EXPECT_EQ(report.skipped_zero_rows, 4);
-  EXPECT_EQ(report.skipped_lines, (std::vector<int>{3, 5, 7, 8}));
+  EXPECT_EQ(report.skipped_lines, (std::vector<int64_t>{3, 5, 7, 8}));
   // Without a report the rows are skipped all the same.
   MeasurementSet again;
   s = ParseMeasurementsCsv(csv, "dirty.csv", model, AngleUnit::kRadians, &again);

@@ -502,7 +502,7 @@ Status ParseRobotModelUrdf(const std::string& xml, const std::string& source, Ro
 
 Status ReadRobotModelUrdf(const std::string& path, RobotModel* model, const UrdfOptions& options) {
   std::string text;
-  const Status s = ReadFile(path, &text);
+  const Status s = ReadFile(path, kMaxModelFileBytes, &text);
   if (!s.ok()) return s;
   return ParseRobotModelUrdf(text, path, model, options);
 }
