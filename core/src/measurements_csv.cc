@@ -268,7 +268,6 @@ class CsvReader {
       }
     }
     length_scale_ = length;
-    length_unit_name_ = options.length_unit == LengthUnit::kMetres ? " m" : " mm";
   }
 
   // The total input size when known (a regular file): lets the reader reserve the row storage once
@@ -428,9 +427,11 @@ class CsvReader {
           if (std::abs(v) > kMaxAbsPositionMm) {
             return LineError(
                 source_, line_number_,
-                "column " + Quote(col.name) + ": value " + Quote(field) + length_unit_name_ +
-                    " is out of range",
-                "a position of magnitude at most " + ShortNumber(kMaxAbsPositionMm) + " mm");
+                "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
+                "a position of magnitude at most " + ShortNumber(kMaxAbsPositionMm) + " mm" +
+                    (length_scale_ == 1.0
+                         ? std::string()
+                         : " (" + ShortNumber(kMaxAbsPositionMm / length_scale_) + " m)"));
           }
           position_(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kX)) = v;
           break;
@@ -500,7 +501,6 @@ class CsvReader {
   std::string carry_;
   std::vector<double> scale_;
   double length_scale_ = 1.0;
-  const char* length_unit_name_ = " mm";
   std::vector<double> q_;
   Eigen::Vector3d position_ = Eigen::Vector3d::Zero();
   Eigen::Vector4d quat_ = Eigen::Vector4d::Zero();

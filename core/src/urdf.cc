@@ -263,6 +263,11 @@ Status ParseImpl(const std::string& xml, const std::string& source, RobotModel* 
                      "<robot name=\"...\"> (a URDF file; xacro must be expanded first)");
   }
   const int robot_line = robot->GetLineNum();
+  if (const XMLElement* second = robot->NextSiblingElement(); second != nullptr) {
+    return LineError(source, second->GetLineNum(),
+                     "a second root element <" + std::string(second->Name()) + ">",
+                     "one <robot> element per file");
+  }
 
   // Links first (joints may precede the links they name).
   std::vector<UrdfLink> links;
