@@ -1,4 +1,4 @@
-// Tests of the file formats (DESIGN.md section 5): YAML robot models and CSV measurements, their
+// Tests of the file formats (docs/file_formats.md): YAML robot models and CSV measurements, their
 // round trips, and the error messages on malformed input (tests/data/bad/, listed in MANIFEST).
 #include "lpoe/io.h"
 
@@ -30,11 +30,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// DESIGN.md section 5: a written model reproduces forward kinematics to this after a round trip.
+// docs/file_formats.md: a written model reproduces forward kinematics to this after a round trip.
 constexpr double kRoundTripToleranceMm = 1e-9;
-// Rotations go through a quaternion with 17 digits: a few ulps.
+// Rotations go through a quaternion written exactly (shortest round-trip digits): a few ulps.
 constexpr double kRotationRoundTripTolerance = 1e-14;
-// rpy and quaternion spellings of one rotation, both written with 17 digits.
+// rpy and quaternion spellings of one rotation, both written with 17 digits by the test.
 constexpr double kRpyQuaternionTolerance = 1e-14;
 constexpr int kRandomConfigurations = 200;
 constexpr double kPrismaticRangeMm = 200.0;

@@ -25,10 +25,9 @@ using internal::AppendNumber;
 using internal::LineError;
 using internal::NumberParse;
 using internal::ParseNumber;
+using internal::Quote;
 using internal::ShortNumber;
 using internal::Trim;
-
-std::string Quote(std::string_view s) { return internal::Quote(s, 40); }
 
 // A measured quaternion must be unit to this tolerance (trackers export 4 to 9 decimals); it is
 // then normalized.

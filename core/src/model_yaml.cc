@@ -28,10 +28,9 @@ using internal::AppendNumber;
 using internal::LineError;
 using internal::NumberParse;
 using internal::ParseNumber;
+using internal::Quote;
 using internal::ShortNumber;
 using internal::Trim;
-
-std::string Quote(std::string_view s) { return internal::Quote(s, 40); }
 
 // ---------------------------------------------------------------------------------------------------
 // YAML robot model.
