@@ -68,7 +68,9 @@ void ExpectSameKinematics(const RobotModel& a, const RobotModel& b, double tol_m
 RobotModel RoundTrip(const RobotModel& model) {
   const std::string xml = RobotModelToUrdf(model);
   RobotModel back;
-  const Status s = ParseRobotModelUrdf(xml, "roundtrip.urdf", &back);
+  UrdfOptions options;  // several tools on the flange: name them (else the flange is the tool)
+  for (const Tool& t : model.tools) options.tool_links.push_back(t.name);
+  const Status s = ParseRobotModelUrdf(xml, "roundtrip.urdf", &back, options);
   EXPECT_TRUE(s.ok()) << s.message() << "\n" << xml;
   return back;
 }
@@ -407,7 +409,7 @@ TEST(Urdf, PrismaticAndTiltedAxesMatchIndependentKinematics) {
   ExpectSameKinematics(m, RoundTrip(m), kRoundTripToleranceMm);
 }
 
-TEST(Urdf, DefaultToolsAreTheLeavesAfterTheLastMovingJoint) {
+TEST(Urdf, SeveralLeavesOnTheFlangeMakeTheFlangeTheTool) {
   const std::string xml = R"(<robot name="two_tools">
   <link name="base"/><link name="l1"/><link name="smr_a"/><link name="smr_b"/>
   <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/></joint>
@@ -415,7 +417,15 @@ TEST(Urdf, DefaultToolsAreTheLeavesAfterTheLastMovingJoint) {
   <joint name="fb" type="fixed"><parent link="l1"/><child link="smr_b"/><origin xyz="0 0.2 0"/></joint>
 </robot>)";
   RobotModel m;
-  const Status s = ParseRobotModelUrdf(xml, "two_tools.urdf", &m);
+  // Several leaves after the same last moving joint (a UR's ee_link and tool0): the flange is the
+  // tip and the one tool.
+  ASSERT_TRUE(ParseRobotModelUrdf(xml, "two_tools.urdf", &m).ok());
+  ASSERT_EQ(m.num_tools(), 1);
+  EXPECT_EQ(m.tools[0].name, "l1");
+  // Named, they are the tools.
+  UrdfOptions options;
+  options.tool_links = {"smr_a", "smr_b"};
+  const Status s = ParseRobotModelUrdf(xml, "two_tools.urdf", &m, options);
   ASSERT_TRUE(s.ok()) << s.message();
   ASSERT_EQ(m.num_tools(), 2);
   EXPECT_EQ(m.tools[0].name, "smr_a");
