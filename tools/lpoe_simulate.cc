@@ -14,12 +14,20 @@
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/simulation.h"
+#include "lpoe/urdf.h"
 #include "tool_common.h"
 
 DEFINE_string(robot, "cobot6",
               "Built-in nominal robot: cobot6 (paper Table 1) | ur5 | arm7 | prismatic. Ignored "
               "when --model is given.");
-DEFINE_string(model, "", "Nominal robot model (YAML) to simulate instead of a built-in one.");
+DEFINE_string(model, "",
+              "Nominal robot model to simulate instead of a built-in one: YAML, or URDF when the "
+              "name ends in .urdf. Joint values are drawn within the joints' limits.");
+DEFINE_string(base_link, "", "URDF --model: the link whose frame is the base frame (default: root).");
+DEFINE_string(tip_link, "", "URDF --model: the link that ends the chain (e.g. tool0).");
+DEFINE_string(tool_links, "",
+              "URDF --model: comma-separated links fixed to the last moving link that are the "
+              "measured tools (default: the tip link).");
 DEFINE_string(errors, "table2",
               "Kinematic errors of the actual robot: table2 (paper Table 2, cobot6 only) | random "
               "| none.");
@@ -83,8 +91,19 @@ int Run() {
   }
 
   RobotModel nominal;
+  if ((!FLAGS_base_link.empty() || !FLAGS_tip_link.empty() || !FLAGS_tool_links.empty()) &&
+      !tools::IsUrdfPath(FLAGS_model)) {
+    std::cerr << "error: --base_link, --tip_link and --tool_links need a URDF --model\n";
+    return kExitUsage;
+  }
   if (!FLAGS_model.empty()) {
-    if (Status s = ReadRobotModel(FLAGS_model, &nominal); !s.ok()) {
+    const Status s =
+        tools::IsUrdfPath(FLAGS_model)
+            ? ReadRobotModelUrdf(FLAGS_model, &nominal,
+                                 tools::MakeUrdfOptions(FLAGS_base_link, FLAGS_tip_link,
+                                                        FLAGS_tool_links))
+            : ReadRobotModel(FLAGS_model, &nominal);
+    if (!s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }

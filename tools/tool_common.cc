@@ -7,12 +7,14 @@
 #include <iostream>
 #include <sstream>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 
 #include "lpoe/analysis.h"
 #include "lpoe/urdf.h"
+#include "lpoe/version.h"
 
 DECLARE_bool(help);
 DECLARE_bool(helpfull);
@@ -23,7 +25,7 @@ namespace tools {
 
 void InitTool(const char* usage, int* argc, char*** argv) {
   gflags::SetUsageMessage(usage);
-  gflags::SetVersionString("0.1.0");
+  gflags::SetVersionString(kLpoeVersion);
   gflags::ParseCommandLineNonHelpFlags(argc, argv, /*remove_flags=*/true);
   if (FLAGS_help || FLAGS_helpfull || FLAGS_helpshort) {
     std::string name = (*argv)[0];
@@ -51,8 +53,35 @@ void InitTool(const char* usage, int* argc, char*** argv) {
 }
 
 std::string DataDir() {
-  if (const char* env = std::getenv("LPOE_DATA_DIR")) return env;
+  if (const char* env = std::getenv("LPOE_DATA_DIR"); env != nullptr && env[0] != '\0') return env;
+  // An installed program: <prefix>/bin/<tool> and <prefix>/share/lpoe_calib/data.
+  char self[4096];
+  const ssize_t n = readlink("/proc/self/exe", self, sizeof(self) - 1);
+  if (n > 0) {
+    std::string dir(self, static_cast<size_t>(n));
+    dir = dir.substr(0, dir.find_last_of('/'));                  // <prefix>/bin
+    const std::string prefix = dir.substr(0, dir.find_last_of('/'));
+    const std::string installed = prefix + "/" LPOE_INSTALL_DATA_DIR;
+    struct stat st;
+    if (stat((installed + "/cobot6.yaml").c_str(), &st) == 0) return installed;
+  }
   return LPOE_DATA_DIR;
+}
+
+bool IsUrdfPath(const std::string& path) {
+  return path.size() >= 5 && path.compare(path.size() - 5, 5, ".urdf") == 0;
+}
+
+UrdfOptions MakeUrdfOptions(const std::string& base_link, const std::string& tip_link,
+                            const std::string& tool_links) {
+  UrdfOptions options;
+  options.base_link = base_link;
+  options.tip_link = tip_link;
+  std::stringstream ss(tool_links);
+  for (std::string name; std::getline(ss, name, ',');) {
+    if (!name.empty()) options.tool_links.push_back(name);
+  }
+  return options;
 }
 
 InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& measurements_flag,
@@ -71,11 +100,11 @@ InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& m
 
 Status LoadInputs(const std::string& model_path, const std::string& measurements_path,
                   const std::string& verify_path, AngleUnit unit, double holdout,
-                  uint64_t split_seed, Inputs* in) {
-  const bool urdf = model_path.size() >= 5 &&
-                    model_path.compare(model_path.size() - 5, 5, ".urdf") == 0;
-  if (Status s = urdf ? ReadRobotModelUrdf(model_path, &in->nominal)
-                      : ReadRobotModel(model_path, &in->nominal);
+                  uint64_t split_seed, Inputs* in, const UrdfOptions& urdf_options) {
+  in->from_urdf = IsUrdfPath(model_path);
+  if (Status s = in->from_urdf
+                     ? ReadRobotModelUrdf(model_path, &in->nominal, urdf_options, &in->urdf)
+                     : ReadRobotModel(model_path, &in->nominal);
       !s.ok()) {
     return s;
   }

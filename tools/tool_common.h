@@ -10,6 +10,7 @@
 #include "lpoe/calibration.h"
 #include "lpoe/io.h"
 #include "lpoe/statistics.h"
+#include "lpoe/urdf.h"
 
 namespace lpoe {
 namespace tools {
@@ -30,8 +31,17 @@ enum ExitCode {
 // exits 0. Initializes glog to stderr.
 void InitTool(const char* usage, int* argc, char*** argv);
 
-// The directory of the shipped data (data/ in the source tree).
+// The directory of the shipped data: $LPOE_DATA_DIR when set, else share/lpoe_calib/data of the
+// install prefix the running program sits in (<prefix>/bin/..), else data/ of the source tree the
+// program was built from.
 std::string DataDir();
+
+// True when `path` names a URDF file (ends in .urdf).
+bool IsUrdfPath(const std::string& path);
+
+// URDF chain selection from the --base_link, --tip_link and --tool_links (comma-separated) flags.
+UrdfOptions MakeUrdfOptions(const std::string& base_link, const std::string& tip_link,
+                            const std::string& tool_links);
 
 bool ParseAngleUnit(const std::string& text, AngleUnit* unit);
 
@@ -41,6 +51,8 @@ struct Inputs {
   MeasurementSet identification, verification;
   CsvReadReport skipped;            // lost-beam rows of the identification file
   std::string verification_source;  // the --verify path, "holdout" or empty
+  bool from_urdf = false;           // the model was read from a URDF, kept in `urdf`
+  UrdfSource urdf;
 };
 
 // Reads the model (YAML, or URDF when the name ends in .urdf) and the measurements, warns about
@@ -48,7 +60,7 @@ struct Inputs {
 // seeded random `holdout` fraction). On failure returns the message of the bad file.
 Status LoadInputs(const std::string& model_path, const std::string& measurements_path,
                   const std::string& verify_path, AngleUnit unit, double holdout,
-                  uint64_t split_seed, Inputs* inputs);
+                  uint64_t split_seed, Inputs* inputs, const UrdfOptions& urdf_options = {});
 
 // The input files of a run. With no --measurements, the shipped section-4 data set: the nominal
 // cobot6, its identification rows and (unless a hold-out is asked for) its verification rows.

@@ -689,6 +689,15 @@ void SetLimits(XMLDocument* doc, const Joint& joint, const UrdfJoint& j) {
   le->SetAttribute("upper", Number(joint.upper * scale).c_str());
 }
 
+// Indents by two spaces per level, as URDF files usually are, so that a diff against the source
+// shows the changed lines only.
+class TwoSpacePrinter : public tinyxml2::XMLPrinter {
+ protected:
+  void PrintSpace(int depth) override {
+    for (int i = 0; i < depth; ++i) Write("  ");
+  }
+};
+
 Status Mismatch(const UrdfSource& src, const std::string& what) {
   return Status::Error(src.source + ": the calibrated model does not match this URDF: " + what);
 }
@@ -817,7 +826,7 @@ Status OverlayImpl(const UrdfSource& src, const RobotModel& cal, const UrdfOverl
                            ": the origins (and axes) of the joints " + changed +
                            " and the tool frames changed; everything else as in the source. ";
   tree.robot->InsertFirstChild(doc.NewComment(note.c_str()));
-  tinyxml2::XMLPrinter printer;
+  TwoSpacePrinter printer;
   doc.Print(&printer);
   *xml = std::string(printer.CStr(), printer.CStrSize() > 0 ? printer.CStrSize() - 1 : 0);
   return Status::Ok();
