@@ -9,6 +9,11 @@
 //   - forward kinematics composed from urdfdom's joint origins and axes, from measurement_frame to
 //     tool0, equals the calibrated model's (our YAML output) to 1e-6 mm;
 //   - check_urdf accepts the file; the UR kinematics YAML holds the written joint origins.
+#include <gtest/gtest.h>
+#include <urdf_parser/urdf_parser.h>
+#include <yaml-cpp/yaml.h>
+
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -19,11 +24,6 @@
 #include <set>
 #include <sstream>
 #include <string>
-
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
-#include <urdf_parser/urdf_parser.h>
-#include <yaml-cpp/yaml.h>
 
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
@@ -100,8 +100,9 @@ class UrdfOverlay : public ::testing::Test {
     const std::string d = dir_->string() + "/";
     // Tracker data of an arm with random kinematic errors, measured at tool0 in the base frame...
     ASSERT_EQ(RunCommand(std::string(LPOE_SIMULATE_PATH) + " --model=" + Fixture() +
-                  " --tip_link=tool0 --errors=random --count=60 --noise_sigma=0.01 --seed=5"
-                  " --out=" + d + "base.csv"),
+                         " --tip_link=tool0 --errors=random --count=60 --noise_sigma=0.01 --seed=5"
+                         " --out=" +
+                         d + "base.csv"),
               0);
     // ... then moved into a tracker frame 2.8 m away and turned.
     RobotModel nominal;
@@ -116,9 +117,9 @@ class UrdfOverlay : public ::testing::Test {
     }
     ASSERT_TRUE(WriteMeasurements(d + "tracker.csv", nominal, data).ok());
     calibrate_rc_ = RunCommand(std::string(LPOE_CALIBRATE_PATH) + " --model=" + Fixture() +
-                        " --tip_link=tool0 --measurements=" + d + "tracker.csv --output=" + d +
-                        "cal.yaml --urdf_output=" + d + "cal.urdf --ur_kinematics_output=" + d +
-                        "kin.yaml --plots_dir=");
+                               " --tip_link=tool0 --measurements=" + d +
+                               "tracker.csv --output=" + d + "cal.yaml --urdf_output=" + d +
+                               "cal.urdf --ur_kinematics_output=" + d + "kin.yaml --plots_dir=");
   }
   static void TearDownTestSuite() {
     std::error_code ec;
@@ -191,10 +192,10 @@ TEST_F(UrdfOverlay, EveryNameLimitMeshAndInertialIsKept) {
   EXPECT_EQ(joints, 15);
   EXPECT_EQ(written_->joints_.size(), source_->joints_.size() + 1);  // + measurement_frame_joint
   const std::string text = Slurp(Path("cal.urdf"));
-  for (const char* kept : {"<transmission name=\"wrist_3_joint_trans\">",
-                           "<mechanicalReduction>1</mechanicalReduction>",
-                           "<gazebo reference=\"shoulder_link\">", "libgazebo_ros_control.so",
-                           "xmlns:xacro="}) {
+  for (const char* kept :
+       {"<transmission name=\"wrist_3_joint_trans\">",
+        "<mechanicalReduction>1</mechanicalReduction>", "<gazebo reference=\"shoulder_link\">",
+        "libgazebo_ros_control.so", "xmlns:xacro="}) {
     EXPECT_NE(text.find(kept), std::string::npos) << kept;
   }
 }
@@ -209,12 +210,16 @@ TEST_F(UrdfOverlay, MeasurementFrameIsSeparateAndTheBaseStays) {
   EXPECT_GT(ToIsometry(m->parent_joint->parent_to_joint_origin_transform).translation().norm(),
             2.0);
   EXPECT_EQ(written_->getRoot()->name, "world");
-  const Eigen::Isometry3d a = ToIsometry(source_->getJoint("shoulder_pan_joint")->parent_to_joint_origin_transform);
-  const Eigen::Isometry3d b = ToIsometry(written_->getJoint("shoulder_pan_joint")->parent_to_joint_origin_transform);
+  const Eigen::Isometry3d a =
+      ToIsometry(source_->getJoint("shoulder_pan_joint")->parent_to_joint_origin_transform);
+  const Eigen::Isometry3d b =
+      ToIsometry(written_->getJoint("shoulder_pan_joint")->parent_to_joint_origin_transform);
   EXPECT_LT((a.matrix() - b.matrix()).norm(), 1e-12);
   // The other chain joints did change: the calibration moved them.
-  const Eigen::Isometry3d e0 = ToIsometry(source_->getJoint("elbow_joint")->parent_to_joint_origin_transform);
-  const Eigen::Isometry3d e1 = ToIsometry(written_->getJoint("elbow_joint")->parent_to_joint_origin_transform);
+  const Eigen::Isometry3d e0 =
+      ToIsometry(source_->getJoint("elbow_joint")->parent_to_joint_origin_transform);
+  const Eigen::Isometry3d e1 =
+      ToIsometry(written_->getJoint("elbow_joint")->parent_to_joint_origin_transform);
   EXPECT_GT((e0.translation() - e1.translation()).norm(), 1e-5);
 }
 
@@ -258,12 +263,12 @@ TEST_F(UrdfOverlay, UrKinematicsHoldTheWrittenJointOrigins) {
     ASSERT_TRUE(k.IsMap());
     const Eigen::Isometry3d T =
         ToIsometry(written_->getJoint(kChain[i])->parent_to_joint_origin_transform);
-    EXPECT_LT((T.translation() - Eigen::Vector3d(k["x"].as<double>(), k["y"].as<double>(),
-                                                 k["z"].as<double>()))
+    EXPECT_LT((T.translation() -
+               Eigen::Vector3d(k["x"].as<double>(), k["y"].as<double>(), k["z"].as<double>()))
                   .norm(),
               1e-12);
-    const Eigen::Matrix3d R = RotationFromRpy(k["roll"].as<double>(), k["pitch"].as<double>(),
-                                              k["yaw"].as<double>());
+    const Eigen::Matrix3d R =
+        RotationFromRpy(k["roll"].as<double>(), k["pitch"].as<double>(), k["yaw"].as<double>());
     EXPECT_LT((T.linear() - R).norm(), 1e-12);
   }
   EXPECT_EQ(kin["hash"].as<std::string>().rfind("lpoe_calib_", 0), 0u);
@@ -307,7 +312,8 @@ TEST(UrdfChain, BaseAndTipLinksAndLimits) {
   options.base_link = "base_link";
   ASSERT_TRUE(ReadRobotModelUrdf(Fixture(), &base, options).ok());
   // The pedestal (world -> base_link) is folded into joint 1 only when the base is the root.
-  const SE3d pedestal(RotationFromRpy(0.0, 0.0, 0.7853981633974483), Eigen::Vector3d(800, -350, 740));
+  const SE3d pedestal(RotationFromRpy(0.0, 0.0, 0.7853981633974483),
+                      Eigen::Vector3d(800, -350, 740));
   EXPECT_LT(((pedestal * base.joints[0].origin).Matrix() - world.joints[0].origin.Matrix()).norm(),
             1e-9);
   EXPECT_DOUBLE_EQ(world.joints[2].lower, -3.141592653589793);
@@ -317,8 +323,7 @@ TEST(UrdfChain, BaseAndTipLinksAndLimits) {
   options.base_link = "camera_link";
   Status s = ReadRobotModelUrdf(Fixture(), &base, options);
   EXPECT_FALSE(s.ok());
-  EXPECT_NE(s.message().find("'tool0' is not below the base link 'camera_link'"),
-            std::string::npos)
+  EXPECT_NE(s.message().find("'tool0' is not below the base link 'camera_link'"), std::string::npos)
       << s.message();
   options.base_link = "";
   options.tip_link = "no_such_link";

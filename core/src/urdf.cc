@@ -1,15 +1,14 @@
 // URDF import and export of serial-chain robot models (see lpoe/urdf.h). Errors read
 //   <file>:<line>: <what is wrong>; expected <what>
 // with the line of the XML element at fault. Nothing throws out of the API.
-#include "parse_util.h"
 #include "lpoe/urdf.h"
 
 #include <tinyxml2.h>
 
 #include <algorithm>
 #include <charconv>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
 #include <limits>
@@ -24,6 +23,7 @@
 #include "lpoe/io.h"
 #include "lpoe/se3.h"
 #include "lpoe/version.h"
+#include "parse_util.h"
 
 namespace lpoe {
 namespace {
@@ -172,11 +172,11 @@ struct UrdfTree {
 
 // The serial chain chosen from the tree, and the tools on it.
 struct UrdfChain {
-  int base = -1;            // link: the model's base frame
-  int tip = -1;             // link: the end of the chain
-  std::vector<int> path;    // joints from base to tip, in order
-  std::vector<int> moving;  // the moving joints of `path`, in order
-  int flange = -1;          // the child link of the last moving joint
+  int base = -1;                // link: the model's base frame
+  int tip = -1;                 // link: the end of the chain
+  std::vector<int> path;        // joints from base to tip, in order
+  std::vector<int> moving;      // the moving joints of `path`, in order
+  int flange = -1;              // the child link of the last moving joint
   std::vector<int> tool_links;  // link indices, fixed to the flange
 };
 
@@ -206,7 +206,6 @@ Status ReadLinkRef(const XMLElement* je, const char* tag, const std::string& sou
   return Status::Ok();
 }
 
-
 // The <limit lower upper> of a revolute or prismatic joint in model units. URDF defaults a missing
 // attribute to 0; a continuous joint and a joint without <limit> stay unlimited.
 Status ReadLimits(const XMLElement* je, const std::string& source, const std::string& context,
@@ -220,10 +219,10 @@ Status ReadLimits(const XMLElement* je, const std::string& source, const std::st
   s = ReadNumbers(le, "upper", 1, false, source, context, "a number (rad or m)", &upper);
   if (!s.ok()) return s;
   if (!(lower <= upper)) {
-    return LineError(source, le->GetLineNum(),
-                     context + ": <limit> lower " + Number(lower) + " is above upper " +
-                         Number(upper),
-                     "lower <= upper");
+    return LineError(
+        source, le->GetLineNum(),
+        context + ": <limit> lower " + Number(lower) + " is above upper " + Number(upper),
+        "lower <= upper");
   }
   j->lower = lower * scale;
   j->upper = upper * scale;
@@ -501,7 +500,8 @@ Status FindTip(const UrdfTree& tree, int base, int* tip) {
     int fork = tree.joints[ends[0]].parent;
     while (true) {
       bool above_all = true;
-      for (int e : ends) above_all = above_all && IsAncestorOrSelf(tree, fork, tree.joints[e].child);
+      for (int e : ends)
+        above_all = above_all && IsAncestorOrSelf(tree, fork, tree.joints[e].child);
       if (above_all) break;
       fork = tree.joints[tree.links[fork].parent_joint].parent;
     }
@@ -573,11 +573,10 @@ Status SelectChain(const UrdfTree& tree, const UrdfOptions& options, UrdfChain* 
       fixed = fixed && tree.joints[ji].kind == Kind::kFixed;
     }
     if (!fixed) {
-      return LineError(tree.source, tree.links[l].line,
-                       "the tool link " + Quote(name) + " is not after the last moving joint " +
-                           Quote(last),
-                       "a link fixed to the last moving link " +
-                           Quote(tree.links[chain->flange].name));
+      return LineError(
+          tree.source, tree.links[l].line,
+          "the tool link " + Quote(name) + " is not after the last moving joint " + Quote(last),
+          "a link fixed to the last moving link " + Quote(tree.links[chain->flange].name));
     }
     chain->tool_links.push_back(l);
   }
@@ -757,9 +756,12 @@ Status OverlayImpl(const UrdfSource& src, const RobotModel& cal, const UrdfOverl
     const bool revolute = c.type == JointType::kRevolute;
     const Eigen::Vector3d w = c.twist.head<3>(), v = c.twist.tail<3>();
     if (revolute && v.norm() > 1e-9) {
-      return Mismatch(src, JointContext(c.name) + ": the axis does not pass through the joint "
-                           "frame's origin (twist v = " + Triple(v) + "), which a URDF joint "
-                           "cannot express");
+      return Mismatch(src, JointContext(c.name) +
+                               ": the axis does not pass through the joint "
+                               "frame's origin (twist v = " +
+                               Triple(v) +
+                               "), which a URDF joint "
+                               "cannot express");
     }
     const Eigen::Vector3d axis = (revolute ? w : v).normalized();
     j.origin = folded.Inverse() * local;
@@ -807,9 +809,9 @@ Status OverlayImpl(const UrdfSource& src, const RobotModel& cal, const UrdfOverl
   tree.robot->InsertEndChild(doc.NewComment(
       " Added by lpoe-calib: the measurement (tracker) frame and the measured tools (SMRs) "));
   for (int t : new_tools) {
-    const std::string link = Unique(
-        link_names.count(cal.tools[t].name) ? cal.tools[t].name + "_smr" : cal.tools[t].name,
-        link_names);
+    const std::string link =
+        Unique(link_names.count(cal.tools[t].name) ? cal.tools[t].name + "_smr" : cal.tools[t].name,
+               link_names);
     link_names.insert(link);
     const std::string joint = Unique(link + "_joint", joint_names);
     joint_names.insert(joint);
@@ -839,7 +841,8 @@ constexpr const char* kUrKeys[6] = {"shoulder", "upper_arm", "forearm",
                                     "wrist_1",  "wrist_2",   "wrist_3"};
 
 bool EndsWith(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -927,8 +930,8 @@ Status UrKinematicsYaml(const UrdfSource& source, const RobotModel& calibrated,
     uint64_t hash = 1469598103934665603ull;  // FNV-1a of the numbers, to name this calibration
     for (int i = 0; i < 6; ++i) {
       if ((joints[i].axis - Eigen::Vector3d::UnitZ()).norm() > 1e-9) {
-        return Status::Error(source.source + ": " + JointContext(joints[i].name) + " has the axis " +
-                             Triple(joints[i].axis) +
+        return Status::Error(source.source + ": " + JointContext(joints[i].name) +
+                             " has the axis " + Triple(joints[i].axis) +
                              "; the UR kinematics file needs every joint turning about its z axis");
       }
       const Eigen::Vector3d xyz = joints[i].origin.t * kMmToMetres;

@@ -19,9 +19,9 @@
 // into the next moving joint's origin; everything off the chain (side branches, fixed or moving:
 // a camera mount, a gripper's fingers) is ignored. Without a tip link the candidate tips are the
 // leaves below the base reached through a moving joint; their last moving joints must lie on one
-// path (else an error lists the candidates: choose with tip_link). One candidate is the tip; several
-// after the same last moving joint (a UR's ee_link and tool0) make that joint's child link, the
-// flange, the tip. A <mimic> joint on the chain is an error naming it (off the chain it is
+// path (else an error lists the candidates: choose with tip_link). One candidate is the tip;
+// several after the same last moving joint (a UR's ee_link and tool0) make that joint's child link,
+// the flange, the tip. A <mimic> joint on the chain is an error naming it (off the chain it is
 // ignored). Tools are links fixed to the flange (the child link of the last moving joint): the
 // links named in UrdfOptions::tool_links, in that order, or by default the tip link. Tools are
 // named after their links. Joint limits (<limit lower upper>, metres converted to mm for prismatic
@@ -54,17 +54,18 @@
 // ROS-Industrial's ur_description (kinematics: {shoulder, upper_arm, forearm, wrist_1, wrist_2,
 // wrist_3}: {x, y, z, roll, pitch, yaw}, hash); every axis must be the joint's z axis.
 //
-// Export (RobotModelToUrdf, a model without a source URDF). Links are named base_link, link1..linkN and after the tools; joints keep their names and
-// tools are attached with fixed joints. Numbers have 17 significant digits, so that an export then
-// import reproduces forward kinematics to rounding (about 1e-12 mm). A revolute twist (omega, v)
-// whose axis does not pass through the frame origin (v != 0) is written by moving the URDF joint
-// frame to r = omega x v / |omega|^2, the point of the axis closest to the local frame origin: the
-// origin becomes T_{i-1,i}(0) Trans(r_i) and the next frame Trans(-r_i) T_{i,i+1}(0), which leaves
-// forward kinematics unchanged. Things URDF cannot express are dropped: the pitch omega . v of a
-// revolute twist and the deviation of |omega| (revolute) or |v| (prismatic) from 1 (Validate()
-// allows up to kTwistTolerance); axes are written normalized. Revolute joints with limits are written as
-// `revolute` with them, without as `continuous`; prismatic joints without limits, which URDF requires
-// to have <limit>, get a placeholder of +-1 m, marked by a comment.
+// Export (RobotModelToUrdf, a model without a source URDF). Links are named base_link, link1..linkN
+// and after the tools; joints keep their names and tools are attached with fixed joints. Numbers
+// have 17 significant digits, so that an export then import reproduces forward kinematics to
+// rounding (about 1e-12 mm). A revolute twist (omega, v) whose axis does not pass through the frame
+// origin (v != 0) is written by moving the URDF joint frame to r = omega x v / |omega|^2, the point
+// of the axis closest to the local frame origin: the origin becomes T_{i-1,i}(0) Trans(r_i) and the
+// next frame Trans(-r_i) T_{i,i+1}(0), which leaves forward kinematics unchanged. Things URDF
+// cannot express are dropped: the pitch omega . v of a revolute twist and the deviation of |omega|
+// (revolute) or |v| (prismatic) from 1 (Validate() allows up to kTwistTolerance); axes are written
+// normalized. Revolute joints with limits are written as `revolute` with them, without as
+// `continuous`; prismatic joints without limits, which URDF requires to have <limit>, get a
+// placeholder of +-1 m, marked by a comment.
 #ifndef LPOE_URDF_H_
 #define LPOE_URDF_H_
 
@@ -116,8 +117,8 @@ Status CalibratedUrdfOverlay(const UrdfSource& source, const RobotModel& calibra
 Status WriteCalibratedUrdf(const std::string& path, const UrdfSource& source,
                            const RobotModel& calibrated, const UrdfOverlayOptions& options);
 
-// True for a six-joint model named like a Universal Robots arm (shoulder_pan_joint .. wrist_3_joint,
-// one common prefix allowed).
+// True for a six-joint model named like a Universal Robots arm (shoulder_pan_joint ..
+// wrist_3_joint, one common prefix allowed).
 bool IsUrModel(const RobotModel& model);
 
 // The UR kinematics YAML of the overlay (see above).
