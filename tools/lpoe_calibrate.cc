@@ -53,14 +53,6 @@ DEFINE_string(ur_kinematics_output, "",
               "With a URDF --model of a Universal Robots arm (joints shoulder_pan_joint .. "
               "wrist_3_joint): also write the calibrated joint origins in the format of "
               "ROS-Industrial's ur_description kinematics YAML.");
-DEFINE_string(base_link, "",
-              "URDF --model: the link whose frame is the model's base frame. Default: the root link.");
-DEFINE_string(tip_link, "",
-              "URDF --model: the link that ends the chain (e.g. tool0). Needed when moving joints "
-              "lead to several leaf links (the error lists them). Default: the one candidate tip.");
-DEFINE_string(tool_links, "",
-              "URDF --model: comma-separated links fixed to the last moving link that are the "
-              "measured tools (CSV target names). Default: the tip link.");
 DEFINE_string(report, "", "Write a machine-readable JSON report here (schema in the README).");
 DEFINE_string(plots_dir, "lpoe_plots",
               "Directory for the PNG plots (convergence, per-axis errors, histogram); created if "
@@ -312,9 +304,9 @@ int Run() {
                  "--max_condition > 1, --outlier_threshold > 0\n";
     return kExitUsage;
   }
-  const bool urdf_flags =
-      !FLAGS_base_link.empty() || !FLAGS_tip_link.empty() || !FLAGS_tool_links.empty();
-  if ((urdf_flags || !FLAGS_ur_kinematics_output.empty()) && !tools::IsUrdfPath(model_path)) {
+  UrdfOptions urdf_options;
+  if (!tools::UrdfOptionsFromFlags(model_path, &urdf_options) ||
+      (!FLAGS_ur_kinematics_output.empty() && !tools::IsUrdfPath(model_path))) {
     std::cerr << "error: --base_link, --tip_link, --tool_links and --ur_kinematics_output need a "
                  "URDF --model (a name ending in .urdf)\n";
     return kExitUsage;
@@ -339,9 +331,8 @@ int Run() {
   bool from_urdf = false;
   {
     tools::Inputs in;
-    if (Status s = tools::LoadInputs(
-            model_path, meas_path, verify_path, unit, FLAGS_holdout, FLAGS_split_seed, &in,
-            tools::MakeUrdfOptions(FLAGS_base_link, FLAGS_tip_link, FLAGS_tool_links));
+    if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, unit, FLAGS_holdout,
+                                     FLAGS_split_seed, &in, urdf_options);
         !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;

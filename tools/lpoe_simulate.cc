@@ -23,11 +23,6 @@ DEFINE_string(robot, "cobot6",
 DEFINE_string(model, "",
               "Nominal robot model to simulate instead of a built-in one: YAML, or URDF when the "
               "name ends in .urdf. Joint values are drawn within the joints' limits.");
-DEFINE_string(base_link, "", "URDF --model: the link whose frame is the base frame (default: root).");
-DEFINE_string(tip_link, "", "URDF --model: the link that ends the chain (e.g. tool0).");
-DEFINE_string(tool_links, "",
-              "URDF --model: comma-separated links fixed to the last moving link that are the "
-              "measured tools (default: the tip link).");
 DEFINE_string(errors, "table2",
               "Kinematic errors of the actual robot: table2 (paper Table 2, cobot6 only) | random "
               "| none.");
@@ -91,17 +86,15 @@ int Run() {
   }
 
   RobotModel nominal;
-  if ((!FLAGS_base_link.empty() || !FLAGS_tip_link.empty() || !FLAGS_tool_links.empty()) &&
-      !tools::IsUrdfPath(FLAGS_model)) {
+  UrdfOptions urdf_options;
+  if (!tools::UrdfOptionsFromFlags(FLAGS_model, &urdf_options)) {
     std::cerr << "error: --base_link, --tip_link and --tool_links need a URDF --model\n";
     return kExitUsage;
   }
   if (!FLAGS_model.empty()) {
     const Status s =
         tools::IsUrdfPath(FLAGS_model)
-            ? ReadRobotModelUrdf(FLAGS_model, &nominal,
-                                 tools::MakeUrdfOptions(FLAGS_base_link, FLAGS_tip_link,
-                                                        FLAGS_tool_links))
+            ? ReadRobotModelUrdf(FLAGS_model, &nominal, urdf_options)
             : ReadRobotModel(FLAGS_model, &nominal);
     if (!s.ok()) {
       std::cerr << "error: " << s.message() << "\n";

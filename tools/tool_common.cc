@@ -38,7 +38,10 @@ void InitTool(const char* usage, int* argc, char*** argv) {
       std::vector<gflags::CommandLineFlagInfo> flags;
       gflags::GetAllFlags(&flags);
       for (const auto& f : flags) {
-        if (f.filename.find(name) == std::string::npos) continue;
+        if (f.filename.find(name) == std::string::npos &&
+            f.filename.find("urdf_flags.cc") == std::string::npos) {
+          continue;
+        }
         std::cout << "  --" << f.name << " (" << f.description << ")\n      type: " << f.type
                   << "  default: " << (f.type == "string" ? "\"" + f.default_value + "\""
                                                             : f.default_value)
@@ -70,18 +73,6 @@ std::string DataDir() {
 
 bool IsUrdfPath(const std::string& path) {
   return path.size() >= 5 && path.compare(path.size() - 5, 5, ".urdf") == 0;
-}
-
-UrdfOptions MakeUrdfOptions(const std::string& base_link, const std::string& tip_link,
-                            const std::string& tool_links) {
-  UrdfOptions options;
-  options.base_link = base_link;
-  options.tip_link = tip_link;
-  std::stringstream ss(tool_links);
-  for (std::string name; std::getline(ss, name, ',');) {
-    if (!name.empty()) options.tool_links.push_back(name);
-  }
-  return options;
 }
 
 InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& measurements_flag,

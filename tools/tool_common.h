@@ -39,9 +39,10 @@ std::string DataDir();
 // True when `path` names a URDF file (ends in .urdf).
 bool IsUrdfPath(const std::string& path);
 
-// URDF chain selection from the --base_link, --tip_link and --tool_links (comma-separated) flags.
-UrdfOptions MakeUrdfOptions(const std::string& base_link, const std::string& tip_link,
-                            const std::string& tool_links);
+// The chain selection from this tool's --base_link, --tip_link and --tool_links flags (defined in
+// urdf_flags.cc, and so part of a tool only when it calls this). False when one of them is given
+// but `model_path` is not a URDF.
+bool UrdfOptionsFromFlags(const std::string& model_path, UrdfOptions* options);
 
 bool ParseAngleUnit(const std::string& text, AngleUnit* unit);
 
