@@ -828,6 +828,13 @@ Status OverlayImpl(const UrdfSource& src, const RobotModel& cal, const UrdfOverl
                            ": the origins (and axes) of the joints " + changed +
                            " and the tool frames changed; everything else as in the source. ";
   tree.robot->InsertFirstChild(doc.NewComment(note.c_str()));
+  // Text or elements beside <robot> at the document level (which tinyxml2 reads but would not read
+  // back once printed) are no part of a URDF: dropped.
+  for (tinyxml2::XMLNode* n = doc.FirstChild(); n != nullptr;) {
+    tinyxml2::XMLNode* next = n->NextSibling();
+    if (n != tree.robot && (n->ToElement() != nullptr || n->ToText() != nullptr)) doc.DeleteNode(n);
+    n = next;
+  }
   TwoSpacePrinter printer;
   doc.Print(&printer);
   *xml = std::string(printer.CStr(), printer.CStrSize() > 0 ? printer.CStrSize() - 1 : 0);
