@@ -897,13 +897,23 @@ Status CalibratedUrdfOverlay(const UrdfSource& source, const RobotModel& calibra
   }
 }
 
+namespace {
+
+// Writes the text `make` produces to `path` atomically; nothing is written when it fails.
+template <typename Make>
+Status WriteMade(const std::string& path, Make make) {
+  std::string text;
+  if (Status s = make(&text); !s.ok()) return Status::Error(path + ": not written: " + s.message());
+  return WriteFileAtomically(path, text);
+}
+
+}  // namespace
+
 Status WriteCalibratedUrdf(const std::string& path, const UrdfSource& source,
                            const RobotModel& calibrated, const UrdfOverlayOptions& options) {
-  std::string xml;
-  if (Status s = CalibratedUrdfOverlay(source, calibrated, options, &xml); !s.ok()) {
-    return Status::Error(path + ": not written: " + s.message());
-  }
-  return WriteFileAtomically(path, xml);
+  return WriteMade(path, [&](std::string* xml) {
+    return CalibratedUrdfOverlay(source, calibrated, options, xml);
+  });
 }
 
 bool IsUrModel(const RobotModel& model) {
@@ -964,11 +974,9 @@ Status UrKinematicsYaml(const UrdfSource& source, const RobotModel& calibrated,
 
 Status WriteUrKinematicsYaml(const std::string& path, const UrdfSource& source,
                              const RobotModel& calibrated, const UrdfOverlayOptions& options) {
-  std::string yaml;
-  if (Status s = UrKinematicsYaml(source, calibrated, options, &yaml); !s.ok()) {
-    return Status::Error(path + ": not written: " + s.message());
-  }
-  return WriteFileAtomically(path, yaml);
+  return WriteMade(path, [&](std::string* yaml) {
+    return UrKinematicsYaml(source, calibrated, options, yaml);
+  });
 }
 
 std::string RobotModelToUrdf(const RobotModel& model) {
