@@ -274,6 +274,28 @@ TEST_F(UrdfOverlay, UrKinematicsHoldTheWrittenJointOrigins) {
   EXPECT_EQ(kin["hash"].as<std::string>().rfind("lpoe_calib_", 0), 0u);
 }
 
+TEST_F(UrdfOverlay, UrdfFlagsWithoutAUrdfOrAUrAreUsageErrors) {
+  const std::string cal = std::string(LPOE_CALIBRATE_PATH) + " --plots_dir= ";
+  const std::string out = Path("refused.yaml");
+  // A YAML model has no links to choose from.
+  EXPECT_EQ(RunCommand(cal + "--model=" + std::string(LPOE_DATA_DIR) +
+                       "/cobot6.yaml --tip_link=tool0 --output=" + out),
+            1);
+  // ur_like's joints are not named like a UR's.
+  const std::string ur_like = std::string(LPOE_TEST_DATA_DIR) + "/urdf/ur_like.urdf";
+  ASSERT_EQ(RunCommand(std::string(LPOE_SIMULATE_PATH) + " --model=" + ur_like +
+                       " --errors=none --count=30 --out=" + Path("ur_like.csv")),
+            0);
+  EXPECT_EQ(RunCommand(cal + "--model=" + ur_like + " --measurements=" + Path("ur_like.csv") +
+                       " --ur_kinematics_output=" + out),
+            1);
+  // An ambiguous tree is an input error naming the candidates.
+  EXPECT_EQ(RunCommand(cal + "--model=" + Fixture() + " --measurements=" + Path("tracker.csv") +
+                       " --output=" + out),
+            2);
+  EXPECT_FALSE(fs::exists(out));
+}
+
 // ---------------------------------------------------------------------------------------------------
 // Chain selection on the same cell (library level).
 

@@ -339,10 +339,13 @@ int Run() {
     }
     from_urdf = in.from_urdf;
     urdf_source = std::move(in.urdf);
-    if (!FLAGS_ur_kinematics_output.empty() && !IsUrModel(in.nominal)) {
-      std::cerr << "error: --ur_kinematics_output: " << model_path
-                << " is not a UR arm (its joints are not shoulder_pan_joint .. wrist_3_joint)\n";
-      return kExitUsage;
+    // The UR file needs a UR arm with z axes: checked on the nominal model before solving.
+    std::string ur_yaml;
+    if (!FLAGS_ur_kinematics_output.empty()) {
+      if (Status s = UrKinematicsYaml(urdf_source, in.nominal, {}, &ur_yaml); !s.ok()) {
+        std::cerr << "error: --ur_kinematics_output: " << s.message() << "\n";
+        return kExitUsage;
+      }
     }
     job.nominal = std::move(in.nominal);
     job.identification = std::move(in.identification);
