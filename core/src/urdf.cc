@@ -329,6 +329,11 @@ Status ParseXml(const std::string& xml, const std::string& source, XMLDocument* 
                      "the root element is <" + std::string((*robot)->Name()) + ">",
                      "<robot name=\"...\"> (a URDF file; xacro must be expanded first)");
   }
+  if (const XMLElement* second = (*robot)->NextSiblingElement(); second != nullptr) {
+    return LineError(source, second->GetLineNum(),
+                     "a second root element <" + std::string(second->Name()) + ">",
+                     "one <robot> element per file");
+  }
   return Status::Ok();
 }
 
