@@ -1,6 +1,7 @@
 #include "tool_common.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <iomanip>
@@ -72,7 +73,10 @@ std::string DataDir() {
 }
 
 bool IsUrdfPath(const std::string& path) {
-  return path.size() >= 5 && path.compare(path.size() - 5, 5, ".urdf") == 0;
+  if (path.size() < 5) return false;
+  std::string ext = path.substr(path.size() - 5);
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".urdf";
 }
 
 InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& measurements_flag,

@@ -36,7 +36,7 @@ void InitTool(const char* usage, int* argc, char*** argv);
 // program was built from.
 std::string DataDir();
 
-// True when `path` names a URDF file (ends in .urdf).
+// True when `path` names a URDF file (ends in .urdf, in any letter case).
 bool IsUrdfPath(const std::string& path);
 
 // The chain selection from this tool's --base_link, --tip_link and --tool_links flags (defined in
