@@ -122,8 +122,13 @@ int Run() {
 
   // ---- Inputs.
   tools::Inputs in;
+  UrdfOptions urdf_options;
+  if (!tools::UrdfOptionsFromFlags(model_path, &urdf_options)) {
+    std::cerr << "error: --base_link, --tip_link and --tool_links need a URDF --model\n";
+    return kExitUsage;
+  }
   if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
-                                   FLAGS_split_seed, &in);
+                                   FLAGS_split_seed, &in, urdf_options);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
