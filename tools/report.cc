@@ -9,11 +9,9 @@
 #include <nlohmann/json.hpp>
 
 #include "lpoe/kinematics.h"
+#include "lpoe/version.h"
 #include "plot.h"
 
-#ifndef LPOE_VERSION
-#define LPOE_VERSION "unknown"
-#endif
 
 namespace lpoe {
 namespace tools {
@@ -239,7 +237,7 @@ namespace {
 Json BuildJson(const RunSummary& s) {
   Json j;
   j["schema"] = "lpoe-calib/report/2";
-  j["tool"] = {{"name", s.tool_name}, {"version", LPOE_VERSION}};
+  j["tool"] = {{"name", s.tool_name}, {"version", kLpoeVersion}};
   const Verdict verdict = ProvisionalVerdict(s);
   j["verdict"] = {{"level", verdict.level}, {"reason", verdict.reason}};
   j["inputs"] = {{"model", s.model_path},
