@@ -114,7 +114,7 @@ std::string ShortNumber(double v) {
 // ---------------------------------------------------------------------------------------------------
 // YAML robot model.
 
-const char* const kModelKeys = "name, joints, tools";
+const char* const kModelKeys = "name, joints, tools, registration";
 const char* const kJointKeys = "name, type, origin, twist";
 const char* const kToolKeys = "name, origin";
 const char* const kOriginKeys = "xyz and one of rpy or quaternion";
@@ -141,7 +141,8 @@ class ModelYamlReader {
                    "a mapping with keys name, joints and tools (DESIGN.md section 5)");
     }
     std::vector<MapEntry> top;
-    Status s = ReadMap(root, 1, "the robot model", {"name", "joints", "tools"}, kModelKeys, &top);
+    Status s = ReadMap(root, 1, "the robot model", {"name", "joints", "tools", "registration"},
+                       kModelKeys, &top);
     if (!s.ok()) return s;
     const int root_line = LineOf(root, 1);
 
@@ -206,6 +207,12 @@ class ModelYamlReader {
       }
       out.tools.push_back(tool);
       tool_lines.push_back(line);
+    }
+
+    // Optional: T_measurement_base of a registered calibration (compensation, issue 12).
+    if (const MapEntry* reg = Find(top, "registration"); reg != nullptr) {
+      s = ReadOrigin(*reg, &out.T_measurement_base);
+      if (!s.ok()) return s;
     }
 
     s = out.Validate();
@@ -756,6 +763,12 @@ std::string RobotModelToYaml(const RobotModel& model) {
   for (const Tool& tool : model.tools) {
     out += "  - name: " + YamlName(tool.name) + "\n    ";
     AppendOrigin(tool.origin, &out);
+  }
+  if (!model.T_measurement_base.R.isIdentity(0) || !model.T_measurement_base.t.isZero(0)) {
+    out += "# registration = T_measurement_base: the measurement frame from the nominal base frame.\n";
+    std::string origin;
+    AppendOrigin(model.T_measurement_base, &origin);
+    out += "registration: " + origin.substr(origin.find('{'));
   }
   return out;
 }

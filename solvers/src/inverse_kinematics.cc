@@ -13,6 +13,8 @@ namespace lpoe {
 namespace {
 
 constexpr int kMax = InverseKinematics::kMaxJoints;
+// Weighted task error (mm) below which a step is accepted even if it raised the error.
+constexpr double kNullSpaceSlack = 1e-2;
 
 // Column j of the joint Jacobian (rows dp, drot) for frame G = G_j and tool point p.
 inline void JointColumn(const Joint& joint, const FrameRt& G, const Eigen::Vector3d& p,
@@ -317,7 +319,9 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
     q_new = q + d;
     for (int j = 0; j < n; ++j) q_new(j) = std::min(std::max(q_new(j), lower(j)), upper(j));
     const double merit_new = evaluate(q_new, &e_new, &J_new);
-    if (merit_new <= merit || task_ok(e_new)) {
+    // Near the target, a step toward the seed in the null space may raise the task error at
+    // second order; the next step removes that, so such steps are accepted (kNullSpaceSlack).
+    if (merit_new <= merit || merit_new <= kNullSpaceSlack * kNullSpaceSlack || task_ok(e_new)) {
       q = q_new;
       e = e_new;
       J = J_new;
