@@ -3,6 +3,7 @@
 // position and pose rows, degrees), the joint-program mode through the registration, the status
 // of an unreachable row with and without --strict, the JSON summary, and a bad file's message.
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <cmath>
@@ -145,7 +146,9 @@ TEST_F(CompensateTool, TargetsModeMixedRowsInDegrees) {
     EXPECT_EQ(rows[k][6], "ok") << "row " << k;
     const SE3d T = ToolPose(calibrated_, q.data());
     EXPECT_LT((T.t - wanted[k].t).norm(), kReachedMm) << "row " << k;
-    if (k == 1) EXPECT_LT(LogSO3<double>(T.R * wanted[k].R.transpose()).norm(), 1e-8);
+    if (k == 1) {
+      EXPECT_LT(LogSO3<double>(T.R * wanted[k].R.transpose()).norm(), 1e-8);
+    }
     // corrected_*: the nominal model's tool position at the compensated joints.
     const Eigen::Vector3d corrected(std::stod(rows[k][9]), std::stod(rows[k][10]),
                                     std::stod(rows[k][11]));

@@ -41,6 +41,33 @@ inline Eigen::Vector3d AxisOf(const Joint& joint, const FrameRt& G) {
                             : Eigen::Vector3d(G.R * joint.twist.head<3>());
 }
 
+// Smallest eigenvalue of a symmetric positive semi-definite M x M matrix: closed form for 3 x 3,
+// else inverse iteration on its Cholesky factor (the Rayleigh quotient converges quadratically in
+// the eigenvector; a fraction of the cost of a full eigendecomposition). 0 when A is singular.
+template <int M>
+double SmallestEigenvalue(const Eigen::Matrix<double, M, M>& A) {
+  if constexpr (M == 3) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+    eig.computeDirect(A, Eigen::EigenvaluesOnly);
+    return std::max(0.0, eig.eigenvalues()(0));
+  } else {
+    const Eigen::LLT<Eigen::Matrix<double, M, M>> llt(A);
+    if (llt.info() != Eigen::Success) return 0.0;
+    Eigen::Matrix<double, M, 1> x = Eigen::Matrix<double, M, 1>::Constant(1.0);
+    x(0) = 1.3;  // not orthogonal to any axis-aligned eigenvector
+    double rayleigh = HUGE_VAL;
+    for (int k = 0; k < 12; ++k) {
+      x.normalize();
+      const double next = x.dot(A * x);
+      if (k > 0 && std::abs(next - rayleigh) <= 1e-10 * rayleigh) return std::max(0.0, next);
+      rayleigh = next;
+      x = llt.solve(x);
+      if (!x.allFinite() || x.squaredNorm() == 0) return 0.0;
+    }
+    return std::max(0.0, rayleigh);
+  }
+}
+
 int Sign(double x) { return x > 0 ? 1 : (x < 0 ? -1 : 0); }
 
 // (D_arm, D_wrist) signs from the frames of one configuration (see the header).
@@ -151,7 +178,7 @@ IkResult InverseKinematics::SolveTask(const IkTarget& target, const double* seed
   int iterations = best.iterations;
   uint64_t state = 0x9E3779B97F4A7C15ull;  // deterministic restarts (xorshift64)
   int k = 1;
-  for (; k <= options_.restarts && best.status != IkStatus::kOk; ++k) {
+  for (; k <= options_.restarts && !reached(best); ++k) {
     for (int j = 0; j < n; ++j) {
       state ^= state << 13;
       state ^= state >> 7;
@@ -253,6 +280,7 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
   }
 
   // One damped step with the active set of limits (see the header). Returns the step in *d.
+  bool limit_hit = false;  // some step of this run was cut at a joint limit
   auto compute_step = [&](double lambda2, double beta, VecN* d) {
     bool locked[kMax] = {};
     VecN fixed = VecN::Zero(n);
@@ -291,6 +319,7 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
           locked[j] = true;
           fixed(j) = (x > upper(j) ? upper(j) : lower(j)) - q(j);
           changed = true;
+          limit_hit = true;
         }
       }
       if (!changed) return;
@@ -338,18 +367,12 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
       if (lambda2 > 1e12 * scale) break;  // no step reduces the error: stalled
     }
   }
-  if (!converged && it == o.max_iterations && task_ok(e) && redundant) converged = true;
+  // A redundant task whose null-space pull has not settled still reached the target.
+  if (!converged && task_ok(e) && redundant) converged = true;
 
   // Smallest singular value of the weighted task Jacobian at q.
   if (M <= n) {
-    const MatM A = J * J.transpose();
-    Eigen::SelfAdjointEigenSolver<MatM> eig;
-    if constexpr (M == 3) {
-      eig.computeDirect(A, Eigen::EigenvaluesOnly);
-    } else {
-      eig.compute(A, Eigen::EigenvaluesOnly);
-    }
-    result.sigma_min = std::sqrt(std::max(0.0, eig.eigenvalues()(0)));
+    result.sigma_min = std::sqrt(SmallestEigenvalue<M>(J * J.transpose()));
   } else {
     const Eigen::MatrixXd A = J.transpose() * J;
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A, Eigen::EigenvaluesOnly);
@@ -378,7 +401,7 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
                     : result.branch_changed ? IkStatus::kBranch
                                             : IkStatus::kOk;
   } else {
-    result.status = result.at_limit ? IkStatus::kLimit
+    result.status = result.at_limit || limit_hit ? IkStatus::kLimit
                     : singular      ? IkStatus::kSingular
                                     : IkStatus::kUnreachable;
   }

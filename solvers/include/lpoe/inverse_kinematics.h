@@ -63,7 +63,7 @@ SE3d ToolJointJacobian(const KinematicChain& chain, const double* q, int tool, F
 enum class IkStatus {
   kOk,           // reached the target within tolerance, on the seed's branch, not singular
   kUnreachable,  // no joint values within the limits reach the target (best found returned)
-  kLimit,        // not reached because a joint limit stops the way there
+  kLimit,        // not reached, and a joint limit cut the way there (some step was stopped)
   kSingular,     // at or stuck near a singularity: smallest singular value below the threshold
   kBranch,       // reached, but on another configuration branch than the seed's
 };
