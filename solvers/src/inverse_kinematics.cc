@@ -16,29 +16,20 @@ constexpr int kMax = InverseKinematics::kMaxJoints;
 // Weighted task error (mm) below which a step is accepted even if it raised the error.
 constexpr double kNullSpaceSlack = 1e-2;
 
-// Column j of the joint Jacobian (rows dp, drot) for frame G = G_j and tool point p.
-inline void JointColumn(const Joint& joint, const FrameRt& G, const Eigen::Vector3d& p,
-                        double* col) {
-  Eigen::Vector3d w, dp;
-  if (IsRevoluteZ(joint)) {
-    w = G.R.col(2);
-    dp = w.cross(p - G.t);
-  } else {
-    w = G.R * joint.twist.head<3>();
-    dp = w.cross(p - G.t) + G.R * joint.twist.tail<3>();
-  }
-  col[0] = dp(0);
-  col[1] = dp(1);
-  col[2] = dp(2);
-  col[3] = w(0);
-  col[4] = w(1);
-  col[5] = w(2);
-}
-
-// Spatial axis direction of revolute joint j from its frame.
+// Spatial axis direction of revolute joint j from its frame G_j.
 inline Eigen::Vector3d AxisOf(const Joint& joint, const FrameRt& G) {
   return IsRevoluteZ(joint) ? Eigen::Vector3d(G.R.col(2))
                             : Eigen::Vector3d(G.R * joint.twist.head<3>());
+}
+
+// Column j of the joint Jacobian (rows dp, drot) for frame G = G_j and tool point p.
+inline void JointColumn(const Joint& joint, const FrameRt& G, const Eigen::Vector3d& p,
+                        double* col) {
+  const Eigen::Vector3d w = AxisOf(joint, G);
+  Eigen::Map<Vector6d> out(col);
+  out.head<3>() = w.cross(p - G.t);
+  if (!IsRevoluteZ(joint)) out.head<3>() += G.R * joint.twist.tail<3>();
+  out.tail<3>() = w;
 }
 
 // Smallest eigenvalue of a symmetric positive semi-definite M x M matrix: closed form for 3 x 3,
