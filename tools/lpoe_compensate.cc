@@ -26,7 +26,6 @@
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
-#include "lpoe/urdf.h"
 #include "tool_common.h"
 
 DEFINE_string(model, "", "Calibrated robot model (YAML written by lpoe_calibrate, or URDF).");
@@ -76,11 +75,6 @@ struct Row {
   IkTarget target;
   int line = 0;
 };
-
-Status LoadModel(const std::string& path, RobotModel* model) {
-  const bool urdf = path.size() > 5 && path.compare(path.size() - 5, 5, ".urdf") == 0;
-  return urdf ? ReadRobotModelUrdf(path, model) : ReadRobotModel(path, model);
-}
 
 int ResolveTool(const RobotModel& model, std::string_view field) {
   for (int t = 0; t < model.num_tools(); ++t) {
@@ -283,7 +277,7 @@ int Run() {
 
   // ---- Inputs.
   RobotModel model, nominal;
-  if (Status s = LoadModel(FLAGS_model, &model); !s.ok()) {
+  if (Status s = ReadRobotModelFile(FLAGS_model, &model); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
@@ -293,7 +287,7 @@ int Run() {
   }
   const bool with_nominal = !FLAGS_nominal.empty();
   if (with_nominal) {
-    if (Status s = LoadModel(FLAGS_nominal, &nominal); !s.ok()) {
+    if (Status s = ReadRobotModelFile(FLAGS_nominal, &nominal); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
