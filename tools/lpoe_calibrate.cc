@@ -489,7 +489,12 @@ int Run() {
   // ---- Outputs (each written atomically; the model first, the report last so that it lists
   // everything written).
   if (!FLAGS_output.empty()) {
-    if (Status s = WriteRobotModel(FLAGS_output, result.model); !s.ok()) {
+    // The registration goes with the model: compensation carries nominal poses into its frame.
+    RobotModel calibrated = result.model;
+    if (summary.registered && summary.registration.moved) {
+      calibrated.T_measurement_base = summary.registration.T_measurement_base;
+    }
+    if (Status s = WriteRobotModel(FLAGS_output, calibrated); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitOutput;
     }
