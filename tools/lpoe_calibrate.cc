@@ -315,9 +315,8 @@ int Run() {
                  "URDF --model (a name ending in .urdf)\n";
     return kExitUsage;
   }
-  for (const std::string& out :
-       {FLAGS_output, FLAGS_report, FLAGS_urdf_output, FLAGS_ur_kinematics_output,
-         FLAGS_html_report}) {
+  for (const std::string& out : {FLAGS_output, FLAGS_report, FLAGS_urdf_output,
+                                  FLAGS_ur_kinematics_output, FLAGS_html_report}) {
     for (const std::string& in : {model_path, meas_path, verify_path}) {
       if (!out.empty() && tools::SameFile(out, in)) {
         std::cerr << "error: an output would overwrite the input file " << in << "\n";
@@ -490,7 +489,12 @@ int Run() {
   // ---- Outputs (each written atomically; the model first, the report last so that it lists
   // everything written).
   if (!FLAGS_output.empty()) {
-    if (Status s = WriteRobotModel(FLAGS_output, result.model); !s.ok()) {
+    // The registration goes with the model: compensation carries nominal poses into its frame.
+    RobotModel calibrated = result.model;
+    if (summary.registered && summary.registration.moved) {
+      calibrated.T_measurement_base = summary.registration.T_measurement_base;
+    }
+    if (Status s = WriteRobotModel(FLAGS_output, calibrated); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitOutput;
     }

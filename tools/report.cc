@@ -12,7 +12,6 @@
 #include "lpoe/version.h"
 #include "plot.h"
 
-
 namespace lpoe {
 namespace tools {
 namespace {
