@@ -314,6 +314,10 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     }
   }
 
+  ConvergenceOptions stop = options.convergence;
+  stop.step_tolerance = options.step_tolerance;
+  const long dof = static_cast<long>(per_row) * data.size() - identifiable;
+  double previous_cost = -1;
   for (int it = 1; it <= options.max_iterations; ++it) {
     const Eigen::VectorXd x = SolveStep(lin, full, options);
     if (!x.allFinite()) {
@@ -326,12 +330,19 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       LOG(INFO) << "iteration " << it - 1 << ": max " << lin.max_error << " mm, mean "
                 << lin.mean_error << " mm, |x| " << step;
     }
-    if (step < options.step_tolerance) {
+    ConvergenceState state;
+    state.step = x;
+    if (!full) state.standard_deviation = StandardDeviations(lin.H, lin.cost, dof);
+    state.parameter_scale = ParameterScale(model);
+    state.cost = lin.cost;
+    state.previous_cost = previous_cost;
+    const ConvergenceDecision decision = TestConvergence(stop, state);
+    if (decision.converged()) {
+      result.stop_rule = decision.rule;
       result.model = model;
       result.iterations = it - 1;
       result.final_cost = lin.cost;
       if (options.compute_covariance && !full) {
-        const long dof = static_cast<long>(per_row) * data.size() - p.num_parameters;
         if (dof > 0) {
           const double s2 = 2.0 * lin.cost / static_cast<double>(dof);
           const Eigen::VectorXd d = ColumnScale(lin.H);
@@ -340,7 +351,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
           result.covariance = s2 * (d.asDiagonal() * inv * d.asDiagonal());
         }
       }
-      return finish(Termination::kConverged, "converged: |x| below the step tolerance");
+      return finish(Termination::kConverged, decision.message);
     }
     // Gauss-Newton step with backtracking: a step that raises the cost is halved.
     bool accepted = false;
@@ -351,6 +362,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       Linearization next = Linearize(candidate, data, p, options, stack);
       if (next.finite && next.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
         model = std::move(candidate);
+        previous_cost = lin.cost;
         lin = std::move(next);
         accepted = true;
       }
