@@ -43,6 +43,7 @@ std::string RunSummaryToJson(const RunSummary& s) {
                  {"termination", TerminationName(s.result.termination)},
                  {"converged", s.result.converged()},
                  {"message", s.result.message},
+                 {"stop_rule", StopRuleName(s.result.stop_rule)},
                  {"iterations", s.result.iterations},
                  {"final_cost", s.result.final_cost}};
   // (No wall time: the same input must give a byte-identical report.)
@@ -120,6 +121,17 @@ std::string RunSummaryToJson(const RunSummary& s) {
     frames.push_back({{"name", t.name}, {"origin", PoseJson(t.origin)}});
   }
   j["calibrated_frames"] = frames;
+  Json checks = Json::array();
+  for (const VerdictCheck& c : s.verdict.checks) {
+    checks.push_back({{"name", c.name},
+                      {"level", VerdictLevelName(c.level)},
+                      {"value", c.value},
+                      {"limit", c.limit},
+                      {"message", c.message}});
+  }
+  j["verdict"] = {{"level", VerdictLevelName(s.verdict.level)},
+                  {"reason", s.verdict.reason},
+                  {"checks", checks}};
   j["outputs"] = s.outputs;
   return j.dump(2) + "\n";
 }

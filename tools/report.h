@@ -8,6 +8,7 @@
 #include "lpoe/analysis.h"
 #include "lpoe/calibration.h"
 #include "lpoe/io.h"
+#include "lpoe/plausibility.h"
 #include "lpoe/registration.h"
 #include "lpoe/statistics.h"
 
@@ -35,6 +36,7 @@ struct RunSummary {
   double robust_sigma = 0;
   std::vector<Outlier> outliers;
   std::vector<FoldResult> folds;
+  Verdict verdict;  // plausibility of the result (lpoe/plausibility.h)
   std::vector<std::string> outputs;  // files written
 };
 
