@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <iostream>
 #include <string>
+#include <sys/stat.h>
 
 #include <gflags/gflags.h>
 #include <glog/logging.h>
@@ -265,11 +266,13 @@ int Run() {
   outputs.AddOutput("--report", FLAGS_report);
   const std::string plot_dir = FLAGS_plots_dir.empty() ? "" : FLAGS_plots_dir + "/";
   if (!plot_dir.empty()) {
-    if (Status s = tools::EnsureDirectories(FLAGS_plots_dir); !s.ok()) {
-      std::cerr << "error: --plots_dir: " << s.message() << "\n";
-      return kExitOutput;
+    struct stat st;
+    if (::stat(FLAGS_plots_dir.c_str(), &st) == 0 && !S_ISDIR(st.st_mode)) {
+      std::cerr << "error: --plots_dir=" << FLAGS_plots_dir << " is not a directory\n";
+      return kExitUsage;
     }
-    for (const char* name : kPlotNames) outputs.AddOutput("--plots_dir", plot_dir + name);
+    // Created (with its parents) only when the plots are written.
+    for (const char* name : kPlotNames) outputs.AddOutput("--plots_dir", plot_dir + name, true);
   }
   if (Status s = outputs.Check(); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";

@@ -10,7 +10,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <glog/logging.h>
+#include <vector>
 
 namespace lpoe {
 namespace tools {
@@ -99,6 +99,32 @@ Status Resolve(const std::string& path, std::string* resolved) {
   return Status::Error(path + ": too many levels of symbolic links");
 }
 
+// `path` with its deepest existing ancestor resolved by realpath and the rest normalized
+// lexically ("." dropped, ".." taking one component off).
+std::string ResolveLexically(const std::string& path) {
+  std::vector<std::string> rest;
+  std::string head = path;
+  char buf[PATH_MAX];
+  while (::realpath(head.c_str(), buf) == nullptr) {
+    const std::string base = BaseName(head);
+    const std::string dir = DirName(head);
+    rest.push_back(base);
+    if (dir == head) break;
+    head = dir;
+  }
+  std::vector<std::string> parts;
+  std::string resolved = ::realpath(head.c_str(), buf) ? std::string(buf) : head;
+  for (auto it = rest.rbegin(); it != rest.rend(); ++it) {
+    if (*it == "." || it->empty()) continue;
+    if (*it == "..") {
+      resolved = DirName(resolved);
+      continue;
+    }
+    resolved += (resolved == "/" ? "" : "/") + *it;
+  }
+  return resolved;
+}
+
 // Identity of a file: "dev:ino" when it exists, else its resolved path.
 std::string Identity(const std::string& path) {
   struct stat st;
@@ -112,7 +138,7 @@ std::string Identity(const std::string& path) {
     }
     return resolved;
   }
-  return path;
+  return ResolveLexically(path);
 }
 
 Status WriteAll(int fd, const char* p, size_t left, const std::string& what) {
@@ -170,8 +196,9 @@ void OutputSet::AddInput(const std::string& flag, const std::string& path) {
   if (!path.empty()) inputs_.push_back({flag, path});
 }
 
-void OutputSet::AddOutput(const std::string& flag, const std::string& path) {
-  if (!path.empty()) outputs_.push_back({flag, path});
+void OutputSet::AddOutput(const std::string& flag, const std::string& path,
+                          bool create_directory) {
+  if (!path.empty()) outputs_.push_back({flag, path, create_directory});
 }
 
 Status OutputSet::Check() const {
@@ -180,6 +207,10 @@ Status OutputSet::Check() const {
     struct stat st;
     if (::stat(o.path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
       return Status::Error(o.flag + "=" + o.path + " is a directory");
+    }
+    std::string resolved;
+    if (!o.create_directory) {
+      if (Status r = Resolve(o.path, &resolved); !r.ok()) return Status::Error(o.flag + "=" + r.message());
     }
     const std::string id = Identity(o.path);
     for (const Entry& in : inputs_) {
@@ -200,6 +231,11 @@ Status OutputSet::Check() const {
 
 Status OutputSet::StagingPath(const std::string& path, std::string* resolved,
                               std::string* temporary) {
+  for (const Entry& o : outputs_) {
+    if (o.path == path && o.create_directory) {
+      if (Status s = EnsureDirectories(DirName(path)); !s.ok()) return s;
+    }
+  }
   if (Status s = Resolve(path, resolved); !s.ok()) return s;
   const std::string dir = DirName(*resolved);
   auto it = staging_dirs_.find(dir);

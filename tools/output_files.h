@@ -41,12 +41,14 @@ class OutputSet {
   OutputSet& operator=(const OutputSet&) = delete;
   ~OutputSet();  // removes staged files not committed
 
-  // `flag` names the path in messages ("--output"). Empty paths are ignored.
+  // `flag` names the path in messages ("--output"). Empty paths are ignored. With
+  // `create_directory` the output's directory (and its parents) is created when it is staged;
+  // nothing is created before (a failed run leaves no empty directory behind).
   void AddInput(const std::string& flag, const std::string& path);
-  void AddOutput(const std::string& flag, const std::string& path);
+  void AddOutput(const std::string& flag, const std::string& path, bool create_directory = false);
 
   // Every output against every input and every other output, by identity; outputs that are
-  // directories or whose directory does not exist are refused.
+  // directories, or whose directory does not exist (unless created), are refused.
   Status Check() const;
 
   // Writes `contents` to a private temporary for `path` (an output added before).
@@ -61,6 +63,7 @@ class OutputSet {
  private:
   struct Entry {
     std::string flag, path;
+    bool create_directory = false;
   };
   struct Staged {
     std::string path, resolved, temporary;
