@@ -208,10 +208,7 @@ Status OutputSet::Check() const {
     if (::stat(o.path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
       return Status::Error(o.flag + "=" + o.path + " is a directory");
     }
-    std::string resolved;
-    if (!o.create_directory) {
-      if (Status r = Resolve(o.path, &resolved); !r.ok()) return Status::Error(o.flag + "=" + r.message());
-    }
+
     const std::string id = Identity(o.path);
     for (const Entry& in : inputs_) {
       if (id == Identity(in.path)) {
@@ -224,6 +221,13 @@ Status OutputSet::Check() const {
         return Status::Error(o.flag + "=" + o.path + " and " + outputs_[b].flag + "=" +
                              outputs_[b].path + " name the same file");
       }
+    }
+  }
+  for (const Entry& o : outputs_) {
+    std::string resolved;
+    if (o.create_directory) continue;
+    if (Status r = Resolve(o.path, &resolved); !r.ok()) {
+      return Status::Error(o.flag + "=" + r.message());
     }
   }
   return Status::Ok();
