@@ -60,6 +60,11 @@ NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet&
                                   const Parameterization& p, bool use_orientation,
                                   double orientation_weight, bool stack);
 
+// Removes the directions of tools that no row of `data` measures from `p` (listed in
+// p->unidentifiable with the reason): they keep their given frames (defined in linear_solver.cc).
+void LeaveOutUnmeasuredTools(const RobotModel& model, const MeasurementSet& data,
+                             Parameterization* p);
+
 // The messages both solvers give when refusing data.
 std::string TooFewEquationsMessage(int rows, long equations, int identifiable, int per_row);
 std::string NotIdentifiableMessage(const Identifiability& id, int identifiable,

@@ -117,6 +117,35 @@ void AccumulateRows(const BasisJacobian& bj, const MeasurementSet& data, bool us
 
 namespace internal {
 
+void LeaveOutUnmeasuredTools(const RobotModel& model, const MeasurementSet& data,
+                             Parameterization* p) {
+  const int n = model.num_joints();
+  std::vector<bool> measured(model.num_tools(), false);
+  for (int r = 0; r < data.size(); ++r) measured[data.target(r)] = true;
+  bool any = false;
+  for (int t = 0; t < model.num_tools(); ++t) any = any || !measured[t];
+  if (!any) return;
+  Parameterization out = *p;
+  out.parameters.clear();
+  out.num_parameters = 0;
+  for (size_t f = 0; f < p->basis.size(); ++f) {
+    const bool skip = static_cast<int>(f) >= n && !measured[f - n];
+    for (int c = 0; c < p->basis[f].cols(); ++c) {
+      Direction d = p->parameters[p->offset[f] + c];
+      if (skip) {
+        d.reason = "tool never measured in these data: not identified, kept as given";
+        out.unidentifiable.push_back(d);
+      } else {
+        out.parameters.push_back(d);
+      }
+    }
+    if (skip) out.basis[f] = Eigen::MatrixXd::Zero(6, 0);
+    out.offset[f] = out.num_parameters;
+    out.num_parameters += static_cast<int>(out.basis[f].cols());
+  }
+  *p = std::move(out);
+}
+
 NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
                                   const Parameterization& p, bool use_orientation,
                                   double orientation_weight, bool stack) {
@@ -269,11 +298,12 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   result.parameterization = override_basis
                                 ? *options.parameterization_override
                                 : MakeParameterization(nominal, options.parameterization, kind);
+  const int gauge = static_cast<int>(result.parameterization.unidentifiable.size());
+  if (!override_basis) internal::LeaveOutUnmeasuredTools(nominal, data, &result.parameterization);
   const Parameterization& p = result.parameterization;
   const bool full = !override_basis && options.parameterization == ParameterizationKind::kFull;
   // Unknowns the data must determine: the identifiable count, whichever parameterization is solved.
-  const int identifiable =
-      p.num_parameters - (full ? static_cast<int>(p.unidentifiable.size()) : 0);
+  const int identifiable = p.num_parameters - (full ? gauge : 0);
   const int per_row = options.use_orientation ? 6 : 3;
   const long equations = static_cast<long>(per_row) * data.size();
   if (equations < identifiable) {
@@ -297,7 +327,8 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     if (!full) return Analyze(l.H);
     LinearSolverOptions o = options;
     o.parameterization = ParameterizationKind::kIdentifiable;
-    const Parameterization pi = MakeParameterization(at, o.parameterization, kind);
+    Parameterization pi = MakeParameterization(at, o.parameterization, kind);
+    internal::LeaveOutUnmeasuredTools(at, data, &pi);
     return Analyze(Linearize(at, data, pi, o, false).H);
   };
   {
@@ -306,8 +337,9 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     result.condition_number = id.condition;
     result.singular_values = id.singular_values;
     if (id.rank < identifiable || !(id.condition <= options.max_condition_number)) {
-      const Parameterization pi =
+      Parameterization pi =
           full ? MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind) : p;
+      if (full) internal::LeaveOutUnmeasuredTools(nominal, data, &pi);
       return finish(Termination::kNotIdentifiable,
                     internal::NotIdentifiableMessage(id, identifiable,
                                                      options.max_condition_number, pi));
