@@ -17,29 +17,15 @@
 
 #include <gtest/gtest.h>
 
+#include "file_util.h"
+
 namespace lpoe {
 namespace tools {
 namespace {
 
-std::vector<std::string> ListDir(const std::string& dir) {
-  std::vector<std::string> names;
-  if (DIR* d = opendir(dir.c_str())) {
-    while (dirent* e = readdir(d)) {
-      if (std::strcmp(e->d_name, ".") != 0 && std::strcmp(e->d_name, "..") != 0) {
-        names.push_back(e->d_name);
-      }
-    }
-    closedir(d);
-  }
-  return names;
-}
-
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using ::lpoe::testing::Exists;
+using ::lpoe::testing::ListDir;
+using ::lpoe::testing::ReadAll;
 
 class OutputFiles : public ::testing::Test {
  protected:
