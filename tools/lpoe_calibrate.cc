@@ -333,6 +333,7 @@ int Run() {
   options.on_iteration = [&progress](const std::string& stage, const IterationRecord& r) {
     progress.Iteration(stage, r);
   };
+  options.on_stage = [&progress](const std::string& stage) { progress.Stage(stage); };
   const PipelineResult run =
       RunCalibrationPipeline(nominal, identification, verification, options);
   const CalibrationResult& result = run.result;

@@ -1,5 +1,6 @@
 #include "progress.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <unistd.h>
@@ -59,10 +60,24 @@ void Progress::Iteration(const std::string& stage, const IterationRecord& r) {
   const double per_iteration = r.iteration > 0 ? in_stage / r.iteration : 0;
   const double left = per_iteration * std::max(0, max_iterations_ - r.iteration);
   char line[256];
-  std::snprintf(line, sizeof(line),
-                "%s: iteration %d, cost %.6g, max error %.4g mm, %.1f s elapsed, at most %.0f s "
-                "left",
-                stage.c_str(), r.iteration, r.cost, r.max_error, t, left);
+  std::snprintf(line, sizeof(line), "%s: iteration %d, cost %.6g, max error %.4g mm, %.1f s elapsed",
+                stage.c_str(), r.iteration, r.cost, r.max_error, t);
+  std::string text = line;
+  if (r.iteration > 0) {
+    std::snprintf(line, sizeof(line), ", at most %.0f s left", left);
+    text += line;
+  }
+  Emit(text);
+}
+
+void Progress::Stage(const std::string& stage) {
+  stage_ = stage;
+  stage_start_ = Clock::now();
+  first_ = true;  // a new stage is shown at once (once the run is past the quiet period)
+  if (!Due()) return;
+  char line[256];
+  std::snprintf(line, sizeof(line), "%s, %.1f s elapsed", stage.c_str(),
+                std::chrono::duration<double>(Clock::now() - start_).count());
   Emit(line);
 }
 

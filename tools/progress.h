@@ -20,6 +20,8 @@ class Progress {
   // After reading the inputs.
   void Rows(const std::string& what, long rows);
   void Iteration(const std::string& stage, const IterationRecord& r);
+  // A stage without iterations (registration, analysis).
+  void Stage(const std::string& stage);
 
  private:
   using Clock = std::chrono::steady_clock;

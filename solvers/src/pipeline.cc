@@ -11,6 +11,7 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
   RobotModel start = nominal;
   if (before) *before = nominal;
   if (options.register_frames) {
+    if (options.on_stage) options.on_stage("registering");
     RegistrationReport local;
     RegistrationReport& rep = registration ? *registration : local;
     if (Status s = RegisterToMeasurements(nominal, data, &start, &rep); !s.ok()) {
@@ -58,6 +59,7 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   const CalibrationResult& result = out.result;
   if (result.termination == Termination::kNotIdentifiable) return out;
 
+  if (options.on_stage) options.on_stage("analysing");
   out.identifiability = AnalyzeIdentifiability(nominal, identification, result);
   out.identification_before = PositionErrorStatistics(out.before, identification);
   out.identification_after = PositionErrorStatistics(result.model, identification);

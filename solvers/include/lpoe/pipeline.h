@@ -39,6 +39,8 @@ struct PipelineOptions {
   PlausibilityOptions plausibility;
   // Progress: the stage ("calibrating", "fold 2") and each iteration's record.
   std::function<void(const std::string& stage, const IterationRecord&)> on_iteration;
+  // Progress: called when a stage without iterations starts ("registering", "analysing").
+  std::function<void(const std::string& stage)> on_stage;
 };
 
 struct FoldSummary {
