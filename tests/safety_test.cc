@@ -243,6 +243,13 @@ TEST_F(Safety, DeviceOutputIsWrittenStraightNotReplaced) {
   ASSERT_EQ(lstat("/dev/null", &st), 0);
   EXPECT_TRUE(S_ISCHR(st.st_mode));
   EXPECT_TRUE(ListDir(dir_).empty());
+  // /dev/stdout is a link into /proc: written straight, after the tool's own text.
+  const Result out = Run(kCalibrate, "--plots_dir= --report=/dev/stdout");
+  EXPECT_EQ(out.code, kExitOk) << out.err;
+  const size_t schema = out.out.find("\"schema\"");
+  EXPECT_NE(schema, std::string::npos);
+  EXPECT_GT(schema, out.out.find("verdict:"));
+  EXPECT_TRUE(ListDir(dir_).empty());
 }
 
 TEST_F(Safety, CollisionsAreFoundByIdentityNotBySpelling) {

@@ -496,6 +496,7 @@ int Run() {
     staged = outputs.Stage(FLAGS_report, tools::RunSummaryToJson(summary));
   }
   std::vector<std::string> written;
+  std::cout.flush();  // an output may be /dev/stdout: keep the text in order
   if (Status s = staged.ok() ? outputs.Commit(&written) : staged; !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;

@@ -1,5 +1,6 @@
 #include "output_files.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <climits>
@@ -240,8 +241,21 @@ Status OutputSet::StagingPath(const std::string& path, std::string* resolved,
       if (Status s = EnsureDirectories(DirName(path)); !s.ok()) return s;
     }
   }
-  if (Status s = Resolve(path, resolved); !s.ok()) return s;
-  const std::string dir = DirName(*resolved);
+  // A device, FIFO or socket (/dev/null, /dev/stdout through /proc) is written straight at commit:
+  // its contents are staged in a private directory under $TMPDIR, never beside it.
+  struct stat target;
+  const bool direct = ::stat(path.c_str(), &target) == 0 && !S_ISREG(target.st_mode) &&
+                      !S_ISDIR(target.st_mode);
+  if (direct) {
+    *resolved = path;
+  } else if (Status s = Resolve(path, resolved); !s.ok()) {
+    return s;
+  }
+  std::string dir = DirName(*resolved);
+  if (direct) {
+    const char* tmp = std::getenv("TMPDIR");
+    dir = tmp && *tmp ? tmp : "/tmp";
+  }
   auto it = staging_dirs_.find(dir);
   if (it == staging_dirs_.end()) {
     std::string tmpl = dir + "/.lpoe-staging-XXXXXX";
@@ -253,6 +267,12 @@ Status OutputSet::StagingPath(const std::string& path, std::string* resolved,
     it = staging_dirs_.emplace(dir, tmpl).first;
   }
   *temporary = it->second + "/" + BaseName(*resolved);
+  // Two direct targets with one base name (/dev/stdout, /dev/fd/stdout) need distinct names.
+  for (int k = 1; direct && std::any_of(staged_.begin(), staged_.end(), [&](const Staged& s) {
+         return s.temporary == *temporary;
+       }); ++k) {
+    *temporary = it->second + "/" + std::to_string(k) + "." + BaseName(*resolved);
+  }
   RegisterCleanup(*temporary);
   RegisterCleanup(*temporary + ".tmp");  // a writer's own temporary (plots)
   return Status::Ok();
@@ -295,7 +315,7 @@ Status OutputSet::Commit(std::vector<std::string>* written) {
       // A device, FIFO or socket: write straight to it, never replace it.
       std::string contents;
       if (Status r = ReadAll(s.temporary, &contents); !r.ok()) return r;
-      const int fd = ::open(s.resolved.c_str(), O_WRONLY | O_CLOEXEC);
+      const int fd = ::open(s.path.c_str(), O_WRONLY | O_CLOEXEC);
       if (fd < 0) return Status::Error(s.path + ": cannot open: " + std::strerror(errno));
       Status w = WriteAll(fd, contents.data(), contents.size(), s.path);
       ::close(fd);
