@@ -173,6 +173,23 @@ Status ReadAll(const std::string& path, std::string* out) {
   return Status::Ok();
 }
 
+// The descriptor number `path` names in this process (/dev/stdout, /dev/stderr, /dev/fd/N,
+// /proc/self/fd/N), else -1.
+int DescriptorOf(const std::string& path) {
+  if (path == "/dev/stdout") return 1;
+  if (path == "/dev/stderr") return 2;
+  for (const std::string prefix : {"/dev/fd/", "/proc/self/fd/"}) {
+    if (path.rfind(prefix, 0) != 0) continue;
+    const std::string number = path.substr(prefix.size());
+    if (number.empty() || number.size() > 6 ||
+        number.find_first_not_of("0123456789") != std::string::npos) {
+      return -1;
+    }
+    return std::stoi(number);
+  }
+  return -1;
+}
+
 }  // namespace
 
 Status EnsureDirectories(const std::string& dir) {
@@ -217,7 +234,9 @@ Status OutputSet::Check() const {
                              in.path);
       }
     }
-    for (size_t b = 0; b < a; ++b) {
+    // Devices and FIFOs are written straight: two outputs may share one (/dev/null, a terminal).
+    const bool special = ::stat(o.path.c_str(), &st) == 0 && !S_ISREG(st.st_mode);
+    for (size_t b = 0; b < a && !special; ++b) {
       if (id == Identity(outputs_[b].path)) {
         return Status::Error(o.flag + "=" + o.path + " and " + outputs_[b].flag + "=" +
                              outputs_[b].path + " name the same file");
@@ -235,7 +254,7 @@ Status OutputSet::Check() const {
 }
 
 Status OutputSet::StagingPath(const std::string& path, std::string* resolved,
-                              std::string* temporary) {
+                              std::string* temporary, bool* direct_out) {
   for (const Entry& o : outputs_) {
     if (o.path == path && o.create_directory) {
       if (Status s = EnsureDirectories(DirName(path)); !s.ok()) return s;
@@ -243,9 +262,14 @@ Status OutputSet::StagingPath(const std::string& path, std::string* resolved,
   }
   // A device, FIFO or socket (/dev/null, /dev/stdout through /proc) is written straight at commit:
   // its contents are staged in a private directory under $TMPDIR, never beside it.
+  // The same for a file descriptor named through /dev/stdout, /dev/fd/N or /proc: the shell's
+  // redirection target must receive the text, not be replaced by a new file.
   struct stat target;
-  const bool direct = ::stat(path.c_str(), &target) == 0 && !S_ISREG(target.st_mode) &&
-                      !S_ISDIR(target.st_mode);
+  const bool exists = ::stat(path.c_str(), &target) == 0;
+  const bool descriptor = path.rfind("/dev/std", 0) == 0 || path.rfind("/dev/fd/", 0) == 0 ||
+                          path.rfind("/proc/", 0) == 0;
+  const bool direct = exists && !S_ISDIR(target.st_mode) && (descriptor || !S_ISREG(target.st_mode));
+  *direct_out = direct;
   if (direct) {
     *resolved = path;
   } else if (Status s = Resolve(path, resolved); !s.ok()) {
@@ -292,7 +316,7 @@ Status OutputSet::StageWith(const std::string& path,
                             const std::function<Status(const std::string&)>& writer) {
   Staged st;
   st.path = path;
-  if (Status s = StagingPath(path, &st.resolved, &st.temporary); !s.ok()) return s;
+  if (Status s = StagingPath(path, &st.resolved, &st.temporary, &st.direct); !s.ok()) return s;
   staged_.push_back(st);  // before writing: Discard() removes a partial file
   if (Status s = writer(st.temporary); !s.ok()) return s;
   struct stat info;
@@ -311,14 +335,18 @@ Status OutputSet::Commit(std::vector<std::string>* written) {
     if (exists && S_ISDIR(target.st_mode)) {
       return Status::Error(s.path + ": is a directory; nothing written there");
     }
-    if (exists && !S_ISREG(target.st_mode)) {
-      // A device, FIFO or socket: write straight to it, never replace it.
+    if (s.direct) {
+      // A device, FIFO, socket or descriptor (staged under $TMPDIR): write straight to it.
       std::string contents;
       if (Status r = ReadAll(s.temporary, &contents); !r.ok()) return r;
-      const int fd = ::open(s.path.c_str(), O_WRONLY | O_CLOEXEC);
+      // A descriptor of this process is written through itself, at its own offset (opening
+      // /proc/self/fd/1 anew would start at 0 over what the tool printed before).
+      int fd = DescriptorOf(s.path);
+      const bool own = fd < 0;
+      if (own) fd = ::open(s.path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
       if (fd < 0) return Status::Error(s.path + ": cannot open: " + std::strerror(errno));
       Status w = WriteAll(fd, contents.data(), contents.size(), s.path);
-      ::close(fd);
+      if (own) ::close(fd);
       if (!w.ok()) return w;
     } else {
       const mode_t mode = exists ? (target.st_mode & 07777) : (0666 & ~mask);

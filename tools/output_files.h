@@ -14,7 +14,8 @@
 // (symlinks followed, "." and ".." and linked directories resolved). So "d/./x", "d/../d/x", a link
 // to x, and x itself are one file; an output named like a plot in --plots_dir collides with it.
 // Targets: a symlink is resolved and its target replaced (the link stays); a non-regular target
-// (/dev/null, /dev/stdout, a FIFO) is written straight, never replaced; a directory is refused.
+// (/dev/null, a FIFO) or a descriptor (/dev/stdout, /dev/fd/N, /proc/...) is written straight, never
+// replaced (its contents staged under $TMPDIR); a directory is refused.
 // Temporaries: one private directory per target directory, created by mkdtemp (mode 0700) in it,
 // files inside created with O_EXCL | O_NOFOLLOW; so nothing planted can be followed, and
 // concurrent runs into one directory never share a temporary. SIGINT/SIGTERM remove them.
@@ -67,8 +68,10 @@ class OutputSet {
   };
   struct Staged {
     std::string path, resolved, temporary;
+    bool direct = false;  // written straight to `path` (device, FIFO, descriptor)
   };
-  Status StagingPath(const std::string& path, std::string* resolved, std::string* temporary);
+  Status StagingPath(const std::string& path, std::string* resolved, std::string* temporary,
+                     bool* direct);
   void Discard();
 
   std::vector<Entry> inputs_, outputs_;
