@@ -459,6 +459,7 @@ TEST(Urdf, BadFilesAreRejectedWithFileAndLine) {
       {"bad_two_parents.urdf", 10, "already the child"},
       {"bad_no_moving_joint.urdf", 2, "no revolute"},
       {"bad_not_robot.urdf", 3, "root element is <sdf>"},
+      {"bad_two_roots.urdf", 11, "a second root element <robot>"},
   };
   for (const BadCase& c : cases) {
     SCOPED_TRACE(c.file);

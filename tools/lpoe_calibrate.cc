@@ -70,6 +70,8 @@ DEFINE_string(data_kind, "auto",
               "position | pose | auto: pose-based calibration (paper eqs. 17-24) uses the measured "
               "orientations; auto picks pose when the CSV has quat_* columns.");
 DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in the CSV files: rad | deg.");
+DEFINE_string(length_unit, "mm",
+              "Unit of x, y, z (and prismatic joint values) in the CSV files: mm | m.");
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first when the measurements are not in "
             "its base frame (a rigid fit that moves the base by more than 50 mm or 0.05 rad): "
@@ -223,6 +225,12 @@ int Run() {
     std::cerr << "error: --angle_unit must be rad or deg, got '" << FLAGS_angle_unit << "'\n";
     return kExitUsage;
   }
+  CsvOptions csv;
+  csv.angle_unit = unit;
+  if (!ParseLengthUnit(FLAGS_length_unit, &csv.length_unit)) {
+    std::cerr << "error: --length_unit must be mm or m, got '" << FLAGS_length_unit << "'\n";
+    return kExitUsage;
+  }
   if (!ParseParameterization(FLAGS_parameterization, &kind)) {
     std::cerr << "error: --parameterization must be identifiable or full, got '"
               << FLAGS_parameterization << "'\n";
@@ -283,7 +291,7 @@ int Run() {
   tools::Progress progress(FLAGS_quiet, FLAGS_max_iterations);
   tools::RunSummary summary;
   tools::Inputs in;
-  if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, unit, FLAGS_holdout,
+  if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
                                    FLAGS_split_seed, &in);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";

@@ -47,14 +47,17 @@ struct Inputs {
   RobotModel nominal;
   MeasurementSet identification, verification;
   CsvReadReport skipped;            // lost-beam rows of the identification file
+  CsvReadReport verification_skipped;  // the same for the --verify file
   std::string verification_source;  // the --verify path, "holdout" or empty
 };
 
-// Reads the model (YAML, or URDF when the name ends in .urdf) and the measurements, warns about
-// skipped lost-beam rows on stderr, and splits off the verification rows (the `verify` file, or a
-// seeded random `holdout` fraction). On failure returns the message of the bad file.
+// Reads the model (YAML, or URDF when the name ends in .urdf in any case) and the measurements,
+// warns on stderr about ignored columns, skipped lost-beam rows (of both files) and positions that
+// look like the wrong length unit, and splits off the verification rows (the `verify` file, or a
+// seeded random `holdout` fraction, moved out without copying the rest). On failure returns the
+// message of the bad file.
 Status LoadInputs(const std::string& model_path, const std::string& measurements_path,
-                  const std::string& verify_path, AngleUnit unit, double holdout,
+                  const std::string& verify_path, const CsvOptions& csv, double holdout,
                   uint64_t split_seed, Inputs* inputs);
 
 // The input files of a run. With no --measurements, the shipped section-4 data set: the nominal

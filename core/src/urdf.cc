@@ -263,6 +263,11 @@ Status ParseImpl(const std::string& xml, const std::string& source, RobotModel* 
                      "<robot name=\"...\"> (a URDF file; xacro must be expanded first)");
   }
   const int robot_line = robot->GetLineNum();
+  if (const XMLElement* second = robot->NextSiblingElement(); second != nullptr) {
+    return LineError(source, second->GetLineNum(),
+                     "a second root element <" + std::string(second->Name()) + ">",
+                     "one <robot> element per file");
+  }
 
   // Links first (joints may precede the links they name).
   std::vector<UrdfLink> links;
@@ -502,7 +507,7 @@ Status ParseRobotModelUrdf(const std::string& xml, const std::string& source, Ro
 
 Status ReadRobotModelUrdf(const std::string& path, RobotModel* model, const UrdfOptions& options) {
   std::string text;
-  const Status s = ReadFile(path, &text);
+  const Status s = ReadFile(path, kMaxModelFileBytes, &text);
   if (!s.ok()) return s;
   return ParseRobotModelUrdf(text, path, model, options);
 }
