@@ -28,7 +28,13 @@
 
 #include <gtest/gtest.h>
 
+#include "file_util.h"
+
 namespace {
+
+using ::lpoe::testing::Exists;
+using ::lpoe::testing::ListDir;
+using ::lpoe::testing::ReadAll;
 
 constexpr int kExitOk = 0;
 constexpr int kExitUsage = 1;
@@ -41,35 +47,10 @@ const std::string kGoodModel = std::string(LPOE_DATA_DIR) + "/cobot6.yaml";
 const std::string kGoodMeasurements = std::string(LPOE_DATA_DIR) + "/section4/identification.csv";
 const std::string kGoodVerification = std::string(LPOE_DATA_DIR) + "/section4/verification.csv";
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 void WriteAll(const std::string& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary);
   out << text;
   ASSERT_TRUE(out.good()) << path;
-}
-
-bool Exists(const std::string& path) {
-  struct stat st;
-  return lstat(path.c_str(), &st) == 0;
-}
-
-std::vector<std::string> ListDir(const std::string& dir) {
-  std::vector<std::string> names;
-  if (DIR* d = opendir(dir.c_str())) {
-    while (dirent* e = readdir(d)) {
-      if (std::strcmp(e->d_name, ".") != 0 && std::strcmp(e->d_name, "..") != 0) {
-        names.push_back(e->d_name);
-      }
-    }
-    closedir(d);
-  }
-  return names;
 }
 
 void RemoveTree(const std::string& path) {

@@ -5,11 +5,11 @@
 // errors on the identification and verification sets, and writes the calibrated model, a JSON
 // report and plots. With no arguments it calibrates the shipped section-4 data set.
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <string>
+#include <sys/stat.h>
 
 #include <gflags/gflags.h>
 #include <glog/logging.h>
@@ -18,10 +18,13 @@
 #include "lpoe/ceres_solver.h"
 #include "lpoe/io.h"
 #include "lpoe/linear_solver.h"
+#include "lpoe/pipeline.h"
 #include "lpoe/registration.h"
 #include "lpoe/statistics.h"
 #include "lpoe/urdf.h"
+#include "output_files.h"
 #include "plot.h"
+#include "progress.h"
 #include "report.h"
 #include "tool_common.h"
 
@@ -70,7 +73,7 @@ DEFINE_double(sigma, 1.0,
               "Ceres solver: measurement noise per axis in mm (residual whitening; sets the scale "
               "of the covariance). Not given: the covariance is scaled by the noise estimated "
               "from the residuals, as with the linear solver.");
-DEFINE_int32(threads, 0, "Ceres solver: threads (0: all hardware threads).");
+DEFINE_int32(threads, 0, "Ceres solver: threads (0: all hardware threads; at most 256).");
 DEFINE_string(parameterization, "identifiable",
               "identifiable: only the directions the data can see (27 for a 6R arm with position "
               "data); full: 6 per local frame, solved as a minimum-norm pseudo-inverse (the "
@@ -88,7 +91,19 @@ DEFINE_bool(register, true,
 DEFINE_double(outlier_threshold, 5.0,
               "List points whose error after the fit exceeds this many robust sigmas.");
 DEFINE_int32(max_iterations, 30, "Iteration limit.");
-DEFINE_double(step_tolerance, 1e-10, "Convergence: stop when |x| falls below this.");
+DEFINE_double(step_tolerance, 1e-10,
+              "Convergence (linear solver): stop when |x| falls below this (mm or rad; at most "
+              "1e-3). Large-residual data also stop when the step is below --sd_fraction standard "
+              "deviations of every parameter or no longer reduces the cost (docs/pipeline.md).");
+DEFINE_double(sd_fraction, 1e-2,
+              "Convergence (both solvers): stop when the step is below this fraction of every "
+              "parameter's standard deviation (0 = off, at most 0.5).");
+DEFINE_double(noise_sigma, 0.03,
+              "Expected tracker noise per axis (mm) for the plausibility verdict: residuals far "
+              "above it (plus the ~0.3 mm a geometric model leaves on a real robot) fail.");
+DEFINE_bool(force, false,
+            "Write the outputs and exit 0 even when the plausibility verdict fails.");
+DEFINE_bool(quiet, false, "No progress display on stderr.");
 DEFINE_double(max_condition, 1e8,
               "Refuse data whose column-scaled Jacobian has a larger condition number.");
 
@@ -110,94 +125,37 @@ constexpr char kUsage[] =
     "measurements may be in any rigid frame (e.g. the tracker's): the calibrated model is\n"
     "expressed in the measurement frame.\n"
     "Exit codes: 0 converged, 1 bad flags, 2 bad input file, 3 data cannot identify the model,\n"
-    "4 iteration limit reached, 5 numerical failure, 6 output not written.";
+    "4 iteration limit reached, 5 numerical failure, 6 output not written, 8 the result is not\n"
+    "plausible (residual, scale, units or parameter changes; see the verdict; --force writes it).";
 
-struct Job {
-  RobotModel nominal;
-  MeasurementSet identification, verification;
-  bool use_orientation = false;
-  ParameterizationKind kind = ParameterizationKind::kIdentifiable;
-};
-
-// Prints a progress line to stderr once a run has taken more than a second.
-class Progress {
- public:
-  explicit Progress(std::string what) : what_(std::move(what)) {}
-  ~Progress() {
-    if (shown_) std::cerr << "\n";
-  }
-  void Update(const IterationRecord& r) {
-    const double t = std::chrono::duration<double>(Clock::now() - start_).count();
-    if (t < 1.0) return;
-    shown_ = true;
-    char line[160];
-    std::snprintf(line, sizeof(line), "\r%s: iteration %d, max error %.4f mm, %.1f s", what_.c_str(),
-                  r.iteration, r.max_error, t);
-    std::cerr << line << std::flush;
-  }
-
- private:
-  using Clock = std::chrono::steady_clock;
-  std::string what_;
-  Clock::time_point start_ = Clock::now();
-  bool shown_ = false;
-};
-
-// The Ceres solver's options from the flags (validated in Run()).
-CeresSolverOptions CeresOptionsFromFlags(const Job& job) {
-  CeresSolverOptions options;
-  options.parameterization = job.kind;
-  options.use_orientation = job.use_orientation;
-  options.max_iterations = FLAGS_max_iterations;
-  options.max_condition_number = FLAGS_max_condition;
-  options.loss = FLAGS_loss;
-  options.loss_scale = FLAGS_loss_scale;
-  options.sigma = FLAGS_sigma;
+// The pipeline's options from the flags (validated in Run()).
+PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_orientation,
+                                         AngleUnit unit) {
+  PipelineOptions o;
+  o.solver = FLAGS_solver == "ceres" ? SolverKind::kCeres : SolverKind::kLinear;
+  o.parameterization = kind;
+  o.use_orientation = use_orientation;
+  o.register_frames = FLAGS_register;
+  o.kfold = FLAGS_kfold;
+  o.split_seed = FLAGS_split_seed;
+  o.outlier_threshold = FLAGS_outlier_threshold;
+  o.plausibility.noise_sigma = FLAGS_noise_sigma;
+  o.plausibility.joint_values_in_degrees = unit == AngleUnit::kDegrees;
+  o.linear.max_iterations = FLAGS_max_iterations;
+  o.linear.step_tolerance = FLAGS_step_tolerance;
+  o.linear.max_condition_number = FLAGS_max_condition;
+  o.linear.convergence.sd_fraction = FLAGS_sd_fraction;
+  CeresSolverOptions& c = o.ceres;
+  c.max_iterations = FLAGS_max_iterations;
+  c.max_condition_number = FLAGS_max_condition;
+  c.loss = FLAGS_loss;
+  c.loss_scale = FLAGS_loss_scale;
+  c.sigma = FLAGS_sigma;
+  c.convergence.sd_fraction = FLAGS_sd_fraction;
   // Without a stated noise level, estimate it from the residuals (as the linear solver does).
-  options.a_posteriori_covariance = gflags::GetCommandLineFlagInfoOrDie("sigma").is_default;
-  if (FLAGS_threads > 0) options.num_threads = FLAGS_threads;
-  return options;
-}
-
-// Registration (optional) then the chosen solver. `registration` may be null.
-CalibrationResult Solve(const Job& job, const MeasurementSet& data, const std::string& what,
-                        RegistrationReport* registration, RobotModel* rigid_nominal) {
-  RobotModel start = job.nominal;
-  if (rigid_nominal) *rigid_nominal = job.nominal;
-  if (FLAGS_register) {
-    RegistrationReport local;
-    RegistrationReport& rep = registration ? *registration : local;
-    if (Status s = RegisterToMeasurements(job.nominal, data, &start, &rep); !s.ok()) {
-      CalibrationResult failed;
-      failed.model = job.nominal;
-      failed.termination = Termination::kNotIdentifiable;
-      failed.message = s.message();
-      return failed;
-    }
-    if (!rep.moved) {
-      // The data are in the base frame already: start from the nominal model, as the paper does.
-      start = job.nominal;
-    } else if (rigid_nominal) {
-      rigid_nominal->joints[0].origin = rep.T_measurement_base * job.nominal.joints[0].origin;
-    }
-  }
-  Progress progress(what);
-  if (FLAGS_solver == "ceres") {
-    CeresSolverOptions options = CeresOptionsFromFlags(job);
-    options.on_iteration = [&](const IterationRecord& r) { progress.Update(r); };
-    return CalibrateCeres(start, data, options);
-  }
-  LinearSolverOptions options;
-  options.parameterization = job.kind;
-  options.use_orientation = job.use_orientation;
-  options.max_iterations = FLAGS_max_iterations;
-  options.step_tolerance = FLAGS_step_tolerance;
-  options.max_condition_number = FLAGS_max_condition;
-  options.on_iteration = [&](const IterationRecord& r) { progress.Update(r); };
-  CalibrationResult result = CalibrateLinear(start, data, options);
-  // The history starts from the registered model; errors before calibration are reported
-  // separately against the nominal model.
-  return result;
+  c.a_posteriori_covariance = gflags::GetCommandLineFlagInfoOrDie("sigma").is_default;
+  if (FLAGS_threads > 0) c.num_threads = FLAGS_threads;
+  return o;
 }
 
 void PrintIdentifiability(const IdentifiabilityReport& id) {
@@ -243,6 +201,28 @@ void PrintIdentifiability(const IdentifiabilityReport& id) {
   for (const std::string& w : id.warnings) std::cout << "  warning: " << w << "\n";
 }
 
+// Flag ranges: a value outside gives exit 1 with a message naming the flag.
+Status CheckFlags() {
+  using tools::CheckRange;
+  for (Status s : {CheckRange("holdout", FLAGS_holdout, 0.0, 0.95),
+                   CheckRange("max_iterations", FLAGS_max_iterations, 1, 10000),
+                   CheckRange("step_tolerance", FLAGS_step_tolerance, 1e-300, 1e-3, true),
+                   CheckRange("sd_fraction", FLAGS_sd_fraction, 0.0, 0.5),
+                   CheckRange("max_condition", FLAGS_max_condition, 10.0, 1e16),
+                   CheckRange("outlier_threshold", FLAGS_outlier_threshold, 1.0, 1e6),
+                   CheckRange("sigma", FLAGS_sigma, 1e-6, 1e3),
+                   CheckRange("loss_scale", FLAGS_loss_scale, 1e-6, 1e4),
+                   CheckRange("threads", FLAGS_threads, 0, 256),
+                   CheckRange("noise_sigma", FLAGS_noise_sigma, 1e-6, 100.0)}) {
+    if (!s.ok()) return s;
+  }
+  if (FLAGS_kfold != 0 && !(FLAGS_kfold >= 2 && FLAGS_kfold <= 100)) {
+    return Status::Error("--kfold must be 0 (off) or between 2 and 100, got " +
+                         std::to_string(FLAGS_kfold));
+  }
+  return Status::Ok();
+}
+
 int Run() {
   const tools::InputPaths paths =
       tools::ResolveInputPaths(FLAGS_model, FLAGS_measurements, FLAGS_verify, FLAGS_holdout != 0.0);
@@ -252,7 +232,7 @@ int Run() {
 
   // ---- Flags.
   AngleUnit unit;
-  Job job;
+  ParameterizationKind kind;
   if (!tools::ParseAngleUnit(FLAGS_angle_unit, &unit)) {
     std::cerr << "error: --angle_unit must be rad or deg, got '" << FLAGS_angle_unit << "'\n";
     return kExitUsage;
@@ -263,7 +243,7 @@ int Run() {
     std::cerr << "error: --length_unit must be mm or m, got '" << FLAGS_length_unit << "'\n";
     return kExitUsage;
   }
-  if (!ParseParameterization(FLAGS_parameterization, &job.kind)) {
+  if (!ParseParameterization(FLAGS_parameterization, &kind)) {
     std::cerr << "error: --parameterization must be identifiable or full, got '"
               << FLAGS_parameterization << "'\n";
     return kExitUsage;
@@ -272,11 +252,12 @@ int Run() {
     std::cerr << "error: --solver must be linear or ceres, got '" << FLAGS_solver << "'\n";
     return kExitUsage;
   }
-  if (FLAGS_threads < 0) {
-    std::cerr << "error: --threads must be >= 0, got " << FLAGS_threads << "\n";
+  if (Status s = CheckFlags(); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  if (Status s = ValidateCeresSolverOptions(CeresOptionsFromFlags(job)); !s.ok()) {
+  if (Status s = ValidateCeresSolverOptions(PipelineOptionsFromFlags(kind, false, unit).ceres);
+      !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
@@ -289,23 +270,8 @@ int Run() {
               << "'\n";
     return kExitUsage;
   }
-  if (!(FLAGS_holdout >= 0.0 && FLAGS_holdout < 1.0)) {
-    std::cerr << "error: --holdout must be in [0, 1), got " << FLAGS_holdout << "\n";
-    return kExitUsage;
-  }
   if (FLAGS_holdout > 0.0 && !FLAGS_verify.empty()) {
     std::cerr << "error: give either --verify or --holdout, not both\n";
-    return kExitUsage;
-  }
-  if (FLAGS_kfold == 1 || FLAGS_kfold < 0 || FLAGS_kfold > 100) {
-    std::cerr << "error: --kfold must be 0 (off) or between 2 and 100, got " << FLAGS_kfold << "\n";
-    return kExitUsage;
-  }
-  if (FLAGS_max_iterations < 1 || FLAGS_max_iterations > 100000 ||
-      !(FLAGS_step_tolerance > 0) || !(FLAGS_max_condition > 1) ||
-      !(FLAGS_outlier_threshold > 0)) {
-    std::cerr << "error: --max_iterations must be in [1, 100000], --step_tolerance > 0, "
-                 "--max_condition > 1, --outlier_threshold > 0\n";
     return kExitUsage;
   }
   UrdfOptions urdf_options;
@@ -315,17 +281,29 @@ int Run() {
                  "URDF --model (a name ending in .urdf)\n";
     return kExitUsage;
   }
-  for (const std::string& out : {FLAGS_output, FLAGS_report, FLAGS_urdf_output,
-                                  FLAGS_ur_kinematics_output, FLAGS_html_report}) {
-    for (const std::string& in : {model_path, meas_path, verify_path}) {
-      if (!out.empty() && tools::SameFile(out, in)) {
-        std::cerr << "error: an output would overwrite the input file " << in << "\n";
-        return kExitUsage;
-      }
+  // Every output against every input and every other output (plots included), by identity.
+  const auto& kPlotNames = tools::kPlotFileNames;
+  tools::OutputSet outputs;
+  outputs.AddInput("--model", model_path);
+  outputs.AddInput("--measurements", meas_path);
+  outputs.AddInput("--verify", verify_path);
+  outputs.AddOutput("--output", FLAGS_output);
+  outputs.AddOutput("--urdf_output", FLAGS_urdf_output);
+  outputs.AddOutput("--ur_kinematics_output", FLAGS_ur_kinematics_output);
+  outputs.AddOutput("--report", FLAGS_report);
+  outputs.AddOutput("--html_report", FLAGS_html_report);
+  const std::string plot_dir = FLAGS_plots_dir.empty() ? "" : FLAGS_plots_dir + "/";
+  if (!plot_dir.empty()) {
+    struct stat st;
+    if (::stat(FLAGS_plots_dir.c_str(), &st) == 0 && !S_ISDIR(st.st_mode)) {
+      std::cerr << "error: --plots_dir=" << FLAGS_plots_dir << " is not a directory\n";
+      return kExitUsage;
     }
+    // Created (with its parents) only when the plots are written.
+    for (const char* name : kPlotNames) outputs.AddOutput("--plots_dir", plot_dir + name, true);
   }
-  if (!FLAGS_output.empty() && tools::SameFile(FLAGS_output, FLAGS_report)) {
-    std::cerr << "error: --output and --report name the same file\n";
+  if (Status s = outputs.Check(); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
   if (!FLAGS_html_report.empty() && (tools::SameFile(FLAGS_html_report, FLAGS_report) ||
@@ -335,72 +313,86 @@ int Run() {
   }
 
   // ---- Inputs.
+  tools::Progress progress(FLAGS_quiet, FLAGS_max_iterations);
   tools::RunSummary summary;
-  UrdfSource urdf_source;  // the URDF --model, for the overlay write-back
-  bool from_urdf = false;
-  {
-    tools::Inputs in;
-    if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
-                                     FLAGS_split_seed, &in, urdf_options);
+  tools::Inputs in;
+  if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
+                                   FLAGS_split_seed, &in, urdf_options);
+      !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitInput;
+  }
+  progress.Rows(meas_path, in.identification.size() + in.verification.size());
+  summary.skipped = std::move(in.skipped);
+  summary.verification_source = in.verification_source;
+  const bool from_urdf = in.from_urdf;
+  const UrdfSource& urdf_source = in.urdf;  // the URDF --model, for the overlay write-back
+  // The UR file needs a UR arm with z axes: checked on the nominal model before solving.
+  if (!FLAGS_ur_kinematics_output.empty()) {
+    std::string ur_yaml;
+    if (Status s = UrKinematicsYaml(urdf_source, in.nominal, {}, &ur_yaml); !s.ok()) {
+      std::cerr << "error: --ur_kinematics_output: " << s.message() << "\n";
+      return kExitUsage;
+    }
+  }
+  const RobotModel& nominal = in.nominal;
+  const MeasurementSet& identification = in.identification;
+  const MeasurementSet& verification = in.verification;
+  if (FLAGS_holdout > 0.0) {
+    if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, identification.size(),
+                                            verification.size());
         !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
-      return kExitInput;
+      return kExitUsage;
     }
-    from_urdf = in.from_urdf;
-    urdf_source = std::move(in.urdf);
-    // The UR file needs a UR arm with z axes: checked on the nominal model before solving.
-    std::string ur_yaml;
-    if (!FLAGS_ur_kinematics_output.empty()) {
-      if (Status s = UrKinematicsYaml(urdf_source, in.nominal, {}, &ur_yaml); !s.ok()) {
-        std::cerr << "error: --ur_kinematics_output: " << s.message() << "\n";
-        return kExitUsage;
-      }
-    }
-    job.nominal = std::move(in.nominal);
-    job.identification = std::move(in.identification);
-    job.verification = std::move(in.verification);
-    summary.skipped = std::move(in.skipped);
-    summary.verification_source = std::move(in.verification_source);
+  }
+  if (FLAGS_kfold > identification.size()) {
+    std::cerr << "error: --kfold=" << FLAGS_kfold << " is larger than the "
+              << identification.size() << " identification rows: every fold needs held-out rows\n";
+    return kExitUsage;
   }
 
-  job.use_orientation = job.identification.has_orientation();
-  if (FLAGS_data_kind == "position") job.use_orientation = false;
-  if (FLAGS_data_kind == "pose" && !job.identification.has_orientation()) {
+  bool use_orientation = identification.has_orientation();
+  if (FLAGS_data_kind == "position") use_orientation = false;
+  if (FLAGS_data_kind == "pose" && !identification.has_orientation()) {
     std::cerr << "error: --data_kind=pose needs quat_x,quat_y,quat_z,quat_w columns in "
               << meas_path << "\n";
     return kExitUsage;
   }
 
-  std::cout << "model:          " << model_path << " (" << job.nominal.num_joints()
-            << " joints, " << job.nominal.num_tools() << " tool"
-            << (job.nominal.num_tools() > 1 ? "s" : "") << ")\n"
-            << "identification: " << meas_path << " (" << job.identification.size() << " rows)\n";
-  if (!job.verification.empty()) {
+  std::cout << "model:          " << model_path << " (" << nominal.num_joints() << " joints, "
+            << nominal.num_tools() << " tool" << (nominal.num_tools() > 1 ? "s" : "") << ")\n"
+            << "identification: " << meas_path << " (" << identification.size() << " rows)\n";
+  if (!verification.empty()) {
     std::cout << "verification:   "
               << (verify_path.empty() ? "held out from the identification file" : verify_path)
-              << " (" << job.verification.size() << " rows)\n";
+              << " (" << verification.size() << " rows)\n";
   }
-  std::cout << "solver:         " << FLAGS_solver << ", " << ParameterizationName(job.kind)
-            << " parameterization, " << (job.use_orientation ? "pose" : "position") << " data\n";
+  std::cout << "solver:         " << FLAGS_solver << ", " << ParameterizationName(kind)
+            << " parameterization, " << (use_orientation ? "pose" : "position") << " data\n";
 
-  // ---- Solve.
-  RobotModel before_model;
-  const CalibrationResult result =
-      Solve(job, job.identification, "calibrating", &summary.registration, &before_model);
-  summary.registered = FLAGS_register;
-  if (FLAGS_register && result.termination != Termination::kNotIdentifiable) {
-    const RegistrationReport& reg = summary.registration;
+  // ---- Register, solve, analyse, cross-validate, judge (nothing is written yet).
+  PipelineOptions options = PipelineOptionsFromFlags(kind, use_orientation, unit);
+  options.on_iteration = [&progress](const std::string& stage, const IterationRecord& r) {
+    progress.Iteration(stage, r);
+  };
+  options.on_stage = [&progress](const std::string& stage) { progress.Stage(stage); };
+  const PipelineResult run =
+      RunCalibrationPipeline(nominal, identification, verification, options);
+  const CalibrationResult& result = run.result;
+  summary.registered = run.registered;
+  summary.registration = run.registration;
+  if (run.registered && result.termination != Termination::kNotIdentifiable) {
+    const RegistrationReport& reg = run.registration;
     if (reg.moved) {
-      std::cout << reg.message << "\n";
+      std::cout << reg.message << "\n"
+                << "(the measurements are not in the model's base frame: 'before calibration' "
+                   "below is the nominal model after the rigid fit)\n";
     } else {
       std::cout << "registration: not needed, the data are in the model's base frame (a rigid fit "
                    "would move the base by only "
                 << reg.T_measurement_base.t.norm() << " mm and "
                 << LogSO3(reg.T_measurement_base.R).norm() << " rad)\n";
-    }
-    if (summary.registration.moved) {
-      std::cout << "(the measurements are not in the model's base frame: 'before calibration' "
-                   "below is the nominal model after the rigid fit)\n";
     }
   }
   std::cout << "\n";
@@ -409,30 +401,29 @@ int Run() {
     return tools::ExitCodeFor(result.termination);
   }
   summary.result = result;
-  summary.identifiability = AnalyzeIdentifiability(job.nominal, job.identification, result);
+  summary.identifiability = run.identifiability;
   PrintIdentifiability(summary.identifiability);
   std::cout << "\n";
   tools::PrintIterationTable(std::cout, result);
   std::cout << "\n";
-  summary.identification_before = PositionErrorStatistics(before_model, job.identification);
-  summary.identification_after = PositionErrorStatistics(result.model, job.identification);
+  summary.identification_before = run.identification_before;
+  summary.identification_after = run.identification_after;
   tools::PrintBeforeAfter(std::cout, "identification set", summary.identification_before,
                           summary.identification_after);
-  if (!job.verification.empty()) {
+  if (run.has_verification) {
     summary.has_verification = true;
-    summary.verification_before = PositionErrorStatistics(before_model, job.verification);
-    summary.verification_after = PositionErrorStatistics(result.model, job.verification);
+    summary.verification_before = run.verification_before;
+    summary.verification_after = run.verification_after;
     std::cout << "\n";
     tools::PrintBeforeAfter(std::cout, "verification set", summary.verification_before,
                             summary.verification_after);
   }
 
-  tools::AddPointResiduals(before_model, result.model, job.identification, job.verification,
-                           &summary);
+  tools::AddPointResiduals(run.before, result.model, identification, verification, &summary);
 
   // ---- Points that do not fit.
-  summary.outliers = FindOutliers(result.model, job.identification, FLAGS_outlier_threshold,
-                                  &summary.robust_sigma);
+  summary.outliers = run.outliers;
+  summary.robust_sigma = run.robust_sigma;
   if (!summary.outliers.empty()) {
     std::cout << "\n" << summary.outliers.size() << " point(s) fit worse than "
               << FLAGS_outlier_threshold << " robust sigmas (" << summary.robust_sigma
@@ -445,111 +436,121 @@ int Run() {
   }
 
   // ---- k-fold cross-validation.
-  if (FLAGS_kfold >= 2) {
-    const auto folds = KFolds(job.identification.size(), FLAGS_kfold, FLAGS_split_seed);
+  if (!run.folds.empty()) {
     std::cout << "\n" << FLAGS_kfold << "-fold cross-validation (held-out position error, mm)\n"
               << "  fold  rows   termination        max      mean       rms       p95\n";
-    std::vector<Eigen::Vector3d> pooled;
-    for (int f = 0; f < FLAGS_kfold; ++f) {
-      const MeasurementSet train =
-          job.identification.Subset(Complement(job.identification.size(), folds[f]));
-      const MeasurementSet test = job.identification.Subset(folds[f]);
-      const CalibrationResult r =
-          Solve(job, train, "fold " + std::to_string(f + 1), nullptr, nullptr);
+    char line[200];
+    for (const FoldSummary& f : run.folds) {
       tools::FoldResult fr;
-      fr.fold = f + 1;
-      fr.identification_rows = train.size();
-      fr.termination = TerminationName(r.termination);
-      const std::vector<Eigen::Vector3d> e = PositionErrors(r.model, test);
-      pooled.insert(pooled.end(), e.begin(), e.end());
-      fr.verification_after = ComputeStatistics(e);
-      char line[200];
+      fr.fold = f.fold;
+      fr.identification_rows = f.identification_rows;
+      fr.termination = TerminationName(f.termination);
+      fr.verification_after = f.verification_after;
       std::snprintf(line, sizeof(line), "  %4d %5d   %-16s %8.4f %9.4f %9.4f %9.4f\n", fr.fold,
-                    fr.identification_rows, r.converged() ? "converged" : "FAILED",
+                    fr.identification_rows,
+                    f.termination == Termination::kConverged ? "converged" : "FAILED",
                     fr.verification_after.norm.max_abs, fr.verification_after.norm.mean_abs,
                     fr.verification_after.norm.rms, fr.verification_after.norm.p95_abs);
       std::cout << line;
       summary.folds.push_back(fr);
     }
-    const ErrorStatistics all_folds = ComputeStatistics(pooled);
-    char line[200];
+    const ErrorStatistics& all = run.folds_pooled;
     std::snprintf(line, sizeof(line), "   all %5d   %-16s %8.4f %9.4f %9.4f %9.4f\n",
-                  job.identification.size(), "", all_folds.norm.max_abs,
-                  all_folds.norm.mean_abs, all_folds.norm.rms, all_folds.norm.p95_abs);
+                  identification.size(), "", all.norm.max_abs, all.norm.mean_abs, all.norm.rms,
+                  all.norm.p95_abs);
     std::cout << line;
   }
 
   std::cout << "\nresult: " << TerminationName(result.termination) << " after "
-            << result.iterations << " iteration(s), " << result.wall_time_seconds * 1e3 << " ms\n";
+            << result.iterations << " iteration(s), " << result.wall_time_seconds * 1e3 << " ms ("
+            << result.message << ")\n";
   if (!result.converged()) {
     std::cerr << "error: " << result.message << "; no output written\n";
     return tools::ExitCodeFor(result.termination);
   }
 
-  // ---- Outputs (each written atomically; the model first, the report last so that it lists
-  // everything written).
-  if (!FLAGS_output.empty()) {
+  // ---- Plausibility verdict.
+  summary.verdict = run.verdict;
+  const Verdict& verdict = run.verdict;
+  std::cout << "verdict: " << VerdictLevelName(verdict.level) << ": " << verdict.reason << "\n";
+  for (const VerdictCheck& c : verdict.checks) {
+    if (c.level != VerdictLevel::kPass) {
+      std::cerr << (c.level == VerdictLevel::kFail ? "error" : "warning") << ": " << c.name << ": "
+                << c.message << "\n";
+    }
+  }
+  const bool implausible = verdict.level == VerdictLevel::kFail;
+  if (implausible && !FLAGS_force) {
+    std::cerr << "error: the calibration is not plausible (" << verdict.reason
+              << "); no output written (--force writes it anyway)\n";
+    return tools::kExitImplausible;
+  }
+
+  // ---- Outputs: all staged first, then moved into place together; the report last so that it
+  // lists everything written.
+  Status staged = Status::Ok();
+  if (!FLAGS_output.empty() && staged.ok()) {
     // The registration goes with the model: compensation carries nominal poses into its frame.
     RobotModel calibrated = result.model;
-    if (summary.registered && summary.registration.moved) {
-      calibrated.T_measurement_base = summary.registration.T_measurement_base;
+    if (run.registered && run.registration.moved) {
+      calibrated.T_measurement_base = run.registration.T_measurement_base;
     }
-    if (Status s = WriteRobotModel(FLAGS_output, calibrated); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitOutput;
-    }
-    summary.outputs.push_back(FLAGS_output);
+    staged = outputs.Stage(FLAGS_output, RobotModelToYaml(calibrated));
   }
   UrdfOverlayOptions overlay;
-  overlay.in_measurement_frame = FLAGS_register && summary.registration.moved;
-  if (!FLAGS_urdf_output.empty()) {
-    if (Status s = from_urdf ? WriteCalibratedUrdf(FLAGS_urdf_output, urdf_source, result.model,
-                                                   overlay)
-                             : WriteRobotModelUrdf(FLAGS_urdf_output, result.model);
-        !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitOutput;
+  overlay.in_measurement_frame = run.registered && run.registration.moved;
+  if (!FLAGS_urdf_output.empty() && staged.ok()) {
+    std::string xml;
+    if (from_urdf) {
+      staged = CalibratedUrdfOverlay(urdf_source, result.model, overlay, &xml);
+    } else {
+      xml = RobotModelToUrdf(result.model);
     }
-    summary.outputs.push_back(FLAGS_urdf_output);
+    if (staged.ok()) staged = outputs.Stage(FLAGS_urdf_output, xml);
   }
-  if (!FLAGS_ur_kinematics_output.empty()) {
-    if (Status s = WriteUrKinematicsYaml(FLAGS_ur_kinematics_output, urdf_source, result.model,
-                                         overlay);
-        !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitOutput;
-    }
-    summary.outputs.push_back(FLAGS_ur_kinematics_output);
+  if (!FLAGS_ur_kinematics_output.empty() && staged.ok()) {
+    std::string ur_yaml;
+    staged = UrKinematicsYaml(urdf_source, result.model, overlay, &ur_yaml);
+    if (staged.ok()) staged = outputs.Stage(FLAGS_ur_kinematics_output, ur_yaml);
   }
   summary.model_path = model_path;
   summary.measurements_path = meas_path;
   summary.solver = FLAGS_solver;
-  summary.parameterization = ParameterizationName(job.kind);
-  summary.data_kind = job.use_orientation ? "pose" : "position";
+  summary.parameterization = ParameterizationName(kind);
+  summary.data_kind = use_orientation ? "pose" : "position";
   summary.angle_unit = FLAGS_angle_unit;
-  if (!FLAGS_plots_dir.empty()) {
-    if (Status s = tools::WritePlotFiles(FLAGS_plots_dir, &summary); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitOutput;
+  if (!plot_dir.empty() && staged.ok()) {
+    std::vector<std::pair<std::string, std::string>> plots;
+    staged = tools::RenderPlotFiles(summary, &plots);
+    for (size_t k = 0; k < plots.size() && staged.ok(); ++k) {
+      staged = outputs.Stage(plot_dir + plots[k].first, plots[k].second);
     }
   }
-  if (!FLAGS_html_report.empty()) {
-    if (Status s = tools::WriteHtmlReport(FLAGS_html_report, &summary); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitOutput;
-    }
+  if (!FLAGS_html_report.empty() && staged.ok()) {
+    std::string html;
+    staged = tools::RunSummaryToHtml(summary, &html);
+    if (staged.ok()) staged = outputs.Stage(FLAGS_html_report, html);
   }
-  if (!FLAGS_report.empty()) {
+  if (!FLAGS_report.empty() && staged.ok()) {
+    for (const std::string& o : {FLAGS_output, FLAGS_urdf_output, FLAGS_ur_kinematics_output}) {
+      if (!o.empty()) summary.outputs.push_back(o);
+    }
+    if (!plot_dir.empty()) {
+      for (const char* name : kPlotNames) summary.outputs.push_back(plot_dir + name);
+    }
+    if (!FLAGS_html_report.empty()) summary.outputs.push_back(FLAGS_html_report);
     summary.outputs.push_back(FLAGS_report);
-    if (Status s = WriteFileAtomically(FLAGS_report, tools::RunSummaryToJson(summary)); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitOutput;
-    }
+    staged = outputs.Stage(FLAGS_report, tools::RunSummaryToJson(summary));
   }
-  if (summary.outputs.empty()) {
+  std::vector<std::string> written;
+  if (Status s = staged.ok() ? outputs.Commit(&written) : staged; !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitOutput;
+  }
+  if (written.empty()) {
     std::cout << "(use --output=FILE to save the calibrated model)\n";
   } else {
-    for (const std::string& o : summary.outputs) std::cout << "wrote " << o << "\n";
+    for (const std::string& o : written) std::cout << "wrote " << o << "\n";
   }
   return kExitOk;
 }

@@ -17,8 +17,11 @@
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"
+#include "lpoe/pipeline.h"
 #include "lpoe/registration.h"
 #include "lpoe/statistics.h"
+#include "output_files.h"
+#include "progress.h"
 #include "report.h"
 #include "tool_common.h"
 
@@ -44,7 +47,13 @@ DEFINE_string(html_report, "",
               "Write a self-contained HTML report here: the comparison table and the Ceres "
               "calibration's statistics, plots and parameters.");
 DEFINE_double(tolerance_mm, 1e-6,
-              "The solvers agree when their predicted held-out positions differ by at most this.");
+              "The solvers agree when their predicted held-out positions differ by at most this "
+              "(mm, at most 1000).");
+DEFINE_double(noise_sigma, 0.03,
+              "Expected tracker noise per axis (mm) for the plausibility verdict (see "
+              "lpoe_calibrate).");
+DEFINE_bool(force, false, "Compare even when a calibration fails the plausibility verdict.");
+DEFINE_bool(quiet, false, "No progress display on stderr.");
 
 namespace lpoe {
 namespace {
@@ -61,7 +70,7 @@ constexpr char kUsage[] =
     "  lpoe_compare --model=robot.yaml --measurements=points.csv --holdout=0.3\n\n"
     "Exit codes: 0 the predicted held-out positions agree within --tolerance_mm, 1 bad flags,\n"
     "2 bad input file, 3 data cannot identify the model, 4 iteration limit, 5 numerical\n"
-    "failure, 6 output not written, 7 the solvers disagree.";
+    "failure, 6 output not written, 7 the solvers disagree, 8 a calibration is not plausible (see lpoe_calibrate).";
 
 double MaxPredictionDifference(const RobotModel& a, const RobotModel& b, const MeasurementSet& data) {
   double worst = 0;
@@ -111,24 +120,27 @@ int Run() {
               << FLAGS_parameterization << "'\n";
     return kExitUsage;
   }
-  if (!(FLAGS_holdout >= 0.0 && FLAGS_holdout < 1.0)) {
-    std::cerr << "error: --holdout must be in [0, 1), got " << FLAGS_holdout << "\n";
-    return kExitUsage;
+  for (Status s : {tools::CheckRange("holdout", FLAGS_holdout, 0.0, 0.95),
+                   tools::CheckRange("tolerance_mm", FLAGS_tolerance_mm, 0.0, 1000.0),
+                   tools::CheckRange("noise_sigma", FLAGS_noise_sigma, 1e-6, 100.0)}) {
+    if (!s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitUsage;
+    }
   }
   if (FLAGS_holdout > 0.0 && !FLAGS_verify.empty()) {
     std::cerr << "error: give either --verify or --holdout, not both\n";
     return kExitUsage;
   }
-  if (!(FLAGS_tolerance_mm >= 0.0)) {
-    std::cerr << "error: --tolerance_mm must be >= 0\n";
-    return kExitUsage;
-  }
 
-  for (const std::string& in : {model_path, meas_path, verify_path}) {
-    if (!FLAGS_html_report.empty() && tools::SameFile(FLAGS_html_report, in)) {
-      std::cerr << "error: --html_report would overwrite the input file " << in << "\n";
-      return kExitUsage;
-    }
+  tools::OutputSet outputs;
+  outputs.AddInput("--model", model_path);
+  outputs.AddInput("--measurements", meas_path);
+  outputs.AddInput("--verify", verify_path);
+  outputs.AddOutput("--html_report", FLAGS_html_report);
+  if (Status s = outputs.Check(); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
   }
 
   // ---- Inputs.
@@ -147,30 +159,45 @@ int Run() {
   const RobotModel& nominal = in.nominal;
   const MeasurementSet& identification = in.identification;
   const MeasurementSet& verification = in.verification;
+  if (FLAGS_holdout > 0.0) {
+    if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, identification.size(),
+                                            verification.size());
+        !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitUsage;
+    }
+  }
   // Without held-out data, the comparison is made on the identification rows.
   const bool held_out = !verification.empty();
   const MeasurementSet& check = held_out ? verification : identification;
   const bool use_orientation = identification.has_orientation();
 
-  RobotModel start = nominal;
-  RegistrationReport report;
-  if (FLAGS_register) {
-    if (Status s = RegisterToMeasurements(nominal, identification, &start, &report); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return tools::ExitCodeFor(Termination::kNotIdentifiable);
-    }
-    if (!report.moved) start = nominal;  // already in the base frame, as lpoe_calibrate does
-  }
-
-  // ---- Both solvers, same start, same data.
-  LinearSolverOptions lo;
-  lo.parameterization = kind;
-  lo.use_orientation = use_orientation;
-  CeresSolverOptions co;
-  co.parameterization = kind;
-  co.use_orientation = use_orientation;
-  const CalibrationResult lin = CalibrateLinear(start, identification, lo);
-  const CalibrationResult cer = CalibrateCeres(start, identification, co);
+  // ---- Both solvers through the calibration pipeline: same registration, same start, same data.
+  PipelineOptions options;
+  options.parameterization = kind;
+  options.use_orientation = use_orientation;
+  options.register_frames = FLAGS_register;
+  options.plausibility.noise_sigma = FLAGS_noise_sigma;
+  options.plausibility.joint_values_in_degrees = unit == AngleUnit::kDegrees;
+  // Tight stopping rules: the comparison is of the two solvers' minima, not of their stopping.
+  options.linear.convergence.sd_fraction = 0;
+  options.ceres.convergence.sd_fraction = 0;
+  PipelineOptions ceres_options = options;
+  ceres_options.solver = SolverKind::kCeres;
+  tools::Progress progress(FLAGS_quiet, options.ceres.max_iterations);
+  options.on_iteration = [&progress](const std::string&, const IterationRecord& r) {
+    progress.Iteration("linear", r);
+  };
+  ceres_options.on_iteration = [&progress](const std::string&, const IterationRecord& r) {
+    progress.Iteration("ceres", r);
+  };
+  const PipelineResult lin_run =
+      RunCalibrationPipeline(nominal, identification, verification, options);
+  const PipelineResult cer_run =
+      RunCalibrationPipeline(nominal, identification, verification, ceres_options);
+  const CalibrationResult& lin = lin_run.result;
+  const CalibrationResult& cer = cer_run.result;
+  const RobotModel& start = lin_run.start;
 
   std::cout << "model:          " << model_path << "\n"
             << "identification: " << meas_path << " (" << identification.size() << " rows)\n"
@@ -186,6 +213,14 @@ int Run() {
       std::cerr << "error: " << (r == &lin ? "linear" : "ceres") << " solver: " << r->message
                 << "\n";
       return tools::ExitCodeFor(r->termination);
+    }
+  }
+  for (const PipelineResult* r : {&lin_run, &cer_run}) {
+    if (r->verdict.level == VerdictLevel::kFail && !FLAGS_force) {
+      std::cerr << "error: " << (r == &lin_run ? "linear" : "ceres")
+                << " solver: the calibration is not plausible (" << r->verdict.reason
+                << "); --force compares anyway\n";
+      return tools::kExitImplausible;
     }
   }
 
@@ -227,11 +262,16 @@ int Run() {
   }
 
   if (!FLAGS_html_report.empty()) {
-    tools::ComparisonRun run{model_path, meas_path, in.verification_source, FLAGS_angle_unit,
-                             ParameterizationName(kind), &nominal, &start, &identification,
-                             &verification, FLAGS_register ? &report : nullptr, &lin, &cer,
-                             rows, position_difference <= FLAGS_tolerance_mm};
-    if (Status s = tools::WriteComparisonHtmlReport(FLAGS_html_report, run); !s.ok()) {
+    const tools::ComparisonPage page{model_path, meas_path, in.verification_source,
+                                     FLAGS_angle_unit, ParameterizationName(kind), &cer_run,
+                                     &identification, &verification, rows,
+                                     position_difference <= FLAGS_tolerance_mm};
+    std::string html;
+    std::vector<std::string> written;
+    Status s = tools::ComparisonHtml(page, &html);
+    if (s.ok()) s = outputs.Stage(FLAGS_html_report, html);
+    if (s.ok()) s = outputs.Commit(&written);
+    if (!s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return tools::kExitOutput;
     }

@@ -15,6 +15,7 @@
 #include "lpoe/kinematics.h"
 #include "lpoe/simulation.h"
 #include "lpoe/urdf.h"
+#include "output_files.h"
 #include "tool_common.h"
 
 DEFINE_string(robot, "cobot6",
@@ -31,7 +32,7 @@ DEFINE_double(error_translation, 3.0, "random errors: local-frame translation bo
 DEFINE_double(error_tilt, 0.03, "random errors: joint-axis tilt bound (rad).");
 DEFINE_double(error_zero, 0.03, "random errors: joint-zero offset bound (rad or mm).");
 DEFINE_uint64(error_seed, 7, "Seed of the random errors.");
-DEFINE_int32(count, 100, "Number of configurations.");
+DEFINE_int32(count, 100, "Number of configurations (at most 10^7).");
 DEFINE_int32(verify_count, 0,
              "The last verify_count configurations go to --verify_out instead of --out.");
 DEFINE_double(noise_sigma, 0.0,
@@ -63,20 +64,45 @@ int Run() {
   using tools::kExitOk;
   using tools::kExitOutput;
   using tools::kExitUsage;
+  // 10^7 rows are about 2 GB of CSV text held before writing; more is not a test set.
+  constexpr int kMaxCount = 10000000;
   if (FLAGS_out.empty()) {
     std::cerr << "error: --out is required (see --help)\n";
     return kExitUsage;
   }
-  if (FLAGS_count < 1 || FLAGS_verify_count < 0 || FLAGS_verify_count >= FLAGS_count) {
-    std::cerr << "error: need --count >= 1 and 0 <= --verify_count < --count\n";
+  if (FLAGS_count < 1 || FLAGS_count > kMaxCount) {
+    std::cerr << "error: --count must be in [1, " << kMaxCount << "], got " << FLAGS_count << "\n";
+    return kExitUsage;
+  }
+  if (FLAGS_verify_count < 0 || FLAGS_verify_count >= FLAGS_count) {
+    std::cerr << "error: need 0 <= --verify_count < --count\n";
     return kExitUsage;
   }
   if (FLAGS_verify_count > 0 && FLAGS_verify_out.empty()) {
     std::cerr << "error: --verify_count needs --verify_out\n";
     return kExitUsage;
   }
-  if (!(FLAGS_noise_sigma >= 0) || !(FLAGS_orientation_noise_sigma >= 0)) {
-    std::cerr << "error: noise sigmas must be >= 0\n";
+  for (Status s : {tools::CheckRange("noise_sigma", FLAGS_noise_sigma, 0.0, 1e4),
+                   tools::CheckRange("orientation_noise_sigma", FLAGS_orientation_noise_sigma, 0.0,
+                                     1.0),
+                   tools::CheckRange("error_rotation", FLAGS_error_rotation, 0.0, 1.0),
+                   tools::CheckRange("error_translation", FLAGS_error_translation, 0.0, 1e3),
+                   tools::CheckRange("error_tilt", FLAGS_error_tilt, 0.0, 1.0),
+                   tools::CheckRange("error_zero", FLAGS_error_zero, 0.0, 1e3)}) {
+    if (!s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitUsage;
+    }
+  }
+  // No output may overwrite the model or another output (by file identity).
+  tools::OutputSet files;
+  files.AddInput("--model", FLAGS_model);
+  files.AddOutput("--out", FLAGS_out);
+  if (FLAGS_verify_count > 0) files.AddOutput("--verify_out", FLAGS_verify_out);
+  files.AddOutput("--model_out", FLAGS_model_out);
+  files.AddOutput("--actual_out", FLAGS_actual_out);
+  if (Status s = files.Check(); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
   AngleUnit unit;
@@ -173,12 +199,17 @@ int Run() {
   if (!FLAGS_model_out.empty()) outputs.push_back({FLAGS_model_out, RobotModelToYaml(nominal)});
   if (!FLAGS_actual_out.empty()) outputs.push_back({FLAGS_actual_out, RobotModelToYaml(actual_out)});
   for (const Output& o : outputs) {
-    if (Status s = WriteFileAtomically(o.path, o.text); !s.ok()) {
+    if (Status s = files.Stage(o.path, o.text); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitOutput;
     }
-    std::cout << "wrote " << o.path << "\n";
   }
+  std::vector<std::string> written;
+  if (Status s = files.Commit(&written); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitOutput;
+  }
+  for (const std::string& w : written) std::cout << "wrote " << w << "\n";
   return kExitOk;
 }
 

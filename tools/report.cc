@@ -9,8 +9,11 @@
 #include <nlohmann/json.hpp>
 
 #include "lpoe/kinematics.h"
-#include "lpoe/version.h"
 #include "plot.h"
+
+#ifndef LPOE_VERSION
+#define LPOE_VERSION "unknown"
+#endif
 
 namespace lpoe {
 namespace tools {
@@ -92,58 +95,6 @@ void AddPointResiduals(const RobotModel& before, const RobotModel& after,
   fill(verification, &summary->verification_points);
 }
 
-Verdict ProvisionalVerdict(const RunSummary& s) {
-  char buf[400];
-  if (!s.solvers_agree) {
-    return {"fail", "the linear and the Ceres solver disagree on the predicted positions"};
-  }
-  if (!s.result.converged()) {
-    return {"fail", std::string("the solver did not converge (") +
-                        TerminationName(s.result.termination) + ")"};
-  }
-  const bool held_out = s.has_verification && s.verification_after.count > 0;
-  const ErrorStatistics& after = held_out ? s.verification_after : s.identification_after;
-  const ErrorStatistics& before = held_out ? s.verification_before : s.identification_before;
-  const char* set = held_out ? "verification" : "identification";
-  // Per-axis RMS of the position error: what a tracker's per-axis noise is compared with.
-  const double per_axis = after.norm.rms / std::sqrt(3.0);
-  if (held_out && after.norm.rms >= before.norm.rms) {
-    std::snprintf(buf, sizeof buf,
-                  "the calibration made the verification error worse (RMS %.4f mm before, "
-                  "%.4f mm after)",
-                  before.norm.rms, after.norm.rms);
-    return {"fail", buf};
-  }
-  if (per_axis > 2 * kTrackerNoiseHigh) {
-    std::snprintf(buf, sizeof buf,
-                  "%s error after calibration %.4f mm RMS per axis is above twice the expected "
-                  "tracker noise (%.2f-%.2f mm): non-geometric errors or bad data",
-                  set, per_axis, kTrackerNoiseLow, kTrackerNoiseHigh);
-    return {"check", buf};
-  }
-  if (held_out && after.norm.rms > 1.5 * s.identification_after.norm.rms) {
-    std::snprintf(buf, sizeof buf,
-                  "verification error (RMS %.4f mm) is well above the identification error "
-                  "(%.4f mm): too few poses or over-fitting",
-                  after.norm.rms, s.identification_after.norm.rms);
-    return {"check", buf};
-  }
-  if (!s.outliers.empty()) {
-    std::snprintf(buf, sizeof buf, "%zu point(s) fit worse than the outlier threshold",
-                  s.outliers.size());
-    return {"check", buf};
-  }
-  if (!s.identifiability.warnings.empty()) {
-    return {"check", "identifiability: " + s.identifiability.warnings.front()};
-  }
-  std::snprintf(buf, sizeof buf,
-                "%s error after calibration %.4f mm RMS per axis (max %.4f mm), within twice "
-                "the expected tracker noise (%.2f-%.2f mm)%s",
-                set, per_axis, after.norm.max_abs, kTrackerNoiseLow, kTrackerNoiseHigh,
-                held_out ? "" : "; no verification set");
-  return {held_out ? "pass" : "check", buf};
-}
-
 std::string RunSummaryToJson(const RunSummary& s) { return BuildJson(s).dump(2) + "\n"; }
 
 Status RenderPlotFiles(const RunSummary& s, std::vector<std::pair<std::string, std::string>>* files) {
@@ -193,33 +144,37 @@ Status WritePlotFiles(const std::string& dir, RunSummary* s) {
   return Status::Ok();
 }
 
-Status WriteComparisonHtmlReport(const std::string& path, const ComparisonRun& run) {
+Status ComparisonHtml(const ComparisonPage& page, std::string* html) {
+  const PipelineResult& run = *page.ceres;
   RunSummary s;
   s.tool_name = "lpoe_compare";
-  s.model_path = run.model_path;
-  s.measurements_path = run.measurements_path;
-  s.verification_source = run.verification_source;
-  s.angle_unit = run.angle_unit;
+  s.model_path = page.model_path;
+  s.measurements_path = page.measurements_path;
+  s.verification_source = page.verification_source;
+  s.angle_unit = page.angle_unit;
   s.solver = "ceres";
-  s.parameterization = run.parameterization;
-  s.data_kind = run.ceres->parameterization.data == DataKind::kPose ? "pose" : "position";
-  s.registered = run.registration != nullptr;
-  if (run.registration) s.registration = *run.registration;
-  s.result = *run.ceres;
-  s.identifiability = AnalyzeIdentifiability(*run.nominal, *run.identification, *run.ceres);
-  s.identification_before = PositionErrorStatistics(*run.start, *run.identification);
-  s.identification_after = PositionErrorStatistics(run.ceres->model, *run.identification);
-  s.has_verification = !run.verification->empty();
-  if (s.has_verification) {
-    s.verification_before = PositionErrorStatistics(*run.start, *run.verification);
-    s.verification_after = PositionErrorStatistics(run.ceres->model, *run.verification);
+  s.parameterization = page.parameterization;
+  s.data_kind = run.result.parameterization.data == DataKind::kPose ? "pose" : "position";
+  s.registered = run.registered;
+  s.registration = run.registration;
+  s.result = run.result;
+  s.identifiability = run.identifiability;
+  s.identification_before = run.identification_before;
+  s.identification_after = run.identification_after;
+  s.has_verification = run.has_verification;
+  s.verification_before = run.verification_before;
+  s.verification_after = run.verification_after;
+  s.outliers = run.outliers;
+  s.robust_sigma = run.robust_sigma;
+  s.verdict = run.verdict;
+  if (!page.agree) {
+    s.verdict.level = VerdictLevel::kFail;
+    s.verdict.reason = "the linear and the Ceres solver disagree on the predicted positions";
   }
-  constexpr double kOutlierSigmas = 5.0;  // lpoe_calibrate's default --outlier_threshold
-  s.outliers = FindOutliers(run.ceres->model, *run.identification, kOutlierSigmas, &s.robust_sigma);
-  AddPointResiduals(*run.start, run.ceres->model, *run.identification, *run.verification, &s);
-  s.comparison = run.rows;
-  s.solvers_agree = run.agree;
-  return WriteHtmlReport(path, &s);
+  AddPointResiduals(run.before, run.result.model, *page.identification, *page.verification, &s);
+  s.comparison = page.rows;
+  s.solvers_agree = page.agree;
+  return RunSummaryToHtml(s, html);
 }
 
 Status WriteHtmlReport(const std::string& path, RunSummary* s) {
@@ -236,9 +191,18 @@ namespace {
 Json BuildJson(const RunSummary& s) {
   Json j;
   j["schema"] = "lpoe-calib/report/2";
-  j["tool"] = {{"name", s.tool_name}, {"version", kLpoeVersion}};
-  const Verdict verdict = ProvisionalVerdict(s);
-  j["verdict"] = {{"level", verdict.level}, {"reason", verdict.reason}};
+  j["tool"] = {{"name", s.tool_name}, {"version", LPOE_VERSION}};
+  Json checks = Json::array();
+  for (const VerdictCheck& c : s.verdict.checks) {
+    checks.push_back({{"name", c.name},
+                      {"level", VerdictLevelName(c.level)},
+                      {"value", c.value},
+                      {"limit", c.limit},
+                      {"message", c.message}});
+  }
+  j["verdict"] = {{"level", VerdictLevelName(s.verdict.level)},
+                  {"reason", s.verdict.reason},
+                  {"checks", checks}};
   j["inputs"] = {{"model", s.model_path},
                  {"measurements", s.measurements_path},
                  {"verification", s.verification_source},
@@ -251,6 +215,7 @@ Json BuildJson(const RunSummary& s) {
                  {"termination", TerminationName(s.result.termination)},
                  {"converged", s.result.converged()},
                  {"message", s.result.message},
+                 {"stop_rule", StopRuleName(s.result.stop_rule)},
                  {"iterations", s.result.iterations},
                  {"final_cost", s.result.final_cost}};
   // (No wall time: the same input must give a byte-identical report.)

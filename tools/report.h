@@ -9,6 +9,8 @@
 #include "lpoe/analysis.h"
 #include "lpoe/calibration.h"
 #include "lpoe/io.h"
+#include "lpoe/pipeline.h"
+#include "lpoe/plausibility.h"
 #include "lpoe/registration.h"
 #include "lpoe/statistics.h"
 
@@ -32,12 +34,6 @@ struct PointResidual {
   std::vector<double> q;  // joint values (rad / mm)
 };
 
-// The report's one-line judgement of a run: "pass", "check" or "fail", and why.
-struct Verdict {
-  std::string level;
-  std::string reason;
-};
-
 struct RunSummary {
   std::string model_path, measurements_path, verification_source;
   std::string solver, parameterization, data_kind, angle_unit;
@@ -52,6 +48,7 @@ struct RunSummary {
   double robust_sigma = 0;
   std::vector<Outlier> outliers;
   std::vector<FoldResult> folds;
+  Verdict verdict;  // plausibility of the result (lpoe/plausibility.h)
   std::vector<std::string> outputs;  // files written
 
   // Per-point data (AddPointResiduals) and the model the "before" errors refer to (the nominal
@@ -69,39 +66,24 @@ struct RunSummary {
   bool solvers_agree = true;
 };
 
-// lpoe_compare's run: the Ceres calibration summarized as lpoe_calibrate's (statistics, per-point
-// residuals, identifiability, outliers at 5 robust sigmas) plus the comparison rows.
-struct ComparisonRun {
+// lpoe_compare's page: the Ceres run summarized as lpoe_calibrate's (statistics, per-point
+// residuals, identifiability, outliers, verdict) plus the comparison rows. When the solvers
+// disagree the verdict is "fail" with that reason.
+struct ComparisonPage {
   std::string model_path, measurements_path, verification_source, angle_unit, parameterization;
-  const RobotModel* nominal = nullptr;
-  const RobotModel* start = nullptr;  // the nominal model after registration (when there was one)
+  const PipelineResult* ceres = nullptr;
   const MeasurementSet* identification = nullptr;
   const MeasurementSet* verification = nullptr;
-  const RegistrationReport* registration = nullptr;  // null: not registered
-  const CalibrationResult* linear = nullptr;
-  const CalibrationResult* ceres = nullptr;
   std::vector<RunSummary::ComparisonRow> rows;
   bool agree = true;
 };
-
-// Writes lpoe_compare's HTML report to `path` atomically.
-Status WriteComparisonHtmlReport(const std::string& path, const ComparisonRun& run);
+Status ComparisonHtml(const ComparisonPage& page, std::string* html);
 
 // Fills before_model and the per-point residuals of the identification and verification sets.
 void AddPointResiduals(const RobotModel& before, const RobotModel& after,
                        const MeasurementSet& identification, const MeasurementSet& verification,
                        RunSummary* summary);
 
-// Expected laser-tracker noise per axis (mm): the range a good geometric calibration reaches.
-constexpr double kTrackerNoiseLow = 0.02;
-constexpr double kTrackerNoiseHigh = 0.05;
-
-// A provisional verdict until the plausibility checks of the library pipeline provide one:
-// fail when the solver did not converge or the calibration made the held-out error worse; check
-// when the per-axis RMS error after calibration exceeds twice the expected tracker noise, the
-// held-out error is much larger than the identification error, or there are outliers or
-// identifiability warnings; pass otherwise.
-Verdict ProvisionalVerdict(const RunSummary& summary);
 
 // Pretty-printed JSON, numbers with full precision, keys in a fixed order.
 std::string RunSummaryToJson(const RunSummary& summary);

@@ -146,6 +146,33 @@ bool SameFile(const std::string& a, const std::string& b) {
   return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
 }
 
+Status CheckRange(const char* name, double value, double lo, double hi, bool lo_open) {
+  const bool ok = (lo_open ? value > lo : value >= lo) && value <= hi;
+  if (ok) return Status::Ok();
+  std::ostringstream os;
+  os << "--" << name << " must be in " << (lo_open ? "(" : "[") << lo << ", " << hi << "], got "
+     << value;
+  return Status::Error(os.str());
+}
+
+Status CheckHoldoutSplit(double holdout, int identification_rows, int verification_rows) {
+  std::ostringstream os;
+  if (verification_rows == 0) {
+    os << "--holdout=" << holdout << " holds out no row of the " << identification_rows
+       << ": use a larger fraction, or --verify";
+    return Status::Error(os.str());
+  }
+  // Registration's rigid fit needs three points, and every solver needs more rows than that.
+  constexpr int kMinIdentificationRows = 10;
+  if (identification_rows < kMinIdentificationRows) {
+    os << "--holdout=" << holdout << " leaves only " << identification_rows
+       << " identification row(s) of " << identification_rows + verification_rows
+       << ": use a smaller fraction";
+    return Status::Error(os.str());
+  }
+  return Status::Ok();
+}
+
 int ExitCodeFor(Termination t) {
   switch (t) {
     case Termination::kConverged:

@@ -25,7 +25,14 @@ enum ExitCode {
   kExitNumerical = 5,        // non-finite values or a step that cannot reduce the cost
   kExitOutput = 6,           // an output file could not be written
   kExitDisagree = 7,         // lpoe_compare: the solvers disagree
+  kExitImplausible = 8,      // the result failed the plausibility verdict (lpoe/plausibility.h)
 };
+
+// "--name must be in [lo, hi], got v" unless lo <= value <= hi (NaN fails); `lo_open`: lo < value.
+Status CheckRange(const char* name, double value, double lo, double hi, bool lo_open = false);
+
+// A --holdout split that leaves the verification set empty or too few identification rows.
+Status CheckHoldoutSplit(double holdout, int identification_rows, int verification_rows);
 
 // Parses flags; on --help / --helpfull prints the usage message and this tool's flags only and
 // exits 0. Initializes glog to stderr.

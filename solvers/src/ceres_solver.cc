@@ -47,6 +47,30 @@ std::vector<JointTermValues> JointValuesFromBlocks(const Parameterization& p,
   }
   return JointValuesOf(p, all);
 }
+// The stopping rules of convergence.h on Ceres's accepted steps: the step is the difference of the
+// models before and after it in the solved directions, the standard deviations come from J^T J at
+// the start (`H`, solved columns only; empty: unknown) and the current cost.
+struct ConvergenceWatch {
+  ConvergenceOptions options;
+  const Parameterization* p = nullptr;
+  std::vector<int> columns;  // solved parameters (used frames) in p's order
+  Eigen::MatrixXd H;
+  long dof = 0;
+  ConvergenceDecision decision;
+
+  bool Stop(const RobotModel& before, const RobotModel& after, double cost, double previous_cost) {
+    const Eigen::VectorXd all = ParameterDifference(*p, before, after);
+    ConvergenceState state;
+    state.step.resize(static_cast<Eigen::Index>(columns.size()));
+    for (size_t k = 0; k < columns.size(); ++k) state.step(k) = all(columns[k]);
+    if (H.size() > 0) state.standard_deviation = StandardDeviations(H, cost, dof);
+    state.parameter_scale = ParameterScale(after);
+    state.cost = cost;
+    state.previous_cost = previous_cost;
+    decision = TestConvergence(options, state);
+    return decision.converged();
+  }
+};
 
 // Records the history (IterationRecord per accepted step) with the state of the blocks, which Ceres
 // updates every iteration (update_state_every_iteration).
@@ -56,8 +80,11 @@ class HistoryCallback : public ceres::IterationCallback {
                   const std::vector<Block>& blocks, const std::vector<bool>& used,
                   const std::vector<std::vector<double>>& joint_blocks, double cost_scale,
                   std::vector<IterationRecord>* history,
-                  std::function<void(const IterationRecord&)> on_iteration)
-      : base_(base),
+                  std::function<void(const IterationRecord&)> on_iteration,
+                  ConvergenceWatch* watch)
+      : watch_(watch),
+        previous_(base),
+        base_(base),
         data_(data),
         p_(p),
         blocks_(blocks),
@@ -69,7 +96,7 @@ class HistoryCallback : public ceres::IterationCallback {
 
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
     if (summary.iteration > 0 && !summary.step_is_successful) return ceres::SOLVER_CONTINUE;
-    const RobotModel model = ModelFromBlocks(base_, blocks_, used_);
+    RobotModel model = ModelFromBlocks(base_, blocks_, used_);
     const ErrorStatistics stats =
         p_.joint_blocks.empty()
             ? PositionErrorStatistics(model, data_)
@@ -82,12 +109,19 @@ class HistoryCallback : public ceres::IterationCallback {
     r.max_error = stats.norm.max_abs;
     r.mean_error = stats.norm.mean_abs;
     r.step_norm = summary.iteration > 0 ? summary.step_norm : 0.0;
+    const double previous_cost = history_->empty() ? -1.0 : history_->back().cost;
     history_->push_back(r);
     if (on_iteration_) on_iteration_(r);
+    if (summary.iteration > 0 && watch_->Stop(previous_, model, r.cost, previous_cost)) {
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
+    previous_ = std::move(model);
     return ceres::SOLVER_CONTINUE;
   }
 
  private:
+  ConvergenceWatch* watch_;
+  RobotModel previous_;
   const RobotModel& base_;
   const MeasurementSet& data_;
   const Parameterization& p_;
@@ -145,6 +179,9 @@ Status ValidateCeresSolverOptions(const CeresSolverOptions& options) {
   }
   if (options.max_iterations < 1) return Status::Error("max_iterations must be >= 1");
   if (options.num_threads < 1) return Status::Error("num_threads must be >= 1");
+  if (const std::string e = ValidateConvergenceOptions(options.convergence); !e.empty()) {
+    return Status::Error(e);
+  }
   return Status::Ok();
 }
 
@@ -181,6 +218,9 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   const Parameterization& p = result.parameterization;
   const int per_row = options.use_orientation ? 6 : 3;
   int identifiable = 0;  // parameters the data must determine (identifiable directions, used frames)
+
+  ConvergenceWatch watch;
+  watch.options = options.convergence;
 
   // ---- Parameter blocks: every joint frame, and the tools that some row measures.
   const int n = nominal.num_joints();
@@ -241,6 +281,16 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
       return finish(Termination::kNumericalFailure,
                     "non-finite residuals or Jacobian at the nominal model (check the input values)");
     }
+    watch.p = &result.parameterization;
+    watch.columns = columns;
+    if (full) {  // the step is measured in p's (full) coordinates of the solved frames
+      watch.columns.clear();
+      for (int f = 0; f < F; ++f) {
+        for (int c = 0; used[f] && c < p.basis[f].cols(); ++c) watch.columns.push_back(p.offset[f] + c);
+      }
+    }
+    watch.dof = static_cast<long>(per_row) * data.size() - identifiable;
+    if (!full) watch.H = H;
     const internal::Identifiability id = internal::Analyze(H);
     result.rank = id.rank;
     result.condition_number = id.condition;
@@ -316,7 +366,7 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   solver_options.update_state_every_iteration = true;
   const double cost_scale = options.sigma * options.sigma;
   HistoryCallback callback(nominal, data, p, blocks, used, joint_blocks, cost_scale,
-                           &result.history, options.on_iteration);
+                           &result.history, options.on_iteration, &watch);
   solver_options.callbacks.push_back(&callback);
 
   ceres::Solver::Summary summary;
@@ -329,6 +379,10 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   result.final_cost = summary.final_cost * cost_scale;
   const Termination termination = MapTermination(summary.termination_type);
   std::string message = "ceres: " + summary.message;
+  if (summary.termination_type == ceres::USER_SUCCESS && watch.decision.converged()) {
+    result.stop_rule = watch.decision.rule;
+    message = "ceres: " + watch.decision.message;
+  }
   if (termination == Termination::kNumericalFailure) {
     return finish(termination, message);
   }

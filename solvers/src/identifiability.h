@@ -56,6 +56,11 @@ Parameterization SolverParameterization(const RobotModel& nominal, const Measure
                                         const std::vector<std::shared_ptr<const JointTerm>>& terms,
                                         double tolerance);
 
+// Removes the directions of tools that no row of `data` measures from `p` (listed in
+// p->unidentifiable with the reason): they keep their given frames (defined in linear_solver.cc).
+void LeaveOutUnmeasuredTools(const RobotModel& model, const MeasurementSet& data,
+                             Parameterization* p);
+
 // The messages both solvers give when refusing data.
 std::string TooFewEquationsMessage(int rows, long equations, int identifiable, int per_row);
 std::string NotIdentifiableMessage(const Identifiability& id, int identifiable,

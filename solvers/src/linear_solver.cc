@@ -25,6 +25,49 @@ constexpr double kCostIncreaseTolerance = 1e-10;
 
 using Linearization = internal::NormalEquations;
 
+}  // namespace
+
+namespace internal {
+
+void LeaveOutUnmeasuredTools(const RobotModel& model, const MeasurementSet& data,
+                             Parameterization* p) {
+  const int n = model.num_joints();
+  std::vector<bool> measured(model.num_tools(), false);
+  for (int r = 0; r < data.size(); ++r) measured[data.target(r)] = true;
+  bool any = false;
+  for (int t = 0; t < model.num_tools(); ++t) any = any || !measured[t];
+  if (!any) return;
+  Parameterization out = *p;
+  out.parameters.clear();
+  out.num_parameters = 0;
+  for (size_t f = 0; f < p->basis.size(); ++f) {
+    const bool skip = static_cast<int>(f) >= n && !measured[f - n];
+    for (int c = 0; c < p->basis[f].cols(); ++c) {
+      Direction d = p->parameters[p->offset[f] + c];
+      if (skip) {
+        d.reason = "tool never measured in these data: not identified, kept as given";
+        out.unidentifiable.push_back(d);
+      } else {
+        out.parameters.push_back(d);
+      }
+    }
+    if (skip) out.basis[f] = Eigen::MatrixXd::Zero(6, 0);
+    out.offset[f] = out.num_parameters;
+    out.num_parameters += static_cast<int>(out.basis[f].cols());
+  }
+  for (JointBlock& b : out.joint_blocks) {  // after the frames, shifted
+    const int old_offset = b.offset;
+    b.offset = out.num_parameters;
+    for (int c = 0; c < b.basis.cols(); ++c) out.parameters.push_back(p->parameters[old_offset + c]);
+    out.num_parameters += static_cast<int>(b.basis.cols());
+  }
+  *p = std::move(out);
+}
+
+}  // namespace internal
+
+namespace {
+
 Linearization Linearize(const RobotModel& model, const Eigen::VectorXd& joint_state,
                         const MeasurementSet& data, const Parameterization& p,
                         const LinearSolverOptions& options, bool stack) {
@@ -112,6 +155,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
                            nominal, data, options.parameterization, options.use_orientation,
                            options.orientation_weight, options.joint_terms,
                            options.joint_term_tolerance);
+  if (!override_basis) internal::LeaveOutUnmeasuredTools(nominal, data, &result.parameterization);
   const Parameterization& p = result.parameterization;
   const bool full = !override_basis && options.parameterization == ParameterizationKind::kFull;
   // Unknowns the data must determine: the identifiable count, whichever parameterization is solved.
@@ -151,6 +195,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     if (!full) return Analyze(l.H);
     Parameterization pi = MakeParameterization(at, ParameterizationKind::kIdentifiable, kind);
     CopyJointBlocks(p, &pi);
+    internal::LeaveOutUnmeasuredTools(at, data, &pi);
     return Analyze(Linearize(at, joint_state, data, pi, options, false).H);
   };
   {
@@ -163,6 +208,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       if (full) {
         pi = MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind);
         CopyJointBlocks(p, &pi);
+        internal::LeaveOutUnmeasuredTools(nominal, data, &pi);
       }
       return finish(Termination::kNotIdentifiable,
                     internal::NotIdentifiableMessage(id, identifiable,
@@ -170,6 +216,10 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     }
   }
 
+  ConvergenceOptions stop = options.convergence;
+  stop.step_tolerance = options.step_tolerance;
+  const long dof = static_cast<long>(per_row) * data.size() - identifiable;
+  double previous_cost = -1;
   for (int it = 1; it <= options.max_iterations; ++it) {
     const Eigen::VectorXd x = SolveStep(lin, full, options);
     if (!x.allFinite()) {
@@ -182,13 +232,20 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       LOG(INFO) << "iteration " << it - 1 << ": max " << lin.max_error << " mm, mean "
                 << lin.mean_error << " mm, |x| " << step;
     }
-    if (step < options.step_tolerance) {
+    ConvergenceState state;
+    state.step = x;
+    if (!full) state.standard_deviation = StandardDeviations(lin.H, lin.cost, dof);
+    state.parameter_scale = ParameterScale(model);
+    state.cost = lin.cost;
+    state.previous_cost = previous_cost;
+    const ConvergenceDecision decision = TestConvergence(stop, state);
+    if (decision.converged()) {
+      result.stop_rule = decision.rule;
       result.model = model;
       result.joint_terms = joint_values();
       result.iterations = it - 1;
       result.final_cost = lin.cost;
       if (options.compute_covariance && !full) {
-        const long dof = static_cast<long>(per_row) * data.size() - p.num_parameters;
         if (dof > 0) {
           const double s2 = 2.0 * lin.cost / static_cast<double>(dof);
           const Eigen::VectorXd d = ColumnScale(lin.H);
@@ -197,7 +254,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
           result.covariance = s2 * (d.asDiagonal() * inv * d.asDiagonal());
         }
       }
-      return finish(Termination::kConverged, "converged: |x| below the step tolerance");
+      return finish(Termination::kConverged, decision.message);
     }
     // Gauss-Newton step with backtracking: a step that raises the cost is halved.
     bool accepted = false;
@@ -210,6 +267,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       if (next.finite && next.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
         model = std::move(candidate);
         joint_state = candidate_joints;
+        previous_cost = lin.cost;
         lin = std::move(next);
         accepted = true;
       }

@@ -2,8 +2,13 @@
 
 #include <cmath>
 #include <sstream>
+#include <string>
+#include <vector>
 
+#include <Eigen/QR>
 #include <Eigen/SVD>
+
+#include "identifiability.h"
 
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"
@@ -48,6 +53,46 @@ Parameterization BaseAndToolParameterization(const RobotModel& model) {
     }
     out.num_parameters += static_cast<int>(basis.cols());
     out.basis.push_back(basis);
+  }
+  return out;
+}
+
+// The directions of `p` that the data determine: a rank-revealing (column-pivoted) QR of the
+// column-scaled J^T J keeps a maximal independent set, in pivot order; the others (a tool no row
+// measures, the base's rotation about and translation along an axis that every joint shares, as on
+// SCARA-like, planar and one-joint robots) are left at their values for the full calibration.
+// `dropped` lists their names.
+Parameterization DeterminedDirections(const RobotModel& model, const MeasurementSet& data,
+                                      const Parameterization& p, std::vector<std::string>* dropped) {
+  const Eigen::MatrixXd H = internal::NormalMatrix(model, data, p, false, 1.0);
+  const Eigen::VectorXd d = internal::ColumnScale(H);
+  const Eigen::MatrixXd Hs = d.asDiagonal() * H * d.asDiagonal();
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(Hs);
+  // J^T J squares the condition number: 1e-12 here is 1e-6 on the Jacobian's singular values.
+  qr.setThreshold(1e-12);
+  std::vector<bool> keep(p.num_parameters, false);
+  for (Eigen::Index k = 0; k < qr.rank(); ++k) keep[qr.colsPermutation().indices()(k)] = true;
+  for (int k = 0; k < p.num_parameters; ++k) {
+    if (!(d(k) > 0) || !std::isfinite(d(k))) keep[k] = false;  // a column no row sees
+  }
+  Parameterization out = p;
+  out.parameters.clear();
+  out.num_parameters = 0;
+  for (size_t f = 0; f < p.basis.size(); ++f) {
+    std::vector<int> cols;
+    for (int c = 0; c < p.basis[f].cols(); ++c) {
+      if (keep[p.offset[f] + c]) {
+        cols.push_back(c);
+        out.parameters.push_back(p.parameters[p.offset[f] + c]);
+      } else if (dropped) {
+        dropped->push_back(p.parameters[p.offset[f] + c].name);
+      }
+    }
+    Eigen::MatrixXd basis(6, static_cast<Eigen::Index>(cols.size()));
+    for (size_t c = 0; c < cols.size(); ++c) basis.col(c) = p.basis[f].col(cols[c]);
+    out.basis[f] = basis;
+    out.offset[f] = out.num_parameters;
+    out.num_parameters += static_cast<int>(cols.size());
   }
   return out;
 }
@@ -121,7 +166,9 @@ Status RegisterToMeasurements(const RobotModel& nominal, const MeasurementSet& a
   r.rms_rigid = Rms(model, data);
 
   // Stage 2: base frame and tool points with the nominal joints.
-  const Parameterization p = BaseAndToolParameterization(model);
+  std::vector<std::string> dropped;
+  const Parameterization p =
+      DeterminedDirections(model, data, BaseAndToolParameterization(model), &dropped);
   LinearSolverOptions options;
   options.parameterization_override = &p;
   options.compute_covariance = false;
@@ -140,6 +187,10 @@ Status RegisterToMeasurements(const RobotModel& nominal, const MeasurementSet& a
   os << "registration: rigid fit moved the base by " << T.t.norm() << " mm and " << angle
      << " rad; rms error " << r.rms_nominal << " mm (nominal) -> " << r.rms_rigid
      << " mm (rigid) -> " << r.rms_base_tools << " mm (base and tools)";
+  if (!dropped.empty()) {
+    os << "; not determined by these data, left for the full calibration:";
+    for (const std::string& name : dropped) os << " " << name;
+  }
   r.message = os.str();
   *registered = std::move(model);
   return Status::Ok();

@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 
 #include "lpoe/joint_term.h"
+#include "lpoe/convergence.h"
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/robot_model.h"
@@ -53,6 +54,9 @@ struct CalibrationResult {
   std::vector<IterationRecord> history;
   int iterations = 0;
   double final_cost = 0;
+  // The rule of convergence.h that ended the iterations (kNone unless converged by it; a Ceres
+  // criterion of its own also leaves kNone).
+  StopRule stop_rule = StopRule::kNone;
 
   // Identifiability of the linearized problem at the nominal model (column-scaled Jacobian).
   int rank = 0;

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "lpoe/calibration.h"
+#include "lpoe/convergence.h"
 #include "lpoe/status.h"
 
 namespace lpoe {
@@ -62,6 +63,10 @@ struct CeresSolverOptions {
   double function_tolerance = 1e-15;
   double gradient_tolerance = 1e-15;
   double parameter_tolerance = 1e-13;
+  // The stopping rules that fit large-residual data (convergence.h), tested after every accepted
+  // step on the step just taken (standard deviations from J^T J at the start model and the current
+  // cost); the first that holds ends the solve as converged.
+  ConvergenceOptions convergence;
   // Refuse data whose column-scaled Jacobian (identifiable basis, nominal model) has a larger
   // condition number, as CalibrateLinear does.
   double max_condition_number = 1e8;

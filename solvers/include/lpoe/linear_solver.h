@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "lpoe/calibration.h"
+#include "lpoe/convergence.h"
 
 namespace lpoe {
 
@@ -31,8 +32,11 @@ struct LinearSolverOptions {
   // orientation error of 1 rad counts as `orientation_weight` mm. Default: 1000 mm per rad (a 1 m arm).
   double orientation_weight = 1000.0;
   int max_iterations = 30;
-  // Stop when ||x|| < step_tolerance (x mixes rad and mm; both are small near convergence).
+  // Stop when ||x|| < step_tolerance (x mixes rad and mm; both are small near convergence), or on
+  // one of the rules of convergence.h that fit large-residual data (convergence.step_tolerance is
+  // not used: this field is).
   double step_tolerance = 1e-10;
+  ConvergenceOptions convergence;
   // Refuse the data when the condition number of the column-scaled Jacobian exceeds this: the
   // parameters are then not determined by the data (degenerate or too few poses).
   double max_condition_number = 1e8;

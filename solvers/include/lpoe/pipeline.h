@@ -1,0 +1,89 @@
+// The calibration workflow as one library call, shared by lpoe_calibrate and lpoe_compare (and any
+// program that calibrates): register the model to the measurement frame, solve, analyse
+// (identifiability, errors before/after, outliers), cross-validate, and judge plausibility. It
+// writes nothing: the caller writes its outputs once the final status (termination and verdict) is
+// known, so that a failed run leaves no output behind.
+#ifndef LPOE_PIPELINE_H_
+#define LPOE_PIPELINE_H_
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "lpoe/analysis.h"
+#include "lpoe/calibration.h"
+#include "lpoe/ceres_solver.h"
+#include "lpoe/linear_solver.h"
+#include "lpoe/plausibility.h"
+#include "lpoe/registration.h"
+#include "lpoe/statistics.h"
+
+namespace lpoe {
+
+enum class SolverKind { kLinear, kCeres };
+
+struct PipelineOptions {
+  SolverKind solver = SolverKind::kLinear;
+  // The solvers' options; their parameterization and use_orientation are set from the two fields
+  // below, their on_iteration from `on_iteration`.
+  LinearSolverOptions linear;
+  CeresSolverOptions ceres;
+  ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
+  bool use_orientation = false;
+  // Stages 1-2 of registration.h first (skipped when the data are in the base frame already).
+  bool register_frames = true;
+  int kfold = 0;  // >= 2: k-fold cross-validation on the identification rows
+  uint64_t split_seed = 1;
+  double outlier_threshold = 5.0;
+  PlausibilityOptions plausibility;
+  // Progress: the stage ("calibrating", "fold 2") and each iteration's record.
+  std::function<void(const std::string& stage, const IterationRecord&)> on_iteration;
+  // Progress: called when a stage without iterations starts ("registering", "analysing").
+  std::function<void(const std::string& stage)> on_stage;
+};
+
+struct FoldSummary {
+  int fold = 0;  // 1-based
+  int identification_rows = 0;
+  Termination termination = Termination::kNumericalFailure;
+  ErrorStatistics verification_after;
+};
+
+struct PipelineResult {
+  bool registered = false;  // registration was run (options.register_frames)
+  RegistrationReport registration;
+  // The nominal model in the measurement frame (rigid fit folded into the base when registration
+  // moved it): "before calibration".
+  RobotModel before;
+  RobotModel start;  // what the solver started from
+  CalibrationResult result;
+  // The following are filled unless result.termination is kNotIdentifiable.
+  IdentifiabilityReport identifiability;
+  ErrorStatistics identification_before, identification_after;
+  bool has_verification = false;
+  ErrorStatistics verification_before, verification_after;
+  double robust_sigma = 0;
+  std::vector<Outlier> outliers;
+  std::vector<FoldSummary> folds;
+  ErrorStatistics folds_pooled;
+  Verdict verdict;  // of a converged result
+};
+
+// Registration then the chosen solver on `data` (no analysis). `registration` and `before` may be
+// null. A registration that fails returns kNotIdentifiable with its message.
+CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementSet& data,
+                                   const PipelineOptions& options, const std::string& stage,
+                                   RegistrationReport* registration, RobotModel* before,
+                                   RobotModel* start);
+
+// The whole workflow. `verification` may be empty. Cross-validation and the verdict run only when
+// the main calibration converged.
+PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
+                                      const MeasurementSet& identification,
+                                      const MeasurementSet& verification,
+                                      const PipelineOptions& options);
+
+}  // namespace lpoe
+
+#endif  // LPOE_PIPELINE_H_

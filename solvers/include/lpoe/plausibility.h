@@ -1,0 +1,65 @@
+// Is a calibration result plausible? A least-squares fit "converges" on data that do not fit the
+// model at all (positions in metres, degrees read as radians, swapped columns, random points): the
+// verdict compares what the fit did with what a calibration can do.
+//   residual:    per-axis RMS after calibration against the expected noise, sqrt(sigma^2 + g^2) with
+//                sigma the tracker noise (--noise_sigma) and g = kNonGeometricMm what a geometric
+//                model leaves on a real robot (DESIGN.md section 6): check above 2x, fail above 10x;
+//   scale:       spread of the measured points about their centroid against the spread of the
+//                model's points at the same joint values (rigid-invariant): metres, micrometres or a
+//                scale factor show here; check beyond 5 %, fail beyond 20 %;
+//   joint units: revolute values beyond 2 pi read as radians look like degrees (fail beyond 4 pi);
+//                values all within +-2 pi read as degrees look like radians (check);
+//   link lengths: | |t_cal| - |t_start| | / max(|t_start|, 100 mm) of joint frames 2..n: check above
+//                3 %, fail above 10 %; tool offsets: check above 10 mm, fail above 50 mm;
+//   rotations:   angle of R_start^T R_cal of joint frames 2..n and tools (a joint offset shows
+//                here, added to tilts of the axes that the next frame absorbs; the paper's own
+//                errors reach 4.4 degrees): check above 6 degrees, fail above 15 degrees.
+// The first frame (the base) is left out: registration moves it by design.
+#ifndef LPOE_PLAUSIBILITY_H_
+#define LPOE_PLAUSIBILITY_H_
+
+#include <string>
+#include <vector>
+
+#include "lpoe/measurements.h"
+#include "lpoe/robot_model.h"
+#include "lpoe/statistics.h"
+
+namespace lpoe {
+
+enum class VerdictLevel { kPass, kCheck, kFail };
+const char* VerdictLevelName(VerdictLevel level);  // "pass" | "check" | "fail"
+
+struct VerdictCheck {
+  std::string name;     // residual | scale | joint_units | link_lengths | rotations
+  VerdictLevel level = VerdictLevel::kPass;
+  double value = 0;     // the figure tested (units in the message)
+  double limit = 0;     // the check (not fail) limit of that figure
+  std::string message;  // one line
+};
+
+struct Verdict {
+  VerdictLevel level = VerdictLevel::kPass;
+  std::string reason;  // the message of the first worst check
+  std::vector<VerdictCheck> checks;
+};
+
+// What a geometric calibration leaves per axis on a real robot (mm): compliance, gear errors.
+constexpr double kNonGeometricMm = 0.3;
+// A typical laser tracker's noise per axis (mm), the default of --noise_sigma.
+constexpr double kTypicalTrackerNoiseMm = 0.03;
+
+struct PlausibilityOptions {
+  double noise_sigma = kTypicalTrackerNoiseMm;  // mm per axis
+  bool joint_values_in_degrees = false;         // the file's revolute values were degrees
+};
+
+// `start`: the model the solver started from (nominal, registered when registration moved it);
+// `calibrated`: its result; `after`: errors of `calibrated` on `data`.
+Verdict AssessPlausibility(const RobotModel& start, const RobotModel& calibrated,
+                           const MeasurementSet& data, const ErrorStatistics& after,
+                           const PlausibilityOptions& options);
+
+}  // namespace lpoe
+
+#endif  // LPOE_PLAUSIBILITY_H_

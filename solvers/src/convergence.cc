@@ -1,0 +1,104 @@
+#include "lpoe/convergence.h"
+
+#include <cmath>
+#include <cstdio>
+
+#include <Eigen/Cholesky>
+
+namespace lpoe {
+
+const char* StopRuleName(StopRule rule) {
+  switch (rule) {
+    case StopRule::kNone:
+      return "none";
+    case StopRule::kAbsoluteStep:
+      return "absolute step";
+    case StopRule::kStatisticalStep:
+      return "step below the standard deviations";
+    case StopRule::kRelativeStep:
+      return "step relative to the parameters";
+    case StopRule::kCost:
+      return "relative cost change";
+  }
+  return "unknown";
+}
+
+double ParameterScale(const RobotModel& model) {
+  double s = 0;
+  for (const Joint& j : model.joints) s += j.origin.t.squaredNorm() + 1.0;
+  for (const Tool& t : model.tools) s += t.origin.t.squaredNorm() + 1.0;
+  return std::sqrt(s);
+}
+
+Eigen::VectorXd StandardDeviations(const Eigen::MatrixXd& H, double cost, long dof) {
+  if (dof <= 0 || H.rows() == 0 || !(cost >= 0) || !std::isfinite(cost)) return {};
+  // Column scaling keeps the factorization accurate (rotation columns carry ~10^3 mm lever arms).
+  Eigen::VectorXd d(H.rows());
+  for (Eigen::Index k = 0; k < H.rows(); ++k) {
+    d(k) = H(k, k) > 0 ? 1.0 / std::sqrt(H(k, k)) : 1.0;
+  }
+  const Eigen::MatrixXd Hs = d.asDiagonal() * H * d.asDiagonal();
+  Eigen::LLT<Eigen::MatrixXd> llt(Hs);
+  if (llt.info() != Eigen::Success) return {};
+  const Eigen::MatrixXd inv = llt.solve(Eigen::MatrixXd::Identity(H.rows(), H.cols()));
+  const double s2 = 2.0 * cost / static_cast<double>(dof);
+  Eigen::VectorXd sd(H.rows());
+  for (Eigen::Index k = 0; k < H.rows(); ++k) {
+    sd(k) = d(k) * std::sqrt(std::max(0.0, s2 * inv(k, k)));
+  }
+  if (!sd.allFinite()) return {};
+  return sd;
+}
+
+ConvergenceDecision TestConvergence(const ConvergenceOptions& o, const ConvergenceState& s) {
+  ConvergenceDecision d;
+  d.step_norm = s.step.norm();
+  char buf[256];
+  if (s.standard_deviation.size() == s.step.size() && s.step.size() > 0 &&
+      (s.standard_deviation.array() > 0).all()) {
+    d.step_in_sd = (s.step.array().abs() / s.standard_deviation.array()).maxCoeff();
+  }
+  if (d.step_norm < o.step_tolerance) {
+    d.rule = StopRule::kAbsoluteStep;
+    std::snprintf(buf, sizeof(buf), "converged: |x| = %.3g below the step tolerance %.3g",
+                  d.step_norm, o.step_tolerance);
+  } else if (d.step_in_sd > 0 && d.step_in_sd < o.sd_fraction) {
+    d.rule = StopRule::kStatisticalStep;
+    std::snprintf(buf, sizeof(buf),
+                  "converged: the step (|x| = %.3g) is at most %.3g standard deviations of every "
+                  "parameter (tolerance %.3g)",
+                  d.step_norm, d.step_in_sd, o.sd_fraction);
+  } else if (d.step_norm < o.relative_step_tolerance * s.parameter_scale) {
+    d.rule = StopRule::kRelativeStep;
+    std::snprintf(buf, sizeof(buf),
+                  "converged: |x| = %.3g is below %.3g of the parameters' scale %.6g",
+                  d.step_norm, o.relative_step_tolerance, s.parameter_scale);
+  } else if (s.previous_cost >= 0 && s.cost > 0 &&
+             s.previous_cost - s.cost <= o.relative_cost_tolerance * s.cost) {
+    d.rule = StopRule::kCost;
+    std::snprintf(buf, sizeof(buf),
+                  "converged: the last step changed the cost by %.3g relative (tolerance %.3g; "
+                  "|x| = %.3g)",
+                  (s.previous_cost - s.cost) / s.cost, o.relative_cost_tolerance, d.step_norm);
+  } else {
+    return d;
+  }
+  d.message = buf;
+  return d;
+}
+
+std::string ValidateConvergenceOptions(const ConvergenceOptions& o) {
+  if (!(o.step_tolerance > 0 && o.step_tolerance <= 1)) {
+    return "step_tolerance must be in (0, 1] (mm or rad)";
+  }
+  if (!(o.sd_fraction >= 0 && o.sd_fraction < 1)) return "sd_fraction must be in [0, 1)";
+  if (!(o.relative_step_tolerance >= 0 && o.relative_step_tolerance < 1)) {
+    return "relative_step_tolerance must be in [0, 1)";
+  }
+  if (!(o.relative_cost_tolerance >= 0 && o.relative_cost_tolerance < 1)) {
+    return "relative_cost_tolerance must be in [0, 1)";
+  }
+  return "";
+}
+
+}  // namespace lpoe

@@ -1,0 +1,103 @@
+#include "lpoe/pipeline.h"
+
+#include <utility>
+
+namespace lpoe {
+
+CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementSet& data,
+                                   const PipelineOptions& options, const std::string& stage,
+                                   RegistrationReport* registration, RobotModel* before,
+                                   RobotModel* start_out) {
+  RobotModel start = nominal;
+  if (before) *before = nominal;
+  if (options.register_frames) {
+    if (options.on_stage) options.on_stage("registering");
+    RegistrationReport local;
+    RegistrationReport& rep = registration ? *registration : local;
+    if (Status s = RegisterToMeasurements(nominal, data, &start, &rep); !s.ok()) {
+      CalibrationResult failed;
+      failed.model = nominal;
+      failed.termination = Termination::kNotIdentifiable;
+      failed.message = s.message();
+      if (start_out) *start_out = nominal;
+      return failed;
+    }
+    if (!rep.moved) {
+      // The data are in the base frame already: start from the nominal model, as the paper does.
+      start = nominal;
+    } else if (before) {
+      before->joints[0].origin = rep.T_measurement_base * nominal.joints[0].origin;
+    }
+  }
+  if (start_out) *start_out = start;
+  std::function<void(const IterationRecord&)> progress;
+  if (options.on_iteration) {
+    progress = [&options, &stage](const IterationRecord& r) { options.on_iteration(stage, r); };
+  }
+  if (options.solver == SolverKind::kCeres) {
+    CeresSolverOptions o = options.ceres;
+    o.parameterization = options.parameterization;
+    o.use_orientation = options.use_orientation;
+    o.on_iteration = progress;
+    return CalibrateCeres(start, data, o);
+  }
+  LinearSolverOptions o = options.linear;
+  o.parameterization = options.parameterization;
+  o.use_orientation = options.use_orientation;
+  o.on_iteration = progress;
+  return CalibrateLinear(start, data, o);
+}
+
+PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
+                                      const MeasurementSet& identification,
+                                      const MeasurementSet& verification,
+                                      const PipelineOptions& options) {
+  PipelineResult out;
+  out.registered = options.register_frames;
+  out.result = SolveCalibration(nominal, identification, options, "calibrating", &out.registration,
+                                &out.before, &out.start);
+  const CalibrationResult& result = out.result;
+  if (result.termination == Termination::kNotIdentifiable) return out;
+
+  if (options.on_stage) options.on_stage("analysing");
+  out.identifiability = AnalyzeIdentifiability(nominal, identification, result);
+  out.identification_before = PositionErrorStatistics(out.before, identification);
+  out.identification_after = PositionErrorStatistics(result.model, identification);
+  if (!verification.empty()) {
+    out.has_verification = true;
+    out.verification_before = PositionErrorStatistics(out.before, verification);
+    out.verification_after = PositionErrorStatistics(result.model, verification);
+  }
+  out.outliers = FindOutliers(result.model, identification, options.outlier_threshold,
+                              &out.robust_sigma);
+  if (!result.converged()) return out;
+
+  out.verdict = AssessPlausibility(out.start, result.model, identification,
+                                   out.identification_after, options.plausibility);
+
+  if (options.kfold >= 2) {
+    const auto folds = KFolds(identification.size(), options.kfold, options.split_seed);
+    std::vector<Eigen::Vector3d> pooled;
+    PipelineOptions fold_options = options;
+    for (int f = 0; f < options.kfold; ++f) {
+      const MeasurementSet train =
+          identification.Subset(Complement(identification.size(), folds[f]));
+      const MeasurementSet test = identification.Subset(folds[f]);
+      const CalibrationResult r = SolveCalibration(nominal, train, fold_options,
+                                                   "fold " + std::to_string(f + 1), nullptr,
+                                                   nullptr, nullptr);
+      FoldSummary fs;
+      fs.fold = f + 1;
+      fs.identification_rows = train.size();
+      fs.termination = r.termination;
+      const std::vector<Eigen::Vector3d> e = PositionErrors(r.model, test);
+      pooled.insert(pooled.end(), e.begin(), e.end());
+      fs.verification_after = ComputeStatistics(e);
+      out.folds.push_back(fs);
+    }
+    out.folds_pooled = ComputeStatistics(pooled);
+  }
+  return out;
+}
+
+}  // namespace lpoe

@@ -1,0 +1,169 @@
+#include "lpoe/plausibility.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "lpoe/kinematics.h"
+
+namespace lpoe {
+namespace {
+
+constexpr double kTwoPi = 6.283185307179586;
+constexpr double kDegree = kTwoPi / 360.0;
+
+VerdictCheck Make(const char* name, double value, double check, double fail, std::string message) {
+  VerdictCheck c;
+  c.name = name;
+  c.value = value;
+  c.limit = check;
+  c.level = !(value <= fail) ? VerdictLevel::kFail
+            : value > check  ? VerdictLevel::kCheck
+                             : VerdictLevel::kPass;
+  c.message = std::move(message);
+  return c;
+}
+
+std::string Format(const char* format, double a, double b = 0, double c = 0) {
+  char buf[320];
+  std::snprintf(buf, sizeof(buf), format, a, b, c);
+  return buf;
+}
+
+// RMS distance of the points from their centroid.
+double Spread(const std::vector<Eigen::Vector3d>& p) {
+  if (p.empty()) return 0;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& x : p) c += x;
+  c /= static_cast<double>(p.size());
+  double s = 0;
+  for (const auto& x : p) s += (x - c).squaredNorm();
+  return std::sqrt(s / static_cast<double>(p.size()));
+}
+
+}  // namespace
+
+const char* VerdictLevelName(VerdictLevel level) {
+  switch (level) {
+    case VerdictLevel::kPass:
+      return "pass";
+    case VerdictLevel::kCheck:
+      return "check";
+    case VerdictLevel::kFail:
+      return "fail";
+  }
+  return "fail";
+}
+
+Verdict AssessPlausibility(const RobotModel& start, const RobotModel& calibrated,
+                           const MeasurementSet& data, const ErrorStatistics& after,
+                           const PlausibilityOptions& options) {
+  Verdict v;
+  // ---- Units of the joint values (before anything else: they explain the rest).
+  double max_q = 0;
+  bool any_revolute = false;
+  for (int j = 0; j < start.num_joints(); ++j) {
+    if (start.joints[j].type != JointType::kRevolute) continue;
+    any_revolute = true;
+    for (int r = 0; r < data.size(); ++r) max_q = std::max(max_q, std::abs(data.q(r)[j]));
+  }
+  if (any_revolute && !data.empty()) {
+    if (!options.joint_values_in_degrees) {
+      v.checks.push_back(Make("joint_units", max_q, kTwoPi, 2 * kTwoPi,
+                              Format("revolute joint values reach %.4g rad (beyond 2 pi: they look "
+                                     "like degrees: use --angle_unit=deg)",
+                                     max_q)));
+    } else {
+      // Read as degrees, every value within 2 pi degrees: the file was radians.
+      const double max_deg = max_q / kDegree;
+      VerdictCheck c = Make("joint_units", max_deg, 0, 0,
+                            Format("revolute joint values read as degrees reach only %.4g deg "
+                                   "(within 2 pi: they look like radians: use --angle_unit=rad)",
+                                   max_deg));
+      c.level = max_deg <= kTwoPi ? VerdictLevel::kCheck : VerdictLevel::kPass;
+      c.limit = kTwoPi;
+      v.checks.push_back(c);
+    }
+  }
+  // ---- Scale: measured spread against the model's spread at the same joint values.
+  if (data.size() >= 3) {
+    std::vector<Eigen::Vector3d> measured, model;
+    const int stride = std::max(1, data.size() / 10000);
+    for (int r = 0; r < data.size(); r += stride) {
+      measured.push_back(data.position(r));
+      model.push_back(ToolPosition(start, data.q(r), data.target(r)));
+    }
+    const double sm = Spread(measured), sp = Spread(model);
+    const double ratio = sp > 0 ? sm / sp : INFINITY;
+    const double deviation = ratio > 0 ? std::abs(std::log(ratio)) : INFINITY;
+    std::string hint;
+    if (ratio > 1e-4 && ratio < 3e-3) {
+      hint = ": positions look like metres: use --length_unit=m";
+    } else if (ratio > 300 && ratio < 1e4) {
+      hint = ": positions look like micrometres: convert them to mm";
+    } else {
+      hint = ": check the length unit, the columns and the model";
+    }
+    v.checks.push_back(Make("scale", deviation, std::log(1.05), std::log(1.2),
+                            Format("the measured points spread %.4g times as far as the model's "
+                                   "points at the same joint values",
+                                   ratio) +
+                                (deviation > std::log(1.05) ? hint : "")));
+  }
+  // ---- Residual against the expected noise.
+  {
+    const double rms_axis = after.norm.rms / std::sqrt(3.0);
+    const double expected = std::hypot(options.noise_sigma, kNonGeometricMm);
+    const double ratio = rms_axis / expected;
+    v.checks.push_back(Make(
+        "residual", ratio, 2.0, 10.0,
+        Format("RMS error after calibration %.4g mm per axis, %.3g times the expected %.3g mm "
+               "(tracker noise and non-geometric errors)",
+               rms_axis, ratio, expected)));
+  }
+  // ---- Parameter changes (joint frames 2..n, tools).
+  {
+    double worst_len = 0, worst_tool = 0, worst_rot = 0;
+    std::string len_name, tool_name, rot_name;
+    const int n = start.num_joints();
+    for (int f = 1; f < start.num_frames(); ++f) {
+      const SE3d& a = f < n ? start.joints[f].origin : start.tools[f - n].origin;
+      const SE3d& b = f < n ? calibrated.joints[f].origin : calibrated.tools[f - n].origin;
+      const std::string name = f < n ? start.joints[f].name : start.tools[f - n].name;
+      const double rot = LogSO3(Eigen::Matrix3d(a.R.transpose() * b.R)).norm();
+      if (rot > worst_rot) worst_rot = rot, rot_name = name;
+      if (f < n) {
+        const double rel = std::abs(b.t.norm() - a.t.norm()) / std::max(a.t.norm(), 100.0);
+        if (rel > worst_len) worst_len = rel, len_name = name;
+      } else {
+        const double d = (b.t - a.t).norm();
+        if (d > worst_tool) worst_tool = d, tool_name = name;
+      }
+    }
+    if (n > 1) {
+      v.checks.push_back(Make("link_lengths", worst_len, 0.03, 0.10,
+                              Format("largest link length change %.3g %%", 100 * worst_len) +
+                                  (len_name.empty() ? "" : " (" + len_name + ")") +
+                                  (worst_len > 0.03 ? ": more than a calibration corrects" : "")));
+    }
+    v.checks.push_back(Make("tool_offsets", worst_tool, 10.0, 50.0,
+                            Format("largest tool offset change %.4g mm", worst_tool) +
+                                (tool_name.empty() ? "" : " (" + tool_name + ")")));
+    v.checks.push_back(Make("rotations", worst_rot / kDegree, 6.0, 15.0,
+                            Format("largest frame rotation change %.3g deg", worst_rot / kDegree) +
+                                (rot_name.empty() ? "" : " (" + rot_name + ")") +
+                                (worst_rot > 6 * kDegree ? ": more than a joint offset or axis "
+                                                           "error a calibration corrects"
+                                                         : "")));
+  }
+  for (const VerdictCheck& c : v.checks) {
+    if (c.level > v.level) {
+      v.level = c.level;
+      v.reason = c.message;
+    }
+  }
+  if (v.level == VerdictLevel::kPass) v.reason = "residual, scale and parameter changes plausible";
+  return v;
+}
+
+}  // namespace lpoe
