@@ -1,4 +1,4 @@
-// Tests of the file formats (DESIGN.md section 5): YAML robot models and CSV measurements, their
+// Tests of the file formats (docs/conventions.md): YAML robot models and CSV measurements, their
 // round trips, and the error messages on malformed input (tests/data/bad/, listed in MANIFEST).
 #include "lpoe/io.h"
 
@@ -27,7 +27,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// DESIGN.md section 5: a written model reproduces forward kinematics to this after a round trip.
+// docs/conventions.md: a written model reproduces forward kinematics to this after a round trip.
 constexpr double kRoundTripToleranceMm = 1e-9;
 // Rotations go through a quaternion with 17 digits: a few ulps.
 constexpr double kRotationRoundTripTolerance = 1e-14;

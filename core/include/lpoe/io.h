@@ -1,4 +1,4 @@
-// File formats of DESIGN.md section 5: the robot model as YAML, measurements as CSV. Every reader
+// File formats of docs/conventions.md: the robot model as YAML, measurements as CSV. Every reader
 // reports bad input as a Status whose message names the file, the line and what was expected; no
 // reader throws or aborts on any input.
 #ifndef LPOE_IO_H_
