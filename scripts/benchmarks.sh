@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds and runs the benchmarks (Release, -j2), measures lpoe_calibrate end to end (wall time and
-# peak RSS with /usr/bin/time -v) on 70,000 and 10^6 simulated rows, and writes the results, with
+# peak RSS with /usr/bin/time -v) on 70,000, 10^6 and 10^7 simulated rows, and writes the results, with
 # the machine they ran on, into README.md between <!-- perf:begin --> and <!-- perf:end --> (in the
 # "## Performance" section, created at the end of the README if missing).
 #
@@ -31,8 +31,8 @@ fi
 
 cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=ON \
   -DLPOE_BUILD_BENCHMARKS=ON >/dev/null
-cmake --build "$BUILD" -j2 --target kinematics_benchmark solver_benchmark lpoe_calibrate \
-  lpoe_simulate >/dev/null
+cmake --build "$BUILD" -j2 --target kinematics_benchmark solver_benchmark ik_benchmark \
+  lpoe_calibrate lpoe_simulate lpoe_compensate >/dev/null
 
 echo "benchmarks: kinematics (5 repetitions, medians)" >&2
 "$BUILD/benchmarks/kinematics_benchmark" --benchmark_repetitions=5 --benchmark_min_time=0.2 \
@@ -42,10 +42,22 @@ echo "benchmarks: solvers (70 to 10^6 poses)" >&2
 "$BUILD/benchmarks/solver_benchmark" --benchmark_format=json \
   --benchmark_out="$WORK/solvers.json" --benchmark_out_format=json >/dev/null
 
+echo "benchmarks: inverse kinematics (10,000 TRAC-IK-style targets)" >&2
+"$BUILD/benchmarks/ik_benchmark" --benchmark_format=json \
+  --benchmark_out="$WORK/ik.json" --benchmark_out_format=json >/dev/null
+
 # End to end: parse, register, calibrate, statistics, outputs.
 echo "benchmarks: lpoe_calibrate end to end" >&2
 "$BUILD/tools/lpoe_simulate" --count=70000 --noise_sigma=0.03 --out="$WORK/n70k.csv" >/dev/null
 "$BUILD/tools/lpoe_simulate" --count=1000000 --noise_sigma=0.03 --out="$WORK/n1m.csv" >/dev/null
+# 10^7 rows (about 1.8 GB of CSV): ten 10^6-row simulations with different seeds, one header.
+cp "$WORK/n1m.csv" "$WORK/n10m.csv"
+for seed in 2 3 4 5 6 7 8 9 10; do
+  "$BUILD/tools/lpoe_simulate" --count=1000000 --noise_sigma=0.03 --seed=$seed \
+    --out="$WORK/part.csv" >/dev/null
+  grep -v -e '^#' -e '^q1,' "$WORK/part.csv" >>"$WORK/n10m.csv"
+done
+rm -f "$WORK/part.csv"
 run_e2e() {  # label csv extra-flags...
   local label="$1" csv="$2"
   shift 2
@@ -63,6 +75,18 @@ run_e2e "70,000 rows, defaults" n70k.csv
 run_e2e "10^6 rows, defaults" n1m.csv
 run_e2e "10^6 rows, no plots" n1m.csv --plots_dir=
 run_e2e "10^6 rows, no plots, no registration" n1m.csv --plots_dir= --noregister
+run_e2e "10^7 rows, no plots" n10m.csv --plots_dir=
+rm -f "$WORK/n10m.csv"
+
+# lpoe_compensate end to end on 10^6 position targets: the simulated points of a robot with small
+# kinematic errors (1 mrad, 0.5 mm per frame, 2 mrad joint zeros) compensated with the nominal model.
+echo "benchmarks: lpoe_compensate end to end (10^6 targets)" >&2
+"$BUILD/tools/lpoe_simulate" --count=1000000 --errors=random --error_rotation=0.001 \
+  --error_translation=0.5 --error_tilt=0.001 --error_zero=0.002 --out="$WORK/t1m.csv" >/dev/null
+/usr/bin/time -v "$BUILD/tools/lpoe_compensate" --model="$ROOT/data/cobot6.yaml" \
+  --targets="$WORK/t1m.csv" --output="$WORK/t1m_out.csv" --report="$WORK/compensate.json" \
+  >/dev/null 2>"$WORK/compensate.time" || { cat "$WORK/compensate.time" >&2; exit 1; }
+sed -n 's/.*Elapsed (wall clock) time (h:mm:ss or m:ss): //p' "$WORK/compensate.time" >"$WORK/compensate.wall"
 
 MODEL="$(lscpu | sed -n 's/^Model name: *//p' | head -1)"
 CORES="$(nproc)"
@@ -85,6 +109,7 @@ def load(name):
 
 k = load("kinematics.json")
 s = load("solvers.json")
+ik_runs = {b["name"]: b for b in json.load(open(f"{work}/ik.json"))["benchmarks"]}
 
 def get(d, suffix):
     for name, t in d.items():
@@ -125,6 +150,7 @@ for line in open(f"{work}/e2e.txt"):
     seconds = parts[-1] + 60 * parts[-2] + (3600 * parts[-3] if len(parts) > 2 else 0)
     e2e.append((label, int(rows), seconds, int(rss) / 1024.0, flags))
 e70 = e2e[0]
+by_label = {label: (rows, seconds, rss) for label, rows, seconds, rss, _ in e2e}
 
 print(f"Measured by `scripts/benchmarks.sh` on {model}, {cores} cores, {date} "
       "(Release, GCC default flags: SSE2, no -march; medians of 5 repetitions for the per-pose "
@@ -149,6 +175,38 @@ print(f"| 70-pose calibration, Ceres <= 3 ms | {fmt(cer70)} | {verdict(cer70 <= 
 print(f"| lpoe_calibrate, 70,000 rows <= 3 s, <= 300 MB | {e70[2]:.2f} s, {e70[3]:.0f} MB | "
       f"{verdict(e70[2] <= 3 and e70[3] <= 300)} |")
 print(f"| 10^6 poses, linear solver <= 5 s | {fmt(lin1m)} | {verdict(lin1m <= 5)} |")
+if "10^6 rows, no plots" in by_label:
+    _, sec, rss = by_label["10^6 rows, no plots"]
+    print(f"| lpoe_calibrate, 10^6 rows, no plots <= 1.5 s, <= 150 MB | {sec:.2f} s, {rss:.0f} MB | "
+          f"{verdict(sec <= 1.5 and rss <= 150)} |")
+if "10^7 rows, no plots" in by_label:
+    _, sec, rss = by_label["10^7 rows, no plots"]
+    print(f"| lpoe_calibrate, 10^7 rows within 1 GB | {sec:.2f} s, {rss:.0f} MB | "
+          f"{verdict(rss <= 1024)} |")
+def ik_time(name):
+    b = ik_runs.get(name)
+    if b is None:
+        return None
+    return b["real_time"] * {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}[b["time_unit"]]
+ik_pose = ik_time("BM_IkPose")
+ik_kdl = ik_time("BM_KdlChainIkSolverPosLma")
+rate = ik_runs.get("BM_IkPoseSolveRate", {})
+print(f"| IK pose target <= 5 us (cobot6) | {fmt(ik_pose)} | {verdict(ik_pose <= 5e-6)} |")
+if ik_kdl is not None:
+    kdl_rate = ik_runs["BM_KdlChainIkSolverPosLma"].get("solved_fraction", 0)
+    print(f"| IK >= 20x faster than KDL LMA | KDL `ChainIkSolverPos_LMA` {fmt(ik_kdl)} "
+          f"(solved {100 * kdl_rate:.2f}%): {ik_kdl / ik_pose:.0f}x | {verdict(ik_kdl / ik_pose >= 20)} |")
+else:
+    print("| IK >= 20x faster than KDL LMA | KDL not built | n/a |")
+solved = rate.get("solved_fraction", 0)
+print(f"| IK 10,000 targets >= 99.9% solved, no limit violated | {100 * solved:.2f}% solved, "
+      f"{int(rate.get('limit_violations', -1))} violations | "
+      f"{verdict(solved >= 0.999 and rate.get('limit_violations', 1) == 0)} |")
+wall = open(f"{work}/compensate.wall").read().strip().split(":")
+comp_s = float(wall[-1]) + 60 * float(wall[-2]) + (3600 * float(wall[-3]) if len(wall) > 2 else 0)
+comp = json.load(open(f"{work}/compensate.json"))
+counts = ", ".join(f"{k} {v}" for k, v in comp["status_counts"].items() if v)
+print(f"| lpoe_compensate, 10^6 targets <= 10 s | {comp_s:.2f} s ({counts}) | {verdict(comp_s <= 10)} |")
 print()
 print("Per pose (cobot6):")
 print()

@@ -49,6 +49,10 @@ class RobotModel {
   std::string name;
   std::vector<Joint> joints;
   std::vector<Tool> tools;
+  // The registration found by calibration: the measurement frame (where this model's base lives,
+  // e.g. a laser tracker's) from the nominal model's base frame. Identity when the data were in the
+  // base frame. Compensation uses it to carry nominal poses into this model's frame.
+  SE3d T_measurement_base;
 
   int num_joints() const { return static_cast<int>(joints.size()); }
   int num_tools() const { return static_cast<int>(tools.size()); }
@@ -63,6 +67,12 @@ class RobotModel {
   // prismatic: omega = 0, |v| = 1).
   Status Validate() const;
 };
+
+// The checks Validate() makes on one joint's twist (revolute: |omega| = 1, omega . v = 0 within
+// kTwistTolerance; prismatic: omega = 0, |v| = 1) and limits (lower <= upper, no NaN). The message
+// says what is wrong without saying where; readers add the file and line.
+Status ValidateTwist(JointType type, const Vector6d& twist);
+Status ValidateLimits(double lower, double upper);
 
 // The default twist of a joint type about/along local z.
 Vector6d DefaultTwist(JointType type);
