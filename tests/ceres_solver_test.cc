@@ -21,7 +21,7 @@ namespace {
 // Section 4 of the paper: 100 configurations, 70 identify, 30 verify.
 constexpr int kRows = 100;
 constexpr int kIdentificationRows = 70;
-constexpr double kPaperSigma = 0.03;  // mm, DESIGN.md section 2
+constexpr double kPaperSigma = 0.03;  // mm, docs/conventions.md
 // The two solvers' predicted held-out positions agree to this (mm).
 constexpr double kAgreementMm = 1e-6;
 // Noise-free data are fitted to this (mm).

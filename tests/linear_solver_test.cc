@@ -31,7 +31,7 @@ constexpr double kNoiseFreeMaxError = 1e-6;
 // ... and orientations to this (rad), in pose mode.
 constexpr double kNoiseFreeMaxOrientationError = 1e-9;
 constexpr int kNoiseFreeMaxIterations = 10;
-// DESIGN.md section 2: sigma = 0.03 mm per axis reproduces the paper's figures; held-out per-axis
+// docs/conventions.md: sigma = 0.03 mm per axis reproduces the paper's figures; held-out per-axis
 // maximum error versus the measured points.
 constexpr double kPaperSigma = 0.03;
 constexpr double kPaperHeldOutPerAxisMax = 0.15;
@@ -169,7 +169,7 @@ TEST(LinearSolver, Section4PaperNoiseMatchesThePaperFigures) {
 
 TEST(LinearSolver, Section4LiteralVariance02Converges) {
   // The paper's "Gaussian noise with variance 0.2": sigma = sqrt(0.2) = 0.447 mm per axis. It cannot
-  // reproduce the paper's figures (DESIGN.md section 2); it must still converge and improve.
+  // reproduce the paper's figures (docs/conventions.md); it must still converge and improve.
   const double sigma = std::sqrt(0.2);
   const DataSet d = Section4(sigma);
   for (ParameterizationKind kind : kKinds) {

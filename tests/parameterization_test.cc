@@ -1,4 +1,4 @@
-// Tests of parameterization.h (DESIGN.md section 3): the centralizer and identifiable bases of a joint
+// Tests of parameterization.h (docs/conventions.md): the centralizer and identifiable bases of a joint
 // twist, the 27 + 15 split of cobot6 with position data, the rank of the stacked Jacobian restricted
 // to the identifiable basis (full) and in the full 42 parameterization (exactly 27, the null space
 // being the listed directions pushed into the next frame), and ApplyUpdate / ParameterDifference.

@@ -1,4 +1,4 @@
-// Tests of simulation.h: the reading of the paper's Table 2 (DESIGN.md section 1), error injection
+// Tests of simulation.h: the reading of the paper's Table 2 (docs/conventions.md), error injection
 // (eq. (33)) that keeps twists valid, measurement generation (eq. (34)) that is deterministic per seed,
 // and noise with the requested statistics.
 #include "lpoe/simulation.h"

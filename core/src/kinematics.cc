@@ -12,24 +12,6 @@
 namespace lpoe {
 namespace {
 
-// Frames kept on the stack by the convenience functions (longer chains use the heap).
-constexpr int kStackFrames = 16;
-
-// Scratch frames: on the stack for up to kStackFrames, else on the heap.
-class FrameScratch {
- public:
-  explicit FrameScratch(int count) {
-    if (count > kStackFrames) heap_.resize(count);
-    data_ = count > kStackFrames ? heap_.data() : stack_;
-  }
-  FrameRt* data() { return data_; }
-
- private:
-  FrameRt stack_[kStackFrames];
-  std::vector<FrameRt> heap_;
-  FrameRt* data_;
-};
-
 #if defined(__SSE2__)
 // The running product of the forward pass in SSE2 registers: each column of R (and t) as a pair
 // (rows 0, 1) plus a scalar (row 2), so that a 3x3 product takes 18 packed-or-scalar multiplications
@@ -203,6 +185,14 @@ inline void FramesOf(const RobotModel& model, const double* q, int tool, IsZ is_
   ForwardPass(model, q, is_z, &model.tools[tool].origin, &frames[n].R, &frames[n].t, frames);
 }
 
+// The frames G_0..G_n of configuration q (as PerturbationFrames) in scratch space, handed to `use`.
+template <typename Use>
+inline auto WithFrames(const RobotModel& model, const double* q, int tool, const Use& use) {
+  JointScratch<FrameRt> frames(model.num_joints() + 1);
+  FramesOf(model, q, tool, [&](int i) { return IsRevoluteZ(model.joints[i]); }, frames.data());
+  return use(frames.data());
+}
+
 // Column k of the 3 x 6 position block of frame (R, t) at tool position P (eq. (29) without Ad):
 // d/d omega_k = R_k x (P - t) (= -(P - t)^ R e_k), d/d v_k = R_k.
 inline void PositionColumn(const FrameRt& G, const Eigen::Vector3d& d, int k, double* out) {
@@ -281,70 +271,66 @@ Eigen::Vector3d ToolPosition(const RobotModel& model, const double* q, int tool)
 void PerturbationFrames(const RobotModel& model, const double* q, int tool,
                         std::vector<SE3d>* frames) {
   const int n = model.num_joints();
-  FrameScratch scratch(n + 1);
-  FramesOf(model, q, tool, [&](int i) { return IsRevoluteZ(model.joints[i]); }, scratch.data());
-  frames->resize(n + 1);
-  for (int i = 0; i <= n; ++i) (*frames)[i] = SE3d(scratch.data()[i].R, scratch.data()[i].t);
+  WithFrames(model, q, tool, [&](const FrameRt* G) {
+    frames->resize(n + 1);
+    for (int i = 0; i <= n; ++i) (*frames)[i] = SE3d(G[i].R, G[i].t);
+  });
 }
 
 Eigen::Vector3d ToolPositionJacobian(const RobotModel& model, const double* q, int tool,
                                      Eigen::MatrixXd* J_p_frames) {
   const int n = model.num_joints();
-  FrameScratch scratch(n + 1);
-  FrameRt* G = scratch.data();
-  FramesOf(model, q, tool, [&](int i) { return IsRevoluteZ(model.joints[i]); }, G);
-  const Eigen::Vector3d P = G[n].t;
-  J_p_frames->setZero(3, 6 * model.num_frames());
-  for (int f = 0; f <= n; ++f) {
-    const int col = 6 * (f < n ? f : n + tool);
-    // dP = (R w) x (P - t) + R v  =>  d/dw = -(P - t)^ R, d/dv = R   (eq. (29) without Ad).
-    const Eigen::Vector3d d = P - G[f].t;
-    for (int k = 0; k < 6; ++k) PositionColumn(G[f], d, k, J_p_frames->col(col + k).data());
-  }
-  return P;
+  return WithFrames(model, q, tool, [&](const FrameRt* G) {
+    const Eigen::Vector3d P = G[n].t;
+    J_p_frames->setZero(3, 6 * model.num_frames());
+    for (int f = 0; f <= n; ++f) {
+      const int col = 6 * (f < n ? f : n + tool);
+      // dP = (R w) x (P - t) + R v  =>  d/dw = -(P - t)^ R, d/dv = R   (eq. (29) without Ad).
+      const Eigen::Vector3d d = P - G[f].t;
+      for (int k = 0; k < 6; ++k) PositionColumn(G[f], d, k, J_p_frames->col(col + k).data());
+    }
+    return P;
+  });
 }
 
 SE3d ToolPoseJacobian(const RobotModel& model, const double* q, int tool,
                       Eigen::MatrixXd* J_pose_frames) {
   const int n = model.num_joints();
-  FrameScratch scratch(n + 1);
-  FrameRt* G = scratch.data();
-  FramesOf(model, q, tool, [&](int i) { return IsRevoluteZ(model.joints[i]); }, G);
-  J_pose_frames->setZero(6, 6 * model.num_frames());
-  for (int f = 0; f <= n; ++f) {
-    const int col = 6 * (f < n ? f : n + tool);
-    for (int k = 0; k < 6; ++k) AdjointColumn(G[f], k, J_pose_frames->col(col + k).data());  // (18)
-  }
-  return SE3d(G[n].R, G[n].t);
+  return WithFrames(model, q, tool, [&](const FrameRt* G) {
+    J_pose_frames->setZero(6, 6 * model.num_frames());
+    for (int f = 0; f <= n; ++f) {
+      const int col = 6 * (f < n ? f : n + tool);
+      for (int k = 0; k < 6; ++k) AdjointColumn(G[f], k, J_pose_frames->col(col + k).data());  // (18)
+    }
+    return SE3d(G[n].R, G[n].t);
+  });
 }
 
+// The joint columns are the position (pose) Jacobian's columns of the twist s_i at G_i.
 Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double* q, int tool,
                                           Eigen::MatrixXd* J_p_q) {
   const int n = model.num_joints();
-  FrameScratch scratch(n + 1);
-  FrameRt* G = scratch.data();
-  FramesOf(model, q, tool, [&](int i) { return IsRevoluteZ(model.joints[i]); }, G);
-  const Eigen::Vector3d P = G[n].t;
-  J_p_q->resize(3, n);
-  for (int i = 0; i < n; ++i) {
-    const Joint& joint = model.joints[i];
-    JointPositionColumn(G[i], P - G[i].t, joint.twist, IsRevoluteZ(joint), J_p_q->col(i).data());
-  }
-  return P;
+  return WithFrames(model, q, tool, [&](const FrameRt* G) {
+    J_p_q->resize(3, n);
+    for (int i = 0; i < n; ++i) {
+      const Joint& j = model.joints[i];
+      JointPositionColumn(G[i], G[n].t - G[i].t, j.twist, IsRevoluteZ(j), J_p_q->col(i).data());
+    }
+    return Eigen::Vector3d(G[n].t);
+  });
 }
 
 SE3d ToolPoseJointJacobian(const RobotModel& model, const double* q, int tool,
                            Eigen::MatrixXd* J_pose_q) {
   const int n = model.num_joints();
-  FrameScratch scratch(n + 1);
-  FrameRt* G = scratch.data();
-  FramesOf(model, q, tool, [&](int i) { return IsRevoluteZ(model.joints[i]); }, G);
-  J_pose_q->resize(6, n);
-  for (int i = 0; i < n; ++i) {
-    const Joint& joint = model.joints[i];
-    JointPoseColumn(G[i], joint.twist, IsRevoluteZ(joint), J_pose_q->col(i).data());
-  }
-  return SE3d(G[n].R, G[n].t);
+  return WithFrames(model, q, tool, [&](const FrameRt* G) {
+    J_pose_q->resize(6, n);
+    for (int i = 0; i < n; ++i) {
+      const Joint& j = model.joints[i];
+      JointPoseColumn(G[i], j.twist, IsRevoluteZ(j), J_pose_q->col(i).data());
+    }
+    return SE3d(G[n].R, G[n].t);
+  });
 }
 
 // ---- KinematicChain.

@@ -121,7 +121,7 @@ Status RobotModel::Validate() const {
 }
 
 RobotModel MakeCobot6(const Eigen::Vector3d& tool_xyz) {
-  // Joint frames at q = 0 in base coordinates (DESIGN.md section 2, paper Table 1).
+  // Joint frames at q = 0 in base coordinates (docs/conventions.md, paper Table 1).
   const double H1 = 96, W1 = 138, L1 = 418, W2 = 114, L2 = 398, W3 = 98, H2 = 98, W4 = 89;
   const SE3d down = Rx(-kPi / 2);  // local z along base +y
   std::vector<SE3d> F = {

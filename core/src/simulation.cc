@@ -63,7 +63,7 @@ KinematicErrors PaperTable2Errors() {
                            {0.002, 0.003, 0, -1, 1.6, 2.3},     {0.003, 0.001, -0.004, 2, 3, 1},
                            {0.005, 0.002, -0.003, 1.6, 2, 3.2}};
   for (const auto& row : dp) e.frame.push_back(Eigen::Map<const Vector6d>(row));
-  // Table 2's ds' column is written (v, omega) (DESIGN.md section 1): its non-zero entries tilt the
+  // Table 2's ds' column is written (v, omega) (docs/conventions.md): its non-zero entries tilt the
   // unit rotation axis. Stored here in our (omega, v) order.
   auto tilt = [](double wx, double wy, double wz) {
     Vector6d s;

@@ -1,5 +1,5 @@
 // Internal to lpoe_solvers: the identifiability check shared by the linear and the Ceres solver
-// (DESIGN.md section 3: data that cannot identify the parameters is refused, never "solved").
+// (docs/conventions.md: data that cannot identify the parameters is refused, never "solved").
 #ifndef LPOE_SOLVERS_SRC_IDENTIFIABILITY_H_
 #define LPOE_SOLVERS_SRC_IDENTIFIABILITY_H_
 

@@ -187,6 +187,24 @@ OnTheFlyMotions<IsZ, S> MakeOnTheFlyMotions(const Joint* joints, const S* q, IsZ
   return OnTheFlyMotions<IsZ, S>(joints, q, is_z);
 }
 
+// Scratch for one value per joint: on the stack for up to N joints, else on the heap (the autodiff
+// residuals build their frames in it on every evaluation).
+template <typename V, int N = 16>
+class JointScratch {
+ public:
+  explicit JointScratch(int count) {
+    if (count > N) heap_.resize(count);
+    data_ = count > N ? heap_.data() : stack_;
+  }
+  V* data() { return data_; }
+  V& operator[](int i) { return data_[i]; }
+
+ private:
+  V stack_[N];
+  std::vector<V> heap_;
+  V* data_;
+};
+
 // The running transform of ForwardChain for any scalar.
 template <typename T>
 struct SE3Accumulator {

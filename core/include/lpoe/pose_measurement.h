@@ -24,7 +24,6 @@ namespace lpoe {
 struct PoseMeasurement {
   static constexpr int kResiduals = 6;
   static constexpr DataKind kData = DataKind::kPose;
-  static constexpr int kMaxStackJoints = 16;
   using Observation = SE3d;
 
   double inverse_sigma = 1.0;
@@ -35,16 +34,10 @@ struct PoseMeasurement {
   // The predicted tool frame from parameter blocks of 7 numbers (the n joint frames, then the tool).
   template <typename T, typename Motions>
   static SE3<T> Predict(int n, T const* const* blocks, const Motions& motions) {
-    SE3<T> stack_frames[kMaxStackJoints];
-    std::vector<SE3<T>> heap_frames;
-    SE3<T>* frames = stack_frames;
-    if (n > kMaxStackJoints) {
-      heap_frames.resize(n);
-      frames = heap_frames.data();
-    }
+    JointScratch<SE3<T>> frames(n);
     for (int i = 0; i < n; ++i) frames[i] = Se3FromArray(blocks[i]);
     SE3Accumulator<T> X;
-    ForwardChain(n, [frames](int i) -> const SE3<T>& { return frames[i]; }, motions, &X,
+    ForwardChain(n, [&frames](int i) -> const SE3<T>& { return frames[i]; }, motions, &X,
                  [](int, const SE3Accumulator<T>&) {});
     return X.X * Se3FromArray(blocks[n]);
   }

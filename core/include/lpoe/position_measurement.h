@@ -22,8 +22,6 @@ namespace lpoe {
 struct PositionMeasurement {
   static constexpr int kResiduals = 3;
   static constexpr DataKind kData = DataKind::kPosition;
-  // Chains up to this many joints keep their frames on the stack in the autodiff path.
-  static constexpr int kMaxStackJoints = 16;
   using Observation = Eigen::Vector3d;
 
   double inverse_sigma = 1.0;  // 1 / sigma (mm): whitening of the Ceres residuals
@@ -35,17 +33,11 @@ struct PositionMeasurement {
   // rotation matrices; the manifold keeps each quaternion of unit norm).
   template <typename T, typename Motions>
   static Vector3<T> Predict(int n, T const* const* blocks, const Motions& motions) {
-    QuaternionTransform<T> stack_frames[kMaxStackJoints];
-    std::vector<QuaternionTransform<T>> heap_frames;
-    QuaternionTransform<T>* frames = stack_frames;
-    if (n > kMaxStackJoints) {
-      heap_frames.resize(n);
-      frames = heap_frames.data();
-    }
+    JointScratch<QuaternionTransform<T>> frames(n);
     for (int i = 0; i < n; ++i) frames[i] = {blocks[i], blocks[i] + 4};
     const T* tool = blocks[n];
     return BackwardChain<T>(
-        n, [frames](int i) -> const QuaternionTransform<T>& { return frames[i]; }, motions,
+        n, [&frames](int i) -> const QuaternionTransform<T>& { return frames[i]; }, motions,
         Vector3<T>(tool[4], tool[5], tool[6]));
   }
 

@@ -77,7 +77,7 @@ Status ValidateLimits(double lower, double upper);
 // The default twist of a joint type about/along local z.
 Vector6d DefaultTwist(JointType type);
 
-// The nominal "cobot6" of DESIGN.md section 2 (paper Table 1), with one tool at `tool_xyz` (mm) in the
+// The nominal "cobot6" of docs/conventions.md (paper Table 1), with one tool at `tool_xyz` (mm) in the
 // joint-6 frame.
 RobotModel MakeCobot6(const Eigen::Vector3d& tool_xyz = Eigen::Vector3d(40, 0, 60));
 

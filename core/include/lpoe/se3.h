@@ -1,7 +1,7 @@
 // SE(3) and so(3) / se(3) maps, templated on the scalar so that the same code runs on double and on
 // ceres::Jet (automatic differentiation).
 //
-// Conventions (DESIGN.md section 1):
+// Conventions (docs/conventions.md):
 //   * a twist is xi = (omega, v): rotation first, then translation;
 //   * hat(xi) = [[omega^, v], [0, 0]];
 //   * Ad_T = [[R, 0], [t^ R, R]], so that T exp(xi^) = exp((Ad_T xi)^) T;
@@ -304,7 +304,7 @@ Vector6<T> LogSE3(const SE3<T>& X) {
 }
 
 // Ad_T = [[R, 0], [t^ R, R]] for the (omega, v) order: T exp(xi^) T^-1 = exp((Ad_T xi)^).
-// (The paper's eq. (16) is written for (v, omega); DESIGN.md section 1.)
+// (The paper's eq. (16) is written for (v, omega); docs/conventions.md.)
 template <typename T>
 Matrix6<T> Adjoint(const SE3<T>& X) {
   Matrix6<T> ad;

@@ -20,7 +20,7 @@ struct KinematicErrors {
   std::vector<double> joint_zero;  // dq'_i (rad or mm), one per joint
 };
 
-// The paper's Table 2 for cobot6 (6 joints, 1 tool), with ds' read as DESIGN.md section 1 says.
+// The paper's Table 2 for cobot6 (6 joints, 1 tool), with ds' read as docs/conventions.md says.
 KinematicErrors PaperTable2Errors();
 
 // Random errors: frame rotations uniform in [-rot, rot] rad per component, translations in

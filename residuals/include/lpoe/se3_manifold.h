@@ -1,4 +1,4 @@
-// The SE(3) manifold of one local frame T_{i-1,i}(0), for Ceres (DESIGN.md sections 1, 3, 4).
+// The SE(3) manifold of one local frame T_{i-1,i}(0), for Ceres (docs/conventions.md, docs/architecture.md).
 //
 // Ambient parameters: 7 doubles [qx qy qz qw tx ty tz], the unit quaternion of the rotation R
 // (Eigen's storage order, scalar last) followed by the translation t (mm), of T = (R, t).

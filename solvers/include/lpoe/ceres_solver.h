@@ -1,4 +1,4 @@
-// Calibration as a Ceres nonlinear least-squares problem (DESIGN.md section 4).
+// Calibration as a Ceres nonlinear least-squares problem (docs/architecture.md).
 //
 // One parameter block per local frame (the joints, then the tools that the data measure; tools
 // never measured are left out and keep their nominal frames), 7 numbers [qx qy qz qw tx ty tz] with

@@ -6,7 +6,7 @@
 // solves for x in least squares, and updates T_f <- T_f exp((B_f x_f)^) (eq. (19)), until ||x|| < eps.
 //
 // x lives in the chosen parameterization: `identifiable` (per frame only the directions data can see,
-// DESIGN.md section 3; J^T J is then full rank on exciting data) or `full` (6 per frame, the paper's
+// docs/conventions.md; J^T J is then full rank on exciting data) or `full` (6 per frame, the paper's
 // 42 for cobot6; J^T J is singular and the step is the minimum-norm pseudo-inverse solution).
 //
 // The columns of J are scaled to unit norm before solving (rotation columns carry lever arms of ~1 m,

@@ -1,5 +1,5 @@
 // Registration of a nominal model to measurements taken in an arbitrary rigid frame (a laser
-// tracker metres away and turned arbitrarily, DESIGN.md section 6). Linearizing the error model
+// tracker metres away and turned arbitrarily, docs/conventions.md). Linearizing the error model
 // around a nominal model expressed in the wrong frame fails, so the calibration starts in stages:
 //   1. a rigid fit (Horn / Kabsch) of the nominal predicted points to the measured points; the
 //      transform is folded into joint 1's local frame, whose parent is then the measurement frame;
