@@ -10,7 +10,6 @@
 #include <cstdio>
 #include <iostream>
 #include <string>
-#include <sys/stat.h>
 
 #include <gflags/gflags.h>
 #include <glog/logging.h>
@@ -43,8 +42,20 @@ DEFINE_int32(kfold, 0,
              "identification set and report each fold's held-out errors.");
 DEFINE_uint64(split_seed, 1, "Seed of the --holdout and --kfold splits.");
 DEFINE_string(output, "", "Write the calibrated model here (YAML). Nothing is written on failure.");
-DEFINE_string(urdf_output, "", "Also write the calibrated model as URDF (metres, joint origins with rpy).");
+DEFINE_string(urdf_output, "",
+              "Also write the calibrated model as URDF. When --model is a URDF: that same file with "
+              "only the calibrated joint origins (and axes) changed, every name, limit, mesh, "
+              "inertial and extension tag kept, the tools as fixed links on the tip and the "
+              "measurement (tracker) frame as the fixed link measurement_frame (docs/urdf.md). "
+              "Otherwise a new URDF (links base_link, link1..linkN).");
+DEFINE_string(ur_kinematics_output, "",
+              "With a URDF --model of a Universal Robots arm (joints shoulder_pan_joint .. "
+              "wrist_3_joint): also write the calibrated joint origins in the format of "
+              "ROS-Industrial's ur_description kinematics YAML.");
 DEFINE_string(report, "", "Write a machine-readable JSON report here (schema in the README).");
+DEFINE_string(html_report, "",
+              "Write a self-contained HTML report here (verdict, statistics, plots, parameters; "
+              "no scripts, inline SVG). Nothing is written on failure.");
 DEFINE_string(plots_dir, "lpoe_plots",
               "Directory for the PNG plots (convergence, per-axis errors, histogram); created if "
               "missing. Empty: no plots.");
@@ -232,12 +243,6 @@ void PrintIdentifiability(const IdentifiabilityReport& id) {
   for (const std::string& w : id.warnings) std::cout << "  warning: " << w << "\n";
 }
 
-bool EnsureDirectory(const std::string& dir) {
-  struct stat st;
-  if (stat(dir.c_str(), &st) == 0) return S_ISDIR(st.st_mode);
-  return mkdir(dir.c_str(), 0755) == 0;
-}
-
 int Run() {
   const tools::InputPaths paths =
       tools::ResolveInputPaths(FLAGS_model, FLAGS_measurements, FLAGS_verify, FLAGS_holdout != 0.0);
@@ -303,7 +308,15 @@ int Run() {
                  "--max_condition > 1, --outlier_threshold > 0\n";
     return kExitUsage;
   }
-  for (const std::string& out : {FLAGS_output, FLAGS_report, FLAGS_urdf_output}) {
+  UrdfOptions urdf_options;
+  if (!tools::UrdfOptionsFromFlags(model_path, &urdf_options) ||
+      (!FLAGS_ur_kinematics_output.empty() && !IsUrdfPath(model_path))) {
+    std::cerr << "error: --base_link, --tip_link, --tool_links and --ur_kinematics_output need a "
+                 "URDF --model (a name ending in .urdf)\n";
+    return kExitUsage;
+  }
+  for (const std::string& out : {FLAGS_output, FLAGS_report, FLAGS_urdf_output,
+                                  FLAGS_ur_kinematics_output, FLAGS_html_report}) {
     for (const std::string& in : {model_path, meas_path, verify_path}) {
       if (!out.empty() && tools::SameFile(out, in)) {
         std::cerr << "error: an output would overwrite the input file " << in << "\n";
@@ -315,16 +328,33 @@ int Run() {
     std::cerr << "error: --output and --report name the same file\n";
     return kExitUsage;
   }
+  if (!FLAGS_html_report.empty() && (tools::SameFile(FLAGS_html_report, FLAGS_report) ||
+                                     tools::SameFile(FLAGS_html_report, FLAGS_output))) {
+    std::cerr << "error: --html_report names the same file as --report or --output\n";
+    return kExitUsage;
+  }
 
   // ---- Inputs.
   tools::RunSummary summary;
+  UrdfSource urdf_source;  // the URDF --model, for the overlay write-back
+  bool from_urdf = false;
   {
     tools::Inputs in;
     if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
-                                     FLAGS_split_seed, &in);
+                                     FLAGS_split_seed, &in, urdf_options);
         !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
+    }
+    from_urdf = in.from_urdf;
+    urdf_source = std::move(in.urdf);
+    // The UR file needs a UR arm with z axes: checked on the nominal model before solving.
+    std::string ur_yaml;
+    if (!FLAGS_ur_kinematics_output.empty()) {
+      if (Status s = UrKinematicsYaml(urdf_source, in.nominal, {}, &ur_yaml); !s.ok()) {
+        std::cerr << "error: --ur_kinematics_output: " << s.message() << "\n";
+        return kExitUsage;
+      }
     }
     job.nominal = std::move(in.nominal);
     job.identification = std::move(in.identification);
@@ -397,6 +427,9 @@ int Run() {
                             summary.verification_after);
   }
 
+  tools::AddPointResiduals(before_model, result.model, job.identification, job.verification,
+                           &summary);
+
   // ---- Points that do not fit.
   summary.outliers = FindOutliers(result.model, job.identification, FLAGS_outlier_threshold,
                                   &summary.robust_sigma);
@@ -456,60 +489,57 @@ int Run() {
   // ---- Outputs (each written atomically; the model first, the report last so that it lists
   // everything written).
   if (!FLAGS_output.empty()) {
-    if (Status s = WriteRobotModel(FLAGS_output, result.model); !s.ok()) {
+    // The registration goes with the model: compensation carries nominal poses into its frame.
+    RobotModel calibrated = result.model;
+    if (summary.registered && summary.registration.moved) {
+      calibrated.T_measurement_base = summary.registration.T_measurement_base;
+    }
+    if (Status s = WriteRobotModel(FLAGS_output, calibrated); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitOutput;
     }
     summary.outputs.push_back(FLAGS_output);
   }
+  UrdfOverlayOptions overlay;
+  overlay.in_measurement_frame = FLAGS_register && summary.registration.moved;
   if (!FLAGS_urdf_output.empty()) {
-    if (Status s = WriteRobotModelUrdf(FLAGS_urdf_output, result.model); !s.ok()) {
+    if (Status s = from_urdf ? WriteCalibratedUrdf(FLAGS_urdf_output, urdf_source, result.model,
+                                                   overlay)
+                             : WriteRobotModelUrdf(FLAGS_urdf_output, result.model);
+        !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitOutput;
     }
     summary.outputs.push_back(FLAGS_urdf_output);
   }
-  if (!FLAGS_plots_dir.empty()) {
-    if (!EnsureDirectory(FLAGS_plots_dir)) {
-      std::cerr << "error: cannot create the plot directory " << FLAGS_plots_dir << "\n";
+  if (!FLAGS_ur_kinematics_output.empty()) {
+    if (Status s = WriteUrKinematicsYaml(FLAGS_ur_kinematics_output, urdf_source, result.model,
+                                         overlay);
+        !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
       return kExitOutput;
     }
-    std::vector<int> it;
-    std::vector<double> mx, mn;
-    for (const IterationRecord& r : result.history) {
-      it.push_back(r.iteration);
-      mx.push_back(r.max_error);
-      mn.push_back(r.mean_error);
+    summary.outputs.push_back(FLAGS_ur_kinematics_output);
+  }
+  summary.model_path = model_path;
+  summary.measurements_path = meas_path;
+  summary.solver = FLAGS_solver;
+  summary.parameterization = ParameterizationName(job.kind);
+  summary.data_kind = job.use_orientation ? "pose" : "position";
+  summary.angle_unit = FLAGS_angle_unit;
+  if (!FLAGS_plots_dir.empty()) {
+    if (Status s = tools::WritePlotFiles(FLAGS_plots_dir, &summary); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitOutput;
     }
-    const MeasurementSet& shown = job.verification.empty() ? job.identification : job.verification;
-    const std::vector<Eigen::Vector3d> eb = PositionErrors(before_model, shown);
-    const std::vector<Eigen::Vector3d> ea = PositionErrors(result.model, shown);
-    std::vector<double> nb, na;
-    for (const auto& e : eb) nb.push_back(e.norm());
-    for (const auto& e : ea) na.push_back(e.norm());
-    const std::string d = FLAGS_plots_dir + "/";
-    const std::string set_name = job.verification.empty() ? "identification" : "verification";
-    const std::pair<std::string, Status> plots[] = {
-        {d + "convergence.png", tools::WriteConvergencePlot(d + "convergence.png", it, mx, mn)},
-        {d + "axis_errors.png",
-         tools::WriteAxisErrorPlot(d + "axis_errors.png", eb, ea, 1000, 900, set_name)},
-        {d + "error_histogram.png", tools::WriteErrorHistogram(d + "error_histogram.png", nb, na)},
-    };
-    for (const auto& [path, status] : plots) {
-      if (!status.ok()) {
-        std::cerr << "error: " << status.message() << "\n";
-        return kExitOutput;
-      }
-      summary.outputs.push_back(path);
+  }
+  if (!FLAGS_html_report.empty()) {
+    if (Status s = tools::WriteHtmlReport(FLAGS_html_report, &summary); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitOutput;
     }
   }
   if (!FLAGS_report.empty()) {
-    summary.model_path = model_path;
-    summary.measurements_path = meas_path;
-    summary.solver = FLAGS_solver;
-    summary.parameterization = ParameterizationName(job.kind);
-    summary.data_kind = job.use_orientation ? "pose" : "position";
-    summary.angle_unit = FLAGS_angle_unit;
     summary.outputs.push_back(FLAGS_report);
     if (Status s = WriteFileAtomically(FLAGS_report, tools::RunSummaryToJson(summary)); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";

@@ -1,18 +1,21 @@
 #include "tool_common.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 
 #include "lpoe/analysis.h"
 #include "lpoe/urdf.h"
+#include "lpoe/version.h"
 
 DECLARE_bool(help);
 DECLARE_bool(helpfull);
@@ -23,7 +26,7 @@ namespace tools {
 
 void InitTool(const char* usage, int* argc, char*** argv) {
   gflags::SetUsageMessage(usage);
-  gflags::SetVersionString("0.1.0");
+  gflags::SetVersionString(kLpoeVersion);
   gflags::ParseCommandLineNonHelpFlags(argc, argv, /*remove_flags=*/true);
   if (FLAGS_help || FLAGS_helpfull || FLAGS_helpshort) {
     std::string name = (*argv)[0];
@@ -36,7 +39,10 @@ void InitTool(const char* usage, int* argc, char*** argv) {
       std::vector<gflags::CommandLineFlagInfo> flags;
       gflags::GetAllFlags(&flags);
       for (const auto& f : flags) {
-        if (f.filename.find(name) == std::string::npos) continue;
+        if (f.filename.find(name) == std::string::npos &&
+            f.filename.find("urdf_flags.cc") == std::string::npos) {
+          continue;
+        }
         std::cout << "  --" << f.name << " (" << f.description << ")\n      type: " << f.type
                   << "  default: " << (f.type == "string" ? "\"" + f.default_value + "\""
                                                             : f.default_value)
@@ -51,7 +57,18 @@ void InitTool(const char* usage, int* argc, char*** argv) {
 }
 
 std::string DataDir() {
-  if (const char* env = std::getenv("LPOE_DATA_DIR")) return env;
+  if (const char* env = std::getenv("LPOE_DATA_DIR"); env != nullptr && env[0] != '\0') return env;
+  // An installed program: <prefix>/bin/<tool> and <prefix>/share/lpoe_calib/data.
+  char self[4096];
+  const ssize_t n = readlink("/proc/self/exe", self, sizeof(self) - 1);
+  if (n > 0) {
+    std::string dir(self, static_cast<size_t>(n));
+    dir = dir.substr(0, dir.find_last_of('/'));                  // <prefix>/bin
+    const std::string prefix = dir.substr(0, dir.find_last_of('/'));
+    const std::string installed = prefix + "/" LPOE_INSTALL_DATA_DIR;
+    struct stat st;
+    if (stat((installed + "/cobot6.yaml").c_str(), &st) == 0) return installed;
+  }
   return LPOE_DATA_DIR;
 }
 
@@ -71,8 +88,14 @@ InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& m
 
 Status LoadInputs(const std::string& model_path, const std::string& measurements_path,
                   const std::string& verify_path, const CsvOptions& csv, double holdout,
-                  uint64_t split_seed, Inputs* in) {
-  if (Status s = ReadRobotModelFile(model_path, &in->nominal); !s.ok()) return s;
+                  uint64_t split_seed, Inputs* in, const UrdfOptions& urdf_options) {
+  in->from_urdf = IsUrdfPath(model_path);
+  if (Status s = in->from_urdf
+                     ? ReadRobotModelUrdf(model_path, &in->nominal, urdf_options, &in->urdf)
+                     : ReadRobotModel(model_path, &in->nominal);
+      !s.ok()) {
+    return s;
+  }
   MeasurementSet all;
   if (Status s = ReadMeasurements(measurements_path, in->nominal, csv, &all, &in->skipped);
       !s.ok()) {
