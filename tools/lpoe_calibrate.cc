@@ -427,8 +427,11 @@ int Run() {
                             summary.verification_after);
   }
 
-  tools::AddPointResiduals(before_model, result.model, job.identification, job.verification,
-                           &summary);
+  // Per-point residuals (about 170 bytes a row) only for the outputs that show them.
+  if (!FLAGS_report.empty() || !FLAGS_html_report.empty() || !FLAGS_plots_dir.empty()) {
+    tools::AddPointResiduals(before_model, result.model, job.identification, job.verification,
+                             &summary);
+  }
 
   // ---- Points that do not fit.
   summary.outliers = FindOutliers(result.model, job.identification, FLAGS_outlier_threshold,
