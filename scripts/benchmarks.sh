@@ -62,7 +62,7 @@ run_e2e() {  # label csv extra-flags...
   local label="$1" csv="$2"
   shift 2
   (cd "$WORK" && /usr/bin/time -v "$BUILD/tools/lpoe_calibrate" --measurements="$csv" \
-    --output="$WORK/out.yaml" --report="$WORK/out.json" --plots_dir="$WORK/plots" "$@" \
+    --output="$WORK/out.yaml" --plots_dir="$WORK/plots" "$@" \
     >"$WORK/e2e.out" 2>"$WORK/e2e.time") || { cat "$WORK/e2e.out" "$WORK/e2e.time" >&2; exit 1; }
   local wall rss rows
   wall=$(sed -n 's/.*Elapsed (wall clock) time (h:mm:ss or m:ss): //p' "$WORK/e2e.time")
@@ -71,8 +71,9 @@ run_e2e() {  # label csv extra-flags...
   echo "$label|$rows|$wall|$rss|$*" >>"$WORK/e2e.txt"
 }
 : >"$WORK/e2e.txt"
-run_e2e "70,000 rows, defaults" n70k.csv
-run_e2e "10^6 rows, defaults" n1m.csv
+# The JSON report lists every point: with the defaults runs only (the scale targets are without it).
+run_e2e "70,000 rows, defaults" n70k.csv --report="$WORK/out.json"
+run_e2e "10^6 rows, defaults" n1m.csv --report="$WORK/out.json"
 run_e2e "10^6 rows, no plots" n1m.csv --plots_dir=
 run_e2e "10^6 rows, no plots, no registration" n1m.csv --plots_dir= --noregister
 run_e2e "10^7 rows, no plots" n10m.csv --plots_dir=

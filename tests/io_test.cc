@@ -764,6 +764,14 @@ TEST(Io, YamlJointLimitsRoundTrip) {
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.message().find("'limits' lower value is +infinity"), std::string::npos)
       << bad.message();
+  // The same rule in Validate(), for models built in code.
+  RobotModel open_wrong_way = model;
+  open_wrong_way.joints[1].lower = std::numeric_limits<double>::infinity();
+  open_wrong_way.joints[1].upper = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(open_wrong_way.Validate().ok());
+  EXPECT_FALSE(ValidateLimits(1.0, -std::numeric_limits<double>::infinity()).ok());
+  EXPECT_FALSE(ValidateLimits(2.0, 1.0).ok());
+  EXPECT_TRUE(ValidateLimits(-std::numeric_limits<double>::infinity(), 1.0).ok());
 }
 
 // Duplicate names are found by hashing: many joints, the duplicate named with its first line.

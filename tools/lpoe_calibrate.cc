@@ -419,7 +419,10 @@ int Run() {
                             summary.verification_after);
   }
 
-  tools::AddPointResiduals(run.before, result.model, identification, verification, &summary);
+  // Per-point residuals (about 170 bytes a row) only for the outputs that show them.
+  if (!FLAGS_report.empty() || !FLAGS_html_report.empty() || !FLAGS_plots_dir.empty()) {
+    tools::AddPointResiduals(run.before, result.model, identification, verification, &summary);
+  }
 
   // ---- Points that do not fit.
   summary.outliers = run.outliers;

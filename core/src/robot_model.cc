@@ -1,6 +1,7 @@
 #include "lpoe/robot_model.h"
 
 #include <cmath>
+#include <limits>
 #include <set>
 #include <sstream>
 
@@ -70,6 +71,13 @@ Status ValidateTwist(JointType type, const Vector6d& twist) {
 }
 
 Status ValidateLimits(double lower, double upper) {
+  if (lower == std::numeric_limits<double>::infinity() ||
+      upper == -std::numeric_limits<double>::infinity()) {
+    std::ostringstream ls;
+    ls << "limits [" << lower << ", " << upper << "] are open the wrong way (only the lower limit "
+       << "may be -inf and only the upper +inf)";
+    return Status::Error(ls.str());
+  }
   if (std::isnan(lower) || std::isnan(upper) || !(lower <= upper)) {
     std::ostringstream ls;
     ls << "limits [" << lower << ", " << upper << "] must satisfy lower <= upper";
