@@ -5,6 +5,7 @@
 #include <limits>
 #include <memory>
 #include <numeric>
+#include <utility>
 #include <random>
 
 #include <Eigen/Cholesky>
@@ -42,6 +43,24 @@ double LogDetSpd(const Eigen::MatrixXd& M) {
     s += 2.0 * std::log(d(k));
   }
   return s;
+}
+
+// Cholesky factorization of the r x r column-major matrix a in place (lower triangle); false when
+// it is not positive definite. For the small blocks of one candidate, without allocation.
+bool CholeskyInPlace(double* a, int r) {
+  for (int j = 0; j < r; ++j) {
+    double d = a[j + j * r];
+    for (int k = 0; k < j; ++k) d -= a[j + k * r] * a[j + k * r];
+    if (!(d > 0)) return false;
+    d = std::sqrt(d);
+    a[j + j * r] = d;
+    for (int i = j + 1; i < r; ++i) {
+      double v = a[i + j * r];
+      for (int k = 0; k < j; ++k) v -= a[i + k * r] * a[j + k * r];
+      a[i + j * r] = v / d;
+    }
+  }
+  return true;
 }
 
 double MinEigenvalue(const Eigen::MatrixXd& M) {
@@ -84,9 +103,10 @@ class Selector {
     }
     max_rows_ = 0;
     for (int c = 0; c < pool.size(); ++c) max_rows_ = std::max(max_rows_, pool.rows(c));
+    scratch_.resize(max_rows_ * max_rows_ + max_rows_);
     M_ = kRegularization * Eigen::MatrixXd::Identity(P_, P_);
+    A_ = Eigen::MatrixXd::Identity(P_, P_) / kRegularization;
     in_plan_.assign(pool.size(), 0);
-    Resync();
   }
 
   bool in_plan(int c) const { return in_plan_[c] != 0; }
@@ -104,50 +124,87 @@ class Selector {
     return 0;
   }
 
-  // Improvement of the criterion when candidate c is added (greedy; from the maintained S, Z).
+  // Improvement of the criterion when candidate c is added (greedy; from the maintained S, Z):
+  // log det(I + S_c), or trace((I + S_c)^-1 Z_c Z_c^T).
   double AddGain(int c) const {
     const int r = pool_.rows(c);
     const int o = pool_.row_offset[c];
-    const Eigen::MatrixXd K =
-        Eigen::MatrixXd::Identity(r, r) + S_.block(o, 0, r, r);
-    if (objective_ == Objective::kTrace) {
-      const Eigen::MatrixXd Zc = Z_.middleRows(o, r);
-      return K.llt().solve(Zc * Zc.transpose()).trace();
+    double* K = scratch_.data();
+    for (int j = 0; j < r; ++j) {
+      for (int i = 0; i < r; ++i) K[i + j * r] = S_(o + i, j) + (i == j ? 1.0 : 0.0);
     }
-    return LogDetSpd(K);
+    if (!CholeskyInPlace(K, r)) return -kInf;
+    if (objective_ == Objective::kTrace) {
+      // |C^-1 Z_c|_F^2 with K = C C^T.
+      double sum = 0;
+      double* y = scratch_.data() + r * r;
+      for (int col = 0; col < P_; ++col) {
+        for (int i = 0; i < r; ++i) {
+          double v = Z_(o + i, col);
+          for (int k = 0; k < i; ++k) v -= K[i + k * r] * y[k];
+          y[i] = v / K[i + i * r];
+          sum += y[i] * y[i];
+        }
+      }
+      return sum;
+    }
+    double logdet = 0;
+    for (int i = 0; i < r; ++i) logdet += 2.0 * std::log(K[i + i * r]);
+    return logdet;
   }
 
-  // The criterion after swapping plan member s for candidate c, exactly.
-  double SwapValue(int s, int c, double current) const {
+  // M <- M + J_b^T J_b and A <- M^-1 by the rank-r update, leaving S and Z stale (call Resync()).
+  void AddOnly(int b) {
+    const auto Jb = Js_.middleRows(pool_.row_offset[b], pool_.rows(b));
+    const Eigen::MatrixXd U = A_ * Jb.transpose();
+    Eigen::MatrixXd K = Jb * U;
+    K.diagonal().array() += 1.0;
+    A_.noalias() -= U * K.llt().solve(U.transpose());
+    M_.noalias() += Jb.transpose() * Jb;
+    in_plan_[b] = 1;
+  }
+
+  // Prepares SwapValue for plan member s: u = A J_s^T.
+  void PrepareRemoval(int s) {
+    removal_ = s;
+    u_ = A_ * Js_.middleRows(pool_.row_offset[s], pool_.rows(s)).transpose();
+  }
+
+  // The criterion after swapping the prepared plan member s for candidate c (from the maintained S
+  // and Z, exact up to their round-off).
+  double SwapValue(int c, double current) const {
+    const int s = removal_;
     const int rs = pool_.rows(s), rc = pool_.rows(c);
+    const int os = pool_.row_offset[s], oc = pool_.row_offset[c];
     if (objective_ == Objective::kMinEigen) {
-      const auto Jc = Js_.middleRows(pool_.row_offset[c], rc);
-      const auto Jsb = Js_.middleRows(pool_.row_offset[s], rs);
+      const auto Jc = Js_.middleRows(oc, rc);
+      const auto Jsb = Js_.middleRows(os, rs);
       Eigen::MatrixXd M = M_;
       M.noalias() += Jc.transpose() * Jc;
       M.noalias() -= Jsb.transpose() * Jsb;
       return MinEigenvalue(M);
     }
-    // M' = M + B^T Sigma B, B = [J_c; J_s], Sigma = diag(I, -I).
-    Eigen::MatrixXd B(rc + rs, P_);
-    B.topRows(rc) = Js_.middleRows(pool_.row_offset[c], rc);
-    B.bottomRows(rs) = Js_.middleRows(pool_.row_offset[s], rs);
-    Eigen::VectorXd sigma(rc + rs);
-    sigma.head(rc).setOnes();
-    sigma.tail(rs).setConstant(-1.0);
-    const Eigen::MatrixXd BA = B * A_;
-    Eigen::MatrixXd G = BA * B.transpose();
+    // M' = M + B^T Sigma B, B = [J_c; J_s], Sigma = diag(I, -I); G = B A B^T from S and u.
+    const int m = rc + rs;
+    Eigen::MatrixXd G(m, m);
+    G.topLeftCorner(rc, rc) = S_.block(oc, 0, rc, rc);
+    G.bottomRightCorner(rs, rs) = S_.block(os, 0, rs, rs);
+    G.topRightCorner(rc, rs).noalias() = Js_.middleRows(oc, rc) * u_;
+    G.bottomLeftCorner(rs, rc) = G.topRightCorner(rc, rs).transpose();
     if (objective_ == Objective::kLogDet) {
-      // det M' / det M = det(I + Sigma B A B^T).
-      Eigen::MatrixXd T = sigma.asDiagonal() * G;
-      T.diagonal().array() += 1.0;
-      const double det = T.partialPivLu().determinant();
+      // det M' / det M = det(I + Sigma G).
+      G.bottomRows(rs) *= -1.0;
+      G.diagonal().array() += 1.0;
+      const double det = G.partialPivLu().determinant();
       return det > 0 ? current + std::log(det) : -kInf;
     }
-    // trace(W A') = trace(W A) - trace((Sigma + B A B^T)^-1 B A W A B^T).
-    G.diagonal() += sigma;
-    const Eigen::MatrixXd BAF = BA * F_;
-    return current + G.partialPivLu().solve(BAF * BAF.transpose()).trace();
+    // trace(W A') = trace(W A) - trace((Sigma + G)^-1 B A W A B^T), B A F = [Z_c; Z_s].
+    G.diagonal().head(rc).array() += 1.0;
+    G.diagonal().tail(rs).array() -= 1.0;
+    Eigen::MatrixXd Zb(m, P_);
+    Zb.topRows(rc) = Z_.middleRows(oc, rc);
+    Zb.bottomRows(rs) = Z_.middleRows(os, rs);
+    return current + G.partialPivLu().solve(Zb * Zb.transpose()).trace();
   }
 
   // M <- M + sign J_b^T J_b for candidate b, with the rank-r updates of A, S and Z.
@@ -162,14 +219,14 @@ class Selector {
     M_.noalias() += sign * (Jb.transpose() * Jb);
     in_plan_[b] = sign > 0;
     // S_c <- S_c - V_c K^-1 V_c^T with V = J U; Z <- Z - V K^-1 U^T F.
-    const Eigen::MatrixXd V = Js_ * U;
-    const Eigen::MatrixXd VK = V * Kinv;
+    V_.noalias() = Js_ * U;
+    VK_.noalias() = V_ * Kinv;
     for (int c = 0; c < pool_.size(); ++c) {
       const int o = pool_.row_offset[c];
       const int rc = pool_.rows(c);
-      S_.block(o, 0, rc, rc).noalias() -= VK.middleRows(o, rc) * V.middleRows(o, rc).transpose();
+      S_.block(o, 0, rc, rc).noalias() -= VK_.middleRows(o, rc) * V_.middleRows(o, rc).transpose();
     }
-    if (objective_ == Objective::kTrace) Z_.noalias() -= VK * (U.transpose() * F_);
+    if (objective_ == Objective::kTrace) Z_.noalias() -= VK_ * (U.transpose() * F_);
   }
 
   // Recomputes A, S and Z from M (removes the drift of repeated updates).
@@ -214,7 +271,11 @@ class Selector {
   Eigen::MatrixXd M_, A_;
   Eigen::MatrixXd S_;  // block c at rows [o_c, o_c + r_c), columns [0, r_c)
   Eigen::MatrixXd Z_;
+  Eigen::MatrixXd V_, VK_;  // scratch of Update
   std::vector<char> in_plan_;
+  int removal_ = -1;
+  Eigen::MatrixXd u_;
+  mutable std::vector<double> scratch_;
 };
 
 }  // namespace
@@ -512,59 +573,65 @@ Status SelectPlan(const PlanningModel& pm, const CandidatePool& pool, int count,
       break;
   }
 
-  // Greedy: from an empty plan, add the candidate with the largest gain. The minimum-eigenvalue
-  // criteria start from the D-greedy plan (lambda_min stays 0 until M has full rank).
-  auto greedy = std::make_unique<Selector>(
+  // Greedy: from an empty plan, add the candidate with the largest gain; every candidate's S_c (and
+  // Z_c) follows the plan by rank-r updates, one (rows x P x r) product per step. The
+  // minimum-eigenvalue criteria start from the D-greedy plan (lambda_min stays 0 until M has full
+  // rank). (Lazy evaluation does not pay here: the gains of a random pool drop together.)
+  auto local_owner = std::make_unique<Selector>(
       pool, scale, objective == Objective::kMinEigen ? Objective::kLogDet : objective, weight);
+  local_owner->Resync();
   result->selected.clear();
+  std::vector<double> gains;
+  int rows = 0;
+  bool full_rank_resync = false;
   for (int k = 0; k < count; ++k) {
-    int best = -1;
-    double best_gain = -kInf;
-    for (int c = 0; c < pool.size(); ++c) {
-      if (greedy->in_plan(c)) continue;
-      const double g = greedy->AddGain(c);
-      if (g > best_gain) {
-        best_gain = g;
-        best = c;
-      }
+    if (!full_rank_resync && rows >= P) {  // delta I no longer dominates: drop the round-off
+      local_owner->Resync();
+      full_rank_resync = true;
     }
-    CHECK_GE(best, 0);
-    greedy->Update(best, +1.0);
+    local_owner->Scores(&gains);
+    const int best = static_cast<int>(std::max_element(gains.begin(), gains.end()) - gains.begin());
+    CHECK(!local_owner->in_plan(best));
+    local_owner->Update(best, +1.0);
     result->selected.push_back(best);
+    rows += pool.rows(best);
   }
 
   // Exchange: swap each plan member for the best of the shortlist while the criterion improves.
-  std::unique_ptr<Selector> local_owner;
   if (objective == Objective::kMinEigen) {
     local_owner = std::make_unique<Selector>(pool, scale, objective, weight);
-    for (int c : result->selected) local_owner->Update(c, +1.0);
-  } else {
-    local_owner = std::move(greedy);
+    for (int c : result->selected) local_owner->AddOnly(c);
   }
   Selector& local = *local_owner;
+  local.Resync();  // the greedy's updates started from M = delta I: remove their round-off
   result->exchanges = 0;
   result->passes = 0;
   std::vector<double> score;
   std::vector<int> order(pool.size());
-  for (int pass = 0; pass < options.max_exchange_passes; ++pass) {
+  std::vector<int> shortlist;
+  const int K = std::min<int>(options.shortlist, pool.size() - count);
+  bool stale = true;  // the shortlist is recomputed after every accepted swap
+  double current = 0;
+  for (int pass = 0; pass < options.max_exchange_passes && K > 0; ++pass) {
     ++result->passes;
-    local.Resync();
     bool improved = false;
     for (int k = 0; k < count; ++k) {
+      if (stale) {
+        local.Scores(&score);
+        std::iota(order.begin(), order.end(), 0);
+        std::partial_sort(order.begin(), order.begin() + K, order.end(),
+                          [&](int a, int b) { return score[a] > score[b]; });
+        shortlist.assign(order.begin(), order.begin() + K);
+        current = local.Value();
+        stale = false;
+      }
       const int s = result->selected[k];
-      local.Scores(&score);
-      std::iota(order.begin(), order.end(), 0);
-      const int K = std::min<int>(options.shortlist, pool.size() - count);
-      if (K <= 0) break;
-      std::partial_sort(order.begin(), order.begin() + K, order.end(),
-                        [&](int a, int b) { return score[a] > score[b]; });
-      const double current = local.Value();
+      local.PrepareRemoval(s);
       int best = -1;
       double best_value = current + 1e-9 * std::max(1.0, std::abs(current));
-      for (int t = 0; t < K; ++t) {
-        const int c = order[t];
+      for (int c : shortlist) {
         if (local.in_plan(c)) continue;
-        const double v = local.SwapValue(s, c, current);
+        const double v = local.SwapValue(c, current);
         if (v > best_value) {
           best_value = v;
           best = c;
@@ -573,9 +640,16 @@ Status SelectPlan(const PlanningModel& pm, const CandidatePool& pool, int count,
       if (best < 0) continue;
       local.Update(s, -1.0);
       local.Update(best, +1.0);
+      const double value = local.Value();
+      if (!(value > current)) {  // round-off of the maintained terms: undo
+        local.Update(best, -1.0);
+        local.Update(s, +1.0);
+        continue;
+      }
       result->selected[k] = best;
       ++result->exchanges;
       improved = true;
+      stale = true;
     }
     if (!improved) break;
   }
