@@ -8,9 +8,12 @@ PACKAGES=(
   libeigen3-dev libceres-dev libgoogle-glog-dev libgflags-dev
   libyaml-cpp-dev          # robot model files (YAML with line numbers in errors)
   libtinyxml2-dev          # URDF robot models
+  liburdfdom-dev           # urdf_overlay_test: reads the written URDF independently of our reader
+  liburdfdom-tools         # urdf_overlay_test: check_urdf validates the written URDF
   nlohmann-json3-dev       # the JSON calibration report (header-only)
   libgtest-dev libbenchmark-dev
   libpng-dev               # report plots (tools/plot.cc)
+  pybind11-dev python3-pybind11 python3-dev python3-numpy python3-pytest  # the Python module lpoe (python/)
   clang libclang-rt-14-dev # scripts/fuzz.sh (libFuzzer) and scripts/ci_sanitize.sh (ASan + UBSan)
 )
 

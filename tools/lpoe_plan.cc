@@ -21,7 +21,6 @@
 #include "joint_table.h"
 #include "lpoe/io.h"
 #include "lpoe/planning.h"
-#include "lpoe/urdf.h"
 #include "tool_common.h"
 
 DEFINE_string(model, "", "Nominal robot model, YAML or URDF (.urdf). Required.");
@@ -189,9 +188,7 @@ int Run() {
   }
 
   RobotModel model;
-  const bool urdf = FLAGS_model.size() >= 5 && FLAGS_model.substr(FLAGS_model.size() - 5) == ".urdf";
-  if (Status s = urdf ? ReadRobotModelUrdf(FLAGS_model, &model) : ReadRobotModel(FLAGS_model, &model);
-      !s.ok()) {
+  if (Status s = ReadRobotModelFile(FLAGS_model, &model); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
