@@ -367,15 +367,11 @@ double CharacteristicLength(const RobotModel& model) {
 double SingularityMeasure(const RobotModel& model, const double* q) {
   const int n = model.num_joints();
   Eigen::MatrixXd J_p, J_pose;
-  ToolPositionJacobian(model, q, 0, &J_p);
-  ToolPoseJacobian(model, q, 0, &J_pose);
-  const double inv_length = 1.0 / CharacteristicLength(model);
+  ToolPositionJointJacobian(model, q, 0, &J_p);
+  ToolPoseJointJacobian(model, q, 0, &J_pose);
   Eigen::MatrixXd G(6, n);
-  for (int i = 0; i < n; ++i) {
-    const Vector6d& s = model.joints[i].twist;
-    G.col(i).head<3>() = J_pose.block(0, 6 * i, 3, 6) * s;
-    G.col(i).tail<3>() = inv_length * (J_p.block(0, 6 * i, 3, 6) * s);
-  }
+  G.topRows<3>() = J_pose.topRows<3>();
+  G.bottomRows<3>() = J_p / CharacteristicLength(model);
   const Eigen::VectorXd sv = G.jacobiSvd().singularValues();
   return sv(std::min(6, n) - 1);
 }

@@ -98,9 +98,7 @@ std::vector<int> VisibleTools(const RobotModel& model, const TrackerConstraint& 
 
 // Distance from singular configurations: the smallest singular value of the geometric Jacobian of
 // tool 0 (rotation rows, and translation rows divided by the arm's length scale CharacteristicLength),
-// i.e. of min(6, n) singular values the last. 0 at a singular configuration; dimensionless. The
-// columns come from the error-model Jacobians: moving joint i by dq is the perturbation s_i dq of its
-// local frame.
+// i.e. of min(6, n) singular values the last. 0 at a singular configuration; dimensionless.
 double SingularityMeasure(const RobotModel& model, const double* q);
 // Sum of the translations of the joint origins after the first and of tool 0 (mm).
 double CharacteristicLength(const RobotModel& model);
