@@ -16,6 +16,7 @@
 #include "lpoe/simulation.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
+#include "joint_table.h"
 #include "tool_common.h"
 
 DEFINE_string(robot, "cobot6",
@@ -32,7 +33,11 @@ DEFINE_double(error_translation, 3.0, "random errors: local-frame translation bo
 DEFINE_double(error_tilt, 0.03, "random errors: joint-axis tilt bound (rad).");
 DEFINE_double(error_zero, 0.03, "random errors: joint-zero offset bound (rad or mm).");
 DEFINE_uint64(error_seed, 7, "Seed of the random errors.");
-DEFINE_int32(count, 100, "Number of configurations (at most 10^7).");
+DEFINE_int32(count, 100, "Number of configurations (at most 10^7; ignored with --joints).");
+DEFINE_string(joints, "",
+              "Measure at the configurations of this CSV (q1..qN in --angle_unit, other columns "
+              "ignored; e.g. a plan of lpoe_plan) instead of random ones; with --all_tools every "
+              "tool at each configuration.");
 DEFINE_int32(verify_count, 0,
              "The last verify_count configurations go to --verify_out instead of --out.");
 DEFINE_double(noise_sigma, 0.0,
@@ -40,7 +45,9 @@ DEFINE_double(noise_sigma, 0.0,
               "sigma = sqrt(0.2) = 0.447 mm.");
 DEFINE_bool(pose, false, "Also record the tool orientation (pose data: quat_* columns).");
 DEFINE_double(orientation_noise_sigma, 0.0, "Orientation noise per axis (rad), with --pose.");
-DEFINE_bool(all_tools, false, "Cycle the measured target through all tools of the model.");
+DEFINE_bool(all_tools, false,
+            "Cycle the measured target through all tools of the model (with --joints: measure "
+            "every tool at each configuration).");
 DEFINE_uint64(seed, 1, "Seed of the configurations and the noise.");
 DEFINE_string(angle_unit, "rad", "Unit of the revolute joint values written: rad | deg.");
 DEFINE_string(out, "", "Measurement CSV to write (required).");
@@ -55,7 +62,9 @@ constexpr char kUsage[] =
     "Simulates laser-tracker measurements of a robot with kinematic errors (paper section 4).\n\n"
     "  lpoe_simulate --out=points.csv                       # cobot6, Table 2, 100 rows\n"
     "  lpoe_simulate --count=100 --verify_count=30 --noise_sigma=0.03 \\\n"
-    "      --out=identification.csv --verify_out=verification.csv --model_out=cobot6.yaml";
+    "      --out=identification.csv --verify_out=verification.csv --model_out=cobot6.yaml\n"
+    "  lpoe_simulate --model=nominal.yaml --errors=random --joints=poses.csv --all_tools \\\n"
+    "      --noise_sigma=0.02 --out=planned.csv                # at the poses of a plan";
 
 constexpr double kDegreesPerRadian = 180.0 / 3.14159265358979323846;
 
@@ -97,6 +106,7 @@ int Run() {
   // No output may overwrite the model or another output (by file identity).
   tools::OutputSet files;
   files.AddInput("--model", FLAGS_model);
+  files.AddInput("--joints", FLAGS_joints);
   files.AddOutput("--out", FLAGS_out);
   if (FLAGS_verify_count > 0) files.AddOutput("--verify_out", FLAGS_verify_out);
   files.AddOutput("--model_out", FLAGS_model_out);
@@ -159,6 +169,19 @@ int Run() {
 
   SimulationOptions options;
   options.count = FLAGS_count;
+  if (!FLAGS_joints.empty()) {
+    tools::JointTable table;
+    if (Status s = tools::ReadJointTable(FLAGS_joints, nominal, unit, &table); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitInput;
+    }
+    options.configurations = table.q;
+    const int rows = table.rows() * (FLAGS_all_tools ? nominal.num_tools() : 1);
+    if (FLAGS_verify_count >= rows) {
+      std::cerr << "error: --verify_count must be below the " << rows << " rows of --joints\n";
+      return kExitUsage;
+    }
+  }
   options.noise_sigma = FLAGS_noise_sigma;
   options.pose = FLAGS_pose;
   options.orientation_noise_sigma = FLAGS_orientation_noise_sigma;
@@ -178,7 +201,7 @@ int Run() {
           << ", noise sigma " << FLAGS_noise_sigma << " mm, seed " << FLAGS_seed << ", joint values in "
           << FLAGS_angle_unit;
   MeasurementSet identification, verification;
-  data.SplitAt(FLAGS_count - FLAGS_verify_count, &identification, &verification);
+  data.SplitAt(data.size() - FLAGS_verify_count, &identification, &verification);
 
   // The actual robot with the joint-zero errors folded in: T_i(0) <- T_i(0) exp(s_i dq_i).
   RobotModel actual_out = actual;

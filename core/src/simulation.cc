@@ -150,11 +150,16 @@ MeasurementSet SimulateMeasurements(const RobotModel& actual, const std::vector<
 
   Random rng(options.seed);
   MeasurementSet data(n);
-  data.Reserve(options.count);
+  const std::vector<double>& given = options.configurations;
+  CHECK_EQ(given.size() % std::max(n, 1), 0u);
+  // Given configurations: every tool at each (all_tools) or tool 0; otherwise random ones.
+  const int tools_per_pose = !given.empty() && options.all_tools ? actual.num_tools() : 1;
+  const int count = given.empty() ? options.count : static_cast<int>(given.size() / n) * tools_per_pose;
+  data.Reserve(count);
   std::vector<double> q(n), q_actual(n);
-  for (int r = 0; r < options.count; ++r) {
+  for (int r = 0; r < count; ++r) {
     for (int i = 0; i < n; ++i) {
-      q[i] = rng.Uniform(lo[i], hi[i]);
+      q[i] = given.empty() ? rng.Uniform(lo[i], hi[i]) : given[(r / tools_per_pose) * n + i];
       q_actual[i] = q[i] + (joint_zero.empty() ? 0.0 : joint_zero[i]);
     }
     const int target = options.all_tools ? r % actual.num_tools() : 0;

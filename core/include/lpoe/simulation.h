@@ -44,6 +44,9 @@ struct SimulationOptions {
   std::vector<double> lower, upper;
   // Targets cycle through the model's tools when true; else every row measures tool 0.
   bool all_tools = false;
+  // When not empty: measure at these configurations (row-major, n per row; `count`, `lower` and
+  // `upper` are ignored), every tool at each one when `all_tools` (rows pose by pose), else tool 0.
+  std::vector<double> configurations;
 };
 
 // Random configurations q (commanded values), measured on `actual` at q + joint_zero (eq. (34)).

@@ -1,0 +1,188 @@
+// Measurement planning: which joint configurations to measure so that the calibration identifies the
+// model best (docs/planning.md).
+//
+// A pose q contributes the rows J(q) of the calibration's least-squares problem: the position
+// Jacobian (eq. (29)) of every tool the tracker can see at q, in the identifiable parameterization.
+// With isotropic measurement noise sigma the covariance of the identified parameters of a set of poses
+// S is sigma^2 M(S)^-1, M(S) = sum_{q in S} J(q)^T J(q) (the information matrix). A plan is the set
+// of N candidate poses that optimizes a scalar criterion of M:
+//
+//   D   maximize log det M                         (volume of the confidence ellipsoid)
+//   A   minimize trace(M_s^-1)                     (sum of the scaled parameter variances)
+//   E   maximize lambda_min(M_s)                   (the worst-determined scaled direction)
+//   I   minimize trace(L M^-1)                     (average prediction variance of the tool position
+//                                                   over a workspace sample, L = mean J_w^T J_w)
+//   O1  (sigma_1 ... sigma_P)^(1/P) / sqrt(m)      (Borm and Menq; at fixed N a monotone function of
+//                                                   det M: selects as D)
+//   O3  sigma_min(J E)                             (Nahvi et al.; minimum singular value with the
+//                                                   parameters scaled by their expected error E:
+//                                                   1 mrad per rotation, 1 mm per translation)
+//
+// M_s = D M D is M with Jacobi column scaling (D from the candidate pool), m the number of rows. The
+// selection is greedy (one pose at a time, the best gain) followed by an exchange (Fedorov / DETMAX):
+// each planned pose is swapped for the best of a shortlist of candidates while the criterion improves.
+// Rank-r updates of M^-1 (r = 3 x visible tools) keep a greedy step at one (rows x P x r) product.
+#ifndef LPOE_PLANNING_H_
+#define LPOE_PLANNING_H_
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lpoe/kinematics.h"
+#include "lpoe/parameterization.h"
+#include "lpoe/robot_model.h"
+#include "lpoe/status.h"
+
+namespace lpoe {
+
+enum class PlanCriterion { kD, kA, kE, kI, kO1, kO3 };
+
+const char* PlanCriterionName(PlanCriterion criterion);
+bool ParsePlanCriterion(const std::string& text, PlanCriterion* criterion);
+
+// The parameters a plan identifies and the rows one pose contributes. This is the only place that
+// decides the parameter blocks: joint-space error terms (dq = Y(q) theta) become extra columns of
+// Rows() when they exist.
+class PlanningModel {
+ public:
+  explicit PlanningModel(const RobotModel& model);
+  PlanningModel(const PlanningModel&) = delete;
+  PlanningModel& operator=(const PlanningModel&) = delete;
+
+  const RobotModel& model() const { return model_; }
+  const Parameterization& parameterization() const { return parameterization_; }
+  int num_parameters() const { return parameterization_.num_parameters; }
+
+  // The position Jacobians (eq. (29), restricted to the identifiable directions) of the listed tools
+  // at q, stacked: 3 rows per tool, num_parameters() columns.
+  void Rows(const double* q, const std::vector<int>& tools, Eigen::MatrixXd* J) const;
+
+  // Expected parameter error magnitude of each parameter (O3's scaling): 1e-3 rad per unit of
+  // rotation and 1 mm per unit of translation in its direction.
+  Eigen::VectorXd ErrorScale() const;
+
+ private:
+  RobotModel model_;
+  Parameterization parameterization_;
+  BasisJacobian basis_;
+};
+
+// ---- Constraints of the cell.
+
+// The tracker and what it can see. Without a tracker every tool counts at every pose.
+struct TrackerConstraint {
+  bool enabled = false;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // in the model's base frame (mm)
+  double max_range = std::numeric_limits<double>::infinity();  // mm
+  // Half-angle of the cone around an SMR's facing direction within which the tracker sees it (rad).
+  double acceptance_angle = 30.0 * 3.14159265358979323846 / 180.0;
+  // Facing direction of each tool, in the tool's own frame (unit). Empty: +z of every tool frame.
+  std::vector<Eigen::Vector3d> facing;
+};
+
+struct PlanConstraints {
+  TrackerConstraint tracker;
+  // Poses whose singularity measure (see SingularityMeasure) is below this are not used.
+  double min_singularity = 0.0;
+};
+
+// The tools the tracker sees at q: distance to the tracker at most max_range and the direction to
+// the tracker within acceptance_angle of the tool's facing direction (R_0,tool facing). Occlusion by
+// the robot's own links is not modelled.
+std::vector<int> VisibleTools(const RobotModel& model, const TrackerConstraint& tracker,
+                              const double* q);
+
+// Distance from singular configurations: the smallest singular value of the geometric Jacobian of
+// tool 0 (rotation rows, and translation rows divided by the arm's length scale CharacteristicLength),
+// i.e. of min(6, n) singular values the last. 0 at a singular configuration; dimensionless.
+double SingularityMeasure(const RobotModel& model, const double* q);
+// Sum of the translations of the joint origins after the first and of tool 0 (mm).
+double CharacteristicLength(const RobotModel& model);
+
+// The sampling box of each joint: its limits; [-pi, pi] for a revolute joint without limits (one
+// missing side: 2 pi from the other). A prismatic joint without both limits is an error.
+Status JointRanges(const RobotModel& model, std::vector<double>* lower, std::vector<double>* upper);
+
+// `count` configurations uniform in the joint ranges (row-major, n per row), seeded (portable).
+Status SampleConfigurations(const RobotModel& model, int count, uint64_t seed,
+                            std::vector<double>* q);
+
+// ---- The candidate pool.
+
+struct CandidatePool {
+  int num_joints = 0;
+  int num_parameters = 0;
+  std::vector<double> q;            // feasible candidates, row-major
+  std::vector<int> source;          // index of each candidate in the caller's list
+  std::vector<std::vector<int>> visible;  // tools counted at each candidate
+  Eigen::MatrixXd J;                // the stacked rows of every candidate
+  std::vector<int> row_offset;      // candidate c has rows [row_offset[c], row_offset[c + 1])
+  // Why candidates were dropped.
+  int outside_limits = 0;
+  int near_singular = 0;
+  int nothing_visible = 0;
+
+  int size() const { return static_cast<int>(source.size()); }
+  int rows(int c) const { return row_offset[c + 1] - row_offset[c]; }
+};
+
+// Keeps the candidates (row-major `q`, n per row) that satisfy the joint limits and the constraints,
+// and computes their rows.
+CandidatePool BuildCandidatePool(const PlanningModel& pm, const std::vector<double>& q,
+                                 const PlanConstraints& constraints);
+
+// L = mean over the workspace configurations (row-major) and every tool of J_w^T J_w: the predicted
+// mean squared position error of the tools there is sigma^2 trace(L M^-1).
+Eigen::MatrixXd WorkspaceMoment(const PlanningModel& pm, const std::vector<double>& workspace);
+
+// ---- Evaluation of a plan.
+
+struct PlanQuality {
+  int num_poses = 0;
+  int num_rows = 0;
+  int rank = 0;
+  double condition_number = std::numeric_limits<double>::infinity();  // column-scaled Jacobian
+  // Expected RMS of the tool position error over the workspace after calibration, per unit of
+  // measurement noise (mm per mm of per-axis sigma): sqrt(trace(L M^-1)). Infinite when M is singular.
+  double predicted_rms = std::numeric_limits<double>::infinity();
+  // The criteria's values (D: log det M_s; A: trace M_s^-1; E: lambda_min(M_s); I: trace(L M^-1);
+  // O1, O3 as defined above). Infinite/-infinite where M is singular.
+  double d = 0, a = 0, e = 0, i = 0, o1 = 0, o3 = 0;
+};
+
+// The information matrix of the listed candidates.
+Eigen::MatrixXd Information(const CandidatePool& pool, const std::vector<int>& selected);
+
+PlanQuality EvaluatePlan(const PlanningModel& pm, const CandidatePool& pool,
+                         const std::vector<int>& selected, const Eigen::MatrixXd& workspace_moment);
+
+// ---- Selection.
+
+struct PlanOptions {
+  PlanCriterion criterion = PlanCriterion::kD;
+  int max_exchange_passes = 4;  // passes over the plan; stops early at a pass without improvement
+  int shortlist = 64;           // candidates tried per exchange (the largest variances d(c))
+};
+
+struct PlanResult {
+  std::vector<int> selected;  // candidate indices in the pool
+  int exchanges = 0;          // accepted swaps
+  int passes = 0;
+};
+
+// Chooses `count` distinct candidates of the pool. Fails when the pool has fewer than `count`.
+// `workspace_moment` is used by criterion I.
+Status SelectPlan(const PlanningModel& pm, const CandidatePool& pool, int count,
+                  const Eigen::MatrixXd& workspace_moment, const PlanOptions& options,
+                  PlanResult* result);
+
+// `count` distinct candidates drawn at random (seeded): the baseline a plan is compared against.
+std::vector<int> RandomPlan(int pool_size, int count, uint64_t seed);
+
+}  // namespace lpoe
+
+#endif  // LPOE_PLANNING_H_

@@ -1,0 +1,661 @@
+#include "lpoe/planning.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <utility>
+#include <random>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <Eigen/SVD>
+#include <glog/logging.h>
+
+#include "identifiability.h"
+#include "lpoe/analysis.h"
+
+namespace lpoe {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// O1/O3 scaling: expected magnitude of a parameter error (the paper's Table 2 has rotations of
+// 1-5 mrad and translations of 0.5-3 mm).
+constexpr double kRotationErrorScale = 1e-3;    // rad
+constexpr double kTranslationErrorScale = 1.0;  // mm
+// M = delta I + sum J^T J in pool-scaled coordinates, where one pose contributes a unit mean
+// diagonal: keeps M^-1 defined while the plan has fewer poses than it needs.
+constexpr double kRegularization = 1e-6;
+// A joint value may exceed its limit by this much (round-off of a written file).
+constexpr double kLimitTolerance = 1e-9;
+
+// Log-determinant of a symmetric positive definite matrix; -inf when it is not.
+double LogDetSpd(const Eigen::MatrixXd& M) {
+  Eigen::LLT<Eigen::MatrixXd> llt(M);
+  if (llt.info() != Eigen::Success) return -kInf;
+  const Eigen::VectorXd d = llt.matrixLLT().diagonal();
+  double s = 0;
+  for (int k = 0; k < d.size(); ++k) {
+    if (!(d(k) > 0)) return -kInf;
+    s += 2.0 * std::log(d(k));
+  }
+  return s;
+}
+
+// Cholesky factorization of the r x r column-major matrix a in place (lower triangle); false when
+// it is not positive definite. For the small blocks of one candidate, without allocation.
+bool CholeskyInPlace(double* a, int r) {
+  for (int j = 0; j < r; ++j) {
+    double d = a[j + j * r];
+    for (int k = 0; k < j; ++k) d -= a[j + k * r] * a[j + k * r];
+    if (!(d > 0)) return false;
+    d = std::sqrt(d);
+    a[j + j * r] = d;
+    for (int i = j + 1; i < r; ++i) {
+      double v = a[i + j * r];
+      for (int k = 0; k < j; ++k) v -= a[i + k * r] * a[j + k * r];
+      a[i + j * r] = v / d;
+    }
+  }
+  return true;
+}
+
+double MinEigenvalue(const Eigen::MatrixXd& M) {
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(M, Eigen::EigenvaluesOnly);
+  return eig.eigenvalues()(0);
+}
+
+// Pool scaling D: 1 / sqrt(mean over candidates of |column j|^2).
+Eigen::VectorXd PoolScale(const CandidatePool& pool) {
+  const int P = pool.num_parameters;
+  Eigen::VectorXd d(P);
+  const double n = std::max(1, pool.size());
+  for (int j = 0; j < P; ++j) {
+    const double mean = pool.J.col(j).squaredNorm() / n;
+    d(j) = mean > 0 ? 1.0 / std::sqrt(mean) : 1.0;
+  }
+  return d;
+}
+
+// A symmetric positive semi-definite W as F F^T (F = V sqrt(Lambda)).
+Eigen::MatrixXd PsdFactor(const Eigen::MatrixXd& W) {
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(W);
+  return eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+}
+
+enum class Objective { kLogDet, kTrace, kMinEigen };
+
+// The greedy / exchange state, in pool-scaled coordinates: M = delta I + sum of the plan's J^T J,
+// A = M^-1, and for every candidate c: S_c = J_c A J_c^T (its prediction variance, Fedorov's d(c))
+// and, for the trace criteria, Z_c = J_c A F with W = F F^T the trace weight.
+class Selector {
+ public:
+  Selector(const CandidatePool& pool, const Eigen::VectorXd& scale, Objective objective,
+           const Eigen::MatrixXd& weight)
+      : pool_(pool), objective_(objective), P_(pool.num_parameters) {
+    Js_ = pool.J * scale.asDiagonal();
+    if (objective_ == Objective::kTrace) {
+      W_ = weight;
+      F_ = PsdFactor(weight);
+    }
+    max_rows_ = 0;
+    for (int c = 0; c < pool.size(); ++c) max_rows_ = std::max(max_rows_, pool.rows(c));
+    scratch_.resize(max_rows_ * max_rows_ + max_rows_);
+    M_ = kRegularization * Eigen::MatrixXd::Identity(P_, P_);
+    A_ = Eigen::MatrixXd::Identity(P_, P_) / kRegularization;
+    in_plan_.assign(pool.size(), 0);
+  }
+
+  bool in_plan(int c) const { return in_plan_[c] != 0; }
+
+  // The criterion to maximize at the current M.
+  double Value() const {
+    switch (objective_) {
+      case Objective::kLogDet:
+        return LogDetSpd(M_);
+      case Objective::kTrace:
+        return -(W_.cwiseProduct(A_)).sum();
+      case Objective::kMinEigen:
+        return MinEigenvalue(M_);
+    }
+    return 0;
+  }
+
+  // Improvement of the criterion when candidate c is added (greedy; from the maintained S, Z):
+  // log det(I + S_c), or trace((I + S_c)^-1 Z_c Z_c^T).
+  double AddGain(int c) const {
+    const int r = pool_.rows(c);
+    const int o = pool_.row_offset[c];
+    double* K = scratch_.data();
+    for (int j = 0; j < r; ++j) {
+      for (int i = 0; i < r; ++i) K[i + j * r] = S_(o + i, j) + (i == j ? 1.0 : 0.0);
+    }
+    if (!CholeskyInPlace(K, r)) return -kInf;
+    if (objective_ == Objective::kTrace) {
+      // |C^-1 Z_c|_F^2 with K = C C^T.
+      double sum = 0;
+      double* y = scratch_.data() + r * r;
+      for (int col = 0; col < P_; ++col) {
+        for (int i = 0; i < r; ++i) {
+          double v = Z_(o + i, col);
+          for (int k = 0; k < i; ++k) v -= K[i + k * r] * y[k];
+          y[i] = v / K[i + i * r];
+          sum += y[i] * y[i];
+        }
+      }
+      return sum;
+    }
+    double logdet = 0;
+    for (int i = 0; i < r; ++i) logdet += 2.0 * std::log(K[i + i * r]);
+    return logdet;
+  }
+
+  // M <- M + J_b^T J_b and A <- M^-1 by the rank-r update, leaving S and Z stale (call Resync()).
+  void AddOnly(int b) {
+    const auto Jb = Js_.middleRows(pool_.row_offset[b], pool_.rows(b));
+    const Eigen::MatrixXd U = A_ * Jb.transpose();
+    Eigen::MatrixXd K = Jb * U;
+    K.diagonal().array() += 1.0;
+    A_.noalias() -= U * K.llt().solve(U.transpose());
+    M_.noalias() += Jb.transpose() * Jb;
+    in_plan_[b] = 1;
+  }
+
+  // Prepares SwapValue for plan member s: u = A J_s^T.
+  void PrepareRemoval(int s) {
+    removal_ = s;
+    u_ = A_ * Js_.middleRows(pool_.row_offset[s], pool_.rows(s)).transpose();
+  }
+
+  // The criterion after swapping the prepared plan member s for candidate c (from the maintained S
+  // and Z, exact up to their round-off).
+  double SwapValue(int c, double current) const {
+    const int s = removal_;
+    const int rs = pool_.rows(s), rc = pool_.rows(c);
+    const int os = pool_.row_offset[s], oc = pool_.row_offset[c];
+    if (objective_ == Objective::kMinEigen) {
+      const auto Jc = Js_.middleRows(oc, rc);
+      const auto Jsb = Js_.middleRows(os, rs);
+      Eigen::MatrixXd M = M_;
+      M.noalias() += Jc.transpose() * Jc;
+      M.noalias() -= Jsb.transpose() * Jsb;
+      return MinEigenvalue(M);
+    }
+    // M' = M + B^T Sigma B, B = [J_c; J_s], Sigma = diag(I, -I); G = B A B^T from S and u.
+    const int m = rc + rs;
+    Eigen::MatrixXd G(m, m);
+    G.topLeftCorner(rc, rc) = S_.block(oc, 0, rc, rc);
+    G.bottomRightCorner(rs, rs) = S_.block(os, 0, rs, rs);
+    G.topRightCorner(rc, rs).noalias() = Js_.middleRows(oc, rc) * u_;
+    G.bottomLeftCorner(rs, rc) = G.topRightCorner(rc, rs).transpose();
+    if (objective_ == Objective::kLogDet) {
+      // det M' / det M = det(I + Sigma G).
+      G.bottomRows(rs) *= -1.0;
+      G.diagonal().array() += 1.0;
+      const double det = G.partialPivLu().determinant();
+      return det > 0 ? current + std::log(det) : -kInf;
+    }
+    // trace(W A') = trace(W A) - trace((Sigma + G)^-1 B A W A B^T), B A F = [Z_c; Z_s].
+    G.diagonal().head(rc).array() += 1.0;
+    G.diagonal().tail(rs).array() -= 1.0;
+    Eigen::MatrixXd Zb(m, P_);
+    Zb.topRows(rc) = Z_.middleRows(oc, rc);
+    Zb.bottomRows(rs) = Z_.middleRows(os, rs);
+    return current + G.partialPivLu().solve(Zb * Zb.transpose()).trace();
+  }
+
+  // M <- M + sign J_b^T J_b for candidate b, with the rank-r updates of A, S and Z.
+  void Update(int b, double sign) {
+    const int r = pool_.rows(b);
+    const auto Jb = Js_.middleRows(pool_.row_offset[b], r);
+    const Eigen::MatrixXd U = A_ * Jb.transpose();  // P x r
+    Eigen::MatrixXd K = Jb * U;
+    K.diagonal().array() += sign;  // (sign I)^-1 = sign I
+    const Eigen::MatrixXd Kinv = K.partialPivLu().inverse();
+    A_.noalias() -= U * Kinv * U.transpose();
+    M_.noalias() += sign * (Jb.transpose() * Jb);
+    in_plan_[b] = sign > 0;
+    // S_c <- S_c - V_c K^-1 V_c^T with V = J U; Z <- Z - V K^-1 U^T F.
+    V_.noalias() = Js_ * U;
+    VK_.noalias() = V_ * Kinv;
+    for (int c = 0; c < pool_.size(); ++c) {
+      const int o = pool_.row_offset[c];
+      const int rc = pool_.rows(c);
+      S_.block(o, 0, rc, rc).noalias() -= VK_.middleRows(o, rc) * V_.middleRows(o, rc).transpose();
+    }
+    if (objective_ == Objective::kTrace) Z_.noalias() -= VK_ * (U.transpose() * F_);
+  }
+
+  // Recomputes A, S and Z from M (removes the drift of repeated updates).
+  void Resync() {
+    A_ = M_.llt().solve(Eigen::MatrixXd::Identity(P_, P_));
+    const Eigen::MatrixXd JA = Js_ * A_;
+    S_.setZero(Js_.rows(), max_rows_);
+    for (int c = 0; c < pool_.size(); ++c) {
+      const int o = pool_.row_offset[c];
+      const int rc = pool_.rows(c);
+      S_.block(o, 0, rc, rc).noalias() =
+          JA.middleRows(o, rc) * Js_.middleRows(o, rc).transpose();
+    }
+    if (objective_ == Objective::kTrace) Z_ = JA * F_;
+  }
+
+  // Ranking for the exchange shortlist: the greedy gain, or for the minimum eigenvalue the
+  // candidate's information along the weakest directions of M.
+  void Scores(std::vector<double>* score) const {
+    score->assign(pool_.size(), -kInf);
+    if (objective_ == Objective::kMinEigen) {
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(M_);
+      const int k = std::min(3, P_);
+      const Eigen::MatrixXd Y = Js_ * eig.eigenvectors().leftCols(k);
+      for (int c = 0; c < pool_.size(); ++c) {
+        if (!in_plan(c)) (*score)[c] = Y.middleRows(pool_.row_offset[c], pool_.rows(c)).squaredNorm();
+      }
+      return;
+    }
+    for (int c = 0; c < pool_.size(); ++c) {
+      if (!in_plan(c)) (*score)[c] = AddGain(c);
+    }
+  }
+
+ private:
+  const CandidatePool& pool_;
+  Objective objective_;
+  int P_;
+  int max_rows_ = 0;
+  Eigen::MatrixXd Js_;  // scaled rows of every candidate
+  Eigen::MatrixXd W_, F_;
+  Eigen::MatrixXd M_, A_;
+  Eigen::MatrixXd S_;  // block c at rows [o_c, o_c + r_c), columns [0, r_c)
+  Eigen::MatrixXd Z_;
+  Eigen::MatrixXd V_, VK_;  // scratch of Update
+  std::vector<char> in_plan_;
+  int removal_ = -1;
+  Eigen::MatrixXd u_;
+  mutable std::vector<double> scratch_;
+};
+
+}  // namespace
+
+const char* PlanCriterionName(PlanCriterion criterion) {
+  switch (criterion) {
+    case PlanCriterion::kD:
+      return "D";
+    case PlanCriterion::kA:
+      return "A";
+    case PlanCriterion::kE:
+      return "E";
+    case PlanCriterion::kI:
+      return "I";
+    case PlanCriterion::kO1:
+      return "O1";
+    case PlanCriterion::kO3:
+      return "O3";
+  }
+  return "?";
+}
+
+bool ParsePlanCriterion(const std::string& text, PlanCriterion* criterion) {
+  for (PlanCriterion c : {PlanCriterion::kD, PlanCriterion::kA, PlanCriterion::kE, PlanCriterion::kI,
+                          PlanCriterion::kO1, PlanCriterion::kO3}) {
+    if (text == PlanCriterionName(c)) {
+      *criterion = c;
+      return true;
+    }
+  }
+  return false;
+}
+
+// ---------------------------------------------------------------------------------------------------
+
+PlanningModel::PlanningModel(const RobotModel& model)
+    : model_(model),
+      parameterization_(
+          MakeParameterization(model_, ParameterizationKind::kIdentifiable, DataKind::kPosition)),
+      basis_(model_, parameterization_) {}
+
+void PlanningModel::Rows(const double* q, const std::vector<int>& tools, Eigen::MatrixXd* J) const {
+  const int rows = 3 * static_cast<int>(tools.size());
+  J->resize(rows, num_parameters());
+  std::vector<FrameRt> frames(model_.num_joints() + 1);
+  for (size_t k = 0; k < tools.size(); ++k) {
+    basis_.Position(q, tools[k], J->data() + 3 * k, rows, frames.data());
+  }
+}
+
+Eigen::VectorXd PlanningModel::ErrorScale() const {
+  Eigen::VectorXd e(num_parameters());
+  for (int j = 0; j < num_parameters(); ++j) {
+    const auto& v = parameterization_.parameters[j].vector;
+    e(j) = std::hypot(kRotationErrorScale * v.head<3>().norm(),
+                      kTranslationErrorScale * v.tail<3>().norm());
+  }
+  return e;
+}
+
+std::vector<int> VisibleTools(const RobotModel& model, const TrackerConstraint& tracker,
+                              const double* q) {
+  std::vector<int> visible;
+  const double cos_accept = std::cos(tracker.acceptance_angle);
+  for (int t = 0; t < model.num_tools(); ++t) {
+    if (!tracker.enabled) {
+      visible.push_back(t);
+      continue;
+    }
+    const SE3d pose = ToolPose(model, q, t);
+    const Eigen::Vector3d to_tracker = tracker.position - pose.t;
+    const double distance = to_tracker.norm();
+    if (distance > tracker.max_range || distance == 0) continue;
+    const Eigen::Vector3d facing =
+        t < static_cast<int>(tracker.facing.size()) ? tracker.facing[t] : Eigen::Vector3d::UnitZ();
+    if ((pose.R * facing).normalized().dot(to_tracker) >= cos_accept * distance) {
+      visible.push_back(t);
+    }
+  }
+  return visible;
+}
+
+double CharacteristicLength(const RobotModel& model) {
+  double length = model.num_tools() > 0 ? model.tools[0].origin.t.norm() : 0.0;
+  for (int i = 1; i < model.num_joints(); ++i) length += model.joints[i].origin.t.norm();
+  return length > 0 ? length : 1.0;
+}
+
+double SingularityMeasure(const RobotModel& model, const double* q) {
+  const int n = model.num_joints();
+  Eigen::MatrixXd J_p, J_pose;
+  ToolPositionJointJacobian(model, q, 0, &J_p);
+  ToolPoseJointJacobian(model, q, 0, &J_pose);
+  Eigen::MatrixXd G(6, n);
+  G.topRows<3>() = J_pose.topRows<3>();
+  G.bottomRows<3>() = J_p / CharacteristicLength(model);
+  const Eigen::VectorXd sv = G.jacobiSvd().singularValues();
+  return sv(std::min(6, n) - 1);
+}
+
+Status JointRanges(const RobotModel& model, std::vector<double>* lower, std::vector<double>* upper) {
+  lower->clear();
+  upper->clear();
+  for (const Joint& j : model.joints) {
+    double lo = j.lower, hi = j.upper;
+    if (j.type == JointType::kPrismatic) {
+      if (!std::isfinite(lo) || !std::isfinite(hi)) {
+        return Status::Error("prismatic joint '" + j.name +
+                             "' has no limits: give `limits: [lo, hi]` (mm) in the model so that "
+                             "its poses can be sampled");
+      }
+    } else if (!std::isfinite(lo) && !std::isfinite(hi)) {
+      lo = -kPi;
+      hi = kPi;
+    } else if (!std::isfinite(lo)) {
+      lo = hi - 2 * kPi;
+    } else if (!std::isfinite(hi)) {
+      hi = lo + 2 * kPi;
+    }
+    lower->push_back(lo);
+    upper->push_back(hi);
+  }
+  return Status::Ok();
+}
+
+Status SampleConfigurations(const RobotModel& model, int count, uint64_t seed,
+                            std::vector<double>* q) {
+  std::vector<double> lo, hi;
+  if (Status s = JointRanges(model, &lo, &hi); !s.ok()) return s;
+  const int n = model.num_joints();
+  std::mt19937_64 rng(seed);
+  q->resize(static_cast<size_t>(count) * n);
+  for (int r = 0; r < count; ++r) {
+    for (int i = 0; i < n; ++i) {
+      const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;  // [0, 1), portable
+      (*q)[static_cast<size_t>(r) * n + i] = lo[i] + (hi[i] - lo[i]) * u;
+    }
+  }
+  return Status::Ok();
+}
+
+CandidatePool BuildCandidatePool(const PlanningModel& pm, const std::vector<double>& q,
+                                 const PlanConstraints& constraints) {
+  const RobotModel& model = pm.model();
+  const int n = model.num_joints();
+  CHECK_EQ(q.size() % std::max(n, 1), 0u);
+  const int count = static_cast<int>(q.size() / n);
+  CandidatePool pool;
+  pool.num_joints = n;
+  pool.num_parameters = pm.num_parameters();
+  pool.row_offset.push_back(0);
+  std::vector<Eigen::MatrixXd> rows;
+  int total = 0;
+  for (int r = 0; r < count; ++r) {
+    const double* qr = q.data() + static_cast<size_t>(r) * n;
+    bool inside = true;
+    for (int i = 0; i < n; ++i) {
+      const Joint& j = model.joints[i];
+      inside &= qr[i] >= j.lower - kLimitTolerance && qr[i] <= j.upper + kLimitTolerance;
+    }
+    if (!inside) {
+      ++pool.outside_limits;
+      continue;
+    }
+    if (constraints.min_singularity > 0 &&
+        SingularityMeasure(model, qr) < constraints.min_singularity) {
+      ++pool.near_singular;
+      continue;
+    }
+    std::vector<int> visible = VisibleTools(model, constraints.tracker, qr);
+    if (visible.empty()) {
+      ++pool.nothing_visible;
+      continue;
+    }
+    Eigen::MatrixXd J;
+    pm.Rows(qr, visible, &J);
+    total += static_cast<int>(J.rows());
+    pool.row_offset.push_back(total);
+    rows.push_back(std::move(J));
+    pool.q.insert(pool.q.end(), qr, qr + n);
+    pool.source.push_back(r);
+    pool.visible.push_back(std::move(visible));
+  }
+  pool.J.resize(total, pool.num_parameters);
+  for (size_t c = 0; c < rows.size(); ++c) {
+    pool.J.middleRows(pool.row_offset[c], rows[c].rows()) = rows[c];
+  }
+  return pool;
+}
+
+Eigen::MatrixXd WorkspaceMoment(const PlanningModel& pm, const std::vector<double>& workspace) {
+  const int n = pm.model().num_joints();
+  const int P = pm.num_parameters();
+  std::vector<int> all(pm.model().num_tools());
+  std::iota(all.begin(), all.end(), 0);
+  const int count = static_cast<int>(workspace.size() / n);
+  Eigen::MatrixXd L = Eigen::MatrixXd::Zero(P, P);
+  Eigen::MatrixXd J;
+  for (int r = 0; r < count; ++r) {
+    pm.Rows(workspace.data() + static_cast<size_t>(r) * n, all, &J);
+    L.selfadjointView<Eigen::Lower>().rankUpdate(J.transpose());
+  }
+  L = L.selfadjointView<Eigen::Lower>();
+  if (count > 0) L /= static_cast<double>(count) * pm.model().num_tools();
+  return L;
+}
+
+Eigen::MatrixXd Information(const CandidatePool& pool, const std::vector<int>& selected) {
+  const int P = pool.num_parameters;
+  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(P, P);
+  for (int c : selected) {
+    M.selfadjointView<Eigen::Lower>().rankUpdate(
+        pool.J.middleRows(pool.row_offset[c], pool.rows(c)).transpose());
+  }
+  return M.selfadjointView<Eigen::Lower>();
+}
+
+PlanQuality EvaluatePlan(const PlanningModel& pm, const CandidatePool& pool,
+                         const std::vector<int>& selected, const Eigen::MatrixXd& workspace_moment) {
+  PlanQuality out;
+  const int P = pool.num_parameters;
+  out.num_poses = static_cast<int>(selected.size());
+  for (int c : selected) out.num_rows += pool.rows(c);
+  const Eigen::MatrixXd M = Information(pool, selected);
+  const internal::Identifiability id = internal::Analyze(M);
+  out.rank = id.rank;
+  out.condition_number = id.condition;
+  out.d = -kInf;
+  out.a = kInf;
+  out.e = 0;
+  out.i = kInf;
+  out.o1 = 0;
+  out.o3 = 0;
+  if (id.rank < P) return out;
+  const Eigen::VectorXd d = PoolScale(pool);
+  const Eigen::MatrixXd Ms = d.asDiagonal() * M * d.asDiagonal();
+  const Eigen::LLT<Eigen::MatrixXd> llt(Ms);
+  if (llt.info() != Eigen::Success) return out;
+  const Eigen::MatrixXd Ms_inv = llt.solve(Eigen::MatrixXd::Identity(P, P));
+  out.d = LogDetSpd(Ms);
+  out.a = Ms_inv.trace();
+  out.e = MinEigenvalue(Ms);
+  // trace(L M^-1) = trace(L_s M_s^-1) with L_s = D L D.
+  const Eigen::MatrixXd Ls = d.asDiagonal() * workspace_moment * d.asDiagonal();
+  out.i = Ls.cwiseProduct(Ms_inv).sum();
+  out.predicted_rms = std::sqrt(std::max(0.0, out.i));
+  const Eigen::VectorXd e = pm.ErrorScale();
+  const Eigen::MatrixXd Me = e.asDiagonal() * M * e.asDiagonal();
+  out.o1 = std::exp(LogDetSpd(Me) / (2.0 * P)) / std::sqrt(static_cast<double>(out.num_rows));
+  out.o3 = std::sqrt(std::max(0.0, MinEigenvalue(Me)));
+  return out;
+}
+
+Status SelectPlan(const PlanningModel& pm, const CandidatePool& pool, int count,
+                  const Eigen::MatrixXd& workspace_moment, const PlanOptions& options,
+                  PlanResult* result) {
+  if (count < 1 || count > pool.size()) {
+    return Status::Error("cannot choose " + std::to_string(count) + " poses from " +
+                         std::to_string(pool.size()) + " feasible candidates");
+  }
+  const int P = pool.num_parameters;
+  // Each criterion as (objective, scaling, weight) on M.
+  Eigen::VectorXd scale = PoolScale(pool);
+  Objective objective = Objective::kLogDet;
+  Eigen::MatrixXd weight;
+  switch (options.criterion) {
+    case PlanCriterion::kD:
+    case PlanCriterion::kO1:  // a monotone function of det M at fixed N
+      break;
+    case PlanCriterion::kA:
+      objective = Objective::kTrace;
+      weight = Eigen::MatrixXd::Identity(P, P);
+      break;
+    case PlanCriterion::kI:
+      objective = Objective::kTrace;
+      CHECK_EQ(workspace_moment.rows(), P);
+      // trace(L M^-1) = trace(D L D (D M D)^-1).
+      weight = scale.asDiagonal() * workspace_moment * scale.asDiagonal();
+      // Keep the weight's scale near 1 so that the regularization stays negligible.
+      weight /= std::max(weight.trace() / P, 1e-300);
+      break;
+    case PlanCriterion::kE:
+      objective = Objective::kMinEigen;
+      break;
+    case PlanCriterion::kO3:
+      objective = Objective::kMinEigen;
+      scale = pm.ErrorScale();
+      // Normalize so that one pose still contributes a mean diagonal near 1.
+      scale /= std::sqrt((pool.J * scale.asDiagonal()).colwise().squaredNorm().mean() /
+                         std::max(1, pool.size()));
+      break;
+  }
+
+  // Greedy: from an empty plan, add the candidate with the largest gain; every candidate's S_c (and
+  // Z_c) follows the plan by rank-r updates, one (rows x P x r) product per step. The
+  // minimum-eigenvalue criteria start from the D-greedy plan (lambda_min stays 0 until M has full
+  // rank). (Lazy evaluation does not pay here: the gains of a random pool drop together.)
+  auto local_owner = std::make_unique<Selector>(
+      pool, scale, objective == Objective::kMinEigen ? Objective::kLogDet : objective, weight);
+  local_owner->Resync();
+  result->selected.clear();
+  std::vector<double> gains;
+  int rows = 0;
+  bool full_rank_resync = false;
+  for (int k = 0; k < count; ++k) {
+    if (!full_rank_resync && rows >= P) {  // delta I no longer dominates: drop the round-off
+      local_owner->Resync();
+      full_rank_resync = true;
+    }
+    local_owner->Scores(&gains);
+    const int best = static_cast<int>(std::max_element(gains.begin(), gains.end()) - gains.begin());
+    CHECK(!local_owner->in_plan(best));
+    local_owner->Update(best, +1.0);
+    result->selected.push_back(best);
+    rows += pool.rows(best);
+  }
+
+  // Exchange: swap each plan member for the best of the shortlist while the criterion improves.
+  if (objective == Objective::kMinEigen) {
+    local_owner = std::make_unique<Selector>(pool, scale, objective, weight);
+    for (int c : result->selected) local_owner->AddOnly(c);
+  }
+  Selector& local = *local_owner;
+  local.Resync();  // the greedy's updates started from M = delta I: remove their round-off
+  result->exchanges = 0;
+  result->passes = 0;
+  std::vector<double> score;
+  std::vector<int> order(pool.size());
+  std::vector<int> shortlist;
+  const int K = std::min<int>(options.shortlist, pool.size() - count);
+  bool stale = true;  // the shortlist is recomputed after every accepted swap
+  double current = 0;
+  for (int pass = 0; pass < options.max_exchange_passes && K > 0; ++pass) {
+    ++result->passes;
+    bool improved = false;
+    for (int k = 0; k < count; ++k) {
+      if (stale) {
+        local.Scores(&score);
+        std::iota(order.begin(), order.end(), 0);
+        std::partial_sort(order.begin(), order.begin() + K, order.end(),
+                          [&](int a, int b) { return score[a] > score[b]; });
+        shortlist.assign(order.begin(), order.begin() + K);
+        current = local.Value();
+        stale = false;
+      }
+      const int s = result->selected[k];
+      local.PrepareRemoval(s);
+      int best = -1;
+      double best_value = current + 1e-9 * std::max(1.0, std::abs(current));
+      for (int c : shortlist) {
+        if (local.in_plan(c)) continue;
+        const double v = local.SwapValue(c, current);
+        if (v > best_value) {
+          best_value = v;
+          best = c;
+        }
+      }
+      if (best < 0) continue;
+      local.Update(s, -1.0);
+      local.Update(best, +1.0);
+      const double value = local.Value();
+      if (!(value > current)) {  // round-off of the maintained terms: undo
+        local.Update(best, -1.0);
+        local.Update(s, +1.0);
+        continue;
+      }
+      result->selected[k] = best;
+      ++result->exchanges;
+      improved = true;
+      stale = true;
+    }
+    if (!improved) break;
+  }
+  return Status::Ok();
+}
+
+std::vector<int> RandomPlan(int pool_size, int count, uint64_t seed) {
+  std::vector<int> order = ShuffledIndices(pool_size, seed);
+  order.resize(std::min(count, pool_size));
+  return order;
+}
+
+}  // namespace lpoe

@@ -1,0 +1,241 @@
+// End-to-end tests of lpoe_plan: exit codes of bad flags and inputs, the plan CSV (sampled and from a
+// candidate file, with its candidate_row column), the JSON report, --count=auto, and that
+// lpoe_simulate --joints measures at the planned poses.
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#ifndef LPOE_PLAN_PATH
+#error "LPOE_PLAN_PATH must name the lpoe_plan binary"
+#endif
+#ifndef LPOE_SIMULATE_PATH
+#error "LPOE_SIMULATE_PATH must name the lpoe_simulate binary"
+#endif
+
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kExitOk = 0;
+constexpr int kExitUsage = 1;
+constexpr int kExitInput = 2;
+constexpr int kExitNoPlan = 3;
+
+struct Output {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+std::string ReadText(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::string Quote(const std::string& s) { return "'" + s + "'"; }
+
+std::vector<std::string> DataLines(const std::string& text) {
+  std::vector<std::string> lines;
+  std::stringstream ss(text);
+  std::string line;
+  while (std::getline(ss, line)) {
+    if (!line.empty() && line[0] != '#') lines.push_back(line);
+  }
+  return lines;
+}
+
+// Three SMRs on cobot6 (DESIGN.md section 2 frames); joint 2 limited.
+constexpr char kModel[] = R"(name: cobot6_3smr
+joints:
+  - {name: joint1, type: revolute, origin: {xyz: [0, 0, 96], rpy: [0, 0, 0]}}
+  - {name: joint2, type: revolute, origin: {xyz: [0, 138, 0], rpy: [-1.5707963267948966, 0, 0]}}
+  - {name: joint3, type: revolute, origin: {xyz: [0, -418, -114], rpy: [0, 0, 0]}}
+  - {name: joint4, type: revolute, origin: {xyz: [0, -398, 98], rpy: [0, 0, 0]}}
+  - {name: joint5, type: revolute, origin: {xyz: [0, -98, 0], rpy: [1.5707963267948966, 0, 0]}}
+  - {name: joint6, type: revolute, origin: {xyz: [0, 89, 0], rpy: [-1.5707963267948966, 0, 0]}}
+tools:
+  - {name: smr1, origin: {xyz: [40, 0, 60], rpy: [0, 0, 0]}}
+  - {name: smr2, origin: {xyz: [-30, 35, 55], rpy: [0, 0, 0]}}
+  - {name: smr3, origin: {xyz: [-25, -45, 50], rpy: [0, 0, 0]}}
+)";
+
+class PlanTool : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string pattern = (fs::temp_directory_path() / "lpoe_plan_test_XXXXXX").string();
+    ASSERT_NE(mkdtemp(pattern.data()), nullptr);
+    dir_ = pattern;
+    std::ofstream(dir_ / "m.yaml") << kModel;
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  Output Run(const std::string& binary, const std::string& args) {
+    const std::string out = (dir_ / "stdout.txt").string(), err = (dir_ / "stderr.txt").string();
+    const std::string command = "cd " + Quote(dir_.string()) + " && " + Quote(binary) + " " + args +
+                                " >" + Quote(out) + " 2>" + Quote(err);
+    const int status = std::system(command.c_str());
+    Output o;
+    o.exit_code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
+    o.out = ReadText(out);
+    o.err = ReadText(err);
+    return o;
+  }
+  Output Plan(const std::string& args) {
+    return Run(LPOE_PLAN_PATH, "--model=m.yaml --candidate_count=800 --workspace_count=200 " + args);
+  }
+  fs::path dir_;
+};
+
+TEST_F(PlanTool, BadFlagsAreUsageErrors) {
+  for (const char* args :
+       {"--count=0 --output=p.csv", "--count=x --output=p.csv", "--count=10",
+        "--count=10 --output=p.csv --criterion=Z", "--count=10 --output=p.csv --angle_unit=grad",
+        "--count=auto --output=p.csv", "--count=auto --output=p.csv --target_accuracy=0.01",
+        "--count=10 --output=p.csv --tracker=1,2", "--count=10 --output=p.csv --max_range=5000",
+        "--count=10 --output=p.csv --tracker=0,2000,500 --acceptance_angle=120",
+        "--count=10 --output=p.csv --tracker=0,2000,500 --smr_facing='0,0,1;0,0,1'",
+        "--count=10 --output=p.csv --min_singularity=-1"}) {
+    const Output o = Plan(args);
+    EXPECT_EQ(o.exit_code, kExitUsage) << args << "\n" << o.err;
+    EXPECT_NE(o.err.find("error:"), std::string::npos) << args;
+    EXPECT_FALSE(fs::exists(dir_ / "p.csv")) << args;
+  }
+}
+
+TEST_F(PlanTool, HelpListsTheFlagsAndExitCodes) {
+  const Output o = Run(LPOE_PLAN_PATH, "--help");
+  EXPECT_EQ(o.exit_code, kExitOk);
+  for (const char* flag : {"--count", "--candidates", "--criterion", "--tracker", "--smr_facing",
+                           "--min_singularity", "--target_accuracy", "Exit codes"}) {
+    EXPECT_NE(o.out.find(flag), std::string::npos) << flag;
+  }
+}
+
+TEST_F(PlanTool, BadInputsAreInputErrors) {
+  Output o = Plan("--count=10 --output=p.csv --model=missing.yaml");
+  EXPECT_EQ(o.exit_code, kExitInput) << o.err;
+  std::ofstream(dir_ / "c.csv") << "q1,q2,q3,q4,q5\n0,0,0,0,0\n";
+  o = Plan("--count=10 --output=p.csv --candidates=c.csv");
+  EXPECT_EQ(o.exit_code, kExitInput) << o.err;
+  EXPECT_NE(o.err.find("c.csv:1: missing column 'q6'"), std::string::npos) << o.err;
+  std::ofstream(dir_ / "c.csv") << "q1,q2,q3,q4,q5,q6\n0,0,0,zero,0,0\n";
+  o = Plan("--count=10 --output=p.csv --candidates=c.csv");
+  EXPECT_EQ(o.exit_code, kExitInput) << o.err;
+  EXPECT_NE(o.err.find("c.csv:2: column 'q4'"), std::string::npos) << o.err;
+  // A prismatic joint without limits cannot be sampled.
+  std::string model = kModel;
+  model.replace(model.find("type: revolute"), 14, "type: prismatic");
+  std::ofstream(dir_ / "m.yaml") << model;
+  o = Plan("--count=10 --output=p.csv");
+  EXPECT_EQ(o.exit_code, kExitInput) << o.err;
+  EXPECT_NE(o.err.find("prismatic joint 'joint1' has no limits"), std::string::npos) << o.err;
+}
+
+TEST_F(PlanTool, SampledPlanIsReadBySimulateAndBeatsTheRandomPlan) {
+  const Output o = Plan("--count=20 --output=p.csv --angle_unit=deg --noise_sigma=0.02");
+  ASSERT_EQ(o.exit_code, kExitOk) << o.err;
+  const std::vector<std::string> lines = DataLines(ReadText(dir_ / "p.csv"));
+  ASSERT_EQ(lines.size(), 21u);
+  EXPECT_EQ(lines[0], "q1,q2,q3,q4,q5,q6");
+  const nlohmann::json report = nlohmann::json::parse(ReadText(dir_ / "p.json"));
+  EXPECT_EQ(report["count"], 20);
+  EXPECT_EQ(report["criterion"], "D");
+  EXPECT_EQ(report["plan"]["rank"], 33);
+  const double plan = report["plan"]["predicted_rms_per_unit_noise"];
+  const double random = report["random_plan"]["predicted_rms_per_unit_noise"];
+  EXPECT_LT(plan, random);
+  EXPECT_NEAR(report["plan"]["predicted_rms_mm"].get<double>(), 0.02 * plan, 1e-12);
+  EXPECT_GT(report["plan"]["condition_number"].get<double>(), 1.0);
+  // lpoe_simulate measures every SMR at each planned pose (degrees read back as degrees).
+  const Output s = Run(LPOE_SIMULATE_PATH,
+                       "--model=m.yaml --errors=random --joints=p.csv --angle_unit=deg --all_tools "
+                       "--out=sim.csv");
+  ASSERT_EQ(s.exit_code, kExitOk) << s.err;
+  const std::vector<std::string> sim = DataLines(ReadText(dir_ / "sim.csv"));
+  ASSERT_EQ(sim.size(), 1u + 20 * 3);
+  // Same joint values (written with 17 digits by the simulator, shortest form by the planner).
+  std::stringstream a(lines[1]), b(sim[1]);
+  for (int j = 0; j < 6; ++j) {
+    std::string fa, fb;
+    std::getline(a, fa, ',');
+    std::getline(b, fb, ',');
+    EXPECT_DOUBLE_EQ(std::stod(fa), std::stod(fb)) << j;
+  }
+}
+
+TEST_F(PlanTool, CandidateRowsAreCopiedWithTheirIndex) {
+  // 300 candidate rows with an extra column that must survive, angles in degrees.
+  std::ofstream c(dir_ / "cand.csv");
+  c << "# reachable poses\nlabel,q1,q2,q3,q4,q5,q6\n";
+  unsigned state = 7;
+  auto next = [&state]() {
+    state = state * 1103515245u + 12345u;
+    return static_cast<int>((state >> 8) % 340) - 170;
+  };
+  for (int r = 0; r < 300; ++r) {
+    c << "pose" << r;
+    for (int j = 0; j < 6; ++j) c << "," << next();
+    c << "\n";
+  }
+  c.close();
+  const Output o = Plan("--count=12 --output=p.csv --candidates=cand.csv --angle_unit=deg");
+  ASSERT_EQ(o.exit_code, kExitOk) << o.err;
+  const std::string cand = ReadText(dir_ / "cand.csv");
+  const std::vector<std::string> cand_lines = DataLines(cand);
+  const std::vector<std::string> lines = DataLines(ReadText(dir_ / "p.csv"));
+  ASSERT_EQ(lines.size(), 13u);
+  EXPECT_EQ(lines[0], "label,q1,q2,q3,q4,q5,q6,candidate_row");
+  for (size_t k = 1; k < lines.size(); ++k) {
+    const size_t comma = lines[k].find_last_of(',');
+    const int row = std::stoi(lines[k].substr(comma + 1));
+    ASSERT_GE(row, 0);
+    ASSERT_LT(row, 300);
+    EXPECT_EQ(lines[k].substr(0, comma), cand_lines[1 + row]);
+    EXPECT_EQ(lines[k].substr(0, lines[k].find(',')), "pose" + std::to_string(row));
+  }
+  // Planning again from the plan is refused (it already has candidate_row).
+  const Output again = Plan("--count=5 --output=q.csv --candidates=p.csv --angle_unit=deg");
+  EXPECT_EQ(again.exit_code, kExitInput) << again.err;
+}
+
+TEST_F(PlanTool, CountAutoReturnsTheSmallestPlanReachingTheTarget) {
+  // Per unit noise a random-pose plan of ~40 poses reaches ~0.55; aim at 0.011 mm with 0.02 mm noise.
+  const Output o =
+      Plan("--count=auto --target_accuracy=0.011 --noise_sigma=0.02 --output=p.csv --report=r.json");
+  ASSERT_EQ(o.exit_code, kExitOk) << o.err;
+  const nlohmann::json report = nlohmann::json::parse(ReadText(dir_ / "r.json"));
+  const int n = report["count"];
+  EXPECT_LE(report["plan"]["predicted_rms_mm"].get<double>(), 0.011);
+  // One pose fewer does not reach it.
+  const Output fewer =
+      Plan("--count=" + std::to_string(n - 1) + " --noise_sigma=0.02 --output=f.csv");
+  ASSERT_EQ(fewer.exit_code, kExitOk) << fewer.err;
+  const nlohmann::json f = nlohmann::json::parse(ReadText(dir_ / "f.json"));
+  EXPECT_GT(f["plan"]["predicted_rms_mm"].get<double>(), 0.011);
+  // Out of reach.
+  const Output never = Plan("--count=auto --target_accuracy=0.0001 --noise_sigma=0.02 --output=n.csv");
+  EXPECT_EQ(never.exit_code, kExitNoPlan) << never.err;
+  EXPECT_FALSE(fs::exists(dir_ / "n.csv"));
+}
+
+TEST_F(PlanTool, TrackerConstraintKeepsOnlyVisiblePoses) {
+  const Output o = Plan("--count=15 --output=p.csv --tracker=0,2500,600 --max_range=4000");
+  ASSERT_EQ(o.exit_code, kExitOk) << o.err;
+  const nlohmann::json report = nlohmann::json::parse(ReadText(dir_ / "p.json"));
+  EXPECT_GT(report["candidates"]["nothing_visible"].get<int>(), 100);
+  EXPECT_LT(report["plan"]["rows"].get<int>(), 15 * 9 + 1);
+  EXPECT_EQ(report["plan"]["rank"], 33);
+}
+
+}  // namespace

@@ -1,0 +1,370 @@
+#include "lpoe/planning.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numeric>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "lpoe/kinematics.h"
+#include "lpoe/linear_solver.h"
+#include "lpoe/parameterization.h"
+#include "lpoe/simulation.h"
+#include "test_util.h"
+
+namespace lpoe {
+namespace {
+
+using testing::kPi;
+
+// cobot6 with three SMRs on the flange, all facing along the flange axis (+z of joint 6).
+RobotModel ThreeSmrCobot() {
+  RobotModel model = MakeCobot6(Eigen::Vector3d(40, 0, 60));
+  model.tools[0].name = "smr1";
+  Tool t2{"smr2", SE3d(Eigen::Matrix3d::Identity(), Eigen::Vector3d(-30, 35, 55))};
+  Tool t3{"smr3", SE3d(Eigen::Matrix3d::Identity(), Eigen::Vector3d(-25, -45, 50))};
+  model.tools.push_back(t2);
+  model.tools.push_back(t3);
+  return model;
+}
+
+std::vector<double> Sample(const RobotModel& model, int count, uint64_t seed) {
+  std::vector<double> q;
+  EXPECT_TRUE(SampleConfigurations(model, count, seed, &q).ok());
+  return q;
+}
+
+TEST(Planning, CriterionNamesRoundTrip) {
+  for (const char* name : {"D", "A", "E", "I", "O1", "O3"}) {
+    PlanCriterion c;
+    ASSERT_TRUE(ParsePlanCriterion(name, &c)) << name;
+    EXPECT_STREQ(PlanCriterionName(c), name);
+  }
+  PlanCriterion c;
+  EXPECT_FALSE(ParsePlanCriterion("d", &c));
+  EXPECT_FALSE(ParsePlanCriterion("G", &c));
+}
+
+// The rows of a pose are the derivative of the tools' positions along the identifiable directions.
+TEST(Planning, RowsMatchFiniteDifferences) {
+  const RobotModel model = ThreeSmrCobot();
+  const PlanningModel pm(model);
+  EXPECT_EQ(pm.num_parameters(), 6 * 4 + 3 * 3);
+  const std::vector<double> q = Sample(model, 3, 5);
+  const std::vector<int> tools = {2, 0};
+  constexpr double kStep = 1e-6;
+  for (int r = 0; r < 3; ++r) {
+    const double* qr = q.data() + 6 * r;
+    Eigen::MatrixXd J;
+    pm.Rows(qr, tools, &J);
+    ASSERT_EQ(J.rows(), 6);
+    for (int j = 0; j < pm.num_parameters(); ++j) {
+      Eigen::VectorXd x = Eigen::VectorXd::Zero(pm.num_parameters());
+      RobotModel plus = model, minus = model;
+      x(j) = kStep;
+      ApplyUpdate(pm.parameterization(), x, &plus);
+      ApplyUpdate(pm.parameterization(), -x, &minus);
+      for (size_t k = 0; k < tools.size(); ++k) {
+        const Eigen::Vector3d fd =
+            (ToolPosition(plus, qr, tools[k]) - ToolPosition(minus, qr, tools[k])) / (2 * kStep);
+        EXPECT_LT((J.block(3 * k, j, 3, 1) - fd).norm(), 1e-5 * (1 + fd.norm()))
+            << "pose " << r << " parameter " << pm.parameterization().parameters[j].name;
+      }
+    }
+  }
+}
+
+TEST(Planning, JointRangesUseLimitsOrPi) {
+  RobotModel model = MakeCobot6();
+  model.joints[1].lower = -1.0;
+  model.joints[1].upper = 2.0;
+  model.joints[2].lower = 0.5;  // upper missing: 2 pi above the lower limit
+  std::vector<double> lo, hi;
+  ASSERT_TRUE(JointRanges(model, &lo, &hi).ok());
+  EXPECT_EQ(lo[0], -kPi);
+  EXPECT_EQ(hi[0], kPi);
+  EXPECT_EQ(lo[1], -1.0);
+  EXPECT_EQ(hi[1], 2.0);
+  EXPECT_EQ(lo[2], 0.5);
+  EXPECT_NEAR(hi[2], 0.5 + 2 * kPi, 1e-12);
+  const std::vector<double> q = Sample(model, 500, 3);
+  for (int r = 0; r < 500; ++r) {
+    EXPECT_GE(q[6 * r + 1], -1.0);
+    EXPECT_LT(q[6 * r + 1], 2.0);
+  }
+}
+
+TEST(Planning, PrismaticJointWithoutLimitsIsAnError) {
+  RobotModel model = MakeArmWithPrismatic();
+  std::vector<double> lo, hi;
+  const Status s = JointRanges(model, &lo, &hi);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("prismatic joint"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("limits"), std::string::npos) << s.message();
+  for (Joint& j : model.joints) {
+    if (j.type == JointType::kPrismatic) {
+      j.lower = -50;
+      j.upper = 150;
+    }
+  }
+  EXPECT_TRUE(JointRanges(model, &lo, &hi).ok());
+}
+
+TEST(Planning, VisibilityFollowsFacingRangeAndAngle) {
+  const RobotModel model = ThreeSmrCobot();
+  const std::vector<double> q = Sample(model, 1, 11);
+  const SE3d pose = ToolPose(model, q.data(), 0);
+  const Eigen::Vector3d facing = pose.R.col(2);  // +z of the tool frame, in the base
+  TrackerConstraint tracker;
+  tracker.enabled = true;
+  tracker.position = pose.t + 3000.0 * facing;  // straight ahead of smr1
+  auto sees_smr1 = [&](const TrackerConstraint& t) {
+    const std::vector<int> v = VisibleTools(model, t, q.data());
+    return std::find(v.begin(), v.end(), 0) != v.end();
+  };
+  EXPECT_TRUE(sees_smr1(tracker));
+  TrackerConstraint behind = tracker;
+  behind.position = pose.t - 3000.0 * facing;
+  EXPECT_FALSE(sees_smr1(behind));
+  TrackerConstraint far = tracker;
+  far.max_range = 2000.0;
+  EXPECT_FALSE(sees_smr1(far));
+  // 40 degrees off the facing direction: outside the default 30, inside 45.
+  const Eigen::Vector3d side = facing.unitOrthogonal();
+  TrackerConstraint oblique = tracker;
+  oblique.position = pose.t + 3000.0 * (std::cos(0.698) * facing + std::sin(0.698) * side);
+  EXPECT_FALSE(sees_smr1(oblique));
+  oblique.acceptance_angle = 45.0 * kPi / 180.0;
+  EXPECT_TRUE(sees_smr1(oblique));
+  // A facing direction given per tool: smr1 facing -z now faces away.
+  TrackerConstraint flipped = tracker;
+  flipped.facing = {Eigen::Vector3d(0, 0, -1)};
+  EXPECT_FALSE(sees_smr1(flipped));
+  // No tracker: every tool counts.
+  EXPECT_EQ(VisibleTools(model, TrackerConstraint(), q.data()).size(), 3u);
+}
+
+TEST(Planning, SingularityMeasureVanishesAtSingularities) {
+  const RobotModel model = MakeCobot6();
+  std::vector<double> q = {0.3, -0.7, 1.1, 0.4, 0.9, -0.2};
+  const double regular = SingularityMeasure(model, q.data());
+  EXPECT_GT(regular, 1e-3);
+  std::vector<double> elbow = q;
+  elbow[2] = 0.0;  // elbow stretched: joints 2, 3, 4 parallel and the arm straight
+  EXPECT_LT(SingularityMeasure(model, elbow.data()), 1e-9);
+  std::vector<double> wrist = q;
+  wrist[4] = 0.0;  // wrist: joints 4 and 6 aligned
+  EXPECT_LT(SingularityMeasure(model, wrist.data()), 1e-9);
+  // The pool drops candidates below the margin.
+  PlanConstraints constraints;
+  constraints.min_singularity = 0.5 * regular;
+  const PlanningModel pm(model);
+  std::vector<double> list = q;
+  list.insert(list.end(), elbow.begin(), elbow.end());
+  list.insert(list.end(), wrist.begin(), wrist.end());
+  const CandidatePool pool = BuildCandidatePool(pm, list, constraints);
+  EXPECT_EQ(pool.size(), 1);
+  EXPECT_EQ(pool.near_singular, 2);
+  EXPECT_EQ(pool.source[0], 0);
+}
+
+TEST(Planning, PoolDropsConfigurationsOutsideLimits) {
+  RobotModel model = MakeCobot6();
+  model.joints[0].lower = -1.0;
+  model.joints[0].upper = 1.0;
+  const PlanningModel pm(model);
+  std::vector<double> q = {0.5, 0.1, 0.2, 0.3, 0.4, 0.5, 1.5, 0.1, 0.2, 0.3, 0.4, 0.5};
+  const CandidatePool pool = BuildCandidatePool(pm, q, PlanConstraints());
+  EXPECT_EQ(pool.size(), 1);
+  EXPECT_EQ(pool.outside_limits, 1);
+  EXPECT_EQ(pool.rows(0), 3);
+}
+
+// On a pool small enough to enumerate, greedy + exchange finds the best plan or one within a
+// small fraction of it, for each criterion.
+TEST(Planning, ExchangeMatchesExhaustiveSearchOnASmallPool) {
+  const RobotModel model = ThreeSmrCobot();
+  const PlanningModel pm(model);
+  const CandidatePool pool = BuildCandidatePool(pm, Sample(model, 12, 21), PlanConstraints());
+  const Eigen::MatrixXd L = WorkspaceMoment(pm, Sample(model, 200, 22));
+  constexpr int kCount = 8;
+  // Every 8-subset of 12 candidates.
+  std::vector<double> best_d, best_i;
+  std::vector<int> mask(pool.size(), 0);
+  std::fill(mask.end() - kCount, mask.end(), 1);
+  double max_d = -1e300, min_i = 1e300;
+  int subsets = 0;
+  do {
+    std::vector<int> sel;
+    for (int c = 0; c < pool.size(); ++c) {
+      if (mask[c]) sel.push_back(c);
+    }
+    const PlanQuality q = EvaluatePlan(pm, pool, sel, L);
+    max_d = std::max(max_d, q.d);
+    min_i = std::min(min_i, q.i);
+    ++subsets;
+  } while (std::next_permutation(mask.begin(), mask.end()));
+  EXPECT_EQ(subsets, 495);
+
+  PlanOptions options;
+  options.shortlist = 64;
+  PlanResult plan;
+  ASSERT_TRUE(SelectPlan(pm, pool, kCount, L, options, &plan).ok());
+  const PlanQuality d = EvaluatePlan(pm, pool, plan.selected, L);
+  std::printf("D: plan log det %.4f, best of all subsets %.4f (%d exchanges)\n", d.d, max_d,
+              plan.exchanges);
+  EXPECT_GE(d.d, max_d - 0.05);
+  options.criterion = PlanCriterion::kI;
+  ASSERT_TRUE(SelectPlan(pm, pool, kCount, L, options, &plan).ok());
+  const PlanQuality i = EvaluatePlan(pm, pool, plan.selected, L);
+  std::printf("I: plan trace(L M^-1) %.5f, best of all subsets %.5f\n", i.i, min_i);
+  EXPECT_LE(i.i, min_i * 1.02);
+  // Distinct candidates.
+  std::vector<int> sorted = plan.selected;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_EQ(std::unique(sorted.begin(), sorted.end()), sorted.end());
+}
+
+TEST(Planning, EveryCriterionImprovesItsOwnValueOverRandomPlans) {
+  const RobotModel model = ThreeSmrCobot();
+  const PlanningModel pm(model);
+  const CandidatePool pool = BuildCandidatePool(pm, Sample(model, 600, 31), PlanConstraints());
+  const Eigen::MatrixXd L = WorkspaceMoment(pm, Sample(model, 300, 32));
+  constexpr int kCount = 15;
+  constexpr int kRandomDraws = 20;
+  for (PlanCriterion c : {PlanCriterion::kD, PlanCriterion::kA, PlanCriterion::kE,
+                          PlanCriterion::kI, PlanCriterion::kO1, PlanCriterion::kO3}) {
+    PlanOptions options;
+    options.criterion = c;
+    PlanResult plan;
+    ASSERT_TRUE(SelectPlan(pm, pool, kCount, L, options, &plan).ok());
+    ASSERT_EQ(plan.selected.size(), static_cast<size_t>(kCount));
+    const PlanQuality q = EvaluatePlan(pm, pool, plan.selected, L);
+    auto own = [c](const PlanQuality& x) {  // larger is better
+      switch (c) {
+        case PlanCriterion::kD: return x.d;
+        case PlanCriterion::kA: return -x.a;
+        case PlanCriterion::kE: return x.e;
+        case PlanCriterion::kI: return -x.i;
+        case PlanCriterion::kO1: return x.o1;
+        case PlanCriterion::kO3: return x.o3;
+      }
+      return 0.0;
+    };
+    for (int k = 0; k < kRandomDraws; ++k) {
+      const PlanQuality r = EvaluatePlan(pm, pool, RandomPlan(pool.size(), kCount, 100 + k), L);
+      EXPECT_GT(own(q), own(r)) << PlanCriterionName(c) << " draw " << k;
+    }
+  }
+}
+
+// The acceptance simulation: 6-joint arm, 3 SMRs, 25 poses.
+class PlanningAcceptance : public ::testing::Test {
+ protected:
+  static constexpr int kPoses = 25;
+  static constexpr int kRandomDraws = 30;
+  static constexpr double kNoiseSigma = 0.02;  // mm per axis
+
+  PlanningAcceptance()
+      : model_(ThreeSmrCobot()),
+        pm_(model_),
+        pool_(BuildCandidatePool(pm_, Sample(model_, 3000, 41), PlanConstraints())),
+        workspace_(Sample(model_, 400, 42)),
+        L_(WorkspaceMoment(pm_, workspace_)) {}
+
+  // Mean over noise draws of the squared true position error of the calibrated model over the
+  // workspace (all tools), as an RMS (mm).
+  double RealisedRms(const std::vector<int>& plan, const RobotModel& actual,
+                     const std::vector<double>& joint_zero, int draws, uint64_t seed) const {
+    SimulationOptions so;
+    so.noise_sigma = kNoiseSigma;
+    so.all_tools = true;
+    for (int c : plan) so.configurations.insert(so.configurations.end(), pool_.q.begin() + 6 * c,
+                                                pool_.q.begin() + 6 * c + 6);
+    double sum = 0;
+    int n = 0;
+    for (int d = 0; d < draws; ++d) {
+      so.seed = seed + d;
+      const MeasurementSet data = SimulateMeasurements(actual, joint_zero, so);
+      const CalibrationResult result = CalibrateLinear(model_, data);
+      EXPECT_EQ(result.termination, Termination::kConverged) << result.message;
+      const int wn = static_cast<int>(workspace_.size() / 6);
+      for (int w = 0; w < wn; ++w) {
+        const double* q = workspace_.data() + 6 * w;
+        double qa[6];
+        for (int i = 0; i < 6; ++i) qa[i] = q[i] + joint_zero[i];
+        for (int t = 0; t < model_.num_tools(); ++t) {
+          sum += (ToolPosition(result.model, q, t) - ToolPosition(actual, qa, t)).squaredNorm();
+          ++n;
+        }
+      }
+    }
+    return std::sqrt(sum / n);
+  }
+
+  RobotModel model_;
+  PlanningModel pm_;
+  CandidatePool pool_;
+  std::vector<double> workspace_;
+  Eigen::MatrixXd L_;
+};
+
+TEST_F(PlanningAcceptance, PlannedSetBeatsEveryRandomDrawAndPredictsItsAccuracy) {
+  ASSERT_EQ(pool_.size(), 3000);
+  const KinematicErrors errors = RandomErrors(model_, 0.005, 3.0, 0.02, 0.02, 43);
+  const RobotModel actual = ApplyErrors(model_, errors);
+
+  std::vector<double> random_rms;
+  for (int k = 0; k < kRandomDraws; ++k) {
+    random_rms.push_back(EvaluatePlan(pm_, pool_, RandomPlan(pool_.size(), kPoses, 500 + k), L_)
+                             .predicted_rms);
+  }
+  const double random_mean =
+      std::accumulate(random_rms.begin(), random_rms.end(), 0.0) / kRandomDraws;
+  const double random_best = *std::min_element(random_rms.begin(), random_rms.end());
+
+  for (PlanCriterion c : {PlanCriterion::kD, PlanCriterion::kI}) {
+    PlanOptions options;
+    options.criterion = c;
+    PlanResult plan;
+    ASSERT_TRUE(SelectPlan(pm_, pool_, kPoses, L_, options, &plan).ok());
+    const PlanQuality q = EvaluatePlan(pm_, pool_, plan.selected, L_);
+    std::printf(
+        "%s plan of %d: predicted RMS per unit noise %.4f, random mean %.4f (ratio %.3f), best "
+        "of %d random %.4f; condition %.1f\n",
+        PlanCriterionName(c), kPoses, q.predicted_rms, random_mean, q.predicted_rms / random_mean,
+        kRandomDraws, random_best, q.condition_number);
+    EXPECT_LE(q.predicted_rms, 0.93 * random_mean) << PlanCriterionName(c);
+    EXPECT_LT(q.predicted_rms, random_best) << PlanCriterionName(c);
+  }
+
+  // Realised accuracy (Monte Carlo over noise draws) of the D plan against its prediction, and
+  // against random plans of the same size.
+  PlanResult plan;
+  ASSERT_TRUE(SelectPlan(pm_, pool_, kPoses, L_, PlanOptions(), &plan).ok());
+  const double predicted = kNoiseSigma * EvaluatePlan(pm_, pool_, plan.selected, L_).predicted_rms;
+  constexpr int kNoiseDraws = 20;
+  const double realised = RealisedRms(plan.selected, actual, errors.joint_zero, kNoiseDraws, 900);
+  double random_realised_sq = 0, random_predicted_sq = 0;
+  constexpr int kRandomPlans = 6;
+  for (int k = 0; k < kRandomPlans; ++k) {
+    const std::vector<int> r = RandomPlan(pool_.size(), kPoses, 700 + k);
+    const double rr = RealisedRms(r, actual, errors.joint_zero, kNoiseDraws / 2, 1900 + 100 * k);
+    const double rp = kNoiseSigma * EvaluatePlan(pm_, pool_, r, L_).predicted_rms;
+    random_realised_sq += rr * rr / kRandomPlans;
+    random_predicted_sq += rp * rp / kRandomPlans;
+    EXPECT_NEAR(rr / rp, 1.0, 0.25) << "random plan " << k;
+  }
+  std::printf(
+      "D plan: predicted %.5f mm, realised %.5f mm (ratio %.3f); random plans: predicted %.5f, "
+      "realised %.5f mm\n",
+      predicted, realised, realised / predicted, std::sqrt(random_predicted_sq),
+      std::sqrt(random_realised_sq));
+  EXPECT_NEAR(realised / predicted, 1.0, 0.25);
+  EXPECT_LT(realised, std::sqrt(random_realised_sq));
+}
+
+}  // namespace
+}  // namespace lpoe

@@ -1,0 +1,113 @@
+#include "joint_table.h"
+
+#include <charconv>
+#include <cmath>
+#include <string_view>
+
+namespace lpoe {
+namespace tools {
+namespace {
+
+constexpr double kDegreesToRadians = 3.14159265358979323846 / 180.0;
+
+std::string_view Trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
+  return s;
+}
+
+std::vector<std::string_view> Split(std::string_view line) {
+  std::vector<std::string_view> out;
+  size_t start = 0;
+  while (true) {
+    const size_t comma = line.find(',', start);
+    out.push_back(Trim(line.substr(start, comma - start)));
+    if (comma == std::string_view::npos) return out;
+    start = comma + 1;
+  }
+}
+
+Status Error(const std::string& source, int line, const std::string& what) {
+  return Status::Error(source + ":" + std::to_string(line) + ": " + what);
+}
+
+}  // namespace
+
+Status ParseJointTable(const std::string& text, const std::string& source, const RobotModel& model,
+                       AngleUnit unit, JointTable* table) {
+  const int n = model.num_joints();
+  JointTable out;
+  std::vector<int> q_column(n, -1);
+  std::string_view rest(text);
+  if (rest.substr(0, 3) == "\xEF\xBB\xBF") rest.remove_prefix(3);
+  int line_number = 0;
+  bool have_header = false;
+  while (!rest.empty()) {
+    const size_t nl = rest.find('\n');
+    std::string_view line = rest.substr(0, nl);
+    rest.remove_prefix(nl == std::string_view::npos ? rest.size() : nl + 1);
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    const std::string_view trimmed = Trim(line);
+    if (trimmed.empty() || trimmed.front() == '#') continue;
+    const std::vector<std::string_view> fields = Split(line);
+    if (!have_header) {
+      have_header = true;
+      out.header = std::string(line);
+      for (size_t c = 0; c < fields.size(); ++c) {
+        std::string name(fields[c]);
+        out.names.push_back(name);
+        for (char& ch : name) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+        for (int j = 0; j < n; ++j) {
+          if (name != "q" + std::to_string(j + 1)) continue;
+          if (q_column[j] >= 0) return Error(source, line_number, "duplicated column '" + name + "'");
+          q_column[j] = static_cast<int>(c);
+        }
+      }
+      for (int j = 0; j < n; ++j) {
+        if (q_column[j] < 0) {
+          return Error(source, line_number,
+                       "missing column 'q" + std::to_string(j + 1) + "'; expected a header with q1..q" +
+                           std::to_string(n) + " (other columns are kept but not used)");
+        }
+      }
+      continue;
+    }
+    if (fields.size() != out.names.size()) {
+      return Error(source, line_number,
+                   std::to_string(fields.size()) + " fields; expected " +
+                       std::to_string(out.names.size()) + " as in the header");
+    }
+    for (int j = 0; j < n; ++j) {
+      const std::string_view f = fields[q_column[j]];
+      double v = 0;
+      const char* first = f.data() + (!f.empty() && f.front() == '+' ? 1 : 0);
+      const auto r = std::from_chars(first, f.data() + f.size(), v);
+      if (f.empty() || r.ec != std::errc() || r.ptr != f.data() + f.size() || !std::isfinite(v) ||
+          std::abs(v) > 1e4) {
+        return Error(source, line_number,
+                     "column 'q" + std::to_string(j + 1) + "': '" + std::string(f.substr(0, 40)) +
+                         "' is not a joint value; expected a finite number of magnitude at most 1e4");
+      }
+      if (unit == AngleUnit::kDegrees && model.joints[j].type == JointType::kRevolute) {
+        v *= kDegreesToRadians;
+      }
+      out.q.push_back(v);
+    }
+    out.lines.emplace_back(line);
+  }
+  if (!have_header) return Error(source, 1, "no header line; expected q1..q" + std::to_string(n));
+  if (out.lines.empty()) return Error(source, line_number, "no configuration rows after the header");
+  *table = std::move(out);
+  return Status::Ok();
+}
+
+Status ReadJointTable(const std::string& path, const RobotModel& model, AngleUnit unit,
+                      JointTable* table) {
+  std::string text;
+  if (Status s = ReadFile(path, &text); !s.ok()) return s;
+  return ParseJointTable(text, path, model, unit, table);
+}
+
+}  // namespace tools
+}  // namespace lpoe
