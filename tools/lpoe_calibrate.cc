@@ -77,6 +77,8 @@ DEFINE_string(data_kind, "auto",
               "position | pose | auto: pose-based calibration (paper eqs. 17-24) uses the measured "
               "orientations; auto picks pose when the CSV has quat_* columns.");
 DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in the CSV files: rad | deg.");
+DEFINE_string(length_unit, "mm",
+              "Unit of x, y, z (and prismatic joint values) in the CSV files: mm | m.");
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first when the measurements are not in "
             "its base frame (a rigid fit that moves the base by more than 50 mm or 0.05 rad): "
@@ -259,6 +261,12 @@ int Run() {
     std::cerr << "error: --angle_unit must be rad or deg, got '" << FLAGS_angle_unit << "'\n";
     return kExitUsage;
   }
+  CsvOptions csv;
+  csv.angle_unit = unit;
+  if (!ParseLengthUnit(FLAGS_length_unit, &csv.length_unit)) {
+    std::cerr << "error: --length_unit must be mm or m, got '" << FLAGS_length_unit << "'\n";
+    return kExitUsage;
+  }
   if (!ParseParameterization(FLAGS_parameterization, &job.kind)) {
     std::cerr << "error: --parameterization must be identifiable or full, got '"
               << FLAGS_parameterization << "'\n";
@@ -306,7 +314,7 @@ int Run() {
   }
   UrdfOptions urdf_options;
   if (!tools::UrdfOptionsFromFlags(model_path, &urdf_options) ||
-      (!FLAGS_ur_kinematics_output.empty() && !tools::IsUrdfPath(model_path))) {
+      (!FLAGS_ur_kinematics_output.empty() && !IsUrdfPath(model_path))) {
     std::cerr << "error: --base_link, --tip_link, --tool_links and --ur_kinematics_output need a "
                  "URDF --model (a name ending in .urdf)\n";
     return kExitUsage;
@@ -331,7 +339,7 @@ int Run() {
   bool from_urdf = false;
   {
     tools::Inputs in;
-    if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, unit, FLAGS_holdout,
+    if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
                                      FLAGS_split_seed, &in, urdf_options);
         !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";

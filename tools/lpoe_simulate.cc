@@ -93,7 +93,7 @@ int Run() {
   }
   if (!FLAGS_model.empty()) {
     const Status s =
-        tools::IsUrdfPath(FLAGS_model)
+        IsUrdfPath(FLAGS_model)
             ? ReadRobotModelUrdf(FLAGS_model, &nominal, urdf_options)
             : ReadRobotModel(FLAGS_model, &nominal);
     if (!s.ok()) {

@@ -1,7 +1,6 @@
 #include "tool_common.h"
 
 #include <algorithm>
-#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <iomanip>
@@ -72,13 +71,6 @@ std::string DataDir() {
   return LPOE_DATA_DIR;
 }
 
-bool IsUrdfPath(const std::string& path) {
-  if (path.size() < 5) return false;
-  std::string ext = path.substr(path.size() - 5);
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return ext == ".urdf";
-}
-
 InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& measurements_flag,
                              const std::string& verify_flag, bool holdout) {
   const std::string data_dir = DataDir();
@@ -94,7 +86,7 @@ InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& m
 }
 
 Status LoadInputs(const std::string& model_path, const std::string& measurements_path,
-                  const std::string& verify_path, AngleUnit unit, double holdout,
+                  const std::string& verify_path, const CsvOptions& csv, double holdout,
                   uint64_t split_seed, Inputs* in, const UrdfOptions& urdf_options) {
   in->from_urdf = IsUrdfPath(model_path);
   if (Status s = in->from_urdf
@@ -104,28 +96,28 @@ Status LoadInputs(const std::string& model_path, const std::string& measurements
     return s;
   }
   MeasurementSet all;
-  if (Status s = ReadMeasurements(measurements_path, in->nominal, unit, &all, &in->skipped);
+  if (Status s = ReadMeasurements(measurements_path, in->nominal, csv, &all, &in->skipped);
       !s.ok()) {
     return s;
   }
-  if (in->skipped.skipped_zero_rows > 0) {
-    std::cerr << "warning: " << measurements_path << ": skipped " << in->skipped.skipped_zero_rows
-              << " row(s) with no measurement (lost beam) at line(s)";
-    const auto& lines = in->skipped.skipped_lines;
-    for (size_t k = 0; k < std::min<size_t>(lines.size(), 20); ++k) std::cerr << " " << lines[k];
-    if (lines.size() > 20) std::cerr << " ...";
-    std::cerr << "\n";
-  }
+  std::cerr << CsvReadWarnings(measurements_path, in->skipped);
+  const std::string hint = LengthUnitHint(in->nominal, all);
+  if (!hint.empty()) std::cerr << "warning: " << measurements_path << ": " << hint << "\n";
   if (!verify_path.empty()) {
     in->identification = std::move(all);
     in->verification_source = verify_path;
-    return ReadMeasurements(verify_path, in->nominal, unit, &in->verification);
+    Status s = ReadMeasurements(verify_path, in->nominal, csv, &in->verification,
+                                &in->verification_skipped);
+    if (s.ok()) std::cerr << CsvReadWarnings(verify_path, in->verification_skipped);
+    return s;
   }
   if (holdout > 0.0) {
     std::vector<int> id_rows, ver_rows;
     HoldoutSplit(all.size(), holdout, split_seed, &id_rows, &ver_rows);
-    in->identification = all.Subset(id_rows);
-    in->verification = all.Subset(ver_rows);
+    std::vector<bool> held_out(all.size(), false);
+    for (int r : ver_rows) held_out[r] = true;
+    all.MoveRowsOut(held_out, &in->verification);
+    in->identification = std::move(all);
     in->verification_source = "holdout";
     return Status::Ok();
   }

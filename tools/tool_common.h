@@ -36,9 +36,6 @@ void InitTool(const char* usage, int* argc, char*** argv);
 // program was built from.
 std::string DataDir();
 
-// True when `path` names a URDF file (ends in .urdf, in any letter case).
-bool IsUrdfPath(const std::string& path);
-
 // The chain selection from this tool's --base_link, --tip_link and --tool_links flags (defined in
 // urdf_flags.cc, and so part of a tool only when it calls this). False when one of them is given
 // but `model_path` is not a URDF.
@@ -51,16 +48,19 @@ struct Inputs {
   RobotModel nominal;
   MeasurementSet identification, verification;
   CsvReadReport skipped;            // lost-beam rows of the identification file
+  CsvReadReport verification_skipped;  // the same for the --verify file
   std::string verification_source;  // the --verify path, "holdout" or empty
   bool from_urdf = false;           // the model was read from a URDF, kept in `urdf`
   UrdfSource urdf;
 };
 
-// Reads the model (YAML, or URDF when the name ends in .urdf) and the measurements, warns about
-// skipped lost-beam rows on stderr, and splits off the verification rows (the `verify` file, or a
-// seeded random `holdout` fraction). On failure returns the message of the bad file.
+// Reads the model (YAML, or URDF when the name ends in .urdf in any case) and the measurements,
+// warns on stderr about ignored columns, skipped lost-beam rows (of both files) and positions that
+// look like the wrong length unit, and splits off the verification rows (the `verify` file, or a
+// seeded random `holdout` fraction, moved out without copying the rest). On failure returns the
+// message of the bad file.
 Status LoadInputs(const std::string& model_path, const std::string& measurements_path,
-                  const std::string& verify_path, AngleUnit unit, double holdout,
+                  const std::string& verify_path, const CsvOptions& csv, double holdout,
                   uint64_t split_seed, Inputs* inputs, const UrdfOptions& urdf_options = {});
 
 // The input files of a run. With no --measurements, the shipped section-4 data set: the nominal
