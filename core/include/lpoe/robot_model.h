@@ -49,6 +49,10 @@ class RobotModel {
   std::string name;
   std::vector<Joint> joints;
   std::vector<Tool> tools;
+  // The registration found by calibration: the measurement frame (where this model's base lives,
+  // e.g. a laser tracker's) from the nominal model's base frame. Identity when the data were in the
+  // base frame. Compensation uses it to carry nominal poses into this model's frame.
+  SE3d T_measurement_base;
 
   int num_joints() const { return static_cast<int>(joints.size()); }
   int num_tools() const { return static_cast<int>(tools.size()); }
