@@ -1,7 +1,6 @@
 #include "tool_common.h"
 
 #include <algorithm>
-#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <iomanip>

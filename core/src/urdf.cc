@@ -6,7 +6,6 @@
 #include <tinyxml2.h>
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -16,7 +15,6 @@
 #include <set>
 #include <string>
 #include <string_view>
-#include <system_error>
 #include <utility>
 #include <vector>
 
@@ -59,17 +57,17 @@ std::string ParseNumbers(std::string_view text, int count, double* out) {
     if (n == count) {
       return "has more than " + std::to_string(count) + " numbers";
     }
-    std::string_view digits = token;
-    if (digits.size() > 1 && digits[0] == '+' && digits[1] != '-') digits.remove_prefix(1);
     double v = 0;
-    const auto [ptr, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), v);
-    if (ec == std::errc::result_out_of_range) {
-      return "has the out-of-range number " + Quote(token);
+    switch (internal::ParseNumber(token, &v)) {
+      case internal::NumberParse::kOk:
+        break;
+      case internal::NumberParse::kNotANumber:
+        return "has the non-numeric value " + Quote(token);
+      case internal::NumberParse::kNonFinite:
+        return "has the non-finite number " + Quote(token);
+      case internal::NumberParse::kOutOfRange:
+        return "has the out-of-range number " + Quote(token);
     }
-    if (ec != std::errc() || ptr != digits.data() + digits.size()) {
-      return "has the non-numeric value " + Quote(token);
-    }
-    if (!std::isfinite(v)) return "has the non-finite number " + Quote(token);
     out[n++] = v;
   }
   if (n != count) {
@@ -123,13 +121,8 @@ Status ReadOrigin(const XMLElement* parent, const std::string& source, const std
   return Status::Ok();
 }
 
-// 17 significant digits: a written-then-read number is the same double.
-std::string Number(double v) {
-  if (v == 0) v = 0;  // no "-0"
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof(buf), v, std::chars_format::general, 17);
-  return std::string(buf, r.ptr);
-}
+// The shortest text that reads back as the same double (-0 written as 0).
+std::string Number(double v) { return internal::FormatNumber(v); }
 
 std::string Triple(const Eigen::Vector3d& v) {
   return Number(v(0)) + " " + Number(v(1)) + " " + Number(v(2));
@@ -979,9 +972,8 @@ Status UrKinematicsYaml(const UrdfSource& source, const RobotModel& calibrated,
 
 Status WriteUrKinematicsYaml(const std::string& path, const UrdfSource& source,
                              const RobotModel& calibrated, const UrdfOverlayOptions& options) {
-  return WriteMade(path, [&](std::string* yaml) {
-    return UrKinematicsYaml(source, calibrated, options, yaml);
-  });
+  return WriteMade(
+      path, [&](std::string* yaml) { return UrKinematicsYaml(source, calibrated, options, yaml); });
 }
 
 std::string RobotModelToUrdf(const RobotModel& model) {

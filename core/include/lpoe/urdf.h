@@ -33,7 +33,7 @@
 //
 // Overlay (CalibratedUrdfOverlay). A model read from a URDF is written back into that same
 // document: every link, joint, limit, mesh, inertial, transmission and extension tag is kept, and
-// only these change (numbers with 17 significant digits):
+// only these change (numbers: the shortest text that reads back as the same double):
 //   - each moving joint of the chain gets origin = F_i^-1 T_{i-1,i}(0), F_i the fixed joints folded
 //     before it (which stay unchanged), and its axis when the calibrated one differs;
 //   - its <limit> lower/upper where the model's limits differ from the file's;
@@ -56,16 +56,16 @@
 //
 // Export (RobotModelToUrdf, a model without a source URDF). Links are named base_link, link1..linkN
 // and after the tools; joints keep their names and tools are attached with fixed joints. Numbers
-// have 17 significant digits, so that an export then import reproduces forward kinematics to
-// rounding (about 1e-12 mm). A revolute twist (omega, v) whose axis does not pass through the frame
-// origin (v != 0) is written by moving the URDF joint frame to r = omega x v / |omega|^2, the point
-// of the axis closest to the local frame origin: the origin becomes T_{i-1,i}(0) Trans(r_i) and the
-// next frame Trans(-r_i) T_{i,i+1}(0), which leaves forward kinematics unchanged. Things URDF
-// cannot express are dropped: the pitch omega . v of a revolute twist and the deviation of |omega|
-// (revolute) or |v| (prismatic) from 1 (Validate() allows up to kTwistTolerance); axes are written
-// normalized. Revolute joints with limits are written as `revolute` with them, without as
-// `continuous`; prismatic joints without limits, which URDF requires to have <limit>, get a
-// placeholder of +-1 m, marked by a comment.
+// are the shortest text that reads back as the same double, so that an export then import
+// reproduces forward kinematics to rounding (about 1e-12 mm). A revolute twist (omega, v) whose
+// axis does not pass through the frame origin (v != 0) is written by moving the URDF joint frame to
+// r = omega x v / |omega|^2, the point of the axis closest to the local frame origin: the origin
+// becomes T_{i-1,i}(0) Trans(r_i) and the next frame Trans(-r_i) T_{i,i+1}(0), which leaves forward
+// kinematics unchanged. Things URDF cannot express are dropped: the pitch omega . v of a revolute
+// twist and the deviation of |omega| (revolute) or |v| (prismatic) from 1 (Validate() allows up to
+// kTwistTolerance); axes are written normalized. Revolute joints with limits are written as
+// `revolute` with them, without as `continuous`; prismatic joints without limits, which URDF
+// requires to have <limit>, get a placeholder of +-1 m, marked by a comment.
 #ifndef LPOE_URDF_H_
 #define LPOE_URDF_H_
 
