@@ -3,6 +3,7 @@
 // with 1-based line numbers. Nothing here throws out of the API: yaml-cpp exceptions are caught at
 // the top of each reader, and the CSV reader is written without exceptions.
 #include "parse_util.h"
+#include "joint_errors_yaml.h"
 #include "lpoe/io.h"
 
 #include <fcntl.h>
@@ -718,7 +719,7 @@ Status ParseRobotModelYaml(const std::string& text, const std::string& source, R
       return LineError(source, line, "YAML syntax error: " + e.msg,
                        "a YAML robot model (DESIGN.md section 5)");
     }
-    return ModelYamlReader(source).Read(root, model);
+    return internal::ReadModelWithJointErrors(source, &root, model, [&](const YAML::Node& r, RobotModel* m) { return ModelYamlReader(source).Read(r, m); });
   } catch (const YAML::Exception& e) {
     const int line = e.mark.is_null() ? 1 : e.mark.line + 1;
     return LineError(source, line, "cannot read the model: " + e.msg,
@@ -757,6 +758,7 @@ std::string RobotModelToYaml(const RobotModel& model) {
     out += "  - name: " + YamlName(tool.name) + "\n    ";
     AppendOrigin(tool.origin, &out);
   }
+  out += internal::JointErrorsToYaml(model);
   return out;
 }
 
