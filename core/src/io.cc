@@ -719,7 +719,7 @@ Status ParseRobotModelYaml(const std::string& text, const std::string& source, R
       return LineError(source, line, "YAML syntax error: " + e.msg,
                        "a YAML robot model (DESIGN.md section 5)");
     }
-    return internal::ReadModelWithJointErrors(source, &root, model, [&](const YAML::Node& r, RobotModel* m) { return ModelYamlReader(source).Read(r, m); });
+    return internal::ReadModelWithJointErrors(source, root, model, [&](const YAML::Node& r, RobotModel* m) { return ModelYamlReader(source).Read(r, m); });
   } catch (const YAML::Exception& e) {
     const int line = e.mark.is_null() ? 1 : e.mark.line + 1;
     return LineError(source, line, "cannot read the model: " + e.msg,

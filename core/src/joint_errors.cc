@@ -324,11 +324,14 @@ Status ReduceJointErrorTerms(const RobotModel& reference, const Parameterization
   }
 
   // Orthonormal basis of what the geometry (and the terms before) already explain.
+  // Columns below kJointErrorRankTolerance of the largest are round-off of a zero effect (a joint
+  // whose motion does not move the tool) and are dropped.
   auto scaled = [](Eigen::MatrixXd* A, Eigen::VectorXd* inverse_norms) {
     inverse_norms->resize(A->cols());
+    const double largest = A->cols() > 0 ? A->colwise().norm().maxCoeff() : 0.0;
     for (int c = 0; c < A->cols(); ++c) {
       const double norm = A->col(c).norm();
-      (*inverse_norms)(c) = norm > 0 ? 1.0 / norm : 0.0;
+      (*inverse_norms)(c) = norm > kJointErrorRankTolerance * largest ? 1.0 / norm : 0.0;
       A->col(c) *= (*inverse_norms)(c);
     }
   };

@@ -285,49 +285,46 @@ std::string QuotedName(const std::string& name) {
 }  // namespace
 
 Status ReadModelWithJointErrors(
-    const std::string& source, YAML::Node* root, RobotModel* model,
+    const std::string& source, const YAML::Node& root, RobotModel* model,
     const std::function<Status(const YAML::Node&, RobotModel*)>& read_geometry) {
-  YAML::Node gravity, payload, joint_errors;
-  int gravity_line = 1, payload_line = 1, errors_line = 1;
-  if (root->IsMap()) {
-    struct Key {
-      const char* name;
-      YAML::Node* value;
-      int* line;
-    } keys[] = {{"gravity", &gravity, &gravity_line},
-                {"payload", &payload, &payload_line},
-                {"joint_errors", &joint_errors, &errors_line}};
-    for (Key& key : keys) {
-      int count = 0;
-      for (YAML::const_iterator it = root->begin(); it != root->end(); ++it) {
-        if (!it->first.IsScalar() || it->first.Scalar() != key.name) continue;
-        if (++count > 1) {
-          return LineError(source, LineOf(it->first, 1),
-                           std::string("duplicate key '") + key.name + "' in the robot model",
-                           "each key once");
-        }
-        *key.value = it->second;
-        *key.line = LineOf(it->first, 1);
+  // The keys of this file: value, line of the key (0 when absent).
+  struct Key {
+    const char* name;
+    YAML::Node value;
+    int line = 0;
+  } keys[] = {{"gravity", {}, 0}, {"payload", {}, 0}, {"joint_errors", {}, 0}};
+  // The other keys, with their own nodes (and so their line numbers), go to the model reader.
+  // (Assigning to a YAML::Node would overwrite the node it refers to: `filtered` is built apart.)
+  YAML::Node filtered(YAML::NodeType::Map);
+  if (root.IsMap()) {
+    for (YAML::const_iterator it = root.begin(); it != root.end(); ++it) {
+      const std::string name = it->first.IsScalar() ? it->first.Scalar() : std::string();
+      Key* key = nullptr;
+      for (Key& k : keys) key = name == k.name ? &k : key;
+      if (key == nullptr) {
+        filtered.force_insert(it->first, it->second);
+        continue;
       }
-      if (count > 0) root->remove(key.name);
+      if (key->line > 0) {
+        return LineError(source, LineOf(it->first, 1),
+                         "duplicate key '" + name + "' in the robot model (first on line " +
+                             std::to_string(key->line) + ")",
+                         "each key once");
+      }
+      key->value = it->second;
+      key->line = LineOf(it->first, 1);
     }
   }
   RobotModel out;
-  Status s = read_geometry(*root, &out);
+  Status s = read_geometry(root.IsMap() ? filtered : root, &out);
   if (!s.ok()) return s;
   Reader reader(source, out);
-  if (gravity.IsDefined()) {
-    s = reader.Gravity(gravity, gravity_line, &out.gravity);
-    if (!s.ok()) return s;
+  if (keys[0].line > 0) s = reader.Gravity(keys[0].value, keys[0].line, &out.gravity);
+  if (s.ok() && keys[1].line > 0) s = reader.ReadPayload(keys[1].value, keys[1].line, &out.payload);
+  if (s.ok() && keys[2].line > 0) {
+    s = reader.ReadJointErrors(keys[2].value, keys[2].line, &out.joint_errors);
   }
-  if (payload.IsDefined()) {
-    s = reader.ReadPayload(payload, payload_line, &out.payload);
-    if (!s.ok()) return s;
-  }
-  if (joint_errors.IsDefined()) {
-    s = reader.ReadJointErrors(joint_errors, errors_line, &out.joint_errors);
-    if (!s.ok()) return s;
-  }
+  if (!s.ok()) return s;
   s = out.Validate();
   if (!s.ok()) return Status::Error(source + ": " + s.message());
   *model = std::move(out);

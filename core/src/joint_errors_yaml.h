@@ -14,11 +14,11 @@
 namespace lpoe {
 namespace internal {
 
-// Takes the keys gravity, payload and joint_errors out of the top-level mapping `root`, reads the
+// Takes the keys gravity, payload and joint_errors out of the top-level mapping `root` (left unchanged), reads the
 // rest with `read_geometry` (the model reader), then reads those keys against the model and
 // validates it. Errors read "<source>:<line>: <what>; expected <what>".
 Status ReadModelWithJointErrors(
-    const std::string& source, YAML::Node* root, RobotModel* model,
+    const std::string& source, const YAML::Node& root, RobotModel* model,
     const std::function<Status(const YAML::Node&, RobotModel*)>& read_geometry);
 
 // The same keys as YAML text (empty for the defaults: level gravity, no payload, no terms), numbers
