@@ -411,6 +411,10 @@ TEST(JointErrors, SimulationMeasuresTheEffectiveJoints) {
     for (int j = 0; j < 6; ++j) q[j] += zero[j];
     EXPECT_LT((data.position(r) - PredictToolPosition(actual, q.data(), 0)).norm(), 1e-12);
     EXPECT_GT((data.position(r) - ToolPosition(actual, q.data(), 0)).norm(), 1e-6);
+    // The actual model as lpoe_simulate writes it predicts the data at the commanded q.
+    EXPECT_LT((data.position(r) - PredictToolPosition(FoldJointZeros(actual, zero), data.q(r), 0))
+                  .norm(),
+              1e-9);
   }
 }
 

@@ -176,6 +176,24 @@ void ApplyJointErrorPhysics(const JointErrorPhysics& physics, bool compliance, b
   }
 }
 
+RobotModel FoldJointZeros(const RobotModel& actual, const std::vector<double>& joint_zero) {
+  CHECK_EQ(static_cast<int>(joint_zero.size()), actual.num_joints());
+  RobotModel out = actual;
+  std::vector<double>& h = out.joint_errors.harmonics;
+  for (int i = 0; i < out.num_joints(); ++i) {
+    out.joints[i].origin = out.joints[i].origin * JointMotion(out.joints[i], joint_zero[i]);
+    if (h.empty() || out.joints[i].type != JointType::kRevolute) continue;
+    for (int order = 1; order <= 2; ++order) {
+      double* ab = &h[kHarmonicsPerJoint * i + 2 * (order - 1)];
+      const double s = std::sin(order * joint_zero[i]), c = std::cos(order * joint_zero[i]);
+      const double a = ab[0], b = ab[1];
+      ab[0] = a * c - b * s;
+      ab[1] = a * s + b * c;
+    }
+  }
+  return out;
+}
+
 MeasurementSet SimulateMeasurements(const RobotModel& actual, const std::vector<double>& joint_zero,
                                     const SimulationOptions& options) {
   const int n = actual.num_joints();

@@ -131,6 +131,16 @@ Status PredictPositions(const RobotModel& model, const std::vector<double>& q,
                         const std::vector<int>& targets, int tool,
                         std::vector<Eigen::Vector3d>* positions);
 
+// Joint values for prediction, CSV: a header naming q1..qN (any case) and optionally `target` (a tool
+// name or 0-based index per row); other columns are ignored. '#' lines and blank lines are skipped;
+// CRLF and a UTF-8 BOM are accepted. Revolute joints are converted from degrees when `degrees`.
+// Fills `q` row-major and `targets` (empty when there is no target column). Errors read
+// "<source>:<line>: <what>; expected <what>".
+Status ParseJointsCsv(const std::string& text, const std::string& source, const RobotModel& model,
+                      bool degrees, std::vector<double>* q, std::vector<int>* targets);
+// "x,y,z" then one row per position, 17 significant digits.
+std::string PositionsToCsv(const std::vector<Eigen::Vector3d>& positions);
+
 // ---- Identifiable combinations.
 
 // The combinations of one term that the data can see: theta = basis * x.

@@ -58,6 +58,11 @@ JointErrorPhysics SmallArmJointErrors(const RobotModel& model, const SmallArmOpt
 void ApplyJointErrorPhysics(const JointErrorPhysics& physics, bool compliance, bool harmonics,
                             RobotModel* actual);
 
+// `actual` with its joint-zero errors folded in: T_i(0) <- T_i(0) exp(s_i^ zero_i), and harmonic
+// coefficients re-expressed in the commanded angle (a sin(q + z) + b cos(q + z) = a' sin q + b' cos q).
+// Its prediction at the commanded q reproduces what SimulateMeasurements measures without noise.
+RobotModel FoldJointZeros(const RobotModel& actual, const std::vector<double>& joint_zero);
+
 struct SimulationOptions {
   int count = 100;
   double noise_sigma = 0.0;  // mm, isotropic per axis
