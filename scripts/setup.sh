@@ -11,6 +11,7 @@ PACKAGES=(
   nlohmann-json3-dev       # the JSON calibration report (header-only)
   libgtest-dev libbenchmark-dev
   libpng-dev               # report plots (tools/plot.cc)
+  pybind11-dev python3-pybind11 python3-dev python3-numpy python3-pytest  # the Python module lpoe (python/)
   clang libclang-rt-14-dev # scripts/fuzz.sh (libFuzzer) and scripts/ci_sanitize.sh (ASan + UBSan)
 )
 

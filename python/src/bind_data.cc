@@ -1,0 +1,211 @@
+// Python bindings: measurements, calibration, Jacobians, identifiability.
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <algorithm>
+#include <cctype>
+#include <string>
+#include <vector>
+
+#include "lpoe/io.h"
+#include "lpoe/kinematics.h"
+#include "lpoe/measurements.h"
+#include "lpoe/urdf.h"
+#include "python_api.h"
+
+namespace py = pybind11;
+
+namespace lpoe {
+namespace python {
+
+using RowArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+std::string ShapeText(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t d = 0; d < a.ndim(); ++d) {
+    if (d > 0) s += ", ";
+    s += std::to_string(a.shape(d));
+  }
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+namespace {
+
+bool EndsWithUrdf(const std::string& path) {
+  if (path.size() < 5) return false;
+  std::string ext = path.substr(path.size() - 5);
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".urdf";
+}
+
+AngleUnit ParseUnit(const std::string& text) {
+  if (text == "rad") return AngleUnit::kRadians;
+  if (text == "deg") return AngleUnit::kDegrees;
+  throw LpoeError("angle_unit: expected 'rad' or 'deg', got '" + text + "'");
+}
+
+}  // namespace
+
+Status ReadAnyRobotModel(const std::string& path, RobotModel* model) {
+  return EndsWithUrdf(path) ? ReadRobotModelUrdf(path, model) : ReadRobotModel(path, model);
+}
+
+Status WriteAnyRobotModel(const std::string& path, const RobotModel& model) {
+  return EndsWithUrdf(path) ? WriteRobotModelUrdf(path, model) : WriteRobotModel(path, model);
+}
+
+void PredictPositionsInto(const RobotModel& model, const double* q, long rows, int tool,
+                          double* out) {
+  const int n = model.num_joints();
+  const KinematicChain chain(model);
+  for (long r = 0; r < rows; ++r) {
+    const Eigen::Vector3d p = chain.Position(q + r * n, tool);
+    out[3 * r + 0] = p.x();
+    out[3 * r + 1] = p.y();
+    out[3 * r + 2] = p.z();
+  }
+}
+
+void BindMeasurements(py::module_& m) {
+  py::class_<MeasurementSet>(m, "Measurements",
+                             "Tracker measurements: joint values, measured positions (mm), the "
+                             "measured tool of each row and (pose data) orientations.")
+      .def("__len__", &MeasurementSet::size)
+      .def_property_readonly("num_joints", &MeasurementSet::num_joints)
+      .def_property_readonly("has_orientation", &MeasurementSet::has_orientation)
+      .def_property_readonly("q",
+                             [](const MeasurementSet& d) {
+                               py::array_t<double> a({static_cast<py::ssize_t>(d.size()),
+                                                      static_cast<py::ssize_t>(d.num_joints())});
+                               double* o = a.mutable_data();
+                               for (int r = 0; r < d.size(); ++r) {
+                                 std::copy(d.q(r), d.q(r) + d.num_joints(),
+                                           o + static_cast<size_t>(r) * d.num_joints());
+                               }
+                               return a;
+                             },
+                             "(M, N) joint values, rad / mm")
+      .def_property_readonly("positions",
+                             [](const MeasurementSet& d) {
+                               py::array_t<double> a({static_cast<py::ssize_t>(d.size()),
+                                                      static_cast<py::ssize_t>(3)});
+                               double* o = a.mutable_data();
+                               for (int r = 0; r < d.size(); ++r) {
+                                 for (int k = 0; k < 3; ++k) o[3 * r + k] = d.position(r)(k);
+                               }
+                               return a;
+                             },
+                             "(M, 3) measured positions, mm")
+      .def_property_readonly("targets",
+                             [](const MeasurementSet& d) {
+                               std::vector<int> t(d.size());
+                               for (int r = 0; r < d.size(); ++r) t[r] = d.target(r);
+                               return py::array_t<int>(t.size(), t.data());
+                             },
+                             "(M,) index of the measured tool of each row")
+      .def_property_readonly("lines",
+                             [](const MeasurementSet& d) {
+                               std::vector<long> t(d.size());
+                               for (int r = 0; r < d.size(); ++r) t[r] = d.source_line(r);
+                               return py::array_t<long>(t.size(), t.data());
+                             },
+                             "(M,) line of each row in its file (0 when not read from a file)")
+      .def(
+          "subset",
+          [](const MeasurementSet& d, const std::vector<int>& rows) {
+            for (int r : rows) {
+              if (r < 0 || r >= d.size()) {
+                throw LpoeError("subset: row " + std::to_string(r) + " out of range [0, " +
+                                std::to_string(d.size()) + ")");
+              }
+            }
+            return d.Subset(rows);
+          },
+          py::arg("rows"), "the listed rows, in that order");
+
+  m.def(
+      "read_measurements",
+      [](const std::string& path, const RobotModel& model, const std::string& angle_unit) {
+        MeasurementSet data;
+        const Status s = ReadMeasurements(path, model, ParseUnit(angle_unit), &data);
+        if (!s.ok()) throw LpoeError(s.message());
+        return data;
+      },
+      py::arg("path"), py::arg("model"), py::arg("angle_unit") = "rad",
+      "reads a measurement CSV for `model`; lost-beam rows are skipped");
+
+  m.def(
+      "measurements",
+      [](const RobotModel& model, const RowArray& q, const RowArray& positions,
+         const py::object& targets, const py::object& quaternions) {
+        const int n = model.num_joints();
+        if (q.ndim() != 2 || q.shape(1) != n) {
+          throw LpoeError("q: expected shape (M, " + std::to_string(n) + "), got " + ShapeText(q));
+        }
+        const py::ssize_t rows = q.shape(0);
+        if (positions.ndim() != 2 || positions.shape(0) != rows || positions.shape(1) != 3) {
+          throw LpoeError("positions: expected shape (" + std::to_string(rows) + ", 3), got " +
+                          ShapeText(positions));
+        }
+        std::vector<int> target(rows, 0);
+        if (!targets.is_none()) {
+          auto t = targets.cast<py::array_t<int, py::array::c_style | py::array::forcecast>>();
+          if (t.ndim() != 1 || t.shape(0) != rows) {
+            throw LpoeError("targets: expected shape (" + std::to_string(rows) + ",), got " +
+                            ShapeText(t));
+          }
+          for (py::ssize_t r = 0; r < rows; ++r) {
+            target[r] = t.at(r);
+            if (target[r] < 0 || target[r] >= model.num_tools()) {
+              throw LpoeError("targets: row " + std::to_string(r) + ": tool index " +
+                              std::to_string(target[r]) + " out of range [0, " +
+                              std::to_string(model.num_tools()) + ")");
+            }
+          }
+        }
+        const bool pose = !quaternions.is_none();
+        RowArray quat;
+        if (pose) {
+          quat = quaternions.cast<RowArray>();
+          if (quat.ndim() != 2 || quat.shape(0) != rows || quat.shape(1) != 4) {
+            throw LpoeError("quaternions: expected shape (" + std::to_string(rows) +
+                            ", 4) as [x, y, z, w], got " + ShapeText(quat));
+          }
+        }
+        MeasurementSet data(n);
+        data.Reserve(static_cast<int>(rows));
+        for (py::ssize_t r = 0; r < rows; ++r) {
+          const double* qr = q.data() + r * n;
+          const Eigen::Vector3d p(positions.at(r, 0), positions.at(r, 1), positions.at(r, 2));
+          for (int j = 0; j < n; ++j) {
+            if (!std::isfinite(qr[j])) {
+              throw LpoeError("q: row " + std::to_string(r) + ": non-finite joint value");
+            }
+          }
+          if (!p.allFinite()) {
+            throw LpoeError("positions: row " + std::to_string(r) + ": non-finite position");
+          }
+          if (pose) {
+            Eigen::Quaterniond qq(quat.at(r, 3), quat.at(r, 0), quat.at(r, 1), quat.at(r, 2));
+            if (!(std::abs(qq.norm() - 1.0) < 1e-6)) {
+              throw LpoeError("quaternions: row " + std::to_string(r) +
+                              ": not a unit quaternion (norm " + std::to_string(qq.norm()) + ")");
+            }
+            data.AddPose(qr, SE3d(qq.toRotationMatrix(), p), target[r]);
+          } else {
+            data.Add(qr, p, target[r]);
+          }
+        }
+        return data;
+      },
+      py::arg("model"), py::arg("q"), py::arg("positions"), py::arg("targets") = py::none(),
+      py::arg("quaternions") = py::none(),
+      "measurements from arrays: q (M, N), positions (M, 3) mm, optional targets (M,) and "
+      "quaternions (M, 4) [x, y, z, w]");
+}
+
+}  // namespace python
+}  // namespace lpoe

@@ -1,0 +1,194 @@
+// The Python module `lpoe` (pybind11): models, measurements, prediction, Jacobians, calibration.
+//
+// Conventions (as in the C++ library): lengths in mm, angles in rad, numpy float64 arrays in and
+// out, one row per configuration. Every user error of the library (a Status) is raised as
+// `lpoe.Error` (a ValueError) carrying the library's "file:line: what is wrong" message; nothing
+// aborts the interpreter. Long loops release the GIL.
+#include <pybind11/eigen.h>
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "lpoe/io.h"
+#include "lpoe/kinematics.h"
+#include "lpoe/measurements.h"
+#include "lpoe/parameterization.h"
+#include "lpoe/robot_model.h"
+#include "lpoe/urdf.h"
+#include "python_api.h"
+
+namespace py = pybind11;
+
+namespace lpoe {
+namespace python {
+namespace {
+
+using RowArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+// Raises lpoe.Error with the status message when `s` is an error.
+void Check(const Status& s) {
+  if (!s.ok()) throw LpoeError(s.message());
+}
+
+// Checks that `a` is an (M, cols) array (a 1-D array of length cols is taken as one row) and
+// returns M.
+py::ssize_t Rows(const RowArray& a, py::ssize_t cols, const char* what) {
+  if (a.ndim() == 1 && a.shape(0) == cols) return 1;
+  if (a.ndim() != 2 || a.shape(1) != cols) {
+    throw LpoeError(std::string(what) + ": expected an array of shape (M, " +
+                    std::to_string(cols) + "), got " + ShapeText(a));
+  }
+  return a.shape(0);
+}
+
+int ToolIndex(const RobotModel& model, const py::object& tool) {
+  if (py::isinstance<py::str>(tool)) {
+    const int t = model.FindTool(tool.cast<std::string>());
+    if (t < 0) throw LpoeError("no tool named '" + tool.cast<std::string>() + "' in the model");
+    return t;
+  }
+  const int t = tool.cast<int>();
+  if (t < 0 || t >= model.num_tools()) {
+    throw LpoeError("tool index " + std::to_string(t) + " out of range [0, " +
+                    std::to_string(model.num_tools()) + ")");
+  }
+  return t;
+}
+
+Eigen::Matrix4d ToMatrix(const SE3d& T) {
+  Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
+  M.topLeftCorner<3, 3>() = T.R;
+  M.topRightCorner<3, 1>() = T.t;
+  return M;
+}
+
+SE3d FromMatrix(const Eigen::Matrix4d& M) {
+  return SE3d(M.topLeftCorner<3, 3>(), M.topRightCorner<3, 1>());
+}
+
+py::array_t<double> Predict(const RobotModel& model, const RowArray& q, const py::object& tool) {
+  const int n = model.num_joints();
+  const py::ssize_t m = Rows(q, n, "joint values");
+  const int t = ToolIndex(model, tool);
+  py::array_t<double> out({m, static_cast<py::ssize_t>(3)});
+  const double* in = q.data();
+  double* o = out.mutable_data();
+  {
+    py::gil_scoped_release release;
+    PredictPositionsInto(model, in, m, t, o);
+  }
+  return out;
+}
+
+}  // namespace
+
+void BindModel(py::module_& m);
+void BindMeasurements(py::module_& m);
+
+}  // namespace python
+}  // namespace lpoe
+
+PYBIND11_MODULE(_lpoe, m) {
+  using namespace lpoe;
+  using namespace lpoe::python;
+  m.doc() = "lpoe-calib: LPoE kinematic calibration of serial robots from laser-tracker data";
+  py::register_exception<LpoeError>(m, "Error", PyExc_ValueError);
+
+  py::class_<RobotModel>(m, "Model", "A robot model: local joint frames, twists, tools (mm, rad).")
+      .def(py::init<>())
+      .def_readwrite("name", &RobotModel::name)
+      .def_property_readonly("num_joints", &RobotModel::num_joints)
+      .def_property_readonly("num_tools", &RobotModel::num_tools)
+      .def_property_readonly("joint_names",
+                             [](const RobotModel& r) {
+                               std::vector<std::string> v;
+                               for (const Joint& j : r.joints) v.push_back(j.name);
+                               return v;
+                             })
+      .def_property_readonly("joint_types",
+                             [](const RobotModel& r) {
+                               std::vector<std::string> v;
+                               for (const Joint& j : r.joints) v.push_back(JointTypeName(j.type));
+                               return v;
+                             })
+      .def_property_readonly("tool_names",
+                             [](const RobotModel& r) {
+                               std::vector<std::string> v;
+                               for (const Tool& t : r.tools) v.push_back(t.name);
+                               return v;
+                             })
+      .def_property_readonly(
+          "limits",
+          [](const RobotModel& r) {
+            Eigen::MatrixX2d L(r.num_joints(), 2);
+            for (int i = 0; i < r.num_joints(); ++i) L.row(i) << r.joints[i].lower, r.joints[i].upper;
+            return L;
+          },
+          "(N, 2) joint limits [lower, upper] (rad or mm; inf when none)")
+      .def(
+          "joint_origin", [](const RobotModel& r, int i) { return ToMatrix(r.joints.at(i).origin); },
+          py::arg("joint"), "4x4 local frame T_{i-1,i}(0) of joint i (0-based), mm")
+      .def(
+          "set_joint_origin",
+          [](RobotModel& r, int i, const Eigen::Matrix4d& M) { r.joints.at(i).origin = FromMatrix(M); },
+          py::arg("joint"), py::arg("matrix"))
+      .def(
+          "joint_twist", [](const RobotModel& r, int i) { return r.joints.at(i).twist; },
+          py::arg("joint"), "twist (omega, v) of joint i in its own frame")
+      .def(
+          "tool_origin",
+          [](const RobotModel& r, const py::object& tool) {
+            return ToMatrix(r.tools[ToolIndex(r, tool)].origin);
+          },
+          py::arg("tool") = 0, "4x4 tool frame T_n,tool in the last joint's frame, mm")
+      .def("validate", [](const RobotModel& r) { Check(r.Validate()); },
+           "raises lpoe.Error when the model is not usable")
+      .def("to_yaml", &RobotModelToYaml, "the model as YAML text (as lpoe_calibrate writes it)")
+      .def("predict", &Predict, py::arg("q"), py::arg("tool") = 0,
+           "tool position (M, 3) in mm at joint values q (M, N), with every error term the model "
+           "carries")
+      .def(
+          "pose",
+          [](const RobotModel& r, const RowArray& q, const py::object& tool) {
+            if (Rows(q, r.num_joints(), "joint values") != 1 || q.ndim() != 1) {
+              throw LpoeError("pose: expected one configuration of " +
+                              std::to_string(r.num_joints()) + " joint values");
+            }
+            return ToMatrix(ToolPose(r, q.data(), ToolIndex(r, tool)));
+          },
+          py::arg("q"), py::arg("tool") = 0, "4x4 tool pose at one configuration (geometric model)")
+      .def("copy", [](const RobotModel& r) { return RobotModel(r); })
+      .def("__repr__", [](const RobotModel& r) {
+        return "<lpoe.Model '" + r.name + "': " + std::to_string(r.num_joints()) + " joints, " +
+               std::to_string(r.num_tools()) + " tools>";
+      });
+
+  m.def(
+      "read_model",
+      [](const std::string& path) {
+        RobotModel model;
+        Check(ReadAnyRobotModel(path, &model));
+        return model;
+      },
+      py::arg("path"), "reads a robot model: YAML, or URDF when the name ends in .urdf");
+  m.def(
+      "write_model",
+      [](const std::string& path, const RobotModel& model) { Check(WriteAnyRobotModel(path, model)); },
+      py::arg("path"), py::arg("model"),
+      "writes a model atomically: URDF when the name ends in .urdf, else YAML");
+  m.def(
+      "model_from_yaml",
+      [](const std::string& text, const std::string& source) {
+        RobotModel model;
+        Check(ParseRobotModelYaml(text, source, &model));
+        return model;
+      },
+      py::arg("text"), py::arg("source") = "<string>", "parses model YAML text");
+
+  BindMeasurements(m);
+}

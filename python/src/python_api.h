@@ -1,0 +1,38 @@
+// Internal pieces shared by the translation units of the Python module.
+#ifndef LPOE_PYTHON_PYTHON_API_H_
+#define LPOE_PYTHON_PYTHON_API_H_
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <stdexcept>
+#include <string>
+
+#include "lpoe/robot_model.h"
+#include "lpoe/status.h"
+
+namespace lpoe {
+namespace python {
+
+// Raised as lpoe.Error (a ValueError) in Python.
+class LpoeError : public std::runtime_error {
+ public:
+  explicit LpoeError(const std::string& message) : std::runtime_error(message) {}
+};
+
+// "(3, 4)" for error messages.
+std::string ShapeText(const pybind11::array& a);
+
+// A model file by its name: URDF when it ends in .urdf (any case), else YAML.
+Status ReadAnyRobotModel(const std::string& path, RobotModel* model);
+Status WriteAnyRobotModel(const std::string& path, const RobotModel& model);
+
+// Tool positions (mm) of `rows` configurations stored row-major in `q` (num_joints each) into
+// `out` (3 per row). No Python objects are touched: callable without the GIL.
+void PredictPositionsInto(const RobotModel& model, const double* q, long rows, int tool,
+                          double* out);
+
+}  // namespace python
+}  // namespace lpoe
+
+#endif  // LPOE_PYTHON_PYTHON_API_H_

@@ -1,0 +1,88 @@
+"""pytest suite of the lpoe Python module: models, measurements, prediction, errors."""
+import os
+
+import numpy as np
+import pytest
+
+import lpoe
+
+DATA = os.environ.get("LPOE_DATA_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "data"))
+MODEL = os.path.join(DATA, "cobot6.yaml")
+IDENT = os.path.join(DATA, "section4", "identification.csv")
+
+
+@pytest.fixture(scope="module")
+def model():
+    return lpoe.read_model(MODEL)
+
+
+def test_read_model(model):
+    assert model.num_joints == 6
+    assert model.joint_names == ["joint1", "joint2", "joint3", "joint4", "joint5", "joint6"]
+    assert model.limits.shape == (6, 2)
+
+
+def test_predict_matches_pose_and_rows(model):
+    rng = np.random.default_rng(1)
+    q = rng.uniform(-np.pi, np.pi, size=(50, 6))
+    p = model.predict(q)
+    assert p.shape == (50, 3)
+    for k in (0, 17, 49):
+        np.testing.assert_allclose(p[k], model.pose(q[k])[:3, 3], atol=1e-9)
+    # One row given as a 1-D array is one configuration.
+    np.testing.assert_allclose(model.predict(q[3]), p[3:4], atol=0)
+
+
+def test_predict_zero_configuration(model):
+    # At q = 0 the tool position is the product of the local frames and the tool offset.
+    T = np.eye(4)
+    for i in range(model.num_joints):
+        T = T @ model.joint_origin(i)
+    T = T @ model.tool_origin(0)
+    np.testing.assert_allclose(model.predict(np.zeros(6))[0], T[:3, 3], atol=1e-9)
+
+
+def test_predict_rejects_wrong_shape(model):
+    with pytest.raises(lpoe.Error, match=r"shape \(M, 6\)"):
+        model.predict(np.zeros((4, 5)))
+    with pytest.raises(lpoe.Error, match="tool index 3"):
+        model.predict(np.zeros((1, 6)), tool=3)
+
+
+def test_read_measurements(model):
+    d = lpoe.read_measurements(IDENT, model)
+    assert len(d) == 70
+    assert d.q.shape == (70, 6) and d.positions.shape == (70, 3)
+    assert d.lines[0] >= 2  # the header is line 1
+
+
+def test_measurements_from_arrays_round_trip(model):
+    rng = np.random.default_rng(2)
+    q = rng.uniform(-1, 1, size=(10, 6))
+    p = model.predict(q)
+    d = lpoe.measurements(model, q, p)
+    np.testing.assert_array_equal(d.q, q)
+    np.testing.assert_array_equal(d.positions, p)
+    with pytest.raises(lpoe.Error, match=r"positions: expected shape \(10, 3\)"):
+        lpoe.measurements(model, q, p[:, :2])
+
+
+def test_bad_file_raises_with_file_and_line(tmp_path, model):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("q1,q2,q3,q4,q5,q6,x,y,z\n0,0,0,0,0,0,1,2,3\n0,0,0,zero,0,0,1,2,3\n")
+    with pytest.raises(lpoe.Error) as e:
+        lpoe.read_measurements(str(bad), model)
+    assert f"{bad}:3:" in str(e.value)
+    with pytest.raises(lpoe.Error, match="bad.yaml"):
+        (tmp_path / "bad.yaml").write_text("name: x\njoints: 3\n")
+        lpoe.read_model(str(tmp_path / "bad.yaml"))
+    with pytest.raises(lpoe.Error):
+        lpoe.read_model(str(tmp_path / "missing.yaml"))
+
+
+def test_write_model_round_trip(tmp_path, model):
+    out = tmp_path / "m.yaml"
+    lpoe.write_model(str(out), model)
+    again = lpoe.read_model(str(out))
+    q = np.random.default_rng(3).uniform(-3, 3, size=(100, 6))
+    np.testing.assert_allclose(again.predict(q), model.predict(q), atol=1e-9)
