@@ -39,9 +39,10 @@ RobotModel ApplyErrors(const RobotModel& nominal, const KinematicErrors& errors)
 // 3e3 for the third (elbow) and 1.5e3 for the wrist joints. Link k weighs 0.1 kg + 1.25 kg/m times
 // its length (the distance from its frame to the next joint's, or to the first tool for the last
 // link), times `mass_scale`, its centre of mass half-way along it plus up to 10 mm per axis at
-// random. For cobot6 that gives 0.2-0.65 kg per link, deflections of 190 (shoulder) and 510 (elbow)
-// arcsec peak to peak and 0.31 mm RMS at the tool that no geometric model absorbs (docs/joint_errors.md):
-// heavier links at these stiffnesses would deflect the elbow by thousands of arcsec.
+// random. For cobot6 that gives 0.19-0.65 kg per link, deflections of 210 (shoulder) and 570
+// (elbow) arcsec peak to peak and 0.34 mm RMS at the tool that no geometric model absorbs
+// (docs/joint_errors.md): heavier links at these stiffnesses would deflect the elbow by thousands of
+// arcsec.
 // Harmonics: each of the two harmonics of every revolute joint has an amplitude uniform in
 // [harmonics_min, harmonics_max] (rad) and a uniform random phase.
 struct SmallArmOptions {
