@@ -2,6 +2,7 @@
 // and a two-tool variant, with joint values in radians and in degrees. Checks that nothing crashes,
 // that errors are "<file>:<line>: ..." messages, that accepted rows are finite, and that what was
 // accepted round-trips through MeasurementsToCsv.
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -51,7 +52,8 @@ void CheckAccepted(const RobotModel& model, const MeasurementSet& data,
     }
     if (data.source_line(r) < 1) lpoe::fuzz::Fail("row without a source line", "");
   }
-  if (report.skipped_zero_rows != static_cast<int>(report.skipped_lines.size())) {
+  if (static_cast<int64_t>(report.skipped_lines.size()) !=
+      std::min<int64_t>(report.skipped_zero_rows, lpoe::CsvReadReport::kMaxSkippedLines)) {
     lpoe::fuzz::Fail("skipped-row count and line list disagree", "");
   }
 }

@@ -40,6 +40,24 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* bytes, size_t size) {
     }
   }
 
+  // The overlay of the unchanged model writes the same chain back and reads again.
+  lpoe::UrdfSource source;
+  lpoe::RobotModel kept;
+  if (lpoe::Status r = lpoe::ParseRobotModelUrdf(xml, "fuzz.urdf", &kept, {}, &source); !r.ok()) {
+    lpoe::fuzz::Fail("keeping the source changed the parse: " + r.message(), xml);
+  }
+  std::string overlay;
+  if (lpoe::Status r = lpoe::CalibratedUrdfOverlay(source, model, {}, &overlay); !r.ok()) {
+    lpoe::fuzz::Fail("the overlay of the model as read fails: " + r.message(), xml);
+  }
+  lpoe::RobotModel overlaid;
+  if (lpoe::Status r = lpoe::ParseRobotModelUrdf(overlay, "overlay.urdf", &overlaid); !r.ok()) {
+    lpoe::fuzz::Fail("the overlay does not read back: " + r.message(), overlay);
+  }
+  if (overlaid.num_joints() != model.num_joints() || overlaid.num_tools() != model.num_tools()) {
+    lpoe::fuzz::Fail("the overlay changed the number of joints or tools", overlay);
+  }
+
   const std::string urdf = lpoe::RobotModelToUrdf(model);
   lpoe::RobotModel again;
   if (lpoe::Status r = lpoe::ParseRobotModelUrdf(urdf, "roundtrip.urdf", &again); !r.ok()) {

@@ -8,6 +8,8 @@ PACKAGES=(
   libeigen3-dev libceres-dev libgoogle-glog-dev libgflags-dev
   libyaml-cpp-dev          # robot model files (YAML with line numbers in errors)
   libtinyxml2-dev          # URDF robot models
+  liburdfdom-dev           # urdf_overlay_test: reads the written URDF independently of our reader
+  liburdfdom-tools         # urdf_overlay_test: check_urdf validates the written URDF
   nlohmann-json3-dev       # the JSON calibration report (header-only)
   libgtest-dev libbenchmark-dev
   libpng-dev               # report plots (tools/plot.cc)

@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -344,11 +345,105 @@ INSTANTIATE_TEST_SUITE_P(
         FlagCase{"holdout_2", {"--holdout=2"}, {"--holdout"}},
         FlagCase{"holdout_negative", {"--holdout=-0.1"}, {"--holdout"}},
         FlagCase{"angle_unit_grad", {"--angle_unit=grad"}, {"--angle_unit", "grad"}},
+        FlagCase{"length_unit_cm", {"--length_unit=cm"}, {"--length_unit", "cm"}},
         FlagCase{"kfold_1", {"--kfold=1"}, {"--kfold"}},
         FlagCase{"parameterization_foo", {"--parameterization=foo"}, {"--parameterization", "foo"}},
         FlagCase{"verify_and_holdout",
                  {"--verify=" + kGoodVerification, "--holdout=0.3"},
                  {"--verify", "--holdout"}},
         FlagCase{"unknown_flag", {"--no_such_flag=1"}, {"no_such_flag"}}));
+
+// ---- Warnings about what the readers dropped or suspect (issues 13 and 14).
+
+// Lost-beam rows and ignored columns of the verification file are reported like those of the
+// identification file.
+TEST(CliWarnings, VerificationFileLostBeamRowsAndExtraColumnsAreReported) {
+  TempDir dir, scratch;
+  ASSERT_FALSE(dir.path().empty());
+  std::string text = ReadAll(kGoodVerification);
+  ASSERT_FALSE(text.empty());
+  // Add a status column and a lost-beam row at the end.
+  std::string changed;
+  size_t start = 0;
+  bool header_done = false;
+  int line = 0, lost_line = 0;
+  while (start < text.size()) {
+    size_t nl = text.find('\n', start);
+    if (nl == std::string::npos) nl = text.size();
+    std::string row = text.substr(start, nl - start);
+    ++line;
+    if (!row.empty() && row[0] != '#') {
+      row += header_done ? ",ok" : ",status";
+      header_done = true;
+    }
+    changed += row + "\n";
+    start = nl + 1;
+  }
+  changed += "0.1,0.2,0.3,0.4,0.5,0.6,0,0,0,smr1,lost\n";
+  lost_line = line + 1;
+  const std::string verify = dir / "verify.csv";
+  std::ofstream(verify) << changed;
+  const RunResult r = RunTool({"--model=" + kGoodModel, "--measurements=" + kGoodMeasurements,
+                               "--verify=" + verify, "--plots_dir=", "--output=" + (dir / "o.yaml")},
+                              scratch.path(), scratch.path());
+  EXPECT_EQ(r.exit_code, 0) << r;
+  EXPECT_NE(r.err.find(verify + ": skipped 1 row(s) with no measurement (lost beam) at line(s) " +
+                       std::to_string(lost_line)),
+            std::string::npos)
+      << r;
+  EXPECT_NE(r.err.find(verify + ": ignored 1 column(s) the model does not use: 'status'"),
+            std::string::npos)
+      << r;
+}
+
+// Positions in metres read as millimetres are flagged; --length_unit=m reads them right.
+TEST(CliWarnings, PositionsInMetresAreFlaggedAndReadWithLengthUnit) {
+  TempDir dir, scratch;
+  ASSERT_FALSE(dir.path().empty());
+  const std::string text = ReadAll(kGoodMeasurements);
+  // x, y, z (the 7th to 9th fields) divided by 1000.
+  std::string metres;
+  size_t start = 0;
+  bool header_done = false;
+  while (start < text.size()) {
+    size_t nl = text.find('\n', start);
+    if (nl == std::string::npos) nl = text.size();
+    const std::string row = text.substr(start, nl - start);
+    start = nl + 1;
+    if (row.empty() || row[0] == '#' || !header_done) {
+      header_done = header_done || (!row.empty() && row[0] != '#');
+      metres += row + "\n";
+      continue;
+    }
+    std::vector<std::string> fields;
+    size_t a = 0;
+    while (true) {
+      const size_t comma = row.find(',', a);
+      fields.push_back(row.substr(a, comma == std::string::npos ? std::string::npos : comma - a));
+      if (comma == std::string::npos) break;
+      a = comma + 1;
+    }
+    for (int k = 6; k < 9; ++k) {
+      char buf[40];
+      std::snprintf(buf, sizeof(buf), "%.17g", std::stod(fields[k]) / 1000.0);
+      fields[k] = buf;
+    }
+    for (size_t k = 0; k < fields.size(); ++k) metres += (k ? "," : "") + fields[k];
+    metres += "\n";
+  }
+  const std::string csv = dir / "metres.csv";
+  std::ofstream(csv) << metres;
+  const RunResult as_mm = RunTool({"--model=" + kGoodModel, "--measurements=" + csv,
+                                   "--plots_dir=", "--output=" + (dir / "a.yaml")},
+                                  scratch.path(), scratch.path());
+  EXPECT_NE(as_mm.err.find("positions look like metres: use --length_unit=m"), std::string::npos)
+      << as_mm;
+  const RunResult as_m = RunTool({"--model=" + kGoodModel, "--measurements=" + csv,
+                                  "--length_unit=m", "--plots_dir=",
+                                  "--output=" + (dir / "b.yaml")},
+                                 scratch.path(), scratch.path());
+  EXPECT_EQ(as_m.exit_code, 0) << as_m;
+  EXPECT_EQ(as_m.err.find("look like metres"), std::string::npos) << as_m;
+}
 
 }  // namespace

@@ -41,7 +41,7 @@ SE3d TrackerFromBase() {
 
 struct Outcome {
   ErrorStatistics held_out;
-  int skipped = 0;
+  int64_t skipped = 0;
 };
 
 // Writes `data` (transformed by T) as a degrees CSV with zero rows, reads it back, registers and

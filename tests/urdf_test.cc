@@ -9,7 +9,9 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -68,7 +70,9 @@ void ExpectSameKinematics(const RobotModel& a, const RobotModel& b, double tol_m
 RobotModel RoundTrip(const RobotModel& model) {
   const std::string xml = RobotModelToUrdf(model);
   RobotModel back;
-  const Status s = ParseRobotModelUrdf(xml, "roundtrip.urdf", &back);
+  UrdfOptions options;  // several tools on the flange: name them (else the flange is the tool)
+  for (const Tool& t : model.tools) options.tool_links.push_back(t.name);
+  const Status s = ParseRobotModelUrdf(xml, "roundtrip.urdf", &back, options);
   EXPECT_TRUE(s.ok()) << s.message() << "\n" << xml;
   return back;
 }
@@ -407,7 +411,7 @@ TEST(Urdf, PrismaticAndTiltedAxesMatchIndependentKinematics) {
   ExpectSameKinematics(m, RoundTrip(m), kRoundTripToleranceMm);
 }
 
-TEST(Urdf, DefaultToolsAreTheLeavesAfterTheLastMovingJoint) {
+TEST(Urdf, SeveralLeavesOnTheFlangeMakeTheFlangeTheTool) {
   const std::string xml = R"(<robot name="two_tools">
   <link name="base"/><link name="l1"/><link name="smr_a"/><link name="smr_b"/>
   <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/></joint>
@@ -415,7 +419,15 @@ TEST(Urdf, DefaultToolsAreTheLeavesAfterTheLastMovingJoint) {
   <joint name="fb" type="fixed"><parent link="l1"/><child link="smr_b"/><origin xyz="0 0.2 0"/></joint>
 </robot>)";
   RobotModel m;
-  const Status s = ParseRobotModelUrdf(xml, "two_tools.urdf", &m);
+  // Several leaves after the same last moving joint (a UR's ee_link and tool0): the flange is the
+  // tip and the one tool.
+  ASSERT_TRUE(ParseRobotModelUrdf(xml, "two_tools.urdf", &m).ok());
+  ASSERT_EQ(m.num_tools(), 1);
+  EXPECT_EQ(m.tools[0].name, "l1");
+  // Named, they are the tools.
+  UrdfOptions options;
+  options.tool_links = {"smr_a", "smr_b"};
+  const Status s = ParseRobotModelUrdf(xml, "two_tools.urdf", &m, options);
   ASSERT_TRUE(s.ok()) << s.message();
   ASSERT_EQ(m.num_tools(), 2);
   EXPECT_EQ(m.tools[0].name, "smr_a");
@@ -431,6 +443,154 @@ TEST(Urdf, DefaultToolsAreTheLeavesAfterTheLastMovingJoint) {
   ASSERT_EQ(m.num_tools(), 1);
   EXPECT_EQ(m.tools[0].name, "l1");
   EXPECT_LT((m.tools[0].origin.Matrix() - Eigen::Matrix4d::Identity()).norm(), 1e-300);
+}
+
+// ---------------------------------------------------------------------------------------------------
+// The overlay write-back, read again by our own reader (urdf_overlay_test reads it with urdfdom).
+
+std::string UrLikeText() {
+  std::string xml;
+  EXPECT_TRUE(ReadFile(UrdfDir() + "/ur_like.urdf", &xml).ok());
+  return xml;
+}
+
+TEST(UrdfOverlayWrite, CalibratedFramesAndAxesReadBack) {
+  RobotModel nominal;
+  UrdfSource source;
+  UrdfOptions options;
+  options.tool_links = {"tool_smr", "flange"};
+  ASSERT_TRUE(ParseRobotModelUrdf(UrLikeText(), "ur_like.urdf", &nominal, options, &source).ok());
+  EXPECT_EQ(source.options.tool_links, options.tool_links);
+  // Frame errors of a few mm and mrad on every joint and tool; joint 3's axis tilted (v stays 0).
+  RobotModel calibrated = ApplyErrors(nominal, RandomErrors(nominal, 0.005, 3.0, 0.0, 0.0, 21));
+  calibrated.joints[2].twist.head<3>() =
+      (calibrated.joints[2].twist.head<3>() + Eigen::Vector3d(0.01, 0, -0.02)).normalized();
+  ASSERT_TRUE(calibrated.Validate().ok());
+  std::string xml;
+  const Status s = CalibratedUrdfOverlay(source, calibrated, UrdfOverlayOptions(), &xml);
+  ASSERT_TRUE(s.ok()) << s.message();
+  RobotModel back;
+  const Status r = ParseRobotModelUrdf(xml, "overlay.urdf", &back, options);
+  ASSERT_TRUE(r.ok()) << r.message() << "\n" << xml;
+  ExpectSameKinematics(calibrated, back, kRoundTripToleranceMm);
+  for (int i = 0; i < back.num_joints(); ++i) {
+    EXPECT_EQ(back.joints[i].lower, nominal.joints[i].lower);
+    EXPECT_EQ(back.joints[i].upper, nominal.joints[i].upper);
+  }
+  // Fixed joints folded into the frames are unchanged, the source's lines kept.
+  EXPECT_NE(xml.find("<origin xyz=\"0.1 -0.05 0.02\" rpy=\"0 0 0.5\"/>"), std::string::npos) << xml;
+  EXPECT_NE(xml.find("lower=\"-6.28318530718\""), std::string::npos);
+  EXPECT_NE(xml.find("<link name=\"measurement_frame\"/>"), std::string::npos);
+  EXPECT_NE(xml.find("<link name=\"camera_link\"/>"), std::string::npos);
+
+  // Changed limits are written (and only then).
+  calibrated.joints[1].lower = -1.0;
+  ASSERT_TRUE(CalibratedUrdfOverlay(source, calibrated, UrdfOverlayOptions(), &xml).ok());
+  ASSERT_TRUE(ParseRobotModelUrdf(xml, "overlay.urdf", &back, options).ok());
+  EXPECT_EQ(back.joints[1].lower, -1.0);
+  EXPECT_EQ(back.joints[2].lower, nominal.joints[2].lower);
+}
+
+TEST(UrdfOverlayWrite, MeasurementFrameTakesTheBaseTransform) {
+  RobotModel nominal;
+  UrdfSource source;
+  ASSERT_TRUE(ParseRobotModelUrdf(UrLikeText(), "ur_like.urdf", &nominal, {}, &source).ok());
+  RobotModel calibrated = ApplyErrors(nominal, RandomErrors(nominal, 0.005, 3.0, 0.0, 0.0, 22));
+  const SE3d T_measurement_base(RotationFromRpy(0.2, 0.1, -1.0), Eigen::Vector3d(2000, 500, -300));
+  calibrated.joints[0].origin = T_measurement_base * calibrated.joints[0].origin;
+  UrdfOverlayOptions overlay;
+  overlay.in_measurement_frame = true;
+  overlay.measurement_link = "tracker";
+  std::string xml;
+  ASSERT_TRUE(CalibratedUrdfOverlay(source, calibrated, overlay, &xml).ok());
+  RobotModel back;
+  ASSERT_TRUE(ParseRobotModelUrdf(xml, "overlay.urdf", &back).ok());
+  // Joint 1 keeps its URDF origin; everything after it is calibrated.
+  EXPECT_LT((back.joints[0].origin.Matrix() - nominal.joints[0].origin.Matrix()).norm(), 1e-12);
+  // The written tracker joint holds O = T_root_tracker; the calibrated model is O^-1 * the chain.
+  const size_t at = xml.find("<joint name=\"tracker_joint\" type=\"fixed\">");
+  ASSERT_NE(at, std::string::npos) << xml;
+  double v[6];
+  ASSERT_EQ(std::sscanf(xml.c_str() + xml.find("<origin", at),
+                        "<origin xyz=\"%lf %lf %lf\" rpy=\"%lf %lf %lf\"", &v[0], &v[1], &v[2],
+                        &v[3], &v[4], &v[5]),
+            6);
+  const SE3d O(RotationFromRpy(v[3], v[4], v[5]), Eigen::Vector3d(v[0], v[1], v[2]) * 1e3);
+  RobotModel from_tracker = back;
+  from_tracker.joints[0].origin = O.Inverse() * back.joints[0].origin;
+  ExpectSameKinematics(calibrated, from_tracker, kRoundTripToleranceMm);
+  // O^-1 is the tracker's transform up to the base-frame errors (a few mm, mrad).
+  EXPECT_LT((O.Inverse().t - T_measurement_base.t).norm(), 20.0);
+  EXPECT_LT((O.Inverse().R - T_measurement_base.R).norm(), 0.05);
+}
+
+TEST(UrdfOverlayWrite, FlangeToolBecomesAnSmrLinkOnTheTip) {
+  const std::string xml = R"(<robot name="two_tools">
+  <link name="base"/><link name="l1"/><link name="a"/><link name="b"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="fa" type="fixed"><parent link="l1"/><child link="a"/><origin xyz="0.1 0 0"/></joint>
+  <joint name="fb" type="fixed"><parent link="l1"/><child link="b"/><origin xyz="0 0.2 0"/></joint>
+</robot>)";
+  RobotModel m;
+  UrdfSource source;
+  ASSERT_TRUE(ParseRobotModelUrdf(xml, "two.urdf", &m, {}, &source).ok());
+  ASSERT_EQ(m.tools[0].name, "l1");
+  m.tools[0].origin = SE3d(Eigen::Matrix3d::Identity(), Eigen::Vector3d(30, 40, 50));
+  std::string out;
+  ASSERT_TRUE(CalibratedUrdfOverlay(source, m, UrdfOverlayOptions(), &out).ok());
+  UrdfOptions options;
+  options.tool_links = {"l1_smr"};
+  RobotModel back;
+  const Status s = ParseRobotModelUrdf(out, "out.urdf", &back, options);
+  ASSERT_TRUE(s.ok()) << s.message() << "\n" << out;
+  EXPECT_LT((back.tools[0].origin.t - Eigen::Vector3d(30, 40, 50)).norm(), 1e-12);
+}
+
+TEST(UrdfOverlayWrite, ModelsThatDoNotFitAreRefused) {
+  RobotModel nominal;
+  UrdfSource source;
+  ASSERT_TRUE(ParseRobotModelUrdf(UrLikeText(), "ur_like.urdf", &nominal, {}, &source).ok());
+  std::string xml;
+  RobotModel renamed = nominal;
+  renamed.joints[3].name = "wrist_one";
+  Status s = CalibratedUrdfOverlay(source, renamed, UrdfOverlayOptions(), &xml);
+  EXPECT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("'wrist_one'"), std::string::npos) << s.message();
+  RobotModel off_axis = nominal;
+  const Eigen::Vector3d w = off_axis.joints[1].twist.head<3>();
+  off_axis.joints[1].twist.tail<3>() = w.cross(Eigen::Vector3d(5, 0, 0) - w * w.x() * 5);
+  ASSERT_TRUE(off_axis.Validate().ok());
+  s = CalibratedUrdfOverlay(source, off_axis, UrdfOverlayOptions(), &xml);
+  EXPECT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("does not pass through"), std::string::npos) << s.message();
+  // Not a UR: no UR kinematics.
+  EXPECT_FALSE(IsUrModel(MakeCobot6()));
+  EXPECT_TRUE(IsUrModel(nominal));
+  RobotModel cobot = MakeCobot6();
+  s = UrKinematicsYaml(source, cobot, UrdfOverlayOptions(), &xml);
+  EXPECT_NE(s.message().find("not a UR robot"), std::string::npos) << s.message();
+  // ur_like's joints turn about y: the UR file needs z axes.
+  s = UrKinematicsYaml(source, nominal, UrdfOverlayOptions(), &xml);
+  EXPECT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("z axis"), std::string::npos) << s.message();
+}
+
+TEST(Urdf, ExportWritesLimits) {
+  RobotModel m = MakeArmWithPrismatic();
+  for (Joint& j : m.joints) {
+    j.lower = j.type == JointType::kRevolute ? -2.5 : -80.0;
+    j.upper = j.type == JointType::kRevolute ? 1.5 : 120.0;
+  }
+  m.joints[0].lower = -std::numeric_limits<double>::infinity();  // one unlimited joint
+  m.joints[0].upper = std::numeric_limits<double>::infinity();
+  const RobotModel back = RoundTrip(m);
+  ASSERT_EQ(back.num_joints(), m.num_joints());
+  for (int i = 0; i < m.num_joints(); ++i) {
+    EXPECT_EQ(back.joints[i].lower, m.joints[i].lower) << i;
+    EXPECT_EQ(back.joints[i].upper, m.joints[i].upper) << i;
+  }
+  EXPECT_NE(RobotModelToUrdf(m).find("type=\"continuous\""), std::string::npos);
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -459,6 +619,7 @@ TEST(Urdf, BadFilesAreRejectedWithFileAndLine) {
       {"bad_two_parents.urdf", 10, "already the child"},
       {"bad_no_moving_joint.urdf", 2, "no revolute"},
       {"bad_not_robot.urdf", 3, "root element is <sdf>"},
+      {"bad_two_roots.urdf", 11, "a second root element <robot>"},
   };
   for (const BadCase& c : cases) {
     SCOPED_TRACE(c.file);

@@ -43,7 +43,16 @@ DEFINE_int32(kfold, 0,
              "identification set and report each fold's held-out errors.");
 DEFINE_uint64(split_seed, 1, "Seed of the --holdout and --kfold splits.");
 DEFINE_string(output, "", "Write the calibrated model here (YAML). Nothing is written on failure.");
-DEFINE_string(urdf_output, "", "Also write the calibrated model as URDF (metres, joint origins with rpy).");
+DEFINE_string(urdf_output, "",
+              "Also write the calibrated model as URDF. When --model is a URDF: that same file with "
+              "only the calibrated joint origins (and axes) changed, every name, limit, mesh, "
+              "inertial and extension tag kept, the tools as fixed links on the tip and the "
+              "measurement (tracker) frame as the fixed link measurement_frame (docs/urdf.md). "
+              "Otherwise a new URDF (links base_link, link1..linkN).");
+DEFINE_string(ur_kinematics_output, "",
+              "With a URDF --model of a Universal Robots arm (joints shoulder_pan_joint .. "
+              "wrist_3_joint): also write the calibrated joint origins in the format of "
+              "ROS-Industrial's ur_description kinematics YAML.");
 DEFINE_string(report, "", "Write a machine-readable JSON report here (schema in the README).");
 DEFINE_string(plots_dir, "lpoe_plots",
               "Directory for the PNG plots (convergence, per-axis errors, histogram); created if "
@@ -68,6 +77,8 @@ DEFINE_string(data_kind, "auto",
               "position | pose | auto: pose-based calibration (paper eqs. 17-24) uses the measured "
               "orientations; auto picks pose when the CSV has quat_* columns.");
 DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in the CSV files: rad | deg.");
+DEFINE_string(length_unit, "mm",
+              "Unit of x, y, z (and prismatic joint values) in the CSV files: mm | m.");
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first when the measurements are not in "
             "its base frame (a rigid fit that moves the base by more than 50 mm or 0.05 rad): "
@@ -250,6 +261,12 @@ int Run() {
     std::cerr << "error: --angle_unit must be rad or deg, got '" << FLAGS_angle_unit << "'\n";
     return kExitUsage;
   }
+  CsvOptions csv;
+  csv.angle_unit = unit;
+  if (!ParseLengthUnit(FLAGS_length_unit, &csv.length_unit)) {
+    std::cerr << "error: --length_unit must be mm or m, got '" << FLAGS_length_unit << "'\n";
+    return kExitUsage;
+  }
   if (!ParseParameterization(FLAGS_parameterization, &job.kind)) {
     std::cerr << "error: --parameterization must be identifiable or full, got '"
               << FLAGS_parameterization << "'\n";
@@ -295,7 +312,15 @@ int Run() {
                  "--max_condition > 1, --outlier_threshold > 0\n";
     return kExitUsage;
   }
-  for (const std::string& out : {FLAGS_output, FLAGS_report, FLAGS_urdf_output}) {
+  UrdfOptions urdf_options;
+  if (!tools::UrdfOptionsFromFlags(model_path, &urdf_options) ||
+      (!FLAGS_ur_kinematics_output.empty() && !IsUrdfPath(model_path))) {
+    std::cerr << "error: --base_link, --tip_link, --tool_links and --ur_kinematics_output need a "
+                 "URDF --model (a name ending in .urdf)\n";
+    return kExitUsage;
+  }
+  for (const std::string& out :
+       {FLAGS_output, FLAGS_report, FLAGS_urdf_output, FLAGS_ur_kinematics_output}) {
     for (const std::string& in : {model_path, meas_path, verify_path}) {
       if (!out.empty() && tools::SameFile(out, in)) {
         std::cerr << "error: an output would overwrite the input file " << in << "\n";
@@ -310,13 +335,25 @@ int Run() {
 
   // ---- Inputs.
   tools::RunSummary summary;
+  UrdfSource urdf_source;  // the URDF --model, for the overlay write-back
+  bool from_urdf = false;
   {
     tools::Inputs in;
-    if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, unit, FLAGS_holdout,
-                                     FLAGS_split_seed, &in);
+    if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
+                                     FLAGS_split_seed, &in, urdf_options);
         !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
+    }
+    from_urdf = in.from_urdf;
+    urdf_source = std::move(in.urdf);
+    // The UR file needs a UR arm with z axes: checked on the nominal model before solving.
+    std::string ur_yaml;
+    if (!FLAGS_ur_kinematics_output.empty()) {
+      if (Status s = UrKinematicsYaml(urdf_source, in.nominal, {}, &ur_yaml); !s.ok()) {
+        std::cerr << "error: --ur_kinematics_output: " << s.message() << "\n";
+        return kExitUsage;
+      }
     }
     job.nominal = std::move(in.nominal);
     job.identification = std::move(in.identification);
@@ -454,12 +491,26 @@ int Run() {
     }
     summary.outputs.push_back(FLAGS_output);
   }
+  UrdfOverlayOptions overlay;
+  overlay.in_measurement_frame = FLAGS_register && summary.registration.moved;
   if (!FLAGS_urdf_output.empty()) {
-    if (Status s = WriteRobotModelUrdf(FLAGS_urdf_output, result.model); !s.ok()) {
+    if (Status s = from_urdf ? WriteCalibratedUrdf(FLAGS_urdf_output, urdf_source, result.model,
+                                                   overlay)
+                             : WriteRobotModelUrdf(FLAGS_urdf_output, result.model);
+        !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitOutput;
     }
     summary.outputs.push_back(FLAGS_urdf_output);
+  }
+  if (!FLAGS_ur_kinematics_output.empty()) {
+    if (Status s = WriteUrKinematicsYaml(FLAGS_ur_kinematics_output, urdf_source, result.model,
+                                         overlay);
+        !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitOutput;
+    }
+    summary.outputs.push_back(FLAGS_ur_kinematics_output);
   }
   if (!FLAGS_plots_dir.empty()) {
     if (!EnsureDirectory(FLAGS_plots_dir)) {

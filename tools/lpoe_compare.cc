@@ -34,6 +34,8 @@ DEFINE_double(holdout, 0.0,
 DEFINE_uint64(split_seed, 1, "Seed of the --holdout split.");
 DEFINE_string(parameterization, "identifiable", "identifiable | full (see lpoe_calibrate).");
 DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in the CSV files: rad | deg.");
+DEFINE_string(length_unit, "mm",
+              "Unit of x, y, z (and prismatic joint values) in the CSV files: mm | m.");
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first (as lpoe_calibrate); both solvers "
             "start from the registered model.");
@@ -93,6 +95,12 @@ int Run() {
     std::cerr << "error: --angle_unit must be rad or deg, got '" << FLAGS_angle_unit << "'\n";
     return kExitUsage;
   }
+  CsvOptions csv;
+  csv.angle_unit = unit;
+  if (!ParseLengthUnit(FLAGS_length_unit, &csv.length_unit)) {
+    std::cerr << "error: --length_unit must be mm or m, got '" << FLAGS_length_unit << "'\n";
+    return kExitUsage;
+  }
   ParameterizationKind kind;
   if (!ParseParameterization(FLAGS_parameterization, &kind)) {
     std::cerr << "error: --parameterization must be identifiable or full, got '"
@@ -114,8 +122,13 @@ int Run() {
 
   // ---- Inputs.
   tools::Inputs in;
-  if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, unit, FLAGS_holdout,
-                                   FLAGS_split_seed, &in);
+  UrdfOptions urdf_options;
+  if (!tools::UrdfOptionsFromFlags(model_path, &urdf_options)) {
+    std::cerr << "error: --base_link, --tip_link and --tool_links need a URDF --model\n";
+    return kExitUsage;
+  }
+  if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
+                                   FLAGS_split_seed, &in, urdf_options);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;

@@ -18,12 +18,15 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/simulation.h"
+#include "lpoe/urdf.h"
 #include "tool_common.h"
 
 DEFINE_string(robot, "cobot6",
               "Built-in nominal robot: cobot6 (paper Table 1) | ur5 | arm7 | prismatic. Ignored "
               "when --model is given.");
-DEFINE_string(model, "", "Nominal robot model (YAML) to simulate instead of a built-in one.");
+DEFINE_string(model, "",
+              "Nominal robot model to simulate instead of a built-in one: YAML, or URDF when the "
+              "name ends in .urdf. Joint values are drawn within the joints' limits.");
 DEFINE_string(errors, "table2",
               "Kinematic errors of the actual robot: table2 (paper Table 2, cobot6 only) | random "
               "| none.");
@@ -122,8 +125,17 @@ int Run() {
   }
 
   RobotModel nominal;
+  UrdfOptions urdf_options;
+  if (!tools::UrdfOptionsFromFlags(FLAGS_model, &urdf_options)) {
+    std::cerr << "error: --base_link, --tip_link and --tool_links need a URDF --model\n";
+    return kExitUsage;
+  }
   if (!FLAGS_model.empty()) {
-    if (Status s = ReadRobotModel(FLAGS_model, &nominal); !s.ok()) {
+    const Status s =
+        IsUrdfPath(FLAGS_model)
+            ? ReadRobotModelUrdf(FLAGS_model, &nominal, urdf_options)
+            : ReadRobotModel(FLAGS_model, &nominal);
+    if (!s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }

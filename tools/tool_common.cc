@@ -1,18 +1,21 @@
 #include "tool_common.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 
 #include "lpoe/analysis.h"
 #include "lpoe/urdf.h"
+#include "lpoe/version.h"
 
 DECLARE_bool(help);
 DECLARE_bool(helpfull);
@@ -23,7 +26,7 @@ namespace tools {
 
 void InitTool(const char* usage, int* argc, char*** argv) {
   gflags::SetUsageMessage(usage);
-  gflags::SetVersionString("0.1.0");
+  gflags::SetVersionString(kLpoeVersion);
   gflags::ParseCommandLineNonHelpFlags(argc, argv, /*remove_flags=*/true);
   if (FLAGS_help || FLAGS_helpfull || FLAGS_helpshort) {
     std::string name = (*argv)[0];
@@ -36,7 +39,10 @@ void InitTool(const char* usage, int* argc, char*** argv) {
       std::vector<gflags::CommandLineFlagInfo> flags;
       gflags::GetAllFlags(&flags);
       for (const auto& f : flags) {
-        if (f.filename.find(name) == std::string::npos) continue;
+        if (f.filename.find(name) == std::string::npos &&
+            f.filename.find("urdf_flags.cc") == std::string::npos) {
+          continue;
+        }
         std::cout << "  --" << f.name << " (" << f.description << ")\n      type: " << f.type
                   << "  default: " << (f.type == "string" ? "\"" + f.default_value + "\""
                                                             : f.default_value)
@@ -51,7 +57,18 @@ void InitTool(const char* usage, int* argc, char*** argv) {
 }
 
 std::string DataDir() {
-  if (const char* env = std::getenv("LPOE_DATA_DIR")) return env;
+  if (const char* env = std::getenv("LPOE_DATA_DIR"); env != nullptr && env[0] != '\0') return env;
+  // An installed program: <prefix>/bin/<tool> and <prefix>/share/lpoe_calib/data.
+  char self[4096];
+  const ssize_t n = readlink("/proc/self/exe", self, sizeof(self) - 1);
+  if (n > 0) {
+    std::string dir(self, static_cast<size_t>(n));
+    dir = dir.substr(0, dir.find_last_of('/'));                  // <prefix>/bin
+    const std::string prefix = dir.substr(0, dir.find_last_of('/'));
+    const std::string installed = prefix + "/" LPOE_INSTALL_DATA_DIR;
+    struct stat st;
+    if (stat((installed + "/cobot6.yaml").c_str(), &st) == 0) return installed;
+  }
   return LPOE_DATA_DIR;
 }
 
@@ -70,38 +87,38 @@ InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& m
 }
 
 Status LoadInputs(const std::string& model_path, const std::string& measurements_path,
-                  const std::string& verify_path, AngleUnit unit, double holdout,
-                  uint64_t split_seed, Inputs* in) {
-  const bool urdf = model_path.size() >= 5 &&
-                    model_path.compare(model_path.size() - 5, 5, ".urdf") == 0;
-  if (Status s = urdf ? ReadRobotModelUrdf(model_path, &in->nominal)
-                      : ReadRobotModel(model_path, &in->nominal);
+                  const std::string& verify_path, const CsvOptions& csv, double holdout,
+                  uint64_t split_seed, Inputs* in, const UrdfOptions& urdf_options) {
+  in->from_urdf = IsUrdfPath(model_path);
+  if (Status s = in->from_urdf
+                     ? ReadRobotModelUrdf(model_path, &in->nominal, urdf_options, &in->urdf)
+                     : ReadRobotModel(model_path, &in->nominal);
       !s.ok()) {
     return s;
   }
   MeasurementSet all;
-  if (Status s = ReadMeasurements(measurements_path, in->nominal, unit, &all, &in->skipped);
+  if (Status s = ReadMeasurements(measurements_path, in->nominal, csv, &all, &in->skipped);
       !s.ok()) {
     return s;
   }
-  if (in->skipped.skipped_zero_rows > 0) {
-    std::cerr << "warning: " << measurements_path << ": skipped " << in->skipped.skipped_zero_rows
-              << " row(s) with no measurement (lost beam) at line(s)";
-    const auto& lines = in->skipped.skipped_lines;
-    for (size_t k = 0; k < std::min<size_t>(lines.size(), 20); ++k) std::cerr << " " << lines[k];
-    if (lines.size() > 20) std::cerr << " ...";
-    std::cerr << "\n";
-  }
+  std::cerr << CsvReadWarnings(measurements_path, in->skipped);
+  const std::string hint = LengthUnitHint(in->nominal, all);
+  if (!hint.empty()) std::cerr << "warning: " << measurements_path << ": " << hint << "\n";
   if (!verify_path.empty()) {
     in->identification = std::move(all);
     in->verification_source = verify_path;
-    return ReadMeasurements(verify_path, in->nominal, unit, &in->verification);
+    Status s = ReadMeasurements(verify_path, in->nominal, csv, &in->verification,
+                                &in->verification_skipped);
+    if (s.ok()) std::cerr << CsvReadWarnings(verify_path, in->verification_skipped);
+    return s;
   }
   if (holdout > 0.0) {
     std::vector<int> id_rows, ver_rows;
     HoldoutSplit(all.size(), holdout, split_seed, &id_rows, &ver_rows);
-    in->identification = all.Subset(id_rows);
-    in->verification = all.Subset(ver_rows);
+    std::vector<bool> held_out(all.size(), false);
+    for (int r : ver_rows) held_out[r] = true;
+    all.MoveRowsOut(held_out, &in->verification);
+    in->identification = std::move(all);
     in->verification_source = "holdout";
     return Status::Ok();
   }

@@ -10,6 +10,7 @@
 #include "lpoe/calibration.h"
 #include "lpoe/io.h"
 #include "lpoe/statistics.h"
+#include "lpoe/urdf.h"
 
 namespace lpoe {
 namespace tools {
@@ -30,8 +31,15 @@ enum ExitCode {
 // exits 0. Initializes glog to stderr.
 void InitTool(const char* usage, int* argc, char*** argv);
 
-// The directory of the shipped data (data/ in the source tree).
+// The directory of the shipped data: $LPOE_DATA_DIR when set, else share/lpoe_calib/data of the
+// install prefix the running program sits in (<prefix>/bin/..), else data/ of the source tree the
+// program was built from.
 std::string DataDir();
+
+// The chain selection from this tool's --base_link, --tip_link and --tool_links flags (defined in
+// urdf_flags.cc, and so part of a tool only when it calls this). False when one of them is given
+// but `model_path` is not a URDF.
+bool UrdfOptionsFromFlags(const std::string& model_path, UrdfOptions* options);
 
 bool ParseAngleUnit(const std::string& text, AngleUnit* unit);
 
@@ -40,15 +48,20 @@ struct Inputs {
   RobotModel nominal;
   MeasurementSet identification, verification;
   CsvReadReport skipped;            // lost-beam rows of the identification file
+  CsvReadReport verification_skipped;  // the same for the --verify file
   std::string verification_source;  // the --verify path, "holdout" or empty
+  bool from_urdf = false;           // the model was read from a URDF, kept in `urdf`
+  UrdfSource urdf;
 };
 
-// Reads the model (YAML, or URDF when the name ends in .urdf) and the measurements, warns about
-// skipped lost-beam rows on stderr, and splits off the verification rows (the `verify` file, or a
-// seeded random `holdout` fraction). On failure returns the message of the bad file.
+// Reads the model (YAML, or URDF when the name ends in .urdf in any case) and the measurements,
+// warns on stderr about ignored columns, skipped lost-beam rows (of both files) and positions that
+// look like the wrong length unit, and splits off the verification rows (the `verify` file, or a
+// seeded random `holdout` fraction, moved out without copying the rest). On failure returns the
+// message of the bad file.
 Status LoadInputs(const std::string& model_path, const std::string& measurements_path,
-                  const std::string& verify_path, AngleUnit unit, double holdout,
-                  uint64_t split_seed, Inputs* inputs);
+                  const std::string& verify_path, const CsvOptions& csv, double holdout,
+                  uint64_t split_seed, Inputs* inputs, const UrdfOptions& urdf_options = {});
 
 // The input files of a run. With no --measurements, the shipped section-4 data set: the nominal
 // cobot6, its identification rows and (unless a hold-out is asked for) its verification rows.

@@ -49,12 +49,8 @@ class Reader {
   Status Number(const YAML::Node& node, int line, const std::string& what, double* out) const {
     if (!node.IsScalar()) return Error(node, line, what + " is not a number", "a finite number");
     const std::string& text = node.Scalar();
-    const char* first = text.data();
-    const char* last = first + text.size();
-    if (first != last && *first == '+') ++first;
     double v = 0;
-    const std::from_chars_result r = std::from_chars(first, last, v);
-    if (first == last || r.ptr != last || r.ec != std::errc() || !std::isfinite(v)) {
+    if (ParseNumber(Trim(text), &v) != NumberParse::kOk) {
       return Error(node, line, what + " " + Quote(text) + " is not a finite number",
                    "a finite number");
     }
@@ -239,13 +235,6 @@ class Reader {
   const std::string& source_;
   const RobotModel& model_;
 };
-
-void AppendNumber(double v, std::string* out) {
-  char buf[32];
-  const std::to_chars_result r =
-      std::to_chars(buf, buf + sizeof(buf), v, std::chars_format::general, 17);
-  out->append(buf, r.ptr);
-}
 
 void AppendList(const double* v, int n, std::string* out) {
   *out += '[';

@@ -13,11 +13,7 @@ namespace {
 
 constexpr double kRadiansPerDegree = 3.14159265358979323846 / 180.0;
 
-std::string_view Trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
-  return s;
-}
+using internal::Trim;
 
 std::vector<std::string_view> Fields(std::string_view line) {
   std::vector<std::string_view> out;
@@ -32,11 +28,7 @@ std::vector<std::string_view> Fields(std::string_view line) {
 }
 
 bool ParseFinite(std::string_view s, double* v) {
-  const char* first = s.data();
-  const char* last = s.data() + s.size();
-  if (first != last && *first == '+') ++first;
-  const std::from_chars_result r = std::from_chars(first, last, *v);
-  return first != last && r.ptr == last && r.ec == std::errc() && std::isfinite(*v);
+  return internal::ParseNumber(s, v) == internal::NumberParse::kOk;
 }
 
 std::string Lower(std::string_view s) {
@@ -62,7 +54,9 @@ Status ParseJointsCsv(const std::string& text, const std::string& source, const 
   int line_number = 0;
   while (!rest.empty()) {
     const size_t end = rest.find('\n');
-    const std::string_view line = Trim(rest.substr(0, end));
+    std::string_view line = rest.substr(0, end);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    line = Trim(line);
     rest = end == std::string_view::npos ? std::string_view() : rest.substr(end + 1);
     ++line_number;
     if (line.empty() || line[0] == '#') continue;
@@ -139,12 +133,9 @@ Status ParseJointsCsv(const std::string& text, const std::string& source, const 
 
 std::string PositionsToCsv(const std::vector<Eigen::Vector3d>& positions) {
   std::string out = "x,y,z\n";
-  char buf[32];
   for (const Eigen::Vector3d& p : positions) {
     for (int k = 0; k < 3; ++k) {
-      const std::to_chars_result r =
-          std::to_chars(buf, buf + sizeof(buf), p(k), std::chars_format::general, 17);
-      out.append(buf, r.ptr);
+      internal::AppendNumber(p(k), &out);
       out += k < 2 ? ',' : '\n';
     }
   }

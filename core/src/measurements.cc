@@ -2,31 +2,61 @@
 
 #include <glog/logging.h>
 
+#include <algorithm>
+
 namespace lpoe {
 
 void MeasurementSet::Reserve(int rows) {
   q_.reserve(static_cast<size_t>(rows) * num_joints_);
   position_.reserve(rows);
-  target_.reserve(rows);
-  line_.reserve(rows);
+}
+
+void MeasurementSet::ShrinkToFit() {
+  q_.shrink_to_fit();
+  position_.shrink_to_fit();
+  orientation_.shrink_to_fit();
+  target_.shrink_to_fit();
+  line_runs_.shrink_to_fit();
+}
+
+void MeasurementSet::AppendTargetAndLine(int row, int target, int64_t source_line,
+                                         std::vector<uint16_t>* targets,
+                                         std::vector<LineRun>* runs) {
+  CHECK(target >= 0 && target < kMaxTargets) << "target " << target << " out of range";
+  if (target != 0 && targets->empty()) targets->assign(row, 0);
+  if (!targets->empty()) targets->push_back(static_cast<uint16_t>(target));
+  if (!runs->empty()) {
+    const LineRun& last = runs->back();
+    const int64_t expected = last.first_line == 0 ? 0 : last.first_line + (row - last.first_row);
+    if (source_line == expected) return;
+  }
+  runs->push_back({row, source_line});
+}
+
+int64_t MeasurementSet::source_line(int row) const {
+  CHECK(row >= 0 && row < size()) << "row " << row << " out of range";
+  // The last run starting at or before `row`.
+  const auto it = std::upper_bound(line_runs_.begin(), line_runs_.end(), row,
+                                   [](int r, const LineRun& run) { return r < run.first_row; });
+  const LineRun& run = *(it - 1);
+  return run.first_line == 0 ? 0 : run.first_line + (row - run.first_row);
 }
 
 void MeasurementSet::Add(const double* q, const Eigen::Vector3d& position, int target,
-                         int source_line) {
+                         int64_t source_line) {
   CHECK(orientation_.empty()) << "cannot mix position-only rows into a pose data set";
   q_.insert(q_.end(), q, q + num_joints_);
   position_.push_back(position);
-  target_.push_back(target);
-  line_.push_back(source_line);
+  AppendTargetAndLine(size() - 1, target, source_line, &target_, &line_runs_);
 }
 
-void MeasurementSet::AddPose(const double* q, const SE3d& pose, int target, int source_line) {
+void MeasurementSet::AddPose(const double* q, const SE3d& pose, int target,
+                             int64_t source_line) {
   CHECK_EQ(orientation_.size(), position_.size()) << "cannot mix pose rows into position-only data";
   q_.insert(q_.end(), q, q + num_joints_);
   position_.push_back(pose.t);
   orientation_.push_back(pose.R);
-  target_.push_back(target);
-  line_.push_back(source_line);
+  AppendTargetAndLine(size() - 1, target, source_line, &target_, &line_runs_);
 }
 
 MeasurementSet MeasurementSet::Subset(const std::vector<int>& rows) const {
@@ -35,9 +65,9 @@ MeasurementSet MeasurementSet::Subset(const std::vector<int>& rows) const {
   for (int r : rows) {
     CHECK(r >= 0 && r < size()) << "row " << r << " out of range";
     if (has_orientation()) {
-      out.AddPose(q(r), pose(r), target_[r], line_[r]);
+      out.AddPose(q(r), pose(r), target(r), source_line(r));
     } else {
-      out.Add(q(r), position_[r], target_[r], line_[r]);
+      out.Add(q(r), position_[r], target(r), source_line(r));
     }
   }
   return out;
@@ -49,6 +79,43 @@ void MeasurementSet::SplitAt(int first_count, MeasurementSet* first, Measurement
   for (int r = 0; r < size(); ++r) (r < first_count ? a : b).push_back(r);
   *first = Subset(a);
   *rest = Subset(b);
+}
+
+void MeasurementSet::MoveRowsOut(const std::vector<bool>& move_out, MeasurementSet* moved) {
+  CHECK_EQ(static_cast<int>(move_out.size()), size());
+  CHECK(moved != this);
+  const bool pose = has_orientation();
+  MeasurementSet out(num_joints_);
+  std::vector<uint16_t> kept_targets;
+  std::vector<LineRun> kept_runs;
+  const int rows = size();
+  int kept = 0;
+  for (int r = 0; r < rows; ++r) {
+    const int64_t line = source_line(r);
+    const int t = target(r);
+    if (move_out[r]) {
+      if (pose) {
+        out.AddPose(q(r), this->pose(r), t, line);
+      } else {
+        out.Add(q(r), position_[r], t, line);
+      }
+      continue;
+    }
+    // Compact in place: row r moves to row `kept` (kept <= r, so nothing unread is overwritten).
+    if (kept != r) {
+      std::copy(q(r), q(r) + num_joints_, mutable_q(kept));
+      position_[kept] = position_[r];
+      if (pose) orientation_[kept] = orientation_[r];
+    }
+    AppendTargetAndLine(kept, t, line, &kept_targets, &kept_runs);
+    ++kept;
+  }
+  q_.resize(static_cast<size_t>(kept) * num_joints_);
+  position_.resize(kept);
+  if (pose) orientation_.resize(kept);
+  target_ = std::move(kept_targets);
+  line_runs_ = std::move(kept_runs);
+  *moved = std::move(out);
 }
 
 }  // namespace lpoe

@@ -1,11 +1,15 @@
 #include "parse_util.h"
 
+#include <charconv>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <system_error>
 
 namespace lpoe {
 namespace internal {
 
-Status LineError(const std::string& source, int line, const std::string& what,
+Status LineError(const std::string& source, int64_t line, const std::string& what,
                  const std::string& expected) {
   std::string msg = source;
   msg += ':';
@@ -32,6 +36,92 @@ std::string Quote(std::string_view s, size_t max_shown) {
   if (s.size() > max_shown) out += "...";
   out += "'";
   return out;
+}
+
+std::string_view Trim(std::string_view s) {
+  size_t b = 0, e = s.size();
+  while (b < e && (s[b] == ' ' || s[b] == '\t')) ++b;
+  while (e > b && (s[e - 1] == ' ' || s[e - 1] == '\t')) --e;
+  return s.substr(b, e - b);
+}
+
+namespace {
+
+char Lower(char c) { return c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c; }
+
+bool EqualsLower(std::string_view s, std::string_view lower) {
+  if (s.size() != lower.size()) return false;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (Lower(s[i]) != lower[i]) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+NumberParse ParseNumber(std::string_view text, double* out) {
+  if (text.empty()) return NumberParse::kNotANumber;
+  const char* first = text.data();
+  const char* last = text.data() + text.size();
+  bool negate = false;
+  if (*first == '+' || *first == '-') {
+    negate = *first == '-';
+    ++first;
+    if (first == last || *first == '+' || *first == '-') return NumberParse::kNotANumber;
+  }
+  // Spellings of NaN and infinity: C's (what trackers export for a lost beam) and YAML's.
+  const std::string_view word(first, static_cast<size_t>(last - first));
+  if (word.size() <= 9 && (EqualsLower(word, "nan") || EqualsLower(word, "inf") ||
+                           EqualsLower(word, "infinity") || EqualsLower(word, ".inf") ||
+                           EqualsLower(word, ".nan"))) {
+    return NumberParse::kNonFinite;
+  }
+  // from_chars would accept these spellings too; anything else that is not a digit or '.' at the
+  // start is junk (from_chars also accepts "nan(...)").
+  if (!((*first >= '0' && *first <= '9') || *first == '.')) return NumberParse::kNotANumber;
+  double v = 0;
+  const std::from_chars_result r = std::from_chars(first, last, v, std::chars_format::general);
+  if (r.ptr != last) return NumberParse::kNotANumber;
+  if (r.ec == std::errc::result_out_of_range) {
+    // from_chars reports underflow and overflow alike: tell them apart by the exponent's sign
+    // (a mantissa of zeros, "0e999", parses fine and never gets here).
+    bool negative_exponent = false;
+    for (const char* p = first; p < last; ++p) {
+      if (*p == 'e' || *p == 'E') {
+        negative_exponent = p + 1 < last && p[1] == '-';
+        break;
+      }
+    }
+    // Without a negative exponent the digits can only overflow; otherwise let strtod decide
+    // (a rare path: underflow to zero or a subnormal, or absurdly many digits).
+    if (!negative_exponent) return NumberParse::kOutOfRange;
+    const std::string copy(first, last);
+    v = std::strtod(copy.c_str(), nullptr);
+  } else if (r.ec != std::errc()) {
+    return NumberParse::kNotANumber;
+  }
+  if (!std::isfinite(v)) return NumberParse::kOutOfRange;
+  *out = negate ? -v : v;
+  return NumberParse::kOk;
+}
+
+void AppendNumber(double v, std::string* out) {
+  if (v == 0) v = 0;  // no "-0"
+  char buf[32];
+  const std::to_chars_result r = std::to_chars(buf, buf + sizeof(buf), v);
+  out->append(buf, r.ptr);
+}
+
+std::string FormatNumber(double v) {
+  std::string out;
+  AppendNumber(v, &out);
+  return out;
+}
+
+std::string ShortNumber(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", v);
+  return buf;
 }
 
 }  // namespace internal

@@ -1,8 +1,11 @@
-// Internal helpers shared by the file readers (io.cc, urdf.cc): one format for every input error,
-// "<file>:<line>: <what is wrong>; expected <what>".
+// Internal helpers shared by the file readers and writers (model YAML, measurement CSV, URDF): one
+// number parser, one number formatter, and one format for every input error,
+//   "<file>:<line>: <what is wrong>; expected <what>".
+// The interface is meant to stay small and stable; everything here is locale-independent.
 #ifndef LPOE_CORE_SRC_PARSE_UTIL_H_
 #define LPOE_CORE_SRC_PARSE_UTIL_H_
 
+#include <cstdint>
 #include <string>
 #include <string_view>
 
@@ -11,13 +14,38 @@
 namespace lpoe {
 namespace internal {
 
-// The error of an input file at a 1-based line (lines below 1 are reported as line 1).
-Status LineError(const std::string& source, int line, const std::string& what,
+// The error of an input file at a 1-based line (lines below 1 are reported as line 1). Lines are
+// 64-bit: a measurement file may have more than 2^31 lines.
+Status LineError(const std::string& source, int64_t line, const std::string& what,
                  const std::string& expected);
 
 // `s` in single quotes for a message: control bytes escaped, long junk cut after `max_shown`
 // characters so that a message stays one readable line.
 std::string Quote(std::string_view s, size_t max_shown = 40);
+
+// `s` without leading and trailing blanks (spaces and tabs).
+std::string_view Trim(std::string_view s);
+
+// Result of ParseNumber.
+enum class NumberParse {
+  kOk,
+  kNotANumber,  // empty, junk, trailing characters, two signs
+  kNonFinite,   // nan, inf, infinity (any case, signed), YAML's .inf / .nan
+  kOutOfRange,  // a decimal number whose magnitude overflows a double (1e999)
+};
+
+// Parses the whole of `text` (no blanks; call Trim first) as a decimal double: an optional sign
+// ('+' accepted), digits, an optional fraction and exponent. Values below the smallest subnormal
+// round to zero. `*out` is written only on kOk.
+NumberParse ParseNumber(std::string_view text, double* out);
+
+// The shortest decimal text that reads back as exactly `v` (std::to_chars), with -0 written as 0.
+// Non-finite values are written as nan / inf / -inf.
+void AppendNumber(double v, std::string* out);
+std::string FormatNumber(double v);
+
+// A number for a message: 6 significant digits.
+std::string ShortNumber(double v);
 
 }  // namespace internal
 }  // namespace lpoe

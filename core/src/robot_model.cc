@@ -48,6 +48,38 @@ Vector6d DefaultTwist(JointType type) {
   return s;
 }
 
+Status ValidateTwist(JointType type, const Vector6d& twist) {
+  const Eigen::Vector3d w = twist.head<3>();
+  const Eigen::Vector3d v = twist.tail<3>();
+  std::ostringstream os;
+  if (!twist.allFinite()) {
+    os << "non-finite number in the twist";
+  } else if (type == JointType::kRevolute) {
+    if (std::abs(w.norm() - 1.0) > kTwistTolerance) {
+      os << "revolute twist needs a unit rotation axis, |omega| = " << w.norm();
+    } else if (std::abs(w.dot(v)) > kTwistTolerance * std::max(1.0, v.norm())) {
+      os << "revolute twist must have omega . v = 0 (no pitch), got " << w.dot(v);
+    }
+  } else {
+    if (w.norm() > kTwistTolerance) {
+      os << "prismatic twist needs omega = 0, |omega| = " << w.norm();
+    } else if (std::abs(v.norm() - 1.0) > kTwistTolerance) {
+      os << "prismatic twist needs a unit direction, |v| = " << v.norm();
+    }
+  }
+  const std::string what = os.str();
+  return what.empty() ? Status::Ok() : Status::Error(what);
+}
+
+Status ValidateLimits(double lower, double upper) {
+  if (std::isnan(lower) || std::isnan(upper) || !(lower <= upper)) {
+    std::ostringstream ls;
+    ls << "limits [" << lower << ", " << upper << "] must satisfy lower <= upper";
+    return Status::Error(ls.str());
+  }
+  return Status::Ok();
+}
+
 int RobotModel::FindTool(const std::string& tool_name) const {
   for (int k = 0; k < num_tools(); ++k) {
     if (tools[k].name == tool_name) return k;
@@ -71,33 +103,10 @@ Status RobotModel::Validate() const {
     }
     const std::string rot = CheckRotation(j.origin.R);
     if (!rot.empty()) return Status::Error(where + ": origin " + rot);
-    if (std::isnan(j.lower) || std::isnan(j.upper) || !(j.lower <= j.upper)) {
-      std::ostringstream ls;
-      ls << where << ": limits [" << j.lower << ", " << j.upper << "] must satisfy lower <= upper";
-      return Status::Error(ls.str());
-    }
-    const Eigen::Vector3d w = j.twist.head<3>();
-    const Eigen::Vector3d v = j.twist.tail<3>();
-    std::ostringstream os;
-    if (j.type == JointType::kRevolute) {
-      if (std::abs(w.norm() - 1.0) > kTwistTolerance) {
-        os << where << ": revolute twist needs a unit rotation axis, |omega| = " << w.norm();
-        return Status::Error(os.str());
-      }
-      if (std::abs(w.dot(v)) > kTwistTolerance * std::max(1.0, v.norm())) {
-        os << where << ": revolute twist must have omega . v = 0 (no pitch), got " << w.dot(v);
-        return Status::Error(os.str());
-      }
-    } else {
-      if (w.norm() > kTwistTolerance) {
-        os << where << ": prismatic twist needs omega = 0, |omega| = " << w.norm();
-        return Status::Error(os.str());
-      }
-      if (std::abs(v.norm() - 1.0) > kTwistTolerance) {
-        os << where << ": prismatic twist needs a unit direction, |v| = " << v.norm();
-        return Status::Error(os.str());
-      }
-    }
+    Status s = ValidateLimits(j.lower, j.upper);
+    if (!s.ok()) return Status::Error(where + ": " + s.message());
+    s = ValidateTwist(j.type, j.twist);
+    if (!s.ok()) return Status::Error(where + ": " + s.message());
   }
   for (int k = 0; k < num_tools(); ++k) {
     const Tool& t = tools[k];

@@ -1,5 +1,6 @@
 #include "lpoe/simulation.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -201,9 +202,15 @@ MeasurementSet SimulateMeasurements(const RobotModel& actual, const std::vector<
   std::vector<double> lo = options.lower, hi = options.upper;
   if (lo.empty()) {
     for (const Joint& j : actual.joints) {
-      const bool rev = j.type == JointType::kRevolute;
-      lo.push_back(rev ? -kPi : -100.0);
-      hi.push_back(rev ? kPi : 100.0);
+      // The default window, within the joint's limits (shifted inside them when disjoint).
+      const double width = j.type == JointType::kRevolute ? 2 * kPi : 200.0;
+      double a = std::max(-width / 2, j.lower), b = std::min(width / 2, j.upper);
+      if (a > b) {
+        a = std::isfinite(j.lower) ? j.lower : j.upper - width;
+        b = std::isfinite(j.upper) ? j.upper : j.lower + width;
+      }
+      lo.push_back(a);
+      hi.push_back(b);
     }
   }
   CHECK_EQ(static_cast<int>(lo.size()), n);

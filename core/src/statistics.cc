@@ -8,23 +8,39 @@
 namespace lpoe {
 namespace {
 
-AxisStatistics Summarize(std::vector<double> abs_values) {
-  AxisStatistics s;
-  if (abs_values.empty()) return s;
-  double sum = 0, sum_sq = 0;
-  for (double v : abs_values) {
-    s.max_abs = std::max(s.max_abs, v);
+// Nearest-rank 95th percentile of `values` (reordered).
+template <typename T>
+double P95(std::vector<T>* values) {
+  const size_t rank = static_cast<size_t>(std::ceil(0.95 * static_cast<double>(values->size())));
+  const size_t k = rank == 0 ? 0 : rank - 1;
+  std::nth_element(values->begin(), values->begin() + k, values->end());
+  return static_cast<double>((*values)[k]);
+}
+
+// Max, mean and RMS of absolute values, accumulated one value at a time.
+struct Moments {
+  double max = 0, sum = 0, sum_sq = 0;
+  void Add(double v) {
+    max = std::max(max, v);
     sum += v;
     sum_sq += v * v;
   }
-  const double n = static_cast<double>(abs_values.size());
-  s.mean_abs = sum / n;
-  s.rms = std::sqrt(sum_sq / n);
-  // Nearest-rank 95th percentile.
-  const size_t rank = static_cast<size_t>(std::ceil(0.95 * n));
-  const size_t k = rank == 0 ? 0 : rank - 1;
-  std::nth_element(abs_values.begin(), abs_values.begin() + k, abs_values.end());
-  s.p95_abs = abs_values[k];
+  AxisStatistics Finish(size_t n) const {
+    AxisStatistics s;
+    s.max_abs = max;
+    s.mean_abs = sum / static_cast<double>(n);
+    s.rms = std::sqrt(sum_sq / static_cast<double>(n));
+    return s;
+  }
+};
+
+// `abs_values` is reordered.
+AxisStatistics Summarize(std::vector<double>* abs_values) {
+  if (abs_values->empty()) return AxisStatistics();
+  Moments m;
+  for (double v : *abs_values) m.Add(v);
+  AxisStatistics s = m.Finish(abs_values->size());
+  s.p95_abs = P95(abs_values);
   return s;
 }
 
@@ -36,10 +52,10 @@ ErrorStatistics ComputeStatistics(const std::vector<Eigen::Vector3d>& errors) {
   std::vector<double> values(errors.size());
   for (int a = 0; a < 3; ++a) {
     for (size_t k = 0; k < errors.size(); ++k) values[k] = std::abs(errors[k](a));
-    out.axis[a] = Summarize(values);
+    out.axis[a] = Summarize(&values);
   }
   for (size_t k = 0; k < errors.size(); ++k) values[k] = errors[k].norm();
-  out.norm = Summarize(std::move(values));
+  out.norm = Summarize(&values);
   return out;
 }
 
@@ -52,7 +68,32 @@ std::vector<Eigen::Vector3d> PositionErrors(const RobotModel& model, const Measu
 }
 
 ErrorStatistics PositionErrorStatistics(const RobotModel& model, const MeasurementSet& data) {
-  return ComputeStatistics(PositionErrors(model, data));
+  // One forward-kinematics pass. Max, mean and RMS are exact (double sums); the 95th percentiles
+  // come from the absolute errors rounded to float (relative 6e-8, far below any reported digit),
+  // which keeps the memory at 16 bytes a row: 10^7 rows must fit in 1 GB with their data.
+  ErrorStatistics out;
+  const int n = data.size();
+  out.count = n;
+  if (n == 0) return out;
+  std::vector<float> values[4];
+  for (auto& v : values) v.resize(n);
+  Moments moments[4];
+  for (int r = 0; r < n; ++r) {
+    const Eigen::Vector3d e = data.position(r) - ToolPosition(model, data.q(r), data.target(r));
+    for (int a = 0; a < 3; ++a) {
+      moments[a].Add(std::abs(e(a)));
+      values[a][r] = static_cast<float>(std::abs(e(a)));
+    }
+    moments[3].Add(e.norm());
+    values[3][r] = static_cast<float>(e.norm());
+  }
+  for (int a = 0; a < 4; ++a) {
+    AxisStatistics& s = a < 3 ? out.axis[a] : out.norm;
+    s = moments[a].Finish(n);
+    s.p95_abs = P95(&values[a]);
+    std::vector<float>().swap(values[a]);
+  }
+  return out;
 }
 
 }  // namespace lpoe

@@ -1,15 +1,17 @@
 // URDF import and export of serial-chain robot models (see lpoe/urdf.h). Errors read
 //   <file>:<line>: <what is wrong>; expected <what>
 // with the line of the XML element at fault. Nothing throws out of the API.
-#include "parse_util.h"
 #include "lpoe/urdf.h"
 
 #include <tinyxml2.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
+#include <limits>
 #include <map>
 #include <set>
 #include <string>
@@ -20,6 +22,8 @@
 
 #include "lpoe/io.h"
 #include "lpoe/se3.h"
+#include "lpoe/version.h"
+#include "parse_util.h"
 
 namespace lpoe {
 namespace {
@@ -119,6 +123,18 @@ Status ReadOrigin(const XMLElement* parent, const std::string& source, const std
   return Status::Ok();
 }
 
+// 17 significant digits: a written-then-read number is the same double.
+std::string Number(double v) {
+  if (v == 0) v = 0;  // no "-0"
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof(buf), v, std::chars_format::general, 17);
+  return std::string(buf, r.ptr);
+}
+
+std::string Triple(const Eigen::Vector3d& v) {
+  return Number(v(0)) + " " + Number(v(1)) + " " + Number(v(2));
+}
+
 enum class Kind { kFixed, kRevolute, kPrismatic };
 
 struct UrdfLink {
@@ -131,11 +147,37 @@ struct UrdfLink {
 struct UrdfJoint {
   std::string name;
   Kind kind = Kind::kFixed;
+  bool continuous = false;
   int line = 0;
   int parent = -1, child = -1;                      // link indices
   SE3d origin;                                      // mm
   Eigen::Vector3d axis = Eigen::Vector3d::UnitX();  // unit
   int mimic_line = 0;                               // line of a <mimic> element, 0 if none
+  // <limit lower upper> in model units (rad or mm); infinite without a <limit> or for continuous.
+  double lower = -std::numeric_limits<double>::infinity();
+  double upper = std::numeric_limits<double>::infinity();
+  XMLElement* element = nullptr;
+};
+
+// The link/joint tree of a parsed URDF document (the document owns the elements).
+struct UrdfTree {
+  std::string source;
+  XMLElement* robot = nullptr;
+  int robot_line = 0;
+  std::vector<UrdfLink> links;
+  std::vector<UrdfJoint> joints;
+  std::map<std::string, int> link_index;
+  int root = -1;
+};
+
+// The serial chain chosen from the tree, and the tools on it.
+struct UrdfChain {
+  int base = -1;                // link: the model's base frame
+  int tip = -1;                 // link: the end of the chain
+  std::vector<int> path;        // joints from base to tip, in order
+  std::vector<int> moving;      // the moving joints of `path`, in order
+  int flange = -1;              // the child link of the last moving joint
+  std::vector<int> tool_links;  // link indices, fixed to the flange
 };
 
 std::string JointContext(const std::string& name) { return "joint " + Quote(name); }
@@ -164,9 +206,33 @@ Status ReadLinkRef(const XMLElement* je, const char* tag, const std::string& sou
   return Status::Ok();
 }
 
-Status ParseJoint(const XMLElement* je, const std::string& source,
+// The <limit lower upper> of a revolute or prismatic joint in model units. URDF defaults a missing
+// attribute to 0; a continuous joint and a joint without <limit> stay unlimited.
+Status ReadLimits(const XMLElement* je, const std::string& source, const std::string& context,
+                  UrdfJoint* j) {
+  const XMLElement* le = je->FirstChildElement("limit");
+  if (le == nullptr || j->continuous) return Status::Ok();
+  const double scale = j->kind == Kind::kPrismatic ? kMetresToMm : 1.0;
+  double lower = 0, upper = 0;
+  Status s = ReadNumbers(le, "lower", 1, false, source, context, "a number (rad or m)", &lower);
+  if (!s.ok()) return s;
+  s = ReadNumbers(le, "upper", 1, false, source, context, "a number (rad or m)", &upper);
+  if (!s.ok()) return s;
+  if (!(lower <= upper)) {
+    return LineError(
+        source, le->GetLineNum(),
+        context + ": <limit> lower " + Number(lower) + " is above upper " + Number(upper),
+        "lower <= upper");
+  }
+  j->lower = lower * scale;
+  j->upper = upper * scale;
+  return Status::Ok();
+}
+
+Status ParseJoint(XMLElement* je, const std::string& source,
                   const std::map<std::string, int>& link_index, UrdfJoint* j) {
   j->line = je->GetLineNum();
+  j->element = je;
   const char* name = je->Attribute("name");
   if (name == nullptr || name[0] == '\0') {
     return LineError(source, j->line, "<joint> without a name",
@@ -182,6 +248,7 @@ Status ParseJoint(const XMLElement* je, const std::string& source,
   const std::string_view t = type;
   if (t == "revolute" || t == "continuous") {
     j->kind = Kind::kRevolute;
+    j->continuous = t == "continuous";
   } else if (t == "prismatic") {
     j->kind = Kind::kPrismatic;
   } else if (t == "fixed") {
@@ -223,6 +290,8 @@ Status ParseJoint(const XMLElement* je, const std::string& source,
       j->axis = axis / norm;
     }
     if (const XMLElement* me = je->FirstChildElement("mimic")) j->mimic_line = me->GetLineNum();
+    s = ReadLimits(je, source, context, j);
+    if (!s.ok()) return s;
   }
   return Status::Ok();
 }
@@ -236,14 +305,14 @@ std::string JoinQuoted(const std::vector<std::string>& names) {
   return out;
 }
 
-Status ParseImpl(const std::string& xml, const std::string& source, RobotModel* model,
-                 const UrdfOptions& options) {
-  XMLDocument doc;
-  if (doc.Parse(xml.data(), xml.size()) != tinyxml2::XML_SUCCESS) {
+// Step 1: the XML document, and its <robot> root element.
+Status ParseXml(const std::string& xml, const std::string& source, XMLDocument* doc,
+                XMLElement** robot) {
+  if (doc->Parse(xml.data(), xml.size()) != tinyxml2::XML_SUCCESS) {
     // ErrorStr() reads "Error=<name> ErrorID=<n> (0x<n>) Line number=<n>[: <detail>]"; the line is
     // ours already, keep the name and the detail.
-    std::string what = std::string("malformed XML (") + doc.ErrorName();
-    const std::string_view full = doc.ErrorStr() != nullptr ? doc.ErrorStr() : "";
+    std::string what = std::string("malformed XML (") + doc->ErrorName();
+    const std::string_view full = doc->ErrorStr() != nullptr ? doc->ErrorStr() : "";
     const size_t at = full.find("Line number=");
     const size_t colon = at == std::string_view::npos ? at : full.find(": ", at);
     if (colon != std::string_view::npos) {
@@ -251,226 +320,545 @@ Status ParseImpl(const std::string& xml, const std::string& source, RobotModel* 
       what += full.substr(colon + 2);
     }
     what += ')';
-    return LineError(source, doc.ErrorLineNum(), what, "a well-formed URDF document");
+    return LineError(source, doc->ErrorLineNum(), what, "a well-formed URDF document");
   }
-  const XMLElement* robot = doc.RootElement();
-  if (robot == nullptr) {
-    return LineError(source, 1, "no XML element", "a <robot> element");
-  }
-  if (std::string_view(robot->Name()) != "robot") {
-    return LineError(source, robot->GetLineNum(),
-                     "the root element is <" + std::string(robot->Name()) + ">",
+  *robot = doc->RootElement();
+  if (*robot == nullptr) return LineError(source, 1, "no XML element", "a <robot> element");
+  if (std::string_view((*robot)->Name()) != "robot") {
+    return LineError(source, (*robot)->GetLineNum(),
+                     "the root element is <" + std::string((*robot)->Name()) + ">",
                      "<robot name=\"...\"> (a URDF file; xacro must be expanded first)");
   }
-  const int robot_line = robot->GetLineNum();
+  if (const XMLElement* second = (*robot)->NextSiblingElement(); second != nullptr) {
+    return LineError(source, second->GetLineNum(),
+                     "a second root element <" + std::string(second->Name()) + ">",
+                     "one <robot> element per file");
+  }
+  return Status::Ok();
+}
 
-  // Links first (joints may precede the links they name).
-  std::vector<UrdfLink> links;
-  std::map<std::string, int> link_index;
-  for (const XMLElement* e = robot->FirstChildElement("link"); e != nullptr;
+// Step 2: the links (before the joints, which may precede the links they name).
+Status ReadLinks(UrdfTree* tree) {
+  for (const XMLElement* e = tree->robot->FirstChildElement("link"); e != nullptr;
        e = e->NextSiblingElement("link")) {
     const char* name = e->Attribute("name");
     if (name == nullptr || name[0] == '\0') {
-      return LineError(source, e->GetLineNum(), "<link> without a name", "<link name=\"...\">");
+      return LineError(tree->source, e->GetLineNum(), "<link> without a name",
+                       "<link name=\"...\">");
     }
-    if (!link_index.emplace(name, static_cast<int>(links.size())).second) {
-      return LineError(source, e->GetLineNum(), "duplicate link name " + Quote(name),
+    if (!tree->link_index.emplace(name, static_cast<int>(tree->links.size())).second) {
+      return LineError(tree->source, e->GetLineNum(), "duplicate link name " + Quote(name),
                        "unique link names");
     }
     UrdfLink l;
     l.name = name;
     l.line = e->GetLineNum();
-    links.push_back(std::move(l));
+    tree->links.push_back(std::move(l));
   }
-  if (links.empty()) {
-    return LineError(source, robot_line, "the robot has no <link>", "a chain of links and joints");
+  if (tree->links.empty()) {
+    return LineError(tree->source, tree->robot_line, "the robot has no <link>",
+                     "a chain of links and joints");
   }
+  return Status::Ok();
+}
 
-  std::vector<UrdfJoint> joints;
+// Step 3: the joints, each link with at most one parent joint.
+Status ReadJoints(UrdfTree* tree) {
   std::set<std::string> joint_names;
-  for (const XMLElement* e = robot->FirstChildElement("joint"); e != nullptr;
+  for (XMLElement* e = tree->robot->FirstChildElement("joint"); e != nullptr;
        e = e->NextSiblingElement("joint")) {
     UrdfJoint j;
-    Status s = ParseJoint(e, source, link_index, &j);
-    if (!s.ok()) return s;
+    if (Status s = ParseJoint(e, tree->source, tree->link_index, &j); !s.ok()) return s;
     if (!joint_names.insert(j.name).second) {
-      return LineError(source, j.line, "duplicate joint name " + Quote(j.name),
+      return LineError(tree->source, j.line, "duplicate joint name " + Quote(j.name),
                        "unique joint names");
     }
-    UrdfLink& child = links[j.child];
+    UrdfLink& child = tree->links[j.child];
     if (child.parent_joint >= 0) {
-      return LineError(source, j.line,
+      return LineError(tree->source, j.line,
                        JointContext(j.name) + ": link " + Quote(child.name) +
                            " is already the child of joint " +
-                           Quote(joints[child.parent_joint].name),
+                           Quote(tree->joints[child.parent_joint].name),
                        "each link to have at most one parent joint (a tree)");
     }
-    const int index = static_cast<int>(joints.size());
+    const int index = static_cast<int>(tree->joints.size());
     child.parent_joint = index;
-    links[j.parent].child_joints.push_back(index);
-    joints.push_back(std::move(j));
+    tree->links[j.parent].child_joints.push_back(index);
+    tree->joints.push_back(std::move(j));
   }
+  return Status::Ok();
+}
 
-  // The root: the one link that is never a child.
-  std::vector<int> roots;
-  for (int l = 0; l < static_cast<int>(links.size()); ++l) {
-    if (links[l].parent_joint < 0) roots.push_back(l);
+// Step 4: the root, the one link that is no joint's child.
+Status FindRoot(UrdfTree* tree) {
+  std::vector<std::string> roots;
+  int first = -1;
+  for (int l = 0; l < static_cast<int>(tree->links.size()); ++l) {
+    if (tree->links[l].parent_joint >= 0) continue;
+    if (first < 0) first = l;
+    roots.push_back(tree->links[l].name);
   }
   if (roots.empty()) {
-    return LineError(source, robot_line,
+    return LineError(tree->source, tree->robot_line,
                      "every link is the child of a joint (the joints form a cycle)",
                      "one root link that is no joint's child");
   }
   if (roots.size() > 1) {
-    std::vector<std::string> names;
-    for (int r : roots) names.push_back(links[r].name);
-    return LineError(source, links[roots[1]].line,
-                     "several root links (no joint's child): " + JoinQuoted(names),
+    return LineError(tree->source, tree->links[tree->link_index.at(roots[1])].line,
+                     "several root links (no joint's child): " + JoinQuoted(roots),
                      "one root link, all links connected by joints");
   }
-  const int root = roots[0];
+  tree->root = first;
+  return Status::Ok();
+}
 
-  // leads_to_motion[l]: a moving joint descends from link l. Each link has at most one parent, so
-  // walking up from every moving joint marks exactly the ancestors; marks stop the walk (and
-  // cycles).
-  std::vector<char> leads_to_motion(links.size(), 0);
-  int num_moving = 0;
-  for (const UrdfJoint& j : joints) {
-    if (j.kind == Kind::kFixed) continue;
-    ++num_moving;
-    int l = j.parent;
-    while (l >= 0 && !leads_to_motion[l]) {
-      leads_to_motion[l] = 1;
-      const int pj = links[l].parent_joint;
-      l = pj >= 0 ? joints[pj].parent : -1;
+Status ReadTree(const std::string& xml, const std::string& source, XMLDocument* doc,
+                UrdfTree* tree) {
+  tree->source = source;
+  if (Status s = ParseXml(xml, source, doc, &tree->robot); !s.ok()) return s;
+  tree->robot_line = tree->robot->GetLineNum();
+  if (Status s = ReadLinks(tree); !s.ok()) return s;
+  if (Status s = ReadJoints(tree); !s.ok()) return s;
+  return FindRoot(tree);
+}
+
+// True when link `a` is `b` or one of its ancestors.
+bool IsAncestorOrSelf(const UrdfTree& tree, int a, int b) {
+  for (int l = b; l >= 0;) {
+    if (l == a) return true;
+    const int pj = tree.links[l].parent_joint;
+    l = pj >= 0 ? tree.joints[pj].parent : -1;
+  }
+  return false;
+}
+
+// The joints from link `from` down to link `to` (which must descend from it), in order.
+std::vector<int> PathBetween(const UrdfTree& tree, int from, int to) {
+  std::vector<int> path;
+  for (int l = to; l != from;) {
+    const int pj = tree.links[l].parent_joint;
+    path.push_back(pj);
+    l = tree.joints[pj].parent;
+  }
+  return std::vector<int>(path.rbegin(), path.rend());
+}
+
+Status LinkByName(const UrdfTree& tree, const std::string& name, const char* role, int* link) {
+  const auto it = tree.link_index.find(name);
+  if (it == tree.link_index.end()) {
+    return LineError(tree.source, tree.robot_line,
+                     "the " + std::string(role) + " " + Quote(name) + " does not exist",
+                     "the name of a <link> of the robot");
+  }
+  *link = it->second;
+  return Status::Ok();
+}
+
+// Without a tip link: the leaves below the base that follow a moving joint are the candidate tips.
+// Their last moving joints must lie on one path (side branches of fixed joints on an intermediate
+// link, a camera on the forearm, do not count); several candidates after the same last moving
+// joint (a UR's ee_link and tool0) make its child link, the flange, the tip.
+Status FindTip(const UrdfTree& tree, int base, int* tip) {
+  struct Leaf {
+    int link, last_moving;
+  };
+  std::vector<Leaf> leaves;
+  std::vector<std::pair<int, int>> stack = {{base, -1}};  // link, last moving joint above it
+  while (!stack.empty()) {
+    const auto [l, last] = stack.back();
+    stack.pop_back();
+    const std::vector<int>& children = tree.links[l].child_joints;
+    if (children.empty() && last >= 0) leaves.push_back({l, last});
+    for (auto it = children.rbegin(); it != children.rend(); ++it) {
+      const UrdfJoint& j = tree.joints[*it];
+      stack.push_back({j.child, j.kind == Kind::kFixed ? last : *it});
     }
   }
-  if (num_moving == 0) {
-    return LineError(source, robot_line, "the robot has no revolute, continuous or prismatic joint",
+  if (leaves.empty()) {
+    return LineError(tree.source, tree.robot_line,
+                     "no revolute, continuous or prismatic joint below the base link " +
+                         Quote(tree.links[base].name),
                      "a chain with at least one moving joint");
   }
+  // The last moving joints that no other candidate's last moving joint descends from.
+  std::vector<int> ends;
+  for (const Leaf& a : leaves) {
+    bool dominated = false;
+    for (const Leaf& b : leaves) {
+      dominated = dominated || (b.last_moving != a.last_moving &&
+                                IsAncestorOrSelf(tree, tree.joints[a.last_moving].child,
+                                                 tree.joints[b.last_moving].child));
+    }
+    if (!dominated && std::find(ends.begin(), ends.end(), a.last_moving) == ends.end()) {
+      ends.push_back(a.last_moving);
+    }
+  }
+  std::vector<std::string> candidates;
+  std::vector<int> candidate_links;
+  for (const Leaf& a : leaves) {
+    if (std::find(ends.begin(), ends.end(), a.last_moving) == ends.end()) continue;
+    candidates.push_back(tree.links[a.link].name);
+    candidate_links.push_back(a.link);
+  }
+  if (ends.size() > 1) {
+    // The deepest link above every candidate, where the chain branches.
+    int fork = tree.joints[ends[0]].parent;
+    while (true) {
+      bool above_all = true;
+      for (int e : ends)
+        above_all = above_all && IsAncestorOrSelf(tree, fork, tree.joints[e].child);
+      if (above_all) break;
+      fork = tree.joints[tree.links[fork].parent_joint].parent;
+    }
+    return LineError(tree.source, tree.links[fork].line,
+                     "link " + Quote(tree.links[fork].name) +
+                         " branches: moving joints lead to several candidate tips " +
+                         JoinQuoted(candidates),
+                     "a tip link (UrdfOptions::tip_link, --tip_link) naming one of them");
+  }
+  *tip = candidate_links.size() == 1 ? candidate_links[0] : tree.joints[ends[0]].child;
+  return Status::Ok();
+}
 
-  // Walk the chain from the root, folding fixed joints into the next moving joint's origin.
+// Step 5: the chain from the base link to the tip link, and its tools.
+Status SelectChain(const UrdfTree& tree, const UrdfOptions& options, UrdfChain* chain) {
+  chain->base = tree.root;
+  if (!options.base_link.empty()) {
+    if (Status s = LinkByName(tree, options.base_link, "base link", &chain->base); !s.ok()) {
+      return s;
+    }
+  }
+  std::string tip_name = options.tip_link;
+  if (tip_name.empty()) {
+    // An ambiguous tree with named tools: the first tool link ends the chain.
+    const Status s = FindTip(tree, chain->base, &chain->tip);
+    if (!s.ok() && options.tool_links.empty()) return s;
+    if (!s.ok()) tip_name = options.tool_links[0];
+  }
+  if (!tip_name.empty()) {
+    if (Status s = LinkByName(tree, tip_name, "tip link", &chain->tip); !s.ok()) return s;
+    if (!IsAncestorOrSelf(tree, chain->base, chain->tip)) {
+      return LineError(tree.source, tree.links[chain->tip].line,
+                       "the tip link " + Quote(tip_name) + " is not below the base link " +
+                           Quote(tree.links[chain->base].name),
+                       "a tip link reached from the base link through joints");
+    }
+  }
+  chain->path = PathBetween(tree, chain->base, chain->tip);
+  for (int ji : chain->path) {
+    if (tree.joints[ji].kind != Kind::kFixed) chain->moving.push_back(ji);
+  }
+  if (chain->moving.empty()) {
+    return LineError(tree.source, tree.links[chain->tip].line,
+                     "no revolute, continuous or prismatic joint between the base link " +
+                         Quote(tree.links[chain->base].name) + " and the tip link " +
+                         Quote(tree.links[chain->tip].name),
+                     "a chain with at least one moving joint");
+  }
+  for (int ji : chain->moving) {
+    const UrdfJoint& j = tree.joints[ji];
+    if (j.mimic_line > 0) {
+      return LineError(tree.source, j.mimic_line,
+                       JointContext(j.name) + " on the chain mimics another joint",
+                       "independent joints on the chain from the base to the tip link (a "
+                       "<mimic> joint is supported only off the chain)");
+    }
+  }
+  chain->flange = tree.joints[chain->moving.back()].child;
+  if (options.tool_links.empty()) {
+    chain->tool_links = {chain->tip};
+    return Status::Ok();
+  }
+  const std::string last = tree.joints[chain->moving.back()].name;
+  for (const std::string& name : options.tool_links) {
+    int l = -1;
+    if (Status s = LinkByName(tree, name, "tool link", &l); !s.ok()) return s;
+    bool fixed = IsAncestorOrSelf(tree, chain->flange, l);
+    for (int ji : fixed ? PathBetween(tree, chain->flange, l) : std::vector<int>()) {
+      fixed = fixed && tree.joints[ji].kind == Kind::kFixed;
+    }
+    if (!fixed) {
+      return LineError(
+          tree.source, tree.links[l].line,
+          "the tool link " + Quote(name) + " is not after the last moving joint " + Quote(last),
+          "a link fixed to the last moving link " + Quote(tree.links[chain->flange].name));
+    }
+    chain->tool_links.push_back(l);
+  }
+  return Status::Ok();
+}
+
+// The pose of link `l` in the flange frame, through fixed joints.
+SE3d PoseInFlange(const UrdfTree& tree, const UrdfChain& chain, int l) {
+  SE3d pose;
+  for (int ji : PathBetween(tree, chain.flange, l)) pose = pose * tree.joints[ji].origin;
+  return pose;
+}
+
+// Step 6: the LPoE model, fixed joints folded into the next moving joint's origin.
+Status BuildModel(const UrdfTree& tree, const UrdfChain& chain, RobotModel* model) {
   RobotModel out;
-  const char* robot_name = robot->Attribute("name");
+  const char* robot_name = tree.robot->Attribute("name");
   out.name = robot_name != nullptr && robot_name[0] != '\0' ? robot_name : "robot";
   SE3d folded;
-  int link = root;
-  int last_moving = -1;
-  for (size_t steps = 0; steps <= joints.size(); ++steps) {
-    std::vector<int> next;
-    for (int ji : links[link].child_joints) {
-      const UrdfJoint& j = joints[ji];
-      if (j.kind != Kind::kFixed || leads_to_motion[j.child]) next.push_back(ji);
-    }
-    if (next.empty()) break;
-    if (next.size() > 1) {
-      return LineError(
-          source, links[link].line,
-          "link " + Quote(links[link].name) + " branches: moving joints follow both joint " +
-              Quote(joints[next[0]].name) + " and joint " + Quote(joints[next[1]].name),
-          "a serial chain (one path from the root through all moving joints)");
-    }
-    const UrdfJoint& j = joints[next[0]];
+  for (int ji : chain.path) {
+    const UrdfJoint& j = tree.joints[ji];
     folded = folded * j.origin;
-    if (j.kind != Kind::kFixed) {
-      if (j.mimic_line > 0) {
-        return LineError(source, j.mimic_line, JointContext(j.name) + " mimics another joint",
-                         "independent joints in the serial chain (no <mimic>)");
-      }
-      Joint joint;
-      joint.name = j.name;
-      joint.origin = folded;
-      joint.twist.setZero();
-      if (j.kind == Kind::kRevolute) {
-        joint.type = JointType::kRevolute;
-        joint.twist.head<3>() = j.axis;
-      } else {
-        joint.type = JointType::kPrismatic;
-        joint.twist.tail<3>() = j.axis;
-      }
-      out.joints.push_back(std::move(joint));
-      folded = SE3d();
-      last_moving = next[0];
-    }
-    link = j.child;
+    if (j.kind == Kind::kFixed) continue;
+    Joint joint;
+    joint.name = j.name;
+    joint.origin = folded;
+    joint.twist.setZero();
+    joint.type = j.kind == Kind::kRevolute ? JointType::kRevolute : JointType::kPrismatic;
+    (j.kind == Kind::kRevolute ? joint.twist.head<3>() : joint.twist.tail<3>()) = j.axis;
+    joint.lower = j.lower;
+    joint.upper = j.upper;
+    out.joints.push_back(std::move(joint));
+    folded = SE3d();
+    if (out.num_joints() == static_cast<int>(chain.moving.size())) break;
   }
-  if (out.num_joints() != num_moving) {
-    for (const UrdfJoint& j : joints) {
-      if (j.kind == Kind::kFixed) continue;
-      bool in_chain = false;
-      for (const Joint& c : out.joints) in_chain = in_chain || c.name == j.name;
-      if (!in_chain) {
-        return LineError(source, j.line,
-                         JointContext(j.name) + " is not on the chain from the root link " +
-                             Quote(links[root].name),
-                         "all moving joints on one serial chain");
-      }
-    }
+  for (int l : chain.tool_links) {
+    out.tools.push_back(Tool{tree.links[l].name, PoseInFlange(tree, chain, l)});
   }
-
-  // Tools: the fixed subtree after the last moving joint, preorder in document order.
-  const int tip = joints[last_moving].child;
-  std::vector<int> subtree;  // link indices
-  std::map<int, SE3d> pose;  // relative to the tip link
-  std::vector<int> stack = {tip};
-  pose[tip] = SE3d();
-  while (!stack.empty()) {
-    const int l = stack.back();
-    stack.pop_back();
-    subtree.push_back(l);
-    const std::vector<int>& children = links[l].child_joints;
-    for (auto it = children.rbegin(); it != children.rend(); ++it) {
-      const UrdfJoint& j = joints[*it];
-      pose[j.child] = pose[l] * j.origin;
-      stack.push_back(j.child);
-    }
-  }
-  if (options.tool_links.empty()) {
-    for (int l : subtree) {
-      if (links[l].child_joints.empty()) out.tools.push_back(Tool{links[l].name, pose[l]});
-    }
-  } else {
-    for (const std::string& name : options.tool_links) {
-      const auto it = link_index.find(name);
-      if (it == link_index.end()) {
-        return LineError(
-            source, robot_line, "the tool link " + Quote(name) + " does not exist",
-            "the name of a <link> after the last moving joint " + Quote(joints[last_moving].name));
-      }
-      const auto p = pose.find(it->second);
-      if (p == pose.end()) {
-        return LineError(source, links[it->second].line,
-                         "the tool link " + Quote(name) + " is not after the last moving joint " +
-                             Quote(joints[last_moving].name),
-                         "a link fixed to the last moving link " + Quote(links[tip].name));
-      }
-      out.tools.push_back(Tool{name, p->second});
-    }
-  }
-
   const Status valid = out.Validate();
   if (!valid.ok()) {
-    return LineError(source, robot_line, "the imported model is invalid: " + valid.message(),
+    return LineError(tree.source, tree.robot_line,
+                     "the imported model is invalid: " + valid.message(),
                      "a valid serial-chain model");
   }
   *model = std::move(out);
   return Status::Ok();
 }
 
+Status ParseImpl(const std::string& xml, const std::string& source, RobotModel* model,
+                 const UrdfOptions& options) {
+  XMLDocument doc;
+  UrdfTree tree;
+  if (Status s = ReadTree(xml, source, &doc, &tree); !s.ok()) return s;
+  UrdfChain chain;
+  if (Status s = SelectChain(tree, options, &chain); !s.ok()) return s;
+  return BuildModel(tree, chain, model);
+}
+
 // ---------------------------------------------------------------------------------------------------
-// Export.
+// Overlay: the source document with the calibrated origins written into it.
 
-std::string Number(double v) {
-  if (v == 0) v = 0;  // no "-0"
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof(buf), v, std::chars_format::general, 17);
-  return std::string(buf, r.ptr);
+std::string Unique(std::string name, const std::set<std::string>& taken) {
+  while (taken.count(name) > 0) name += '_';
+  return name;
 }
 
-std::string Triple(const Eigen::Vector3d& v) {
-  return Number(v(0)) + " " + Number(v(1)) + " " + Number(v(2));
+void SetOrigin(XMLDocument* doc, XMLElement* parent, const SE3d& T) {
+  XMLElement* o = parent->FirstChildElement("origin");
+  if (o == nullptr) {
+    o = doc->NewElement("origin");
+    parent->InsertFirstChild(o);
+  }
+  o->SetAttribute("xyz", Triple(T.t * kMmToMetres).c_str());
+  o->SetAttribute("rpy", Triple(RpyFromRotation(T.R)).c_str());
 }
+
+XMLElement* AppendFixedJoint(XMLDocument* doc, XMLElement* robot, const std::string& name,
+                             const std::string& parent, const std::string& child, const SE3d& T) {
+  XMLElement* link = doc->NewElement("link");
+  link->SetAttribute("name", child.c_str());
+  robot->InsertEndChild(link);
+  XMLElement* joint = doc->NewElement("joint");
+  joint->SetAttribute("name", name.c_str());
+  joint->SetAttribute("type", "fixed");
+  robot->InsertEndChild(joint);
+  XMLElement* p = doc->NewElement("parent");
+  p->SetAttribute("link", parent.c_str());
+  joint->InsertEndChild(p);
+  XMLElement* c = doc->NewElement("child");
+  c->SetAttribute("link", child.c_str());
+  joint->InsertEndChild(c);
+  SetOrigin(doc, joint, T);
+  return joint;
+}
+
+// The model's limits written into the joint's <limit> where they differ from the file's.
+void SetLimits(XMLDocument* doc, const Joint& joint, const UrdfJoint& j) {
+  if (j.continuous || !std::isfinite(joint.lower) || !std::isfinite(joint.upper)) return;
+  if (joint.lower == j.lower && joint.upper == j.upper) return;
+  const double scale = j.kind == Kind::kPrismatic ? kMmToMetres : 1.0;
+  XMLElement* le = j.element->FirstChildElement("limit");
+  if (le == nullptr) {
+    le = doc->NewElement("limit");
+    le->SetAttribute("effort", "0");
+    le->SetAttribute("velocity", "0");
+    j.element->InsertEndChild(le);
+  }
+  le->SetAttribute("lower", Number(joint.lower * scale).c_str());
+  le->SetAttribute("upper", Number(joint.upper * scale).c_str());
+}
+
+// Indents by two spaces per level, as URDF files usually are, so that a diff against the source
+// shows the changed lines only.
+class TwoSpacePrinter : public tinyxml2::XMLPrinter {
+ protected:
+  void PrintSpace(int depth) override {
+    for (int i = 0; i < depth; ++i) Write("  ");
+  }
+};
+
+Status Mismatch(const UrdfSource& src, const std::string& what) {
+  return Status::Error(src.source + ": the calibrated model does not match this URDF: " + what);
+}
+
+// The calibrated URDF origin of each moving joint of the chain (mm), for the UR kinematics file.
+struct OverlayJoint {
+  std::string name;
+  SE3d origin;
+  Eigen::Vector3d axis;
+};
+
+Status OverlayImpl(const UrdfSource& src, const RobotModel& cal, const UrdfOverlayOptions& options,
+                   std::string* xml, std::vector<OverlayJoint>* moved) {
+  XMLDocument doc;
+  UrdfTree tree;
+  if (Status s = ReadTree(src.xml, src.source, &doc, &tree); !s.ok()) return s;
+  UrdfChain chain;
+  if (Status s = SelectChain(tree, src.options, &chain); !s.ok()) return s;
+  RobotModel nominal;
+  if (Status s = BuildModel(tree, chain, &nominal); !s.ok()) return s;
+  if (Status s = cal.Validate(); !s.ok()) return Mismatch(src, s.message());
+  if (cal.num_joints() != nominal.num_joints()) {
+    return Mismatch(src, std::to_string(cal.num_joints()) + " joints instead of " +
+                             std::to_string(nominal.num_joints()));
+  }
+  for (int i = 0; i < cal.num_joints(); ++i) {
+    if (cal.joints[i].name != nominal.joints[i].name ||
+        cal.joints[i].type != nominal.joints[i].type) {
+      return Mismatch(src, "joint " + std::to_string(i + 1) + " is " + Quote(cal.joints[i].name) +
+                               " (" + JointTypeName(cal.joints[i].type) + "), the URDF's " +
+                               Quote(nominal.joints[i].name) + " (" +
+                               JointTypeName(nominal.joints[i].type) + ")");
+    }
+  }
+  std::set<std::string> link_names, joint_names;
+  for (const UrdfLink& l : tree.links) link_names.insert(l.name);
+  for (const UrdfJoint& j : tree.joints) joint_names.insert(j.name);
+
+  // The calibrated base frame is the measurement frame: joint 1 keeps its URDF origin and the
+  // measurement frame takes T_measurement_base = C_1 N_1^-1 (the two are not separable).
+  SE3d T_measurement_base;
+  if (options.in_measurement_frame) {
+    T_measurement_base = cal.joints[0].origin * nominal.joints[0].origin.Inverse();
+  }
+
+  // Moving joints: origin = (fixed joints folded before it)^-1 * calibrated local frame.
+  SE3d folded;
+  int k = 0;
+  for (int ji : chain.path) {
+    UrdfJoint& j = tree.joints[ji];
+    if (j.kind == Kind::kFixed) {
+      folded = folded * j.origin;
+      continue;
+    }
+    const Joint& c = cal.joints[k];
+    const SE3d local = k == 0 ? T_measurement_base.Inverse() * c.origin : c.origin;
+    const bool revolute = c.type == JointType::kRevolute;
+    const Eigen::Vector3d w = c.twist.head<3>(), v = c.twist.tail<3>();
+    if (revolute && v.norm() > 1e-9) {
+      return Mismatch(src, JointContext(c.name) +
+                               ": the axis does not pass through the joint "
+                               "frame's origin (twist v = " +
+                               Triple(v) +
+                               "), which a URDF joint "
+                               "cannot express");
+    }
+    const Eigen::Vector3d axis = (revolute ? w : v).normalized();
+    j.origin = folded.Inverse() * local;
+    SetOrigin(&doc, j.element, j.origin);
+    if ((axis - j.axis).norm() > 1e-12) {
+      XMLElement* ae = j.element->FirstChildElement("axis");
+      if (ae == nullptr) {
+        ae = doc.NewElement("axis");
+        j.element->InsertEndChild(ae);
+      }
+      ae->SetAttribute("xyz", Triple(axis).c_str());
+      j.axis = axis;
+    }
+    SetLimits(&doc, c, j);
+    if (moved != nullptr) moved->push_back({j.name, j.origin, axis});
+    folded = SE3d();
+    if (++k == cal.num_joints()) break;
+  }
+
+  // Tools that are links fixed after the flange take the calibrated pose in their own fixed joint
+  // (ancestors first); the others become new links on the tip.
+  std::vector<std::pair<int, int>> link_tools;  // depth below the flange, tool index
+  std::vector<int> new_tools;
+  for (int t = 0; t < cal.num_tools(); ++t) {
+    const auto it = tree.link_index.find(cal.tools[t].name);
+    bool fixed = it != tree.link_index.end() && it->second != chain.flange &&
+                 IsAncestorOrSelf(tree, chain.flange, it->second);
+    const std::vector<int> path =
+        fixed ? PathBetween(tree, chain.flange, it->second) : std::vector<int>();
+    for (int ji : path) fixed = fixed && tree.joints[ji].kind == Kind::kFixed;
+    if (fixed) {
+      link_tools.push_back({static_cast<int>(path.size()), t});
+    } else {
+      new_tools.push_back(t);
+    }
+  }
+  std::sort(link_tools.begin(), link_tools.end());
+  for (const auto& [depth, t] : link_tools) {
+    UrdfJoint& j = tree.joints[tree.links[tree.link_index.at(cal.tools[t].name)].parent_joint];
+    j.origin = PoseInFlange(tree, chain, j.parent).Inverse() * cal.tools[t].origin;
+    SetOrigin(&doc, j.element, j.origin);
+  }
+  const SE3d tip_in_flange = PoseInFlange(tree, chain, chain.tip);
+  const std::string tip = tree.links[chain.tip].name;
+  tree.robot->InsertEndChild(doc.NewComment(
+      " Added by lpoe-calib: the measurement (tracker) frame and the measured tools (SMRs) "));
+  for (int t : new_tools) {
+    const std::string link =
+        Unique(link_names.count(cal.tools[t].name) ? cal.tools[t].name + "_smr" : cal.tools[t].name,
+               link_names);
+    link_names.insert(link);
+    const std::string joint = Unique(link + "_joint", joint_names);
+    joint_names.insert(joint);
+    AppendFixedJoint(&doc, tree.robot, joint, tip, link,
+                     tip_in_flange.Inverse() * cal.tools[t].origin);
+  }
+  const std::string frame = Unique(options.measurement_link, link_names);
+  AppendFixedJoint(&doc, tree.robot, Unique(frame + "_joint", joint_names),
+                   tree.links[chain.base].name, frame, T_measurement_base.Inverse());
+
+  std::string changed;
+  for (int ji : chain.moving) changed += (changed.empty() ? "" : ", ") + tree.joints[ji].name;
+  const std::string note = " Calibrated by lpoe-calib " + std::string(kLpoeVersion) +
+                           ": the origins (and axes) of the joints " + changed +
+                           " and the tool frames changed; everything else as in the source. ";
+  tree.robot->InsertFirstChild(doc.NewComment(note.c_str()));
+  // Text or elements beside <robot> at the document level (which tinyxml2 reads but would not read
+  // back once printed) are no part of a URDF: dropped.
+  for (tinyxml2::XMLNode* n = doc.FirstChild(); n != nullptr;) {
+    tinyxml2::XMLNode* next = n->NextSibling();
+    if (n != tree.robot && (n->ToElement() != nullptr || n->ToText() != nullptr)) doc.DeleteNode(n);
+    n = next;
+  }
+  TwoSpacePrinter printer;
+  doc.Print(&printer);
+  *xml = std::string(printer.CStr(), printer.CStrSize() > 0 ? printer.CStrSize() - 1 : 0);
+  return Status::Ok();
+}
+
+// The UR joints in chain order, and the keys of ROS-Industrial's UR kinematics file.
+constexpr const char* kUrJoints[6] = {"shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
+                                      "wrist_1_joint",      "wrist_2_joint",       "wrist_3_joint"};
+constexpr const char* kUrKeys[6] = {"shoulder", "upper_arm", "forearm",
+                                    "wrist_1",  "wrist_2",   "wrist_3"};
+
+bool EndsWith(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+// ---------------------------------------------------------------------------------------------------
+// Export of a model without a source URDF.
 
 Eigen::Vector3d Unit(const Eigen::Vector3d& v) {
   const double n = v.norm();
@@ -484,27 +872,116 @@ void PushOrigin(tinyxml2::XMLPrinter* p, const SE3d& T) {
   p->CloseElement();
 }
 
-std::string Unique(std::string name, const std::set<std::string>& taken) {
-  while (taken.count(name) > 0) name += '_';
-  return name;
-}
-
 }  // namespace
 
 Status ParseRobotModelUrdf(const std::string& xml, const std::string& source, RobotModel* model,
-                           const UrdfOptions& options) {
+                           const UrdfOptions& options, UrdfSource* kept) {
   try {
-    return ParseImpl(xml, source, model, options);
+    if (Status s = ParseImpl(xml, source, model, options); !s.ok()) return s;
+    if (kept != nullptr) *kept = UrdfSource{xml, source, options};
+    return Status::Ok();
   } catch (const std::exception& e) {  // std::bad_alloc
     return Status::Error(source + ": cannot parse: " + e.what());
   }
 }
 
-Status ReadRobotModelUrdf(const std::string& path, RobotModel* model, const UrdfOptions& options) {
+Status ReadRobotModelUrdf(const std::string& path, RobotModel* model, const UrdfOptions& options,
+                          UrdfSource* kept) {
   std::string text;
-  const Status s = ReadFile(path, &text);
+  const Status s = ReadFile(path, kMaxModelFileBytes, &text);
   if (!s.ok()) return s;
-  return ParseRobotModelUrdf(text, path, model, options);
+  return ParseRobotModelUrdf(text, path, model, options, kept);
+}
+
+Status CalibratedUrdfOverlay(const UrdfSource& source, const RobotModel& calibrated,
+                             const UrdfOverlayOptions& options, std::string* xml) {
+  try {
+    return OverlayImpl(source, calibrated, options, xml, nullptr);
+  } catch (const std::exception& e) {  // std::bad_alloc
+    return Status::Error(source.source + ": cannot write the overlay: " + e.what());
+  }
+}
+
+namespace {
+
+// Writes the text `make` produces to `path` atomically; nothing is written when it fails.
+template <typename Make>
+Status WriteMade(const std::string& path, Make make) {
+  std::string text;
+  if (Status s = make(&text); !s.ok()) return Status::Error(path + ": not written: " + s.message());
+  return WriteFileAtomically(path, text);
+}
+
+}  // namespace
+
+Status WriteCalibratedUrdf(const std::string& path, const UrdfSource& source,
+                           const RobotModel& calibrated, const UrdfOverlayOptions& options) {
+  return WriteMade(path, [&](std::string* xml) {
+    return CalibratedUrdfOverlay(source, calibrated, options, xml);
+  });
+}
+
+bool IsUrModel(const RobotModel& model) {
+  if (model.num_joints() != 6) return false;
+  const std::string& first = model.joints[0].name;
+  if (!EndsWith(first, kUrJoints[0])) return false;
+  const std::string prefix = first.substr(0, first.size() - std::string(kUrJoints[0]).size());
+  for (int i = 0; i < 6; ++i) {
+    if (model.joints[i].name != prefix + kUrJoints[i]) return false;
+  }
+  return true;
+}
+
+Status UrKinematicsYaml(const UrdfSource& source, const RobotModel& calibrated,
+                        const UrdfOverlayOptions& options, std::string* yaml) {
+  if (!IsUrModel(calibrated)) {
+    return Status::Error(source.source +
+                         ": not a UR robot (its six joints are not shoulder_pan_joint, "
+                         "shoulder_lift_joint, elbow_joint, wrist_1_joint, wrist_2_joint, "
+                         "wrist_3_joint): no UR kinematics file");
+  }
+  try {
+    std::string xml;
+    std::vector<OverlayJoint> joints;
+    if (Status s = OverlayImpl(source, calibrated, options, &xml, &joints); !s.ok()) return s;
+    std::string out =
+        "# Calibrated by lpoe-calib " + std::string(kLpoeVersion) + " from " + source.source +
+        ": the origin of each joint in its parent link (metres, radians,\n# R = Rz(yaw) Ry(pitch) "
+        "Rx(roll)), in the format of ROS-Industrial's ur_description kinematics files.\n"
+        "kinematics:\n";
+    uint64_t hash = 1469598103934665603ull;  // FNV-1a of the numbers, to name this calibration
+    for (int i = 0; i < 6; ++i) {
+      if ((joints[i].axis - Eigen::Vector3d::UnitZ()).norm() > 1e-9) {
+        return Status::Error(source.source + ": " + JointContext(joints[i].name) +
+                             " has the axis " + Triple(joints[i].axis) +
+                             "; the UR kinematics file needs every joint turning about its z axis");
+      }
+      const Eigen::Vector3d xyz = joints[i].origin.t * kMmToMetres;
+      const Eigen::Vector3d rpy = RpyFromRotation(joints[i].origin.R);
+      const double values[6] = {xyz(0), xyz(1), xyz(2), rpy(0), rpy(1), rpy(2)};
+      const char* names[6] = {"x", "y", "z", "roll", "pitch", "yaw"};
+      out += "  " + std::string(kUrKeys[i]) + ":\n";
+      for (int k = 0; k < 6; ++k) {
+        const std::string number = Number(values[k]);
+        out += "    " + std::string(names[k]) + ": " + number + "\n";
+        for (char ch : number) hash = (hash ^ static_cast<unsigned char>(ch)) * 1099511628211ull;
+      }
+    }
+    char tag[40];
+    std::snprintf(tag, sizeof(tag), "lpoe_calib_%016llx", static_cast<unsigned long long>(hash));
+    out += "  hash: " + std::string(tag) + "\n";
+    *yaml = std::move(out);
+    return Status::Ok();
+  } catch (const std::exception& e) {  // std::bad_alloc
+    return Status::Error(source.source + ": cannot write the UR kinematics: " + e.what());
+  }
+}
+
+Status WriteUrKinematicsYaml(const std::string& path, const UrdfSource& source,
+                             const RobotModel& calibrated, const UrdfOverlayOptions& options) {
+  return WriteMade(path, [&](std::string* yaml) {
+    return UrKinematicsYaml(source, calibrated, options, yaml);
+  });
 }
 
 std::string RobotModelToUrdf(const RobotModel& model) {
@@ -561,7 +1038,8 @@ std::string RobotModelToUrdf(const RobotModel& model) {
     origin.t += origin.R * shift[i];
     p.OpenElement("joint");
     p.PushAttribute("name", j.name.c_str());
-    p.PushAttribute("type", revolute ? "continuous" : "prismatic");
+    const bool limited = std::isfinite(j.lower) && std::isfinite(j.upper);
+    p.PushAttribute("type", revolute ? (limited ? "revolute" : "continuous") : "prismatic");
     p.OpenElement("parent");
     p.PushAttribute("link", link_names[i].c_str());
     p.CloseElement();
@@ -574,7 +1052,15 @@ std::string RobotModelToUrdf(const RobotModel& model) {
         Unit(revolute ? Eigen::Vector3d(j.twist.head<3>()) : Eigen::Vector3d(j.twist.tail<3>()));
     p.PushAttribute("xyz", Triple(axis).c_str());
     p.CloseElement();
-    if (!revolute) {
+    if (limited) {
+      const double scale = revolute ? 1.0 : kMmToMetres;
+      p.OpenElement("limit");
+      p.PushAttribute("lower", Number(j.lower * scale).c_str());
+      p.PushAttribute("upper", Number(j.upper * scale).c_str());
+      p.PushAttribute("effort", "0");
+      p.PushAttribute("velocity", "0");
+      p.CloseElement();
+    } else if (!revolute) {
       p.PushComment(" placeholder: the kinematic model has no joint limits ");
       p.OpenElement("limit");
       p.PushAttribute("lower", Number(-kPlaceholderPrismaticLimit).c_str());

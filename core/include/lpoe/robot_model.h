@@ -95,6 +95,12 @@ class RobotModel {
   Status Validate() const;
 };
 
+// The checks Validate() makes on one joint's twist (revolute: |omega| = 1, omega . v = 0 within
+// kTwistTolerance; prismatic: omega = 0, |v| = 1) and limits (lower <= upper, no NaN). The message
+// says what is wrong without saying where; readers add the file and line.
+Status ValidateTwist(JointType type, const Vector6d& twist);
+Status ValidateLimits(double lower, double upper);
+
 // The default twist of a joint type about/along local z.
 Vector6d DefaultTwist(JointType type);
 

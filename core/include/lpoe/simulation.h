@@ -71,7 +71,7 @@ struct SimulationOptions {
   double orientation_noise_sigma = 0.0;  // rad, per axis, right perturbation
   uint64_t seed = 1;
   // Joint ranges: uniform in [lower, upper] per joint; default [-pi, pi] for revolute, [-100, 100] mm
-  // for prismatic joints.
+  // for prismatic joints, narrowed to the joint's limits (Joint::lower/upper).
   std::vector<double> lower, upper;
   // Targets cycle through the model's tools when true; else every row measures tool 0.
   bool all_tools = false;

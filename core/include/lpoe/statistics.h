@@ -31,6 +31,8 @@ ErrorStatistics ComputeStatistics(const std::vector<Eigen::Vector3d>& errors);
 // Position errors of `model` on `data`: measured - predicted, row by row.
 std::vector<Eigen::Vector3d> PositionErrors(const RobotModel& model, const MeasurementSet& data);
 
+// The same without storing the errors: one forward-kinematics pass, 16 bytes a row; the 95th
+// percentiles are those of the errors rounded to float (relative 6e-8).
 ErrorStatistics PositionErrorStatistics(const RobotModel& model, const MeasurementSet& data);
 
 }  // namespace lpoe

@@ -14,29 +14,58 @@
 // visuals, collisions, transmissions and gazebo tags are ignored; a <mimic> on a chain joint is an
 // error (the model has one independent value per joint).
 //
-// The chain runs from the root link (the one link that is never a child) through every moving
-// joint; a link from which two moving joints descend (directly or through fixed joints) is a
-// branching chain and an error naming the link. Side branches of fixed joints only (a camera mount,
-// a "base" frame) are ignored. Tools are links after the last moving joint, reached through fixed
-// joints: the links named in UrdfOptions::tool_links (in that order), or by default every leaf of
-// that fixed subtree, in document order (for a plain chain: the tip link alone). If the last moving
-// joint's child link has no fixed children, it is itself the tool (identity origin). Tools are
-// named after their links. The resulting model is validated.
+// The chain runs from the base link (UrdfOptions::base_link, default the root link: the one link
+// that is never a child) to the tip link (UrdfOptions::tip_link). Fixed joints on the chain fold
+// into the next moving joint's origin; everything off the chain (side branches, fixed or moving:
+// a camera mount, a gripper's fingers) is ignored. Without a tip link the candidate tips are the
+// leaves below the base reached through a moving joint; their last moving joints must lie on one
+// path (else an error lists the candidates: choose with tip_link). One candidate is the tip;
+// several after the same last moving joint (a UR's ee_link and tool0) make that joint's child link,
+// the flange, the tip. A <mimic> joint on the chain is an error naming it (off the chain it is
+// ignored). Tools are links fixed to the flange (the child link of the last moving joint): the
+// links named in UrdfOptions::tool_links, in that order, or by default the tip link. Tools are
+// named after their links. Joint limits (<limit lower upper>, metres converted to mm for prismatic
+// joints) become Joint::lower/upper; continuous joints and joints without <limit> are unlimited.
+// The resulting model is validated.
 //
 // Errors are Status messages "<source>:<line>: what; expected ..." with the line of the offending
 // XML element (or of the XML syntax error). Nothing throws or aborts on any input.
 //
-// Export. Links are named base_link, link1..linkN and after the tools; joints keep their names and
-// tools are attached with fixed joints. Numbers have 17 significant digits, so that an export then
-// import reproduces forward kinematics to rounding (about 1e-12 mm). A revolute twist (omega, v)
-// whose axis does not pass through the frame origin (v != 0) is written by moving the URDF joint
-// frame to r = omega x v / |omega|^2, the point of the axis closest to the local frame origin: the
-// origin becomes T_{i-1,i}(0) Trans(r_i) and the next frame Trans(-r_i) T_{i,i+1}(0), which leaves
-// forward kinematics unchanged. Things URDF cannot express are dropped: the pitch omega . v of a
-// revolute twist and the deviation of |omega| (revolute) or |v| (prismatic) from 1 (Validate()
-// allows up to kTwistTolerance); axes are written normalized. Revolute joints are written as
-// `continuous` (the model has no limits); prismatic joints, which URDF requires to have <limit>,
-// get a placeholder of +-1 m, marked by a comment.
+// Overlay (CalibratedUrdfOverlay). A model read from a URDF is written back into that same
+// document: every link, joint, limit, mesh, inertial, transmission and extension tag is kept, and
+// only these change (numbers with 17 significant digits):
+//   - each moving joint of the chain gets origin = F_i^-1 T_{i-1,i}(0), F_i the fixed joints folded
+//     before it (which stay unchanged), and its axis when the calibrated one differs;
+//   - its <limit> lower/upper where the model's limits differ from the file's;
+//   - a tool that is a link fixed to the flange gets its calibrated pose in its own fixed joint
+//     (other fixed joints on the way unchanged); any other tool is added as a fixed link on the
+//     tip (named after the tool, or <tool>_smr when that name is taken);
+//   - a link `measurement_frame` on a fixed joint from the base link. With in_measurement_frame
+//     (the calibration ran in the tracker's frame, so joint 1's calibrated frame holds
+//     T_measurement_base), joint 1 keeps its URDF origin and the measurement frame's joint takes
+//     T_base_measurement = N_1 C_1^-1 (N nominal, C calibrated: the two are not separable), so the
+//     robot's base stays where the cell description has it; otherwise its origin is the identity.
+// Forward kinematics from `measurement_frame` to a tool's link then equals the calibrated model's.
+// A calibrated revolute axis that does not pass through its frame origin (v != 0) cannot be written
+// and is an error.
+//
+// UR kinematics (UrKinematicsYaml): for a model whose joints are shoulder_pan_joint ..
+// wrist_3_joint (any common prefix), the calibrated origins of those six joints in the format of
+// ROS-Industrial's ur_description (kinematics: {shoulder, upper_arm, forearm, wrist_1, wrist_2,
+// wrist_3}: {x, y, z, roll, pitch, yaw}, hash); every axis must be the joint's z axis.
+//
+// Export (RobotModelToUrdf, a model without a source URDF). Links are named base_link, link1..linkN
+// and after the tools; joints keep their names and tools are attached with fixed joints. Numbers
+// have 17 significant digits, so that an export then import reproduces forward kinematics to
+// rounding (about 1e-12 mm). A revolute twist (omega, v) whose axis does not pass through the frame
+// origin (v != 0) is written by moving the URDF joint frame to r = omega x v / |omega|^2, the point
+// of the axis closest to the local frame origin: the origin becomes T_{i-1,i}(0) Trans(r_i) and the
+// next frame Trans(-r_i) T_{i,i+1}(0), which leaves forward kinematics unchanged. Things URDF
+// cannot express are dropped: the pitch omega . v of a revolute twist and the deviation of |omega|
+// (revolute) or |v| (prismatic) from 1 (Validate() allows up to kTwistTolerance); axes are written
+// normalized. Revolute joints with limits are written as `revolute` with them, without as
+// `continuous`; prismatic joints without limits, which URDF requires to have <limit>, get a
+// placeholder of +-1 m, marked by a comment.
 #ifndef LPOE_URDF_H_
 #define LPOE_URDF_H_
 
@@ -49,18 +78,54 @@
 namespace lpoe {
 
 struct UrdfOptions {
-  // Links that become the model's tools, in this order. Each must lie after the last moving joint
-  // (its child link or a link reached from it through fixed joints). Empty: every leaf link after
-  // the last moving joint, in document order (the tip link for a plain chain).
+  // The link whose frame is the model's base frame; empty: the root link.
+  std::string base_link;
+  // The end of the chain; empty: chosen as described above (an error when ambiguous).
+  std::string tip_link;
+  // Links that become the model's tools, in this order. Each must be fixed to the last moving link
+  // of the chain. Empty: the tip link. When there is no tip_link and the tree is ambiguous, the
+  // first of them is the tip.
   std::vector<std::string> tool_links;
 };
 
+// The URDF a model was read from, kept for the overlay write-back.
+struct UrdfSource {
+  std::string xml;
+  std::string source;  // the file name, for messages
+  UrdfOptions options;
+};
+
 // Reads a robot model from URDF text; `source` names the file in messages. On error `model` is left
-// unchanged.
+// unchanged. `kept` (may be null) receives what CalibratedUrdfOverlay needs.
 Status ParseRobotModelUrdf(const std::string& xml, const std::string& source, RobotModel* model,
-                           const UrdfOptions& options = {});
+                           const UrdfOptions& options = {}, UrdfSource* kept = nullptr);
 Status ReadRobotModelUrdf(const std::string& path, RobotModel* model,
-                          const UrdfOptions& options = {});
+                          const UrdfOptions& options = {}, UrdfSource* kept = nullptr);
+
+struct UrdfOverlayOptions {
+  // The calibrated model's base frame is the measurement frame (the data were registered).
+  bool in_measurement_frame = false;
+  // Name of the added measurement-frame link (its joint is "<name>_joint").
+  std::string measurement_link = "measurement_frame";
+};
+
+// `source` with the calibrated joint origins, axes, limits and tools of `calibrated` written into
+// it, plus the measurement frame (see above). `calibrated` must have the joints of the model read
+// from `source` (names, types, order) and pass Validate().
+Status CalibratedUrdfOverlay(const UrdfSource& source, const RobotModel& calibrated,
+                             const UrdfOverlayOptions& options, std::string* xml);
+Status WriteCalibratedUrdf(const std::string& path, const UrdfSource& source,
+                           const RobotModel& calibrated, const UrdfOverlayOptions& options);
+
+// True for a six-joint model named like a Universal Robots arm (shoulder_pan_joint ..
+// wrist_3_joint, one common prefix allowed).
+bool IsUrModel(const RobotModel& model);
+
+// The UR kinematics YAML of the overlay (see above).
+Status UrKinematicsYaml(const UrdfSource& source, const RobotModel& calibrated,
+                        const UrdfOverlayOptions& options, std::string* yaml);
+Status WriteUrKinematicsYaml(const std::string& path, const UrdfSource& source,
+                             const RobotModel& calibrated, const UrdfOverlayOptions& options);
 
 // URDF text of `model` (which should pass Validate()); see the export notes above.
 std::string RobotModelToUrdf(const RobotModel& model);

@@ -49,7 +49,7 @@ IdentifiabilityReport AnalyzeIdentifiability(const RobotModel& nominal, const Me
 // Listed, never silently dropped.
 struct Outlier {
   int row = 0;
-  int line = 0;      // line in the input file (0 when unknown)
+  int64_t line = 0;  // line in the input file (0 when unknown)
   double error = 0;  // mm
   double sigmas = 0;
 };

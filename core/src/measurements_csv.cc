@@ -1,0 +1,719 @@
+// Measurements as CSV (docs/file_formats.md; lpoe/io.h), read as a stream: the file is parsed in
+// chunks while it is read, so memory holds the kept rows (MeasurementSet) and one chunk, never the
+// file's text. Every error is "<file>:<line>: <what is wrong>; expected <what>", line 64-bit.
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <exception>
+#include <limits>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "file_util.h"
+#include "lpoe/io.h"
+#include "parse_util.h"
+
+namespace lpoe {
+namespace {
+
+using internal::AppendNumber;
+using internal::LineError;
+using internal::NumberParse;
+using internal::ParseNumber;
+using internal::Quote;
+using internal::ShortNumber;
+using internal::Trim;
+
+// A measured quaternion must be unit to this tolerance (trackers export 4 to 9 decimals); it is
+// then normalized.
+constexpr double kMeasuredQuaternionTolerance = 1e-3;
+// Plausibility bounds on measurement values: positions (mm, after the unit conversion) and raw
+// joint values (as written).
+constexpr double kMaxAbsPositionMm = 1e6;
+constexpr double kMaxAbsJointValue = 1e4;
+constexpr double kDegreesToRadians = 3.14159265358979323846 / 180.0;
+// A line longer than this is not a measurement row (a row of 20 joints with 25-character numbers
+// has about 600 bytes; a header with many extra columns a few kB).
+constexpr size_t kMaxLineBytes = size_t{1} << 20;
+// Lines of lost-beam rows kept for the report (the count is always complete).
+constexpr size_t kMaxReportedSkippedLines = 1000;
+// Read chunk of ReadMeasurements.
+constexpr size_t kChunkBytes = size_t{1} << 20;
+
+enum class ColumnKind { kQ, kX, kY, kZ, kTarget, kQuatX, kQuatY, kQuatZ, kQuatW, kIgnored };
+
+struct Column {
+  ColumnKind kind = ColumnKind::kQ;
+  int joint = 0;     // kQ: 0-based joint index
+  std::string name;  // as written in the header (trimmed)
+};
+
+std::string ExpectedColumns(const RobotModel& model) {
+  const int n = model.num_joints();
+  std::string s = n == 1 ? std::string("q1") : "q1..q" + std::to_string(n);
+  s += " (or the joint names), x, y, z, optional target, optional quat_x, quat_y, quat_z, quat_w";
+  return s;
+}
+
+std::string ToLower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) {
+    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  }
+  return out;
+}
+
+// Splits `line` at commas into `fields` (string_views into `line`).
+void SplitFields(std::string_view line, std::vector<std::string_view>* fields) {
+  fields->clear();
+  size_t start = 0;
+  while (true) {
+    const void* hit = std::memchr(line.data() + start, ',', line.size() - start);
+    if (hit == nullptr) {
+      fields->push_back(line.substr(start));
+      return;
+    }
+    const size_t pos = static_cast<const char*>(hit) - line.data();
+    fields->push_back(line.substr(start, pos - start));
+    start = pos + 1;
+  }
+}
+
+bool IsBlankOrComment(std::string_view line) {
+  for (const char c : line) {
+    if (c == ' ' || c == '\t') continue;
+    return c == '#';
+  }
+  return true;
+}
+
+// Tool index for a target field: a tool name first, else a 0-based index. -1 when neither.
+int ResolveTarget(std::string_view field, const RobotModel& model) {
+  for (int t = 0; t < model.num_tools(); ++t) {
+    if (field == model.tools[t].name) return t;
+  }
+  if (field.empty() || field.size() > 9) return -1;
+  int index = 0;
+  const auto r = std::from_chars(field.data(), field.data() + field.size(), index);
+  if (r.ec != std::errc() || r.ptr != field.data() + field.size()) return -1;
+  return index >= 0 && index < model.num_tools() ? index : -1;
+}
+
+std::string ToolList(const RobotModel& model) {
+  std::string s;
+  for (int t = 0; t < model.num_tools(); ++t) {
+    if (t > 0) s += ", ";
+    s += Quote(model.tools[t].name);
+  }
+  return s;
+}
+
+// A target name the reader maps back to the same tool; otherwise the index is written.
+bool TargetNameRoundTrips(const RobotModel& model, int tool) {
+  const std::string& name = model.tools[tool].name;
+  if (name.empty() || Trim(name).size() != name.size()) return false;
+  if (name.find_first_of(",\r\n\"") != std::string::npos) return false;
+  return ResolveTarget(name, model) == tool;
+}
+
+// The header: columns by name (case-insensitive for the standard names, exact for joint names);
+// columns with other names are ignored and listed.
+class CsvHeader {
+ public:
+  Status Parse(std::string_view line, int64_t line_number, const std::string& source,
+               const RobotModel& model) {
+    const int num_joints = model.num_joints();
+    std::vector<std::string_view> fields;
+    SplitFields(line, &fields);
+    const std::string expected = "a header with columns " + ExpectedColumns(model);
+    std::unordered_map<std::string_view, int> joint_by_name;
+    for (int j = 0; j < num_joints; ++j) joint_by_name.emplace(model.joints[j].name, j);
+    std::vector<int> q_column(num_joints, -1);
+    int xyz_column[3] = {-1, -1, -1};
+    int quat_column[4] = {-1, -1, -1, -1};
+    static const char* const kQuatNames[4] = {"quat_x", "quat_y", "quat_z", "quat_w"};
+    for (size_t c = 0; c < fields.size(); ++c) {
+      const std::string_view raw = Trim(fields[c]);
+      Column col;
+      col.name = std::string(raw);
+      const std::string lower = ToLower(raw);
+      if (raw.empty()) {
+        return LineError(source, line_number,
+                         "header column " + std::to_string(c + 1) + " has an empty name", expected);
+      }
+      double dummy;
+      if (ParseNumber(raw, &dummy) != NumberParse::kNotANumber) {
+        return LineError(source, line_number,
+                         "the first line is data (" + Quote(raw) + " where a column name belongs)",
+                         expected);
+      }
+      int* slot = nullptr;
+      const auto joint = joint_by_name.find(raw);
+      if (lower.size() >= 2 && lower[0] == 'q' && lower[1] >= '1' && lower[1] <= '9' &&
+          std::all_of(lower.begin() + 1, lower.end(),
+                      [](char ch) { return ch >= '0' && ch <= '9'; })) {
+        int k = 0;
+        const auto r = std::from_chars(lower.data() + 1, lower.data() + lower.size(), k);
+        if (r.ec != std::errc() || k > num_joints) {
+          return LineError(source, line_number,
+                           "extra joint column " + Quote(raw) + ": the model has " +
+                               std::to_string(num_joints) + " joints",
+                           expected);
+        }
+        col.kind = ColumnKind::kQ;
+        col.joint = k - 1;
+        slot = &q_column[k - 1];
+      } else if (lower == "x" || lower == "y" || lower == "z") {
+        const int axis = lower[0] - 'x';
+        col.kind = static_cast<ColumnKind>(static_cast<int>(ColumnKind::kX) + axis);
+        slot = &xyz_column[axis];
+      } else if (lower == "target") {
+        col.kind = ColumnKind::kTarget;
+        slot = &target_column_;
+      } else if (joint != joint_by_name.end()) {
+        col.kind = ColumnKind::kQ;
+        col.joint = joint->second;
+        slot = &q_column[joint->second];
+      } else {
+        for (int k = 0; k < 4; ++k) {
+          if (lower == kQuatNames[k]) {
+            col.kind = static_cast<ColumnKind>(static_cast<int>(ColumnKind::kQuatX) + k);
+            slot = &quat_column[k];
+          }
+        }
+      }
+      if (slot == nullptr) {
+        col.kind = ColumnKind::kIgnored;
+        ignored_.push_back(col.name);
+        columns_.push_back(std::move(col));
+        continue;
+      }
+      if (*slot >= 0) {
+        const std::string what =
+            col.kind == ColumnKind::kQ
+                ? "joint " + std::to_string(col.joint + 1) + " given twice: " +
+                      Quote(columns_[*slot].name) + " and " + Quote(raw)
+                : "duplicated column " + Quote(raw);
+        return LineError(source, line_number,
+                         what + " (columns " + std::to_string(*slot + 1) + " and " +
+                             std::to_string(c + 1) + ")",
+                         "each column once");
+      }
+      *slot = static_cast<int>(c);
+      columns_.push_back(std::move(col));
+    }
+    std::string missing;
+    auto add_missing = [&missing](const std::string& name) {
+      missing += missing.empty() ? "" : ", ";
+      missing += "'" + name + "'";
+    };
+    for (int k = 0; k < num_joints; ++k) {
+      if (q_column[k] < 0) add_missing("q" + std::to_string(k + 1));
+    }
+    for (int a = 0; a < 3; ++a) {
+      if (xyz_column[a] < 0) add_missing(std::string(1, static_cast<char>('x' + a)));
+    }
+    if (!missing.empty()) {
+      return LineError(source, line_number,
+                       "missing column" +
+                           std::string(missing.find(',') != std::string::npos ? "s " : " ") +
+                           missing,
+                       expected);
+    }
+    const int num_quat =
+        static_cast<int>(std::count_if(quat_column, quat_column + 4, [](int c) { return c >= 0; }));
+    if (num_quat != 0 && num_quat != 4) {
+      for (int k = 0; k < 4; ++k) {
+        if (quat_column[k] < 0) add_missing(kQuatNames[k]);
+      }
+      return LineError(source, line_number, "incomplete orientation: missing " + missing,
+                       "all four of quat_x, quat_y, quat_z, quat_w, or none");
+    }
+    has_orientation_ = num_quat == 4;
+    return Status::Ok();
+  }
+
+  const std::vector<Column>& columns() const { return columns_; }
+  const std::vector<std::string>& ignored() const { return ignored_; }
+  bool has_orientation() const { return has_orientation_; }
+
+ private:
+  std::vector<Column> columns_;
+  std::vector<std::string> ignored_;
+  bool has_orientation_ = false;
+  int target_column_ = -1;
+};
+
+// The CSV reader: fed chunks of text split anywhere, it parses every complete line at once and
+// keeps only an incomplete last line (bounded by kMaxLineBytes) between chunks.
+class CsvReader {
+ public:
+  CsvReader(const std::string& source, const RobotModel& model, const CsvOptions& options)
+      : source_(source), model_(model), out_(model.num_joints()), q_(model.num_joints()) {
+    const int n = model.num_joints();
+    // Revolute joints get the degree factor; prismatic joints are in mm (or m) either way.
+    const double length = options.length_unit == LengthUnit::kMetres ? 1000.0 : 1.0;
+    scale_.assign(n, 1.0);
+    for (int j = 0; j < n; ++j) {
+      if (model.joints[j].type == JointType::kRevolute) {
+        if (options.angle_unit == AngleUnit::kDegrees) scale_[j] = kDegreesToRadians;
+      } else {
+        scale_[j] = length;
+      }
+    }
+    length_scale_ = length;
+  }
+
+  // The total input size when known (a regular file): lets the reader reserve the row storage once
+  // instead of growing it by doubling.
+  void set_total_bytes(int64_t bytes) { total_bytes_ = bytes; }
+
+  Status Feed(const char* data, size_t size) {
+    const char* p = data;
+    const char* end = data + size;
+    if (!carry_.empty()) {
+      const char* nl = static_cast<const char*>(std::memchr(p, '\n', size));
+      if (nl == nullptr) return Carry(p, end);
+      if (carry_.size() + static_cast<size_t>(nl - p) > kMaxLineBytes) return LineTooLong();
+      carry_.append(p, nl);
+      Status s = Line(carry_);
+      if (!s.ok()) return s;
+      carry_.clear();
+      p = nl + 1;
+    }
+    while (p < end) {
+      const char* nl = static_cast<const char*>(std::memchr(p, '\n', end - p));
+      if (nl == nullptr) return Carry(p, end);
+      Status s = Line(std::string_view(p, static_cast<size_t>(nl - p)));
+      if (!s.ok()) return s;
+      p = nl + 1;
+    }
+    return Status::Ok();
+  }
+
+  // Ends the input (a last line without '\n' is read) and hands over the rows.
+  Status Finish(MeasurementSet* data, CsvReadReport* report) {
+    if (!carry_.empty()) {
+      Status s = Line(carry_);
+      if (!s.ok()) return s;
+      carry_.clear();
+    }
+    if (!have_header_) {
+      return LineError(source_, std::max<int64_t>(line_number_, 1),
+                       "no header line (the file is empty)",
+                       "a header with columns " + ExpectedColumns(model_) +
+                           ", then one row per measurement");
+    }
+    if (out_.empty()) {
+      const std::string skipped =
+          report_.skipped_zero_rows > 0
+              ? " (" + std::to_string(report_.skipped_zero_rows) +
+                    " rows without a measurement skipped)"
+              : std::string();
+      return LineError(source_, header_line_, "no measurement rows after the header" + skipped,
+                       "at least one row of measurements");
+    }
+    // Reserved room beyond what was used is mostly untouched pages; give it back all the same when
+    // it is large (one reallocation).
+    if (reserved_rows_ > out_.size() + out_.size() / 8) out_.ShrinkToFit();
+    report_.ignored_columns = header_.ignored();
+    *data = std::move(out_);
+    if (report != nullptr) *report = std::move(report_);
+    return Status::Ok();
+  }
+
+ private:
+  Status Carry(const char* p, const char* end) {
+    if (carry_.size() + static_cast<size_t>(end - p) > kMaxLineBytes) return LineTooLong();
+    carry_.append(p, end);
+    return Status::Ok();
+  }
+
+  Status LineTooLong() const {
+    return LineError(source_, line_number_ + 1,
+                     "a line longer than " + std::to_string(kMaxLineBytes) + " bytes",
+                     "one measurement per line (a text CSV file with '\\n' line ends)");
+  }
+
+  Status Line(std::string_view line) {
+    ++line_number_;
+    bytes_ += line.size() + 1;
+    if (line.size() > kMaxLineBytes) {
+      --line_number_;
+      return LineTooLong();
+    }
+    if (line_number_ == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    if (IsBlankOrComment(line)) return Status::Ok();
+    if (!have_header_) {
+      Status s = header_.Parse(line, line_number_, source_, model_);
+      if (!s.ok()) return s;
+      have_header_ = true;
+      header_line_ = line_number_;
+      return Status::Ok();
+    }
+    return Row(line);
+  }
+
+  Status FieldCountError(std::string_view line) const {
+    const size_t fields = static_cast<size_t>(std::count(line.begin(), line.end(), ',')) + 1;
+    return LineError(source_, line_number_, std::to_string(fields) + " fields",
+                     std::to_string(header_.columns().size()) + " as in the header on line " +
+                         std::to_string(header_line_));
+  }
+
+  Status Row(std::string_view line) {
+    const std::vector<Column>& columns = header_.columns();
+    const char* p = line.data();
+    const char* const end = line.data() + line.size();
+    int target = 0;
+    bool lost_beam = false;
+    bool more = true;  // a comma ended the last field
+    for (size_t c = 0; c < columns.size(); ++c) {
+      if (!more) return FieldCountError(line);
+      const char* comma = static_cast<const char*>(std::memchr(p, ',', end - p));
+      const char* field_end = comma == nullptr ? end : comma;
+      const std::string_view field = Trim(std::string_view(p, static_cast<size_t>(field_end - p)));
+      more = comma != nullptr;
+      if (more) p = comma + 1;
+      const Column& col = columns[c];
+      if (col.kind == ColumnKind::kIgnored) continue;
+      if (col.kind == ColumnKind::kTarget) {
+        target = ResolveTarget(field, model_);
+        if (target < 0) {
+          return LineError(source_, line_number_, "column 'target': unknown tool " + Quote(field),
+                           "a tool name (" + ToolList(model_) + ") or an index from 0 to " +
+                               std::to_string(model_.num_tools() - 1));
+        }
+        continue;
+      }
+      double v = 0;
+      const NumberParse r = ParseNumber(field, &v);
+      const bool is_position = col.kind == ColumnKind::kX || col.kind == ColumnKind::kY ||
+                               col.kind == ColumnKind::kZ;
+      if (r == NumberParse::kNonFinite && is_position) {
+        // A tracker that lost the beam may export NaN/Inf: the row is skipped like a row of zeros.
+        lost_beam = true;
+        continue;
+      }
+      if (r != NumberParse::kOk) {
+        const std::string what =
+            field.empty() ? "column " + Quote(col.name) + " is empty"
+            : r == NumberParse::kNotANumber
+                ? "column " + Quote(col.name) + ": " + Quote(field) + " is not a number"
+                : "column " + Quote(col.name) + ": non-finite value " + Quote(field);
+        return LineError(source_, line_number_, what, "a finite decimal number");
+      }
+      switch (col.kind) {
+        case ColumnKind::kQ:
+          if (std::abs(v) > kMaxAbsJointValue) {
+            return LineError(
+                source_, line_number_,
+                "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
+                "a joint value of magnitude at most " + ShortNumber(kMaxAbsJointValue));
+          }
+          q_[col.joint] = v * scale_[col.joint];
+          break;
+        case ColumnKind::kX:
+        case ColumnKind::kY:
+        case ColumnKind::kZ:
+          v *= length_scale_;
+          if (std::abs(v) > kMaxAbsPositionMm) {
+            return LineError(
+                source_, line_number_,
+                "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
+                "a position of magnitude at most " + ShortNumber(kMaxAbsPositionMm) + " mm" +
+                    (length_scale_ == 1.0
+                         ? std::string()
+                         : " (" + ShortNumber(kMaxAbsPositionMm / length_scale_) + " m)"));
+          }
+          position_(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kX)) = v;
+          break;
+        case ColumnKind::kQuatX:
+        case ColumnKind::kQuatY:
+        case ColumnKind::kQuatZ:
+        case ColumnKind::kQuatW:
+          quat_(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kQuatX)) = v;
+          break;
+        case ColumnKind::kTarget:
+        case ColumnKind::kIgnored:
+          break;
+      }
+    }
+    if (more) return FieldCountError(line);  // fields left over
+    if (lost_beam || (position_(0) == 0.0 && position_(1) == 0.0 && position_(2) == 0.0)) {
+      // Lost beam (zeros or non-finite x, y, z): skipped and reported, not an error.
+      ++report_.skipped_zero_rows;
+      if (report_.skipped_lines.size() < kMaxReportedSkippedLines) {
+        report_.skipped_lines.push_back(line_number_);
+      }
+      return Status::Ok();
+    }
+    if (out_.size() == std::numeric_limits<int>::max()) {
+      return LineError(source_, line_number_,
+                       "more than " + std::to_string(std::numeric_limits<int>::max()) + " rows",
+                       "at most 2^31 - 1 measurement rows per file");
+    }
+    MaybeReserve();
+    if (header_.has_orientation()) {
+      const double norm = quat_.norm();
+      if (!(std::abs(norm - 1.0) <= kMeasuredQuaternionTolerance)) {
+        return LineError(source_, line_number_, "quat_x..quat_w have norm " + ShortNumber(norm),
+                         "a unit quaternion (norm within " +
+                             ShortNumber(kMeasuredQuaternionTolerance) + " of 1)");
+      }
+      out_.AddPose(q_.data(), SE3d(QuaternionToRotation<double>(quat_ / norm), position_), target,
+                   line_number_);
+    } else {
+      out_.Add(q_.data(), position_, target, line_number_);
+    }
+    return Status::Ok();
+  }
+
+  // Once 4096 rows are read, reserves the rows the whole file will hold at the bytes per line seen
+  // so far (plus 1/16): the columns are then filled without reallocation.
+  void MaybeReserve() {
+    constexpr int kSampleRows = 4096;
+    if (reserved_rows_ > 0 || total_bytes_ <= 0 || out_.size() != kSampleRows) return;
+    const double bytes_per_row = static_cast<double>(bytes_) / kSampleRows;
+    const double rows = static_cast<double>(total_bytes_) / bytes_per_row * (1.0 + 1.0 / 16) + 1024;
+    reserved_rows_ = static_cast<int>(std::min<double>(rows, std::numeric_limits<int>::max()));
+    out_.Reserve(reserved_rows_);
+  }
+
+  const std::string& source_;
+  const RobotModel& model_;
+  MeasurementSet out_;
+  CsvReadReport report_;
+  CsvHeader header_;
+  bool have_header_ = false;
+  int64_t header_line_ = 0;
+  int64_t line_number_ = 0;
+  int64_t bytes_ = 0;
+  int64_t total_bytes_ = -1;
+  int reserved_rows_ = 0;
+  std::string carry_;
+  std::vector<double> scale_;
+  double length_scale_ = 1.0;
+  std::vector<double> q_;
+  Eigen::Vector3d position_ = Eigen::Vector3d::Zero();
+  Eigen::Vector4d quat_ = Eigen::Vector4d::Zero();
+};
+
+Status ReadMeasurementsImpl(const std::string& path, const RobotModel& model,
+                            const CsvOptions& options, MeasurementSet* data,
+                            CsvReadReport* report) {
+  internal::InputFile file;
+  Status s = file.Open(path);
+  if (!s.ok()) return s;
+  CsvReader reader(path, model, options);
+  reader.set_total_bytes(file.size());
+  std::vector<char> buf(kChunkBytes);
+  while (true) {
+    size_t got = 0;
+    s = file.Read(buf.data(), buf.size(), &got);
+    if (!s.ok()) return s;
+    if (got == 0) break;
+    s = reader.Feed(buf.data(), got);
+    if (!s.ok()) return s;
+  }
+  return reader.Finish(data, report);
+}
+
+}  // namespace
+
+bool ParseLengthUnit(const std::string& text, LengthUnit* unit) {
+  if (text == "mm") {
+    *unit = LengthUnit::kMillimetres;
+    return true;
+  }
+  if (text == "m") {
+    *unit = LengthUnit::kMetres;
+    return true;
+  }
+  return false;
+}
+
+Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
+                            const RobotModel& model, const CsvOptions& options,
+                            MeasurementSet* data, CsvReadReport* report) {
+  try {
+    CsvReader reader(source, model, options);
+    reader.set_total_bytes(static_cast<int64_t>(text.size()));
+    Status s = reader.Feed(text.data(), text.size());
+    if (!s.ok()) return s;
+    return reader.Finish(data, report);
+  } catch (const std::exception& e) {  // std::bad_alloc on absurdly large input
+    return LineError(source, 1, std::string("cannot read the measurements: ") + e.what(),
+                     "a measurements CSV that fits in memory");
+  }
+}
+
+Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
+                            const RobotModel& model, AngleUnit unit, MeasurementSet* data,
+                            CsvReadReport* report) {
+  CsvOptions options;
+  options.angle_unit = unit;
+  return ParseMeasurementsCsv(text, source, model, options, data, report);
+}
+
+Status ParseMeasurementsCsv(const std::string& text, const std::string& source,
+                            const RobotModel& model, AngleUnit unit, MeasurementSet* data) {
+  return ParseMeasurementsCsv(text, source, model, unit, data, nullptr);
+}
+
+Status ReadMeasurements(const std::string& path, const RobotModel& model,
+                        const CsvOptions& options, MeasurementSet* data, CsvReadReport* report) {
+  try {
+    return ReadMeasurementsImpl(path, model, options, data, report);
+  } catch (const std::exception& e) {  // std::bad_alloc on absurdly large input
+    return LineError(path, 1, std::string("cannot read the measurements: ") + e.what(),
+                     "a measurements CSV that fits in memory");
+  }
+}
+
+Status ReadMeasurements(const std::string& path, const RobotModel& model, AngleUnit unit,
+                        MeasurementSet* data, CsvReadReport* report) {
+  CsvOptions options;
+  options.angle_unit = unit;
+  return ReadMeasurements(path, model, options, data, report);
+}
+
+Status ReadMeasurements(const std::string& path, const RobotModel& model, AngleUnit unit,
+                        MeasurementSet* data) {
+  return ReadMeasurements(path, model, unit, data, nullptr);
+}
+
+std::string CsvReadWarnings(const std::string& source, const CsvReadReport& report) {
+  std::string out;
+  if (!report.ignored_columns.empty()) {
+    out += "warning: " + source + ": ignored " + std::to_string(report.ignored_columns.size()) +
+           " column(s) the model does not use:";
+    for (const std::string& name : report.ignored_columns) out += " " + Quote(name);
+    out += "\n";
+  }
+  if (report.skipped_zero_rows > 0) {
+    out += "warning: " + source + ": skipped " + std::to_string(report.skipped_zero_rows) +
+           " row(s) with no measurement (lost beam) at line(s)";
+    constexpr size_t kShown = 20;
+    const auto& lines = report.skipped_lines;
+    for (size_t k = 0; k < std::min(lines.size(), kShown); ++k) out += " " + std::to_string(lines[k]);
+    if (static_cast<int64_t>(std::min(lines.size(), kShown)) < report.skipped_zero_rows) {
+      out += " ...";
+    }
+    out += "\n";
+  }
+  return out;
+}
+
+double ModelReach(const RobotModel& model) {
+  double reach = 0;
+  for (const Joint& joint : model.joints) {
+    reach += joint.origin.t.norm();
+    // A prismatic joint adds its travel when limited (else its position is not bounded).
+    if (joint.type == JointType::kPrismatic && joint.has_limits() && std::isfinite(joint.lower) &&
+        std::isfinite(joint.upper)) {
+      reach += std::max(std::abs(joint.lower), std::abs(joint.upper));
+    }
+  }
+  double tool = 0;
+  for (const Tool& t : model.tools) tool = std::max(tool, t.origin.t.norm());
+  return reach + tool;
+}
+
+std::string LengthUnitHint(const RobotModel& model, const MeasurementSet& data) {
+  if (data.size() < 2) return "";
+  // The spread of the points: the largest distance from their centroid. A robot's points lie in a
+  // ball of radius `reach` around its base, wherever the measurement frame is, so they spread over
+  // at most 2 * reach, and a calibration set normally spans a good part of that.
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (int r = 0; r < data.size(); ++r) centroid += data.position(r);
+  centroid /= data.size();
+  double spread = 0;
+  for (int r = 0; r < data.size(); ++r) {
+    spread = std::max(spread, (data.position(r) - centroid).norm());
+  }
+  const double reach = ModelReach(model);
+  if (!(reach > 0) || !std::isfinite(spread)) return "";
+  const std::string figures = "the measured points spread " + ShortNumber(spread) +
+                              " mm from their centroid, the model reaches " + ShortNumber(reach) +
+                              " mm";
+  // Metres read as millimetres shrink the spread 1000 times: below 1/50 of the reach is no
+  // calibration set of a robot (it would be a set of poses within a few mm of each other).
+  if (spread < reach / 50) return figures + ": positions look like metres: use --length_unit=m";
+  // Millimetres read as metres (or micrometres as mm) grow it 1000 times.
+  if (spread > reach * 20) {
+    return figures + ": positions look too large for the model: check --length_unit and the "
+                     "model's units (mm)";
+  }
+  return "";
+}
+
+std::string MeasurementsToCsv(const RobotModel& model, const MeasurementSet& data,
+                              const std::string& comment) {
+  std::string out;
+  if (!comment.empty()) {
+    size_t start = 0;
+    while (start <= comment.size()) {
+      size_t end = comment.find('\n', start);
+      if (end == std::string::npos) end = comment.size();
+      std::string_view line(comment.data() + start, end - start);
+      if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+      out += "# ";
+      out += line;
+      out += '\n';
+      start = end + 1;
+    }
+  }
+  const int n = data.num_joints();
+  for (int j = 0; j < n; ++j) {
+    out += 'q';
+    out += std::to_string(j + 1);
+    out += ',';
+  }
+  out += "x,y,z,target";
+  const bool pose = data.has_orientation();
+  if (pose) out += ",quat_x,quat_y,quat_z,quat_w";
+  out += '\n';
+
+  std::vector<std::string> target_text(std::max(model.num_tools(), 0));
+  for (int t = 0; t < model.num_tools(); ++t) {
+    target_text[t] = TargetNameRoundTrips(model, t) ? model.tools[t].name : std::to_string(t);
+  }
+  out.reserve(out.size() + static_cast<size_t>(data.size()) * (n + 3 + (pose ? 4 : 0)) * 20);
+  for (int row = 0; row < data.size(); ++row) {
+    const double* q = data.q(row);
+    for (int j = 0; j < n; ++j) {
+      AppendNumber(q[j], &out);
+      out += ',';
+    }
+    const Eigen::Vector3d& p = data.position(row);
+    for (int a = 0; a < 3; ++a) {
+      AppendNumber(p(a), &out);
+      out += ',';
+    }
+    const int t = data.target(row);
+    out += t >= 0 && t < model.num_tools() ? target_text[t] : std::to_string(t);
+    if (pose) {
+      const Eigen::Vector4d quat = RotationToQuaternion<double>(data.orientation(row));
+      for (int k = 0; k < 4; ++k) {
+        out += ',';
+        AppendNumber(quat(k), &out);
+      }
+    }
+    out += '\n';
+  }
+  return out;
+}
+
+Status WriteMeasurements(const std::string& path, const RobotModel& model,
+                         const MeasurementSet& data, const std::string& comment) {
+  return WriteFileAtomically(path, MeasurementsToCsv(model, data, comment));
+}
+
+}  // namespace lpoe
