@@ -26,6 +26,8 @@
 #include <kdl/frames.hpp>
 #include <kdl/jntarray.hpp>
 #include <kdl/jacobian.hpp>
+
+#include "kdl_chain.h"
 #endif
 
 namespace lpoe {
@@ -200,28 +202,7 @@ BENCHMARK_DEFINE_F(Kinematics, BM_ToolPositionJacobian3x42)(benchmark::State& st
 BENCHMARK_REGISTER_F(Kinematics, BM_ToolPositionJacobian3x42);
 
 #ifdef LPOE_HAVE_KDL
-// The cobot6 chain in KDL, built from the LPoE model: a fixed segment carrying joint 1's local frame,
-// then per joint a RotZ joint whose segment ends at the next local frame (the tool frame after the
-// last joint). KDL's Segment(joint, f_tip) poses as joint(q) * f_tip, so the product is exactly
-// T_0,1(0) Rz(q_1) T_1,2(0) ... Rz(q_6) T_6,tool. This is KDL's best case (7 segments; a separate
-// fixed segment per frame would add 5 more frame products).
-KDL::Frame ToKdl(const SE3d& X) {
-  const Eigen::Matrix3d& R = X.R;
-  return KDL::Frame(KDL::Rotation(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0),
-                                  R(2, 1), R(2, 2)),
-                    KDL::Vector(X.t(0), X.t(1), X.t(2)));
-}
-
-KDL::Chain KdlChain(const RobotModel& m) {
-  KDL::Chain chain;
-  chain.addSegment(KDL::Segment("base", KDL::Joint(KDL::Joint::None), ToKdl(m.joints[0].origin)));
-  for (int i = 0; i < m.num_joints(); ++i) {
-    const SE3d& next = i + 1 < m.num_joints() ? m.joints[i + 1].origin : m.tools[0].origin;
-    chain.addSegment(
-        KDL::Segment(m.joints[i].name, KDL::Joint(m.joints[i].name, KDL::Joint::RotZ), ToKdl(next)));
-  }
-  return chain;
-}
+using bench::KdlChain;
 
 struct KdlCobot6 {
   KDL::Chain chain = KdlChain(Robot().model);

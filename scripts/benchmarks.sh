@@ -31,8 +31,8 @@ fi
 
 cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=ON \
   -DLPOE_BUILD_BENCHMARKS=ON >/dev/null
-cmake --build "$BUILD" -j2 --target kinematics_benchmark solver_benchmark lpoe_calibrate \
-  lpoe_simulate >/dev/null
+cmake --build "$BUILD" -j2 --target kinematics_benchmark solver_benchmark ik_benchmark \
+  lpoe_calibrate lpoe_simulate lpoe_compensate >/dev/null
 
 echo "benchmarks: kinematics (5 repetitions, medians)" >&2
 "$BUILD/benchmarks/kinematics_benchmark" --benchmark_repetitions=5 --benchmark_min_time=0.2 \
@@ -41,6 +41,10 @@ echo "benchmarks: kinematics (5 repetitions, medians)" >&2
 echo "benchmarks: solvers (70 to 10^6 poses)" >&2
 "$BUILD/benchmarks/solver_benchmark" --benchmark_format=json \
   --benchmark_out="$WORK/solvers.json" --benchmark_out_format=json >/dev/null
+
+echo "benchmarks: inverse kinematics (10,000 TRAC-IK-style targets)" >&2
+"$BUILD/benchmarks/ik_benchmark" --benchmark_format=json \
+  --benchmark_out="$WORK/ik.json" --benchmark_out_format=json >/dev/null
 
 # End to end: parse, register, calibrate, statistics, outputs.
 echo "benchmarks: lpoe_calibrate end to end" >&2
@@ -74,6 +78,16 @@ run_e2e "10^6 rows, no plots, no registration" n1m.csv --plots_dir= --noregister
 run_e2e "10^7 rows, no plots" n10m.csv --plots_dir=
 rm -f "$WORK/n10m.csv"
 
+# lpoe_compensate end to end on 10^6 position targets: the simulated points of a robot with small
+# kinematic errors (1 mrad, 0.5 mm per frame, 2 mrad joint zeros) compensated with the nominal model.
+echo "benchmarks: lpoe_compensate end to end (10^6 targets)" >&2
+"$BUILD/tools/lpoe_simulate" --count=1000000 --errors=random --error_rotation=0.001 \
+  --error_translation=0.5 --error_tilt=0.001 --error_zero=0.002 --out="$WORK/t1m.csv" >/dev/null
+/usr/bin/time -v "$BUILD/tools/lpoe_compensate" --model="$ROOT/data/cobot6.yaml" \
+  --targets="$WORK/t1m.csv" --output="$WORK/t1m_out.csv" --report="$WORK/compensate.json" \
+  >/dev/null 2>"$WORK/compensate.time" || { cat "$WORK/compensate.time" >&2; exit 1; }
+sed -n 's/.*Elapsed (wall clock) time (h:mm:ss or m:ss): //p' "$WORK/compensate.time" >"$WORK/compensate.wall"
+
 MODEL="$(lscpu | sed -n 's/^Model name: *//p' | head -1)"
 CORES="$(nproc)"
 DATE="$(date -u '+%Y-%m-%d %H:%M UTC')"
@@ -95,6 +109,7 @@ def load(name):
 
 k = load("kinematics.json")
 s = load("solvers.json")
+ik_runs = {b["name"]: b for b in json.load(open(f"{work}/ik.json"))["benchmarks"]}
 
 def get(d, suffix):
     for name, t in d.items():
@@ -168,6 +183,30 @@ if "10^7 rows, no plots" in by_label:
     _, sec, rss = by_label["10^7 rows, no plots"]
     print(f"| lpoe_calibrate, 10^7 rows within 1 GB | {sec:.2f} s, {rss:.0f} MB | "
           f"{verdict(rss <= 1024)} |")
+def ik_time(name):
+    b = ik_runs.get(name)
+    if b is None:
+        return None
+    return b["real_time"] * {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}[b["time_unit"]]
+ik_pose = ik_time("BM_IkPose")
+ik_kdl = ik_time("BM_KdlChainIkSolverPosLma")
+rate = ik_runs.get("BM_IkPoseSolveRate", {})
+print(f"| IK pose target <= 5 us (cobot6) | {fmt(ik_pose)} | {verdict(ik_pose <= 5e-6)} |")
+if ik_kdl is not None:
+    kdl_rate = ik_runs["BM_KdlChainIkSolverPosLma"].get("solved_fraction", 0)
+    print(f"| IK >= 20x faster than KDL LMA | KDL `ChainIkSolverPos_LMA` {fmt(ik_kdl)} "
+          f"(solved {100 * kdl_rate:.2f}%): {ik_kdl / ik_pose:.0f}x | {verdict(ik_kdl / ik_pose >= 20)} |")
+else:
+    print("| IK >= 20x faster than KDL LMA | KDL not built | n/a |")
+solved = rate.get("solved_fraction", 0)
+print(f"| IK 10,000 targets >= 99.9% solved, no limit violated | {100 * solved:.2f}% solved, "
+      f"{int(rate.get('limit_violations', -1))} violations | "
+      f"{verdict(solved >= 0.999 and rate.get('limit_violations', 1) == 0)} |")
+wall = open(f"{work}/compensate.wall").read().strip().split(":")
+comp_s = float(wall[-1]) + 60 * float(wall[-2]) + (3600 * float(wall[-3]) if len(wall) > 2 else 0)
+comp = json.load(open(f"{work}/compensate.json"))
+counts = ", ".join(f"{k} {v}" for k, v in comp["status_counts"].items() if v)
+print(f"| lpoe_compensate, 10^6 targets <= 10 s | {comp_s:.2f} s ({counts}) | {verdict(comp_s <= 10)} |")
 print()
 print("Per pose (cobot6):")
 print()

@@ -14,6 +14,7 @@ namespace {
 constexpr int kPlotWidth = 1000;
 constexpr int kConvergenceHeight = 600;
 constexpr int kAxisErrorsHeight = 900;
+constexpr int kHistogramHeight = 700;
 constexpr long kMinPngBytes = 4000;  // a blank 1000x600 PNG compresses to ~3 KB
 
 std::string ReadAll(const std::string& path) {
@@ -60,7 +61,7 @@ TEST_F(CalibrateReport, DefaultRunWritesPlotsAndJson) {
   };
   for (const Expected& e : {Expected{"convergence.png", kPlotWidth, kConvergenceHeight},
                             Expected{"axis_errors.png", kPlotWidth, kAxisErrorsHeight},
-                            Expected{"error_histogram.png", kPlotWidth, kConvergenceHeight}}) {
+                            Expected{"error_histogram.png", kPlotWidth, kHistogramHeight}}) {
     const std::string bytes = ReadAll(dir_ + "/lpoe_plots/" + e.name);
     int w = 0, h = 0;
     ASSERT_TRUE(PngSize(bytes, &w, &h)) << e.name << " is not a PNG";
@@ -69,7 +70,7 @@ TEST_F(CalibrateReport, DefaultRunWritesPlotsAndJson) {
     EXPECT_GT(static_cast<long>(bytes.size()), kMinPngBytes) << e.name << " looks empty";
   }
   const nlohmann::json j = nlohmann::json::parse(ReadAll(dir_ + "/report.json"));
-  EXPECT_EQ(j["schema"], "lpoe-calib/report/1");
+  EXPECT_EQ(j["schema"], "lpoe-calib/report/2");
   EXPECT_TRUE(j["solver"]["converged"].get<bool>());
   EXPECT_EQ(j["identifiability"]["unidentifiable"].size(), 15u);
   EXPECT_EQ(j["identifiability"]["rank"], 27);

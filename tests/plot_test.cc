@@ -1,8 +1,12 @@
-// Plots for the calibration report: each writer produces a PNG that reads back with the right size,
-// real content and the series colors; failures leave nothing behind.
+// Plots for the calibration report (PLplot): each figure renders to a PNG that reads back with the
+// right size, real content and the series colors, and to well-formed SVG; the bytes are the same on
+// every run; failures leave nothing behind.
 #include "plot.h"
 
+#include <gtest/gtest.h>
+#include <png.h>
 #include <sys/stat.h>
+#include <tinyxml2.h>
 
 #include <cmath>
 #include <cstdio>
@@ -10,11 +14,9 @@
 #include <cstring>
 #include <limits>
 #include <random>
+#include <regex>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
-#include <png.h>
 
 namespace lpoe {
 namespace tools {
@@ -60,6 +62,17 @@ struct Image {
   return ::testing::AssertionSuccess();
 }
 
+::testing::AssertionResult ReadPngBytes(const std::string& bytes, Image* out) {
+  const std::string path = ::testing::TempDir() + "lpoe_plot_test_bytes.png";
+  FILE* f = std::fopen(path.c_str(), "wb");
+  if (f == nullptr) return ::testing::AssertionFailure() << "cannot write " << path;
+  std::fwrite(bytes.data(), 1, bytes.size(), f);
+  std::fclose(f);
+  const auto r = ReadPng(path, out);
+  std::remove(path.c_str());
+  return r;
+}
+
 bool Exists(const std::string& path) {
   struct stat st;
   return stat(path.c_str(), &st) == 0;
@@ -101,130 +114,223 @@ ReportData MakeReportData(int poses) {
   return d;
 }
 
-void ExpectGoodPlot(const std::string& path, int width, int height,
-                    const std::vector<uint32_t>& colors) {
-  Image img;
-  ASSERT_TRUE(ReadPng(path, &img));
-  EXPECT_EQ(img.width, width);
-  EXPECT_EQ(img.height, height);
+Series MakeSeries(const std::string& label, std::vector<double> x, std::vector<double> y,
+                  uint32_t rgb, bool markers = false) {
+  Series s;
+  s.label = label;
+  s.x = std::move(x);
+  s.y = std::move(y);
+  s.rgb = rgb;
+  s.markers = markers;
+  return s;
+}
+
+Panel MakePanel(const std::string& title, bool log_y, bool integer_x, std::vector<Series> series) {
+  Panel p;
+  p.title = title;
+  p.x_label = "x";
+  p.y_label = "y";
+  p.log_y = log_y;
+  p.integer_x = integer_x;
+  p.series = std::move(series);
+  return p;
+}
+
+void ExpectGoodImage(const Image& img, int width, int height, const std::vector<uint32_t>& colors,
+                     const std::string& what) {
+  EXPECT_EQ(img.width, width) << what;
+  EXPECT_EQ(img.height, height) << what;
   const double ink = img.FractionNotWhite();
-  EXPECT_GT(ink, 0.01) << path;  // axes, text and data
-  EXPECT_LT(ink, 0.6) << path;   // but mostly white background
-  for (uint32_t c : colors) EXPECT_GT(img.CountColor(c), 50u) << path << " color " << std::hex << c;
-  EXPECT_FALSE(Exists(path + ".tmp"));
+  EXPECT_GT(ink, 0.01) << what;  // axes, text and data
+  EXPECT_LT(ink, 0.6) << what;   // but mostly white background
+  for (uint32_t c : colors) EXPECT_GT(img.CountColor(c), 30u) << what << " color " << std::hex << c;
 }
 
-TEST(PlotTest, ConvergencePlot) {
+// Renders `figure` as PNG (checked as above) and SVG (parsed as XML), twice each: same bytes.
+void ExpectGoodFigure(const Figure& figure, const std::vector<uint32_t>& colors,
+                      const std::string& what) {
+  std::string png, png2, svg, svg2;
+  ASSERT_TRUE(RenderFigure(figure, ImageFormat::kPng, &png).ok()) << what;
+  ASSERT_TRUE(RenderFigure(figure, ImageFormat::kPng, &png2).ok()) << what;
+  EXPECT_EQ(png, png2) << what << ": PNG bytes differ between two renderings";
+  EXPECT_EQ(png.find("tIME"), std::string::npos) << what << ": PNG carries a timestamp";
+  Image img;
+  ASSERT_TRUE(ReadPngBytes(png, &img)) << what;
+  ExpectGoodImage(img, figure.width, figure.height, colors, what);
+
+  ASSERT_TRUE(RenderFigure(figure, ImageFormat::kSvg, &svg).ok()) << what;
+  ASSERT_TRUE(RenderFigure(figure, ImageFormat::kSvg, &svg2).ok()) << what;
+  EXPECT_EQ(svg, svg2) << what << ": SVG bytes differ between two renderings";
+  tinyxml2::XMLDocument doc;
+  ASSERT_EQ(doc.Parse(svg.c_str(), svg.size()), tinyxml2::XML_SUCCESS)
+      << what << ": " << doc.ErrorStr();
+  ASSERT_NE(doc.RootElement(), nullptr);
+  EXPECT_STREQ(doc.RootElement()->Name(), "svg") << what;
+  for (uint32_t c : colors) {
+    char hex[8];
+    std::snprintf(hex, sizeof hex, "#%06X", c);
+    EXPECT_NE(svg.find(hex), std::string::npos) << what << ": no " << hex << " in the SVG";
+  }
+}
+
+TEST(PlotTest, ConvergenceFigure) {
   const ReportData d = MakeReportData(40);
-  const std::string path = TempPath("convergence.png");
-  ASSERT_TRUE(WriteConvergencePlot(path, d.iteration, d.max_err, d.mean_err).ok());
-  ExpectGoodPlot(path, 1000, 600, {kColorMax, kColorMean});
-  std::remove(path.c_str());
+  const Figure f = ConvergenceFigure(d.iteration, d.max_err, d.mean_err);
+  ExpectGoodFigure(f, {kColorMax, kColorMean}, "convergence");
 }
 
-TEST(PlotTest, AxisErrorPlot) {
+TEST(PlotTest, AxisErrorFigureHasAfterOnItsOwnScale) {
   const ReportData d = MakeReportData(60);
-  const std::string path = TempPath("axis_errors.png");
-  ASSERT_TRUE(WriteAxisErrorPlot(path, d.before, d.after).ok());
-  ExpectGoodPlot(path, 1000, 900, {kColorBefore, kColorAfter});
-  std::remove(path.c_str());
+  const Figure f = AxisErrorFigure(d.before, d.after);
+  ASSERT_EQ(f.panels.size(), 2u);
+  ExpectGoodFigure(f, {kColorX, kColorY, kColorZ}, "axis errors");
+  // The "after" panel's own window: its y tick labels are below 1 mm (the "before" errors reach
+  // several mm), and there are several of them.
+  std::string svg;
+  Figure after_only = f;
+  after_only.panels.erase(after_only.panels.begin());
+  ASSERT_TRUE(RenderFigure(after_only, ImageFormat::kSvg, &svg).ok());
+  const std::regex label(">(-?[0-9]*\\.[0-9]+)<");
+  int fractional = 0;
+  for (auto it = std::sregex_iterator(svg.begin(), svg.end(), label); it != std::sregex_iterator();
+       ++it) {
+    EXPECT_LT(std::abs(std::stod((*it)[1])), 1.0) << (*it)[0];
+    ++fractional;
+  }
+  EXPECT_GE(fractional, 3) << "no fractional mm tick labels on the after panel";
+  // The after panel is not flat: its markers span more than a third of the plot height.
+  Image img;
+  std::string png;
+  ASSERT_TRUE(RenderFigure(after_only, ImageFormat::kPng, &png).ok());
+  ASSERT_TRUE(ReadPngBytes(png, &img));
+  int top = img.height, bottom = 0;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x)
+      if (img.At(x, y) == kColorZ) {
+        top = std::min(top, y);
+        bottom = std::max(bottom, y);
+      }
+  EXPECT_GT(bottom - top, img.height / 3);
 }
 
-TEST(PlotTest, ErrorHistogram) {
+TEST(PlotTest, ErrorHistogramFigure) {
   const ReportData d = MakeReportData(200);
-  const std::string path = TempPath("histogram.png");
-  ASSERT_TRUE(WriteErrorHistogram(path, d.before_norm, d.after_norm).ok());
-  ExpectGoodPlot(path, 1000, 600, {kColorBefore, kColorAfter});
-  std::remove(path.c_str());
+  const Figure f = ErrorHistogramFigure(d.before_norm, d.after_norm);
+  ASSERT_EQ(f.panels.size(), 2u);
+  ExpectGoodFigure(f, {kColorBefore, kColorAfter}, "histogram");
 }
 
-TEST(PlotTest, HistogramLinearBinsAndCustomSize) {
-  const std::string path = TempPath("histogram_linear.png");
-  std::vector<double> a, b;
-  for (int i = 0; i < 100; ++i) {
-    a.push_back(1.0 + 0.01 * i);
-    b.push_back(1.5 + 0.005 * i);
-  }
-  ASSERT_TRUE(WriteHistogramPng(path, "two sets", "value", {{"a", a}, {"b", b}}, 20, 640, 400).ok());
-  ExpectGoodPlot(path, 640, 400, {kColorBefore, kColorAfter});
-  std::remove(path.c_str());
+TEST(PlotTest, HistogramSeriesCountsEveryFiniteValue) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const Series s = HistogramSeries("h", {1, 2, 2, 3, 3, 3, nan, 4}, 3, 0);
+  ASSERT_EQ(s.y.size(), 3u);
+  ASSERT_EQ(s.x.size(), 4u);
+  EXPECT_DOUBLE_EQ(s.x.front(), 1.0);
+  EXPECT_DOUBLE_EQ(s.x.back(), 4.0);
+  EXPECT_DOUBLE_EQ(s.y[0] + s.y[1] + s.y[2], 7.0);
+  EXPECT_DOUBLE_EQ(s.y[2], 4.0);  // 3, 3, 3 and 4 (the last edge belongs to the last bin)
+  const Series logs = HistogramSeries("h", {0.01, 0.1, 1, 10, 0, -1}, 3, 0, true);
+  EXPECT_DOUBLE_EQ(logs.y[0] + logs.y[1] + logs.y[2], 4.0);  // non-positive values left out
+  EXPECT_NEAR(logs.x[1], 0.1, 1e-12);
 }
 
-TEST(PlotTest, GenericMultiPanelPlot) {
-  Panel p1{"sine", "t", "y", false, false, false, {}};
-  Panel p2{"decay", "t", "y", true, false, false, {}};
-  Series s1{"sin", {}, {}, 0x009E73, true, true};
-  Series s2{"exp", {}, {}, 0xCC79A7, false, true};
-  for (int i = 0; i < 50; ++i) {
-    s1.x.push_back(0.1 * i);
-    s1.y.push_back(std::sin(0.1 * i));
-    s2.x.push_back(0.1 * i);
-    s2.y.push_back(std::exp(-0.3 * i));
+TEST(PlotTest, DecimationKeepsExtremesAndOrder) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  std::vector<double> v(100000);
+  for (double& a : v) a = noise(rng);
+  v[51234] = 40.0;  // an outlier
+  v[777] = -35.0;
+  const std::vector<int> k = DecimatedIndices(v, 1000);
+  EXPECT_LE(k.size(), 1000u);
+  EXPECT_GT(k.size(), 900u);
+  EXPECT_TRUE(std::is_sorted(k.begin(), k.end()));
+  EXPECT_NE(std::find(k.begin(), k.end(), 51234), k.end());
+  EXPECT_NE(std::find(k.begin(), k.end(), 777), k.end());
+  EXPECT_EQ(DecimatedIndices({3, 1, 2}, 1000), (std::vector<int>{0, 1, 2}));
+}
+
+TEST(PlotTest, ScatterWithColorScaleAndEqualAxes) {
+  Panel p;
+  p.title = "workspace";
+  p.x_label = "x [mm]";
+  p.y_label = "y [mm]";
+  p.equal_axes = true;
+  p.color_label = "error [mm]";
+  Series s;
+  s.lines = false;
+  s.markers = true;
+  for (int i = 0; i < 300; ++i) {
+    s.x.push_back(800 * std::cos(0.1 * i));
+    s.y.push_back(300 * std::sin(0.1 * i));
+    s.color_value.push_back(0.001 * i);
   }
-  p1.series = {s1};
-  p2.series = {s2};
-  const std::string path = TempPath("panels.png");
-  ASSERT_TRUE(WritePlotPng(path, {p1, p2}, 800, 700).ok());
-  ExpectGoodPlot(path, 800, 700, {0x009E73, 0xCC79A7});
-  std::remove(path.c_str());
+  s.color_min = 0;
+  s.color_max = 0.3;
+  p.series = {s};
+  Figure f;
+  f.panels = {p};
+  f.width = 600;
+  f.height = 500;
+  ExpectGoodFigure(f, {}, "scatter");
 }
 
 TEST(PlotTest, EdgeCasesStillRender) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
-  const std::string path = TempPath("edge.png");
-  // Empty series, all-equal values, NaN/inf, zeros and negatives on a log axis.
-  Panel empty{"empty", "x", "y", false, false, false, {Series{"nothing", {}, {}, 0xFF0000}}};
-  Panel flat{"flat", "x", "y", false, true, false,
-             {Series{"flat", {0, 1, 2, 3}, {2.5, 2.5, 2.5, 2.5}, 0x009E73, true}}};
-  Panel logp{"log", "x", "y", true, false, false,
-             {Series{"mixed", {0, 1, 2, 3, 4, 5}, {1.0, 0.0, -2.0, nan, 0.01, inf}, 0xCC79A7,
-                     true}}};
-  Panel single{"single point", "x", "y", true, false, false,
-               {Series{"one", {3}, {0.5}, 0x0072B2, true}}};
-  ASSERT_TRUE(WritePlotPng(path, {empty, flat, logp, single}, 900, 1000).ok());
-  ExpectGoodPlot(path, 900, 1000, {0x009E73, 0xCC79A7, 0x0072B2});
-
-  // Histograms: no data at all, all-equal values, non-positive values on log bins.
-  ASSERT_TRUE(WriteHistogramPng(path, "empty", "v", {{"none", {}}}, 10, 600, 400).ok());
-  ASSERT_TRUE(WriteHistogramPng(path, "equal", "v", {{"eq", {3, 3, 3}}}, 10, 600, 400).ok());
-  ExpectGoodPlot(path, 600, 400, {kColorBefore});
-  ASSERT_TRUE(
-      WriteHistogramPng(path, "log", "v", {{"pos", {0.1, 1, 10, 0, -1, nan}}}, 10, 600, 400, true)
-          .ok());
-  ExpectGoodPlot(path, 600, 400, {kColorBefore});
-
+  // Empty series, all-equal values, NaN/inf, zeros and negatives on a log axis, one point.
+  const Panel empty = MakePanel("empty", false, false, {MakeSeries("nothing", {}, {}, 0xFF0000)});
+  const Panel flat =
+      MakePanel("flat", false, true,
+                {MakeSeries("flat", {0, 1, 2, 3}, {2.5, 2.5, 2.5, 2.5}, 0x009E73, true)});
+  const Panel logp = MakePanel(
+      "log", true, false,
+      {MakeSeries("mixed", {0, 1, 2, 3, 4, 5}, {1.0, 0.0, -2.0, nan, 0.01, inf}, 0xCC79A7, true)});
+  const Panel single =
+      MakePanel("single point", true, false, {MakeSeries("one", {3}, {0.5}, 0x0072B2, true)});
+  Figure f;
+  f.panels = {empty, flat, logp, single};
+  f.width = 900;
+  f.height = 1000;
+  ExpectGoodFigure(f, {0x009E73, 0xCC79A7, 0x0072B2}, "edge cases");
   // Builders with empty inputs.
-  ASSERT_TRUE(WriteConvergencePlot(path, {}, {}, {}).ok());
-  ASSERT_TRUE(WriteAxisErrorPlot(path, {}, {}).ok());
-  ASSERT_TRUE(WriteErrorHistogram(path, {}, {}).ok());
-  std::remove(path.c_str());
+  std::string bytes;
+  EXPECT_TRUE(RenderFigure(ConvergenceFigure({}, {}, {}), ImageFormat::kPng, &bytes).ok());
+  EXPECT_TRUE(RenderFigure(AxisErrorFigure({}, {}), ImageFormat::kSvg, &bytes).ok());
+  EXPECT_TRUE(RenderFigure(ErrorHistogramFigure({}, {}), ImageFormat::kPng, &bytes).ok());
 }
 
 TEST(PlotTest, RejectsBadArguments) {
-  const std::string path = TempPath("bad.png");
-  EXPECT_FALSE(WriteConvergencePlot(path, {0, 1}, {1.0}, {1.0, 2.0}).ok());
-  EXPECT_FALSE(WritePlotPng(path, {}, 800, 600).ok());
-  EXPECT_FALSE(WritePlotPng(path, {Panel{}}, 10, 10).ok());
-  Panel bad;
-  bad.series.push_back(Series{"xy", {1, 2}, {1}, 0});
-  EXPECT_FALSE(WritePlotPng(path, {bad}, 800, 600).ok());
-  EXPECT_FALSE(WriteHistogramPng(path, "t", "x", {{"a", {1.0}}}, 0, 800, 600).ok());
-  EXPECT_FALSE(Exists(path));
+  std::string bytes;
+  Figure none;
+  EXPECT_FALSE(RenderFigure(none, ImageFormat::kPng, &bytes).ok());
+  Figure tiny;
+  tiny.panels = {Panel{}};
+  tiny.width = tiny.height = 10;
+  EXPECT_FALSE(RenderFigure(tiny, ImageFormat::kPng, &bytes).ok());
+  Figure bad;
+  bad.panels = {Panel{}};
+  bad.panels[0].series.push_back(MakeSeries("xy", {1, 2}, {1}, 0));
+  const Status s = RenderFigure(bad, ImageFormat::kSvg, &bytes);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("2 x and 1 y"), std::string::npos) << s.message();
+  Figure colors;
+  colors.panels = {Panel{}};
+  Series c = MakeSeries("c", {1, 2}, {1, 2}, 0);
+  c.color_value = {1};
+  colors.panels[0].series = {c};
+  EXPECT_FALSE(RenderFigure(colors, ImageFormat::kPng, &bytes).ok());
 }
 
 TEST(PlotTest, UnwritableDirectoryReportsErrorAndLeavesNothing) {
   const std::string dir = TempPath("no_such_dir");
   const std::string path = dir + "/plot.png";
   const ReportData d = MakeReportData(10);
-  const Status s = WriteConvergencePlot(path, d.iteration, d.max_err, d.mean_err);
+  const Status s = WriteFigurePng(path, ConvergenceFigure(d.iteration, d.max_err, d.mean_err));
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.message().find(path), std::string::npos) << s.message();
-  EXPECT_FALSE(WriteAxisErrorPlot(path, d.before, d.after).ok());
-  EXPECT_FALSE(WriteErrorHistogram(path, d.before_norm, d.after_norm).ok());
   EXPECT_FALSE(Exists(dir));
   EXPECT_FALSE(Exists(path));
-  EXPECT_FALSE(Exists(path + ".tmp"));
 }
 
 TEST(PlotTest, ReplacesExistingFileAtomically) {
@@ -236,10 +342,10 @@ TEST(PlotTest, ReplacesExistingFileAtomically) {
     std::fclose(f);
   }
   const ReportData d = MakeReportData(10);
-  ASSERT_TRUE(WriteErrorHistogram(path, d.before_norm, d.after_norm).ok());
+  ASSERT_TRUE(WriteFigurePng(path, ErrorHistogramFigure(d.before_norm, d.after_norm)).ok());
   Image img;
   ASSERT_TRUE(ReadPng(path, &img));
-  EXPECT_FALSE(Exists(path + ".tmp"));
+  EXPECT_EQ(img.width, 1000);
   std::remove(path.c_str());
 }
 
@@ -249,32 +355,15 @@ TEST(PlotTest, WritesSamplesWhenAsked) {
   if (dir == nullptr || *dir == '\0') GTEST_SKIP() << "LPOE_PLOT_SAMPLE_DIR not set";
   const std::string d = std::string(dir) + "/";
   const ReportData r = MakeReportData(60);
-  EXPECT_TRUE(WriteConvergencePlot(d + "convergence.png", r.iteration, r.max_err, r.mean_err).ok());
-  EXPECT_TRUE(WriteAxisErrorPlot(d + "axis_errors.png", r.before, r.after).ok());
-  EXPECT_TRUE(WriteErrorHistogram(d + "histogram.png", r.before_norm, r.after_norm).ok());
-  std::vector<double> a, b;
-  for (double v : r.before_norm) a.push_back(v);
-  for (double v : r.before_norm) b.push_back(0.8 * v + 0.2);
-  EXPECT_TRUE(WriteErrorHistogram(d + "histogram_linear.png", a, b).ok());
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  Panel flat{"all-equal values", "x", "y", false, true, false,
-             {Series{"flat", {0, 1, 2, 3}, {2.5, 2.5, 2.5, 2.5}, 0x009E73, true}}};
-  Panel logp{"log axis with zero, negative and NaN", "x", "y", true, true, false,
-             {Series{"mixed", {0, 1, 2, 3, 4, 5}, {1.0, 0.0, -2.0, nan, 0.01, 0.2}, 0xCC79A7,
-                     true}}};
-  Panel empty{"empty", "x", "y", false, false, false, {}};
-  EXPECT_TRUE(WritePlotPng(d + "edge_cases.png", {flat, logp, empty}, 1000, 900).ok());
-  // Narrow log range, large magnitudes, many points without markers.
-  Panel narrow{"log axis within one decade", "iteration", "cost", true, true, false,
-               {Series{"cost", {0, 1, 2, 3}, {0.8, 0.5, 0.35, 0.33}, 0x009E73, true}}};
-  Panel big{"large values", "t", "y", false, false, true, {Series{"big", {}, {}, 0x0072B2}}};
-  for (int i = 0; i < 400; ++i) {
-    big.series[0].x.push_back(1e4 * i);
-    big.series[0].y.push_back(2.5e6 * std::sin(0.05 * i));
-  }
-  EXPECT_TRUE(WritePlotPng(d + "ticks.png", {narrow, big}, 1000, 700).ok());
-  const ReportData many = MakeReportData(300);
-  EXPECT_TRUE(WriteAxisErrorPlot(d + "axis_errors_300.png", many.before, many.after).ok());
+  EXPECT_TRUE(
+      WriteFigurePng(d + "convergence.png", ConvergenceFigure(r.iteration, r.max_err, r.mean_err))
+          .ok());
+  EXPECT_TRUE(WriteFigurePng(d + "axis_errors.png", AxisErrorFigure(r.before, r.after)).ok());
+  EXPECT_TRUE(
+      WriteFigurePng(d + "histogram.png", ErrorHistogramFigure(r.before_norm, r.after_norm)).ok());
+  const ReportData many = MakeReportData(3000);
+  EXPECT_TRUE(
+      WriteFigurePng(d + "axis_errors_3000.png", AxisErrorFigure(many.before, many.after)).ok());
 }
 
 }  // namespace

@@ -7,8 +7,7 @@
 
 #include "lpoe/kinematics.h"
 #include "lpoe/parameterization.h"
-#include "lpoe/pose_residual.h"
-#include "lpoe/position_residual.h"
+#include "lpoe/measurement_residual.h"
 #include "lpoe/se3_manifold.h"
 #include "lpoe/simulation.h"
 
@@ -24,6 +23,19 @@ constexpr double kGradientCheckPrecision = 1e-6;
 constexpr double kJacobianTolerance = 1e-9;
 
 using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+PositionMeasurement PositionKind() {
+  PositionMeasurement kind;
+  kind.inverse_sigma = 1.0 / kSigma;
+  return kind;
+}
+
+PoseMeasurement PoseKind() {
+  PoseMeasurement kind;
+  kind.inverse_sigma = 1.0 / kSigma;
+  kind.orientation_weight = kOrientationWeight;
+  return kind;
+}
 
 // cobot6 with a second tool, so that residuals on tool 1 are exercised too.
 RobotModel TwoToolCobot() {
@@ -116,7 +128,7 @@ TEST(PositionResidual, GradientCheckerPasses) {
       const std::vector<double> q = RandomQ(model.num_joints(), &rng);
       const Eigen::Vector3d measured = ToolPosition(model, q.data(), tool) + Eigen::Vector3d(1, -2, 0.5);
       std::unique_ptr<ceres::CostFunction> cost(
-          PositionResidual::Create(shared, q.data(), measured, kSigma));
+          PositionResidual::Create(shared, PositionKind(), q.data(), measured));
       const Blocks b = MakeBlocks(model, p, tool);
       ceres::NumericDiffOptions numeric;
       ceres::GradientChecker checker(cost.get(), &b.manifold_pointers, numeric);
@@ -138,7 +150,7 @@ TEST(PositionResidual, MatchesAnalyticJacobianAndValue) {
       const std::vector<double> q = RandomQ(model.num_joints(), &rng);
       const Eigen::Vector3d measured(100, 200, 300);
       std::unique_ptr<ceres::CostFunction> cost(
-          PositionResidual::Create(shared, q.data(), measured, kSigma));
+          PositionResidual::Create(shared, PositionKind(), q.data(), measured));
       const Blocks b = MakeBlocks(model, p, tool);
       Eigen::VectorXd r;
       const Eigen::MatrixXd J_auto = TangentJacobian(*cost, b, p, &r);
@@ -163,7 +175,7 @@ TEST(PoseResidual, GradientCheckerPasses) {
     const SE3d measured =
         ToolPose(model, q.data(), tool) * ExpSE3(Vector6d((Vector6d() << 0.01, -0.02, 0.005, 1, 2, -1).finished()));
     std::unique_ptr<ceres::CostFunction> cost(
-        PoseResidual::Create(shared, q.data(), measured, kSigma, kOrientationWeight));
+        PoseResidual::Create(shared, PoseKind(), q.data(), measured));
     const Blocks b = MakeBlocks(model, p, tool);
     ceres::NumericDiffOptions numeric;
     ceres::GradientChecker checker(cost.get(), &b.manifold_pointers, numeric);
@@ -187,7 +199,7 @@ TEST(PoseResidual, MatchesAnalyticJacobianAtTheFit) {
       Eigen::MatrixXd J_frames;
       const SE3d pose = ToolPoseJacobian(model, q.data(), tool, &J_frames);
       std::unique_ptr<ceres::CostFunction> cost(
-          PoseResidual::Create(shared, q.data(), pose, kSigma, kOrientationWeight));
+          PoseResidual::Create(shared, PoseKind(), q.data(), pose));
       const Blocks b = MakeBlocks(model, p, tool);
       Eigen::VectorXd r;
       const Eigen::MatrixXd J_auto = TangentJacobian(*cost, b, p, &r);
@@ -209,7 +221,7 @@ TEST(PoseResidual, ValueIsWeightedLogOfTheError) {
   const Vector6d error = (Vector6d() << 0.002, -0.001, 0.003, 0.5, -0.25, 1.0).finished();
   const SE3d measured = ExpSE3(error) * ToolPose(model, q.data(), 0);
   std::unique_ptr<ceres::CostFunction> cost(
-      PoseResidual::Create(shared, q.data(), measured, kSigma, kOrientationWeight));
+      PoseResidual::Create(shared, PoseKind(), q.data(), measured));
   const Blocks b = MakeBlocks(model, p, 0);
   Eigen::VectorXd r(6);
   ASSERT_TRUE(cost->Evaluate(b.pointers.data(), r.data(), nullptr));

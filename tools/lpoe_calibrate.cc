@@ -10,7 +10,6 @@
 #include <cstdio>
 #include <iostream>
 #include <string>
-#include <sys/stat.h>
 
 #include <gflags/gflags.h>
 #include <glog/logging.h>
@@ -54,6 +53,9 @@ DEFINE_string(ur_kinematics_output, "",
               "wrist_3_joint): also write the calibrated joint origins in the format of "
               "ROS-Industrial's ur_description kinematics YAML.");
 DEFINE_string(report, "", "Write a machine-readable JSON report here (schema in the README).");
+DEFINE_string(html_report, "",
+              "Write a self-contained HTML report here (verdict, statistics, plots, parameters; "
+              "no scripts, inline SVG). Nothing is written on failure.");
 DEFINE_string(plots_dir, "lpoe_plots",
               "Directory for the PNG plots (convergence, per-axis errors, histogram); created if "
               "missing. Empty: no plots.");
@@ -241,12 +243,6 @@ void PrintIdentifiability(const IdentifiabilityReport& id) {
   for (const std::string& w : id.warnings) std::cout << "  warning: " << w << "\n";
 }
 
-bool EnsureDirectory(const std::string& dir) {
-  struct stat st;
-  if (stat(dir.c_str(), &st) == 0) return S_ISDIR(st.st_mode);
-  return mkdir(dir.c_str(), 0755) == 0;
-}
-
 int Run() {
   const tools::InputPaths paths =
       tools::ResolveInputPaths(FLAGS_model, FLAGS_measurements, FLAGS_verify, FLAGS_holdout != 0.0);
@@ -319,8 +315,8 @@ int Run() {
                  "URDF --model (a name ending in .urdf)\n";
     return kExitUsage;
   }
-  for (const std::string& out :
-       {FLAGS_output, FLAGS_report, FLAGS_urdf_output, FLAGS_ur_kinematics_output}) {
+  for (const std::string& out : {FLAGS_output, FLAGS_report, FLAGS_urdf_output,
+                                  FLAGS_ur_kinematics_output, FLAGS_html_report}) {
     for (const std::string& in : {model_path, meas_path, verify_path}) {
       if (!out.empty() && tools::SameFile(out, in)) {
         std::cerr << "error: an output would overwrite the input file " << in << "\n";
@@ -330,6 +326,11 @@ int Run() {
   }
   if (!FLAGS_output.empty() && tools::SameFile(FLAGS_output, FLAGS_report)) {
     std::cerr << "error: --output and --report name the same file\n";
+    return kExitUsage;
+  }
+  if (!FLAGS_html_report.empty() && (tools::SameFile(FLAGS_html_report, FLAGS_report) ||
+                                     tools::SameFile(FLAGS_html_report, FLAGS_output))) {
+    std::cerr << "error: --html_report names the same file as --report or --output\n";
     return kExitUsage;
   }
 
@@ -426,6 +427,9 @@ int Run() {
                             summary.verification_after);
   }
 
+  tools::AddPointResiduals(before_model, result.model, job.identification, job.verification,
+                           &summary);
+
   // ---- Points that do not fit.
   summary.outliers = FindOutliers(result.model, job.identification, FLAGS_outlier_threshold,
                                   &summary.robust_sigma);
@@ -485,7 +489,12 @@ int Run() {
   // ---- Outputs (each written atomically; the model first, the report last so that it lists
   // everything written).
   if (!FLAGS_output.empty()) {
-    if (Status s = WriteRobotModel(FLAGS_output, result.model); !s.ok()) {
+    // The registration goes with the model: compensation carries nominal poses into its frame.
+    RobotModel calibrated = result.model;
+    if (summary.registered && summary.registration.moved) {
+      calibrated.T_measurement_base = summary.registration.T_measurement_base;
+    }
+    if (Status s = WriteRobotModel(FLAGS_output, calibrated); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitOutput;
     }
@@ -512,47 +521,25 @@ int Run() {
     }
     summary.outputs.push_back(FLAGS_ur_kinematics_output);
   }
+  summary.model_path = model_path;
+  summary.measurements_path = meas_path;
+  summary.solver = FLAGS_solver;
+  summary.parameterization = ParameterizationName(job.kind);
+  summary.data_kind = job.use_orientation ? "pose" : "position";
+  summary.angle_unit = FLAGS_angle_unit;
   if (!FLAGS_plots_dir.empty()) {
-    if (!EnsureDirectory(FLAGS_plots_dir)) {
-      std::cerr << "error: cannot create the plot directory " << FLAGS_plots_dir << "\n";
+    if (Status s = tools::WritePlotFiles(FLAGS_plots_dir, &summary); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
       return kExitOutput;
     }
-    std::vector<int> it;
-    std::vector<double> mx, mn;
-    for (const IterationRecord& r : result.history) {
-      it.push_back(r.iteration);
-      mx.push_back(r.max_error);
-      mn.push_back(r.mean_error);
-    }
-    const MeasurementSet& shown = job.verification.empty() ? job.identification : job.verification;
-    const std::vector<Eigen::Vector3d> eb = PositionErrors(before_model, shown);
-    const std::vector<Eigen::Vector3d> ea = PositionErrors(result.model, shown);
-    std::vector<double> nb, na;
-    for (const auto& e : eb) nb.push_back(e.norm());
-    for (const auto& e : ea) na.push_back(e.norm());
-    const std::string d = FLAGS_plots_dir + "/";
-    const std::string set_name = job.verification.empty() ? "identification" : "verification";
-    const std::pair<std::string, Status> plots[] = {
-        {d + "convergence.png", tools::WriteConvergencePlot(d + "convergence.png", it, mx, mn)},
-        {d + "axis_errors.png",
-         tools::WriteAxisErrorPlot(d + "axis_errors.png", eb, ea, 1000, 900, set_name)},
-        {d + "error_histogram.png", tools::WriteErrorHistogram(d + "error_histogram.png", nb, na)},
-    };
-    for (const auto& [path, status] : plots) {
-      if (!status.ok()) {
-        std::cerr << "error: " << status.message() << "\n";
-        return kExitOutput;
-      }
-      summary.outputs.push_back(path);
+  }
+  if (!FLAGS_html_report.empty()) {
+    if (Status s = tools::WriteHtmlReport(FLAGS_html_report, &summary); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitOutput;
     }
   }
   if (!FLAGS_report.empty()) {
-    summary.model_path = model_path;
-    summary.measurements_path = meas_path;
-    summary.solver = FLAGS_solver;
-    summary.parameterization = ParameterizationName(job.kind);
-    summary.data_kind = job.use_orientation ? "pose" : "position";
-    summary.angle_unit = FLAGS_angle_unit;
     summary.outputs.push_back(FLAGS_report);
     if (Status s = WriteFileAtomically(FLAGS_report, tools::RunSummaryToJson(summary)); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";

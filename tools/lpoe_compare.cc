@@ -19,6 +19,7 @@
 #include "lpoe/linear_solver.h"
 #include "lpoe/registration.h"
 #include "lpoe/statistics.h"
+#include "report.h"
 #include "tool_common.h"
 
 DEFINE_string(model, "",
@@ -39,6 +40,9 @@ DEFINE_string(length_unit, "mm",
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first (as lpoe_calibrate); both solvers "
             "start from the registered model.");
+DEFINE_string(html_report, "",
+              "Write a self-contained HTML report here: the comparison table and the Ceres "
+              "calibration's statistics, plots and parameters.");
 DEFINE_double(tolerance_mm, 1e-6,
               "The solvers agree when their predicted held-out positions differ by at most this.");
 
@@ -57,7 +61,7 @@ constexpr char kUsage[] =
     "  lpoe_compare --model=robot.yaml --measurements=points.csv --holdout=0.3\n\n"
     "Exit codes: 0 the predicted held-out positions agree within --tolerance_mm, 1 bad flags,\n"
     "2 bad input file, 3 data cannot identify the model, 4 iteration limit, 5 numerical\n"
-    "failure, 7 the solvers disagree.";
+    "failure, 6 output not written, 7 the solvers disagree.";
 
 double MaxPredictionDifference(const RobotModel& a, const RobotModel& b, const MeasurementSet& data) {
   double worst = 0;
@@ -120,6 +124,13 @@ int Run() {
     return kExitUsage;
   }
 
+  for (const std::string& in : {model_path, meas_path, verify_path}) {
+    if (!FLAGS_html_report.empty() && tools::SameFile(FLAGS_html_report, in)) {
+      std::cerr << "error: --html_report would overwrite the input file " << in << "\n";
+      return kExitUsage;
+    }
+  }
+
   // ---- Inputs.
   tools::Inputs in;
   UrdfOptions urdf_options;
@@ -142,8 +153,8 @@ int Run() {
   const bool use_orientation = identification.has_orientation();
 
   RobotModel start = nominal;
+  RegistrationReport report;
   if (FLAGS_register) {
-    RegistrationReport report;
     if (Status s = RegisterToMeasurements(nominal, identification, &start, &report); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return tools::ExitCodeFor(Termination::kNotIdentifiable);
@@ -191,18 +202,21 @@ int Run() {
   const double parameter_difference = dx.size() ? dx.cwiseAbs().maxCoeff(&worst) : 0.0;
 
   const char* mm = "%.6f";
+  const std::vector<tools::RunSummary::ComparisonRow> rows = {
+      {"iterations", Num(lin.iterations, "%.0f"), Num(cer.iterations, "%.0f"), ""},
+      {"final cost (mm^2)", Num(lin.final_cost), Num(cer.final_cost),
+       Num(std::abs(lin.final_cost - cer.final_cost), "%.3g")},
+      {"held-out max error (mm)", Num(ls.norm.max_abs, mm), Num(cs.norm.max_abs, mm),
+       Num(std::abs(ls.norm.max_abs - cs.norm.max_abs), "%.3g")},
+      {"held-out mean error (mm)", Num(ls.norm.mean_abs, mm), Num(cs.norm.mean_abs, mm),
+       Num(std::abs(ls.norm.mean_abs - cs.norm.mean_abs), "%.3g")},
+      {"held-out RMS error (mm)", Num(ls.norm.rms, mm), Num(cs.norm.rms, mm),
+       Num(std::abs(ls.norm.rms - cs.norm.rms), "%.3g")},
+      {"predicted positions (mm)", "", "", Num(position_difference, "%.3g")},
+      {"parameters (rad or mm)", "", "", Num(parameter_difference, "%.3g")},
+  };  // (no wall time: the HTML report must be the same for the same input)
   Row("", "linear", "ceres", "|difference|");
-  Row("iterations", Num(lin.iterations, "%.0f"), Num(cer.iterations, "%.0f"), "");
-  Row("final cost (mm^2)", Num(lin.final_cost), Num(cer.final_cost),
-      Num(std::abs(lin.final_cost - cer.final_cost), "%.3g"));
-  Row("held-out max error (mm)", Num(ls.norm.max_abs, mm), Num(cs.norm.max_abs, mm),
-      Num(std::abs(ls.norm.max_abs - cs.norm.max_abs), "%.3g"));
-  Row("held-out mean error (mm)", Num(ls.norm.mean_abs, mm), Num(cs.norm.mean_abs, mm),
-      Num(std::abs(ls.norm.mean_abs - cs.norm.mean_abs), "%.3g"));
-  Row("held-out RMS error (mm)", Num(ls.norm.rms, mm), Num(cs.norm.rms, mm),
-      Num(std::abs(ls.norm.rms - cs.norm.rms), "%.3g"));
-  Row("predicted positions (mm)", "", "", Num(position_difference, "%.3g"));
-  Row("parameters (rad or mm)", "", "", Num(parameter_difference, "%.3g"));
+  for (const auto& r : rows) Row(r.quantity.c_str(), r.linear, r.ceres, r.difference);
   Row("wall time (ms)", Num(lin.wall_time_seconds * 1e3, "%.3f"),
       Num(cer.wall_time_seconds * 1e3, "%.3f"), "");
   if (dx.size()) {
@@ -212,6 +226,17 @@ int Run() {
                  "order without changing any prediction)\n";
   }
 
+  if (!FLAGS_html_report.empty()) {
+    tools::ComparisonRun run{model_path, meas_path, in.verification_source, FLAGS_angle_unit,
+                             ParameterizationName(kind), &nominal, &start, &identification,
+                             &verification, FLAGS_register ? &report : nullptr, &lin, &cer,
+                             rows, position_difference <= FLAGS_tolerance_mm};
+    if (Status s = tools::WriteComparisonHtmlReport(FLAGS_html_report, run); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return tools::kExitOutput;
+    }
+    std::cout << "wrote " << FLAGS_html_report << "\n";
+  }
   if (!(position_difference <= FLAGS_tolerance_mm)) {
     std::cout << "\nresult: DISAGREE: predicted positions differ by up to " << position_difference
               << " mm (tolerance " << FLAGS_tolerance_mm << " mm)\n";

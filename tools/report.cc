@@ -1,6 +1,16 @@
 #include "report.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include <sys/stat.h>
+
 #include <nlohmann/json.hpp>
+
+#include "lpoe/kinematics.h"
+#include "lpoe/version.h"
+#include "plot.h"
 
 namespace lpoe {
 namespace tools {
@@ -26,11 +36,209 @@ Json PoseJson(const SE3d& T) {
   return Json{{"xyz", {T.t.x(), T.t.y(), T.t.z()}}, {"quaternion", {q(0), q(1), q(2), q(3)}}};
 }
 
+Json VectorJson(const Eigen::Vector3d& v) { return Json::array({v.x(), v.y(), v.z()}); }
+
+std::string ToolName(const RobotModel& model, int target) {
+  return target >= 0 && target < model.num_tools() ? model.tools[target].name
+                                                    : std::to_string(target);
+}
+
+ErrorStatistics StatsOf(const std::vector<PointResidual>& points, int target, bool after) {
+  std::vector<Eigen::Vector3d> e;
+  for (const PointResidual& p : points)
+    if (target < 0 || p.target == target) e.push_back(after ? p.after : p.before);
+  return ComputeStatistics(e);
+}
+
+Json PointsJson(const RobotModel& model, const std::vector<PointResidual>& points) {
+  Json a = Json::array();
+  for (const PointResidual& p : points) {
+    a.push_back({{"line", p.line},
+                 {"target", ToolName(model, p.target)},
+                 {"before", VectorJson(p.before)},
+                 {"after", VectorJson(p.after)}});
+  }
+  return a;
+}
+
+// The local frame f of a model (joints first, then tools).
+const SE3d& FrameOrigin(const RobotModel& m, int f) {
+  return f < m.num_joints() ? m.joints[f].origin : m.tools[f - m.num_joints()].origin;
+}
+
+Json BuildJson(const RunSummary& s);
+
 }  // namespace
 
-std::string RunSummaryToJson(const RunSummary& s) {
+void AddPointResiduals(const RobotModel& before, const RobotModel& after,
+                       const MeasurementSet& identification, const MeasurementSet& verification,
+                       RunSummary* summary) {
+  summary->before_model = before;
+  auto fill = [&](const MeasurementSet& data, std::vector<PointResidual>* out) {
+    out->clear();
+    out->reserve(data.size());
+    for (int r = 0; r < data.size(); ++r) {
+      PointResidual p;
+      p.line = data.source_line(r);
+      p.target = data.target(r);
+      p.measured = data.position(r);
+      p.before = p.measured - ToolPosition(before, data.q(r), p.target);
+      p.after = p.measured - ToolPosition(after, data.q(r), p.target);
+      p.q.assign(data.q(r), data.q(r) + data.num_joints());
+      out->push_back(std::move(p));
+    }
+  };
+  fill(identification, &summary->identification_points);
+  fill(verification, &summary->verification_points);
+}
+
+Verdict ProvisionalVerdict(const RunSummary& s) {
+  char buf[400];
+  if (!s.solvers_agree) {
+    return {"fail", "the linear and the Ceres solver disagree on the predicted positions"};
+  }
+  if (!s.result.converged()) {
+    return {"fail", std::string("the solver did not converge (") +
+                        TerminationName(s.result.termination) + ")"};
+  }
+  const bool held_out = s.has_verification && s.verification_after.count > 0;
+  const ErrorStatistics& after = held_out ? s.verification_after : s.identification_after;
+  const ErrorStatistics& before = held_out ? s.verification_before : s.identification_before;
+  const char* set = held_out ? "verification" : "identification";
+  // Per-axis RMS of the position error: what a tracker's per-axis noise is compared with.
+  const double per_axis = after.norm.rms / std::sqrt(3.0);
+  if (held_out && after.norm.rms >= before.norm.rms) {
+    std::snprintf(buf, sizeof buf,
+                  "the calibration made the verification error worse (RMS %.4f mm before, "
+                  "%.4f mm after)",
+                  before.norm.rms, after.norm.rms);
+    return {"fail", buf};
+  }
+  if (per_axis > 2 * kTrackerNoiseHigh) {
+    std::snprintf(buf, sizeof buf,
+                  "%s error after calibration %.4f mm RMS per axis is above twice the expected "
+                  "tracker noise (%.2f-%.2f mm): non-geometric errors or bad data",
+                  set, per_axis, kTrackerNoiseLow, kTrackerNoiseHigh);
+    return {"check", buf};
+  }
+  if (held_out && after.norm.rms > 1.5 * s.identification_after.norm.rms) {
+    std::snprintf(buf, sizeof buf,
+                  "verification error (RMS %.4f mm) is well above the identification error "
+                  "(%.4f mm): too few poses or over-fitting",
+                  after.norm.rms, s.identification_after.norm.rms);
+    return {"check", buf};
+  }
+  if (!s.outliers.empty()) {
+    std::snprintf(buf, sizeof buf, "%zu point(s) fit worse than the outlier threshold",
+                  s.outliers.size());
+    return {"check", buf};
+  }
+  if (!s.identifiability.warnings.empty()) {
+    return {"check", "identifiability: " + s.identifiability.warnings.front()};
+  }
+  std::snprintf(buf, sizeof buf,
+                "%s error after calibration %.4f mm RMS per axis (max %.4f mm), within twice "
+                "the expected tracker noise (%.2f-%.2f mm)%s",
+                set, per_axis, after.norm.max_abs, kTrackerNoiseLow, kTrackerNoiseHigh,
+                held_out ? "" : "; no verification set");
+  return {held_out ? "pass" : "check", buf};
+}
+
+std::string RunSummaryToJson(const RunSummary& s) { return BuildJson(s).dump(2) + "\n"; }
+
+Status RenderPlotFiles(const RunSummary& s, std::vector<std::pair<std::string, std::string>>* files) {
+  std::vector<int> it;
+  std::vector<double> mx, mn;
+  for (const IterationRecord& r : s.result.history) {
+    it.push_back(r.iteration);
+    mx.push_back(r.max_error);
+    mn.push_back(r.mean_error);
+  }
+  const bool ver = !s.verification_points.empty();
+  const std::vector<PointResidual>& shown = ver ? s.verification_points : s.identification_points;
+  std::vector<Eigen::Vector3d> eb, ea;
+  std::vector<double> nb, na;
+  for (const PointResidual& p : shown) {
+    eb.push_back(p.before);
+    ea.push_back(p.after);
+    nb.push_back(p.before.norm());
+    na.push_back(p.after.norm());
+  }
+  const std::pair<const char*, Figure> plots[] = {
+      {kPlotFileNames[0], ConvergenceFigure(it, mx, mn)},
+      {kPlotFileNames[1], AxisErrorFigure(eb, ea, ver ? "verification" : "identification")},
+      {kPlotFileNames[2], ErrorHistogramFigure(nb, na)},
+  };
+  files->clear();
+  for (const auto& [name, figure] : plots) {
+    std::string bytes;
+    if (Status st = RenderFigure(figure, ImageFormat::kPng, &bytes); !st.ok())
+      return Status::Error(std::string(name) + ": " + st.message());
+    files->emplace_back(name, std::move(bytes));
+  }
+  return Status::Ok();
+}
+
+Status WritePlotFiles(const std::string& dir, RunSummary* s) {
+  struct stat st;
+  if (::stat(dir.c_str(), &st) != 0 ? ::mkdir(dir.c_str(), 0755) != 0 : !S_ISDIR(st.st_mode))
+    return Status::Error(dir + ": cannot create the plot directory");
+  std::vector<std::pair<std::string, std::string>> files;
+  if (Status r = RenderPlotFiles(*s, &files); !r.ok()) return Status::Error(dir + "/" + r.message());
+  for (const auto& [name, bytes] : files) {
+    const std::string path = dir + "/" + name;
+    if (Status w = WriteFileAtomically(path, bytes); !w.ok()) return w;
+    s->outputs.push_back(path);
+  }
+  return Status::Ok();
+}
+
+Status WriteComparisonHtmlReport(const std::string& path, const ComparisonRun& run) {
+  RunSummary s;
+  s.tool_name = "lpoe_compare";
+  s.model_path = run.model_path;
+  s.measurements_path = run.measurements_path;
+  s.verification_source = run.verification_source;
+  s.angle_unit = run.angle_unit;
+  s.solver = "ceres";
+  s.parameterization = run.parameterization;
+  s.data_kind = run.ceres->parameterization.data == DataKind::kPose ? "pose" : "position";
+  s.registered = run.registration != nullptr;
+  if (run.registration) s.registration = *run.registration;
+  s.result = *run.ceres;
+  s.identifiability = AnalyzeIdentifiability(*run.nominal, *run.identification, *run.ceres);
+  s.identification_before = PositionErrorStatistics(*run.start, *run.identification);
+  s.identification_after = PositionErrorStatistics(run.ceres->model, *run.identification);
+  s.has_verification = !run.verification->empty();
+  if (s.has_verification) {
+    s.verification_before = PositionErrorStatistics(*run.start, *run.verification);
+    s.verification_after = PositionErrorStatistics(run.ceres->model, *run.verification);
+  }
+  constexpr double kOutlierSigmas = 5.0;  // lpoe_calibrate's default --outlier_threshold
+  s.outliers = FindOutliers(run.ceres->model, *run.identification, kOutlierSigmas, &s.robust_sigma);
+  AddPointResiduals(*run.start, run.ceres->model, *run.identification, *run.verification, &s);
+  s.comparison = run.rows;
+  s.solvers_agree = run.agree;
+  return WriteHtmlReport(path, &s);
+}
+
+Status WriteHtmlReport(const std::string& path, RunSummary* s) {
+  s->outputs.push_back(path);
+  std::string html;
+  Status st = RunSummaryToHtml(*s, &html);
+  if (st.ok()) st = WriteFileAtomically(path, html);
+  if (!st.ok()) s->outputs.pop_back();
+  return st;
+}
+
+namespace {
+
+Json BuildJson(const RunSummary& s) {
   Json j;
-  j["schema"] = "lpoe-calib/report/1";
+  j["schema"] = "lpoe-calib/report/2";
+  j["tool"] = {{"name", s.tool_name}, {"version", kLpoeVersion}};
+  const Verdict verdict = ProvisionalVerdict(s);
+  j["verdict"] = {{"level", verdict.level}, {"reason", verdict.reason}};
   j["inputs"] = {{"model", s.model_path},
                  {"measurements", s.measurements_path},
                  {"verification", s.verification_source},
@@ -121,8 +329,79 @@ std::string RunSummaryToJson(const RunSummary& s) {
   }
   j["calibrated_frames"] = frames;
   j["outputs"] = s.outputs;
-  return j.dump(2) + "\n";
+
+  // Per SMR (tool): before/after on each set.
+  const RobotModel& model = s.result.model;
+  Json per_smr = Json::array();
+  for (int t = 0; t < model.num_tools(); ++t) {
+    Json e = {{"target", model.tools[t].name}};
+    e["identification"] = {{"before", StatsJson(StatsOf(s.identification_points, t, false))},
+                           {"after", StatsJson(StatsOf(s.identification_points, t, true))}};
+    if (s.has_verification) {
+      e["verification"] = {{"before", StatsJson(StatsOf(s.verification_points, t, false))},
+                           {"after", StatsJson(StatsOf(s.verification_points, t, true))}};
+    } else {
+      e["verification"] = nullptr;
+    }
+    per_smr.push_back(e);
+  }
+  j["per_smr"] = per_smr;
+
+  // Parameter changes: each identified direction's component of log(T_before^-1 T_after), the
+  // right perturbation of the local frame (paper eq. (19)), against the model before calibration.
+  Json changes = Json::array();
+  const Parameterization& par = s.result.parameterization;
+  const int num_frames = s.before_model.num_joints() + s.before_model.num_tools();
+  for (size_t k = 0; k < par.parameters.size(); ++k) {
+    const Direction& d = par.parameters[k];
+    if (d.frame >= num_frames || d.frame >= model.num_joints() + model.num_tools()) continue;
+    const Vector6d dp =
+        LogSE3(FrameOrigin(s.before_model, d.frame).Inverse() * FrameOrigin(model, d.frame));
+    int dominant = 0;
+    d.vector.cwiseAbs().maxCoeff(&dominant);
+    const bool rotation = dominant < 3;
+    Json c = {{"name", d.name},
+              {"change", d.vector.dot(dp)},
+              {"unit", rotation ? "rad" : "mm"}};
+    c["std_dev"] = id.standard_deviation.size() > static_cast<Eigen::Index>(k)
+                       ? Json(id.standard_deviation(k))
+                       : Json(nullptr);
+    changes.push_back(c);
+  }
+  j["parameter_changes"] = changes;
+
+  // All correlations above 0.9 (from the covariance, when there is one).
+  Json high = Json::array();
+  const Eigen::MatrixXd& C = s.result.covariance;
+  for (Eigen::Index a = 0; a < C.rows(); ++a) {
+    for (Eigen::Index b = a + 1; b < C.cols(); ++b) {
+      const double denom = std::sqrt(C(a, a) * C(b, b));
+      if (!(denom > 0)) continue;
+      const double r = C(a, b) / denom;
+      if (std::abs(r) > 0.9 && static_cast<size_t>(b) < par.parameters.size()) {
+        high.push_back({{"a", par.parameters[a].name},
+                        {"b", par.parameters[b].name},
+                        {"correlation", r}});
+      }
+    }
+  }
+  j["identifiability"]["correlated_above_0_9"] = high;
+
+  if (!s.comparison.empty()) {
+    Json rows = Json::array();
+    for (const RunSummary::ComparisonRow& r : s.comparison) {
+      rows.push_back({{"quantity", r.quantity},
+                      {"linear", r.linear},
+                      {"ceres", r.ceres},
+                      {"difference", r.difference}});
+    }
+    j["comparison"] = {{"agree", s.solvers_agree}, {"rows", rows}};
+  }
+  j["points"] = {{"identification", PointsJson(model, s.identification_points)},
+                 {"verification", PointsJson(model, s.verification_points)}};
+  return j;
 }
 
+}  // namespace
 }  // namespace tools
 }  // namespace lpoe

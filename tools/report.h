@@ -3,6 +3,7 @@
 #define LPOE_TOOLS_REPORT_H_
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lpoe/analysis.h"
@@ -21,6 +22,22 @@ struct FoldResult {
   ErrorStatistics verification_after;
 };
 
+// One measured point with its position error (measured - predicted, mm) before and after the
+// calibration. `q` and `measured` feed the HTML report's plots (not written to the JSON).
+struct PointResidual {
+  int line = 0;    // line in its input file (0 when unknown)
+  int target = 0;  // tool (SMR) index
+  Eigen::Vector3d before = Eigen::Vector3d::Zero(), after = Eigen::Vector3d::Zero();
+  Eigen::Vector3d measured = Eigen::Vector3d::Zero();
+  std::vector<double> q;  // joint values (rad / mm)
+};
+
+// The report's one-line judgement of a run: "pass", "check" or "fail", and why.
+struct Verdict {
+  std::string level;
+  std::string reason;
+};
+
 struct RunSummary {
   std::string model_path, measurements_path, verification_source;
   std::string solver, parameterization, data_kind, angle_unit;
@@ -36,10 +53,78 @@ struct RunSummary {
   std::vector<Outlier> outliers;
   std::vector<FoldResult> folds;
   std::vector<std::string> outputs;  // files written
+
+  // Per-point data (AddPointResiduals) and the model the "before" errors refer to (the nominal
+  // model, after the rigid registration when there was one).
+  RobotModel before_model;
+  std::vector<PointResidual> identification_points, verification_points;
+  std::string tool_name = "lpoe_calibrate";
+
+  // lpoe_compare: the two solvers side by side (rows: quantity, linear, ceres, |difference|) and
+  // whether their predicted positions agree within the tolerance.
+  struct ComparisonRow {
+    std::string quantity, linear, ceres, difference;
+  };
+  std::vector<ComparisonRow> comparison;
+  bool solvers_agree = true;
 };
+
+// lpoe_compare's run: the Ceres calibration summarized as lpoe_calibrate's (statistics, per-point
+// residuals, identifiability, outliers at 5 robust sigmas) plus the comparison rows.
+struct ComparisonRun {
+  std::string model_path, measurements_path, verification_source, angle_unit, parameterization;
+  const RobotModel* nominal = nullptr;
+  const RobotModel* start = nullptr;  // the nominal model after registration (when there was one)
+  const MeasurementSet* identification = nullptr;
+  const MeasurementSet* verification = nullptr;
+  const RegistrationReport* registration = nullptr;  // null: not registered
+  const CalibrationResult* linear = nullptr;
+  const CalibrationResult* ceres = nullptr;
+  std::vector<RunSummary::ComparisonRow> rows;
+  bool agree = true;
+};
+
+// Writes lpoe_compare's HTML report to `path` atomically.
+Status WriteComparisonHtmlReport(const std::string& path, const ComparisonRun& run);
+
+// Fills before_model and the per-point residuals of the identification and verification sets.
+void AddPointResiduals(const RobotModel& before, const RobotModel& after,
+                       const MeasurementSet& identification, const MeasurementSet& verification,
+                       RunSummary* summary);
+
+// Expected laser-tracker noise per axis (mm): the range a good geometric calibration reaches.
+constexpr double kTrackerNoiseLow = 0.02;
+constexpr double kTrackerNoiseHigh = 0.05;
+
+// A provisional verdict until the plausibility checks of the library pipeline provide one:
+// fail when the solver did not converge or the calibration made the held-out error worse; check
+// when the per-axis RMS error after calibration exceeds twice the expected tracker noise, the
+// held-out error is much larger than the identification error, or there are outliers or
+// identifiability warnings; pass otherwise.
+Verdict ProvisionalVerdict(const RunSummary& summary);
 
 // Pretty-printed JSON, numbers with full precision, keys in a fixed order.
 std::string RunSummaryToJson(const RunSummary& summary);
+
+// The self-contained HTML report (inline SVG plots, no scripts), rendered from the same JSON
+// document plus the per-point arrays. Deterministic; plots are decimated so 10^5 points stay
+// well below 5 MB. Fails only when a plot cannot be rendered.
+Status RunSummaryToHtml(const RunSummary& summary, std::string* html);
+
+// The plot files of a run: the paper's Fig. 6, Figs. 7/9 and the error histogram, as PNG.
+constexpr const char* kPlotFileNames[3] = {"convergence.png", "axis_errors.png",
+                                           "error_histogram.png"};
+
+// Renders the plot files (name, PNG bytes) in the order of kPlotFileNames.
+Status RenderPlotFiles(const RunSummary& summary,
+                       std::vector<std::pair<std::string, std::string>>* files);
+
+// Writes them into `dir` (created if missing), each atomically; appends the paths written to
+// summary->outputs.
+Status WritePlotFiles(const std::string& dir, RunSummary* summary);
+
+// Writes the HTML report to `path` atomically and appends it to summary->outputs.
+Status WriteHtmlReport(const std::string& path, RunSummary* summary);
 
 }  // namespace tools
 }  // namespace lpoe

@@ -73,12 +73,9 @@ struct Accumulator {
   }
   // R <- R Rz(q): columns 0 and 1 only.
   void RotZ(double cq, double sq) {
-    const __m128d c = _mm_set1_pd(cq), s = _mm_set1_pd(sq);
-    const __m128d l0 = lo[0], l1 = lo[1], h0 = hi[0], h1 = hi[1];
-    lo[0] = _mm_add_pd(_mm_mul_pd(c, l0), _mm_mul_pd(s, l1));
-    lo[1] = _mm_sub_pd(_mm_mul_pd(c, l1), _mm_mul_pd(s, l0));
-    hi[0] = _mm_add_sd(_mm_mul_sd(c, h0), _mm_mul_sd(s, h1));
-    hi[1] = _mm_sub_sd(_mm_mul_sd(c, h1), _mm_mul_sd(s, h0));
+    const __m128d c = _mm_set1_pd(cq), ns = _mm_set1_pd(-sq);
+    internal::PlaneRotation(c, ns, &lo[0], &lo[1]);
+    internal::PlaneRotation(c, ns, &hi[0], &hi[1]);
   }
   void Store(Eigen::Matrix3d* R, Eigen::Vector3d* t) const {
     for (int k = 0; k < 3; ++k) {
@@ -114,11 +111,7 @@ struct Accumulator {
   }
   // r <- r Rz(q): columns 0 and 1 only.
   void RotZ(double c, double s) {
-    for (int row = 0; row < 3; ++row) {
-      const double a = r[row], b = r[3 + row];
-      r[row] = c * a + s * b;
-      r[3 + row] = c * b - s * a;
-    }
+    for (int row = 0; row < 3; ++row) internal::PlaneRotation(c, -s, &r[row], &r[3 + row]);
   }
   void Store(Eigen::Matrix3d* R, Eigen::Vector3d* tt) const {
     for (int k = 0; k < 9; ++k) R->data()[k] = r[k];
@@ -127,77 +120,72 @@ struct Accumulator {
 };
 #endif
 
-// Joints whose sin/cos are computed ahead of the chain in one batch. Every XMM register is
-// caller-saved on x86-64, so a sincos call inside the chain would spill and reload the running
-// product; computed first, the calls have nothing live around them.
-constexpr int kSinCosBatch = 16;
+// Joints whose sin/cos are computed ahead of the chain (longer chains compute them on the fly).
+// Every XMM register is caller-saved on x86-64, so a sincos call inside the chain would spill and
+// reload the running product; computed first, the calls have nothing live around them.
+constexpr int kSinCosUpFront = 16;
 
-// The forward pass shared by every double path: X = prod_i T_{i-1,i}(0) exp(s_i^ q_i) * tail, with
-// `is_z(i)` telling which joints take the 2-column update. When `frames` is given, frames[i] receives
-// G_i = T_0,i-1(q) T_{i-1,i}(0) (before joint i moves).
+// The motion policy of the double forward pass (kinematics.h): the sin/cos of every revolute-z joint
+// computed before the chain, on the stack.
+template <typename IsZ>
+class SinCosUpFront {
+ public:
+  SinCosUpFront(const Joint* joints, const double* q, int n, IsZ is_z)
+      : joints_(joints), q_(q), is_z_(is_z) {
+    for (int i = 0; i < n; ++i) {
+      z_[i] = is_z(i);
+      if (z_[i]) SinCos(q[i], &s_[i], &c_[i]);
+    }
+  }
+  void ApplyRight(int i, Accumulator* X) const {
+    if (z_[i]) {
+      X->RotZ(c_[i], s_[i]);
+    } else {
+      X->RightMultiply(JointMotion(joints_[i], q_[i]));
+    }
+  }
+
+ private:
+  const Joint* joints_;
+  const double* q_;
+  IsZ is_z_;
+  double s_[kSinCosUpFront], c_[kSinCosUpFront];
+  bool z_[kSinCosUpFront];
+};
+
+// The forward pass shared by every double path (ForwardChain with the SSE2 accumulator):
+// X = prod_i T_{i-1,i}(0) exp(s_i^ q_i) * tail, with `is_z(i)` telling which joints take the
+// 2-column update. When `frames` is given, frames[i] receives G_i = T_0,i-1(q) T_{i-1,i}(0) (before
+// joint i moves).
 template <typename IsZ>
 inline void ForwardPass(const RobotModel& model, const double* q, IsZ is_z, const SE3d* tail,
                         Eigen::Matrix3d* R, Eigen::Vector3d* t, FrameRt* frames) {
   const int n = model.num_joints();
   const Joint* joints = model.joints.data();
   Accumulator X;
-  X.Set(joints[0].origin);
-  double sn[kSinCosBatch], cs[kSinCosBatch];
-  bool z[kSinCosBatch];
-  for (int i0 = 0; i0 < n; i0 += kSinCosBatch) {
-    const int i1 = std::min(n, i0 + kSinCosBatch);
-    for (int i = i0; i < i1; ++i) {
-      z[i - i0] = is_z(i);
-      if (z[i - i0]) SinCos(q[i], &sn[i - i0], &cs[i - i0]);
-    }
-    for (int i = i0; i < i1; ++i) {
-      const Joint& joint = joints[i];
-      if (i > 0) X.RightMultiply(joint.origin);
-      if (frames != nullptr) X.Store(&frames[i].R, &frames[i].t);
-      if (z[i - i0]) {
-        X.RotZ(cs[i - i0], sn[i - i0]);
-      } else {
-        X.RightMultiply(JointMotion(joint, q[i]));
-      }
-    }
+  auto origin = [joints](int i) -> const SE3d& { return joints[i].origin; };
+  auto sink = [frames](int i, const Accumulator& A) {
+    if (frames != nullptr) A.Store(&frames[i].R, &frames[i].t);
+  };
+  if (n <= kSinCosUpFront) {
+    ForwardChain(n, origin, SinCosUpFront<IsZ>(joints, q, n, is_z), &X, sink);
+  } else {
+    ForwardChain(n, origin, MakeOnTheFlyMotions(joints, q, is_z), &X, sink);
   }
   if (tail != nullptr) X.RightMultiply(*tail);
   X.Store(R, t);
 }
 
-// P = T_0,n(q) p, from the tool back to the base with vectors only (as ChainPosition). Here the
-// sin/cos calls stay interleaved with the chain (measured faster than batching them: only three
-// values are live across each call, and the chain of one joint overlaps the next call).
+// P = T_0,n(q) p, from the tool back to the base with vectors only (BackwardChain). Here the
+// sin/cos calls stay interleaved with the chain (measured faster than computing them first: only
+// three values are live across each call, and the chain of one joint overlaps the next call).
 template <typename IsZ>
 inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q, IsZ is_z,
                                         const Eigen::Vector3d& tool_point) {
   const Joint* joints = model.joints.data();
-  double p0 = tool_point(0), p1 = tool_point(1), p2 = tool_point(2);
-  for (int i = model.num_joints() - 1; i >= 0; --i) {
-    const Joint& joint = joints[i];
-    if (is_z(i)) {
-      double s, c;
-      SinCos(q[i], &s, &c);
-      const double x = p0;
-      p0 = c * x - s * p1;
-      p1 = s * x + c * p1;
-    } else {
-      const SE3d M = JointMotion(joint, q[i]);
-      const Eigen::Vector3d p = M.R * Eigen::Vector3d(p0, p1, p2) + M.t;
-      p0 = p(0);
-      p1 = p(1);
-      p2 = p(2);
-    }
-    const double* O = joint.origin.R.data();  // column-major
-    const Eigen::Vector3d& o = joint.origin.t;
-    const double x = O[0] * p0 + O[3] * p1 + O[6] * p2 + o(0);
-    const double y = O[1] * p0 + O[4] * p1 + O[7] * p2 + o(1);
-    const double z = O[2] * p0 + O[5] * p1 + O[8] * p2 + o(2);
-    p0 = x;
-    p1 = y;
-    p2 = z;
-  }
-  return Eigen::Vector3d(p0, p1, p2);
+  return BackwardChain<double>(
+      model.num_joints(), [joints](int i) -> const SE3d& { return joints[i].origin; },
+      MakeOnTheFlyMotions(joints, q, is_z), tool_point);
 }
 
 template <typename IsZ>
@@ -251,22 +239,33 @@ inline void AdjointColumn(const FrameRt& G, int k, double* out) {
   }
 }
 
-}  // namespace
-
-SE3d JointMotion(const Joint& joint, double q) {
-  SE3d X;
-  if (joint.type == JointType::kPrismatic) {
-    X.t = joint.twist.tail<3>() * q;
-    return X;
+// Column of joint i (twist s in its own frame, revolute about z when `z`) in the position Jacobian:
+// w x (P - t) + R v_s with w = R w_s, i.e. the twist's combination of the frame's PositionColumns.
+inline void JointPositionColumn(const FrameRt& G, const Eigen::Vector3d& d, const Vector6d& s,
+                                bool z, double* out) {
+  if (z) return PositionColumn(G, d, 2, out);
+  out[0] = out[1] = out[2] = 0.0;
+  double c[3];
+  for (int k = 0; k < 6; ++k) {
+    if (s(k) == 0.0) continue;
+    PositionColumn(G, d, k, c);
+    for (int r = 0; r < 3; ++r) out[r] += s(k) * c[r];
   }
-  if (IsRevoluteZ(joint)) {
-    double sn, c;
-    SinCos(q, &sn, &c);
-    X.R << c, -sn, 0, sn, c, 0, 0, 0, 1;
-    return X;
-  }
-  return ExpSE3(Vector6d(joint.twist * q));
 }
+
+// Column of joint i in the pose Jacobian: Ad_{G_i} s.
+inline void JointPoseColumn(const FrameRt& G, const Vector6d& s, bool z, double* out) {
+  if (z) return AdjointColumn(G, 2, out);
+  for (int r = 0; r < 6; ++r) out[r] = 0.0;
+  double c[6];
+  for (int k = 0; k < 6; ++k) {
+    if (s(k) == 0.0) continue;
+    AdjointColumn(G, k, c);
+    for (int r = 0; r < 6; ++r) out[r] += s(k) * c[r];
+  }
+}
+
+}  // namespace
 
 SE3d ToolPose(const RobotModel& model, const double* q, int tool) {
   DCHECK(tool >= 0 && tool < model.num_tools());
@@ -319,6 +318,35 @@ SE3d ToolPoseJacobian(const RobotModel& model, const double* q, int tool,
   return SE3d(G[n].R, G[n].t);
 }
 
+Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double* q, int tool,
+                                          Eigen::MatrixXd* J_p_q) {
+  const int n = model.num_joints();
+  FrameScratch scratch(n + 1);
+  FrameRt* G = scratch.data();
+  FramesOf(model, q, tool, [&](int i) { return IsRevoluteZ(model.joints[i]); }, G);
+  const Eigen::Vector3d P = G[n].t;
+  J_p_q->resize(3, n);
+  for (int i = 0; i < n; ++i) {
+    const Joint& joint = model.joints[i];
+    JointPositionColumn(G[i], P - G[i].t, joint.twist, IsRevoluteZ(joint), J_p_q->col(i).data());
+  }
+  return P;
+}
+
+SE3d ToolPoseJointJacobian(const RobotModel& model, const double* q, int tool,
+                           Eigen::MatrixXd* J_pose_q) {
+  const int n = model.num_joints();
+  FrameScratch scratch(n + 1);
+  FrameRt* G = scratch.data();
+  FramesOf(model, q, tool, [&](int i) { return IsRevoluteZ(model.joints[i]); }, G);
+  J_pose_q->resize(6, n);
+  for (int i = 0; i < n; ++i) {
+    const Joint& joint = model.joints[i];
+    JointPoseColumn(G[i], joint.twist, IsRevoluteZ(joint), J_pose_q->col(i).data());
+  }
+  return SE3d(G[n].R, G[n].t);
+}
+
 // ---- KinematicChain.
 
 KinematicChain::KinematicChain(const RobotModel& model) : model_(&model) {
@@ -358,7 +386,7 @@ void KinematicChain::Frames(const double* q, int tool, FrameRt* frames) const {
 // ---- BasisJacobian.
 
 BasisJacobian::BasisJacobian(const RobotModel& model, const Parameterization& p)
-    : chain_(model), num_parameters_(p.num_parameters), num_joints_(model.num_joints()) {
+    : chain_(model), model_(&model), num_parameters_(p.num_parameters), num_joints_(model.num_joints()) {
   CHECK_EQ(static_cast<int>(p.basis.size()), model.num_frames());
   plan_.resize(model.num_frames());
   for (int f = 0; f < model.num_frames(); ++f) {
@@ -451,23 +479,27 @@ SE3d BasisJacobian::Pose(const double* q, int tool, double* J, int ld, FrameRt* 
   return SE3d(frames[n].R, frames[n].t);
 }
 
-JointMotions::JointMotions(const RobotModel& model, const double* q)
-    : motions_(model.num_joints()) {
-  for (int i = 0; i < model.num_joints(); ++i) {
-    Motion& m = motions_[i];
-    m.revolute_z = IsRevoluteZ(model.joints[i]);
-    if (m.revolute_z) {
-      SinCos(q[i], &m.s, &m.c);
-    } else {
-      m.general = JointMotion(model.joints[i], q[i]);
-    }
+void BasisJacobian::PositionJointJacobian(const FrameRt* frames, double* J, int ld) const {
+  const Eigen::Vector3d& P = frames[num_joints_].t;
+  for (int i = 0; i < num_joints_; ++i) {
+    const Joint& joint = model_->joints[i];
+    JointPositionColumn(frames[i], P - frames[i].t, joint.twist, IsRevoluteZ(joint), J + i * ld);
+  }
+}
+
+void BasisJacobian::PoseJointJacobian(const FrameRt* frames, double* J, int ld) const {
+  for (int i = 0; i < num_joints_; ++i) {
+    const Joint& joint = model_->joints[i];
+    JointPoseColumn(frames[i], joint.twist, IsRevoluteZ(joint), J + i * ld);
   }
 }
 
 // The forward-kinematics templates, instantiated for double here (the tests instantiate them for
 // ceres::Jet; the residuals library for its own Jets).
 template SE3d ChainPose<double>(const RobotModel&, const SE3d*, const SE3d&, const double*);
-template Eigen::Vector3d ChainPosition<double, SE3d>(const RobotModel&, const SE3d*,
-                                                     const Eigen::Vector3d&, const double*);
+template Eigen::Vector3d ChainPosition<double, SE3d, double>(const RobotModel&, const SE3d*,
+                                                             const Eigen::Vector3d&,
+                                                             const double*);
+template SE3d JointMotion<double>(const Joint&, const double&);
 
 }  // namespace lpoe

@@ -36,7 +36,7 @@ using internal::Trim;
 // ---------------------------------------------------------------------------------------------------
 // YAML robot model.
 
-const char* const kModelKeys = "name, joints, tools";
+const char* const kModelKeys = "name, joints, tools, registration";
 const char* const kJointKeys = "name, type, origin, twist, limits";
 const char* const kToolKeys = "name, origin";
 const char* const kOriginKeys = "xyz and one of rpy or quaternion";
@@ -63,7 +63,8 @@ class ModelYamlReader {
                    "a mapping with keys name, joints and tools (docs/file_formats.md)");
     }
     std::vector<MapEntry> top;
-    Status s = ReadMap(root, 1, "the robot model", {"name", "joints", "tools"}, kModelKeys, &top);
+    Status s = ReadMap(root, 1, "the robot model", {"name", "joints", "tools", "registration"},
+                       kModelKeys, &top);
     if (!s.ok()) return s;
     const int root_line = LineOf(root, 1);
 
@@ -128,6 +129,11 @@ class ModelYamlReader {
     }
 
     // Optional model sections (gravity, payload, joint errors) are read here, one call each.
+    // registration: T_measurement_base of a registered calibration (compensation, issue 12).
+    if (const MapEntry* reg = Find(top, "registration"); reg != nullptr) {
+      s = ReadOrigin(*reg, &out.T_measurement_base);
+      if (!s.ok()) return s;
+    }
 
     // Whole-model checks; the per-joint ones (twists, limits) were made above with their lines.
     s = out.Validate();
@@ -543,6 +549,12 @@ std::string RobotModelToYaml(const RobotModel& model) {
     AppendOrigin(tool.origin, &out);
   }
   // Optional model sections (gravity, payload, joint errors) are written here, one call each.
+  if (!model.T_measurement_base.R.isIdentity(0) || !model.T_measurement_base.t.isZero(0)) {
+    std::string origin;
+    AppendOrigin(model.T_measurement_base, &origin);
+    out += "# registration = T_measurement_base: the measurement frame from the nominal base frame.\n";
+    out += "registration: " + origin.substr(origin.find('{'));
+  }
   out += internal::JointErrorsToYaml(model);
   return out;
 }

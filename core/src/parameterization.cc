@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numeric>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <glog/logging.h>
 
@@ -134,11 +135,97 @@ Parameterization MakeParameterization(const RobotModel& model, ParameterizationK
   return p;
 }
 
+namespace {
+
+// A combination of joint block b's parameters, named after its dominant parameter ("~": a mixture).
+Direction JointDirection(const Parameterization& p, int b, const Eigen::VectorXd& combination) {
+  const JointTerm& term = *p.joint_blocks[b].term;
+  Direction d;
+  d.frame = -1;
+  d.joint_block = b;
+  d.combination = combination;
+  int best = 0;
+  combination.cwiseAbs().maxCoeff(&best);
+  d.name = term.name() + "." + term.ParameterName(best);
+  if (std::abs(combination(best)) < 1.0 - 1e-9) d.name += "~";
+  return d;
+}
+
+// Names and offsets of every joint block from the bases (blocks follow the frames).
+void RenumberJointBlocks(Parameterization* p) {
+  int frame_parameters = 0;
+  for (const Eigen::MatrixXd& B : p->basis) frame_parameters += static_cast<int>(B.cols());
+  p->parameters.resize(frame_parameters);
+  p->num_parameters = frame_parameters;
+  for (size_t b = 0; b < p->joint_blocks.size(); ++b) {
+    JointBlock& block = p->joint_blocks[b];
+    block.offset = p->num_parameters;
+    p->num_parameters += static_cast<int>(block.basis.cols());
+    for (int c = 0; c < block.basis.cols(); ++c) {
+      p->parameters.push_back(JointDirection(*p, static_cast<int>(b), block.basis.col(c)));
+    }
+  }
+}
+
+}  // namespace
+
+void AddJointBlock(std::shared_ptr<const JointTerm> term, Parameterization* p) {
+  CHECK(term != nullptr);
+  JointBlock block;
+  block.basis = Eigen::MatrixXd::Identity(term->num_parameters(), term->num_parameters());
+  block.term = std::move(term);
+  p->joint_blocks.push_back(std::move(block));
+  RenumberJointBlocks(p);
+}
+
+void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& reason,
+                        Parameterization* p) {
+  JointBlock& block = p->joint_blocks[b];
+  const int P = block.term->num_parameters();
+  CHECK_EQ(basis.rows(), P);
+  // The left-out combinations: the orthogonal complement of the kept ones.
+  const Eigen::MatrixXd projector = Eigen::MatrixXd::Identity(P, P) - basis * basis.transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(projector);
+  for (int k = 0; k < P; ++k) {
+    if (eig.eigenvalues()(k) < 0.5) continue;
+    Direction d = JointDirection(*p, b, eig.eigenvectors().col(k));
+    d.reason = reason;
+    p->unidentifiable.push_back(d);
+  }
+  block.basis = basis;
+  RenumberJointBlocks(p);
+}
+
+void CopyJointBlocks(const Parameterization& from, Parameterization* to) {
+  to->joint_blocks = from.joint_blocks;
+  std::vector<Direction> lost;
+  for (const Direction& d : to->unidentifiable) {
+    if (d.joint_block < 0) lost.push_back(d);
+  }
+  for (const Direction& d : from.unidentifiable) {
+    if (d.joint_block >= 0) lost.push_back(d);
+  }
+  to->unidentifiable = std::move(lost);
+  RenumberJointBlocks(to);
+}
+
+std::vector<JointTermValues> JointValuesOf(const Parameterization& p, const Eigen::VectorXd& x) {
+  CHECK_EQ(x.size(), p.num_parameters);
+  std::vector<JointTermValues> out;
+  for (const JointBlock& block : p.joint_blocks) {
+    JointTermValues v;
+    v.term = block.term;
+    v.theta = block.basis * x.segment(block.offset, block.basis.cols());
+    out.push_back(std::move(v));
+  }
+  return out;
+}
+
 void ApplyUpdate(const Parameterization& p, const Eigen::VectorXd& x, RobotModel* model) {
   CHECK_EQ(x.size(), p.num_parameters);
   const int n = model->num_joints();
   for (int f = 0; f < model->num_frames(); ++f) {
-    const Eigen::MatrixXd& B = p.basis[f];
+    const Eigen::MatrixXd& B = p.basis[f];  // frames only: the joint blocks are not in the model
     if (B.cols() == 0) continue;
     const Vector6d dp = B * x.segment(p.offset[f], B.cols());
     SE3d& T = f < n ? model->joints[f].origin : model->tools[f - n].origin;
@@ -150,7 +237,7 @@ Eigen::VectorXd ParameterDifference(const Parameterization& p, const RobotModel&
                                     const RobotModel& b) {
   CHECK_EQ(a.num_frames(), b.num_frames());
   const int n = a.num_joints();
-  Eigen::VectorXd x(p.num_parameters);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(p.num_parameters);  // joint blocks: zero
   for (int f = 0; f < a.num_frames(); ++f) {
     const SE3d& Ta = f < n ? a.joints[f].origin : a.tools[f - n].origin;
     const SE3d& Tb = f < n ? b.joints[f].origin : b.tools[f - n].origin;

@@ -9,36 +9,8 @@ namespace {
 
 using Quaternion = Eigen::Vector4d;  // x, y, z, w
 
-// Below this |omega|^2 the half-angle coefficients use their Taylor series.
-constexpr double kSmallAngleSquared = 1e-8;
 // Tolerance of the orthonormality check of the basis.
 constexpr double kBasisTolerance = 1e-9;
-
-// q (x) p, both stored (x, y, z, w).
-Quaternion Multiply(const Quaternion& q, const Quaternion& p) {
-  const Eigen::Vector3d qv = q.head<3>(), pv = p.head<3>();
-  Quaternion out;
-  out.head<3>() = q(3) * pv + p(3) * qv + qv.cross(pv);
-  out(3) = q(3) * p(3) - qv.dot(pv);
-  return out;
-}
-
-// Unit quaternion of exp(omega^): (sin(th/2) omega / th, cos(th/2)).
-Quaternion QuaternionExp(const Eigen::Vector3d& omega) {
-  const double th_sq = omega.squaredNorm();
-  double s, c;  // sin(th/2) / th, cos(th/2)
-  if (th_sq < kSmallAngleSquared) {
-    s = 0.5 - th_sq / 48.0;
-    c = 1.0 - th_sq / 8.0;
-  } else {
-    const double th = std::sqrt(th_sq);
-    s = std::sin(0.5 * th) / th;
-    c = std::cos(0.5 * th);
-  }
-  Quaternion q;
-  q << s * omega, c;
-  return q;
-}
 
 }  // namespace
 
@@ -47,8 +19,6 @@ void Se3ToArray(const SE3d& T, double* x) {
   for (int k = 0; k < 4; ++k) x[k] = q(k);
   for (int k = 0; k < 3; ++k) x[4 + k] = T.t(k);
 }
-
-SE3d Se3FromArray(const double* x) { return Se3FromArray<double>(x); }
 
 Se3Manifold::Se3Manifold(const Eigen::MatrixXd& basis) : basis_(basis) {
   CHECK_EQ(basis_.rows(), 6) << "an SE(3) tangent basis has 6 rows";
@@ -68,7 +38,7 @@ bool Se3Manifold::Plus(const double* x, const double* delta, double* x_plus_delt
   const SE3d dT = ExpSE3(xi);
   // The rotation is composed on quaternions, not through R, so that Plus(x, 0) returns x exactly
   // (same sign of q) and the result stays a unit quaternion.
-  const Quaternion q_out = Multiply(q, QuaternionExp(xi.head<3>()));
+  const Quaternion q_out = QuaternionProduct(q, QuaternionExp<double>(xi.head<3>()));
   const Eigen::Vector3d t_out = T.R * dT.t + T.t;  // eq. (19): T exp(xi^)
   for (int k = 0; k < 4; ++k) x_plus_delta[k] = q_out(k);
   for (int k = 0; k < 3; ++k) x_plus_delta[4 + k] = t_out(k);

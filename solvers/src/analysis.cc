@@ -9,6 +9,7 @@
 #include <glog/logging.h>
 
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_model.h"
 #include "lpoe/statistics.h"
 
 namespace lpoe {
@@ -169,14 +170,8 @@ Eigen::Matrix3d PredictedPositionCovariance(const CalibrationResult& result, con
                                             int tool) {
   const Parameterization& p = result.parameterization;
   CHECK_EQ(result.covariance.rows(), p.num_parameters) << "no covariance in this result";
-  Eigen::MatrixXd J_frames;
-  ToolPositionJacobian(result.model, q, tool, &J_frames);
-  Eigen::MatrixXd J(3, p.num_parameters);
-  for (int f = 0; f < result.model.num_frames(); ++f) {
-    const Eigen::MatrixXd& B = p.basis[f];
-    if (B.cols() == 0) continue;
-    J.middleCols(p.offset[f], B.cols()) = J_frames.middleCols(6 * f, 6) * B;
-  }
+  Eigen::MatrixXd J;
+  PredictPositionJacobian(result.model, p, result.joint_terms, q, tool, &J);
   return J * result.covariance * J.transpose();
 }
 

@@ -12,8 +12,7 @@
 #include <glog/logging.h>
 
 #include "identifiability.h"
-#include "lpoe/pose_residual.h"
-#include "lpoe/position_residual.h"
+#include "lpoe/measurement_residual.h"
 #include "lpoe/se3_manifold.h"
 
 namespace lpoe {
@@ -38,25 +37,45 @@ RobotModel ModelFromBlocks(const RobotModel& base, const std::vector<Block>& blo
   return model;
 }
 
+// The joint-space terms' values from their parameter blocks (x_b, k_b numbers each).
+std::vector<JointTermValues> JointValuesFromBlocks(const Parameterization& p,
+                                                   const std::vector<std::vector<double>>& x) {
+  Eigen::VectorXd all = Eigen::VectorXd::Zero(p.num_parameters);
+  for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
+    const JointBlock& block = p.joint_blocks[b];
+    for (int c = 0; c < block.basis.cols(); ++c) all(block.offset + c) = x[b][c];
+  }
+  return JointValuesOf(p, all);
+}
+
 // Records the history (IterationRecord per accepted step) with the state of the blocks, which Ceres
 // updates every iteration (update_state_every_iteration).
 class HistoryCallback : public ceres::IterationCallback {
  public:
-  HistoryCallback(const RobotModel& base, const MeasurementSet& data,
-                  const std::vector<Block>& blocks, const std::vector<bool>& used, double cost_scale,
+  HistoryCallback(const RobotModel& base, const MeasurementSet& data, const Parameterization& p,
+                  const std::vector<Block>& blocks, const std::vector<bool>& used,
+                  const std::vector<std::vector<double>>& joint_blocks, double cost_scale,
                   std::vector<IterationRecord>* history,
                   std::function<void(const IterationRecord&)> on_iteration)
       : base_(base),
         data_(data),
+        p_(p),
         blocks_(blocks),
         used_(used),
+        joint_blocks_(joint_blocks),
         cost_scale_(cost_scale),
         history_(history),
         on_iteration_(std::move(on_iteration)) {}
 
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
     if (summary.iteration > 0 && !summary.step_is_successful) return ceres::SOLVER_CONTINUE;
-    const ErrorStatistics stats = PositionErrorStatistics(ModelFromBlocks(base_, blocks_, used_), data_);
+    const RobotModel model = ModelFromBlocks(base_, blocks_, used_);
+    const ErrorStatistics stats =
+        p_.joint_blocks.empty()
+            ? PositionErrorStatistics(model, data_)
+            : PositionErrorStatistics(
+                  model,
+                  WithEffectiveJointValues(JointValuesFromBlocks(p_, joint_blocks_), data_));
     IterationRecord r;
     r.iteration = summary.iteration;
     r.cost = summary.cost * cost_scale_;
@@ -71,8 +90,10 @@ class HistoryCallback : public ceres::IterationCallback {
  private:
   const RobotModel& base_;
   const MeasurementSet& data_;
+  const Parameterization& p_;
   const std::vector<Block>& blocks_;
   const std::vector<bool>& used_;
+  const std::vector<std::vector<double>>& joint_blocks_;
   double cost_scale_;
   std::vector<IterationRecord>* history_;
   std::function<void(const IterationRecord&)> on_iteration_;
@@ -154,7 +175,9 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   }
   const DataKind kind = options.use_orientation ? DataKind::kPose : DataKind::kPosition;
   const bool full = options.parameterization == ParameterizationKind::kFull;
-  result.parameterization = MakeParameterization(nominal, options.parameterization, kind);
+  result.parameterization = internal::SolverParameterization(
+      nominal, data, options.parameterization, options.use_orientation,
+      options.orientation_weight, options.joint_terms, options.joint_term_tolerance);
   const Parameterization& p = result.parameterization;
   const int per_row = options.use_orientation ? 6 : 3;
   int identifiable = 0;  // parameters the data must determine (identifiable directions, used frames)
@@ -169,12 +192,25 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   }
   for (int i = 0; i < n; ++i) used[i] = true;
   for (int r = 0; r < data.size(); ++r) used[n + data.target(r)] = true;
+  // One block per joint-space term (x_b, starting at zero); blocks with nothing identifiable left
+  // are not in the problem.
+  const int num_joint_blocks = static_cast<int>(p.joint_blocks.size());
+  std::vector<std::vector<double>> joint_blocks(num_joint_blocks);
+  std::vector<int> solved_joint_blocks;
+  for (int b = 0; b < num_joint_blocks; ++b) {
+    joint_blocks[b].assign(p.joint_blocks[b].basis.cols(), 0.0);
+    if (!joint_blocks[b].empty()) solved_joint_blocks.push_back(b);
+  }
+  result.joint_terms = JointValuesFromBlocks(p, joint_blocks);
 
   // ---- The identifiability check of the linear solver (same thresholds, same messages), on the
   // identifiable directions of the frames that are solved (unmeasured tools are not).
   {
-    const Parameterization all =
-        full ? MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind) : p;
+    Parameterization all = p;
+    if (full) {
+      all = MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind);
+      CopyJointBlocks(p, &all);
+    }
     Parameterization solved;  // the directions of the used frames, for the message
     std::vector<int> columns;
     for (int f = 0; f < F; ++f) {
@@ -183,6 +219,10 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
         columns.push_back(all.offset[f] + c);
         solved.parameters.push_back(all.parameters[all.offset[f] + c]);
       }
+    }
+    for (int k = all.num_frame_parameters(); k < all.num_parameters; ++k) {
+      columns.push_back(k);
+      solved.parameters.push_back(all.parameters[k]);
     }
     solved.num_parameters = static_cast<int>(columns.size());
     identifiable = solved.num_parameters;
@@ -221,13 +261,36 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   const auto shared_model = std::make_shared<const RobotModel>(nominal);
   std::vector<double*> parameters(n + 1);
   for (int i = 0; i < n; ++i) parameters[i] = blocks[i].data();
+  std::vector<int> block_sizes;
+  int K = 0;
+  for (int b : solved_joint_blocks) {
+    parameters.push_back(joint_blocks[b].data());
+    block_sizes.push_back(static_cast<int>(joint_blocks[b].size()));
+    K += block_sizes.back();
+  }
+  PositionMeasurement position_kind;
+  position_kind.inverse_sigma = 1.0 / options.sigma;
+  PoseMeasurement pose_kind;
+  pose_kind.inverse_sigma = 1.0 / options.sigma;
+  pose_kind.orientation_weight = options.orientation_weight;
+  Eigen::MatrixXd term_Y;
   for (int r = 0; r < data.size(); ++r) {
     parameters[n] = blocks[n + data.target(r)].data();
+    // This row's joint regressor [Y_b(q) basis_b] (data: evaluated once).
+    Eigen::MatrixXd R(n, K);
+    int column = 0;
+    for (int b : solved_joint_blocks) {
+      const JointBlock& block = p.joint_blocks[b];
+      term_Y.resize(n, block.term->num_parameters());
+      block.term->Regressor(data.q(r), term_Y.data());
+      R.middleCols(column, block.basis.cols()) = term_Y * block.basis;
+      column += static_cast<int>(block.basis.cols());
+    }
     ceres::CostFunction* cost =
         options.use_orientation
-            ? PoseResidual::Create(shared_model, data.q(r), data.pose(r), options.sigma,
-                                   options.orientation_weight)
-            : PositionResidual::Create(shared_model, data.q(r), data.position(r), options.sigma);
+            ? PoseResidual::Create(shared_model, pose_kind, data.q(r), data.pose(r), R, block_sizes)
+            : PositionResidual::Create(shared_model, position_kind, data.q(r), data.position(r),
+                                       R, block_sizes);
     problem.AddResidualBlock(cost, loss, parameters);
   }
   std::vector<const double*> covariance_blocks;
@@ -236,6 +299,7 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
     problem.SetManifold(blocks[f].data(), new Se3Manifold(p.basis[f]));
     covariance_blocks.push_back(blocks[f].data());
   }
+  for (int b : solved_joint_blocks) covariance_blocks.push_back(joint_blocks[b].data());
 
   // ---- Solve.
   ceres::Solver::Options solver_options;
@@ -251,8 +315,8 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   solver_options.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
   solver_options.update_state_every_iteration = true;
   const double cost_scale = options.sigma * options.sigma;
-  HistoryCallback callback(nominal, data, blocks, used, cost_scale, &result.history,
-                           options.on_iteration);
+  HistoryCallback callback(nominal, data, p, blocks, used, joint_blocks, cost_scale,
+                           &result.history, options.on_iteration);
   solver_options.callbacks.push_back(&callback);
 
   ceres::Solver::Summary summary;
@@ -260,6 +324,7 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   if (options.verbose) LOG(INFO) << summary.FullReport();
 
   result.model = ModelFromBlocks(nominal, blocks, used);
+  result.joint_terms = JointValuesFromBlocks(p, joint_blocks);
   result.iterations = summary.num_successful_steps + summary.num_unsuccessful_steps;
   result.final_cost = summary.final_cost * cost_scale;
   const Termination termination = MapTermination(summary.termination_type);
@@ -279,28 +344,32 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
     ceres::Covariance covariance(cov_options);
     std::vector<std::pair<const double*, const double*>> pairs;
     for (const double* a : covariance_blocks) pairs.emplace_back(a, a);
-    int tangent = 0;
+    int tangent = K;
     for (int f = 0; f < F; ++f) tangent += used[f] ? static_cast<int>(p.basis[f].cols()) : 0;
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> C(tangent, tangent);
     if (covariance.Compute(covariance_blocks, &problem) &&
         covariance.GetCovarianceMatrixInTangentSpace(covariance_blocks, C.data())) {
       result.covariance = Eigen::MatrixXd::Zero(p.num_parameters, p.num_parameters);
-      // Rows of C follow covariance_blocks (used frames in order); scatter to p's offsets.
-      std::vector<int> c_offset;
-      std::vector<int> frames;
+      // Rows of C follow covariance_blocks (used frames, then joint blocks, in order); scatter
+      // to p's offsets.
+      std::vector<int> c_offset, p_offset, size;
       int at = 0;
-      for (int f = 0; f < F; ++f) {
-        if (!used[f]) continue;
-        frames.push_back(f);
+      auto add = [&](int offset, int k) {
         c_offset.push_back(at);
-        at += static_cast<int>(p.basis[f].cols());
+        p_offset.push_back(offset);
+        size.push_back(k);
+        at += k;
+      };
+      for (int f = 0; f < F; ++f) {
+        if (used[f]) add(p.offset[f], static_cast<int>(p.basis[f].cols()));
       }
-      for (size_t a = 0; a < frames.size(); ++a) {
-        for (size_t b = 0; b < frames.size(); ++b) {
-          const int ka = static_cast<int>(p.basis[frames[a]].cols());
-          const int kb = static_cast<int>(p.basis[frames[b]].cols());
-          result.covariance.block(p.offset[frames[a]], p.offset[frames[b]], ka, kb) =
-              C.block(c_offset[a], c_offset[b], ka, kb);
+      for (int b : solved_joint_blocks) {
+        add(p.joint_blocks[b].offset, static_cast<int>(p.joint_blocks[b].basis.cols()));
+      }
+      for (size_t a = 0; a < size.size(); ++a) {
+        for (size_t b = 0; b < size.size(); ++b) {
+          result.covariance.block(p_offset[a], p_offset[b], size[a], size[b]) =
+              C.block(c_offset[a], c_offset[b], size[a], size[b]);
         }
       }
       if (options.a_posteriori_covariance) {

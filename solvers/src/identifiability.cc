@@ -7,6 +7,8 @@
 #include <vector>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
+#include <glog/logging.h>
 
 #include "lpoe/kinematics.h"
 
@@ -55,7 +57,78 @@ std::string WeakestDirections(const Parameterization& p, const Eigen::VectorXd& 
 Eigen::MatrixXd NormalMatrix(const RobotModel& model, const MeasurementSet& data,
                              const Parameterization& p, bool use_orientation,
                              double orientation_weight) {
-  return NormalEquationsOf(model, data, p, use_orientation, orientation_weight, false).H;
+  return NormalEquationsOf(model, data, p, Eigen::VectorXd(), use_orientation, orientation_weight,
+                           false)
+      .H;
+}
+
+Parameterization SolverParameterization(const RobotModel& nominal, const MeasurementSet& data,
+                                        ParameterizationKind kind, bool use_orientation,
+                                        double orientation_weight,
+                                        const std::vector<std::shared_ptr<const JointTerm>>& terms,
+                                        double tolerance) {
+  const DataKind data_kind = use_orientation ? DataKind::kPose : DataKind::kPosition;
+  Parameterization p = MakeParameterization(nominal, kind, data_kind);
+  if (terms.empty()) return p;
+  // The analysis runs on the identifiable frames (the full ones are singular by construction) with
+  // every joint block whole.
+  Parameterization pi = MakeParameterization(nominal, ParameterizationKind::kIdentifiable,
+                                             data_kind);
+  for (const auto& term : terms) {
+    CHECK_EQ(term->num_joints(), nominal.num_joints()) << term->name();
+    AddJointBlock(term, &pi);
+  }
+  const Eigen::MatrixXd H = NormalMatrix(nominal, data, pi, use_orientation, orientation_weight);
+  const int total = pi.num_parameters;
+  // Columns kept so far, as combinations of pi's parameters: the identifiable frames first.
+  const int frame_columns = pi.num_frame_parameters();
+  Eigen::MatrixXd kept = Eigen::MatrixXd::Identity(total, frame_columns);
+  std::vector<Eigen::MatrixXd> bases;
+  for (const JointBlock& block : pi.joint_blocks) {
+    const int P = block.term->num_parameters();
+    const Eigen::MatrixXd C = Eigen::MatrixXd::Identity(total, total).middleCols(block.offset, P);
+    const Eigen::MatrixXd Hkk = kept.transpose() * H * kept;
+    const Eigen::MatrixXd Hkb = kept.transpose() * H * C;
+    const Eigen::MatrixXd Hbb = C.transpose() * H * C;
+    // Pseudo-inverse of the (column-scaled) kept block.
+    const Eigen::VectorXd dk = ColumnScale(Hkk);
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ek(dk.asDiagonal() * Hkk * dk.asDiagonal());
+    const double kmax = ek.eigenvalues().size() > 0 ? ek.eigenvalues().maxCoeff() : 0.0;
+    Eigen::VectorXd inv = ek.eigenvalues();
+    for (int k = 0; k < inv.size(); ++k) inv(k) = inv(k) > 1e-14 * kmax ? 1.0 / inv(k) : 0.0;
+    const Eigen::MatrixXd Hkk_pinv = dk.asDiagonal() * ek.eigenvectors() * inv.asDiagonal() *
+                                     ek.eigenvectors().transpose() * dk.asDiagonal();
+    const Eigen::MatrixXd S = Hbb - Hkb.transpose() * Hkk_pinv * Hkb;  // Schur complement
+    const Eigen::VectorXd db = ColumnScale(Hbb);
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(db.asDiagonal() * S * db.asDiagonal());
+    std::vector<int> keep;
+    for (int k = 0; k < P; ++k) {
+      if (std::sqrt(std::max(0.0, es.eigenvalues()(k))) > tolerance) keep.push_back(k);
+    }
+    Eigen::MatrixXd basis;
+    if (static_cast<int>(keep.size()) == P) {
+      basis = Eigen::MatrixXd::Identity(P, P);  // every parameter: keep their own names
+    } else {
+      Eigen::MatrixXd V(P, keep.size());
+      // Scaled coordinates z = theta / db: theta = db * z.
+      for (size_t k = 0; k < keep.size(); ++k) {
+        V.col(k) = db.asDiagonal() * es.eigenvectors().col(keep[k]);
+      }
+      basis = V.householderQr().householderQ() * Eigen::MatrixXd::Identity(P, keep.size());
+    }
+    bases.push_back(basis);
+    Eigen::MatrixXd grown(total, kept.cols() + basis.cols());
+    grown << kept, C * basis;
+    kept = std::move(grown);
+  }
+  for (const auto& term : terms) AddJointBlock(term, &p);
+  for (size_t b = 0; b < bases.size(); ++b) {
+    SetJointBlockBasis(static_cast<int>(b), bases[b],
+                       "not separable from the geometry or from the earlier joint-space terms "
+                       "with these data",
+                       &p);
+  }
+  return p;
 }
 
 std::string TooFewEquationsMessage(int rows, long equations, int identifiable, int per_row) {

@@ -3,13 +3,16 @@
 #ifndef LPOE_SOLVERS_SRC_IDENTIFIABILITY_H_
 #define LPOE_SOLVERS_SRC_IDENTIFIABILITY_H_
 
+#include <memory>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/robot_model.h"
+#include "normal_equations.h"
 
 namespace lpoe {
 namespace internal {
@@ -32,33 +35,26 @@ Identifiability Analyze(const Eigen::MatrixXd& H);
 // The (up to) three parameter names carrying most of `v`.
 std::string WeakestDirections(const Parameterization& p, const Eigen::VectorXd& v);
 
-// J^T J of the stacked error-model Jacobian at `model`, restricted to p's bases: position rows
-// (eq. (29)) or pose rows (eq. (18), rotation rows times orientation_weight). The same matrix, bit
-// for bit, as NormalEquationsOf(...).H, so that both solvers' identifiability checks agree exactly.
+// J^T J of the stacked error-model Jacobian at `model` (joint blocks at zero), in p's blocks:
+// position rows (eq. (29)) or pose rows (eq. (18), rotation rows times orientation_weight). The
+// same matrix, bit for bit, as NormalEquationsOf(...).H, so that both solvers' identifiability
+// checks agree exactly.
 Eigen::MatrixXd NormalMatrix(const RobotModel& model, const MeasurementSet& data,
                              const Parameterization& p, bool use_orientation,
                              double orientation_weight);
 
-// The linearized problem at one model over all rows (defined in linear_solver.cc).
-struct NormalEquations {
-  Eigen::MatrixXd H;      // J^T J (num_parameters square)
-  Eigen::VectorXd g;      // J^T y
-  Eigen::MatrixXd J;      // stacked J, only when asked for (`stack`)
-  Eigen::VectorXd y;      // stacked y, only when asked for
-  double cost = 0;        // 0.5 |y|^2
-  double max_error = 0;   // mm, position error norm
-  double mean_error = 0;  // mm
-  bool finite = true;
-};
-
-// Residuals y (position: P_measured - P_model, eq. (30); pose: log(T_measured T_model^-1), eq. (17),
-// rotation rows times orientation_weight) and their Jacobian in p's bases, accumulated as normal
-// equations. The rows are processed in fixed contiguous chunks (a partition that depends on the row
-// count only), possibly on several threads, and the chunks' partial sums are added in order: the
-// result is bit-identical whatever the number of threads and their timing. No allocation per row.
-NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
-                                  const Parameterization& p, bool use_orientation,
-                                  double orientation_weight, bool stack);
+// The solved parameterization of both solvers: the frame blocks of `kind` for `data_kind`, then one
+// joint-space block per term, each reduced to the combinations of its parameters that `data`
+// separate from the identifiable geometry and from the earlier terms at `nominal` (the Schur
+// complement of the block in the column-scaled normal matrix; a combination whose scaled singular
+// value is below `tolerance`, i.e. which keeps less than that fraction of its column's norm once
+// the geometry and the earlier blocks are projected out, is left out and listed in
+// p.unidentifiable). A block with nothing left keeps zero columns.
+Parameterization SolverParameterization(const RobotModel& nominal, const MeasurementSet& data,
+                                        ParameterizationKind kind, bool use_orientation,
+                                        double orientation_weight,
+                                        const std::vector<std::shared_ptr<const JointTerm>>& terms,
+                                        double tolerance);
 
 // The messages both solvers give when refusing data.
 std::string TooFewEquationsMessage(int rows, long equations, int identifiable, int per_row);

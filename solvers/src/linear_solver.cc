@@ -1,12 +1,10 @@
 #include "lpoe/linear_solver.h"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <sstream>
-#include <thread>
 #include <vector>
 
 #include <Eigen/Cholesky>
@@ -27,170 +25,10 @@ constexpr double kCostIncreaseTolerance = 1e-10;
 
 using Linearization = internal::NormalEquations;
 
-// Poses per block of stacked rows handed to one symmetric rank-k update (H += A^T A, a blocked
-// SYRK): large enough to amortize Eigen's packing, small enough to stay in L1/L2.
-constexpr int kBlockPoses = 64;
-// The rows are cut into at most kMaxChunks contiguous chunks of at least kMinChunkPoses poses, a
-// partition that depends on the row count only. Each chunk accumulates its own partial sums; they
-// are added in chunk order. So the result is bit-identical whatever the number of threads and
-// whichever thread takes which chunk.
-constexpr int kMaxChunks = 64;
-constexpr int kMinChunkPoses = 1024;
-// Below this many poses everything runs on the calling thread.
-constexpr int kMinPosesForThreads = 2000;
-
-// Partial sums of one chunk of rows.
-struct ChunkSums {
-  Eigen::MatrixXd H;  // lower triangle
-  Eigen::VectorXd g;
-  double cost = 0;
-  double max_error = 0;
-  double sum_error = 0;
-};
-
-// Per-thread scratch (allocated once per thread and Linearize call, never per row).
-struct Scratch {
-  Eigen::MatrixXd A;  // m * kBlockPoses x P stacked Jacobian rows
-  Eigen::VectorXd Y;  // m * kBlockPoses residuals
-  std::vector<FrameRt> frames;
-};
-
-// Accumulates rows [begin, end) into `sums` (and into the stacked J and y when `lin` stacks).
-void AccumulateRows(const BasisJacobian& bj, const MeasurementSet& data, bool use_orientation,
-                    double orientation_weight, int begin, int end, Scratch* scratch,
-                    ChunkSums* sums, Linearization* stacked) {
-  const int m = use_orientation ? 6 : 3;
-  const int P = bj.num_parameters();
-  const int ld = m * kBlockPoses;
-  double* A = scratch->A.data();
-  double* Y = scratch->Y.data();
-  FrameRt* frames = scratch->frames.data();
-  const double w = orientation_weight;
-  for (int r0 = begin; r0 < end; r0 += kBlockPoses) {
-    const int count = std::min(kBlockPoses, end - r0);
-    for (int k = 0; k < count; ++k) {
-      const int r = r0 + k;
-      const double* q = data.q(r);
-      const int tool = data.target(r);
-      double* Jr = A + m * k;
-      double* y = Y + m * k;
-      double e_sq;
-      if (use_orientation) {
-        const SE3d T = bj.Pose(q, tool, Jr, ld, frames);
-        Vector6d yr = LogSE3(data.pose(r) * T.Inverse());  // eq. (17)
-        e_sq = (data.position(r) - T.t).squaredNorm();
-        // Weight the rotation rows: 1 rad counts as orientation_weight mm.
-        yr.head<3>() *= w;
-        for (int c = 0; c < P; ++c) {
-          double* col = Jr + static_cast<std::ptrdiff_t>(c) * ld;
-          col[0] *= w;
-          col[1] *= w;
-          col[2] *= w;
-        }
-        for (int i = 0; i < 6; ++i) y[i] = yr(i);
-        sums->cost += 0.5 * yr.squaredNorm();
-      } else {
-        const Eigen::Vector3d P_model = bj.Position(q, tool, Jr, ld, frames);
-        const Eigen::Vector3d yr = data.position(r) - P_model;  // eq. (30)
-        y[0] = yr(0);
-        y[1] = yr(1);
-        y[2] = yr(2);
-        e_sq = yr.squaredNorm();
-        sums->cost += 0.5 * e_sq;
-      }
-      const double e = std::sqrt(e_sq);
-      sums->max_error = std::max(sums->max_error, e);
-      sums->sum_error += e;
-    }
-    const int rows = m * count;
-    const auto Ab = scratch->A.topRows(rows);
-    sums->H.selfadjointView<Eigen::Lower>().rankUpdate(Ab.transpose());
-    sums->g.noalias() += Ab.transpose() * scratch->Y.head(rows);
-    if (stacked != nullptr) {
-      stacked->J.middleRows(static_cast<Eigen::Index>(m) * r0, rows) = Ab;
-      stacked->y.segment(static_cast<Eigen::Index>(m) * r0, rows) = scratch->Y.head(rows);
-    }
-  }
-}
-
-}  // namespace
-
-namespace internal {
-
-NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
-                                  const Parameterization& p, bool use_orientation,
-                                  double orientation_weight, bool stack) {
-  const int P = p.num_parameters;
-  const int m = use_orientation ? 6 : 3;
-  const int N = data.size();
-  Linearization lin;
-  lin.H.setZero(P, P);
-  lin.g.setZero(P);
-  if (stack) {
-    lin.J.setZero(static_cast<Eigen::Index>(m) * N, P);
-    lin.y.setZero(static_cast<Eigen::Index>(m) * N);
-  }
-  const BasisJacobian bj(model, p);
-
-  const int chunks = std::max(1, std::min(kMaxChunks, N / kMinChunkPoses));
-  const int chunk_size = N == 0 ? 0 : (N + chunks - 1) / chunks;
-  std::vector<ChunkSums> sums(chunks);
-  auto make_scratch = [&]() {
-    Scratch s;
-    s.A.resize(static_cast<Eigen::Index>(m) * kBlockPoses, P);
-    s.Y.resize(static_cast<Eigen::Index>(m) * kBlockPoses);
-    s.frames.resize(model.num_joints() + 1);
-    return s;
-  };
-  auto run_chunk = [&](int c, Scratch* scratch) {
-    ChunkSums& cs = sums[c];
-    cs.H.setZero(P, P);
-    cs.g.setZero(P);
-    const int begin = std::min(N, c * chunk_size);
-    const int end = std::min(N, begin + chunk_size);
-    AccumulateRows(bj, data, use_orientation, orientation_weight, begin, end, scratch, &cs,
-                   stack ? &lin : nullptr);
-  };
-  const int hardware = static_cast<int>(std::thread::hardware_concurrency());
-  const int threads = N < kMinPosesForThreads ? 1 : std::max(1, std::min(hardware, chunks));
-  if (threads == 1) {
-    Scratch scratch = make_scratch();
-    for (int c = 0; c < chunks; ++c) run_chunk(c, &scratch);
-  } else {
-    // Chunks are taken in any order; each writes only its own sums (and its own rows of J, y).
-    std::atomic<int> next(0);
-    auto worker = [&]() {
-      Scratch scratch = make_scratch();
-      for (int c = next.fetch_add(1); c < chunks; c = next.fetch_add(1)) run_chunk(c, &scratch);
-    };
-    std::vector<std::thread> pool;
-    for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-    worker();
-    for (std::thread& t : pool) t.join();
-  }
-  // Fixed-order reduction.
-  double sum_error = 0;
-  for (const ChunkSums& cs : sums) {
-    lin.H += cs.H;
-    lin.g += cs.g;
-    lin.cost += cs.cost;
-    lin.max_error = std::max(lin.max_error, cs.max_error);
-    sum_error += cs.sum_error;
-  }
-  lin.H.triangularView<Eigen::StrictlyUpper>() = lin.H.transpose();
-  lin.mean_error = data.empty() ? 0.0 : sum_error / data.size();
-  lin.finite = std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
-  return lin;
-}
-
-}  // namespace internal
-
-namespace {
-
-Linearization Linearize(const RobotModel& model, const MeasurementSet& data,
-                        const Parameterization& p, const LinearSolverOptions& options,
-                        bool stack) {
-  return internal::NormalEquationsOf(model, data, p, options.use_orientation,
+Linearization Linearize(const RobotModel& model, const Eigen::VectorXd& joint_state,
+                        const MeasurementSet& data, const Parameterization& p,
+                        const LinearSolverOptions& options, bool stack) {
+  return internal::NormalEquationsOf(model, data, p, joint_state, options.use_orientation,
                                      options.orientation_weight, stack);
 }
 
@@ -266,14 +104,20 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
                   "pose-based calibration needs measured orientations (quat_x..quat_w columns)");
   }
   const bool override_basis = options.parameterization_override != nullptr;
-  result.parameterization = override_basis
-                                ? *options.parameterization_override
-                                : MakeParameterization(nominal, options.parameterization, kind);
+  CHECK(!override_basis || options.joint_terms.empty())
+      << "joint-space terms with a parameterization override";
+  result.parameterization =
+      override_basis ? *options.parameterization_override
+                     : internal::SolverParameterization(
+                           nominal, data, options.parameterization, options.use_orientation,
+                           options.orientation_weight, options.joint_terms,
+                           options.joint_term_tolerance);
   const Parameterization& p = result.parameterization;
   const bool full = !override_basis && options.parameterization == ParameterizationKind::kFull;
   // Unknowns the data must determine: the identifiable count, whichever parameterization is solved.
-  const int identifiable =
-      p.num_parameters - (full ? static_cast<int>(p.unidentifiable.size()) : 0);
+  int gauge = 0;  // the frames' unidentifiable directions solved anyway (full parameterization)
+  for (const Direction& d : p.unidentifiable) gauge += full && d.joint_block < 0;
+  const int identifiable = p.num_parameters - gauge;
   const int per_row = options.use_orientation ? 6 : 3;
   const long equations = static_cast<long>(per_row) * data.size();
   if (equations < identifiable) {
@@ -283,22 +127,31 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
 
   const bool stack = full;
   RobotModel model = nominal;
-  Linearization lin = Linearize(model, data, p, options, stack);
+  // The joint-space blocks' coordinates (they start at zero: no joint error).
+  const int K = p.num_joint_parameters();
+  Eigen::VectorXd joint_state = Eigen::VectorXd::Zero(K);
+  auto joint_values = [&]() {
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(p.num_parameters);
+    x.tail(K) = joint_state;
+    return JointValuesOf(p, x);
+  };
+  Linearization lin = Linearize(model, joint_state, data, p, options, stack);
   if (!lin.finite) {
     return finish(Termination::kNumericalFailure,
                   "non-finite residuals or Jacobian at the nominal model (check the input values)");
   }
   result.history.push_back(Record(0, lin));
 
+  result.joint_terms = joint_values();  // zero until solved
+
   // Identifiability in the calibrated directions, at the nominal model. For the full
   // parameterization this is analyzed in the identifiable basis (the full J^T J is singular by
   // construction).
   auto analyze = [&](const RobotModel& at, const Linearization& l) {
     if (!full) return Analyze(l.H);
-    LinearSolverOptions o = options;
-    o.parameterization = ParameterizationKind::kIdentifiable;
-    const Parameterization pi = MakeParameterization(at, o.parameterization, kind);
-    return Analyze(Linearize(at, data, pi, o, false).H);
+    Parameterization pi = MakeParameterization(at, ParameterizationKind::kIdentifiable, kind);
+    CopyJointBlocks(p, &pi);
+    return Analyze(Linearize(at, joint_state, data, pi, options, false).H);
   };
   {
     const Identifiability id = analyze(model, lin);
@@ -306,8 +159,11 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     result.condition_number = id.condition;
     result.singular_values = id.singular_values;
     if (id.rank < identifiable || !(id.condition <= options.max_condition_number)) {
-      const Parameterization pi =
-          full ? MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind) : p;
+      Parameterization pi = p;
+      if (full) {
+        pi = MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind);
+        CopyJointBlocks(p, &pi);
+      }
       return finish(Termination::kNotIdentifiable,
                     internal::NotIdentifiableMessage(id, identifiable,
                                                      options.max_condition_number, pi));
@@ -328,6 +184,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     }
     if (step < options.step_tolerance) {
       result.model = model;
+      result.joint_terms = joint_values();
       result.iterations = it - 1;
       result.final_cost = lin.cost;
       if (options.compute_covariance && !full) {
@@ -348,15 +205,18 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     for (int h = 0; h <= kMaxHalvings && !accepted; ++h, alpha *= 0.5) {
       RobotModel candidate = model;
       ApplyUpdate(p, alpha * x, &candidate);
-      Linearization next = Linearize(candidate, data, p, options, stack);
+      const Eigen::VectorXd candidate_joints = joint_state + alpha * x.tail(K);
+      Linearization next = Linearize(candidate, candidate_joints, data, p, options, stack);
       if (next.finite && next.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
         model = std::move(candidate);
+        joint_state = candidate_joints;
         lin = std::move(next);
         accepted = true;
       }
     }
     if (!accepted) {
       result.model = model;
+      result.joint_terms = joint_values();
       result.iterations = it - 1;
       result.final_cost = lin.cost;
       std::ostringstream os;
@@ -368,6 +228,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     if (options.on_iteration) options.on_iteration(result.history.back());
   }
   result.model = model;
+  result.joint_terms = joint_values();
   result.iterations = options.max_iterations;
   result.final_cost = lin.cost;
   std::ostringstream os;

@@ -1,9 +1,11 @@
 // Forward kinematics of the LPoE chain (paper eqs. (6), (7), (26)) and the analytic Jacobians of the
 // error model (eqs. (18), (29)).
 //
-// The chain is written once, as a template on the scalar of the local frames: doubles for the linear
-// solver and the tools, ceres::Jet for automatic differentiation (the Ceres residuals pass their
-// parameter blocks as frames). Joint values and twists are data, always double.
+// The chain is written once (ForwardChain, BackwardChain below), as a template on the scalar of the
+// local frames and on the scalar of the joint values: doubles for the linear solver and the tools,
+// ceres::Jet for automatic differentiation (the Ceres residuals pass their parameter blocks as frames,
+// and Jet joint values when a joint-space term shifts them). Twists are data, always double.
+// docs/architecture.md describes the layers; docs/conventions.md the conventions.
 #ifndef LPOE_KINEMATICS_H_
 #define LPOE_KINEMATICS_H_
 
@@ -26,135 +28,251 @@ inline void SinCos(double x, double* s, double* c) {
 #endif
 }
 
+// The same for any other scalar (ceres::Jet joint values: sin and cos found by ADL).
+template <typename S>
+inline void SinCos(const S& x, S* s, S* c) {
+  using std::cos;
+  using std::sin;
+  *s = sin(x);
+  *c = cos(x);
+}
+
 // True for a revolute joint whose twist is exactly (0, 0, 1, 0, 0, 0): its motion is Rz(q) with no
-// translation, which the fast paths below apply as a 2-column rotation update.
+// translation, which every chain below applies as a plane rotation of two coordinates.
 inline bool IsRevoluteZ(const Joint& joint) {
   const Vector6d& s = joint.twist;
   return joint.type == JointType::kRevolute && s(0) == 0 && s(1) == 0 && s(2) == 1 && s(3) == 0 &&
          s(4) == 0 && s(5) == 0;
 }
 
-// exp(s^ q) for a joint of the given twist. Revolute joints about local z (the common case) take a
-// closed form with one sin/cos pair.
-SE3d JointMotion(const Joint& joint, double q);
-
 namespace internal {
 
-// R <- R Rz(q) given c = cos q, s = sin q: only columns 0 and 1 change (12 multiplications instead
-// of a 3x3 product).
-template <typename T>
-inline void RightMultiplyRotZ(double c, double s, Matrix3<T>* R) {
-  for (int r = 0; r < 3; ++r) {
-    const T a = (*R)(r, 0);
-    const T b = (*R)(r, 1);
-    (*R)(r, 0) = c * a + s * b;
-    (*R)(r, 1) = c * b - s * a;
-  }
-}
-
-// X <- X exp(s^ q) for joint i of `model`.
-template <typename T>
-inline void ApplyJointMotion(const Joint& joint, double q, SE3<T>* X) {
-  if (IsRevoluteZ(joint)) {
-    double s, c;
-    SinCos(q, &s, &c);
-    RightMultiplyRotZ(c, s, &X->R);
-  } else {
-    *X = *X * JointMotion(joint, q).template cast<T>();
-  }
+// The revolute-about-z update, written once for every chain, scalar and register type:
+// (x, y) <- (c x - s y, s x + c y).
+//   on a point, p <- Rz(q) p:             PlaneRotation(c, s, &p_x, &p_y);
+//   on a frame, R <- R Rz(q) (columns):   PlaneRotation(c, -s, &R_col0, &R_col1) per row.
+// `A` is a scalar, a Jet or an SSE2 register (GCC/Clang vector arithmetic), `C` its coefficient.
+template <typename A, typename C>
+inline void PlaneRotation(const C& c, const C& s, A* x, A* y) {
+  const A x0 = *x;
+  *x = c * x0 - s * *y;
+  *y = s * x0 + c * *y;
 }
 
 }  // namespace internal
 
-// T_0,tool(q) = prod_i T_{i-1,i}(0) exp(s_i^ q_i) * T_n,tool with the local frames given by
-// `joint_origins[0..n)` and `tool_origin` (paper eq. (7)). `q` holds n joint values.
-template <typename T>
-SE3<T> ChainPose(const RobotModel& model, const SE3<T>* joint_origins, const SE3<T>& tool_origin,
-                 const double* q) {
-  SE3<T> X = joint_origins[0];
-  for (int i = 0; i < model.num_joints(); ++i) {
-    if (i > 0) X = X * joint_origins[i];
-    internal::ApplyJointMotion(model.joints[i], q[i], &X);
+// exp(s^ q) for a joint of the given twist, for any scalar of the joint value (double, Jet): the
+// prismatic update t = v q, the revolute-z closed form, the general screw motion otherwise.
+template <typename S>
+SE3<S> JointMotion(const Joint& joint, const S& q) {
+  SE3<S> X;
+  if (joint.type == JointType::kPrismatic) {
+    X.t = joint.twist.tail<3>().template cast<S>() * q;
+    return X;
   }
-  return X * tool_origin;
+  if (IsRevoluteZ(joint)) {
+    S sn, c;
+    SinCos(q, &sn, &c);
+    X.R.setIdentity();
+    internal::PlaneRotation(c, S(-sn), &X.R(0, 0), &X.R(0, 1));
+    internal::PlaneRotation(c, S(-sn), &X.R(1, 0), &X.R(1, 1));
+    return X;
+  }
+  return ExpSE3(Vector6<S>(joint.twist.template cast<S>() * q));
 }
 
-// The joint motions exp(s_i^ q_i) of one configuration, computed once: the autodiff residuals
-// evaluate the chain many times per Jacobian at a fixed q, and the sin/cos calls would otherwise
-// dominate. Revolute-z joints keep (sin, cos); other joints their motion.
+// ---- One forward-kinematics template.
+//
+// Every evaluation of the chain T_0,tool(q) = prod_i T_{i-1,i}(0) exp(s_i^ q_i) * T_n,tool (paper
+// eq. (7)) goes through one of two passes, written once:
+//   ForwardChain:  from the base to the tool on a running transform (poses, perturbation frames);
+//   BackwardChain: from the tool back to the base on a point (positions, eq. (26)): 9 + 4
+//                  multiplications per revolute-z joint and no rotation products.
+// What differs between the fast double paths, the Jet paths of Ceres and the analytic Jacobians is
+// a policy:
+//   * the running transform (`Accumulator`): SE3Accumulator<T> for any scalar, the SSE2 register
+//     form of kinematics.cc for the double fast paths;
+//   * the local frames (`origin(i)`): the model's own frames, or parameter blocks (SE3<T>, or
+//     QuaternionTransform<T> acting on a point straight from the quaternion);
+//   * the joint motions (`Motions`): precomputed once per configuration (JointMotions, the
+//     "Data" of one q: sin/cos up front), or computed on the fly (OnTheFlyMotions);
+//   * which joints are revolute about z: checked per call, or once (KinematicChain).
+// Joint values are of any scalar S (double, or Jet when a joint-space term shifts them).
+
+// The motions exp(s_i^ q_i) of one configuration, computed once (the per-call Data of the chain):
+// revolute-z joints keep (sin, cos), other joints their motion. The autodiff residuals evaluate the
+// chain many times per Jacobian at a fixed q, and the sin/cos calls would otherwise dominate.
+template <typename S = double>
 class JointMotions {
  public:
-  JointMotions(const RobotModel& model, const double* q);
+  JointMotions(const RobotModel& model, const S* q) : motions_(model.num_joints()) {
+    for (int i = 0; i < model.num_joints(); ++i) {
+      Motion& m = motions_[i];
+      m.revolute_z = IsRevoluteZ(model.joints[i]);
+      if (m.revolute_z) {
+        SinCos(q[i], &m.s, &m.c);
+      } else {
+        m.general = JointMotion(model.joints[i], q[i]);
+      }
+    }
+  }
 
   // p <- exp(s_i^ q_i) p.
   template <typename T>
-  void Apply(int i, Vector3<T>* p) const {
+  void ApplyLeft(int i, Vector3<T>* p) const {
     const Motion& m = motions_[i];
     if (m.revolute_z) {
-      const T x = (*p)(0);
-      (*p)(0) = m.c * x - m.s * (*p)(1);
-      (*p)(1) = m.s * x + m.c * (*p)(1);
+      internal::PlaneRotation(m.c, m.s, &(*p)(0), &(*p)(1));
     } else {
       *p = m.general.R.template cast<T>() * *p + m.general.t.template cast<T>();
+    }
+  }
+  // X <- X exp(s_i^ q_i).
+  template <typename Accumulator>
+  void ApplyRight(int i, Accumulator* X) const {
+    const Motion& m = motions_[i];
+    if (m.revolute_z) {
+      X->RotZ(m.c, m.s);
+    } else {
+      X->RightMultiply(m.general);
     }
   }
 
  private:
   struct Motion {
     bool revolute_z = false;
-    double s = 0, c = 1;
-    SE3d general;
+    S s = S(0), c = S(1);
+    SE3<S> general;
   };
   std::vector<Motion> motions_;
 };
 
-namespace internal {
+// The joint motions computed as the chain reaches each joint (no set-up, nothing stored): sin/cos
+// interleaved with the chain. `is_z(i)` tells which joints are revolute about z.
+template <typename IsZ, typename S = double>
+class OnTheFlyMotions {
+ public:
+  OnTheFlyMotions(const Joint* joints, const S* q, IsZ is_z) : joints_(joints), q_(q), is_z_(is_z) {}
 
-// The position chain from the tool back to the base; `apply_motion(i, &p)` applies joint i's motion.
-template <typename T, typename Frame, typename ApplyMotion>
-Vector3<T> ChainPositionBackward(int num_joints, const Frame* joint_origins,
-                                 const Vector3<T>& tool_point, const ApplyMotion& apply_motion) {
-  Vector3<T> p = tool_point;
+  template <typename T>
+  void ApplyLeft(int i, Vector3<T>* p) const {
+    if (is_z_(i)) {
+      S s, c;
+      SinCos(q_[i], &s, &c);
+      internal::PlaneRotation(c, s, &(*p)(0), &(*p)(1));
+    } else {
+      const SE3<S> M = JointMotion(joints_[i], q_[i]);
+      *p = M.R.template cast<T>() * *p + M.t.template cast<T>();
+    }
+  }
+  template <typename Accumulator>
+  void ApplyRight(int i, Accumulator* X) const {
+    if (is_z_(i)) {
+      S s, c;
+      SinCos(q_[i], &s, &c);
+      X->RotZ(c, s);
+    } else {
+      X->RightMultiply(JointMotion(joints_[i], q_[i]));
+    }
+  }
+
+ private:
+  const Joint* joints_;
+  const S* q_;
+  IsZ is_z_;
+};
+
+template <typename S, typename IsZ>
+OnTheFlyMotions<IsZ, S> MakeOnTheFlyMotions(const Joint* joints, const S* q, IsZ is_z) {
+  return OnTheFlyMotions<IsZ, S>(joints, q, is_z);
+}
+
+// The running transform of ForwardChain for any scalar.
+template <typename T>
+struct SE3Accumulator {
+  SE3<T> X;
+
+  template <typename Frame>
+  void Set(const Frame& F) {
+    X = F.template cast<T>();
+  }
+  template <typename Frame>
+  void RightMultiply(const Frame& F) {
+    X = X * F.template cast<T>();
+  }
+  // R <- R Rz(q): columns 0 and 1 only (12 multiplications instead of a 3x3 product).
+  template <typename C>
+  void RotZ(const C& c, const C& s) {
+    for (int r = 0; r < 3; ++r) internal::PlaneRotation(c, C(-s), &X.R(r, 0), &X.R(r, 1));
+  }
+};
+
+// X = O_0 M_0 O_1 M_1 ... O_n-1 M_n-1 (the chain up to the last joint); `frame(i, X)` sees X just
+// before joint i moves, G_i = T_0,i-1(q) T_{i-1,i}(0). The accumulator is set from origin(0).
+template <typename Accumulator, typename Origins, typename Motions, typename FrameSink>
+inline void ForwardChain(int num_joints, const Origins& origin, const Motions& motions,
+                         Accumulator* X, const FrameSink& frame) {
+  X->Set(origin(0));
+  for (int i = 0; i < num_joints; ++i) {
+    if (i > 0) X->RightMultiply(origin(i));
+    frame(i, *X);
+    motions.ApplyRight(i, X);
+  }
+}
+
+// P = O_0 M_0 ... O_n-1 M_n-1 p, from the tool back to the base: p <- O_i (M_i p).
+template <typename T, typename Origins, typename Motions>
+inline Vector3<T> BackwardChain(int num_joints, const Origins& origin, const Motions& motions,
+                                Vector3<T> p) {
   for (int i = num_joints - 1; i >= 0; --i) {
-    apply_motion(i, &p);
-    p = joint_origins[i] * p;
+    motions.ApplyLeft(i, &p);
+    p = origin(i) * p;
   }
   return p;
 }
 
-}  // namespace internal
-
-// Position-only variant (eq. (26)): P = T_0,n(q) * p_tool, evaluated from the tool back to the base
-// with vectors only, p <- T_{i-1,i}(0) (exp(s_i^ q_i) p): 9 + 4 multiplications per revolute-z joint
-// and no rotation products.
-// `Frame` is SE3<T> or any transform acting on a Vector3<T> with operator* (e.g.
-// QuaternionTransform<T>, used by the autodiff residual).
-template <typename T, typename Frame = SE3<T>>
-Vector3<T> ChainPosition(const RobotModel& model, const Frame* joint_origins,
-                         const Vector3<T>& tool_point, const double* q) {
-  return internal::ChainPositionBackward<T>(
-      model.num_joints(), joint_origins, tool_point, [&](int i, Vector3<T>* p) {
-        const Joint& joint = model.joints[i];
-        if (IsRevoluteZ(joint)) {
-          double s, c;
-          SinCos(q[i], &s, &c);
-          const T x = (*p)(0);
-          (*p)(0) = c * x - s * (*p)(1);
-          (*p)(1) = s * x + c * (*p)(1);
-        } else {
-          const SE3d M = JointMotion(joint, q[i]);
-          *p = M.R.template cast<T>() * *p + M.t.template cast<T>();
-        }
-      });
+// T_0,tool(q) with the local frames given by `joint_origins[0..n)` and `tool_origin` (paper eq. (7)).
+// `q` holds n joint values (double, or a Jet when joint-space terms shift them).
+template <typename T, typename Q = double>
+SE3<T> ChainPose(const RobotModel& model, const SE3<T>* joint_origins, const SE3<T>& tool_origin,
+                 const Q* q) {
+  SE3Accumulator<T> X;
+  ForwardChain(model.num_joints(), [&](int i) -> const SE3<T>& { return joint_origins[i]; },
+               MakeOnTheFlyMotions(model.joints.data(), q,
+                                   [&](int i) { return IsRevoluteZ(model.joints[i]); }),
+               &X, [](int, const SE3Accumulator<T>&) {});
+  return X.X * tool_origin;
 }
 
 // The same chain with the joint motions precomputed.
-template <typename T, typename Frame = SE3<T>>
-Vector3<T> ChainPosition(const JointMotions& motions, int num_joints, const Frame* joint_origins,
+template <typename T, typename S = double>
+SE3<T> ChainPose(const JointMotions<S>& motions, int num_joints, const SE3<T>* joint_origins,
+                 const SE3<T>& tool_origin) {
+  SE3Accumulator<T> X;
+  ForwardChain(num_joints, [&](int i) -> const SE3<T>& { return joint_origins[i]; }, motions, &X,
+               [](int, const SE3Accumulator<T>&) {});
+  return X.X * tool_origin;
+}
+
+// Position-only variant (eq. (26)): P = T_0,n(q) * p_tool, evaluated backward on a point.
+// `Frame` is SE3<T> or any transform acting on a Vector3<T> with operator* (e.g.
+// QuaternionTransform<T>, used by the autodiff residual).
+template <typename T, typename Frame = SE3<T>, typename Q = double>
+Vector3<T> ChainPosition(const RobotModel& model, const Frame* joint_origins,
+                         const Vector3<T>& tool_point, const Q* q) {
+  return BackwardChain<T>(
+      model.num_joints(), [&](int i) -> const Frame& { return joint_origins[i]; },
+      MakeOnTheFlyMotions(model.joints.data(), q,
+                          [&](int i) { return IsRevoluteZ(model.joints[i]); }),
+      tool_point);
+}
+
+// The same chain with the joint motions precomputed.
+template <typename T, typename Frame = SE3<T>, typename S = double>
+Vector3<T> ChainPosition(const JointMotions<S>& motions, int num_joints, const Frame* joint_origins,
                          const Vector3<T>& tool_point) {
-  return internal::ChainPositionBackward<T>(
-      num_joints, joint_origins, tool_point,
-      [&](int i, Vector3<T>* p) { motions.Apply(i, p); });
+  return BackwardChain<T>(
+      num_joints, [&](int i) -> const Frame& { return joint_origins[i]; }, motions, tool_point);
 }
 
 // Convenience forms on the model's own frames (double).
@@ -179,6 +297,17 @@ Eigen::Vector3d ToolPositionJacobian(const RobotModel& model, const double* q, i
 // (paper eq. (18)): J = [Ad_G_0 ... Ad_G_tool], 6 x 6 * num_frames. Returns T_0,tool(q).
 SE3d ToolPoseJacobian(const RobotModel& model, const double* q, int tool,
                       Eigen::MatrixXd* J_pose_frames);
+
+// Jacobian of the tool position with respect to the joint values at q (3 x n): column i is
+// w_i x P + v_i, where (w_i, v_i) = Ad_{G_i} s_i is joint i's twist in the base frame
+// (T(q + dq e_i) = exp((Ad_{G_i} s_i dq)^) T(q)). `J_p_q` is resized to 3 x n. Returns P.
+Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double* q, int tool,
+                                          Eigen::MatrixXd* J_p_q);
+
+// The same for the pose, in the convention of ToolPoseJacobian (6 x n, column i = Ad_{G_i} s_i).
+// Returns T_0,tool(q).
+SE3d ToolPoseJointJacobian(const RobotModel& model, const double* q, int tool,
+                           Eigen::MatrixXd* J_pose_q);
 
 // ---- Fast double paths for repeated evaluation (the solvers' inner loops, the benchmarks).
 
@@ -223,12 +352,18 @@ class BasisJacobian {
   BasisJacobian(const RobotModel& model, const Parameterization& p);
 
   int num_parameters() const { return num_parameters_; }
+  int num_joints() const { return num_joints_; }
 
   // Writes the 3 x num_parameters position Jacobian column-major with leading dimension `ld` >= 3
   // (J[c * ld + r]); returns P. `frames` is scratch for num_joints() + 1 frames.
   Eigen::Vector3d Position(const double* q, int tool, double* J, int ld, FrameRt* frames) const;
   // Writes the 6 x num_parameters pose Jacobian (rows (omega, v)) the same way; returns T_0,tool(q).
   SE3d Pose(const double* q, int tool, double* J, int ld, FrameRt* frames) const;
+
+  // After Position (or Pose) at q with the same `frames`: the 3 x n (or 6 x n) Jacobian of that
+  // output with respect to the joint values, column-major with leading dimension `ld`.
+  void PositionJointJacobian(const FrameRt* frames, double* J, int ld) const;
+  void PoseJointJacobian(const FrameRt* frames, double* J, int ld) const;
 
  private:
   struct FramePlan {
@@ -238,6 +373,7 @@ class BasisJacobian {
     Eigen::Matrix<double, 6, Eigen::Dynamic> basis;
   };
   KinematicChain chain_;
+  const RobotModel* model_;
   int num_parameters_ = 0;
   int num_joints_ = 0;
   std::vector<FramePlan> plan_;  // one per frame of the model

@@ -1,5 +1,10 @@
-// Which directions of each local frame's right perturbation are calibrated (DESIGN.md section 3).
+// The calibration parameters as a list of blocks (docs/architecture.md): one block per local frame
+// (right perturbations on SE(3), restricted to the identifiable directions) and one block per
+// joint-space term (joint_term.h), each carrying its own identifiability analysis and names. Both
+// solvers assemble their problem from this one list: the linear solver's columns, Ceres's parameter
+// blocks and manifolds, the covariance's order.
 //
+// Frames (docs/conventions.md, "Parameters that cannot be identified"):
 // For joint i, a perturbation dp of T_{i-1,i}(0) that commutes with the joint's own motion exp(s_i^ q)
 // (the centralizer of s_i in se(3): ad_{s_i} dp = 0) can be pushed through the joint into the next
 // frame, so no data can tell it apart: 2 directions for a revolute joint (rotation about and
@@ -10,11 +15,13 @@
 #ifndef LPOE_PARAMETERIZATION_H_
 #define LPOE_PARAMETERIZATION_H_
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "lpoe/joint_term.h"
 #include "lpoe/robot_model.h"
 
 namespace lpoe {
@@ -27,11 +34,25 @@ bool ParseParameterization(const std::string& text, ParameterizationKind* kind);
 
 // A basis direction, with a human-readable name ("joint2.rx", "smr1.vy") and, for the directions
 // left out, why.
+// For a joint-space block, `frame` is -1, `joint_block` its index and `combination` the unit
+// combination of the term's parameters theta.
 struct Direction {
   int frame = 0;
   Eigen::Matrix<double, 6, 1> vector;  // unit (omega, v) in the frame's own coordinates
   std::string name;
   std::string reason;  // empty for calibrated directions
+  int joint_block = -1;
+  Eigen::VectorXd combination;
+};
+
+// A joint-space term's parameter block: theta = basis * x_block, where basis (P x k, orthonormal
+// columns) spans the combinations of the term's parameters the data separate from the geometry and
+// from the earlier blocks (found by the solvers from the stacked Jacobian, see
+// solvers/src/identifiability.h). Until that analysis ran, basis = I.
+struct JointBlock {
+  std::shared_ptr<const JointTerm> term;
+  Eigen::MatrixXd basis;
+  int offset = 0;  // first parameter of the block in x
 };
 
 struct Parameterization {
@@ -43,6 +64,15 @@ struct Parameterization {
   int num_parameters = 0;
   std::vector<Direction> parameters;    // one per parameter, in order
   std::vector<Direction> unidentifiable;  // the directions left out (identifiable kind only)
+  // Joint-space blocks, after all frame parameters.
+  std::vector<JointBlock> joint_blocks;
+
+  int num_joint_parameters() const {
+    int k = 0;
+    for (const JointBlock& b : joint_blocks) k += static_cast<int>(b.basis.cols());
+    return k;
+  }
+  int num_frame_parameters() const { return num_parameters - num_joint_parameters(); }
 };
 
 // Null space of ad_s (the twists that commute with s), 6 x k, orthonormal columns.
@@ -54,8 +84,23 @@ Eigen::MatrixXd IdentifiableJointBasis(const Vector6d& twist);
 Parameterization MakeParameterization(const RobotModel& model, ParameterizationKind kind,
                                       DataKind data);
 
+// Appends a joint-space block for `term` with the identity basis (every parameter) and its names.
+void AddJointBlock(std::shared_ptr<const JointTerm> term, Parameterization* p);
+
+// Replaces the basis of joint block b (P x k, orthonormal columns), renumbering the later offsets and
+// the names; the combinations left out go to p->unidentifiable with `reason`.
+void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& reason,
+                        Parameterization* p);
+
+// Replaces to's joint blocks (and their left-out combinations) by from's.
+void CopyJointBlocks(const Parameterization& from, Parameterization* to);
+
 // Applies an update x (num_parameters) to the model: T_f <- T_f exp((basis_f x_f)^) (eq. (19)).
+// The joint-space part of x is not used (see JointValuesOf).
 void ApplyUpdate(const Parameterization& p, const Eigen::VectorXd& x, RobotModel* model);
+
+// The terms' values theta_b = basis_b x_b from the joint-space part of x (num_parameters).
+std::vector<JointTermValues> JointValuesOf(const Parameterization& p, const Eigen::VectorXd& x);
 
 // Coordinates of the difference between two models in the calibrated directions:
 // x_f = basis_f^T log(a_f^-1 b_f). Used to compare two calibrations.

@@ -74,6 +74,10 @@ class RobotModel {
   std::string name;
   std::vector<Joint> joints;
   std::vector<Tool> tools;
+  // The registration found by calibration: the measurement frame (where this model's base lives,
+  // e.g. a laser tracker's) from the nominal model's base frame. Identity when the data were in the
+  // base frame. Compensation uses it to carry nominal poses into this model's frame.
+  SE3d T_measurement_base;
   // Gravity in the model's base frame (m/s^2): the parent frame of joint 1's local frame, i.e. the
   // measurement frame of a registered model.
   Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -kStandardGravity);

@@ -219,6 +219,47 @@ Matrix3<T> QuaternionToRotation(const Eigen::Matrix<T, 4, 1>& q_in) {
   return R;
 }
 
+// q (x) p for quaternions stored (x, y, z, w).
+template <typename T>
+Eigen::Matrix<T, 4, 1> QuaternionProduct(const Eigen::Matrix<T, 4, 1>& q,
+                                         const Eigen::Matrix<T, 4, 1>& p) {
+  const Vector3<T> qv = q.template head<3>(), pv = p.template head<3>();
+  Eigen::Matrix<T, 4, 1> out;
+  out.template head<3>() = q(3) * pv + p(3) * qv + qv.cross(pv);
+  out(3) = q(3) * p(3) - qv.dot(pv);
+  return out;
+}
+
+// Unit quaternion (x, y, z, w) of exp(omega^): (sin(th/2) omega / th, cos(th/2)), with a Taylor
+// branch for small angles (no square root of zero).
+template <typename T>
+Eigen::Matrix<T, 4, 1> QuaternionExp(const Vector3<T>& omega) {
+  using std::cos;
+  using std::sin;
+  using std::sqrt;
+  const T th_sq = omega.squaredNorm();
+  T s, c;  // sin(th/2) / th, cos(th/2)
+  if (th_sq < T(internal::kSmallAngleSquared)) {
+    s = T(0.5) - th_sq / T(48);
+    c = T(1) - th_sq / T(8);
+  } else {
+    const T th = sqrt(th_sq);
+    s = sin(T(0.5) * th) / th;
+    c = cos(T(0.5) * th);
+  }
+  Eigen::Matrix<T, 4, 1> q;
+  q << s * omega, c;
+  return q;
+}
+
+// A transform from 7 numbers [qx qy qz qw tx ty tz] (the Ceres parameter blocks of the local frames,
+// se3_manifold.h): R from the normalized quaternion, t from the last three numbers.
+template <typename T>
+SE3<T> Se3FromArray(const T* x) {
+  const Eigen::Matrix<T, 4, 1> q(x[0], x[1], x[2], x[3]);
+  return SE3<T>(QuaternionToRotation(q), Vector3<T>(x[4], x[5], x[6]));
+}
+
 // log: SO(3) -> so(3), through the quaternion: omega = 2 atan2(|v|, w) v / |v|. Exact near zero (Taylor
 // branch on |v|^2) and near pi (the quaternion is computed by Shepperd's method).
 template <typename T>

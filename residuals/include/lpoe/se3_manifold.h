@@ -35,16 +35,8 @@ constexpr int kSe3AmbientSize = 7;
 
 // Writes T as [qx qy qz qw tx ty tz] (the quaternion with w >= 0).
 void Se3ToArray(const SE3d& T, double* x);
-// Reads [qx qy qz qw tx ty tz]; the quaternion is normalized.
-SE3d Se3FromArray(const double* x);
-
-// The same conversion for any scalar (Jets inside the autodiff residuals): R from the normalized
-// quaternion, t from the last three numbers.
-template <typename T>
-SE3<T> Se3FromArray(const T* x) {
-  const Eigen::Matrix<T, 4, 1> q(x[0], x[1], x[2], x[3]);
-  return SE3<T>(QuaternionToRotation(q), Vector3<T>(x[4], x[5], x[6]));
-}
+// Reads [qx qy qz qw tx ty tz] (the quaternion is normalized): Se3FromArray of se3.h, for any
+// scalar.
 
 class Se3Manifold : public ceres::Manifold {
  public:

@@ -1,5 +1,7 @@
-// Calibration: identify the local frames of a robot model from measurements. Two solvers sit behind
-// one result type:
+// Calibration: identify the local frames of a robot model (and, optionally, joint-space error terms,
+// joint_term.h) from measurements. Two solvers sit behind one result type, and assemble their
+// problem from the same list of parameter blocks (parameterization.h) and measurement kinds
+// (measurement_model.h):
 //   * the paper's linearized iterative least squares (pose-based eqs. (17)-(24), position-based
 //     eqs. (26)-(32)), in linear_solver.h;
 //   * a Ceres problem with an SE(3) manifold per local frame, in ceres_solver.h.
@@ -11,6 +13,7 @@
 
 #include <Eigen/Core>
 
+#include "lpoe/joint_term.h"
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/robot_model.h"
@@ -42,6 +45,10 @@ struct CalibrationResult {
   Termination termination = Termination::kNumericalFailure;
   std::string message;  // one line a user can act on
   RobotModel model;     // the calibrated model (the input model when nothing was solved)
+  // Identified values of the joint-space terms (options.joint_terms, same order; theta of the
+  // combinations left out is zero). Predict with measurement_model.h PredictPosition(model,
+  // joint_terms, q).
+  std::vector<JointTermValues> joint_terms;
   Parameterization parameterization;
   std::vector<IterationRecord> history;
   int iterations = 0;

@@ -20,8 +20,10 @@
 
 #include <algorithm>
 #include <functional>
+#include <memory>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "lpoe/calibration.h"
 #include "lpoe/status.h"
@@ -63,6 +65,13 @@ struct CeresSolverOptions {
   // Refuse data whose column-scaled Jacobian (identifiable basis, nominal model) has a larger
   // condition number, as CalibrateLinear does.
   double max_condition_number = 1e8;
+  // Joint-space error terms identified with the frames (joint_term.h): each becomes a parameter
+  // block reduced to the combinations the data separate from the geometry and from the earlier
+  // terms; a combination keeping less than `joint_term_tolerance` of its column's norm (column
+  // scaled, once the geometry is projected out) is left out and reported in
+  // result.parameterization.unidentifiable.
+  std::vector<std::shared_ptr<const JointTerm>> joint_terms;
+  double joint_term_tolerance = 1e-4;
   // Ceres's per-iteration progress on stdout.
   // Called after every accepted iteration (e.g. for a progress line).
   std::function<void(const IterationRecord&)> on_iteration;

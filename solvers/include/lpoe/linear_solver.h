@@ -16,6 +16,8 @@
 #define LPOE_LINEAR_SOLVER_H_
 
 #include <functional>
+#include <memory>
+#include <vector>
 
 #include "lpoe/calibration.h"
 
@@ -44,6 +46,13 @@ struct LinearSolverOptions {
   // Estimate the covariance of the identified parameters at the solution:
   // s^2 (J^T J)^-1 with the a-posteriori variance factor s^2 = |y|^2 / (rows - parameters).
   bool compute_covariance = true;
+  // Joint-space error terms identified with the frames (joint_term.h): each becomes a parameter
+  // block reduced to the combinations the data separate from the geometry and from the earlier
+  // terms; a combination keeping less than `joint_term_tolerance` of its column's norm (column
+  // scaled, once the geometry is projected out) is left out and reported in
+  // result.parameterization.unidentifiable.
+  std::vector<std::shared_ptr<const JointTerm>> joint_terms;
+  double joint_term_tolerance = 1e-4;
   // Called after every iteration (e.g. for a progress line).
   std::function<void(const IterationRecord&)> on_iteration;
 };

@@ -1,0 +1,76 @@
+// Joint-space error terms: non-geometric errors that shift the joint values (docs/architecture.md).
+//
+// Every term is linear in its parameters theta (P numbers):
+//
+//   dq = Y(q) theta,   Y: num_joints x P (the term's regressor at the joint values q read or
+//                      commanded for the measurement),
+//   q_eff = q + sum_terms Y_term(q) theta_term,   P_model = FK(q_eff) p_tool.
+//
+// Y is evaluated from the term's own reference geometry (for a gravity term: the nominal, registered
+// start model), fixed when the term is built, so both solvers see Y as data and minimise the same
+// cost. The chain rule gives the Jacobian columns: dP/dtheta = J_q(q_eff) Y(q), with J_q the
+// position Jacobian with respect to the joint values (kinematics.h ToolPositionJointJacobian).
+//
+// A new term is one source file that defines a JointTerm and its factory, plus one line in
+// core/src/joint_term_registry.inc. Which combinations of theta the data can separate from the
+// geometry and from the other terms is decided by the solvers (Parameterization::joint_blocks).
+#ifndef LPOE_JOINT_TERM_H_
+#define LPOE_JOINT_TERM_H_
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lpoe/measurements.h"
+#include "lpoe/robot_model.h"
+#include "lpoe/status.h"
+
+namespace lpoe {
+
+class JointTerm {
+ public:
+  virtual ~JointTerm() = default;
+
+  // Short name, used as the prefix of the parameter names ("compliance", "harmonics").
+  virtual std::string name() const = 0;
+  // Joints of the robot the term was built for.
+  virtual int num_joints() const = 0;
+  // P, the number of parameters theta.
+  virtual int num_parameters() const = 0;
+  // Readable name of parameter k, e.g. "joint2.a1".
+  virtual std::string ParameterName(int k) const = 0;
+  // Y(q): num_joints() x num_parameters(), column-major (Y[k * num_joints() + j] = dq_j/dtheta_k),
+  // at the joint values `q` (num_joints() values). Must depend on q only (not on the calibration
+  // state): the solvers may evaluate it once per row or again at every iteration.
+  virtual void Regressor(const double* q, double* Y) const = 0;
+};
+
+// A term with identified values.
+struct JointTermValues {
+  std::shared_ptr<const JointTerm> term;
+  Eigen::VectorXd theta;  // term->num_parameters() values
+};
+
+// q_eff = q + sum Y(q) theta (num_joints values each).
+void EffectiveJointValues(const std::vector<JointTermValues>& terms, int num_joints,
+                          const double* q, double* q_eff);
+
+// The measurements with every row's joint values replaced by q_eff: what FK-based code (statistics,
+// plots, registration) evaluates to predict with the terms.
+MeasurementSet WithEffectiveJointValues(const std::vector<JointTermValues>& terms,
+                                        const MeasurementSet& data);
+
+// ---- Registry: the terms a user can ask for by name.
+
+// Builds a term by name for `reference` (the nominal, registered model). The factories are listed
+// in core/src/joint_term_registry.inc.
+Status MakeJointTerm(const std::string& name, const RobotModel& reference,
+                     std::shared_ptr<const JointTerm>* term);
+// The names MakeJointTerm accepts, in registry order.
+std::vector<std::string> JointTermNames();
+
+}  // namespace lpoe
+
+#endif  // LPOE_JOINT_TERM_H_

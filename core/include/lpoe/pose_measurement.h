@@ -1,0 +1,91 @@
+// Measurement kind "pose": a tracker measures a tool frame's position and orientation (paper eqs.
+// (17), (18)); see position_measurement.h for what a kind provides.
+//
+//   prediction   T_model = T_0,1(0) exp(s_1^ q_1) ... T_n-1,n(0) exp(s_n^ q_n) T_n,tool
+//   error        y = log(T_measured T_model^-1)^vee = (omega, v)                 (eq. (17))
+//   residual     r = diag(w, w, w, 1, 1, 1) y * inverse_sigma                     (6 rows)
+//   linearized   W y = W A x,  A = [Ad_G_1 ... Ad_G_tool] B                      (eq. (18))
+//
+// w = orientation_weight (mm per rad) puts the rotation rows on the millimetre scale of the
+// translation rows: 1 rad counts as w mm.
+#ifndef LPOE_POSE_MEASUREMENT_H_
+#define LPOE_POSE_MEASUREMENT_H_
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lpoe/kinematics.h"
+#include "lpoe/measurements.h"
+#include "lpoe/parameterization.h"
+
+namespace lpoe {
+
+struct PoseMeasurement {
+  static constexpr int kResiduals = 6;
+  static constexpr DataKind kData = DataKind::kPose;
+  static constexpr int kMaxStackJoints = 16;
+  using Observation = SE3d;
+
+  double inverse_sigma = 1.0;
+  double orientation_weight = 1000.0;
+
+  static Observation Observe(const MeasurementSet& data, int row) { return data.pose(row); }
+
+  // The predicted tool frame from parameter blocks of 7 numbers (the n joint frames, then the tool).
+  template <typename T, typename Motions>
+  static SE3<T> Predict(int n, T const* const* blocks, const Motions& motions) {
+    SE3<T> stack_frames[kMaxStackJoints];
+    std::vector<SE3<T>> heap_frames;
+    SE3<T>* frames = stack_frames;
+    if (n > kMaxStackJoints) {
+      heap_frames.resize(n);
+      frames = heap_frames.data();
+    }
+    for (int i = 0; i < n; ++i) frames[i] = Se3FromArray(blocks[i]);
+    SE3Accumulator<T> X;
+    ForwardChain(n, [frames](int i) -> const SE3<T>& { return frames[i]; }, motions, &X,
+                 [](int, const SE3Accumulator<T>&) {});
+    return X.X * Se3FromArray(blocks[n]);
+  }
+
+  template <typename T, typename Motions>
+  void Residual(int n, T const* const* blocks, const Motions& motions, const Observation& measured,
+                T* r) const {
+    const SE3<T> model_pose = Predict<T>(n, blocks, motions);
+    const Vector6<T> y = LogSE3(measured.cast<T>() * model_pose.Inverse());  // eq. (17)
+    const T rotation_scale = T(orientation_weight * inverse_sigma);
+    for (int k = 0; k < 3; ++k) r[k] = y(k) * rotation_scale;
+    for (int k = 3; k < 6; ++k) r[k] = y(k) * T(inverse_sigma);
+  }
+
+  // Analytic path (see PositionMeasurement::Linearize): y = W log(T_measured T_model^-1) (6), the
+  // frame columns of W A and, when J_q is not null, of W dT/dq (6 x n). Returns the position error
+  // |t_measured - t_model| (mm).
+  double Linearize(const BasisJacobian& bj, const double* q, int tool, const Observation& measured,
+                   double* J, int ld, double* J_q, int ld_q, FrameRt* frames,
+                   double* y) const {
+    const SE3d T = bj.Pose(q, tool, J, ld, frames);
+    if (J_q != nullptr) bj.PoseJointJacobian(frames, J_q, ld_q);
+    Vector6d e = LogSE3(measured * T.Inverse());  // eq. (17)
+    // Weight the rotation rows: 1 rad counts as orientation_weight mm.
+    const double w = orientation_weight;
+    e.head<3>() *= w;
+    auto weigh = [&](double* M, int cols, int stride) {
+      for (int c = 0; c < cols; ++c) {
+        double* col = M + static_cast<std::ptrdiff_t>(c) * stride;
+        col[0] *= w;
+        col[1] *= w;
+        col[2] *= w;
+      }
+    };
+    weigh(J, bj.num_parameters(), ld);  // joint-block columns: overwritten by the caller
+    if (J_q != nullptr) weigh(J_q, bj.num_joints(), ld_q);
+    for (int i = 0; i < 6; ++i) y[i] = e(i);
+    return (measured.t - T.t).norm();
+  }
+};
+
+}  // namespace lpoe
+
+#endif  // LPOE_POSE_MEASUREMENT_H_

@@ -1,0 +1,77 @@
+// Measurement kind "position": a tracker measures the origin of a tool (paper eqs. (26), (29), (30)).
+//
+//   prediction   P_model = T_0,1(0) exp(s_1^ q_1) ... T_n-1,n(0) exp(s_n^ q_n) p_tool
+//   residual     r = (P_model - P_measured) * inverse_sigma                 (3 rows, autodiff path)
+//   linearized   y = P_measured - P_model = J x,  J = [-P^ I3] [Ad_G_1 ... Ad_G_tool] B (eq. (29)-(30))
+//
+// A measurement kind (docs/architecture.md) is one header like this one: the observation it reads
+// from a MeasurementSet, a templated prediction/residual on the parameter blocks (double or Jet frames,
+// double or Jet joint values) for Ceres, and the analytic linearization for the linear solver. The
+// tool's rotation does not enter (its block's manifold is restricted to translations).
+#ifndef LPOE_POSITION_MEASUREMENT_H_
+#define LPOE_POSITION_MEASUREMENT_H_
+
+#include <Eigen/Core>
+
+#include "lpoe/kinematics.h"
+#include "lpoe/measurements.h"
+#include "lpoe/parameterization.h"
+
+namespace lpoe {
+
+struct PositionMeasurement {
+  static constexpr int kResiduals = 3;
+  static constexpr DataKind kData = DataKind::kPosition;
+  // Chains up to this many joints keep their frames on the stack in the autodiff path.
+  static constexpr int kMaxStackJoints = 16;
+  using Observation = Eigen::Vector3d;
+
+  double inverse_sigma = 1.0;  // 1 / sigma (mm): whitening of the Ceres residuals
+
+  static Observation Observe(const MeasurementSet& data, int row) { return data.position(row); }
+
+  // The predicted tool position from parameter blocks of 7 numbers ([qx qy qz qw tx ty tz]: the n
+  // joint frames, then the tool): the frames act on the point straight from their quaternions (no
+  // rotation matrices; the manifold keeps each quaternion of unit norm).
+  template <typename T, typename Motions>
+  static Vector3<T> Predict(int n, T const* const* blocks, const Motions& motions) {
+    QuaternionTransform<T> stack_frames[kMaxStackJoints];
+    std::vector<QuaternionTransform<T>> heap_frames;
+    QuaternionTransform<T>* frames = stack_frames;
+    if (n > kMaxStackJoints) {
+      heap_frames.resize(n);
+      frames = heap_frames.data();
+    }
+    for (int i = 0; i < n; ++i) frames[i] = {blocks[i], blocks[i] + 4};
+    const T* tool = blocks[n];
+    return BackwardChain<T>(
+        n, [frames](int i) -> const QuaternionTransform<T>& { return frames[i]; }, motions,
+        Vector3<T>(tool[4], tool[5], tool[6]));
+  }
+
+  template <typename T, typename Motions>
+  void Residual(int n, T const* const* blocks, const Motions& motions, const Observation& measured,
+                T* r) const {
+    const Vector3<T> P = Predict<T>(n, blocks, motions);
+    for (int k = 0; k < 3; ++k) r[k] = (P(k) - T(measured(k))) * T(inverse_sigma);
+  }
+
+  // Analytic path at the model of `bj` and joint values q: y = P_measured - P_model (3), the frame
+  // columns of J (3 x bj.num_parameters(), leading dimension ld) and, when J_q is not null,
+  // dP/dq (3 x n, leading dimension ld_q). Returns |y| (mm).
+  double Linearize(const BasisJacobian& bj, const double* q, int tool, const Observation& measured,
+                   double* J, int ld, double* J_q, int ld_q, FrameRt* frames,
+                   double* y) const {
+    const Eigen::Vector3d P = bj.Position(q, tool, J, ld, frames);
+    if (J_q != nullptr) bj.PositionJointJacobian(frames, J_q, ld_q);
+    const Eigen::Vector3d e = measured - P;  // eq. (30)
+    y[0] = e(0);
+    y[1] = e(1);
+    y[2] = e(2);
+    return e.norm();
+  }
+};
+
+}  // namespace lpoe
+
+#endif  // LPOE_POSITION_MEASUREMENT_H_

@@ -1,0 +1,42 @@
+// Internal to lpoe_solvers: the linearized problem over all rows, accumulated as normal equations,
+// for any measurement kind and any list of parameter blocks (frames and joint-space terms). Used by
+// the linear solver's iterations and by the identifiability analysis both solvers share.
+#ifndef LPOE_SOLVERS_SRC_NORMAL_EQUATIONS_H_
+#define LPOE_SOLVERS_SRC_NORMAL_EQUATIONS_H_
+
+#include <Eigen/Core>
+
+#include "lpoe/measurements.h"
+#include "lpoe/parameterization.h"
+#include "lpoe/robot_model.h"
+
+namespace lpoe {
+namespace internal {
+
+struct NormalEquations {
+  Eigen::MatrixXd H;      // J^T J (num_parameters square)
+  Eigen::VectorXd g;      // J^T y
+  Eigen::MatrixXd J;      // stacked J, only when asked for (`stack`)
+  Eigen::VectorXd y;      // stacked y, only when asked for
+  double cost = 0;        // 0.5 |y|^2
+  double max_error = 0;   // mm, position error norm
+  double mean_error = 0;  // mm
+  bool finite = true;
+};
+
+// Residuals y (position: P_measured - P_model, eq. (30); pose: log(T_measured T_model^-1), eq. (17),
+// rotation rows times orientation_weight) and their Jacobian in p's blocks, accumulated as normal
+// equations, at the frames of `model` and the joint-block coordinates `joint_state`
+// (p.num_joint_parameters() values; empty means zero): each row is evaluated at
+// q_eff = q + sum_b Y_b(q) basis_b x_b, and a joint block's columns are J_q(q_eff) Y_b(q) basis_b.
+// The rows are processed in fixed contiguous chunks (a partition that depends on the row count
+// only), possibly on several threads, and the chunks' partial sums are added in order: the result
+// is bit-identical whatever the number of threads and their timing. No allocation per row.
+NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
+                                  const Parameterization& p, const Eigen::VectorXd& joint_state,
+                                  bool use_orientation, double orientation_weight, bool stack);
+
+}  // namespace internal
+}  // namespace lpoe
+
+#endif  // LPOE_SOLVERS_SRC_NORMAL_EQUATIONS_H_

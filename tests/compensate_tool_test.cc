@@ -1,0 +1,245 @@
+// Runs lpoe_compensate on files written here: a "calibrated" model (a robot with kinematic errors,
+// registered to a measurement frame metres away) and its nominal model. Checks targets mode (mixed
+// position and pose rows, degrees), the joint-program mode through the registration, the status
+// of an unreachable row with and without --strict, the JSON summary, and a bad file's message.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "lpoe/io.h"
+#include "lpoe/kinematics.h"
+#include "lpoe/robot_model.h"
+#include "lpoe/simulation.h"
+
+namespace lpoe {
+namespace {
+
+constexpr int kExitOk = 0;
+constexpr int kExitInput = 2;
+constexpr int kExitNotAllOk = 8;
+constexpr double kDeg = 3.14159265358979323846 / 180;
+constexpr double kReachedMm = 1e-6;
+
+int RunTool(const std::string& args, std::string* out) {
+  const std::string command = std::string(LPOE_COMPENSATE_PATH) + " " + args + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return -1;
+  std::array<char, 4096> buffer;
+  size_t n;
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) out->append(buffer.data(), n);
+  const int status = pclose(pipe);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// Data rows of a CSV (no comments), split by commas; the header into *header.
+std::vector<std::vector<std::string>> ReadCsv(const std::string& path,
+                                              std::vector<std::string>* header) {
+  std::ifstream in(path);
+  std::vector<std::vector<std::string>> rows;
+  std::string line;
+  bool first = true;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) f.push_back(cell);
+    if (!line.empty() && line.back() == ',') f.push_back("");
+    if (first) {
+      *header = f;
+      first = false;
+    } else {
+      rows.push_back(f);
+    }
+  }
+  return rows;
+}
+
+class CompensateTool : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("lpoe_compensate_test_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(dir_);
+    nominal_ = MakeCobot6();
+    calibrated_ = ApplyErrors(nominal_, RandomErrors(nominal_, 2e-3, 1.0, 2e-3, 0, 3));
+    // Registered calibration: the model lives in a tracker frame 2 m away, turned.
+    calibrated_.T_measurement_base =
+        SE3d(ExpSO3(Eigen::Vector3d(0.1, -0.2, 0.7)), Eigen::Vector3d(2000, -1500, 300));
+    calibrated_.joints[0].origin = calibrated_.T_measurement_base * calibrated_.joints[0].origin;
+    ASSERT_TRUE(WriteRobotModel(Path("cal.yaml"), calibrated_).ok());
+    ASSERT_TRUE(WriteRobotModel(Path("nom.yaml"), nominal_).ok());
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  void Write(const std::string& name, const std::string& text) const {
+    std::ofstream(Path(name)) << text;
+  }
+
+  std::filesystem::path dir_;
+  RobotModel nominal_, calibrated_;
+};
+
+TEST_F(CompensateTool, RegistrationRoundTripsThroughTheModelFile) {
+  RobotModel read;
+  ASSERT_TRUE(ReadRobotModel(Path("cal.yaml"), &read).ok());
+  EXPECT_LT((read.T_measurement_base.t - calibrated_.T_measurement_base.t).norm(), 1e-9);
+  EXPECT_LT((read.T_measurement_base.R - calibrated_.T_measurement_base.R).norm(), 1e-12);
+  RobotModel nominal;
+  ASSERT_TRUE(ReadRobotModel(Path("nom.yaml"), &nominal).ok());
+  EXPECT_TRUE(nominal.T_measurement_base.R.isIdentity(0));
+}
+
+TEST_F(CompensateTool, TargetsModeMixedRowsInDegrees) {
+  const std::vector<std::vector<double>> program = {{10, -30, 60, 20, 45, -10},
+                                                    {-40, -50, 80, -30, 60, 30},
+                                                    {70, -20, 40, 10, -50, 90}};
+  std::string csv = "q1,q2,q3,q4,q5,q6,x,y,z,quat_x,quat_y,quat_z,quat_w\n";
+  std::vector<SE3d> wanted;
+  for (size_t k = 0; k < program.size(); ++k) {
+    std::vector<double> rad(6);
+    for (int j = 0; j < 6; ++j) rad[j] = program[k][j] * kDeg;
+    // What the program reaches with the true robot, moved a little: the compensation target.
+    rad[1] += 0.01;
+    const SE3d T = ToolPose(calibrated_, rad.data());
+    wanted.push_back(T);
+    std::ostringstream row;
+    row.precision(17);
+    for (int j = 0; j < 6; ++j) row << program[k][j] << ",";
+    row << T.t(0) << "," << T.t(1) << "," << T.t(2);
+    if (k == 1) {  // a pose row
+      const Eigen::Vector4d q = RotationToQuaternion<double>(T.R);
+      row << "," << q(0) << "," << q(1) << "," << q(2) << "," << q(3) << "\n";
+    } else {
+      row << ",,,,\n";
+    }
+    csv += row.str();
+  }
+  Write("targets.csv", csv);
+  std::string out;
+  ASSERT_EQ(RunTool("--model=" + Path("cal.yaml") + " --targets=" + Path("targets.csv") +
+                        " --output=" + Path("out.csv") + " --nominal=" + Path("nom.yaml") +
+                        " --angle_unit=deg --report=" + Path("report.json"),
+                    &out),
+            kExitOk)
+      << out;
+  std::vector<std::string> header;
+  const auto rows = ReadCsv(Path("out.csv"), &header);
+  ASSERT_EQ(rows.size(), program.size());
+  ASSERT_EQ(header[6], "status");
+  ASSERT_EQ(header[9], "corrected_x");
+  for (size_t k = 0; k < rows.size(); ++k) {
+    std::vector<double> q(6);
+    for (int j = 0; j < 6; ++j) q[j] = std::stod(rows[k][j]) * kDeg;
+    EXPECT_EQ(rows[k][6], "ok") << "row " << k;
+    const SE3d T = ToolPose(calibrated_, q.data());
+    EXPECT_LT((T.t - wanted[k].t).norm(), kReachedMm) << "row " << k;
+    if (k == 1) {
+      EXPECT_LT(LogSO3<double>(T.R * wanted[k].R.transpose()).norm(), 1e-8);
+    }
+    // corrected_*: the nominal model's tool position at the compensated joints.
+    const Eigen::Vector3d corrected(std::stod(rows[k][9]), std::stod(rows[k][10]),
+                                    std::stod(rows[k][11]));
+    EXPECT_LT((corrected - ToolPosition(nominal_, q.data())).norm(), 1e-9);
+    // Orientation columns only on the pose row.
+    EXPECT_EQ(rows[k][12].empty(), k != 1) << "row " << k;
+  }
+  std::ifstream in(Path("report.json"));
+  const nlohmann::json report = nlohmann::json::parse(in);
+  EXPECT_EQ(report["rows"], 3);
+  EXPECT_EQ(report["status_counts"]["ok"], 3);
+  EXPECT_NEAR(report["largest_correction"]["value"].get<double>(), 0.01, 0.01);
+  EXPECT_NE(out.find("ok 3"), std::string::npos) << out;
+}
+
+TEST_F(CompensateTool, JointProgramModeThroughTheRegistration) {
+  const std::vector<std::vector<double>> program = {{0.2, -0.5, 1.0, 0.3, 0.8, -0.2},
+                                                    {-0.7, -0.9, 1.4, -0.5, 1.1, 0.6}};
+  std::string csv = "# planned with the nominal model\nq1,q2,q3,q4,q5,q6,comment\n";
+  for (const auto& q : program) {
+    std::ostringstream row;
+    row.precision(17);
+    for (int j = 0; j < 6; ++j) row << q[j] << ",";
+    row << "ignored\n";
+    csv += row.str();
+  }
+  Write("program.csv", csv);
+  std::string out;
+  ASSERT_EQ(RunTool("--model=" + Path("cal.yaml") + " --joints=" + Path("program.csv") +
+                        " --nominal=" + Path("nom.yaml") + " --output=" + Path("out.csv"),
+                    &out),
+            kExitOk)
+      << out;
+  std::vector<std::string> header;
+  const auto rows = ReadCsv(Path("out.csv"), &header);
+  ASSERT_EQ(rows.size(), program.size());
+  for (size_t k = 0; k < rows.size(); ++k) {
+    std::vector<double> q(6);
+    for (int j = 0; j < 6; ++j) q[j] = std::stod(rows[k][j]);
+    EXPECT_EQ(rows[k][6], "ok");
+    // The calibrated robot reaches, in the measurement frame, the nominal pose carried there by
+    // the registration.
+    const SE3d want = calibrated_.T_measurement_base * ToolPose(nominal_, program[k].data());
+    const SE3d got = ToolPose(calibrated_, q.data());
+    EXPECT_LT((got.t - want.t).norm(), kReachedMm);
+    EXPECT_LT(LogSO3<double>(got.R * want.R.transpose()).norm(), 1e-8);
+    // A real correction, but a small one.
+    double change = 0;
+    for (int j = 0; j < 6; ++j) change = std::max(change, std::abs(q[j] - program[k][j]));
+    EXPECT_GT(change, 1e-4);
+    EXPECT_LT(change, 0.05);
+  }
+}
+
+TEST_F(CompensateTool, UnreachableRowIsWrittenAndStrictFails) {
+  Write("targets.csv",
+        "q1,q2,q3,q4,q5,q6,x,y,z\n"
+        "0.2,-0.5,1.0,0.3,0.8,-0.2,9000,9000,9000\n");
+  const std::string args = "--model=" + Path("cal.yaml") + " --targets=" + Path("targets.csv") +
+                           " --output=" + Path("out.csv");
+  std::string out;
+  EXPECT_EQ(RunTool(args, &out), kExitOk) << out;
+  std::vector<std::string> header;
+  auto rows = ReadCsv(Path("out.csv"), &header);
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0][6], "unreachable");
+  EXPECT_GT(std::stod(rows[0][7]), 1000.0);  // residual, mm
+  out.clear();
+  std::filesystem::remove(Path("out.csv"));
+  EXPECT_EQ(RunTool(args + " --strict", &out), kExitNotAllOk) << out;
+  rows = ReadCsv(Path("out.csv"), &header);
+  EXPECT_EQ(rows.size(), 1u);  // written anyway
+  EXPECT_NE(out.find("unreachable 1"), std::string::npos) << out;
+}
+
+TEST_F(CompensateTool, BadInputNamesFileAndLine) {
+  Write("targets.csv", "q1,q2,q3,q4,q5,q6,x,y,z\n0,0,0,0,0,0,1,2,3\n0,0,zero,0,0,0,1,2,3\n");
+  std::string out;
+  EXPECT_EQ(RunTool("--model=" + Path("cal.yaml") + " --targets=" + Path("targets.csv") +
+                        " --output=" + Path("out.csv"),
+                    &out),
+            kExitInput);
+  EXPECT_NE(out.find("targets.csv:3: q3 is not a finite number"), std::string::npos) << out;
+  EXPECT_FALSE(std::filesystem::exists(Path("out.csv")));
+  out.clear();
+  EXPECT_EQ(RunTool("--model=" + Path("cal.yaml") + " --joints=" + Path("targets.csv") +
+                        " --output=" + Path("out.csv"),
+                    &out),
+            1)
+      << "--joints without --nominal is a usage error: " << out;
+}
+
+}  // namespace
+}  // namespace lpoe

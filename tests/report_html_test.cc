@@ -1,0 +1,245 @@
+// The HTML report a person reads (issue 15): the default job's page renders in a real browser
+// (headless chromium) to a non-blank image, carries the JSON report's figures, is well-formed
+// (a strict parser), is the same bytes on every run, and stays below 5 MB with 10^5 points.
+#include <gtest/gtest.h>
+#include <png.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "lpoe/io.h"
+#include "lpoe/simulation.h"
+#include "report.h"
+
+namespace lpoe {
+namespace tools {
+namespace {
+
+constexpr size_t kMaxHtmlBytes = 5u << 20;  // 5 MB
+constexpr int kLargeRunPoints = 100000;
+constexpr int kShotWidth = 1200, kShotHeight = 3000;
+
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+bool WriteAll(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+  return static_cast<bool>(out);
+}
+
+std::string Mm(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4f", v);
+  return buf;
+}
+
+// Runs the strict HTML checker; returns its message (empty when the file is well-formed).
+std::string HtmlProblems(const std::string& path) {
+  const std::string out = path + ".check.txt";
+  const std::string cmd = "python3 " LPOE_CHECK_HTML " " + path + " > " + out + " 2>&1";
+  const int rc = std::system(cmd.c_str());
+  const std::string text = ReadAll(out);
+  return rc == 0 ? "" : (text.empty() ? "checker failed to run" : text);
+}
+
+class ReportHtml : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    char tmpl[] = "/tmp/lpoe_report_html_XXXXXX";
+    ASSERT_NE(mkdtemp(tmpl), nullptr);
+    dir_ = tmpl;
+  }
+  void TearDown() override { std::system(("rm -rf " + dir_).c_str()); }
+  int Run(const std::string& args, const std::string& log) {
+    return std::system(("cd " + dir_ + " && " + args + " > " + log + " 2>&1").c_str());
+  }
+  std::string dir_;
+};
+
+TEST_F(ReportHtml, DefaultJobPageCarriesTheJsonFiguresAndIsDeterministic) {
+  ASSERT_EQ(Run(LPOE_CALIBRATE_PATH " --plots_dir= --report=r.json --html_report=r.html", "a.txt"),
+            0)
+      << ReadAll(dir_ + "/a.txt");
+  ASSERT_EQ(Run(LPOE_CALIBRATE_PATH " --plots_dir= --html_report=again.html", "b.txt"), 0);
+  const std::string html = ReadAll(dir_ + "/r.html");
+  EXPECT_EQ(html, ReadAll(dir_ + "/again.html")) << "the same input gave different bytes";
+  EXPECT_EQ(HtmlProblems(dir_ + "/r.html"), "");
+  EXPECT_LE(html.size(), kMaxHtmlBytes);
+
+  const nlohmann::json j = nlohmann::json::parse(ReadAll(dir_ + "/r.json"));
+  // The verdict, with its reason, at the top (before the first plot).
+  const std::string level = j["verdict"]["level"];
+  EXPECT_EQ(level, "pass") << j["verdict"]["reason"];  // section-4 data: 0.03 mm tracker noise
+  const size_t verdict_at = html.find("<b>" + level + "</b>");
+  ASSERT_NE(verdict_at, std::string::npos);
+  EXPECT_LT(verdict_at, html.find("<svg"));
+  EXPECT_NE(html.find(j["verdict"]["reason"].get<std::string>()), std::string::npos);
+  // The statistics of the JSON report, as printed on the page.
+  for (const char* set : {"identification", "verification"}) {
+    for (const char* when : {"before", "after"}) {
+      const double rms = j[set][when]["norm"]["rms"];
+      EXPECT_NE(html.find("<td>" + Mm(rms) + "</td>"), std::string::npos)
+          << set << " " << when << " RMS " << Mm(rms) << " is not on the page";
+    }
+  }
+  const double after_rms = j["verification"]["after"]["norm"]["rms"];
+  EXPECT_LT(after_rms, 0.1);
+  EXPECT_NE(html.find(Mm(after_rms) + " mm</span>"), std::string::npos);  // key figure on top
+  // Parameter changes with standard deviations, per SMR statistics, the inputs and the version.
+  ASSERT_EQ(j["parameter_changes"].size(), 27u);
+  for (const auto& c : j["parameter_changes"]) {
+    EXPECT_NE(html.find("<td>" + c["name"].get<std::string>() + "</td>"), std::string::npos);
+  }
+  ASSERT_EQ(j["per_smr"].size(), 1u);
+  EXPECT_NE(html.find("smr1 verification"), std::string::npos);
+  EXPECT_NE(html.find(j["inputs"]["measurements"].get<std::string>()), std::string::npos);
+  EXPECT_NE(html.find(j["tool"]["version"].get<std::string>()), std::string::npos);
+  // Per-point residuals in the JSON: one per row, with its file line.
+  ASSERT_EQ(j["points"]["identification"].size(), 70u);
+  ASSERT_EQ(j["points"]["verification"].size(), 30u);
+  EXPECT_EQ(j["points"]["identification"][0]["line"], 3);  // after the comment and the header
+  EXPECT_EQ(j["points"]["identification"][0]["target"], "smr1");
+  EXPECT_EQ(html.find("<script"), std::string::npos);
+  // Five figures: convergence, axis errors, histograms, joints and reach, workspace.
+  size_t figures = 0;
+  for (size_t at = html.find("<svg"); at != std::string::npos; at = html.find("<svg", at + 1))
+    ++figures;
+  EXPECT_EQ(figures, 5u);
+
+  // ---- In a real browser: the page renders to a PNG that is not blank and shows the verdict box.
+  if (std::system("command -v chromium > /dev/null 2>&1") != 0)
+    GTEST_SKIP() << "chromium is not installed (scripts/setup.sh installs it): not rendered";
+  const std::string shot = dir_ + "/shot.png";
+  const std::string cmd =
+      "chromium --headless --no-sandbox --disable-gpu --hide-scrollbars "
+      "--screenshot=" +
+      shot + " --window-size=" + std::to_string(kShotWidth) + "," + std::to_string(kShotHeight) +
+      " file://" + dir_ + "/r.html";
+  ASSERT_EQ(Run(cmd, "chromium.txt"), 0) << ReadAll(dir_ + "/chromium.txt");
+  png_image image;
+  std::memset(&image, 0, sizeof image);
+  image.version = PNG_IMAGE_VERSION;
+  ASSERT_TRUE(png_image_begin_read_from_file(&image, shot.c_str())) << image.message;
+  image.format = PNG_FORMAT_RGB;
+  std::vector<uint8_t> rgb(PNG_IMAGE_SIZE(image));
+  ASSERT_TRUE(png_image_finish_read(&image, nullptr, rgb.data(), 0, nullptr)) << image.message;
+  EXPECT_EQ(static_cast<int>(image.width), kShotWidth);
+  EXPECT_EQ(static_cast<int>(image.height), kShotHeight);
+  size_t ink = 0, verdict_green = 0, plot_blue = 0;
+  for (size_t p = 0; p + 2 < rgb.size(); p += 3) {
+    const int r = rgb[p], g = rgb[p + 1], b = rgb[p + 2];
+    ink += r < 200 || g < 200 || b < 200;
+    verdict_green += std::abs(r - 0xe3) <= 4 && std::abs(g - 0xf4) <= 4 && std::abs(b - 0xe6) <= 4;
+    plot_blue += std::abs(r - 0x00) <= 8 && std::abs(g - 0x72) <= 8 && std::abs(b - 0xb2) <= 8;
+  }
+  const double pixels = double(image.width) * image.height;
+  EXPECT_GT(ink / pixels, 0.02) << "the page looks blank";
+  EXPECT_GT(verdict_green, 5000u) << "no pass-verdict box";
+  EXPECT_GT(plot_blue, 500u) << "no after-calibration data drawn";
+}
+
+TEST_F(ReportHtml, ComparePageIsWellFormed) {
+  ASSERT_EQ(Run(LPOE_COMPARE_PATH " --html_report=c.html", "c.txt"), 0) << ReadAll(dir_ + "/c.txt");
+  const std::string html = ReadAll(dir_ + "/c.html");
+  EXPECT_EQ(HtmlProblems(dir_ + "/c.html"), "");
+  EXPECT_NE(html.find("Linear (paper) and Ceres solver"), std::string::npos);
+  EXPECT_NE(html.find("predicted positions (mm)"), std::string::npos);
+  EXPECT_NE(html.find("lpoe_compare"), std::string::npos);
+  // An unwritable page is exit code 6; a page that would overwrite an input is refused (1).
+  int rc = Run(LPOE_COMPARE_PATH " --html_report=no_such_dir/c.html", "d.txt");
+  EXPECT_EQ(WEXITSTATUS(rc), 6) << ReadAll(dir_ + "/d.txt");
+  ASSERT_TRUE(
+      WriteAll(dir_ + "/points.csv", ReadAll(LPOE_DATA_DIR "/section4/identification.csv")));
+  rc = Run(LPOE_COMPARE_PATH " --measurements=points.csv --html_report=points.csv", "e.txt");
+  EXPECT_EQ(WEXITSTATUS(rc), 1) << ReadAll(dir_ + "/e.txt");
+  EXPECT_EQ(ReadAll(dir_ + "/points.csv"), ReadAll(LPOE_DATA_DIR "/section4/identification.csv"));
+  rc = Run(LPOE_CALIBRATE_PATH " --plots_dir= --report=r.json --html_report=r.json", "f.txt");
+  EXPECT_EQ(WEXITSTATUS(rc), 1) << ReadAll(dir_ + "/f.txt");
+}
+
+// A synthetic run of 10^5 points (the section-4 robot, 0.03 mm noise): the page stays below 5 MB
+// (plots decimated), well-formed and deterministic; the JSON keeps every point.
+TEST_F(ReportHtml, HundredThousandPointsStayBelowFiveMegabytes) {
+  RobotModel nominal, actual;
+  ASSERT_TRUE(ReadRobotModel(LPOE_DATA_DIR "/cobot6.yaml", &nominal).ok());
+  ASSERT_TRUE(ReadRobotModel(LPOE_DATA_DIR "/section4/actual.yaml", &actual).ok());
+  SimulationOptions options;
+  options.count = kLargeRunPoints;
+  options.noise_sigma = 0.03;
+  const MeasurementSet all = SimulateMeasurements(actual, std::vector<double>(6, 0.0), options);
+  MeasurementSet identification, verification;
+  all.SplitAt(kLargeRunPoints * 7 / 10, &identification, &verification);
+
+  RunSummary s;
+  s.model_path = "cobot6.yaml";
+  s.measurements_path = "large.csv";
+  s.result.model = actual;
+  s.result.termination = Termination::kConverged;
+  s.result.history = {{0, 10.0, 60.0, 30.0, 1.0}, {1, 0.1, 0.15, 0.05, 1e-12}};
+  s.has_verification = true;
+  AddPointResiduals(nominal, actual, identification, verification, &s);
+  std::vector<Eigen::Vector3d> b, a;
+  for (const PointResidual& p : s.verification_points) {
+    b.push_back(p.before);
+    a.push_back(p.after);
+  }
+  s.verification_before = ComputeStatistics(b);
+  s.verification_after = ComputeStatistics(a);
+  s.identification_before = PositionErrorStatistics(nominal, identification);
+  s.identification_after = PositionErrorStatistics(actual, identification);
+
+  std::string html;
+  ASSERT_TRUE(RunSummaryToHtml(s, &html).ok());
+  EXPECT_LE(html.size(), kMaxHtmlBytes) << html.size() << " bytes";
+  RecordProperty("html_bytes", std::to_string(html.size()));
+  ASSERT_TRUE(WriteAll(dir_ + "/large.html", html));
+  EXPECT_EQ(HtmlProblems(dir_ + "/large.html"), "");
+  const nlohmann::json j = nlohmann::json::parse(RunSummaryToJson(s));
+  EXPECT_EQ(j["points"]["verification"].size(), static_cast<size_t>(verification.size()));
+  EXPECT_NE(html.find(Mm(s.verification_after.norm.rms)), std::string::npos);
+}
+
+// The provisional verdict: pass at tracker noise, check above it, fail without convergence or
+// when the calibration made the held-out error worse.
+TEST(ProvisionalVerdict, FollowsTheResidualAgainstTrackerNoise) {
+  RunSummary s;
+  s.result.termination = Termination::kConverged;
+  s.has_verification = true;
+  auto set = [](ErrorStatistics* e, double rms) {
+    e->count = 30;
+    e->norm.rms = rms;
+    e->norm.max_abs = 3 * rms;
+  };
+  set(&s.identification_before, 30);
+  set(&s.verification_before, 30);
+  set(&s.identification_after, 0.05);
+  set(&s.verification_after, 0.055);  // 0.032 mm per axis
+  EXPECT_EQ(ProvisionalVerdict(s).level, "pass") << ProvisionalVerdict(s).reason;
+  set(&s.verification_after, 0.3);  // 0.17 mm per axis: non-geometric errors
+  EXPECT_EQ(ProvisionalVerdict(s).level, "check");
+  EXPECT_NE(ProvisionalVerdict(s).reason.find("tracker noise"), std::string::npos);
+  set(&s.verification_after, 0.09);  // fine per axis, but 1.8x the identification error
+  EXPECT_EQ(ProvisionalVerdict(s).level, "check");
+  set(&s.verification_after, 40);
+  EXPECT_EQ(ProvisionalVerdict(s).level, "fail");
+  set(&s.verification_after, 0.055);
+  s.result.termination = Termination::kMaxIterations;
+  EXPECT_EQ(ProvisionalVerdict(s).level, "fail");
+}
+
+}  // namespace
+}  // namespace tools
+}  // namespace lpoe

@@ -1,0 +1,456 @@
+// lpoe_compensate: the joints that make the calibrated robot reach its targets (issue 12).
+//
+//   lpoe_compensate --model=CAL.yaml --targets=T.csv --output=OUT.csv [--nominal=NOM.yaml]
+//   lpoe_compensate --model=CAL.yaml --joints=PROGRAM.csv --nominal=NOM.yaml --output=OUT.csv
+//
+// Every input row gives a seed (the program's joints) and a target: a tool position, or a pose
+// when the quaternion is given, in the calibrated model's frame (targets mode) or the nominal
+// model's tool pose at the program's joints carried into that frame by the calibration's
+// registration T_measurement_base (joints mode). Inverse kinematics on the calibrated model
+// (solvers/include/lpoe/inverse_kinematics.h) finds the compensated joints. Every row is written
+// with its status; see docs/compensation.md.
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <string>
+#include <string_view>
+#include <thread>
+#include <vector>
+
+#include <gflags/gflags.h>
+#include <glog/logging.h>
+#include <nlohmann/json.hpp>
+
+#include "lpoe/inverse_kinematics.h"
+#include "lpoe/io.h"
+#include "lpoe/kinematics.h"
+#include "tool_common.h"
+
+DEFINE_string(model, "", "Calibrated robot model (YAML written by lpoe_calibrate, or URDF).");
+DEFINE_string(targets, "",
+              "Targets CSV: q1..qN (the seed: the joints the program would use), x,y,z (desired "
+              "tool position, mm, model frame), optional target (tool name or index), optional "
+              "quat_x,quat_y,quat_z,quat_w (desired tool orientation; empty for a position row).");
+DEFINE_string(joints, "",
+              "Joint-program CSV (q1..qN, optional target), planned with --nominal: the output "
+              "makes the calibrated robot reach the nominal model's tool poses. Instead of "
+              "--targets; needs --nominal.");
+DEFINE_string(joints_target, "pose",
+              "Joint-program mode: reach the nominal tool 'pose' or only its 'position'.");
+DEFINE_string(output, "", "Output CSV: q1..qN (input unit), status, residual, sigma_min and, with "
+                          "--nominal, corrected_x,y,z (and corrected_quat_*).");
+DEFINE_string(nominal, "",
+              "Nominal model (YAML or URDF): adds the nominal tool pose at the compensated joints "
+              "(the target to send to a controller using nominal kinematics).");
+DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in and out: rad | deg.");
+DEFINE_string(tool, "", "Tool name or index for rows without a target column (default: tool 0).");
+DEFINE_string(report, "", "JSON summary to write (counts per status, largest correction/residual).");
+DEFINE_bool(strict, false, "Exit 8 when any row is not 'ok' (the output is written anyway).");
+DEFINE_int32(threads, 0, "Worker threads (0: all cores).");
+DEFINE_int32(max_iterations, 100, "Newton iterations per attempt (1..10000).");
+DEFINE_int32(restarts, 8, "Restarts from perturbed seeds when a solve stalls (0..100).");
+DEFINE_double(position_tolerance, 1e-7, "Target reached when the position error is below (mm).");
+DEFINE_double(orientation_tolerance, 1e-10, "... and the orientation error below (rad).");
+DEFINE_double(singular_threshold, 1e-3,
+              "Smallest singular value (mm per rad; rotation rows weighted 100 mm/rad) below which "
+              "a row is 'singular'.");
+
+namespace lpoe {
+namespace {
+
+constexpr char kUsage[] =
+    "Compensates robot targets with a calibrated model (inverse kinematics).\n\n"
+    "  lpoe_compensate --model=calibrated.yaml --targets=targets.csv --output=joints.csv\n"
+    "  lpoe_compensate --model=calibrated.yaml --joints=program.csv --nominal=nominal.yaml \\\n"
+    "      --output=joints.csv --report=summary.json\n\n"
+    "Exit codes: 0 file processed (rows may carry a status other than ok), 1 bad flags, 2 bad "
+    "input file, 6 output not written, 8 --strict and some row not ok.";
+
+constexpr int kExitNotAllOk = 8;
+constexpr double kDegreesPerRadian = 180.0 / 3.14159265358979323846;
+
+struct Row {
+  IkTarget target;
+  int line = 0;
+};
+
+int ResolveTool(const RobotModel& model, std::string_view field) {
+  for (int t = 0; t < model.num_tools(); ++t) {
+    if (field == model.tools[t].name) return t;
+  }
+  int index = -1;
+  const auto [p, ec] = std::from_chars(field.data(), field.data() + field.size(), index);
+  if (ec != std::errc() || p != field.data() + field.size()) return -1;
+  return index >= 0 && index < model.num_tools() ? index : -1;
+}
+
+std::string_view Trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) {
+    s.remove_prefix(1);
+  }
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) {
+    s.remove_suffix(1);
+  }
+  return s;
+}
+
+bool ParseNumber(std::string_view s, double* x) {
+  s = Trim(s);
+  if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+  const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), *x);
+  return ec == std::errc() && p == s.data() + s.size() && std::isfinite(*x);
+}
+
+// Reads the targets or joint-program CSV: seeds (radians/mm) into `seeds`, targets into `rows`
+// (positions and orientations only in targets mode).
+Status ReadRows(const std::string& path, const RobotModel& model, AngleUnit unit,
+                bool need_position, int default_tool, std::vector<double>* seeds,
+                std::vector<Row>* rows) {
+  std::string text;
+  if (Status s = ReadFile(path, &text); !s.ok()) return s;
+  if (text.compare(0, 3, "\xEF\xBB\xBF") == 0) text.erase(0, 3);
+  const int n = model.num_joints();
+  auto error = [&](int line, const std::string& what) {
+    return Status::Error(path + ":" + std::to_string(line) + ": " + what);
+  };
+  std::vector<int> col_q(n, -1);
+  int col_x = -1, col_y = -1, col_z = -1, col_target = -1, col_quat[4] = {-1, -1, -1, -1};
+  bool have_header = false;
+  int line = 0;
+  size_t pos = 0;
+  std::vector<std::string_view> f;
+  while (pos < text.size()) {
+    size_t end = text.find('\n', pos);
+    if (end == std::string::npos) end = text.size();
+    const std::string_view l = Trim(std::string_view(text).substr(pos, end - pos));
+    pos = end + 1;
+    ++line;
+    if (l.empty() || l.front() == '#') continue;
+    f.clear();
+    size_t a = 0;
+    while (true) {
+      const size_t b = l.find(',', a);
+      f.push_back(Trim(l.substr(a, b == std::string_view::npos ? std::string_view::npos : b - a)));
+      if (b == std::string_view::npos) break;
+      a = b + 1;
+    }
+    const int nf = static_cast<int>(f.size());
+    if (!have_header) {
+      have_header = true;
+      for (int c = 0; c < nf; ++c) {
+        const std::string_view h = f[c];
+        if (h == "x") col_x = c;
+        if (h == "y") col_y = c;
+        if (h == "z") col_z = c;
+        if (h == "target") col_target = c;
+        const char* quat[4] = {"quat_x", "quat_y", "quat_z", "quat_w"};
+        for (int k = 0; k < 4; ++k) {
+          if (h == quat[k]) col_quat[k] = c;
+        }
+        for (int j = 0; j < n; ++j) {
+          if (h == "q" + std::to_string(j + 1)) col_q[j] = c;
+        }
+      }
+      for (int j = 0; j < n; ++j) {
+        if (col_q[j] < 0) {
+          return error(line, "the header has no column q" + std::to_string(j + 1) +
+                                 "; expected q1..q" + std::to_string(n) + " (the model has " +
+                                 std::to_string(n) + " joints)");
+        }
+      }
+      if (need_position && (col_x < 0 || col_y < 0 || col_z < 0)) {
+        return error(line, "the header has no x, y, z columns; expected the target position (mm)");
+      }
+      const int quats = (col_quat[0] >= 0) + (col_quat[1] >= 0) + (col_quat[2] >= 0) +
+                        (col_quat[3] >= 0);
+      if (quats != 0 && quats != 4) {
+        return error(line, "the header has only some of quat_x, quat_y, quat_z, quat_w");
+      }
+      continue;
+    }
+    auto field = [&](int c) { return c < nf ? f[c] : std::string_view(); };
+    const size_t base = seeds->size();
+    seeds->resize(base + n);
+    for (int j = 0; j < n; ++j) {
+      double v;
+      if (!ParseNumber(field(col_q[j]), &v)) {
+        return error(line, "q" + std::to_string(j + 1) + " is not a finite number");
+      }
+      if (unit == AngleUnit::kDegrees && model.joints[j].type == JointType::kRevolute) {
+        v /= kDegreesPerRadian;
+      }
+      (*seeds)[base + j] = v;
+    }
+    Row row;
+    row.line = line;
+    row.target.tool = default_tool;
+    if (col_target >= 0 && !field(col_target).empty()) {
+      row.target.tool = ResolveTool(model, field(col_target));
+      if (row.target.tool < 0) {
+        return error(line, "target '" + std::string(field(col_target)) +
+                               "' is neither a tool name nor an index below " +
+                               std::to_string(model.num_tools()));
+      }
+    }
+    if (need_position) {
+      const int xyz[3] = {col_x, col_y, col_z};
+      for (int k = 0; k < 3; ++k) {
+        if (!ParseNumber(field(xyz[k]), &row.target.position(k))) {
+          return error(line, std::string("xyz").substr(k, 1) + " is not a finite number (mm)");
+        }
+      }
+      if (col_quat[0] >= 0) {
+        int given = 0;
+        for (int k = 0; k < 4; ++k) given += !field(col_quat[k]).empty();
+        if (given == 4) {
+          Eigen::Vector4d qv;
+          for (int k = 0; k < 4; ++k) {
+            if (!ParseNumber(field(col_quat[k]), &qv(k))) {
+              return error(line, "quaternion component is not a finite number");
+            }
+          }
+          if (std::abs(qv.norm() - 1) > 1e-3) {
+            return error(line, "the quaternion is not unit (norm within 1e-3 expected)");
+          }
+          row.target.has_orientation = true;
+          row.target.rotation = QuaternionToRotation<double>(qv / qv.norm());
+        } else if (given != 0) {
+          return error(line, "give all four quat_* values (a pose row) or none (a position row)");
+        }
+      }
+    }
+    rows->push_back(row);
+  }
+  if (!have_header) return error(std::max(line, 1), "no header line; expected q1..qN, x, y, z");
+  return Status::Ok();
+}
+
+void AppendNumber(double x, std::string* out) {
+  char buf[32];
+  const auto [p, ec] = std::to_chars(buf, buf + sizeof(buf), x);
+  out->append(buf, p);
+}
+
+int Run() {
+  using tools::kExitInput;
+  using tools::kExitOk;
+  using tools::kExitOutput;
+  using tools::kExitUsage;
+  // ---- Flags.
+  const bool joints_mode = !FLAGS_joints.empty();
+  if (FLAGS_model.empty() || FLAGS_output.empty() || joints_mode == !FLAGS_targets.empty()) {
+    std::cerr << "error: need --model, --output and one of --targets or --joints (see --help)\n";
+    return kExitUsage;
+  }
+  if (joints_mode && FLAGS_nominal.empty()) {
+    std::cerr << "error: --joints needs --nominal (the model the program was planned with)\n";
+    return kExitUsage;
+  }
+  if (FLAGS_joints_target != "pose" && FLAGS_joints_target != "position") {
+    std::cerr << "error: --joints_target must be pose or position\n";
+    return kExitUsage;
+  }
+  AngleUnit unit;
+  if (!tools::ParseAngleUnit(FLAGS_angle_unit, &unit)) {
+    std::cerr << "error: --angle_unit must be rad or deg\n";
+    return kExitUsage;
+  }
+  if (FLAGS_threads < 0 || FLAGS_threads > 256 || FLAGS_max_iterations < 1 ||
+      FLAGS_max_iterations > 10000 || FLAGS_restarts < 0 || FLAGS_restarts > 100 ||
+      !(FLAGS_position_tolerance > 0) || !(FLAGS_orientation_tolerance > 0) ||
+      !(FLAGS_singular_threshold >= 0)) {
+    std::cerr << "error: need 0 <= --threads <= 256, 1 <= --max_iterations <= 10000, "
+                 "0 <= --restarts <= 100, positive tolerances, --singular_threshold >= 0\n";
+    return kExitUsage;
+  }
+  for (const std::string* out : {&FLAGS_report, &FLAGS_output}) {
+    if (out->empty()) continue;
+    for (const std::string* in : {&FLAGS_model, &FLAGS_targets, &FLAGS_joints, &FLAGS_nominal}) {
+      if (!in->empty() && tools::SameFile(*out, *in)) {
+        std::cerr << "error: " << *out << " is also an input\n";
+        return kExitUsage;
+      }
+    }
+  }
+
+  // ---- Inputs.
+  RobotModel model, nominal;
+  if (Status s = ReadRobotModelFile(FLAGS_model, &model); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitInput;
+  }
+  if (Status s = InverseKinematics::CheckModel(model); !s.ok()) {
+    std::cerr << "error: " << FLAGS_model << ": " << s.message() << "\n";
+    return kExitInput;
+  }
+  const bool with_nominal = !FLAGS_nominal.empty();
+  if (with_nominal) {
+    if (Status s = ReadRobotModelFile(FLAGS_nominal, &nominal); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitInput;
+    }
+    if (nominal.num_joints() != model.num_joints() || nominal.num_tools() < model.num_tools()) {
+      std::cerr << "error: " << FLAGS_nominal << ": the nominal model has "
+                << nominal.num_joints() << " joints and " << nominal.num_tools()
+                << " tools; the calibrated model " << model.num_joints() << " and "
+                << model.num_tools() << "\n";
+      return kExitInput;
+    }
+  }
+  int default_tool = 0;
+  if (!FLAGS_tool.empty()) {
+    default_tool = ResolveTool(model, FLAGS_tool);
+    if (default_tool < 0) {
+      std::cerr << "error: --tool=" << FLAGS_tool << " is neither a tool name of "
+                << FLAGS_model << " nor an index below " << model.num_tools() << "\n";
+      return kExitUsage;
+    }
+  }
+  std::vector<double> seeds;
+  std::vector<Row> rows;
+  const std::string& in_path = joints_mode ? FLAGS_joints : FLAGS_targets;
+  if (Status s = ReadRows(in_path, model, unit, !joints_mode, default_tool, &seeds, &rows);
+      !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitInput;
+  }
+  const int n = model.num_joints();
+  const int count = static_cast<int>(rows.size());
+  // Joint-program mode: the nominal tool pose at the program's joints, in the calibrated model's
+  // (measurement) frame.
+  if (joints_mode) {
+    const KinematicChain nominal_chain(nominal);
+    for (int k = 0; k < count; ++k) {
+      IkTarget& t = rows[k].target;
+      const SE3d T = model.T_measurement_base * nominal_chain.Pose(&seeds[size_t(k) * n], t.tool);
+      t.position = T.t;
+      t.rotation = T.R;
+      t.has_orientation = FLAGS_joints_target == "pose";
+    }
+  }
+
+  // ---- Solve, in parallel over rows.
+  IkOptions options;
+  options.max_iterations = FLAGS_max_iterations;
+  options.restarts = FLAGS_restarts;
+  options.position_tolerance = FLAGS_position_tolerance;
+  options.orientation_tolerance = FLAGS_orientation_tolerance;
+  options.singular_threshold = FLAGS_singular_threshold;
+  const InverseKinematics ik(model, options);
+  std::vector<double> solved(seeds.size());
+  std::vector<IkResult> results(count);
+  int threads = FLAGS_threads > 0 ? FLAGS_threads
+                                  : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  threads = std::max(1, std::min(threads, count / 1000 + 1));
+  auto work = [&](int t) {
+    for (int k = t; k < count; k += threads) {
+      results[k] = ik.Solve(rows[k].target, &seeds[size_t(k) * n], &solved[size_t(k) * n]);
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work, t);
+  work(0);
+  for (std::thread& th : pool) th.join();
+
+  // ---- Output.
+  bool any_orientation = false;
+  for (const Row& r : rows) any_orientation |= r.target.has_orientation;
+  std::string out;
+  out.reserve(static_cast<size_t>(count) * (n + 8) * 20 + 256);
+  out += "# lpoe_compensate: model " + FLAGS_model + ", " + (joints_mode ? "joints " : "targets ") +
+         in_path + ", angles in " + FLAGS_angle_unit + "\n";
+  for (int j = 0; j < n; ++j) out += "q" + std::to_string(j + 1) + ",";
+  out += "status,residual,sigma_min";
+  if (with_nominal) {
+    out += ",corrected_x,corrected_y,corrected_z";
+    if (any_orientation) out += ",corrected_quat_x,corrected_quat_y,corrected_quat_z,corrected_quat_w";
+  }
+  out += "\n";
+  const KinematicChain nominal_chain(with_nominal ? nominal : model);
+  int per_status[5] = {};
+  double max_correction = 0, max_residual = 0, max_orientation_residual = 0;
+  int max_correction_line = 0, max_residual_line = 0;
+  for (int k = 0; k < count; ++k) {
+    const double* q = &solved[size_t(k) * n];
+    const IkResult& r = results[k];
+    for (int j = 0; j < n; ++j) {
+      const bool deg = unit == AngleUnit::kDegrees && model.joints[j].type == JointType::kRevolute;
+      AppendNumber(deg ? q[j] * kDegreesPerRadian : q[j], &out);
+      out += ',';
+    }
+    out += IkStatusName(r.status);
+    out += ',';
+    AppendNumber(r.position_error, &out);
+    out += ',';
+    AppendNumber(r.sigma_min, &out);
+    if (with_nominal) {
+      const SE3d T = nominal_chain.Pose(q, rows[k].target.tool);
+      for (int c = 0; c < 3; ++c) {
+        out += ',';
+        AppendNumber(T.t(c), &out);
+      }
+      if (any_orientation) {
+        const Eigen::Vector4d qv = RotationToQuaternion<double>(T.R);
+        for (int c = 0; c < 4; ++c) {
+          out += ',';
+          if (rows[k].target.has_orientation) AppendNumber(qv(c), &out);
+        }
+      }
+    }
+    out += '\n';
+    ++per_status[static_cast<int>(r.status)];
+    if (r.correction > max_correction) {
+      max_correction = r.correction;
+      max_correction_line = rows[k].line;
+    }
+    if (r.position_error > max_residual) {
+      max_residual = r.position_error;
+      max_residual_line = rows[k].line;
+    }
+    max_orientation_residual = std::max(max_orientation_residual, r.orientation_error);
+  }
+  if (Status s = WriteFileAtomically(FLAGS_output, out); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitOutput;
+  }
+
+  // ---- Summary.
+  nlohmann::json report;
+  report["model"] = FLAGS_model;
+  report["input"] = in_path;
+  report["mode"] = joints_mode ? "joints" : "targets";
+  report["rows"] = count;
+  nlohmann::json counts;
+  std::cerr << "lpoe_compensate: " << count << " rows:";
+  for (int s = 0; s < 5; ++s) {
+    const char* name = IkStatusName(static_cast<IkStatus>(s));
+    counts[name] = per_status[s];
+    std::cerr << " " << name << " " << per_status[s];
+  }
+  std::cerr << "\n  largest correction " << max_correction << " (rad/mm, Euclidean; line "
+            << max_correction_line << ")\n  largest residual " << max_residual << " mm (line "
+            << max_residual_line << "), orientation " << max_orientation_residual << " rad\n";
+  report["status_counts"] = counts;
+  report["largest_correction"] = {{"value", max_correction}, {"line", max_correction_line}};
+  report["largest_residual_mm"] = {{"value", max_residual}, {"line", max_residual_line}};
+  report["largest_orientation_residual_rad"] = max_orientation_residual;
+  report["output"] = FLAGS_output;
+  if (!FLAGS_report.empty()) {
+    if (Status s = WriteFileAtomically(FLAGS_report, report.dump(2) + "\n"); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitOutput;
+    }
+  }
+  if (FLAGS_strict && per_status[static_cast<int>(IkStatus::kOk)] != count) return kExitNotAllOk;
+  return kExitOk;
+}
+
+}  // namespace
+}  // namespace lpoe
+
+int main(int argc, char** argv) {
+  lpoe::tools::InitTool(lpoe::kUsage, &argc, &argv);
+  return lpoe::Run();
+}
