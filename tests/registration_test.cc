@@ -162,6 +162,20 @@ TEST(Registration, RigidFitRecoversAKnownTransform) {
   EXPECT_FALSE(FitRigidTransform(line, line_b, &fit).ok());
 }
 
+// Gravity is attached to the robot: registering to a tracker frame expresses it there.
+TEST(Registration, GravityTurnsWithTheBase) {
+  const RobotModel nominal = MakeCobot6();
+  SimulationOptions options;
+  options.count = 30;
+  MeasurementSet data = SimulateMeasurements(nominal, {}, options);
+  const SE3d T = TrackerFromBase();
+  for (int r = 0; r < data.size(); ++r) data.mutable_position(r) = T * data.position(r);
+  RobotModel registered;
+  RegistrationReport report;
+  ASSERT_TRUE(RegisterToMeasurements(nominal, data, &registered, &report).ok());
+  EXPECT_LT((registered.gravity - T.R * nominal.gravity).norm(), 1e-9);
+}
+
 TEST(Analysis, ReportNamesTheFifteenUnidentifiableDirectionsOfCobot6) {
   const RobotModel nominal = MakeCobot6();
   const KinematicErrors errors = PaperTable2Errors();

@@ -1,9 +1,12 @@
 // lpoe_simulate: synthetic calibration data as in the paper's section 4 (eqs. (33), (34)).
 //
 // Writes the nominal model, the measurement CSV(s) and optionally the "actual" robot the
-// measurements were taken on (its joint-zero errors folded into its local frames, so that its
-// forward kinematics at the recorded q reproduces the noise-free measurements).
+// measurements were taken on (its joint-zero errors folded into its local frames and its
+// non-geometric terms, --joint_errors, in its joint_errors section, so that its prediction at the
+// recorded q reproduces the noise-free measurements).
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -12,6 +15,7 @@
 #include <glog/logging.h>
 
 #include "lpoe/io.h"
+#include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/simulation.h"
 #include "lpoe/urdf.h"
@@ -50,6 +54,24 @@ DEFINE_bool(all_tools, false,
             "every tool at each configuration).");
 DEFINE_uint64(seed, 1, "Seed of the configurations and the noise.");
 DEFINE_string(angle_unit, "rad", "Unit of the revolute joint values written: rad | deg.");
+DEFINE_string(joint_errors, "none",
+              "Non-geometric errors of the actual robot (docs/joint_errors.md): none | compliance | "
+              "harmonics | compliance,harmonics. Compliance: joints deflect under the gravity "
+              "torque of the links beyond them; harmonics: joint errors periodic in q and 2q.");
+DEFINE_string(stiffness, "",
+              "Joint stiffnesses, comma-separated, one per joint (N m/rad; N/mm for prismatic "
+              "joints; 0 = rigid). Default: 2e4 for joints 1-2, 3e3 for joint 3, 1.5e3 beyond.");
+DEFINE_double(mass_scale, 1.0,
+              "Scales the simulated link masses (default 0.1 kg + 1.25 kg/m of link length).");
+DEFINE_double(harmonics_min_arcsec, 5.0, "Smallest amplitude of each simulated harmonic (arcsec).");
+DEFINE_double(harmonics_max_arcsec, 30.0, "Largest amplitude of each simulated harmonic (arcsec).");
+DEFINE_uint64(joint_error_seed, 11, "Seed of the link centres of mass and the harmonic phases.");
+DEFINE_double(payload_mass, 0.0,
+              "Payload on the flange (kg), known: written to both the nominal and the actual model.");
+DEFINE_string(payload_com, "0,0,0", "Payload centre of mass x,y,z (mm, last joint's frame).");
+DEFINE_double(gravity_tilt, 0.0,
+              "Tilt of the actual robot's base about the base x axis (rad): its gravity vector is "
+              "turned by this angle while the nominal model keeps gravity along -z.");
 DEFINE_string(out, "", "Measurement CSV to write (required).");
 DEFINE_string(verify_out, "", "Verification CSV (the last --verify_count rows).");
 DEFINE_string(model_out, "", "Write the nominal model here (YAML).");
@@ -64,9 +86,26 @@ constexpr char kUsage[] =
     "  lpoe_simulate --count=100 --verify_count=30 --noise_sigma=0.03 \\\n"
     "      --out=identification.csv --verify_out=verification.csv --model_out=cobot6.yaml\n"
     "  lpoe_simulate --model=nominal.yaml --errors=random --joints=poses.csv --all_tools \\\n"
-    "      --noise_sigma=0.02 --out=planned.csv                # at the poses of a plan";
+    "      --noise_sigma=0.02 --out=planned.csv                # at the poses of a plan\n"
+    "  lpoe_simulate --joint_errors=compliance,harmonics --errors=random --count=300 \\\n"
+    "      --noise_sigma=0.01 --out=arm.csv --actual_out=actual.yaml   # a small arm that deflects";
 
 constexpr double kDegreesPerRadian = 180.0 / 3.14159265358979323846;
+constexpr double kRadiansPerArcsec = 1.0 / 206264.80624709636;
+
+// A comma-separated list of finite numbers.
+bool ParseNumberList(const std::string& text, std::vector<double>* out) {
+  out->clear();
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || *end != '\0' || !std::isfinite(v)) return false;
+    out->push_back(v);
+  }
+  return !out->empty() && text.back() != ',';
+}
 
 int Run() {
   using tools::kExitInput;
@@ -165,7 +204,53 @@ int Run() {
     std::cerr << "error: --errors must be table2, random or none\n";
     return kExitUsage;
   }
-  const RobotModel actual = ApplyErrors(nominal, errors);
+  std::vector<JointErrorKind> joint_error_kinds;
+  if (!ParseJointErrorKinds(FLAGS_joint_errors, &joint_error_kinds)) {
+    std::cerr << "error: --joint_errors must be none or a comma-separated list of compliance, "
+                 "harmonics\n";
+    return kExitUsage;
+  }
+  SmallArmOptions small_arm;
+  small_arm.seed = FLAGS_joint_error_seed;
+  small_arm.mass_scale = FLAGS_mass_scale;
+  small_arm.harmonics_min = FLAGS_harmonics_min_arcsec * kRadiansPerArcsec;
+  small_arm.harmonics_max = FLAGS_harmonics_max_arcsec * kRadiansPerArcsec;
+  if (!FLAGS_stiffness.empty()) {
+    bool ok = ParseNumberList(FLAGS_stiffness, &small_arm.stiffness) &&
+              static_cast<int>(small_arm.stiffness.size()) == nominal.num_joints();
+    for (double k : small_arm.stiffness) ok = ok && k >= 0;
+    if (!ok) {
+      std::cerr << "error: --stiffness needs " << nominal.num_joints()
+                << " comma-separated numbers >= 0\n";
+      return kExitUsage;
+    }
+  }
+  if (!(FLAGS_mass_scale >= 0) || !(FLAGS_harmonics_min_arcsec >= 0) ||
+      !(FLAGS_harmonics_max_arcsec >= FLAGS_harmonics_min_arcsec)) {
+    std::cerr << "error: need --mass_scale >= 0 and 0 <= --harmonics_min_arcsec <= "
+                 "--harmonics_max_arcsec\n";
+    return kExitUsage;
+  }
+  std::vector<double> com;
+  if (!(FLAGS_payload_mass >= 0) || !ParseNumberList(FLAGS_payload_com, &com) || com.size() != 3) {
+    std::cerr << "error: need --payload_mass >= 0 and --payload_com=x,y,z\n";
+    return kExitUsage;
+  }
+  if (!(std::abs(FLAGS_gravity_tilt) <= 0.1)) {
+    std::cerr << "error: --gravity_tilt must be within [-0.1, 0.1] rad\n";
+    return kExitUsage;
+  }
+  nominal.payload.mass = FLAGS_payload_mass;
+  nominal.payload.com = Eigen::Vector3d(com[0], com[1], com[2]);
+
+  RobotModel actual = ApplyErrors(nominal, errors);
+  actual.gravity = ExpSO3(Eigen::Vector3d(FLAGS_gravity_tilt, 0, 0)) * nominal.gravity;
+  const auto has = [&](JointErrorKind kind) {
+    return std::find(joint_error_kinds.begin(), joint_error_kinds.end(), kind) !=
+           joint_error_kinds.end();
+  };
+  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, small_arm),
+                         has(JointErrorKind::kCompliance), has(JointErrorKind::kHarmonics), &actual);
 
   SimulationOptions options;
   options.count = FLAGS_count;
@@ -198,17 +283,13 @@ int Run() {
 
   std::ostringstream comment;
   comment << "lpoe_simulate: robot " << nominal.name << ", errors " << FLAGS_errors
-          << ", noise sigma " << FLAGS_noise_sigma << " mm, seed " << FLAGS_seed << ", joint values in "
+          << ", joint errors " << FLAGS_joint_errors << ", noise sigma " << FLAGS_noise_sigma << " mm, seed " << FLAGS_seed << ", joint values in "
           << FLAGS_angle_unit;
   MeasurementSet identification, verification;
   data.SplitAt(data.size() - FLAGS_verify_count, &identification, &verification);
 
   // The actual robot with the joint-zero errors folded in: T_i(0) <- T_i(0) exp(s_i dq_i).
-  RobotModel actual_out = actual;
-  for (int i = 0; i < actual_out.num_joints(); ++i) {
-    actual_out.joints[i].origin =
-        actual_out.joints[i].origin * JointMotion(actual_out.joints[i], errors.joint_zero[i]);
-  }
+  RobotModel actual_out = FoldJointZeros(actual, errors.joint_zero);
   actual_out.name = nominal.name + "_actual";
 
   struct Output {

@@ -16,6 +16,7 @@
 
 #include "lpoe/io.h"
 #include "lpoe/urdf.h"
+#include "joint_errors_yaml.h"
 #include "parse_util.h"
 
 namespace lpoe {
@@ -501,7 +502,7 @@ Status ParseRobotModelYaml(const std::string& text, const std::string& source, R
                        "one robot model per file");
     }
     const YAML::Node root = documents.empty() ? YAML::Node() : documents[0];
-    return ModelYamlReader(source).Read(root, model);
+    return internal::ReadModelWithJointErrors(source, root, model, [&](const YAML::Node& r, RobotModel* m) { return ModelYamlReader(source).Read(r, m); });
   } catch (const YAML::Exception& e) {
     const int line = e.mark.is_null() ? 1 : e.mark.line + 1;
     return LineError(source, line, "cannot read the model: " + e.msg,
@@ -554,6 +555,7 @@ std::string RobotModelToYaml(const RobotModel& model) {
     out += "# registration = T_measurement_base: the measurement frame from the nominal base frame.\n";
     out += "registration: " + origin.substr(origin.find('{'));
   }
+  out += internal::JointErrorsToYaml(model);
   return out;
 }
 

@@ -1,5 +1,7 @@
 #include "lpoe/robot_model.h"
 
+#include "lpoe/joint_errors.h"
+
 #include <cmath>
 #include <limits>
 #include <set>
@@ -125,7 +127,7 @@ Status RobotModel::Validate() const {
     const std::string rot = CheckRotation(t.origin.R);
     if (!rot.empty()) return Status::Error(where + ": origin " + rot);
   }
-  return Status::Ok();
+  return ValidateJointErrorTerms(*this);
 }
 
 RobotModel MakeCobot6(const Eigen::Vector3d& tool_xyz) {

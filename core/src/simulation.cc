@@ -127,6 +127,74 @@ RobotModel ApplyErrors(const RobotModel& nominal, const KinematicErrors& errors)
   return actual;
 }
 
+JointErrorPhysics SmallArmJointErrors(const RobotModel& model, const SmallArmOptions& options) {
+  const int n = model.num_joints();
+  CHECK(options.stiffness.empty() || static_cast<int>(options.stiffness.size()) == n);
+  Random rng(options.seed);
+  JointErrorPhysics physics;
+  for (int k = 0; k < n; ++k) {
+    physics.stiffness.push_back(!options.stiffness.empty() ? options.stiffness[k]
+                                : k < 2                    ? 2e4
+                                : k == 2                   ? 3e3
+                                                           : 1.5e3);
+    const Eigen::Vector3d next =
+        k + 1 < n ? model.joints[k + 1].origin.t : model.tools[0].origin.t;  // link k's frame
+    constexpr double kBaseMassKg = 0.1, kMassPerMetre = 1.25, kComJitterMm = 10.0;
+    physics.link_mass.push_back(options.mass_scale *
+                                (kBaseMassKg + kMassPerMetre * 1e-3 * next.norm()));
+    Eigen::Vector3d com = 0.5 * next;
+    for (int a = 0; a < 3; ++a) com(a) += rng.Uniform(-kComJitterMm, kComJitterMm);
+    physics.link_com.push_back(com);
+  }
+  for (int k = 0; k < n; ++k) {
+    Eigen::Vector4d h = Eigen::Vector4d::Zero();
+    if (model.joints[k].type == JointType::kRevolute) {
+      for (int order = 0; order < 2; ++order) {
+        const double amplitude = rng.Uniform(options.harmonics_min, options.harmonics_max);
+        const double phase = rng.Uniform(-kPi, kPi);
+        h(2 * order) = amplitude * std::cos(phase);      // sin coefficient
+        h(2 * order + 1) = amplitude * std::sin(phase);  // cos coefficient
+      }
+    }
+    physics.harmonics.push_back(h);
+  }
+  return physics;
+}
+
+void ApplyJointErrorPhysics(const JointErrorPhysics& physics, bool compliance, bool harmonics,
+                            RobotModel* actual) {
+  const int n = actual->num_joints();
+  CHECK_EQ(static_cast<int>(physics.stiffness.size()), n);
+  if (compliance) actual->joint_errors.compliance = CompliancePhysicsParameters(physics);
+  if (harmonics) {
+    CHECK_EQ(static_cast<int>(physics.harmonics.size()), n);
+    actual->joint_errors.harmonics.assign(NumHarmonicsParameters(n), 0.0);
+    for (int j = 0; j < n; ++j) {
+      for (int c = 0; c < kHarmonicsPerJoint; ++c) {
+        actual->joint_errors.harmonics[kHarmonicsPerJoint * j + c] = physics.harmonics[j](c);
+      }
+    }
+  }
+}
+
+RobotModel FoldJointZeros(const RobotModel& actual, const std::vector<double>& joint_zero) {
+  CHECK_EQ(static_cast<int>(joint_zero.size()), actual.num_joints());
+  RobotModel out = actual;
+  std::vector<double>& h = out.joint_errors.harmonics;
+  for (int i = 0; i < out.num_joints(); ++i) {
+    out.joints[i].origin = out.joints[i].origin * JointMotion(out.joints[i], joint_zero[i]);
+    if (h.empty() || out.joints[i].type != JointType::kRevolute) continue;
+    for (int order = 1; order <= 2; ++order) {
+      double* ab = &h[kHarmonicsPerJoint * i + 2 * (order - 1)];
+      const double s = std::sin(order * joint_zero[i]), c = std::cos(order * joint_zero[i]);
+      const double a = ab[0], b = ab[1];
+      ab[0] = a * c - b * s;
+      ab[1] = a * s + b * c;
+    }
+  }
+  return out;
+}
+
 MeasurementSet SimulateMeasurements(const RobotModel& actual, const std::vector<double>& joint_zero,
                                     const SimulationOptions& options) {
   const int n = actual.num_joints();
@@ -156,14 +224,15 @@ MeasurementSet SimulateMeasurements(const RobotModel& actual, const std::vector<
   const int tools_per_pose = !given.empty() && options.all_tools ? actual.num_tools() : 1;
   const int count = given.empty() ? options.count : static_cast<int>(given.size() / n) * tools_per_pose;
   data.Reserve(count);
-  std::vector<double> q(n), q_actual(n);
+  std::vector<double> q(n), q_actual(n), q_effective(n);
   for (int r = 0; r < count; ++r) {
     for (int i = 0; i < n; ++i) {
       q[i] = given.empty() ? rng.Uniform(lo[i], hi[i]) : given[(r / tools_per_pose) * n + i];
       q_actual[i] = q[i] + (joint_zero.empty() ? 0.0 : joint_zero[i]);
     }
     const int target = options.all_tools ? r % actual.num_tools() : 0;
-    SE3d pose = ToolPose(actual, q_actual.data(), target);  // eq. (34)
+    EffectiveJoints(actual, q_actual.data(), q_effective.data());
+    SE3d pose = ToolPose(actual, q_effective.data(), target);  // eq. (34)
     for (int k = 0; k < 3; ++k) pose.t(k) += options.noise_sigma * rng.Gaussian();
     if (options.pose) {
       Eigen::Vector3d w;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "lpoe/io.h"
+#include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/measurements.h"
 #include "lpoe/urdf.h"
@@ -61,8 +62,14 @@ void PredictPositionsInto(const RobotModel& model, const double* q, long rows, i
                           double* out) {
   const int n = model.num_joints();
   const KinematicChain chain(model);
+  std::vector<double> q_eff(n);
   for (long r = 0; r < rows; ++r) {
-    const Eigen::Vector3d p = chain.Position(q + r * n, tool);
+    const double* qr = q + r * n;
+    if (!model.joint_errors.empty()) {  // compliance, harmonics (lpoe/joint_errors.h)
+      EffectiveJoints(model, qr, q_eff.data());
+      qr = q_eff.data();
+    }
+    const Eigen::Vector3d p = chain.Position(qr, tool);
     out[3 * r + 0] = p.x();
     out[3 * r + 1] = p.y();
     out[3 * r + 2] = p.z();

@@ -163,6 +163,7 @@ Status RegisterToMeasurements(const RobotModel& nominal, const MeasurementSet& a
   r.moved = T.t.norm() > kFrameMismatchMm || angle > kFrameMismatchRad;
   RobotModel model = nominal;
   model.joints[0].origin = T * model.joints[0].origin;
+  model.gravity = T.R * model.gravity;  // gravity stays attached to the robot's base
   r.rms_rigid = Rms(model, data);
 
   // Stage 2: base frame and tool points with the nominal joints.

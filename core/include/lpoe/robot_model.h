@@ -41,6 +41,31 @@ struct Tool {
   SE3d origin;  // T_{n,tool}, in the last joint's frame
 };
 
+// An optional payload fixed to the flange (the last joint's frame). Its weight enters the gravity
+// torques of the compliance term (lpoe/joint_errors.h, docs/joint_errors.md).
+struct Payload {
+  double mass = 0;                                // kg; 0 means no payload
+  Eigen::Vector3d com = Eigen::Vector3d::Zero();  // centre of mass, mm, in the last joint's frame
+};
+
+// Non-geometric joint-space error terms (lpoe/joint_errors.h, docs/joint_errors.md). The robot moves
+// to the effective joint values q + Y_c(q) compliance + Y_h(q) harmonics, where the regressors Y are
+// evaluated on the model that carries the terms. An empty vector means the term is absent.
+struct JointErrorTerms {
+  // For each joint j = 0..n-1: for each link k = j..n-1 the products c_j * (m_k, h_k) (4 numbers:
+  // c m, c h_x, c h_y, c h_z), then c_j itself (the payload's column); NumComplianceParameters(n)
+  // numbers. c_j in rad/(N m) (mm/N for a prismatic joint), m_k in kg, h_k = m_k * com_k in kg mm
+  // in link k's frame.
+  std::vector<double> compliance;
+  // For each joint: a1, b1, a2, b2 of a1 sin q + b1 cos q + a2 sin 2q + b2 cos 2q (rad; zero for a
+  // prismatic joint).
+  std::vector<double> harmonics;
+  bool empty() const { return compliance.empty() && harmonics.empty(); }
+};
+
+// Standard gravity, m/s^2.
+constexpr double kStandardGravity = 9.80665;
+
 // Tolerances used by Validate() on twists.
 constexpr double kTwistTolerance = 1e-6;
 
@@ -53,6 +78,11 @@ class RobotModel {
   // e.g. a laser tracker's) from the nominal model's base frame. Identity when the data were in the
   // base frame. Compensation uses it to carry nominal poses into this model's frame.
   SE3d T_measurement_base;
+  // Gravity in the model's base frame (m/s^2): the parent frame of joint 1's local frame, i.e. the
+  // measurement frame of a registered model.
+  Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -kStandardGravity);
+  Payload payload;
+  JointErrorTerms joint_errors;
 
   int num_joints() const { return static_cast<int>(joints.size()); }
   int num_tools() const { return static_cast<int>(tools.size()); }
@@ -64,7 +94,8 @@ class RobotModel {
 
   // Checks that the model is usable: at least one joint and one tool, unique names, finite numbers,
   // orthonormal rotations, and twists of the declared type (revolute: |omega| = 1, omega . v = 0;
-  // prismatic: omega = 0, |v| = 1).
+  // prismatic: omega = 0, |v| = 1), a finite gravity, a payload of finite mass >= 0 and joint-error
+  // terms of the right sizes with finite values.
   Status Validate() const;
 };
 

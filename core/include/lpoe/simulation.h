@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include "lpoe/joint_errors.h"
 #include "lpoe/measurements.h"
 #include "lpoe/robot_model.h"
 
@@ -33,6 +34,36 @@ KinematicErrors RandomErrors(const RobotModel& model, double rot, double trans, 
 // them to q.
 RobotModel ApplyErrors(const RobotModel& nominal, const KinematicErrors& errors);
 
+// Non-geometric errors of a small arm (docs/joint_errors.md). Stiffness per joint: `stiffness` when
+// given (N m/rad, N/mm for prismatic joints), else 2e4 for the first two joints (base, shoulder),
+// 3e3 for the third (elbow) and 1.5e3 for the wrist joints. Link k weighs 0.1 kg + 1.25 kg/m times
+// its length (the distance from its frame to the next joint's, or to the first tool for the last
+// link), times `mass_scale`, its centre of mass half-way along it plus up to 10 mm per axis at
+// random. For cobot6 that gives 0.19-0.65 kg per link, deflections of 210 (shoulder) and 570
+// (elbow) arcsec peak to peak and 0.34 mm RMS at the tool that no geometric model absorbs
+// (docs/joint_errors.md): heavier links at these stiffnesses would deflect the elbow by thousands of
+// arcsec.
+// Harmonics: each of the two harmonics of every revolute joint has an amplitude uniform in
+// [harmonics_min, harmonics_max] (rad) and a uniform random phase.
+struct SmallArmOptions {
+  std::vector<double> stiffness;
+  double mass_scale = 1.0;
+  double harmonics_min = 5.0 / 206264.80624709636;   // 5 arcsec
+  double harmonics_max = 30.0 / 206264.80624709636;  // 30 arcsec
+  uint64_t seed = 11;
+};
+JointErrorPhysics SmallArmJointErrors(const RobotModel& model, const SmallArmOptions& options);
+
+// Gives `actual` the compliance and/or harmonic terms of `physics` (its gravity and payload are
+// used as they are).
+void ApplyJointErrorPhysics(const JointErrorPhysics& physics, bool compliance, bool harmonics,
+                            RobotModel* actual);
+
+// `actual` with its joint-zero errors folded in: T_i(0) <- T_i(0) exp(s_i^ zero_i), and harmonic
+// coefficients re-expressed in the commanded angle (a sin(q + z) + b cos(q + z) = a' sin q + b' cos q).
+// Its prediction at the commanded q reproduces what SimulateMeasurements measures without noise.
+RobotModel FoldJointZeros(const RobotModel& actual, const std::vector<double>& joint_zero);
+
 struct SimulationOptions {
   int count = 100;
   double noise_sigma = 0.0;  // mm, isotropic per axis
@@ -49,7 +80,8 @@ struct SimulationOptions {
   std::vector<double> configurations;
 };
 
-// Random configurations q (commanded values), measured on `actual` at q + joint_zero (eq. (34)).
+// Random configurations q (commanded values), measured on `actual` at q + joint_zero (eq. (34)) plus
+// the joint offsets of the non-geometric terms `actual` carries (evaluated at q + joint_zero).
 MeasurementSet SimulateMeasurements(const RobotModel& actual, const std::vector<double>& joint_zero,
                                     const SimulationOptions& options);
 

@@ -1,0 +1,182 @@
+// Non-geometric joint-space error terms (docs/joint_errors.md): joint compliance under gravity and
+// joint harmonics. Every term is linear in its parameters,
+//
+//   dq = Y(q) theta,        q_eff = q + sum over terms of Y_term(q) theta_term,
+//   P  = FK(q_eff) * tool,
+//
+// with a regressor Y (num_joints x P) that depends only on the commanded joints q and on the model it
+// is evaluated on (geometry, gravity, payload). The solvers evaluate Y once on the registered start
+// model and treat it as data; a model that carries identified terms evaluates Y on itself.
+//
+// Compliance. Joint j turns by c_j tau_j(q), tau_j the gravity torque about j's axis from the links it
+// moves (k >= j) and the payload. Link k is the body moved by joint k; its frame is
+// T_0,k(q) = T_0,1(0) exp(s_1^ q_1) ... T_k-1,k(0) exp(s_k^ q_k). With (w_j, v_j) joint j's twist in
+// the base frame at q, (R_k, t_k) link k's frame, g gravity (m/s^2) in the base frame, m_k the link's
+// mass (kg) and h_k = m_k com_k its first moment (kg mm, link k coordinates):
+//
+//   tau_j = s * sum_{k >= j} [ ((g x w_j) . t_k + v_j . g) m_k + (R_k^T (g x w_j)) . h_k ]
+//           + s * m_p [ (g x w_j) . t_n + v_j . g + (R_n^T (g x w_j)) . com_p ]   (payload)
+//
+// in N m for a revolute joint (s = 1e-3: lengths in mm) and N along the axis for a prismatic one
+// (w_j = 0, s = 1). The masses are unknown, so the parameters are the products c_j m_k and c_j h_k
+// (4 per joint-link pair) and, for the known payload, c_j itself. Compliance c_j is in rad/(N m) for
+// a revolute joint and mm/N for a prismatic one.
+//
+// Harmonics. dq_j = a1 sin q_j + b1 cos q_j + a2 sin 2q_j + b2 cos 2q_j (revolute joints only; the
+// columns of a prismatic joint are zero).
+//
+// Not every parameter is identifiable: ReduceJointErrorTerms finds the combinations the data can
+// separate from the geometric model and from the terms before them.
+#ifndef LPOE_JOINT_ERRORS_H_
+#define LPOE_JOINT_ERRORS_H_
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lpoe/measurements.h"
+#include "lpoe/parameterization.h"
+#include "lpoe/robot_model.h"
+#include "lpoe/se3.h"
+#include "lpoe/status.h"
+
+namespace lpoe {
+
+enum class JointErrorKind { kCompliance, kHarmonics };
+
+const char* JointErrorKindName(JointErrorKind kind);
+// Parses a comma-separated list of kind names ("compliance", "harmonics"), each at most once, in the
+// order given. "none" or an empty text gives an empty list. Returns false on anything else.
+bool ParseJointErrorKinds(const std::string& text, std::vector<JointErrorKind>* kinds);
+
+// ---- Parameter layout (RobotModel::joint_errors, see robot_model.h).
+
+// sum over j of 4 (n - j) + 1.
+int NumComplianceParameters(int num_joints);
+// Index of c_j m_k (then c_j h_k x, y, z follow), 0-based joint j <= link k.
+int ComplianceLinkIndex(int num_joints, int joint, int link);
+// Index of c_j (the payload's column).
+int CompliancePayloadIndex(int num_joints, int joint);
+constexpr int kHarmonicsPerJoint = 4;
+int NumHarmonicsParameters(int num_joints);
+int NumJointErrorParameters(int num_joints, JointErrorKind kind);
+
+// "joint2.c*m[link3]", "joint2.c*hx[link3]", "joint2.c", "joint4.sin2q", ...
+std::vector<std::string> JointErrorParameterNames(const RobotModel& model, JointErrorKind kind);
+
+// The parameters of `kind` stored in the model (an empty vector when the term is absent).
+const std::vector<double>& JointErrorParameters(const RobotModel& model, JointErrorKind kind);
+std::vector<double>* MutableJointErrorParameters(RobotModel* model, JointErrorKind kind);
+
+// Checks gravity, payload and the sizes and values of the joint-error terms (called by Validate).
+Status ValidateJointErrorTerms(const RobotModel& model);
+
+// ---- Regressors: Y is resized to num_joints x NumJointErrorParameters and overwritten.
+
+void ComplianceRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y);
+// The compliance regressor is linear in the gravity vector: Y(g) = sum_a g_a Y_a. Fills Y_a for the
+// three base axes (for identifying a tilt of gravity, see TiltedGravity).
+void ComplianceRegressorGravityAxes(const RobotModel& model, const double* q, Eigen::MatrixXd Y[3]);
+void HarmonicsRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y);
+void JointErrorRegressor(const RobotModel& model, JointErrorKind kind, const double* q,
+                         Eigen::MatrixXd* Y);
+
+// The joint offsets dq (num_joints) of every term the model carries, at commanded joints q.
+void JointErrorOffsets(const RobotModel& model, const double* q, double* dq);
+// q_eff = q + dq.
+void EffectiveJoints(const RobotModel& model, const double* q, double* q_eff);
+
+// Gravity tilted by the small base rotation (tilt_x, tilt_y) (rad, about the base x and y axes):
+// g' = exp([tilt_x, tilt_y, 0]^) g. A base that is not level by a few tenths of a degree; identifying
+// the tilt makes the compliance term bilinear (tilt times products).
+template <typename T>
+Vector3<T> TiltedGravity(const Eigen::Vector3d& gravity, const T* tilt) {
+  const Vector3<T> w(tilt[0], tilt[1], T(0));
+  return ExpSO3(w) * gravity.cast<T>();
+}
+
+// dq = sum_a g_a Y_a theta (the compliance offsets for gravity g), for double or ceres::Jet.
+template <typename T>
+void ComplianceOffsets(const Eigen::MatrixXd Y_axes[3], const Vector3<T>& g, const T* theta,
+                       T* dq) {
+  const int n = static_cast<int>(Y_axes[0].rows());
+  const int p = static_cast<int>(Y_axes[0].cols());
+  for (int j = 0; j < n; ++j) {
+    T sum = T(0);
+    for (int c = 0; c < p; ++c) {
+      const double y0 = Y_axes[0](j, c), y1 = Y_axes[1](j, c), y2 = Y_axes[2](j, c);
+      if (y0 == 0 && y1 == 0 && y2 == 0) continue;
+      sum += (g(0) * y0 + g(1) * y1 + g(2) * y2) * theta[c];
+    }
+    dq[j] = sum;
+  }
+}
+
+// ---- Prediction with every term the model carries.
+
+// dP/dq (3 x num_joints) of the tool position at joint values q (the chain rule through the joints:
+// column j is w_j x P + v_j). Returns P.
+Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double* q, int tool,
+                                          Eigen::Matrix<double, 3, Eigen::Dynamic>* J_p_q);
+
+// FK(q_eff) * tool (mm, model frame).
+Eigen::Vector3d PredictToolPosition(const RobotModel& model, const double* q, int tool);
+
+// Predicted tool positions of `rows` configurations stored row-major in `q` (rows x num_joints,
+// rad / mm). Row r measures tool `targets[r]` when `targets` is non-empty, else `tool`. Fails on
+// wrong sizes, a tool index out of range or a non-finite joint value (messages name the row,
+// 1-based).
+Status PredictPositions(const RobotModel& model, const std::vector<double>& q,
+                        const std::vector<int>& targets, int tool,
+                        std::vector<Eigen::Vector3d>* positions);
+
+// Joint values for prediction, CSV: a header naming q1..qN (any case) and optionally `target` (a tool
+// name or 0-based index per row); other columns are ignored. '#' lines and blank lines are skipped;
+// CRLF and a UTF-8 BOM are accepted. Revolute joints are converted from degrees when `degrees`.
+// Fills `q` row-major and `targets` (empty when there is no target column). Errors read
+// "<source>:<line>: <what>; expected <what>".
+Status ParseJointsCsv(const std::string& text, const std::string& source, const RobotModel& model,
+                      bool degrees, std::vector<double>* q, std::vector<int>* targets);
+// "x,y,z" then one row per position, 17 significant digits.
+std::string PositionsToCsv(const std::vector<Eigen::Vector3d>& positions);
+
+// ---- Identifiable combinations.
+
+// The combinations of one term that the data can see: theta = basis * x.
+struct JointErrorReduction {
+  JointErrorKind kind = JointErrorKind::kCompliance;
+  int num_full = 0;             // NumJointErrorParameters
+  int rank_alone = 0;           // rank of the term's tool effect, geometry not considered
+  Eigen::MatrixXd basis;        // num_full x r (r = basis.cols(), the identifiable combinations)
+  std::vector<int> per_joint;   // identifiable combinations whose largest entry is in joint j's rows
+  std::vector<double> singular_values;  // of the kept combinations (column-scaled tool effects)
+};
+
+// Relative singular-value threshold below which a combination counts as not identifiable.
+constexpr double kJointErrorRankTolerance = 1e-7;
+
+// For the terms in `kinds` (in that order), the combinations whose effect on the measured tool
+// positions at the rows of `data` (joint values and targets; positions are not used) lies outside
+// the span of the geometric parameters of `geometric` and of the terms before them. Evaluated on
+// `reference` (the registered start model). Each term's parameters are scaled by the norm of their
+// tool effect before the singular value decomposition, so `basis` is in those units.
+Status ReduceJointErrorTerms(const RobotModel& reference, const Parameterization& geometric,
+                             const MeasurementSet& data, const std::vector<JointErrorKind>& kinds,
+                             std::vector<JointErrorReduction>* reductions);
+
+// ---- Physical description (the simulator's truth; also a way to enter known stiffnesses).
+
+struct JointErrorPhysics {
+  std::vector<double> stiffness;  // per joint, N m/rad (N/mm prismatic); <= 0 or inf: rigid
+  std::vector<double> link_mass;  // per link, kg
+  std::vector<Eigen::Vector3d> link_com;  // per link, mm in link k's frame
+  std::vector<Eigen::Vector4d> harmonics;  // per joint (a1, b1, a2, b2), rad; empty: none
+};
+
+// The compliance products c_j (m_k, m_k com_k) and c_j of the physical description.
+std::vector<double> CompliancePhysicsParameters(const JointErrorPhysics& physics);
+
+}  // namespace lpoe
+
+#endif  // LPOE_JOINT_ERRORS_H_

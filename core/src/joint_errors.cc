@@ -1,0 +1,410 @@
+#include "lpoe/joint_errors.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include <Eigen/SVD>
+#include <glog/logging.h>
+
+#include "lpoe/kinematics.h"
+
+namespace lpoe {
+namespace {
+
+// Torque lengths are in mm; torques in N m.
+constexpr double kMetresPerMillimetre = 1e-3;
+
+// Link frames T_0,k(q) (after joint k moved) and joint twists (w_j, v_j) in the base frame.
+struct ChainState {
+  std::vector<SE3d> link;
+  std::vector<Vector6d> twist;
+};
+
+void ComputeChainState(const RobotModel& model, const double* q, ChainState* state) {
+  const int n = model.num_joints();
+  state->link.resize(n);
+  state->twist.resize(n);
+  SE3d X;
+  for (int i = 0; i < n; ++i) {
+    const Joint& joint = model.joints[i];
+    X = X * joint.origin;
+    const Eigen::Vector3d w = X.R * joint.twist.head<3>();
+    state->twist[i] << w, X.R * joint.twist.tail<3>() + X.t.cross(w);  // Ad_X s (se3.h)
+    X = X * JointMotion(joint, q[i]);
+    state->link[i] = X;
+  }
+}
+
+// The compliance regressor for gravity g (linear in g).
+void ComplianceRegressorFor(const RobotModel& model, const ChainState& state,
+                            const Eigen::Vector3d& g, Eigen::MatrixXd* Y) {
+  const int n = model.num_joints();
+  Y->setZero(n, NumComplianceParameters(n));
+  for (int j = 0; j < n; ++j) {
+    const Eigen::Vector3d w = state.twist[j].head<3>();
+    const Eigen::Vector3d v = state.twist[j].tail<3>();
+    const double scale =
+        model.joints[j].type == JointType::kRevolute ? kMetresPerMillimetre : 1.0;
+    const Eigen::Vector3d gw = g.cross(w);
+    double a = 0;
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    for (int k = j; k < n; ++k) {
+      const SE3d& L = state.link[k];
+      a = scale * (gw.dot(L.t) + v.dot(g));
+      b = scale * (L.R.transpose() * gw);
+      const int c = ComplianceLinkIndex(n, j, k);
+      (*Y)(j, c) = a;
+      (*Y)(j, c + 1) = b(0);
+      (*Y)(j, c + 2) = b(1);
+      (*Y)(j, c + 3) = b(2);
+    }
+    // The payload sits on the last link: a and b are link n-1's.
+    (*Y)(j, CompliancePayloadIndex(n, j)) = model.payload.mass * (a + b.dot(model.payload.com));
+  }
+}
+
+// The joint (0-based) whose offset a parameter of `kind` enters.
+int JointOfParameter(int num_joints, JointErrorKind kind, int index) {
+  if (kind == JointErrorKind::kHarmonics) return index / kHarmonicsPerJoint;
+  int j = 0;
+  while (j + 1 < num_joints && CompliancePayloadIndex(num_joints, j) < index) ++j;
+  return j;
+}
+
+bool AllFinite(const std::vector<double>& v) {
+  for (double x : v) {
+    if (!std::isfinite(x)) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+const char* JointErrorKindName(JointErrorKind kind) {
+  return kind == JointErrorKind::kCompliance ? "compliance" : "harmonics";
+}
+
+bool ParseJointErrorKinds(const std::string& text, std::vector<JointErrorKind>* kinds) {
+  std::vector<JointErrorKind> out;
+  if (text.empty() || text == "none") {
+    kinds->clear();
+    return true;
+  }
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    JointErrorKind kind;
+    if (item == "compliance") {
+      kind = JointErrorKind::kCompliance;
+    } else if (item == "harmonics") {
+      kind = JointErrorKind::kHarmonics;
+    } else {
+      return false;
+    }
+    if (std::find(out.begin(), out.end(), kind) != out.end()) return false;
+    out.push_back(kind);
+  }
+  if (out.empty() || text.back() == ',') return false;
+  *kinds = out;
+  return true;
+}
+
+int NumComplianceParameters(int num_joints) {
+  // sum_{j<n} 4 (n - j) + 1 = 2 n (n + 1) + n.
+  return 2 * num_joints * (num_joints + 1) + num_joints;
+}
+
+int ComplianceLinkIndex(int num_joints, int joint, int link) {
+  DCHECK(0 <= joint && joint <= link && link < num_joints);
+  // Blocks of joints before `joint`: sum_{i<j} 4 (n - i) + 1.
+  const int before = 4 * (joint * num_joints - joint * (joint - 1) / 2) + joint;
+  return before + 4 * (link - joint);
+}
+
+int CompliancePayloadIndex(int num_joints, int joint) {
+  return ComplianceLinkIndex(num_joints, joint, joint) + 4 * (num_joints - joint);
+}
+
+int NumHarmonicsParameters(int num_joints) { return kHarmonicsPerJoint * num_joints; }
+
+int NumJointErrorParameters(int num_joints, JointErrorKind kind) {
+  return kind == JointErrorKind::kCompliance ? NumComplianceParameters(num_joints)
+                                             : NumHarmonicsParameters(num_joints);
+}
+
+std::vector<std::string> JointErrorParameterNames(const RobotModel& model, JointErrorKind kind) {
+  const int n = model.num_joints();
+  std::vector<std::string> names;
+  for (int j = 0; j < n; ++j) {
+    const std::string& joint = model.joints[j].name;
+    if (kind == JointErrorKind::kHarmonics) {
+      for (const char* s : {".sin1", ".cos1", ".sin2", ".cos2"}) names.push_back(joint + s);
+      continue;
+    }
+    for (int k = j; k < n; ++k) {
+      const std::string& link = model.joints[k].name;
+      for (const char* s : {".c*m_", ".c*hx_", ".c*hy_", ".c*hz_"}) names.push_back(joint + s + link);
+    }
+    names.push_back(joint + ".c");
+  }
+  return names;
+}
+
+const std::vector<double>& JointErrorParameters(const RobotModel& model, JointErrorKind kind) {
+  return kind == JointErrorKind::kCompliance ? model.joint_errors.compliance
+                                             : model.joint_errors.harmonics;
+}
+
+std::vector<double>* MutableJointErrorParameters(RobotModel* model, JointErrorKind kind) {
+  return kind == JointErrorKind::kCompliance ? &model->joint_errors.compliance
+                                             : &model->joint_errors.harmonics;
+}
+
+Status ValidateJointErrorTerms(const RobotModel& model) {
+  if (!model.gravity.allFinite()) return Status::Error("gravity: non-finite number");
+  if (!std::isfinite(model.payload.mass) || model.payload.mass < 0) {
+    std::ostringstream os;
+    os << "payload: mass " << model.payload.mass << " kg must be finite and >= 0";
+    return Status::Error(os.str());
+  }
+  if (!model.payload.com.allFinite()) return Status::Error("payload: non-finite centre of mass");
+  for (JointErrorKind kind : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
+    const std::vector<double>& v = JointErrorParameters(model, kind);
+    const int expected = NumJointErrorParameters(model.num_joints(), kind);
+    if (!v.empty() && static_cast<int>(v.size()) != expected) {
+      std::ostringstream os;
+      os << "joint_errors: " << JointErrorKindName(kind) << " has " << v.size()
+         << " parameters; expected " << expected << " for " << model.num_joints() << " joints";
+      return Status::Error(os.str());
+    }
+    if (!AllFinite(v)) {
+      return Status::Error(std::string("joint_errors: non-finite ") + JointErrorKindName(kind) +
+                           " parameter");
+    }
+  }
+  return Status::Ok();
+}
+
+void ComplianceRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y) {
+  ChainState state;
+  ComputeChainState(model, q, &state);
+  ComplianceRegressorFor(model, state, model.gravity, Y);
+}
+
+void ComplianceRegressorGravityAxes(const RobotModel& model, const double* q,
+                                    Eigen::MatrixXd Y[3]) {
+  ChainState state;
+  ComputeChainState(model, q, &state);
+  for (int a = 0; a < 3; ++a) {
+    ComplianceRegressorFor(model, state, Eigen::Vector3d::Unit(a), &Y[a]);
+  }
+}
+
+void HarmonicsRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y) {
+  const int n = model.num_joints();
+  Y->setZero(n, NumHarmonicsParameters(n));
+  for (int j = 0; j < n; ++j) {
+    if (model.joints[j].type != JointType::kRevolute) continue;
+    double s1, c1;
+    SinCos(q[j], &s1, &c1);
+    const int c = kHarmonicsPerJoint * j;
+    (*Y)(j, c) = s1;
+    (*Y)(j, c + 1) = c1;
+    (*Y)(j, c + 2) = 2 * s1 * c1;       // sin 2q
+    (*Y)(j, c + 3) = c1 * c1 - s1 * s1;  // cos 2q
+  }
+}
+
+void JointErrorRegressor(const RobotModel& model, JointErrorKind kind, const double* q,
+                         Eigen::MatrixXd* Y) {
+  if (kind == JointErrorKind::kCompliance) {
+    ComplianceRegressor(model, q, Y);
+  } else {
+    HarmonicsRegressor(model, q, Y);
+  }
+}
+
+void JointErrorOffsets(const RobotModel& model, const double* q, double* dq) {
+  const int n = model.num_joints();
+  Eigen::Map<Eigen::VectorXd> out(dq, n);
+  out.setZero();
+  Eigen::MatrixXd Y;
+  for (JointErrorKind kind : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
+    const std::vector<double>& theta = JointErrorParameters(model, kind);
+    if (theta.empty()) continue;
+    JointErrorRegressor(model, kind, q, &Y);
+    out += Y * Eigen::Map<const Eigen::VectorXd>(theta.data(), theta.size());
+  }
+}
+
+void EffectiveJoints(const RobotModel& model, const double* q, double* q_eff) {
+  const int n = model.num_joints();
+  std::vector<double> dq(n);
+  JointErrorOffsets(model, q, dq.data());
+  for (int j = 0; j < n; ++j) q_eff[j] = q[j] + dq[j];
+}
+
+Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double* q, int tool,
+                                          Eigen::Matrix<double, 3, Eigen::Dynamic>* J_p_q) {
+  ChainState state;
+  ComputeChainState(model, q, &state);
+  const int n = model.num_joints();
+  const Eigen::Vector3d P = state.link[n - 1] * model.tools[tool].origin.t;
+  J_p_q->resize(3, n);
+  for (int j = 0; j < n; ++j) {
+    J_p_q->col(j) = state.twist[j].head<3>().cross(P) + state.twist[j].tail<3>();
+  }
+  return P;
+}
+
+Eigen::Vector3d PredictToolPosition(const RobotModel& model, const double* q, int tool) {
+  if (model.joint_errors.empty()) return ToolPosition(model, q, tool);
+  std::vector<double> q_eff(model.num_joints());
+  EffectiveJoints(model, q, q_eff.data());
+  return ToolPosition(model, q_eff.data(), tool);
+}
+
+Status PredictPositions(const RobotModel& model, const std::vector<double>& q,
+                        const std::vector<int>& targets, int tool,
+                        std::vector<Eigen::Vector3d>* positions) {
+  const int n = model.num_joints();
+  if (q.size() % n != 0) {
+    std::ostringstream os;
+    os << q.size() << " joint values are not whole rows of " << n << " joints";
+    return Status::Error(os.str());
+  }
+  const int rows = static_cast<int>(q.size()) / n;
+  if (!targets.empty() && static_cast<int>(targets.size()) != rows) {
+    std::ostringstream os;
+    os << targets.size() << " targets for " << rows << " rows";
+    return Status::Error(os.str());
+  }
+  std::vector<Eigen::Vector3d> out(rows);
+  for (int r = 0; r < rows; ++r) {
+    const int t = targets.empty() ? tool : targets[r];
+    if (t < 0 || t >= model.num_tools()) {
+      std::ostringstream os;
+      os << "row " << r + 1 << ": tool index " << t << " is out of range (the model has "
+         << model.num_tools() << " tools)";
+      return Status::Error(os.str());
+    }
+    const double* qr = q.data() + static_cast<size_t>(r) * n;
+    for (int j = 0; j < n; ++j) {
+      if (!std::isfinite(qr[j])) {
+        std::ostringstream os;
+        os << "row " << r + 1 << ": joint " << j + 1 << " is not finite";
+        return Status::Error(os.str());
+      }
+    }
+    out[r] = PredictToolPosition(model, qr, t);
+  }
+  *positions = std::move(out);
+  return Status::Ok();
+}
+
+Status ReduceJointErrorTerms(const RobotModel& reference, const Parameterization& geometric,
+                             const MeasurementSet& data, const std::vector<JointErrorKind>& kinds,
+                             std::vector<JointErrorReduction>* reductions) {
+  const int n = reference.num_joints();
+  const int rows = data.size();
+  if (rows == 0) return Status::Error("no configurations to analyse the joint-error terms on");
+  if (data.num_joints() != n) return Status::Error("the data do not match the model's joints");
+  const int m = 3 * rows;
+
+  // The geometric Jacobian and the joint Jacobians, row by row.
+  BasisJacobian basis_jacobian(reference, geometric);
+  std::vector<FrameRt> scratch(n + 1);
+  Eigen::MatrixXd A_geometric(m, geometric.num_parameters);
+  std::vector<Eigen::Matrix<double, 3, Eigen::Dynamic>> J_q(rows);
+  for (int r = 0; r < rows; ++r) {
+    basis_jacobian.Position(data.q(r), data.target(r), A_geometric.data() + 3 * r, m,
+                            scratch.data());
+    ToolPositionJointJacobian(reference, data.q(r), data.target(r), &J_q[r]);
+  }
+
+  // Orthonormal basis of what the geometry (and the terms before) already explain.
+  // Columns below kJointErrorRankTolerance of the largest are round-off of a zero effect (a joint
+  // whose motion does not move the tool) and are dropped.
+  auto scaled = [](Eigen::MatrixXd* A, Eigen::VectorXd* inverse_norms) {
+    inverse_norms->resize(A->cols());
+    const double largest = A->cols() > 0 ? A->colwise().norm().maxCoeff() : 0.0;
+    for (int c = 0; c < A->cols(); ++c) {
+      const double norm = A->col(c).norm();
+      (*inverse_norms)(c) = norm > kJointErrorRankTolerance * largest ? 1.0 / norm : 0.0;
+      A->col(c) *= (*inverse_norms)(c);
+    }
+  };
+  Eigen::VectorXd inverse_norms;
+  scaled(&A_geometric, &inverse_norms);
+  Eigen::MatrixXd Q;
+  {
+    Eigen::BDCSVD<Eigen::MatrixXd> svd(A_geometric, Eigen::ComputeThinU);
+    const Eigen::VectorXd& s = svd.singularValues();
+    int rank = 0;
+    while (rank < s.size() && s(rank) > kJointErrorRankTolerance * s(0)) ++rank;
+    Q = svd.matrixU().leftCols(rank);
+  }
+
+  reductions->clear();
+  Eigen::MatrixXd Y;
+  for (JointErrorKind kind : kinds) {
+    JointErrorReduction red;
+    red.kind = kind;
+    red.num_full = NumJointErrorParameters(n, kind);
+    Eigen::MatrixXd A(m, red.num_full);
+    for (int r = 0; r < rows; ++r) {
+      JointErrorRegressor(reference, kind, data.q(r), &Y);
+      A.middleRows(3 * r, 3) = J_q[r] * Y;
+    }
+    scaled(&A, &inverse_norms);
+    Eigen::BDCSVD<Eigen::MatrixXd> alone(A);
+    const Eigen::VectorXd& s_alone = alone.singularValues();
+    const double s_max = s_alone.size() > 0 ? s_alone(0) : 0.0;
+    red.rank_alone = 0;
+    while (red.rank_alone < s_alone.size() &&
+           s_alone(red.rank_alone) > kJointErrorRankTolerance * s_max) {
+      ++red.rank_alone;
+    }
+    const Eigen::MatrixXd residual = A - Q * (Q.transpose() * A);
+    Eigen::BDCSVD<Eigen::MatrixXd> svd(residual, Eigen::ComputeThinU | Eigen::ComputeThinV);
+    const Eigen::VectorXd& s = svd.singularValues();
+    int rank = 0;
+    while (rank < s.size() && s(rank) > kJointErrorRankTolerance * s_max) ++rank;
+    const Eigen::MatrixXd V = svd.matrixV().leftCols(rank);
+    red.basis = inverse_norms.asDiagonal() * V;
+    red.singular_values.assign(s.data(), s.data() + rank);
+    red.per_joint.assign(n, 0);
+    for (int c = 0; c < rank; ++c) {
+      Eigen::Index largest = 0;
+      V.col(c).cwiseAbs().maxCoeff(&largest);
+      ++red.per_joint[JointOfParameter(n, kind, static_cast<int>(largest))];
+    }
+    // The kept combinations' effects are orthogonal to Q and to each other (U of the SVD).
+    Eigen::MatrixXd grown(m, Q.cols() + rank);
+    grown << Q, svd.matrixU().leftCols(rank);
+    Q.swap(grown);
+    reductions->push_back(std::move(red));
+  }
+  return Status::Ok();
+}
+
+std::vector<double> CompliancePhysicsParameters(const JointErrorPhysics& physics) {
+  const int n = static_cast<int>(physics.stiffness.size());
+  CHECK_EQ(static_cast<int>(physics.link_mass.size()), n);
+  CHECK_EQ(static_cast<int>(physics.link_com.size()), n);
+  std::vector<double> theta(NumComplianceParameters(n), 0.0);
+  for (int j = 0; j < n; ++j) {
+    const double k = physics.stiffness[j];
+    const double c = k > 0 && std::isfinite(k) ? 1.0 / k : 0.0;
+    for (int l = j; l < n; ++l) {
+      const int i = ComplianceLinkIndex(n, j, l);
+      theta[i] = c * physics.link_mass[l];
+      for (int a = 0; a < 3; ++a) theta[i + 1 + a] = c * physics.link_mass[l] * physics.link_com[l](a);
+    }
+    theta[CompliancePayloadIndex(n, j)] = c;
+  }
+  return theta;
+}
+
+}  // namespace lpoe

@@ -1,0 +1,168 @@
+// Runs lpoe_simulate and lpoe_predict: the actual model written by the simulator predicts its own
+// noise-free data (compliance, harmonics, payload, tilted gravity), degrees and per-row targets are
+// honoured, and bad flags, bad files and unwritable outputs give their exit codes and leave nothing.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "lpoe/io.h"
+#include "lpoe/joint_errors.h"
+
+namespace lpoe {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kExitOk = 0, kExitUsage = 1, kExitInput = 2, kExitOutput = 6;
+constexpr double kToleranceMm = 1e-9;
+
+int RunCommand(const std::string& command, std::string* out) {
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) return -1;
+  std::array<char, 4096> buffer;
+  size_t n;
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) out->append(buffer.data(), n);
+  const int status = pclose(pipe);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+class LpoePredict : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("lpoe_predict_test_" + std::to_string(getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  int Predict(const std::string& args, std::string* out) const {
+    return RunCommand(std::string(LPOE_PREDICT_PATH) + " " + args, out);
+  }
+  // The simulated data and actual model: a small arm with every term.
+  void Simulate(const std::string& extra) {
+    std::string out;
+    ASSERT_EQ(RunCommand(std::string(LPOE_SIMULATE_PATH) +
+                      " --errors=random --joint_errors=compliance,harmonics --count=40 "
+                      "--payload_mass=0.7 --payload_com=5,0,25 --gravity_tilt=0.004 --all_tools " +
+                      extra + " --out=" + Path("data.csv") + " --actual_out=" + Path("actual.yaml"),
+                  &out),
+              kExitOk)
+        << out;
+  }
+  std::vector<std::vector<double>> ReadCsv(const std::string& path) const {
+    std::ifstream in(path);
+    std::string line;
+    std::vector<std::vector<double>> rows;
+    std::getline(in, line);
+    EXPECT_EQ(line, "x,y,z");
+    while (std::getline(in, line)) {
+      std::vector<double> row;
+      std::stringstream ss(line);
+      std::string field;
+      while (std::getline(ss, field, ',')) row.push_back(std::stod(field));
+      rows.push_back(row);
+    }
+    return rows;
+  }
+  fs::path dir_;
+};
+
+TEST_F(LpoePredict, ActualModelPredictsItsNoiseFreeData) {
+  for (const std::string unit : {"rad", "deg"}) {
+    Simulate("--angle_unit=" + unit);
+    RobotModel actual;
+    ASSERT_TRUE(ReadRobotModel(Path("actual.yaml"), &actual).ok());
+    ASSERT_FALSE(actual.joint_errors.empty());
+    MeasurementSet data;
+    ASSERT_TRUE(ReadMeasurements(Path("data.csv"), actual,
+                                 unit == "deg" ? AngleUnit::kDegrees : AngleUnit::kRadians, &data)
+                    .ok());
+    std::string out;
+    ASSERT_EQ(Predict("--model=" + Path("actual.yaml") + " --joints=" + Path("data.csv") +
+                          " --angle_unit=" + unit + " --output=" + Path("out.csv"),
+                      &out),
+              kExitOk)
+        << out;
+    const std::vector<std::vector<double>> rows = ReadCsv(Path("out.csv"));
+    ASSERT_EQ(static_cast<int>(rows.size()), data.size());
+    for (int r = 0; r < data.size(); ++r) {
+      ASSERT_EQ(rows[r].size(), 3u);
+      const Eigen::Vector3d p(rows[r][0], rows[r][1], rows[r][2]);
+      EXPECT_LT((p - data.position(r)).norm(), kToleranceMm) << "row " << r;
+    }
+  }
+}
+
+TEST_F(LpoePredict, ToolFlagAndTargetColumn) {
+  Simulate("");
+  std::ofstream(Path("joints.csv")) << "# comment\nextra,Q2,q1,q3,q4,q5,q6,target\n"
+                                    << "7,0.1,0.2,0.3,0.4,0.5,0.6,smr1\n";
+  std::ofstream(Path("joints_no_target.csv")) << "q1,q2,q3,q4,q5,q6\r\n0.2,0.1,0.3,0.4,0.5,0.6\r\n";
+  RobotModel actual;
+  ASSERT_TRUE(ReadRobotModel(Path("actual.yaml"), &actual).ok());
+  const double q[6] = {0.2, 0.1, 0.3, 0.4, 0.5, 0.6};
+  std::string out;
+  ASSERT_EQ(Predict("--model=" + Path("actual.yaml") + " --joints=" + Path("joints.csv") +
+                        " --output=" + Path("a.csv"),
+                    &out),
+            kExitOk)
+      << out;
+  const std::vector<double> a = ReadCsv(Path("a.csv")).at(0);
+  EXPECT_LT((Eigen::Vector3d(a[0], a[1], a[2]) - PredictToolPosition(actual, q, 0)).norm(),
+            kToleranceMm);
+  ASSERT_EQ(Predict("--model=" + Path("actual.yaml") + " --joints=" + Path("joints_no_target.csv") +
+                        " --tool=0 --output=" + Path("b.csv"),
+                    &out),
+            kExitOk)
+      << out;
+  const std::vector<double> b = ReadCsv(Path("b.csv")).at(0);
+  EXPECT_LT((Eigen::Vector3d(b[0], b[1], b[2]) - PredictToolPosition(actual, q, 0)).norm(),
+            kToleranceMm);
+}
+
+TEST_F(LpoePredict, BadInputsGiveExitCodesAndNoOutput) {
+  Simulate("");
+  const std::string model = " --model=" + Path("actual.yaml");
+  std::ofstream(Path("missing_q6.csv")) << "q1,q2,q3,q4,q5\n0,0,0,0,0\n";
+  std::ofstream(Path("bad_value.csv")) << "q1,q2,q3,q4,q5,q6\n0,0,0,0,0,0\n0,0,x,0,0,0\n";
+  std::ofstream(Path("bad_target.csv")) << "q1,q2,q3,q4,q5,q6,target\n0,0,0,0,0,0,smr7\n";
+  struct Case {
+    std::string args;
+    int code;
+    std::string message;
+  } cases[] = {
+      {model + " --joints=" + Path("data.csv"), kExitUsage, "--output"},
+      {model + " --joints=" + Path("data.csv") + " --angle_unit=grad", kExitUsage, "angle_unit"},
+      {model + " --joints=" + Path("data.csv") + " --tool=9", kExitUsage, "--tool '9'"},
+      {model + " --joints=" + Path("missing_q6.csv"), kExitInput, "missing_q6.csv:1: no column q6"},
+      {model + " --joints=" + Path("bad_value.csv"), kExitInput, "bad_value.csv:3: q3 'x'"},
+      {model + " --joints=" + Path("bad_target.csv"), kExitInput, "bad_target.csv:2: target 'smr7'"},
+      {" --model=" + Path("none.yaml") + " --joints=" + Path("data.csv"), kExitInput, "none.yaml"},
+  };
+  for (const Case& c : cases) {
+    std::string out;
+    const bool has_output = c.args.find("--output") == std::string::npos &&
+                            c.message != "--output";
+    const std::string args = c.args + (has_output ? " --output=" + Path("out.csv") : "");
+    EXPECT_EQ(Predict(args, &out), c.code) << args << "\n" << out;
+    EXPECT_NE(out.find(c.message), std::string::npos) << out;
+    EXPECT_FALSE(fs::exists(Path("out.csv"))) << args;
+  }
+  std::string out;
+  EXPECT_EQ(Predict(model + " --joints=" + Path("data.csv") + " --output=" + Path("no/dir/out.csv"),
+                    &out),
+            kExitOutput)
+      << out;
+}
+
+}  // namespace
+}  // namespace lpoe
