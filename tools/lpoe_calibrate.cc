@@ -18,6 +18,7 @@
 #include "lpoe/ceres_solver.h"
 #include "lpoe/io.h"
 #include "lpoe/linear_solver.h"
+#include "lpoe/joint_errors.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/registration.h"
 #include "lpoe/statistics.h"
@@ -65,6 +66,10 @@ DEFINE_string(plots_dir, "lpoe_plots",
 DEFINE_string(solver, "linear",
               "linear: the paper's iterative least squares; ceres: Levenberg-Marquardt on SE(3) "
               "manifolds (robust losses, a-priori covariance).");
+DEFINE_string(joint_errors, "none",
+              "Joint-space error terms identified with the geometry: none | compliance | harmonics "
+              "| compliance,harmonics (gravity and payload from the model; the identified values "
+              "are written to the model's joint_errors). 'auto' is not implemented yet.");
 DEFINE_string(loss, "none",
               "Ceres solver: robust loss against gross errors in the data: none | huber | cauchy.");
 DEFINE_double(loss_scale, 1.0,
@@ -136,6 +141,10 @@ PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_ori
   o.parameterization = kind;
   o.use_orientation = use_orientation;
   o.register_frames = FLAGS_register;
+  std::vector<JointErrorKind> kinds;
+  if (ParseJointErrorKinds(FLAGS_joint_errors, &kinds)) {
+    for (JointErrorKind k : kinds) o.joint_errors.push_back(JointErrorKindName(k));
+  }
   o.kfold = FLAGS_kfold;
   o.split_seed = FLAGS_split_seed;
   o.outlier_threshold = FLAGS_outlier_threshold;
@@ -259,6 +268,17 @@ int Run() {
   if (Status s = ValidateCeresSolverOptions(PipelineOptionsFromFlags(kind, false, unit).ceres);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
+  }
+  if (FLAGS_joint_errors == "auto") {
+    std::cerr << "error: --joint_errors=auto (choosing the terms by cross-validation) is not "
+                 "implemented yet; give none, compliance, harmonics or compliance,harmonics\n";
+    return kExitUsage;
+  }
+  if (std::vector<JointErrorKind> kinds; !ParseJointErrorKinds(FLAGS_joint_errors, &kinds)) {
+    std::cerr << "error: --joint_errors must be none, compliance, harmonics or "
+                 "compliance,harmonics, got '"
+              << FLAGS_joint_errors << "'\n";
     return kExitUsage;
   }
   if (FLAGS_solver == "linear" && FLAGS_loss != "none") {

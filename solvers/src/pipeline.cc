@@ -2,7 +2,32 @@
 
 #include <utility>
 
+#include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
+
 namespace lpoe {
+namespace {
+
+// Copies the identified joint-error values of result.joint_terms into result.model.joint_errors.
+CalibrationResult StoreJointErrors(CalibrationResult result) {
+  for (const JointTermValues& t : result.joint_terms) {
+    std::vector<JointErrorKind> kinds;
+    if (!ParseJointErrorKinds(t.term->name(), &kinds) || kinds.size() != 1) continue;
+    *MutableJointErrorParameters(&result.model, kinds[0]) =
+        std::vector<double>(t.theta.data(), t.theta.data() + t.theta.size());
+  }
+  return result;
+}
+
+// The model without its joint-error values.
+RobotModel Geometric(const RobotModel& model) {
+  RobotModel g = model;
+  g.joint_errors.compliance.clear();
+  g.joint_errors.harmonics.clear();
+  return g;
+}
+
+}  // namespace
 
 CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementSet& data,
                                    const PipelineOptions& options, const std::string& stage,
@@ -30,6 +55,18 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
     }
   }
   if (start_out) *start_out = start;
+  std::vector<std::shared_ptr<const JointTerm>> terms;
+  for (const std::string& name : options.joint_errors) {
+    std::shared_ptr<const JointTerm> term;
+    if (Status s = MakeJointTerm(name, start, &term); !s.ok()) {
+      CalibrationResult failed;
+      failed.model = start;
+      failed.termination = Termination::kNotIdentifiable;
+      failed.message = s.message();
+      return failed;
+    }
+    terms.push_back(term);
+  }
   std::function<void(const IterationRecord&)> progress;
   if (options.on_iteration) {
     progress = [&options, &stage](const IterationRecord& r) { options.on_iteration(stage, r); };
@@ -39,13 +76,15 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
     o.parameterization = options.parameterization;
     o.use_orientation = options.use_orientation;
     o.on_iteration = progress;
-    return CalibrateCeres(start, data, o);
+    o.joint_terms = terms;
+    return StoreJointErrors(CalibrateCeres(start, data, o));
   }
   LinearSolverOptions o = options.linear;
   o.parameterization = options.parameterization;
   o.use_orientation = options.use_orientation;
   o.on_iteration = progress;
-  return CalibrateLinear(start, data, o);
+  o.joint_terms = terms;
+  return StoreJointErrors(CalibrateLinear(start, data, o));
 }
 
 PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
@@ -60,19 +99,23 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   if (result.termination == Termination::kNotIdentifiable) return out;
 
   if (options.on_stage) options.on_stage("analysing");
-  out.identifiability = AnalyzeIdentifiability(nominal, identification, result);
+  out.geometric = Geometric(result.model);
+  const MeasurementSet identification_eff =
+      WithEffectiveJointValues(result.joint_terms, identification);
+  out.identifiability = AnalyzeIdentifiability(nominal, identification_eff, result);
   out.identification_before = PositionErrorStatistics(out.before, identification);
-  out.identification_after = PositionErrorStatistics(result.model, identification);
+  out.identification_after = PositionErrorStatistics(out.geometric, identification_eff);
   if (!verification.empty()) {
     out.has_verification = true;
     out.verification_before = PositionErrorStatistics(out.before, verification);
-    out.verification_after = PositionErrorStatistics(result.model, verification);
+    out.verification_after = PositionErrorStatistics(
+        out.geometric, WithEffectiveJointValues(result.joint_terms, verification));
   }
-  out.outliers = FindOutliers(result.model, identification, options.outlier_threshold,
+  out.outliers = FindOutliers(out.geometric, identification_eff, options.outlier_threshold,
                               &out.robust_sigma);
   if (!result.converged()) return out;
 
-  out.verdict = AssessPlausibility(out.start, result.model, identification,
+  out.verdict = AssessPlausibility(out.start, out.geometric, identification_eff,
                                    out.identification_after, options.plausibility);
 
   if (options.kfold >= 2) {
@@ -90,7 +133,8 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
       fs.fold = f + 1;
       fs.identification_rows = train.size();
       fs.termination = r.termination;
-      const std::vector<Eigen::Vector3d> e = PositionErrors(r.model, test);
+      const std::vector<Eigen::Vector3d> e =
+          PositionErrors(Geometric(r.model), WithEffectiveJointValues(r.joint_terms, test));
       pooled.insert(pooled.end(), e.begin(), e.end());
       fs.verification_after = ComputeStatistics(e);
       out.folds.push_back(fs);

@@ -33,6 +33,11 @@ struct PipelineOptions {
   bool use_orientation = false;
   // Stages 1-2 of registration.h first (skipped when the data are in the base frame already).
   bool register_frames = true;
+  // Joint-space error terms to identify with the geometry, by registry name (joint_term.h):
+  // "compliance", "harmonics". Built on the registered start model; the identified values are
+  // stored in the calibrated model's joint_errors (so its YAML carries them) and in
+  // result.joint_terms.
+  std::vector<std::string> joint_errors;
   int kfold = 0;  // >= 2: k-fold cross-validation on the identification rows
   uint64_t split_seed = 1;
   double outlier_threshold = 5.0;
@@ -58,6 +63,9 @@ struct PipelineResult {
   RobotModel before;
   RobotModel start;  // what the solver started from
   CalibrationResult result;
+  // result.model without its joint_errors (the geometry alone). Errors after calibration are those
+  // of `geometric` on the effective joint values of result.joint_terms (the solvers' cost).
+  RobotModel geometric;
   // The following are filled unless result.termination is kNotIdentifiable.
   IdentifiabilityReport identifiability;
   ErrorStatistics identification_before, identification_after;
