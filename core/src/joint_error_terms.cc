@@ -14,6 +14,8 @@
 namespace lpoe {
 namespace {
 
+constexpr double kRoundingCutoff = 1e-10;
+
 class JointErrorTerm : public JointTerm {
  public:
   JointErrorTerm(const RobotModel& reference, JointErrorKind kind)
@@ -34,6 +36,11 @@ class JointErrorTerm : public JointTerm {
     JointErrorRegressor(reference_, kind_, q, &m);
     CHECK_EQ(m.rows(), num_joints());
     CHECK_EQ(m.cols(), num_parameters());
+    // Entries at rounding level (e.g. the gravity torque about a vertical axis) are exact zeros: the
+    // solvers scale every column to unit norm, and a column of rounding noise would otherwise be
+    // identified with huge values that cancel only on this very geometry.
+    const double cutoff = kRoundingCutoff * m.cwiseAbs().maxCoeff();
+    m = (m.array().abs() < cutoff).select(0.0, m);
     Eigen::Map<Eigen::MatrixXd>(Y, m.rows(), m.cols()) = m;
   }
 
