@@ -143,7 +143,12 @@ PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_ori
   o.register_frames = FLAGS_register;
   std::vector<JointErrorKind> kinds;
   if (ParseJointErrorKinds(FLAGS_joint_errors, &kinds)) {
-    for (JointErrorKind k : kinds) o.joint_errors.push_back(JointErrorKindName(k));
+    // Compliance first (docs/joint_errors.md): it keeps the combinations both terms could explain.
+    for (JointErrorKind k : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
+      if (std::find(kinds.begin(), kinds.end(), k) != kinds.end()) {
+        o.joint_errors.push_back(JointErrorKindName(k));
+      }
+    }
   }
   o.kfold = FLAGS_kfold;
   o.split_seed = FLAGS_split_seed;
