@@ -90,6 +90,7 @@ py::array_t<double> Predict(const RobotModel& model, const RowArray& q, const py
 void BindModel(py::module_& m);
 void BindMeasurements(py::module_& m);
 void BindCalibration(py::module_& m);
+void BindJacobians(py::module_& m);
 
 }  // namespace python
 }  // namespace lpoe
@@ -193,4 +194,5 @@ PYBIND11_MODULE(_lpoe, m) {
 
   BindMeasurements(m);
   BindCalibration(m);
+  BindJacobians(m);
 }
