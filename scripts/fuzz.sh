@@ -21,7 +21,7 @@ bash scripts/setup.sh
 build=build-fuzz
 # Only lpoe_core's sources are compiled (instrumented, as lpoe_core_fuzz) plus the fuzz targets.
 CC=clang CXX=clang++ cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLPOE_FUZZ=ON \
-  -DBUILD_TESTING=OFF -DLPOE_BUILD_BENCHMARKS=OFF -DLPOE_BUILD_TOOLS=OFF >/dev/null
+  -DBUILD_TESTING=OFF -DLPOE_BUILD_BENCHMARKS=OFF -DLPOE_BUILD_TOOLS=OFF -DLPOE_BUILD_PYTHON=OFF >/dev/null
 cmake --build "$build" -j2 --target lpoe_fuzz
 
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"

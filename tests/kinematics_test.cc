@@ -17,7 +17,7 @@
 
 namespace lpoe {
 
-// Explicit instantiation of the chain with a Jet (STYLE.md: one template for double and Jet).
+// Explicit instantiation of the chain with a Jet (one template for double and Jet, docs/architecture.md).
 using Jet6 = ceres::Jet<double, 6>;
 template SE3<Jet6> ChainPose<Jet6>(const RobotModel& model, const SE3<Jet6>* joint_origins,
                                    const SE3<Jet6>& tool_origin, const double* q);

@@ -53,7 +53,7 @@ std::vector<std::string> DataLines(const std::string& text) {
   return lines;
 }
 
-// Three SMRs on cobot6 (DESIGN.md section 2 frames); joint 2 limited.
+// Three SMRs on cobot6 (the frames of docs/conventions.md); joint 2 limited.
 constexpr char kModel[] = R"(name: cobot6_3smr
 joints:
   - {name: joint1, type: revolute, origin: {xyz: [0, 0, 96], rpy: [0, 0, 0]}}

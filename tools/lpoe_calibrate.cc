@@ -571,6 +571,7 @@ int Run() {
     staged = outputs.Stage(FLAGS_report, tools::RunSummaryToJson(summary));
   }
   std::vector<std::string> written;
+  std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
   if (Status s = staged.ok() ? outputs.Commit(&written) : staged; !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;

@@ -5,6 +5,6 @@ arrays in and out. Errors in user input raise ``lpoe.Error`` (a ``ValueError``) 
 the file and line.
 """
 from ._lpoe import *  # noqa: F401,F403
-from ._lpoe import Error, Model, Measurements  # noqa: F401
+from ._lpoe import Calibration, Error, Model, Measurements  # noqa: F401
 
 __all__ = [name for name in dir() if not name.startswith("_")]

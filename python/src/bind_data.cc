@@ -12,7 +12,9 @@
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_model.h"
 #include "lpoe/measurements.h"
+#include "lpoe/parameterization.h"
 #include "lpoe/urdf.h"
 #include "python_api.h"
 
@@ -212,6 +214,48 @@ void BindMeasurements(py::module_& m) {
       py::arg("quaternions") = py::none(),
       "measurements from arrays: q (M, N), positions (M, 3) mm, optional targets (M,) and "
       "quaternions (M, 4) [x, y, z, w]");
+}
+
+
+void BindJacobians(py::module_& m) {
+  m.def(
+      "joint_jacobian",
+      [](const RobotModel& model, const RowArray& q, int tool) {
+        if (q.ndim() != 1 || q.shape(0) != model.num_joints()) {
+          throw LpoeError("q: expected " + std::to_string(model.num_joints()) +
+                          " joint values, got shape " + ShapeText(q));
+        }
+        if (tool < 0 || tool >= model.num_tools()) throw LpoeError("tool index out of range");
+        Eigen::MatrixXd J;
+        ToolPositionJointJacobian(model, q.data(), tool, &J);
+        return J;
+      },
+      py::arg("model"), py::arg("q"), py::arg("tool") = 0,
+      "dP/dq (3, N) of the tool position at one configuration (geometric model), mm per rad/mm");
+  m.def(
+      "parameter_jacobian",
+      [](const RobotModel& model, const RowArray& q, int tool, const std::string& kind_name) {
+        if (q.ndim() != 1 || q.shape(0) != model.num_joints()) {
+          throw LpoeError("q: expected " + std::to_string(model.num_joints()) +
+                          " joint values, got shape " + ShapeText(q));
+        }
+        if (tool < 0 || tool >= model.num_tools()) throw LpoeError("tool index out of range");
+        ParameterizationKind kind;
+        if (!ParseParameterization(kind_name, &kind)) {
+          throw LpoeError("parameterization: expected 'identifiable' or 'full', got '" +
+                          kind_name + "'");
+        }
+        const Parameterization p = MakeParameterization(model, kind, DataKind::kPosition);
+        Eigen::MatrixXd J;
+        PredictPositionJacobian(model, p, {}, q.data(), tool, &J);
+        std::vector<std::string> names;
+        for (const Direction& d : p.parameters) names.push_back(d.name);
+        return py::make_tuple(J, names);
+      },
+      py::arg("model"), py::arg("q"), py::arg("tool") = 0,
+      py::arg("parameterization") = "identifiable",
+      "(dP/dx (3, P), names): the tool position's Jacobian with respect to the right "
+      "perturbations x of the local frames in the chosen parameterization (paper eq. 29)");
 }
 
 }  // namespace python

@@ -89,6 +89,8 @@ py::array_t<double> Predict(const RobotModel& model, const RowArray& q, const py
 
 void BindModel(py::module_& m);
 void BindMeasurements(py::module_& m);
+void BindCalibration(py::module_& m);
+void BindJacobians(py::module_& m);
 
 }  // namespace python
 }  // namespace lpoe
@@ -191,4 +193,6 @@ PYBIND11_MODULE(_lpoe, m) {
       py::arg("text"), py::arg("source") = "<string>", "parses model YAML text");
 
   BindMeasurements(m);
+  BindCalibration(m);
+  BindJacobians(m);
 }

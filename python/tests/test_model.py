@@ -86,3 +86,27 @@ def test_write_model_round_trip(tmp_path, model):
     again = lpoe.read_model(str(out))
     q = np.random.default_rng(3).uniform(-3, 3, size=(100, 6))
     np.testing.assert_allclose(again.predict(q), model.predict(q), atol=1e-9)
+
+
+def test_joint_jacobian_matches_finite_differences(model):
+    q = np.random.default_rng(4).uniform(-2, 2, size=6)
+    J = lpoe.joint_jacobian(model, q)
+    assert J.shape == (3, 6)
+    h = 1e-6
+    for i in range(6):
+        dq = np.zeros(6)
+        dq[i] = h
+        fd = (model.predict(q + dq)[0] - model.predict(q - dq)[0]) / (2 * h)
+        np.testing.assert_allclose(J[:, i], fd, atol=1e-5)
+
+
+def test_parameter_jacobian_shape_names_and_rank(model):
+    rng = np.random.default_rng(5)
+    rows, names = [], None
+    for _ in range(40):
+        J, names = lpoe.parameter_jacobian(model, rng.uniform(-np.pi, np.pi, size=6))
+        rows.append(J)
+    assert len(names) == 27 and rows[0].shape == (3, 27)  # cobot6, position data
+    assert np.linalg.matrix_rank(np.vstack(rows)) == 27
+    with pytest.raises(lpoe.Error, match="parameterization"):
+        lpoe.parameter_jacobian(model, np.zeros(6), parameterization="some")

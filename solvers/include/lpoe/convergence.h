@@ -1,7 +1,7 @@
 // Stopping rules that fit real data (both solvers).
 //
 // On large-residual data (a real robot leaves 0.1-0.6 mm of non-geometric error after a geometric
-// calibration, DESIGN.md section 6) Gauss-Newton converges only linearly: each step is a fixed
+// calibration, docs/conventions.md) Gauss-Newton converges only linearly: each step is a fixed
 // fraction of the previous one, and an absolute step tolerance of 1e-10 is never reached in a
 // useful number of iterations, although the solution has long settled. So a step ends the
 // iterations when ANY of these holds:

@@ -3,7 +3,7 @@
 // verdict compares what the fit did with what a calibration can do.
 //   residual:    per-axis RMS after calibration against the expected noise, sqrt(sigma^2 + g^2) with
 //                sigma the tracker noise (--noise_sigma) and g = kNonGeometricMm what a geometric
-//                model leaves on a real robot (DESIGN.md section 6): check above 2x, fail above 10x;
+//                model leaves on a real robot (docs/conventions.md): check above 2x, fail above 10x;
 //   scale:       spread of the measured points about their centroid against the spread of the
 //                model's points at the same joint values (rigid-invariant): metres, micrometres or a
 //                scale factor show here; check beyond 5 %, fail beyond 20 %;

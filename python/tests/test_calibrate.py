@@ -1,0 +1,71 @@
+"""pytest: lpoe.calibrate against lpoe_calibrate, the two solvers, bad options."""
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+import lpoe
+
+DATA = os.environ.get("LPOE_DATA_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "data"))
+CLI = os.environ.get("LPOE_CALIBRATE")
+
+
+@pytest.fixture(scope="module")
+def inputs():
+    m = lpoe.read_model(os.path.join(DATA, "cobot6.yaml"))
+    d = lpoe.read_measurements(os.path.join(DATA, "section4", "identification.csv"), m)
+    v = lpoe.read_measurements(os.path.join(DATA, "section4", "verification.csv"), m)
+    return m, d, v
+
+
+def test_calibrate_default_data(inputs):
+    m, d, v = inputs
+    r = lpoe.calibrate(m, d, verify=v)
+    assert r.converged and r.termination == "converged"
+    assert r.verdict == "pass"
+    rep = r.report
+    assert rep["solver"]["converged"] is True
+    after = rep["verification"]["after"]["norm"]["rms"]
+    assert after < 0.1  # sigma 0.03 mm per axis: about 0.06 mm in norm
+    # The report's figure is the model's own error on the verification rows.
+    err = np.linalg.norm(v.positions - r.model.predict(v.q), axis=1)
+    assert np.sqrt(np.mean(err**2)) == pytest.approx(after, rel=1e-9)
+    before = rep["verification"]["before"]["norm"]["rms"]
+    assert before > 100 * after
+
+
+@pytest.mark.skipif(CLI is None, reason="LPOE_CALIBRATE (the built tool) not given")
+def test_same_model_bytes_as_the_tool(inputs, tmp_path):
+    m, d, v = inputs
+    cli_yaml = tmp_path / "cli.yaml"
+    subprocess.run([CLI, "--plots_dir=", f"--output={cli_yaml}"], check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    py_yaml = tmp_path / "py.yaml"
+    lpoe.write_model(str(py_yaml), lpoe.calibrate(m, d, verify=v).model)
+    assert py_yaml.read_bytes() == cli_yaml.read_bytes()
+
+
+def test_solvers_agree(inputs):
+    m, d, v = inputs
+    a = lpoe.calibrate(m, d, solver="linear").model.predict(v.q)
+    b = lpoe.calibrate(m, d, solver="ceres").model.predict(v.q)
+    np.testing.assert_allclose(a, b, atol=1e-6)
+
+
+def test_bad_options_raise(inputs):
+    m, d, _ = inputs
+    with pytest.raises(lpoe.Error, match="solver"):
+        lpoe.calibrate(m, d, solver="magic")
+    with pytest.raises(lpoe.Error, match="loss needs solver='ceres'"):
+        lpoe.calibrate(m, d, loss="huber")
+    with pytest.raises(lpoe.Error, match="kfold"):
+        lpoe.calibrate(m, d, kfold=1)
+
+
+def test_too_few_rows_is_not_identifiable(inputs):
+    m, d, _ = inputs
+    r = lpoe.calibrate(m, d.subset(list(range(5))))
+    assert not r.converged
+    assert r.termination == "not_identifiable" or "identif" in r.termination
+    assert r.report is None
