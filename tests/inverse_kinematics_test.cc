@@ -342,7 +342,7 @@ TEST(InverseKinematics, CompensationOnACalibratedRobot) {
   InverseKinematics ik(calibrated);
   TestRandom rng(52);
   int ok = 0;
-  double worst_compensated = 0, worst_prediction = 0, smallest_uncompensated = 1e9;
+  double worst_compensated = 0, worst_prediction = 0, sum_uncompensated = 0;
   for (int k = 0; k < kTargets; ++k) {
     std::vector<double> program = rng.Configuration(nominal);
     program[4] = rng.Uniform(0.3, 2.5);  // away from the wrist singularity
@@ -357,8 +357,7 @@ TEST(InverseKinematics, CompensationOnACalibratedRobot) {
       return ToolPosition(truth, actual.data());
     };
     worst_compensated = std::max(worst_compensated, (truth_at(q) - target.position).norm());
-    smallest_uncompensated =
-        std::min(smallest_uncompensated, (truth_at(program) - target.position).norm());
+    sum_uncompensated += (truth_at(program) - target.position).norm();
     worst_prediction = std::max(
         worst_prediction, (truth_at(program) - ToolPosition(calibrated, program.data())).norm());
     // A small correction on the seed's branch.
@@ -371,8 +370,11 @@ TEST(InverseKinematics, CompensationOnACalibratedRobot) {
   // Hundredths of a millimetre, like the calibration's own prediction error...
   EXPECT_LT(worst_compensated, 0.05);
   EXPECT_LT(worst_compensated, 3 * worst_prediction);
-  // ...against millimetres without compensation.
-  EXPECT_GT(smallest_uncompensated, 0.2);
+  // ...against millimetres without compensation (on average: a single target may happen to sit
+  // where the errors nearly cancel).
+  const double mean_uncompensated = sum_uncompensated / kTargets;
+  EXPECT_GT(mean_uncompensated, 0.5);
+  EXPECT_LT(worst_compensated, mean_uncompensated / 10);
 }
 
 }  // namespace
