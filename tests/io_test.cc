@@ -842,4 +842,13 @@ TEST(Io, CsvNearUnitMeasuredQuaternionIsNormalized) {
 }
 
 }  // namespace
+// yaml-cpp's LoadAll loops forever on this input (found by fuzz_yaml); the reader must return.
+TEST(Io, MalformedFlowAfterCommentDoesNotHang) {
+  const std::string text = "# lpoe-calib robot model (docs/file_format {xyz: [0], rpy: [0, 0, 0]}\n, type: prismatic, : \xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""\xa0""[0, 0), 0, ~]}}]\n";
+  RobotModel model;
+  const Status s = ParseRobotModelYaml(text, "hang.yaml", &model);
+  EXPECT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("hang.yaml:"), std::string::npos) << s.message();
+}
+
 }  // namespace lpoe

@@ -480,6 +480,39 @@ void AppendOrigin(const SE3d& origin, std::string* out) {
   *out += '\n';
 }
 
+// The line (1-based) where a second YAML document starts, or 0: a "---" line after content, or
+// content after a "..." line (comments and blank lines are not content). Block scalars cannot hold
+// such a line at column 0, so the markers are unambiguous.
+int SecondDocumentLine(const std::string& text) {
+  bool content = false, ended = false;
+  int line = 0;
+  size_t pos = 0;
+  while (pos < text.size()) {
+    size_t end = text.find('\n', pos);
+    if (end == std::string::npos) end = text.size();
+    ++line;
+    std::string_view l(text.data() + pos, end - pos);
+    if (!l.empty() && l.back() == '\r') l.remove_suffix(1);
+    auto marker = [&](const char* m) {
+      return l.substr(0, 3) == m && (l.size() == 3 || l[3] == ' ' || l[3] == '\t');
+    };
+    const size_t first = l.find_first_not_of(" \t");
+    const bool blank = first == std::string_view::npos || l[first] == '#';
+    if (marker("---")) {
+      if (content || ended) return line;
+      const size_t rest = l.find_first_not_of(" \t", 3);
+      if (rest != std::string_view::npos && l[rest] != '#') content = true;  // "--- {...}"
+    } else if (marker("...")) {
+      if (content) ended = true;
+    } else if (!blank) {
+      if (ended) return line;
+      content = true;
+    }
+    pos = end + 1;
+  }
+  return 0;
+}
+
 }  // namespace
 
 // -----------------------------------------------------------------------------------------------------
@@ -487,21 +520,20 @@ void AppendOrigin(const SE3d& origin, std::string* out) {
 
 Status ParseRobotModelYaml(const std::string& text, const std::string& source, RobotModel* model) {
   try {
-    std::vector<YAML::Node> documents;
+    // A second document is found from its markers, not with YAML::LoadAll, which loops forever on
+    // some malformed input (found by fuzz_yaml); Load reads the first document only.
+    if (const int second = SecondDocumentLine(text); second > 0) {
+      return LineError(source, second, "a second YAML document (documents are separated by '---')",
+                       "one robot model per file");
+    }
+    YAML::Node root;
     try {
-      documents = YAML::LoadAll(text);
+      root = YAML::Load(text);
     } catch (const YAML::Exception& e) {
       const int line = e.mark.is_null() ? 1 : e.mark.line + 1;
       return LineError(source, line, "YAML syntax error: " + e.msg,
                        "a YAML robot model (docs/file_formats.md)");
     }
-    if (documents.size() > 1) {
-      return LineError(source, LineOf(documents[1], 1),
-                       "a second YAML document (the file holds " +
-                           std::to_string(documents.size()) + " documents separated by '---')",
-                       "one robot model per file");
-    }
-    const YAML::Node root = documents.empty() ? YAML::Node() : documents[0];
     return internal::ReadModelWithJointErrors(source, root, model, [&](const YAML::Node& r, RobotModel* m) { return ModelYamlReader(source).Read(r, m); });
   } catch (const YAML::Exception& e) {
     const int line = e.mark.is_null() ? 1 : e.mark.line + 1;
