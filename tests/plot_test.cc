@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <png.h>
 #include <sys/stat.h>
+#include <unistd.h>
 #include <tinyxml2.h>
 
 #include <cmath>
@@ -63,7 +64,9 @@ struct Image {
 }
 
 ::testing::AssertionResult ReadPngBytes(const std::string& bytes, Image* out) {
-  const std::string path = ::testing::TempDir() + "lpoe_plot_test_bytes.png";
+  // One file per process: ctest runs the cases of this binary in parallel processes.
+  const std::string path =
+      ::testing::TempDir() + "lpoe_plot_test_bytes_" + std::to_string(::getpid()) + ".png";
   FILE* f = std::fopen(path.c_str(), "wb");
   if (f == nullptr) return ::testing::AssertionFailure() << "cannot write " << path;
   std::fwrite(bytes.data(), 1, bytes.size(), f);
@@ -79,7 +82,7 @@ bool Exists(const std::string& path) {
 }
 
 std::string TempPath(const std::string& name) {
-  return ::testing::TempDir() + "lpoe_plot_test_" + name;
+  return ::testing::TempDir() + "lpoe_plot_test_" + std::to_string(::getpid()) + "_" + name;
 }
 
 // Realistic-looking report data: a systematic, pose-dependent error before calibration and
