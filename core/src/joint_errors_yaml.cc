@@ -252,24 +252,7 @@ bool AllZero(const double* v, int n) {
   return true;
 }
 
-// A name double-quoted with YAML escapes, read back as the same string.
-std::string QuotedName(const std::string& name) {
-  std::string out = "\"";
-  for (const char c : name) {
-    const unsigned char u = static_cast<unsigned char>(c);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (u < 0x20 || u == 0x7f) {
-      char buf[8];
-      std::snprintf(buf, sizeof(buf), "\\x%02x", u);
-      out += buf;
-    } else {
-      out += c;
-    }
-  }
-  return out + '"';
-}
+std::string QuotedName(const std::string& name) { return internal::YamlDoubleQuoted(name); }
 
 }  // namespace
 

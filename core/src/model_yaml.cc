@@ -427,23 +427,7 @@ std::string YamlName(const std::string& name) {
     for (const char* w : kSpecial) plain = plain && name != w;
     plain = plain && name[0] != '-' && name[0] != '.';
   }
-  if (plain) return name;
-  std::string out = "\"";
-  for (const char c : name) {
-    const unsigned char u = static_cast<unsigned char>(c);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (u < 0x20 || u == 0x7f) {
-      char buf[8];
-      std::snprintf(buf, sizeof(buf), "\\x%02x", u);
-      out += buf;
-    } else {
-      out += c;
-    }
-  }
-  out += '"';
-  return out;
+  return plain ? name : internal::YamlDoubleQuoted(name);
 }
 
 void AppendList(const double* v, int n, std::string* out) {

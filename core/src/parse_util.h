@@ -47,6 +47,9 @@ std::string FormatNumber(double v);
 // A number for a message: 6 significant digits.
 std::string ShortNumber(double v);
 
+// `s` double-quoted with YAML escapes (\" \\ and \xNN for control bytes); reads back as `s`.
+std::string YamlDoubleQuoted(std::string_view s);
+
 }  // namespace internal
 }  // namespace lpoe
 
