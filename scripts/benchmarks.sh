@@ -207,7 +207,15 @@ wall = open(f"{work}/compensate.wall").read().strip().split(":")
 comp_s = float(wall[-1]) + 60 * float(wall[-2]) + (3600 * float(wall[-3]) if len(wall) > 2 else 0)
 comp = json.load(open(f"{work}/compensate.json"))
 counts = ", ".join(f"{k} {v}" for k, v in comp["status_counts"].items() if v)
-print(f"| lpoe_compensate, 10^6 targets <= 10 s | {comp_s:.2f} s ({counts}) | {verdict(comp_s <= 10)} |")
+comp_time = open(f"{work}/compensate.time").read()
+def time_field(label):
+    for line in comp_time.splitlines():
+        if line.strip().startswith(label):
+            return float(line.split(":")[-1])
+    return 0.0
+comp_cpu = time_field("User time") + time_field("System time")
+print(f"| lpoe_compensate, 10^6 targets <= 10 s | {comp_s:.2f} s wall, {comp_cpu:.2f} s CPU "
+      f"({counts}) | {verdict(comp_s <= 10)} |")
 print()
 print("Per pose (cobot6):")
 print()

@@ -115,6 +115,7 @@ TEST(InverseKinematics, ChainJointJacobianMatchesFiniteDifferences) {
 void RunTracIkStyle(const RobotModel& nominal, bool orientation, uint64_t seed) {
   const RobotModel model = WithLimits(nominal);
   InverseKinematics ik(model);
+  KinematicChain chain(model);
   TestRandom rng(seed);
   int solved = 0, ok = 0;
   for (int trial = 0; trial < kTracIkTrials; ++trial) {
@@ -128,6 +129,15 @@ void RunTracIkStyle(const RobotModel& nominal, bool orientation, uint64_t seed) 
     const double dp = (T.t - target.position).norm();
     const double dr = LogSO3<double>(T.R * target.rotation.transpose()).norm();
     EXPECT_NEAR(dp, r.position_error, 1e-9);
+    // sigma_min: the smallest singular value of the weighted task Jacobian at q.
+    std::vector<FrameRt> frames(model.num_joints() + 1);
+    Eigen::MatrixXd J(6, model.num_joints());
+    chain.Frames(q.data(), 0, frames.data());
+    chain.ToolJointJacobian(frames.data(), J.data(), 6);
+    J.bottomRows<3>() *= ik.options().orientation_weight;
+    const Eigen::MatrixXd J_task = orientation ? J : Eigen::MatrixXd(J.topRows<3>());
+    const double sigma = Eigen::JacobiSVD<Eigen::MatrixXd>(J_task).singularValues().minCoeff();
+    EXPECT_NEAR(r.sigma_min, sigma, 1e-6 * sigma + 1e-9) << model.name << " trial " << trial;
     if (dp <= kSolvedMm && (!orientation || dr <= kSolvedRad)) ++solved;
     // A seed within 5 degrees of a singular surface may lie across it from the target's
     // configuration: `branch` is then the right status.

@@ -95,35 +95,108 @@ class SmallCholesky {
   bool ok_ = true;
 };
 
-// Smallest eigenvalue of a symmetric positive semi-definite M x M matrix: closed form for 3 x 3,
-// else inverse iteration on its Cholesky factor with the Rayleigh quotient of A^-1 (x . A^-1 x, a dot
-// product on the solve's result; it converges quadratically in the eigenvector). 0 when A is
-// singular. Relative accuracy about 1e-7 (sigma_min is a diagnostic and a threshold).
+// LDL^T of a symmetric M x M matrix without pivoting: solves B y = x, and counts the negative
+// pivots (by Sylvester's law of inertia, the eigenvalues of B below zero). Ok() false on a zero pivot.
+template <int M>
+class SymmetricLdlt {
+ public:
+  explicit SymmetricLdlt(const Eigen::Matrix<double, M, M>& B) {
+    for (int j = 0; j < M; ++j) {
+      double d = B(j, j);
+      for (int k = 0; k < j; ++k) d -= L_(j, k) * L_(j, k) * D_[k];
+      if (d == 0 || !std::isfinite(d)) {
+        ok_ = false;
+        return;
+      }
+      D_[j] = d;
+      negative_ += d < 0;
+      for (int i = j + 1; i < M; ++i) {
+        double v = B(i, j);
+        for (int k = 0; k < j; ++k) v -= L_(i, k) * L_(j, k) * D_[k];
+        L_(i, j) = v / d;
+      }
+    }
+  }
+  bool Ok() const { return ok_; }
+  int negative() const { return negative_; }
+  void Solve(Eigen::Matrix<double, M, 1>* x) const {
+    Eigen::Matrix<double, M, 1>& y = *x;
+    for (int i = 0; i < M; ++i) {
+      for (int k = 0; k < i; ++k) y(i) -= L_(i, k) * y(k);
+    }
+    for (int i = 0; i < M; ++i) y(i) /= D_[i];
+    for (int i = M - 1; i >= 0; --i) {
+      for (int k = i + 1; k < M; ++k) y(i) -= L_(k, i) * y(k);
+    }
+  }
+
+ private:
+  Eigen::Matrix<double, M, M> L_;
+  double D_[M];
+  int negative_ = 0;
+  bool ok_ = true;
+};
+
+// Smallest eigenvalue of a symmetric positive semi-definite M x M matrix (relative accuracy about
+// 1e-9; sigma_min is a diagnostic and a threshold). A few steps of inverse iteration on its Cholesky
+// factor turn the start vector toward the smallest eigenvalue's eigenvector; Rayleigh-quotient
+// iteration (shift = the current Rayleigh quotient, cubic convergence) then converges to an
+// eigenvalue, which is the smallest when A - shift (1 + 1e-9) I has exactly one negative pivot
+// (Sylvester's law of inertia). Otherwise plain inverse iteration to convergence. 0 when A is
+// singular.
 template <int M>
 double SmallestEigenvalue(const Eigen::Matrix<double, M, M>& A) {
-  if constexpr (M == 3) {
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-    eig.computeDirect(A, Eigen::EigenvaluesOnly);
-    return std::max(0.0, eig.eigenvalues()(0));
-  } else {
-    const SmallCholesky<M> llt(A);
-    if (!llt.Ok()) return 0.0;
-    Eigen::Matrix<double, M, 1> x = Eigen::Matrix<double, M, 1>::Constant(1.0 / std::sqrt(M));
-    x(0) *= 1.3;  // not orthogonal to any axis-aligned eigenvector
-    x.normalize();
-    double mu = 0;  // x . A^-1 x, tends to 1 / lambda_min
-    for (int k = 0; k < 24; ++k) {
-      Eigen::Matrix<double, M, 1> y = x;
-      llt.Solve(&y);
-      const double next = x.dot(y);
-      const double norm = y.norm();
-      if (!std::isfinite(norm) || norm == 0) return 0.0;
-      x = y / norm;
-      if (k > 0 && std::abs(next - mu) <= 1e-7 * next) return 1 / next;
-      mu = next;
-    }
-    return mu > 0 ? 1 / mu : 0.0;
+  using VecM = Eigen::Matrix<double, M, 1>;
+  using MatM = Eigen::Matrix<double, M, M>;
+  const SmallCholesky<M> llt(A);
+  if (!llt.Ok()) return 0.0;
+  VecM x = VecM::Constant(1.0 / std::sqrt(M));
+  x(0) *= 1.3;  // not orthogonal to any axis-aligned eigenvector
+  x.normalize();
+  double mu = 0;  // x . A^-1 x, at most 1 / lambda_min
+  auto inverse_step = [&]() {
+    VecM y = x;
+    llt.Solve(&y);
+    mu = x.dot(y);
+    const double norm = y.norm();
+    if (!std::isfinite(norm) || norm == 0) return false;
+    x = y / norm;
+    return true;
+  };
+  for (int k = 0; k < 3; ++k) {
+    if (!inverse_step()) return 0.0;
   }
+  const VecM x0 = x;
+  double shift = x.dot(A * x);
+  for (int k = 0; k < 8; ++k) {
+    MatM B = A;
+    B.diagonal().array() -= shift;
+    const SymmetricLdlt<M> ldlt(B);
+    if (!ldlt.Ok()) break;  // the shift is an eigenvalue
+    VecM y = x;
+    ldlt.Solve(&y);
+    const double norm = y.norm();
+    if (!std::isfinite(norm) || norm == 0) break;
+    x = y / norm;
+    const double next = x.dot(A * x);
+    const bool done = std::abs(next - shift) <= 1e-12 * std::abs(next);
+    shift = next;
+    if (done) break;
+  }
+  if (shift >= 0) {
+    MatM B = A;
+    B.diagonal().array() -= shift * (1 + 1e-9) + 1e-300;
+    const SymmetricLdlt<M> ldlt(B);
+    if (ldlt.Ok() && ldlt.negative() == 1) return shift;
+  }
+  x = x0;  // another eigenvalue: inverse iteration to convergence
+  double previous = mu;
+  for (int k = 0; k < 100; ++k) {
+    if (!inverse_step()) return 0.0;
+    if (std::abs(mu - previous) <= 1e-12 * mu) break;
+    previous = mu;
+  }
+  return mu > 0 ? 1 / mu : 0.0;
 }
 
 // Solves the square system J d = e by LU with partial pivoting (Newton's step of a regular square
