@@ -95,110 +95,6 @@ class SmallCholesky {
   bool ok_ = true;
 };
 
-// LDL^T of a symmetric M x M matrix without pivoting: solves B y = x, and counts the negative
-// pivots (by Sylvester's law of inertia, the eigenvalues of B below zero). Ok() false on a zero pivot.
-template <int M>
-class SymmetricLdlt {
- public:
-  explicit SymmetricLdlt(const Eigen::Matrix<double, M, M>& B) {
-    for (int j = 0; j < M; ++j) {
-      double d = B(j, j);
-      for (int k = 0; k < j; ++k) d -= L_(j, k) * L_(j, k) * D_[k];
-      if (d == 0 || !std::isfinite(d)) {
-        ok_ = false;
-        return;
-      }
-      D_[j] = d;
-      negative_ += d < 0;
-      for (int i = j + 1; i < M; ++i) {
-        double v = B(i, j);
-        for (int k = 0; k < j; ++k) v -= L_(i, k) * L_(j, k) * D_[k];
-        L_(i, j) = v / d;
-      }
-    }
-  }
-  bool Ok() const { return ok_; }
-  int negative() const { return negative_; }
-  void Solve(Eigen::Matrix<double, M, 1>* x) const {
-    Eigen::Matrix<double, M, 1>& y = *x;
-    for (int i = 0; i < M; ++i) {
-      for (int k = 0; k < i; ++k) y(i) -= L_(i, k) * y(k);
-    }
-    for (int i = 0; i < M; ++i) y(i) /= D_[i];
-    for (int i = M - 1; i >= 0; --i) {
-      for (int k = i + 1; k < M; ++k) y(i) -= L_(k, i) * y(k);
-    }
-  }
-
- private:
-  Eigen::Matrix<double, M, M> L_;
-  double D_[M];
-  int negative_ = 0;
-  bool ok_ = true;
-};
-
-// Smallest eigenvalue of a symmetric positive semi-definite M x M matrix (relative accuracy about
-// 1e-9; sigma_min is a diagnostic and a threshold). A few steps of inverse iteration on its Cholesky
-// factor turn the start vector toward the smallest eigenvalue's eigenvector; Rayleigh-quotient
-// iteration (shift = the current Rayleigh quotient, cubic convergence) then converges to an
-// eigenvalue, which is the smallest when A - shift (1 + 1e-9) I has exactly one negative pivot
-// (Sylvester's law of inertia). Otherwise plain inverse iteration to convergence. 0 when A is
-// singular.
-template <int M>
-double SmallestEigenvalue(const Eigen::Matrix<double, M, M>& A) {
-  using VecM = Eigen::Matrix<double, M, 1>;
-  using MatM = Eigen::Matrix<double, M, M>;
-  const SmallCholesky<M> llt(A);
-  if (!llt.Ok()) return 0.0;
-  VecM x = VecM::Constant(1.0 / std::sqrt(M));
-  x(0) *= 1.3;  // not orthogonal to any axis-aligned eigenvector
-  x.normalize();
-  double mu = 0;  // x . A^-1 x, at most 1 / lambda_min
-  auto inverse_step = [&]() {
-    VecM y = x;
-    llt.Solve(&y);
-    mu = x.dot(y);
-    const double norm = y.norm();
-    if (!std::isfinite(norm) || norm == 0) return false;
-    x = y / norm;
-    return true;
-  };
-  for (int k = 0; k < 3; ++k) {
-    if (!inverse_step()) return 0.0;
-  }
-  const VecM x0 = x;
-  double shift = x.dot(A * x);
-  for (int k = 0; k < 8; ++k) {
-    MatM B = A;
-    B.diagonal().array() -= shift;
-    const SymmetricLdlt<M> ldlt(B);
-    if (!ldlt.Ok()) break;  // the shift is an eigenvalue
-    VecM y = x;
-    ldlt.Solve(&y);
-    const double norm = y.norm();
-    if (!std::isfinite(norm) || norm == 0) break;
-    x = y / norm;
-    const double next = x.dot(A * x);
-    const bool done = std::abs(next - shift) <= 1e-12 * std::abs(next);
-    shift = next;
-    if (done) break;
-  }
-  if (shift >= 0) {
-    MatM B = A;
-    B.diagonal().array() -= shift * (1 + 1e-9) + 1e-300;
-    const SymmetricLdlt<M> ldlt(B);
-    if (ldlt.Ok() && ldlt.negative() == 1) return shift;
-  }
-  x = x0;  // another eigenvalue: inverse iteration to convergence
-  double previous = mu;
-  for (int k = 0; k < 100; ++k) {
-    if (!inverse_step()) return 0.0;
-    if (std::abs(mu - previous) <= 1e-12 * mu) break;
-    previous = mu;
-  }
-  return mu > 0 ? 1 / mu : 0.0;
-}
-
 // Solves the square system J d = e by LU with partial pivoting (Newton's step of a regular square
 // task); false when a pivot is below `tiny` (then the damped form is used).
 template <int M>
@@ -227,6 +123,108 @@ bool SquareSolve(Eigen::Matrix<double, M, M> A, Eigen::Matrix<double, M, 1>* x, 
     b(i) = v / A(i, i);
   }
   return true;
+}
+
+// LDL^T of a symmetric M x M matrix without pivoting, for its negative pivots (by Sylvester's law of
+// inertia, the number of eigenvalues of B below zero). Ok() false on a zero pivot.
+template <int M>
+class SymmetricLdlt {
+ public:
+  explicit SymmetricLdlt(const Eigen::Matrix<double, M, M>& B) {
+    for (int j = 0; j < M; ++j) {
+      double d = B(j, j);
+      for (int k = 0; k < j; ++k) d -= L_(j, k) * L_(j, k) * D_[k];
+      if (d == 0 || !std::isfinite(d)) {
+        ok_ = false;
+        return;
+      }
+      D_[j] = d;
+      negative_ += d < 0;
+      for (int i = j + 1; i < M; ++i) {
+        double v = B(i, j);
+        for (int k = 0; k < j; ++k) v -= L_(i, k) * L_(j, k) * D_[k];
+        L_(i, j) = v / d;
+      }
+    }
+  }
+  bool Ok() const { return ok_; }
+  int negative() const { return negative_; }
+
+ private:
+  Eigen::Matrix<double, M, M> L_;
+  double D_[M];
+  int negative_ = 0;
+  bool ok_ = true;
+};
+
+// Smallest eigenvalue of a symmetric positive semi-definite M x M matrix (relative accuracy about
+// 1e-9; sigma_min is a diagnostic and a threshold). A few steps of inverse iteration on its Cholesky
+// factor turn the start vector toward the smallest eigenvalue's eigenvector; Rayleigh-quotient
+// iteration (shift = the current Rayleigh quotient, solves by LU with partial pivoting, cubic
+// convergence) then converges to an eigenvalue, which is the smallest when A - shift (1 + 1e-9) I
+// has exactly one negative pivot (Sylvester's law of inertia). Otherwise (two nearly equal smallest
+// eigenvalues) bisection on positive definiteness. 0 when A is singular.
+template <int M>
+double SmallestEigenvalue(const Eigen::Matrix<double, M, M>& A) {
+  using VecM = Eigen::Matrix<double, M, 1>;
+  using MatM = Eigen::Matrix<double, M, M>;
+  const SmallCholesky<M> llt(A);
+  if (!llt.Ok()) return 0.0;
+  VecM x = VecM::Constant(1.0 / std::sqrt(M));
+  x(0) *= 1.3;  // not orthogonal to any axis-aligned eigenvector
+  x.normalize();
+  double mu = 0;  // x . A^-1 x, at most 1 / lambda_min
+  auto inverse_step = [&]() {
+    VecM y = x;
+    llt.Solve(&y);
+    mu = x.dot(y);
+    const double norm = y.norm();
+    if (!std::isfinite(norm) || norm == 0) return false;
+    x = y / norm;
+    return true;
+  };
+  for (int k = 0; k < 3; ++k) {
+    if (!inverse_step()) return 0.0;
+  }
+  const double upper = 1 / mu;  // the Rayleigh quotient: at least lambda_min
+  double shift = x.dot(A * x);
+  bool converged = false;
+  const double tiny = 1e-15 * A.diagonal().cwiseAbs().maxCoeff();
+  for (int k = 0; k < 8 && !converged; ++k) {
+    MatM B = A;
+    B.diagonal().array() -= shift;
+    VecM y = x;
+    if (!SquareSolve<M>(B, &y, tiny)) {  // the shift is an eigenvalue
+      converged = true;
+      break;
+    }
+    const double norm = y.norm();
+    if (!std::isfinite(norm) || norm == 0) break;
+    x = y / norm;
+    const double next = x.dot(A * x);
+    converged = std::abs(next - shift) <= 1e-10 * std::abs(next);
+    shift = next;
+  }
+  if (converged && shift >= 0) {
+    MatM B = A;
+    B.diagonal().array() -= shift * (1 + 1e-9) + 1e-300;
+    const SymmetricLdlt<M> ldlt(B);
+    if (ldlt.Ok() && ldlt.negative() == 1) return shift;
+  }
+  // Another eigenvalue (two nearly equal smallest ones), or no convergence: bisection between 0
+  // and an upper bound on whether A - s I is positive definite (its Cholesky factorization exists).
+  double lo = 0, hi = converged && shift >= 0 ? shift * (1 + 1e-9) : upper;
+  for (int k = 0; k < 200 && hi - lo > 1e-10 * hi; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    MatM B = A;
+    B.diagonal().array() -= mid;
+    if (SmallCholesky<M>(B).Ok()) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return 0.5 * (lo + hi);
 }
 
 int Sign(double x) { return x > 0 ? 1 : (x < 0 ? -1 : 0); }
