@@ -98,16 +98,22 @@ class SmallCholesky {
 // Solves the square system J d = e by LU with partial pivoting (Newton's step of a regular square
 // task); false when a pivot is below `tiny` (then the damped form is used).
 template <int M>
-bool SquareSolve(Eigen::Matrix<double, M, M> A, Eigen::Matrix<double, M, 1>* x, double tiny) {
+bool SquareSolve(const Eigen::Matrix<double, M, M>& J, Eigen::Matrix<double, M, 1>* x, double tiny) {
+  Eigen::Matrix<double, M, M, Eigen::RowMajor> A = J;  // rows contiguous: swaps and updates
   Eigen::Matrix<double, M, 1>& b = *x;
   for (int k = 0; k < M; ++k) {
     int p = k;
+    double best = std::abs(A(k, k));
     for (int i = k + 1; i < M; ++i) {
-      if (std::abs(A(i, k)) > std::abs(A(p, k))) p = i;
+      const double v = std::abs(A(i, k));
+      if (v > best) {
+        best = v;
+        p = i;
+      }
     }
-    if (!(std::abs(A(p, k)) > tiny)) return false;
+    if (!(best > tiny)) return false;
     if (p != k) {
-      A.row(p).swap(A.row(k));
+      for (int c = k; c < M; ++c) std::swap(A(p, c), A(k, c));
       std::swap(b(p), b(k));
     }
     const double inv = 1 / A(k, k);
