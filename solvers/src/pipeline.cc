@@ -64,6 +64,10 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
       if (before) before->joints[0].origin = rep.T_measurement_base * nominal.joints[0].origin;
     }
   }
+  // The solvers fit the geometry (and the terms asked for) on the commanded joints: joint-error
+  // terms the nominal model carries are not part of that cost, so they are not carried into the
+  // calibrated model either (they would count twice, on a geometry they were not identified on).
+  start.joint_errors = JointErrorTerms();
   if (start_out) *start_out = start;
   std::vector<std::shared_ptr<const JointTerm>> terms;
   for (const std::string& name : options.joint_errors) {
