@@ -16,6 +16,8 @@
 
 #include "identifiability.h"
 #include "lpoe/analysis.h"
+#include "lpoe/linear_solver.h"
+#include "lpoe/measurements.h"
 
 namespace lpoe {
 namespace {
@@ -31,6 +33,35 @@ constexpr double kTranslationErrorScale = 1.0;  // mm
 constexpr double kRegularization = 1e-6;
 // A joint value may exceed its limit by this much (round-off of a written file).
 constexpr double kLimitTolerance = 1e-9;
+// O3 scaling of a joint-space combination: the value that moves the tools by this much (RMS, mm)
+// over the reference configurations (the simulator's small arm: compliance 0.5 mm, harmonics
+// 0.08 mm at the tool, docs/joint_errors.md).
+constexpr double kJointErrorEffectScale = 0.1;  // mm
+
+// The frame directions identifiable from positions, then the joint-space terms reduced as the
+// solvers reduce them on the data `reference` (every tool at every configuration).
+Parameterization PlanningParameterization(
+    const RobotModel& model, const std::vector<std::shared_ptr<const JointTerm>>& terms,
+    const std::vector<double>& reference) {
+  if (terms.empty()) {
+    return MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
+  }
+  const int n = model.num_joints();
+  CHECK_EQ(reference.size() % std::max(n, 1), 0u);
+  const int count = static_cast<int>(reference.size() / std::max(n, 1));
+  MeasurementSet data(n);
+  data.Reserve(count * model.num_tools());
+  for (int r = 0; r < count; ++r) {
+    for (int t = 0; t < model.num_tools(); ++t) {
+      data.Add(reference.data() + static_cast<size_t>(r) * n, Eigen::Vector3d::Zero(), t);
+    }
+  }
+  const LinearSolverOptions solver_defaults;
+  return internal::SolverParameterization(model, data, ParameterizationKind::kIdentifiable,
+                                          /*use_orientation=*/false,
+                                          solver_defaults.orientation_weight, terms,
+                                          solver_defaults.joint_term_tolerance);
+}
 
 // Log-determinant of a symmetric positive definite matrix; -inf when it is not.
 double LogDetSpd(const Eigen::MatrixXd& M) {
@@ -317,18 +348,63 @@ PlanningModel::PlanningModel(const RobotModel& model)
           MakeParameterization(model_, ParameterizationKind::kIdentifiable, DataKind::kPosition)),
       basis_(model_, parameterization_) {}
 
+PlanningModel::PlanningModel(const RobotModel& model,
+                             const std::vector<std::shared_ptr<const JointTerm>>& terms,
+                             const std::vector<double>& reference)
+    : model_(model),
+      parameterization_(PlanningParameterization(model_, terms, reference)),
+      basis_(model_, parameterization_) {
+  // O3's scale of the joint-space combinations: RMS tool effect of each column over the reference.
+  const int frames = parameterization_.num_frame_parameters();
+  const int k = num_joint_parameters();
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(k);
+  const int n = model_.num_joints();
+  const int count = n > 0 ? static_cast<int>(reference.size() / n) : 0;
+  std::vector<int> all(model_.num_tools());
+  std::iota(all.begin(), all.end(), 0);
+  Eigen::MatrixXd J;
+  for (int r = 0; r < count && k > 0; ++r) {
+    Rows(reference.data() + static_cast<size_t>(r) * n, all, &J);
+    sum += J.rightCols(k).colwise().squaredNorm().transpose();
+  }
+  joint_error_scale_.resize(k);
+  const double rows = std::max(1, count * model_.num_tools());
+  for (int j = 0; j < k; ++j) {
+    const double rms = std::sqrt(sum(j) / rows);
+    joint_error_scale_(j) = rms > 0 ? kJointErrorEffectScale / rms : 1.0;
+  }
+  CHECK_EQ(frames + k, num_parameters());
+}
+
 void PlanningModel::Rows(const double* q, const std::vector<int>& tools, Eigen::MatrixXd* J) const {
   const int rows = 3 * static_cast<int>(tools.size());
   J->resize(rows, num_parameters());
-  std::vector<FrameRt> frames(model_.num_joints() + 1);
+  const int n = model_.num_joints();
+  std::vector<FrameRt> frames(n + 1);
+  const std::vector<JointBlock>& blocks = parameterization_.joint_blocks;
+  // Y(q) basis per block (num_joints x k_b): the same for every tool.
+  std::vector<Eigen::MatrixXd> Yb(blocks.size());
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    Eigen::MatrixXd Y(n, blocks[b].term->num_parameters());
+    blocks[b].term->Regressor(q, Y.data());
+    Yb[b] = Y * blocks[b].basis;
+  }
+  Eigen::Matrix<double, 3, Eigen::Dynamic> J_q(3, n);
   for (size_t k = 0; k < tools.size(); ++k) {
     basis_.Position(q, tools[k], J->data() + 3 * k, rows, frames.data());
+    if (blocks.empty()) continue;
+    basis_.PositionJointJacobian(frames.data(), J_q.data(), 3);
+    for (size_t b = 0; b < blocks.size(); ++b) {
+      J->block(3 * k, blocks[b].offset, 3, Yb[b].cols()).noalias() = J_q * Yb[b];
+    }
   }
 }
 
 Eigen::VectorXd PlanningModel::ErrorScale() const {
   Eigen::VectorXd e(num_parameters());
-  for (int j = 0; j < num_parameters(); ++j) {
+  const int frames = parameterization_.num_frame_parameters();
+  e.tail(num_joint_parameters()) = joint_error_scale_;
+  for (int j = 0; j < frames; ++j) {
     const auto& v = parameterization_.parameters[j].vector;
     e(j) = std::hypot(kRotationErrorScale * v.head<3>().norm(),
                       kTranslationErrorScale * v.tail<3>().norm());
