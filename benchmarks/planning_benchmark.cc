@@ -66,11 +66,12 @@ const Setup& SetupFor(int candidates, bool joint_errors) {
 }
 
 // state.range(0): candidates, range(1): poses chosen, range(2): criterion (PlanCriterion order),
-// range(3): 1 with the joint-space terms compliance and harmonics.
+// range(3): 1 with the joint-space terms compliance and harmonics, range(4): threads (0: all).
 void BM_SelectPlan(benchmark::State& state) {
   const Setup& s = SetupFor(static_cast<int>(state.range(0)), state.range(3) != 0);
   PlanOptions options;
   options.criterion = static_cast<PlanCriterion>(state.range(2));
+  options.num_threads = static_cast<int>(state.range(4));
   PlanResult result;
   for (auto _ : state) {
     CHECK(SelectPlan(s.pm, s.pool, static_cast<int>(state.range(1)), s.L, options, &result).ok());
@@ -82,14 +83,16 @@ void BM_SelectPlan(benchmark::State& state) {
   state.counters["passes"] = result.passes;
 }
 BENCHMARK(BM_SelectPlan)
-    ->Args({5000, 50, static_cast<int>(PlanCriterion::kD), 0})
-    ->Args({5000, 50, static_cast<int>(PlanCriterion::kI), 0})
-    ->Args({5000, 50, static_cast<int>(PlanCriterion::kA), 0})
-    ->Args({5000, 50, static_cast<int>(PlanCriterion::kE), 0})
-    ->Args({1000, 25, static_cast<int>(PlanCriterion::kD), 0})
-    ->Args({5000, 50, static_cast<int>(PlanCriterion::kD), 1})
-    ->Args({5000, 50, static_cast<int>(PlanCriterion::kI), 1})
+    ->Args({5000, 50, static_cast<int>(PlanCriterion::kD), 0, 0})
+    ->Args({5000, 50, static_cast<int>(PlanCriterion::kD), 0, 1})
+    ->Args({5000, 50, static_cast<int>(PlanCriterion::kI), 0, 0})
+    ->Args({5000, 50, static_cast<int>(PlanCriterion::kA), 0, 0})
+    ->Args({5000, 50, static_cast<int>(PlanCriterion::kE), 0, 0})
+    ->Args({1000, 25, static_cast<int>(PlanCriterion::kD), 0, 0})
+    ->Args({5000, 50, static_cast<int>(PlanCriterion::kD), 1, 0})
+    ->Args({5000, 50, static_cast<int>(PlanCriterion::kI), 1, 0})
     ->Unit(benchmark::kMillisecond)
+    ->MeasureProcessCPUTime()  // the candidate loops run on every core
     ->UseRealTime();
 
 // The rows of 5,000 candidates (forward kinematics and Jacobians of three tools each).

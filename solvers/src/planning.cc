@@ -1,12 +1,14 @@
 #include "lpoe/planning.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <memory>
 #include <numeric>
-#include <utility>
 #include <random>
+#include <thread>
+#include <utility>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -119,14 +121,48 @@ Eigen::MatrixXd PsdFactor(const Eigen::MatrixXd& W) {
 
 enum class Objective { kLogDet, kTrace, kMinEigen };
 
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// Candidates per chunk of the parallel loops, and the fewest candidates worth a second thread.
+constexpr int kChunk = 256;
+constexpr int kMinCandidatesForThreads = 1000;
+
+// Calls fn(begin, end) over [0, n) in fixed chunks of kChunk on up to `max_threads` threads (0: the
+// hardware's). fn must write only the entries of its own chunk, computed from its own data alone:
+// the results are then the same, bit for bit, whatever the number of threads.
+template <typename Fn>
+void ForEachChunk(int n, int max_threads, const Fn& fn) {
+  const int chunks = (n + kChunk - 1) / kChunk;
+  const int hardware = max_threads > 0
+                           ? max_threads
+                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int threads = n < kMinCandidatesForThreads ? 1 : std::min(hardware, chunks);
+  auto run = [&](int k) { fn(k * kChunk, std::min(n, (k + 1) * kChunk)); };
+  if (threads <= 1) {
+    for (int k = 0; k < chunks; ++k) run(k);
+    return;
+  }
+  std::atomic<int> next(0);
+  auto worker = [&]() {
+    for (int k = next.fetch_add(1); k < chunks; k = next.fetch_add(1)) run(k);
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  worker();
+  for (std::thread& t : pool) t.join();
+}
+
 // The greedy / exchange state, in pool-scaled coordinates: M = delta I + sum of the plan's J^T J,
 // A = M^-1, and for every candidate c: S_c = J_c A J_c^T (its prediction variance, Fedorov's d(c))
-// and, for the trace criteria, Z_c = J_c A F with W = F F^T the trace weight.
+// and, for the trace criteria, Z_c = J_c A F with W = F F^T the trace weight. (Keeping
+// T_c = Z_c Z_c^T instead would be cheaper but squares the cancellation of the updates while M is
+// still dominated by delta I.) The rows J and Z are stored row-major so that a candidate's block
+// is contiguous and read once per update; the per-candidate work runs in parallel chunks.
 class Selector {
  public:
   Selector(const CandidatePool& pool, const Eigen::VectorXd& scale, Objective objective,
-           const Eigen::MatrixXd& weight)
-      : pool_(pool), objective_(objective), P_(pool.num_parameters) {
+           const Eigen::MatrixXd& weight, int num_threads)
+      : pool_(pool), objective_(objective), P_(pool.num_parameters), num_threads_(num_threads) {
     Js_ = pool.J * scale.asDiagonal();
     if (objective_ == Objective::kTrace) {
       W_ = weight;
@@ -134,7 +170,6 @@ class Selector {
     }
     max_rows_ = 0;
     for (int c = 0; c < pool.size(); ++c) max_rows_ = std::max(max_rows_, pool.rows(c));
-    scratch_.resize(max_rows_ * max_rows_ + max_rows_);
     M_ = kRegularization * Eigen::MatrixXd::Identity(P_, P_);
     A_ = Eigen::MatrixXd::Identity(P_, P_) / kRegularization;
     in_plan_.assign(pool.size(), 0);
@@ -155,12 +190,12 @@ class Selector {
     return 0;
   }
 
-  // Improvement of the criterion when candidate c is added (greedy; from the maintained S, Z):
-  // log det(I + S_c), or trace((I + S_c)^-1 Z_c Z_c^T).
-  double AddGain(int c) const {
+  // Improvement of the criterion when candidate c is added (greedy; from the maintained S, T):
+  // log det(I + S_c), or trace((I + S_c)^-1 Z_c Z_c^T). `scratch`: r^2 + r doubles.
+  double AddGain(int c, double* scratch) const {
     const int r = pool_.rows(c);
     const int o = pool_.row_offset[c];
-    double* K = scratch_.data();
+    double* K = scratch;
     for (int j = 0; j < r; ++j) {
       for (int i = 0; i < r; ++i) K[i + j * r] = S_(o + i, j) + (i == j ? 1.0 : 0.0);
     }
@@ -168,7 +203,7 @@ class Selector {
     if (objective_ == Objective::kTrace) {
       // |C^-1 Z_c|_F^2 with K = C C^T.
       double sum = 0;
-      double* y = scratch_.data() + r * r;
+      double* y = scratch + r * r;
       for (int col = 0; col < P_; ++col) {
         for (int i = 0; i < r; ++i) {
           double v = Z_(o + i, col);
@@ -220,7 +255,7 @@ class Selector {
     Eigen::MatrixXd G(m, m);
     G.topLeftCorner(rc, rc) = S_.block(oc, 0, rc, rc);
     G.bottomRightCorner(rs, rs) = S_.block(os, 0, rs, rs);
-    G.topRightCorner(rc, rs).noalias() = Js_.middleRows(oc, rc) * u_;
+    G.topRightCorner(rc, rs).noalias() = Js_.middleRows(oc, rc).lazyProduct(u_);
     G.bottomLeftCorner(rs, rc) = G.topRightCorner(rc, rs).transpose();
     if (objective_ == Objective::kLogDet) {
       // det M' / det M = det(I + Sigma G).
@@ -238,7 +273,9 @@ class Selector {
     return current + G.partialPivLu().solve(Zb * Zb.transpose()).trace();
   }
 
-  // M <- M + sign J_b^T J_b for candidate b, with the rank-r updates of A, S and Z.
+  // M <- M + sign J_b^T J_b for candidate b, with the rank-r updates of A, S and Z:
+  // U = A J_b^T, K = sign I + J_b U, A <- A - U K^-1 U^T, and per candidate c with V_c = J_c U:
+  // S_c <- S_c - V_c K^-1 V_c^T, Z_c <- Z_c - V_c K^-1 U^T F (one product per chunk).
   void Update(int b, double sign) {
     const int r = pool_.rows(b);
     const auto Jb = Js_.middleRows(pool_.row_offset[b], r);
@@ -249,29 +286,47 @@ class Selector {
     A_.noalias() -= U * Kinv * U.transpose();
     M_.noalias() += sign * (Jb.transpose() * Jb);
     in_plan_[b] = sign > 0;
-    // S_c <- S_c - V_c K^-1 V_c^T with V = J U; Z <- Z - V K^-1 U^T F.
-    V_.noalias() = Js_ * U;
-    VK_.noalias() = V_ * Kinv;
-    for (int c = 0; c < pool_.size(); ++c) {
-      const int o = pool_.row_offset[c];
-      const int rc = pool_.rows(c);
-      S_.block(o, 0, rc, rc).noalias() -= VK_.middleRows(o, rc) * V_.middleRows(o, rc).transpose();
-    }
-    if (objective_ == Objective::kTrace) Z_.noalias() -= VK_ * (U.transpose() * F_);
+    const bool trace = objective_ == Objective::kTrace;
+    Eigen::MatrixXd UtF;
+    if (trace) UtF = U.transpose() * F_;  // r x P
+    ForEachChunk(pool_.size(), num_threads_, [&](int begin, int end) {
+      const int o = pool_.row_offset[begin];
+      Eigen::MatrixXd V, VK_chunk(pool_.row_offset[end] - o, r);
+      for (int c = begin; c < end; ++c) {
+        const int oc = pool_.row_offset[c];
+        const int rc = pool_.rows(c);
+        V.noalias() = Js_.middleRows(oc, rc).lazyProduct(U);
+        auto VK = VK_chunk.middleRows(oc - o, rc);
+        VK.noalias() = V.lazyProduct(Kinv);
+        S_.block(oc, 0, rc, rc).noalias() -= VK.lazyProduct(V.transpose());
+      }
+      if (trace) Z_.middleRows(o, VK_chunk.rows()).noalias() -= VK_chunk * UtF;
+    });
   }
 
   // Recomputes A, S and Z from M (removes the drift of repeated updates).
   void Resync() {
     A_ = M_.llt().solve(Eigen::MatrixXd::Identity(P_, P_));
-    const Eigen::MatrixXd JA = Js_ * A_;
+    const bool trace = objective_ == Objective::kTrace;
     S_.setZero(Js_.rows(), max_rows_);
-    for (int c = 0; c < pool_.size(); ++c) {
-      const int o = pool_.row_offset[c];
-      const int rc = pool_.rows(c);
-      S_.block(o, 0, rc, rc).noalias() =
-          JA.middleRows(o, rc) * Js_.middleRows(o, rc).transpose();
+    Eigen::MatrixXd AF;
+    if (trace) {
+      Z_.resize(Js_.rows(), P_);
+      AF = A_ * F_;
     }
-    if (objective_ == Objective::kTrace) Z_ = JA * F_;
+    ForEachChunk(pool_.size(), num_threads_, [&](int begin, int end) {
+      const int o = pool_.row_offset[begin];
+      const int rows = pool_.row_offset[end] - o;
+      const auto Jchunk = Js_.middleRows(o, rows);
+      const RowMatrix JA = Jchunk * A_;
+      for (int c = begin; c < end; ++c) {
+        const int oc = pool_.row_offset[c];
+        const int rc = pool_.rows(c);
+        S_.block(oc, 0, rc, rc).noalias() =
+            JA.middleRows(oc - o, rc).lazyProduct(Js_.middleRows(oc, rc).transpose());
+      }
+      if (trace) Z_.middleRows(o, rows).noalias() = Jchunk * AF;
+    });
   }
 
   // Ranking for the exchange shortlist: the greedy gain, or for the minimum eigenvalue the
@@ -287,26 +342,28 @@ class Selector {
       }
       return;
     }
-    for (int c = 0; c < pool_.size(); ++c) {
-      if (!in_plan(c)) (*score)[c] = AddGain(c);
-    }
+    ForEachChunk(pool_.size(), num_threads_, [&](int begin, int end) {
+      std::vector<double> scratch(max_rows_ * max_rows_ + max_rows_);
+      for (int c = begin; c < end; ++c) {
+        if (!in_plan(c)) (*score)[c] = AddGain(c, scratch.data());
+      }
+    });
   }
 
  private:
   const CandidatePool& pool_;
   Objective objective_;
   int P_;
+  int num_threads_;
   int max_rows_ = 0;
-  Eigen::MatrixXd Js_;  // scaled rows of every candidate
+  RowMatrix Js_;  // scaled rows of every candidate
   Eigen::MatrixXd W_, F_;
   Eigen::MatrixXd M_, A_;
-  Eigen::MatrixXd S_;  // block c at rows [o_c, o_c + r_c), columns [0, r_c)
-  Eigen::MatrixXd Z_;
-  Eigen::MatrixXd V_, VK_;  // scratch of Update
+  RowMatrix S_;  // block c at rows [o_c, o_c + r_c), columns [0, r_c)
+  RowMatrix Z_;
   std::vector<char> in_plan_;
   int removal_ = -1;
   Eigen::MatrixXd u_;
-  mutable std::vector<double> scratch_;
 };
 
 }  // namespace
@@ -650,7 +707,8 @@ Status SelectPlan(const PlanningModel& pm, const CandidatePool& pool, int count,
   // minimum-eigenvalue criteria start from the D-greedy plan (lambda_min stays 0 until M has full
   // rank). (Lazy evaluation does not pay here: the gains of a random pool drop together.)
   auto local_owner = std::make_unique<Selector>(
-      pool, scale, objective == Objective::kMinEigen ? Objective::kLogDet : objective, weight);
+      pool, scale, objective == Objective::kMinEigen ? Objective::kLogDet : objective, weight,
+      options.num_threads);
   local_owner->Resync();
   result->selected.clear();
   std::vector<double> gains;
@@ -671,7 +729,7 @@ Status SelectPlan(const PlanningModel& pm, const CandidatePool& pool, int count,
 
   // Exchange: swap each plan member for the best of the shortlist while the criterion improves.
   if (objective == Objective::kMinEigen) {
-    local_owner = std::make_unique<Selector>(pool, scale, objective, weight);
+    local_owner = std::make_unique<Selector>(pool, scale, objective, weight, options.num_threads);
     for (int c : result->selected) local_owner->AddOnly(c);
   }
   Selector& local = *local_owner;

@@ -21,7 +21,8 @@
 // M_s = D M D is M with Jacobi column scaling (D from the candidate pool), m the number of rows. The
 // selection is greedy (one pose at a time, the best gain) followed by an exchange (Fedorov / DETMAX):
 // each planned pose is swapped for the best of a shortlist of candidates while the criterion improves.
-// Rank-r updates of M^-1 (r = 3 x visible tools) keep a greedy step at one (rows x P x r) product.
+// Rank-r updates of M^-1 (r = 3 x visible tools) keep a greedy step at one (rows x P x r) product,
+// split over the cores by candidate.
 #ifndef LPOE_PLANNING_H_
 #define LPOE_PLANNING_H_
 
@@ -181,6 +182,9 @@ struct PlanOptions {
   PlanCriterion criterion = PlanCriterion::kD;
   int max_exchange_passes = 4;  // passes over the plan; stops early at a pass without improvement
   int shortlist = 64;           // candidates tried per exchange (the largest variances d(c))
+  // Threads for the per-candidate updates (0: one per hardware thread). The plan does not depend
+  // on it: every candidate's terms are computed alone, in fixed chunks.
+  int num_threads = 0;
 };
 
 struct PlanResult {
