@@ -411,10 +411,13 @@ int Run() {
   }
 
   // The plan CSV.
+  std::string planned_terms;
+  for (const std::string& name : term_names) planned_terms += (planned_terms.empty() ? "" : ",") + name;
+  if (planned_terms.empty()) planned_terms = "none";
   std::string csv;
   csv += "# lpoe_plan: model " + model.name + ", criterion " + PlanCriterionName(options.criterion) +
          ", " + std::to_string(count) + " of " + std::to_string(pool.size()) +
-         " feasible candidates, joint errors " + FLAGS_joint_errors + ", seed " +
+         " feasible candidates, joint errors " + planned_terms + ", seed " +
          std::to_string(FLAGS_seed) + "; joint values in " +
          FLAGS_angle_unit + "\n";
   csv += "# measure every SMR at every pose; predicted held-out RMS per unit noise " +
