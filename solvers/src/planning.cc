@@ -191,7 +191,7 @@ class Selector {
   }
 
   // Improvement of the criterion when candidate c is added (greedy; from the maintained S, T):
-  // log det(I + S_c), or trace((I + S_c)^-1 Z_c Z_c^T). `scratch`: r^2 + r doubles.
+  // log det(I + S_c), or trace((I + S_c)^-1 Z_c Z_c^T). `scratch`: 2 r^2 + P doubles.
   double AddGain(int c, double* scratch) const {
     const int r = pool_.rows(c);
     const int o = pool_.row_offset[c];
@@ -201,16 +201,23 @@ class Selector {
     }
     if (!CholeskyInPlace(K, r)) return -kInf;
     if (objective_ == Objective::kTrace) {
-      // |C^-1 Z_c|_F^2 with K = C C^T.
-      double sum = 0;
-      double* y = scratch + r * r;
-      for (int col = 0; col < P_; ++col) {
-        for (int i = 0; i < r; ++i) {
-          double v = Z_(o + i, col);
-          for (int k = 0; k < i; ++k) v -= K[i + k * r] * y[k];
-          y[i] = v / K[i + i * r];
-          sum += y[i] * y[i];
+      // |C^-1 Z_c|_F^2 with K = C C^T: invert the r x r factor, then each row of C^-1 Z_c is a
+      // combination of the contiguous rows of Z_c (vectorized over P, no division in the loop).
+      double* Ci = scratch + r * r;  // lower triangle of C^-1, column-major
+      for (int j = 0; j < r; ++j) {
+        Ci[j + j * r] = 1.0 / K[j + j * r];
+        for (int i = j + 1; i < r; ++i) {
+          double v = 0;
+          for (int k = j; k < i; ++k) v -= K[i + k * r] * Ci[k + j * r];
+          Ci[i + j * r] = v / K[i + i * r];
         }
+      }
+      Eigen::Map<Eigen::RowVectorXd> y(scratch + 2 * r * r, P_);
+      double sum = 0;
+      for (int i = 0; i < r; ++i) {
+        y = Ci[i] * Z_.row(o);
+        for (int k = 1; k <= i; ++k) y += Ci[i + k * r] * Z_.row(o + k);
+        sum += y.squaredNorm();
       }
       return sum;
     }
@@ -343,7 +350,7 @@ class Selector {
       return;
     }
     ForEachChunk(pool_.size(), num_threads_, [&](int begin, int end) {
-      std::vector<double> scratch(max_rows_ * max_rows_ + max_rows_);
+      std::vector<double> scratch(2 * max_rows_ * max_rows_ + P_);
       for (int c = begin; c < end; ++c) {
         if (!in_plan(c)) (*score)[c] = AddGain(c, scratch.data());
       }
