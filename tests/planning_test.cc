@@ -93,8 +93,9 @@ TEST(Planning, RowsMatchFiniteDifferences) {
   }
 }
 
-// With joint-space terms the rows gain the solvers' columns J_q(q) Y(q) basis (measurement_model.h),
-// which are the derivatives of the predicted positions along each identifiable combination.
+// With joint-space terms the rows gain the solvers' columns J_q(q) Y(q) basis
+// (measurement_model.h), which are the derivatives of the predicted positions along each
+// identifiable combination.
 TEST(Planning, JointTermColumnsAreTheSolversColumns) {
   RobotModel model = ThreeSmrCobot();
   model.payload.mass = 1.0;
@@ -469,9 +470,9 @@ TEST_F(PlanningAcceptance, PlannedSetBeatsEveryRandomDrawAndPredictsItsAccuracy)
 }
 
 
-// Planning for a calibration with joint-space terms, on the simulator's truth robot with those terms
-// (docs/joint_errors.md): cobot6 with three SMRs and a 1 kg payload, geometric errors of 2 mrad and
-// 0.5 mm, compliance under gravity and harmonics of a small arm, noise 0.01 mm per axis.
+// Planning for a calibration with joint-space terms, on the simulator's truth robot with those
+// terms (docs/joint_errors.md): cobot6 with three SMRs and a 1 kg payload, geometric errors of
+// 2 mrad and 0.5 mm, compliance under gravity and harmonics of a small arm, noise 0.01 mm per axis.
 class PlanningWithJointErrors : public ::testing::Test {
  protected:
   static constexpr double kNoiseSigma = 0.01;  // mm per axis
@@ -560,7 +561,8 @@ class PlanningWithJointErrors : public ::testing::Test {
     for (int c : plan) {
       const double* q = pool_.q.data() + 6 * c;
       for (int t = 0; t < model_.num_tools(); ++t) {
-        sum += (PredictToolPosition(truth_, q, t) - ToolPosition(truth_geometry_, q, t)).squaredNorm();
+        sum += (PredictToolPosition(truth_, q, t) - ToolPosition(truth_geometry_, q, t))
+                   .squaredNorm();
       }
     }
     return std::sqrt(sum / (plan.size() * model_.num_tools()));
@@ -578,8 +580,9 @@ class PlanningWithJointErrors : public ::testing::Test {
 };
 
 // The acceptance lines with the terms: the D plan of 25 poses, predicted (covariance of the frames
-// and the terms propagated to the workspace) against 30 random plans, and against the realised error
-// of calibrations with the terms (Monte Carlo over noise draws), the planned set and random sets.
+// and the terms propagated to the workspace) against 30 random plans, and against the realised
+// error of calibrations with the terms (Monte Carlo over noise draws), the planned set and random
+// sets.
 TEST_F(PlanningWithJointErrors, PlannedSetBeatsRandomSetsAndPredictsItsAccuracy) {
   ASSERT_EQ(pool_.size(), 3000);
   constexpr int kPoses = 25;
@@ -592,7 +595,8 @@ TEST_F(PlanningWithJointErrors, PlannedSetBeatsRandomSetsAndPredictsItsAccuracy)
     random_sq += r * r / kRandomDraws;
     random_best = std::min(random_best, r);
   }
-  std::printf("with terms, %d poses: D plan predicted %.5f mm, random plans %.5f (best of %d %.5f)\n",
+  std::printf("with terms, %d poses: D plan predicted %.5f mm, random plans %.5f (best of %d "
+              "%.5f)\n",
               kPoses, predicted, std::sqrt(random_sq), kRandomDraws, random_best);
   EXPECT_LE(predicted, 0.93 * std::sqrt(random_sq));
   EXPECT_LT(predicted, random_best);
@@ -627,7 +631,8 @@ TEST_F(PlanningWithJointErrors, PlanningWithTheTermsHelpsWhenTheTruthHasThem) {
   std::printf("parameters: %d geometric, %d with the terms\n", geometric_.num_parameters(),
               pm_.num_parameters());
   for (int count : counts) {
-    double random_sq = 0, random_predicted_sq = 0, random_geometric_sq = 0, random_nongeometric_sq = 0;
+    double random_sq = 0, random_predicted_sq = 0, random_geometric_sq = 0;
+    double random_nongeometric_sq = 0;
     for (int k = 0; k < random_plans; ++k) {
       const std::vector<int> r = RandomPlan(pool_.size(), count, 800 + k);
       const double rr = Realised(r, true, std::max(2, draws / 4), 5000 + 100 * k);

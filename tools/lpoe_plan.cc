@@ -412,7 +412,9 @@ int Run() {
 
   // The plan CSV.
   std::string planned_terms;
-  for (const std::string& name : term_names) planned_terms += (planned_terms.empty() ? "" : ",") + name;
+  for (const std::string& name : term_names) {
+    planned_terms += (planned_terms.empty() ? "" : ",") + name;
+  }
   if (planned_terms.empty()) planned_terms = "none";
   std::string csv;
   csv += "# lpoe_plan: model " + model.name + ", criterion " + PlanCriterionName(options.criterion) +

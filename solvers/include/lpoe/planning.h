@@ -70,9 +70,9 @@ class PlanningModel {
   // Of num_parameters(): the joint-space combinations (after the frame parameters).
   int num_joint_parameters() const { return parameterization_.num_joint_parameters(); }
 
-  // The position Jacobians (eq. (29), restricted to the identifiable directions, and the joint-space
-  // columns J_q(q) Y(q) basis) of the listed tools at q, stacked: 3 rows per tool, num_parameters()
-  // columns.
+  // The position Jacobians (eq. (29), restricted to the identifiable directions, and the
+  // joint-space columns J_q(q) Y(q) basis) of the listed tools at q, stacked: 3 rows per tool,
+  // num_parameters() columns.
   void Rows(const double* q, const std::vector<int>& tools, Eigen::MatrixXd* J) const;
 
   // Expected parameter error magnitude of each parameter (O3's scaling): 1e-3 rad per unit of
