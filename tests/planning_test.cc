@@ -685,5 +685,68 @@ TEST_F(PlanningWithJointErrors, PlanningWithTheTermsHelpsWhenTheTruthHasThem) {
   }
 }
 
+// The real-data acceptance, simulated: 700 measured configurations (every SMR at each, one
+// noise draw), and a plan choosing 60 of them. The calibration (with the terms) from the 60 planned
+// rows stays close to the one from all 700 (closer than the measurement noise, and closer than 60
+// random rows).
+TEST_F(PlanningWithJointErrors, SixtyPlannedOfSevenHundredStayCloseToAll) {
+  constexpr int kMeasured = 700;
+  constexpr int kChosen = 60;
+  constexpr int kRandomDraws = 5;
+  const std::vector<double> measured(candidates_.begin(), candidates_.begin() + 6 * kMeasured);
+  const CandidatePool pool = BuildCandidatePool(pm_, measured, PlanConstraints());
+  ASSERT_EQ(pool.size(), kMeasured);
+  SimulationOptions so;
+  so.noise_sigma = kNoiseSigma;
+  so.all_tools = true;
+  so.configurations = measured;
+  so.seed = 9100;
+  const MeasurementSet data = SimulateMeasurements(actual_, errors_.joint_zero, so);
+  ASSERT_EQ(data.size(), 3 * kMeasured);
+  LinearSolverOptions options;
+  options.joint_terms = terms_;
+  auto calibrate = [&](const std::vector<int>& poses) {
+    std::vector<int> rows;
+    for (int c : poses) {
+      for (int t = 0; t < 3; ++t) rows.push_back(3 * c + t);
+    }
+    const CalibrationResult r = CalibrateLinear(model_, data.Subset(rows), options);
+    EXPECT_EQ(r.termination, Termination::kConverged) << r.message;
+    return r;
+  };
+  // RMS over the workspace and the tools of the difference of two calibrations' predictions (mm).
+  auto difference = [&](const CalibrationResult& a, const CalibrationResult* b) {
+    double sum = 0;
+    const int wn = static_cast<int>(workspace_.size() / 6);
+    for (int w = 0; w < wn; ++w) {
+      const double* q = workspace_.data() + 6 * w;
+      for (int t = 0; t < 3; ++t) {
+        const Eigen::Vector3d other = b ? PredictPosition(b->model, b->joint_terms, q, t)
+                                        : PredictToolPosition(truth_, q, t);
+        sum += (PredictPosition(a.model, a.joint_terms, q, t) - other).squaredNorm();
+      }
+    }
+    return std::sqrt(sum / (3 * wn));
+  };
+  std::vector<int> everything(kMeasured);
+  std::iota(everything.begin(), everything.end(), 0);
+  const CalibrationResult all = calibrate(everything);
+  PlanResult plan;
+  ASSERT_TRUE(SelectPlan(pm_, pool, kChosen, L_, PlanOptions(), &plan).ok());
+  const CalibrationResult planned = calibrate(plan.selected);
+  const double planned_to_all = difference(planned, &all);
+  double random_sq = 0;
+  for (int k = 0; k < kRandomDraws; ++k) {
+    const double d = difference(calibrate(RandomPlan(kMeasured, kChosen, 950 + k)), &all);
+    random_sq += d * d / kRandomDraws;
+  }
+  std::printf("%d of %d: planned to all %.5f mm, random to all %.5f mm (%d draws); error to the "
+              "truth: all %.5f, planned %.5f mm\n",
+              kChosen, kMeasured, planned_to_all, std::sqrt(random_sq), kRandomDraws,
+              difference(all, nullptr), difference(planned, nullptr));
+  EXPECT_LT(planned_to_all, kNoiseSigma);
+  EXPECT_LT(planned_to_all, std::sqrt(random_sq));
+}
+
 }  // namespace
 }  // namespace lpoe
