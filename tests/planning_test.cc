@@ -521,24 +521,31 @@ class PlanningWithJointErrors : public ::testing::Test {
     return kNoiseSigma * EvaluatePlan(pm_, pool_, plan, L_).predicted_rms;
   }
 
+  // Every SMR measured on the truth robot at the configurations (row-major), noise kNoiseSigma.
+  MeasurementSet Simulate(const std::vector<double>& configurations, uint64_t seed) const {
+    SimulationOptions so;
+    so.noise_sigma = kNoiseSigma;
+    so.all_tools = true;
+    so.configurations = configurations;
+    so.seed = seed;
+    return SimulateMeasurements(actual_, errors_.joint_zero, so);
+  }
+
   // RMS over noise draws, workspace configurations and tools of the calibrated minus the true
   // position (mm), calibrating with the terms or with the geometry alone.
   double Realised(const std::vector<int>& plan, bool calibrate_terms, int draws,
                   uint64_t seed) const {
-    SimulationOptions so;
-    so.noise_sigma = kNoiseSigma;
-    so.all_tools = true;
+    std::vector<double> configurations;
     for (int c : plan) {
-      so.configurations.insert(so.configurations.end(), pool_.q.begin() + 6 * c,
-                               pool_.q.begin() + 6 * c + 6);
+      configurations.insert(configurations.end(), pool_.q.begin() + 6 * c,
+                            pool_.q.begin() + 6 * c + 6);
     }
     LinearSolverOptions options;
     if (calibrate_terms) options.joint_terms = terms_;
     double sum = 0;
     int n = 0;
     for (int d = 0; d < draws; ++d) {
-      so.seed = seed + d;
-      const MeasurementSet data = SimulateMeasurements(actual_, errors_.joint_zero, so);
+      const MeasurementSet data = Simulate(configurations, seed + d);
       const CalibrationResult result = CalibrateLinear(model_, data, options);
       EXPECT_EQ(result.termination, Termination::kConverged) << result.message;
       const int wn = static_cast<int>(workspace_.size() / 6);
@@ -696,12 +703,7 @@ TEST_F(PlanningWithJointErrors, SixtyPlannedOfSevenHundredStayCloseToAll) {
   const std::vector<double> measured(candidates_.begin(), candidates_.begin() + 6 * kMeasured);
   const CandidatePool pool = BuildCandidatePool(pm_, measured, PlanConstraints());
   ASSERT_EQ(pool.size(), kMeasured);
-  SimulationOptions so;
-  so.noise_sigma = kNoiseSigma;
-  so.all_tools = true;
-  so.configurations = measured;
-  so.seed = 9100;
-  const MeasurementSet data = SimulateMeasurements(actual_, errors_.joint_zero, so);
+  const MeasurementSet data = Simulate(measured, 9100);
   ASSERT_EQ(data.size(), 3 * kMeasured);
   LinearSolverOptions options;
   options.joint_terms = terms_;
