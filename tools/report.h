@@ -17,13 +17,6 @@
 namespace lpoe {
 namespace tools {
 
-struct FoldResult {
-  int fold = 0;
-  int identification_rows = 0;
-  std::string termination;
-  ErrorStatistics verification_after;
-};
-
 // One measured point with its position error (measured - predicted, mm) before and after the
 // calibration. `q` and `measured` feed the HTML report's plots (not written to the JSON).
 struct PointResidual {
@@ -47,7 +40,7 @@ struct RunSummary {
   ErrorStatistics verification_before, verification_after;
   double robust_sigma = 0;
   std::vector<Outlier> outliers;
-  std::vector<FoldResult> folds;
+  std::vector<FoldSummary> folds;
   Verdict verdict;  // plausibility of the result (lpoe/plausibility.h)
   std::vector<std::string> outputs;  // files written
 
@@ -78,6 +71,10 @@ struct ComparisonPage {
   bool agree = true;
 };
 Status ComparisonHtml(const ComparisonPage& page, std::string* html);
+
+// Copies what the pipeline found (registration, result, identifiability, statistics, outliers,
+// folds, verdict) into `summary`; has_verification only when the run had verification rows.
+void AddPipelineResult(const PipelineResult& run, RunSummary* summary);
 
 // Fills before_model and the per-point residuals of the identification and verification sets.
 void AddPointResiduals(const RobotModel& before, const RobotModel& after,
