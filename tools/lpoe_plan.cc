@@ -18,8 +18,8 @@
 #include <glog/logging.h>
 #include <nlohmann/json.hpp>
 
-#include "joint_table.h"
 #include "lpoe/io.h"
+#include "lpoe/joint_table.h"
 #include "lpoe/planning.h"
 #include "tool_common.h"
 
@@ -213,9 +213,9 @@ int Run() {
 
   // Candidates and workspace.
   std::vector<double> candidates, workspace;
-  tools::JointTable table;
+  JointTable table;
   if (!FLAGS_candidates.empty()) {
-    if (Status s = tools::ReadJointTable(FLAGS_candidates, model, unit, &table); !s.ok()) {
+    if (Status s = ReadJointTable(FLAGS_candidates, model, unit, &table); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
@@ -233,8 +233,8 @@ int Run() {
     return kExitInput;
   }
   if (!FLAGS_workspace.empty()) {
-    tools::JointTable w;
-    if (Status s = tools::ReadJointTable(FLAGS_workspace, model, unit, &w); !s.ok()) {
+    JointTable w;
+    if (Status s = ReadJointTable(FLAGS_workspace, model, unit, &w); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
