@@ -410,58 +410,67 @@ BasisJacobian::BasisJacobian(const RobotModel& model, const Parameterization& p)
   }
 }
 
-namespace {
-
-// The columns of the frame blocks in a parameterization's bases, in one loop for both outputs:
-// `columns_of(G)` gives the function (k, out) writing column k (0..5) of frame G's kRows x 6 block.
-// Canonical basis directions select that column; other bases multiply the block.
-template <int kRows, typename Plan, typename ColumnsOf>
-void FillBasisColumns(const std::vector<Plan>& plan, int n, int tool, const FrameRt* frames,
-                      double* J, int ld, const ColumnsOf& columns_of) {
-  const int F = static_cast<int>(plan.size());
+Eigen::Vector3d BasisJacobian::Position(const double* q, int tool, double* J, int ld,
+                                        FrameRt* frames) const {
+  const int n = num_joints_;
+  chain_.Frames(q, tool, frames);
+  const Eigen::Vector3d P = frames[n].t;
+  const int F = static_cast<int>(plan_.size());
   for (int f = 0; f < F; ++f) {
-    const Plan& fp = plan[f];
+    const FramePlan& fp = plan_[f];
     if (fp.cols == 0) continue;
     double* out = J + static_cast<std::ptrdiff_t>(fp.offset) * ld;
     const bool measured = f < n || f == n + tool;
     if (!measured) {  // another tool: zero columns
-      for (int c = 0; c < fp.cols; ++c) {
-        for (int r = 0; r < kRows; ++r) out[c * ld + r] = 0.0;
-      }
+      for (int c = 0; c < fp.cols; ++c) out[c * ld] = out[c * ld + 1] = out[c * ld + 2] = 0.0;
       continue;
     }
-    const auto column = columns_of(frames[f < n ? f : n]);
+    const FrameRt& G = frames[f < n ? f : n];
+    const Eigen::Vector3d d = P - G.t;
     if (!fp.select.empty()) {
-      for (int c = 0; c < fp.cols; ++c) column(fp.select[c], out + c * ld);
+      for (int c = 0; c < fp.cols; ++c) PositionColumn(G, d, fp.select[c], out + c * ld);
     } else {
-      Eigen::Matrix<double, kRows, 6> block;
-      for (int k = 0; k < 6; ++k) column(k, block.col(k).data());
+      Eigen::Matrix<double, 3, 6> block;
+      for (int k = 0; k < 6; ++k) PositionColumn(G, d, k, block.col(k).data());
       for (int c = 0; c < fp.cols; ++c) {
-        Eigen::Map<Eigen::Matrix<double, kRows, 1>>(out + c * ld) = block * fp.basis.col(c);
+        const Eigen::Vector3d v = block * fp.basis.col(c);
+        out[c * ld] = v(0);
+        out[c * ld + 1] = v(1);
+        out[c * ld + 2] = v(2);
       }
     }
   }
-}
-
-}  // namespace
-
-Eigen::Vector3d BasisJacobian::Position(const double* q, int tool, double* J, int ld,
-                                        FrameRt* frames) const {
-  chain_.Frames(q, tool, frames);
-  const Eigen::Vector3d P = frames[num_joints_].t;
-  FillBasisColumns<3>(plan_, num_joints_, tool, frames, J, ld, [&P](const FrameRt& G) {
-    const Eigen::Vector3d d = P - G.t;
-    return [&G, d](int k, double* out) { PositionColumn(G, d, k, out); };
-  });
   return P;
 }
 
 SE3d BasisJacobian::Pose(const double* q, int tool, double* J, int ld, FrameRt* frames) const {
+  const int n = num_joints_;
   chain_.Frames(q, tool, frames);
-  FillBasisColumns<6>(plan_, num_joints_, tool, frames, J, ld, [](const FrameRt& G) {
-    return [&G](int k, double* out) { AdjointColumn(G, k, out); };
-  });
-  return SE3d(frames[num_joints_].R, frames[num_joints_].t);
+  const int F = static_cast<int>(plan_.size());
+  for (int f = 0; f < F; ++f) {
+    const FramePlan& fp = plan_[f];
+    if (fp.cols == 0) continue;
+    double* out = J + static_cast<std::ptrdiff_t>(fp.offset) * ld;
+    const bool measured = f < n || f == n + tool;
+    if (!measured) {
+      for (int c = 0; c < fp.cols; ++c) {
+        for (int r = 0; r < 6; ++r) out[c * ld + r] = 0.0;
+      }
+      continue;
+    }
+    const FrameRt& G = frames[f < n ? f : n];
+    if (!fp.select.empty()) {
+      for (int c = 0; c < fp.cols; ++c) AdjointColumn(G, fp.select[c], out + c * ld);
+    } else {
+      Eigen::Matrix<double, 6, 6> block;
+      for (int k = 0; k < 6; ++k) AdjointColumn(G, k, block.col(k).data());
+      for (int c = 0; c < fp.cols; ++c) {
+        const Vector6d v = block * fp.basis.col(c);
+        for (int r = 0; r < 6; ++r) out[c * ld + r] = v(r);
+      }
+    }
+  }
+  return SE3d(frames[n].R, frames[n].t);
 }
 
 void BasisJacobian::PositionJointJacobian(const FrameRt* frames, double* J, int ld) const {
