@@ -96,19 +96,7 @@ void AddPointResiduals(const RobotModel& before, const RobotModel& after,
 }
 
 void AddPipelineResult(const PipelineResult& run, RunSummary* s) {
-  s->registered = run.registered;
-  s->registration = run.registration;
-  s->result = run.result;
-  s->identifiability = run.identifiability;
-  s->identification_before = run.identification_before;
-  s->identification_after = run.identification_after;
-  s->has_verification = run.has_verification;
-  s->verification_before = run.verification_before;
-  s->verification_after = run.verification_after;
-  s->outliers = run.outliers;
-  s->robust_sigma = run.robust_sigma;
-  s->folds = run.folds;
-  s->verdict = run.verdict;
+  static_cast<PipelineResult&>(*s) = run;
 }
 
 std::string RunSummaryToJson(const RunSummary& s) { return BuildJson(s).dump(2) + "\n"; }

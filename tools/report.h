@@ -27,21 +27,12 @@ struct PointResidual {
   std::vector<double> q;  // joint values (rad / mm)
 };
 
-struct RunSummary {
+// What the reports show: the pipeline's result (registration, calibration, identifiability,
+// statistics, outliers, folds, plausibility verdict) and the run's inputs and outputs.
+struct RunSummary : PipelineResult {
   std::string model_path, measurements_path, verification_source;
   std::string solver, parameterization, data_kind, angle_unit;
   CsvReadReport skipped;
-  bool registered = false;
-  RegistrationReport registration;
-  CalibrationResult result;
-  IdentifiabilityReport identifiability;
-  ErrorStatistics identification_before, identification_after;
-  bool has_verification = false;
-  ErrorStatistics verification_before, verification_after;
-  double robust_sigma = 0;
-  std::vector<Outlier> outliers;
-  std::vector<FoldSummary> folds;
-  Verdict verdict;  // plausibility of the result (lpoe/plausibility.h)
   std::vector<std::string> outputs;  // files written
 
   // Per-point data (AddPointResiduals) and the model the "before" errors refer to (the nominal
@@ -72,8 +63,7 @@ struct ComparisonPage {
 };
 Status ComparisonHtml(const ComparisonPage& page, std::string* html);
 
-// Copies what the pipeline found (registration, result, identifiability, statistics, outliers,
-// folds, verdict) into `summary`; has_verification only when the run had verification rows.
+// Copies what the pipeline found into `summary` (its PipelineResult part).
 void AddPipelineResult(const PipelineResult& run, RunSummary* summary);
 
 // Fills before_model and the per-point residuals of the identification and verification sets.
