@@ -215,7 +215,7 @@ TEST_F(PlanTool, CountAutoReturnsTheSmallestPlanReachingTheTarget) {
 TEST_F(PlanTool, JointErrorTermsJoinThePlannedParameters) {
   const Output o = Plan("--count=30 --output=p.csv --joint_errors=harmonics,compliance");
   ASSERT_EQ(o.exit_code, kExitOk) << o.err;
-  const nlohmann::json report = nlohmann::json::parse(ReadText(dir_ / "p.json"));
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(dir_ / "p.json"));
   ASSERT_EQ(report["joint_errors"].size(), 2u);
   EXPECT_EQ(report["joint_errors"][0]["term"], "compliance");  // compliance first, as calibrated
   EXPECT_EQ(report["joint_errors"][1]["term"], "harmonics");
@@ -229,17 +229,17 @@ TEST_F(PlanTool, JointErrorTermsJoinThePlannedParameters) {
   EXPECT_EQ(report["plan"]["rank"], report["parameters"]);
   const double with_terms = report["plan"]["predicted_rms_per_unit_noise"];
   EXPECT_LT(with_terms, report["random_plan"]["predicted_rms_per_unit_noise"].get<double>());
-  EXPECT_NE(ReadText(dir_ / "p.csv").find("joint errors compliance,harmonics"), std::string::npos);
+  EXPECT_NE(ReadAll(dir_ / "p.csv").find("joint errors compliance,harmonics"), std::string::npos);
 
   const Output g = Plan("--count=30 --output=g.csv");
   ASSERT_EQ(g.exit_code, kExitOk) << g.err;
-  const nlohmann::json geometric = nlohmann::json::parse(ReadText(dir_ / "g.json"));
+  const nlohmann::json geometric = nlohmann::json::parse(ReadAll(dir_ / "g.json"));
   EXPECT_TRUE(geometric["joint_errors"].empty());
   EXPECT_GT(with_terms, geometric["plan"]["predicted_rms_per_unit_noise"].get<double>());
 
   const Output a = Plan("--count=30 --output=a.csv --joint_errors=auto");
   ASSERT_EQ(a.exit_code, kExitOk) << a.err;
-  const nlohmann::json automatic = nlohmann::json::parse(ReadText(dir_ / "a.json"));
+  const nlohmann::json automatic = nlohmann::json::parse(ReadAll(dir_ / "a.json"));
   EXPECT_EQ(automatic["parameters"], report["parameters"]);
   // Too few poses for the 80-odd parameters: refused.
   const Output few = Plan("--count=8 --output=f.csv --joint_errors=compliance,harmonics");
