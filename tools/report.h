@@ -33,6 +33,9 @@ struct RunSummary : PipelineResult {
   std::string model_path, measurements_path, verification_source;
   std::string solver, parameterization, data_kind, angle_unit;
   CsvReadReport skipped;
+  // --joint_errors: what was asked for ("none", a list or "auto"); for auto, the choice is the
+  // pipeline's joint_error_selection.
+  std::string joint_errors_requested = "none";
   std::vector<std::string> outputs;  // files written
 
   // Per-point data (AddPointResiduals) and the model the "before" errors refer to (the nominal
@@ -71,6 +74,15 @@ void AddPointResiduals(const RobotModel& before, const RobotModel& after,
                        const MeasurementSet& identification, const MeasurementSet& verification,
                        RunSummary* summary);
 
+
+// --joint_errors=auto: the cross-validation table and the choice, as text (lpoe_calibrate prints it
+// to stderr).
+std::string JointErrorSelectionTable(const JointErrorSelection& selection);
+// "compliance, harmonics": the joint-error terms a model carries ("" when none).
+std::string JointErrorTermNames(const RobotModel& model);
+// One line per joint-space term of a calibration: parameters and identified combinations ("" when
+// there are none).
+std::string JointTermsIdentifiability(const CalibrationResult& result);
 
 // Pretty-printed JSON, numbers with full precision, keys in a fixed order.
 std::string RunSummaryToJson(const RunSummary& summary);
