@@ -108,14 +108,14 @@ struct Accumulator {
 constexpr int kSinCosUpFront = 16;
 
 // The motion policy of the double forward pass (kinematics.h): the sin/cos of every revolute-z joint
-// computed before the chain, on the stack.
-// With `sin_q` and `cos_q` given, they are used instead (a caller that keeps them up to date).
+// computed before the chain, on the stack; the other joints as OnTheFlyMotions. With `sin_q` and
+// `cos_q` given, they are used instead (a caller that keeps them up to date).
 template <typename IsZ>
 class SinCosUpFront {
  public:
   SinCosUpFront(const Joint* joints, const double* q, int n, IsZ is_z,
                 const double* sin_q = nullptr, const double* cos_q = nullptr)
-      : joints_(joints), q_(q), is_z_(is_z), s_(sin_q), c_(cos_q) {
+      : other_(joints, q, is_z), s_(sin_q), c_(cos_q) {
     for (int i = 0; i < n; ++i) z_[i] = is_z(i);
     if (s_ != nullptr) return;
     for (int i = 0; i < n; ++i) {
@@ -129,14 +129,12 @@ class SinCosUpFront {
     if (z_[i]) {
       X->RotZ(c_[i], s_[i]);
     } else {
-      X->RightMultiply(JointMotion(joints_[i], q_[i]));
+      other_.ApplyRight(i, X);
     }
   }
 
  private:
-  const Joint* joints_;
-  const double* q_;
-  IsZ is_z_;
+  OnTheFlyMotions<IsZ, double> other_;
   const double* s_;
   const double* c_;
   double own_s_[kSinCosUpFront], own_c_[kSinCosUpFront];
@@ -267,6 +265,22 @@ inline void JointPoseColumn(const FrameRt& G, const Vector6d& s, bool z, double*
   }
 }
 
+// The 3 x n (6 x n) joint Jacobian at the frames G_0..G_n of one configuration, column-major with
+// leading dimension ld: column i is joint i's twist at G_i.
+void PositionJointColumns(const RobotModel& model, const FrameRt* G, double* J, int ld) {
+  const int n = model.num_joints();
+  for (int i = 0; i < n; ++i) {
+    const Joint& j = model.joints[i];
+    JointPositionColumn(G[i], G[n].t - G[i].t, j.twist, IsRevoluteZ(j), J + i * ld);
+  }
+}
+void PoseJointColumns(const RobotModel& model, const FrameRt* G, double* J, int ld) {
+  for (int i = 0; i < model.num_joints(); ++i) {
+    const Joint& j = model.joints[i];
+    JointPoseColumn(G[i], j.twist, IsRevoluteZ(j), J + i * ld);
+  }
+}
+
 }  // namespace
 
 SE3d ToolPose(const RobotModel& model, const double* q, int tool) {
@@ -324,10 +338,7 @@ Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double*
   const int n = model.num_joints();
   return WithFrames(model, q, tool, [&](const FrameRt* G) {
     J_p_q->resize(3, n);
-    for (int i = 0; i < n; ++i) {
-      const Joint& j = model.joints[i];
-      JointPositionColumn(G[i], G[n].t - G[i].t, j.twist, IsRevoluteZ(j), J_p_q->col(i).data());
-    }
+    PositionJointColumns(model, G, J_p_q->data(), 3);
     return Eigen::Vector3d(G[n].t);
   });
 }
@@ -337,10 +348,7 @@ SE3d ToolPoseJointJacobian(const RobotModel& model, const double* q, int tool,
   const int n = model.num_joints();
   return WithFrames(model, q, tool, [&](const FrameRt* G) {
     J_pose_q->resize(6, n);
-    for (int i = 0; i < n; ++i) {
-      const Joint& j = model.joints[i];
-      JointPoseColumn(G[i], j.twist, IsRevoluteZ(j), J_pose_q->col(i).data());
-    }
+    PoseJointColumns(model, G, J_pose_q->data(), 6);
     return SE3d(G[n].R, G[n].t);
   });
 }
@@ -503,18 +511,11 @@ SE3d BasisJacobian::Pose(const double* q, int tool, double* J, int ld, FrameRt* 
 }
 
 void BasisJacobian::PositionJointJacobian(const FrameRt* frames, double* J, int ld) const {
-  const Eigen::Vector3d& P = frames[num_joints_].t;
-  for (int i = 0; i < num_joints_; ++i) {
-    const Joint& joint = model_->joints[i];
-    JointPositionColumn(frames[i], P - frames[i].t, joint.twist, IsRevoluteZ(joint), J + i * ld);
-  }
+  PositionJointColumns(*model_, frames, J, ld);
 }
 
 void BasisJacobian::PoseJointJacobian(const FrameRt* frames, double* J, int ld) const {
-  for (int i = 0; i < num_joints_; ++i) {
-    const Joint& joint = model_->joints[i];
-    JointPoseColumn(frames[i], joint.twist, IsRevoluteZ(joint), J + i * ld);
-  }
+  PoseJointColumns(*model_, frames, J, ld);
 }
 
 // The forward-kinematics templates, instantiated for double here (the tests instantiate them for
