@@ -1,14 +1,13 @@
 #include "normal_equations.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <thread>
 #include <vector>
 
 #include <glog/logging.h>
 
 #include "lpoe/kinematics.h"
+#include "lpoe/parallel.h"
 #include "lpoe/pose_measurement.h"
 #include "lpoe/position_measurement.h"
 
@@ -131,11 +130,11 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
   }
   const BasisJacobian bj(model, p);
 
-  const int chunks = std::max(1, std::min(kMaxChunks, N / kMinChunkPoses));
-  const int chunk_size = N == 0 ? 0 : (N + chunks - 1) / chunks;
-  std::vector<ChunkSums> sums(chunks);
-  auto make_scratch = [&]() {
-    Scratch s;
+  const RowChunks chunks = PartitionRows(N, kMinChunkPoses, kMaxChunks);
+  std::vector<ChunkSums> sums(chunks.chunks);
+  const int threads = N < kMinPosesForThreads ? 1 : ThreadsFor(chunks.chunks);
+  std::vector<Scratch> scratch(threads);
+  for (Scratch& s : scratch) {
     s.A.resize(static_cast<Eigen::Index>(m) * kBlockPoses, P);
     s.Y.resize(static_cast<Eigen::Index>(m) * kBlockPoses);
     s.frames.resize(n + 1);
@@ -144,34 +143,15 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
       s.J_q.resize(m, n);
       s.q_eff.resize(n);
     }
-    return s;
-  };
-  auto run_chunk = [&](int c, Scratch* scratch) {
+  }
+  // Chunks are taken in any order; each writes only its own sums (and its own rows of J, y).
+  ForEachTask(chunks.chunks, threads, [&](int c, int thread) {
     ChunkSums& cs = sums[c];
     cs.H.setZero(P, P);
     cs.g.setZero(P);
-    const int begin = std::min(N, c * chunk_size);
-    const int end = std::min(N, begin + chunk_size);
-    AccumulateRows(kind, bj, p, joint_state, data, begin, end, scratch, &cs,
-                   stack ? &lin : nullptr);
-  };
-  const int hardware = static_cast<int>(std::thread::hardware_concurrency());
-  const int threads = N < kMinPosesForThreads ? 1 : std::max(1, std::min(hardware, chunks));
-  if (threads == 1) {
-    Scratch scratch = make_scratch();
-    for (int c = 0; c < chunks; ++c) run_chunk(c, &scratch);
-  } else {
-    // Chunks are taken in any order; each writes only its own sums (and its own rows of J, y).
-    std::atomic<int> next(0);
-    auto worker = [&]() {
-      Scratch scratch = make_scratch();
-      for (int c = next.fetch_add(1); c < chunks; c = next.fetch_add(1)) run_chunk(c, &scratch);
-    };
-    std::vector<std::thread> pool;
-    for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-    worker();
-    for (std::thread& t : pool) t.join();
-  }
+    AccumulateRows(kind, bj, p, joint_state, data, chunks.begin(c), chunks.end(c),
+                   &scratch[thread], &cs, stack ? &lin : nullptr);
+  });
   // Fixed-order reduction.
   double sum_error = 0;
   for (const ChunkSums& cs : sums) {
