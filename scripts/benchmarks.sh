@@ -114,7 +114,8 @@ def load(name):
 
 k = load("kinematics.json")
 s = load("solvers.json")
-ik_runs = {b["name"]: b for b in json.load(open(f"{work}/ik.json"))["benchmarks"]}
+# Names without Google Benchmark's suffixes ("BM_IkPoseSolveRate/iterations:1").
+ik_runs = {b["name"].split("/")[0]: b for b in json.load(open(f"{work}/ik.json"))["benchmarks"]}
 
 def get(d, suffix):
     for name, t in d.items():
