@@ -14,6 +14,7 @@
 #include "identifiability.h"
 #include "lpoe/measurement_residual.h"
 #include "lpoe/se3_manifold.h"
+#include "structural_identifiability.h"
 
 namespace lpoe {
 namespace {
@@ -213,8 +214,9 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   const DataKind kind = options.use_orientation ? DataKind::kPose : DataKind::kPosition;
   const bool full = options.parameterization == ParameterizationKind::kFull;
   result.parameterization = internal::SolverParameterization(
-      nominal, data, options.parameterization, options.use_orientation,
-      options.orientation_weight, options.joint_terms, options.joint_term_tolerance);
+      nominal, data, options.parameterization, options.use_orientation, options.orientation_weight,
+      options.joint_terms, options.joint_term_tolerance, options.structure_reference);
+  internal::LeaveOutUnmeasuredTools(nominal, data, &result.parameterization);
   const Parameterization& p = result.parameterization;
   const int per_row = options.use_orientation ? 6 : 3;
   int identifiable = 0;  // parameters the data must determine (identifiable directions, used frames)
@@ -249,6 +251,9 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
     Parameterization all = p;
     if (full) {
       all = MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind);
+      internal::LeaveOutStructurallyUnidentifiable(
+          options.structure_reference ? *options.structure_reference : nominal, data,
+          options.use_orientation, options.orientation_weight, &all);
       CopyJointBlocks(p, &all);
     }
     Parameterization solved;  // the directions of the used frames, for the message
@@ -348,6 +353,10 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
     if (!used[f]) continue;
     problem.SetManifold(blocks[f].data(), new Se3Manifold(p.basis[f]));
     covariance_blocks.push_back(blocks[f].data());
+    if (p.basis[f].cols() == 0) {  // every direction left out (structurally unidentifiable)
+      problem.SetParameterBlockConstant(blocks[f].data());
+      continue;
+    }
   }
   for (int b : solved_joint_blocks) covariance_blocks.push_back(joint_blocks[b].data());
 
@@ -415,7 +424,7 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
         at += k;
       };
       for (int f = 0; f < F; ++f) {
-        if (used[f]) add(p.offset[f], static_cast<int>(p.basis[f].cols()));
+        if (used[f] && p.basis[f].cols() > 0) add(p.offset[f], static_cast<int>(p.basis[f].cols()));
       }
       for (int b : solved_joint_blocks) {
         add(p.joint_blocks[b].offset, static_cast<int>(p.joint_blocks[b].basis.cols()));
