@@ -5,9 +5,12 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <string>
+#include <vector>
 
 #include "lpoe/io.h"
+#include "lpoe/joint_errors.h"
 #include "lpoe/pipeline.h"
 #include "python_api.h"
 #include "report.h"
@@ -36,7 +39,8 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& data,
                       double outlier_threshold, int max_iterations, double step_tolerance,
                       double sd_fraction, double max_condition, double noise_sigma,
                       const std::string& loss, double loss_scale, const py::object& sigma,
-                      int threads, const std::string& angle_unit) {
+                      int threads, const std::string& angle_unit,
+                      const std::string& joint_errors) {
   if (Status s = nominal.Validate(); !s.ok()) throw LpoeError(s.message());
   if (data.num_joints() != nominal.num_joints() ||
       (verify != nullptr && verify->num_joints() != nominal.num_joints())) {
@@ -76,6 +80,19 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& data,
   }
   if (solver == "linear" && loss != "none") {
     throw LpoeError("loss needs solver='ceres' (the linear solver is plain least squares)");
+  }
+  // joint_errors: "none", a comma-separated list or "auto", as lpoe_calibrate --joint_errors.
+  std::vector<JointErrorKind> kinds;
+  o.joint_errors_auto = joint_errors == "auto";
+  o.joint_error_folds = kfold >= 2 ? kfold : 5;
+  if (!o.joint_errors_auto && !ParseJointErrorKinds(joint_errors, &kinds)) {
+    throw LpoeError("joint_errors: expected 'none', 'compliance', 'harmonics', "
+                    "'compliance,harmonics' or 'auto', got '" + joint_errors + "'");
+  }
+  for (JointErrorKind k : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
+    if (std::find(kinds.begin(), kinds.end(), k) != kinds.end()) {
+      o.joint_errors.push_back(JointErrorKindName(k));
+    }
   }
   o.register_frames = register_frames;
   o.kfold = kfold;
@@ -127,27 +144,9 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& data,
   summary.data_kind = o.use_orientation ? "pose" : "position";
   summary.angle_unit = angle_unit;
   summary.verification_source = verify != nullptr ? "array" : "";
-  summary.registered = run.registered;
-  summary.registration = run.registration;
-  summary.result = result;
-  summary.identifiability = run.identifiability;
-  summary.identification_before = run.identification_before;
-  summary.identification_after = run.identification_after;
-  summary.has_verification = run.has_verification;
-  summary.verification_before = run.verification_before;
-  summary.verification_after = run.verification_after;
+  tools::AddPipelineResult(run, &summary);
   tools::AddPointResiduals(run.before, result.model, data, verification, &summary);
-  summary.outliers = run.outliers;
-  summary.robust_sigma = run.robust_sigma;
-  for (const FoldSummary& f : run.folds) {
-    tools::FoldResult fr;
-    fr.fold = f.fold;
-    fr.identification_rows = f.identification_rows;
-    fr.termination = TerminationName(f.termination);
-    fr.verification_after = f.verification_after;
-    summary.folds.push_back(fr);
-  }
-  summary.verdict = run.verdict;
+  summary.joint_errors_requested = joint_errors;
   summary.tool_name = "lpoe (Python)";
   c.report_json = tools::RunSummaryToJson(summary);
   return c;
@@ -181,12 +180,13 @@ void BindCalibration(py::module_& m) {
          const std::string& data_kind, bool register_frames, int kfold, uint64_t split_seed,
          double outlier_threshold, int max_iterations, double step_tolerance, double sd_fraction,
          double max_condition, double noise_sigma, const std::string& loss, double loss_scale,
-         const py::object& sigma, int threads, const std::string& angle_unit) {
+         const py::object& sigma, int threads, const std::string& angle_unit,
+         const std::string& joint_errors) {
         const MeasurementSet* v = verify.is_none() ? nullptr : verify.cast<const MeasurementSet*>();
         return Calibrate(model, data, v, solver, parameterization, data_kind, register_frames,
                          kfold, split_seed, outlier_threshold, max_iterations, step_tolerance,
                          sd_fraction, max_condition, noise_sigma, loss, loss_scale, sigma, threads,
-                         angle_unit);
+                         angle_unit, joint_errors);
       },
       py::arg("model"), py::arg("data"), py::arg("verify") = py::none(),
       py::arg("solver") = "linear", py::arg("parameterization") = "identifiable",
@@ -196,6 +196,7 @@ void BindCalibration(py::module_& m) {
       py::arg("sd_fraction") = 1e-2, py::arg("max_condition") = 1e8,
       py::arg("noise_sigma") = 0.03, py::arg("loss") = "none", py::arg("loss_scale") = 1.0,
       py::arg("sigma") = py::none(), py::arg("threads") = 0, py::arg("angle_unit") = "rad",
+      py::arg("joint_errors") = "none",
       "calibrates `model` from `data` (and verifies on `verify`) as lpoe_calibrate does; keyword "
       "options are named as its flags, with the same defaults");
 }

@@ -1,0 +1,179 @@
+// The calibration problem as building blocks another estimator can extend (docs/problem_builder.md).
+//
+// CalibrationProblem owns the parameter blocks of a calibration of `nominal` on `data`:
+//   * one block per local frame that the data determine (every joint frame, and the tools some row
+//     measures), 7 numbers [qx qy qz qw tx ty tz] with an Se3Manifold (right perturbation, eq. (19),
+//     restricted to the frame's basis of the parameterization);
+//   * one block per joint-space term that keeps identifiable combinations (joint_term.h), k_b
+//     numbers x_b, theta_b = basis_b x_b, starting at zero.
+// and offers three ways in:
+//   (a) AddTo(problem): adds those blocks and one residual block per measurement
+//         position data: r = (P_model(q) - P_measured) / sigma                       (eq. (29))
+//         pose data:     r = diag(w,w,w,1,1,1) log(T_measured T_model^-1) / sigma       (eq. (17))
+//       (optionally under a robust loss) to a caller-owned ceres::Problem, and returns the residual
+//       block ids; the caller adds its own residuals and priors on frame_block(f) / joint_block(b),
+//       sets blocks constant, solves, and reads the solution back with Model() and JointTerms().
+//       CalibrateCeres (ceres_solver.h) is exactly this plus the identifiability check, a history
+//       callback and the covariance.
+//   (b) NormalEquations(): the linearized problem at the blocks' current values as normal equations
+//       H = J^T W J, g = J^T W y (W = I / sigma^2, y = measured - predicted), with the parameters'
+//       names: the same matrices as CalibrateLinear's (scaled by 1 / sigma^2), to add to the
+//       caller's own; Update(x) applies a step x (e.g. the Gauss-Newton step H^-1 g) to the blocks.
+//   (c) Analyze() (identifiability from the normal equations: rank, condition number, the
+//       directions no data can determine) and Covariance(problem) (ceres::Covariance on the
+//       caller's problem, including the caller's residuals).
+#ifndef LPOE_PROBLEM_BUILDER_H_
+#define LPOE_PROBLEM_BUILDER_H_
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <ceres/problem.h>
+
+#include "lpoe/joint_term.h"
+#include "lpoe/measurements.h"
+#include "lpoe/parameterization.h"
+#include "lpoe/robot_model.h"
+#include "lpoe/se3_manifold.h"
+#include "lpoe/status.h"
+
+namespace lpoe {
+
+struct CalibrationProblemOptions {
+  ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
+  // Pose residuals (needs measured orientations); else position residuals.
+  bool use_orientation = false;
+  // 1 rad of orientation error counts as this many mm (pose data).
+  double orientation_weight = 1000.0;
+  // The chain whose structurally unidentifiable directions are left out (as in
+  // CeresSolverOptions); null: the model solved. Not owned.
+  const RobotModel* structure_reference = nullptr;
+  // Standard deviation of the measurement noise per axis (mm): residuals are divided by it.
+  double sigma = 1.0;
+  // Robust loss of each residual block: none | huber | cauchy, with its scale in mm.
+  std::string loss = "none";
+  double loss_scale = 1.0;
+  // Joint-space error terms (joint_term.h), each reduced to the combinations the data separate
+  // from the geometry (identifiability.h); a combination keeping less than `joint_term_tolerance`
+  // of its column's norm is left out and listed in parameterization().unidentifiable.
+  std::vector<std::shared_ptr<const JointTerm>> joint_terms;
+  double joint_term_tolerance = 1e-4;
+};
+
+// User errors in the options: names of the loss, ranges.
+Status ValidateCalibrationProblemOptions(const CalibrationProblemOptions& options);
+// User errors in the options or the data: names of the loss, ranges, pose data without
+// orientations, measurements that do not fit the model.
+Status ValidateCalibrationProblem(const RobotModel& nominal, const MeasurementSet& data,
+                                  const CalibrationProblemOptions& options);
+
+// Normal equations of the solved parameters (see (b) above).
+struct ProblemNormalEquations {
+  Eigen::MatrixXd H;  // J^T W J, num_parameters square
+  Eigen::VectorXd g;  // J^T W y
+  double cost = 0;    // 0.5 y^T W y (Ceres's cost without a robust loss)
+  // The solved parameters in column order (frames in model order, then joint-term blocks): the
+  // parameterization with unmeasured tools left out. names[k] == parameterization.parameters[k].name.
+  Parameterization parameterization;
+  std::vector<std::string> names;
+  bool finite = true;  // false when a residual or a Jacobian entry is not finite
+};
+
+// Identifiability of the solved parameters by the data at the blocks' current values.
+struct ProblemAnalysis {
+  int num_parameters = 0;  // identifiable parameters to determine (the gauge of `full` excluded)
+  long num_equations = 0;  // residual rows
+  int rank = 0;            // of the column-scaled Jacobian
+  double condition_number = 0;
+  Eigen::VectorXd singular_values;         // column-scaled Jacobian, descending
+  std::vector<std::string> parameter_names;  // the identifiable directions analysed, in order
+  Eigen::MatrixXd normal_matrix;           // J^T J (unweighted) of those directions
+  // Directions no data can determine (gauge of the frames, left-out joint-term combinations,
+  // never-measured tools), each with its reason.
+  std::vector<Direction> unidentifiable;
+  // The (up to three) parameters carrying most of the weakest direction.
+  std::string weakest;
+  bool finite = true;
+  // Enough equations, full rank and condition number <= the limit given to Analyze().
+  bool identifiable = false;
+  std::string message;  // why not (the solvers' message); empty when identifiable
+};
+
+class CalibrationProblem {
+ public:
+  using FrameBlock = std::array<double, kSe3AmbientSize>;
+
+  // `data` must outlive the object (its rows are read by NormalEquations, Analyze and AddTo);
+  // `nominal` is copied. The options must pass ValidateCalibrationProblem (CHECKed). The joint-term
+  // reduction (a pass over the data) happens here.
+  CalibrationProblem(const RobotModel& nominal, const MeasurementSet& data,
+                     const CalibrationProblemOptions& options);
+  CalibrationProblem(const CalibrationProblem&) = delete;
+  CalibrationProblem& operator=(const CalibrationProblem&) = delete;
+
+  const CalibrationProblemOptions& options() const { return options_; }
+  const RobotModel& nominal() const { return nominal_; }
+  const MeasurementSet& data() const { return *data_; }
+  // Every frame's basis and every joint block (unmeasured tools included, with their basis).
+  const Parameterization& parameterization() const { return parameterization_; }
+
+  // Frame f (joints 0..n-1, then tools) is solved: a joint, or a tool some row measures.
+  bool frame_solved(int f) const { return solved_[f]; }
+  // The parameter block of frame f (7 numbers), nullptr when the frame is not solved.
+  double* frame_block(int f);
+  // The parameter block of joint-space term b (k_b numbers), nullptr when it keeps no combination.
+  double* joint_block(int b);
+  // Every solved block in covariance order: solved frames in model order, then joint blocks.
+  std::vector<double*> parameter_blocks();
+  // Tangent size of each block of parameter_blocks(), and its first parameter in
+  // parameterization()'s numbering.
+  std::vector<int> tangent_sizes() const;
+  std::vector<int> tangent_offsets() const;
+
+  // (a) Adds the solved blocks (with their manifolds) and one residual block per row to `problem`,
+  // whose options must take ownership of cost functions, loss functions and manifolds (Ceres's
+  // default). Returns the residual block ids, in row order. Call once per problem.
+  std::vector<ceres::ResidualBlockId> AddTo(ceres::Problem* problem);
+
+  // The model at the blocks' current values: `nominal` with the solved frames replaced (a block
+  // still holding its initial value keeps the nominal frame exactly).
+  RobotModel Model() const;
+  // The joint-space terms' values theta_b = basis_b x_b (options().joint_terms order).
+  std::vector<JointTermValues> JointTerms() const;
+  // The joint blocks' coordinates, concatenated (num_joint_parameters()).
+  Eigen::VectorXd JointState() const;
+
+  // (b) Normal equations at the current values (W = I / sigma^2).
+  ProblemNormalEquations NormalEquations() const;
+  // Applies x (ProblemNormalEquations::parameterization's numbering): T_f <- T_f exp((B_f x_f)^)
+  // (eq. (19)) for each solved frame, x_b added to each joint block.
+  void Update(const Eigen::VectorXd& x);
+
+  // (c) Identifiability at the current values (for the full parameterization: in the identifiable
+  // basis, whose rank is what the data can determine). `max_condition_number` as the solvers'.
+  ProblemAnalysis Analyze(double max_condition_number = 1e8) const;
+
+  // Covariance of the solved parameters from ceres::Covariance (DENSE_SVD; pseudo-inverse for the
+  // full parameterization) on `problem` (which may carry the caller's residuals, priors and
+  // constant blocks), in parameterization()'s numbering (num_parameters square; unsolved tools'
+  // rows and columns zero), in the residuals' units (a priori: scale by s^2 for a posteriori).
+  // An error when ceres::Covariance::Compute() fails (rank-deficient Jacobian).
+  Status Covariance(ceres::Problem* problem, int num_threads, Eigen::MatrixXd* covariance);
+
+ private:
+  RobotModel nominal_;
+  const MeasurementSet* data_;
+  CalibrationProblemOptions options_;
+  Parameterization parameterization_;
+  std::vector<FrameBlock> frames_;
+  std::vector<FrameBlock> initial_frames_;
+  std::vector<bool> solved_;
+  std::vector<std::vector<double>> joint_blocks_;
+};
+
+}  // namespace lpoe
+
+#endif  // LPOE_PROBLEM_BUILDER_H_

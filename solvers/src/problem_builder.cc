@@ -1,0 +1,361 @@
+#include "lpoe/problem_builder.h"
+
+#include <cmath>
+#include <utility>
+
+#include <ceres/ceres.h>
+#include <glog/logging.h>
+
+#include "identifiability.h"
+#include "structural_identifiability.h"
+#include "lpoe/measurement_residual.h"
+#include "normal_equations.h"
+
+namespace lpoe {
+
+Status ValidateCalibrationProblemOptions(const CalibrationProblemOptions& options) {
+  if (options.loss != "none" && options.loss != "huber" && options.loss != "cauchy") {
+    return Status::Error("loss must be none, huber or cauchy, got '" + options.loss + "'");
+  }
+  if (!(options.sigma > 0) || !std::isfinite(options.sigma)) {
+    return Status::Error("sigma must be a positive number of mm");
+  }
+  if (!(options.loss_scale > 0) || !std::isfinite(options.loss_scale)) {
+    return Status::Error("loss_scale must be a positive number of mm");
+  }
+  if (!(options.orientation_weight > 0) || !std::isfinite(options.orientation_weight)) {
+    return Status::Error("orientation_weight must be positive");
+  }
+  if (!(options.joint_term_tolerance > 0 && options.joint_term_tolerance < 1)) {
+    return Status::Error("joint_term_tolerance must be in (0, 1)");
+  }
+  for (const auto& term : options.joint_terms) {
+    if (term == nullptr) return Status::Error("a joint-space term is null");
+  }
+  return Status::Ok();
+}
+
+Status ValidateCalibrationProblem(const RobotModel& nominal, const MeasurementSet& data,
+                                  const CalibrationProblemOptions& options) {
+  if (Status s = ValidateCalibrationProblemOptions(options); !s.ok()) return s;
+  if (data.num_joints() != nominal.num_joints()) {
+    return Status::Error("the measurements have " + std::to_string(data.num_joints()) +
+                         " joint values per row, the model " +
+                         std::to_string(nominal.num_joints()) + " joints");
+  }
+  for (int r = 0; r < data.size(); ++r) {
+    if (data.target(r) < 0 || data.target(r) >= nominal.num_tools()) {
+      return Status::Error("row " + std::to_string(r) + ": tool index " +
+                           std::to_string(data.target(r)) + " not in the model");
+    }
+  }
+  if (options.use_orientation && !data.has_orientation()) {
+    return Status::Error(
+        "pose-based calibration needs measured orientations (quat_x..quat_w columns)");
+  }
+  return Status::Ok();
+}
+
+CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const MeasurementSet& data,
+                                       const CalibrationProblemOptions& options)
+    : nominal_(nominal), data_(&data), options_(options) {
+  {
+    const Status s = ValidateCalibrationProblem(nominal, data, options);
+    CHECK(s.ok()) << s.message();
+  }
+  parameterization_ = internal::SolverParameterization(
+      nominal, data, options.parameterization, options.use_orientation, options.orientation_weight,
+      options.joint_terms, options.joint_term_tolerance, options.structure_reference);
+  const int n = nominal.num_joints();
+  const int F = nominal.num_frames();
+  frames_.resize(F);
+  solved_.assign(F, false);
+  for (int f = 0; f < F; ++f) {
+    Se3ToArray(f < n ? nominal.joints[f].origin : nominal.tools[f - n].origin, frames_[f].data());
+  }
+  initial_frames_ = frames_;
+  for (int i = 0; i < n; ++i) solved_[i] = true;
+  for (int r = 0; r < data.size(); ++r) solved_[n + data.target(r)] = true;
+  joint_blocks_.resize(parameterization_.joint_blocks.size());
+  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
+    joint_blocks_[b].assign(parameterization_.joint_blocks[b].basis.cols(), 0.0);
+  }
+}
+
+double* CalibrationProblem::frame_block(int f) {
+  CHECK(f >= 0 && f < static_cast<int>(frames_.size()));
+  return solved_[f] ? frames_[f].data() : nullptr;
+}
+
+double* CalibrationProblem::joint_block(int b) {
+  CHECK(b >= 0 && b < static_cast<int>(joint_blocks_.size()));
+  return joint_blocks_[b].empty() ? nullptr : joint_blocks_[b].data();
+}
+
+std::vector<double*> CalibrationProblem::parameter_blocks() {
+  std::vector<double*> out;
+  for (size_t f = 0; f < frames_.size(); ++f) {
+    if (solved_[f]) out.push_back(frames_[f].data());
+  }
+  for (std::vector<double>& b : joint_blocks_) {
+    if (!b.empty()) out.push_back(b.data());
+  }
+  return out;
+}
+
+std::vector<int> CalibrationProblem::tangent_sizes() const {
+  const Parameterization& p = parameterization_;
+  std::vector<int> out;
+  for (size_t f = 0; f < frames_.size(); ++f) {
+    if (solved_[f]) out.push_back(static_cast<int>(p.basis[f].cols()));
+  }
+  for (const std::vector<double>& b : joint_blocks_) {
+    if (!b.empty()) out.push_back(static_cast<int>(b.size()));
+  }
+  return out;
+}
+
+std::vector<int> CalibrationProblem::tangent_offsets() const {
+  const Parameterization& p = parameterization_;
+  std::vector<int> out;
+  for (size_t f = 0; f < frames_.size(); ++f) {
+    if (solved_[f]) out.push_back(p.offset[f]);
+  }
+  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
+    if (!joint_blocks_[b].empty()) out.push_back(p.joint_blocks[b].offset);
+  }
+  return out;
+}
+
+std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* problem) {
+  const Parameterization& p = parameterization_;
+  const MeasurementSet& data = *data_;
+  const int n = nominal_.num_joints();
+  ceres::LossFunction* loss = nullptr;  // shared by all residual blocks; owned by the problem
+  const double whitened_scale = options_.loss_scale / options_.sigma;
+  if (options_.loss == "huber") loss = new ceres::HuberLoss(whitened_scale);
+  if (options_.loss == "cauchy") loss = new ceres::CauchyLoss(whitened_scale);
+
+  const auto shared_model = std::make_shared<const RobotModel>(nominal_);
+  std::vector<double*> parameters(n + 1);
+  for (int i = 0; i < n; ++i) parameters[i] = frames_[i].data();
+  std::vector<int> solved_joint_blocks, block_sizes;
+  int K = 0;
+  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
+    if (joint_blocks_[b].empty()) continue;
+    solved_joint_blocks.push_back(static_cast<int>(b));
+    parameters.push_back(joint_blocks_[b].data());
+    block_sizes.push_back(static_cast<int>(joint_blocks_[b].size()));
+    K += block_sizes.back();
+  }
+  PositionMeasurement position_kind;
+  position_kind.inverse_sigma = 1.0 / options_.sigma;
+  PoseMeasurement pose_kind;
+  pose_kind.inverse_sigma = 1.0 / options_.sigma;
+  pose_kind.orientation_weight = options_.orientation_weight;
+  Eigen::MatrixXd term_Y;
+  std::vector<ceres::ResidualBlockId> ids;
+  ids.reserve(data.size());
+  for (int r = 0; r < data.size(); ++r) {
+    parameters[n] = frames_[n + data.target(r)].data();
+    // This row's joint regressor [Y_b(q) basis_b] (data: evaluated once).
+    Eigen::MatrixXd R(n, K);
+    int column = 0;
+    for (int b : solved_joint_blocks) {
+      const JointBlock& block = p.joint_blocks[b];
+      term_Y.resize(n, block.term->num_parameters());
+      block.term->Regressor(data.q(r), term_Y.data());
+      R.middleCols(column, block.basis.cols()) = term_Y * block.basis;
+      column += static_cast<int>(block.basis.cols());
+    }
+    ceres::CostFunction* cost =
+        options_.use_orientation
+            ? PoseResidual::Create(shared_model, pose_kind, data.q(r), data.pose(r), R, block_sizes)
+            : PositionResidual::Create(shared_model, position_kind, data.q(r), data.position(r),
+                                       R, block_sizes);
+    ids.push_back(problem->AddResidualBlock(cost, loss, parameters));
+  }
+  for (size_t f = 0; f < frames_.size(); ++f) {
+    if (!solved_[f]) continue;
+    // A solved frame no row reaches (cannot happen for joints with data) is added explicitly.
+    problem->AddParameterBlock(frames_[f].data(), kSe3AmbientSize);
+    if (p.basis[f].cols() == 0) {  // every direction left out (structurally unidentifiable)
+      problem->SetParameterBlockConstant(frames_[f].data());
+      continue;
+    }
+    problem->SetManifold(frames_[f].data(), new Se3Manifold(p.basis[f]));
+  }
+  return ids;
+}
+
+RobotModel CalibrationProblem::Model() const {
+  RobotModel model = nominal_;
+  const int n = model.num_joints();
+  for (int f = 0; f < model.num_frames(); ++f) {
+    // An unchanged block keeps the nominal frame bit for bit (no quaternion round trip).
+    if (!solved_[f] || frames_[f] == initial_frames_[f]) continue;
+    SE3d& T = f < n ? model.joints[f].origin : model.tools[f - n].origin;
+    T = Se3FromArray(frames_[f].data());
+  }
+  return model;
+}
+
+Eigen::VectorXd CalibrationProblem::JointState() const {
+  Eigen::VectorXd x(parameterization_.num_joint_parameters());
+  int k = 0;
+  for (const std::vector<double>& b : joint_blocks_) {
+    for (double v : b) x(k++) = v;
+  }
+  return x;
+}
+
+std::vector<JointTermValues> CalibrationProblem::JointTerms() const {
+  const Parameterization& p = parameterization_;
+  Eigen::VectorXd all = Eigen::VectorXd::Zero(p.num_parameters);
+  for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
+    const JointBlock& block = p.joint_blocks[b];
+    for (int c = 0; c < block.basis.cols(); ++c) all(block.offset + c) = joint_blocks_[b][c];
+  }
+  return JointValuesOf(p, all);
+}
+
+ProblemNormalEquations CalibrationProblem::NormalEquations() const {
+  ProblemNormalEquations out;
+  out.parameterization = parameterization_;
+  internal::LeaveOutUnmeasuredTools(nominal_, *data_, &out.parameterization);
+  const internal::NormalEquations lin =
+      internal::NormalEquationsOf(Model(), *data_, out.parameterization, JointState(),
+                                  options_.use_orientation, options_.orientation_weight, false);
+  const double w = 1.0 / (options_.sigma * options_.sigma);
+  out.H = w * lin.H;
+  out.g = w * lin.g;
+  out.cost = w * lin.cost;
+  out.finite = lin.finite;
+  for (const Direction& d : out.parameterization.parameters) out.names.push_back(d.name);
+  return out;
+}
+
+void CalibrationProblem::Update(const Eigen::VectorXd& x) {
+  Parameterization solved = parameterization_;
+  internal::LeaveOutUnmeasuredTools(nominal_, *data_, &solved);
+  CHECK_EQ(x.size(), solved.num_parameters) << "step of the wrong size";
+  RobotModel model = Model();
+  ApplyUpdate(solved, x, &model);
+  const int n = model.num_joints();
+  for (size_t f = 0; f < frames_.size(); ++f) {
+    if (!solved_[f]) continue;
+    const int fi = static_cast<int>(f);
+    Se3ToArray(fi < n ? model.joints[fi].origin : model.tools[fi - n].origin, frames_[f].data());
+  }
+  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
+    const int offset = solved.joint_blocks[b].offset;
+    for (size_t c = 0; c < joint_blocks_[b].size(); ++c) joint_blocks_[b][c] += x(offset + c);
+  }
+}
+
+ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
+  const Parameterization& p = parameterization_;
+  const MeasurementSet& data = *data_;
+  const bool full = options_.parameterization == ParameterizationKind::kFull;
+  const DataKind kind = options_.use_orientation ? DataKind::kPose : DataKind::kPosition;
+  const int per_row = options_.use_orientation ? 6 : 3;
+  const RobotModel model = Model();
+  ProblemAnalysis out;
+  // The identifiable directions of the solved frames (for the full parameterization, its
+  // identifiable basis: the full J^T J is singular by construction), then the joint blocks.
+  Parameterization all = p;
+  if (full) {
+    all = MakeParameterization(model, ParameterizationKind::kIdentifiable, kind);
+    internal::LeaveOutStructurallyUnidentifiable(
+        options_.structure_reference ? *options_.structure_reference : nominal_, *data_,
+        options_.use_orientation, options_.orientation_weight, &all);
+    CopyJointBlocks(p, &all);
+  }
+  Parameterization analysed;
+  std::vector<int> columns;
+  for (int f = 0; f < model.num_frames(); ++f) {
+    if (!solved_[f]) continue;
+    for (int c = 0; c < all.basis[f].cols(); ++c) {
+      columns.push_back(all.offset[f] + c);
+      analysed.parameters.push_back(all.parameters[all.offset[f] + c]);
+    }
+  }
+  for (int k = all.num_frame_parameters(); k < all.num_parameters; ++k) {
+    columns.push_back(k);
+    analysed.parameters.push_back(all.parameters[k]);
+  }
+  analysed.num_parameters = static_cast<int>(columns.size());
+  out.num_parameters = analysed.num_parameters;
+  for (const Direction& d : analysed.parameters) out.parameter_names.push_back(d.name);
+  Parameterization left_out = all;
+  internal::LeaveOutUnmeasuredTools(model, data, &left_out);
+  out.unidentifiable = left_out.unidentifiable;
+  out.num_equations = static_cast<long>(per_row) * data.size();
+  if (out.num_equations < out.num_parameters) {
+    out.message = internal::TooFewEquationsMessage(data.size(), out.num_equations,
+                                                   out.num_parameters, per_row);
+    return out;
+  }
+  const Eigen::MatrixXd H_all =
+      internal::NormalEquationsOf(model, data, all, JointState(), options_.use_orientation,
+                                  options_.orientation_weight, false)
+          .H;
+  Eigen::MatrixXd& H = out.normal_matrix;
+  H.resize(out.num_parameters, out.num_parameters);
+  for (int a = 0; a < out.num_parameters; ++a) {
+    for (int b = 0; b < out.num_parameters; ++b) H(a, b) = H_all(columns[a], columns[b]);
+  }
+  if (!H.allFinite()) {
+    out.finite = false;
+    out.message = "non-finite residuals or Jacobian at the nominal model (check the input values)";
+    return out;
+  }
+  const internal::Identifiability id = internal::Analyze(H);
+  out.rank = id.rank;
+  out.condition_number = id.condition;
+  out.singular_values = id.singular_values;
+  out.weakest = internal::WeakestDirections(analysed, id.weakest);
+  out.identifiable = id.rank == out.num_parameters && id.condition <= max_condition_number;
+  if (!out.identifiable) {
+    out.message = internal::NotIdentifiableMessage(id, out.num_parameters, max_condition_number,
+                                                   analysed);
+  }
+  return out;
+}
+
+Status CalibrationProblem::Covariance(ceres::Problem* problem, int num_threads,
+                                      Eigen::MatrixXd* covariance) {
+  const Parameterization& p = parameterization_;
+  ceres::Covariance::Options cov_options;
+  cov_options.algorithm_type = ceres::DENSE_SVD;
+  cov_options.num_threads = std::max(1, num_threads);
+  // Full parameterization: the gauge directions are a known null space; take the pseudo-inverse
+  // (singular values below min_reciprocal_condition_number are dropped).
+  cov_options.null_space_rank =
+      options_.parameterization == ParameterizationKind::kFull ? -1 : 0;
+  ceres::Covariance cov(cov_options);
+  const std::vector<double*> blocks = parameter_blocks();
+  const std::vector<const double*> const_blocks(blocks.begin(), blocks.end());
+  const std::vector<int> sizes = tangent_sizes();
+  const std::vector<int> offsets = tangent_offsets();
+  int tangent = 0;
+  for (int s : sizes) tangent += s;
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> C(tangent, tangent);
+  if (!cov.Compute(const_blocks, problem) ||
+      !cov.GetCovarianceMatrixInTangentSpace(const_blocks, C.data())) {
+    return Status::Error("covariance not computed (rank-deficient Jacobian at the solution)");
+  }
+  // Rows of C follow parameter_blocks(); scatter them to p's offsets.
+  *covariance = Eigen::MatrixXd::Zero(p.num_parameters, p.num_parameters);
+  std::vector<int> c_offset(sizes.size());
+  for (size_t a = 1; a < sizes.size(); ++a) c_offset[a] = c_offset[a - 1] + sizes[a - 1];
+  for (size_t a = 0; a < sizes.size(); ++a) {
+    for (size_t b = 0; b < sizes.size(); ++b) {
+      covariance->block(offsets[a], offsets[b], sizes[a], sizes[b]) =
+          C.block(c_offset[a], c_offset[b], sizes[a], sizes[b]);
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace lpoe
