@@ -31,6 +31,7 @@ CalibrationProblemOptions ProblemOptions(const CeresSolverOptions& options) {
   o.loss_scale = options.loss_scale;
   o.joint_terms = options.joint_terms;
   o.joint_term_tolerance = options.joint_term_tolerance;
+  o.structure_reference = options.structure_reference;
   return o;
 }
 

@@ -11,13 +11,18 @@
 #include <glog/logging.h>
 
 #include "lpoe/kinematics.h"
+#include "structural_identifiability.h"
 
 namespace lpoe {
 namespace internal {
 
 Eigen::VectorXd ColumnScale(const Eigen::MatrixXd& H) {
+  // A column that is zero but for round-off (a rotation about an axis through the measured point,
+  // computed in a rotated frame) is not scaled up into a direction of its own.
+  const double floor =
+      kRoundOffColumn * kRoundOffColumn * (H.rows() ? H.diagonal().maxCoeff() : 0.0);
   Eigen::VectorXd d(H.rows());
-  for (int j = 0; j < H.rows(); ++j) d(j) = H(j, j) > 0 ? 1.0 / std::sqrt(H(j, j)) : 1.0;
+  for (int j = 0; j < H.rows(); ++j) d(j) = H(j, j) > floor ? 1.0 / std::sqrt(H(j, j)) : 1.0;
   return d;
 }
 
@@ -66,14 +71,18 @@ Parameterization SolverParameterization(const RobotModel& nominal, const Measure
                                         ParameterizationKind kind, bool use_orientation,
                                         double orientation_weight,
                                         const std::vector<std::shared_ptr<const JointTerm>>& terms,
-                                        double tolerance) {
+                                        double tolerance, const RobotModel* structure_reference) {
   const DataKind data_kind = use_orientation ? DataKind::kPose : DataKind::kPosition;
   Parameterization p = MakeParameterization(nominal, kind, data_kind);
+  LeaveOutStructurallyUnidentifiable(structure_reference ? *structure_reference : nominal, data,
+                                     use_orientation, orientation_weight, &p);
   if (terms.empty()) return p;
   // The analysis runs on the identifiable frames (the full ones are singular by construction) with
   // every joint block whole.
-  Parameterization pi = MakeParameterization(nominal, ParameterizationKind::kIdentifiable,
-                                             data_kind);
+  Parameterization pi =
+      MakeParameterization(nominal, ParameterizationKind::kIdentifiable, data_kind);
+  LeaveOutStructurallyUnidentifiable(structure_reference ? *structure_reference : nominal, data,
+                                     use_orientation, orientation_weight, &pi);
   for (const auto& term : terms) {
     CHECK_EQ(term->num_joints(), nominal.num_joints()) << term->name();
     AddJointBlock(term, &pi);

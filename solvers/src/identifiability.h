@@ -18,7 +18,9 @@ namespace lpoe {
 namespace internal {
 
 // Column scaling D = diag(1 / |column j of J|) from H = J^T J (Jacobi preconditioning): rotation
-// columns carry lever arms of ~10^3 mm, translation columns ~1.
+// columns carry lever arms of ~10^3 mm, translation columns ~1. Columns shorter than
+// kRoundOffColumn times the longest are round-off (their directions move nothing): scale 1.
+constexpr double kRoundOffColumn = 1e-12;
 Eigen::VectorXd ColumnScale(const Eigen::MatrixXd& H);
 
 struct Identifiability {
@@ -54,7 +56,7 @@ Parameterization SolverParameterization(const RobotModel& nominal, const Measure
                                         ParameterizationKind kind, bool use_orientation,
                                         double orientation_weight,
                                         const std::vector<std::shared_ptr<const JointTerm>>& terms,
-                                        double tolerance);
+                                        double tolerance, const RobotModel* structure_reference);
 
 // Removes the directions of tools that no row of `data` measures from `p` (listed in
 // p->unidentifiable with the reason): they keep their given frames (defined in linear_solver.cc).

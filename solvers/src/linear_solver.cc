@@ -14,6 +14,7 @@
 
 #include "identifiability.h"
 #include "lpoe/kinematics.h"
+#include "structural_identifiability.h"
 
 namespace lpoe {
 namespace {
@@ -81,17 +82,25 @@ using internal::Analyze;
 using internal::ColumnScale;
 using internal::Identifiability;
 
-// Least-squares step x of J x = y.
-Eigen::VectorXd SolveStep(const Linearization& lin, bool full, const LinearSolverOptions& options) {
+// Least-squares step x of J x = y. Full parameterization: at most `rank` singular directions (the
+// identifiable count): the gauge directions are null at the start, but a structurally lost one
+// (structural_identifiability.h) comes back weakly through them once the model moves, and a
+// pseudo-inverse would take ever larger steps along it.
+Eigen::VectorXd SolveStep(const Linearization& lin, bool full, int rank,
+                          const LinearSolverOptions& options) {
   const Eigen::VectorXd d = ColumnScale(lin.H);
   if (full) {
     // Minimum-norm solution of the rank-deficient system (the paper's eq. (32) read as a
     // pseudo-inverse), on the column-scaled stacked Jacobian for accuracy.
     const Eigen::MatrixXd Js = lin.J * d.asDiagonal();
     Eigen::BDCSVD<Eigen::MatrixXd> svd(Js, Eigen::ComputeThinU | Eigen::ComputeThinV);
-    svd.setThreshold(options.pseudo_inverse_tolerance);
+    const Eigen::VectorXd& s = svd.singularValues();
+    int r = 0;
+    while (r < s.size() && r < rank && s(r) > options.pseudo_inverse_tolerance * s(0)) ++r;
     // The minimum-norm solution in scaled coordinates; mapped back by d.
-    return d.asDiagonal() * svd.solve(lin.y);
+    const Eigen::VectorXd z =
+        (svd.matrixU().leftCols(r).transpose() * lin.y).cwiseQuotient(s.head(r));
+    return d.asDiagonal() * (svd.matrixV().leftCols(r) * z);
   }
   const Eigen::MatrixXd Hs = d.asDiagonal() * lin.H * d.asDiagonal();
   const Eigen::VectorXd gs = d.asDiagonal() * lin.g;
@@ -155,13 +164,16 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
                      : internal::SolverParameterization(
                            nominal, data, options.parameterization, options.use_orientation,
                            options.orientation_weight, options.joint_terms,
-                           options.joint_term_tolerance);
+                           options.joint_term_tolerance, options.structure_reference);
   if (!override_basis) internal::LeaveOutUnmeasuredTools(nominal, data, &result.parameterization);
   const Parameterization& p = result.parameterization;
   const bool full = !override_basis && options.parameterization == ParameterizationKind::kFull;
   // Unknowns the data must determine: the identifiable count, whichever parameterization is solved.
   int gauge = 0;  // the frames' unidentifiable directions solved anyway (full parameterization)
-  for (const Direction& d : p.unidentifiable) gauge += full && d.joint_block < 0;
+  for (const Direction& d : p.unidentifiable) {  // those still in the basis (not left out)
+    gauge += full && d.joint_block < 0 && p.basis[d.frame].cols() > 0 &&
+             (p.basis[d.frame].transpose() * d.vector).norm() > 0.5;
+  }
   const int identifiable = p.num_parameters - gauge;
   const int per_row = options.use_orientation ? 6 : 3;
   const long equations = static_cast<long>(per_row) * data.size();
@@ -172,6 +184,8 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
 
   const bool stack = full;
   RobotModel model = nominal;
+  const RobotModel& structure =
+      options.structure_reference ? *options.structure_reference : nominal;
   // The joint-space blocks' coordinates (they start at zero: no joint error).
   const int K = p.num_joint_parameters();
   Eigen::VectorXd joint_state = Eigen::VectorXd::Zero(K);
@@ -197,6 +211,8 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   auto analyze = [&](const RobotModel& at, const Linearization& l) {
     if (!full) return Analyze(l.H);
     Parameterization pi = MakeParameterization(at, ParameterizationKind::kIdentifiable, kind);
+    internal::LeaveOutStructurallyUnidentifiable(structure, data, options.use_orientation,
+                                                 options.orientation_weight, &pi);
     CopyJointBlocks(p, &pi);
     internal::LeaveOutUnmeasuredTools(at, data, &pi);
     return Analyze(Linearize(at, joint_state, data, pi, options, false).H);
@@ -210,6 +226,8 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       Parameterization pi = p;
       if (full) {
         pi = MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind);
+        internal::LeaveOutStructurallyUnidentifiable(structure, data, options.use_orientation,
+                                                     options.orientation_weight, &pi);
         CopyJointBlocks(p, &pi);
         internal::LeaveOutUnmeasuredTools(nominal, data, &pi);
       }
@@ -224,7 +242,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   const long dof = static_cast<long>(per_row) * data.size() - identifiable;
   double previous_cost = -1;
   for (int it = 1; it <= options.max_iterations; ++it) {
-    const Eigen::VectorXd x = SolveStep(lin, full, options);
+    const Eigen::VectorXd x = SolveStep(lin, full, identifiable, options);
     if (!x.allFinite()) {
       return finish(Termination::kNumericalFailure,
                     "the least-squares step is not finite (numerically singular normal equations)");

@@ -91,6 +91,7 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
     o.use_orientation = options.use_orientation;
     o.on_iteration = progress;
     o.joint_terms = terms;
+    o.structure_reference = &nominal;
     return StoreJointErrors(CalibrateCeres(start, data, o), start);
   }
   LinearSolverOptions o = options.linear;
@@ -98,6 +99,7 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
   o.use_orientation = options.use_orientation;
   o.on_iteration = progress;
   o.joint_terms = terms;
+  o.structure_reference = &nominal;
   return StoreJointErrors(CalibrateLinear(start, data, o), start);
 }
 
@@ -141,8 +143,10 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
                               &out.robust_sigma);
   if (!result.converged()) return out;
 
+  PlausibilityOptions plausibility = options.plausibility;
+  plausibility.use_orientation = options.use_orientation;
   out.verdict = AssessPlausibility(out.start, out.geometric, identification_eff,
-                                   out.identification_after, options.plausibility);
+                                   out.identification_after, plausibility);
 
   if (options.kfold >= 2) {
     const auto folds = KFolds(identification.size(), options.kfold, options.split_seed);

@@ -62,7 +62,7 @@ Parameterization PlanningParameterization(
   return internal::SolverParameterization(model, data, ParameterizationKind::kIdentifiable,
                                           /*use_orientation=*/false,
                                           solver_defaults.orientation_weight, terms,
-                                          solver_defaults.joint_term_tolerance);
+                                          solver_defaults.joint_term_tolerance, nullptr);
 }
 
 // Log-determinant of a symmetric positive definite matrix; -inf when it is not.

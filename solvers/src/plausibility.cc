@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "lpoe/kinematics.h"
+#include "lpoe/parameterization.h"
 
 namespace lpoe {
 namespace {
@@ -41,7 +42,39 @@ double Spread(const std::vector<Eigen::Vector3d>& p) {
   return std::sqrt(s / static_cast<double>(p.size()));
 }
 
+// Passes for the gauge alignment (the centralizer is a subgroup: the projection converges at once
+// for a frame already close; a few passes make it exact for large differences).
+constexpr int kGaugePasses = 3;
+// Link length changes are relative to max(|t|, kMinLinkScaleMm, kChainFraction * chain length).
+constexpr double kMinLinkScaleMm = 100.0;
+constexpr double kChainFraction = 0.1;
+
 }  // namespace
+
+RobotModel AlignGauge(const RobotModel& start, const RobotModel& calibrated) {
+  RobotModel out = calibrated;
+  const int n = out.num_joints();
+  for (int i = 0; i < n && i < start.num_joints(); ++i) {
+    const Eigen::MatrixXd N = TwistCentralizer(out.joints[i].twist);
+    if (N.cols() == 0) continue;
+    for (int pass = 0; pass < kGaugePasses; ++pass) {
+      const SE3d& a = start.joints[i].origin;
+      SE3d& b = out.joints[i].origin;
+      const Vector6d difference = LogSE3(b.Inverse() * a);
+      const Vector6d c = N * (N.transpose() * difference);
+      if (!c.allFinite()) break;
+      // T_{i-1,i} exp(c) exp(s q) exp(-c) T_{i,i+1} = T_{i-1,i} exp(s q) T_{i,i+1}.
+      b = b * ExpSE3(c);
+      const SE3d back = ExpSE3(Vector6d(-c));
+      if (i + 1 < n) {
+        out.joints[i + 1].origin = back * out.joints[i + 1].origin;
+      } else {
+        for (Tool& t : out.tools) t.origin = back * t.origin;
+      }
+    }
+  }
+  return out;
+}
 
 const char* VerdictLevelName(VerdictLevel level) {
   switch (level) {
@@ -121,19 +154,30 @@ Verdict AssessPlausibility(const RobotModel& start, const RobotModel& calibrated
                "(tracker noise and non-geometric errors)",
                rms_axis, ratio, expected)));
   }
-  // ---- Parameter changes (joint frames 2..n, tools).
+  // ---- Parameter changes (joint frames 2..n, tools), in the gauge closest to the start: the
+  // motions along each joint's own axis that the identifiable parameterization pushes into the next
+  // frame change no prediction, so they are no change of the robot (on parallel axes, as on a UR
+  // arm, they otherwise add up to centimetres).
   {
+    const RobotModel aligned = AlignGauge(start, calibrated);
     double worst_len = 0, worst_tool = 0, worst_rot = 0;
     std::string len_name, tool_name, rot_name;
     const int n = start.num_joints();
+    // Errors of the links before a joint add up along the chain (a tilt of 0.03 rad over 400 mm
+    // moves the next axes by 12 mm): short links are judged against a tenth of the chain's length.
+    double chain_length = 0;
+    for (int f = 1; f < start.num_frames(); ++f) {
+      chain_length += (f < n ? start.joints[f].origin : start.tools[f - n].origin).t.norm();
+    }
+    const double floor_mm = std::max(kMinLinkScaleMm, kChainFraction * chain_length);
     for (int f = 1; f < start.num_frames(); ++f) {
       const SE3d& a = f < n ? start.joints[f].origin : start.tools[f - n].origin;
-      const SE3d& b = f < n ? calibrated.joints[f].origin : calibrated.tools[f - n].origin;
+      const SE3d& b = f < n ? aligned.joints[f].origin : aligned.tools[f - n].origin;
       const std::string name = f < n ? start.joints[f].name : start.tools[f - n].name;
       const double rot = LogSO3(Eigen::Matrix3d(a.R.transpose() * b.R)).norm();
-      if (rot > worst_rot) worst_rot = rot, rot_name = name;
+      if (rot > worst_rot && (f < n || options.use_orientation)) worst_rot = rot, rot_name = name;
       if (f < n) {
-        const double rel = std::abs(b.t.norm() - a.t.norm()) / std::max(a.t.norm(), 100.0);
+        const double rel = std::abs(b.t.norm() - a.t.norm()) / std::max(a.t.norm(), floor_mm);
         if (rel > worst_len) worst_len = rel, len_name = name;
       } else {
         const double d = (b.t - a.t).norm();

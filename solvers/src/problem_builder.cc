@@ -11,6 +11,7 @@
 
 #include "batched_residual.h"
 #include "identifiability.h"
+#include "structural_identifiability.h"
 #include "lpoe/measurement_residual.h"
 #include "normal_equations.h"
 
@@ -69,7 +70,7 @@ CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const Measurem
   }
   parameterization_ = internal::SolverParameterization(
       nominal, data, options.parameterization, options.use_orientation, options.orientation_weight,
-      options.joint_terms, options.joint_term_tolerance);
+      options.joint_terms, options.joint_term_tolerance, options.structure_reference);
   const int n = nominal.num_joints();
   const int F = nominal.num_frames();
   frames_.resize(F);
@@ -201,6 +202,10 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
     if (!solved_[f]) continue;
     // A solved frame no row reaches (cannot happen for joints with data) is added explicitly.
     problem->AddParameterBlock(frames_[f].data(), kSe3AmbientSize);
+    if (p.basis[f].cols() == 0) {  // every direction left out (structurally unidentifiable)
+      problem->SetParameterBlockConstant(frames_[f].data());
+      continue;
+    }
     problem->SetManifold(frames_[f].data(), new Se3Manifold(p.basis[f]));
   }
   return ids;
@@ -291,6 +296,9 @@ ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
   Parameterization all = p;
   if (full) {
     all = MakeParameterization(model, ParameterizationKind::kIdentifiable, kind);
+    internal::LeaveOutStructurallyUnidentifiable(
+        options_.structure_reference ? *options_.structure_reference : nominal_, *data_,
+        options_.use_orientation, options_.orientation_weight, &all);
     CopyJointBlocks(p, &all);
   }
   Parameterization analysed;

@@ -37,6 +37,11 @@ struct CeresSolverOptions {
   bool use_orientation = false;
   // 1 rad of orientation error counts as this many mm (pose data), as in LinearSolverOptions.
   double orientation_weight = 1000.0;
+  // The chain whose structurally unidentifiable directions are left out
+  // (solvers/src/structural_identifiability.h); null: the model solved. The pipeline passes the
+  // nominal model: registration moves the tools by the noise, so that a tool on the last axis would
+  // look slightly off it, and the axis' tilt weakly "identified" from noise. Not owned.
+  const RobotModel* structure_reference = nullptr;
   // Ceres linear solver: dense_qr | dense_normal_cholesky | sparse_normal_cholesky | dense_schur |
   // sparse_schur | iterative_schur | cgnr. The problem is small and dense (every residual touches
   // every joint frame): dense_qr is the accurate default (with rows in batches, see rows_per_block,

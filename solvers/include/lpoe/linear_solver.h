@@ -47,6 +47,11 @@ struct LinearSolverOptions {
   // Solve only these directions instead of `parameterization` (e.g. the base and tool frames during
   // registration, see registration.h). Not owned; must outlive the call.
   const Parameterization* parameterization_override = nullptr;
+  // The chain whose structurally unidentifiable directions are left out
+  // (solvers/src/structural_identifiability.h); null: the model solved. The pipeline passes the
+  // nominal model: registration moves the tools by the noise, so that a tool on the last axis would
+  // look slightly off it, and the axis' tilt weakly "identified" from noise. Not owned.
+  const RobotModel* structure_reference = nullptr;
   // Estimate the covariance of the identified parameters at the solution:
   // s^2 (J^T J)^-1 with the a-posteriori variance factor s^2 = |y|^2 / (rows - parameters).
   bool compute_covariance = true;

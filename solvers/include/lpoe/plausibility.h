@@ -9,12 +9,15 @@
 //                scale factor show here; check beyond 5 %, fail beyond 20 %;
 //   joint units: revolute values beyond 2 pi read as radians look like degrees (fail beyond 4 pi);
 //                values all within +-2 pi read as degrees look like radians (check);
-//   link lengths: | |t_cal| - |t_start| | / max(|t_start|, 100 mm) of joint frames 2..n: check above
-//                3 %, fail above 10 %; tool offsets: check above 10 mm, fail above 50 mm;
+//   link lengths: | |t_cal| - |t_start| | / max(|t_start|, 100 mm, L / 10) of joint frames 2..n, L
+//                the chain's length (sum of |t| of frames 2..n and the tools; upstream axis errors
+//                move the next axes by their lever arm, whatever a short link's length): check
+//                above 3 %, fail above 10 %; tool offsets: check above 10 mm, fail above 50 mm;
 //   rotations:   angle of R_start^T R_cal of joint frames 2..n and tools (a joint offset shows
 //                here, added to tilts of the axes that the next frame absorbs; the paper's own
 //                errors reach 4.4 degrees): check above 6 degrees, fail above 15 degrees.
-// The first frame (the base) is left out: registration moves it by design.
+// The first frame (the base) is left out: registration moves it by design. Parameter changes are
+// compared after AlignGauge (moves along the joints' own axes, which change no prediction, removed).
 #ifndef LPOE_PLAUSIBILITY_H_
 #define LPOE_PLAUSIBILITY_H_
 
@@ -52,7 +55,16 @@ constexpr double kTypicalTrackerNoiseMm = 0.03;
 struct PlausibilityOptions {
   double noise_sigma = kTypicalTrackerNoiseMm;  // mm per axis
   bool joint_values_in_degrees = false;         // the file's revolute values were degrees
+  // Pose data: the tools' rotations are judged too (with position data they change no prediction;
+  // the full parameterization moves them freely). RunCalibrationPipeline sets it.
+  bool use_orientation = false;
 };
+
+// `calibrated` moved, along each joint's centralizer (rotation about and translation along its own
+// axis; parameterization.h), as close to `start` as it goes, each move compensated in the next frame
+// (the tools after the last joint): the same robot, every prediction unchanged, in the gauge of
+// `start`. Parameter changes are compared in it.
+RobotModel AlignGauge(const RobotModel& start, const RobotModel& calibrated);
 
 // `start`: the model the solver started from (nominal, registered when registration moved it);
 // `calibrated`: its result; `after`: errors of `calibrated` on `data`.

@@ -48,6 +48,9 @@ struct CalibrationProblemOptions {
   bool use_orientation = false;
   // 1 rad of orientation error counts as this many mm (pose data).
   double orientation_weight = 1000.0;
+  // The chain whose structurally unidentifiable directions are left out (as in
+  // CeresSolverOptions); null: the model solved. Not owned.
+  const RobotModel* structure_reference = nullptr;
   // Standard deviation of the measurement noise per axis (mm): residuals are divided by it.
   double sigma = 1.0;
   // Robust loss of each residual block: none | huber | cauchy, with its scale in mm.

@@ -1,0 +1,223 @@
+#include "structural_identifiability.h"
+
+#include <glog/logging.h>
+
+#include <Eigen/QR>
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "identifiability.h"
+#include "lpoe/kinematics.h"
+#include "normal_equations.h"
+
+namespace lpoe {
+namespace internal {
+namespace {
+
+// Range of the generic prismatic joint values (mm); any non-degenerate range does.
+constexpr double kGenericStrokeMm = 500.0;
+// Names quoted in a reason: the kept directions a left-out one trades with.
+constexpr int kTradeNames = 3;
+
+// Random configurations measuring every tool that `data` measures (the measured values are the
+// model's own: only the Jacobian is used).
+MeasurementSet GenericMeasurements(const RobotModel& model, const std::vector<int>& tools,
+                                   bool use_orientation, int configurations) {
+  const int n = model.num_joints();
+  MeasurementSet g(n);
+  std::mt19937_64 rng(20220901);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::vector<double> q(n);
+  for (int c = 0; c < configurations; ++c) {
+    for (int i = 0; i < n; ++i) {
+      q[i] = unit(rng) * (model.joints[i].type == JointType::kRevolute ? M_PI : kGenericStrokeMm);
+    }
+    for (int t : tools) {
+      if (use_orientation) {
+        g.AddPose(q.data(), ToolPose(model, q.data(), t), t);
+      } else {
+        g.Add(q.data(), ToolPosition(model, q.data(), t), t);
+      }
+    }
+  }
+  return g;
+}
+
+bool RotationLike(const Direction& d) {
+  return d.vector.head<3>().norm() > d.vector.tail<3>().norm();
+}
+
+// Distance (mm) of tool t's point from the axis of the last joint, when that joint is revolute;
+// infinity otherwise.
+double DistanceFromLastAxis(const RobotModel& model, int t) {
+  const Joint& last = model.joints.back();
+  if (last.type != JointType::kRevolute) return INFINITY;
+  const Eigen::Vector3d w = last.twist.head<3>().normalized();
+  const Eigen::Vector3d on_axis = w.cross(last.twist.tail<3>());
+  const Eigen::Vector3d r = model.tools[t].origin.t - on_axis;
+  return (r - w * w.dot(r)).norm();
+}
+
+}  // namespace
+
+std::vector<Direction> StructurallyUnidentifiable(const RobotModel& model,
+                                                  const MeasurementSet& data, bool use_orientation,
+                                                  double orientation_weight) {
+  std::vector<Direction> out;
+  const int n = model.num_joints();
+  if (data.empty() || n == 0) return out;
+  std::vector<bool> measured(model.num_tools(), false);
+  for (int r = 0; r < data.size(); ++r) measured[data.target(r)] = true;
+  std::vector<int> tools;
+  for (int t = 0; t < model.num_tools(); ++t) {
+    if (measured[t]) tools.push_back(t);
+  }
+  const DataKind kind = use_orientation ? DataKind::kPose : DataKind::kPosition;
+  const Parameterization p = MakeParameterization(model, ParameterizationKind::kIdentifiable, kind);
+  const MeasurementSet g = GenericMeasurements(model, tools, use_orientation,
+                                               std::max(kGenericConfigurations, p.num_parameters));
+  const NormalEquations lin =
+      NormalEquationsOf(model, g, p, Eigen::VectorXd(), use_orientation, orientation_weight, true);
+  if (!lin.finite || !lin.J.allFinite()) return out;  // the solvers report non-finite models
+
+  // Candidates in the order they are kept: measured tools, joint translations, joint rotations.
+  std::vector<int> order;
+  for (int t : tools) {
+    const int f = n + t;
+    for (int c = 0; c < p.basis[f].cols(); ++c) order.push_back(p.offset[f] + c);
+  }
+  for (const bool rotations : {false, true}) {
+    for (int f = 0; f < n; ++f) {
+      for (int c = 0; c < p.basis[f].cols(); ++c) {
+        const int k = p.offset[f] + c;
+        if (RotationLike(p.parameters[k]) == rotations) order.push_back(k);
+      }
+    }
+  }
+
+  // Gram-Schmidt (two passes) on the unit columns in that order; columns of round-off size move
+  // nothing.
+  const Eigen::Index rows = lin.J.rows();
+  const double zero_column = kRoundOffColumn * lin.J.colwise().norm().maxCoeff();
+  Eigen::MatrixXd Q(rows, 0), kept_columns(rows, 0);
+  std::vector<int> kept;
+  std::vector<int> dropped;
+  for (int k : order) {
+    Eigen::VectorXd v = lin.J.col(k);
+    const double norm = v.norm();
+    if (!(norm > zero_column)) {
+      dropped.push_back(k);
+      continue;
+    }
+    v /= norm;
+    const Eigen::VectorXd unit_column = v;
+    for (int pass = 0; pass < 2; ++pass) v -= Q * (Q.transpose() * v);
+    const double left = v.norm();
+    if (left > kStructuralTolerance) {
+      Q.conservativeResize(Eigen::NoChange, Q.cols() + 1);
+      Q.col(Q.cols() - 1) = v / left;
+      kept_columns.conservativeResize(Eigen::NoChange, kept_columns.cols() + 1);
+      kept_columns.col(kept_columns.cols() - 1) = unit_column;
+      kept.push_back(k);
+    } else {
+      dropped.push_back(k);
+    }
+  }
+  if (dropped.empty()) return out;
+
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(kept_columns);
+  for (int k : dropped) {
+    Direction d = p.parameters[k];
+    std::ostringstream reason;
+    const double norm = lin.J.col(k).norm();
+    if (!(norm > zero_column)) {
+      reason << "moves no measured target at any configuration";
+    } else {
+      const Eigen::VectorXd c = qr.solve(Eigen::VectorXd(lin.J.col(k) / norm));
+      std::vector<int> idx(c.size());
+      for (int j = 0; j < c.size(); ++j) idx[j] = j;
+      std::sort(idx.begin(), idx.end(),
+                [&](int a, int b) { return std::abs(c(a)) > std::abs(c(b)); });
+      reason << "no configuration separates it from";
+      for (int j = 0; j < std::min<int>(kTradeNames, static_cast<int>(idx.size())); ++j) {
+        if (std::abs(c(idx[j])) < 1e-3) break;
+        reason << (j ? ", " : " ") << p.parameters[kept[idx[j]]].name;
+      }
+      reason << " with " << (use_orientation ? "pose" : "position") << " data on this chain";
+    }
+    reason << ": not identified, kept as given";
+    // The common case named: a target on the last axis (a UR robot's tool0 measured directly).
+    if (d.frame == n - 1 || d.frame >= n) {
+      for (int t : tools) {
+        const double scale = std::max(1.0, model.tools[t].origin.t.norm());
+        if (DistanceFromLastAxis(model, t) <= kStructuralTolerance * scale) {
+          reason << " (" << model.tools[t].name << " lies on " << model.joints[n - 1].name
+                 << "'s axis, so turning that joint never moves it: a target off the axis, or "
+                    "orientation data, would identify it)";
+          break;
+        }
+      }
+    }
+    d.reason = reason.str();
+    out.push_back(d);
+  }
+  std::sort(out.begin(), out.end(),
+            [&](const Direction& a, const Direction& b) { return a.frame < b.frame; });
+  return out;
+}
+
+void LeaveOutStructurallyUnidentifiable(const RobotModel& reference, const MeasurementSet& data,
+                                        bool use_orientation, double orientation_weight,
+                                        Parameterization* p) {
+  CHECK(p->joint_blocks.empty()) << "frames are reduced before joint blocks are added";
+  const std::vector<Direction> lost =
+      StructurallyUnidentifiable(reference, data, use_orientation, orientation_weight);
+  if (lost.empty()) return;
+  p->unidentifiable.insert(p->unidentifiable.end(), lost.begin(), lost.end());
+  Parameterization out = *p;
+  out.parameters.clear();
+  out.num_parameters = 0;
+  for (size_t f = 0; f < p->basis.size(); ++f) {
+    // The frame's basis projected off its lost directions (columns of an identifiable basis drop
+    // out exactly; a full basis keeps the orthogonal complement), orthonormalized.
+    Eigen::MatrixXd L(6, 0);
+    for (const Direction& d : lost) {
+      if (d.frame != static_cast<int>(f)) continue;
+      L.conservativeResize(Eigen::NoChange, L.cols() + 1);
+      L.col(L.cols() - 1) = d.vector;
+    }
+    const Eigen::MatrixXd& B = p->basis[f];
+    Eigen::MatrixXd basis(6, 0);
+    for (int c = 0; c < B.cols(); ++c) {
+      Vector6d v = B.col(c);
+      for (int pass = 0; pass < 2; ++pass) {
+        v -= L * (L.transpose() * v);
+        v -= basis * (basis.transpose() * v);
+      }
+      if (v.norm() < 0.5) continue;
+      v.normalize();
+      basis.conservativeResize(Eigen::NoChange, basis.cols() + 1);
+      basis.col(basis.cols() - 1) = v;
+      Direction d = p->parameters[p->offset[f] + c];
+      if ((v - B.col(c)).norm() > 1e-12) {  // a mixture: named after its dominant component
+        static const char* const kAxes[6] = {"rx", "ry", "rz", "tx", "ty", "tz"};
+        int best = 0;
+        v.cwiseAbs().maxCoeff(&best);
+        d.name = d.name.substr(0, d.name.rfind('.')) + "." + kAxes[best] + "~";
+      }
+      d.vector = v;
+      out.parameters.push_back(d);
+    }
+    out.basis[f] = basis;
+    out.offset[f] = out.num_parameters;
+    out.num_parameters += static_cast<int>(basis.cols());
+  }
+  *p = std::move(out);
+}
+
+}  // namespace internal
+}  // namespace lpoe
