@@ -52,6 +52,54 @@ AngleUnit ParseUnit(const std::string& text) {
 
 }  // namespace
 
+ParameterizationKind ParseParameterizationOption(const std::string& text) {
+  ParameterizationKind kind;
+  if (!ParseParameterization(text, &kind)) {
+    throw LpoeError("parameterization: expected 'identifiable' or 'full', got '" + text + "'");
+  }
+  return kind;
+}
+
+bool ParseDataKindOption(const std::string& text, const MeasurementSet& data) {
+  if (text == "auto") return data.has_orientation();
+  if (text == "position") return false;
+  if (text == "pose") {
+    if (!data.has_orientation()) throw LpoeError("data_kind='pose' needs measured orientations");
+    return true;
+  }
+  throw LpoeError("data_kind: expected 'auto', 'position' or 'pose', got '" + text + "'");
+}
+
+std::vector<std::string> JointErrorNames(const std::string& text) {
+  std::vector<JointErrorKind> kinds;
+  if (!ParseJointErrorKinds(text, &kinds)) {
+    throw LpoeError("joint_errors: expected none, compliance, harmonics or compliance,harmonics, "
+                    "got '" + text + "'");
+  }
+  std::vector<std::string> names;
+  // Compliance first (docs/joint_errors.md), as lpoe_calibrate orders them.
+  for (JointErrorKind k : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
+    if (std::find(kinds.begin(), kinds.end(), k) != kinds.end()) {
+      names.push_back(JointErrorKindName(k));
+    }
+  }
+  return names;
+}
+
+int ToolIndexOf(const RobotModel& model, const py::object& tool) {
+  if (py::isinstance<py::str>(tool)) {
+    const int t = model.FindTool(tool.cast<std::string>());
+    if (t < 0) throw LpoeError("no tool named '" + tool.cast<std::string>() + "' in the model");
+    return t;
+  }
+  const int t = tool.cast<int>();
+  if (t < 0 || t >= model.num_tools()) {
+    throw LpoeError("tool index " + std::to_string(t) + " out of range [0, " +
+                    std::to_string(model.num_tools()) + ")");
+  }
+  return t;
+}
+
 Status ReadAnyRobotModel(const std::string& path, RobotModel* model) {
   return EndsWithUrdf(path) ? ReadRobotModelUrdf(path, model) : ReadRobotModel(path, model);
 }

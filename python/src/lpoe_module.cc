@@ -46,19 +46,7 @@ py::ssize_t Rows(const RowArray& a, py::ssize_t cols, const char* what) {
   return a.shape(0);
 }
 
-int ToolIndex(const RobotModel& model, const py::object& tool) {
-  if (py::isinstance<py::str>(tool)) {
-    const int t = model.FindTool(tool.cast<std::string>());
-    if (t < 0) throw LpoeError("no tool named '" + tool.cast<std::string>() + "' in the model");
-    return t;
-  }
-  const int t = tool.cast<int>();
-  if (t < 0 || t >= model.num_tools()) {
-    throw LpoeError("tool index " + std::to_string(t) + " out of range [0, " +
-                    std::to_string(model.num_tools()) + ")");
-  }
-  return t;
-}
+int ToolIndex(const RobotModel& model, const py::object& tool) { return ToolIndexOf(model, tool); }
 
 Eigen::Matrix4d ToMatrix(const SE3d& T) {
   Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
@@ -91,6 +79,7 @@ void BindModel(py::module_& m);
 void BindMeasurements(py::module_& m);
 void BindCalibration(py::module_& m);
 void BindJacobians(py::module_& m);
+void BindAnalysis(py::module_& m);
 
 }  // namespace python
 }  // namespace lpoe
@@ -195,4 +184,5 @@ PYBIND11_MODULE(_lpoe, m) {
   BindMeasurements(m);
   BindCalibration(m);
   BindJacobians(m);
+  BindAnalysis(m);
 }

@@ -7,7 +7,10 @@
 
 #include <stdexcept>
 #include <string>
+#include <vector>
 
+#include "lpoe/measurements.h"
+#include "lpoe/parameterization.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/status.h"
 
@@ -26,6 +29,15 @@ std::string ShapeText(const pybind11::array& a);
 // A model file by its name: URDF when it ends in .urdf (any case), else YAML.
 Status ReadAnyRobotModel(const std::string& path, RobotModel* model);
 Status WriteAnyRobotModel(const std::string& path, const RobotModel& model);
+
+// Options shared by several functions, parsed as the tools parse their flags (raising lpoe.Error):
+// --parameterization; --data_kind (auto | position | pose; returns use_orientation);
+// --joint_errors (none | compliance | harmonics | compliance,harmonics; in the solvers' order,
+// compliance first); a tool by index or name.
+ParameterizationKind ParseParameterizationOption(const std::string& text);
+bool ParseDataKindOption(const std::string& text, const MeasurementSet& data);
+std::vector<std::string> JointErrorNames(const std::string& text);
+int ToolIndexOf(const RobotModel& model, const pybind11::object& tool);
 
 // Tool positions (mm) of `rows` configurations stored row-major in `q` (num_joints each) into
 // `out` (3 per row). No Python objects are touched: callable without the GIL.
