@@ -28,22 +28,6 @@ namespace lpoe {
 namespace python {
 namespace {
 
-using RowArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-
-void Check(const Status& s) {
-  if (!s.ok()) throw LpoeError(s.message());
-}
-
-// (M, cols) array (a 1-D array of cols values is one row); returns M.
-py::ssize_t RowsOf(const RowArray& a, py::ssize_t cols, const std::string& what) {
-  if (a.ndim() == 1 && a.shape(0) == cols) return 1;
-  if (a.ndim() != 2 || a.shape(1) != cols) {
-    throw LpoeError(what + ": expected an array of shape (M, " + std::to_string(cols) + "), got " +
-                    ShapeText(a));
-  }
-  return a.shape(0);
-}
-
 void CheckFinite(const RowArray& a, const std::string& what) {
   const double* d = a.data();
   for (py::ssize_t k = 0; k < a.size(); ++k) {

@@ -23,8 +23,6 @@ namespace py = pybind11;
 namespace lpoe {
 namespace python {
 
-using RowArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-
 std::string ShapeText(const py::array& a) {
   std::string s = "(";
   for (py::ssize_t d = 0; d < a.ndim(); ++d) {
@@ -32,6 +30,15 @@ std::string ShapeText(const py::array& a) {
     s += std::to_string(a.shape(d));
   }
   return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+py::ssize_t RowsOf(const RowArray& a, py::ssize_t cols, const std::string& what) {
+  if (a.ndim() == 1 && a.shape(0) == cols) return 1;
+  if (a.ndim() != 2 || a.shape(1) != cols) {
+    throw LpoeError(what + ": expected an array of shape (M, " + std::to_string(cols) + "), got " +
+                    ShapeText(a));
+  }
+  return a.shape(0);
 }
 
 namespace {

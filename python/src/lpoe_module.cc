@@ -28,22 +28,8 @@ namespace lpoe {
 namespace python {
 namespace {
 
-using RowArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-
-// Raises lpoe.Error with the status message when `s` is an error.
-void Check(const Status& s) {
-  if (!s.ok()) throw LpoeError(s.message());
-}
-
-// Checks that `a` is an (M, cols) array (a 1-D array of length cols is taken as one row) and
-// returns M.
 py::ssize_t Rows(const RowArray& a, py::ssize_t cols, const char* what) {
-  if (a.ndim() == 1 && a.shape(0) == cols) return 1;
-  if (a.ndim() != 2 || a.shape(1) != cols) {
-    throw LpoeError(std::string(what) + ": expected an array of shape (M, " +
-                    std::to_string(cols) + "), got " + ShapeText(a));
-  }
-  return a.shape(0);
+  return RowsOf(a, cols, what);
 }
 
 int ToolIndex(const RobotModel& model, const py::object& tool) { return ToolIndexOf(model, tool); }

@@ -23,8 +23,20 @@ class LpoeError : public std::runtime_error {
   explicit LpoeError(const std::string& message) : std::runtime_error(message) {}
 };
 
+// Arrays taken in: C-contiguous float64 (other dtypes and layouts are converted).
+using RowArray = pybind11::array_t<double, pybind11::array::c_style | pybind11::array::forcecast>;
+
 // "(3, 4)" for error messages.
 std::string ShapeText(const pybind11::array& a);
+
+// Raises lpoe.Error with the status message when `s` is an error.
+inline void Check(const Status& s) {
+  if (!s.ok()) throw LpoeError(s.message());
+}
+
+// Checks that `a` is an (M, cols) array (a 1-D array of cols values is one row) and returns M;
+// raises lpoe.Error naming `what` otherwise.
+pybind11::ssize_t RowsOf(const RowArray& a, pybind11::ssize_t cols, const std::string& what);
 
 // A model file by its name: URDF when it ends in .urdf (any case), else YAML.
 Status ReadAnyRobotModel(const std::string& path, RobotModel* model);

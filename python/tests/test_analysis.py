@@ -1,21 +1,11 @@
 """pytest: identifiability, the problem builder's normal equations, compensation, planning and the
 calibrate options added for them (joint_errors, holdout, unknown options)."""
-import os
 
 import numpy as np
 import pytest
 
 import lpoe
 
-DATA = os.environ.get("LPOE_DATA_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "data"))
-
-
-@pytest.fixture(scope="module")
-def inputs():
-    m = lpoe.read_model(os.path.join(DATA, "cobot6.yaml"))
-    d = lpoe.read_measurements(os.path.join(DATA, "section4", "identification.csv"), m)
-    v = lpoe.read_measurements(os.path.join(DATA, "section4", "verification.csv"), m)
-    return m, d, v
 
 
 def test_identifiability_names_the_lost_directions(inputs):

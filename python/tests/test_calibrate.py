@@ -7,16 +7,7 @@ import pytest
 
 import lpoe
 
-DATA = os.environ.get("LPOE_DATA_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "data"))
 CLI = os.environ.get("LPOE_CALIBRATE")
-
-
-@pytest.fixture(scope="module")
-def inputs():
-    m = lpoe.read_model(os.path.join(DATA, "cobot6.yaml"))
-    d = lpoe.read_measurements(os.path.join(DATA, "section4", "identification.csv"), m)
-    v = lpoe.read_measurements(os.path.join(DATA, "section4", "verification.csv"), m)
-    return m, d, v
 
 
 def test_calibrate_default_data(inputs):
