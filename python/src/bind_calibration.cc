@@ -241,7 +241,13 @@ void BindCalibration(py::module_& m) {
             return py::module_::import("json").attr("loads")(c.report_json);
           },
           "the JSON report as a dict (None when the data could not identify the model)")
-      .def_readonly("report_json", &Calibration::report_json);
+      .def_readonly("report_json", &Calibration::report_json)
+      .def("__repr__", [](const Calibration& c) {
+        std::string s = "<lpoe.Calibration: " + c.termination + " after " +
+                        std::to_string(c.iterations) + " iterations";
+        if (!c.verdict.empty()) s += ", verdict " + c.verdict;
+        return s + ">";
+      });
 
   m.def(
       "calibrate",

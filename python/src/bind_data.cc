@@ -138,6 +138,12 @@ void BindMeasurements(py::module_& m) {
                              "Tracker measurements: joint values, measured positions (mm), the "
                              "measured tool of each row and (pose data) orientations.")
       .def("__len__", &MeasurementSet::size)
+      .def("__repr__",
+           [](const MeasurementSet& d) {
+             return "<lpoe.Measurements: " + std::to_string(d.size()) + " rows of " +
+                    std::to_string(d.num_joints()) + " joints, " +
+                    (d.has_orientation() ? "poses>" : "positions>");
+           })
       .def_property_readonly("num_joints", &MeasurementSet::num_joints)
       .def_property_readonly("has_orientation", &MeasurementSet::has_orientation)
       .def_property_readonly("q",
@@ -192,14 +198,21 @@ void BindMeasurements(py::module_& m) {
 
   m.def(
       "read_measurements",
-      [](const std::string& path, const RobotModel& model, const std::string& angle_unit) {
+      [](const std::string& path, const RobotModel& model, const std::string& angle_unit,
+         const std::string& length_unit) {
+        CsvOptions options;
+        options.angle_unit = ParseUnit(angle_unit);
+        if (!ParseLengthUnit(length_unit, &options.length_unit)) {
+          throw LpoeError("length_unit: expected 'mm' or 'm', got '" + length_unit + "'");
+        }
         MeasurementSet data;
-        const Status s = ReadMeasurements(path, model, ParseUnit(angle_unit), &data);
-        if (!s.ok()) throw LpoeError(s.message());
+        Check(ReadMeasurements(path, model, options, &data, nullptr));
         return data;
       },
       py::arg("path"), py::arg("model"), py::arg("angle_unit") = "rad",
-      "reads a measurement CSV for `model`; lost-beam rows are skipped");
+      py::arg("length_unit") = "mm",
+      "reads a measurement CSV for `model` (as lpoe_calibrate's --angle_unit and --length_unit "
+      "read it); lost-beam rows are skipped");
 
   m.def(
       "measurements",

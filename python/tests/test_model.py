@@ -56,6 +56,27 @@ def test_read_measurements(model):
     assert d.lines[0] >= 2  # the header is line 1
 
 
+def test_read_measurements_in_metres(tmp_path, model):
+    d = lpoe.read_measurements(IDENT, model)
+    lines = open(IDENT).read().splitlines()
+    header = [ln for ln in lines if not ln.startswith("#")][0].split(",")
+    cols = [header.index(c) for c in ("x", "y", "z")]
+    out = []
+    for ln in lines:
+        f = ln.split(",")
+        if not ln.startswith("#") and ln.split(",") != header:
+            for c in cols:
+                f[c] = repr(float(f[c]) / 1000.0)
+        out.append(",".join(f))
+    metres = tmp_path / "m.csv"
+    metres.write_text("\n".join(out) + "\n")
+    dm = lpoe.read_measurements(str(metres), model, length_unit="m")
+    np.testing.assert_allclose(dm.positions, d.positions, rtol=1e-12)
+    assert "70 rows" in repr(dm)
+    with pytest.raises(lpoe.Error, match="length_unit"):
+        lpoe.read_measurements(str(metres), model, length_unit="inch")
+
+
 def test_measurements_from_arrays_round_trip(model):
     rng = np.random.default_rng(2)
     q = rng.uniform(-1, 1, size=(10, 6))
