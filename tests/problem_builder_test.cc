@@ -204,6 +204,13 @@ TEST(ProblemBuilder, CallerPriorMovesTheSolutionAsPredicted) {
   ApplyUpdate(ne.parameterization, shift, &predicted);
   EXPECT_LT(MaxPositionDifference(builder.Model(), predicted, data),
             kPriorShiftTolerance * kPriorPullMm);
+
+  // The covariance of the caller's problem counts the prior: (H + w e_k e_k^T)^-1.
+  Eigen::MatrixXd C;
+  ASSERT_TRUE(builder.Covariance(&problem, 1, &C).ok());
+  const Eigen::MatrixXd expected = H.inverse();
+  EXPECT_NEAR(C(k, k), expected(k, k), 1e-3 * expected(k, k));
+  EXPECT_LT(C(k, k), 0.5 * ne.H.inverse()(k, k));  // the prior halves the variance at least
 }
 
 TEST(ProblemBuilder, CallerCanHoldFramesConstant) {
@@ -241,6 +248,13 @@ TEST(ProblemBuilder, AnalyzeNamesWhatTheDataCannotIdentify) {
   EXPECT_GT(b.condition_number, 1e8);
   EXPECT_NE(b.message.find("cannot identify"), std::string::npos) << b.message;
   EXPECT_FALSE(b.weakest.empty());
+  // ceres::Covariance fails on that problem, and the builder says so instead of returning garbage.
+  ceres::Problem degenerate;
+  poor.AddTo(&degenerate);
+  Eigen::MatrixXd C;
+  const Status cov = poor.Covariance(&degenerate, 1, &C);
+  EXPECT_FALSE(cov.ok());
+  EXPECT_NE(cov.message().find("rank-deficient"), std::string::npos) << cov.message();
   const MeasurementSet three = data.Subset({0, 1, 2});
   CalibrationProblem too_few(nominal, three, CalibrationProblemOptions());
   EXPECT_FALSE(too_few.Analyze().identifiable);
