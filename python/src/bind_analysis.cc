@@ -491,7 +491,7 @@ void BindAnalysis(py::module_& m) {
       .def(
           "update",
           [](PyProblem& p, const Eigen::VectorXd& x) {
-            const int P = static_cast<int>(p.problem->NormalEquations().names.size());
+            const int P = p.problem->SolvedParameterization().num_parameters;
             if (x.size() != P || !x.allFinite()) {
               throw LpoeError("update: expected " + std::to_string(P) + " finite values, got " +
                               std::to_string(x.size()));
@@ -503,10 +503,12 @@ void BindAnalysis(py::module_& m) {
           "names",
           [](const PyProblem& p) {
             std::vector<std::string> v;
-            for (const Direction& d : p.problem->parameterization().parameters) v.push_back(d.name);
+            for (const Direction& d : p.problem->SolvedParameterization().parameters) {
+              v.push_back(d.name);
+            }
             return v;
           },
-          "the parameters of every frame (unmeasured tools included)")
+          "the solved parameters, in the order of normal_equations() and update()")
       .def_property_readonly("model", [](const PyProblem& p) { return p.problem->Model(); },
                              "the model at the current parameters (geometry)")
       .def(
@@ -520,7 +522,8 @@ void BindAnalysis(py::module_& m) {
           py::arg("max_condition") = 1e8, "identifiability at the current parameters")
       .def("__repr__", [](const PyProblem& p) {
         return "<lpoe.Problem: " + std::to_string(p.problem->data().size()) + " rows, " +
-               std::to_string(p.problem->parameterization().num_parameters) + " parameters>";
+               std::to_string(p.problem->SolvedParameterization().num_parameters) +
+               " parameters>";
       });
 
   m.def(
