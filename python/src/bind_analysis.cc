@@ -510,7 +510,17 @@ void BindAnalysis(py::module_& m) {
           },
           "the solved parameters, in the order of normal_equations() and update()")
       .def_property_readonly("model", [](const PyProblem& p) { return p.problem->Model(); },
-                             "the model at the current parameters (geometry)")
+                             "the model at the current parameters (geometry; see joint_terms)")
+      .def_property_readonly(
+          "joint_terms",
+          [](const PyProblem& p) {
+            py::dict d;
+            for (const JointTermValues& t : p.problem->JointTerms()) {
+              d[py::str(t.term->name())] = t.theta;
+            }
+            return d;
+          },
+          "{term name: theta} of the joint-space terms at the current parameters")
       .def(
           "identifiability",
           [](const PyProblem& p, double max_condition) {

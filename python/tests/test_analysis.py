@@ -41,6 +41,25 @@ def test_gauss_newton_on_the_normal_equations_equals_calibrate(inputs):
     assert p.normal_equations().cost == pytest.approx(0.5 * np.sum(res**2), rel=1e-9)
 
 
+def test_problem_with_joint_errors(inputs):
+    m, d, _ = inputs
+    p = lpoe.Problem(m, d, joint_errors="harmonics")
+    assert len(p.names) == 27 + 24 and p.names[27] == "harmonics.joint1.sin1"
+    ident = lpoe.identifiability(m, d, joint_errors="harmonics")
+    assert ident.identifiable and ident.num_parameters == 51
+    for _ in range(8):
+        ne = p.normal_equations()
+        p.update(np.linalg.solve(ne.H, ne.g))
+    theta = p.joint_terms["harmonics"]
+    assert theta.shape == (24,)
+    # The section-4 data carry no harmonics: what is found is within a few standard deviations
+    # (sigma^2 H^-1 with the data's 0.03 mm noise; the wrist's are the least certain).
+    sd = 0.03 * np.sqrt(np.diag(np.linalg.inv(p.normal_equations().H)))[27:]
+    assert np.all(np.abs(theta) < 5 * sd)
+    with pytest.raises(lpoe.Error, match="joint_errors"):
+        lpoe.Problem(m, d, joint_errors="backlash")
+
+
 def test_a_prior_added_to_the_normal_equations_holds_its_parameter(inputs):
     m, d, _ = inputs
     p = lpoe.Problem(m, d, sigma=0.03)
