@@ -116,7 +116,7 @@ TEST(ProblemBuilder, CallerSolveEqualsCalibrateCeres) {
   EXPECT_NEAR(builder.NormalEquations().cost, cost, 1e-9 * cost);
 }
 
-TEST(ProblemBuilder, NormalEquationsStepIsTheLinearSolversStep) {
+TEST(ProblemBuilder, NormalEquationsAreTheLinearSolvers) {
   const RobotModel nominal = MakeCobot6();
   const MeasurementSet data = Simulate(nominal, kNoiseSigma, kRows, 4);
   LinearSolverOptions lo;
@@ -140,6 +140,18 @@ TEST(ProblemBuilder, NormalEquationsStepIsTheLinearSolversStep) {
   EXPECT_LT(MaxPositionDifference(builder.Model(), one_step.model, data), kSameStepMm);
   // The step reduced the cost by orders of magnitude (mm-level errors down to the noise).
   EXPECT_LT(builder.NormalEquations().cost, 1e-3 * ne.cost);
+
+  // At the solution the normal matrix is the linear solver's: its covariance is s^2 H^-1.
+  for (int it = 0; it < 10; ++it) {
+    const ProblemNormalEquations step = builder.NormalEquations();
+    builder.Update(step.H.ldlt().solve(step.g));
+  }
+  const CalibrationResult solved = CalibrateLinear(nominal, data, LinearSolverOptions());
+  ASSERT_TRUE(solved.converged());
+  const ProblemNormalEquations at = builder.NormalEquations();
+  const double s2 = 2 * at.cost / (3.0 * data.size() - at.H.rows());
+  const Eigen::MatrixXd covariance = s2 * at.H.inverse();
+  EXPECT_LT((covariance - solved.covariance).norm(), 1e-6 * solved.covariance.norm());
 
   // The weighting: sigma scales H and g by 1 / sigma^2.
   CalibrationProblemOptions weighted;
