@@ -7,6 +7,7 @@ import pytest
 
 import lpoe
 
+DATA = os.environ.get("LPOE_DATA_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "data"))
 CLI = os.environ.get("LPOE_CALIBRATE")
 
 
@@ -37,7 +38,7 @@ def test_same_model_bytes_as_the_tool(inputs, tmp_path, flags, options):
     m, d, v = inputs
     cli_yaml = tmp_path / "cli.yaml"
     if "holdout" in options:  # the tool holds out rows of --measurements (no --verify)
-        ident = os.path.join(os.environ.get("LPOE_DATA_DIR", "data"), "section4", "identification.csv")
+        ident = os.path.join(DATA, "section4", "identification.csv")
         flags = flags + [f"--measurements={ident}"]
     subprocess.run([CLI, "--plots_dir=", f"--output={cli_yaml}"] + flags, check=True,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
