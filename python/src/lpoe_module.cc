@@ -123,6 +123,12 @@ PYBIND11_MODULE(_lpoe, m) {
             return ToMatrix(r.tools[ToolIndex(r, tool)].origin);
           },
           py::arg("tool") = 0, "4x4 tool frame T_n,tool in the last joint's frame, mm")
+      .def_property(
+          "measurement_base",
+          [](const RobotModel& r) { return ToMatrix(r.T_measurement_base); },
+          [](RobotModel& r, const Eigen::Matrix4d& M) { r.T_measurement_base = FromMatrix(M); },
+          "4x4 pose of the robot base in the measurement (tracker) frame, as registration found "
+          "it (identity when the data were in the base frame); compensate() uses it")
       .def("validate", [](const RobotModel& r) { Check(r.Validate()); },
            "raises lpoe.Error when the model is not usable")
       .def("to_yaml", &RobotModelToYaml, "the model as YAML text (as lpoe_calibrate writes it)")

@@ -131,3 +131,15 @@ def test_parameter_jacobian_shape_names_and_rank(model):
     assert np.linalg.matrix_rank(np.vstack(rows)) == 27
     with pytest.raises(lpoe.Error, match="parameterization"):
         lpoe.parameter_jacobian(model, np.zeros(6), parameterization="some")
+
+
+def test_measurement_base_round_trip(tmp_path, model):
+    m = model.copy()
+    c, s = np.cos(0.3), np.sin(0.3)
+    T = np.array([[c, -s, 0, 1500.0], [s, c, 0, -200.0], [0, 0, 1, 30.0], [0, 0, 0, 1]])
+    m.measurement_base = T
+    np.testing.assert_allclose(m.measurement_base, T, atol=1e-12)
+    np.testing.assert_allclose(model.measurement_base, np.eye(4))  # the copy is independent
+    lpoe.write_model(str(tmp_path / "r.yaml"), m)
+    np.testing.assert_allclose(lpoe.read_model(str(tmp_path / "r.yaml")).measurement_base, T,
+                               atol=1e-9)
