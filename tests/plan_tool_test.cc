@@ -105,7 +105,9 @@ TEST_F(PlanTool, BadFlagsAreUsageErrors) {
         "--count=10 --output=p.csv --tracker=1,2", "--count=10 --output=p.csv --max_range=5000",
         "--count=10 --output=p.csv --tracker=0,2000,500 --acceptance_angle=120",
         "--count=10 --output=p.csv --tracker=0,2000,500 --smr_facing='0,0,1;0,0,1'",
-        "--count=10 --output=p.csv --min_singularity=-1"}) {
+        "--count=10 --output=p.csv --min_singularity=-1",
+        "--count=10 --output=p.csv --joint_errors=backlash",
+        "--count=10 --output=p.csv --joint_errors=compliance,compliance"}) {
     const Output o = Plan(args);
     EXPECT_EQ(o.exit_code, kExitUsage) << args << "\n" << o.err;
     EXPECT_NE(o.err.find("error:"), std::string::npos) << args;
@@ -117,7 +119,8 @@ TEST_F(PlanTool, HelpListsTheFlagsAndExitCodes) {
   const Output o = Run(LPOE_PLAN_PATH, "--help");
   EXPECT_EQ(o.exit_code, kExitOk);
   for (const char* flag : {"--count", "--candidates", "--criterion", "--tracker", "--smr_facing",
-                           "--min_singularity", "--target_accuracy", "Exit codes"}) {
+                           "--min_singularity", "--target_accuracy", "--joint_errors",
+                           "Exit codes"}) {
     EXPECT_NE(o.out.find(flag), std::string::npos) << flag;
   }
 }
@@ -227,6 +230,44 @@ TEST_F(PlanTool, CountAutoReturnsTheSmallestPlanReachingTheTarget) {
   const Output never = Plan("--count=auto --target_accuracy=0.0001 --noise_sigma=0.02 --output=n.csv");
   EXPECT_EQ(never.exit_code, kExitNoPlan) << never.err;
   EXPECT_FALSE(fs::exists(dir_ / "n.csv"));
+}
+
+// With joint-space error terms the plan must determine their identifiable combinations too: more
+// parameters, and a prediction that includes their uncertainty (larger than the geometric one for
+// the same number of poses). 'auto' plans for every term.
+TEST_F(PlanTool, JointErrorTermsJoinThePlannedParameters) {
+  const Output o = Plan("--count=30 --output=p.csv --joint_errors=harmonics,compliance");
+  ASSERT_EQ(o.exit_code, kExitOk) << o.err;
+  const nlohmann::json report = nlohmann::json::parse(ReadText(dir_ / "p.json"));
+  ASSERT_EQ(report["joint_errors"].size(), 2u);
+  EXPECT_EQ(report["joint_errors"][0]["term"], "compliance");  // compliance first, as calibrated
+  EXPECT_EQ(report["joint_errors"][1]["term"], "harmonics");
+  int combinations = 0;
+  for (const auto& t : report["joint_errors"]) {
+    EXPECT_GT(t["identifiable_combinations"].get<int>(), 0);
+    EXPECT_LT(t["identifiable_combinations"].get<int>(), t["parameters"].get<int>());
+    combinations += t["identifiable_combinations"].get<int>();
+  }
+  EXPECT_EQ(report["parameters"].get<int>(), 33 + combinations);
+  EXPECT_EQ(report["plan"]["rank"], report["parameters"]);
+  const double with_terms = report["plan"]["predicted_rms_per_unit_noise"];
+  EXPECT_LT(with_terms, report["random_plan"]["predicted_rms_per_unit_noise"].get<double>());
+  EXPECT_NE(ReadText(dir_ / "p.csv").find("joint errors compliance,harmonics"), std::string::npos);
+
+  const Output g = Plan("--count=30 --output=g.csv");
+  ASSERT_EQ(g.exit_code, kExitOk) << g.err;
+  const nlohmann::json geometric = nlohmann::json::parse(ReadText(dir_ / "g.json"));
+  EXPECT_TRUE(geometric["joint_errors"].empty());
+  EXPECT_GT(with_terms, geometric["plan"]["predicted_rms_per_unit_noise"].get<double>());
+
+  const Output a = Plan("--count=30 --output=a.csv --joint_errors=auto");
+  ASSERT_EQ(a.exit_code, kExitOk) << a.err;
+  const nlohmann::json automatic = nlohmann::json::parse(ReadText(dir_ / "a.json"));
+  EXPECT_EQ(automatic["parameters"], report["parameters"]);
+  // Too few poses for the 80-odd parameters: refused.
+  const Output few = Plan("--count=8 --output=f.csv --joint_errors=compliance,harmonics");
+  EXPECT_EQ(few.exit_code, kExitNoPlan) << few.err;
+  EXPECT_NE(few.err.find("identify only"), std::string::npos) << few.err;
 }
 
 TEST_F(PlanTool, TrackerConstraintKeepsOnlyVisiblePoses) {

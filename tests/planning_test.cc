@@ -3,13 +3,19 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <memory>
 #include <numeric>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"
+#include "lpoe/measurement_model.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/simulation.h"
 #include "test_util.h"
@@ -34,6 +40,17 @@ std::vector<double> Sample(const RobotModel& model, int count, uint64_t seed) {
   std::vector<double> q;
   EXPECT_TRUE(SampleConfigurations(model, count, seed, &q).ok());
   return q;
+}
+
+// The joint-space terms as the calibration orders them: compliance, then harmonics.
+std::vector<std::shared_ptr<const JointTerm>> ComplianceAndHarmonics(const RobotModel& model) {
+  std::vector<std::shared_ptr<const JointTerm>> terms;
+  for (const char* name : {"compliance", "harmonics"}) {
+    std::shared_ptr<const JointTerm> term;
+    EXPECT_TRUE(MakeJointTerm(name, model, &term).ok()) << name;
+    terms.push_back(term);
+  }
+  return terms;
 }
 
 TEST(Planning, CriterionNamesRoundTrip) {
@@ -74,6 +91,72 @@ TEST(Planning, RowsMatchFiniteDifferences) {
       }
     }
   }
+}
+
+// With joint-space terms the rows gain the solvers' columns J_q(q) Y(q) basis
+// (measurement_model.h), which are the derivatives of the predicted positions along each
+// identifiable combination.
+TEST(Planning, JointTermColumnsAreTheSolversColumns) {
+  RobotModel model = ThreeSmrCobot();
+  model.payload.mass = 1.0;
+  model.payload.com = Eigen::Vector3d(0, 0, 50);
+  const PlanningModel geometric(model);
+  const PlanningModel pm(model, ComplianceAndHarmonics(model), Sample(model, 300, 51));
+  const Parameterization& p = pm.parameterization();
+  ASSERT_EQ(p.joint_blocks.size(), 2u);
+  EXPECT_EQ(pm.num_parameters() - pm.num_joint_parameters(), geometric.num_parameters());
+  // Some combinations are not separable (docs/joint_errors.md), most are.
+  const int compliance = static_cast<int>(p.joint_blocks[0].basis.cols());
+  const int harmonics = static_cast<int>(p.joint_blocks[1].basis.cols());
+  std::printf("identifiable combinations: compliance %d of %d, harmonics %d of %d\n", compliance,
+              NumComplianceParameters(6), harmonics, NumHarmonicsParameters(6));
+  EXPECT_GT(compliance, 20);
+  EXPECT_LT(compliance, NumComplianceParameters(6));
+  EXPECT_GT(harmonics, 20);
+  EXPECT_LT(harmonics, NumHarmonicsParameters(6));
+  EXPECT_EQ(pm.num_joint_parameters(), compliance + harmonics);
+
+  const int P = pm.num_parameters();
+  const std::vector<JointTermValues> zero = JointValuesOf(p, Eigen::VectorXd::Zero(P));
+  const std::vector<double> q = Sample(model, 3, 52);
+  const std::vector<int> tools = {0, 1, 2};
+  for (int r = 0; r < 3; ++r) {
+    const double* qr = q.data() + 6 * r;
+    Eigen::MatrixXd J, Jt;
+    pm.Rows(qr, tools, &J);
+    ASSERT_EQ(J.cols(), P);
+    for (int t = 0; t < 3; ++t) {
+      PredictPositionJacobian(model, p, zero, qr, t, &Jt);
+      EXPECT_LE((J.middleRows(3 * t, 3) - Jt).norm(), 1e-9 * Jt.norm()) << "pose " << r;
+      // Central differences along each joint-space combination, stepped to move the tool ~0.01 mm.
+      for (int j = P - pm.num_joint_parameters(); j < P; ++j) {
+        const double column = J.block(3 * t, j, 3, 1).norm();
+        if (column == 0) continue;
+        const double h = 1e-2 / column;
+        Eigen::VectorXd x = Eigen::VectorXd::Zero(P);
+        x(j) = h;
+        const Eigen::Vector3d fd = (PredictPosition(model, JointValuesOf(p, x), qr, t) -
+                                    PredictPosition(model, JointValuesOf(p, -x), qr, t)) /
+                                   (2 * h);
+        EXPECT_LT((J.block(3 * t, j, 3, 1) - fd).norm(), 1e-5 * column)
+            << "pose " << r << " tool " << t << " " << p.parameters[j].name;
+      }
+    }
+  }
+  // O3's scale of a joint-space combination moves the tools by 0.1 mm RMS over the reference.
+  const Eigen::VectorXd e = pm.ErrorScale();
+  ASSERT_EQ(e.size(), P);
+  const std::vector<double> reference = Sample(model, 300, 51);
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(P);
+  Eigen::MatrixXd J;
+  for (int r = 0; r < 300; ++r) {
+    pm.Rows(reference.data() + 6 * r, tools, &J);
+    sum += J.colwise().squaredNorm().transpose();
+  }
+  for (int j = P - pm.num_joint_parameters(); j < P; ++j) {
+    EXPECT_NEAR(e(j) * std::sqrt(sum(j) / 900), 0.1, 1e-9) << p.parameters[j].name;
+  }
+  EXPECT_EQ(e.head(P - pm.num_joint_parameters()), geometric.ErrorScale());
 }
 
 TEST(Planning, JointRangesUseLimitsOrPi) {
@@ -260,6 +343,26 @@ TEST(Planning, EveryCriterionImprovesItsOwnValueOverRandomPlans) {
   }
 }
 
+// The per-candidate updates run on several threads in fixed chunks: the plan is the same, bit for
+// bit, whatever their number (a pool large enough to be split).
+TEST(Planning, PlanDoesNotDependOnTheNumberOfThreads) {
+  const RobotModel model = ThreeSmrCobot();
+  const PlanningModel pm(model);
+  const CandidatePool pool = BuildCandidatePool(pm, Sample(model, 2000, 71), PlanConstraints());
+  const Eigen::MatrixXd L = WorkspaceMoment(pm, Sample(model, 200, 72));
+  for (PlanCriterion c : {PlanCriterion::kD, PlanCriterion::kI}) {
+    PlanOptions options;
+    options.criterion = c;
+    PlanResult one, three;
+    options.num_threads = 1;
+    ASSERT_TRUE(SelectPlan(pm, pool, 20, L, options, &one).ok());
+    options.num_threads = 3;
+    ASSERT_TRUE(SelectPlan(pm, pool, 20, L, options, &three).ok());
+    EXPECT_EQ(one.selected, three.selected) << PlanCriterionName(c);
+    EXPECT_EQ(one.exchanges, three.exchanges) << PlanCriterionName(c);
+  }
+}
+
 // The acceptance simulation: 6-joint arm, 3 SMRs, 25 poses.
 class PlanningAcceptance : public ::testing::Test {
  protected:
@@ -364,6 +467,287 @@ TEST_F(PlanningAcceptance, PlannedSetBeatsEveryRandomDrawAndPredictsItsAccuracy)
       std::sqrt(random_realised_sq));
   EXPECT_NEAR(realised / predicted, 1.0, 0.25);
   EXPECT_LT(realised, std::sqrt(random_realised_sq));
+}
+
+
+// Planning for a calibration with joint-space terms, on the simulator's truth robot with those
+// terms (docs/joint_errors.md): cobot6 with three SMRs and a 1 kg payload, geometric errors of
+// 2 mrad and 0.5 mm, compliance under gravity and harmonics of a small arm, noise 0.01 mm per axis.
+class PlanningWithJointErrors : public ::testing::Test {
+ protected:
+  static constexpr double kNoiseSigma = 0.01;  // mm per axis
+
+  static RobotModel PayloadCobot() {
+    RobotModel model = ThreeSmrCobot();
+    model.payload.mass = 1.0;
+    model.payload.com = Eigen::Vector3d(0, 0, 50);
+    return model;
+  }
+
+  PlanningWithJointErrors()
+      : model_(PayloadCobot()),
+        terms_(ComplianceAndHarmonics(model_)),
+        candidates_(Sample(model_, 3000, 61)),
+        geometric_(model_),
+        pm_(model_, terms_, candidates_),
+        pool_geometric_(BuildCandidatePool(geometric_, candidates_, PlanConstraints())),
+        pool_(BuildCandidatePool(pm_, candidates_, PlanConstraints())),
+        workspace_(Sample(model_, 300, 62)),
+        L_geometric_(WorkspaceMoment(geometric_, workspace_)),
+        L_(WorkspaceMoment(pm_, workspace_)) {
+    errors_ = RandomErrors(model_, 2e-3, 0.5, 1e-3, 2e-3, 63);
+    actual_ = ApplyErrors(model_, errors_);
+    ApplyJointErrorPhysics(SmallArmJointErrors(model_, SmallArmOptions()), true, true, &actual_);
+    truth_ = FoldJointZeros(actual_, errors_.joint_zero);
+    truth_geometry_ = truth_;
+    truth_geometry_.joint_errors = JointErrorTerms();
+  }
+
+  // A plan chosen for the geometric model or for the model with the terms (same candidate indices:
+  // no constraints, both pools keep every candidate).
+  std::vector<int> Plan(bool with_terms, PlanCriterion criterion, int count) const {
+    PlanOptions options;
+    options.criterion = criterion;
+    PlanResult plan;
+    const Status s = with_terms ? SelectPlan(pm_, pool_, count, L_, options, &plan)
+                                : SelectPlan(geometric_, pool_geometric_, count, L_geometric_,
+                                             options, &plan);
+    EXPECT_TRUE(s.ok()) << s.message();
+    return plan.selected;
+  }
+
+  // Predicted RMS (mm) of the calibration with the terms.
+  double Predicted(const std::vector<int>& plan) const {
+    return kNoiseSigma * EvaluatePlan(pm_, pool_, plan, L_).predicted_rms;
+  }
+
+  // Every SMR measured on the truth robot at the configurations (row-major), noise kNoiseSigma.
+  MeasurementSet Simulate(const std::vector<double>& configurations, uint64_t seed) const {
+    SimulationOptions so;
+    so.noise_sigma = kNoiseSigma;
+    so.all_tools = true;
+    so.configurations = configurations;
+    so.seed = seed;
+    return SimulateMeasurements(actual_, errors_.joint_zero, so);
+  }
+
+  // RMS over noise draws, workspace configurations and tools of the calibrated minus the true
+  // position (mm), calibrating with the terms or with the geometry alone.
+  double Realised(const std::vector<int>& plan, bool calibrate_terms, int draws,
+                  uint64_t seed) const {
+    std::vector<double> configurations;
+    for (int c : plan) {
+      configurations.insert(configurations.end(), pool_.q.begin() + 6 * c,
+                            pool_.q.begin() + 6 * c + 6);
+    }
+    LinearSolverOptions options;
+    if (calibrate_terms) options.joint_terms = terms_;
+    double sum = 0;
+    int n = 0;
+    for (int d = 0; d < draws; ++d) {
+      const MeasurementSet data = Simulate(configurations, seed + d);
+      const CalibrationResult result = CalibrateLinear(model_, data, options);
+      EXPECT_EQ(result.termination, Termination::kConverged) << result.message;
+      const int wn = static_cast<int>(workspace_.size() / 6);
+      for (int w = 0; w < wn; ++w) {
+        const double* q = workspace_.data() + 6 * w;
+        for (int t = 0; t < model_.num_tools(); ++t) {
+          sum += (PredictPosition(result.model, result.joint_terms, q, t) -
+                  PredictToolPosition(truth_, q, t))
+                     .squaredNorm();
+          ++n;
+        }
+      }
+    }
+    return std::sqrt(sum / n);
+  }
+
+  // RMS over the plan's poses and tools of the tool displacement the joint terms cause (mm).
+  double NonGeometric(const std::vector<int>& plan) const {
+    double sum = 0;
+    for (int c : plan) {
+      const double* q = pool_.q.data() + 6 * c;
+      for (int t = 0; t < model_.num_tools(); ++t) {
+        sum += (PredictToolPosition(truth_, q, t) - ToolPosition(truth_geometry_, q, t))
+                   .squaredNorm();
+      }
+    }
+    return std::sqrt(sum / (plan.size() * model_.num_tools()));
+  }
+
+  RobotModel model_;
+  std::vector<std::shared_ptr<const JointTerm>> terms_;
+  std::vector<double> candidates_;
+  PlanningModel geometric_, pm_;
+  CandidatePool pool_geometric_, pool_;
+  std::vector<double> workspace_;
+  Eigen::MatrixXd L_geometric_, L_;
+  KinematicErrors errors_;
+  RobotModel actual_, truth_, truth_geometry_;
+};
+
+// The acceptance lines with the terms: the D plan of 25 poses, predicted (covariance of the frames
+// and the terms propagated to the workspace) against 30 random plans, and against the realised
+// error of calibrations with the terms (Monte Carlo over noise draws), the planned set and random
+// sets.
+TEST_F(PlanningWithJointErrors, PlannedSetBeatsRandomSetsAndPredictsItsAccuracy) {
+  ASSERT_EQ(pool_.size(), 3000);
+  constexpr int kPoses = 25;
+  constexpr int kRandomDraws = 30;
+  const std::vector<int> plan = Plan(true, PlanCriterion::kD, kPoses);
+  const double predicted = Predicted(plan);
+  double random_sq = 0, random_best = 1e300;
+  for (int k = 0; k < kRandomDraws; ++k) {
+    const double r = Predicted(RandomPlan(pool_.size(), kPoses, 600 + k));
+    random_sq += r * r / kRandomDraws;
+    random_best = std::min(random_best, r);
+  }
+  std::printf("with terms, %d poses: D plan predicted %.5f mm, random plans %.5f (best of %d "
+              "%.5f)\n",
+              kPoses, predicted, std::sqrt(random_sq), kRandomDraws, random_best);
+  EXPECT_LE(predicted, 0.93 * std::sqrt(random_sq));
+  EXPECT_LT(predicted, random_best);
+
+  constexpr int kNoiseDraws = 6;
+  constexpr int kRandomPlans = 3;
+  const double realised = Realised(plan, true, kNoiseDraws, 2000);
+  std::printf("D plan: realised %.5f mm (ratio %.3f)\n", realised, realised / predicted);
+  EXPECT_NEAR(realised / predicted, 1.0, 0.25);
+  double random_realised_sq = 0;
+  for (int k = 0; k < kRandomPlans; ++k) {
+    const std::vector<int> r = RandomPlan(pool_.size(), kPoses, 800 + k);
+    const double rr = Realised(r, true, kNoiseDraws / 2, 3000 + 100 * k);
+    const double rp = Predicted(r);
+    std::printf("random plan %d: predicted %.5f, realised %.5f mm (ratio %.3f)\n", k, rp, rr,
+                rr / rp);
+    EXPECT_NEAR(rr / rp, 1.0, 0.25) << "random plan " << k;
+    random_realised_sq += rr * rr / kRandomPlans;
+  }
+  EXPECT_LT(realised, std::sqrt(random_realised_sq));
+}
+
+// Which plan when the truth has the terms and the calibration identifies them (docs/planning.md):
+// plans made for the geometric model or for the model with the terms, by D, I and A, against random
+// plans, all calibrated with the terms; and how much non-geometric error the plans' poses carry.
+// Set LPOE_PLANNING_STUDY=1 for the figures of the docs (25, 40 and 60 poses, more draws: minutes).
+TEST_F(PlanningWithJointErrors, PlanningWithTheTermsHelpsWhenTheTruthHasThem) {
+  const bool study = std::getenv("LPOE_PLANNING_STUDY") != nullptr;
+  const std::vector<int> counts = study ? std::vector<int>{25, 40, 60} : std::vector<int>{25};
+  const int draws = study ? 10 : 4;
+  const int random_plans = study ? 10 : 3;
+  std::printf("parameters: %d geometric, %d with the terms\n", geometric_.num_parameters(),
+              pm_.num_parameters());
+  for (int count : counts) {
+    double random_sq = 0, random_predicted_sq = 0, random_geometric_sq = 0;
+    double random_nongeometric_sq = 0;
+    for (int k = 0; k < random_plans; ++k) {
+      const std::vector<int> r = RandomPlan(pool_.size(), count, 800 + k);
+      const double rr = Realised(r, true, std::max(2, draws / 4), 5000 + 100 * k);
+      const double rp = Predicted(r);
+      const double ng = NonGeometric(r);
+      random_sq += rr * rr / random_plans;
+      random_predicted_sq += rp * rp / random_plans;
+      random_nongeometric_sq += ng * ng / random_plans;
+      if (study) {
+        const double rg = Realised(r, false, 2, 6000 + 100 * k);
+        random_geometric_sq += rg * rg / random_plans;
+      }
+    }
+    const double random_realised = std::sqrt(random_sq);
+    std::printf("%d poses, %d random plans: predicted %.5f realised %.5f mm, geometry only %s, "
+                "non-geometric displacement at the poses %.3f mm\n",
+                count, random_plans, std::sqrt(random_predicted_sq), random_realised,
+                study ? std::to_string(std::sqrt(random_geometric_sq)).c_str() : "-",
+                std::sqrt(random_nongeometric_sq));
+    struct Row {
+      const char* name;
+      bool terms;
+      PlanCriterion criterion;
+      double realised = 0;
+    };
+    std::vector<Row> rows = {{"D geometric", false, PlanCriterion::kD},
+                             {"D terms", true, PlanCriterion::kD},
+                             {"I terms", true, PlanCriterion::kI}};
+    if (study) {
+      rows.push_back({"I geometric", false, PlanCriterion::kI});
+      rows.push_back({"A terms", true, PlanCriterion::kA});
+    }
+    for (Row& row : rows) {
+      const std::vector<int> plan = Plan(row.terms, row.criterion, count);
+      row.realised = Realised(plan, true, draws, 7000);
+      const double ng = NonGeometric(plan);
+      std::printf("%d poses, %-12s: predicted %.5f realised %.5f mm (%.3fx random), geometry only "
+                  "%s, non-geometric displacement at the poses %.3f mm\n",
+                  count, row.name, Predicted(plan), row.realised, row.realised / random_realised,
+                  study ? std::to_string(Realised(plan, false, 2, 8000)).c_str() : "-", ng);
+      // D and I favour poses far out, where the gravity torques are largest.
+      if (row.criterion != PlanCriterion::kA) {
+        EXPECT_GT(ng, std::sqrt(random_nongeometric_sq)) << row.name;
+      }
+    }
+    // Planning with the terms beats random plans and the geometric plan, both calibrated with them.
+    EXPECT_LT(rows[1].realised, 0.9 * random_realised);
+    EXPECT_LT(rows[2].realised, 0.9 * random_realised);
+    EXPECT_LT(rows[1].realised, rows[0].realised);
+  }
+}
+
+// The real-data acceptance, simulated: 700 measured configurations (every SMR at each, one
+// noise draw), and a plan choosing 60 of them. The calibration (with the terms) from the 60 planned
+// rows stays close to the one from all 700 (closer than the measurement noise, and closer than 60
+// random rows).
+TEST_F(PlanningWithJointErrors, SixtyPlannedOfSevenHundredStayCloseToAll) {
+  constexpr int kMeasured = 700;
+  constexpr int kChosen = 60;
+  constexpr int kRandomDraws = 5;
+  const std::vector<double> measured(candidates_.begin(), candidates_.begin() + 6 * kMeasured);
+  const CandidatePool pool = BuildCandidatePool(pm_, measured, PlanConstraints());
+  ASSERT_EQ(pool.size(), kMeasured);
+  const MeasurementSet data = Simulate(measured, 9100);
+  ASSERT_EQ(data.size(), 3 * kMeasured);
+  LinearSolverOptions options;
+  options.joint_terms = terms_;
+  auto calibrate = [&](const std::vector<int>& poses) {
+    std::vector<int> rows;
+    for (int c : poses) {
+      for (int t = 0; t < 3; ++t) rows.push_back(3 * c + t);
+    }
+    const CalibrationResult r = CalibrateLinear(model_, data.Subset(rows), options);
+    EXPECT_EQ(r.termination, Termination::kConverged) << r.message;
+    return r;
+  };
+  // RMS over the workspace and the tools of the difference of two calibrations' predictions (mm).
+  auto difference = [&](const CalibrationResult& a, const CalibrationResult* b) {
+    double sum = 0;
+    const int wn = static_cast<int>(workspace_.size() / 6);
+    for (int w = 0; w < wn; ++w) {
+      const double* q = workspace_.data() + 6 * w;
+      for (int t = 0; t < 3; ++t) {
+        const Eigen::Vector3d other = b ? PredictPosition(b->model, b->joint_terms, q, t)
+                                        : PredictToolPosition(truth_, q, t);
+        sum += (PredictPosition(a.model, a.joint_terms, q, t) - other).squaredNorm();
+      }
+    }
+    return std::sqrt(sum / (3 * wn));
+  };
+  std::vector<int> everything(kMeasured);
+  std::iota(everything.begin(), everything.end(), 0);
+  const CalibrationResult all = calibrate(everything);
+  PlanResult plan;
+  ASSERT_TRUE(SelectPlan(pm_, pool, kChosen, L_, PlanOptions(), &plan).ok());
+  const CalibrationResult planned = calibrate(plan.selected);
+  const double planned_to_all = difference(planned, &all);
+  double random_sq = 0;
+  for (int k = 0; k < kRandomDraws; ++k) {
+    const double d = difference(calibrate(RandomPlan(kMeasured, kChosen, 950 + k)), &all);
+    random_sq += d * d / kRandomDraws;
+  }
+  std::printf("%d of %d: planned to all %.5f mm, random to all %.5f mm (%d draws); error to the "
+              "truth: all %.5f, planned %.5f mm\n",
+              kChosen, kMeasured, planned_to_all, std::sqrt(random_sq), kRandomDraws,
+              difference(all, nullptr), difference(planned, nullptr));
+  EXPECT_LT(planned_to_all, kNoiseSigma);
+  EXPECT_LT(planned_to_all, std::sqrt(random_sq));
 }
 
 }  // namespace

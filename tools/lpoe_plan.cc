@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <iostream>
 #include <limits>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -20,6 +21,8 @@
 
 #include "joint_table.h"
 #include "lpoe/io.h"
+#include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/planning.h"
 #include "tool_common.h"
 
@@ -60,6 +63,12 @@ DEFINE_double(noise_sigma, 0,
               "Measurement noise per axis (mm): scales the predicted accuracy into mm; required "
               "with --count=auto.");
 DEFINE_int32(random_draws, 30, "Random plans of the same size evaluated for comparison.");
+DEFINE_string(joint_errors, "none",
+              "Joint-space error terms the calibration will identify: none | compliance | "
+              "harmonics | compliance,harmonics | auto. Their identifiable combinations join the "
+              "parameters the plan must determine (and the predicted accuracy). 'auto' plans for "
+              "every term lpoe_calibrate --joint_errors=auto may choose (all of them): a plan that "
+              "identifies the richest model identifies each of its subsets.");
 
 namespace lpoe {
 namespace {
@@ -121,6 +130,17 @@ nlohmann::json QualityJson(const PlanQuality& q, double noise_sigma) {
   return j;
 }
 
+// The joint-space terms planned for and their identifiable combinations.
+nlohmann::json JointErrorsJson(const PlanningModel& pm) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const JointBlock& block : pm.parameterization().joint_blocks) {
+    j.push_back({{"term", block.term->name()},
+                 {"parameters", block.term->num_parameters()},
+                 {"identifiable_combinations", block.basis.cols()}});
+  }
+  return j;
+}
+
 int Run() {
   if (FLAGS_model.empty() || FLAGS_count.empty() || FLAGS_output.empty()) {
     std::cerr << "error: --model, --count and --output are required (see --help)\n";
@@ -157,6 +177,21 @@ int Run() {
       FLAGS_workspace_count > 1000000 || FLAGS_random_draws < 1 || FLAGS_random_draws > 10000) {
     std::cerr << "error: --candidate_count and --workspace_count must be in [1, 1000000], "
                  "--random_draws in [1, 10000]\n";
+    return kExitUsage;
+  }
+  // The joint-space terms, compliance first as lpoe_calibrate orders them (docs/joint_errors.md).
+  std::vector<std::string> term_names;
+  if (FLAGS_joint_errors == "auto") {
+    term_names = JointTermNames();
+  } else if (std::vector<JointErrorKind> kinds; ParseJointErrorKinds(FLAGS_joint_errors, &kinds)) {
+    for (JointErrorKind k : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
+      if (std::find(kinds.begin(), kinds.end(), k) != kinds.end()) {
+        term_names.push_back(JointErrorKindName(k));
+      }
+    }
+  } else {
+    std::cerr << "error: --joint_errors must be none, compliance, harmonics, "
+                 "compliance,harmonics or auto\n";
     return kExitUsage;
   }
   PlanConstraints constraints;
@@ -245,14 +280,44 @@ int Run() {
     return kExitInput;
   }
 
-  const PlanningModel pm(model);
-  const CandidatePool pool = BuildCandidatePool(pm, candidates, constraints);
+  std::vector<std::shared_ptr<const JointTerm>> terms;
+  for (const std::string& name : term_names) {
+    std::shared_ptr<const JointTerm> term;
+    if (Status s = MakeJointTerm(name, model, &term); !s.ok()) {
+      std::cerr << "error: " << FLAGS_model << ": " << s.message() << "\n";
+      return kExitInput;
+    }
+    terms.push_back(std::move(term));
+  }
+
+  // The feasible candidates; with joint-space terms, their identifiable combinations are those the
+  // feasible candidates separate from the geometry (the solvers' reduction), and the pool's rows
+  // gain their columns.
+  const PlanningModel geometric(model);
+  CandidatePool pool = BuildCandidatePool(geometric, candidates, constraints);
+  std::unique_ptr<PlanningModel> with_terms;
+  if (!terms.empty()) {
+    with_terms = std::make_unique<PlanningModel>(model, terms, pool.q);
+    CandidatePool full = BuildCandidatePool(*with_terms, pool.q, constraints);
+    CHECK_EQ(full.size(), pool.size());
+    full.source = pool.source;
+    full.outside_limits = pool.outside_limits;
+    full.near_singular = pool.near_singular;
+    full.nothing_visible = pool.nothing_visible;
+    pool = std::move(full);
+  }
+  const PlanningModel& pm = with_terms ? *with_terms : geometric;
   const int offered = static_cast<int>(candidates.size() / model.num_joints());
   std::cout << "candidates: " << offered << " offered, " << pool.size() << " feasible ("
             << pool.outside_limits << " outside the joint limits, " << pool.near_singular
             << " near a singularity, " << pool.nothing_visible << " with no SMR visible)\n";
   std::cout << "parameters: " << pm.num_parameters() << " identifiable (" << model.num_joints()
-            << " joints, " << model.num_tools() << " tools)\n";
+            << " joints, " << model.num_tools() << " tools";
+  for (const JointBlock& block : pm.parameterization().joint_blocks) {
+    std::cout << ", " << block.term->name() << " " << block.basis.cols() << " of "
+              << block.term->num_parameters();
+  }
+  std::cout << ")\n";
   const Eigen::MatrixXd L = WorkspaceMoment(pm, workspace);
 
   // The plan, or for --count=auto the smallest plan predicted to reach the target.
@@ -346,10 +411,16 @@ int Run() {
   }
 
   // The plan CSV.
+  std::string planned_terms;
+  for (const std::string& name : term_names) {
+    planned_terms += (planned_terms.empty() ? "" : ",") + name;
+  }
+  if (planned_terms.empty()) planned_terms = "none";
   std::string csv;
   csv += "# lpoe_plan: model " + model.name + ", criterion " + PlanCriterionName(options.criterion) +
          ", " + std::to_string(count) + " of " + std::to_string(pool.size()) +
-         " feasible candidates, seed " + std::to_string(FLAGS_seed) + "; joint values in " +
+         " feasible candidates, joint errors " + planned_terms + ", seed " +
+         std::to_string(FLAGS_seed) + "; joint values in " +
          FLAGS_angle_unit + "\n";
   csv += "# measure every SMR at every pose; predicted held-out RMS per unit noise " +
          FormatNumber(quality.predicted_rms) + "\n";
@@ -383,6 +454,7 @@ int Run() {
       {"count_auto", automatic},
       {"seed", FLAGS_seed},
       {"parameters", pm.num_parameters()},
+      {"joint_errors", JointErrorsJson(pm)},
       {"candidates",
        {{"offered", offered},
         {"feasible", pool.size()},

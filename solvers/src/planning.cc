@@ -1,12 +1,14 @@
 #include "lpoe/planning.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <memory>
 #include <numeric>
-#include <utility>
 #include <random>
+#include <thread>
+#include <utility>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -16,6 +18,8 @@
 
 #include "identifiability.h"
 #include "lpoe/analysis.h"
+#include "lpoe/linear_solver.h"
+#include "lpoe/measurements.h"
 
 namespace lpoe {
 namespace {
@@ -31,6 +35,35 @@ constexpr double kTranslationErrorScale = 1.0;  // mm
 constexpr double kRegularization = 1e-6;
 // A joint value may exceed its limit by this much (round-off of a written file).
 constexpr double kLimitTolerance = 1e-9;
+// O3 scaling of a joint-space combination: the value that moves the tools by this much (RMS, mm)
+// over the reference configurations (the simulator's small arm: compliance 0.5 mm, harmonics
+// 0.08 mm at the tool, docs/joint_errors.md).
+constexpr double kJointErrorEffectScale = 0.1;  // mm
+
+// The frame directions identifiable from positions, then the joint-space terms reduced as the
+// solvers reduce them on the data `reference` (every tool at every configuration).
+Parameterization PlanningParameterization(
+    const RobotModel& model, const std::vector<std::shared_ptr<const JointTerm>>& terms,
+    const std::vector<double>& reference) {
+  if (terms.empty()) {
+    return MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
+  }
+  const int n = model.num_joints();
+  CHECK_EQ(reference.size() % std::max(n, 1), 0u);
+  const int count = static_cast<int>(reference.size() / std::max(n, 1));
+  MeasurementSet data(n);
+  data.Reserve(count * model.num_tools());
+  for (int r = 0; r < count; ++r) {
+    for (int t = 0; t < model.num_tools(); ++t) {
+      data.Add(reference.data() + static_cast<size_t>(r) * n, Eigen::Vector3d::Zero(), t);
+    }
+  }
+  const LinearSolverOptions solver_defaults;
+  return internal::SolverParameterization(model, data, ParameterizationKind::kIdentifiable,
+                                          /*use_orientation=*/false,
+                                          solver_defaults.orientation_weight, terms,
+                                          solver_defaults.joint_term_tolerance);
+}
 
 // Log-determinant of a symmetric positive definite matrix; -inf when it is not.
 double LogDetSpd(const Eigen::MatrixXd& M) {
@@ -88,14 +121,48 @@ Eigen::MatrixXd PsdFactor(const Eigen::MatrixXd& W) {
 
 enum class Objective { kLogDet, kTrace, kMinEigen };
 
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// Candidates per chunk of the parallel loops, and the fewest candidates worth a second thread.
+constexpr int kChunk = 256;
+constexpr int kMinCandidatesForThreads = 1000;
+
+// Calls fn(begin, end) over [0, n) in fixed chunks of kChunk on up to `max_threads` threads (0: the
+// hardware's). fn must write only the entries of its own chunk, computed from its own data alone:
+// the results are then the same, bit for bit, whatever the number of threads.
+template <typename Fn>
+void ForEachChunk(int n, int max_threads, const Fn& fn) {
+  const int chunks = (n + kChunk - 1) / kChunk;
+  const int hardware = max_threads > 0
+                           ? max_threads
+                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int threads = n < kMinCandidatesForThreads ? 1 : std::min(hardware, chunks);
+  auto run = [&](int k) { fn(k * kChunk, std::min(n, (k + 1) * kChunk)); };
+  if (threads <= 1) {
+    for (int k = 0; k < chunks; ++k) run(k);
+    return;
+  }
+  std::atomic<int> next(0);
+  auto worker = [&]() {
+    for (int k = next.fetch_add(1); k < chunks; k = next.fetch_add(1)) run(k);
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  worker();
+  for (std::thread& t : pool) t.join();
+}
+
 // The greedy / exchange state, in pool-scaled coordinates: M = delta I + sum of the plan's J^T J,
 // A = M^-1, and for every candidate c: S_c = J_c A J_c^T (its prediction variance, Fedorov's d(c))
-// and, for the trace criteria, Z_c = J_c A F with W = F F^T the trace weight.
+// and, for the trace criteria, Z_c = J_c A F with W = F F^T the trace weight. (Keeping
+// T_c = Z_c Z_c^T instead would be cheaper but squares the cancellation of the updates while M is
+// still dominated by delta I.) The rows J and Z are stored row-major so that a candidate's block
+// is contiguous and read once per update; the per-candidate work runs in parallel chunks.
 class Selector {
  public:
   Selector(const CandidatePool& pool, const Eigen::VectorXd& scale, Objective objective,
-           const Eigen::MatrixXd& weight)
-      : pool_(pool), objective_(objective), P_(pool.num_parameters) {
+           const Eigen::MatrixXd& weight, int num_threads)
+      : pool_(pool), objective_(objective), P_(pool.num_parameters), num_threads_(num_threads) {
     Js_ = pool.J * scale.asDiagonal();
     if (objective_ == Objective::kTrace) {
       W_ = weight;
@@ -103,7 +170,6 @@ class Selector {
     }
     max_rows_ = 0;
     for (int c = 0; c < pool.size(); ++c) max_rows_ = std::max(max_rows_, pool.rows(c));
-    scratch_.resize(max_rows_ * max_rows_ + max_rows_);
     M_ = kRegularization * Eigen::MatrixXd::Identity(P_, P_);
     A_ = Eigen::MatrixXd::Identity(P_, P_) / kRegularization;
     in_plan_.assign(pool.size(), 0);
@@ -124,27 +190,34 @@ class Selector {
     return 0;
   }
 
-  // Improvement of the criterion when candidate c is added (greedy; from the maintained S, Z):
-  // log det(I + S_c), or trace((I + S_c)^-1 Z_c Z_c^T).
-  double AddGain(int c) const {
+  // Improvement of the criterion when candidate c is added (greedy; from the maintained S, T):
+  // log det(I + S_c), or trace((I + S_c)^-1 Z_c Z_c^T). `scratch`: 2 r^2 + P doubles.
+  double AddGain(int c, double* scratch) const {
     const int r = pool_.rows(c);
     const int o = pool_.row_offset[c];
-    double* K = scratch_.data();
+    double* K = scratch;
     for (int j = 0; j < r; ++j) {
       for (int i = 0; i < r; ++i) K[i + j * r] = S_(o + i, j) + (i == j ? 1.0 : 0.0);
     }
     if (!CholeskyInPlace(K, r)) return -kInf;
     if (objective_ == Objective::kTrace) {
-      // |C^-1 Z_c|_F^2 with K = C C^T.
-      double sum = 0;
-      double* y = scratch_.data() + r * r;
-      for (int col = 0; col < P_; ++col) {
-        for (int i = 0; i < r; ++i) {
-          double v = Z_(o + i, col);
-          for (int k = 0; k < i; ++k) v -= K[i + k * r] * y[k];
-          y[i] = v / K[i + i * r];
-          sum += y[i] * y[i];
+      // |C^-1 Z_c|_F^2 with K = C C^T: invert the r x r factor, then each row of C^-1 Z_c is a
+      // combination of the contiguous rows of Z_c (vectorized over P, no division in the loop).
+      double* Ci = scratch + r * r;  // lower triangle of C^-1, column-major
+      for (int j = 0; j < r; ++j) {
+        Ci[j + j * r] = 1.0 / K[j + j * r];
+        for (int i = j + 1; i < r; ++i) {
+          double v = 0;
+          for (int k = j; k < i; ++k) v -= K[i + k * r] * Ci[k + j * r];
+          Ci[i + j * r] = v / K[i + i * r];
         }
+      }
+      Eigen::Map<Eigen::RowVectorXd> y(scratch + 2 * r * r, P_);
+      double sum = 0;
+      for (int i = 0; i < r; ++i) {
+        y = Ci[i] * Z_.row(o);
+        for (int k = 1; k <= i; ++k) y += Ci[i + k * r] * Z_.row(o + k);
+        sum += y.squaredNorm();
       }
       return sum;
     }
@@ -189,7 +262,7 @@ class Selector {
     Eigen::MatrixXd G(m, m);
     G.topLeftCorner(rc, rc) = S_.block(oc, 0, rc, rc);
     G.bottomRightCorner(rs, rs) = S_.block(os, 0, rs, rs);
-    G.topRightCorner(rc, rs).noalias() = Js_.middleRows(oc, rc) * u_;
+    G.topRightCorner(rc, rs).noalias() = Js_.middleRows(oc, rc).lazyProduct(u_);
     G.bottomLeftCorner(rs, rc) = G.topRightCorner(rc, rs).transpose();
     if (objective_ == Objective::kLogDet) {
       // det M' / det M = det(I + Sigma G).
@@ -207,7 +280,9 @@ class Selector {
     return current + G.partialPivLu().solve(Zb * Zb.transpose()).trace();
   }
 
-  // M <- M + sign J_b^T J_b for candidate b, with the rank-r updates of A, S and Z.
+  // M <- M + sign J_b^T J_b for candidate b, with the rank-r updates of A, S and Z:
+  // U = A J_b^T, K = sign I + J_b U, A <- A - U K^-1 U^T, and per candidate c with V_c = J_c U:
+  // S_c <- S_c - V_c K^-1 V_c^T, Z_c <- Z_c - V_c K^-1 U^T F (one product per chunk).
   void Update(int b, double sign) {
     const int r = pool_.rows(b);
     const auto Jb = Js_.middleRows(pool_.row_offset[b], r);
@@ -218,29 +293,47 @@ class Selector {
     A_.noalias() -= U * Kinv * U.transpose();
     M_.noalias() += sign * (Jb.transpose() * Jb);
     in_plan_[b] = sign > 0;
-    // S_c <- S_c - V_c K^-1 V_c^T with V = J U; Z <- Z - V K^-1 U^T F.
-    V_.noalias() = Js_ * U;
-    VK_.noalias() = V_ * Kinv;
-    for (int c = 0; c < pool_.size(); ++c) {
-      const int o = pool_.row_offset[c];
-      const int rc = pool_.rows(c);
-      S_.block(o, 0, rc, rc).noalias() -= VK_.middleRows(o, rc) * V_.middleRows(o, rc).transpose();
-    }
-    if (objective_ == Objective::kTrace) Z_.noalias() -= VK_ * (U.transpose() * F_);
+    const bool trace = objective_ == Objective::kTrace;
+    Eigen::MatrixXd UtF;
+    if (trace) UtF = U.transpose() * F_;  // r x P
+    ForEachChunk(pool_.size(), num_threads_, [&](int begin, int end) {
+      const int o = pool_.row_offset[begin];
+      Eigen::MatrixXd V, VK_chunk(pool_.row_offset[end] - o, r);
+      for (int c = begin; c < end; ++c) {
+        const int oc = pool_.row_offset[c];
+        const int rc = pool_.rows(c);
+        V.noalias() = Js_.middleRows(oc, rc).lazyProduct(U);
+        auto VK = VK_chunk.middleRows(oc - o, rc);
+        VK.noalias() = V.lazyProduct(Kinv);
+        S_.block(oc, 0, rc, rc).noalias() -= VK.lazyProduct(V.transpose());
+      }
+      if (trace) Z_.middleRows(o, VK_chunk.rows()).noalias() -= VK_chunk * UtF;
+    });
   }
 
   // Recomputes A, S and Z from M (removes the drift of repeated updates).
   void Resync() {
     A_ = M_.llt().solve(Eigen::MatrixXd::Identity(P_, P_));
-    const Eigen::MatrixXd JA = Js_ * A_;
+    const bool trace = objective_ == Objective::kTrace;
     S_.setZero(Js_.rows(), max_rows_);
-    for (int c = 0; c < pool_.size(); ++c) {
-      const int o = pool_.row_offset[c];
-      const int rc = pool_.rows(c);
-      S_.block(o, 0, rc, rc).noalias() =
-          JA.middleRows(o, rc) * Js_.middleRows(o, rc).transpose();
+    Eigen::MatrixXd AF;
+    if (trace) {
+      Z_.resize(Js_.rows(), P_);
+      AF = A_ * F_;
     }
-    if (objective_ == Objective::kTrace) Z_ = JA * F_;
+    ForEachChunk(pool_.size(), num_threads_, [&](int begin, int end) {
+      const int o = pool_.row_offset[begin];
+      const int rows = pool_.row_offset[end] - o;
+      const auto Jchunk = Js_.middleRows(o, rows);
+      const RowMatrix JA = Jchunk * A_;
+      for (int c = begin; c < end; ++c) {
+        const int oc = pool_.row_offset[c];
+        const int rc = pool_.rows(c);
+        S_.block(oc, 0, rc, rc).noalias() =
+            JA.middleRows(oc - o, rc).lazyProduct(Js_.middleRows(oc, rc).transpose());
+      }
+      if (trace) Z_.middleRows(o, rows).noalias() = Jchunk * AF;
+    });
   }
 
   // Ranking for the exchange shortlist: the greedy gain, or for the minimum eigenvalue the
@@ -256,26 +349,28 @@ class Selector {
       }
       return;
     }
-    for (int c = 0; c < pool_.size(); ++c) {
-      if (!in_plan(c)) (*score)[c] = AddGain(c);
-    }
+    ForEachChunk(pool_.size(), num_threads_, [&](int begin, int end) {
+      std::vector<double> scratch(2 * max_rows_ * max_rows_ + P_);
+      for (int c = begin; c < end; ++c) {
+        if (!in_plan(c)) (*score)[c] = AddGain(c, scratch.data());
+      }
+    });
   }
 
  private:
   const CandidatePool& pool_;
   Objective objective_;
   int P_;
+  int num_threads_;
   int max_rows_ = 0;
-  Eigen::MatrixXd Js_;  // scaled rows of every candidate
+  RowMatrix Js_;  // scaled rows of every candidate
   Eigen::MatrixXd W_, F_;
   Eigen::MatrixXd M_, A_;
-  Eigen::MatrixXd S_;  // block c at rows [o_c, o_c + r_c), columns [0, r_c)
-  Eigen::MatrixXd Z_;
-  Eigen::MatrixXd V_, VK_;  // scratch of Update
+  RowMatrix S_;  // block c at rows [o_c, o_c + r_c), columns [0, r_c)
+  RowMatrix Z_;
   std::vector<char> in_plan_;
   int removal_ = -1;
   Eigen::MatrixXd u_;
-  mutable std::vector<double> scratch_;
 };
 
 }  // namespace
@@ -317,18 +412,63 @@ PlanningModel::PlanningModel(const RobotModel& model)
           MakeParameterization(model_, ParameterizationKind::kIdentifiable, DataKind::kPosition)),
       basis_(model_, parameterization_) {}
 
+PlanningModel::PlanningModel(const RobotModel& model,
+                             const std::vector<std::shared_ptr<const JointTerm>>& terms,
+                             const std::vector<double>& reference)
+    : model_(model),
+      parameterization_(PlanningParameterization(model_, terms, reference)),
+      basis_(model_, parameterization_) {
+  // O3's scale of the joint-space combinations: RMS tool effect of each column over the reference.
+  const int frames = parameterization_.num_frame_parameters();
+  const int k = num_joint_parameters();
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(k);
+  const int n = model_.num_joints();
+  const int count = n > 0 ? static_cast<int>(reference.size() / n) : 0;
+  std::vector<int> all(model_.num_tools());
+  std::iota(all.begin(), all.end(), 0);
+  Eigen::MatrixXd J;
+  for (int r = 0; r < count && k > 0; ++r) {
+    Rows(reference.data() + static_cast<size_t>(r) * n, all, &J);
+    sum += J.rightCols(k).colwise().squaredNorm().transpose();
+  }
+  joint_error_scale_.resize(k);
+  const double rows = std::max(1, count * model_.num_tools());
+  for (int j = 0; j < k; ++j) {
+    const double rms = std::sqrt(sum(j) / rows);
+    joint_error_scale_(j) = rms > 0 ? kJointErrorEffectScale / rms : 1.0;
+  }
+  CHECK_EQ(frames + k, num_parameters());
+}
+
 void PlanningModel::Rows(const double* q, const std::vector<int>& tools, Eigen::MatrixXd* J) const {
   const int rows = 3 * static_cast<int>(tools.size());
   J->resize(rows, num_parameters());
-  std::vector<FrameRt> frames(model_.num_joints() + 1);
+  const int n = model_.num_joints();
+  std::vector<FrameRt> frames(n + 1);
+  const std::vector<JointBlock>& blocks = parameterization_.joint_blocks;
+  // Y(q) basis per block (num_joints x k_b): the same for every tool.
+  std::vector<Eigen::MatrixXd> Yb(blocks.size());
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    Eigen::MatrixXd Y(n, blocks[b].term->num_parameters());
+    blocks[b].term->Regressor(q, Y.data());
+    Yb[b] = Y * blocks[b].basis;
+  }
+  Eigen::Matrix<double, 3, Eigen::Dynamic> J_q(3, n);
   for (size_t k = 0; k < tools.size(); ++k) {
     basis_.Position(q, tools[k], J->data() + 3 * k, rows, frames.data());
+    if (blocks.empty()) continue;
+    basis_.PositionJointJacobian(frames.data(), J_q.data(), 3);
+    for (size_t b = 0; b < blocks.size(); ++b) {
+      J->block(3 * k, blocks[b].offset, 3, Yb[b].cols()).noalias() = J_q * Yb[b];
+    }
   }
 }
 
 Eigen::VectorXd PlanningModel::ErrorScale() const {
   Eigen::VectorXd e(num_parameters());
-  for (int j = 0; j < num_parameters(); ++j) {
+  const int frames = parameterization_.num_frame_parameters();
+  e.tail(num_joint_parameters()) = joint_error_scale_;
+  for (int j = 0; j < frames; ++j) {
     const auto& v = parameterization_.parameters[j].vector;
     e(j) = std::hypot(kRotationErrorScale * v.head<3>().norm(),
                       kTranslationErrorScale * v.tail<3>().norm());
@@ -574,7 +714,8 @@ Status SelectPlan(const PlanningModel& pm, const CandidatePool& pool, int count,
   // minimum-eigenvalue criteria start from the D-greedy plan (lambda_min stays 0 until M has full
   // rank). (Lazy evaluation does not pay here: the gains of a random pool drop together.)
   auto local_owner = std::make_unique<Selector>(
-      pool, scale, objective == Objective::kMinEigen ? Objective::kLogDet : objective, weight);
+      pool, scale, objective == Objective::kMinEigen ? Objective::kLogDet : objective, weight,
+      options.num_threads);
   local_owner->Resync();
   result->selected.clear();
   std::vector<double> gains;
@@ -595,7 +736,7 @@ Status SelectPlan(const PlanningModel& pm, const CandidatePool& pool, int count,
 
   // Exchange: swap each plan member for the best of the shortlist while the criterion improves.
   if (objective == Objective::kMinEigen) {
-    local_owner = std::make_unique<Selector>(pool, scale, objective, weight);
+    local_owner = std::make_unique<Selector>(pool, scale, objective, weight, options.num_threads);
     for (int c : result->selected) local_owner->AddOnly(c);
   }
   Selector& local = *local_owner;

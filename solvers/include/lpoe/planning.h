@@ -21,17 +21,20 @@
 // M_s = D M D is M with Jacobi column scaling (D from the candidate pool), m the number of rows. The
 // selection is greedy (one pose at a time, the best gain) followed by an exchange (Fedorov / DETMAX):
 // each planned pose is swapped for the best of a shortlist of candidates while the criterion improves.
-// Rank-r updates of M^-1 (r = 3 x visible tools) keep a greedy step at one (rows x P x r) product.
+// Rank-r updates of M^-1 (r = 3 x visible tools) keep a greedy step at one (rows x P x r) product,
+// split over the cores by candidate.
 #ifndef LPOE_PLANNING_H_
 #define LPOE_PLANNING_H_
 
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/robot_model.h"
@@ -45,30 +48,43 @@ const char* PlanCriterionName(PlanCriterion criterion);
 bool ParsePlanCriterion(const std::string& text, PlanCriterion* criterion);
 
 // The parameters a plan identifies and the rows one pose contributes. This is the only place that
-// decides the parameter blocks: joint-space error terms (dq = Y(q) theta) become extra columns of
-// Rows() when they exist.
+// decides the parameter blocks: the identifiable frame directions, then, when joint-space error
+// terms (dq = Y(q) theta, joint_term.h) are given, one block per term with the columns
+// J_q(q) Y(q) basis that the solvers use (measurement_model.h PredictPositionJacobian).
 class PlanningModel {
  public:
   explicit PlanningModel(const RobotModel& model);
+  // With joint-space error terms (built for `model`, in the order the calibration will use them):
+  // each term keeps the combinations of its parameters that the configurations `reference`
+  // (row-major, every tool measured at each; normally the feasible candidates) separate from the
+  // geometry and from the earlier terms: the reduction both solvers make (with the linear solver's
+  // default tolerance), so that a plan identifies what the calibration will solve.
+  PlanningModel(const RobotModel& model, const std::vector<std::shared_ptr<const JointTerm>>& terms,
+                const std::vector<double>& reference);
   PlanningModel(const PlanningModel&) = delete;
   PlanningModel& operator=(const PlanningModel&) = delete;
 
   const RobotModel& model() const { return model_; }
   const Parameterization& parameterization() const { return parameterization_; }
   int num_parameters() const { return parameterization_.num_parameters; }
+  // Of num_parameters(): the joint-space combinations (after the frame parameters).
+  int num_joint_parameters() const { return parameterization_.num_joint_parameters(); }
 
-  // The position Jacobians (eq. (29), restricted to the identifiable directions) of the listed tools
-  // at q, stacked: 3 rows per tool, num_parameters() columns.
+  // The position Jacobians (eq. (29), restricted to the identifiable directions, and the
+  // joint-space columns J_q(q) Y(q) basis) of the listed tools at q, stacked: 3 rows per tool,
+  // num_parameters() columns.
   void Rows(const double* q, const std::vector<int>& tools, Eigen::MatrixXd* J) const;
 
   // Expected parameter error magnitude of each parameter (O3's scaling): 1e-3 rad per unit of
-  // rotation and 1 mm per unit of translation in its direction.
+  // rotation and 1 mm per unit of translation in its direction; for a joint-space combination the
+  // value that moves the tools by 0.1 mm RMS over the reference configurations.
   Eigen::VectorXd ErrorScale() const;
 
  private:
   RobotModel model_;
   Parameterization parameterization_;
   BasisJacobian basis_;
+  Eigen::VectorXd joint_error_scale_;  // ErrorScale of the joint-space combinations
 };
 
 // ---- Constraints of the cell.
@@ -166,6 +182,9 @@ struct PlanOptions {
   PlanCriterion criterion = PlanCriterion::kD;
   int max_exchange_passes = 4;  // passes over the plan; stops early at a pass without improvement
   int shortlist = 64;           // candidates tried per exchange (the largest variances d(c))
+  // Threads for the per-candidate updates (0: one per hardware thread). The plan does not depend
+  // on it: every candidate's terms are computed alone, in fixed chunks.
+  int num_threads = 0;
 };
 
 struct PlanResult {
