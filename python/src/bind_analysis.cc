@@ -17,6 +17,7 @@
 
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/planning.h"
 #include "lpoe/problem_builder.h"
@@ -303,8 +304,17 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
             int candidate_count, const py::object& workspace_obj, int workspace_count,
             uint64_t seed, const std::string& criterion, const py::object& tracker_obj,
             double max_range, double acceptance_angle, const py::object& smr_facing_obj,
-            double min_singularity, int random_draws) {
+            double min_singularity, int random_draws, const std::string& joint_errors) {
   Check(model.Validate());
+  // As lpoe_plan --joint_errors: 'auto' plans for every term the calibration may choose.
+  const std::vector<std::string> term_names =
+      joint_errors == "auto" ? JointTermNames() : JointErrorNames(joint_errors);
+  std::vector<std::shared_ptr<const JointTerm>> terms;
+  for (const std::string& name : term_names) {
+    std::shared_ptr<const JointTerm> term;
+    Check(MakeJointTerm(name, model, &term));
+    terms.push_back(std::move(term));
+  }
   const int n = model.num_joints();
   PlanOptions options;
   if (!ParsePlanCriterion(criterion, &options.criterion)) {
@@ -368,8 +378,21 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
   Status status;
   {
     py::gil_scoped_release release;
-    const PlanningModel pm(model);
-    const CandidatePool pool = BuildCandidatePool(pm, candidates, constraints);
+    // With joint-space terms their identifiable combinations are those the feasible candidates
+    // separate from the geometry (as lpoe_plan builds them).
+    const PlanningModel geometric(model);
+    CandidatePool pool = BuildCandidatePool(geometric, candidates, constraints);
+    std::unique_ptr<PlanningModel> with_terms;
+    if (!terms.empty()) {
+      with_terms = std::make_unique<PlanningModel>(model, terms, pool.q);
+      CandidatePool full = BuildCandidatePool(*with_terms, pool.q, constraints);
+      full.source = pool.source;
+      full.outside_limits = pool.outside_limits;
+      full.near_singular = pool.near_singular;
+      full.nothing_visible = pool.nothing_visible;
+      pool = std::move(full);
+    }
+    const PlanningModel& pm = with_terms ? *with_terms : geometric;
     const Eigen::MatrixXd L = WorkspaceMoment(pm, workspace);
     PlanResult plan;
     status = SelectPlan(pm, pool, count, L, options, &plan);
@@ -635,11 +658,12 @@ void BindAnalysis(py::module_& m) {
         py::arg("seed") = 1, py::arg("criterion") = "D", py::arg("tracker") = py::none(),
         py::arg("max_range") = 0.0, py::arg("acceptance_angle") = 30.0,
         py::arg("smr_facing") = py::none(), py::arg("min_singularity") = 0.01,
-        py::arg("random_draws") = 30,
+        py::arg("random_draws") = 30, py::arg("joint_errors") = "none",
         "chooses `count` poses to measure (as lpoe_plan): candidates (C, N) rad/mm or "
         "candidate_count sampled within the limits; criterion D | A | E | I | O1 | O3; optional "
         "tracker (3,) mm with max_range (mm), acceptance_angle (degrees), smr_facing (3,) or "
-        "(tools, 3).");
+        "(tools, 3); joint_errors as lpoe_plan's (the terms' identifiable combinations join the "
+        "parameters to determine).");
 }
 
 }  // namespace python

@@ -136,6 +136,12 @@ def test_plan_beats_random_plans(inputs):
     cand = np.random.default_rng(3).uniform(-np.pi, np.pi, size=(300, 6))
     p2 = lpoe.plan(m, 25, candidates=cand, criterion="A", random_draws=3)
     np.testing.assert_array_equal(cand[p2.candidate_rows], p2.q)
+    # Planning for the harmonics too: more parameters to determine, still full rank.
+    p3 = lpoe.plan(m, 40, candidate_count=600, workspace_count=200, random_draws=3,
+                   joint_errors="harmonics")
+    assert p3.num_parameters > 27 and p3.quality["rank"] == p3.num_parameters
+    with pytest.raises(lpoe.Error, match="joint_errors"):
+        lpoe.plan(m, 10, joint_errors="backlash")
     with pytest.raises(lpoe.Error, match="criterion"):
         lpoe.plan(m, 10, criterion="Z")
     with pytest.raises(lpoe.Error, match="tracker"):
