@@ -378,21 +378,10 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
   Status status;
   {
     py::gil_scoped_release release;
-    // With joint-space terms their identifiable combinations are those the feasible candidates
-    // separate from the geometry (as lpoe_plan builds them).
-    const PlanningModel geometric(model);
-    CandidatePool pool = BuildCandidatePool(geometric, candidates, constraints);
-    std::unique_ptr<PlanningModel> with_terms;
-    if (!terms.empty()) {
-      with_terms = std::make_unique<PlanningModel>(model, terms, pool.q);
-      CandidatePool full = BuildCandidatePool(*with_terms, pool.q, constraints);
-      full.source = pool.source;
-      full.outside_limits = pool.outside_limits;
-      full.near_singular = pool.near_singular;
-      full.nothing_visible = pool.nothing_visible;
-      pool = std::move(full);
-    }
-    const PlanningModel& pm = with_terms ? *with_terms : geometric;
+    CandidatePool pool;
+    const std::unique_ptr<PlanningModel> planning =
+        BuildPlanningPool(model, terms, candidates, constraints, &pool);
+    const PlanningModel& pm = *planning;
     const Eigen::MatrixXd L = WorkspaceMoment(pm, workspace);
     PlanResult plan;
     status = SelectPlan(pm, pool, count, L, options, &plan);
