@@ -388,6 +388,32 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
   }
   for (const Json& w : idj["warnings"]) h += "<p class=\"flag\">warning: " + Esc(Str(w)) + "</p>\n";
 
+  // ---- Joint-space error terms (docs/joint_errors.md): identified combinations, auto's choice.
+  const Json& je = j["joint_errors"];
+  if (!je["terms"].empty() || !je["selection"].is_null()) {
+    h += "<h2>Joint errors</h2>\n";
+    for (const Json& t : je["terms"]) {
+      h += "<p>" + Esc(Str(t["name"])) + ": " + Str(t["parameters"]) + " parameters, " +
+           Str(t["identified_combinations"]) + " identifiable combinations (" +
+           std::to_string(t["not_identifiable"].size()) + " left out, listed above).</p>\n";
+    }
+    const Json& sel = je["selection"];
+    if (!sel.is_null()) {
+      h += "<p>Chosen by " + Str(sel["folds"]) + "-fold cross-validation: <b>" +
+           Esc(Str(sel["chosen"])) + "</b> (" + Esc(Str(sel["reason"])) + ").</p>\n<table>\n" +
+           "<tr><th>terms</th><th>combinations</th><th>CV rms [mm]</th><th>CV mse [mm&sup2;]</th>"
+           "<th>std error</th></tr>\n";
+      for (const Json& c : sel["candidates"]) {
+        h += "<tr><td>" + Esc(Str(c["terms"])) + "</td><td>" + Str(c["identified_combinations"]) +
+             "</td><td>" + (c["converged"].get<bool>() ? Fmt("%.5f", c["cv_rms"].get<double>())
+                                                      : std::string("failed")) +
+             "</td><td>" + Sci(c["cv_mse"]) + "</td><td>" + Sci(c["cv_mse_standard_error"]) +
+             "</td></tr>\n";
+      }
+      h += "</table>\n";
+    }
+  }
+
   // ---- Outliers.
   const Json& outl = j["outliers"];
   h += "<h2>Outliers</h2>\n";

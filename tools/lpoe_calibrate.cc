@@ -68,8 +68,11 @@ DEFINE_string(solver, "linear",
               "manifolds (robust losses, a-priori covariance).");
 DEFINE_string(joint_errors, "none",
               "Joint-space error terms identified with the geometry: none | compliance | harmonics "
-              "| compliance,harmonics (gravity and payload from the model; the identified values "
-              "are written to the model's joint_errors). 'auto' is not implemented yet.");
+              "| compliance,harmonics | auto (gravity and payload from the model; the identified "
+              "values are written to the model's joint_errors). auto: k-fold cross-validation on "
+              "the identification rows (--kfold folds, 5 when not given; --split_seed) picks the "
+              "simplest set within one standard error of the lowest held-out error "
+              "(docs/joint_errors.md).");
 DEFINE_string(loss, "none",
               "Ceres solver: robust loss against gross errors in the data: none | huber | cauchy.");
 DEFINE_double(loss_scale, 1.0,
@@ -142,6 +145,8 @@ PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_ori
   o.use_orientation = use_orientation;
   o.register_frames = FLAGS_register;
   std::vector<JointErrorKind> kinds;
+  o.joint_errors_auto = FLAGS_joint_errors == "auto";
+  o.joint_error_folds = FLAGS_kfold >= 2 ? FLAGS_kfold : 5;
   if (ParseJointErrorKinds(FLAGS_joint_errors, &kinds)) {
     // Compliance first (docs/joint_errors.md): it keeps the combinations both terms could explain.
     for (JointErrorKind k : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
@@ -275,14 +280,10 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  if (FLAGS_joint_errors == "auto") {
-    std::cerr << "error: --joint_errors=auto (choosing the terms by cross-validation) is not "
-                 "implemented yet; give none, compliance, harmonics or compliance,harmonics\n";
-    return kExitUsage;
-  }
-  if (std::vector<JointErrorKind> kinds; !ParseJointErrorKinds(FLAGS_joint_errors, &kinds)) {
-    std::cerr << "error: --joint_errors must be none, compliance, harmonics or "
-                 "compliance,harmonics, got '"
+  if (std::vector<JointErrorKind> kinds;
+      FLAGS_joint_errors != "auto" && !ParseJointErrorKinds(FLAGS_joint_errors, &kinds)) {
+    std::cerr << "error: --joint_errors must be none, compliance, harmonics, "
+                 "compliance,harmonics or auto, got '"
               << FLAGS_joint_errors << "'\n";
     return kExitUsage;
   }
@@ -405,6 +406,11 @@ int Run() {
   const PipelineResult run =
       RunCalibrationPipeline(nominal, identification, verification, options);
   const CalibrationResult& result = run.result;
+  summary.joint_errors_requested = FLAGS_joint_errors;
+  summary.joint_error_selection = run.joint_error_selection;
+  if (run.joint_error_selection.ran) {
+    std::cerr << tools::JointErrorSelectionTable(run.joint_error_selection);
+  }
   summary.registered = run.registered;
   summary.registration = run.registration;
   if (run.registered && result.termination != Termination::kNotIdentifiable) {
@@ -428,6 +434,7 @@ int Run() {
   summary.result = result;
   summary.identifiability = run.identifiability;
   PrintIdentifiability(summary.identifiability);
+  std::cout << tools::JointTermsIdentifiability(result);
   std::cout << "\n";
   tools::PrintIterationTable(std::cout, result);
   std::cout << "\n";
@@ -527,6 +534,13 @@ int Run() {
   }
   UrdfOverlayOptions overlay;
   overlay.in_measurement_frame = run.registered && run.registration.moved;
+  if (!FLAGS_urdf_output.empty() && staged.ok() && !result.model.joint_errors.empty()) {
+    std::cerr << "warning: --urdf_output: URDF cannot hold the identified joint-error terms ("
+              << tools::JointErrorTermNames(result.model)
+              << "); they are dropped from " << FLAGS_urdf_output
+              << ", which carries the geometry alone. Predict or compensate with the YAML model "
+                 "(--output; lpoe_predict, lpoe_compensate), which keeps them\n";
+  }
   if (!FLAGS_urdf_output.empty() && staged.ok()) {
     std::string xml;
     if (from_urdf) {

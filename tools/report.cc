@@ -8,6 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "plot.h"
 
@@ -71,6 +73,47 @@ const SE3d& FrameOrigin(const RobotModel& m, int f) {
 
 Json BuildJson(const RunSummary& s);
 
+// The joint-error terms: what was asked, the auto choice, and each term's identifiable combinations.
+Json JointErrorsJson(const RunSummary& s) {
+  Json terms = Json::array();
+  const Parameterization& par = s.result.parameterization;
+  for (size_t b = 0; b < par.joint_blocks.size(); ++b) {
+    const JointBlock& block = par.joint_blocks[b];
+    Json lost = Json::array();
+    for (const Direction& d : par.unidentifiable) {
+      if (d.joint_block == static_cast<int>(b)) lost.push_back({{"name", d.name}, {"reason", d.reason}});
+    }
+    terms.push_back({{"name", block.term->name()},
+                     {"parameters", block.term->num_parameters()},
+                     {"identified_combinations", block.basis.cols()},
+                     {"not_identifiable", lost}});
+  }
+  Json j = {{"requested", s.joint_errors_requested}, {"terms", terms}};
+  const JointErrorSelection& sel = s.joint_error_selection;
+  if (!sel.ran) {
+    j["selection"] = nullptr;
+    return j;
+  }
+  Json candidates = Json::array();
+  for (const JointErrorCandidate& c : sel.candidates) {
+    candidates.push_back({{"terms", c.label},
+                          {"converged", c.ok},
+                          {"failure", c.failure},
+                          {"identified_combinations", c.parameters},
+                          {"cv_rms", c.cv_rms},
+                          {"cv_mse", c.cv_mse},
+                          {"cv_mse_standard_error", c.cv_mse_se},
+                          {"fold_rms", c.fold_rms}});
+  }
+  j["selection"] = {{"folds", sel.folds},
+                    {"seed", sel.seed},
+                    {"candidates", candidates},
+                    {"best", sel.candidates[sel.best < 0 ? sel.chosen : sel.best].label},
+                    {"chosen", sel.candidates[sel.chosen].label},
+                    {"reason", sel.reason}};
+  return j;
+}
+
 }  // namespace
 
 void AddPointResiduals(const RobotModel& before, const RobotModel& after,
@@ -86,13 +129,59 @@ void AddPointResiduals(const RobotModel& before, const RobotModel& after,
       p.target = data.target(r);
       p.measured = data.position(r);
       p.before = p.measured - ToolPosition(before, data.q(r), p.target);
-      p.after = p.measured - ToolPosition(after, data.q(r), p.target);
+      p.after = p.measured - PredictToolPosition(after, data.q(r), p.target);  // joint errors too
       p.q.assign(data.q(r), data.q(r) + data.num_joints());
       out->push_back(std::move(p));
     }
   };
   fill(identification, &summary->identification_points);
   fill(verification, &summary->verification_points);
+}
+
+std::string JointErrorSelectionTable(const JointErrorSelection& sel) {
+  std::string out = "joint errors (auto): " + std::to_string(sel.folds) +
+                    "-fold cross-validation on the identification rows (seed " +
+                    std::to_string(sel.seed) + "), held-out position error\n" +
+                    "  terms                  combinations   CV rms (mm)   CV mse (mm^2)   "
+                    "std error\n";
+  char line[256];
+  for (size_t k = 0; k < sel.candidates.size(); ++k) {
+    const JointErrorCandidate& c = sel.candidates[k];
+    if (!c.ok) {
+      std::snprintf(line, sizeof(line), "  %-22s %12d   FAILED: %s\n", c.label.c_str(),
+                    c.parameters, c.failure.c_str());
+    } else {
+      std::snprintf(line, sizeof(line), "  %-22s %12d   %11.5f   %13.6g   %9.3g%s\n",
+                    c.label.c_str(), c.parameters, c.cv_rms, c.cv_mse, c.cv_mse_se,
+                    static_cast<int>(k) == sel.chosen ? "   <- chosen" : "");
+    }
+    out += line;
+  }
+  out += "  " + sel.reason + "\n";
+  return out;
+}
+
+std::string JointErrorTermNames(const RobotModel& model) {
+  std::string out;
+  if (!model.joint_errors.compliance.empty()) out += "compliance";
+  if (!model.joint_errors.harmonics.empty()) out += out.empty() ? "harmonics" : ", harmonics";
+  return out;
+}
+
+std::string JointTermsIdentifiability(const CalibrationResult& result) {
+  std::string out;
+  const Parameterization& par = result.parameterization;
+  for (size_t b = 0; b < par.joint_blocks.size(); ++b) {
+    const JointBlock& block = par.joint_blocks[b];
+    out += "  joint-space term " + block.term->name() + ": " +
+           std::to_string(block.term->num_parameters()) + " parameters, " +
+           std::to_string(block.basis.cols()) + " identifiable combinations";
+    int lost = 0;
+    for (const Direction& d : par.unidentifiable) lost += d.joint_block == static_cast<int>(b);
+    if (lost > 0) out += " (" + std::to_string(lost) + " left out, listed above)";
+    out += "\n";
+  }
+  return out;
 }
 
 std::string RunSummaryToJson(const RunSummary& s) { return BuildJson(s).dump(2) + "\n"; }
@@ -285,6 +374,7 @@ Json BuildJson(const RunSummary& s) {
                      {"verification_after", StatsJson(f.verification_after)}});
   }
   j["cross_validation"] = folds;
+  j["joint_errors"] = JointErrorsJson(s);
   Json frames = Json::array();
   for (const Joint& jt : s.result.model.joints) {
     frames.push_back({{"name", jt.name}, {"origin", PoseJson(jt.origin)}});

@@ -48,6 +48,9 @@ struct RunSummary {
   double robust_sigma = 0;
   std::vector<Outlier> outliers;
   std::vector<FoldResult> folds;
+  // --joint_errors: what was asked for ("none", a list or "auto") and, for auto, the choice.
+  std::string joint_errors_requested = "none";
+  JointErrorSelection joint_error_selection;
   Verdict verdict;  // plausibility of the result (lpoe/plausibility.h)
   std::vector<std::string> outputs;  // files written
 
@@ -84,6 +87,15 @@ void AddPointResiduals(const RobotModel& before, const RobotModel& after,
                        const MeasurementSet& identification, const MeasurementSet& verification,
                        RunSummary* summary);
 
+
+// --joint_errors=auto: the cross-validation table and the choice, as text (lpoe_calibrate prints it
+// to stderr).
+std::string JointErrorSelectionTable(const JointErrorSelection& selection);
+// "compliance, harmonics": the joint-error terms a model carries ("" when none).
+std::string JointErrorTermNames(const RobotModel& model);
+// One line per joint-space term of a calibration: parameters and identified combinations ("" when
+// there are none).
+std::string JointTermsIdentifiability(const CalibrationResult& result);
 
 // Pretty-printed JSON, numbers with full precision, keys in a fixed order.
 std::string RunSummaryToJson(const RunSummary& summary);

@@ -14,8 +14,6 @@
 namespace lpoe {
 namespace {
 
-constexpr double kRoundingCutoff = 1e-10;
-
 class JointErrorTerm : public JointTerm {
  public:
   JointErrorTerm(const RobotModel& reference, JointErrorKind kind)
@@ -33,14 +31,9 @@ class JointErrorTerm : public JointTerm {
   }
   void Regressor(const double* q, double* Y) const override {
     Eigen::MatrixXd m;
-    JointErrorRegressor(reference_, kind_, q, &m);
+    JointErrorRegressor(reference_, kind_, q, &m);  // rounding noise already zero
     CHECK_EQ(m.rows(), num_joints());
     CHECK_EQ(m.cols(), num_parameters());
-    // Entries at rounding level (e.g. the gravity torque about a vertical axis) are exact zeros: the
-    // solvers scale every column to unit norm, and a column of rounding noise would otherwise be
-    // identified with huge values that cancel only on this very geometry.
-    const double cutoff = kRoundingCutoff * m.cwiseAbs().maxCoeff();
-    m = (m.array().abs() < cutoff).select(0.0, m);
     Eigen::Map<Eigen::MatrixXd>(Y, m.rows(), m.cols()) = m;
   }
 

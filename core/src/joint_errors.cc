@@ -21,14 +21,16 @@ struct ChainState {
   std::vector<Vector6d> twist;
 };
 
-void ComputeChainState(const RobotModel& model, const double* q, ChainState* state) {
+// `origins`: the joint origins to use instead of the model's (nullptr: the model's).
+void ComputeChainState(const RobotModel& model, const double* q, ChainState* state,
+                       const std::vector<SE3d>* origins = nullptr) {
   const int n = model.num_joints();
   state->link.resize(n);
   state->twist.resize(n);
   SE3d X;
   for (int i = 0; i < n; ++i) {
     const Joint& joint = model.joints[i];
-    X = X * joint.origin;
+    X = X * (origins != nullptr ? (*origins)[i] : joint.origin);
     const Eigen::Vector3d w = X.R * joint.twist.head<3>();
     state->twist[i] << w, X.R * joint.twist.tail<3>() + X.t.cross(w);  // Ad_X s (se3.h)
     X = X * JointMotion(joint, q[i]);
@@ -169,6 +171,19 @@ Status ValidateJointErrorTerms(const RobotModel& model) {
     return Status::Error(os.str());
   }
   if (!model.payload.com.allFinite()) return Status::Error("payload: non-finite centre of mass");
+  const std::vector<SE3d>& origins = model.joint_errors.regressor_origins;
+  if (!origins.empty() && static_cast<int>(origins.size()) != model.num_joints()) {
+    std::ostringstream os;
+    os << "joint_errors: " << origins.size() << " regressor origins; expected one per joint ("
+       << model.num_joints() << ")";
+    return Status::Error(os.str());
+  }
+  for (const SE3d& o : origins) {
+    if (!o.t.allFinite() || !o.R.allFinite() ||
+        !(o.R.transpose() * o.R - Eigen::Matrix3d::Identity()).isZero(1e-9)) {
+      return Status::Error("joint_errors: a regressor origin is not a finite rigid transform");
+    }
+  }
   for (JointErrorKind kind : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
     const std::vector<double>& v = JointErrorParameters(model, kind);
     const int expected = NumJointErrorParameters(model.num_joints(), kind);
@@ -223,17 +238,34 @@ void JointErrorRegressor(const RobotModel& model, JointErrorKind kind, const dou
   } else {
     HarmonicsRegressor(model, q, Y);
   }
+  // Entries at rounding level (e.g. the gravity torque about a vertical axis) are exact zeros: the
+  // solvers scale every column to unit norm, and a column of rounding noise would otherwise be
+  // identified with huge values that cancel only on this very geometry.
+  const double cutoff = kJointErrorRoundingCutoff * Y->cwiseAbs().maxCoeff();
+  *Y = (Y->array().abs() < cutoff).select(0.0, *Y);
 }
 
 void JointErrorOffsets(const RobotModel& model, const double* q, double* dq) {
   const int n = model.num_joints();
   Eigen::Map<Eigen::VectorXd> out(dq, n);
   out.setZero();
+  const std::vector<SE3d>& origins = model.joint_errors.regressor_origins;
+  ChainState state;
+  bool have_state = false;
   Eigen::MatrixXd Y;
   for (JointErrorKind kind : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
     const std::vector<double>& theta = JointErrorParameters(model, kind);
     if (theta.empty()) continue;
-    JointErrorRegressor(model, kind, q, &Y);
+    if (kind == JointErrorKind::kCompliance && !origins.empty()) {
+      // On the stored reference geometry (the calibration's start model), as the solver did.
+      if (!have_state) ComputeChainState(model, q, &state, &origins);
+      have_state = true;
+      ComplianceRegressorFor(model, state, model.gravity, &Y);
+      const double cutoff = kJointErrorRoundingCutoff * Y.cwiseAbs().maxCoeff();
+      Y = (Y.array().abs() < cutoff).select(0.0, Y);
+    } else {
+      JointErrorRegressor(model, kind, q, &Y);
+    }
     out += Y * Eigen::Map<const Eigen::VectorXd>(theta.data(), theta.size());
   }
 }

@@ -174,8 +174,13 @@ class Reader {
   Status ReadJointErrors(const YAML::Node& node, int line, JointErrorTerms* terms) const {
     const int n = model_.num_joints();
     std::vector<std::pair<std::string, YAML::Node>> keys;
-    Status s = Map(node, line, "'joint_errors'", {"compliance", "harmonics"}, &keys);
+    Status s = Map(node, line, "'joint_errors'", {"compliance", "harmonics", "regressor_origins"},
+                   &keys);
     if (!s.ok()) return s;
+    if (const YAML::Node* origins = Find(keys, "regressor_origins")) {
+      s = ReadRegressorOrigins(*origins, line, &terms->regressor_origins);
+      if (!s.ok()) return s;
+    }
     if (const YAML::Node* compliance = Find(keys, "compliance")) {
       terms->compliance.assign(NumComplianceParameters(n), 0.0);
       s = Entries(*compliance, line, "compliance", [&](const YAML::Node& item, int l, int* j) {
@@ -229,6 +234,39 @@ class Reader {
       });
     }
     return s;
+  }
+
+  // regressor_origins: {joint name: [x, y, z, qx, qy, qz, qw]} for every joint.
+  Status ReadRegressorOrigins(const YAML::Node& node, int line, std::vector<SE3d>* origins) const {
+    const int n = model_.num_joints();
+    std::vector<std::string> names;
+    for (int j = 0; j < n; ++j) names.push_back(model_.joints[j].name);
+    std::vector<std::pair<std::string, YAML::Node>> rows;
+    Status s = Map(node, line, "'regressor_origins'", names, &rows);
+    if (!s.ok()) return s;
+    if (static_cast<int>(rows.size()) != n) {
+      return Error(node, line, "'regressor_origins' has " + std::to_string(rows.size()) +
+                                   " joints", "one entry per joint of the model");
+    }
+    origins->assign(n, SE3d());
+    for (const auto& row : rows) {
+      int j = 0;
+      JointIndex(YAML::Node(row.first), line, "joint", &j);
+      double v[7];
+      s = Numbers(row.second, line, "regressor origin " + Quote(row.first), 7,
+                  "[x, y, z, qx, qy, qz, qw] (mm; a unit quaternion)", v);
+      if (!s.ok()) return s;
+      const Eigen::Vector4d quat(v[3], v[4], v[5], v[6]);
+      if (!(std::abs(quat.norm() - 1) < 1e-6)) {
+        return Error(row.second, line,
+                     "regressor origin " + Quote(row.first) + " has a quaternion of norm " +
+                         std::to_string(quat.norm()),
+                     "a unit quaternion (x, y, z, w)");
+      }
+      (*origins)[j].t = Eigen::Vector3d(v[0], v[1], v[2]);
+      (*origins)[j].R = QuaternionToRotation(quat);
+    }
+    return Status::Ok();
   }
 
  private:
@@ -352,6 +390,18 @@ std::string JointErrorsToYaml(const RobotModel& model) {
     }
     out += "  # rad: a1 sin q + b1 cos q + a2 sin 2q + b2 cos 2q\n";
     out += entries.empty() ? "  harmonics: []\n" : "  harmonics:\n" + entries;
+  }
+  if (!terms.regressor_origins.empty()) {
+    out += "  # the joint origins the regressors were identified on: [x, y, z, qx, qy, qz, qw]\n";
+    out += "  regressor_origins:\n";
+    for (int j = 0; j < n; ++j) {
+      const SE3d& o = terms.regressor_origins[j];
+      const Eigen::Vector4d quat = RotationToQuaternion(o.R);
+      const double v[7] = {o.t(0), o.t(1), o.t(2), quat(0), quat(1), quat(2), quat(3)};
+      out += "    " + QuotedName(model.joints[j].name) + ": ";
+      AppendList(v, 7, &out);
+      out += '\n';
+    }
   }
   return out;
 }

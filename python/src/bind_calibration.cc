@@ -128,7 +128,11 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   o.solver = solver == "ceres" ? SolverKind::kCeres : SolverKind::kLinear;
   o.parameterization = ParseParameterizationOption(parameterization);
   o.use_orientation = ParseDataKindOption(data_kind, data);
-  o.joint_errors = JointErrorNames(joint_errors);
+  // joint_errors: "none", a comma-separated list or "auto" (chosen by cross-validation), as
+  // lpoe_calibrate --joint_errors.
+  o.joint_errors_auto = joint_errors == "auto";
+  o.joint_error_folds = kfold >= 2 ? kfold : 5;
+  if (!o.joint_errors_auto) o.joint_errors = JointErrorNames(joint_errors);
   if (angle_unit != "rad" && angle_unit != "deg") {
     throw LpoeError("angle_unit: expected 'rad' or 'deg', got '" + angle_unit + "'");
   }
@@ -216,6 +220,8 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
     fr.verification_after = f.verification_after;
     summary.folds.push_back(fr);
   }
+  summary.joint_errors_requested = joint_errors;
+  summary.joint_error_selection = run.joint_error_selection;
   summary.verdict = run.verdict;
   summary.tool_name = "lpoe (Python)";
   c.report_json = tools::RunSummaryToJson(summary);
@@ -263,7 +269,7 @@ void BindCalibration(py::module_& m) {
       "options are named as its flags, with the same defaults:\n"
       "  solver='linear' | 'ceres'; parameterization='identifiable' | 'full';\n"
       "  data_kind='auto' | 'position' | 'pose'; joint_errors='none' | 'compliance' | "
-      "'harmonics' | 'compliance,harmonics';\n"
+      "'harmonics' | 'compliance,harmonics' | 'auto';\n"
       "  register=True; holdout=0.0 (fraction held out, instead of verify); kfold=0; "
       "split_seed=1;\n"
       "  outlier_threshold=5.0; max_iterations=30; step_tolerance=1e-10; sd_fraction=0.01;\n"

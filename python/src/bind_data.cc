@@ -80,8 +80,8 @@ bool ParseDataKindOption(const std::string& text, const MeasurementSet& data) {
 std::vector<std::string> JointErrorNames(const std::string& text) {
   std::vector<JointErrorKind> kinds;
   if (!ParseJointErrorKinds(text, &kinds)) {
-    throw LpoeError("joint_errors: expected none, compliance, harmonics or compliance,harmonics, "
-                    "got '" + text + "'");
+    throw LpoeError("joint_errors: expected none, compliance, harmonics, compliance,harmonics "
+                    "(or auto where the tool accepts it), got '" + text + "'");
   }
   std::vector<std::string> names;
   // Compliance first (docs/joint_errors.md), as lpoe_calibrate orders them.

@@ -32,6 +32,7 @@ def test_calibrate_default_data(inputs):
     ([], {}),
     (["--solver=ceres"], {"solver": "ceres"}),
     (["--joint_errors=harmonics"], {"joint_errors": "harmonics"}),
+    (["--joint_errors=auto"], {"joint_errors": "auto"}),
     (["--holdout=0.25", "--split_seed=4"], {"holdout": 0.25, "split_seed": 4}),
 ])
 def test_same_model_bytes_as_the_tool(inputs, tmp_path, flags, options):
@@ -71,3 +72,35 @@ def test_too_few_rows_is_not_identifiable(inputs):
     assert not r.converged
     assert r.termination == "not_identifiable" or "identif" in r.termination
     assert r.report is None
+
+
+def test_joint_errors_auto(inputs, tmp_path):
+    """joint_errors='auto' picks a set with harmonics when the data carry them (sigma 0.01 mm)."""
+    m, _, _ = inputs
+    base = open(os.path.join(DATA, "cobot6.yaml")).read()
+    coeffs = [[1.5e-4, -0.8e-4, 0.6e-4, 1.1e-4], [-1.2e-4, 0.9e-4, -0.7e-4, 0.5e-4],
+              [0.8e-4, 1.3e-4, 0.4e-4, -0.9e-4], [1.1e-4, -0.6e-4, 0.9e-4, 0.3e-4],
+              [-0.9e-4, 0.7e-4, 0.5e-4, 1.0e-4], [0.6e-4, 0.4e-4, -0.8e-4, 0.7e-4]]
+    yaml = base + "joint_errors:\n  harmonics:\n" + "".join(
+        f"    - joint: joint{j + 1}\n      coefficients: {c}\n" for j, c in enumerate(coeffs))
+    (tmp_path / "truth.yaml").write_text(yaml)
+    truth = lpoe.read_model(str(tmp_path / "truth.yaml"))
+    rng = np.random.default_rng(5)
+    q = rng.uniform(-np.pi, np.pi, size=(300, 6))
+    positions = truth.predict(q) + rng.normal(0, 0.01, size=(300, 3))
+    ident = lpoe.measurements(m, q[:200], positions[:200])
+    verify = lpoe.measurements(m, q[200:], positions[200:])
+    auto = lpoe.calibrate(m, ident, verify=verify, joint_errors="auto", register=False)
+    none = lpoe.calibrate(m, ident, verify=verify, register=False)
+    assert auto.converged and none.converged
+    sel = auto.report["joint_errors"]["selection"]
+    assert [c["terms"] for c in sel["candidates"]][0] == "none"
+    assert "harmonics" in sel["chosen"]
+    rms_auto = auto.report["verification"]["after"]["norm"]["rms"]
+    rms_none = none.report["verification"]["after"]["norm"]["rms"]
+    assert rms_auto < 0.5 * rms_none
+    # The report's figure is the calibrated model's own prediction, joint errors included.
+    err = np.linalg.norm(verify.positions - auto.model.predict(verify.q), axis=1)
+    assert np.sqrt(np.mean(err**2)) == pytest.approx(rms_auto, rel=1e-9)
+    with pytest.raises(lpoe.Error, match="joint_errors"):
+        lpoe.calibrate(m, ident, joint_errors="backlash")

@@ -45,6 +45,8 @@ struct Scratch {
   // Joint-space blocks only.
   Eigen::MatrixXd term_Y;     // n x P_b: one term's regressor
   Eigen::MatrixXd R;          // n x K: [Y_b(q) basis_b] of the row
+  Eigen::MatrixXd R_t;        // its transpose, accumulated first
+  std::vector<Eigen::MatrixXd> basis_t;  // basis_b^T per block (filled on first use)
   Eigen::MatrixXd J_q;        // m x n
   Eigen::VectorXd q_eff;      // n
 };
@@ -54,12 +56,29 @@ void JointRegressor(const Parameterization& p, const Eigen::VectorXd& joint_stat
                     Scratch* s) {
   const int n = static_cast<int>(s->q_eff.size());
   int column = 0;
-  for (const JointBlock& block : p.joint_blocks) {
+  s->R_t.resize(s->R.cols(), n);
+  for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
+    const JointBlock& block = p.joint_blocks[b];
     s->term_Y.resize(n, block.term->num_parameters());
     block.term->Regressor(q, s->term_Y.data());
-    s->R.middleCols(column, block.basis.cols()).noalias() = s->term_Y * block.basis;
-    column += static_cast<int>(block.basis.cols());
+    // R_b = Y_b basis_b over the non-zero entries of Y_b only: a physical regressor is sparse (a
+    // joint's offset depends on its own parameters), and a dense product per row would repack the
+    // basis every time (most of the cost of a calibration with joint-space terms). Accumulated
+    // transposed, on basis_b^T, so that the inner loop runs over contiguous memory.
+    const int kb = static_cast<int>(block.basis.cols());
+    if (s->basis_t.size() <= b) s->basis_t.push_back(block.basis.transpose());
+    const Eigen::MatrixXd& Bt = s->basis_t[b];
+    auto Rt = s->R_t.middleRows(column, kb);
+    Rt.setZero();
+    for (int c = 0; c < s->term_Y.cols(); ++c) {
+      for (int j = 0; j < n; ++j) {
+        const double y = s->term_Y(j, c);
+        if (y != 0) Rt.col(j) += y * Bt.col(c);
+      }
+    }
+    column += kb;
   }
+  s->R = s->R_t.transpose();
   s->q_eff = Eigen::Map<const Eigen::VectorXd>(q, n);
   if (joint_state.size() > 0) s->q_eff.noalias() += s->R * joint_state;
 }
@@ -93,7 +112,7 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
         // The joint blocks' columns, by the chain rule through q_eff.
         Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>> Jj(
             Jr + static_cast<std::ptrdiff_t>(frame_columns) * ld, m, K, Eigen::OuterStride<>(ld));
-        Jj.noalias() = scratch->J_q * scratch->R;
+        Jj.noalias() = scratch->J_q.lazyProduct(scratch->R);  // small: no GEMM packing
       }
       double y_sq = 0;
       for (int i = 0; i < m; ++i) y_sq += y[i] * y[i];

@@ -8,13 +8,18 @@
 namespace lpoe {
 namespace {
 
-// Copies the identified joint-error values of result.joint_terms into result.model.joint_errors.
-CalibrationResult StoreJointErrors(CalibrationResult result) {
+// Copies the identified joint-error values of result.joint_terms into result.model.joint_errors,
+// with the geometry their regressors were evaluated on (`start`'s joint origins).
+CalibrationResult StoreJointErrors(CalibrationResult result, const RobotModel& start) {
   for (const JointTermValues& t : result.joint_terms) {
     std::vector<JointErrorKind> kinds;
     if (!ParseJointErrorKinds(t.term->name(), &kinds) || kinds.size() != 1) continue;
     *MutableJointErrorParameters(&result.model, kinds[0]) =
         std::vector<double>(t.theta.data(), t.theta.data() + t.theta.size());
+    result.model.joint_errors.regressor_origins.clear();
+    for (const Joint& j : start.joints) {
+      result.model.joint_errors.regressor_origins.push_back(j.origin);
+    }
   }
   return result;
 }
@@ -22,8 +27,7 @@ CalibrationResult StoreJointErrors(CalibrationResult result) {
 // The model without its joint-error values.
 RobotModel Geometric(const RobotModel& model) {
   RobotModel g = model;
-  g.joint_errors.compliance.clear();
-  g.joint_errors.harmonics.clear();
+  g.joint_errors = JointErrorTerms();
   return g;
 }
 
@@ -50,10 +54,20 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
     if (!rep.moved) {
       // The data are in the base frame already: start from the nominal model, as the paper does.
       start = nominal;
-    } else if (before) {
-      before->joints[0].origin = rep.T_measurement_base * nominal.joints[0].origin;
+    } else {
+      // Gravity stays attached to the robot: turned with joint 1's frame as the registration left
+      // it (rigid fit and base refit), so that an axis parallel to gravity in the nominal model
+      // stays parallel (a vertical joint 1 keeps a zero compliance regressor instead of columns of
+      // 1e-5 relative size that the column-scaled solvers would fit with huge cancelling values).
+      start.gravity = start.joints[0].origin.R * nominal.joints[0].origin.R.transpose() *
+                      nominal.gravity;
+      if (before) before->joints[0].origin = rep.T_measurement_base * nominal.joints[0].origin;
     }
   }
+  // The solvers fit the geometry (and the terms asked for) on the commanded joints: joint-error
+  // terms the nominal model carries are not part of that cost, so they are not carried into the
+  // calibrated model either (they would count twice, on a geometry they were not identified on).
+  start.joint_errors = JointErrorTerms();
   if (start_out) *start_out = start;
   std::vector<std::shared_ptr<const JointTerm>> terms;
   for (const std::string& name : options.joint_errors) {
@@ -77,14 +91,14 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
     o.use_orientation = options.use_orientation;
     o.on_iteration = progress;
     o.joint_terms = terms;
-    return StoreJointErrors(CalibrateCeres(start, data, o));
+    return StoreJointErrors(CalibrateCeres(start, data, o), start);
   }
   LinearSolverOptions o = options.linear;
   o.parameterization = options.parameterization;
   o.use_orientation = options.use_orientation;
   o.on_iteration = progress;
   o.joint_terms = terms;
-  return StoreJointErrors(CalibrateLinear(start, data, o));
+  return StoreJointErrors(CalibrateLinear(start, data, o), start);
 }
 
 PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
@@ -93,7 +107,14 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
                                       const PipelineOptions& options) {
   PipelineResult out;
   out.registered = options.register_frames;
-  out.result = SolveCalibration(nominal, identification, options, "calibrating", &out.registration,
+  PipelineOptions chosen = options;
+  if (options.joint_errors_auto) {
+    out.joint_error_selection = SelectJointErrors(nominal, identification, options);
+    const JointErrorSelection& sel = out.joint_error_selection;
+    chosen.joint_errors = sel.candidates[sel.chosen].terms;
+    chosen.joint_errors_auto = false;
+  }
+  out.result = SolveCalibration(nominal, identification, chosen, "calibrating", &out.registration,
                                 &out.before, &out.start);
   const CalibrationResult& result = out.result;
   if (result.termination == Termination::kNotIdentifiable) return out;
@@ -121,7 +142,7 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   if (options.kfold >= 2) {
     const auto folds = KFolds(identification.size(), options.kfold, options.split_seed);
     std::vector<Eigen::Vector3d> pooled;
-    PipelineOptions fold_options = options;
+    const PipelineOptions& fold_options = chosen;
     for (int f = 0; f < options.kfold; ++f) {
       const MeasurementSet train =
           identification.Subset(Complement(identification.size(), folds[f]));

@@ -79,10 +79,16 @@ void ComplianceRegressor(const RobotModel& model, const double* q, Eigen::Matrix
 // three base axes (for identifying a tilt of gravity, see TiltedGravity).
 void ComplianceRegressorGravityAxes(const RobotModel& model, const double* q, Eigen::MatrixXd Y[3]);
 void HarmonicsRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y);
+// Entries below this fraction of the largest |Y| at a configuration are set to zero by
+// JointErrorRegressor and JointErrorOffsets (rounding noise, e.g. the gravity torque about a
+// vertical axis).
+constexpr double kJointErrorRoundingCutoff = 1e-10;
+// The term's regressor on the model's own geometry, rounding noise set to zero.
 void JointErrorRegressor(const RobotModel& model, JointErrorKind kind, const double* q,
                          Eigen::MatrixXd* Y);
 
-// The joint offsets dq (num_joints) of every term the model carries, at commanded joints q.
+// The joint offsets dq (num_joints) of every term the model carries, at commanded joints q. The
+// compliance regressor is evaluated on model.joint_errors.regressor_origins when given.
 void JointErrorOffsets(const RobotModel& model, const double* q, double* dq);
 // q_eff = q + dq.
 void EffectiveJoints(const RobotModel& model, const double* q, double* q_eff);

@@ -60,6 +60,11 @@ struct JointErrorTerms {
   // For each joint: a1, b1, a2, b2 of a1 sin q + b1 cos q + a2 sin 2q + b2 cos 2q (rad; zero for a
   // prismatic joint).
   std::vector<double> harmonics;
+  // The joint origins (T_{j-1,j}(0), one per joint) the regressors are evaluated on; empty: the
+  // model's own. A calibration stores its registered start model's origins here, the geometry its
+  // solver evaluated the regressors on, so that predicting with the calibrated model reproduces the
+  // solver's residuals exactly (docs/joint_errors.md).
+  std::vector<SE3d> regressor_origins;
   bool empty() const { return compliance.empty() && harmonics.empty(); }
 };
 

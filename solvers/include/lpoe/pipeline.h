@@ -38,6 +38,11 @@ struct PipelineOptions {
   // stored in the calibrated model's joint_errors (so its YAML carries them) and in
   // result.joint_terms.
   std::vector<std::string> joint_errors;
+  // Instead of `joint_errors`: choose the terms by cross-validation (SelectJointErrors) among none,
+  // compliance, harmonics and both, on `joint_error_folds` folds of the identification rows
+  // (seed `split_seed`).
+  bool joint_errors_auto = false;
+  int joint_error_folds = 5;
   int kfold = 0;  // >= 2: k-fold cross-validation on the identification rows
   uint64_t split_seed = 1;
   double outlier_threshold = 5.0;
@@ -54,6 +59,38 @@ struct FoldSummary {
   Termination termination = Termination::kNumericalFailure;
   ErrorStatistics verification_after;
 };
+
+// --joint_errors=auto: one candidate set of terms and its cross-validated held-out error.
+struct JointErrorCandidate {
+  std::vector<std::string> terms;  // registry names; empty: the geometry alone
+  std::string label;               // "none", "compliance", "harmonics", "compliance,harmonics"
+  bool ok = false;                 // every fold's calibration converged
+  std::string failure;             // why not (first failing fold)
+  int parameters = 0;              // identified joint-error combinations (largest over the folds)
+  double cv_rms = 0;               // pooled held-out RMS of the error norm, mm
+  double cv_mse = 0;               // its square (mean squared error norm), mm^2
+  double cv_mse_se = 0;            // standard error of cv_mse over the held-out points, mm^2
+  std::vector<double> fold_rms;    // held-out RMS per fold, mm
+};
+
+struct JointErrorSelection {
+  bool ran = false;
+  int folds = 0;
+  uint64_t seed = 0;
+  std::vector<JointErrorCandidate> candidates;  // in order of increasing parameters
+  int best = -1;    // lowest cv_mse
+  int chosen = -1;  // the simplest within one standard error of the best
+  std::string reason;
+};
+
+// Cross-validates each candidate set of terms (none, compliance, harmonics, compliance+harmonics)
+// on options.joint_error_folds seeded folds of `identification` with the pipeline's solver and
+// registration, and chooses by the one-standard-error rule: the candidate with the fewest
+// identified joint-error combinations whose pooled held-out mean squared error is at most the
+// lowest one plus that lowest estimate's standard error (docs/joint_errors.md).
+JointErrorSelection SelectJointErrors(const RobotModel& nominal,
+                                      const MeasurementSet& identification,
+                                      const PipelineOptions& options);
 
 struct PipelineResult {
   bool registered = false;  // registration was run (options.register_frames)
@@ -76,6 +113,7 @@ struct PipelineResult {
   std::vector<FoldSummary> folds;
   ErrorStatistics folds_pooled;
   Verdict verdict;  // of a converged result
+  JointErrorSelection joint_error_selection;  // options.joint_errors_auto
 };
 
 // Registration then the chosen solver on `data` (no analysis). `registration` and `before` may be

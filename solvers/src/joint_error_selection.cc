@@ -1,0 +1,128 @@
+// --joint_errors=auto: the joint-error terms chosen by k-fold cross-validation on the
+// identification rows (docs/joint_errors.md, "Choosing the terms").
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "lpoe/joint_term.h"
+#include "lpoe/pipeline.h"
+
+namespace lpoe {
+namespace {
+
+std::string Label(const std::vector<std::string>& terms) {
+  if (terms.empty()) return "none";
+  std::string s;
+  for (const std::string& t : terms) s += (s.empty() ? "" : ",") + t;
+  return s;
+}
+
+// The candidate's calibration on every fold's training rows and its errors on the held-out rows.
+JointErrorCandidate CrossValidate(const RobotModel& nominal, const MeasurementSet& identification,
+                                  const std::vector<std::vector<int>>& folds,
+                                  const PipelineOptions& base,
+                                  const std::vector<std::string>& terms) {
+  JointErrorCandidate c;
+  c.terms = terms;
+  c.label = Label(terms);
+  PipelineOptions options = base;
+  options.joint_errors = terms;
+  options.joint_errors_auto = false;
+  std::vector<double> squared;  // per held-out point: |e|^2
+  for (size_t f = 0; f < folds.size(); ++f) {
+    const MeasurementSet train =
+        identification.Subset(Complement(identification.size(), folds[f]));
+    const MeasurementSet test = identification.Subset(folds[f]);
+    const CalibrationResult r =
+        SolveCalibration(nominal, train, options,
+                         "auto " + c.label + " fold " + std::to_string(f + 1), nullptr, nullptr,
+                         nullptr);
+    if (!r.converged()) {
+      c.failure = "fold " + std::to_string(f + 1) + ": " + TerminationName(r.termination) +
+                  " (" + r.message + ")";
+      return c;
+    }
+    c.parameters = std::max(c.parameters, r.parameterization.num_joint_parameters());
+    RobotModel geometric = r.model;
+    geometric.joint_errors = JointErrorTerms();
+    const std::vector<Eigen::Vector3d> e =
+        PositionErrors(geometric, WithEffectiveJointValues(r.joint_terms, test));
+    double sum = 0;
+    for (const Eigen::Vector3d& v : e) {
+      squared.push_back(v.squaredNorm());
+      sum += v.squaredNorm();
+    }
+    c.fold_rms.push_back(e.empty() ? 0.0 : std::sqrt(sum / e.size()));
+  }
+  const double n = static_cast<double>(squared.size());
+  if (n < 2) {
+    c.failure = "fewer than 2 held-out points";
+    return c;
+  }
+  double mean = 0;
+  for (double s : squared) mean += s;
+  mean /= n;
+  double var = 0;
+  for (double s : squared) var += (s - mean) * (s - mean);
+  var /= n - 1;
+  c.ok = std::isfinite(mean);
+  c.cv_mse = mean;
+  c.cv_rms = std::sqrt(mean);
+  c.cv_mse_se = std::sqrt(var / n);
+  return c;
+}
+
+}  // namespace
+
+JointErrorSelection SelectJointErrors(const RobotModel& nominal,
+                                      const MeasurementSet& identification,
+                                      const PipelineOptions& options) {
+  JointErrorSelection sel;
+  sel.ran = true;
+  sel.folds = std::max(2, std::min(options.joint_error_folds, identification.size()));
+  sel.seed = options.split_seed;
+  const auto folds = KFolds(identification.size(), sel.folds, sel.seed);
+  // Compliance first: it keeps the combinations both terms could explain (joint_errors.md).
+  const std::vector<std::vector<std::string>> sets = {
+      {}, {"compliance"}, {"harmonics"}, {"compliance", "harmonics"}};
+  for (const auto& terms : sets) {
+    if (options.on_stage) options.on_stage("cross-validating joint errors: " + Label(terms));
+    sel.candidates.push_back(CrossValidate(nominal, identification, folds, options, terms));
+  }
+  // Simplest first (fewest identified combinations; ties keep the listed order).
+  std::stable_sort(sel.candidates.begin(), sel.candidates.end(),
+                   [](const JointErrorCandidate& a, const JointErrorCandidate& b) {
+                     return a.parameters < b.parameters;
+                   });
+  for (size_t k = 0; k < sel.candidates.size(); ++k) {
+    const JointErrorCandidate& c = sel.candidates[k];
+    if (c.ok && (sel.best < 0 || c.cv_mse < sel.candidates[sel.best].cv_mse)) {
+      sel.best = static_cast<int>(k);
+    }
+  }
+  std::ostringstream why;
+  if (sel.best < 0) {
+    // Nothing converged on every fold: the geometric model (the main run reports its failure).
+    for (size_t k = 0; k < sel.candidates.size(); ++k) {
+      if (sel.candidates[k].terms.empty()) sel.chosen = static_cast<int>(k);
+    }
+    why << "no candidate converged on every fold; geometry alone";
+    sel.reason = why.str();
+    return sel;
+  }
+  const JointErrorCandidate& best = sel.candidates[sel.best];
+  const double limit = best.cv_mse + best.cv_mse_se;
+  for (size_t k = 0; k < sel.candidates.size() && sel.chosen < 0; ++k) {
+    if (sel.candidates[k].ok && sel.candidates[k].cv_mse <= limit) sel.chosen = static_cast<int>(k);
+  }
+  const JointErrorCandidate& chosen = sel.candidates[sel.chosen];
+  why << "one-standard-error rule: lowest CV mean squared error " << best.cv_mse << " mm^2 ("
+      << best.label << ", standard error " << best.cv_mse_se << " mm^2); " << chosen.label
+      << " is the simplest candidate within " << limit << " mm^2";
+  sel.reason = why.str();
+  return sel;
+}
+
+}  // namespace lpoe
