@@ -9,6 +9,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "file_util.h"
+
 namespace {
 
 constexpr int kPlotWidth = 1000;
@@ -17,12 +19,7 @@ constexpr int kAxisErrorsHeight = 900;
 constexpr int kHistogramHeight = 700;
 constexpr long kMinPngBytes = 4000;  // a blank 1000x600 PNG compresses to ~3 KB
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using ::lpoe::testing::ReadAll;
 
 // Width and height from the PNG signature and IHDR chunk.
 bool PngSize(const std::string& bytes, int* w, int* h) {
@@ -43,13 +40,8 @@ bool PngSize(const std::string& bytes, int* w, int* h) {
 
 class CalibrateReport : public ::testing::Test {
  protected:
-  void SetUp() override {
-    char tmpl[] = "/tmp/lpoe_report_XXXXXX";
-    ASSERT_NE(mkdtemp(tmpl), nullptr);
-    dir_ = tmpl;
-  }
-  void TearDown() override { std::system(("rm -rf " + dir_).c_str()); }
-  std::string dir_;
+  ::lpoe::testing::TempDir temp_{"lpoe_report"};
+  std::string dir_ = temp_.path();
 };
 
 TEST_F(CalibrateReport, DefaultRunWritesPlotsAndJson) {

@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include "file_util.h"
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"
@@ -40,44 +41,17 @@ constexpr double kSameCalibrationTolerance = 1e-6;
 constexpr double kHeldOutPerAxisMax = 0.15;
 constexpr double kNoiseSigma = 0.03;
 
-struct Output {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-std::string ReadText(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::string Quote(const std::string& s) { return "'" + s + "'"; }
+using Output = testing::ToolOutput;
+using testing::RunInDir;
+using testing::ShellQuote;
+using testing::ReadAll;
 
 // A temporary directory that every test works in (the tools may write default outputs, e.g. plots,
 // to the working directory).
 class CalibrateTool : public ::testing::Test {
  protected:
-  void SetUp() override {
-    std::string pattern = (fs::temp_directory_path() / "lpoe_calibrate_test_XXXXXX").string();
-    ASSERT_NE(mkdtemp(pattern.data()), nullptr);
-    dir_ = pattern;
-  }
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-
   Output Run(const std::string& binary, const std::string& args) {
-    const std::string out = (dir_ / "stdout.txt").string(), err = (dir_ / "stderr.txt").string();
-    const std::string command = "cd " + Quote(dir_.string()) + " && " + Quote(binary) + " " + args +
-                                " >" + Quote(out) + " 2>" + Quote(err);
-    const int status = std::system(command.c_str());
-    Output o;
-    o.exit_code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
-    o.out = ReadText(out);
-    o.err = ReadText(err);
-    return o;
+    return RunInDir(dir_.string(), ShellQuote(binary) + " " + args);
   }
   Output Calibrate(const std::string& args) { return Run(LPOE_CALIBRATE_PATH, args); }
 
@@ -94,11 +68,12 @@ class CalibrateTool : public ::testing::Test {
     ASSERT_EQ(o.exit_code, kExitOk) << o.err;
   }
 
-  std::string Path(const std::string& name) const { return Quote((dir_ / name).string()); }
+  std::string Path(const std::string& name) const { return ShellQuote((dir_ / name).string()); }
   std::string RawPath(const std::string& name) const { return (dir_ / name).string(); }
   bool Exists(const std::string& name) const { return fs::exists(dir_ / name); }
 
-  fs::path dir_;
+  testing::TempDir temp_{"lpoe_calibrate_test"};
+  fs::path dir_ = temp_.path();
 };
 
 TEST_F(CalibrateTool, DefaultRunPrintsTheTableAndTheVerificationSet) {
@@ -169,7 +144,7 @@ TEST_F(CalibrateTool, TooFewRowsExitsNotIdentifiableWithoutOutput) {
 TEST_F(CalibrateTool, IdenticalPosesExitNotIdentifiableWithoutOutput) {
   Simulate(0.0, /*count=*/10, /*verify_count=*/0);
   // Keep the header and repeat the first row 40 times.
-  std::istringstream in(ReadText(RawPath("id.csv")));
+  std::istringstream in(ReadAll(RawPath("id.csv")));
   std::string line, header, row;
   while (std::getline(in, line)) {
     if (line.empty() || line[0] == '#') continue;
@@ -196,7 +171,7 @@ TEST_F(CalibrateTool, IdenticalPosesExitNotIdentifiableWithoutOutput) {
 TEST_F(CalibrateTool, MissingFileExitsWithInputErrorNamingIt) {
   Simulate();
   const std::string missing = RawPath("no_such_measurements.csv");
-  Output o = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" + Quote(missing) +
+  Output o = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" + ShellQuote(missing) +
                        " --output=" + Path("out.yaml"));
   EXPECT_EQ(o.exit_code, kExitInput) << o.out << o.err;
   EXPECT_NE(o.err.find("no_such_measurements.csv"), std::string::npos) << o.err;
@@ -227,16 +202,16 @@ TEST_F(CalibrateTool, IterationLimitExitsNotConvergedWithoutOutput) {
 
 TEST_F(CalibrateTool, OutputEqualToAnInputIsRefused) {
   Simulate();
-  const std::string model_before = ReadText(RawPath("nominal.yaml"));
-  const std::string csv_before = ReadText(RawPath("id.csv"));
+  const std::string model_before = ReadAll(RawPath("nominal.yaml"));
+  const std::string csv_before = ReadAll(RawPath("id.csv"));
   for (const std::string& target : {std::string("nominal.yaml"), std::string("id.csv")}) {
     const Output o = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" +
                                Path("id.csv") + " --output=" + Path(target));
     EXPECT_EQ(o.exit_code, kExitUsage) << target << "\n" << o.out << o.err;
     EXPECT_NE(o.err.find(target), std::string::npos) << o.err;
   }
-  EXPECT_EQ(ReadText(RawPath("nominal.yaml")), model_before);
-  EXPECT_EQ(ReadText(RawPath("id.csv")), csv_before);
+  EXPECT_EQ(ReadAll(RawPath("nominal.yaml")), model_before);
+  EXPECT_EQ(ReadAll(RawPath("id.csv")), csv_before);
 }
 
 }  // namespace

@@ -35,6 +35,8 @@ namespace {
 using ::lpoe::testing::Exists;
 using ::lpoe::testing::ListDir;
 using ::lpoe::testing::ReadAll;
+using ::lpoe::testing::TempDir;
+using ::lpoe::testing::WriteAll;
 
 constexpr int kExitOk = 0;
 constexpr int kExitUsage = 1;
@@ -46,44 +48,6 @@ const std::string kBadDir = std::string(LPOE_TEST_DATA_DIR) + "/bad";
 const std::string kGoodModel = std::string(LPOE_DATA_DIR) + "/cobot6.yaml";
 const std::string kGoodMeasurements = std::string(LPOE_DATA_DIR) + "/section4/identification.csv";
 const std::string kGoodVerification = std::string(LPOE_DATA_DIR) + "/section4/verification.csv";
-
-void WriteAll(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-  ASSERT_TRUE(out.good()) << path;
-}
-
-void RemoveTree(const std::string& path) {
-  struct stat st;
-  if (lstat(path.c_str(), &st) != 0) return;
-  if (S_ISDIR(st.st_mode)) {
-    for (const std::string& name : ListDir(path)) RemoveTree(path + "/" + name);
-    rmdir(path.c_str());
-  } else {
-    unlink(path.c_str());
-  }
-}
-
-// A fresh empty directory, removed with everything in it at the end of the test.
-class TempDir {
- public:
-  TempDir() {
-    std::string base = ::testing::TempDir();
-    if (base.empty() || base.back() != '/') base += '/';
-    std::string pattern = base + "lpoe_cli_XXXXXX";
-    std::vector<char> buf(pattern.begin(), pattern.end());
-    buf.push_back('\0');
-    if (mkdtemp(buf.data()) != nullptr) path_ = buf.data();
-  }
-  ~TempDir() {
-    if (!path_.empty()) RemoveTree(path_);
-  }
-  const std::string& path() const { return path_; }
-  std::string operator/(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
 
 struct RunResult {
   int exit_code = -1;  // -1: did not exit normally (signal, sanitizer abort)
@@ -206,8 +170,8 @@ TEST(CliOutputs, FailedRunLeavesPreviousOutputsUntouched) {
   ASSERT_FALSE(dir.path().empty());
   const std::string previous_model = "# a previous calibration, must survive\nname: old\n";
   const std::string previous_report = "{\"previous\": true}\n";
-  WriteAll(dir / "out.yaml", previous_model);
-  WriteAll(dir / "out.json", previous_report);
+  ASSERT_TRUE(WriteAll(dir / "out.yaml", previous_model));
+  ASSERT_TRUE(WriteAll(dir / "out.json", previous_report));
 
   // Bad input: exit 2 before anything is computed.
   RunResult r = RunTool({"--model=" + kGoodModel, "--measurements=" + kBadDir + "/nan_value.csv",
@@ -240,8 +204,8 @@ TEST(CliOutputs, OutputNamingAnInputIsRefused) {
   const std::string measurements = ReadAll(kGoodMeasurements);
   const std::string model = ReadAll(kGoodModel);
   ASSERT_FALSE(measurements.empty());
-  WriteAll(dir / "points.csv", measurements);
-  WriteAll(dir / "robot.yaml", model);
+  ASSERT_TRUE(WriteAll(dir / "points.csv", measurements));
+  ASSERT_TRUE(WriteAll(dir / "robot.yaml", model));
   const std::string base_args[] = {"--model=" + (dir / "robot.yaml"),
                                    "--measurements=" + (dir / "points.csv")};
   struct Case {

@@ -2,10 +2,8 @@
 // registered to a measurement frame metres away) and its nominal model. Checks targets mode (mixed
 // position and pose rows, degrees), the joint-program mode through the registration, the status
 // of an unreachable row with and without --strict, the JSON summary, and a bad file's message.
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -17,6 +15,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "file_util.h"
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/robot_model.h"
@@ -32,14 +31,7 @@ constexpr double kDeg = 3.14159265358979323846 / 180;
 constexpr double kReachedMm = 1e-6;
 
 int RunTool(const std::string& args, std::string* out) {
-  const std::string command = std::string(LPOE_COMPENSATE_PATH) + " " + args + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return -1;
-  std::array<char, 4096> buffer;
-  size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) out->append(buffer.data(), n);
-  const int status = pclose(pipe);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return testing::RunCapture(std::string(LPOE_COMPENSATE_PATH) + " " + args, out);
 }
 
 // Data rows of a CSV (no comments), split by commas; the header into *header.

@@ -1,28 +1,19 @@
 // Runs the lpoe_compare tool on the shipped data: the two solvers must agree (exit 0), and a
 // tolerance no calibration can meet must be reported as a disagreement (exit 7).
-#include <sys/wait.h>
-
-#include <array>
-#include <cstdio>
 #include <string>
 
 #include <gtest/gtest.h>
+
+#include "file_util.h"
 
 namespace {
 
 constexpr int kExitOk = 0;
 constexpr int kExitDisagree = 7;
 
-// Runs the command, returns its exit status and captures stdout.
+// Runs the tool, returns its exit status and captures stdout and stderr.
 int RunTool(const std::string& args, std::string* out) {
-  const std::string command = std::string(LPOE_COMPARE_BINARY) + " " + args + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return -1;
-  std::array<char, 4096> buffer;
-  size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) out->append(buffer.data(), n);
-  const int status = pclose(pipe);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return ::lpoe::testing::RunCapture(std::string(LPOE_COMPARE_BINARY) + " " + args, out);
 }
 
 TEST(LpoeCompare, DefaultDataAgree) {

@@ -1,10 +1,8 @@
 // Runs lpoe_simulate and lpoe_predict: the actual model written by the simulator predicts its own
 // noise-free data (compliance, harmonics, payload, tilted gravity), degrees and per-row targets are
 // honoured, and bad flags, bad files and unwritable outputs give their exit codes and leave nothing.
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -15,6 +13,7 @@
 
 #include <gtest/gtest.h>
 
+#include "file_util.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
 
@@ -26,15 +25,7 @@ namespace fs = std::filesystem;
 constexpr int kExitOk = 0, kExitUsage = 1, kExitInput = 2, kExitOutput = 6;
 constexpr double kToleranceMm = 1e-9;
 
-int RunCommand(const std::string& command, std::string* out) {
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return -1;
-  std::array<char, 4096> buffer;
-  size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) out->append(buffer.data(), n);
-  const int status = pclose(pipe);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
+using testing::RunCapture;
 
 class LpoePredict : public ::testing::Test {
  protected:
@@ -45,12 +36,12 @@ class LpoePredict : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
   std::string Path(const std::string& name) const { return (dir_ / name).string(); }
   int Predict(const std::string& args, std::string* out) const {
-    return RunCommand(std::string(LPOE_PREDICT_PATH) + " " + args, out);
+    return RunCapture(std::string(LPOE_PREDICT_PATH) + " " + args, out);
   }
   // The simulated data and actual model: a small arm with every term.
   void Simulate(const std::string& extra) {
     std::string out;
-    ASSERT_EQ(RunCommand(std::string(LPOE_SIMULATE_PATH) +
+    ASSERT_EQ(RunCapture(std::string(LPOE_SIMULATE_PATH) +
                       " --errors=random --joint_errors=compliance,harmonics --count=40 "
                       "--payload_mass=0.7 --payload_com=5,0,25 --gravity_tilt=0.004 --all_tools " +
                       extra + " --out=" + Path("data.csv") + " --actual_out=" + Path("actual.yaml"),

@@ -29,13 +29,8 @@ using ::lpoe::testing::ReadAll;
 
 class OutputFiles : public ::testing::Test {
  protected:
-  void SetUp() override {
-    char tmpl[] = "/tmp/lpoe_outputs_XXXXXX";
-    ASSERT_NE(mkdtemp(tmpl), nullptr);
-    dir_ = tmpl;
-  }
-  void TearDown() override { std::system(("rm -rf " + dir_).c_str()); }
-  std::string dir_;
+  ::lpoe::testing::TempDir temp_{"lpoe_outputs"};
+  std::string dir_ = temp_.path();
 };
 
 TEST_F(OutputFiles, NothingMovesBeforeCommit) {

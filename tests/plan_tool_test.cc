@@ -13,6 +13,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "file_util.h"
+
 #ifndef LPOE_PLAN_PATH
 #error "LPOE_PLAN_PATH must name the lpoe_plan binary"
 #endif
@@ -29,19 +31,10 @@ constexpr int kExitUsage = 1;
 constexpr int kExitInput = 2;
 constexpr int kExitNoPlan = 3;
 
-struct Output {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-std::string ReadText(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::string Quote(const std::string& s) { return "'" + s + "'"; }
+using Output = lpoe::testing::ToolOutput;
+using lpoe::testing::ReadAll;
+using lpoe::testing::RunInDir;
+using lpoe::testing::ShellQuote;
 
 std::vector<std::string> DataLines(const std::string& text) {
   std::vector<std::string> lines;
@@ -70,31 +63,15 @@ tools:
 
 class PlanTool : public ::testing::Test {
  protected:
-  void SetUp() override {
-    std::string pattern = (fs::temp_directory_path() / "lpoe_plan_test_XXXXXX").string();
-    ASSERT_NE(mkdtemp(pattern.data()), nullptr);
-    dir_ = pattern;
-    std::ofstream(dir_ / "m.yaml") << kModel;
-  }
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
+  void SetUp() override { std::ofstream(dir_ / "m.yaml") << kModel; }
   Output Run(const std::string& binary, const std::string& args) {
-    const std::string out = (dir_ / "stdout.txt").string(), err = (dir_ / "stderr.txt").string();
-    const std::string command = "cd " + Quote(dir_.string()) + " && " + Quote(binary) + " " + args +
-                                " >" + Quote(out) + " 2>" + Quote(err);
-    const int status = std::system(command.c_str());
-    Output o;
-    o.exit_code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
-    o.out = ReadText(out);
-    o.err = ReadText(err);
-    return o;
+    return RunInDir(dir_.string(), ShellQuote(binary) + " " + args);
   }
   Output Plan(const std::string& args) {
     return Run(LPOE_PLAN_PATH, "--model=m.yaml --candidate_count=800 --workspace_count=200 " + args);
   }
-  fs::path dir_;
+  lpoe::testing::TempDir temp_{"lpoe_plan_test"};
+  fs::path dir_ = temp_.path();
 };
 
 TEST_F(PlanTool, BadFlagsAreUsageErrors) {
@@ -148,10 +125,10 @@ TEST_F(PlanTool, BadInputsAreInputErrors) {
 TEST_F(PlanTool, SampledPlanIsReadBySimulateAndBeatsTheRandomPlan) {
   const Output o = Plan("--count=20 --output=p.csv --angle_unit=deg --noise_sigma=0.02");
   ASSERT_EQ(o.exit_code, kExitOk) << o.err;
-  const std::vector<std::string> lines = DataLines(ReadText(dir_ / "p.csv"));
+  const std::vector<std::string> lines = DataLines(ReadAll(dir_ / "p.csv"));
   ASSERT_EQ(lines.size(), 21u);
   EXPECT_EQ(lines[0], "q1,q2,q3,q4,q5,q6");
-  const nlohmann::json report = nlohmann::json::parse(ReadText(dir_ / "p.json"));
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(dir_ / "p.json"));
   EXPECT_EQ(report["count"], 20);
   EXPECT_EQ(report["criterion"], "D");
   EXPECT_EQ(report["plan"]["rank"], 33);
@@ -165,7 +142,7 @@ TEST_F(PlanTool, SampledPlanIsReadBySimulateAndBeatsTheRandomPlan) {
                        "--model=m.yaml --errors=random --joints=p.csv --angle_unit=deg --all_tools "
                        "--out=sim.csv");
   ASSERT_EQ(s.exit_code, kExitOk) << s.err;
-  const std::vector<std::string> sim = DataLines(ReadText(dir_ / "sim.csv"));
+  const std::vector<std::string> sim = DataLines(ReadAll(dir_ / "sim.csv"));
   ASSERT_EQ(sim.size(), 1u + 20 * 3);
   // Same joint values (written with 17 digits by the simulator, shortest form by the planner).
   std::stringstream a(lines[1]), b(sim[1]);
@@ -194,9 +171,9 @@ TEST_F(PlanTool, CandidateRowsAreCopiedWithTheirIndex) {
   c.close();
   const Output o = Plan("--count=12 --output=p.csv --candidates=cand.csv --angle_unit=deg");
   ASSERT_EQ(o.exit_code, kExitOk) << o.err;
-  const std::string cand = ReadText(dir_ / "cand.csv");
+  const std::string cand = ReadAll(dir_ / "cand.csv");
   const std::vector<std::string> cand_lines = DataLines(cand);
-  const std::vector<std::string> lines = DataLines(ReadText(dir_ / "p.csv"));
+  const std::vector<std::string> lines = DataLines(ReadAll(dir_ / "p.csv"));
   ASSERT_EQ(lines.size(), 13u);
   EXPECT_EQ(lines[0], "label,q1,q2,q3,q4,q5,q6,candidate_row");
   for (size_t k = 1; k < lines.size(); ++k) {
@@ -217,14 +194,14 @@ TEST_F(PlanTool, CountAutoReturnsTheSmallestPlanReachingTheTarget) {
   const Output o =
       Plan("--count=auto --target_accuracy=0.011 --noise_sigma=0.02 --output=p.csv --report=r.json");
   ASSERT_EQ(o.exit_code, kExitOk) << o.err;
-  const nlohmann::json report = nlohmann::json::parse(ReadText(dir_ / "r.json"));
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(dir_ / "r.json"));
   const int n = report["count"];
   EXPECT_LE(report["plan"]["predicted_rms_mm"].get<double>(), 0.011);
   // One pose fewer does not reach it.
   const Output fewer =
       Plan("--count=" + std::to_string(n - 1) + " --noise_sigma=0.02 --output=f.csv");
   ASSERT_EQ(fewer.exit_code, kExitOk) << fewer.err;
-  const nlohmann::json f = nlohmann::json::parse(ReadText(dir_ / "f.json"));
+  const nlohmann::json f = nlohmann::json::parse(ReadAll(dir_ / "f.json"));
   EXPECT_GT(f["plan"]["predicted_rms_mm"].get<double>(), 0.011);
   // Out of reach.
   const Output never = Plan("--count=auto --target_accuracy=0.0001 --noise_sigma=0.02 --output=n.csv");
@@ -238,7 +215,7 @@ TEST_F(PlanTool, CountAutoReturnsTheSmallestPlanReachingTheTarget) {
 TEST_F(PlanTool, JointErrorTermsJoinThePlannedParameters) {
   const Output o = Plan("--count=30 --output=p.csv --joint_errors=harmonics,compliance");
   ASSERT_EQ(o.exit_code, kExitOk) << o.err;
-  const nlohmann::json report = nlohmann::json::parse(ReadText(dir_ / "p.json"));
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(dir_ / "p.json"));
   ASSERT_EQ(report["joint_errors"].size(), 2u);
   EXPECT_EQ(report["joint_errors"][0]["term"], "compliance");  // compliance first, as calibrated
   EXPECT_EQ(report["joint_errors"][1]["term"], "harmonics");
@@ -252,17 +229,17 @@ TEST_F(PlanTool, JointErrorTermsJoinThePlannedParameters) {
   EXPECT_EQ(report["plan"]["rank"], report["parameters"]);
   const double with_terms = report["plan"]["predicted_rms_per_unit_noise"];
   EXPECT_LT(with_terms, report["random_plan"]["predicted_rms_per_unit_noise"].get<double>());
-  EXPECT_NE(ReadText(dir_ / "p.csv").find("joint errors compliance,harmonics"), std::string::npos);
+  EXPECT_NE(ReadAll(dir_ / "p.csv").find("joint errors compliance,harmonics"), std::string::npos);
 
   const Output g = Plan("--count=30 --output=g.csv");
   ASSERT_EQ(g.exit_code, kExitOk) << g.err;
-  const nlohmann::json geometric = nlohmann::json::parse(ReadText(dir_ / "g.json"));
+  const nlohmann::json geometric = nlohmann::json::parse(ReadAll(dir_ / "g.json"));
   EXPECT_TRUE(geometric["joint_errors"].empty());
   EXPECT_GT(with_terms, geometric["plan"]["predicted_rms_per_unit_noise"].get<double>());
 
   const Output a = Plan("--count=30 --output=a.csv --joint_errors=auto");
   ASSERT_EQ(a.exit_code, kExitOk) << a.err;
-  const nlohmann::json automatic = nlohmann::json::parse(ReadText(dir_ / "a.json"));
+  const nlohmann::json automatic = nlohmann::json::parse(ReadAll(dir_ / "a.json"));
   EXPECT_EQ(automatic["parameters"], report["parameters"]);
   // Too few poses for the 80-odd parameters: refused.
   const Output few = Plan("--count=8 --output=f.csv --joint_errors=compliance,harmonics");
@@ -273,7 +250,7 @@ TEST_F(PlanTool, JointErrorTermsJoinThePlannedParameters) {
 TEST_F(PlanTool, TrackerConstraintKeepsOnlyVisiblePoses) {
   const Output o = Plan("--count=15 --output=p.csv --tracker=0,2500,600 --max_range=4000");
   ASSERT_EQ(o.exit_code, kExitOk) << o.err;
-  const nlohmann::json report = nlohmann::json::parse(ReadText(dir_ / "p.json"));
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(dir_ / "p.json"));
   EXPECT_GT(report["candidates"]["nothing_visible"].get<int>(), 100);
   EXPECT_LT(report["plan"]["rows"].get<int>(), 15 * 9 + 1);
   EXPECT_EQ(report["plan"]["rank"], 33);

@@ -15,6 +15,7 @@
 #include <sstream>
 #include <string>
 
+#include "file_util.h"
 #include "lpoe/io.h"
 #include "lpoe/simulation.h"
 #include "report.h"
@@ -27,18 +28,8 @@ constexpr size_t kMaxHtmlBytes = 5u << 20;  // 5 MB
 constexpr int kLargeRunPoints = 100000;
 constexpr int kShotWidth = 1200, kShotHeight = 3000;
 
-std::string ReadAll(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-bool WriteAll(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-  return static_cast<bool>(out);
-}
+using ::lpoe::testing::ReadAll;
+using ::lpoe::testing::WriteAll;
 
 std::string Mm(double v) {
   char buf[32];
@@ -57,16 +48,11 @@ std::string HtmlProblems(const std::string& path) {
 
 class ReportHtml : public ::testing::Test {
  protected:
-  void SetUp() override {
-    char tmpl[] = "/tmp/lpoe_report_html_XXXXXX";
-    ASSERT_NE(mkdtemp(tmpl), nullptr);
-    dir_ = tmpl;
-  }
-  void TearDown() override { std::system(("rm -rf " + dir_).c_str()); }
   int Run(const std::string& args, const std::string& log) {
     return std::system(("cd " + dir_ + " && " + args + " > " + log + " 2>&1").c_str());
   }
-  std::string dir_;
+  ::lpoe::testing::TempDir temp_{"lpoe_report_html"};
+  std::string dir_ = temp_.path();
 };
 
 TEST_F(ReportHtml, DefaultJobPageCarriesTheJsonFiguresAndIsDeterministic) {

@@ -5,6 +5,7 @@
 #include <ceres/gradient_checker.h>
 #include <gtest/gtest.h>
 
+#include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/measurement_residual.h"
@@ -160,6 +161,59 @@ TEST(PositionResidual, MatchesAnalyticJacobianAndValue) {
       EXPECT_LT(RelativeDifference(J_auto, J_analytic), kJacobianTolerance);
       EXPECT_LT((r - (P - measured) / kSigma).norm(), 1e-9 * r.norm());
     }
+  }
+}
+
+// With joint-space blocks (q_eff = q + R x, x in two blocks of 2 and 3): the value is the residual at
+// q_eff, the blocks' Jacobian columns are (dr/dq) R (chain rule), and every block passes the
+// gradient checker.
+TEST(PositionResidual, JointSpaceBlocksFollowTheChainRule) {
+  const RobotModel model = PerturbedTwoToolCobot();
+  const auto shared = std::make_shared<const RobotModel>(model);
+  const Parameterization p =
+      MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
+  const int n = model.num_joints();
+  const std::vector<int> block_sizes = {2, 3};
+  std::mt19937_64 rng(6);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int trial = 0; trial < kNumConfigurations; ++trial) {
+    const int tool = trial % 2;
+    const std::vector<double> q = RandomQ(n, &rng);
+    Eigen::MatrixXd R(n, 5);
+    for (int k = 0; k < R.size(); ++k) R(k) = u(rng);
+    std::vector<std::vector<double>> x = {{u(rng) * 1e-2, u(rng) * 1e-2},
+                                          {u(rng) * 1e-2, u(rng) * 1e-2, u(rng) * 1e-2}};
+    Eigen::VectorXd x_all(5);
+    x_all << x[0][0], x[0][1], x[1][0], x[1][1], x[1][2];
+    const Eigen::VectorXd q_eff = Eigen::Map<const Eigen::VectorXd>(q.data(), n) + R * x_all;
+    const Eigen::Vector3d measured =
+        ToolPosition(model, q.data(), tool) + Eigen::Vector3d(1, -2, 0.5);
+    std::unique_ptr<ceres::CostFunction> cost(PositionResidual::Create(
+        shared, PositionKind(), q.data(), measured, R, block_sizes));
+    ASSERT_EQ(cost->parameter_block_sizes().size(), static_cast<size_t>(n + 3));
+    Blocks b = MakeBlocks(model, p, tool);
+    for (auto& block : x) b.pointers.push_back(block.data());
+    b.manifold_pointers.push_back(nullptr);
+    b.manifold_pointers.push_back(nullptr);
+
+    Eigen::Vector3d r;
+    std::vector<RowMajor> jac;
+    for (int s : cost->parameter_block_sizes()) jac.emplace_back(3, s);
+    std::vector<double*> jac_pointers;
+    for (auto& j : jac) jac_pointers.push_back(j.data());
+    ASSERT_TRUE(cost->Evaluate(b.pointers.data(), r.data(), jac_pointers.data()));
+    Eigen::Matrix<double, 3, Eigen::Dynamic> J_q;
+    const Eigen::Vector3d P = ToolPositionJointJacobian(model, q_eff.data(), tool, &J_q);
+    EXPECT_LT((r - (P - measured) / kSigma).norm(), 1e-9 * r.norm());
+    const Eigen::MatrixXd expected = J_q * R / kSigma;
+    EXPECT_LT(RelativeDifference(jac[n + 1], expected.leftCols(2)), kJacobianTolerance);
+    EXPECT_LT(RelativeDifference(jac[n + 2], expected.rightCols(3)), kJacobianTolerance);
+
+    ceres::NumericDiffOptions numeric;
+    ceres::GradientChecker checker(cost.get(), &b.manifold_pointers, numeric);
+    ceres::GradientChecker::ProbeResults results;
+    EXPECT_TRUE(checker.Probe(b.pointers.data(), kGradientCheckPrecision, &results))
+        << results.error_log;
   }
 }
 

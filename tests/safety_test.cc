@@ -25,6 +25,9 @@ namespace {
 using ::lpoe::testing::Exists;
 using ::lpoe::testing::ListDir;
 using ::lpoe::testing::ReadAll;
+using ::lpoe::testing::RunInDir;
+using ::lpoe::testing::WriteAll;
+using Result = ::lpoe::testing::ToolOutput;
 
 constexpr int kExitOk = 0;
 constexpr int kExitUsage = 1;
@@ -35,45 +38,19 @@ constexpr int kConcurrentRuns = 8;
 const std::string kCalibrate = LPOE_CALIBRATE_PATH;
 const std::string kSimulate = LPOE_SIMULATE_PATH;
 
-void WriteAll(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-}
-
-struct Result {
-  int code = -1;
-  std::string out, err;
-};
-
 class Safety : public ::testing::Test {
  protected:
-  void SetUp() override {
-    char tmpl[] = "/tmp/lpoe_safety_XXXXXX";
-    ASSERT_NE(mkdtemp(tmpl), nullptr);
-    dir_ = tmpl;
-  }
-  void TearDown() override { std::system(("rm -rf " + dir_).c_str()); }
-
   std::string Path(const std::string& name) const { return dir_ + "/" + name; }
 
   Result Run(const std::string& tool, const std::string& args) const {
-    const std::string cmd = "cd " + dir_ + " && " + tool + " " + args + " >" + dir_ +
-                            "/.stdout 2>" + dir_ + "/.stderr";
-    Result r;
-    const int status = std::system(cmd.c_str());
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = ReadAll(dir_ + "/.stdout");
-    r.err = ReadAll(dir_ + "/.stderr");
-    std::remove((dir_ + "/.stdout").c_str());
-    std::remove((dir_ + "/.stderr").c_str());
-    return r;
+    return RunInDir(dir_, tool + " " + args);
   }
 
   // Simulated section-4-like data (cobot6, Table 2 errors) in `name`.
   void Simulate(const std::string& name, const std::string& extra = "") const {
     const Result r = Run(kSimulate, "--count=" + std::to_string(kRows) +
                                         " --noise_sigma=0.03 --out=" + Path(name) + " " + extra);
-    ASSERT_EQ(r.code, kExitOk) << r.err;
+    ASSERT_EQ(r.exit_code, kExitOk) << r.err;
   }
 
   // Rewrites the x, y, z columns of a simulated CSV (header q1..q6,x,y,z,target).
@@ -98,7 +75,7 @@ class Safety : public ::testing::Test {
       for (int k = 0; k < 6; ++k) out << fields[k] << ",";
       out << buf << "," << fields[9] << "\n";
     }
-    WriteAll(Path(to), out.str());
+    ASSERT_TRUE(WriteAll(Path(to), out.str()));
   }
 
   // Calibrating `csv` must be refused as implausible, write nothing, and say `hint` on stderr.
@@ -107,13 +84,14 @@ class Safety : public ::testing::Test {
     const Result r = Run(kCalibrate, "--measurements=" + Path(csv) +
                                          " --max_iterations=1000 --plots_dir=plots --output=" +
                                          Path("out.yaml") + " " + extra);
-    EXPECT_EQ(r.code, kExitImplausible) << r.err;
+    EXPECT_EQ(r.exit_code, kExitImplausible) << r.err;
     EXPECT_NE(r.err.find(hint), std::string::npos) << r.err;
     EXPECT_FALSE(Exists(Path("out.yaml")));
     EXPECT_FALSE(Exists(Path("plots")));
   }
 
-  std::string dir_;
+  ::lpoe::testing::TempDir temp_{"lpoe_safety"};
+  std::string dir_ = temp_.path();
 };
 
 // ---- Issue 13 item 1: silent wrong success.
@@ -121,7 +99,7 @@ class Safety : public ::testing::Test {
 TEST_F(Safety, CleanDataPass) {
   Simulate("clean.csv");
   const Result r = Run(kCalibrate, "--measurements=clean.csv --plots_dir= --report=r.json");
-  ASSERT_EQ(r.code, kExitOk) << r.err;
+  ASSERT_EQ(r.exit_code, kExitOk) << r.err;
   const std::string report = ReadAll(Path("r.json"));
   EXPECT_NE(report.find("\"verdict\""), std::string::npos);
   EXPECT_NE(report.find("\"level\": \"pass\""), std::string::npos) << report;
@@ -166,7 +144,7 @@ TEST_F(Safety, RandomPositionsAreRefused) {
 
 TEST_F(Safety, MetreNoiseIsRefused) {
   const Result s = Run(kSimulate, "--count=150 --noise_sigma=1000 --out=noisy.csv");
-  ASSERT_EQ(s.code, kExitOk) << s.err;
+  ASSERT_EQ(s.exit_code, kExitOk) << s.err;
   ExpectImplausible("noisy.csv", "not plausible");
 }
 
@@ -177,7 +155,7 @@ TEST_F(Safety, ForceWritesAnImplausibleResult) {
   });
   const Result r = Run(kCalibrate, "--measurements=metres.csv --max_iterations=1000 --plots_dir= "
                                    "--force --output=out.yaml");
-  EXPECT_EQ(r.code, kExitOk) << r.err;
+  EXPECT_EQ(r.exit_code, kExitOk) << r.err;
   EXPECT_TRUE(Exists(Path("out.yaml")));
 }
 
@@ -203,7 +181,7 @@ TEST_F(Safety, FlagsOutsideTheirRangesExitOneNamingTheFlag) {
   for (const auto& [args, flag] : cases) {
     SCOPED_TRACE(args);
     const Result r = Run(kCalibrate, args + " --plots_dir=plots --output=out.yaml");
-    EXPECT_EQ(r.code, kExitUsage) << r.err;
+    EXPECT_EQ(r.exit_code, kExitUsage) << r.err;
     EXPECT_NE(r.err.find(flag), std::string::npos) << r.err;
     EXPECT_FALSE(Exists(Path("out.yaml")));
     EXPECT_FALSE(Exists(Path("plots")));
@@ -215,7 +193,7 @@ TEST_F(Safety, SimulateBoundsItsFlags) {
                                  "--noise_sigma=nan", "--orientation_noise_sigma=inf"}) {
     SCOPED_TRACE(args);
     const Result r = Run(kSimulate, args + " --out=x.csv");
-    EXPECT_EQ(r.code, kExitUsage) << r.err;
+    EXPECT_EQ(r.exit_code, kExitUsage) << r.err;
     EXPECT_FALSE(Exists(Path("x.csv")));
   }
 }
@@ -223,10 +201,10 @@ TEST_F(Safety, SimulateBoundsItsFlags) {
 // ---- Items 2-3: outputs.
 
 TEST_F(Safety, SymlinkedOutputReplacesItsTargetAndKeepsTheLink) {
-  WriteAll(Path("target.yaml"), "old\n");
+  ASSERT_TRUE(WriteAll(Path("target.yaml"), "old\n"));
   ASSERT_EQ(symlink("target.yaml", Path("link.yaml").c_str()), 0);
   const Result r = Run(kCalibrate, "--plots_dir= --output=link.yaml");
-  ASSERT_EQ(r.code, kExitOk) << r.err;
+  ASSERT_EQ(r.exit_code, kExitOk) << r.err;
   struct stat st;
   ASSERT_EQ(lstat(Path("link.yaml").c_str(), &st), 0);
   EXPECT_TRUE(S_ISLNK(st.st_mode));
@@ -236,14 +214,14 @@ TEST_F(Safety, SymlinkedOutputReplacesItsTargetAndKeepsTheLink) {
 TEST_F(Safety, DeviceOutputIsWrittenStraightNotReplaced) {
   // Two outputs may share a device (nothing is renamed over it).
   const Result ok = Run(kCalibrate, "--plots_dir= --report=/dev/null --output=/dev/null");
-  EXPECT_EQ(ok.code, kExitOk) << ok.err;
+  EXPECT_EQ(ok.exit_code, kExitOk) << ok.err;
   struct stat st;
   ASSERT_EQ(lstat("/dev/null", &st), 0);
   EXPECT_TRUE(S_ISCHR(st.st_mode));
   EXPECT_TRUE(ListDir(dir_).empty());
   // /dev/stdout is a link into /proc: written straight, after the tool's own text.
   const Result out = Run(kCalibrate, "--plots_dir= --report=/dev/stdout");
-  EXPECT_EQ(out.code, kExitOk) << out.err;
+  EXPECT_EQ(out.exit_code, kExitOk) << out.err;
   const size_t schema = out.out.find("\"schema\"");
   EXPECT_NE(schema, std::string::npos);
   EXPECT_GT(schema, out.out.find("verdict:"));
@@ -254,7 +232,7 @@ TEST_F(Safety, CollisionsAreFoundByIdentityNotBySpelling) {
   ASSERT_EQ(mkdir(Path("d").c_str(), 0755), 0);
   ASSERT_EQ(symlink("d", Path("linked").c_str()), 0);
   const Result s = Run(kSimulate, "--count=100 --out=sim.csv --model_out=model.yaml");
-  ASSERT_EQ(s.code, kExitOk) << s.err;
+  ASSERT_EQ(s.exit_code, kExitOk) << s.err;
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"--output=d/x.yaml --urdf_output=d/./x.yaml", "name the same file"},
       {"--urdf_output=d/y --report=linked/y", "name the same file"},
@@ -268,26 +246,26 @@ TEST_F(Safety, CollisionsAreFoundByIdentityNotBySpelling) {
   for (const auto& [args, message] : cases) {
     SCOPED_TRACE(args);
     const Result r = Run(kCalibrate, args);
-    EXPECT_EQ(r.code, kExitUsage) << r.err;
+    EXPECT_EQ(r.exit_code, kExitUsage) << r.err;
     EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
   }
   const Result sim = Run(kSimulate, "--model=model.yaml --out=./d/../model.yaml");
-  EXPECT_EQ(sim.code, kExitUsage) << sim.err;
+  EXPECT_EQ(sim.exit_code, kExitUsage) << sim.err;
   EXPECT_NE(ReadAll(Path("model.yaml")).find("joints:"), std::string::npos);
 }
 
 TEST_F(Safety, NestedPlotsDirectoryIsCreated) {
   const Result r = Run(kCalibrate, "--plots_dir=a/b/c");
-  ASSERT_EQ(r.code, kExitOk) << r.err;
+  ASSERT_EQ(r.exit_code, kExitOk) << r.err;
   EXPECT_TRUE(Exists(Path("a/b/c/convergence.png")));
 }
 
 TEST_F(Safety, PlantedLinkAtAnOldTemporaryNameIsNotFollowed) {
   ASSERT_EQ(mkdir(Path("plots").c_str(), 0755), 0);
-  WriteAll(Path("victim"), "precious\n");
+  ASSERT_TRUE(WriteAll(Path("victim"), "precious\n"));
   ASSERT_EQ(symlink(Path("victim").c_str(), Path("plots/convergence.png.tmp").c_str()), 0);
   const Result r = Run(kCalibrate, "--plots_dir=plots");
-  ASSERT_EQ(r.code, kExitOk) << r.err;
+  ASSERT_EQ(r.exit_code, kExitOk) << r.err;
   EXPECT_EQ(ReadAll(Path("victim")), "precious\n");
 }
 

@@ -223,8 +223,7 @@ void PrintIdentifiability(const IdentifiabilityReport& id) {
 // Flag ranges: a value outside gives exit 1 with a message naming the flag.
 Status CheckFlags() {
   using tools::CheckRange;
-  for (Status s : {CheckRange("holdout", FLAGS_holdout, 0.0, 0.95),
-                   CheckRange("max_iterations", FLAGS_max_iterations, 1, 10000),
+  for (Status s : {CheckRange("max_iterations", FLAGS_max_iterations, 1, 10000),
                    CheckRange("step_tolerance", FLAGS_step_tolerance, 1e-300, 1e-3, true),
                    CheckRange("sd_fraction", FLAGS_sd_fraction, 0.0, 0.5),
                    CheckRange("max_condition", FLAGS_max_condition, 10.0, 1e16),
@@ -250,23 +249,17 @@ int Run() {
   const std::string& verify_path = paths.verify;
 
   // ---- Flags.
-  AngleUnit unit;
-  ParameterizationKind kind;
-  if (!tools::ParseAngleUnit(FLAGS_angle_unit, &unit)) {
-    std::cerr << "error: --angle_unit must be rad or deg, got '" << FLAGS_angle_unit << "'\n";
+  tools::InputSettings settings;
+  if (Status s = tools::ParseInputFlags({FLAGS_angle_unit, FLAGS_length_unit,
+                                         FLAGS_parameterization, FLAGS_verify, FLAGS_holdout},
+                                        &settings);
+      !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  CsvOptions csv;
-  csv.angle_unit = unit;
-  if (!ParseLengthUnit(FLAGS_length_unit, &csv.length_unit)) {
-    std::cerr << "error: --length_unit must be mm or m, got '" << FLAGS_length_unit << "'\n";
-    return kExitUsage;
-  }
-  if (!ParseParameterization(FLAGS_parameterization, &kind)) {
-    std::cerr << "error: --parameterization must be identifiable or full, got '"
-              << FLAGS_parameterization << "'\n";
-    return kExitUsage;
-  }
+  const AngleUnit unit = settings.angle_unit;
+  const CsvOptions& csv = settings.csv;
+  const ParameterizationKind kind = settings.parameterization;
   if (FLAGS_solver != "linear" && FLAGS_solver != "ceres") {
     std::cerr << "error: --solver must be linear or ceres, got '" << FLAGS_solver << "'\n";
     return kExitUsage;
@@ -294,10 +287,6 @@ int Run() {
   if (FLAGS_data_kind != "auto" && FLAGS_data_kind != "position" && FLAGS_data_kind != "pose") {
     std::cerr << "error: --data_kind must be auto, position or pose, got '" << FLAGS_data_kind
               << "'\n";
-    return kExitUsage;
-  }
-  if (FLAGS_holdout > 0.0 && !FLAGS_verify.empty()) {
-    std::cerr << "error: give either --verify or --holdout, not both\n";
     return kExitUsage;
   }
   UrdfOptions urdf_options;
@@ -406,13 +395,11 @@ int Run() {
   const PipelineResult run =
       RunCalibrationPipeline(nominal, identification, verification, options);
   const CalibrationResult& result = run.result;
+  tools::AddPipelineResult(run, &summary);
   summary.joint_errors_requested = FLAGS_joint_errors;
-  summary.joint_error_selection = run.joint_error_selection;
   if (run.joint_error_selection.ran) {
     std::cerr << tools::JointErrorSelectionTable(run.joint_error_selection);
   }
-  summary.registered = run.registered;
-  summary.registration = run.registration;
   if (run.registered && result.termination != Termination::kNotIdentifiable) {
     const RegistrationReport& reg = run.registration;
     if (reg.moved) {
@@ -431,21 +418,14 @@ int Run() {
     std::cerr << "error: " << result.message << "\n";
     return tools::ExitCodeFor(result.termination);
   }
-  summary.result = result;
-  summary.identifiability = run.identifiability;
   PrintIdentifiability(summary.identifiability);
   std::cout << tools::JointTermsIdentifiability(result);
   std::cout << "\n";
   tools::PrintIterationTable(std::cout, result);
   std::cout << "\n";
-  summary.identification_before = run.identification_before;
-  summary.identification_after = run.identification_after;
   tools::PrintBeforeAfter(std::cout, "identification set", summary.identification_before,
                           summary.identification_after);
   if (run.has_verification) {
-    summary.has_verification = true;
-    summary.verification_before = run.verification_before;
-    summary.verification_after = run.verification_after;
     std::cout << "\n";
     tools::PrintBeforeAfter(std::cout, "verification set", summary.verification_before,
                             summary.verification_after);
@@ -457,8 +437,6 @@ int Run() {
   }
 
   // ---- Points that do not fit.
-  summary.outliers = run.outliers;
-  summary.robust_sigma = run.robust_sigma;
   if (!summary.outliers.empty()) {
     std::cout << "\n" << summary.outliers.size() << " point(s) fit worse than "
               << FLAGS_outlier_threshold << " robust sigmas (" << summary.robust_sigma
@@ -476,18 +454,12 @@ int Run() {
               << "  fold  rows   termination        max      mean       rms       p95\n";
     char line[200];
     for (const FoldSummary& f : run.folds) {
-      tools::FoldResult fr;
-      fr.fold = f.fold;
-      fr.identification_rows = f.identification_rows;
-      fr.termination = TerminationName(f.termination);
-      fr.verification_after = f.verification_after;
-      std::snprintf(line, sizeof(line), "  %4d %5d   %-16s %8.4f %9.4f %9.4f %9.4f\n", fr.fold,
-                    fr.identification_rows,
+      std::snprintf(line, sizeof(line), "  %4d %5d   %-16s %8.4f %9.4f %9.4f %9.4f\n", f.fold,
+                    f.identification_rows,
                     f.termination == Termination::kConverged ? "converged" : "FAILED",
-                    fr.verification_after.norm.max_abs, fr.verification_after.norm.mean_abs,
-                    fr.verification_after.norm.rms, fr.verification_after.norm.p95_abs);
+                    f.verification_after.norm.max_abs, f.verification_after.norm.mean_abs,
+                    f.verification_after.norm.rms, f.verification_after.norm.p95_abs);
       std::cout << line;
-      summary.folds.push_back(fr);
     }
     const ErrorStatistics& all = run.folds_pooled;
     std::snprintf(line, sizeof(line), "   all %5d   %-16s %8.4f %9.4f %9.4f %9.4f\n",
@@ -505,7 +477,6 @@ int Run() {
   }
 
   // ---- Plausibility verdict.
-  summary.verdict = run.verdict;
   const Verdict& verdict = run.verdict;
   std::cout << "verdict: " << VerdictLevelName(verdict.level) << ": " << verdict.reason << "\n";
   for (const VerdictCheck& c : verdict.checks) {

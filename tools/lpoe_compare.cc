@@ -103,34 +103,23 @@ int Run() {
   const std::string& meas_path = paths.measurements;
   const std::string& verify_path = paths.verify;
 
-  AngleUnit unit;
-  if (!tools::ParseAngleUnit(FLAGS_angle_unit, &unit)) {
-    std::cerr << "error: --angle_unit must be rad or deg, got '" << FLAGS_angle_unit << "'\n";
+  tools::InputSettings settings;
+  if (Status s = tools::ParseInputFlags({FLAGS_angle_unit, FLAGS_length_unit,
+                                         FLAGS_parameterization, FLAGS_verify, FLAGS_holdout},
+                                        &settings);
+      !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  CsvOptions csv;
-  csv.angle_unit = unit;
-  if (!ParseLengthUnit(FLAGS_length_unit, &csv.length_unit)) {
-    std::cerr << "error: --length_unit must be mm or m, got '" << FLAGS_length_unit << "'\n";
-    return kExitUsage;
-  }
-  ParameterizationKind kind;
-  if (!ParseParameterization(FLAGS_parameterization, &kind)) {
-    std::cerr << "error: --parameterization must be identifiable or full, got '"
-              << FLAGS_parameterization << "'\n";
-    return kExitUsage;
-  }
-  for (Status s : {tools::CheckRange("holdout", FLAGS_holdout, 0.0, 0.95),
-                   tools::CheckRange("tolerance_mm", FLAGS_tolerance_mm, 0.0, 1000.0),
+  const AngleUnit unit = settings.angle_unit;
+  const CsvOptions& csv = settings.csv;
+  const ParameterizationKind kind = settings.parameterization;
+  for (Status s : {tools::CheckRange("tolerance_mm", FLAGS_tolerance_mm, 0.0, 1000.0),
                    tools::CheckRange("noise_sigma", FLAGS_noise_sigma, 1e-6, 100.0)}) {
     if (!s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitUsage;
     }
-  }
-  if (FLAGS_holdout > 0.0 && !FLAGS_verify.empty()) {
-    std::cerr << "error: give either --verify or --holdout, not both\n";
-    return kExitUsage;
   }
 
   tools::OutputSet outputs;

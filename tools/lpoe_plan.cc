@@ -19,9 +19,9 @@
 #include <glog/logging.h>
 #include <nlohmann/json.hpp>
 
-#include "joint_table.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/joint_table.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/planning.h"
 #include "tool_common.h"
@@ -248,9 +248,9 @@ int Run() {
 
   // Candidates and workspace.
   std::vector<double> candidates, workspace;
-  tools::JointTable table;
+  JointTable table;
   if (!FLAGS_candidates.empty()) {
-    if (Status s = tools::ReadJointTable(FLAGS_candidates, model, unit, &table); !s.ok()) {
+    if (Status s = ReadJointTable(FLAGS_candidates, model, unit, &table); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
@@ -268,8 +268,8 @@ int Run() {
     return kExitInput;
   }
   if (!FLAGS_workspace.empty()) {
-    tools::JointTable w;
-    if (Status s = tools::ReadJointTable(FLAGS_workspace, model, unit, &w); !s.ok()) {
+    JointTable w;
+    if (Status s = ReadJointTable(FLAGS_workspace, model, unit, &w); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }

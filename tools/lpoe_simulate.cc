@@ -16,11 +16,11 @@
 
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/joint_table.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/simulation.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
-#include "joint_table.h"
 #include "tool_common.h"
 
 DEFINE_string(robot, "cobot6",
@@ -255,8 +255,8 @@ int Run() {
   SimulationOptions options;
   options.count = FLAGS_count;
   if (!FLAGS_joints.empty()) {
-    tools::JointTable table;
-    if (Status s = tools::ReadJointTable(FLAGS_joints, nominal, unit, &table); !s.ok()) {
+    JointTable table;
+    if (Status s = ReadJointTable(FLAGS_joints, nominal, unit, &table); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }

@@ -138,6 +138,10 @@ void AddPointResiduals(const RobotModel& before, const RobotModel& after,
   fill(verification, &summary->verification_points);
 }
 
+void AddPipelineResult(const PipelineResult& run, RunSummary* s) {
+  static_cast<PipelineResult&>(*s) = run;
+}
+
 std::string JointErrorSelectionTable(const JointErrorSelection& sel) {
   std::string out = "joint errors (auto): " + std::to_string(sel.folds) +
                     "-fold cross-validation on the identification rows (seed " +
@@ -244,18 +248,7 @@ Status ComparisonHtml(const ComparisonPage& page, std::string* html) {
   s.solver = "ceres";
   s.parameterization = page.parameterization;
   s.data_kind = run.result.parameterization.data == DataKind::kPose ? "pose" : "position";
-  s.registered = run.registered;
-  s.registration = run.registration;
-  s.result = run.result;
-  s.identifiability = run.identifiability;
-  s.identification_before = run.identification_before;
-  s.identification_after = run.identification_after;
-  s.has_verification = run.has_verification;
-  s.verification_before = run.verification_before;
-  s.verification_after = run.verification_after;
-  s.outliers = run.outliers;
-  s.robust_sigma = run.robust_sigma;
-  s.verdict = run.verdict;
+  AddPipelineResult(run, &s);
   if (!page.agree) {
     s.verdict.level = VerdictLevel::kFail;
     s.verdict.reason = "the linear and the Ceres solver disagree on the predicted positions";
@@ -367,10 +360,10 @@ Json BuildJson(const RunSummary& s) {
   }
   j["outliers"] = {{"robust_sigma", s.robust_sigma}, {"points", outliers}};
   Json folds = Json::array();
-  for (const FoldResult& f : s.folds) {
+  for (const FoldSummary& f : s.folds) {
     folds.push_back({{"fold", f.fold},
                      {"identification_rows", f.identification_rows},
-                     {"termination", f.termination},
+                     {"termination", TerminationName(f.termination)},
                      {"verification_after", StatsJson(f.verification_after)}});
   }
   j["cross_validation"] = folds;

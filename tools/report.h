@@ -17,13 +17,6 @@
 namespace lpoe {
 namespace tools {
 
-struct FoldResult {
-  int fold = 0;
-  int identification_rows = 0;
-  std::string termination;
-  ErrorStatistics verification_after;
-};
-
 // One measured point with its position error (measured - predicted, mm) before and after the
 // calibration. `q` and `measured` feed the HTML report's plots (not written to the JSON).
 struct PointResidual {
@@ -34,24 +27,15 @@ struct PointResidual {
   std::vector<double> q;  // joint values (rad / mm)
 };
 
-struct RunSummary {
+// What the reports show: the pipeline's result (registration, calibration, identifiability,
+// statistics, outliers, folds, plausibility verdict) and the run's inputs and outputs.
+struct RunSummary : PipelineResult {
   std::string model_path, measurements_path, verification_source;
   std::string solver, parameterization, data_kind, angle_unit;
   CsvReadReport skipped;
-  bool registered = false;
-  RegistrationReport registration;
-  CalibrationResult result;
-  IdentifiabilityReport identifiability;
-  ErrorStatistics identification_before, identification_after;
-  bool has_verification = false;
-  ErrorStatistics verification_before, verification_after;
-  double robust_sigma = 0;
-  std::vector<Outlier> outliers;
-  std::vector<FoldResult> folds;
-  // --joint_errors: what was asked for ("none", a list or "auto") and, for auto, the choice.
+  // --joint_errors: what was asked for ("none", a list or "auto"); for auto, the choice is the
+  // pipeline's joint_error_selection.
   std::string joint_errors_requested = "none";
-  JointErrorSelection joint_error_selection;
-  Verdict verdict;  // plausibility of the result (lpoe/plausibility.h)
   std::vector<std::string> outputs;  // files written
 
   // Per-point data (AddPointResiduals) and the model the "before" errors refer to (the nominal
@@ -81,6 +65,9 @@ struct ComparisonPage {
   bool agree = true;
 };
 Status ComparisonHtml(const ComparisonPage& page, std::string* html);
+
+// Copies what the pipeline found into `summary` (its PipelineResult part).
+void AddPipelineResult(const PipelineResult& run, RunSummary* summary);
 
 // Fills before_model and the per-point residuals of the identification and verification sets.
 void AddPointResiduals(const RobotModel& before, const RobotModel& after,

@@ -137,6 +137,27 @@ bool ParseAngleUnit(const std::string& text, AngleUnit* unit) {
   return false;
 }
 
+Status ParseInputFlags(const InputFlags& flags, InputSettings* settings) {
+  InputSettings out;
+  if (!ParseAngleUnit(flags.angle_unit, &out.angle_unit)) {
+    return Status::Error("--angle_unit must be rad or deg, got '" + flags.angle_unit + "'");
+  }
+  out.csv.angle_unit = out.angle_unit;
+  if (!ParseLengthUnit(flags.length_unit, &out.csv.length_unit)) {
+    return Status::Error("--length_unit must be mm or m, got '" + flags.length_unit + "'");
+  }
+  if (!ParseParameterization(flags.parameterization, &out.parameterization)) {
+    return Status::Error("--parameterization must be identifiable or full, got '" +
+                         flags.parameterization + "'");
+  }
+  if (Status s = CheckRange("holdout", flags.holdout, 0.0, 0.95); !s.ok()) return s;
+  if (flags.holdout > 0.0 && !flags.verify.empty()) {
+    return Status::Error("give either --verify or --holdout, not both");
+  }
+  *settings = out;
+  return Status::Ok();
+}
+
 bool SameFile(const std::string& a, const std::string& b) {
   if (a.empty() || b.empty()) return false;
   if (a == b) return true;

@@ -50,6 +50,20 @@ bool UrdfOptionsFromFlags(const std::string& model_path, UrdfOptions* options);
 
 bool ParseAngleUnit(const std::string& text, AngleUnit* unit);
 
+// The input flags lpoe_calibrate and lpoe_compare share, checked in one place: the units, the
+// parameterization, the --holdout range and --verify/--holdout given together. The error names the
+// flag (a usage error, exit 1).
+struct InputFlags {
+  std::string angle_unit, length_unit, parameterization, verify;
+  double holdout = 0;
+};
+struct InputSettings {
+  AngleUnit angle_unit = AngleUnit::kRadians;
+  CsvOptions csv;  // angle and length unit of the CSV files
+  ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
+};
+Status ParseInputFlags(const InputFlags& flags, InputSettings* settings);
+
 // The model and measurements of a run, split into identification and verification rows.
 struct Inputs {
   RobotModel nominal;

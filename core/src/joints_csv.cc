@@ -15,18 +15,6 @@ constexpr double kRadiansPerDegree = 3.14159265358979323846 / 180.0;
 
 using internal::Trim;
 
-std::vector<std::string_view> Fields(std::string_view line) {
-  std::vector<std::string_view> out;
-  size_t start = 0;
-  for (size_t i = 0; i <= line.size(); ++i) {
-    if (i == line.size() || line[i] == ',') {
-      out.push_back(Trim(line.substr(start, i - start)));
-      start = i + 1;
-    }
-  }
-  return out;
-}
-
 bool ParseFinite(std::string_view s, double* v) {
   return internal::ParseNumber(s, v) == internal::NumberParse::kOk;
 }
@@ -60,7 +48,7 @@ Status ParseJointsCsv(const std::string& text, const std::string& source, const 
     rest = end == std::string_view::npos ? std::string_view() : rest.substr(end + 1);
     ++line_number;
     if (line.empty() || line[0] == '#') continue;
-    const std::vector<std::string_view> fields = Fields(line);
+    const std::vector<std::string_view> fields = internal::SplitFields(line);
     if (column.empty()) {  // the header
       column.assign(n, -1);
       for (size_t c = 0; c < fields.size(); ++c) {

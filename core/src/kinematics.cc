@@ -108,12 +108,12 @@ struct Accumulator {
 constexpr int kSinCosUpFront = 16;
 
 // The motion policy of the double forward pass (kinematics.h): the sin/cos of every revolute-z joint
-// computed before the chain, on the stack.
+// computed before the chain, on the stack; the other joints as OnTheFlyMotions.
 template <typename IsZ>
 class SinCosUpFront {
  public:
   SinCosUpFront(const Joint* joints, const double* q, int n, IsZ is_z)
-      : joints_(joints), q_(q), is_z_(is_z) {
+      : other_(joints, q, is_z) {
     for (int i = 0; i < n; ++i) {
       z_[i] = is_z(i);
       if (z_[i]) SinCos(q[i], &s_[i], &c_[i]);
@@ -123,14 +123,12 @@ class SinCosUpFront {
     if (z_[i]) {
       X->RotZ(c_[i], s_[i]);
     } else {
-      X->RightMultiply(JointMotion(joints_[i], q_[i]));
+      other_.ApplyRight(i, X);
     }
   }
 
  private:
-  const Joint* joints_;
-  const double* q_;
-  IsZ is_z_;
+  OnTheFlyMotions<IsZ, double> other_;
   double s_[kSinCosUpFront], c_[kSinCosUpFront];
   bool z_[kSinCosUpFront];
 };
@@ -255,6 +253,22 @@ inline void JointPoseColumn(const FrameRt& G, const Vector6d& s, bool z, double*
   }
 }
 
+// The 3 x n (6 x n) joint Jacobian at the frames G_0..G_n of one configuration, column-major with
+// leading dimension ld: column i is joint i's twist at G_i.
+void PositionJointColumns(const RobotModel& model, const FrameRt* G, double* J, int ld) {
+  const int n = model.num_joints();
+  for (int i = 0; i < n; ++i) {
+    const Joint& j = model.joints[i];
+    JointPositionColumn(G[i], G[n].t - G[i].t, j.twist, IsRevoluteZ(j), J + i * ld);
+  }
+}
+void PoseJointColumns(const RobotModel& model, const FrameRt* G, double* J, int ld) {
+  for (int i = 0; i < model.num_joints(); ++i) {
+    const Joint& j = model.joints[i];
+    JointPoseColumn(G[i], j.twist, IsRevoluteZ(j), J + i * ld);
+  }
+}
+
 }  // namespace
 
 SE3d ToolPose(const RobotModel& model, const double* q, int tool) {
@@ -312,10 +326,7 @@ Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double*
   const int n = model.num_joints();
   return WithFrames(model, q, tool, [&](const FrameRt* G) {
     J_p_q->resize(3, n);
-    for (int i = 0; i < n; ++i) {
-      const Joint& j = model.joints[i];
-      JointPositionColumn(G[i], G[n].t - G[i].t, j.twist, IsRevoluteZ(j), J_p_q->col(i).data());
-    }
+    PositionJointColumns(model, G, J_p_q->data(), 3);
     return Eigen::Vector3d(G[n].t);
   });
 }
@@ -325,10 +336,7 @@ SE3d ToolPoseJointJacobian(const RobotModel& model, const double* q, int tool,
   const int n = model.num_joints();
   return WithFrames(model, q, tool, [&](const FrameRt* G) {
     J_pose_q->resize(6, n);
-    for (int i = 0; i < n; ++i) {
-      const Joint& j = model.joints[i];
-      JointPoseColumn(G[i], j.twist, IsRevoluteZ(j), J_pose_q->col(i).data());
-    }
+    PoseJointColumns(model, G, J_pose_q->data(), 6);
     return SE3d(G[n].R, G[n].t);
   });
 }
@@ -466,18 +474,11 @@ SE3d BasisJacobian::Pose(const double* q, int tool, double* J, int ld, FrameRt* 
 }
 
 void BasisJacobian::PositionJointJacobian(const FrameRt* frames, double* J, int ld) const {
-  const Eigen::Vector3d& P = frames[num_joints_].t;
-  for (int i = 0; i < num_joints_; ++i) {
-    const Joint& joint = model_->joints[i];
-    JointPositionColumn(frames[i], P - frames[i].t, joint.twist, IsRevoluteZ(joint), J + i * ld);
-  }
+  PositionJointColumns(*model_, frames, J, ld);
 }
 
 void BasisJacobian::PoseJointJacobian(const FrameRt* frames, double* J, int ld) const {
-  for (int i = 0; i < num_joints_; ++i) {
-    const Joint& joint = model_->joints[i];
-    JointPoseColumn(frames[i], joint.twist, IsRevoluteZ(joint), J + i * ld);
-  }
+  PoseJointColumns(*model_, frames, J, ld);
 }
 
 // The forward-kinematics templates, instantiated for double here (the tests instantiate them for

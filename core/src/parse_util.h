@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "lpoe/status.h"
 
@@ -25,6 +26,10 @@ std::string Quote(std::string_view s, size_t max_shown = 40);
 
 // `s` without leading and trailing blanks (spaces and tabs).
 std::string_view Trim(std::string_view s);
+
+// The comma-separated fields of one CSV line, each trimmed (no quoting: the joint and plan files
+// have none). An empty line gives one empty field.
+std::vector<std::string_view> SplitFields(std::string_view line);
 
 // Result of ParseNumber.
 enum class NumberParse {

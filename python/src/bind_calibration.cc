@@ -200,29 +200,9 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   summary.data_kind = o.use_orientation ? "pose" : "position";
   summary.angle_unit = angle_unit;
   summary.verification_source = holdout > 0 ? "holdout" : verify != nullptr ? "array" : "";
-  summary.registered = run.registered;
-  summary.registration = run.registration;
-  summary.result = result;
-  summary.identifiability = run.identifiability;
-  summary.identification_before = run.identification_before;
-  summary.identification_after = run.identification_after;
-  summary.has_verification = run.has_verification;
-  summary.verification_before = run.verification_before;
-  summary.verification_after = run.verification_after;
+  tools::AddPipelineResult(run, &summary);
   tools::AddPointResiduals(run.before, result.model, data, verification, &summary);
-  summary.outliers = run.outliers;
-  summary.robust_sigma = run.robust_sigma;
-  for (const FoldSummary& f : run.folds) {
-    tools::FoldResult fr;
-    fr.fold = f.fold;
-    fr.identification_rows = f.identification_rows;
-    fr.termination = TerminationName(f.termination);
-    fr.verification_after = f.verification_after;
-    summary.folds.push_back(fr);
-  }
   summary.joint_errors_requested = joint_errors;
-  summary.joint_error_selection = run.joint_error_selection;
-  summary.verdict = run.verdict;
   summary.tool_name = "lpoe (Python)";
   c.report_json = tools::RunSummaryToJson(summary);
   return c;

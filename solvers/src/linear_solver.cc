@@ -70,9 +70,10 @@ namespace {
 
 Linearization Linearize(const RobotModel& model, const Eigen::VectorXd& joint_state,
                         const MeasurementSet& data, const Parameterization& p,
-                        const LinearSolverOptions& options, bool stack) {
+                        const LinearSolverOptions& options, bool stack,
+                        const Eigen::MatrixXd* joint_rows = nullptr) {
   return internal::NormalEquationsOf(model, data, p, joint_state, options.use_orientation,
-                                     options.orientation_weight, stack);
+                                     options.orientation_weight, stack, joint_rows);
 }
 
 // The identifiability check shared with the Ceres solver (identifiability.h).
@@ -174,12 +175,14 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   // The joint-space blocks' coordinates (they start at zero: no joint error).
   const int K = p.num_joint_parameters();
   Eigen::VectorXd joint_state = Eigen::VectorXd::Zero(K);
+  // The rows' joint regressors do not change during the solve: evaluated once.
+  const Eigen::MatrixXd joint_rows = internal::JointRegressorRows(p, data);
   auto joint_values = [&]() {
     Eigen::VectorXd x = Eigen::VectorXd::Zero(p.num_parameters);
     x.tail(K) = joint_state;
     return JointValuesOf(p, x);
   };
-  Linearization lin = Linearize(model, joint_state, data, p, options, stack);
+  Linearization lin = Linearize(model, joint_state, data, p, options, stack, &joint_rows);
   if (!lin.finite) {
     return finish(Termination::kNumericalFailure,
                   "non-finite residuals or Jacobian at the nominal model (check the input values)");
@@ -263,7 +266,8 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       RobotModel candidate = model;
       ApplyUpdate(p, alpha * x, &candidate);
       const Eigen::VectorXd candidate_joints = joint_state + alpha * x.tail(K);
-      Linearization next = Linearize(candidate, candidate_joints, data, p, options, stack);
+      Linearization next =
+          Linearize(candidate, candidate_joints, data, p, options, stack, &joint_rows);
       if (next.finite && next.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
         model = std::move(candidate);
         joint_state = candidate_joints;

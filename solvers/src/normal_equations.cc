@@ -47,13 +47,13 @@ struct Scratch {
   Eigen::MatrixXd R;          // n x K: [Y_b(q) basis_b] of the row
   Eigen::MatrixXd R_t;        // its transpose, accumulated first
   std::vector<Eigen::MatrixXd> basis_t;  // basis_b^T per block (filled on first use)
+  std::vector<bool> identity;  // basis_b is the identity, per block (filled on first use)
   Eigen::MatrixXd J_q;        // m x n
   Eigen::VectorXd q_eff;      // n
 };
 
-// The joint-space side of one row: R = [Y_b(q) basis_b], and q_eff = q + R x.
-void JointRegressor(const Parameterization& p, const Eigen::VectorXd& joint_state, const double* q,
-                    Scratch* s) {
+// The joint-space side of one row: s->R = [Y_b(q) basis_b].
+void EvaluateJointRegressor(const Parameterization& p, const double* q, Scratch* s) {
   const int n = static_cast<int>(s->q_eff.size());
   int column = 0;
   s->R_t.resize(s->R.cols(), n);
@@ -64,34 +64,44 @@ void JointRegressor(const Parameterization& p, const Eigen::VectorXd& joint_stat
     // R_b = Y_b basis_b over the non-zero entries of Y_b only: a physical regressor is sparse (a
     // joint's offset depends on its own parameters), and a dense product per row would repack the
     // basis every time (most of the cost of a calibration with joint-space terms). Accumulated
-    // transposed, on basis_b^T, so that the inner loop runs over contiguous memory.
+    // transposed, on basis_b^T, so that the inner loop runs over contiguous memory. An identity
+    // basis (every parameter identifiable, or the whole block analysed) copies Y_b: the same
+    // numbers, since y * 1 + 0 = y.
     const int kb = static_cast<int>(block.basis.cols());
-    if (s->basis_t.size() <= b) s->basis_t.push_back(block.basis.transpose());
+    if (s->basis_t.size() <= b) {
+      s->basis_t.push_back(block.basis.transpose());
+      s->identity.push_back(block.basis.rows() == kb && block.basis.isIdentity(0));
+    }
     const Eigen::MatrixXd& Bt = s->basis_t[b];
     auto Rt = s->R_t.middleRows(column, kb);
-    Rt.setZero();
-    for (int c = 0; c < s->term_Y.cols(); ++c) {
-      for (int j = 0; j < n; ++j) {
-        const double y = s->term_Y(j, c);
-        if (y != 0) Rt.col(j) += y * Bt.col(c);
+    if (s->identity[b]) {
+      Rt = s->term_Y.transpose();
+    } else {
+      Rt.setZero();
+      for (int c = 0; c < s->term_Y.cols(); ++c) {
+        for (int j = 0; j < n; ++j) {
+          const double y = s->term_Y(j, c);
+          if (y != 0) Rt.col(j) += y * Bt.col(c);
+        }
       }
     }
     column += kb;
   }
   s->R = s->R_t.transpose();
-  s->q_eff = Eigen::Map<const Eigen::VectorXd>(q, n);
-  if (joint_state.size() > 0) s->q_eff.noalias() += s->R * joint_state;
 }
 
 // Accumulates rows [begin, end) into `sums` (and into the stacked J and y when `stacked`).
 template <typename Kind>
 void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameterization& p,
                     const Eigen::VectorXd& joint_state, const MeasurementSet& data, int begin,
-                    int end, Scratch* scratch, ChunkSums* sums, NormalEquations* stacked) {
+                    int end, const Eigen::MatrixXd* joint_rows, Scratch* scratch,
+                    ChunkSums* sums, NormalEquations* stacked) {
   constexpr int m = Kind::kResiduals;
   const int ld = m * kBlockPoses;
   const int K = p.num_joint_parameters();
   const int frame_columns = p.num_parameters - K;
+  const int n = data.num_joints();
+  const bool cached = joint_rows != nullptr && joint_rows->size() > 0;
   double* A = scratch->A.data();
   double* Y = scratch->Y.data();
   FrameRt* frames = scratch->frames.data();
@@ -106,13 +116,20 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
       if (K == 0) {
         e = kind.Linearize(bj, data.q(r), data.target(r), measured, Jr, ld, nullptr, 0, frames, y);
       } else {
-        JointRegressor(p, joint_state, data.q(r), scratch);
+        const double* q = data.q(r);
+        if (!cached) EvaluateJointRegressor(p, q, scratch);
+        const Eigen::Map<const Eigen::MatrixXd> R(
+            cached ? joint_rows->data() + static_cast<std::ptrdiff_t>(r) * n * K
+                   : scratch->R.data(),
+            n, K);
+        scratch->q_eff = Eigen::Map<const Eigen::VectorXd>(q, n);
+        if (joint_state.size() > 0) scratch->q_eff.noalias() += R * joint_state;
         e = kind.Linearize(bj, scratch->q_eff.data(), data.target(r), measured, Jr, ld,
                            scratch->J_q.data(), m, frames, y);
         // The joint blocks' columns, by the chain rule through q_eff.
         Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>> Jj(
             Jr + static_cast<std::ptrdiff_t>(frame_columns) * ld, m, K, Eigen::OuterStride<>(ld));
-        Jj.noalias() = scratch->J_q.lazyProduct(scratch->R);  // small: no GEMM packing
+        Jj.noalias() = scratch->J_q.lazyProduct(R);  // small: no GEMM packing
       }
       double y_sq = 0;
       for (int i = 0; i < m; ++i) y_sq += y[i] * y[i];
@@ -134,13 +151,15 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
 template <typename Kind>
 NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const MeasurementSet& data,
                            const Parameterization& p, const Eigen::VectorXd& joint_state,
-                           bool stack) {
+                           bool stack, const Eigen::MatrixXd* joint_rows) {
   constexpr int m = Kind::kResiduals;
   const int P = p.num_parameters;
   const int N = data.size();
   const int n = model.num_joints();
   const int K = p.num_joint_parameters();
   CHECK(joint_state.size() == 0 || joint_state.size() == K);
+  CHECK(joint_rows == nullptr || joint_rows->size() == 0 ||
+        (joint_rows->rows() == n && joint_rows->cols() == static_cast<Eigen::Index>(K) * N));
   NormalEquations lin;
   lin.H.setZero(P, P);
   lin.g.setZero(P);
@@ -171,7 +190,7 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
     cs.g.setZero(P);
     const int begin = std::min(N, c * chunk_size);
     const int end = std::min(N, begin + chunk_size);
-    AccumulateRows(kind, bj, p, joint_state, data, begin, end, scratch, &cs,
+    AccumulateRows(kind, bj, p, joint_state, data, begin, end, joint_rows, scratch, &cs,
                    stack ? &lin : nullptr);
   };
   const int hardware = static_cast<int>(std::thread::hardware_concurrency());
@@ -210,13 +229,30 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
 
 NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
                                   const Parameterization& p, const Eigen::VectorXd& joint_state,
-                                  bool use_orientation, double orientation_weight, bool stack) {
+                                  bool use_orientation, double orientation_weight, bool stack,
+                                  const Eigen::MatrixXd* joint_rows) {
   if (use_orientation) {
     PoseMeasurement kind;
     kind.orientation_weight = orientation_weight;
-    return Accumulate(kind, model, data, p, joint_state, stack);
+    return Accumulate(kind, model, data, p, joint_state, stack, joint_rows);
   }
-  return Accumulate(PositionMeasurement(), model, data, p, joint_state, stack);
+  return Accumulate(PositionMeasurement(), model, data, p, joint_state, stack, joint_rows);
+}
+
+Eigen::MatrixXd JointRegressorRows(const Parameterization& p, const MeasurementSet& data) {
+  const int K = p.num_joint_parameters();
+  const int n = data.num_joints();
+  const double bytes = 8.0 * n * K * static_cast<double>(data.size());
+  if (K == 0 || bytes > kMaxJointRowsBytes) return Eigen::MatrixXd();
+  Eigen::MatrixXd rows(n, static_cast<Eigen::Index>(K) * data.size());
+  Scratch s;
+  s.R.resize(n, K);
+  s.q_eff.resize(n);
+  for (int r = 0; r < data.size(); ++r) {
+    EvaluateJointRegressor(p, data.q(r), &s);
+    rows.middleCols(static_cast<Eigen::Index>(r) * K, K) = s.R;
+  }
+  return rows;
 }
 
 }  // namespace internal

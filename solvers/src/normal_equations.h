@@ -32,9 +32,23 @@ struct NormalEquations {
 // The rows are processed in fixed contiguous chunks (a partition that depends on the row count
 // only), possibly on several threads, and the chunks' partial sums are added in order: the result
 // is bit-identical whatever the number of threads and their timing. No allocation per row.
+// `joint_rows`, when given and not empty, holds every row's R = [Y_b(q) basis_b] (JointRegressorRows
+// of the same p and data): the rows' regressors are then read, not evaluated (same result, bit for
+// bit).
 NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
                                   const Parameterization& p, const Eigen::VectorXd& joint_state,
-                                  bool use_orientation, double orientation_weight, bool stack);
+                                  bool use_orientation, double orientation_weight, bool stack,
+                                  const Eigen::MatrixXd* joint_rows = nullptr);
+
+// Largest cache JointRegressorRows builds (bytes); above it the regressors are evaluated per row at
+// every linearization.
+constexpr double kMaxJointRowsBytes = 256.0 * 1024 * 1024;
+
+// The joint regressors R = [Y_b(q) basis_b] (n x K) of every row of `data`, side by side
+// (n x K * rows, row r in columns [r K, (r + 1) K)): they depend on the joint values and on p's
+// bases only, not on the calibration state, so a solver evaluates them once per solve. Empty when p
+// has no joint-space blocks or the cache would exceed kMaxJointRowsBytes.
+Eigen::MatrixXd JointRegressorRows(const Parameterization& p, const MeasurementSet& data);
 
 }  // namespace internal
 }  // namespace lpoe

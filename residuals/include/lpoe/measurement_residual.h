@@ -3,12 +3,15 @@
 //
 // Parameter blocks, in order: the n joint frames and the measured tool's frame (7 numbers each,
 // [qx qy qz qw tx ty tz], se3_manifold.h), then one block per joint-space term (k_b numbers x_b, the
-// term's identifiable combinations). With joint-space blocks the joint values are Jets:
+// term's identifiable combinations). With joint-space blocks the chain is evaluated at
 //
 //   q_eff = q + sum_b R_b x_b,   R_b = Y_b(q) basis_b (n x k_b, fixed data of this row),
 //
-// and the chain is evaluated at q_eff, the same cost as the linear solver's (whose columns for x_b
-// are J_q(q_eff) R_b). Without them the joint motions are computed once, at construction.
+// the same cost as the linear solver's (whose columns for x_b are J_q(q_eff) R_b). The autodiff runs
+// through the frames and q_eff only (q_eff is one more block of the functor: 7 (n + 1) + n
+// directions, whatever the number of joint-space parameters), and the cost function Create returns
+// adds the blocks' columns by the chain rule through the linear map: dr/dx_b = (dr/dq_eff) R_b.
+// Without joint-space blocks the joint motions are computed once, at construction.
 #ifndef LPOE_MEASUREMENT_RESIDUAL_H_
 #define LPOE_MEASUREMENT_RESIDUAL_H_
 
@@ -37,37 +40,25 @@ class MeasurementResidual {
   using CostFunction = ceres::DynamicAutoDiffCostFunction<MeasurementResidual, kStride>;
 
   // `model` supplies the joints' twists (its frames are ignored: they are the parameters); `q`
-  // holds model->num_joints() values. `joint_regressor` is n x K with K = sum(block_sizes), the
-  // columns [R_1 R_2 ...] of this row (empty without joint-space blocks).
+  // holds model->num_joints() values. With `joint_values_block`, the functor has one more block
+  // after the frames: the n joint values the chain is evaluated at (q_eff), and `q` is not used.
   MeasurementResidual(std::shared_ptr<const RobotModel> model, const Kind& kind, const double* q,
-                      const typename Kind::Observation& observation,
-                      Eigen::MatrixXd joint_regressor = Eigen::MatrixXd(),
-                      std::vector<int> block_sizes = {})
+                      const typename Kind::Observation& observation, bool joint_values_block)
       : model_(std::move(model)),
         kind_(kind),
-        q_(q, q + model_->num_joints()),
         motions_(*model_, q),
         observation_(observation),
-        joint_regressor_(std::move(joint_regressor)),
-        block_sizes_(std::move(block_sizes)) {}
+        joint_values_block_(joint_values_block) {}
 
   template <typename T>
   bool operator()(T const* const* parameters, T* residuals) const {
     const int n = model_->num_joints();
-    if (block_sizes_.empty()) {
+    if (!joint_values_block_) {
       kind_.Residual(n, parameters, motions_, observation_, residuals);
       return true;
     }
-    std::vector<T> q_eff(n);
-    for (int j = 0; j < n; ++j) q_eff[j] = T(q_[j]);
-    int column = 0;
-    for (size_t b = 0; b < block_sizes_.size(); ++b) {
-      const T* x = parameters[n + 1 + b];
-      for (int c = 0; c < block_sizes_[b]; ++c, ++column) {
-        for (int j = 0; j < n; ++j) q_eff[j] += joint_regressor_(j, column) * x[c];
-      }
-    }
-    kind_.Residual(n, parameters, JointMotions<T>(*model_, q_eff.data()), observation_, residuals);
+    kind_.Residual(n, parameters, JointMotions<T>(*model_, parameters[n + 1]), observation_,
+                   residuals);
     return true;
   }
 
@@ -83,11 +74,9 @@ class MeasurementResidual {
  private:
   std::shared_ptr<const RobotModel> model_;
   Kind kind_;
-  std::vector<double> q_;
   JointMotions<double> motions_;  // exp(s_i^ q_i) at this row's q, computed once
   typename Kind::Observation observation_;
-  Eigen::MatrixXd joint_regressor_;
-  std::vector<int> block_sizes_;
+  bool joint_values_block_;
 };
 
 using PositionResidual = MeasurementResidual<PositionMeasurement>;

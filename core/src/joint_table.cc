@@ -1,31 +1,18 @@
-#include "joint_table.h"
+#include "lpoe/joint_table.h"
 
-#include <charconv>
+#include <cctype>
 #include <cmath>
 #include <string_view>
 
+#include "parse_util.h"
+
 namespace lpoe {
-namespace tools {
 namespace {
 
 constexpr double kDegreesToRadians = 3.14159265358979323846 / 180.0;
 
-std::string_view Trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
-  return s;
-}
-
-std::vector<std::string_view> Split(std::string_view line) {
-  std::vector<std::string_view> out;
-  size_t start = 0;
-  while (true) {
-    const size_t comma = line.find(',', start);
-    out.push_back(Trim(line.substr(start, comma - start)));
-    if (comma == std::string_view::npos) return out;
-    start = comma + 1;
-  }
-}
+using internal::SplitFields;
+using internal::Trim;
 
 Status Error(const std::string& source, int line, const std::string& what) {
   return Status::Error(source + ":" + std::to_string(line) + ": " + what);
@@ -50,7 +37,7 @@ Status ParseJointTable(const std::string& text, const std::string& source, const
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
     const std::string_view trimmed = Trim(line);
     if (trimmed.empty() || trimmed.front() == '#') continue;
-    const std::vector<std::string_view> fields = Split(line);
+    const std::vector<std::string_view> fields = SplitFields(line);
     if (!have_header) {
       have_header = true;
       out.header = std::string(line);
@@ -81,10 +68,7 @@ Status ParseJointTable(const std::string& text, const std::string& source, const
     for (int j = 0; j < n; ++j) {
       const std::string_view f = fields[q_column[j]];
       double v = 0;
-      const char* first = f.data() + (!f.empty() && f.front() == '+' ? 1 : 0);
-      const auto r = std::from_chars(first, f.data() + f.size(), v);
-      if (f.empty() || r.ec != std::errc() || r.ptr != f.data() + f.size() || !std::isfinite(v) ||
-          std::abs(v) > 1e4) {
+      if (internal::ParseNumber(f, &v) != internal::NumberParse::kOk || std::abs(v) > 1e4) {
         return Error(source, line_number,
                      "column 'q" + std::to_string(j + 1) + "': '" + std::string(f.substr(0, 40)) +
                          "' is not a joint value; expected a finite number of magnitude at most 1e4");
@@ -109,5 +93,4 @@ Status ReadJointTable(const std::string& path, const RobotModel& model, AngleUni
   return ParseJointTable(text, path, model, unit, table);
 }
 
-}  // namespace tools
 }  // namespace lpoe

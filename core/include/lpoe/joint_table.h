@@ -2,8 +2,8 @@
 // naming q1..qN (any order, case-insensitive) and any other columns, which are kept as text but not
 // interpreted; '#' lines are comments; CRLF and a UTF-8 BOM are accepted. Revolute joint values are
 // converted from degrees when told so; prismatic values are mm.
-#ifndef LPOE_TOOLS_JOINT_TABLE_H_
-#define LPOE_TOOLS_JOINT_TABLE_H_
+#ifndef LPOE_JOINT_TABLE_H_
+#define LPOE_JOINT_TABLE_H_
 
 #include <string>
 #include <vector>
@@ -13,7 +13,6 @@
 #include "lpoe/status.h"
 
 namespace lpoe {
-namespace tools {
 
 struct JointTable {
   std::string header;              // the header line as written
@@ -28,7 +27,6 @@ Status ParseJointTable(const std::string& text, const std::string& source, const
 Status ReadJointTable(const std::string& path, const RobotModel& model, AngleUnit unit,
                       JointTable* table);
 
-}  // namespace tools
 }  // namespace lpoe
 
-#endif  // LPOE_TOOLS_JOINT_TABLE_H_
+#endif  // LPOE_JOINT_TABLE_H_
