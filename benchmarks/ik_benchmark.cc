@@ -6,6 +6,7 @@
 // fraction and limit violations as counters.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <random>
 #include <vector>
@@ -104,6 +105,7 @@ void BM_IkPoseSolveRate(benchmark::State& state) {
   const int n = p.model.num_joints();
   for (auto _ : state) {
     int solved = 0, violations = 0, ok = 0;
+    int64_t iterations = 0;
     for (int k = 0; k < kPool; ++k) {
       double q[InverseKinematics::kMaxJoints];
       const IkResult r = ik.Solve(p.targets[k], p.Seed(k), q);
@@ -112,11 +114,13 @@ void BM_IkPoseSolveRate(benchmark::State& state) {
       const double dr = LogSO3<double>(T.R * p.targets[k].rotation.transpose()).norm();
       if (dp <= kSolvedMm && dr <= kSolvedRad) ++solved;
       if (r.status == IkStatus::kOk) ++ok;
+      iterations += r.iterations;
       for (int j = 0; j < n; ++j) violations += q[j] < -kLimit || q[j] > kLimit;
     }
     state.counters["solved_fraction"] = static_cast<double>(solved) / kPool;
     state.counters["ok_fraction"] = static_cast<double>(ok) / kPool;
     state.counters["limit_violations"] = violations;
+    state.counters["mean_iterations"] = static_cast<double>(iterations) / kPool;
   }
   state.SetItemsProcessed(static_cast<int64_t>(state.iterations()) * kPool);
 }

@@ -49,6 +49,7 @@ echo "benchmarks: inverse kinematics (10,000 TRAC-IK-style targets)" >&2
 # End to end: parse, register, calibrate, statistics, outputs.
 echo "benchmarks: lpoe_calibrate end to end" >&2
 "$BUILD/tools/lpoe_simulate" --count=70000 --noise_sigma=0.03 --out="$WORK/n70k.csv" >/dev/null
+"$BUILD/tools/lpoe_simulate" --count=100000 --noise_sigma=0.03 --out="$WORK/n100k.csv" >/dev/null
 "$BUILD/tools/lpoe_simulate" --count=1000000 --noise_sigma=0.03 --out="$WORK/n1m.csv" >/dev/null
 # 10^7 rows (about 1.8 GB of CSV): ten 10^6-row simulations with different seeds, one header.
 cp "$WORK/n1m.csv" "$WORK/n10m.csv"
@@ -64,18 +65,21 @@ run_e2e() {  # label csv extra-flags...
   (cd "$WORK" && /usr/bin/time -v "$BUILD/tools/lpoe_calibrate" --measurements="$csv" \
     --output="$WORK/out.yaml" --plots_dir="$WORK/plots" "$@" \
     >"$WORK/e2e.out" 2>"$WORK/e2e.time") || { cat "$WORK/e2e.out" "$WORK/e2e.time" >&2; exit 1; }
-  local wall rss rows
+  local wall rss rows cpu
   wall=$(sed -n 's/.*Elapsed (wall clock) time (h:mm:ss or m:ss): //p' "$WORK/e2e.time")
   rss=$(sed -n 's/.*Maximum resident set size (kbytes): //p' "$WORK/e2e.time")
+  cpu=$(awk -F': ' '/User time|System time/ {s += $2} END {print s}' "$WORK/e2e.time")
   rows=$(($(grep -vc '^#' "$WORK/$csv") - 1))  # data rows: no comments, no header
-  echo "$label|$rows|$wall|$rss|$*" >>"$WORK/e2e.txt"
+  echo "$label|$rows|$wall|$rss|$cpu|$*" >>"$WORK/e2e.txt"
 }
 : >"$WORK/e2e.txt"
 # The JSON report lists every point: with the defaults runs only (the scale targets are without it).
 run_e2e "70,000 rows, defaults" n70k.csv --report="$WORK/out.json"
 run_e2e "10^6 rows, defaults" n1m.csv --report="$WORK/out.json"
+run_e2e "10^5 rows, no plots" n100k.csv --plots_dir=
 run_e2e "10^6 rows, no plots" n1m.csv --plots_dir=
 run_e2e "10^6 rows, no plots, no registration" n1m.csv --plots_dir= --noregister
+run_e2e "10^6 rows, Ceres, no plots" n1m.csv --plots_dir= --solver=ceres
 run_e2e "10^7 rows, no plots" n10m.csv --plots_dir=
 rm -f "$WORK/n10m.csv"
 
@@ -110,7 +114,8 @@ def load(name):
 
 k = load("kinematics.json")
 s = load("solvers.json")
-ik_runs = {b["name"]: b for b in json.load(open(f"{work}/ik.json"))["benchmarks"]}
+# Names without Google Benchmark's suffixes ("BM_IkPoseSolveRate/iterations:1").
+ik_runs = {b["name"].split("/")[0]: b for b in json.load(open(f"{work}/ik.json"))["benchmarks"]}
 
 def get(d, suffix):
     for name, t in d.items():
@@ -146,16 +151,18 @@ lin1m = get(s, "BM_CalibrateLinear/1000000")
 
 e2e = []
 for line in open(f"{work}/e2e.txt"):
-    label, rows, wall, rss, flags = line.rstrip("\n").split("|")
+    label, rows, wall, rss, cpu, flags = line.rstrip("\n").split("|")
     parts = [float(x) for x in wall.split(":")]
     seconds = parts[-1] + 60 * parts[-2] + (3600 * parts[-3] if len(parts) > 2 else 0)
-    e2e.append((label, int(rows), seconds, int(rss) / 1024.0, flags))
+    e2e.append((label, int(rows), seconds, int(rss) / 1024.0, float(cpu), flags))
 e70 = e2e[0]
-by_label = {label: (rows, seconds, rss) for label, rows, seconds, rss, _ in e2e}
+by_label = {label: (rows, seconds, rss) for label, rows, seconds, rss, _, _ in e2e}
 
+load = open("/proc/loadavg").read().split()[0] if __import__("os").path.exists("/proc/loadavg") else "?"
 print(f"Measured by `scripts/benchmarks.sh` on {model}, {cores} cores, {date} "
       "(Release, GCC default flags: SSE2, no -march; medians of 5 repetitions for the per-pose "
-      "figures, wall time; the machine may be shared).")
+      f"figures, wall time; load average {load} when the table was written: above {cores} the "
+      "machine was shared with other work and wall times are inflated).")
 print()
 print("| target | measured | verdict |")
 print("|---|---|---|")
@@ -180,10 +187,22 @@ if "10^6 rows, no plots" in by_label:
     _, sec, rss = by_label["10^6 rows, no plots"]
     print(f"| lpoe_calibrate, 10^6 rows, no plots <= 1.5 s, <= 150 MB | {sec:.2f} s, {rss:.0f} MB | "
           f"{verdict(sec <= 1.5 and rss <= 150)} |")
+if "10^6 rows, Ceres, no plots" in by_label:
+    _, sec, rss = by_label["10^6 rows, Ceres, no plots"]
+    print(f"| lpoe_calibrate --solver=ceres, 10^6 rows <= 15 s, <= 1.5 GB | {sec:.2f} s, "
+          f"{rss:.0f} MB | {verdict(sec <= 15 and rss <= 1536)} |")
 if "10^7 rows, no plots" in by_label:
     _, sec, rss = by_label["10^7 rows, no plots"]
     print(f"| lpoe_calibrate, 10^7 rows within 1 GB | {sec:.2f} s, {rss:.0f} MB | "
           f"{verdict(rss <= 1024)} |")
+sizes = [by_label.get(f"10^{k} rows, no plots") for k in (5, 6, 7)]
+if all(sizes):
+    # Time per row at 10^5, 10^6 and 10^7 rows: linear when the largest is within 1.5x the smallest
+    # (startup, model and output costs make small runs slower per row, not faster).
+    per_row = [sec / rows * 1e6 for rows, sec, _ in sizes]
+    print(f"| time linear in N (10^5, 10^6, 10^7 rows) | " +
+          ", ".join(f"{t:.2f} us" for t in per_row) + " a row | " +
+          f"{verdict(max(per_row) <= 1.5 * min(per_row))} |")
 def ik_time(name):
     b = ik_runs.get(name)
     if b is None:
@@ -207,7 +226,15 @@ wall = open(f"{work}/compensate.wall").read().strip().split(":")
 comp_s = float(wall[-1]) + 60 * float(wall[-2]) + (3600 * float(wall[-3]) if len(wall) > 2 else 0)
 comp = json.load(open(f"{work}/compensate.json"))
 counts = ", ".join(f"{k} {v}" for k, v in comp["status_counts"].items() if v)
-print(f"| lpoe_compensate, 10^6 targets <= 10 s | {comp_s:.2f} s ({counts}) | {verdict(comp_s <= 10)} |")
+comp_time = open(f"{work}/compensate.time").read()
+def time_field(label):
+    for line in comp_time.splitlines():
+        if line.strip().startswith(label):
+            return float(line.split(":")[-1])
+    return 0.0
+comp_cpu = time_field("User time") + time_field("System time")
+print(f"| lpoe_compensate, 10^6 targets <= 10 s | {comp_s:.2f} s wall, {comp_cpu:.2f} s CPU "
+      f"({counts}) | {verdict(comp_s <= 10)} |")
 print()
 print("Per pose (cobot6):")
 print()
@@ -233,11 +260,11 @@ print()
 print("`lpoe_calibrate` end to end (parse, register, calibrate, statistics, report, model; "
       "`/usr/bin/time -v`):")
 print()
-print("| run | rows | wall | peak RSS |")
-print("|---|---|---|---|")
-for label, rows, seconds, rss, flags in e2e:
+print("| run | rows | wall | CPU (user + sys) | peak RSS |")
+print("|---|---|---|---|---|")
+for label, rows, seconds, rss, cpu, flags in e2e:
     shown = f"{label} (`{flags}`)" if flags else label
-    print(f"| {shown} | {rows:,} | {seconds:.2f} s | {rss:.0f} MB |")
+    print(f"| {shown} | {rows:,} | {seconds:.2f} s | {cpu:.2f} s | {rss:.0f} MB |")
 EOF
 
 cat "$WORK/table.md"

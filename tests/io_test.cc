@@ -8,7 +8,6 @@
 
 #include <sys/stat.h>
 
-#include <chrono>
 #include <limits>
 #include <cmath>
 #include <cstdio>
@@ -654,6 +653,51 @@ TEST(Io, StreamedFileEqualsInMemoryText) {
   EXPECT_EQ(streamed.source_line(0), 3);
   EXPECT_EQ(streamed.source_line(3), 6);
   EXPECT_EQ(streamed.source_line(4), 9);
+}
+
+// Lines after the header are parsed in blocks split between two threads: a bad row or a lost-beam
+// row in the second half of a block is reported at its own line, the first error in the file wins,
+// and the first row may measure another tool than the first.
+TEST(Io, CsvBlocksOnTwoThreadsKeepLinesAndFirstError) {
+  RobotModel model = MakeCobot6();
+  model.tools.push_back({"smr2", SE3d(Eigen::Matrix3d::Identity(), Eigen::Vector3d(-40, 30, 60))});
+  constexpr int kRows = 20000;  // about 800 kB: one block, its halves on two threads
+  std::string text = "q1,q2,q3,q4,q5,q6,x,y,z,target\n";
+  for (int r = 0; r < kRows; ++r) {
+    text += r == 15000 ? "0.1,0.2,0.3,0.4,0.5,0.6,0,0,0," : "0.1,0.2,0.3,0.4,0.5,0.6,500,20,900,";
+    text += r % 3 == 0 ? "smr2\n" : "0\n";
+  }
+  MeasurementSet data;
+  CsvReadReport report;
+  Status s = ParseMeasurementsCsv(text, "blocks.csv", model, CsvOptions(), &data, &report);
+  ASSERT_TRUE(s.ok()) << s.message();
+  ASSERT_EQ(data.size(), kRows - 1);
+  EXPECT_EQ(data.target(0), 1);
+  EXPECT_EQ(data.target(1), 0);
+  EXPECT_EQ(report.skipped_zero_rows, 1);
+  EXPECT_EQ(report.skipped_lines, (std::vector<int64_t>{15002}));
+  for (int r = 0; r < data.size(); ++r) {
+    const int row = r < 15000 ? r : r + 1;  // file row of data row r
+    ASSERT_EQ(data.source_line(r), row + 2) << r;
+    ASSERT_EQ(data.target(r), row % 3 == 0 ? 1 : 0) << r;
+  }
+  // Two bad rows, one in each half of the block: the earlier one is reported.
+  std::string bad = text;
+  const auto replace_row = [&bad](int line, const std::string& with) {
+    size_t start = 0;
+    for (int l = 1; l < line; ++l) start = bad.find('\n', start) + 1;
+    bad.replace(start, bad.find('\n', start) - start, with);
+  };
+  replace_row(19000, "0.1,0.2,0.3,0.4,0.5,0.6,500,oops,900,0");
+  s = ParseMeasurementsCsv(bad, "blocks.csv", model, CsvOptions(), &data, nullptr);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("blocks.csv:19000: column 'y': 'oops' is not a number"),
+            std::string::npos)
+      << s.message();
+  replace_row(3000, "0.1,0.2,0.3,0.4,0.5,0.6,500,20");
+  s = ParseMeasurementsCsv(bad, "blocks.csv", model, CsvOptions(), &data, nullptr);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("blocks.csv:3000: 8 fields"), std::string::npos) << s.message();
 }
 
 // A file that is one huge line (no '\n', or a wrong line end) fails at the line-length bound instead

@@ -11,6 +11,8 @@
 // with its status; see docs/compensation.md.
 #include <algorithm>
 #include <charconv>
+#include <cstdint>
+#include <functional>
 #include <cmath>
 #include <fstream>
 #include <iostream>
@@ -48,7 +50,7 @@ DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in and out: rad 
 DEFINE_string(tool, "", "Tool name or index for rows without a target column (default: tool 0).");
 DEFINE_string(report, "", "JSON summary to write (counts per status, largest correction/residual).");
 DEFINE_bool(strict, false, "Exit 8 when any row is not 'ok' (the output is written anyway).");
-DEFINE_int32(threads, 0, "Worker threads (0: all cores).");
+DEFINE_int32(threads, 0, "Worker threads (0: all cores; the output order is the input's).");
 DEFINE_int32(max_iterations, 100, "Newton iterations per attempt (1..10000).");
 DEFINE_int32(restarts, 8, "Restarts from perturbed seeds when a solve stalls (0..100).");
 DEFINE_double(position_tolerance, 1e-7, "Target reached when the position error is below (mm).");
@@ -103,129 +105,162 @@ bool ParseNumber(std::string_view s, double* x) {
   return ec == std::errc() && p == s.data() + s.size() && std::isfinite(*x);
 }
 
-// Reads the targets or joint-program CSV: seeds (radians/mm) into `seeds`, targets into `rows`
-// (positions and orientations only in targets mode).
-Status ReadRows(const std::string& path, const RobotModel& model, AngleUnit unit,
-                bool need_position, int default_tool, std::vector<double>* seeds,
-                std::vector<Row>* rows) {
-  std::string text;
-  if (Status s = ReadFile(path, &text); !s.ok()) return s;
-  if (text.compare(0, 3, "\xEF\xBB\xBF") == 0) text.erase(0, 3);
-  const int n = model.num_joints();
-  auto error = [&](int line, const std::string& what) {
-    return Status::Error(path + ":" + std::to_string(line) + ": " + what);
-  };
-  std::vector<int> col_q(n, -1);
-  int col_x = -1, col_y = -1, col_z = -1, col_target = -1, col_quat[4] = {-1, -1, -1, -1};
-  bool have_header = false;
-  int line = 0;
-  size_t pos = 0;
-  std::vector<std::string_view> f;
-  while (pos < text.size()) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string::npos) end = text.size();
-    const std::string_view l = Trim(std::string_view(text).substr(pos, end - pos));
-    pos = end + 1;
-    ++line;
-    if (l.empty() || l.front() == '#') continue;
-    f.clear();
-    size_t a = 0;
-    while (true) {
-      const size_t b = l.find(',', a);
-      f.push_back(Trim(l.substr(a, b == std::string_view::npos ? std::string_view::npos : b - a)));
-      if (b == std::string_view::npos) break;
-      a = b + 1;
-    }
-    const int nf = static_cast<int>(f.size());
-    if (!have_header) {
-      have_header = true;
+// Reads the targets or joint-program CSV in chunks of rows (streamed: memory bounded by the chunk):
+// seeds (radians/mm) and targets (positions and orientations only in targets mode).
+class RowReader {
+ public:
+  RowReader(const std::string& path, const RobotModel& model, AngleUnit unit, bool need_position,
+            int default_tool)
+      : path_(path), model_(model), unit_(unit), need_position_(need_position),
+        default_tool_(default_tool), col_q_(model.num_joints(), -1) {}
+
+  // Opens the file and reads up to its header line.
+  Status Open() {
+    if (Status s = reader_.Open(path_); !s.ok()) return s;
+    const int n = model_.num_joints();
+    std::string_view l;
+    while (NextLine(&l)) {
+      const int nf = Split(l);
       for (int c = 0; c < nf; ++c) {
-        const std::string_view h = f[c];
-        if (h == "x") col_x = c;
-        if (h == "y") col_y = c;
-        if (h == "z") col_z = c;
-        if (h == "target") col_target = c;
+        const std::string_view h = f_[c];
+        if (h == "x") col_x_ = c;
+        if (h == "y") col_y_ = c;
+        if (h == "z") col_z_ = c;
+        if (h == "target") col_target_ = c;
         const char* quat[4] = {"quat_x", "quat_y", "quat_z", "quat_w"};
         for (int k = 0; k < 4; ++k) {
-          if (h == quat[k]) col_quat[k] = c;
+          if (h == quat[k]) col_quat_[k] = c;
         }
         for (int j = 0; j < n; ++j) {
-          if (h == "q" + std::to_string(j + 1)) col_q[j] = c;
+          if (h == "q" + std::to_string(j + 1)) col_q_[j] = c;
         }
       }
       for (int j = 0; j < n; ++j) {
-        if (col_q[j] < 0) {
-          return error(line, "the header has no column q" + std::to_string(j + 1) +
-                                 "; expected q1..q" + std::to_string(n) + " (the model has " +
-                                 std::to_string(n) + " joints)");
+        if (col_q_[j] < 0) {
+          return Error("the header has no column q" + std::to_string(j + 1) + "; expected q1..q" +
+                       std::to_string(n) + " (the model has " + std::to_string(n) + " joints)");
         }
       }
-      if (need_position && (col_x < 0 || col_y < 0 || col_z < 0)) {
-        return error(line, "the header has no x, y, z columns; expected the target position (mm)");
+      if (need_position_ && (col_x_ < 0 || col_y_ < 0 || col_z_ < 0)) {
+        return Error("the header has no x, y, z columns; expected the target position (mm)");
       }
-      const int quats = (col_quat[0] >= 0) + (col_quat[1] >= 0) + (col_quat[2] >= 0) +
-                        (col_quat[3] >= 0);
+      const int quats = (col_quat_[0] >= 0) + (col_quat_[1] >= 0) + (col_quat_[2] >= 0) +
+                        (col_quat_[3] >= 0);
       if (quats != 0 && quats != 4) {
-        return error(line, "the header has only some of quat_x, quat_y, quat_z, quat_w");
+        return Error("the header has only some of quat_x, quat_y, quat_z, quat_w");
       }
-      continue;
+      return Status::Ok();
     }
-    auto field = [&](int c) { return c < nf ? f[c] : std::string_view(); };
-    const size_t base = seeds->size();
-    seeds->resize(base + n);
-    for (int j = 0; j < n; ++j) {
-      double v;
-      if (!ParseNumber(field(col_q[j]), &v)) {
-        return error(line, "q" + std::to_string(j + 1) + " is not a finite number");
-      }
-      if (unit == AngleUnit::kDegrees && model.joints[j].type == JointType::kRevolute) {
-        v /= kDegreesPerRadian;
-      }
-      (*seeds)[base + j] = v;
-    }
-    Row row;
-    row.line = line;
-    row.target.tool = default_tool;
-    if (col_target >= 0 && !field(col_target).empty()) {
-      row.target.tool = ResolveTool(model, field(col_target));
-      if (row.target.tool < 0) {
-        return error(line, "target '" + std::string(field(col_target)) +
-                               "' is neither a tool name nor an index below " +
-                               std::to_string(model.num_tools()));
-      }
-    }
-    if (need_position) {
-      const int xyz[3] = {col_x, col_y, col_z};
-      for (int k = 0; k < 3; ++k) {
-        if (!ParseNumber(field(xyz[k]), &row.target.position(k))) {
-          return error(line, std::string("xyz").substr(k, 1) + " is not a finite number (mm)");
-        }
-      }
-      if (col_quat[0] >= 0) {
-        int given = 0;
-        for (int k = 0; k < 4; ++k) given += !field(col_quat[k]).empty();
-        if (given == 4) {
-          Eigen::Vector4d qv;
-          for (int k = 0; k < 4; ++k) {
-            if (!ParseNumber(field(col_quat[k]), &qv(k))) {
-              return error(line, "quaternion component is not a finite number");
-            }
-          }
-          if (std::abs(qv.norm() - 1) > 1e-3) {
-            return error(line, "the quaternion is not unit (norm within 1e-3 expected)");
-          }
-          row.target.has_orientation = true;
-          row.target.rotation = QuaternionToRotation<double>(qv / qv.norm());
-        } else if (given != 0) {
-          return error(line, "give all four quat_* values (a pose row) or none (a position row)");
-        }
-      }
-    }
-    rows->push_back(row);
+    if (!reader_.status().ok()) return reader_.status();
+    line_ = std::max(line_, 1);
+    return Error("no header line; expected q1..qN, x, y, z");
   }
-  if (!have_header) return error(std::max(line, 1), "no header line; expected q1..qN, x, y, z");
-  return Status::Ok();
-}
+
+  bool has_quaternion() const { return col_quat_[0] >= 0; }
+
+  // Appends up to `max_rows` rows; fewer only at the end of the file.
+  Status Read(int max_rows, std::vector<double>* seeds, std::vector<Row>* rows) {
+    const int n = model_.num_joints();
+    std::string_view l;
+    for (int count = 0; count < max_rows && NextLine(&l); ++count) {
+      const int nf = Split(l);
+      auto field = [&](int c) { return c < nf ? f_[c] : std::string_view(); };
+      const size_t base = seeds->size();
+      seeds->resize(base + n);
+      for (int j = 0; j < n; ++j) {
+        double v;
+        if (!ParseNumber(field(col_q_[j]), &v)) {
+          return Error("q" + std::to_string(j + 1) + " is not a finite number");
+        }
+        if (unit_ == AngleUnit::kDegrees && model_.joints[j].type == JointType::kRevolute) {
+          v /= kDegreesPerRadian;
+        }
+        (*seeds)[base + j] = v;
+      }
+      Row row;
+      row.line = line_;
+      row.target.tool = default_tool_;
+      if (col_target_ >= 0 && !field(col_target_).empty()) {
+        row.target.tool = ResolveTool(model_, field(col_target_));
+        if (row.target.tool < 0) {
+          return Error("target '" + std::string(field(col_target_)) +
+                       "' is neither a tool name nor an index below " +
+                       std::to_string(model_.num_tools()));
+        }
+      }
+      if (need_position_) {
+        const int xyz[3] = {col_x_, col_y_, col_z_};
+        for (int k = 0; k < 3; ++k) {
+          if (!ParseNumber(field(xyz[k]), &row.target.position(k))) {
+            return Error(std::string("xyz").substr(k, 1) + " is not a finite number (mm)");
+          }
+        }
+        if (col_quat_[0] >= 0) {
+          int given = 0;
+          for (int k = 0; k < 4; ++k) given += !field(col_quat_[k]).empty();
+          if (given == 4) {
+            Eigen::Vector4d qv;
+            for (int k = 0; k < 4; ++k) {
+              if (!ParseNumber(field(col_quat_[k]), &qv(k))) {
+                return Error("quaternion component is not a finite number");
+              }
+            }
+            if (std::abs(qv.norm() - 1) > 1e-3) {
+              return Error("the quaternion is not unit (norm within 1e-3 expected)");
+            }
+            row.target.has_orientation = true;
+            row.target.rotation = QuaternionToRotation<double>(qv / qv.norm());
+          } else if (given != 0) {
+            return Error("give all four quat_* values (a pose row) or none (a position row)");
+          }
+        }
+      }
+      rows->push_back(row);
+    }
+    return reader_.status();
+  }
+
+ private:
+  Status Error(const std::string& what) const {
+    return Status::Error(path_ + ":" + std::to_string(line_) + ": " + what);
+  }
+  // The next non-empty line that is not a comment (a UTF-8 BOM at the start removed).
+  bool NextLine(std::string_view* out) {
+    while (reader_.Next(&text_)) {
+      ++line_;
+      std::string_view l(text_);
+      if (line_ == 1 && l.compare(0, 3, "\xEF\xBB\xBF") == 0) l.remove_prefix(3);
+      l = Trim(l);
+      if (l.empty() || l.front() == '#') continue;
+      *out = l;
+      return true;
+    }
+    return false;
+  }
+  int Split(std::string_view l) {
+    f_.clear();
+    size_t a = 0;
+    while (true) {
+      const size_t b = l.find(',', a);
+      f_.push_back(Trim(l.substr(a, b == std::string_view::npos ? std::string_view::npos : b - a)));
+      if (b == std::string_view::npos) break;
+      a = b + 1;
+    }
+    return static_cast<int>(f_.size());
+  }
+
+  const std::string path_;
+  const RobotModel& model_;
+  const AngleUnit unit_;
+  const bool need_position_;
+  const int default_tool_;
+  LineReader reader_;
+  std::string text_;
+  int line_ = 0;
+  std::vector<std::string_view> f_;
+  std::vector<int> col_q_;
+  int col_x_ = -1, col_y_ = -1, col_z_ = -1, col_target_ = -1, col_quat_[4] = {-1, -1, -1, -1};
+};
 
 void AppendNumber(double x, std::string* out) {
   char buf[32];
@@ -308,113 +343,176 @@ int Run() {
       return kExitUsage;
     }
   }
-  std::vector<double> seeds;
-  std::vector<Row> rows;
   const std::string& in_path = joints_mode ? FLAGS_joints : FLAGS_targets;
-  if (Status s = ReadRows(in_path, model, unit, !joints_mode, default_tool, &seeds, &rows);
-      !s.ok()) {
+  RowReader reader(in_path, model, unit, !joints_mode, default_tool);
+  if (Status s = reader.Open(); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
   const int n = model.num_joints();
-  const int count = static_cast<int>(rows.size());
-  // Joint-program mode: the nominal tool pose at the program's joints, in the calibrated model's
-  // (measurement) frame.
-  if (joints_mode) {
-    const KinematicChain nominal_chain(nominal);
-    for (int k = 0; k < count; ++k) {
-      IkTarget& t = rows[k].target;
-      const SE3d T = model.T_measurement_base * nominal_chain.Pose(&seeds[size_t(k) * n], t.tool);
-      t.position = T.t;
-      t.rotation = T.R;
-      t.has_orientation = FLAGS_joints_target == "pose";
-    }
-  }
-
-  // ---- Solve, in parallel over rows.
   IkOptions options;
   options.max_iterations = FLAGS_max_iterations;
   options.restarts = FLAGS_restarts;
   options.position_tolerance = FLAGS_position_tolerance;
   options.orientation_tolerance = FLAGS_orientation_tolerance;
   options.singular_threshold = FLAGS_singular_threshold;
-  const InverseKinematics ik(model, options);
-  std::vector<double> solved(seeds.size());
-  std::vector<IkResult> results(count);
-  int threads = FLAGS_threads > 0 ? FLAGS_threads
-                                  : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-  threads = std::max(1, std::min(threads, count / 1000 + 1));
-  auto work = [&](int t) {
-    for (int k = t; k < count; k += threads) {
-      results[k] = ik.Solve(rows[k].target, &seeds[size_t(k) * n], &solved[size_t(k) * n]);
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(work, t);
-  work(0);
-  for (std::thread& th : pool) th.join();
-
-  // ---- Output.
-  bool any_orientation = false;
-  for (const Row& r : rows) any_orientation |= r.target.has_orientation;
-  std::string out;
-  out.reserve(static_cast<size_t>(count) * (n + 8) * 20 + 256);
-  out += "# lpoe_compensate: model " + FLAGS_model + ", " + (joints_mode ? "joints " : "targets ") +
-         in_path + ", angles in " + FLAGS_angle_unit + "\n";
-  for (int j = 0; j < n; ++j) out += "q" + std::to_string(j + 1) + ",";
-  out += "status,residual,sigma_min";
-  if (with_nominal) {
-    out += ",corrected_x,corrected_y,corrected_z";
-    if (any_orientation) out += ",corrected_quat_x,corrected_quat_y,corrected_quat_z,corrected_quat_w";
-  }
-  out += "\n";
+  const InverseKinematics ik(model, options);  // with the model's joint-error terms
   const KinematicChain nominal_chain(with_nominal ? nominal : model);
-  int per_status[5] = {};
-  double max_correction = 0, max_residual = 0, max_orientation_residual = 0;
-  int max_correction_line = 0, max_residual_line = 0;
-  for (int k = 0; k < count; ++k) {
-    const double* q = &solved[size_t(k) * n];
-    const IkResult& r = results[k];
-    for (int j = 0; j < n; ++j) {
-      const bool deg = unit == AngleUnit::kDegrees && model.joints[j].type == JointType::kRevolute;
-      AppendNumber(deg ? q[j] * kDegreesPerRadian : q[j], &out);
-      out += ',';
-    }
-    out += IkStatusName(r.status);
-    out += ',';
-    AppendNumber(r.position_error, &out);
-    out += ',';
-    AppendNumber(r.sigma_min, &out);
-    if (with_nominal) {
-      const SE3d T = nominal_chain.Pose(q, rows[k].target.tool);
-      for (int c = 0; c < 3; ++c) {
-        out += ',';
-        AppendNumber(T.t(c), &out);
-      }
-      if (any_orientation) {
-        const Eigen::Vector4d qv = RotationToQuaternion<double>(T.R);
-        for (int c = 0; c < 4; ++c) {
-          out += ',';
-          if (rows[k].target.has_orientation) AppendNumber(qv(c), &out);
-        }
-      }
-    }
-    out += '\n';
-    ++per_status[static_cast<int>(r.status)];
-    if (r.correction > max_correction) {
-      max_correction = r.correction;
-      max_correction_line = rows[k].line;
-    }
-    if (r.position_error > max_residual) {
-      max_residual = r.position_error;
-      max_residual_line = rows[k].line;
-    }
-    max_orientation_residual = std::max(max_orientation_residual, r.orientation_error);
-  }
-  if (Status s = WriteFileAtomically(FLAGS_output, out); !s.ok()) {
+  const bool orientation_columns =
+      joints_mode ? FLAGS_joints_target == "pose" : reader.has_quaternion();
+  const int threads = FLAGS_threads > 0
+                          ? FLAGS_threads
+                          : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+
+  AtomicFileWriter output;
+  if (Status s = output.Open(FLAGS_output); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;
   }
+  std::string header = "# lpoe_compensate: model " + FLAGS_model + ", " +
+                       (joints_mode ? "joints " : "targets ") + in_path + ", angles in " +
+                       FLAGS_angle_unit + "\n";
+  for (int j = 0; j < n; ++j) header += "q" + std::to_string(j + 1) + ",";
+  header += "status,residual,sigma_min";
+  if (with_nominal) {
+    header += ",corrected_x,corrected_y,corrected_z";
+    if (orientation_columns) {
+      header += ",corrected_quat_x,corrected_quat_y,corrected_quat_z,corrected_quat_w";
+    }
+  }
+  header += "\n";
+  if (Status s = output.Append(header); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitOutput;
+  }
+
+  // Per worker: its rows' output text and summary.
+  struct Part {
+    std::string text;
+    int per_status[5] = {};
+    double max_correction = 0, max_residual = 0, max_orientation_residual = 0;
+    int max_correction_line = 0, max_residual_line = 0;
+  };
+  // Solves rows [begin, end) of a chunk and formats them into `part`.
+  auto solve_rows = [&](const std::vector<Row>& rows, const std::vector<double>& seeds, int begin,
+                        int end, Part* part) {
+    double q[InverseKinematics::kMaxJoints];
+    for (int k = begin; k < end; ++k) {
+      const Row& row = rows[k];
+      const IkResult r = ik.Solve(row.target, &seeds[size_t(k) * n], q);
+      std::string& out = part->text;
+      for (int j = 0; j < n; ++j) {
+        const bool deg =
+            unit == AngleUnit::kDegrees && model.joints[j].type == JointType::kRevolute;
+        AppendNumber(deg ? q[j] * kDegreesPerRadian : q[j], &out);
+        out += ',';
+      }
+      out += IkStatusName(r.status);
+      out += ',';
+      AppendNumber(r.position_error, &out);
+      out += ',';
+      AppendNumber(r.sigma_min, &out);
+      if (with_nominal) {
+        const SE3d T = nominal_chain.Pose(q, row.target.tool);
+        for (int c = 0; c < 3; ++c) {
+          out += ',';
+          AppendNumber(T.t(c), &out);
+        }
+        if (orientation_columns) {
+          const Eigen::Vector4d qv = RotationToQuaternion<double>(T.R);
+          for (int c = 0; c < 4; ++c) {
+            out += ',';
+            if (row.target.has_orientation) AppendNumber(qv(c), &out);
+          }
+        }
+      }
+      out += '\n';
+      ++part->per_status[static_cast<int>(r.status)];
+      if (r.correction > part->max_correction) {
+        part->max_correction = r.correction;
+        part->max_correction_line = row.line;
+      }
+      if (r.position_error > part->max_residual) {
+        part->max_residual = r.position_error;
+        part->max_residual_line = row.line;
+      }
+      part->max_orientation_residual =
+          std::max(part->max_orientation_residual, r.orientation_error);
+    }
+  };
+
+  // ---- Stream: read a chunk, solve it on all threads (each a contiguous share, so the output
+  // keeps the input's order), write it.
+  constexpr int kChunkRows = 1 << 15;
+  std::vector<double> seeds;
+  std::vector<Row> rows;
+  std::vector<Part> parts(threads);
+  Part total;
+  int count = 0;
+  while (true) {
+    seeds.clear();
+    rows.clear();
+    if (Status s = reader.Read(kChunkRows, &seeds, &rows); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitInput;
+    }
+    const int chunk = static_cast<int>(rows.size());
+    if (chunk == 0) break;
+    // Joint-program mode: the nominal tool pose at the program's joints, in the calibrated
+    // model's (measurement) frame.
+    if (joints_mode) {
+      for (int k = 0; k < chunk; ++k) {
+        IkTarget& t = rows[k].target;
+        const SE3d T = model.T_measurement_base * nominal_chain.Pose(&seeds[size_t(k) * n], t.tool);
+        t.position = T.t;
+        t.rotation = T.R;
+        t.has_orientation = FLAGS_joints_target == "pose";
+      }
+    }
+    const int workers = std::max(1, std::min(threads, chunk / 256));
+    std::vector<std::thread> pool;
+    for (int t = 0; t < workers; ++t) {
+      parts[t].text.clear();
+      const int begin = static_cast<int>(int64_t{chunk} * t / workers);
+      const int end = static_cast<int>(int64_t{chunk} * (t + 1) / workers);
+      if (t + 1 < workers) {
+        pool.emplace_back(solve_rows, std::cref(rows), std::cref(seeds), begin, end, &parts[t]);
+      } else {
+        solve_rows(rows, seeds, begin, end, &parts[t]);
+      }
+    }
+    for (std::thread& th : pool) th.join();
+    // Worker t's rows precede worker t+1's: in order.
+    for (int t = 0; t < workers; ++t) {
+      if (Status s = output.Append(parts[t].text); !s.ok()) {
+        std::cerr << "error: " << s.message() << "\n";
+        return kExitOutput;
+      }
+      Part& p = parts[t];
+      for (int c = 0; c < 5; ++c) total.per_status[c] += p.per_status[c];
+      if (p.max_correction > total.max_correction) {
+        total.max_correction = p.max_correction;
+        total.max_correction_line = p.max_correction_line;
+      }
+      if (p.max_residual > total.max_residual) {
+        total.max_residual = p.max_residual;
+        total.max_residual_line = p.max_residual_line;
+      }
+      total.max_orientation_residual =
+          std::max(total.max_orientation_residual, p.max_orientation_residual);
+      p = Part();
+    }
+    count += chunk;
+  }
+  if (Status s = output.Commit(); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitOutput;
+  }
+  const int* per_status = total.per_status;
+  const double max_correction = total.max_correction, max_residual = total.max_residual;
+  const double max_orientation_residual = total.max_orientation_residual;
+  const int max_correction_line = total.max_correction_line;
+  const int max_residual_line = total.max_residual_line;
 
   // ---- Summary.
   nlohmann::json report;

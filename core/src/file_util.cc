@@ -107,57 +107,132 @@ Status ReadFile(const std::string& path, size_t max_bytes, std::string* contents
   return internal::ReadFileBounded(path, max_bytes, contents);
 }
 
-Status WriteFileAtomically(const std::string& path, const std::string& contents) {
+AtomicFileWriter::~AtomicFileWriter() {
+  if (fd_ >= 0) {
+    ::close(fd_);
+    ::unlink(tmp_.c_str());
+  }
+}
+
+Status AtomicFileWriter::Fail(const char* what, int err) {
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
+  ::unlink(tmp_.c_str());
+  return Status::Error(path_ + ": " + what + " " + tmp_ + ": " + std::strerror(err));
+}
+
+Status AtomicFileWriter::Open(const std::string& path) {
   if (path.empty()) return Status::Error("cannot write a file with an empty path");
-  std::string tmp = path + ".tmp.XXXXXX";
-  const int fd = ::mkstemp(&tmp[0]);
-  if (fd < 0) {
+  if (fd_ >= 0) return Status::Error(path + ": the writer is already open for " + path_);
+  path_ = path;
+  tmp_ = path + ".tmp.XXXXXX";
+  fd_ = ::mkstemp(&tmp_[0]);
+  if (fd_ < 0) {
     const int err = errno;
-    return Status::Error(path + ": cannot create a temporary file " + tmp + ": " +
+    return Status::Error(path + ": cannot create a temporary file " + tmp_ + ": " +
                          std::strerror(err));
   }
-  auto fail = [&](const char* what, int err) {
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    return Status::Error(path + ": " + what + " " + tmp + ": " + std::strerror(err));
-  };
   // mkstemp creates mode 0600; give the result the mode of the file it replaces, or 0644.
   struct stat st;
   const mode_t mode = ::stat(path.c_str(), &st) == 0 ? (st.st_mode & 07777) : 0644;
-  if (::fchmod(fd, mode) != 0) return fail("cannot set the mode of", errno);
-  const char* p = contents.data();
-  size_t left = contents.size();
+  if (::fchmod(fd_, mode) != 0) return Fail("cannot set the mode of", errno);
+  return Status::Ok();
+}
+
+Status AtomicFileWriter::Append(const char* p, size_t left) {
+  if (fd_ < 0) return Status::Error(path_ + ": the output is not open");
   while (left > 0) {
-    const ssize_t w = ::write(fd, p, left);
+    const ssize_t w = ::write(fd_, p, left);
     if (w < 0) {
       if (errno == EINTR) continue;
-      return fail("cannot write", errno);
+      return Fail("cannot write", errno);
     }
     p += w;
     left -= static_cast<size_t>(w);
   }
-  if (::fsync(fd) != 0) return fail("cannot flush", errno);
+  return Status::Ok();
+}
+
+Status AtomicFileWriter::Commit() {
+  if (fd_ < 0) return Status::Error(path_ + ": the output is not open");
+  if (::fsync(fd_) != 0) return Fail("cannot flush", errno);
+  const int fd = fd_;
+  fd_ = -1;
   if (::close(fd) != 0) {
     const int err = errno;
-    ::unlink(tmp.c_str());
-    return Status::Error(path + ": cannot close " + tmp + ": " + std::strerror(err));
+    ::unlink(tmp_.c_str());
+    return Status::Error(path_ + ": cannot close " + tmp_ + ": " + std::strerror(err));
   }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+  if (::rename(tmp_.c_str(), path_.c_str()) != 0) {
     const int err = errno;
-    ::unlink(tmp.c_str());
-    return Status::Error(path + ": cannot rename " + tmp + " to it: " + std::strerror(err));
+    ::unlink(tmp_.c_str());
+    return Status::Error(path_ + ": cannot rename " + tmp_ + " to it: " + std::strerror(err));
   }
   // Make the rename itself durable (best effort: some file systems refuse to open directories).
-  const size_t slash = path.rfind('/');
+  const size_t slash = path_.rfind('/');
   const std::string dir = slash == std::string::npos ? "."
                           : slash == 0               ? "/"
-                                                     : path.substr(0, slash);
+                                                     : path_.substr(0, slash);
   const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dfd >= 0) {
     ::fsync(dfd);
     ::close(dfd);
   }
   return Status::Ok();
+}
+
+Status WriteFileAtomically(const std::string& path, const std::string& contents) {
+  AtomicFileWriter out;
+  if (Status s = out.Open(path); !s.ok()) return s;
+  if (Status s = out.Append(contents); !s.ok()) return s;
+  return out.Commit();
+}
+
+struct LineReader::File {
+  internal::InputFile input;
+};
+
+LineReader::LineReader() : file_(new File) {}
+LineReader::~LineReader() { delete file_; }
+
+Status LineReader::Open(const std::string& path) {
+  buffer_.clear();
+  pos_ = 0;
+  eof_ = false;
+  status_ = file_->input.Open(path);
+  return status_;
+}
+
+bool LineReader::Next(std::string* line) {
+  constexpr size_t kBlock = size_t{1} << 20;
+  constexpr size_t kMaxLine = size_t{1} << 24;
+  while (true) {
+    const size_t end = buffer_.find('\n', pos_);
+    if (end != std::string::npos) {
+      line->assign(buffer_, pos_, end - pos_);
+      pos_ = end + 1;
+      return true;
+    }
+    if (eof_ || !status_.ok()) {
+      if (pos_ >= buffer_.size()) return false;
+      line->assign(buffer_, pos_, std::string::npos);  // a last line without '\n'
+      pos_ = buffer_.size();
+      return status_.ok();
+    }
+    buffer_.erase(0, pos_);
+    pos_ = 0;
+    if (buffer_.size() > kMaxLine) {
+      status_ = Status::Error(file_->input.path() + ": a line longer than " +
+                              std::to_string(kMaxLine) + " bytes (not a text file?)");
+      return false;
+    }
+    const size_t old = buffer_.size();
+    buffer_.resize(old + kBlock);
+    size_t got = 0;
+    status_ = file_->input.Read(&buffer_[old], kBlock, &got);
+    buffer_.resize(old + got);
+    if (got == 0) eof_ = true;
+  }
 }
 
 }  // namespace lpoe

@@ -108,17 +108,23 @@ struct Accumulator {
 constexpr int kSinCosUpFront = 16;
 
 // The motion policy of the double forward pass (kinematics.h): the sin/cos of every revolute-z joint
-// computed before the chain, on the stack; the other joints as OnTheFlyMotions.
+// computed before the chain, on the stack; the other joints as OnTheFlyMotions. With `sin_q` and
+// `cos_q` given, they are used instead (a caller that keeps them up to date).
 template <typename IsZ>
 class SinCosUpFront {
  public:
-  SinCosUpFront(const Joint* joints, const double* q, int n, IsZ is_z)
-      : other_(joints, q, is_z) {
+  SinCosUpFront(const Joint* joints, const double* q, int n, IsZ is_z,
+                const double* sin_q = nullptr, const double* cos_q = nullptr)
+      : other_(joints, q, is_z), s_(sin_q), c_(cos_q) {
+    for (int i = 0; i < n; ++i) z_[i] = is_z(i);
+    if (s_ != nullptr) return;
     for (int i = 0; i < n; ++i) {
-      z_[i] = is_z(i);
-      if (z_[i]) SinCos(q[i], &s_[i], &c_[i]);
+      if (z_[i]) SinCos(q[i], &own_s_[i], &own_c_[i]);
     }
+    s_ = own_s_;
+    c_ = own_c_;
   }
+  SinCosUpFront(const SinCosUpFront&) = delete;  // s_ may point into the object
   void ApplyRight(int i, Accumulator* X) const {
     if (z_[i]) {
       X->RotZ(c_[i], s_[i]);
@@ -129,7 +135,9 @@ class SinCosUpFront {
 
  private:
   OnTheFlyMotions<IsZ, double> other_;
-  double s_[kSinCosUpFront], c_[kSinCosUpFront];
+  const double* s_;
+  const double* c_;
+  double own_s_[kSinCosUpFront], own_c_[kSinCosUpFront];
   bool z_[kSinCosUpFront];
 };
 
@@ -139,7 +147,8 @@ class SinCosUpFront {
 // joint i moves).
 template <typename IsZ>
 inline void ForwardPass(const RobotModel& model, const double* q, IsZ is_z, const SE3d* tail,
-                        Eigen::Matrix3d* R, Eigen::Vector3d* t, FrameRt* frames) {
+                        Eigen::Matrix3d* R, Eigen::Vector3d* t, FrameRt* frames,
+                        const double* sin_q = nullptr, const double* cos_q = nullptr) {
   const int n = model.num_joints();
   const Joint* joints = model.joints.data();
   Accumulator X;
@@ -148,8 +157,9 @@ inline void ForwardPass(const RobotModel& model, const double* q, IsZ is_z, cons
     if (frames != nullptr) A.Store(&frames[i].R, &frames[i].t);
   };
   if (n <= kSinCosUpFront) {
-    ForwardChain(n, origin, SinCosUpFront<IsZ>(joints, q, n, is_z), &X, sink);
+    ForwardChain(n, origin, SinCosUpFront<IsZ>(joints, q, n, is_z, sin_q, cos_q), &X, sink);
   } else {
+    CHECK(sin_q == nullptr) << "given sin/cos: at most " << kSinCosUpFront << " joints";
     ForwardChain(n, origin, MakeOnTheFlyMotions(joints, q, is_z), &X, sink);
   }
   if (tail != nullptr) X.RightMultiply(*tail);
@@ -178,9 +188,11 @@ inline SE3d PoseOf(const RobotModel& model, const double* q, int tool, IsZ is_z)
 
 template <typename IsZ>
 inline void FramesOf(const RobotModel& model, const double* q, int tool, IsZ is_z,
-                     FrameRt* frames) {
+                     FrameRt* frames, const double* sin_q = nullptr,
+                     const double* cos_q = nullptr) {
   const int n = model.num_joints();
-  ForwardPass(model, q, is_z, &model.tools[tool].origin, &frames[n].R, &frames[n].t, frames);
+  ForwardPass(model, q, is_z, &model.tools[tool].origin, &frames[n].R, &frames[n].t, frames, sin_q,
+              cos_q);
 }
 
 // The frames G_0..G_n of configuration q (as PerturbationFrames) in scratch space, handed to `use`.
@@ -375,6 +387,31 @@ void KinematicChain::Frames(const double* q, int tool, FrameRt* frames) const {
   if (all_z_) return FramesOf(*model_, q, tool, [](int) { return true; }, frames);
   const unsigned char* z = z_revolute_.data();
   FramesOf(*model_, q, tool, [z](int i) { return z[i] != 0; }, frames);
+}
+
+void KinematicChain::Frames(const double* q, const double* sin_q, const double* cos_q, int tool,
+                            FrameRt* frames) const {
+  DCHECK(tool >= 0 && tool < model_->num_tools());
+  if (all_z_) return FramesOf(*model_, q, tool, [](int) { return true; }, frames, sin_q, cos_q);
+  const unsigned char* z = z_revolute_.data();
+  FramesOf(*model_, q, tool, [z](int i) { return z[i] != 0; }, frames, sin_q, cos_q);
+}
+
+void KinematicChain::ToolJointJacobian(const FrameRt* frames, double* J, int ld) const {
+  const int n = num_joints();
+  const Eigen::Vector3d& P = frames[n].t;
+  for (int i = 0; i < n; ++i) {
+    const Joint& joint = model_->joints[i];
+    const FrameRt& G = frames[i];
+    double* col = J + static_cast<std::ptrdiff_t>(i) * ld;
+    const bool z = z_revolute_[i] != 0;
+    JointPositionColumn(G, P - G.t, joint.twist, z, col);
+    const Eigen::Vector3d w = z ? Eigen::Vector3d(G.R.col(2))
+                                : Eigen::Vector3d(G.R * joint.twist.head<3>());
+    col[3] = w(0);
+    col[4] = w(1);
+    col[5] = w(2);
+  }
 }
 
 // ---- BasisJacobian.

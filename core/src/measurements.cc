@@ -11,6 +11,43 @@ void MeasurementSet::Reserve(int rows) {
   position_.reserve(rows);
 }
 
+void MeasurementSet::Append(const MeasurementSet& other) {
+  CHECK_EQ(other.num_joints_, num_joints_);
+  if (other.empty()) return;
+  CHECK(empty() || other.has_orientation() == has_orientation())
+      << "cannot mix pose rows and position-only rows";
+  const int offset = size();
+  q_.insert(q_.end(), other.q_.begin(), other.q_.end());
+  position_.insert(position_.end(), other.position_.begin(), other.position_.end());
+  orientation_.insert(orientation_.end(), other.orientation_.begin(), other.orientation_.end());
+  if (!other.target_.empty() || !target_.empty()) {
+    if (target_.empty()) target_.assign(offset, 0);
+    if (other.target_.empty()) {
+      target_.resize(target_.size() + other.size(), 0);
+    } else {
+      target_.insert(target_.end(), other.target_.begin(), other.target_.end());
+    }
+  }
+  for (const LineRun& run : other.line_runs_) {
+    const int row = offset + run.first_row;
+    if (!line_runs_.empty()) {
+      const LineRun& last = line_runs_.back();
+      const int64_t expected =
+          last.first_line == 0 ? 0 : last.first_line + (row - last.first_row);
+      if (run.first_line == expected) continue;
+    }
+    line_runs_.push_back({row, run.first_line});
+  }
+}
+
+void MeasurementSet::Clear() {
+  q_.clear();
+  position_.clear();
+  orientation_.clear();
+  target_.clear();
+  line_runs_.clear();
+}
+
 void MeasurementSet::ShrinkToFit() {
   q_.shrink_to_fit();
   position_.shrink_to_fit();
@@ -23,8 +60,12 @@ void MeasurementSet::AppendTargetAndLine(int row, int target, int64_t source_lin
                                          std::vector<uint16_t>* targets,
                                          std::vector<LineRun>* runs) {
   CHECK(target >= 0 && target < kMaxTargets) << "target " << target << " out of range";
-  if (target != 0 && targets->empty()) targets->assign(row, 0);
-  if (!targets->empty()) targets->push_back(static_cast<uint16_t>(target));
+  if (target != 0 || !targets->empty()) {
+    // The first row of another tool than the first: zeros for the rows before it (none when it is
+    // row 0, whose target must be stored all the same).
+    targets->resize(row, 0);
+    targets->push_back(static_cast<uint16_t>(target));
+  }
   if (!runs->empty()) {
     const LineRun& last = runs->back();
     const int64_t expected = last.first_line == 0 ? 0 : last.first_line + (row - last.first_row);

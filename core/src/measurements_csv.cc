@@ -10,12 +10,14 @@
 #include <limits>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <unordered_map>
 #include <utility>
 #include <vector>
 
 #include "file_util.h"
 #include "lpoe/io.h"
+#include "lpoe/parallel.h"
 #include "parse_util.h"
 
 namespace lpoe {
@@ -43,7 +45,11 @@ constexpr size_t kMaxLineBytes = size_t{1} << 20;
 // Lines of lost-beam rows kept for the report (the count is always complete).
 constexpr size_t kMaxReportedSkippedLines = 1000;
 // Read chunk of ReadMeasurements.
-constexpr size_t kChunkBytes = size_t{1} << 20;
+constexpr size_t kChunkBytes = size_t{4} << 20;
+// Lines are parsed in blocks of about this size, on two threads when there are two cores and the
+// block has at least kMinParallelBytes.
+constexpr size_t kBlockBytes = size_t{4} << 20;
+constexpr size_t kMinParallelBytes = size_t{64} << 10;
 
 enum class ColumnKind { kQ, kX, kY, kZ, kTarget, kQuatX, kQuatY, kQuatZ, kQuatW, kIgnored };
 
@@ -249,12 +255,31 @@ class CsvHeader {
   int target_column_ = -1;
 };
 
+// One thread's share of the rows: where they go, and the state of the row being parsed.
+struct RowSink {
+  explicit RowSink(int num_joints) : rows(num_joints), q(num_joints) {}
+  MeasurementSet rows;
+  int64_t line_number = 0;  // of the last line read
+  int64_t bytes = 0;        // read so far, line ends included
+  int64_t skipped = 0;      // rows without a measurement
+  std::vector<int64_t> skipped_lines;  // the first kMaxReportedSkippedLines of them
+  Status error = Status::Ok();
+  // The row being parsed.
+  std::vector<double> q;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Vector4d quat = Eigen::Vector4d::Zero();
+};
+
 // The CSV reader: fed chunks of text split anywhere, it parses every complete line at once and
-// keeps only an incomplete last line (bounded by kMaxLineBytes) between chunks.
+// keeps only an incomplete last line (bounded by kMaxLineBytes) between chunks. Once the header is
+// read, the complete lines of a chunk are parsed in blocks of about kBlockBytes, each cut at a line
+// end near its middle: the first half on the calling thread, the second on another (each into its
+// own rows), then appended in order. Rows do not depend on each other, so the rows, their lines
+// and the first error are those of a serial read whatever the threads do.
 class CsvReader {
  public:
   CsvReader(const std::string& source, const RobotModel& model, const CsvOptions& options)
-      : source_(source), model_(model), out_(model.num_joints()), q_(model.num_joints()) {
+      : source_(source), model_(model), main_(model.num_joints()), part_(model.num_joints()) {
     const int n = model.num_joints();
     // Revolute joints get the degree factor; prismatic joints are in mm (or m) either way.
     const double length = options.length_unit == LengthUnit::kMetres ? 1000.0 : 1.0;
@@ -267,6 +292,7 @@ class CsvReader {
       }
     }
     length_scale_ = length;
+    threads_ = std::thread::hardware_concurrency() >= 2;
   }
 
   // The total input size when known (a regular file): lets the reader reserve the row storage once
@@ -281,49 +307,67 @@ class CsvReader {
       if (nl == nullptr) return Carry(p, end);
       if (carry_.size() + static_cast<size_t>(nl - p) > kMaxLineBytes) return LineTooLong();
       carry_.append(p, nl);
-      Status s = Line(carry_);
+      Status s = Line(carry_, &main_);
       if (!s.ok()) return s;
       carry_.clear();
       p = nl + 1;
     }
-    while (p < end) {
+    // Up to the header, one line at a time.
+    while (!have_header_ && p < end) {
       const char* nl = static_cast<const char*>(std::memchr(p, '\n', end - p));
       if (nl == nullptr) return Carry(p, end);
-      Status s = Line(std::string_view(p, static_cast<size_t>(nl - p)));
+      Status s = Line(std::string_view(p, static_cast<size_t>(nl - p)), &main_);
       if (!s.ok()) return s;
       p = nl + 1;
     }
-    return Status::Ok();
+    // The complete lines, in blocks.
+    const char* last = end;
+    while (last > p && last[-1] != '\n') --last;
+    while (p < last) {
+      const char* block_end = last;
+      if (last - p > static_cast<std::ptrdiff_t>(kBlockBytes)) {
+        block_end = static_cast<const char*>(
+                        std::memchr(p + kBlockBytes, '\n', last - p - kBlockBytes)) + 1;
+      }
+      Status s = Block(p, block_end);
+      if (!s.ok()) return s;
+      MaybeReserve();
+      p = block_end;
+    }
+    return Carry(p, end);
   }
 
   // Ends the input (a last line without '\n' is read) and hands over the rows.
   Status Finish(MeasurementSet* data, CsvReadReport* report) {
     if (!carry_.empty()) {
-      Status s = Line(carry_);
+      Status s = Line(carry_, &main_);
       if (!s.ok()) return s;
       carry_.clear();
     }
     if (!have_header_) {
-      return LineError(source_, std::max<int64_t>(line_number_, 1),
+      return LineError(source_, std::max<int64_t>(main_.line_number, 1),
                        "no header line (the file is empty)",
                        "a header with columns " + ExpectedColumns(model_) +
                            ", then one row per measurement");
     }
-    if (out_.empty()) {
+    MeasurementSet& out = main_.rows;
+    if (out.empty()) {
       const std::string skipped =
-          report_.skipped_zero_rows > 0
-              ? " (" + std::to_string(report_.skipped_zero_rows) +
-                    " rows without a measurement skipped)"
+          main_.skipped > 0
+              ? " (" + std::to_string(main_.skipped) + " rows without a measurement skipped)"
               : std::string();
       return LineError(source_, header_line_, "no measurement rows after the header" + skipped,
                        "at least one row of measurements");
     }
     // Reserved room beyond what was used is mostly untouched pages; give it back all the same when
     // it is large (one reallocation).
-    if (reserved_rows_ > out_.size() + out_.size() / 8) out_.ShrinkToFit();
-    report_.ignored_columns = header_.ignored();
-    *data = std::move(out_);
-    if (report != nullptr) *report = std::move(report_);
+    if (reserved_rows_ > out.size() + out.size() / 8) out.ShrinkToFit();
+    if (report != nullptr) {
+      report->ignored_columns = header_.ignored();
+      report->skipped_zero_rows = main_.skipped;
+      report->skipped_lines = std::move(main_.skipped_lines);
+    }
+    *data = std::move(out);
     return Status::Ok();
   }
 
@@ -335,39 +379,108 @@ class CsvReader {
   }
 
   Status LineTooLong() const {
-    return LineError(source_, line_number_ + 1,
+    return LineError(source_, main_.line_number + 1,
                      "a line longer than " + std::to_string(kMaxLineBytes) + " bytes",
                      "one measurement per line (a text CSV file with '\\n' line ends)");
   }
 
-  Status Line(std::string_view line) {
-    ++line_number_;
-    bytes_ += line.size() + 1;
-    if (line.size() > kMaxLineBytes) {
-      --line_number_;
-      return LineTooLong();
+  // Complete lines [p, end) after the header, possibly on two threads.
+  Status Block(const char* p, const char* end) {
+    const size_t size = static_cast<size_t>(end - p);
+    const char* mid =
+        threads_ && size >= kMinParallelBytes
+            ? static_cast<const char*>(std::memchr(p + size / 2, '\n', size - size / 2)) + 1
+            : end;
+    if (mid == end) return Lines(p, end, &main_);
+    part_.rows.Clear();
+    part_.skipped = 0;
+    part_.skipped_lines.clear();
+    part_.bytes = 0;
+    part_.line_number = main_.line_number + std::count(p, mid, '\n');
+    Status first = Status::Ok();
+    ForEachTask(2, 2, [&](int task, int) {
+      if (task == 0) {
+        first = Lines(p, mid, &main_);
+      } else {
+        part_.error = Lines(mid, end, &part_);
+      }
+    });
+    if (!first.ok()) return first;
+    if (!part_.error.ok()) return part_.error;
+    if (main_.rows.size() > kMaxRows - part_.rows.size()) {
+      return TooManyRows(part_.rows.source_line(kMaxRows - main_.rows.size()));
     }
-    if (line_number_ == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    if (IsBlankOrComment(line)) return Status::Ok();
-    if (!have_header_) {
-      Status s = header_.Parse(line, line_number_, source_, model_);
-      if (!s.ok()) return s;
-      have_header_ = true;
-      header_line_ = line_number_;
-      return Status::Ok();
+    main_.rows.Append(part_.rows);
+    main_.line_number = part_.line_number;
+    main_.bytes += part_.bytes;
+    main_.skipped += part_.skipped;
+    for (const int64_t line : part_.skipped_lines) {
+      if (main_.skipped_lines.size() >= kMaxReportedSkippedLines) break;
+      main_.skipped_lines.push_back(line);
     }
-    return Row(line);
+    return Status::Ok();
   }
 
-  Status FieldCountError(std::string_view line) const {
+  // Complete lines [p, end) into `sink` (thread-safe for distinct sinks: the header is read-only).
+  Status Lines(const char* p, const char* end, RowSink* sink) const {
+    while (p < end) {
+      const char* nl = static_cast<const char*>(std::memchr(p, '\n', end - p));
+      Status s = DataLine(std::string_view(p, static_cast<size_t>(nl - p)), sink);
+      if (!s.ok()) return s;
+      p = nl + 1;
+    }
+    return Status::Ok();
+  }
+
+  // A line up to the header or after it (main_ only: one thread).
+  Status Line(std::string_view line, RowSink* sink) {
+    if (!have_header_) {
+      ++sink->line_number;
+      sink->bytes += line.size() + 1;
+      if (line.size() > kMaxLineBytes) {
+        --sink->line_number;
+        return LineTooLong();
+      }
+      if (sink->line_number == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);
+      if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+      if (IsBlankOrComment(line)) return Status::Ok();
+      Status s = header_.Parse(line, sink->line_number, source_, model_);
+      if (!s.ok()) return s;
+      have_header_ = true;
+      header_line_ = sink->line_number;
+      return Status::Ok();
+    }
+    return DataLine(line, sink);
+  }
+
+  // A line after the header.
+  Status DataLine(std::string_view line, RowSink* sink) const {
+    ++sink->line_number;
+    sink->bytes += line.size() + 1;
+    if (line.size() > kMaxLineBytes) {
+      return LineError(source_, sink->line_number,
+                       "a line longer than " + std::to_string(kMaxLineBytes) + " bytes",
+                       "one measurement per line (a text CSV file with '\\n' line ends)");
+    }
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    if (IsBlankOrComment(line)) return Status::Ok();
+    return Row(line, sink);
+  }
+
+  Status TooManyRows(int64_t line_number) const {
+    return LineError(source_, line_number, "more than " + std::to_string(kMaxRows) + " rows",
+                     "at most 2^31 - 1 measurement rows per file");
+  }
+
+  Status FieldCountError(std::string_view line, int64_t line_number) const {
     const size_t fields = static_cast<size_t>(std::count(line.begin(), line.end(), ',')) + 1;
-    return LineError(source_, line_number_, std::to_string(fields) + " fields",
+    return LineError(source_, line_number, std::to_string(fields) + " fields",
                      std::to_string(header_.columns().size()) + " as in the header on line " +
                          std::to_string(header_line_));
   }
 
-  Status Row(std::string_view line) {
+  Status Row(std::string_view line, RowSink* sink) const {
+    const int64_t line_number = sink->line_number;
     const std::vector<Column>& columns = header_.columns();
     const char* p = line.data();
     const char* const end = line.data() + line.size();
@@ -375,7 +488,7 @@ class CsvReader {
     bool lost_beam = false;
     bool more = true;  // a comma ended the last field
     for (size_t c = 0; c < columns.size(); ++c) {
-      if (!more) return FieldCountError(line);
+      if (!more) return FieldCountError(line, line_number);
       const char* comma = static_cast<const char*>(std::memchr(p, ',', end - p));
       const char* field_end = comma == nullptr ? end : comma;
       const std::string_view field = Trim(std::string_view(p, static_cast<size_t>(field_end - p)));
@@ -386,7 +499,7 @@ class CsvReader {
       if (col.kind == ColumnKind::kTarget) {
         target = ResolveTarget(field, model_);
         if (target < 0) {
-          return LineError(source_, line_number_, "column 'target': unknown tool " + Quote(field),
+          return LineError(source_, line_number, "column 'target': unknown tool " + Quote(field),
                            "a tool name (" + ToolList(model_) + ") or an index from 0 to " +
                                std::to_string(model_.num_tools() - 1));
         }
@@ -407,17 +520,17 @@ class CsvReader {
             : r == NumberParse::kNotANumber
                 ? "column " + Quote(col.name) + ": " + Quote(field) + " is not a number"
                 : "column " + Quote(col.name) + ": non-finite value " + Quote(field);
-        return LineError(source_, line_number_, what, "a finite decimal number");
+        return LineError(source_, line_number, what, "a finite decimal number");
       }
       switch (col.kind) {
         case ColumnKind::kQ:
           if (std::abs(v) > kMaxAbsJointValue) {
             return LineError(
-                source_, line_number_,
+                source_, line_number,
                 "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
                 "a joint value of magnitude at most " + ShortNumber(kMaxAbsJointValue));
           }
-          q_[col.joint] = v * scale_[col.joint];
+          sink->q[col.joint] = v * scale_[col.joint];
           break;
         case ColumnKind::kX:
         case ColumnKind::kY:
@@ -425,52 +538,50 @@ class CsvReader {
           v *= length_scale_;
           if (std::abs(v) > kMaxAbsPositionMm) {
             return LineError(
-                source_, line_number_,
+                source_, line_number,
                 "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
                 "a position of magnitude at most " + ShortNumber(kMaxAbsPositionMm) + " mm" +
                     (length_scale_ == 1.0
                          ? std::string()
                          : " (" + ShortNumber(kMaxAbsPositionMm / length_scale_) + " m)"));
           }
-          position_(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kX)) = v;
+          sink->position(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kX)) = v;
           break;
         case ColumnKind::kQuatX:
         case ColumnKind::kQuatY:
         case ColumnKind::kQuatZ:
         case ColumnKind::kQuatW:
-          quat_(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kQuatX)) = v;
+          sink->quat(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kQuatX)) = v;
           break;
         case ColumnKind::kTarget:
         case ColumnKind::kIgnored:
           break;
       }
     }
-    if (more) return FieldCountError(line);  // fields left over
-    if (lost_beam || (position_(0) == 0.0 && position_(1) == 0.0 && position_(2) == 0.0)) {
+    if (more) return FieldCountError(line, line_number);  // fields left over
+    const Eigen::Vector3d& position = sink->position;
+    if (lost_beam || (position(0) == 0.0 && position(1) == 0.0 && position(2) == 0.0)) {
       // Lost beam (zeros or non-finite x, y, z): skipped and reported, not an error.
-      ++report_.skipped_zero_rows;
-      if (report_.skipped_lines.size() < kMaxReportedSkippedLines) {
-        report_.skipped_lines.push_back(line_number_);
+      ++sink->skipped;
+      if (sink->skipped_lines.size() < kMaxReportedSkippedLines) {
+        sink->skipped_lines.push_back(line_number);
       }
       return Status::Ok();
     }
-    if (out_.size() == std::numeric_limits<int>::max()) {
-      return LineError(source_, line_number_,
-                       "more than " + std::to_string(std::numeric_limits<int>::max()) + " rows",
-                       "at most 2^31 - 1 measurement rows per file");
-    }
-    MaybeReserve();
+    // (The rows of both threads together are checked when they are appended.)
+    if (sink->rows.size() == kMaxRows) return TooManyRows(line_number);
     if (header_.has_orientation()) {
-      const double norm = quat_.norm();
+      const double norm = sink->quat.norm();
       if (!(std::abs(norm - 1.0) <= kMeasuredQuaternionTolerance)) {
-        return LineError(source_, line_number_, "quat_x..quat_w have norm " + ShortNumber(norm),
+        return LineError(source_, line_number, "quat_x..quat_w have norm " + ShortNumber(norm),
                          "a unit quaternion (norm within " +
                              ShortNumber(kMeasuredQuaternionTolerance) + " of 1)");
       }
-      out_.AddPose(q_.data(), SE3d(QuaternionToRotation<double>(quat_ / norm), position_), target,
-                   line_number_);
+      sink->rows.AddPose(sink->q.data(),
+                         SE3d(QuaternionToRotation<double>(sink->quat / norm), position), target,
+                         line_number);
     } else {
-      out_.Add(q_.data(), position_, target, line_number_);
+      sink->rows.Add(sink->q.data(), position, target, line_number);
     }
     return Status::Ok();
   }
@@ -479,30 +590,30 @@ class CsvReader {
   // so far (plus 1/16): the columns are then filled without reallocation.
   void MaybeReserve() {
     constexpr int kSampleRows = 4096;
-    if (reserved_rows_ > 0 || total_bytes_ <= 0 || out_.size() != kSampleRows) return;
-    const double bytes_per_row = static_cast<double>(bytes_) / kSampleRows;
-    const double rows = static_cast<double>(total_bytes_) / bytes_per_row * (1.0 + 1.0 / 16) + 1024;
-    reserved_rows_ = static_cast<int>(std::min<double>(rows, std::numeric_limits<int>::max()));
-    out_.Reserve(reserved_rows_);
+    const int rows = main_.rows.size();
+    if (reserved_rows_ > 0 || total_bytes_ <= 0 || rows < kSampleRows) return;
+    const double bytes_per_row = static_cast<double>(main_.bytes) / rows;
+    const double estimate =
+        static_cast<double>(total_bytes_) / bytes_per_row * (1.0 + 1.0 / 16) + 1024;
+    reserved_rows_ = static_cast<int>(std::min<double>(estimate, kMaxRows));
+    main_.rows.Reserve(reserved_rows_);
   }
+
+  static constexpr int kMaxRows = std::numeric_limits<int>::max();
 
   const std::string& source_;
   const RobotModel& model_;
-  MeasurementSet out_;
-  CsvReadReport report_;
   CsvHeader header_;
   bool have_header_ = false;
+  bool threads_ = false;
   int64_t header_line_ = 0;
-  int64_t line_number_ = 0;
-  int64_t bytes_ = 0;
   int64_t total_bytes_ = -1;
   int reserved_rows_ = 0;
   std::string carry_;
   std::vector<double> scale_;
   double length_scale_ = 1.0;
-  std::vector<double> q_;
-  Eigen::Vector3d position_ = Eigen::Vector3d::Zero();
-  Eigen::Vector4d quat_ = Eigen::Vector4d::Zero();
+  RowSink main_;  // every row read so far, in order
+  RowSink part_;  // the second half of a block (second thread)
 };
 
 Status ReadMeasurementsImpl(const std::string& path, const RobotModel& model,

@@ -10,6 +10,7 @@
 
 #include "lpoe/kinematics.h"
 #include "lpoe/measurement_model.h"
+#include "lpoe/parallel.h"
 #include "lpoe/statistics.h"
 
 namespace lpoe {
@@ -98,13 +99,19 @@ std::vector<Outlier> FindOutliers(const RobotModel& model, const MeasurementSet&
   // components, so that 10^7 rows fit in 1 GB with their data. The median is that of the rounded
   // components (relative 6e-8); the rows above the threshold are then decided and reported from
   // their exact errors.
+  // The rows run in fixed chunks on the hardware's threads, each writing its own values.
   const int n = data.size();
   std::vector<float> comps(3 * static_cast<size_t>(n)), norms(n);
-  for (int k = 0; k < n; ++k) {
-    const Eigen::Vector3d e = data.position(k) - ToolPosition(model, data.q(k), data.target(k));
-    for (int a = 0; a < 3; ++a) comps[3 * static_cast<size_t>(k) + a] = static_cast<float>(std::abs(e(a)));
-    norms[k] = static_cast<float>(e.norm());
-  }
+  const RowChunks chunks = KinematicsRowChunks(n);
+  ForEachTask(chunks.chunks, KinematicsThreads(chunks), [&](int c, int) {
+    for (int k = chunks.begin(c); k < chunks.end(c); ++k) {
+      const Eigen::Vector3d e = data.position(k) - ToolPosition(model, data.q(k), data.target(k));
+      for (int a = 0; a < 3; ++a) {
+        comps[3 * static_cast<size_t>(k) + a] = static_cast<float>(std::abs(e(a)));
+      }
+      norms[k] = static_cast<float>(e.norm());
+    }
+  });
   std::vector<Outlier> out;
   if (comps.empty()) return out;
   std::nth_element(comps.begin(), comps.begin() + comps.size() / 2, comps.end());

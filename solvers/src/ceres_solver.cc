@@ -143,6 +143,7 @@ Status ValidateCeresSolverOptions(const CeresSolverOptions& options) {
   if (Status s = ValidateCalibrationProblemOptions(ProblemOptions(options)); !s.ok()) return s;
   if (options.max_iterations < 1) return Status::Error("max_iterations must be >= 1");
   if (options.num_threads < 1) return Status::Error("num_threads must be >= 1");
+  if (options.rows_per_block < 0) return Status::Error("rows_per_block must be >= 0");
   if (const std::string e = ValidateConvergenceOptions(options.convergence); !e.empty()) {
     return Status::Error(e);
   }
@@ -170,7 +171,12 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
     return finish(Termination::kNotIdentifiable,
                   "pose-based calibration needs measured orientations (quat_x..quat_w columns)");
   }
-  CalibrationProblem builder(nominal, data, ProblemOptions(options));
+  CalibrationProblemOptions problem_options = ProblemOptions(options);
+  problem_options.rows_per_block =
+      options.rows_per_block > 0                           ? options.rows_per_block
+      : data.size() >= CeresSolverOptions::kBatchFromRows ? 1024
+                                                           : 1;
+  CalibrationProblem builder(nominal, data, problem_options);
   result.parameterization = builder.parameterization();
   const bool full = options.parameterization == ParameterizationKind::kFull;
   const int per_row = options.use_orientation ? 6 : 3;
@@ -208,6 +214,11 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   // ---- Solve.
   ceres::Solver::Options solver_options;
   CHECK(ParseLinearSolver(options.linear_solver, &solver_options.linear_solver_type));
+  if (builder.BatchedRows() > 1 && solver_options.linear_solver_type == ceres::DENSE_QR) {
+    // Dense QR would copy the 3N x P Jacobian (650 MB more for 10^6 rows) to factor it; the
+    // normal equations are P x P, and LM's Jacobi scaling keeps them well conditioned.
+    solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+  }
   solver_options.minimizer_type = ceres::TRUST_REGION;
   solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   solver_options.max_num_iterations = options.max_iterations;
@@ -242,7 +253,11 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
 
   // ---- Covariance in the tangent spaces, in the parameterization's order.
   if (options.compute_covariance && termination == Termination::kConverged) {
-    const Status s = builder.Covariance(&problem, options.num_threads, &result.covariance);
+    // Batched rows: from the normal equations (ceres::Covariance would form the dense Jacobian
+    // of every row, 650 MB for 10^6 rows, and its SVD).
+    const Status s = builder.BatchedRows() > 1
+                         ? builder.NormalEquationsCovariance(&result.covariance)
+                         : builder.Covariance(&problem, options.num_threads, &result.covariance);
     if (!s.ok()) {
       message += "; " + s.message();
     } else if (options.a_posteriori_covariance) {

@@ -9,87 +9,273 @@
 #include <Eigen/Eigenvalues>
 #include <glog/logging.h>
 
+#include "lpoe/joint_errors.h"
+
 namespace lpoe {
 namespace {
 
 constexpr int kMax = InverseKinematics::kMaxJoints;
 // Weighted task error (mm) below which a step is accepted even if it raised the error.
 constexpr double kNullSpaceSlack = 1e-2;
+// Revolute-z joints: sin and cos of the joint value are carried from one iterate to the next by
+// the addition theorem with the step's sin/cos from a series (|step| below kIncrementalStep, error
+// below 1e-21), and recomputed by sincos after kIncrementalRefresh such updates (round-off of a few
+// 1e-16 rad in all).
+constexpr double kIncrementalStep = 0.25;
+constexpr int kIncrementalRefresh = 8;
+// The null-space pull toward the seed is halved (down to this) when successive steps reverse.
+constexpr double kMinPull = 1.0 / 64;
 
-// Spatial axis direction of revolute joint j from its frame G_j.
-inline Eigen::Vector3d AxisOf(const Joint& joint, const FrameRt& G) {
-  return IsRevoluteZ(joint) ? Eigen::Vector3d(G.R.col(2))
-                            : Eigen::Vector3d(G.R * joint.twist.head<3>());
+// sin(d), cos(d) for |d| <= kIncrementalStep: Taylor series to d^13 and d^14.
+inline void SinCosSmall(double d, double* s, double* c) {
+  const double d2 = d * d;
+  *s = d * (1 + d2 * (-1.0 / 6 + d2 * (1.0 / 120 + d2 * (-1.0 / 5040 + d2 * (1.0 / 362880 +
+       d2 * (-1.0 / 39916800 + d2 * (1.0 / 6227020800.0)))))));
+  *c = 1 + d2 * (-0.5 + d2 * (1.0 / 24 + d2 * (-1.0 / 720 + d2 * (1.0 / 40320 +
+       d2 * (-1.0 / 3628800 + d2 * (1.0 / 479001600 + d2 * (-1.0 / 87178291200.0)))))));
 }
 
-// Column j of the joint Jacobian (rows dp, drot) for frame G = G_j and tool point p.
-inline void JointColumn(const Joint& joint, const FrameRt& G, const Eigen::Vector3d& p,
-                        double* col) {
-  const Eigen::Vector3d w = AxisOf(joint, G);
-  Eigen::Map<Vector6d> out(col);
-  out.head<3>() = w.cross(p - G.t);
-  if (!IsRevoluteZ(joint)) out.head<3>() += G.R * joint.twist.tail<3>();
-  out.tail<3>() = w;
+// log(R_target R^T)^vee. Near the target (angle below 0.01 rad) from the skew part alone:
+// v = sin(theta) axis and theta / sin(theta) = 1 + s^2/6 + 3 s^4/40 + 5 s^6/112 + 35 s^8/1152
+// (s = |v|; the next term is below 1e-21), without the quaternion and atan2 of LogSO3.
+inline Eigen::Vector3d RotationError(const Eigen::Matrix3d& R_target, const Eigen::Matrix3d& R) {
+  const Eigen::Matrix3d E = R_target * R.transpose();
+  const Eigen::Vector3d v(0.5 * (E(2, 1) - E(1, 2)), 0.5 * (E(0, 2) - E(2, 0)),
+                          0.5 * (E(1, 0) - E(0, 1)));
+  const double s2 = v.squaredNorm();
+  if (s2 < 1e-4 && E.trace() > 1) {
+    return v * (1 + s2 * (1.0 / 6 + s2 * (3.0 / 40 + s2 * (5.0 / 112 + s2 * (35.0 / 1152)))));
+  }
+  return LogSO3<double>(E);
 }
 
-// Smallest eigenvalue of a symmetric positive semi-definite M x M matrix: closed form for 3 x 3,
-// else inverse iteration on its Cholesky factor (the Rayleigh quotient converges quadratically in
-// the eigenvector; a fraction of the cost of a full eigendecomposition). 0 when A is singular.
+// Cholesky factor of a symmetric positive definite M x M matrix (lower triangle read), with the
+// reciprocals of its diagonal; Ok() false when a pivot is not positive.
+template <int M>
+class SmallCholesky {
+ public:
+  using MatM = Eigen::Matrix<double, M, M>;
+  using VecM = Eigen::Matrix<double, M, 1>;
+
+  explicit SmallCholesky(const MatM& A) : L_(A) {
+    for (int j = 0; j < M; ++j) {
+      double d = L_(j, j);
+      for (int k = 0; k < j; ++k) d -= L_(j, k) * L_(j, k);
+      if (!(d > 0)) {
+        ok_ = false;
+        return;
+      }
+      inv_[j] = 1 / std::sqrt(d);
+      for (int i = j + 1; i < M; ++i) {
+        double x = L_(i, j);
+        for (int k = 0; k < j; ++k) x -= L_(i, k) * L_(j, k);
+        L_(i, j) = x * inv_[j];
+      }
+    }
+  }
+  bool Ok() const { return ok_; }
+  // x <- A^-1 x.
+  void Solve(VecM* x) const {
+    VecM& y = *x;
+    for (int i = 0; i < M; ++i) {
+      double v = y(i);
+      for (int k = 0; k < i; ++k) v -= L_(i, k) * y(k);
+      y(i) = v * inv_[i];
+    }
+    for (int i = M - 1; i >= 0; --i) {
+      double v = y(i);
+      for (int k = i + 1; k < M; ++k) v -= L_(k, i) * y(k);
+      y(i) = v * inv_[i];
+    }
+  }
+
+ private:
+  MatM L_;
+  double inv_[M];
+  bool ok_ = true;
+};
+
+// Solves the square system J d = e by LU with partial pivoting (Newton's step of a regular square
+// task); false when a pivot is below `tiny` (then the damped form is used).
+template <int M>
+bool SquareSolve(const Eigen::Matrix<double, M, M>& J, Eigen::Matrix<double, M, 1>* x, double tiny) {
+  Eigen::Matrix<double, M, M, Eigen::RowMajor> A = J;  // rows contiguous: swaps and updates
+  Eigen::Matrix<double, M, 1>& b = *x;
+  for (int k = 0; k < M; ++k) {
+    int p = k;
+    double best = std::abs(A(k, k));
+    for (int i = k + 1; i < M; ++i) {
+      const double v = std::abs(A(i, k));
+      if (v > best) {
+        best = v;
+        p = i;
+      }
+    }
+    if (!(best > tiny)) return false;
+    if (p != k) {
+      for (int c = k; c < M; ++c) std::swap(A(p, c), A(k, c));
+      std::swap(b(p), b(k));
+    }
+    const double inv = 1 / A(k, k);
+    for (int i = k + 1; i < M; ++i) {
+      const double f = A(i, k) * inv;
+      for (int c = k + 1; c < M; ++c) A(i, c) -= f * A(k, c);
+      b(i) -= f * b(k);
+    }
+  }
+  for (int i = M - 1; i >= 0; --i) {
+    double v = b(i);
+    for (int c = i + 1; c < M; ++c) v -= A(i, c) * b(c);
+    b(i) = v / A(i, i);
+  }
+  return true;
+}
+
+// LDL^T of a symmetric M x M matrix without pivoting, for its negative pivots (by Sylvester's law of
+// inertia, the number of eigenvalues of B below zero). Ok() false on a zero pivot.
+template <int M>
+class SymmetricLdlt {
+ public:
+  explicit SymmetricLdlt(const Eigen::Matrix<double, M, M>& B) {
+    for (int j = 0; j < M; ++j) {
+      double d = B(j, j);
+      for (int k = 0; k < j; ++k) d -= L_(j, k) * L_(j, k) * D_[k];
+      if (d == 0 || !std::isfinite(d)) {
+        ok_ = false;
+        return;
+      }
+      D_[j] = d;
+      negative_ += d < 0;
+      for (int i = j + 1; i < M; ++i) {
+        double v = B(i, j);
+        for (int k = 0; k < j; ++k) v -= L_(i, k) * L_(j, k) * D_[k];
+        L_(i, j) = v / d;
+      }
+    }
+  }
+  bool Ok() const { return ok_; }
+  int negative() const { return negative_; }
+
+ private:
+  Eigen::Matrix<double, M, M> L_;
+  double D_[M];
+  int negative_ = 0;
+  bool ok_ = true;
+};
+
+// Smallest eigenvalue of a symmetric positive semi-definite M x M matrix (relative accuracy about
+// 1e-9; sigma_min is a diagnostic and a threshold). A few steps of inverse iteration on its Cholesky
+// factor turn the start vector toward the smallest eigenvalue's eigenvector; Rayleigh-quotient
+// iteration (shift = the current Rayleigh quotient, solves by LU with partial pivoting, cubic
+// convergence) then converges to an eigenvalue, which is the smallest when A - shift (1 + 1e-9) I
+// has exactly one negative pivot (Sylvester's law of inertia). Otherwise (two nearly equal smallest
+// eigenvalues) bisection on positive definiteness. 0 when A is singular.
 template <int M>
 double SmallestEigenvalue(const Eigen::Matrix<double, M, M>& A) {
-  if constexpr (M == 3) {
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-    eig.computeDirect(A, Eigen::EigenvaluesOnly);
-    return std::max(0.0, eig.eigenvalues()(0));
-  } else {
-    const Eigen::LLT<Eigen::Matrix<double, M, M>> llt(A);
-    if (llt.info() != Eigen::Success) return 0.0;
-    Eigen::Matrix<double, M, 1> x = Eigen::Matrix<double, M, 1>::Constant(1.0);
-    x(0) = 1.3;  // not orthogonal to any axis-aligned eigenvector
-    double rayleigh = HUGE_VAL;
-    for (int k = 0; k < 12; ++k) {
-      x.normalize();
-      const double next = x.dot(A * x);
-      if (k > 0 && std::abs(next - rayleigh) <= 1e-10 * rayleigh) return std::max(0.0, next);
-      rayleigh = next;
-      x = llt.solve(x);
-      if (!x.allFinite() || x.squaredNorm() == 0) return 0.0;
-    }
-    return std::max(0.0, rayleigh);
+  using VecM = Eigen::Matrix<double, M, 1>;
+  using MatM = Eigen::Matrix<double, M, M>;
+  const SmallCholesky<M> llt(A);
+  if (!llt.Ok()) return 0.0;
+  VecM x = VecM::Constant(1.0 / std::sqrt(M));
+  x(0) *= 1.3;  // not orthogonal to any axis-aligned eigenvector
+  x.normalize();
+  double mu = 0;  // x . A^-1 x, at most 1 / lambda_min
+  auto inverse_step = [&]() {
+    VecM y = x;
+    llt.Solve(&y);
+    mu = x.dot(y);
+    const double norm = y.norm();
+    if (!std::isfinite(norm) || norm == 0) return false;
+    x = y / norm;
+    return true;
+  };
+  for (int k = 0; k < 3; ++k) {
+    if (!inverse_step()) return 0.0;
   }
+  const double upper = 1 / mu;  // the Rayleigh quotient: at least lambda_min
+  double shift = x.dot(A * x);
+  bool converged = false;
+  const double tiny = 1e-15 * A.diagonal().cwiseAbs().maxCoeff();
+  for (int k = 0; k < 8 && !converged; ++k) {
+    MatM B = A;
+    B.diagonal().array() -= shift;
+    VecM y = x;
+    if (!SquareSolve<M>(B, &y, tiny)) {  // the shift is an eigenvalue
+      converged = true;
+      break;
+    }
+    const double norm = y.norm();
+    if (!std::isfinite(norm) || norm == 0) break;
+    x = y / norm;
+    const double next = x.dot(A * x);
+    converged = std::abs(next - shift) <= 1e-10 * std::abs(next);
+    shift = next;
+  }
+  if (converged && shift >= 0) {
+    MatM B = A;
+    B.diagonal().array() -= shift * (1 + 1e-9) + 1e-300;
+    const SymmetricLdlt<M> ldlt(B);
+    if (ldlt.Ok() && ldlt.negative() == 1) return shift;
+  }
+  // Another eigenvalue (two nearly equal smallest ones), or no convergence: bisection between 0
+  // and an upper bound on whether A - s I is positive definite (its Cholesky factorization exists).
+  double lo = 0, hi = converged && shift >= 0 ? shift * (1 + 1e-9) : upper;
+  for (int k = 0; k < 200 && hi - lo > 1e-10 * hi; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    MatM B = A;
+    B.diagonal().array() -= mid;
+    if (SmallCholesky<M>(B).Ok()) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return 0.5 * (lo + hi);
 }
 
 int Sign(double x) { return x > 0 ? 1 : (x < 0 ? -1 : 0); }
 
-// (D_arm, D_wrist) signs from the frames of one configuration (see the header).
-void BranchSignsOf(const RobotModel& model, const FrameRt* frames, int signs[2]) {
-  const int n = model.num_joints();
-  const Eigen::Vector3d c = frames[n - 2].t;
-  Eigen::Matrix3d A;
-  for (int j = 0; j < 3; ++j) {
-    const Joint& joint = model.joints[j];
-    const Eigen::Vector3d w = AxisOf(joint, frames[j]);
-    A.col(j) = w.cross(c - frames[j].t);
-    if (!IsRevoluteZ(joint)) A.col(j) += frames[j].R * joint.twist.tail<3>();
-  }
-  signs[0] = Sign(A.determinant());
-  const Eigen::Vector3d a = AxisOf(model.joints[n - 3], frames[n - 3]);
-  const Eigen::Vector3d b = AxisOf(model.joints[n - 2], frames[n - 2]);
-  const Eigen::Vector3d d = AxisOf(model.joints[n - 1], frames[n - 1]);
-  signs[1] = Sign(a.dot(b.cross(d)));
+// (D_arm, D_wrist) signs from the frames of one configuration (see the header): the joint Jacobian
+// of the point c (the first three position columns) and the last three joint axes.
+void BranchSignsOf(const KinematicChain& chain, const FrameRt* frames, int signs[2]) {
+  const int n = chain.num_joints();
+  FrameRt at_c[kMax + 1];
+  std::copy(frames, frames + n, at_c);
+  at_c[n].t = frames[n - 2].t;
+  Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMax> J(6, n);
+  chain.ToolJointJacobian(at_c, J.data(), 6);
+  signs[0] = Sign(J.topLeftCorner<3, 3>().determinant());
+  const Eigen::Matrix3d axes = J.bottomRightCorner<3, 3>();
+  signs[1] = Sign(axes.determinant());
 }
+
+// The joint-error terms a model carries (RobotModel::joint_errors): g(q) = q + dq(q), dg/dq by
+// forward differences of dq (its derivatives are of the order of the offsets themselves, 1e-4, so
+// the differences' error is far below what would slow Newton's convergence).
+class ModelJointErrors : public EffectiveJointMap {
+ public:
+  explicit ModelJointErrors(const RobotModel& model) : model_(&model) {}
+  void Evaluate(const double* q, double* q_eff, double* dg_dq) const override {
+    const int n = model_->num_joints();
+    double dq[kMax], qh[kMax], dqh[kMax];
+    JointErrorOffsets(*model_, q, dq);
+    for (int j = 0; j < n; ++j) q_eff[j] = q[j] + dq[j];
+    if (dg_dq == nullptr) return;
+    constexpr double kStep = 1e-6;  // rad or mm
+    for (int j = 0; j < n; ++j) qh[j] = q[j];
+    for (int c = 0; c < n; ++c) {
+      qh[c] = q[c] + kStep;
+      JointErrorOffsets(*model_, qh, dqh);
+      qh[c] = q[c];
+      for (int r = 0; r < n; ++r) dg_dq[c * n + r] = (r == c) + (dqh[r] - dq[r]) / kStep;
+    }
+  }
+
+ private:
+  const RobotModel* model_;
+};
 
 }  // namespace
-
-SE3d ToolJointJacobian(const KinematicChain& chain, const double* q, int tool, FrameRt* frames,
-                       double* J, int ld) {
-  const RobotModel& model = chain.model();
-  const int n = chain.num_joints();
-  chain.Frames(q, tool, frames);
-  const Eigen::Vector3d p = frames[n].t;
-  for (int j = 0; j < n; ++j) JointColumn(model.joints[j], frames[j], p, J + j * ld);
-  return SE3d(frames[n].R, frames[n].t);
-}
 
 const char* IkStatusName(IkStatus status) {
   switch (status) {
@@ -122,10 +308,15 @@ Status InverseKinematics::CheckModel(const RobotModel& model) {
 }
 
 InverseKinematics::InverseKinematics(const RobotModel& model, const IkOptions& options,
-                                     const EffectiveJoints* effective)
+                                     const EffectiveJointMap* effective)
     : model_(&model), options_(options), effective_(effective), chain_(model) {
   CHECK(CheckModel(model).ok()) << CheckModel(model).message();
+  if (effective_ == nullptr && !model.joint_errors.empty()) {
+    own_effective_ = std::make_shared<ModelJointErrors>(model);
+    effective_ = own_effective_.get();
+  }
   const int n = model.num_joints();
+  for (int j = 0; j < n; ++j) z_revolute_[j] = IsRevoluteZ(model.joints[j]);
   branch_defined_ = n >= 6;
   if (branch_defined_) {
     for (int j : {0, 1, 2, n - 3, n - 2, n - 1}) {
@@ -137,7 +328,6 @@ InverseKinematics::InverseKinematics(const RobotModel& model, const IkOptions& o
 void InverseKinematics::BranchSigns(const double* q, int signs[2]) const {
   signs[0] = signs[1] = 0;
   if (!branch_defined_) return;
-  const int n = chain_.num_joints();
   FrameRt frames[kMax + 1];
   double q_eff[kMax];
   const double* x = q;
@@ -146,22 +336,29 @@ void InverseKinematics::BranchSigns(const double* q, int signs[2]) const {
     x = q_eff;
   }
   chain_.Frames(x, 0, frames);
-  (void)n;
-  BranchSignsOf(*model_, frames, signs);
+  BranchSignsOf(chain_, frames, signs);
 }
 
 IkResult InverseKinematics::Solve(const IkTarget& target, const double* seed, double* q) const {
   CHECK(target.tool >= 0 && target.tool < model_->num_tools()) << "tool index " << target.tool;
-  return target.has_orientation ? SolveTask<6>(target, seed, q) : SolveTask<3>(target, seed, q);
+  const int n = chain_.num_joints();
+  if (target.has_orientation) {
+    if (n == 6) return SolveTask<6, 6>(target, seed, q);
+    if (n == 7) return SolveTask<6, 7>(target, seed, q);
+    return SolveTask<6, Eigen::Dynamic>(target, seed, q);
+  }
+  if (n == 6) return SolveTask<3, 6>(target, seed, q);
+  if (n == 7) return SolveTask<3, 7>(target, seed, q);
+  return SolveTask<3, Eigen::Dynamic>(target, seed, q);
 }
 
-template <int M>
+template <int M, int N>
 IkResult InverseKinematics::SolveTask(const IkTarget& target, const double* seed,
                                       double* q_out) const {
   const int n = chain_.num_joints();
   double start[kMax], best_q[kMax], trial_q[kMax];
   std::copy(seed, seed + n, start);
-  IkResult best = Run<M>(target, seed, seed, best_q);
+  IkResult best = Run<M, N>(target, seed, seed, best_q);
   auto reached = [](const IkResult& r) {
     return r.status == IkStatus::kOk || r.status == IkStatus::kBranch ||
            r.status == IkStatus::kSingular;
@@ -179,7 +376,7 @@ IkResult InverseKinematics::SolveTask(const IkTarget& target, const double* seed
                        (model_->joints[j].type == JointType::kRevolute ? 1.0 : 10.0);
       start[j] = seed[j] + a * u;
     }
-    IkResult r = Run<M>(target, seed, start, trial_q);
+    IkResult r = Run<M, N>(target, seed, start, trial_q);
     iterations += r.iterations;
     // Keep a reached solution closest to the seed; among unreached, the smallest error.
     const bool better =
@@ -197,11 +394,12 @@ IkResult InverseKinematics::SolveTask(const IkTarget& target, const double* seed
   return best;
 }
 
-template <int M>
+template <int M, int N>
 IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
                                 const double* start_in, double* q_out) const {
-  using MatJ = Eigen::Matrix<double, M, Eigen::Dynamic, 0, M, kMax>;
-  using VecN = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMax, 1>;
+  constexpr int kMaxN = N == Eigen::Dynamic ? kMax : N;
+  using MatJ = Eigen::Matrix<double, M, N, 0, M, kMaxN>;
+  using VecN = Eigen::Matrix<double, N, 1, 0, kMaxN, 1>;
   using VecM = Eigen::Matrix<double, M, 1>;
   using MatM = Eigen::Matrix<double, M, M>;
   const RobotModel& model = *model_;
@@ -210,44 +408,76 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
   const double L = o.orientation_weight;
   const bool redundant = n > M;
 
-  VecN lower(n), upper(n), max_step(n), seed(n), q(n);
+  VecN lower, upper, max_step, seed;
+  lower.resize(n);
+  upper.resize(n);
+  max_step.resize(n);
+  seed.resize(n);
   for (int j = 0; j < n; ++j) {
     const Joint& joint = model.joints[j];
     lower(j) = o.respect_limits ? joint.lower : -HUGE_VAL;
     upper(j) = o.respect_limits ? joint.upper : HUGE_VAL;
     max_step(j) = joint.type == JointType::kRevolute ? o.max_step_revolute : o.max_step_prismatic;
     seed(j) = std::min(std::max(seed_in[j], lower(j)), upper(j));
-    q(j) = std::min(std::max(start_in[j], lower(j)), upper(j));
   }
 
-  FrameRt frames[kMax + 1];
-  double J6[6 * kMax];
-  double q_eff[kMax];
-  double dg_dq[kMax * kMax];
+  // One iterate: joints, the chain's joint values x (q, or g(q) with joint-space terms) with their
+  // sin/cos, frames, weighted task error and Jacobian.
+  struct Iterate {
+    VecN q;
+    double x[kMax], sin_x[kMax], cos_x[kMax];
+    int age[kMax];  // incremental sin/cos updates since the last sincos
+    FrameRt frames[kMax + 1];
+    VecM e;
+    MatJ J;
+    double merit = 0;
+  };
+  Iterate iterates[2];
+  Iterate* cur = &iterates[0];
+  Iterate* trial = &iterates[1];
 
-  // Weighted task error and Jacobian at x; returns |e|^2.
-  auto evaluate = [&](const VecN& x, VecM* e, MatJ* J) {
-    const double* qe = x.data();
+  // Evaluates `it` at it->q; `from` (or null) is the iterate whose sin/cos are carried over.
+  auto evaluate = [&](const Iterate* from, Iterate* it) {
+    double dg_dq[kMax * kMax];
     if (effective_ != nullptr) {
-      effective_->Evaluate(x.data(), q_eff, dg_dq);
-      qe = q_eff;
+      effective_->Evaluate(it->q.data(), it->x, dg_dq);
+    } else {
+      for (int j = 0; j < n; ++j) it->x[j] = it->q(j);
     }
-    ToolJointJacobian(chain_, qe, target.tool, frames, J6, 6);
-    const FrameRt& T = frames[n];
-    e->template head<3>() = target.position - T.t;
-    const Eigen::Map<const Eigen::Matrix<double, 6, Eigen::Dynamic>> J_full(J6, 6, n);
-    J->resize(M, n);
-    J->template topRows<3>() = J_full.template topRows<3>();
+    for (int j = 0; j < n; ++j) {
+      if (!z_revolute_[j]) continue;
+      const double delta = from != nullptr ? it->x[j] - from->x[j] : HUGE_VAL;
+      if (std::abs(delta) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
+        double sd, cd;
+        SinCosSmall(delta, &sd, &cd);
+        it->sin_x[j] = from->sin_x[j] * cd + from->cos_x[j] * sd;
+        it->cos_x[j] = from->cos_x[j] * cd - from->sin_x[j] * sd;
+        it->age[j] = from->age[j] + 1;
+      } else {
+        SinCos(it->x[j], &it->sin_x[j], &it->cos_x[j]);
+        it->age[j] = 0;
+      }
+    }
+    chain_.Frames(it->x, it->sin_x, it->cos_x, target.tool, it->frames);
+    const FrameRt& T = it->frames[n];
+    it->e.template head<3>() = target.position - T.t;
+    it->J.resize(M, n);
     if constexpr (M == 6) {
-      e->template tail<3>() = L * LogSO3<double>(target.rotation * T.R.transpose());
-      J->template bottomRows<3>() = L * J_full.template bottomRows<3>();
+      chain_.ToolJointJacobian(it->frames, it->J.data(), 6);
+      it->J.template bottomRows<3>() *= L;
+      it->e.template tail<3>() = L * RotationError(target.rotation, T.R);
+    } else {
+      Eigen::Matrix<double, 6, N, 0, 6, kMaxN> J6;
+      J6.resize(6, n);
+      chain_.ToolJointJacobian(it->frames, J6.data(), 6);
+      it->J = J6.template topRows<3>();
     }
     if (effective_ != nullptr) {
-      const Eigen::Map<const Eigen::MatrixXd> G(dg_dq, n, n);
-      const MatJ Jq = *J * G;
-      *J = Jq;
+      const Eigen::Map<const Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN>> G(dg_dq, n, n);
+      const MatJ Jq = it->J * G;
+      it->J = Jq;
     }
-    return e->squaredNorm();
+    it->merit = it->e.squaredNorm();
   };
   auto task_ok = [&](const VecM& e) {
     if (e.template head<3>().norm() > o.position_tolerance) return false;
@@ -257,42 +487,72 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
     return true;
   };
 
-  VecM e;
-  MatJ J(M, n);
-  double merit = evaluate(q, &e, &J);
+  cur->q.resize(n);
+  trial->q.resize(n);
+  for (int j = 0; j < n; ++j) cur->q(j) = std::min(std::max(start_in[j], lower(j)), upper(j));
+  evaluate(nullptr, cur);
   int seed_signs[2] = {0, 0};
   const bool check_branch = o.check_branch && branch_defined_;
   if (check_branch) {
     if (start_in == seed_in) {
-      BranchSignsOf(model, frames, seed_signs);
+      BranchSignsOf(chain_, cur->frames, seed_signs);
     } else {
       BranchSigns(seed.data(), seed_signs);
     }
   }
 
-  // One damped step with the active set of limits (see the header). Returns the step in *d.
+  // One damped step with the active set of limits (see the header) from `cur`, into *d.
   bool limit_hit = false;  // some step of this run was cut at a joint limit
   auto compute_step = [&](double lambda2, double beta, VecN* d) {
+    const MatJ& J = cur->J;
+    const VecN& q = cur->q;
     bool locked[kMax] = {};
+    bool any_locked = false;
     VecN fixed = VecN::Zero(n);
+    MatJ Jf;
     for (int round = 0; round <= n; ++round) {
-      MatJ Jf = J;
-      VecM rhs = e;
-      VecN r = beta * (seed - q);
-      for (int j = 0; j < n; ++j) {
-        if (!locked[j]) continue;
-        rhs -= J.col(j) * fixed(j);
-        Jf.col(j).setZero();
-        r(j) = 0;
+      // A square task, undamped, no joint held: Newton's step J d = e (the pull toward the seed
+      // has no null space to act in).
+      bool solved = false;
+      if constexpr (N == M) {
+        if (!any_locked && lambda2 == 0) {
+          VecM x = cur->e;
+          const double tiny = 1e-9 * std::max(J.template lpNorm<Eigen::Infinity>(), 1e-30);
+          solved = SquareSolve<M>(J, &x, tiny);
+          if (solved) *d = x;
+        }
       }
-      MatM A = Jf * Jf.transpose();
-      const double trace = A.trace();
-      A.diagonal().array() += lambda2 + (trace > 0 ? 1e-13 * trace / M : 1e-30);
-      rhs -= Jf * r;
-      const VecM y = A.llt().solve(rhs);
-      *d = r + Jf.transpose() * y;
-      for (int j = 0; j < n; ++j) {
-        if (locked[j]) (*d)(j) = fixed(j);
+      if (!solved) {
+        if (any_locked) Jf = J;
+        const MatJ& Ju = any_locked ? Jf : J;  // columns of the joints still free
+        VecM rhs = cur->e;
+        VecN r = beta * (seed - q);
+        if (any_locked) {
+          for (int j = 0; j < n; ++j) {
+            if (!locked[j]) continue;
+            rhs -= J.col(j) * fixed(j);
+            Jf.col(j).setZero();
+            r(j) = 0;
+          }
+        }
+        MatM A = Ju * Ju.transpose();
+        const double trace = A.trace();
+        A.diagonal().array() += lambda2 + (trace > 0 ? 1e-13 * trace / M : 1e-30);
+        VecM y = rhs - Ju * r;
+        SmallCholesky<M> llt(A);
+        if (!llt.Ok()) {  // round-off on a rank-deficient A: regularize more
+          A.diagonal().array() += 1e-9 * std::max(trace, 1e-30) / M;
+          llt = SmallCholesky<M>(A);
+        }
+        if (llt.Ok()) {
+          llt.Solve(&y);
+        } else {
+          y.setZero();
+        }
+        *d = r + Ju.transpose() * y;
+        for (int j = 0; j < n; ++j) {
+          if (locked[j]) (*d)(j) = fixed(j);
+        }
       }
       // Trust region: scale the whole step (a move toward a limit stays inside when scaled).
       double scale = 1.0;
@@ -308,6 +568,7 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
         const double x = q(j) + (*d)(j);
         if (x > upper(j) || x < lower(j)) {
           locked[j] = true;
+          any_locked = true;
           fixed(j) = (x > upper(j) ? upper(j) : lower(j)) - q(j);
           changed = true;
           limit_hit = true;
@@ -319,14 +580,13 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
 
   IkResult result;
   bool converged = false;
-  bool evaluated_at_q = true;  // `frames` hold the configuration q
-  double lambda2 = 0, beta = 1;
-  VecN d(n), q_new(n);
-  VecM e_new;
-  MatJ J_new(M, n);
+  double lambda2 = 0, pull = 1, beta = 1;
+  VecN d, d_prev;
+  d.resize(n);
+  d_prev.setZero(n);
   int it = 0;
   for (; it < o.max_iterations; ++it) {
-    const bool ok = task_ok(e);
+    const bool ok = task_ok(cur->e);
     if (ok && !redundant) {
       converged = true;
       break;
@@ -336,53 +596,59 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
       converged = true;
       break;
     }
-    q_new = q + d;
-    for (int j = 0; j < n; ++j) q_new(j) = std::min(std::max(q_new(j), lower(j)), upper(j));
-    const double merit_new = evaluate(q_new, &e_new, &J_new);
+    for (int j = 0; j < n; ++j) {
+      trial->q(j) = std::min(std::max(cur->q(j) + d(j), lower(j)), upper(j));
+    }
+    evaluate(cur, trial);
     // Near the target, a step toward the seed in the null space may raise the task error at
     // second order; the next step removes that, so such steps are accepted (kNullSpaceSlack).
-    if (merit_new <= merit || merit_new <= kNullSpaceSlack * kNullSpaceSlack || task_ok(e_new)) {
-      q = q_new;
-      e = e_new;
-      J = J_new;
-      merit = merit_new;
-      evaluated_at_q = true;
+    if (trial->merit <= cur->merit || trial->merit <= kNullSpaceSlack * kNullSpaceSlack ||
+        task_ok(trial->e)) {
+      std::swap(cur, trial);
       lambda2 *= 0.1;
-      if (lambda2 < 1e-12 * J.squaredNorm() / M) lambda2 = 0;
-      beta = 1;
+      if (lambda2 < 1e-12 * cur->J.squaredNorm() / M) lambda2 = 0;
+      // The pull toward the seed is a fixed-point iteration that overshoots (successive steps
+      // reverse) where the task's curvature times its multiplier exceeds one, e.g. near a
+      // singularity: halve it for the rest of the run.
+      if (redundant && d.dot(d_prev) < -0.5 * d.norm() * d_prev.norm()) {
+        pull = std::max(pull * 0.5, kMinPull);
+      }
+      d_prev = d;
+      beta = pull;
     } else {
-      evaluated_at_q = false;
-      const double scale = std::max(J.squaredNorm() / M, 1e-30);
+      const double scale = std::max(cur->J.squaredNorm() / M, 1e-30);
       lambda2 = std::max(lambda2 * 10, 1e-6 * scale);
       beta *= 0.5;
       if (lambda2 > 1e12 * scale) break;  // no step reduces the error: stalled
     }
   }
   // A redundant task whose null-space pull has not settled still reached the target.
-  if (!converged && task_ok(e) && redundant) converged = true;
+  if (!converged && task_ok(cur->e) && redundant) converged = true;
 
   // Smallest singular value of the weighted task Jacobian at q.
+  const MatJ& J = cur->J;
   if (M <= n) {
     result.sigma_min = std::sqrt(SmallestEigenvalue<M>(J * J.transpose()));
   } else {
-    const Eigen::MatrixXd A = J.transpose() * J;
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A, Eigen::EigenvaluesOnly);
+    const Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN> A = J.transpose() * J;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN>> eig(
+        A, Eigen::EigenvaluesOnly);
     result.sigma_min = std::sqrt(std::max(0.0, eig.eigenvalues()(0)));
   }
-  result.position_error = e.template head<3>().norm();
-  if constexpr (M == 6) result.orientation_error = e.template tail<3>().norm() / L;
+  result.position_error = cur->e.template head<3>().norm();
+  if constexpr (M == 6) result.orientation_error = cur->e.template tail<3>().norm() / L;
   result.iterations = it;
-  for (int j = 0; j < n; ++j) {
-    q_out[j] = q(j);
-    if (q(j) == lower(j) || q(j) == upper(j)) result.at_limit = true;
-  }
   double corr2 = 0;
-  for (int j = 0; j < n; ++j) corr2 += (q(j) - seed_in[j]) * (q(j) - seed_in[j]);
+  for (int j = 0; j < n; ++j) {
+    const double qj = cur->q(j);
+    q_out[j] = qj;
+    if (qj == lower(j) || qj == upper(j)) result.at_limit = true;
+    corr2 += (qj - seed_in[j]) * (qj - seed_in[j]);
+  }
   result.correction = std::sqrt(corr2);
   if (check_branch) {
-    if (!evaluated_at_q) evaluate(q, &e_new, &J_new);
     int signs[2];
-    BranchSignsOf(model, frames, signs);
+    BranchSignsOf(chain_, cur->frames, signs);
     result.branch_changed = (seed_signs[0] != 0 && signs[0] != seed_signs[0]) ||
                             (seed_signs[1] != 0 && signs[1] != seed_signs[1]);
   }
@@ -393,17 +659,10 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
                                             : IkStatus::kOk;
   } else {
     result.status = result.at_limit || limit_hit ? IkStatus::kLimit
-                    : singular      ? IkStatus::kSingular
-                                    : IkStatus::kUnreachable;
+                    : singular                   ? IkStatus::kSingular
+                                                 : IkStatus::kUnreachable;
   }
   return result;
 }
-
-template IkResult InverseKinematics::SolveTask<3>(const IkTarget&, const double*, double*) const;
-template IkResult InverseKinematics::SolveTask<6>(const IkTarget&, const double*, double*) const;
-template IkResult InverseKinematics::Run<3>(const IkTarget&, const double*, const double*,
-                                            double*) const;
-template IkResult InverseKinematics::Run<6>(const IkTarget&, const double*, const double*,
-                                            double*) const;
 
 }  // namespace lpoe

@@ -121,8 +121,13 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
 
   if (options.on_stage) options.on_stage("analysing");
   out.geometric = Geometric(result.model);
-  const MeasurementSet identification_eff =
-      WithEffectiveJointValues(result.joint_terms, identification);
+  // Without joint terms the effective joint values are the measured ones: no copy (72 B a row).
+  MeasurementSet with_joint_terms;
+  if (!result.joint_terms.empty()) {
+    with_joint_terms = WithEffectiveJointValues(result.joint_terms, identification);
+  }
+  const MeasurementSet& identification_eff =
+      result.joint_terms.empty() ? identification : with_joint_terms;
   out.identifiability = AnalyzeIdentifiability(nominal, identification_eff, result);
   out.identification_before = PositionErrorStatistics(out.before, identification);
   out.identification_after = PositionErrorStatistics(out.geometric, identification_eff);

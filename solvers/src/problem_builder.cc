@@ -1,11 +1,15 @@
 #include "lpoe/problem_builder.h"
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <ceres/ceres.h>
 #include <glog/logging.h>
 
+#include "batched_residual.h"
 #include "identifiability.h"
 #include "lpoe/measurement_residual.h"
 #include "normal_equations.h"
@@ -19,6 +23,7 @@ Status ValidateCalibrationProblemOptions(const CalibrationProblemOptions& option
   if (!(options.sigma > 0) || !std::isfinite(options.sigma)) {
     return Status::Error("sigma must be a positive number of mm");
   }
+  if (options.rows_per_block < 1) return Status::Error("rows_per_block must be >= 1");
   if (!(options.loss_scale > 0) || !std::isfinite(options.loss_scale)) {
     return Status::Error("loss_scale must be a positive number of mm");
   }
@@ -147,15 +152,33 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
     block_sizes.push_back(static_cast<int>(joint_blocks_[b].size()));
     K += block_sizes.back();
   }
+  std::vector<ceres::ResidualBlockId> ids;
+  const int batch = BatchedRows();
+  if (batch > 1) {
+    // Every solved frame in each block: the joints, then the measured tools.
+    std::vector<int> frames;
+    std::vector<double*> blocks;
+    for (int f = 0; f < static_cast<int>(frames_.size()); ++f) {
+      if (!solved_[f]) continue;
+      frames.push_back(f);
+      blocks.push_back(frames_[f].data());
+    }
+    for (int begin = 0; begin < data.size(); begin += batch) {
+      const int end = std::min(data.size(), begin + batch);
+      ids.push_back(problem->AddResidualBlock(
+          new internal::BatchedPositionResidual(shared_model, parameterization_, frames, data,
+                                                begin, end, 1.0 / options_.sigma),
+          nullptr, blocks));
+    }
+  }
   PositionMeasurement position_kind;
   position_kind.inverse_sigma = 1.0 / options_.sigma;
   PoseMeasurement pose_kind;
   pose_kind.inverse_sigma = 1.0 / options_.sigma;
   pose_kind.orientation_weight = options_.orientation_weight;
   Eigen::MatrixXd term_Y;
-  std::vector<ceres::ResidualBlockId> ids;
-  ids.reserve(data.size());
-  for (int r = 0; r < data.size(); ++r) {
+  if (batch == 1) ids.reserve(data.size());
+  for (int r = 0; batch == 1 && r < data.size(); ++r) {
     parameters[n] = frames_[n + data.target(r)].data();
     // This row's joint regressor [Y_b(q) basis_b] (data: evaluated once).
     Eigen::MatrixXd R(n, K);
@@ -181,6 +204,13 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
     problem->SetManifold(frames_[f].data(), new Se3Manifold(p.basis[f]));
   }
   return ids;
+}
+
+int CalibrationProblem::BatchedRows() const {
+  bool joint_blocks = false;
+  for (const std::vector<double>& b : joint_blocks_) joint_blocks = joint_blocks || !b.empty();
+  const bool batchable = !options_.use_orientation && options_.loss == "none" && !joint_blocks;
+  return batchable ? std::max(1, options_.rows_per_block) : 1;
 }
 
 RobotModel CalibrationProblem::Model() const {
@@ -321,7 +351,6 @@ ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
 
 Status CalibrationProblem::Covariance(ceres::Problem* problem, int num_threads,
                                       Eigen::MatrixXd* covariance) {
-  const Parameterization& p = parameterization_;
   ceres::Covariance::Options cov_options;
   cov_options.algorithm_type = ceres::DENSE_SVD;
   cov_options.num_threads = std::max(1, num_threads);
@@ -332,25 +361,63 @@ Status CalibrationProblem::Covariance(ceres::Problem* problem, int num_threads,
   ceres::Covariance cov(cov_options);
   const std::vector<double*> blocks = parameter_blocks();
   const std::vector<const double*> const_blocks(blocks.begin(), blocks.end());
-  const std::vector<int> sizes = tangent_sizes();
-  const std::vector<int> offsets = tangent_offsets();
   int tangent = 0;
-  for (int s : sizes) tangent += s;
+  for (int s : tangent_sizes()) tangent += s;
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> C(tangent, tangent);
   if (!cov.Compute(const_blocks, problem) ||
       !cov.GetCovarianceMatrixInTangentSpace(const_blocks, C.data())) {
     return Status::Error("covariance not computed (rank-deficient Jacobian at the solution)");
   }
+  *covariance = ScatterCovariance(C);
+  return Status::Ok();
+}
+
+Eigen::MatrixXd CalibrationProblem::ScatterCovariance(const Eigen::MatrixXd& C) const {
   // Rows of C follow parameter_blocks(); scatter them to p's offsets.
-  *covariance = Eigen::MatrixXd::Zero(p.num_parameters, p.num_parameters);
+  const Parameterization& p = parameterization_;
+  const std::vector<int> sizes = tangent_sizes();
+  const std::vector<int> offsets = tangent_offsets();
+  Eigen::MatrixXd covariance = Eigen::MatrixXd::Zero(p.num_parameters, p.num_parameters);
   std::vector<int> c_offset(sizes.size());
   for (size_t a = 1; a < sizes.size(); ++a) c_offset[a] = c_offset[a - 1] + sizes[a - 1];
   for (size_t a = 0; a < sizes.size(); ++a) {
     for (size_t b = 0; b < sizes.size(); ++b) {
-      covariance->block(offsets[a], offsets[b], sizes[a], sizes[b]) =
+      covariance.block(offsets[a], offsets[b], sizes[a], sizes[b]) =
           C.block(c_offset[a], c_offset[b], sizes[a], sizes[b]);
     }
   }
+  return covariance;
+}
+
+Status CalibrationProblem::NormalEquationsCovariance(Eigen::MatrixXd* covariance) const {
+  // H's columns are the solved parameters in parameter_blocks() order, as Covariance()'s C.
+  const ProblemNormalEquations ne = NormalEquations();
+  if (!ne.finite) return Status::Error("covariance not computed (non-finite normal equations)");
+  Eigen::MatrixXd C;
+  if (options_.parameterization == ParameterizationKind::kFull) {
+    // The pseudo-inverse with Ceres's rule (DENSE_SVD, null_space_rank -1): eigenvalues below
+    // min_reciprocal_condition_number times the largest are dropped.
+    const double min_ratio = ceres::Covariance::Options().min_reciprocal_condition_number;
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(ne.H);
+    const Eigen::VectorXd& l = eig.eigenvalues();
+    const double largest = l.maxCoeff();
+    Eigen::VectorXd inv_l = Eigen::VectorXd::Zero(l.size());
+    for (int k = 0; k < l.size(); ++k) {
+      if (l(k) > min_ratio * largest) inv_l(k) = 1.0 / l(k);
+    }
+    C = eig.eigenvectors() * inv_l.asDiagonal() * eig.eigenvectors().transpose();
+  } else {
+    // Column-scaled for accuracy, as the linear solver's covariance.
+    const Eigen::VectorXd d = internal::ColumnScale(ne.H);
+    const Eigen::MatrixXd Hs = d.asDiagonal() * ne.H * d.asDiagonal();
+    Eigen::LLT<Eigen::MatrixXd> llt(Hs);
+    if (llt.info() != Eigen::Success) {
+      return Status::Error("covariance not computed (rank-deficient Jacobian at the solution)");
+    }
+    C = d.asDiagonal() * llt.solve(Eigen::MatrixXd::Identity(Hs.rows(), Hs.cols())) *
+        d.asDiagonal();
+  }
+  *covariance = ScatterCovariance(C);
   return Status::Ok();
 }
 

@@ -115,6 +115,52 @@ Status WriteMeasurements(const std::string& path, const RobotModel& model,
 // renamed over the target. On failure nothing is left behind and an existing file is untouched.
 Status WriteFileAtomically(const std::string& path, const std::string& contents);
 
+// A file written atomically piece by piece (outputs too large to build in memory): Open() creates a
+// temporary file in the same directory, Append() writes to it, Commit() flushes it and renames it over
+// `path`. Without a successful Commit() (an error, or destruction first) the temporary file is
+// removed and an existing file at `path` is untouched.
+class AtomicFileWriter {
+ public:
+  AtomicFileWriter() = default;
+  ~AtomicFileWriter();
+  AtomicFileWriter(const AtomicFileWriter&) = delete;
+  AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
+
+  Status Open(const std::string& path);
+  Status Append(const char* data, size_t size);
+  Status Append(const std::string& data) { return Append(data.data(), data.size()); }
+  Status Commit();
+
+ private:
+  Status Fail(const char* what, int err);
+  int fd_ = -1;
+  std::string path_, tmp_;
+};
+
+// A text file read line by line in blocks (inputs too large to hold in memory). Accepts what
+// ReadFile accepts (regular files, pipes, character devices).
+class LineReader {
+ public:
+  LineReader();
+  ~LineReader();
+  LineReader(const LineReader&) = delete;
+  LineReader& operator=(const LineReader&) = delete;
+
+  Status Open(const std::string& path);
+  // The next line without its '\n', in `*line` (valid until the next call). False at the end of
+  // the file or on a read error (then `status()` says what went wrong).
+  bool Next(std::string* line);
+  const Status& status() const { return status_; }
+
+ private:
+  struct File;
+  File* file_;
+  std::string buffer_;
+  size_t pos_ = 0;
+  bool eof_ = false;
+  Status status_;
+};
+
 // Reads a whole file, refusing more than `max_bytes` (a device such as /dev/zero, or a FIFO, is
 // read until the bound) and directories. The overload without a bound uses kMaxReadFileBytes.
 constexpr size_t kMaxReadFileBytes = size_t{1} << 30;

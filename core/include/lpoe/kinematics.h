@@ -352,6 +352,16 @@ class KinematicChain {
   // The perturbation frames G_0..G_n-1 and G_tool (as PerturbationFrames) into frames[0..n]; the
   // tool position is frames[n].t.
   void Frames(const double* q, int tool, FrameRt* frames) const;
+  // The same with sin(q_i) and cos(q_i) of the revolute-z joints given (sin_q[i], cos_q[i]; other
+  // joints read q[i]): for a caller that updates them incrementally instead of calling sincos.
+  void Frames(const double* q, const double* sin_q, const double* cos_q, int tool,
+              FrameRt* frames) const;
+  // Joint Jacobian at the tool point from the frames of Frames() (geometric Jacobian, one forward
+  // sweep): 6 x n, column-major with leading dimension ld >= 6. Column i is joint i's spatial twist
+  // Ad_{G_i} s_i moved to the tool position P = frames[n].t: rows dP/dq_i = w_i x (P - t_i) + R_i v_i
+  // (mm per rad or mm per mm), then w_i = R_i omega_i (the base-frame rotation rate), with
+  // G_i = (R_i, t_i) and s_i = (omega_i, v_i).
+  void ToolJointJacobian(const FrameRt* frames, double* J, int ld) const;
 
  private:
   const RobotModel* model_;

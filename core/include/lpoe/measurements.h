@@ -32,6 +32,11 @@ class MeasurementSet {
            int64_t source_line = 0);
   void AddPose(const double* q, const SE3d& pose, int target = 0, int64_t source_line = 0);
   void Reserve(int rows);
+  // Appends the rows of `other` (same joint count and data kind, or `this` empty), their targets
+  // and source lines included.
+  void Append(const MeasurementSet& other);
+  // Removes every row, keeping the capacity.
+  void Clear();
   // Frees capacity beyond size() (one reallocation of each column).
   void ShrinkToFit();
   // Keeps the rows for which `move_out[row]` is false (in order, in place) and moves the others,

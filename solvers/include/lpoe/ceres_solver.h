@@ -39,9 +39,15 @@ struct CeresSolverOptions {
   double orientation_weight = 1000.0;
   // Ceres linear solver: dense_qr | dense_normal_cholesky | sparse_normal_cholesky | dense_schur |
   // sparse_schur | iterative_schur | cgnr. The problem is small and dense (every residual touches
-  // every joint frame): dense_qr is the accurate default.
+  // every joint frame): dense_qr is the accurate default (with rows in batches, see rows_per_block,
+  // it is carried out as dense_normal_cholesky: a QR would copy the Jacobian of every row).
   std::string linear_solver = "dense_qr";
   int num_threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  // Rows per residual block (CalibrationProblemOptions::rows_per_block): 0 picks 1024 from
+  // kBatchFromRows rows on (one block per row below, or with a robust loss, pose data or joint
+  // terms), where the per-row blocks' overhead dominates; the result is the same either way.
+  int rows_per_block = 0;
+  static constexpr int kBatchFromRows = 20000;
   // Robust loss on each measurement's squared whitened residual: none | huber | cauchy.
   std::string loss = "none";
   // Scale of the robust loss, in mm: errors well below it count as least squares, errors above it

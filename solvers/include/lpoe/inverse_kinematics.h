@@ -3,8 +3,8 @@
 //
 // Task error (world-aligned at the tool point, rows position then orientation):
 //   e = [p_target - p(q);  log(R_target R(q)^T)^vee]      (mm; rad)
-// Joint Jacobian: joint j's spatial axis at q is Ad_{G_j} s_j with G_j = T_0,j-1(q) T_{j-1,j}(0) (the
-// perturbation frames of kinematics.h), so with G_j = (R, t) and s_j = (omega, v):
+// Joint Jacobian (KinematicChain::ToolJointJacobian, one forward sweep): joint j's spatial axis at q
+// is Ad_{G_j} s_j with G_j = T_0,j-1(q) T_{j-1,j}(0), so with G_j = (R, t) and s_j = (omega, v):
 //   w_j = R omega,   dp/dq_j = w_j x (p - t) + R v,   drot/dq_j = w_j.
 //
 // Step (one formula for square and redundant tasks): with r = seed - q (the way back to the seed),
@@ -21,7 +21,9 @@
 // limits.
 //
 // Joint-space error terms (issue 11: q_eff = q + dq(q), prediction = FK(q_eff)) enter through an
-// EffectiveJoints object: the chain is evaluated at q_eff = g(q) and the Jacobian is J(q_eff) dg/dq.
+// EffectiveJointMap object: the chain is evaluated at q_eff = g(q) and the Jacobian is J(q_eff) dg/dq.
+// By default that is the model's own joint-error terms (RobotModel::joint_errors: compliance,
+// harmonics), so a calibrated model is inverted with everything it predicts with.
 //
 // Configuration branch (arms with 6 or more revolute joints): the signs of
 //   D_arm   = det [dc/dq_1, dc/dq_2, dc/dq_3], c the origin of joint n-1's frame (the wrist's middle
@@ -34,6 +36,8 @@
 #ifndef LPOE_INVERSE_KINEMATICS_H_
 #define LPOE_INVERSE_KINEMATICS_H_
 
+#include <memory>
+
 #include <Eigen/Core>
 
 #include "lpoe/kinematics.h"
@@ -43,22 +47,15 @@
 namespace lpoe {
 
 // Effective joint values q_eff = g(q) that the kinematic chain sees for commanded joints q, with
-// the derivative dg/dq. Today no model carries joint-space terms and the identity (a null
-// EffectiveJoints pointer) is used; the joint-space error terms of issue 11 (compliance, harmonics:
-// g(q) = q + Y(q) theta) implement this interface and every user of Predict/IK takes them unchanged.
-class EffectiveJoints {
+// the derivative dg/dq (the model's joint-error terms g(q) = q + Y(q) theta by default, see
+// InverseKinematics; any other map, e.g. a coupling, through this interface).
+class EffectiveJointMap {
  public:
-  virtual ~EffectiveJoints() = default;
+  virtual ~EffectiveJointMap() = default;
   // Writes g(q) into q_eff (n values) and, when dg_dq is not null, dg/dq into dg_dq (n x n,
   // column-major: dg_dq[c * n + r] = d g_r / d q_c). n is the model's joint count.
   virtual void Evaluate(const double* q, double* q_eff, double* dg_dq) const = 0;
 };
-
-// Joint Jacobian of tool `tool` at the (effective) joint values q: 6 x n, column-major with leading
-// dimension ld >= 6, rows (dp (mm), drot (rad)) world-aligned at the tool point (see above).
-// `frames` is scratch for n + 1 frames; on return frames[n] is the tool pose. Returns the tool pose.
-SE3d ToolJointJacobian(const KinematicChain& chain, const double* q, int tool, FrameRt* frames,
-                       double* J, int ld);
 
 enum class IkStatus {
   kOk,           // reached the target within tolerance, on the seed's branch, not singular
@@ -121,9 +118,10 @@ class InverseKinematics {
   // Checks that `model` can be solved (1..kMaxJoints joints, valid model); the message says why not.
   static Status CheckModel(const RobotModel& model);
 
-  // `model` must pass CheckModel (CHECKed). `effective` may be null (identity).
+  // `model` must pass CheckModel (CHECKed). `effective` null: the model's own joint-error terms
+  // when it carries any (q_eff = q + dq(q), dg/dq by forward differences of dq), else the identity.
   explicit InverseKinematics(const RobotModel& model, const IkOptions& options = IkOptions(),
-                             const EffectiveJoints* effective = nullptr);
+                             const EffectiveJointMap* effective = nullptr);
 
   const IkOptions& options() const { return options_; }
 
@@ -136,17 +134,21 @@ class InverseKinematics {
   void BranchSigns(const double* q, int signs[2]) const;
 
  private:
-  template <int M>
+  // M task rows (3 or 6), N joints (6, 7, or Eigen::Dynamic for other counts: fixed-size types for
+  // the common arms).
+  template <int M, int N>
   IkResult SolveTask(const IkTarget& target, const double* seed, double* q) const;
   // One damped Newton run from `start`, drawn toward `seed` in the null space.
-  template <int M>
+  template <int M, int N>
   IkResult Run(const IkTarget& target, const double* seed, const double* start, double* q) const;
 
   const RobotModel* model_;
   IkOptions options_;
-  const EffectiveJoints* effective_;
+  const EffectiveJointMap* effective_;
+  std::shared_ptr<const EffectiveJointMap> own_effective_;  // the model's joint-error terms
   KinematicChain chain_;
   bool branch_defined_ = false;
+  bool z_revolute_[kMaxJoints] = {};  // revolute about local z: sin/cos updated incrementally
 };
 
 }  // namespace lpoe

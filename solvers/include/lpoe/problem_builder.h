@@ -58,6 +58,12 @@ struct CalibrationProblemOptions {
   // of its column's norm is left out and listed in parameterization().unidentifiable.
   std::vector<std::shared_ptr<const JointTerm>> joint_terms;
   double joint_term_tolerance = 1e-4;
+  // Rows per residual block of AddTo(). 1: one block per row. More: position data without a loss
+  // and without joint terms go in blocks of this many consecutive rows (the last one shorter), each
+  // with the analytic Jacobian of the measurement model over all solved frames; otherwise one
+  // block per row all the same (a robust loss must see each row's residual: Ceres applies it to a
+  // block's whole squared norm).
+  int rows_per_block = 1;
 };
 
 // User errors in the options: names of the loss, ranges.
@@ -130,10 +136,14 @@ class CalibrationProblem {
   std::vector<int> tangent_sizes() const;
   std::vector<int> tangent_offsets() const;
 
-  // (a) Adds the solved blocks (with their manifolds) and one residual block per row to `problem`,
-  // whose options must take ownership of cost functions, loss functions and manifolds (Ceres's
-  // default). Returns the residual block ids, in row order. Call once per problem.
+  // (a) Adds the solved blocks (with their manifolds) and one residual block per row to `problem`
+  // (per options().rows_per_block rows when batched, see BatchedRows()), whose options must take
+  // ownership of cost functions, loss functions and manifolds (Ceres's default). Returns the
+  // residual block ids, in row order. Call once per problem.
   std::vector<ceres::ResidualBlockId> AddTo(ceres::Problem* problem);
+  // Rows per residual block AddTo() uses: options().rows_per_block when the rows can be batched
+  // (position data, no loss, no joint-term block), else 1.
+  int BatchedRows() const;
 
   // The model at the blocks' current values: `nominal` with the solved frames replaced (a block
   // still holding its initial value keeps the nominal frame exactly).
@@ -163,8 +173,14 @@ class CalibrationProblem {
   // rows and columns zero), in the residuals' units (a priori: scale by s^2 for a posteriori).
   // An error when ceres::Covariance::Compute() fails (rank-deficient Jacobian).
   Status Covariance(ceres::Problem* problem, int num_threads, Eigen::MatrixXd* covariance);
+  // The same covariance from NormalEquations() (H^-1; full: Ceres's pseudo-inverse rule), for a
+  // problem of this builder's residuals alone: no Jacobian of all rows is formed (10^6 rows).
+  Status NormalEquationsCovariance(Eigen::MatrixXd* covariance) const;
 
  private:
+  // C (parameter_blocks() order) in parameterization()'s numbering.
+  Eigen::MatrixXd ScatterCovariance(const Eigen::MatrixXd& C) const;
+
   RobotModel nominal_;
   const MeasurementSet* data_;
   CalibrationProblemOptions options_;
