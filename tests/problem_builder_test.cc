@@ -116,7 +116,7 @@ TEST(ProblemBuilder, CallerSolveEqualsCalibrateCeres) {
   EXPECT_NEAR(builder.NormalEquations().cost, cost, 1e-9 * cost);
 }
 
-TEST(ProblemBuilder, NormalEquationsStepIsTheLinearSolversStep) {
+TEST(ProblemBuilder, NormalEquationsAreTheLinearSolvers) {
   const RobotModel nominal = MakeCobot6();
   const MeasurementSet data = Simulate(nominal, kNoiseSigma, kRows, 4);
   LinearSolverOptions lo;
@@ -140,6 +140,18 @@ TEST(ProblemBuilder, NormalEquationsStepIsTheLinearSolversStep) {
   EXPECT_LT(MaxPositionDifference(builder.Model(), one_step.model, data), kSameStepMm);
   // The step reduced the cost by orders of magnitude (mm-level errors down to the noise).
   EXPECT_LT(builder.NormalEquations().cost, 1e-3 * ne.cost);
+
+  // At the solution the normal matrix is the linear solver's: its covariance is s^2 H^-1.
+  for (int it = 0; it < 10; ++it) {
+    const ProblemNormalEquations step = builder.NormalEquations();
+    builder.Update(step.H.ldlt().solve(step.g));
+  }
+  const CalibrationResult solved = CalibrateLinear(nominal, data, LinearSolverOptions());
+  ASSERT_TRUE(solved.converged());
+  const ProblemNormalEquations at = builder.NormalEquations();
+  const double s2 = 2 * at.cost / (3.0 * data.size() - at.H.rows());
+  const Eigen::MatrixXd covariance = s2 * at.H.inverse();
+  EXPECT_LT((covariance - solved.covariance).norm(), 1e-6 * solved.covariance.norm());
 
   // The weighting: sigma scales H and g by 1 / sigma^2.
   CalibrationProblemOptions weighted;
@@ -204,6 +216,13 @@ TEST(ProblemBuilder, CallerPriorMovesTheSolutionAsPredicted) {
   ApplyUpdate(ne.parameterization, shift, &predicted);
   EXPECT_LT(MaxPositionDifference(builder.Model(), predicted, data),
             kPriorShiftTolerance * kPriorPullMm);
+
+  // The covariance of the caller's problem counts the prior: (H + w e_k e_k^T)^-1.
+  Eigen::MatrixXd C;
+  ASSERT_TRUE(builder.Covariance(&problem, 1, &C).ok());
+  const Eigen::MatrixXd expected = H.inverse();
+  EXPECT_NEAR(C(k, k), expected(k, k), 1e-3 * expected(k, k));
+  EXPECT_LT(C(k, k), 0.5 * ne.H.inverse()(k, k));  // the prior halves the variance at least
 }
 
 TEST(ProblemBuilder, CallerCanHoldFramesConstant) {
@@ -241,6 +260,13 @@ TEST(ProblemBuilder, AnalyzeNamesWhatTheDataCannotIdentify) {
   EXPECT_GT(b.condition_number, 1e8);
   EXPECT_NE(b.message.find("cannot identify"), std::string::npos) << b.message;
   EXPECT_FALSE(b.weakest.empty());
+  // ceres::Covariance fails on that problem, and the builder says so instead of returning garbage.
+  ceres::Problem degenerate;
+  poor.AddTo(&degenerate);
+  Eigen::MatrixXd C;
+  const Status cov = poor.Covariance(&degenerate, 1, &C);
+  EXPECT_FALSE(cov.ok());
+  EXPECT_NE(cov.message().find("rank-deficient"), std::string::npos) << cov.message();
   const MeasurementSet three = data.Subset({0, 1, 2});
   CalibrationProblem too_few(nominal, three, CalibrationProblemOptions());
   EXPECT_FALSE(too_few.Analyze().identifiable);

@@ -293,20 +293,10 @@ int Run() {
   // The feasible candidates; with joint-space terms, their identifiable combinations are those the
   // feasible candidates separate from the geometry (the solvers' reduction), and the pool's rows
   // gain their columns.
-  const PlanningModel geometric(model);
-  CandidatePool pool = BuildCandidatePool(geometric, candidates, constraints);
-  std::unique_ptr<PlanningModel> with_terms;
-  if (!terms.empty()) {
-    with_terms = std::make_unique<PlanningModel>(model, terms, pool.q);
-    CandidatePool full = BuildCandidatePool(*with_terms, pool.q, constraints);
-    CHECK_EQ(full.size(), pool.size());
-    full.source = pool.source;
-    full.outside_limits = pool.outside_limits;
-    full.near_singular = pool.near_singular;
-    full.nothing_visible = pool.nothing_visible;
-    pool = std::move(full);
-  }
-  const PlanningModel& pm = with_terms ? *with_terms : geometric;
+  CandidatePool pool;
+  const std::unique_ptr<PlanningModel> planning =
+      BuildPlanningPool(model, terms, candidates, constraints, &pool);
+  const PlanningModel& pm = *planning;
   const int offered = static_cast<int>(candidates.size() / model.num_joints());
   std::cout << "candidates: " << offered << " offered, " << pool.size() << " feasible ("
             << pool.outside_limits << " outside the joint limits, " << pool.near_singular

@@ -9,11 +9,12 @@
 #include <string>
 #include <vector>
 
+#include "lpoe/analysis.h"
 #include "lpoe/io.h"
-#include "lpoe/joint_errors.h"
 #include "lpoe/pipeline.h"
 #include "python_api.h"
 #include "report.h"
+#include "tool_common.h"
 
 namespace py = pybind11;
 
@@ -32,39 +33,106 @@ struct Calibration {
 
 namespace {
 
-Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& data,
-                      const MeasurementSet* verify, const std::string& solver,
-                      const std::string& parameterization, const std::string& data_kind,
-                      bool register_frames, int kfold, uint64_t split_seed,
-                      double outlier_threshold, int max_iterations, double step_tolerance,
-                      double sd_fraction, double max_condition, double noise_sigma,
-                      const std::string& loss, double loss_scale, const py::object& sigma,
-                      int threads, const std::string& angle_unit,
-                      const std::string& joint_errors) {
+// Keyword options named as lpoe_calibrate's flags: every Get names a known option (with its
+// default); Finish() rejects the others, listing the known ones. A new CLI option is one Get here.
+class KeywordOptions {
+ public:
+  explicit KeywordOptions(const py::kwargs& kwargs) : kwargs_(kwargs) {}
+
+  template <typename T>
+  T Get(const char* name, T fallback) {
+    known_.push_back(name);
+    if (!kwargs_.contains(name)) return fallback;
+    const py::object value = kwargs_[name];
+    if (value.is_none()) return fallback;
+    try {
+      return value.cast<T>();
+    } catch (const py::cast_error&) {
+      throw LpoeError(std::string(name) + ": cannot use " +
+                      py::str(value.get_type().attr("__name__")).cast<std::string>() +
+                      " value " + py::repr(value).cast<std::string>());
+    }
+  }
+  bool Given(const char* name) const { return kwargs_.contains(name) && !kwargs_[name].is_none(); }
+
+  void Finish(const char* function) const {
+    for (const auto& item : kwargs_) {
+      const std::string key = py::str(item.first);
+      if (std::find(known_.begin(), known_.end(), key) == known_.end()) {
+        std::string list;
+        for (const std::string& k : known_) list += (list.empty() ? "" : ", ") + k;
+        throw LpoeError(std::string(function) + ": unknown option '" + key + "' (options: " +
+                        list + ")");
+      }
+    }
+  }
+
+ private:
+  const py::kwargs& kwargs_;
+  std::vector<std::string> known_;
+};
+
+Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_data,
+                      const MeasurementSet* given_verify, const py::kwargs& kwargs) {
+  KeywordOptions k(kwargs);
+  const std::string solver = k.Get<std::string>("solver", "linear");
+  const std::string parameterization = k.Get<std::string>("parameterization", "identifiable");
+  const std::string data_kind = k.Get<std::string>("data_kind", "auto");
+  const std::string joint_errors = k.Get<std::string>("joint_errors", "none");
+  const bool register_frames = k.Get<bool>("register", true);
+  const double holdout = k.Get<double>("holdout", 0.0);
+  const int kfold = k.Get<int>("kfold", 0);
+  const uint64_t split_seed = k.Get<uint64_t>("split_seed", 1);
+  const double outlier_threshold = k.Get<double>("outlier_threshold", 5.0);
+  const int max_iterations = k.Get<int>("max_iterations", 30);
+  const double step_tolerance = k.Get<double>("step_tolerance", 1e-10);
+  const double sd_fraction = k.Get<double>("sd_fraction", 1e-2);
+  const double max_condition = k.Get<double>("max_condition", 1e8);
+  const double noise_sigma = k.Get<double>("noise_sigma", 0.03);
+  const std::string loss = k.Get<std::string>("loss", "none");
+  const double loss_scale = k.Get<double>("loss_scale", 1.0);
+  const bool sigma_given = k.Given("sigma");
+  const double sigma = k.Get<double>("sigma", 1.0);
+  const int threads = k.Get<int>("threads", 0);
+  const std::string angle_unit = k.Get<std::string>("angle_unit", "rad");
+  k.Finish("calibrate");
+
   if (Status s = nominal.Validate(); !s.ok()) throw LpoeError(s.message());
-  if (data.num_joints() != nominal.num_joints() ||
-      (verify != nullptr && verify->num_joints() != nominal.num_joints())) {
+  if (given_data.num_joints() != nominal.num_joints() ||
+      (given_verify != nullptr && given_verify->num_joints() != nominal.num_joints())) {
     throw LpoeError("the measurements have a different number of joints than the model");
   }
+  if (!(holdout >= 0 && holdout <= 0.95)) throw LpoeError("holdout: expected 0..0.95");
+  if (holdout > 0 && given_verify != nullptr) {
+    throw LpoeError("give either verify= or holdout=, not both");
+  }
+  // --holdout: the rows held out for verification, as lpoe_calibrate splits them.
+  MeasurementSet held_data(nominal.num_joints()), held_verify(nominal.num_joints());
+  if (holdout > 0) {
+    std::vector<int> id_rows, ver_rows;
+    HoldoutSplit(given_data.size(), holdout, split_seed, &id_rows, &ver_rows);
+    held_data = given_data.Subset(id_rows);
+    held_verify = given_data.Subset(ver_rows);
+    if (Status s = tools::CheckHoldoutSplit(holdout, held_data.size(), held_verify.size());
+        !s.ok()) {
+      throw LpoeError(s.message());
+    }
+  }
+  const MeasurementSet& data = holdout > 0 ? held_data : given_data;
+  const MeasurementSet* verify = holdout > 0 ? &held_verify : given_verify;
+
   PipelineOptions o;
   if (solver != "linear" && solver != "ceres") {
     throw LpoeError("solver: expected 'linear' or 'ceres', got '" + solver + "'");
   }
   o.solver = solver == "ceres" ? SolverKind::kCeres : SolverKind::kLinear;
-  if (!ParseParameterization(parameterization, &o.parameterization)) {
-    throw LpoeError("parameterization: expected 'identifiable' or 'full', got '" +
-                    parameterization + "'");
-  }
-  if (data_kind == "auto") {
-    o.use_orientation = data.has_orientation();
-  } else if (data_kind == "position" || data_kind == "pose") {
-    o.use_orientation = data_kind == "pose";
-    if (o.use_orientation && !data.has_orientation()) {
-      throw LpoeError("data_kind='pose' needs measured orientations");
-    }
-  } else {
-    throw LpoeError("data_kind: expected 'auto', 'position' or 'pose', got '" + data_kind + "'");
-  }
+  o.parameterization = ParseParameterizationOption(parameterization);
+  o.use_orientation = ParseDataKindOption(data_kind, data);
+  // joint_errors: "none", a comma-separated list or "auto" (chosen by cross-validation), as
+  // lpoe_calibrate --joint_errors.
+  o.joint_errors_auto = joint_errors == "auto";
+  o.joint_error_folds = kfold >= 2 ? kfold : 5;
+  if (!o.joint_errors_auto) o.joint_errors = JointErrorNames(joint_errors);
   if (angle_unit != "rad" && angle_unit != "deg") {
     throw LpoeError("angle_unit: expected 'rad' or 'deg', got '" + angle_unit + "'");
   }
@@ -81,19 +149,6 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& data,
   if (solver == "linear" && loss != "none") {
     throw LpoeError("loss needs solver='ceres' (the linear solver is plain least squares)");
   }
-  // joint_errors: "none", a comma-separated list or "auto", as lpoe_calibrate --joint_errors.
-  std::vector<JointErrorKind> kinds;
-  o.joint_errors_auto = joint_errors == "auto";
-  o.joint_error_folds = kfold >= 2 ? kfold : 5;
-  if (!o.joint_errors_auto && !ParseJointErrorKinds(joint_errors, &kinds)) {
-    throw LpoeError("joint_errors: expected 'none', 'compliance', 'harmonics', "
-                    "'compliance,harmonics' or 'auto', got '" + joint_errors + "'");
-  }
-  for (JointErrorKind k : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
-    if (std::find(kinds.begin(), kinds.end(), k) != kinds.end()) {
-      o.joint_errors.push_back(JointErrorKindName(k));
-    }
-  }
   o.register_frames = register_frames;
   o.kfold = kfold;
   o.split_seed = split_seed;
@@ -108,8 +163,9 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& data,
   o.ceres.max_condition_number = max_condition;
   o.ceres.loss = loss;
   o.ceres.loss_scale = loss_scale;
-  o.ceres.a_posteriori_covariance = sigma.is_none();
-  o.ceres.sigma = sigma.is_none() ? 1.0 : sigma.cast<double>();
+  // Without a stated noise level, estimate it from the residuals (as lpoe_calibrate does).
+  o.ceres.a_posteriori_covariance = !sigma_given;
+  o.ceres.sigma = sigma;
   o.ceres.convergence.sd_fraction = sd_fraction;
   if (threads > 0) o.ceres.num_threads = threads;
   if (Status s = ValidateCeresSolverOptions(o.ceres); !s.ok()) throw LpoeError(s.message());
@@ -143,7 +199,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& data,
   summary.parameterization = ParameterizationName(o.parameterization);
   summary.data_kind = o.use_orientation ? "pose" : "position";
   summary.angle_unit = angle_unit;
-  summary.verification_source = verify != nullptr ? "array" : "";
+  summary.verification_source = holdout > 0 ? "holdout" : verify != nullptr ? "array" : "";
   tools::AddPipelineResult(run, &summary);
   tools::AddPointResiduals(run.before, result.model, data, verification, &summary);
   summary.joint_errors_requested = joint_errors;
@@ -171,34 +227,37 @@ void BindCalibration(py::module_& m) {
             return py::module_::import("json").attr("loads")(c.report_json);
           },
           "the JSON report as a dict (None when the data could not identify the model)")
-      .def_readonly("report_json", &Calibration::report_json);
+      .def_readonly("report_json", &Calibration::report_json)
+      .def("__repr__", [](const Calibration& c) {
+        std::string s = "<lpoe.Calibration: " + c.termination + " after " +
+                        std::to_string(c.iterations) + " iterations";
+        if (!c.verdict.empty()) s += ", verdict " + c.verdict;
+        return s + ">";
+      });
 
   m.def(
       "calibrate",
       [](const RobotModel& model, const MeasurementSet& data, const py::object& verify,
-         const std::string& solver, const std::string& parameterization,
-         const std::string& data_kind, bool register_frames, int kfold, uint64_t split_seed,
-         double outlier_threshold, int max_iterations, double step_tolerance, double sd_fraction,
-         double max_condition, double noise_sigma, const std::string& loss, double loss_scale,
-         const py::object& sigma, int threads, const std::string& angle_unit,
-         const std::string& joint_errors) {
+         const py::kwargs& kwargs) {
         const MeasurementSet* v = verify.is_none() ? nullptr : verify.cast<const MeasurementSet*>();
-        return Calibrate(model, data, v, solver, parameterization, data_kind, register_frames,
-                         kfold, split_seed, outlier_threshold, max_iterations, step_tolerance,
-                         sd_fraction, max_condition, noise_sigma, loss, loss_scale, sigma, threads,
-                         angle_unit, joint_errors);
+        return Calibrate(model, data, v, kwargs);
       },
       py::arg("model"), py::arg("data"), py::arg("verify") = py::none(),
-      py::arg("solver") = "linear", py::arg("parameterization") = "identifiable",
-      py::arg("data_kind") = "auto", py::arg("register") = true, py::arg("kfold") = 0,
-      py::arg("split_seed") = 1, py::arg("outlier_threshold") = 5.0,
-      py::arg("max_iterations") = 30, py::arg("step_tolerance") = 1e-10,
-      py::arg("sd_fraction") = 1e-2, py::arg("max_condition") = 1e8,
-      py::arg("noise_sigma") = 0.03, py::arg("loss") = "none", py::arg("loss_scale") = 1.0,
-      py::arg("sigma") = py::none(), py::arg("threads") = 0, py::arg("angle_unit") = "rad",
-      py::arg("joint_errors") = "none",
-      "calibrates `model` from `data` (and verifies on `verify`) as lpoe_calibrate does; keyword "
-      "options are named as its flags, with the same defaults");
+      "calibrate(model, data, verify=None, **options) -> Calibration\n\n"
+      "Calibrates `model` from `data` (and verifies on `verify`) as lpoe_calibrate does, through "
+      "the same pipeline (registration, solver, analysis, cross-validation, verdict). The keyword "
+      "options are named as its flags, with the same defaults:\n"
+      "  solver='linear' | 'ceres'; parameterization='identifiable' | 'full';\n"
+      "  data_kind='auto' | 'position' | 'pose'; joint_errors='none' | 'compliance' | "
+      "'harmonics' | 'compliance,harmonics' | 'auto';\n"
+      "  register=True; holdout=0.0 (fraction held out, instead of verify); kfold=0; "
+      "split_seed=1;\n"
+      "  outlier_threshold=5.0; max_iterations=30; step_tolerance=1e-10; sd_fraction=0.01;\n"
+      "  max_condition=1e8; noise_sigma=0.03 (mm, plausibility); loss='none' | 'huber' | "
+      "'cauchy'; loss_scale=1.0;\n"
+      "  sigma=None (mm; Ceres covariance a priori when given); threads=0; angle_unit='rad' "
+      "(the unit the joint values were read in, for the report).\n"
+      "An unknown option raises lpoe.Error listing the known ones.");
 }
 
 }  // namespace python

@@ -23,8 +23,6 @@ namespace py = pybind11;
 namespace lpoe {
 namespace python {
 
-using RowArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-
 std::string ShapeText(const py::array& a) {
   std::string s = "(";
   for (py::ssize_t d = 0; d < a.ndim(); ++d) {
@@ -32,6 +30,15 @@ std::string ShapeText(const py::array& a) {
     s += std::to_string(a.shape(d));
   }
   return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+py::ssize_t RowsOf(const RowArray& a, py::ssize_t cols, const std::string& what) {
+  if (a.ndim() == 1 && a.shape(0) == cols) return 1;
+  if (a.ndim() != 2 || a.shape(1) != cols) {
+    throw LpoeError(what + ": expected an array of shape (M, " + std::to_string(cols) + "), got " +
+                    ShapeText(a));
+  }
+  return a.shape(0);
 }
 
 namespace {
@@ -51,6 +58,54 @@ AngleUnit ParseUnit(const std::string& text) {
 }
 
 }  // namespace
+
+ParameterizationKind ParseParameterizationOption(const std::string& text) {
+  ParameterizationKind kind;
+  if (!ParseParameterization(text, &kind)) {
+    throw LpoeError("parameterization: expected 'identifiable' or 'full', got '" + text + "'");
+  }
+  return kind;
+}
+
+bool ParseDataKindOption(const std::string& text, const MeasurementSet& data) {
+  if (text == "auto") return data.has_orientation();
+  if (text == "position") return false;
+  if (text == "pose") {
+    if (!data.has_orientation()) throw LpoeError("data_kind='pose' needs measured orientations");
+    return true;
+  }
+  throw LpoeError("data_kind: expected 'auto', 'position' or 'pose', got '" + text + "'");
+}
+
+std::vector<std::string> JointErrorNames(const std::string& text) {
+  std::vector<JointErrorKind> kinds;
+  if (!ParseJointErrorKinds(text, &kinds)) {
+    throw LpoeError("joint_errors: expected none, compliance, harmonics, compliance,harmonics "
+                    "(or auto where the tool accepts it), got '" + text + "'");
+  }
+  std::vector<std::string> names;
+  // Compliance first (docs/joint_errors.md), as lpoe_calibrate orders them.
+  for (JointErrorKind k : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
+    if (std::find(kinds.begin(), kinds.end(), k) != kinds.end()) {
+      names.push_back(JointErrorKindName(k));
+    }
+  }
+  return names;
+}
+
+int ToolIndexOf(const RobotModel& model, const py::object& tool) {
+  if (py::isinstance<py::str>(tool)) {
+    const int t = model.FindTool(tool.cast<std::string>());
+    if (t < 0) throw LpoeError("no tool named '" + tool.cast<std::string>() + "' in the model");
+    return t;
+  }
+  const int t = tool.cast<int>();
+  if (t < 0 || t >= model.num_tools()) {
+    throw LpoeError("tool index " + std::to_string(t) + " out of range [0, " +
+                    std::to_string(model.num_tools()) + ")");
+  }
+  return t;
+}
 
 Status ReadAnyRobotModel(const std::string& path, RobotModel* model) {
   return EndsWithUrdf(path) ? ReadRobotModelUrdf(path, model) : ReadRobotModel(path, model);
@@ -83,6 +138,12 @@ void BindMeasurements(py::module_& m) {
                              "Tracker measurements: joint values, measured positions (mm), the "
                              "measured tool of each row and (pose data) orientations.")
       .def("__len__", &MeasurementSet::size)
+      .def("__repr__",
+           [](const MeasurementSet& d) {
+             return "<lpoe.Measurements: " + std::to_string(d.size()) + " rows of " +
+                    std::to_string(d.num_joints()) + " joints, " +
+                    (d.has_orientation() ? "poses>" : "positions>");
+           })
       .def_property_readonly("num_joints", &MeasurementSet::num_joints)
       .def_property_readonly("has_orientation", &MeasurementSet::has_orientation)
       .def_property_readonly("q",
@@ -137,14 +198,21 @@ void BindMeasurements(py::module_& m) {
 
   m.def(
       "read_measurements",
-      [](const std::string& path, const RobotModel& model, const std::string& angle_unit) {
+      [](const std::string& path, const RobotModel& model, const std::string& angle_unit,
+         const std::string& length_unit) {
+        CsvOptions options;
+        options.angle_unit = ParseUnit(angle_unit);
+        if (!ParseLengthUnit(length_unit, &options.length_unit)) {
+          throw LpoeError("length_unit: expected 'mm' or 'm', got '" + length_unit + "'");
+        }
         MeasurementSet data;
-        const Status s = ReadMeasurements(path, model, ParseUnit(angle_unit), &data);
-        if (!s.ok()) throw LpoeError(s.message());
+        Check(ReadMeasurements(path, model, options, &data, nullptr));
         return data;
       },
       py::arg("path"), py::arg("model"), py::arg("angle_unit") = "rad",
-      "reads a measurement CSV for `model`; lost-beam rows are skipped");
+      py::arg("length_unit") = "mm",
+      "reads a measurement CSV for `model` (as lpoe_calibrate's --angle_unit and --length_unit "
+      "read it); lost-beam rows are skipped");
 
   m.def(
       "measurements",

@@ -28,37 +28,11 @@ namespace lpoe {
 namespace python {
 namespace {
 
-using RowArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-
-// Raises lpoe.Error with the status message when `s` is an error.
-void Check(const Status& s) {
-  if (!s.ok()) throw LpoeError(s.message());
-}
-
-// Checks that `a` is an (M, cols) array (a 1-D array of length cols is taken as one row) and
-// returns M.
 py::ssize_t Rows(const RowArray& a, py::ssize_t cols, const char* what) {
-  if (a.ndim() == 1 && a.shape(0) == cols) return 1;
-  if (a.ndim() != 2 || a.shape(1) != cols) {
-    throw LpoeError(std::string(what) + ": expected an array of shape (M, " +
-                    std::to_string(cols) + "), got " + ShapeText(a));
-  }
-  return a.shape(0);
+  return RowsOf(a, cols, what);
 }
 
-int ToolIndex(const RobotModel& model, const py::object& tool) {
-  if (py::isinstance<py::str>(tool)) {
-    const int t = model.FindTool(tool.cast<std::string>());
-    if (t < 0) throw LpoeError("no tool named '" + tool.cast<std::string>() + "' in the model");
-    return t;
-  }
-  const int t = tool.cast<int>();
-  if (t < 0 || t >= model.num_tools()) {
-    throw LpoeError("tool index " + std::to_string(t) + " out of range [0, " +
-                    std::to_string(model.num_tools()) + ")");
-  }
-  return t;
-}
+int ToolIndex(const RobotModel& model, const py::object& tool) { return ToolIndexOf(model, tool); }
 
 Eigen::Matrix4d ToMatrix(const SE3d& T) {
   Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
@@ -91,6 +65,7 @@ void BindModel(py::module_& m);
 void BindMeasurements(py::module_& m);
 void BindCalibration(py::module_& m);
 void BindJacobians(py::module_& m);
+void BindAnalysis(py::module_& m);
 
 }  // namespace python
 }  // namespace lpoe
@@ -148,6 +123,12 @@ PYBIND11_MODULE(_lpoe, m) {
             return ToMatrix(r.tools[ToolIndex(r, tool)].origin);
           },
           py::arg("tool") = 0, "4x4 tool frame T_n,tool in the last joint's frame, mm")
+      .def_property(
+          "measurement_base",
+          [](const RobotModel& r) { return ToMatrix(r.T_measurement_base); },
+          [](RobotModel& r, const Eigen::Matrix4d& M) { r.T_measurement_base = FromMatrix(M); },
+          "4x4 pose of the robot base in the measurement (tracker) frame, as registration found "
+          "it (identity when the data were in the base frame); compensate() uses it")
       .def("validate", [](const RobotModel& r) { Check(r.Validate()); },
            "raises lpoe.Error when the model is not usable")
       .def("to_yaml", &RobotModelToYaml, "the model as YAML text (as lpoe_calibrate writes it)")
@@ -195,4 +176,5 @@ PYBIND11_MODULE(_lpoe, m) {
   BindMeasurements(m);
   BindCalibration(m);
   BindJacobians(m);
+  BindAnalysis(m);
 }

@@ -7,7 +7,10 @@
 
 #include <stdexcept>
 #include <string>
+#include <vector>
 
+#include "lpoe/measurements.h"
+#include "lpoe/parameterization.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/status.h"
 
@@ -20,12 +23,33 @@ class LpoeError : public std::runtime_error {
   explicit LpoeError(const std::string& message) : std::runtime_error(message) {}
 };
 
+// Arrays taken in: C-contiguous float64 (other dtypes and layouts are converted).
+using RowArray = pybind11::array_t<double, pybind11::array::c_style | pybind11::array::forcecast>;
+
 // "(3, 4)" for error messages.
 std::string ShapeText(const pybind11::array& a);
+
+// Raises lpoe.Error with the status message when `s` is an error.
+inline void Check(const Status& s) {
+  if (!s.ok()) throw LpoeError(s.message());
+}
+
+// Checks that `a` is an (M, cols) array (a 1-D array of cols values is one row) and returns M;
+// raises lpoe.Error naming `what` otherwise.
+pybind11::ssize_t RowsOf(const RowArray& a, pybind11::ssize_t cols, const std::string& what);
 
 // A model file by its name: URDF when it ends in .urdf (any case), else YAML.
 Status ReadAnyRobotModel(const std::string& path, RobotModel* model);
 Status WriteAnyRobotModel(const std::string& path, const RobotModel& model);
+
+// Options shared by several functions, parsed as the tools parse their flags (raising lpoe.Error):
+// --parameterization; --data_kind (auto | position | pose; returns use_orientation);
+// --joint_errors (none | compliance | harmonics | compliance,harmonics; in the solvers' order,
+// compliance first); a tool by index or name.
+ParameterizationKind ParseParameterizationOption(const std::string& text);
+bool ParseDataKindOption(const std::string& text, const MeasurementSet& data);
+std::vector<std::string> JointErrorNames(const std::string& text);
+int ToolIndexOf(const RobotModel& model, const pybind11::object& tool);
 
 // Tool positions (mm) of `rows` configurations stored row-major in `q` (num_joints each) into
 // `out` (3 per row). No Python objects are touched: callable without the GIL.

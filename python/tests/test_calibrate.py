@@ -11,14 +11,6 @@ DATA = os.environ.get("LPOE_DATA_DIR", os.path.join(os.path.dirname(__file__), "
 CLI = os.environ.get("LPOE_CALIBRATE")
 
 
-@pytest.fixture(scope="module")
-def inputs():
-    m = lpoe.read_model(os.path.join(DATA, "cobot6.yaml"))
-    d = lpoe.read_measurements(os.path.join(DATA, "section4", "identification.csv"), m)
-    v = lpoe.read_measurements(os.path.join(DATA, "section4", "verification.csv"), m)
-    return m, d, v
-
-
 def test_calibrate_default_data(inputs):
     m, d, v = inputs
     r = lpoe.calibrate(m, d, verify=v)
@@ -36,13 +28,24 @@ def test_calibrate_default_data(inputs):
 
 
 @pytest.mark.skipif(CLI is None, reason="LPOE_CALIBRATE (the built tool) not given")
-def test_same_model_bytes_as_the_tool(inputs, tmp_path):
+@pytest.mark.parametrize("flags,options", [
+    ([], {}),
+    (["--solver=ceres"], {"solver": "ceres"}),
+    (["--joint_errors=harmonics"], {"joint_errors": "harmonics"}),
+    (["--joint_errors=auto"], {"joint_errors": "auto"}),
+    (["--holdout=0.25", "--split_seed=4"], {"holdout": 0.25, "split_seed": 4}),
+])
+def test_same_model_bytes_as_the_tool(inputs, tmp_path, flags, options):
     m, d, v = inputs
     cli_yaml = tmp_path / "cli.yaml"
-    subprocess.run([CLI, "--plots_dir=", f"--output={cli_yaml}"], check=True,
+    if "holdout" in options:  # the tool holds out rows of --measurements (no --verify)
+        ident = os.path.join(DATA, "section4", "identification.csv")
+        flags = flags + [f"--measurements={ident}"]
+    subprocess.run([CLI, "--plots_dir=", f"--output={cli_yaml}"] + flags, check=True,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     py_yaml = tmp_path / "py.yaml"
-    lpoe.write_model(str(py_yaml), lpoe.calibrate(m, d, verify=v).model)
+    verify = None if "holdout" in options else v
+    lpoe.write_model(str(py_yaml), lpoe.calibrate(m, d, verify=verify, **options).model)
     assert py_yaml.read_bytes() == cli_yaml.read_bytes()
 
 

@@ -56,6 +56,27 @@ def test_read_measurements(model):
     assert d.lines[0] >= 2  # the header is line 1
 
 
+def test_read_measurements_in_metres(tmp_path, model):
+    d = lpoe.read_measurements(IDENT, model)
+    lines = open(IDENT).read().splitlines()
+    header = [ln for ln in lines if not ln.startswith("#")][0].split(",")
+    cols = [header.index(c) for c in ("x", "y", "z")]
+    out = []
+    for ln in lines:
+        f = ln.split(",")
+        if not ln.startswith("#") and ln.split(",") != header:
+            for c in cols:
+                f[c] = repr(float(f[c]) / 1000.0)
+        out.append(",".join(f))
+    metres = tmp_path / "m.csv"
+    metres.write_text("\n".join(out) + "\n")
+    dm = lpoe.read_measurements(str(metres), model, length_unit="m")
+    np.testing.assert_allclose(dm.positions, d.positions, rtol=1e-12)
+    assert "70 rows" in repr(dm)
+    with pytest.raises(lpoe.Error, match="length_unit"):
+        lpoe.read_measurements(str(metres), model, length_unit="inch")
+
+
 def test_measurements_from_arrays_round_trip(model):
     rng = np.random.default_rng(2)
     q = rng.uniform(-1, 1, size=(10, 6))
@@ -110,3 +131,15 @@ def test_parameter_jacobian_shape_names_and_rank(model):
     assert np.linalg.matrix_rank(np.vstack(rows)) == 27
     with pytest.raises(lpoe.Error, match="parameterization"):
         lpoe.parameter_jacobian(model, np.zeros(6), parameterization="some")
+
+
+def test_measurement_base_round_trip(tmp_path, model):
+    m = model.copy()
+    c, s = np.cos(0.3), np.sin(0.3)
+    T = np.array([[c, -s, 0, 1500.0], [s, c, 0, -200.0], [0, 0, 1, 30.0], [0, 0, 0, 1]])
+    m.measurement_base = T
+    np.testing.assert_allclose(m.measurement_base, T, atol=1e-12)
+    np.testing.assert_allclose(model.measurement_base, np.eye(4))  # the copy is independent
+    lpoe.write_model(str(tmp_path / "r.yaml"), m)
+    np.testing.assert_allclose(lpoe.read_model(str(tmp_path / "r.yaml")).measurement_base, T,
+                               atol=1e-9)

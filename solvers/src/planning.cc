@@ -557,6 +557,24 @@ Status SampleConfigurations(const RobotModel& model, int count, uint64_t seed,
   return Status::Ok();
 }
 
+std::unique_ptr<PlanningModel> BuildPlanningPool(
+    const RobotModel& model, const std::vector<std::shared_ptr<const JointTerm>>& terms,
+    const std::vector<double>& candidates, const PlanConstraints& constraints,
+    CandidatePool* pool) {
+  auto geometric = std::make_unique<PlanningModel>(model);
+  *pool = BuildCandidatePool(*geometric, candidates, constraints);
+  if (terms.empty()) return geometric;
+  auto with_terms = std::make_unique<PlanningModel>(model, terms, pool->q);
+  CandidatePool full = BuildCandidatePool(*with_terms, pool->q, constraints);
+  CHECK_EQ(full.size(), pool->size());
+  full.source = pool->source;
+  full.outside_limits = pool->outside_limits;
+  full.near_singular = pool->near_singular;
+  full.nothing_visible = pool->nothing_visible;
+  *pool = std::move(full);
+  return with_terms;
+}
+
 CandidatePool BuildCandidatePool(const PlanningModel& pm, const std::vector<double>& q,
                                  const PlanConstraints& constraints) {
   const RobotModel& model = pm.model();

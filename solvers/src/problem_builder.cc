@@ -249,10 +249,15 @@ std::vector<JointTermValues> CalibrationProblem::JointTerms() const {
   return JointValuesOf(p, all);
 }
 
+Parameterization CalibrationProblem::SolvedParameterization() const {
+  Parameterization p = parameterization_;
+  internal::LeaveOutUnmeasuredTools(nominal_, *data_, &p);
+  return p;
+}
+
 ProblemNormalEquations CalibrationProblem::NormalEquations() const {
   ProblemNormalEquations out;
-  out.parameterization = parameterization_;
-  internal::LeaveOutUnmeasuredTools(nominal_, *data_, &out.parameterization);
+  out.parameterization = SolvedParameterization();
   const internal::NormalEquations lin =
       internal::NormalEquationsOf(Model(), *data_, out.parameterization, JointState(),
                                   options_.use_orientation, options_.orientation_weight, false);
@@ -266,8 +271,7 @@ ProblemNormalEquations CalibrationProblem::NormalEquations() const {
 }
 
 void CalibrationProblem::Update(const Eigen::VectorXd& x) {
-  Parameterization solved = parameterization_;
-  internal::LeaveOutUnmeasuredTools(nominal_, *data_, &solved);
+  const Parameterization solved = SolvedParameterization();
   CHECK_EQ(x.size(), solved.num_parameters) << "step of the wrong size";
   RobotModel model = Model();
   ApplyUpdate(solved, x, &model);

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs the built project into a temporary prefix and builds and runs tests/consumer against it.
+# Installs the built project into a temporary prefix and builds and runs tests/consumer against it,
+# linked once with the static and once with the shared libraries.
 # Usage: run.sh <build dir> <source dir of the consumer>
 set -euo pipefail
 build=$1
@@ -10,3 +11,10 @@ cmake --install "$build" --prefix "$tmp/prefix" >/dev/null
 cmake -S "$src" -B "$tmp/build" -DCMAKE_PREFIX_PATH="$tmp/prefix" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$tmp/build" -j2 >/dev/null
 "$tmp/build/consumer"
+# The shared build really loads the installed shared libraries, and the static one does not.
+ldd "$tmp/build/consumer_shared" | grep -q "liblpoe_solvers.so.* => $tmp/prefix/" ||
+  { echo "FAIL: consumer_shared does not load the installed liblpoe_solvers.so" >&2; exit 1; }
+if ldd "$tmp/build/consumer" | grep -q liblpoe_; then
+  echo "FAIL: the static consumer loads a shared lpoe library" >&2; exit 1
+fi
+"$tmp/build/consumer_shared"

@@ -151,6 +151,15 @@ struct CandidatePool {
 CandidatePool BuildCandidatePool(const PlanningModel& pm, const std::vector<double>& q,
                                  const PlanConstraints& constraints);
 
+// The pool and planning model for a calibration with joint-space terms (empty: the geometry only):
+// the feasible candidates are found with the geometric model; the terms keep the combinations those
+// candidates separate from the geometry (PlanningModel's reduction), and the pool's rows gain the
+// terms' columns. Returns the planning model the pool's rows belong to.
+std::unique_ptr<PlanningModel> BuildPlanningPool(
+    const RobotModel& model, const std::vector<std::shared_ptr<const JointTerm>>& terms,
+    const std::vector<double>& candidates, const PlanConstraints& constraints,
+    CandidatePool* pool);
+
 // L = mean over the workspace configurations (row-major) and every tool of J_w^T J_w: the predicted
 // mean squared position error of the tools there is sigma^2 trace(L M^-1).
 Eigen::MatrixXd WorkspaceMoment(const PlanningModel& pm, const std::vector<double>& workspace);

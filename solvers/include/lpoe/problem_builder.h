@@ -156,6 +156,10 @@ class CalibrationProblem {
   // The joint blocks' coordinates, concatenated (num_joint_parameters()).
   Eigen::VectorXd JointState() const;
 
+  // The solved parameters (unmeasured tools left out): the numbering of NormalEquations() and
+  // Update().
+  Parameterization SolvedParameterization() const;
+
   // (b) Normal equations at the current values (W = I / sigma^2).
   ProblemNormalEquations NormalEquations() const;
   // Applies x (ProblemNormalEquations::parameterization's numbering): T_f <- T_f exp((B_f x_f)^)

@@ -1,0 +1,659 @@
+// Python bindings: the problem builder (normal equations, identifiability), compensation (inverse
+// kinematics) and measurement planning. Keyword options are named as the flags of lpoe_calibrate,
+// lpoe_compensate and lpoe_plan, with their defaults; angles in rad unless a flag says degrees.
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "lpoe/inverse_kinematics.h"
+#include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
+#include "lpoe/kinematics.h"
+#include "lpoe/planning.h"
+#include "lpoe/problem_builder.h"
+#include "python_api.h"
+
+namespace py = pybind11;
+
+namespace lpoe {
+namespace python {
+namespace {
+
+void CheckFinite(const RowArray& a, const std::string& what) {
+  const double* d = a.data();
+  for (py::ssize_t k = 0; k < a.size(); ++k) {
+    if (!std::isfinite(d[k])) {
+      throw LpoeError(what + ": non-finite value at flat index " + std::to_string(k));
+    }
+  }
+}
+
+// ---- The problem builder.
+
+struct PyProblem {
+  std::unique_ptr<CalibrationProblem> problem;
+};
+
+struct PyNormalEquations {
+  Eigen::MatrixXd H;
+  Eigen::VectorXd g;
+  double cost = 0;
+  std::vector<std::string> names;
+};
+
+struct PyIdentifiability {
+  ProblemAnalysis a;
+};
+
+std::string Repr(const PyIdentifiability& r) {
+  std::ostringstream os;
+  os << "<lpoe.Identifiability: rank " << r.a.rank << " of " << r.a.num_parameters
+     << ", condition " << r.a.condition_number << ", " << r.a.unidentifiable.size()
+     << " directions not identifiable" << (r.a.identifiable ? "" : "; NOT IDENTIFIABLE") << ">";
+  return os.str();
+}
+
+PyProblem MakeProblem(const RobotModel& model, const MeasurementSet& data,
+                      const std::string& parameterization, const std::string& data_kind,
+                      double sigma, double orientation_weight, const std::string& joint_errors,
+                      const std::string& loss, double loss_scale) {
+  Check(model.Validate());
+  CalibrationProblemOptions o;
+  o.parameterization = ParseParameterizationOption(parameterization);
+  o.use_orientation = ParseDataKindOption(data_kind, data);
+  o.sigma = sigma;
+  o.orientation_weight = orientation_weight;
+  o.loss = loss;
+  o.loss_scale = loss_scale;
+  for (const std::string& name : JointErrorNames(joint_errors)) {
+    std::shared_ptr<const JointTerm> term;
+    Check(MakeJointTerm(name, model, &term));
+    o.joint_terms.push_back(term);
+  }
+  Check(ValidateCalibrationProblem(model, data, o));
+  PyProblem p;
+  py::gil_scoped_release release;
+  p.problem = std::make_unique<CalibrationProblem>(model, data, o);
+  return p;
+}
+
+// ---- Compensation.
+
+struct PyCompensation {
+  Eigen::MatrixXd q;
+  std::vector<std::string> status;
+  Eigen::VectorXd position_error, orientation_error, sigma_min, correction;
+  Eigen::MatrixXd corrected;              // (M, 3) nominal tool positions at q; empty without nominal
+  Eigen::MatrixXd corrected_quaternions;  // (M, 4) [x y z w]; empty unless pose targets
+};
+
+std::string Repr(const PyCompensation& c) {
+  int ok = 0;
+  for (const std::string& s : c.status) ok += s == "ok";
+  std::ostringstream os;
+  os << "<lpoe.Compensation: " << c.status.size() << " rows, " << ok << " ok";
+  if (c.position_error.size() > 0) os << ", largest residual " << c.position_error.maxCoeff() << " mm";
+  os << ">";
+  return os.str();
+}
+
+PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj,
+                          const py::object& seeds_obj, const py::object& orientations_obj,
+                          const py::object& joints_obj, const py::object& nominal_obj,
+                          const std::string& joints_target, const py::object& tool_obj,
+                          int threads, int max_iterations, int restarts,
+                          double position_tolerance, double orientation_tolerance,
+                          double singular_threshold) {
+  Check(InverseKinematics::CheckModel(model));
+  const int n = model.num_joints();
+  const bool joints_mode = !joints_obj.is_none();
+  if (joints_mode == !targets_obj.is_none()) {
+    throw LpoeError("compensate: give either targets= (with seeds=) or joints= (with nominal=)");
+  }
+  if (joints_mode && nominal_obj.is_none()) {
+    throw LpoeError("compensate: joints= needs nominal= (the model the program was planned with)");
+  }
+  if (joints_target != "pose" && joints_target != "position") {
+    throw LpoeError("joints_target: expected 'pose' or 'position', got '" + joints_target + "'");
+  }
+  if (threads < 0 || threads > 256 || max_iterations < 1 || max_iterations > 10000 ||
+      restarts < 0 || restarts > 100 || !(position_tolerance > 0) || !(orientation_tolerance > 0) ||
+      !(singular_threshold >= 0)) {
+    throw LpoeError("compensate: need 0 <= threads <= 256, 1 <= max_iterations <= 10000, "
+                    "0 <= restarts <= 100, positive tolerances, singular_threshold >= 0");
+  }
+  const RobotModel* nominal = nullptr;
+  if (!nominal_obj.is_none()) {
+    nominal = nominal_obj.cast<const RobotModel*>();
+    Check(nominal->Validate());
+    if (nominal->num_joints() != n || nominal->num_tools() < model.num_tools()) {
+      throw LpoeError("nominal: the nominal model has " + std::to_string(nominal->num_joints()) +
+                      " joints and " + std::to_string(nominal->num_tools()) +
+                      " tools; the calibrated model " + std::to_string(n) + " and " +
+                      std::to_string(model.num_tools()));
+    }
+  }
+  // Tool of every row: one index or name for all rows, or an (M,) integer array.
+  RowArray seeds = (joints_mode ? joints_obj : seeds_obj).is_none()
+                       ? RowArray()
+                       : (joints_mode ? joints_obj : seeds_obj).cast<RowArray>();
+  if (!joints_mode && seeds_obj.is_none()) {
+    throw LpoeError("compensate: targets= needs seeds= (the program's joints, one row per target)");
+  }
+  const py::ssize_t m = RowsOf(seeds, n, joints_mode ? "joints" : "seeds");
+  CheckFinite(seeds, joints_mode ? "joints" : "seeds");
+  std::vector<int> tools(m, 0);
+  if (py::isinstance<py::array>(tool_obj) || py::isinstance<py::list>(tool_obj)) {
+    auto t = tool_obj.cast<py::array_t<int, py::array::c_style | py::array::forcecast>>();
+    if (t.ndim() != 1 || t.shape(0) != m) {
+      throw LpoeError("tool: expected one index per row, shape (" + std::to_string(m) + ",), got " +
+                      ShapeText(t));
+    }
+    for (py::ssize_t r = 0; r < m; ++r) tools[r] = t.at(r);
+  } else {
+    std::fill(tools.begin(), tools.end(), ToolIndexOf(model, tool_obj));
+  }
+  for (py::ssize_t r = 0; r < m; ++r) {
+    if (tools[r] < 0 || tools[r] >= model.num_tools()) {
+      throw LpoeError("tool: row " + std::to_string(r) + ": index " + std::to_string(tools[r]) +
+                      " out of range [0, " + std::to_string(model.num_tools()) + ")");
+    }
+  }
+  std::vector<IkTarget> targets(m);
+  if (joints_mode) {
+    const KinematicChain nominal_chain(*nominal);
+    for (py::ssize_t r = 0; r < m; ++r) {
+      const SE3d T = model.T_measurement_base * nominal_chain.Pose(seeds.data() + r * n, tools[r]);
+      targets[r].tool = tools[r];
+      targets[r].position = T.t;
+      targets[r].rotation = T.R;
+      targets[r].has_orientation = joints_target == "pose";
+    }
+  } else {
+    const RowArray p = targets_obj.cast<RowArray>();
+    if (RowsOf(p, 3, "targets") != m) {
+      throw LpoeError("targets: " + std::to_string(p.ndim() == 1 ? 1 : p.shape(0)) +
+                      " rows, seeds: " + std::to_string(m));
+    }
+    CheckFinite(p, "targets");
+    RowArray quat;
+    if (!orientations_obj.is_none()) {
+      quat = orientations_obj.cast<RowArray>();
+      if (RowsOf(quat, 4, "orientations") != m) {
+        throw LpoeError("orientations: expected (" + std::to_string(m) + ", 4) [x, y, z, w], got " +
+                        ShapeText(quat));
+      }
+    }
+    for (py::ssize_t r = 0; r < m; ++r) {
+      targets[r].tool = tools[r];
+      targets[r].position = Eigen::Vector3d(p.data()[3 * r], p.data()[3 * r + 1], p.data()[3 * r + 2]);
+      if (quat.size() > 0) {
+        const double* v = quat.data() + 4 * r;
+        const Eigen::Quaterniond qq(v[3], v[0], v[1], v[2]);
+        if (!(std::abs(qq.norm() - 1.0) < 1e-6)) {
+          throw LpoeError("orientations: row " + std::to_string(r) + ": not a unit quaternion");
+        }
+        targets[r].has_orientation = true;
+        targets[r].rotation = qq.toRotationMatrix();
+      }
+    }
+  }
+
+  IkOptions options;
+  options.max_iterations = max_iterations;
+  options.restarts = restarts;
+  options.position_tolerance = position_tolerance;
+  options.orientation_tolerance = orientation_tolerance;
+  options.singular_threshold = singular_threshold;
+  std::vector<double> solved(static_cast<size_t>(m) * n);
+  std::vector<IkResult> results(m);
+  {
+    py::gil_scoped_release release;
+    const InverseKinematics ik(model, options);
+    int workers = threads > 0 ? threads
+                              : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+    workers = std::max(1, std::min<int>(workers, static_cast<int>(m / 1000 + 1)));
+    auto work = [&](int t) {
+      for (py::ssize_t k = t; k < m; k += workers) {
+        results[k] = ik.Solve(targets[k], seeds.data() + k * n, &solved[size_t(k) * n]);
+      }
+    };
+    std::vector<std::thread> pool;
+    for (int t = 1; t < workers; ++t) pool.emplace_back(work, t);
+    work(0);
+    for (std::thread& th : pool) th.join();
+  }
+  PyCompensation c;
+  c.q = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+      solved.data(), m, n);
+  c.position_error.resize(m);
+  c.orientation_error.resize(m);
+  c.sigma_min.resize(m);
+  c.correction.resize(m);
+  bool any_orientation = false;
+  for (const IkTarget& t : targets) any_orientation |= t.has_orientation;
+  if (nominal != nullptr) {
+    c.corrected.resize(m, 3);
+    if (any_orientation) c.corrected_quaternions.setConstant(m, 4, NAN);
+  }
+  const KinematicChain nominal_chain(nominal != nullptr ? *nominal : model);
+  for (py::ssize_t k = 0; k < m; ++k) {
+    const IkResult& r = results[k];
+    c.status.push_back(IkStatusName(r.status));
+    c.position_error(k) = r.position_error;
+    c.orientation_error(k) = r.orientation_error;
+    c.sigma_min(k) = r.sigma_min;
+    c.correction(k) = r.correction;
+    if (nominal != nullptr) {
+      const SE3d T = nominal_chain.Pose(&solved[size_t(k) * n], targets[k].tool);
+      c.corrected.row(k) = T.t.transpose();
+      if (targets[k].has_orientation) {
+        c.corrected_quaternions.row(k) = RotationToQuaternion<double>(T.R).transpose();
+      }
+    }
+  }
+  return c;
+}
+
+// ---- Planning.
+
+struct PyPlan {
+  Eigen::MatrixXd q;
+  std::vector<int> candidate_rows;  // rows of the candidates (given or sampled)
+  Eigen::MatrixXd candidates;
+  std::string criterion;
+  PlanQuality quality;
+  double random_predicted_rms = 0;  // RMS over the random plans of the same size
+  int offered = 0, feasible = 0, outside_limits = 0, near_singular = 0, nothing_visible = 0;
+  int num_parameters = 0, exchanges = 0;
+};
+
+py::dict QualityDict(const PlanQuality& q) {
+  py::dict d;
+  d["num_poses"] = q.num_poses;
+  d["num_rows"] = q.num_rows;
+  d["rank"] = q.rank;
+  d["condition_number"] = q.condition_number;
+  d["predicted_rms"] = q.predicted_rms;
+  d["D"] = q.d;
+  d["A"] = q.a;
+  d["E"] = q.e;
+  d["I"] = q.i;
+  d["O1"] = q.o1;
+  d["O3"] = q.o3;
+  return d;
+}
+
+std::vector<double> RowMajor(const RowArray& a, int n, const std::string& what) {
+  const py::ssize_t m = RowsOf(a, n, what);
+  CheckFinite(a, what);
+  return std::vector<double>(a.data(), a.data() + m * n);
+}
+
+PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj,
+            int candidate_count, const py::object& workspace_obj, int workspace_count,
+            uint64_t seed, const std::string& criterion, const py::object& tracker_obj,
+            double max_range, double acceptance_angle, const py::object& smr_facing_obj,
+            double min_singularity, int random_draws, const std::string& joint_errors) {
+  Check(model.Validate());
+  // As lpoe_plan --joint_errors: 'auto' plans for every term the calibration may choose.
+  const std::vector<std::string> term_names =
+      joint_errors == "auto" ? JointTermNames() : JointErrorNames(joint_errors);
+  std::vector<std::shared_ptr<const JointTerm>> terms;
+  for (const std::string& name : term_names) {
+    std::shared_ptr<const JointTerm> term;
+    Check(MakeJointTerm(name, model, &term));
+    terms.push_back(std::move(term));
+  }
+  const int n = model.num_joints();
+  PlanOptions options;
+  if (!ParsePlanCriterion(criterion, &options.criterion)) {
+    throw LpoeError("criterion: expected one of D, A, E, I, O1, O3, got '" + criterion + "'");
+  }
+  if (count < 1 || candidate_count < 1 || candidate_count > 1000000 || workspace_count < 1 ||
+      workspace_count > 1000000 || random_draws < 1 || random_draws > 10000) {
+    throw LpoeError("plan: count must be >= 1, candidate_count and workspace_count in "
+                    "[1, 1000000], random_draws in [1, 10000]");
+  }
+  if (!(min_singularity >= 0 && min_singularity < 1)) {
+    throw LpoeError("min_singularity must be in [0, 1)");
+  }
+  if (!(acceptance_angle > 0 && acceptance_angle <= 90)) {
+    throw LpoeError("acceptance_angle must be in (0, 90] degrees");
+  }
+  if (!(max_range >= 0) || !std::isfinite(max_range)) {
+    throw LpoeError("max_range must be >= 0 (mm; 0 = unlimited)");
+  }
+  PlanConstraints constraints;
+  constraints.min_singularity = min_singularity;
+  TrackerConstraint& tracker = constraints.tracker;
+  if (!tracker_obj.is_none()) {
+    const Eigen::Vector3d t = tracker_obj.cast<Eigen::Vector3d>();
+    if (!t.allFinite()) throw LpoeError("tracker: expected three finite numbers (mm)");
+    tracker.enabled = true;
+    tracker.position = t;
+    tracker.acceptance_angle = acceptance_angle * 3.14159265358979323846 / 180.0;
+    if (max_range > 0) tracker.max_range = max_range;
+    if (!smr_facing_obj.is_none()) {
+      const RowArray f = smr_facing_obj.cast<RowArray>();
+      const py::ssize_t k = RowsOf(f, 3, "smr_facing");
+      if (k != 1 && k != model.num_tools()) {
+        throw LpoeError("smr_facing: one direction for all tools or one per tool (" +
+                        std::to_string(model.num_tools()) + "), got " + std::to_string(k));
+      }
+      for (py::ssize_t r = 0; r < k; ++r) {
+        const Eigen::Vector3d v(f.data()[3 * r], f.data()[3 * r + 1], f.data()[3 * r + 2]);
+        if (!v.allFinite() || v.norm() == 0) {
+          throw LpoeError("smr_facing: row " + std::to_string(r) + " is not a direction");
+        }
+        tracker.facing.push_back(v.normalized());
+      }
+      if (tracker.facing.size() == 1) tracker.facing.resize(model.num_tools(), tracker.facing[0]);
+    }
+  } else if (max_range > 0 || !smr_facing_obj.is_none()) {
+    throw LpoeError("max_range and smr_facing need tracker= (its position)");
+  }
+  std::vector<double> candidates, workspace;
+  if (!candidates_obj.is_none()) {
+    candidates = RowMajor(candidates_obj.cast<RowArray>(), n, "candidates");
+  } else {
+    Check(SampleConfigurations(model, candidate_count, seed, &candidates));
+  }
+  if (!workspace_obj.is_none()) {
+    workspace = RowMajor(workspace_obj.cast<RowArray>(), n, "workspace");
+  } else {
+    Check(SampleConfigurations(model, workspace_count, seed + 1, &workspace));
+  }
+  PyPlan out;
+  Status status;
+  {
+    py::gil_scoped_release release;
+    CandidatePool pool;
+    const std::unique_ptr<PlanningModel> planning =
+        BuildPlanningPool(model, terms, candidates, constraints, &pool);
+    const PlanningModel& pm = *planning;
+    const Eigen::MatrixXd L = WorkspaceMoment(pm, workspace);
+    PlanResult plan;
+    status = SelectPlan(pm, pool, count, L, options, &plan);
+    out.offered = static_cast<int>(candidates.size() / n);
+    out.feasible = pool.size();
+    out.outside_limits = pool.outside_limits;
+    out.near_singular = pool.near_singular;
+    out.nothing_visible = pool.nothing_visible;
+    out.num_parameters = pm.num_parameters();
+    if (status.ok()) {
+      out.quality = EvaluatePlan(pm, pool, plan.selected, L);
+      out.exchanges = plan.exchanges;
+      out.q.resize(count, n);
+      for (int k = 0; k < count; ++k) {
+        const int c = plan.selected[k];
+        out.candidate_rows.push_back(pool.source[c]);
+        for (int j = 0; j < n; ++j) out.q(k, j) = pool.q[size_t(c) * n + j];
+      }
+      double mean_sq = 0;
+      int finite = 0;
+      for (int k = 0; k < random_draws; ++k) {
+        const double v =
+            EvaluatePlan(pm, pool, RandomPlan(pool.size(), count, seed + 1000 + k), L).predicted_rms;
+        if (std::isfinite(v)) {
+          mean_sq += v * v;
+          ++finite;
+        }
+      }
+      out.random_predicted_rms =
+          finite > 0 ? std::sqrt(mean_sq / finite) : std::numeric_limits<double>::infinity();
+    }
+  }
+  if (!status.ok()) {
+    throw LpoeError(status.message() + " (" + std::to_string(out.outside_limits) +
+                    " outside the limits, " + std::to_string(out.near_singular) +
+                    " near a singularity, " + std::to_string(out.nothing_visible) +
+                    " with no SMR visible)");
+  }
+  out.candidates = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+      candidates.data(), out.offered, n);
+  out.criterion = PlanCriterionName(options.criterion);
+  return out;
+}
+
+}  // namespace
+
+void BindAnalysis(py::module_& m) {
+  py::class_<PyNormalEquations>(
+      m, "NormalEquations",
+      "Normal equations of the calibration at the problem's current values: H = J^T W J, "
+      "g = J^T W y (W = I / sigma^2, y = measured - predicted), so the Gauss-Newton step is "
+      "x = solve(H, g); add your own terms to H and g before solving.")
+      .def_readonly("H", &PyNormalEquations::H, "(P, P) J^T W J")
+      .def_readonly("g", &PyNormalEquations::g, "(P,) J^T W y")
+      .def_readonly("cost", &PyNormalEquations::cost, "0.5 y^T W y")
+      .def_readonly("names", &PyNormalEquations::names, "the P parameters, in column order")
+      .def("__repr__", [](const PyNormalEquations& e) {
+        return "<lpoe.NormalEquations: " + std::to_string(e.names.size()) +
+               " parameters, cost " + std::to_string(e.cost) + ">";
+      });
+
+  py::class_<PyIdentifiability>(
+      m, "Identifiability",
+      "Whether the data determine the parameters: rank and condition number of the column-scaled "
+      "Jacobian, and the directions no data of this kind can determine, with the reason.")
+      .def_property_readonly("identifiable", [](const PyIdentifiability& r) { return r.a.identifiable; })
+      .def_property_readonly("rank", [](const PyIdentifiability& r) { return r.a.rank; })
+      .def_property_readonly("num_parameters",
+                             [](const PyIdentifiability& r) { return r.a.num_parameters; })
+      .def_property_readonly("num_equations",
+                             [](const PyIdentifiability& r) { return r.a.num_equations; })
+      .def_property_readonly("condition_number",
+                             [](const PyIdentifiability& r) { return r.a.condition_number; })
+      .def_property_readonly("singular_values",
+                             [](const PyIdentifiability& r) { return r.a.singular_values; })
+      .def_property_readonly("parameter_names",
+                             [](const PyIdentifiability& r) { return r.a.parameter_names; })
+      .def_property_readonly(
+          "not_identifiable",
+          [](const PyIdentifiability& r) {
+            std::vector<std::pair<std::string, std::string>> v;
+            for (const Direction& d : r.a.unidentifiable) v.emplace_back(d.name, d.reason);
+            return v;
+          },
+          "[(name, reason)] of the directions left out")
+      .def_property_readonly("weakest", [](const PyIdentifiability& r) { return r.a.weakest; },
+                             "the parameters carrying most of the weakest direction")
+      .def_property_readonly("message", [](const PyIdentifiability& r) { return r.a.message; },
+                             "why the data cannot identify the model ('' when they can)")
+      .def("__repr__", [](const PyIdentifiability& r) { return Repr(r); });
+
+  py::class_<PyProblem>(
+      m, "Problem",
+      "The calibration problem (lpoe/problem_builder.h) for another estimator: normal equations at "
+      "the current parameters, updates, identifiability. Keyword options as lpoe_calibrate's "
+      "flags.")
+      .def(py::init(&MakeProblem), py::arg("model"), py::arg("data"), py::kw_only(),
+           py::arg("parameterization") = "identifiable", py::arg("data_kind") = "auto",
+           py::arg("sigma") = 1.0, py::arg("orientation_weight") = 1000.0,
+           py::arg("joint_errors") = "none", py::arg("loss") = "none",
+           py::arg("loss_scale") = 1.0, py::keep_alive<1, 3>())
+      .def(
+          "normal_equations",
+          [](const PyProblem& p) {
+            ProblemNormalEquations ne;
+            {
+              py::gil_scoped_release release;
+              ne = p.problem->NormalEquations();
+            }
+            if (!ne.finite) throw LpoeError("non-finite residuals or Jacobian (check the input values)");
+            PyNormalEquations out;
+            out.H = std::move(ne.H);
+            out.g = std::move(ne.g);
+            out.cost = ne.cost;
+            out.names = std::move(ne.names);
+            return out;
+          },
+          "the normal equations at the current parameters (lpoe.NormalEquations)")
+      .def(
+          "update",
+          [](PyProblem& p, const Eigen::VectorXd& x) {
+            const int P = p.problem->SolvedParameterization().num_parameters;
+            if (x.size() != P || !x.allFinite()) {
+              throw LpoeError("update: expected " + std::to_string(P) + " finite values, got " +
+                              std::to_string(x.size()));
+            }
+            p.problem->Update(x);
+          },
+          py::arg("x"), "applies a step x (normal_equations() order) to the parameters")
+      .def_property_readonly(
+          "names",
+          [](const PyProblem& p) {
+            std::vector<std::string> v;
+            for (const Direction& d : p.problem->SolvedParameterization().parameters) {
+              v.push_back(d.name);
+            }
+            return v;
+          },
+          "the solved parameters, in the order of normal_equations() and update()")
+      .def_property_readonly("model", [](const PyProblem& p) { return p.problem->Model(); },
+                             "the model at the current parameters (geometry; see joint_terms)")
+      .def_property_readonly(
+          "joint_terms",
+          [](const PyProblem& p) {
+            py::dict d;
+            for (const JointTermValues& t : p.problem->JointTerms()) {
+              d[py::str(t.term->name())] = t.theta;
+            }
+            return d;
+          },
+          "{term name: theta} of the joint-space terms at the current parameters")
+      .def(
+          "identifiability",
+          [](const PyProblem& p, double max_condition) {
+            PyIdentifiability r;
+            py::gil_scoped_release release;
+            r.a = p.problem->Analyze(max_condition);
+            return r;
+          },
+          py::arg("max_condition") = 1e8, "identifiability at the current parameters")
+      .def("__repr__", [](const PyProblem& p) {
+        return "<lpoe.Problem: " + std::to_string(p.problem->data().size()) + " rows, " +
+               std::to_string(p.problem->SolvedParameterization().num_parameters) +
+               " parameters>";
+      });
+
+  m.def(
+      "identifiability",
+      [](const RobotModel& model, const MeasurementSet& data, const std::string& parameterization,
+         const std::string& data_kind, const std::string& joint_errors, double max_condition) {
+        const PyProblem p = MakeProblem(model, data, parameterization, data_kind, 1.0, 1000.0,
+                                        joint_errors, "none", 1.0);
+        PyIdentifiability r;
+        py::gil_scoped_release release;
+        r.a = p.problem->Analyze(max_condition);
+        return r;
+      },
+      py::arg("model"), py::arg("data"), py::kw_only(),
+      py::arg("parameterization") = "identifiable", py::arg("data_kind") = "auto",
+      py::arg("joint_errors") = "none", py::arg("max_condition") = 1e8,
+      "identifiability of `model`'s parameters by `data` (at the model as given: register it "
+      "first when the data are in another frame): rank, condition number, and the directions "
+      "not identifiable, named, with the reason");
+
+  py::class_<PyCompensation>(m, "Compensation", "The result of lpoe.compensate.")
+      .def_readonly("q", &PyCompensation::q, "(M, N) compensated joints (rad / mm)")
+      .def_readonly("status", &PyCompensation::status,
+                    "per row: ok | unreachable | limit | singular | branch")
+      .def_readonly("position_error", &PyCompensation::position_error,
+                    "(M,) |target - reached| in mm")
+      .def_readonly("orientation_error", &PyCompensation::orientation_error, "(M,) rad")
+      .def_readonly("sigma_min", &PyCompensation::sigma_min,
+                    "(M,) smallest singular value of the task Jacobian")
+      .def_readonly("correction", &PyCompensation::correction, "(M,) |q - seed|")
+      .def_property_readonly(
+          "corrected",
+          [](const PyCompensation& c) -> py::object {
+            if (c.corrected.size() == 0) return py::none();
+            return py::cast(c.corrected);
+          },
+          "(M, 3) the nominal model's tool position at q: the target to send to a controller "
+          "that uses nominal kinematics (None without nominal=)")
+      .def_property_readonly(
+          "corrected_quaternions",
+          [](const PyCompensation& c) -> py::object {
+            if (c.corrected_quaternions.size() == 0) return py::none();
+            return py::cast(c.corrected_quaternions);
+          },
+          "(M, 4) [x, y, z, w] of the corrected pose targets (NaN for position-only rows)")
+      .def("__len__", [](const PyCompensation& c) { return c.status.size(); })
+      .def("__repr__", [](const PyCompensation& c) { return Repr(c); });
+
+  m.def("compensate", &Compensate, py::arg("model"), py::arg("targets") = py::none(),
+        py::kw_only(), py::arg("seeds") = py::none(), py::arg("orientations") = py::none(),
+        py::arg("joints") = py::none(), py::arg("nominal") = py::none(),
+        py::arg("joints_target") = "pose", py::arg("tool") = 0, py::arg("threads") = 0,
+        py::arg("max_iterations") = 100, py::arg("restarts") = 8,
+        py::arg("position_tolerance") = 1e-7, py::arg("orientation_tolerance") = 1e-10,
+        py::arg("singular_threshold") = 1e-3,
+        "the joints that make the calibrated `model` reach its targets (as lpoe_compensate):\n"
+        "  targets mode: targets (M, 3) mm in the model's frame, seeds (M, N) the program's "
+        "joints, optional orientations (M, 4) [x, y, z, w] for pose targets;\n"
+        "  joints mode: joints (M, N) a program planned with `nominal`: reach the nominal tool "
+        "pose (joints_target='pose') or position there.\n"
+        "With nominal=, also the corrected targets for a controller using nominal kinematics.");
+
+  py::class_<PyPlan>(m, "Plan", "The result of lpoe.plan.")
+      .def_readonly("q", &PyPlan::q, "(count, N) the planned configurations")
+      .def_readonly("candidate_rows", &PyPlan::candidate_rows,
+                    "row of each planned pose in `candidates`")
+      .def_readonly("candidates", &PyPlan::candidates, "the candidates offered (given or sampled)")
+      .def_readonly("criterion", &PyPlan::criterion)
+      .def_readonly("num_parameters", &PyPlan::num_parameters)
+      .def_readonly("exchanges", &PyPlan::exchanges)
+      .def_property_readonly("quality", [](const PyPlan& p) { return QualityDict(p.quality); },
+                             "rank, condition number, predicted RMS per mm of noise, criteria")
+      .def_readonly("random_predicted_rms", &PyPlan::random_predicted_rms,
+                    "predicted RMS of random plans of the same size (RMS over the draws)")
+      .def_property_readonly(
+          "pool",
+          [](const PyPlan& p) {
+            py::dict d;
+            d["offered"] = p.offered;
+            d["feasible"] = p.feasible;
+            d["outside_limits"] = p.outside_limits;
+            d["near_singular"] = p.near_singular;
+            d["nothing_visible"] = p.nothing_visible;
+            return d;
+          },
+          "how many candidates were offered, kept and why the others were dropped")
+      .def("__len__", [](const PyPlan& p) { return static_cast<size_t>(p.q.rows()); })
+      .def("__repr__", [](const PyPlan& p) {
+        std::ostringstream os;
+        os << "<lpoe.Plan: " << p.q.rows() << " poses, criterion " << p.criterion
+           << ", predicted RMS " << p.quality.predicted_rms << " per mm of noise (random "
+           << p.random_predicted_rms << ")>";
+        return os.str();
+      });
+
+  m.def("plan", &Plan, py::arg("model"), py::arg("count"), py::kw_only(),
+        py::arg("candidates") = py::none(), py::arg("candidate_count") = 5000,
+        py::arg("workspace") = py::none(), py::arg("workspace_count") = 1000,
+        py::arg("seed") = 1, py::arg("criterion") = "D", py::arg("tracker") = py::none(),
+        py::arg("max_range") = 0.0, py::arg("acceptance_angle") = 30.0,
+        py::arg("smr_facing") = py::none(), py::arg("min_singularity") = 0.01,
+        py::arg("random_draws") = 30, py::arg("joint_errors") = "none",
+        "chooses `count` poses to measure (as lpoe_plan): candidates (C, N) rad/mm or "
+        "candidate_count sampled within the limits; criterion D | A | E | I | O1 | O3; optional "
+        "tracker (3,) mm with max_range (mm), acceptance_angle (degrees), smr_facing (3,) or "
+        "(tools, 3); joint_errors as lpoe_plan's (the terms' identifiable combinations join the "
+        "parameters to determine).");
+}
+
+}  // namespace python
+}  // namespace lpoe
