@@ -378,5 +378,35 @@ TEST(UrdfChain, SimulationStaysWithinTheJointLimits) {
   EXPECT_GT(hi, 0.2);
 }
 
+// A joint name with "--" (found by fuzz_urdf) is listed in the overlay's comment: the comment must
+// stay well formed so that the overlay reads back.
+TEST(UrdfOverlayComment, JointNameWithDashesReadsBack) {
+  const std::string xml = R"(<?xml version="1.0"?>
+<robot name="two">
+  <link name="base"/><link name="l1"/><link name="tip"/>
+  <joint name="j--><![CDATA[1-" type="revolute">
+    <parent link="base"/><child link="l1"/>
+    <origin xyz="0 0 0.096" rpy="0 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="2" velocity="1"/>
+  </joint>
+  <joint name="j2" type="revolute">
+    <parent link="l1"/><child link="tip"/>
+    <origin xyz="0.1 0 0" rpy="0 0 0"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="2" velocity="1"/>
+  </joint>
+</robot>
+)";
+  RobotModel model;
+  UrdfSource source;
+  ASSERT_TRUE(ParseRobotModelUrdf(xml, "dashes.urdf", &model, {}, &source).ok());
+  std::string overlay;
+  ASSERT_TRUE(CalibratedUrdfOverlay(source, model, {}, &overlay).ok());
+  RobotModel back;
+  const Status s = ParseRobotModelUrdf(overlay, "overlay.urdf", &back);
+  ASSERT_TRUE(s.ok()) << s.message() << "\n" << overlay;
+  EXPECT_EQ(back.num_joints(), 2);
+  EXPECT_EQ(back.joints[0].name, model.joints[0].name);
+}
+
 }  // namespace
 }  // namespace lpoe

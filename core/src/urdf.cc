@@ -636,6 +636,19 @@ Status ParseImpl(const std::string& xml, const std::string& source, RobotModel* 
 // ---------------------------------------------------------------------------------------------------
 // Overlay: the source document with the calibrated origins written into it.
 
+// Text for an XML comment: a comment may not contain "--" nor end with '-' (a name such as
+// "a-->b" would otherwise close it early and leave the rest as markup).
+std::string CommentText(const std::string& text) {
+  std::string out;
+  out.reserve(text.size());
+  for (char c : text) {
+    if (c == '-' && !out.empty() && out.back() == '-') out += ' ';
+    out += c;
+  }
+  if (!out.empty() && out.back() == '-') out += ' ';
+  return out;
+}
+
 std::string Unique(std::string name, const std::set<std::string>& taken) {
   while (taken.count(name) > 0) name += '_';
   return name;
@@ -825,7 +838,7 @@ Status OverlayImpl(const UrdfSource& src, const RobotModel& cal, const UrdfOverl
   const std::string note = " Calibrated by lpoe-calib " + std::string(kLpoeVersion) +
                            ": the origins (and axes) of the joints " + changed +
                            " and the tool frames changed; everything else as in the source. ";
-  tree.robot->InsertFirstChild(doc.NewComment(note.c_str()));
+  tree.robot->InsertFirstChild(doc.NewComment(CommentText(note).c_str()));
   // Text or elements beside <robot> at the document level (which tinyxml2 reads but would not read
   // back once printed) are no part of a URDF: dropped.
   for (tinyxml2::XMLNode* n = doc.FirstChild(); n != nullptr;) {
