@@ -235,6 +235,175 @@ double SmallestEigenvalue(const Eigen::Matrix<double, M, M>& A) {
 
 int Sign(double x) { return x > 0 ? 1 : (x < 0 ? -1 : 0); }
 
+// ---- The fast path (6 revolute-z joints, pose target; IkOptions::fast_path).
+
+// Solves A d = b for a 6 x 6 column-major A (A[6 c + r]) by LU with partial pivoting, unrolled;
+// false when a pivot is below `tiny` (as SquareSolve).
+inline bool Lu6Solve(const double* A_in, const double* b_in, double tiny, double* d) {
+  double A[36], b[6];
+  for (int k = 0; k < 36; ++k) A[k] = A_in[k];
+  for (int k = 0; k < 6; ++k) b[k] = b_in[k];
+#pragma GCC unroll 6
+  for (int k = 0; k < 6; ++k) {
+    int p = k;
+    double best = std::abs(A[6 * k + k]);
+#pragma GCC unroll 6
+    for (int i = k + 1; i < 6; ++i) {
+      const double v = std::abs(A[6 * k + i]);
+      if (v > best) {
+        best = v;
+        p = i;
+      }
+    }
+    if (!(best > tiny)) return false;
+    if (p != k) {
+#pragma GCC unroll 6
+      for (int c = k; c < 6; ++c) std::swap(A[6 * c + p], A[6 * c + k]);
+      std::swap(b[p], b[k]);
+    }
+    const double inv = 1 / A[6 * k + k];
+    double l[6];
+#pragma GCC unroll 6
+    for (int i = k + 1; i < 6; ++i) {
+      l[i] = A[6 * k + i] * inv;
+      b[i] -= l[i] * b[k];
+    }
+#pragma GCC unroll 6
+    for (int c = k + 1; c < 6; ++c) {
+      const double a = A[6 * c + k];
+#pragma GCC unroll 6
+      for (int i = k + 1; i < 6; ++i) A[6 * c + i] -= l[i] * a;
+    }
+  }
+#pragma GCC unroll 6
+  for (int i = 5; i >= 0; --i) {
+    double v = b[i];
+#pragma GCC unroll 6
+    for (int c = i + 1; c < 6; ++c) v -= A[6 * c + i] * d[c];
+    d[i] = v / A[6 * i + i];
+  }
+  return true;
+}
+
+// SmallestEigenvalue<6> of the Gram matrix A = J^T J of a 6 x 6 column-major J (the same
+// eigenvalues as J J^T), the same steps with the unrolled LU and without Eigen temporaries; the
+// bisection of the general routine when Rayleigh-quotient iteration does not settle.
+double SmallestEigenvalueGram6(const double* J) {
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  Mat6 A;
+#pragma GCC unroll 6
+  for (int i = 0; i < 6; ++i) {
+    for (int j = i; j < 6; ++j) {
+      double v = 0;
+#pragma GCC unroll 6
+      for (int r = 0; r < 6; ++r) v += J[6 * i + r] * J[6 * j + r];
+      A(i, j) = A(j, i) = v;
+    }
+  }
+  const SmallCholesky<6> llt(A);
+  if (!llt.Ok()) return 0.0;
+  Vec6 x = Vec6::Constant(1.0 / std::sqrt(6.0));
+  x(0) *= 1.3;
+  x.normalize();
+  double mu = 0;
+  for (int k = 0; k < 3; ++k) {
+    Vec6 y = x;
+    llt.Solve(&y);
+    mu = x.dot(y);
+    const double norm = y.norm();
+    if (!std::isfinite(norm) || norm == 0) return 0.0;
+    x = y / norm;
+  }
+  double shift = x.dot(A * x);
+  bool converged = false;
+  const double tiny = 1e-15 * A.diagonal().cwiseAbs().maxCoeff();
+  for (int k = 0; k < 8 && !converged; ++k) {
+    Mat6 B = A;
+    B.diagonal().array() -= shift;
+    Vec6 y;
+    if (!Lu6Solve(B.data(), x.data(), tiny, y.data())) {  // the shift is an eigenvalue
+      converged = true;
+      break;
+    }
+    const double norm = y.norm();
+    if (!std::isfinite(norm) || norm == 0) break;
+    x = y / norm;
+    const double next = x.dot(A * x);
+    converged = std::abs(next - shift) <= 1e-10 * std::abs(next);
+    shift = next;
+  }
+  if (converged && shift >= 0) {
+    Mat6 B = A;
+    B.diagonal().array() -= shift * (1 + 1e-9) + 1e-300;
+    const SymmetricLdlt<6> ldlt(B);
+    if (ldlt.Ok() && ldlt.negative() == 1) return shift;
+  }
+  (void)mu;
+  return SmallestEigenvalue<6>(A);
+}
+
+// One iterate of the fast path: joints, the chain's joint values x with their sin/cos, the joint
+// axes w_i and points t_i of the frames G_i, the tool frame, weighted task error and Jacobian
+// (column-major 6 x 6).
+struct FastIterate {
+  double q[6], x[6], sin_x[6], cos_x[6];
+  int age[6];
+  double w[6][3], t[6][3];
+  double R[9], P[3];
+  double J[36];
+  double e[6];
+  double merit;
+};
+
+// The forward sweep of a chain of 6 revolute-z joints: G_i = T_0,i-1(q) T_{i-1,i}(0) as its axis
+// w_i (third column) and point t_i, then the tool frame (the values of KinematicChain::Frames).
+inline void Sweep6(const RobotModel& model, int tool, FastIterate* it) {
+  const SE3d& O0 = model.joints[0].origin;
+  double R[9], t[3];
+  for (int k = 0; k < 9; ++k) R[k] = O0.R.data()[k];
+  for (int k = 0; k < 3; ++k) t[k] = O0.t(k);
+  for (int i = 0; i < 6; ++i) {
+    for (int r = 0; r < 3; ++r) {
+      it->w[i][r] = R[6 + r];
+      it->t[i][r] = t[r];
+    }
+    const double c = it->cos_x[i], s = it->sin_x[i];
+    for (int r = 0; r < 3; ++r) {  // R <- R Rz(x_i)
+      const double a = R[r], b = R[3 + r];
+      R[r] = c * a + s * b;
+      R[3 + r] = c * b - s * a;
+    }
+    const SE3d& O = i < 5 ? model.joints[i + 1].origin : model.tools[tool].origin;
+    const double* M = O.R.data();
+    const double m0 = O.t(0), m1 = O.t(1), m2 = O.t(2);
+    double N[9];
+    for (int col = 0; col < 3; ++col) {
+      const double a = M[3 * col], b = M[3 * col + 1], d = M[3 * col + 2];
+      for (int r = 0; r < 3; ++r) N[3 * col + r] = R[r] * a + R[3 + r] * b + R[6 + r] * d;
+    }
+    for (int r = 0; r < 3; ++r) t[r] += R[r] * m0 + R[3 + r] * m1 + R[6 + r] * m2;
+    for (int k = 0; k < 9; ++k) R[k] = N[k];
+  }
+  for (int k = 0; k < 9; ++k) it->R[k] = R[k];
+  for (int k = 0; k < 3; ++k) it->P[k] = t[k];
+}
+
+// (D_arm, D_wrist) signs of one fast iterate (BranchSignsOf on the same frames): c = t_4.
+inline void BranchSigns6(const FastIterate& it, int signs[2]) {
+  Eigen::Matrix3d arm, wrist;
+  for (int j = 0; j < 3; ++j) {
+    const Eigen::Vector3d w(it.w[j][0], it.w[j][1], it.w[j][2]);
+    const Eigen::Vector3d d(it.t[4][0] - it.t[j][0], it.t[4][1] - it.t[j][1],
+                            it.t[4][2] - it.t[j][2]);
+    arm.col(j) = w.cross(d);
+    wrist.col(j) = Eigen::Vector3d(it.w[3 + j][0], it.w[3 + j][1], it.w[3 + j][2]);
+  }
+  signs[0] = Sign(arm.determinant());
+  signs[1] = Sign(wrist.determinant());
+}
+
+
 // (D_arm, D_wrist) signs from the frames of one configuration (see the header): the joint Jacobian
 // of the point c (the first three position columns) and the last three joint axes.
 void BranchSignsOf(const KinematicChain& chain, const FrameRt* frames, int signs[2]) {
@@ -317,6 +486,8 @@ InverseKinematics::InverseKinematics(const RobotModel& model, const IkOptions& o
   }
   const int n = model.num_joints();
   for (int j = 0; j < n; ++j) z_revolute_[j] = IsRevoluteZ(model.joints[j]);
+  fast_ = options_.fast_path && n == 6;
+  for (int j = 0; j < n; ++j) fast_ = fast_ && z_revolute_[j];
   branch_defined_ = n >= 6;
   if (branch_defined_) {
     for (int j : {0, 1, 2, n - 3, n - 2, n - 1}) {
@@ -402,6 +573,10 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
   using VecN = Eigen::Matrix<double, N, 1, 0, kMaxN, 1>;
   using VecM = Eigen::Matrix<double, M, 1>;
   using MatM = Eigen::Matrix<double, M, M>;
+  if constexpr (M == 6 && N == 6) {
+    IkResult fast;
+    if (fast_ && RunFast(target, seed_in, start_in, q_out, &fast)) return fast;
+  }
   const RobotModel& model = *model_;
   const IkOptions& o = options_;
   const int n = chain_.num_joints();
@@ -663,6 +838,157 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
                                                  : IkStatus::kUnreachable;
   }
   return result;
+}
+
+// The fast path: Run's iteration for a pose target on 6 revolute-z joints while it stays plain
+// Newton (every step accepted, none cut at a limit or scaled into nothing, no tiny pivot), with one
+// fused sweep per iterate (axes, points, tool frame; the Jacobian from them), the unrolled LU and
+// the unrolled smallest-eigenvalue routine. Whatever else happens returns false: Run then solves the
+// target from the start, so the statuses are Run's.
+bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
+                                const double* start_in, double* q_out, IkResult* out) const {
+  const RobotModel& model = *model_;
+  const IkOptions& o = options_;
+  const double L = o.orientation_weight;
+  double lower[6], upper[6], seed[6];
+  for (int j = 0; j < 6; ++j) {
+    const Joint& joint = model.joints[j];
+    lower[j] = o.respect_limits ? joint.lower : -HUGE_VAL;
+    upper[j] = o.respect_limits ? joint.upper : HUGE_VAL;
+    seed[j] = std::min(std::max(seed_in[j], lower[j]), upper[j]);
+  }
+  const Eigen::Matrix3d& Rt = target.rotation;
+
+  auto evaluate = [&](const FastIterate* from, FastIterate* it) {
+    double dg_dq[36];
+    if (effective_ != nullptr) {
+      effective_->Evaluate(it->q, it->x, dg_dq);
+    } else {
+      for (int j = 0; j < 6; ++j) it->x[j] = it->q[j];
+    }
+    for (int j = 0; j < 6; ++j) {
+      const double delta = from != nullptr ? it->x[j] - from->x[j] : HUGE_VAL;
+      if (std::abs(delta) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
+        double sd, cd;
+        SinCosSmall(delta, &sd, &cd);
+        it->sin_x[j] = from->sin_x[j] * cd + from->cos_x[j] * sd;
+        it->cos_x[j] = from->cos_x[j] * cd - from->sin_x[j] * sd;
+        it->age[j] = from->age[j] + 1;
+      } else {
+        SinCos(it->x[j], &it->sin_x[j], &it->cos_x[j]);
+        it->age[j] = 0;
+      }
+    }
+    Sweep6(model, target.tool, it);
+    const double* P = it->P;
+    double* J = it->J;
+    for (int i = 0; i < 6; ++i) {  // w_i x (P - t_i), then L w_i
+      const double* w = it->w[i];
+      const double d0 = P[0] - it->t[i][0], d1 = P[1] - it->t[i][1], d2 = P[2] - it->t[i][2];
+      J[6 * i + 0] = w[1] * d2 - w[2] * d1;
+      J[6 * i + 1] = w[2] * d0 - w[0] * d2;
+      J[6 * i + 2] = w[0] * d1 - w[1] * d0;
+      J[6 * i + 3] = L * w[0];
+      J[6 * i + 4] = L * w[1];
+      J[6 * i + 5] = L * w[2];
+    }
+    if (effective_ != nullptr) {  // chain rule: J dg/dq
+      double Jq[36];
+      for (int c = 0; c < 6; ++c) {
+        for (int r = 0; r < 6; ++r) {
+          double v = 0;
+          for (int k = 0; k < 6; ++k) v += J[6 * k + r] * dg_dq[6 * c + k];
+          Jq[6 * c + r] = v;
+        }
+      }
+      std::copy(Jq, Jq + 36, J);
+    }
+    const Eigen::Map<const Eigen::Matrix3d> R(it->R);
+    const Eigen::Vector3d re = L * RotationError(Rt, R);
+    it->e[0] = target.position(0) - P[0];
+    it->e[1] = target.position(1) - P[1];
+    it->e[2] = target.position(2) - P[2];
+    it->e[3] = re(0);
+    it->e[4] = re(1);
+    it->e[5] = re(2);
+    double m = 0;
+    for (int k = 0; k < 6; ++k) m += it->e[k] * it->e[k];
+    it->merit = m;
+  };
+  auto task_ok = [&](const double* e) {
+    return std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) <= o.position_tolerance &&
+           std::sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5]) <= L * o.orientation_tolerance;
+  };
+
+  FastIterate iterates[2];
+  FastIterate* cur = &iterates[0];
+  FastIterate* trial = &iterates[1];
+  for (int j = 0; j < 6; ++j) cur->q[j] = std::min(std::max(start_in[j], lower[j]), upper[j]);
+  evaluate(nullptr, cur);
+  int seed_signs[2] = {0, 0};
+  const bool check_branch = o.check_branch && branch_defined_;
+  if (check_branch) {
+    if (start_in == seed_in) {
+      BranchSigns6(*cur, seed_signs);
+    } else {
+      BranchSigns(seed, seed_signs);
+    }
+  }
+
+  int it = 0;
+  for (;; ++it) {
+    if (task_ok(cur->e)) break;
+    if (it >= o.max_iterations) return false;
+    double amax = 0;
+    for (int k = 0; k < 36; ++k) amax = std::max(amax, std::abs(cur->J[k]));
+    double d[6];
+    if (!Lu6Solve(cur->J, cur->e, 1e-9 * std::max(amax, 1e-30), d)) return false;
+    double scale = 1.0;
+    for (int j = 0; j < 6; ++j) {
+      const double a = std::abs(d[j]);
+      if (a > o.max_step_revolute) scale = std::min(scale, o.max_step_revolute / a);
+    }
+    for (int j = 0; j < 6; ++j) {
+      if (scale < 1.0) d[j] *= scale;
+      const double x = cur->q[j] + d[j];
+      if (o.respect_limits && (x > upper[j] || x < lower[j])) return false;  // Run's active set
+      trial->q[j] = std::min(std::max(x, lower[j]), upper[j]);
+    }
+    evaluate(cur, trial);
+    if (!(trial->merit <= cur->merit || trial->merit <= kNullSpaceSlack * kNullSpaceSlack ||
+          task_ok(trial->e))) {
+      return false;  // Run's damping
+    }
+    std::swap(cur, trial);
+  }
+
+  IkResult& result = *out;
+  result = IkResult();
+  result.sigma_min = std::sqrt(SmallestEigenvalueGram6(cur->J));
+  result.position_error = std::sqrt(cur->e[0] * cur->e[0] + cur->e[1] * cur->e[1] +
+                                    cur->e[2] * cur->e[2]);
+  result.orientation_error =
+      std::sqrt(cur->e[3] * cur->e[3] + cur->e[4] * cur->e[4] + cur->e[5] * cur->e[5]) / L;
+  result.iterations = it;
+  double corr2 = 0;
+  for (int j = 0; j < 6; ++j) {
+    const double qj = cur->q[j];
+    q_out[j] = qj;
+    if (qj == lower[j] || qj == upper[j]) result.at_limit = true;
+    corr2 += (qj - seed_in[j]) * (qj - seed_in[j]);
+  }
+  result.correction = std::sqrt(corr2);
+  if (check_branch) {
+    int signs[2];
+    BranchSigns6(*cur, signs);
+    result.branch_changed = (seed_signs[0] != 0 && signs[0] != seed_signs[0]) ||
+                            (seed_signs[1] != 0 && signs[1] != seed_signs[1]);
+  }
+  const bool singular = result.sigma_min < o.singular_threshold;
+  result.status = singular                ? IkStatus::kSingular
+                  : result.branch_changed ? IkStatus::kBranch
+                                          : IkStatus::kOk;
+  return true;
 }
 
 }  // namespace lpoe
