@@ -390,6 +390,79 @@ TEST(InverseKinematics, ModelJointErrorTermsAreHonoured) {
   EXPECT_GT(largest_geometric_miss, 0.1);
 }
 
+// The fast path (IkOptions::fast_path: 6 revolute-z joints, pose target) and the general path give
+// the same joints, statuses, iteration counts and branch verdicts, and smallest singular values to
+// the general routine's accuracy (1e-6 relative; at a singularity the Gram matrix's round-off): on random targets, at and near the wrist singularity (q5 = 0), beyond
+// reach, with a joint limit in the way, and with the model's joint-error terms (chain rule).
+void ExpectPathsAgree(const RobotModel& model, const IkTarget& target, const std::vector<double>& seed,
+                      const std::string& what, int* statuses) {
+  IkOptions general_options;
+  general_options.fast_path = false;
+  const InverseKinematics fast(model), general(model, general_options);
+  std::vector<double> q_fast(6), q_general(6);
+  const IkResult a = fast.Solve(target, seed.data(), q_fast.data());
+  const IkResult b = general.Solve(target, seed.data(), q_general.data());
+  ASSERT_EQ(a.status, b.status) << what << ": " << IkStatusName(a.status) << " vs "
+                                << IkStatusName(b.status) << ", sigma " << a.sigma_min << " vs "
+                                << b.sigma_min;
+  ++statuses[static_cast<int>(a.status)];
+  EXPECT_EQ(a.iterations, b.iterations) << what;
+  EXPECT_EQ(a.restarts, b.restarts) << what;
+  EXPECT_EQ(a.branch_changed, b.branch_changed) << what;
+  EXPECT_EQ(a.at_limit, b.at_limit) << what;
+  for (int j = 0; j < 6; ++j) EXPECT_NEAR(q_fast[j], q_general[j], 1e-12) << what << " joint " << j;
+  EXPECT_NEAR(a.position_error, b.position_error, 1e-12) << what;
+  EXPECT_NEAR(a.orientation_error, b.orientation_error, 1e-14) << what;
+  // At a singularity both are round-off of the 6 x 6 Gram matrix (the fast path forms J^T J, the
+  // general one J J^T): sqrt(machine epsilon) times the largest singular value, about 1e-5 here.
+  EXPECT_NEAR(a.sigma_min, b.sigma_min, 1e-6 * b.sigma_min + 2e-5) << what;
+  EXPECT_NEAR(a.correction, b.correction, 1e-12) << what;
+}
+
+TEST(InverseKinematics, FastPathAgreesWithTheGeneralPath) {
+  RobotModel with_terms = MakeCobot6();
+  ApplyJointErrorPhysics(SmallArmJointErrors(with_terms, SmallArmOptions()), true, true,
+                         &with_terms);
+  ASSERT_FALSE(with_terms.joint_errors.empty());
+  TestRandom rng(71);
+  int statuses[5] = {};
+  for (const RobotModel& nominal : {MakeCobot6(), MakeUr5Like(), with_terms}) {
+    const RobotModel model = WithLimits(nominal);
+    for (int trial = 0; trial < 150; ++trial) {
+      const std::string what = model.name + " trial " + std::to_string(trial);
+      std::vector<double> q_true = RandomWithinLimits(model, &rng);
+      if (trial % 5 == 4) q_true[4] = rng.Uniform(-0.05, 0.05);  // near the wrist singularity
+      std::vector<double> seed = PerturbedSeed(model, q_true, &rng);
+      if (trial % 5 == 1) {  // at the wrist singularity (WristSingularityReported)
+        q_true[4] = 0;
+        seed = q_true;
+        seed[3] += 0.02;
+        seed[5] -= 0.02;
+      }
+      IkTarget target = PoseTarget(model, q_true.data(), true);
+      if (trial % 5 == 2) target.position *= 3;  // beyond reach
+      if (trial % 5 == 3) {  // a limit between the seed and the target
+        RobotModel limited = model;
+        const int j = trial % 6;
+        const double mid = 0.5 * (seed[j] + q_true[j]);
+        if (q_true[j] > seed[j]) {
+          limited.joints[j].upper = mid;
+        } else {
+          limited.joints[j].lower = mid;
+        }
+        ExpectPathsAgree(limited, target, seed, what + " (limited)", statuses);
+        continue;
+      }
+      ExpectPathsAgree(model, target, seed, what, statuses);
+    }
+  }
+  // Every status the cases are built for occurred.
+  EXPECT_GT(statuses[static_cast<int>(IkStatus::kOk)], 0);
+  EXPECT_GT(statuses[static_cast<int>(IkStatus::kUnreachable)], 0);
+  EXPECT_GT(statuses[static_cast<int>(IkStatus::kLimit)], 0);
+  EXPECT_GT(statuses[static_cast<int>(IkStatus::kSingular)], 0);
+}
+
 // Compensation as lpoe_compensate does it: a hidden truth robot is calibrated from noisy data; the
 // calibrated IK makes the truth reach the program's targets within the calibration's prediction
 // error, against millimetres with the program's joints.

@@ -9,6 +9,10 @@
 #include <Eigen/Eigenvalues>
 #include <glog/logging.h>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "lpoe/joint_errors.h"
 
 namespace lpoe {
@@ -33,6 +37,18 @@ inline void SinCosSmall(double d, double* s, double* c) {
        d2 * (-1.0 / 39916800 + d2 * (1.0 / 6227020800.0)))))));
   *c = 1 + d2 * (-0.5 + d2 * (1.0 / 24 + d2 * (-1.0 / 720 + d2 * (1.0 / 40320 +
        d2 * (-1.0 / 3628800 + d2 * (1.0 / 479001600 + d2 * (-1.0 / 87178291200.0)))))));
+}
+
+// The same for the small steps of the last iterations: below 0.01 rad the series to d^7 and d^8
+// (next terms below 3e-24) replace the long one.
+inline void SinCosStep(double d, double* s, double* c) {
+  const double d2 = d * d;
+  if (d2 < 1e-4) {
+    *s = d * (1 + d2 * (-1.0 / 6 + d2 * (1.0 / 120 + d2 * (-1.0 / 5040))));
+    *c = 1 + d2 * (-0.5 + d2 * (1.0 / 24 + d2 * (-1.0 / 720 + d2 * (1.0 / 40320))));
+    return;
+  }
+  SinCosSmall(d, s, c);
 }
 
 // log(R_target R^T)^vee. Near the target (angle below 0.01 rad) from the skew part alone:
@@ -285,9 +301,56 @@ inline bool Lu6Solve(const double* A_in, const double* b_in, double tiny, double
   return true;
 }
 
+// LDL^T of a symmetric 6 x 6 matrix without pivoting, with its negative-pivot count (SymmetricLdlt)
+// and a solve; Ok() false on a zero or non-finite pivot.
+class Ldlt6 {
+ public:
+  explicit Ldlt6(const Eigen::Matrix<double, 6, 6>& B) {
+#pragma GCC unroll 6
+    for (int j = 0; j < 6; ++j) {
+      double d = B(j, j);
+      for (int k = 0; k < j; ++k) d -= L_[j][k] * L_[j][k] * D_[k];
+      if (d == 0 || !std::isfinite(d)) {
+        ok_ = false;
+        return;
+      }
+      D_[j] = d;
+      negative_ += d < 0;
+      const double inv = 1 / d;
+      for (int i = j + 1; i < 6; ++i) {
+        double v = B(i, j);
+        for (int k = 0; k < j; ++k) v -= L_[i][k] * L_[j][k] * D_[k];
+        L_[i][j] = v * inv;
+      }
+    }
+  }
+  bool Ok() const { return ok_; }
+  int negative() const { return negative_; }
+  // x <- B^-1 x.
+  void Solve(double* x) const {
+    for (int i = 0; i < 6; ++i) {
+      for (int k = 0; k < i; ++k) x[i] -= L_[i][k] * x[k];
+    }
+    for (int i = 0; i < 6; ++i) x[i] /= D_[i];
+    for (int i = 5; i >= 0; --i) {
+      for (int k = i + 1; k < 6; ++k) x[i] -= L_[k][i] * x[k];
+    }
+  }
+
+ private:
+  double L_[6][6];
+  double D_[6];
+  int negative_ = 0;
+  bool ok_ = true;
+};
+
 // SmallestEigenvalue<6> of the Gram matrix A = J^T J of a 6 x 6 column-major J (the same
-// eigenvalues as J J^T), the same steps with the unrolled LU and without Eigen temporaries; the
-// bisection of the general routine when Rayleigh-quotient iteration does not settle.
+// eigenvalues as J J^T): three steps of inverse iteration on A's Cholesky factor, then Rayleigh-
+// quotient iteration whose solves are LDL^T factorizations of A - shift I. Their negative pivots
+// count the eigenvalues below the shift (Sylvester's law of inertia): two or more mean the shift
+// passed lambda_2, and two more inverse steps draw it back. The result is accepted on the same test
+// as SmallestEigenvalue's (exactly one eigenvalue below 1.000000001 shift); otherwise (a breakdown,
+// no convergence) SmallestEigenvalue<6> itself answers.
 double SmallestEigenvalueGram6(const double* J) {
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   using Mat6 = Eigen::Matrix<double, 6, 6>;
@@ -306,26 +369,30 @@ double SmallestEigenvalueGram6(const double* J) {
   Vec6 x = Vec6::Constant(1.0 / std::sqrt(6.0));
   x(0) *= 1.3;
   x.normalize();
-  double mu = 0;
-  for (int k = 0; k < 3; ++k) {
-    Vec6 y = x;
-    llt.Solve(&y);
-    mu = x.dot(y);
-    const double norm = y.norm();
-    if (!std::isfinite(norm) || norm == 0) return 0.0;
-    x = y / norm;
-  }
+  auto inverse_steps = [&](int steps) {
+    for (int k = 0; k < steps; ++k) {
+      llt.Solve(&x);
+      const double norm = x.norm();
+      if (!std::isfinite(norm) || norm == 0) return false;
+      x /= norm;
+    }
+    return true;
+  };
+  if (!inverse_steps(3)) return 0.0;
   double shift = x.dot(A * x);
   bool converged = false;
-  const double tiny = 1e-15 * A.diagonal().cwiseAbs().maxCoeff();
-  for (int k = 0; k < 8 && !converged; ++k) {
+  for (int k = 0; k < 10 && !converged; ++k) {
     Mat6 B = A;
     B.diagonal().array() -= shift;
-    Vec6 y;
-    if (!Lu6Solve(B.data(), x.data(), tiny, y.data())) {  // the shift is an eigenvalue
-      converged = true;
-      break;
+    const Ldlt6 ldlt(B);
+    if (!ldlt.Ok()) break;
+    if (ldlt.negative() >= 2) {  // past lambda_2: back toward the smallest eigenvector
+      if (!inverse_steps(2)) break;
+      shift = x.dot(A * x);
+      continue;
     }
+    Vec6 y = x;
+    ldlt.Solve(y.data());
     const double norm = y.norm();
     if (!std::isfinite(norm) || norm == 0) break;
     x = y / norm;
@@ -339,7 +406,6 @@ double SmallestEigenvalueGram6(const double* J) {
     const SymmetricLdlt<6> ldlt(B);
     if (ldlt.Ok() && ldlt.negative() == 1) return shift;
   }
-  (void)mu;
   return SmallestEigenvalue<6>(A);
 }
 
@@ -360,6 +426,56 @@ struct FastIterate {
 // w_i (third column) and point t_i, then the tool frame (the values of KinematicChain::Frames).
 inline void Sweep6(const RobotModel& model, int tool, FastIterate* it) {
   const SE3d& O0 = model.joints[0].origin;
+#if defined(__SSE2__)
+  // The running product in SSE2 registers as kinematics.cc's accumulator: rows 0 and 1 of each
+  // column of R (and of t) as a pair, row 2 in the low lane of a second register; the same
+  // operations in the same order, so the frames are KinematicChain::Frames' to the bit.
+  __m128d lo[4], hi[4];
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = _mm_loadu_pd(O0.R.data() + 3 * k);
+    hi[k] = _mm_load_sd(O0.R.data() + 3 * k + 2);
+  }
+  lo[3] = _mm_loadu_pd(O0.t.data());
+  hi[3] = _mm_load_sd(O0.t.data() + 2);
+  for (int i = 0; i < 6; ++i) {
+    _mm_storeu_pd(it->w[i], lo[2]);
+    _mm_store_sd(it->w[i] + 2, hi[2]);
+    _mm_storeu_pd(it->t[i], lo[3]);
+    _mm_store_sd(it->t[i] + 2, hi[3]);
+    const __m128d c = _mm_set1_pd(it->cos_x[i]), ns = _mm_set1_pd(-it->sin_x[i]);
+    internal::PlaneRotation(c, ns, &lo[0], &lo[1]);  // R <- R Rz(x_i)
+    internal::PlaneRotation(c, ns, &hi[0], &hi[1]);
+    const SE3d& O = i < 5 ? model.joints[i + 1].origin : model.tools[tool].origin;
+    const double* M = O.R.data();
+    __m128d nlo[3], nhi[3];
+    for (int col = 0; col < 3; ++col) {
+      const __m128d a = _mm_set1_pd(M[3 * col]);
+      const __m128d b = _mm_set1_pd(M[3 * col + 1]);
+      const __m128d d = _mm_set1_pd(M[3 * col + 2]);
+      nlo[col] = _mm_add_pd(_mm_add_pd(_mm_mul_pd(lo[0], a), _mm_mul_pd(lo[1], b)),
+                            _mm_mul_pd(lo[2], d));
+      nhi[col] = _mm_add_sd(_mm_add_sd(_mm_mul_sd(hi[0], a), _mm_mul_sd(hi[1], b)),
+                            _mm_mul_sd(hi[2], d));
+    }
+    const __m128d a = _mm_set1_pd(O.t(0));
+    const __m128d b = _mm_set1_pd(O.t(1));
+    const __m128d d = _mm_set1_pd(O.t(2));
+    lo[3] = _mm_add_pd(_mm_add_pd(_mm_mul_pd(lo[0], a), lo[3]),
+                       _mm_add_pd(_mm_mul_pd(lo[1], b), _mm_mul_pd(lo[2], d)));
+    hi[3] = _mm_add_sd(_mm_add_sd(_mm_mul_sd(hi[0], a), hi[3]),
+                       _mm_add_sd(_mm_mul_sd(hi[1], b), _mm_mul_sd(hi[2], d)));
+    for (int col = 0; col < 3; ++col) {
+      lo[col] = nlo[col];
+      hi[col] = nhi[col];
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    _mm_storeu_pd(it->R + 3 * k, lo[k]);
+    _mm_store_sd(it->R + 3 * k + 2, hi[k]);
+  }
+  _mm_storeu_pd(it->P, lo[3]);
+  _mm_store_sd(it->P + 2, hi[3]);
+#else
   double R[9], t[3];
   for (int k = 0; k < 9; ++k) R[k] = O0.R.data()[k];
   for (int k = 0; k < 3; ++k) t[k] = O0.t(k);
@@ -369,24 +485,20 @@ inline void Sweep6(const RobotModel& model, int tool, FastIterate* it) {
       it->t[i][r] = t[r];
     }
     const double c = it->cos_x[i], s = it->sin_x[i];
-    for (int r = 0; r < 3; ++r) {  // R <- R Rz(x_i)
-      const double a = R[r], b = R[3 + r];
-      R[r] = c * a + s * b;
-      R[3 + r] = c * b - s * a;
-    }
+    for (int r = 0; r < 3; ++r) internal::PlaneRotation(c, -s, &R[r], &R[3 + r]);
     const SE3d& O = i < 5 ? model.joints[i + 1].origin : model.tools[tool].origin;
     const double* M = O.R.data();
-    const double m0 = O.t(0), m1 = O.t(1), m2 = O.t(2);
     double N[9];
     for (int col = 0; col < 3; ++col) {
       const double a = M[3 * col], b = M[3 * col + 1], d = M[3 * col + 2];
       for (int r = 0; r < 3; ++r) N[3 * col + r] = R[r] * a + R[3 + r] * b + R[6 + r] * d;
     }
-    for (int r = 0; r < 3; ++r) t[r] += R[r] * m0 + R[3 + r] * m1 + R[6 + r] * m2;
+    for (int r = 0; r < 3; ++r) t[r] += R[r] * O.t(0) + R[3 + r] * O.t(1) + R[6 + r] * O.t(2);
     for (int k = 0; k < 9; ++k) R[k] = N[k];
   }
   for (int k = 0; k < 9; ++k) it->R[k] = R[k];
   for (int k = 0; k < 3; ++k) it->P[k] = t[k];
+#endif
 }
 
 // (D_arm, D_wrist) signs of one fast iterate (BranchSignsOf on the same frames): c = t_4.
@@ -870,7 +982,7 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
       const double delta = from != nullptr ? it->x[j] - from->x[j] : HUGE_VAL;
       if (std::abs(delta) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
         double sd, cd;
-        SinCosSmall(delta, &sd, &cd);
+        SinCosStep(delta, &sd, &cd);
         it->sin_x[j] = from->sin_x[j] * cd + from->cos_x[j] * sd;
         it->cos_x[j] = from->cos_x[j] * cd - from->sin_x[j] * sd;
         it->age[j] = from->age[j] + 1;
