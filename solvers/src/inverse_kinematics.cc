@@ -345,12 +345,12 @@ class Ldlt6 {
 };
 
 // SmallestEigenvalue<6> of the Gram matrix A = J^T J of a 6 x 6 column-major J (the same
-// eigenvalues as J J^T): three steps of inverse iteration on A's Cholesky factor, then Rayleigh-
+// eigenvalues as J J^T): three steps of inverse iteration on A's LDL^T factors, then Rayleigh-
 // quotient iteration whose solves are LDL^T factorizations of A - shift I. Their negative pivots
 // count the eigenvalues below the shift (Sylvester's law of inertia): two or more mean the shift
 // passed lambda_2, and two more inverse steps draw it back. The result is accepted on the same test
-// as SmallestEigenvalue's (exactly one eigenvalue below 1.000000001 shift); otherwise (a breakdown,
-// no convergence) SmallestEigenvalue<6> itself answers.
+// as SmallestEigenvalue's (exactly one eigenvalue below 1.000000001 shift); otherwise once more from
+// twelve inverse steps, then (a breakdown, no convergence) SmallestEigenvalue<6> itself answers.
 double SmallestEigenvalueGram6(const double* J) {
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   using Mat6 = Eigen::Matrix<double, 6, 6>;
@@ -364,47 +364,53 @@ double SmallestEigenvalueGram6(const double* J) {
       A(i, j) = A(j, i) = v;
     }
   }
-  const SmallCholesky<6> llt(A);
-  if (!llt.Ok()) return 0.0;
-  Vec6 x = Vec6::Constant(1.0 / std::sqrt(6.0));
-  x(0) *= 1.3;
-  x.normalize();
+  // A's Cholesky factor: its LDL^T with positive pivots (the same factorization, no square roots).
+  const Ldlt6 llt(A);
+  if (!llt.Ok() || llt.negative() > 0) return 0.0;
+  Vec6 x;
   auto inverse_steps = [&](int steps) {
     for (int k = 0; k < steps; ++k) {
-      llt.Solve(&x);
+      llt.Solve(x.data());
       const double norm = x.norm();
       if (!std::isfinite(norm) || norm == 0) return false;
       x /= norm;
     }
     return true;
   };
-  if (!inverse_steps(3)) return 0.0;
-  double shift = x.dot(A * x);
-  bool converged = false;
-  for (int k = 0; k < 10 && !converged; ++k) {
-    Mat6 B = A;
-    B.diagonal().array() -= shift;
-    const Ldlt6 ldlt(B);
-    if (!ldlt.Ok()) break;
-    if (ldlt.negative() >= 2) {  // past lambda_2: back toward the smallest eigenvector
-      if (!inverse_steps(2)) break;
-      shift = x.dot(A * x);
-      continue;
+  // Two attempts: from the start vector with 3 inverse steps, then (Rayleigh-quotient iteration
+  // having found another eigenvalue) with 12.
+  for (const int steps : {3, 12}) {
+    x = Vec6::Constant(1.0 / std::sqrt(6.0));
+    x(0) *= 1.3;
+    x.normalize();
+    if (!inverse_steps(steps)) return 0.0;
+    double shift = x.dot(A * x);
+    bool converged = false;
+    for (int k = 0; k < 10 && !converged; ++k) {
+      Mat6 B = A;
+      B.diagonal().array() -= shift;
+      const Ldlt6 ldlt(B);
+      if (!ldlt.Ok()) break;
+      if (ldlt.negative() >= 2) {  // past lambda_2: back toward the smallest eigenvector
+        if (!inverse_steps(2)) break;
+        shift = x.dot(A * x);
+        continue;
+      }
+      Vec6 y = x;
+      ldlt.Solve(y.data());
+      const double norm = y.norm();
+      if (!std::isfinite(norm) || norm == 0) break;
+      x = y / norm;
+      const double next = x.dot(A * x);
+      converged = std::abs(next - shift) <= 1e-10 * std::abs(next);
+      shift = next;
     }
-    Vec6 y = x;
-    ldlt.Solve(y.data());
-    const double norm = y.norm();
-    if (!std::isfinite(norm) || norm == 0) break;
-    x = y / norm;
-    const double next = x.dot(A * x);
-    converged = std::abs(next - shift) <= 1e-10 * std::abs(next);
-    shift = next;
-  }
-  if (converged && shift >= 0) {
-    Mat6 B = A;
-    B.diagonal().array() -= shift * (1 + 1e-9) + 1e-300;
-    const SymmetricLdlt<6> ldlt(B);
-    if (ldlt.Ok() && ldlt.negative() == 1) return shift;
+    if (converged && shift >= 0) {
+      Mat6 B = A;
+      B.diagonal().array() -= shift * (1 + 1e-9) + 1e-300;
+      const Ldlt6 ldlt(B);
+      if (ldlt.Ok() && ldlt.negative() == 1) return shift;
+    }
   }
   return SmallestEigenvalue<6>(A);
 }
@@ -952,11 +958,11 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
   return result;
 }
 
-// The fast path: Run's iteration for a pose target on 6 revolute-z joints while it stays plain
-// Newton (every step accepted, none cut at a limit or scaled into nothing, no tiny pivot), with one
-// fused sweep per iterate (axes, points, tool frame; the Jacobian from them), the unrolled LU and
-// the unrolled smallest-eigenvalue routine. Whatever else happens returns false: Run then solves the
-// target from the start, so the statuses are Run's.
+// The fast path: Run's iteration for a pose target on 6 revolute-z joints (Newton steps, damped
+// after a rejected step, the same formulas in the same order), with one fused sweep per iterate
+// (axes, points, tool frame; the Jacobian from them), the unrolled LU and the unrolled smallest-
+// eigenvalue routine. A step cut at a joint limit returns false: Run (its active set) then solves
+// the target from the start, so the statuses are Run's.
 bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
                                 const double* start_in, double* q_out, IkResult* out) const {
   const RobotModel& model = *model_;
@@ -1047,14 +1053,47 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
     }
   }
 
+  // Run's iteration for a square task (no null space, so the pull toward the seed stays 1 after an
+  // accepted step): Newton's step by LU while steps are accepted, the damped form after a rejected
+  // step; a step cut at a joint limit hands the target to Run.
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  bool converged = false;
+  double lambda2 = 0, beta = 1;
   int it = 0;
-  for (;; ++it) {
-    if (task_ok(cur->e)) break;
-    if (it >= o.max_iterations) return false;
-    double amax = 0;
-    for (int k = 0; k < 36; ++k) amax = std::max(amax, std::abs(cur->J[k]));
+  for (; it < o.max_iterations; ++it) {
+    if (task_ok(cur->e)) {
+      converged = true;
+      break;
+    }
+    const Eigen::Map<const Mat6> J(cur->J);
     double d[6];
-    if (!Lu6Solve(cur->J, cur->e, 1e-9 * std::max(amax, 1e-30), d)) return false;
+    bool solved = false;
+    if (lambda2 == 0) {
+      double amax = 0;
+      for (int k = 0; k < 36; ++k) amax = std::max(amax, std::abs(cur->J[k]));
+      solved = Lu6Solve(cur->J, cur->e, 1e-9 * std::max(amax, 1e-30), d);
+    }
+    if (!solved) {  // d = r + J^T (J J^T + lambda^2 I)^-1 (e - J r), r = beta (seed - q)
+      Vec6 r;
+      for (int j = 0; j < 6; ++j) r(j) = beta * (seed[j] - cur->q[j]);
+      Mat6 A = J * J.transpose();
+      const double trace = A.trace();
+      A.diagonal().array() += lambda2 + (trace > 0 ? 1e-13 * trace / 6 : 1e-30);
+      Vec6 y = Eigen::Map<const Vec6>(cur->e) - J * r;
+      SmallCholesky<6> llt(A);
+      if (!llt.Ok()) {
+        A.diagonal().array() += 1e-9 * std::max(trace, 1e-30) / 6;
+        llt = SmallCholesky<6>(A);
+      }
+      if (llt.Ok()) {
+        llt.Solve(&y);
+      } else {
+        y.setZero();
+      }
+      Eigen::Map<Vec6> step(d);
+      step = r + J.transpose() * y;
+    }
     double scale = 1.0;
     for (int j = 0; j < 6; ++j) {
       const double a = std::abs(d[j]);
@@ -1067,11 +1106,18 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
       trial->q[j] = std::min(std::max(x, lower[j]), upper[j]);
     }
     evaluate(cur, trial);
-    if (!(trial->merit <= cur->merit || trial->merit <= kNullSpaceSlack * kNullSpaceSlack ||
-          task_ok(trial->e))) {
-      return false;  // Run's damping
+    if (trial->merit <= cur->merit || trial->merit <= kNullSpaceSlack * kNullSpaceSlack ||
+        task_ok(trial->e)) {
+      std::swap(cur, trial);
+      lambda2 *= 0.1;
+      if (lambda2 < 1e-12 * Eigen::Map<const Mat6>(cur->J).squaredNorm() / 6) lambda2 = 0;
+      beta = 1;
+    } else {
+      const double s2 = std::max(J.squaredNorm() / 6, 1e-30);
+      lambda2 = std::max(lambda2 * 10, 1e-6 * s2);
+      beta *= 0.5;
+      if (lambda2 > 1e12 * s2) break;  // no step reduces the error: stalled
     }
-    std::swap(cur, trial);
   }
 
   IkResult& result = *out;
@@ -1097,9 +1143,15 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
                             (seed_signs[1] != 0 && signs[1] != seed_signs[1]);
   }
   const bool singular = result.sigma_min < o.singular_threshold;
-  result.status = singular                ? IkStatus::kSingular
-                  : result.branch_changed ? IkStatus::kBranch
-                                          : IkStatus::kOk;
+  if (converged) {
+    result.status = singular                ? IkStatus::kSingular
+                    : result.branch_changed ? IkStatus::kBranch
+                                            : IkStatus::kOk;
+  } else {  // no step was cut at a limit (those went to Run)
+    result.status = result.at_limit ? IkStatus::kLimit
+                    : singular      ? IkStatus::kSingular
+                                    : IkStatus::kUnreachable;
+  }
   return true;
 }
 

@@ -96,10 +96,11 @@ struct IkOptions {
   int restarts = 8;
   double restart_step = 0.05;
   // The fast path for the common case (6 joints, all revolute about their local z, pose target):
-  // one fused forward sweep per iteration, an unrolled 6 x 6 LU, no per-call set-up. It follows
-  // the same iteration as the general solver and hands the target to it (from the start) as soon as
-  // a step is rejected, cut at a joint limit or the LU finds a tiny pivot, so results agree with
-  // the general path to round-off (tests compare them). false: always the general path.
+  // one fused forward sweep per iteration, an unrolled 6 x 6 LU and smallest-eigenvalue routine, no
+  // per-call set-up. It follows the general solver's iteration (the same formulas in the same
+  // order, damping included) and hands the target to it (from the start) when a step is cut at a
+  // joint limit, so results agree with the general path to round-off (tests compare them).
+  // false: always the general path.
   bool fast_path = true;
 };
 
