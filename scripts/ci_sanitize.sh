@@ -14,6 +14,7 @@ bash scripts/setup.sh
 build=build-asan
 CC=clang CXX=clang++ cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -gline-tables-only" -DLPOE_SANITIZE=ON \
+  -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld -DCMAKE_SHARED_LINKER_FLAGS=-fuse-ld=lld \
   -DBUILD_TESTING=ON -DLPOE_BUILD_BENCHMARKS=OFF -DLPOE_BUILD_TOOLS=ON \
   -DLPOE_BUILD_PYTHON=OFF >/dev/null
 cmake --build "$build" -j2

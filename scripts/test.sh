@@ -5,7 +5,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-cmake -S . -B build-test -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=ON -DLPOE_BUILD_BENCHMARKS=ON >/dev/null
+# lld links the ~40 test and benchmark programs (each with static Ceres) several times faster than ld.
+cmake -S . -B build-test -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=ON -DLPOE_BUILD_BENCHMARKS=ON \
+  -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld -DCMAKE_SHARED_LINKER_FLAGS=-fuse-ld=lld \
+  -DCMAKE_MODULE_LINKER_FLAGS=-fuse-ld=lld >/dev/null
 cmake --build build-test -j2
 ctest --test-dir build-test --output-on-failure -j2 --timeout 600
 bash scripts/fuzz.sh 30

@@ -85,3 +85,22 @@ TEST_F(CalibrateReport, UrdfOutputReadsBack) {
 }
 
 }  // namespace
+
+// --split=sequential holds out the file's last rows (the section-4 file: 70 data rows on lines
+// 3-72, so a quarter is lines 55-72) and says so in the report; auto's folds are contiguous.
+TEST_F(CalibrateReport, SequentialHoldoutIsTheLastRows) {
+  const std::string cmd = "cd " + dir_ + " && " LPOE_CALIBRATE_PATH
+                          " --measurements=" LPOE_DATA_DIR "/section4/identification.csv"
+                          " --holdout=0.25 --split=sequential --joint_errors=auto --plots_dir="
+                          " --report=report.json > out.txt 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << ReadAll(dir_ + "/out.txt");
+  EXPECT_NE(ReadAll(dir_ + "/out.txt").find("contiguous folds"), std::string::npos)
+      << ReadAll(dir_ + "/out.txt");
+  const nlohmann::json j = nlohmann::json::parse(ReadAll(dir_ + "/report.json"));
+  EXPECT_EQ(j["inputs"]["split"], "sequential");
+  EXPECT_EQ(j["joint_errors"]["selection"]["split"], "sequential");
+  const auto& held = j["points"]["verification"];
+  ASSERT_EQ(held.size(), 18u);
+  for (size_t i = 0; i < held.size(); ++i) EXPECT_EQ(held[i]["line"], 55 + static_cast<int>(i));
+  for (const auto& p : j["points"]["identification"]) EXPECT_LT(p["line"].get<int>(), 55);
+}

@@ -292,6 +292,7 @@ INSTANTIATE_TEST_SUITE_P(
         FlagCase{"angle_unit_grad", {"--angle_unit=grad"}, {"--angle_unit", "grad"}},
         FlagCase{"length_unit_cm", {"--length_unit=cm"}, {"--length_unit", "cm"}},
         FlagCase{"kfold_1", {"--kfold=1"}, {"--kfold"}},
+        FlagCase{"split_time", {"--holdout=0.3", "--split=time"}, {"--split", "time"}},
         FlagCase{"parameterization_foo", {"--parameterization=foo"}, {"--parameterization", "foo"}},
         FlagCase{"verify_and_holdout",
                  {"--verify=" + kGoodVerification, "--holdout=0.3"},

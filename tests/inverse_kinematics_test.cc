@@ -8,6 +8,7 @@
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
+#include "lpoe/eigen_decompositions.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"

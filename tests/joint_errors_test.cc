@@ -12,6 +12,7 @@
 
 #include <Eigen/Dense>
 
+#include "lpoe/eigen_decompositions.h"
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/simulation.h"

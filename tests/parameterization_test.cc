@@ -12,6 +12,7 @@
 #include <Eigen/SVD>
 #include <gtest/gtest.h>
 
+#include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/robot_model.h"
 #include "test_util.h"

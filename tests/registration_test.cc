@@ -268,5 +268,35 @@ TEST(Analysis, SplitsAreSeededPartitions) {
   for (int c : seen) EXPECT_EQ(c, 1);
 }
 
+TEST(Analysis, SequentialSplitsAreContiguousBlocks) {
+  constexpr int kN = 103;
+  std::vector<int> id, ver;
+  HoldoutSplit(kN, 0.3, 9, &id, &ver, SplitKind::kSequential);
+  ASSERT_EQ(ver.size(), 31u);
+  ASSERT_EQ(id.size(), 72u);
+  for (int i = 0; i < 72; ++i) EXPECT_EQ(id[i], i);
+  for (int i = 0; i < 31; ++i) EXPECT_EQ(ver[i], 72 + i);
+  // The seed plays no part.
+  std::vector<int> id2, ver2;
+  HoldoutSplit(kN, 0.3, 1234, &id2, &ver2, SplitKind::kSequential);
+  EXPECT_EQ(ver, ver2);
+
+  const auto folds = KFolds(kN, 5, 3, SplitKind::kSequential);
+  ASSERT_EQ(folds.size(), 5u);
+  int next = 0;
+  for (const auto& f : folds) {
+    EXPECT_GE(f.size(), 20u);
+    EXPECT_LE(f.size(), 21u);
+    for (int r : f) EXPECT_EQ(r, next++);  // consecutive rows, folds in order
+  }
+  EXPECT_EQ(next, kN);
+
+  SplitKind kind = SplitKind::kRandom;
+  EXPECT_TRUE(ParseSplitKind("sequential", &kind));
+  EXPECT_EQ(kind, SplitKind::kSequential);
+  EXPECT_STREQ(SplitKindName(kind), "sequential");
+  EXPECT_FALSE(ParseSplitKind("time", &kind));
+}
+
 }  // namespace
 }  // namespace lpoe

@@ -6,6 +6,7 @@
 #include <ceres/manifold_test_utils.h>
 #include <gtest/gtest.h>
 
+#include "lpoe/eigen_decompositions.h"
 #include "lpoe/parameterization.h"
 
 namespace lpoe {

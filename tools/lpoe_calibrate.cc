@@ -39,8 +39,13 @@ DEFINE_string(verify, "",
               "Verification measurements (CSV), never used for identification. Default with the "
               "default measurements: data/section4/verification.csv.");
 DEFINE_double(holdout, 0.0,
-              "Instead of --verify: hold out this fraction of the measurements (0 <= f < 1), "
-              "chosen at random with --split_seed, for verification.");
+              "Instead of --verify: hold out this fraction of the measurements (0 <= f < 1) "
+              "for verification, chosen as --split says.");
+DEFINE_string(split, "random",
+              "How --holdout, --kfold and --joint_errors=auto split the rows: random (seeded by "
+              "--split_seed) | sequential (the held-out fraction is the last rows of the file and "
+              "the folds are contiguous blocks: the honest choice when the rows were measured one "
+              "after another and the cell drifts).");
 DEFINE_int32(kfold, 0,
              "Also run k-fold cross-validation with this many folds (>= 2; 0 = off) on the "
              "identification set and report each fold's held-out errors.");
@@ -157,6 +162,7 @@ PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_ori
   }
   o.kfold = FLAGS_kfold;
   o.split_seed = FLAGS_split_seed;
+  ParseSplitKind(FLAGS_split, &o.split);  // checked by ParseInputFlags
   o.outlier_threshold = FLAGS_outlier_threshold;
   o.plausibility.noise_sigma = FLAGS_noise_sigma;
   o.plausibility.joint_values_in_degrees = unit == AngleUnit::kDegrees;
@@ -251,7 +257,8 @@ int Run() {
   // ---- Flags.
   tools::InputSettings settings;
   if (Status s = tools::ParseInputFlags({FLAGS_angle_unit, FLAGS_length_unit,
-                                         FLAGS_parameterization, FLAGS_verify, FLAGS_holdout},
+                                         FLAGS_parameterization, FLAGS_verify, FLAGS_holdout,
+                                         FLAGS_split},
                                         &settings);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
@@ -332,7 +339,7 @@ int Run() {
   tools::RunSummary summary;
   tools::Inputs in;
   if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
-                                   FLAGS_split_seed, &in, urdf_options);
+                                   FLAGS_split_seed, &in, urdf_options, settings.split);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
@@ -340,6 +347,7 @@ int Run() {
   progress.Rows(meas_path, in.identification.size() + in.verification.size());
   summary.skipped = std::move(in.skipped);
   summary.verification_source = in.verification_source;
+  summary.split = SplitKindName(settings.split);
   const bool from_urdf = in.from_urdf;
   const UrdfSource& urdf_source = in.urdf;  // the URDF --model, for the overlay write-back
   // The UR file needs a UR arm with z axes: checked on the nominal model before solving.

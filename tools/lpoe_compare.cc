@@ -35,6 +35,9 @@ DEFINE_string(verify, "",
               "data/section4/verification.csv.");
 DEFINE_double(holdout, 0.0,
               "Instead of --verify: hold out this fraction of the measurements (0 <= f < 1).");
+DEFINE_string(split, "random",
+              "How --holdout splits the rows: random (seeded by --split_seed) | sequential (the "
+              "last rows of the file are held out).");
 DEFINE_uint64(split_seed, 1, "Seed of the --holdout split.");
 DEFINE_string(parameterization, "identifiable", "identifiable | full (see lpoe_calibrate).");
 DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in the CSV files: rad | deg.");
@@ -105,7 +108,8 @@ int Run() {
 
   tools::InputSettings settings;
   if (Status s = tools::ParseInputFlags({FLAGS_angle_unit, FLAGS_length_unit,
-                                         FLAGS_parameterization, FLAGS_verify, FLAGS_holdout},
+                                         FLAGS_parameterization, FLAGS_verify, FLAGS_holdout,
+                                         FLAGS_split},
                                         &settings);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
@@ -140,7 +144,7 @@ int Run() {
     return kExitUsage;
   }
   if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
-                                   FLAGS_split_seed, &in, urdf_options);
+                                   FLAGS_split_seed, &in, urdf_options, settings.split);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;

@@ -106,6 +106,7 @@ Json JointErrorsJson(const RunSummary& s) {
                           {"fold_rms", c.fold_rms}});
   }
   j["selection"] = {{"folds", sel.folds},
+                    {"split", SplitKindName(sel.split)},
                     {"seed", sel.seed},
                     {"candidates", candidates},
                     {"best", sel.candidates[sel.best < 0 ? sel.chosen : sel.best].label},
@@ -144,8 +145,11 @@ void AddPipelineResult(const PipelineResult& run, RunSummary* s) {
 
 std::string JointErrorSelectionTable(const JointErrorSelection& sel) {
   std::string out = "joint errors (auto): " + std::to_string(sel.folds) +
-                    "-fold cross-validation on the identification rows (seed " +
-                    std::to_string(sel.seed) + "), held-out position error\n" +
+                    "-fold cross-validation on the identification rows (" +
+                    (sel.split == SplitKind::kSequential
+                         ? std::string("contiguous folds")
+                         : "seed " + std::to_string(sel.seed)) +
+                    "), held-out position error\n" +
                     "  terms                  combinations   CV rms (mm)   CV mse (mm^2)   "
                     "std error\n";
   char line[256];
@@ -288,6 +292,7 @@ Json BuildJson(const RunSummary& s) {
   j["inputs"] = {{"model", s.model_path},
                  {"measurements", s.measurements_path},
                  {"verification", s.verification_source},
+                 {"split", s.split},
                  {"angle_unit", s.angle_unit},
                  {"skipped_rows", s.skipped.skipped_zero_rows},
                  {"skipped_lines", s.skipped.skipped_lines}};

@@ -31,6 +31,7 @@ struct PointResidual {
 // statistics, outliers, folds, plausibility verdict) and the run's inputs and outputs.
 struct RunSummary : PipelineResult {
   std::string model_path, measurements_path, verification_source;
+  std::string split = "random";  // --split of --holdout, --kfold and auto's folds
   std::string solver, parameterization, data_kind, angle_unit;
   CsvReadReport skipped;
   // --joint_errors: what was asked for ("none", a list or "auto"); for auto, the choice is the

@@ -87,7 +87,8 @@ InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& m
 
 Status LoadInputs(const std::string& model_path, const std::string& measurements_path,
                   const std::string& verify_path, const CsvOptions& csv, double holdout,
-                  uint64_t split_seed, Inputs* in, const UrdfOptions& urdf_options) {
+                  uint64_t split_seed, Inputs* in, const UrdfOptions& urdf_options,
+                  SplitKind split) {
   in->from_urdf = IsUrdfPath(model_path);
   if (Status s = in->from_urdf
                      ? ReadRobotModelUrdf(model_path, &in->nominal, urdf_options, &in->urdf)
@@ -113,7 +114,7 @@ Status LoadInputs(const std::string& model_path, const std::string& measurements
   }
   if (holdout > 0.0) {
     std::vector<int> id_rows, ver_rows;
-    HoldoutSplit(all.size(), holdout, split_seed, &id_rows, &ver_rows);
+    HoldoutSplit(all.size(), holdout, split_seed, &id_rows, &ver_rows, split);
     std::vector<bool> held_out(all.size(), false);
     for (int r : ver_rows) held_out[r] = true;
     all.MoveRowsOut(held_out, &in->verification);
@@ -149,6 +150,9 @@ Status ParseInputFlags(const InputFlags& flags, InputSettings* settings) {
   if (!ParseParameterization(flags.parameterization, &out.parameterization)) {
     return Status::Error("--parameterization must be identifiable or full, got '" +
                          flags.parameterization + "'");
+  }
+  if (!ParseSplitKind(flags.split, &out.split)) {
+    return Status::Error("--split must be random or sequential, got '" + flags.split + "'");
   }
   if (Status s = CheckRange("holdout", flags.holdout, 0.0, 0.95); !s.ok()) return s;
   if (flags.holdout > 0.0 && !flags.verify.empty()) {

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "lpoe/analysis.h"
 #include "lpoe/calibration.h"
 #include "lpoe/io.h"
 #include "lpoe/statistics.h"
@@ -56,11 +57,13 @@ bool ParseAngleUnit(const std::string& text, AngleUnit* unit);
 struct InputFlags {
   std::string angle_unit, length_unit, parameterization, verify;
   double holdout = 0;
+  std::string split = "random";  // --split: random | sequential
 };
 struct InputSettings {
   AngleUnit angle_unit = AngleUnit::kRadians;
   CsvOptions csv;  // angle and length unit of the CSV files
   ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
+  SplitKind split = SplitKind::kRandom;
 };
 Status ParseInputFlags(const InputFlags& flags, InputSettings* settings);
 
@@ -82,7 +85,8 @@ struct Inputs {
 // message of the bad file.
 Status LoadInputs(const std::string& model_path, const std::string& measurements_path,
                   const std::string& verify_path, const CsvOptions& csv, double holdout,
-                  uint64_t split_seed, Inputs* inputs, const UrdfOptions& urdf_options = {});
+                  uint64_t split_seed, Inputs* inputs, const UrdfOptions& urdf_options = {},
+                  SplitKind split = SplitKind::kRandom);
 
 // The input files of a run. With no --measurements, the shipped section-4 data set: the nominal
 // cobot6, its identification rows and (unless a hold-out is asked for) its verification rows.

@@ -7,6 +7,7 @@
 #include <Eigen/SVD>
 #include <glog/logging.h>
 
+#include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
 
 namespace lpoe {

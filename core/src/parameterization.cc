@@ -8,6 +8,8 @@
 #include <Eigen/SVD>
 #include <glog/logging.h>
 
+#include "lpoe/eigen_decompositions.h"
+
 namespace lpoe {
 namespace {
 

@@ -83,6 +83,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   const double holdout = k.Get<double>("holdout", 0.0);
   const int kfold = k.Get<int>("kfold", 0);
   const uint64_t split_seed = k.Get<uint64_t>("split_seed", 1);
+  const std::string split_name = k.Get<std::string>("split", "random");
   const double outlier_threshold = k.Get<double>("outlier_threshold", 5.0);
   const int max_iterations = k.Get<int>("max_iterations", 30);
   const double step_tolerance = k.Get<double>("step_tolerance", 1e-10);
@@ -103,6 +104,10 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
     throw LpoeError("the measurements have a different number of joints than the model");
   }
   if (!(holdout >= 0 && holdout <= 0.95)) throw LpoeError("holdout: expected 0..0.95");
+  SplitKind split = SplitKind::kRandom;
+  if (!ParseSplitKind(split_name, &split)) {
+    throw LpoeError("split: expected 'random' or 'sequential', got '" + split_name + "'");
+  }
   if (holdout > 0 && given_verify != nullptr) {
     throw LpoeError("give either verify= or holdout=, not both");
   }
@@ -110,7 +115,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   MeasurementSet held_data(nominal.num_joints()), held_verify(nominal.num_joints());
   if (holdout > 0) {
     std::vector<int> id_rows, ver_rows;
-    HoldoutSplit(given_data.size(), holdout, split_seed, &id_rows, &ver_rows);
+    HoldoutSplit(given_data.size(), holdout, split_seed, &id_rows, &ver_rows, split);
     held_data = given_data.Subset(id_rows);
     held_verify = given_data.Subset(ver_rows);
     if (Status s = tools::CheckHoldoutSplit(holdout, held_data.size(), held_verify.size());
@@ -152,6 +157,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   o.register_frames = register_frames;
   o.kfold = kfold;
   o.split_seed = split_seed;
+  o.split = split;
   o.outlier_threshold = outlier_threshold;
   o.plausibility.noise_sigma = noise_sigma;
   o.plausibility.joint_values_in_degrees = angle_unit == "deg";
@@ -251,7 +257,7 @@ void BindCalibration(py::module_& m) {
       "  data_kind='auto' | 'position' | 'pose'; joint_errors='none' | 'compliance' | "
       "'harmonics' | 'compliance,harmonics' | 'auto';\n"
       "  register=True; holdout=0.0 (fraction held out, instead of verify); kfold=0; "
-      "split_seed=1;\n"
+      "split='random' | 'sequential'; split_seed=1;\n"
       "  outlier_threshold=5.0; max_iterations=30; step_tolerance=1e-10; sd_fraction=0.01;\n"
       "  max_condition=1e8; noise_sigma=0.03 (mm, plausibility); loss='none' | 'huber' | "
       "'cauchy'; loss_scale=1.0;\n"

@@ -34,6 +34,8 @@ def test_calibrate_default_data(inputs):
     (["--joint_errors=harmonics"], {"joint_errors": "harmonics"}),
     (["--joint_errors=auto"], {"joint_errors": "auto"}),
     (["--holdout=0.25", "--split_seed=4"], {"holdout": 0.25, "split_seed": 4}),
+    (["--holdout=0.25", "--split=sequential", "--joint_errors=auto"],
+     {"holdout": 0.25, "split": "sequential", "joint_errors": "auto"}),
 ])
 def test_same_model_bytes_as_the_tool(inputs, tmp_path, flags, options):
     m, d, v = inputs
@@ -64,6 +66,8 @@ def test_bad_options_raise(inputs):
         lpoe.calibrate(m, d, loss="huber")
     with pytest.raises(lpoe.Error, match="kfold"):
         lpoe.calibrate(m, d, kfold=1)
+    with pytest.raises(lpoe.Error, match="split: expected 'random' or 'sequential', got 'time'"):
+        lpoe.calibrate(m, d, holdout=0.3, split="time")
 
 
 def test_too_few_rows_is_not_identifiable(inputs):

@@ -155,19 +155,49 @@ std::vector<int> Complement(int n, const std::vector<int>& rows) {
   return out;
 }
 
+bool ParseSplitKind(const std::string& text, SplitKind* kind) {
+  if (text == "random") {
+    *kind = SplitKind::kRandom;
+    return true;
+  }
+  if (text == "sequential") {
+    *kind = SplitKind::kSequential;
+    return true;
+  }
+  return false;
+}
+
+const char* SplitKindName(SplitKind kind) {
+  return kind == SplitKind::kSequential ? "sequential" : "random";
+}
+
 void HoldoutSplit(int n, double fraction, uint64_t seed, std::vector<int>* identification,
-                  std::vector<int>* verification) {
-  const std::vector<int> order = ShuffledIndices(n, seed);
+                  std::vector<int>* verification, SplitKind kind) {
   const int held = static_cast<int>(std::lround(fraction * n));
-  verification->assign(order.begin(), order.begin() + held);
-  std::sort(verification->begin(), verification->end());
+  if (kind == SplitKind::kSequential) {
+    verification->resize(held);
+    std::iota(verification->begin(), verification->end(), n - held);
+  } else {
+    const std::vector<int> order = ShuffledIndices(n, seed);
+    verification->assign(order.begin(), order.begin() + held);
+    std::sort(verification->begin(), verification->end());
+  }
   *identification = Complement(n, *verification);
 }
 
-std::vector<std::vector<int>> KFolds(int n, int k, uint64_t seed) {
+std::vector<std::vector<int>> KFolds(int n, int k, uint64_t seed, SplitKind kind) {
   CHECK_GE(k, 2);
-  const std::vector<int> order = ShuffledIndices(n, seed);
   std::vector<std::vector<int>> folds(k);
+  if (kind == SplitKind::kSequential) {
+    // Block f is [f n / k, (f + 1) n / k): sizes differ by at most one, like the random folds.
+    for (int f = 0; f < k; ++f) {
+      const int begin = static_cast<int>(static_cast<int64_t>(f) * n / k);
+      const int end = static_cast<int>(static_cast<int64_t>(f + 1) * n / k);
+      for (int i = begin; i < end; ++i) folds[f].push_back(i);
+    }
+    return folds;
+  }
+  const std::vector<int> order = ShuffledIndices(n, seed);
   for (int i = 0; i < n; ++i) folds[i % k].push_back(order[i]);
   for (auto& f : folds) std::sort(f.begin(), f.end());
   return folds;

@@ -10,6 +10,7 @@
 #include <Eigen/QR>
 #include <glog/logging.h>
 
+#include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
 #include "structural_identifiability.h"
 

@@ -83,7 +83,8 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
   sel.ran = true;
   sel.folds = std::max(2, std::min(options.joint_error_folds, identification.size()));
   sel.seed = options.split_seed;
-  const auto folds = KFolds(identification.size(), sel.folds, sel.seed);
+  sel.split = options.split;
+  const auto folds = KFolds(identification.size(), sel.folds, sel.seed, sel.split);
   // Compliance first: it keeps the combinations both terms could explain (joint_errors.md).
   const std::vector<std::vector<std::string>> sets = {
       {}, {"compliance"}, {"harmonics"}, {"compliance", "harmonics"}};

@@ -13,6 +13,7 @@
 #include <glog/logging.h>
 
 #include "identifiability.h"
+#include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
 #include "structural_identifiability.h"
 

@@ -149,7 +149,7 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
                                    out.identification_after, plausibility);
 
   if (options.kfold >= 2) {
-    const auto folds = KFolds(identification.size(), options.kfold, options.split_seed);
+    const auto folds = KFolds(identification.size(), options.kfold, options.split_seed, options.split);
     std::vector<Eigen::Vector3d> pooled;
     const PipelineOptions& fold_options = chosen;
     for (int f = 0; f < options.kfold; ++f) {

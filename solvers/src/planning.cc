@@ -18,6 +18,7 @@
 
 #include "identifiability.h"
 #include "lpoe/analysis.h"
+#include "lpoe/eigen_decompositions.h"
 #include "lpoe/linear_solver.h"
 #include "lpoe/measurements.h"
 

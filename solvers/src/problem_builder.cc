@@ -12,6 +12,7 @@
 #include "batched_residual.h"
 #include "identifiability.h"
 #include "structural_identifiability.h"
+#include "lpoe/eigen_decompositions.h"
 #include "lpoe/measurement_residual.h"
 #include "normal_equations.h"
 

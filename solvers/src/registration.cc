@@ -10,6 +10,7 @@
 
 #include "identifiability.h"
 
+#include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"
 #include "lpoe/parameterization.h"

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "identifiability.h"
+#include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
 #include "normal_equations.h"
 

@@ -56,13 +56,23 @@ struct Outlier {
 std::vector<Outlier> FindOutliers(const RobotModel& model, const MeasurementSet& data,
                                   double threshold = 5.0, double* robust_sigma = nullptr);
 
-// Seeded random splits (portable: the same everywhere for a seed).
+// How rows are split for verification and cross-validation.
+//   kRandom:     a seeded shuffle (portable: the same everywhere for a seed).
+//   kSequential: contiguous blocks in file order (the held-out fraction is the last rows; fold i is
+//                the i-th block). The honest estimate when the rows were measured one after another
+//                and the cell drifts (temperature, settling): neighbours in time are not held out
+//                together with their twins, as a random split would do.
+enum class SplitKind { kRandom, kSequential };
+bool ParseSplitKind(const std::string& text, SplitKind* kind);  // "random" | "sequential"
+const char* SplitKindName(SplitKind kind);
+
 std::vector<int> ShuffledIndices(int n, uint64_t seed);
 // Rows held out for verification (a fraction of n, rounded) and the rest, both in file order.
 void HoldoutSplit(int n, double fraction, uint64_t seed, std::vector<int>* identification,
-                  std::vector<int>* verification);
-// k folds of a shuffled order; fold i's verification rows, in file order.
-std::vector<std::vector<int>> KFolds(int n, int k, uint64_t seed);
+                  std::vector<int>* verification, SplitKind kind = SplitKind::kRandom);
+// k folds (sizes differ by at most one); fold i's verification rows, in file order.
+std::vector<std::vector<int>> KFolds(int n, int k, uint64_t seed,
+                                     SplitKind kind = SplitKind::kRandom);
 // The complement of `rows` in [0, n).
 std::vector<int> Complement(int n, const std::vector<int>& rows);
 

@@ -44,7 +44,10 @@ struct PipelineOptions {
   bool joint_errors_auto = false;
   int joint_error_folds = 5;
   int kfold = 0;  // >= 2: k-fold cross-validation on the identification rows
+  // The folds of `kfold` and of `joint_errors_auto`: seeded random, or contiguous blocks in row
+  // order (analysis.h, SplitKind).
   uint64_t split_seed = 1;
+  SplitKind split = SplitKind::kRandom;
   double outlier_threshold = 5.0;
   PlausibilityOptions plausibility;
   // Progress: the stage ("calibrating", "fold 2") and each iteration's record.
@@ -77,6 +80,7 @@ struct JointErrorSelection {
   bool ran = false;
   int folds = 0;
   uint64_t seed = 0;
+  SplitKind split = SplitKind::kRandom;
   std::vector<JointErrorCandidate> candidates;  // in order of increasing parameters
   int best = -1;    // lowest cv_mse
   int chosen = -1;  // the simplest within one standard error of the best

@@ -1,0 +1,8 @@
+// The one instantiation of the decompositions declared extern in lpoe/eigen_decompositions.h.
+#include "lpoe/eigen_decompositions.h"
+
+template class Eigen::BDCSVD<Eigen::MatrixXd>;
+template class Eigen::JacobiSVD<Eigen::MatrixXd>;
+template class Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>;
+template class Eigen::ColPivHouseholderQR<Eigen::MatrixXd>;
+template class Eigen::HouseholderQR<Eigen::MatrixXd>;
