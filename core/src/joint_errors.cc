@@ -128,8 +128,12 @@ bool ParseJointErrorList(const std::string& text, std::vector<JointErrorKind>* k
     *error = "'tilt' is listed more than once";
     return false;
   }
-  if (tilts == 1 && (text.back() == ',' || text.front() == ',' || rest == "none")) {
+  if (tilts == 1 && (text.back() == ',' || text.front() == ',')) {
     *error = "not a comma-separated list of compliance, harmonics, tilt";
+    return false;
+  }
+  if (tilts == 1 && (rest.empty() || rest == "none")) {
+    *error = kGravityTiltNeedsCompliance;
     return false;
   }
   std::vector<JointErrorKind> out;
