@@ -198,7 +198,7 @@ struct TiltFixture {
   }
 };
 
-PipelineResult Run(const TiltFixture& f, SolverKind solver, const std::vector<std::string>& terms,
+PipelineResult RunTilt(const TiltFixture& f, SolverKind solver, const std::vector<std::string>& terms,
                    bool register_frames = false) {
   PipelineOptions o;
   o.solver = solver;
@@ -230,7 +230,7 @@ void Print(const std::string& what, const PipelineResult& r) {
 // columns match central differences of Ceres's own residuals.
 TEST(GravityTilt, SolverJacobiansAgreeWithFiniteDifferences) {
   const TiltFixture f(0.3, -0.2, true, 120);
-  const PipelineResult first = Run(f, SolverKind::kLinear, kWithoutTilt);
+  const PipelineResult first = RunTilt(f, SolverKind::kLinear, kWithoutTilt);
   ASSERT_TRUE(first.result.converged()) << first.result.message;
   CalibrationProblemOptions o;
   for (const std::string& name : kWithoutTilt) {
@@ -292,14 +292,15 @@ TEST(GravityTilt, SolverJacobiansAgreeWithFiniteDifferences) {
 
 // Acceptance: a base tilted by 0.3 deg (about x) and -0.2 deg (about y), small-arm compliance and
 // harmonics, 300 poses, noise 0.01 mm. The tilt is recovered within 4 of its standard deviations
-// (about 0.01 deg here, so a recovery error above ~0.04 deg fails), the held-out RMS is not worse
-// than without the tilt, the two solvers agree, and the calibrated model's gravity carries the
-// tilt through a YAML round trip.
+// (the linear solver's a-posteriori ones, about 0.05 deg here and required below the 0.1 deg of the
+// identifiability check, so a recovery error above ~0.2 deg fails), the held-out RMS is not worse
+// than without the tilt, the two solvers agree (tilt within 1e-7 rad, predictions within 1e-6 mm),
+// and the calibrated model carries the tilted gravity.
 TEST(GravityTilt, RecoveredFromSimulationAndSolversAgree) {
   const TiltFixture f(0.3, -0.2);
-  const PipelineResult without = Run(f, SolverKind::kLinear, kWithoutTilt);
-  const PipelineResult with = Run(f, SolverKind::kLinear, kWithTilt);
-  const PipelineResult ceres = Run(f, SolverKind::kCeres, kWithTilt);
+  const PipelineResult without = RunTilt(f, SolverKind::kLinear, kWithoutTilt);
+  const PipelineResult with = RunTilt(f, SolverKind::kLinear, kWithTilt);
+  const PipelineResult ceres = RunTilt(f, SolverKind::kCeres, kWithTilt);
   ASSERT_TRUE(without.result.converged()) << without.result.message;
   ASSERT_TRUE(with.result.converged()) << with.result.message;
   ASSERT_TRUE(ceres.result.converged()) << ceres.result.message;
@@ -311,7 +312,7 @@ TEST(GravityTilt, RecoveredFromSimulationAndSolversAgree) {
   ASSERT_TRUE(t.identified) << t.message;
   for (int a = 0; a < 2; ++a) {
     EXPECT_GT(t.standard_deviation(a), 0);
-    EXPECT_LT(t.standard_deviation(a), 0.05 * kDeg);
+    EXPECT_LT(t.standard_deviation(a), 0.1 * kDeg);
     EXPECT_LT(std::abs(t.tilt(a) - f.true_tilt(a)), 4 * t.standard_deviation(a))
         << "tilt " << a << ": " << t.tilt(a) / kDeg << " deg, true " << f.true_tilt(a) / kDeg;
     // The check before solving predicted this standard deviation (same data, same noise level).
@@ -340,8 +341,8 @@ TEST(GravityTilt, RecoveredFromSimulationAndSolversAgree) {
 // With a tilt of 1 deg, identifying it beats keeping the model's gravity on held-out data.
 TEST(GravityTilt, LargeTiltImprovesTheHeldOutError) {
   const TiltFixture f(1.0, 0.5);
-  const PipelineResult without = Run(f, SolverKind::kLinear, kWithoutTilt);
-  const PipelineResult with = Run(f, SolverKind::kLinear, kWithTilt);
+  const PipelineResult without = RunTilt(f, SolverKind::kLinear, kWithoutTilt);
+  const PipelineResult with = RunTilt(f, SolverKind::kLinear, kWithTilt);
   ASSERT_TRUE(without.result.converged()) << without.result.message;
   ASSERT_TRUE(with.result.converged()) << with.result.message;
   Print("1/0.5 deg, no tilt identified", without);
@@ -354,7 +355,7 @@ TEST(GravityTilt, LargeTiltImprovesTheHeldOutError) {
 // deviations), and the base-level data are reproduced as well as without it.
 TEST(GravityTilt, ConsistentWithZeroWithoutTilt) {
   const TiltFixture f(0, 0);
-  const PipelineResult with = Run(f, SolverKind::kLinear, kWithTilt);
+  const PipelineResult with = RunTilt(f, SolverKind::kLinear, kWithTilt);
   ASSERT_TRUE(with.result.converged()) << with.result.message;
   Print("level base, with tilt", with);
   const GravityTiltResult& t = with.result.gravity_tilt;
@@ -369,7 +370,7 @@ TEST(GravityTilt, ConsistentWithZeroWithoutTilt) {
 // so, and the model keeps its gravity.
 TEST(GravityTilt, NotIdentifiableWithoutComplianceTorques) {
   const TiltFixture f(0.3, 0, false);
-  const PipelineResult r = Run(f, SolverKind::kLinear, {"compliance", "tilt"});
+  const PipelineResult r = RunTilt(f, SolverKind::kLinear, {"compliance", "tilt"});
   ASSERT_TRUE(r.result.converged()) << r.result.message;
   const GravityTiltResult& t = r.result.gravity_tilt;
   EXPECT_TRUE(t.requested);
@@ -451,7 +452,7 @@ TEST(GravityTilt, RejectedWithoutCompliance) {
   EXPECT_FALSE(ParseJointErrorList("compliance,tlit", &kinds, &tilt, &error));
 
   const TiltFixture f(0.3, 0, true, 60);
-  const PipelineResult r = Run(f, SolverKind::kLinear, {"harmonics", "tilt"});
+  const PipelineResult r = RunTilt(f, SolverKind::kLinear, {"harmonics", "tilt"});
   EXPECT_EQ(r.result.termination, Termination::kNotIdentifiable);
   EXPECT_EQ(r.result.message, kGravityTiltNeedsCompliance);
 }
