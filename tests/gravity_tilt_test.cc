@@ -430,6 +430,41 @@ TEST(GravityTilt, YamlRoundTripReproducesPredictions) {
   }
 }
 
+// auto: the tilt joins the compliance candidates when the identification rows determine it (a base
+// tilted by 1 deg), and not without compliance torques in the data, which the selection says.
+TEST(GravityTilt, AutoAddsTiltCandidatesOnlyWhenIdentifiable) {
+  auto labels = [](const PipelineResult& r) {
+    std::vector<std::string> out;
+    for (const JointErrorCandidate& c : r.joint_error_selection.candidates) out.push_back(c.label);
+    return out;
+  };
+  PipelineOptions o;
+  o.register_frames = false;
+  o.joint_errors_auto = true;
+  const TiltFixture tilted(1.0, 0.5);
+  const PipelineResult a =
+      RunCalibrationPipeline(tilted.nominal, tilted.identification, tilted.verification, o);
+  ASSERT_TRUE(a.result.converged()) << a.result.message;
+  const std::vector<std::string> with = labels(a);
+  EXPECT_TRUE(a.joint_error_selection.tilt_candidates) << a.joint_error_selection.tilt_message;
+  EXPECT_NE(std::find(with.begin(), with.end(), "compliance,tilt"), with.end());
+  EXPECT_NE(std::find(with.begin(), with.end(), "compliance,harmonics,tilt"), with.end());
+  const JointErrorSelection& sel = a.joint_error_selection;
+  std::cout << "auto on a 1 deg tilt chose " << sel.candidates[sel.chosen].label << " ("
+            << sel.reason << ")\n";
+  const TiltFixture level(0.3, 0, false);
+  const PipelineResult b =
+      RunCalibrationPipeline(level.nominal, level.identification, level.verification, o);
+  ASSERT_TRUE(b.result.converged()) << b.result.message;
+  const std::vector<std::string> without = labels(b);
+  EXPECT_FALSE(b.joint_error_selection.tilt_candidates);
+  EXPECT_EQ(without.size(), 4u);
+  EXPECT_NE(b.joint_error_selection.tilt_message.find(
+                "gravity tilt not identifiable from these data; kept at the model's gravity"),
+            std::string::npos)
+      << b.joint_error_selection.tilt_message;
+}
+
 // Bad use: the tilt without compliance.
 TEST(GravityTilt, RejectedWithoutCompliance) {
   std::vector<JointErrorKind> kinds;
