@@ -90,10 +90,11 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
       {}, {"compliance"}, {"harmonics"}, {"compliance", "harmonics"}};
   {
     // The gravity tilt joins the compliance candidates only when these rows determine it (its
-    // check at the compliance solution of all identification rows).
+    // check at the compliance + harmonics solution of all identification rows: the fullest model,
+    // whose residuals estimate the noise best).
     if (options.on_stage) options.on_stage("checking the gravity tilt");
     PipelineOptions check = options;
-    check.joint_errors = {"compliance", kGravityTiltName};
+    check.joint_errors = {"compliance", "harmonics", kGravityTiltName};
     check.joint_errors_auto = false;
     const CalibrationResult r = SolveCalibration(nominal, identification, check,
                                                  "auto gravity tilt check", nullptr, nullptr,
