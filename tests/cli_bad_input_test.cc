@@ -297,6 +297,9 @@ INSTANTIATE_TEST_SUITE_P(
         FlagCase{"verify_and_holdout",
                  {"--verify=" + kGoodVerification, "--holdout=0.3"},
                  {"--verify", "--holdout"}},
+        FlagCase{"tilt_without_compliance",
+                 {"--joint_errors=harmonics,tilt"},
+                 {"--joint_errors", "tilt", "needs it in the list, e.g. compliance,tilt"}},
         FlagCase{"unknown_flag", {"--no_such_flag=1"}, {"no_such_flag"}}));
 
 // ---- Warnings about what the readers dropped or suspect (issues 13 and 14).

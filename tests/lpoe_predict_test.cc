@@ -93,6 +93,28 @@ TEST_F(LpoePredict, ActualModelPredictsItsNoiseFreeData) {
   }
 }
 
+// --gravity_tilt_deg tilts the actual robot's gravity by the angles calibration reports (about x
+// and y for gravity along -z); with --gravity_tilt, or out of range, it is refused.
+TEST_F(LpoePredict, SimulatorGravityTiltInDegrees) {
+  std::string out;
+  const std::string base = std::string(LPOE_SIMULATE_PATH) + " --count=5 --out=" +
+                           Path("tilt.csv") + " --actual_out=" + Path("tilted.yaml");
+  ASSERT_EQ(RunCapture(base + " --gravity_tilt_deg=0.3,-0.1", &out), kExitOk) << out;
+  RobotModel actual;
+  ASSERT_TRUE(ReadRobotModel(Path("tilted.yaml"), &actual).ok());
+  const Eigen::Vector3d level(0, 0, -kStandardGravity);
+  const Eigen::Vector2d t = GravityTiltBetween(level, actual.gravity);
+  EXPECT_NEAR(t(0) * 180 / M_PI, 0.3, 1e-9);
+  EXPECT_NEAR(t(1) * 180 / M_PI, -0.1, 1e-9);
+  EXPECT_NEAR(actual.gravity.norm(), kStandardGravity, 1e-12);
+  for (const std::string bad : {"--gravity_tilt_deg=0.3", "--gravity_tilt_deg=9,0",
+                                "--gravity_tilt_deg=0.3,0.1 --gravity_tilt=0.01"}) {
+    out.clear();
+    EXPECT_EQ(RunCapture(base + " " + bad, &out), kExitUsage) << bad;
+    EXPECT_NE(out.find("--gravity_tilt"), std::string::npos) << out;
+  }
+}
+
 TEST_F(LpoePredict, ToolFlagAndTargetColumn) {
   Simulate("");
   std::ofstream(Path("joints.csv")) << "# comment\nextra,Q2,q1,q3,q4,q5,q6,target\n"

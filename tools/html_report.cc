@@ -392,6 +392,20 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
   const Json& je = j["joint_errors"];
   if (!je["terms"].empty() || !je["selection"].is_null()) {
     h += "<h2>Joint errors</h2>\n";
+    const Json& tilt = je["gravity_tilt"];
+    if (!tilt.is_null()) {
+      if (tilt["identified"].get<bool>()) {
+        h += "<p>Gravity tilt: " + Fmt("%.4f", tilt["tilt_deg"][0].get<double>()) + " &plusmn; " +
+             Fmt("%.4f", tilt["std_dev_deg"][0].get<double>()) + " deg and " +
+             Fmt("%.4f", tilt["tilt_deg"][1].get<double>()) + " &plusmn; " +
+             Fmt("%.4f", tilt["std_dev_deg"][1].get<double>()) +
+             " deg about the two axes perpendicular to the model's gravity (" +
+             Fmt("%.4f", tilt["angle_deg"].get<double>()) +
+             " deg in all); the calibrated model carries the tilted gravity.</p>\n";
+      } else {
+        h += "<p>" + Esc(Str(tilt["message"])) + ".</p>\n";
+      }
+    }
     for (const Json& t : je["terms"]) {
       h += "<p>" + Esc(Str(t["name"])) + ": " + Str(t["parameters"]) + " parameters, " +
            Str(t["identified_combinations"]) + " identifiable combinations (" +

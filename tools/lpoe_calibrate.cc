@@ -74,9 +74,12 @@ DEFINE_string(solver, "linear",
 DEFINE_string(joint_errors, "none",
               "Joint-space error terms identified with the geometry: none | compliance | harmonics "
               "| compliance,harmonics | auto (gravity and payload from the model; the identified "
-              "values are written to the model's joint_errors). auto: k-fold cross-validation on "
-              "the identification rows (--kfold folds, 5 when not given; --split_seed) picks the "
-              "simplest set within one standard error of the lowest held-out error "
+              "values are written to the model's joint_errors). Add tilt to a list with compliance "
+              "(compliance,tilt) to identify the tilt of the model's gravity too, when the data "
+              "determine it (the tilted gravity goes into the calibrated model). auto: k-fold "
+              "cross-validation on the identification rows (--kfold folds, 5 when not given; "
+              "--split_seed) picks the simplest set within one standard error of the lowest "
+              "held-out error, with the tilt among the candidates when identifiable "
               "(docs/joint_errors.md).");
 DEFINE_string(loss, "none",
               "Ceres solver: robust loss against gross errors in the data: none | huber | cauchy.");
@@ -152,13 +155,15 @@ PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_ori
   std::vector<JointErrorKind> kinds;
   o.joint_errors_auto = FLAGS_joint_errors == "auto";
   o.joint_error_folds = FLAGS_kfold >= 2 ? FLAGS_kfold : 5;
-  if (ParseJointErrorKinds(FLAGS_joint_errors, &kinds)) {
+  bool tilt = false;
+  if (std::string error; ParseJointErrorList(FLAGS_joint_errors, &kinds, &tilt, &error)) {
     // Compliance first (docs/joint_errors.md): it keeps the combinations both terms could explain.
     for (JointErrorKind k : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
       if (std::find(kinds.begin(), kinds.end(), k) != kinds.end()) {
         o.joint_errors.push_back(JointErrorKindName(k));
       }
     }
+    if (tilt) o.joint_errors.push_back(kGravityTiltName);
   }
   o.kfold = FLAGS_kfold;
   o.split_seed = FLAGS_split_seed;
@@ -280,12 +285,15 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  if (std::vector<JointErrorKind> kinds;
-      FLAGS_joint_errors != "auto" && !ParseJointErrorKinds(FLAGS_joint_errors, &kinds)) {
-    std::cerr << "error: --joint_errors must be none, compliance, harmonics, "
-                 "compliance,harmonics or auto, got '"
-              << FLAGS_joint_errors << "'\n";
-    return kExitUsage;
+  if (std::vector<JointErrorKind> kinds; FLAGS_joint_errors != "auto") {
+    bool tilt = false;
+    std::string error;
+    if (!ParseJointErrorList(FLAGS_joint_errors, &kinds, &tilt, &error)) {
+      std::cerr << "error: --joint_errors='" << FLAGS_joint_errors << "': " << error
+                << " (expected none, compliance, harmonics, compliance,harmonics, with tilt after "
+                   "compliance (compliance,tilt), or auto)\n";
+      return kExitUsage;
+    }
   }
   if (FLAGS_solver == "linear" && FLAGS_loss != "none") {
     std::cerr << "error: --loss needs --solver=ceres (the linear solver is plain least squares)\n";
@@ -428,6 +436,7 @@ int Run() {
   }
   PrintIdentifiability(summary.identifiability);
   std::cout << tools::JointTermsIdentifiability(result);
+  std::cerr << tools::GravityTiltSummary(result.gravity_tilt);
   std::cout << "\n";
   tools::PrintIterationTable(std::cout, result);
   std::cout << "\n";

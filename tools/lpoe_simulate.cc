@@ -72,6 +72,11 @@ DEFINE_string(payload_com, "0,0,0", "Payload centre of mass x,y,z (mm, last join
 DEFINE_double(gravity_tilt, 0.0,
               "Tilt of the actual robot's base about the base x axis (rad): its gravity vector is "
               "turned by this angle while the nominal model keeps gravity along -z.");
+DEFINE_string(gravity_tilt_deg, "",
+              "Tilt of the actual robot's gravity as t1,t2 (degrees) about the two axes "
+              "perpendicular to the nominal gravity that lpoe_calibrate --joint_errors=...,tilt "
+              "reports (x and y of the base for gravity along -z), e.g. 0.3,0.1. Not with "
+              "--gravity_tilt.");
 DEFINE_string(out, "", "Measurement CSV to write (required).");
 DEFINE_string(verify_out, "", "Verification CSV (the last --verify_count rows).");
 DEFINE_string(model_out, "", "Write the nominal model here (YAML).");
@@ -240,11 +245,29 @@ int Run() {
     std::cerr << "error: --gravity_tilt must be within [-0.1, 0.1] rad\n";
     return kExitUsage;
   }
+  std::vector<double> tilt_deg;
+  if (!FLAGS_gravity_tilt_deg.empty()) {
+    if (!ParseNumberList(FLAGS_gravity_tilt_deg, &tilt_deg) || tilt_deg.size() != 2 ||
+        !(std::abs(tilt_deg[0]) <= 5.0 && std::abs(tilt_deg[1]) <= 5.0)) {
+      std::cerr << "error: --gravity_tilt_deg must be two angles t1,t2 within [-5, 5] degrees, "
+                   "got '"
+                << FLAGS_gravity_tilt_deg << "'\n";
+      return kExitUsage;
+    }
+    if (FLAGS_gravity_tilt != 0) {
+      std::cerr << "error: give --gravity_tilt (rad, about x) or --gravity_tilt_deg, not both\n";
+      return kExitUsage;
+    }
+  }
   nominal.payload.mass = FLAGS_payload_mass;
   nominal.payload.com = Eigen::Vector3d(com[0], com[1], com[2]);
 
   RobotModel actual = ApplyErrors(nominal, errors);
   actual.gravity = ExpSO3(Eigen::Vector3d(FLAGS_gravity_tilt, 0, 0)) * nominal.gravity;
+  if (!tilt_deg.empty()) {
+    const double t[2] = {tilt_deg[0] * M_PI / 180.0, tilt_deg[1] * M_PI / 180.0};
+    actual.gravity = TiltedGravity<double>(nominal.gravity, t);
+  }
   const auto has = [&](JointErrorKind kind) {
     return std::find(joint_error_kinds.begin(), joint_error_kinds.end(), kind) !=
            joint_error_kinds.end();

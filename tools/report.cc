@@ -73,6 +73,32 @@ const SE3d& FrameOrigin(const RobotModel& m, int f) {
 
 Json BuildJson(const RunSummary& s);
 
+constexpr double kDegrees = 180.0 / M_PI;
+
+Json Vector3Json(const Eigen::Vector3d& v) { return Json::array({v(0), v(1), v(2)}); }
+
+// The gravity tilt (docs/joint_errors.md, "Gravity tilt"): null unless asked for.
+Json GravityTiltJson(const GravityTiltResult& t) {
+  if (!t.requested) return nullptr;
+  const double finite_sd0 = std::isfinite(t.predicted_standard_deviation(0))
+                                ? t.predicted_standard_deviation(0) * kDegrees
+                                : -1.0;
+  const double finite_sd1 = std::isfinite(t.predicted_standard_deviation(1))
+                                ? t.predicted_standard_deviation(1) * kDegrees
+                                : -1.0;
+  return {{"identified", t.identified},
+          {"tilt_deg", Json::array({t.tilt(0) * kDegrees, t.tilt(1) * kDegrees})},
+          {"std_dev_deg", Json::array({t.standard_deviation(0) * kDegrees,
+                                       t.standard_deviation(1) * kDegrees})},
+          {"angle_deg", t.tilt.norm() * kDegrees},
+          {"axes", Json::array({Vector3Json(t.axes.col(0)), Vector3Json(t.axes.col(1))})},
+          {"gravity_before", Vector3Json(t.gravity_before)},
+          {"gravity_after", Vector3Json(t.gravity_after)},
+          {"kept_fraction", t.kept_fraction},
+          {"predicted_std_dev_deg", Json::array({finite_sd0, finite_sd1})},
+          {"message", t.message}};
+}
+
 // The joint-error terms: what was asked, the auto choice, and each term's identifiable combinations.
 Json JointErrorsJson(const RunSummary& s) {
   Json terms = Json::array();
@@ -89,6 +115,7 @@ Json JointErrorsJson(const RunSummary& s) {
                      {"not_identifiable", lost}});
   }
   Json j = {{"requested", s.joint_errors_requested}, {"terms", terms}};
+  j["gravity_tilt"] = GravityTiltJson(s.result.gravity_tilt);
   const JointErrorSelection& sel = s.joint_error_selection;
   if (!sel.ran) {
     j["selection"] = nullptr;
@@ -111,7 +138,9 @@ Json JointErrorsJson(const RunSummary& s) {
                     {"candidates", candidates},
                     {"best", sel.candidates[sel.best < 0 ? sel.chosen : sel.best].label},
                     {"chosen", sel.candidates[sel.chosen].label},
-                    {"reason", sel.reason}};
+                    {"reason", sel.reason},
+                    {"tilt_candidates", sel.tilt_candidates},
+                    {"tilt_message", sel.tilt_message}};
   return j;
 }
 
@@ -150,23 +179,40 @@ std::string JointErrorSelectionTable(const JointErrorSelection& sel) {
                          ? std::string("contiguous folds")
                          : "seed " + std::to_string(sel.seed)) +
                     "), held-out position error\n" +
-                    "  terms                  combinations   CV rms (mm)   CV mse (mm^2)   "
+                    "  terms                     combinations   CV rms (mm)   CV mse (mm^2)   "
                     "std error\n";
   char line[256];
   for (size_t k = 0; k < sel.candidates.size(); ++k) {
     const JointErrorCandidate& c = sel.candidates[k];
     if (!c.ok) {
-      std::snprintf(line, sizeof(line), "  %-22s %12d   FAILED: %s\n", c.label.c_str(),
+      std::snprintf(line, sizeof(line), "  %-25s %12d   FAILED: %s\n", c.label.c_str(),
                     c.parameters, c.failure.c_str());
     } else {
-      std::snprintf(line, sizeof(line), "  %-22s %12d   %11.5f   %13.6g   %9.3g%s\n",
+      std::snprintf(line, sizeof(line), "  %-25s %12d   %11.5f   %13.6g   %9.3g%s\n",
                     c.label.c_str(), c.parameters, c.cv_rms, c.cv_mse, c.cv_mse_se,
                     static_cast<int>(k) == sel.chosen ? "   <- chosen" : "");
     }
     out += line;
   }
   out += "  " + sel.reason + "\n";
+  if (!sel.tilt_candidates && !sel.tilt_message.empty()) out += "  " + sel.tilt_message + "\n";
   return out;
+}
+
+std::string GravityTiltSummary(const GravityTiltResult& t) {
+  if (!t.requested) return "";
+  if (!t.identified) return t.message + "\n";
+  char line[512];
+  std::snprintf(line, sizeof(line),
+                "gravity tilt: t1 = %.4f +- %.4f deg about (%.3f, %.3f, %.3f), t2 = %.4f +- %.4f deg "
+                "about (%.3f, %.3f, %.3f) of the model's base; %.4f deg in all; gravity now "
+                "[%.6g, %.6g, %.6g]\n",
+                t.tilt(0) * kDegrees, t.standard_deviation(0) * kDegrees, t.axes(0, 0),
+                t.axes(1, 0), t.axes(2, 0), t.tilt(1) * kDegrees,
+                t.standard_deviation(1) * kDegrees, t.axes(0, 1), t.axes(1, 1), t.axes(2, 1),
+                t.tilt.norm() * kDegrees, t.gravity_after(0), t.gravity_after(1),
+                t.gravity_after(2));
+  return line;
 }
 
 std::string JointErrorTermNames(const RobotModel& model) {
@@ -407,7 +453,10 @@ Json BuildJson(const RunSummary& s) {
   const int num_frames = s.before_model.num_joints() + s.before_model.num_tools();
   for (size_t k = 0; k < par.parameters.size(); ++k) {
     const Direction& d = par.parameters[k];
-    if (d.frame >= num_frames || d.frame >= model.num_joints() + model.num_tools()) continue;
+    if (d.frame < 0 || d.frame >= num_frames ||
+        d.frame >= model.num_joints() + model.num_tools()) {
+      continue;  // joint-space parameters and the gravity tilt: not a frame
+    }
     const Vector6d dp =
         LogSE3(FrameOrigin(s.before_model, d.frame).Inverse() * FrameOrigin(model, d.frame));
     int dominant = 0;

@@ -81,6 +81,9 @@ void AddPointResiduals(const RobotModel& before, const RobotModel& after,
 std::string JointErrorSelectionTable(const JointErrorSelection& selection);
 // "compliance, harmonics": the joint-error terms a model carries ("" when none).
 std::string JointErrorTermNames(const RobotModel& model);
+// The gravity tilt in degrees with its standard deviations, or why it was not identified (one
+// line; empty when not asked for).
+std::string GravityTiltSummary(const GravityTiltResult& tilt);
 // One line per joint-space term of a calibration: parameters and identified combinations ("" when
 // there are none).
 std::string JointTermsIdentifiability(const CalibrationResult& result);

@@ -113,6 +113,45 @@ bool ParseJointErrorKinds(const std::string& text, std::vector<JointErrorKind>* 
   return true;
 }
 
+bool ParseJointErrorList(const std::string& text, std::vector<JointErrorKind>* kinds, bool* tilt,
+                         std::string* error) {
+  std::stringstream ss(text);
+  std::string item, rest;
+  int tilts = 0;
+  while (std::getline(ss, item, ',')) {
+    if (item == kGravityTiltName) {
+      ++tilts;
+      continue;
+    }
+    rest += (rest.empty() ? "" : ",") + item;
+  }
+  if (tilts > 1) {
+    *error = "'tilt' is listed more than once";
+    return false;
+  }
+  if (tilts == 1 && (text.back() == ',' || text.front() == ',')) {
+    *error = "not a comma-separated list of compliance, harmonics, tilt";
+    return false;
+  }
+  if (tilts == 1 && (rest.empty() || rest == "none")) {
+    *error = kGravityTiltNeedsCompliance;
+    return false;
+  }
+  std::vector<JointErrorKind> out;
+  if ((tilts == 0 || !rest.empty()) && !ParseJointErrorKinds(rest, &out)) {
+    *error = "not a comma-separated list of compliance, harmonics, tilt";
+    return false;
+  }
+  if (tilts == 1 &&
+      std::find(out.begin(), out.end(), JointErrorKind::kCompliance) == out.end()) {
+    *error = kGravityTiltNeedsCompliance;
+    return false;
+  }
+  *kinds = out;
+  *tilt = tilts == 1;
+  return true;
+}
+
 int NumComplianceParameters(int num_joints) {
   // sum_{j<n} 4 (n - j) + 1 = 2 n (n + 1) + n.
   return 2 * num_joints * (num_joints + 1) + num_joints;
@@ -215,6 +254,66 @@ void ComplianceRegressorGravityAxes(const RobotModel& model, const double* q,
   for (int a = 0; a < 3; ++a) {
     ComplianceRegressorFor(model, state, Eigen::Vector3d::Unit(a), &Y[a]);
   }
+}
+
+Eigen::Matrix<double, 3, 2> GravityTiltAxes(const Eigen::Vector3d& gravity) {
+  Eigen::Matrix<double, 3, 2> axes = Eigen::Matrix<double, 3, 2>::Zero();
+  const double norm = gravity.norm();
+  if (!(norm > 0)) return axes;
+  const Eigen::Vector3d d = gravity / norm;
+  int least = 0;  // the base axis least aligned with gravity (the first on ties: x for -z)
+  for (int a = 1; a < 3; ++a) {
+    if (std::abs(d(a)) < std::abs(d(least)) - 1e-12) least = a;
+  }
+  Eigen::Vector3d u1 = Eigen::Vector3d::Unit(least) - d(least) * d;
+  u1.normalize();
+  axes.col(0) = u1;
+  axes.col(1) = u1.cross(d);
+  return axes;
+}
+
+Eigen::Matrix<double, 3, 2> TiltedGravityJacobian(const Eigen::Vector3d& gravity,
+                                                  const Eigen::Matrix<double, 3, 2>& axes,
+                                                  const double* tilt) {
+  // exp(w + e) g = exp(w) exp(J_r(w) e) g ~ exp(w) g - exp(w) [g]^ J_r(w) e,
+  // J_r(w) = I - B w^ + C w^2 (Rodrigues coefficients).
+  const Eigen::Vector3d w = axes.col(0) * tilt[0] + axes.col(1) * tilt[1];
+  double a, b, c;
+  RodriguesCoefficients<double>(w.squaredNorm(), &a, &b, &c);
+  const Eigen::Matrix3d W = Hat3(w);
+  const Eigen::Matrix3d J_r = Eigen::Matrix3d::Identity() - b * W + c * (W * W);
+  return -ExpSO3(w) * Hat3(gravity) * J_r * axes;
+}
+
+Eigen::Vector2d GravityTiltBetween(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  const Eigen::Matrix<double, 3, 2> axes = GravityTiltAxes(from);
+  const Eigen::Vector3d a = from.normalized(), b = to.normalized();
+  const Eigen::Vector3d axis = a.cross(b);
+  const double s = axis.norm();
+  if (!(s > 0)) return Eigen::Vector2d::Zero();
+  const Eigen::Vector3d w = axis / s * std::atan2(s, a.dot(b));  // the shortest turn, about a
+  return axes.transpose() * w;  // w is perpendicular to `from`, i.e. in the span of the axes
+}
+
+GravityTiltModel::GravityTiltModel(const RobotModel& reference)
+    : reference_(reference), axes_(GravityTiltAxes(reference.gravity)) {}
+
+void GravityTiltModel::AxisRegressors(const double* q, Eigen::MatrixXd Y[3]) const {
+  ComplianceRegressorGravityAxes(reference_, q, Y);
+}
+
+void GravityTiltJointColumns(const Eigen::Vector3d& gravity,
+                             const Eigen::Matrix<double, 3, 2>& axes, const double* tilt,
+                             const Eigen::MatrixXd Z[3], const double* x, Eigen::VectorXd* ddq,
+                             Eigen::MatrixXd* dR, Eigen::MatrixXd* D) {
+  const Eigen::Vector3d dg = TiltedGravity<double>(gravity, axes, tilt) - gravity;
+  const Eigen::Index n = Z[0].rows(), k = Z[0].cols();
+  const Eigen::Map<const Eigen::VectorXd> xv(x, k);
+  Eigen::MatrixXd Zx(n, 3);  // Z[a] x
+  for (int a = 0; a < 3; ++a) Zx.col(a).noalias() = Z[a] * xv;
+  if (ddq != nullptr) *ddq = Zx * dg;
+  if (dR != nullptr) *dR = dg(0) * Z[0] + dg(1) * Z[1] + dg(2) * Z[2];
+  if (D != nullptr) *D = Zx * TiltedGravityJacobian(gravity, axes, tilt);
 }
 
 void HarmonicsRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y) {

@@ -9,6 +9,7 @@
 #include <glog/logging.h>
 
 #include "lpoe/eigen_decompositions.h"
+#include "lpoe/joint_errors.h"
 
 namespace lpoe {
 namespace {
@@ -167,6 +168,17 @@ void RenumberJointBlocks(Parameterization* p) {
       p->parameters.push_back(JointDirection(*p, static_cast<int>(b), block.basis.col(c)));
     }
   }
+  if (p->gravity_tilt) {
+    p->tilt_offset = p->num_parameters;
+    p->num_parameters += 2;
+    for (int a = 0; a < 2; ++a) {
+      Direction d;
+      d.frame = -1;
+      d.joint_block = -1;
+      d.name = "gravity.tilt" + std::to_string(a + 1);
+      p->parameters.push_back(d);
+    }
+  }
 }
 
 }  // namespace
@@ -198,8 +210,18 @@ void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& 
   RenumberJointBlocks(p);
 }
 
+void AddGravityTilt(std::shared_ptr<const GravityTiltModel> tilt, int block, Parameterization* p) {
+  CHECK(tilt != nullptr);
+  CHECK(block >= 0 && block < static_cast<int>(p->joint_blocks.size()));
+  p->gravity_tilt = std::move(tilt);
+  p->tilt_block = block;
+  RenumberJointBlocks(p);
+}
+
 void CopyJointBlocks(const Parameterization& from, Parameterization* to) {
   to->joint_blocks = from.joint_blocks;
+  to->gravity_tilt = from.gravity_tilt;
+  to->tilt_block = from.tilt_block;
   std::vector<Direction> lost;
   for (const Direction& d : to->unidentifiable) {
     if (d.joint_block < 0) lost.push_back(d);
@@ -220,7 +242,22 @@ std::vector<JointTermValues> JointValuesOf(const Parameterization& p, const Eige
     v.theta = block.basis * x.segment(block.offset, block.basis.cols());
     out.push_back(std::move(v));
   }
+  if (p.gravity_tilt) {
+    RobotModel tilted = p.gravity_tilt->reference();
+    const Eigen::Vector2d t = GravityTiltOf(p, x);
+    tilted.gravity = p.gravity_tilt->Tilted(t.data());
+    std::shared_ptr<const JointTerm> term;
+    const Status s = MakeJointTerm(out[p.tilt_block].term->name(), tilted, &term);
+    CHECK(s.ok()) << s.message();
+    out[p.tilt_block].term = std::move(term);
+  }
   return out;
+}
+
+Eigen::Vector2d GravityTiltOf(const Parameterization& p, const Eigen::VectorXd& x) {
+  if (!p.gravity_tilt) return Eigen::Vector2d::Zero();
+  CHECK_EQ(x.size(), p.num_parameters);
+  return x.segment<2>(p.tilt_offset);
 }
 
 void ApplyUpdate(const Parameterization& p, const Eigen::VectorXd& x, RobotModel* model) {

@@ -137,7 +137,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   // lpoe_calibrate --joint_errors.
   o.joint_errors_auto = joint_errors == "auto";
   o.joint_error_folds = kfold >= 2 ? kfold : 5;
-  if (!o.joint_errors_auto) o.joint_errors = JointErrorNames(joint_errors);
+  if (!o.joint_errors_auto) o.joint_errors = JointErrorNames(joint_errors, true);
   if (angle_unit != "rad" && angle_unit != "deg") {
     throw LpoeError("angle_unit: expected 'rad' or 'deg', got '" + angle_unit + "'");
   }

@@ -77,9 +77,16 @@ bool ParseDataKindOption(const std::string& text, const MeasurementSet& data) {
   throw LpoeError("data_kind: expected 'auto', 'position' or 'pose', got '" + text + "'");
 }
 
-std::vector<std::string> JointErrorNames(const std::string& text) {
+std::vector<std::string> JointErrorNames(const std::string& text, bool allow_tilt) {
   std::vector<JointErrorKind> kinds;
-  if (!ParseJointErrorKinds(text, &kinds)) {
+  bool tilt = false;
+  std::string error;
+  if (allow_tilt && !ParseJointErrorList(text, &kinds, &tilt, &error)) {
+    throw LpoeError("joint_errors: '" + text + "': " + error +
+                    " (expected none, compliance, harmonics, compliance,harmonics, with tilt after "
+                    "compliance, or auto)");
+  }
+  if (!allow_tilt && !ParseJointErrorKinds(text, &kinds)) {
     throw LpoeError("joint_errors: expected none, compliance, harmonics, compliance,harmonics "
                     "(or auto where the tool accepts it), got '" + text + "'");
   }
@@ -90,6 +97,7 @@ std::vector<std::string> JointErrorNames(const std::string& text) {
       names.push_back(JointErrorKindName(k));
     }
   }
+  if (tilt) names.push_back(kGravityTiltName);
   return names;
 }
 

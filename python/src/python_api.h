@@ -48,7 +48,8 @@ Status WriteAnyRobotModel(const std::string& path, const RobotModel& model);
 // compliance first); a tool by index or name.
 ParameterizationKind ParseParameterizationOption(const std::string& text);
 bool ParseDataKindOption(const std::string& text, const MeasurementSet& data);
-std::vector<std::string> JointErrorNames(const std::string& text);
+// `allow_tilt`: the gravity tilt ("compliance,tilt") is accepted and listed last as "tilt".
+std::vector<std::string> JointErrorNames(const std::string& text, bool allow_tilt = false);
 int ToolIndexOf(const RobotModel& model, const pybind11::object& tool);
 
 // Tool positions (mm) of `rows` configurations stored row-major in `q` (num_joints each) into

@@ -11,6 +11,7 @@
 #include <ceres/ceres.h>
 #include <glog/logging.h>
 
+#include "gravity_tilt.h"
 #include "lpoe/problem_builder.h"
 
 namespace lpoe {
@@ -31,6 +32,8 @@ CalibrationProblemOptions ProblemOptions(const CeresSolverOptions& options) {
   o.loss_scale = options.loss_scale;
   o.joint_terms = options.joint_terms;
   o.joint_term_tolerance = options.joint_term_tolerance;
+  o.gravity_tilt = options.gravity_tilt;
+  o.initial_joint_terms = options.initial_joint_terms;
   o.structure_reference = options.structure_reference;
   return o;
 }
@@ -178,6 +181,9 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
       : data.size() >= CeresSolverOptions::kBatchFromRows ? 1024
                                                            : 1;
   CalibrationProblem builder(nominal, data, problem_options);
+  if (!builder.tilt_status().ok()) {
+    return finish(Termination::kNotIdentifiable, builder.tilt_status().message());
+  }
   result.parameterization = builder.parameterization();
   const bool full = options.parameterization == ParameterizationKind::kFull;
   const int per_row = options.use_orientation ? 6 : 3;
@@ -249,6 +255,8 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
     message = "ceres: " + watch.decision.message;
   }
   if (termination == Termination::kNumericalFailure) {
+    internal::FillGravityTiltResult(builder.parameterization(), builder.JointState(),
+                                    Eigen::MatrixXd(), &result.gravity_tilt);
     return finish(termination, message);
   }
 
@@ -266,6 +274,8 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
       if (dof > 0) result.covariance *= 2.0 * summary.final_cost / static_cast<double>(dof);
     }
   }
+  internal::FillGravityTiltResult(builder.parameterization(), builder.JointState(),
+                                  result.covariance, &result.gravity_tilt);
   return finish(termination, message);
 }
 

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/pipeline.h"
 
@@ -86,8 +87,31 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
   sel.split = options.split;
   const auto folds = KFolds(identification.size(), sel.folds, sel.seed, sel.split);
   // Compliance first: it keeps the combinations both terms could explain (joint_errors.md).
-  const std::vector<std::vector<std::string>> sets = {
+  std::vector<std::vector<std::string>> sets = {
       {}, {"compliance"}, {"harmonics"}, {"compliance", "harmonics"}};
+  {
+    // The gravity tilt joins the compliance candidates only when these rows determine it (its
+    // check at the compliance + harmonics solution of all identification rows: the fullest model,
+    // whose residuals estimate the noise best).
+    if (options.on_stage) options.on_stage("checking the gravity tilt");
+    PipelineOptions check = options;
+    check.joint_errors = {"compliance", "harmonics", kGravityTiltName};
+    check.joint_errors_auto = false;
+    const CalibrationResult r = SolveCalibration(nominal, identification, check,
+                                                 "auto gravity tilt check", nullptr, nullptr,
+                                                 nullptr);
+    sel.tilt_candidates = r.gravity_tilt.identified;
+    sel.tilt_message = r.gravity_tilt.identified ? std::string()
+                       : !r.gravity_tilt.message.empty()
+                           ? r.gravity_tilt.message
+                           : "gravity tilt not identifiable from these data; kept at the model's "
+                             "gravity (the compliance calibration did not converge: " +
+                                 r.message + ")";
+    if (sel.tilt_candidates) {
+      sets.push_back({"compliance", kGravityTiltName});
+      sets.push_back({"compliance", "harmonics", kGravityTiltName});
+    }
+  }
   for (const auto& terms : sets) {
     if (options.on_stage) options.on_stage("cross-validating joint errors: " + Label(terms));
     sel.candidates.push_back(CrossValidate(nominal, identification, folds, options, terms));

@@ -12,6 +12,7 @@
 #include <Eigen/SVD>
 #include <glog/logging.h>
 
+#include "gravity_tilt.h"
 #include "identifiability.h"
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
@@ -62,6 +63,11 @@ void LeaveOutUnmeasuredTools(const RobotModel& model, const MeasurementSet& data
     b.offset = out.num_parameters;
     for (int c = 0; c < b.basis.cols(); ++c) out.parameters.push_back(p->parameters[old_offset + c]);
     out.num_parameters += static_cast<int>(b.basis.cols());
+  }
+  if (out.gravity_tilt) {  // after the joint blocks
+    out.tilt_offset = out.num_parameters;
+    for (int a = 0; a < 2; ++a) out.parameters.push_back(p->parameters[p->tilt_offset + a]);
+    out.num_parameters += 2;
   }
   *p = std::move(out);
 }
@@ -167,6 +173,13 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
                            options.orientation_weight, options.joint_terms,
                            options.joint_term_tolerance, options.structure_reference);
   if (!override_basis) internal::LeaveOutUnmeasuredTools(nominal, data, &result.parameterization);
+  if (options.gravity_tilt) {
+    CHECK(!override_basis) << "a gravity tilt with a parameterization override";
+    if (Status s = internal::AddSolverGravityTilt(options.gravity_tilt, &result.parameterization);
+        !s.ok()) {
+      return finish(Termination::kNotIdentifiable, s.message());
+    }
+  }
   const Parameterization& p = result.parameterization;
   const bool full = !override_basis && options.parameterization == ParameterizationKind::kFull;
   // Unknowns the data must determine: the identifiable count, whichever parameterization is solved.
@@ -189,7 +202,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       options.structure_reference ? *options.structure_reference : nominal;
   // The joint-space blocks' coordinates (they start at zero: no joint error).
   const int K = p.num_joint_parameters();
-  Eigen::VectorXd joint_state = Eigen::VectorXd::Zero(K);
+  Eigen::VectorXd joint_state = internal::InitialJointState(p, options.initial_joint_terms);
   // The rows' joint regressors do not change during the solve: evaluated once.
   const Eigen::MatrixXd joint_rows = internal::JointRegressorRows(p, data);
   auto joint_values = [&]() {
@@ -276,6 +289,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
           result.covariance = s2 * (d.asDiagonal() * inv * d.asDiagonal());
         }
       }
+      internal::FillGravityTiltResult(p, joint_state, result.covariance, &result.gravity_tilt);
       return finish(Termination::kConverged, decision.message);
     }
     // Gauss-Newton step with backtracking: a step that raises the cost is halved.
@@ -298,6 +312,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     if (!accepted) {
       result.model = model;
       result.joint_terms = joint_values();
+      internal::FillGravityTiltResult(p, joint_state, Eigen::MatrixXd(), &result.gravity_tilt);
       result.iterations = it - 1;
       result.final_cost = lin.cost;
       std::ostringstream os;
@@ -310,6 +325,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   }
   result.model = model;
   result.joint_terms = joint_values();
+  internal::FillGravityTiltResult(p, joint_state, Eigen::MatrixXd(), &result.gravity_tilt);
   result.iterations = options.max_iterations;
   result.final_cost = lin.cost;
   std::ostringstream os;

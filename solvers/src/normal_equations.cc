@@ -10,6 +10,7 @@
 #include <immintrin.h>
 #endif
 
+#include "gravity_tilt.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/parallel.h"
 #include "lpoe/pose_measurement.h"
@@ -53,6 +54,7 @@ struct Scratch {
   std::vector<bool> identity;  // basis_b is the identity, per block (filled on first use)
   Eigen::MatrixXd J_q;        // m x n
   Eigen::VectorXd q_eff;      // n
+  Eigen::MatrixXd R_tilt;     // R with the gravity tilt's columns (gravity_tilt.h)
 };
 
 // The joint-space side of one row: s->R = [Y_b(q) basis_b].
@@ -90,6 +92,8 @@ void EvaluateJointRegressor(const Parameterization& p, const double* q, Scratch*
     }
     column += kb;
   }
+  // The gravity tilt's columns are not linear: zero here, filled by ApplyGravityTiltColumns.
+  s->R_t.bottomRows(s->R_t.rows() - column).setZero();
   s->R = s->R_t.transpose();
 }
 
@@ -189,12 +193,19 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
             n, K);
         scratch->q_eff = Eigen::Map<const Eigen::VectorXd>(q, n);
         if (joint_state.size() > 0) scratch->q_eff.noalias() += R * joint_state;
+        if (p.gravity_tilt) {  // bilinear: extra joint-space columns (gravity_tilt.h)
+          scratch->R_tilt = R;
+          ApplyGravityTiltColumns(p, q, joint_state, scratch->R_tilt, &scratch->q_eff);
+        }
+        const Eigen::Ref<const Eigen::MatrixXd> Rj =
+            p.gravity_tilt ? Eigen::Ref<const Eigen::MatrixXd>(scratch->R_tilt)
+                           : Eigen::Ref<const Eigen::MatrixXd>(R);
         e = kind.Linearize(bj, scratch->q_eff.data(), data.target(r), measured, Jr, ld,
                            scratch->J_q.data(), m, frames, y);
         // The joint blocks' columns, by the chain rule through q_eff.
         Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>> Jj(
             Jr + static_cast<std::ptrdiff_t>(frame_columns) * ld, m, K, Eigen::OuterStride<>(ld));
-        Jj.noalias() = scratch->J_q.lazyProduct(R);  // small: no GEMM packing
+        Jj.noalias() = scratch->J_q.lazyProduct(Rj);  // small: no GEMM packing
       }
       double y_sq = 0;
       for (int i = 0; i < m; ++i) y_sq += y[i] * y[i];

@@ -1,7 +1,9 @@
 #include "lpoe/pipeline.h"
 
+#include <algorithm>
 #include <utility>
 
+#include "gravity_tilt.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 
@@ -21,6 +23,8 @@ CalibrationResult StoreJointErrors(CalibrationResult result, const RobotModel& s
       result.model.joint_errors.regressor_origins.push_back(j.origin);
     }
   }
+  // The identified tilt is the calibrated model's gravity (the compliance values belong to it).
+  if (result.gravity_tilt.identified) result.model.gravity = result.gravity_tilt.gravity_after;
   return result;
 }
 
@@ -70,7 +74,18 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
   start.joint_errors = JointErrorTerms();
   if (start_out) *start_out = start;
   std::vector<std::shared_ptr<const JointTerm>> terms;
+  const bool tilt = std::find(options.joint_errors.begin(), options.joint_errors.end(),
+                              std::string(kGravityTiltName)) != options.joint_errors.end();
+  if (tilt && std::find(options.joint_errors.begin(), options.joint_errors.end(),
+                        std::string("compliance")) == options.joint_errors.end()) {
+    CalibrationResult failed;
+    failed.model = start;
+    failed.termination = Termination::kNotIdentifiable;
+    failed.message = kGravityTiltNeedsCompliance;
+    return failed;
+  }
   for (const std::string& name : options.joint_errors) {
+    if (name == kGravityTiltName) continue;
     std::shared_ptr<const JointTerm> term;
     if (Status s = MakeJointTerm(name, start, &term); !s.ok()) {
       CalibrationResult failed;
@@ -85,22 +100,67 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
   if (options.on_iteration) {
     progress = [&options, &stage](const IterationRecord& r) { options.on_iteration(stage, r); };
   }
-  if (options.solver == SolverKind::kCeres) {
-    CeresSolverOptions o = options.ceres;
+  // One solve; with `tilt_model` the gravity tilt from the joint values `initial`. The tilt is a
+  // bilinear direction: Gauss-Newton converges on it linearly, so the statistical stopping rule
+  // (convergence.h) is tightened 100x there, which keeps the two solvers' tilts within 1e-4 of its
+  // standard deviation of each other (as the linear terms' one-step convergence does without it).
+  constexpr double kTiltSdFraction = 1e-2;
+  auto solve = [&](std::shared_ptr<const GravityTiltModel> tilt_model,
+                   const std::vector<JointTermValues>& initial) {
+    if (options.solver == SolverKind::kCeres) {
+      CeresSolverOptions o = options.ceres;
+      o.parameterization = options.parameterization;
+      o.use_orientation = options.use_orientation;
+      o.on_iteration = progress;
+      o.joint_terms = terms;
+      o.structure_reference = &nominal;
+      o.gravity_tilt = tilt_model;
+      o.initial_joint_terms = initial;
+      if (tilt_model) o.convergence.sd_fraction *= kTiltSdFraction;
+      return CalibrateCeres(start, data, o);
+    }
+    LinearSolverOptions o = options.linear;
     o.parameterization = options.parameterization;
     o.use_orientation = options.use_orientation;
     o.on_iteration = progress;
     o.joint_terms = terms;
     o.structure_reference = &nominal;
-    return StoreJointErrors(CalibrateCeres(start, data, o), start);
+    o.gravity_tilt = tilt_model;
+    o.initial_joint_terms = initial;
+    if (tilt_model) o.convergence.sd_fraction *= kTiltSdFraction;
+    return CalibrateLinear(start, data, o);
+  };
+  CalibrationResult result = solve(nullptr, {});
+  if (!tilt || !result.converged()) return StoreJointErrors(std::move(result), start);
+  // The gravity tilt: checked at the compliance solution, then solved from it.
+  GravityTiltResult check;
+  check.requested = true;
+  const double tolerance = options.solver == SolverKind::kCeres
+                               ? options.ceres.joint_term_tolerance
+                               : options.linear.joint_term_tolerance;
+  const double weight = options.solver == SolverKind::kCeres ? options.ceres.orientation_weight
+                                                             : options.linear.orientation_weight;
+  if (!internal::CheckGravityTilt(start, data, result, options.use_orientation, weight, tolerance,
+                                  options.gravity_tilt_max_sigma, &check)) {
+    result.gravity_tilt = check;
+    return StoreJointErrors(std::move(result), start);
   }
-  LinearSolverOptions o = options.linear;
-  o.parameterization = options.parameterization;
-  o.use_orientation = options.use_orientation;
-  o.on_iteration = progress;
-  o.joint_terms = terms;
-  o.structure_reference = &nominal;
-  return StoreJointErrors(CalibrateLinear(start, data, o), start);
+  CalibrationResult tilted = solve(std::make_shared<const GravityTiltModel>(start),
+                                   result.joint_terms);
+  if (!tilted.converged()) {
+    check.message = "gravity tilt: the solve with the tilt did not converge (" +
+                    std::string(TerminationName(tilted.termination)) + ": " + tilted.message +
+                    "); kept at the model's gravity";
+    result.gravity_tilt = check;
+    return StoreJointErrors(std::move(result), start);
+  }
+  check.identified = true;
+  check.tilt = tilted.gravity_tilt.tilt;
+  check.standard_deviation = tilted.gravity_tilt.standard_deviation;
+  check.gravity_after = tilted.gravity_tilt.gravity_after;
+  check.message.clear();
+  tilted.gravity_tilt = check;
+  return StoreJointErrors(std::move(tilted), start);
 }
 
 PipelineResult RunCalibrationPipeline(const RobotModel& nominal,

@@ -10,6 +10,7 @@
 #include <glog/logging.h>
 
 #include "batched_residual.h"
+#include "gravity_tilt.h"
 #include "identifiability.h"
 #include "structural_identifiability.h"
 #include "lpoe/eigen_decompositions.h"
@@ -35,8 +36,14 @@ Status ValidateCalibrationProblemOptions(const CalibrationProblemOptions& option
   if (!(options.joint_term_tolerance > 0 && options.joint_term_tolerance < 1)) {
     return Status::Error("joint_term_tolerance must be in (0, 1)");
   }
+  bool compliance = false;
   for (const auto& term : options.joint_terms) {
     if (term == nullptr) return Status::Error("a joint-space term is null");
+    compliance = compliance || term->name() == "compliance";
+  }
+  if (options.gravity_tilt && !compliance) {
+    return Status::Error("the gravity tilt is identified with the compliance term (joint errors "
+                         "compliance,tilt)");
   }
   return Status::Ok();
 }
@@ -82,10 +89,22 @@ CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const Measurem
   initial_frames_ = frames_;
   for (int i = 0; i < n; ++i) solved_[i] = true;
   for (int r = 0; r < data.size(); ++r) solved_[n + data.target(r)] = true;
-  joint_blocks_.resize(parameterization_.joint_blocks.size());
-  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
-    joint_blocks_[b].assign(parameterization_.joint_blocks[b].basis.cols(), 0.0);
+  if (options.gravity_tilt) {
+    tilt_status_ = internal::AddSolverGravityTilt(options.gravity_tilt, &parameterization_);
   }
+  const Parameterization& p = parameterization_;
+  const Eigen::VectorXd initial = internal::InitialJointState(p, options.initial_joint_terms);
+  joint_blocks_.resize(p.joint_blocks.size());
+  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
+    const JointBlock& block = p.joint_blocks[b];
+    const int first = block.offset - p.num_frame_parameters();
+    joint_blocks_[b].resize(block.basis.cols());
+    for (int c = 0; c < block.basis.cols(); ++c) joint_blocks_[b][c] = initial(first + c);
+  }
+}
+
+double* CalibrationProblem::tilt_block() {
+  return parameterization_.gravity_tilt ? tilt_.data() : nullptr;
 }
 
 double* CalibrationProblem::frame_block(int f) {
@@ -106,6 +125,7 @@ std::vector<double*> CalibrationProblem::parameter_blocks() {
   for (std::vector<double>& b : joint_blocks_) {
     if (!b.empty()) out.push_back(b.data());
   }
+  if (parameterization_.gravity_tilt) out.push_back(tilt_.data());
   return out;
 }
 
@@ -118,6 +138,7 @@ std::vector<int> CalibrationProblem::tangent_sizes() const {
   for (const std::vector<double>& b : joint_blocks_) {
     if (!b.empty()) out.push_back(static_cast<int>(b.size()));
   }
+  if (p.gravity_tilt) out.push_back(2);
   return out;
 }
 
@@ -130,6 +151,7 @@ std::vector<int> CalibrationProblem::tangent_offsets() const {
   for (size_t b = 0; b < joint_blocks_.size(); ++b) {
     if (!joint_blocks_[b].empty()) out.push_back(p.joint_blocks[b].offset);
   }
+  if (p.gravity_tilt) out.push_back(p.tilt_offset);
   return out;
 }
 
@@ -147,12 +169,20 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
   for (int i = 0; i < n; ++i) parameters[i] = frames_[i].data();
   std::vector<int> solved_joint_blocks, block_sizes;
   int K = 0;
+  int tilt_block = -1;  // the compliance block among the solved ones
   for (size_t b = 0; b < joint_blocks_.size(); ++b) {
     if (joint_blocks_[b].empty()) continue;
+    if (p.gravity_tilt && static_cast<int>(b) == p.tilt_block) {
+      tilt_block = static_cast<int>(solved_joint_blocks.size());
+    }
     solved_joint_blocks.push_back(static_cast<int>(b));
     parameters.push_back(joint_blocks_[b].data());
     block_sizes.push_back(static_cast<int>(joint_blocks_[b].size()));
     K += block_sizes.back();
+  }
+  if (p.gravity_tilt) {
+    CHECK_GE(tilt_block, 0);
+    parameters.push_back(tilt_.data());
   }
   std::vector<ceres::ResidualBlockId> ids;
   const int batch = BatchedRows();
@@ -192,11 +222,20 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
       R.middleCols(column, block.basis.cols()) = term_Y * block.basis;
       column += static_cast<int>(block.basis.cols());
     }
+    std::shared_ptr<GravityTiltRow> tilt;
+    if (p.gravity_tilt) {
+      tilt = std::make_shared<GravityTiltRow>();
+      tilt->block = tilt_block;
+      tilt->gravity = p.gravity_tilt->gravity();
+      tilt->axes = p.gravity_tilt->axes();
+      internal::GravityTiltRowRegressors(p, data.q(r), tilt->Z);
+    }
     ceres::CostFunction* cost =
         options_.use_orientation
-            ? PoseResidual::Create(shared_model, pose_kind, data.q(r), data.pose(r), R, block_sizes)
+            ? PoseResidual::Create(shared_model, pose_kind, data.q(r), data.pose(r), R,
+                                   block_sizes, tilt)
             : PositionResidual::Create(shared_model, position_kind, data.q(r), data.position(r),
-                                       R, block_sizes);
+                                       R, block_sizes, tilt);
     ids.push_back(problem->AddResidualBlock(cost, loss, parameters));
   }
   for (size_t f = 0; f < frames_.size(); ++f) {
@@ -237,6 +276,10 @@ Eigen::VectorXd CalibrationProblem::JointState() const {
   for (const std::vector<double>& b : joint_blocks_) {
     for (double v : b) x(k++) = v;
   }
+  if (parameterization_.gravity_tilt) {
+    x(k++) = tilt_[0];
+    x(k++) = tilt_[1];
+  }
   return x;
 }
 
@@ -247,6 +290,7 @@ std::vector<JointTermValues> CalibrationProblem::JointTerms() const {
     const JointBlock& block = p.joint_blocks[b];
     for (int c = 0; c < block.basis.cols(); ++c) all(block.offset + c) = joint_blocks_[b][c];
   }
+  if (p.gravity_tilt) all.segment<2>(p.tilt_offset) << tilt_[0], tilt_[1];
   return JointValuesOf(p, all);
 }
 
@@ -285,6 +329,10 @@ void CalibrationProblem::Update(const Eigen::VectorXd& x) {
   for (size_t b = 0; b < joint_blocks_.size(); ++b) {
     const int offset = solved.joint_blocks[b].offset;
     for (size_t c = 0; c < joint_blocks_[b].size(); ++c) joint_blocks_[b][c] += x(offset + c);
+  }
+  if (solved.gravity_tilt) {
+    tilt_[0] += x(solved.tilt_offset);
+    tilt_[1] += x(solved.tilt_offset + 1);
   }
 }
 

@@ -50,6 +50,18 @@ const char* JointErrorKindName(JointErrorKind kind);
 // order given. "none" or an empty text gives an empty list. Returns false on anything else.
 bool ParseJointErrorKinds(const std::string& text, std::vector<JointErrorKind>* kinds);
 
+// The gravity tilt's name in a list of joint errors ("compliance,tilt"; docs/joint_errors.md). It
+// is not a term of its own: it makes the compliance term bilinear (TiltedGravity below).
+constexpr const char kGravityTiltName[] = "tilt";
+constexpr const char kGravityTiltNeedsCompliance[] =
+    "the gravity tilt ('tilt' in the joint errors) is identified with the compliance term and "
+    "needs it in the list, e.g. compliance,tilt or compliance,harmonics,tilt";
+// ParseJointErrorKinds with the gravity tilt allowed once anywhere in the list: `tilt` tells
+// whether it was there. Returns false (and `error`) on unknown or repeated names and on a tilt
+// without compliance.
+bool ParseJointErrorList(const std::string& text, std::vector<JointErrorKind>* kinds, bool* tilt,
+                         std::string* error);
+
 // ---- Parameter layout (RobotModel::joint_errors, see robot_model.h).
 
 // sum over j of 4 (n - j) + 1.
@@ -93,14 +105,72 @@ void JointErrorOffsets(const RobotModel& model, const double* q, double* dq);
 // q_eff = q + dq.
 void EffectiveJoints(const RobotModel& model, const double* q, double* q_eff);
 
-// Gravity tilted by the small base rotation (tilt_x, tilt_y) (rad, about the base x and y axes):
-// g' = exp([tilt_x, tilt_y, 0]^) g. A base that is not level by a few tenths of a degree; identifying
-// the tilt makes the compliance term bilinear (tilt times products).
+// ---- Gravity tilt (docs/joint_errors.md, "Gravity tilt").
+//
+// A base that is not level by a few tenths of a degree turns gravity by two small angles t about two
+// unit axes u1, u2 perpendicular to the model's gravity g (GravityTiltAxes; for g along -z of the
+// base: u1 = x, u2 = y):
+//
+//   g'(t) = exp([t1 u1 + t2 u2]^) g.
+//
+// Identifying t with the compliance products theta makes the compliance term bilinear:
+// dq = Y(g'(t)) theta = sum_a g'_a(t) Y_a theta (ComplianceRegressorGravityAxes).
+
+// u1, u2 (columns): u1 the base axis least aligned with g made perpendicular to it, u2 = u1 x g/|g|.
+// Zero when g is zero.
+Eigen::Matrix<double, 3, 2> GravityTiltAxes(const Eigen::Vector3d& gravity);
+
+// g'(t) for double or ceres::Jet tilts.
 template <typename T>
-Vector3<T> TiltedGravity(const Eigen::Vector3d& gravity, const T* tilt) {
-  const Vector3<T> w(tilt[0], tilt[1], T(0));
+Vector3<T> TiltedGravity(const Eigen::Vector3d& gravity, const Eigen::Matrix<double, 3, 2>& axes,
+                         const T* tilt) {
+  const Vector3<T> w = axes.col(0).cast<T>() * tilt[0] + axes.col(1).cast<T>() * tilt[1];
   return ExpSO3(w) * gravity.cast<T>();
 }
+template <typename T>
+Vector3<T> TiltedGravity(const Eigen::Vector3d& gravity, const T* tilt) {
+  return TiltedGravity<T>(gravity, GravityTiltAxes(gravity), tilt);
+}
+
+// dg'/dt (3 x 2) at t, analytic (the right Jacobian of exp on SO(3)).
+Eigen::Matrix<double, 3, 2> TiltedGravityJacobian(const Eigen::Vector3d& gravity,
+                                                  const Eigen::Matrix<double, 3, 2>& axes,
+                                                  const double* tilt);
+
+// The tilt that turns `from` into the direction of `to` (the inverse of TiltedGravity on the
+// directions, about from's axes), for reporting a simulated or stored tilt in the same angles.
+Eigen::Vector2d GravityTiltBetween(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
+
+// The compliance regressor's gravity axes on a fixed reference model (the calibration's start
+// model, as the compliance term's regressor): what a solver needs to identify the tilt.
+class GravityTiltModel {
+ public:
+  explicit GravityTiltModel(const RobotModel& reference);
+  const RobotModel& reference() const { return reference_; }
+  const Eigen::Vector3d& gravity() const { return reference_.gravity; }
+  const Eigen::Matrix<double, 3, 2>& axes() const { return axes_; }
+  // Y_a(q), a = x, y, z of the base (ComplianceRegressorGravityAxes on the reference).
+  void AxisRegressors(const double* q, Eigen::MatrixXd Y[3]) const;
+  Eigen::Vector3d Tilted(const double* tilt) const {
+    return TiltedGravity<double>(gravity(), axes_, tilt);
+  }
+
+ private:
+  RobotModel reference_;
+  Eigen::Matrix<double, 3, 2> axes_;
+};
+
+// The joint-space columns of the tilt for one configuration (both solvers use this, the linear
+// solver directly, Ceres through Jets for the tilt's derivative). With Z[a] = Y_a(q) B (n x k, B
+// the compliance block's basis), x the block's coordinates (k) and t the tilt:
+//   ddq = sum_a (g'(t) - g)_a Z[a] x      added to q_eff (the compliance offsets' change),
+//   dR  = sum_a (g'(t) - g)_a Z[a]        added to the compliance block's columns d(dq)/dx,
+//   D   = d(dq)/dt = sum_a (dg'/dt)_a Z[a] x   (n x 2), the tilt's columns before J_q.
+// Any output may be null.
+void GravityTiltJointColumns(const Eigen::Vector3d& gravity,
+                             const Eigen::Matrix<double, 3, 2>& axes, const double* tilt,
+                             const Eigen::MatrixXd Z[3], const double* x, Eigen::VectorXd* ddq,
+                             Eigen::MatrixXd* dR, Eigen::MatrixXd* D);
 
 // dq = sum_a g_a Y_a theta (the compliance offsets for gravity g), for double or ceres::Jet.
 template <typename T>

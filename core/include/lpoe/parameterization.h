@@ -26,6 +26,8 @@
 
 namespace lpoe {
 
+class GravityTiltModel;  // joint_errors.h
+
 enum class ParameterizationKind { kIdentifiable, kFull };
 enum class DataKind { kPosition, kPose };
 
@@ -66,9 +68,17 @@ struct Parameterization {
   std::vector<Direction> unidentifiable;  // the directions left out (identifiable kind only)
   // Joint-space blocks, after all frame parameters.
   std::vector<JointBlock> joint_blocks;
+  // The gravity tilt (joint_errors.h, docs/joint_errors.md): two parameters (rad) after the joint
+  // blocks, identified with joint block `tilt_block` (the compliance term, whose offsets are
+  // bilinear in the tilt and its coordinates). Null: gravity as the model gives it.
+  std::shared_ptr<const GravityTiltModel> gravity_tilt;
+  int tilt_block = -1;
+  int tilt_offset = 0;  // first tilt parameter in x
 
+  int num_tilt_parameters() const { return gravity_tilt ? 2 : 0; }
+  // The joint-space columns: every joint block's, then the tilt's.
   int num_joint_parameters() const {
-    int k = 0;
+    int k = num_tilt_parameters();
     for (const JointBlock& b : joint_blocks) k += static_cast<int>(b.basis.cols());
     return k;
   }
@@ -92,15 +102,24 @@ void AddJointBlock(std::shared_ptr<const JointTerm> term, Parameterization* p);
 void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& reason,
                         Parameterization* p);
 
-// Replaces to's joint blocks (and their left-out combinations) by from's.
+// Appends the gravity tilt (two parameters "gravity.tilt1", "gravity.tilt2" after the joint
+// blocks), bilinear with joint block `block` (the compliance term built on tilt->reference()).
+void AddGravityTilt(std::shared_ptr<const GravityTiltModel> tilt, int block, Parameterization* p);
+
+// Replaces to's joint blocks (and their left-out combinations, and the gravity tilt) by from's.
 void CopyJointBlocks(const Parameterization& from, Parameterization* to);
 
 // Applies an update x (num_parameters) to the model: T_f <- T_f exp((basis_f x_f)^) (eq. (19)).
 // The joint-space part of x is not used (see JointValuesOf).
 void ApplyUpdate(const Parameterization& p, const Eigen::VectorXd& x, RobotModel* model);
 
-// The terms' values theta_b = basis_b x_b from the joint-space part of x (num_parameters).
+// The terms' values theta_b = basis_b x_b from the joint-space part of x (num_parameters). With a
+// gravity tilt the compliance block's term is rebuilt on the tilted gravity (its regressor then
+// gives the bilinear offsets exactly).
 std::vector<JointTermValues> JointValuesOf(const Parameterization& p, const Eigen::VectorXd& x);
+
+// The tilt (rad, 2) in x; zero without a gravity tilt.
+Eigen::Vector2d GravityTiltOf(const Parameterization& p, const Eigen::VectorXd& x);
 
 // Coordinates of the difference between two models in the calibrated directions:
 // x_f = basis_f^T log(a_f^-1 b_f). Used to compare two calibrations.

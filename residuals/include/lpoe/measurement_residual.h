@@ -12,6 +12,13 @@
 // directions, whatever the number of joint-space parameters), and the cost function Create returns
 // adds the blocks' columns by the chain rule through the linear map: dr/dx_b = (dr/dq_eff) R_b.
 // Without joint-space blocks the joint motions are computed once, at construction.
+//
+// With a gravity tilt (GravityTiltRow, docs/joint_errors.md) one more block of 2 follows the
+// joint-space blocks: the compliance block's offsets become bilinear,
+//   q_eff += sum_a (g'(t) - g)_a Z_a x_c,
+// its columns R_c + sum_a (g'(t) - g)_a Z_a, and the tilt's columns (dr/dq_eff) d(dq)/dt with
+// d(dq)/dt by automatic differentiation (Jets) through the templated TiltedGravity and
+// ComplianceOffsets of joint_errors.h.
 #ifndef LPOE_MEASUREMENT_RESIDUAL_H_
 #define LPOE_MEASUREMENT_RESIDUAL_H_
 
@@ -29,6 +36,15 @@
 #include "lpoe/se3_manifold.h"
 
 namespace lpoe {
+
+// One row's data for the gravity tilt: Z_a = Y_a(q) B_c (n x k_c, a = x, y, z of the base, B_c the
+// compliance block's basis), the model's gravity and the tilt axes.
+struct GravityTiltRow {
+  int block = -1;  // the compliance block's index among the joint-space blocks
+  Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
+  Eigen::Matrix<double, 3, 2> axes = Eigen::Matrix<double, 3, 2>::Zero();
+  Eigen::MatrixXd Z[3];
+};
 
 template <typename Kind>
 class MeasurementResidual {
@@ -62,14 +78,15 @@ class MeasurementResidual {
     return true;
   }
 
-  // The cost function: n + 1 blocks of 7, one block of block_sizes[b] per joint-space term, and
-  // Kind::kResiduals residuals (defined in residuals.cc, the one translation unit that instantiates
-  // the autodiff).
+  // The cost function: n + 1 blocks of 7, one block of block_sizes[b] per joint-space term, with
+  // `tilt` one block of 2 (the gravity tilt) after them, and Kind::kResiduals residuals (defined in
+  // residuals.cc, the one translation unit that instantiates the autodiff).
   static ceres::CostFunction* Create(std::shared_ptr<const RobotModel> model, const Kind& kind,
                                      const double* q,
                                      const typename Kind::Observation& observation,
                                      Eigen::MatrixXd joint_regressor = Eigen::MatrixXd(),
-                                     std::vector<int> block_sizes = {});
+                                     std::vector<int> block_sizes = {},
+                                     std::shared_ptr<const GravityTiltRow> tilt = nullptr);
 
  private:
   std::shared_ptr<const RobotModel> model_;

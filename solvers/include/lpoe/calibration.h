@@ -42,6 +42,23 @@ enum class Termination {
 
 const char* TerminationName(Termination t);
 
+// The gravity tilt (docs/joint_errors.md, "Gravity tilt"): two small rotations of the model's
+// gravity about axes perpendicular to it, identified with the compliance term.
+struct GravityTiltResult {
+  bool requested = false;   // asked for (joint_errors "tilt")
+  bool identified = false;  // solved (the data determine it)
+  Eigen::Vector2d tilt = Eigen::Vector2d::Zero();                // rad, about axes.col(0), col(1)
+  Eigen::Vector2d standard_deviation = Eigen::Vector2d::Zero();  // rad (0: no covariance)
+  Eigen::Matrix<double, 3, 2> axes = Eigen::Matrix<double, 3, 2>::Zero();  // model base frame
+  Eigen::Vector3d gravity_before = Eigen::Vector3d::Zero();  // the model's (start) gravity
+  Eigen::Vector3d gravity_after = Eigen::Vector3d::Zero();   // tilted (the calibrated model's)
+  // The identifiability check before solving: smallest kept fraction of the tilt's column-scaled
+  // columns once everything else is projected out, and the predicted standard deviations (rad).
+  double kept_fraction = 0;
+  Eigen::Vector2d predicted_standard_deviation = Eigen::Vector2d::Zero();
+  std::string message;  // why it was not identified (empty when it was)
+};
+
 struct CalibrationResult {
   Termination termination = Termination::kNumericalFailure;
   std::string message;  // one line a user can act on
@@ -67,6 +84,7 @@ struct CalibrationResult {
   // solver computed one (mm / rad units of the basis). Empty otherwise.
   Eigen::MatrixXd covariance;
   double wall_time_seconds = 0;
+  GravityTiltResult gravity_tilt;
 
   bool converged() const { return termination == Termination::kConverged; }
 };

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "lpoe/calibration.h"
+#include "lpoe/joint_errors.h"
 #include "lpoe/convergence.h"
 
 namespace lpoe {
@@ -62,6 +63,13 @@ struct LinearSolverOptions {
   // result.parameterization.unidentifiable.
   std::vector<std::shared_ptr<const JointTerm>> joint_terms;
   double joint_term_tolerance = 1e-4;
+  // The gravity tilt (docs/joint_errors.md, "Gravity tilt"), identified with the term named
+  // "compliance" in joint_terms (required), which must be built on gravity_tilt->reference(). Its
+  // columns vanish where the compliance values are zero, so start from a compliance solution
+  // (initial_joint_terms). Null: gravity as the model gives it.
+  std::shared_ptr<const GravityTiltModel> gravity_tilt;
+  // Values of joint_terms to start from (same order and terms; empty: zero).
+  std::vector<JointTermValues> initial_joint_terms;
   // Called after every iteration (e.g. for a progress line).
   std::function<void(const IterationRecord&)> on_iteration;
 };

@@ -36,8 +36,14 @@ struct PipelineOptions {
   // Joint-space error terms to identify with the geometry, by registry name (joint_term.h):
   // "compliance", "harmonics". Built on the registered start model; the identified values are
   // stored in the calibrated model's joint_errors (so its YAML carries them) and in
-  // result.joint_terms.
+  // result.joint_terms. "tilt" (with "compliance" only) also identifies the tilt of the model's
+  // gravity when the data determine it (docs/joint_errors.md, "Gravity tilt"): the compliance
+  // solve first, the tilt's check at its solution (result.gravity_tilt.message when it fails),
+  // then the solve with the tilt from there; the tilted gravity goes into the calibrated model.
   std::vector<std::string> joint_errors;
+  // The tilt counts as identifiable when each angle's predicted standard deviation is at most this
+  // (rad; 0.1 deg) and its columns keep joint_term_tolerance of their norm.
+  double gravity_tilt_max_sigma = 0.1 * 3.14159265358979323846 / 180.0;
   // Instead of `joint_errors`: choose the terms by cross-validation (SelectJointErrors) among none,
   // compliance, harmonics and both, on `joint_error_folds` folds of the identification rows
   // (seed `split_seed`).
@@ -66,7 +72,7 @@ struct FoldSummary {
 // --joint_errors=auto: one candidate set of terms and its cross-validated held-out error.
 struct JointErrorCandidate {
   std::vector<std::string> terms;  // registry names; empty: the geometry alone
-  std::string label;               // "none", "compliance", "harmonics", "compliance,harmonics"
+  std::string label;               // "none", "compliance", "harmonics", "compliance,tilt", ...
   bool ok = false;                 // every fold's calibration converged
   std::string failure;             // why not (first failing fold)
   int parameters = 0;              // identified joint-error combinations (largest over the folds)
@@ -85,9 +91,15 @@ struct JointErrorSelection {
   int best = -1;    // lowest cv_mse
   int chosen = -1;  // the simplest within one standard error of the best
   std::string reason;
+  // The gravity tilt joins the compliance candidates ("compliance,tilt",
+  // "compliance,harmonics,tilt") only when the identification rows determine it (the check of
+  // PipelineOptions::joint_errors "tilt" at the compliance solution); else why not.
+  bool tilt_candidates = false;
+  std::string tilt_message;
 };
 
-// Cross-validates each candidate set of terms (none, compliance, harmonics, compliance+harmonics)
+// Cross-validates each candidate set of terms (none, compliance, harmonics, compliance+harmonics,
+// and with the gravity tilt when identifiable)
 // on options.joint_error_folds seeded folds of `identification` with the pipeline's solver and
 // registration, and chooses by the one-standard-error rule: the candidate with the fewest
 // identified joint-error combinations whose pooled held-out mean squared error is at most the

@@ -33,6 +33,7 @@
 #include <Eigen/Core>
 #include <ceres/problem.h>
 
+#include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
@@ -61,6 +62,14 @@ struct CalibrationProblemOptions {
   // of its column's norm is left out and listed in parameterization().unidentifiable.
   std::vector<std::shared_ptr<const JointTerm>> joint_terms;
   double joint_term_tolerance = 1e-4;
+  // The gravity tilt (docs/joint_errors.md, "Gravity tilt"), identified with the term named
+  // "compliance" in joint_terms (required), which must be built on gravity_tilt->reference(). Its
+  // columns vanish where the compliance values are zero, so start from a compliance solution
+  // (initial_joint_terms); one more parameter block of 2
+  // (tilt_block()). Null: gravity as the model gives it.
+  std::shared_ptr<const GravityTiltModel> gravity_tilt;
+  // Values of joint_terms to start from (same order and terms; empty: zero).
+  std::vector<JointTermValues> initial_joint_terms;
   // Rows per residual block of AddTo(). 1: one block per row. More: position data without a loss
   // and without joint terms go in blocks of this many consecutive rows (the last one shorter), each
   // with the analytic Jacobian of the measurement model over all solved frames; otherwise one
@@ -132,6 +141,11 @@ class CalibrationProblem {
   double* frame_block(int f);
   // The parameter block of joint-space term b (k_b numbers), nullptr when it keeps no combination.
   double* joint_block(int b);
+  // The gravity tilt's block (2 numbers, rad), nullptr without a tilt (see tilt_status()).
+  double* tilt_block();
+  // Why options().gravity_tilt could not be added (no identified compliance combination); ok
+  // otherwise.
+  const Status& tilt_status() const { return tilt_status_; }
   // Every solved block in covariance order: solved frames in model order, then joint blocks.
   std::vector<double*> parameter_blocks();
   // Tangent size of each block of parameter_blocks(), and its first parameter in
@@ -153,7 +167,7 @@ class CalibrationProblem {
   RobotModel Model() const;
   // The joint-space terms' values theta_b = basis_b x_b (options().joint_terms order).
   std::vector<JointTermValues> JointTerms() const;
-  // The joint blocks' coordinates, concatenated (num_joint_parameters()).
+  // The joint blocks' coordinates, concatenated, then the tilt (num_joint_parameters()).
   Eigen::VectorXd JointState() const;
 
   // The solved parameters (unmeasured tools left out): the numbering of NormalEquations() and
@@ -192,6 +206,8 @@ class CalibrationProblem {
   std::vector<FrameBlock> initial_frames_;
   std::vector<bool> solved_;
   std::vector<std::vector<double>> joint_blocks_;
+  std::array<double, 2> tilt_ = {0.0, 0.0};
+  Status tilt_status_;
 };
 
 }  // namespace lpoe
