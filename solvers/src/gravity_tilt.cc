@@ -7,6 +7,7 @@
 #include <glog/logging.h>
 
 #include "identifiability.h"
+#include "lpoe/eigen_decompositions.h"
 #include "lpoe/joint_errors.h"
 #include "normal_equations.h"
 
