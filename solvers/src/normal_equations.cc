@@ -45,6 +45,8 @@ struct Scratch {
   Eigen::MatrixXd A;  // m * kBlockPoses x P stacked Jacobian rows
   Eigen::VectorXd Y;  // m * kBlockPoses residuals
   std::vector<FrameRt> frames;
+  // sin and cos of the joint values of a block of rows (SinCosMany; no joint-space blocks).
+  std::vector<double> sin_q, cos_q;
   // Joint-space blocks only.
   Eigen::MatrixXd term_Y;     // n x P_b: one term's regressor
   Eigen::MatrixXd R;          // n x K: [Y_b(q) basis_b] of the row
@@ -160,7 +162,8 @@ template <typename Kind>
 void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameterization& p,
                     const Eigen::VectorXd& joint_state, const MeasurementSet& data, int begin,
                     int end, const Eigen::MatrixXd* joint_rows, Scratch* scratch,
-                    ChunkSums* sums, NormalEquations* stacked) {
+                    ChunkSums* sums, NormalEquations* stacked, int chunk,
+                    PositionErrorRows* errors) {
   constexpr int m = Kind::kResiduals;
   const int ld = m * kBlockPoses;
   const int K = p.num_joint_parameters();
@@ -170,8 +173,14 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
   double* A = scratch->A.data();
   double* Y = scratch->Y.data();
   FrameRt* frames = scratch->frames.data();
+  // Without joint-space blocks the rows' joint values are the measured ones: sin and cos of a whole
+  // block at once.
+  const bool block_sincos = K == 0 && n <= kMaxGivenSinCosJoints;
   for (int r0 = begin; r0 < end; r0 += kBlockPoses) {
     const int count = std::min(kBlockPoses, end - r0);
+    if (block_sincos) {
+      SinCosMany(data.q(r0), count * n, scratch->sin_q.data(), scratch->cos_q.data());
+    }
     for (int k = 0; k < count; ++k) {
       const int r = r0 + k;
       double* Jr = A + m * k;
@@ -179,7 +188,10 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
       const typename Kind::Observation measured = Kind::Observe(data, r);
       double e;
       if (K == 0) {
-        e = kind.Linearize(bj, data.q(r), data.target(r), measured, Jr, ld, nullptr, 0, frames, y);
+        const double* s = block_sincos ? scratch->sin_q.data() + k * n : nullptr;
+        const double* c = block_sincos ? scratch->cos_q.data() + k * n : nullptr;
+        e = kind.Linearize(bj, data.q(r), data.target(r), measured, Jr, ld, nullptr, 0, frames, y,
+                           s, c);
       } else {
         const double* q = data.q(r);
         if (!cached) EvaluateJointRegressor(p, q, scratch);
@@ -195,6 +207,9 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
         Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>> Jj(
             Jr + static_cast<std::ptrdiff_t>(frame_columns) * ld, m, K, Eigen::OuterStride<>(ld));
         Jj.noalias() = scratch->J_q.lazyProduct(R);  // small: no GEMM packing
+      }
+      if constexpr (m == 3) {
+        if (errors != nullptr) errors->Record(chunk, r, Eigen::Vector3d(y[0], y[1], y[2]));
       }
       double y_sq = 0;
       for (int i = 0; i < m; ++i) y_sq += y[i] * y[i];
@@ -216,7 +231,8 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
 template <typename Kind>
 NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const MeasurementSet& data,
                            const Parameterization& p, const Eigen::VectorXd& joint_state,
-                           bool stack, const Eigen::MatrixXd* joint_rows) {
+                           bool stack, const Eigen::MatrixXd* joint_rows,
+                           PositionErrorRows* errors) {
   constexpr int m = Kind::kResiduals;
   const int P = p.num_parameters;
   const int N = data.size();
@@ -236,12 +252,18 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
 
   const RowChunks chunks = PartitionRows(N, kMinChunkPoses, kMaxChunks);
   std::vector<ChunkSums> sums(chunks.chunks);
+  if (m != 3 || K > 0) errors = nullptr;
+  if (errors != nullptr) errors->Reset(N, chunks.chunks);
   const int threads = N < kMinPosesForThreads ? 1 : ThreadsFor(chunks.chunks);
   std::vector<Scratch> scratch(threads);
   for (Scratch& s : scratch) {
     s.A.resize(static_cast<Eigen::Index>(m) * kBlockPoses, P);
     s.Y.resize(static_cast<Eigen::Index>(m) * kBlockPoses);
     s.frames.resize(n + 1);
+    if (K == 0) {
+      s.sin_q.resize(static_cast<size_t>(n) * kBlockPoses);
+      s.cos_q.resize(static_cast<size_t>(n) * kBlockPoses);
+    }
     if (K > 0) {
       s.R.resize(n, K);
       s.J_q.resize(m, n);
@@ -254,7 +276,7 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
     cs.H.setZero(P, P);
     cs.g.setZero(P);
     AccumulateRows(kind, bj, p, joint_state, data, chunks.begin(c), chunks.end(c), joint_rows,
-                   &scratch[thread], &cs, stack ? &lin : nullptr);
+                   &scratch[thread], &cs, stack ? &lin : nullptr, c, errors);
   });
   // Fixed-order reduction.
   double sum_error = 0;
@@ -276,13 +298,13 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
 NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
                                   const Parameterization& p, const Eigen::VectorXd& joint_state,
                                   bool use_orientation, double orientation_weight, bool stack,
-                                  const Eigen::MatrixXd* joint_rows) {
+                                  const Eigen::MatrixXd* joint_rows, PositionErrorRows* errors) {
   if (use_orientation) {
     PoseMeasurement kind;
     kind.orientation_weight = orientation_weight;
-    return Accumulate(kind, model, data, p, joint_state, stack, joint_rows);
+    return Accumulate(kind, model, data, p, joint_state, stack, joint_rows, errors);
   }
-  return Accumulate(PositionMeasurement(), model, data, p, joint_state, stack, joint_rows);
+  return Accumulate(PositionMeasurement(), model, data, p, joint_state, stack, joint_rows, errors);
 }
 
 Eigen::MatrixXd JointRegressorRows(const Parameterization& p, const MeasurementSet& data) {
