@@ -5,6 +5,7 @@
 #include <numeric>
 #include <random>
 #include <sstream>
+#include <vector>
 
 #include <glog/logging.h>
 
@@ -64,13 +65,22 @@ IdentifiabilityReport AnalyzeIdentifiability(const RobotModel& nominal, const Me
     r.most_correlated = std::move(pairs);
   }
 
-  // Excitation: a joint that barely moves leaves its frame poorly determined.
-  for (int i = 0; i < nominal.num_joints() && !data.empty(); ++i) {
-    double lo = data.q(0)[i], hi = lo;
+  // Excitation: a joint that barely moves leaves its frame poorly determined. The ranges of every
+  // joint in one pass over the rows (in memory order).
+  const int joints = std::min(nominal.num_joints(), data.num_joints());
+  std::vector<double> lows(joints), highs(joints);
+  if (!data.empty()) {
+    for (int i = 0; i < joints; ++i) lows[i] = highs[i] = data.q(0)[i];
     for (int k = 1; k < data.size(); ++k) {
-      lo = std::min(lo, data.q(k)[i]);
-      hi = std::max(hi, data.q(k)[i]);
+      const double* q = data.q(k);
+      for (int i = 0; i < joints; ++i) {
+        lows[i] = std::min(lows[i], q[i]);
+        highs[i] = std::max(highs[i], q[i]);
+      }
     }
+  }
+  for (int i = 0; i < joints && !data.empty(); ++i) {
+    const double lo = lows[i], hi = highs[i];
     const bool revolute = nominal.joints[i].type == JointType::kRevolute;
     const double limit = revolute ? kMinRevoluteExcursion : kMinPrismaticExcursion;
     if (hi - lo < limit) {
