@@ -13,7 +13,9 @@
 
 #include <gtest/gtest.h>
 
+#include "lpoe/analysis.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/parallel.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/simulation.h"
 #include "lpoe/statistics.h"
@@ -354,6 +356,101 @@ TEST(LinearSolver, IterationLimitIsReported) {
   // One step already removes most of the error (the paper's Fig. 6).
   EXPECT_LT(PositionErrorStatistics(result.model, d.identification).norm.max_abs,
             0.1 * PositionErrorStatistics(d.nominal, d.identification).norm.max_abs);
+}
+
+// The errors the solver's last linearization leaves (LinearSolverErrors) are those of the returned
+// model: their statistics and outliers equal a direct recomputation, and the statistics at the
+// start those of the start model.
+TEST(LinearSolver, KeptErrorsEqualADirectRecomputation) {
+  constexpr int kLargeRows = 30000;  // several chunks on several threads
+  constexpr double kMomentTolerance = 1e-10;
+  constexpr double kPercentileTolerance = 1e-7;
+  SimulationOptions o;
+  o.count = kLargeRows;
+  o.noise_sigma = kPaperSigma;
+  const KinematicErrors errors = PaperTable2Errors();
+  MeasurementSet data = SimulateMeasurements(ApplyErrors(MakeCobot6(), errors), errors.joint_zero, o);
+  for (int r : {17, 12345, 29999}) data.mutable_position(r)(1) += 2.0;  // gross errors
+  const RobotModel nominal = MakeCobot6();
+  LinearSolverErrors kept;
+  kept.want_start_statistics = true;
+  LinearSolverOptions options;
+  options.errors = &kept;
+  const CalibrationResult result = CalibrateLinear(nominal, data, options);
+  ASSERT_EQ(result.termination, Termination::kConverged) << result.message;
+  ASSERT_EQ(kept.final_errors.size(), kLargeRows);
+  ASSERT_TRUE(kept.have_start_statistics);
+  auto expect_near = [&](const ErrorStatistics& got, const ErrorStatistics& want) {
+    EXPECT_EQ(got.count, want.count);
+    for (int a = 0; a < 4; ++a) {
+      const AxisStatistics& g = a < 3 ? got.axis[a] : got.norm;
+      const AxisStatistics& w = a < 3 ? want.axis[a] : want.norm;
+      EXPECT_NEAR(g.max_abs, w.max_abs, kMomentTolerance * w.max_abs) << a;
+      EXPECT_NEAR(g.mean_abs, w.mean_abs, kMomentTolerance * w.mean_abs) << a;
+      EXPECT_NEAR(g.rms, w.rms, kMomentTolerance * w.rms) << a;
+      EXPECT_NEAR(g.p95_abs, w.p95_abs, kPercentileTolerance * w.p95_abs) << a;
+    }
+  };
+  expect_near(kept.final_errors.Statistics(), PositionErrorStatistics(result.model, data));
+  expect_near(kept.start_statistics, PositionErrorStatistics(nominal, data));
+  double sigma_kept = 0, sigma_direct = 0;
+  const std::vector<Outlier> from_kept =
+      FindOutliers(result.model, data, kept.final_errors, 5.0, &sigma_kept);
+  const std::vector<Outlier> direct = FindOutliers(result.model, data, 5.0, &sigma_direct);
+  EXPECT_NEAR(sigma_kept, sigma_direct, kPercentileTolerance * sigma_direct);
+  ASSERT_EQ(from_kept.size(), 3u);
+  ASSERT_EQ(direct.size(), from_kept.size());
+  for (size_t k = 0; k < direct.size(); ++k) {
+    EXPECT_EQ(from_kept[k].row, direct[k].row);
+    EXPECT_EQ(from_kept[k].error, direct[k].error);
+  }
+  // Pose data keep nothing.
+  const DataSet pose = Section4(0.0, true);
+  LinearSolverOptions pose_options;
+  pose_options.use_orientation = true;
+  pose_options.errors = &kept;
+  ASSERT_EQ(CalibrateLinear(pose.nominal, pose.identification, pose_options).termination,
+            Termination::kConverged);
+  EXPECT_TRUE(kept.final_errors.empty());
+  EXPECT_FALSE(kept.have_start_statistics);
+}
+
+// The rows run in fixed chunks whose sums are added in order: the same calibration, bit for bit,
+// on one thread or several.
+TEST(LinearSolver, ResultDoesNotDependOnTheThreadCount) {
+  constexpr int kLargeRows = 30000;
+  SimulationOptions o;
+  o.count = kLargeRows;
+  o.noise_sigma = kPaperSigma;
+  const KinematicErrors errors = PaperTable2Errors();
+  const MeasurementSet data =
+      SimulateMeasurements(ApplyErrors(MakeCobot6(), errors), errors.joint_zero, o);
+  std::vector<CalibrationResult> results;
+  std::vector<ErrorStatistics> stats;
+  for (int threads : {1, 2, 3}) {
+    ThreadCountOverride() = threads;
+    LinearSolverErrors kept;
+    LinearSolverOptions options;
+    options.errors = &kept;
+    results.push_back(CalibrateLinear(MakeCobot6(), data, options));
+    ASSERT_EQ(results.back().termination, Termination::kConverged);
+    stats.push_back(kept.final_errors.Statistics());
+  }
+  ThreadCountOverride() = 0;
+  for (size_t k = 1; k < results.size(); ++k) {
+    SCOPED_TRACE(k);
+    ASSERT_EQ(results[k].history.size(), results[0].history.size());
+    for (size_t it = 0; it < results[0].history.size(); ++it) {
+      EXPECT_EQ(results[k].history[it].cost, results[0].history[it].cost);
+    }
+    for (int f = 0; f < results[0].model.num_frames(); ++f) {
+      EXPECT_EQ(testing::FrameOf(results[k].model, f).R, testing::FrameOf(results[0].model, f).R);
+      EXPECT_EQ(testing::FrameOf(results[k].model, f).t, testing::FrameOf(results[0].model, f).t);
+    }
+    EXPECT_EQ(results[k].covariance, results[0].covariance);
+    EXPECT_EQ(stats[k].norm.rms, stats[0].norm.rms);
+    EXPECT_EQ(stats[k].norm.p95_abs, stats[0].norm.p95_abs);
+  }
 }
 
 }  // namespace

@@ -8,6 +8,10 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define LPOE_HAVE_AVX2_SINCOS 1
+#endif
 
 namespace lpoe {
 namespace {
@@ -105,7 +109,7 @@ struct Accumulator {
 // Joints whose sin/cos are computed ahead of the chain (longer chains compute them on the fly).
 // Every XMM register is caller-saved on x86-64, so a sincos call inside the chain would spill and
 // reload the running product; computed first, the calls have nothing live around them.
-constexpr int kSinCosUpFront = 16;
+constexpr int kSinCosUpFront = kMaxGivenSinCosJoints;
 
 // The motion policy of the double forward pass (kinematics.h): the sin/cos of every revolute-z joint
 // computed before the chain, on the stack; the other joints as OnTheFlyMotions. With `sin_q` and
@@ -176,6 +180,38 @@ inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q
   return BackwardChain<double>(
       model.num_joints(), [joints](int i) -> const SE3d& { return joints[i].origin; },
       MakeOnTheFlyMotions(joints, q, is_z), tool_point);
+}
+
+// The motion policy of the backward pass with sin(q_i), cos(q_i) of the revolute-z joints given.
+template <typename IsZ>
+class GivenSinCos {
+ public:
+  GivenSinCos(const Joint* joints, const double* q, IsZ is_z, const double* sin_q,
+              const double* cos_q)
+      : other_(joints, q, is_z), is_z_(is_z), s_(sin_q), c_(cos_q) {}
+  void ApplyLeft(int i, Eigen::Vector3d* p) const {
+    if (is_z_(i)) {
+      internal::PlaneRotation(c_[i], s_[i], &(*p)(0), &(*p)(1));
+    } else {
+      other_.ApplyLeft(i, p);
+    }
+  }
+
+ private:
+  OnTheFlyMotions<IsZ, double> other_;
+  IsZ is_z_;
+  const double* s_;
+  const double* c_;
+};
+
+template <typename IsZ>
+inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q, IsZ is_z,
+                                        const double* sin_q, const double* cos_q,
+                                        const Eigen::Vector3d& tool_point) {
+  const Joint* joints = model.joints.data();
+  return BackwardChain<double>(
+      model.num_joints(), [joints](int i) -> const SE3d& { return joints[i].origin; },
+      GivenSinCos<IsZ>(joints, q, is_z, sin_q, cos_q), tool_point);
 }
 
 template <typename IsZ>
@@ -353,6 +389,101 @@ SE3d ToolPoseJointJacobian(const RobotModel& model, const double* q, int tool,
   });
 }
 
+// ---- SinCosMany.
+
+#ifdef LPOE_HAVE_AVX2_SINCOS
+namespace {
+
+// Largest |x| the vector path reduces: k = round(x 2 / pi) then has at most 19 bits, so that k times
+// each 33-bit part of pi/2 is exact (fdlibm's medium-size reduction, __ieee754_rem_pio2).
+constexpr double kMaxVectorArgument = 524288.0;  // 2^19
+
+// sin and cos of x[0..3] into s, c; lanes beyond kMaxVectorArgument (or non-finite) are recomputed
+// with libm.
+__attribute__((target("avx2,fma"))) void SinCos4Avx2(const double* x, double* s, double* c) {
+  // pi/2 in three parts of 33 bits and the rest (fdlibm's pio2_1, pio2_2, pio2_3, pio2_3t).
+  const __m256d p1 = _mm256_set1_pd(1.57079632673412561417e+00);
+  const __m256d p2 = _mm256_set1_pd(6.07710050630396597660e-11);
+  const __m256d p3 = _mm256_set1_pd(2.02226624871116645580e-21);
+  const __m256d p3t = _mm256_set1_pd(8.47842766036889956997e-32);
+  const __m256d v = _mm256_loadu_pd(x);
+  const __m256d k = _mm256_round_pd(_mm256_mul_pd(v, _mm256_set1_pd(6.36619772367581382433e-01)),
+                                    _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+  // r = x - k pi/2: the first two products are exact and the first difference too (Sterbenz).
+  __m256d r = _mm256_fnmadd_pd(k, p1, v);
+  r = _mm256_fnmadd_pd(k, p2, r);
+  r = _mm256_fnmadd_pd(k, p3, r);
+  r = _mm256_fnmadd_pd(k, p3t, r);
+  // fdlibm's __kernel_sin and __kernel_cos (no tail) on r in [-pi/4, pi/4].
+  const __m256d z = _mm256_mul_pd(r, r);
+  __m256d ps = _mm256_set1_pd(1.58969099521155010221e-10);
+  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(-2.50507602534068634195e-08));
+  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(2.75573137070700676789e-06));
+  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(-1.98412698298579493134e-04));
+  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(8.33333333332248946124e-03));
+  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(-1.66666666666666324348e-01));
+  const __m256d sin_r = _mm256_fmadd_pd(_mm256_mul_pd(z, r), ps, r);
+  __m256d pc = _mm256_set1_pd(-1.13596475577881948265e-11);
+  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(2.08757232129817482790e-09));
+  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(-2.75573143513906633035e-07));
+  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(2.48015872894767294178e-05));
+  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(-1.38888888888741095749e-03));
+  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(4.16666666666666019037e-02));
+  const __m256d one = _mm256_set1_pd(1.0);
+  const __m256d hz = _mm256_mul_pd(_mm256_set1_pd(0.5), z);
+  const __m256d w = _mm256_sub_pd(one, hz);
+  // cos r = w + ((1 - w) - hz + z^2 pc), the rounding of 1 - hz recovered.
+  const __m256d cos_r = _mm256_add_pd(
+      w, _mm256_fmadd_pd(_mm256_mul_pd(z, z), pc, _mm256_sub_pd(_mm256_sub_pd(one, w), hz)));
+  // Quadrant n = k mod 4: (sin, cos) = (S, C), (C, -S), (-S, -C), (-C, S).
+  const __m256i n = _mm256_cvtepi32_epi64(_mm256_cvtpd_epi32(k));
+  const __m256d swap =
+      _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(n, _mm256_set1_epi64x(1)),
+                                             _mm256_set1_epi64x(1)));
+  const __m256i two = _mm256_set1_epi64x(2);
+  const __m256d sin_sign = _mm256_castsi256_pd(_mm256_slli_epi64(_mm256_and_si256(n, two), 62));
+  const __m256d cos_sign = _mm256_castsi256_pd(
+      _mm256_slli_epi64(_mm256_and_si256(_mm256_add_epi64(n, _mm256_set1_epi64x(1)), two), 62));
+  _mm256_storeu_pd(s, _mm256_xor_pd(_mm256_blendv_pd(sin_r, cos_r, swap), sin_sign));
+  _mm256_storeu_pd(c, _mm256_xor_pd(_mm256_blendv_pd(cos_r, sin_r, swap), cos_sign));
+  const __m256d abs_v = _mm256_andnot_pd(_mm256_set1_pd(-0.0), v);
+  const int in_range =
+      _mm256_movemask_pd(_mm256_cmp_pd(abs_v, _mm256_set1_pd(kMaxVectorArgument), _CMP_LE_OQ));
+  if (in_range != 0xF) {
+    for (int l = 0; l < 4; ++l) {
+      if (!(in_range & (1 << l))) SinCos(x[l], &s[l], &c[l]);
+    }
+  }
+}
+
+bool HaveAvx2Fma() {
+  static const bool have = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  return have;
+}
+
+}  // namespace
+#endif
+
+void SinCosMany(const double* x, int count, double* s, double* c) {
+#ifdef LPOE_HAVE_AVX2_SINCOS
+  if (HaveAvx2Fma()) {
+    int k = 0;
+    for (; k + 4 <= count; k += 4) SinCos4Avx2(x + k, s + k, c + k);
+    if (k < count) {  // the last 1-3 values through the same path (padded)
+      double xs[4] = {0, 0, 0, 0}, ss[4], cs[4];
+      for (int l = 0; k + l < count; ++l) xs[l] = x[k + l];
+      SinCos4Avx2(xs, ss, cs);
+      for (int l = 0; k + l < count; ++l) {
+        s[k + l] = ss[l];
+        c[k + l] = cs[l];
+      }
+    }
+    return;
+  }
+#endif
+  for (int k = 0; k < count; ++k) SinCos(x[k], &s[k], &c[k]);
+}
+
 // ---- KinematicChain.
 
 KinematicChain::KinematicChain(const RobotModel& model) : model_(&model) {
@@ -379,6 +510,18 @@ Eigen::Vector3d KinematicChain::Position(const double* q, int tool) const {
   }
   const unsigned char* z = z_revolute_.data();
   return BackwardPosition(*model_, q, [z](int i) { return z[i] != 0; },
+                          model_->tools[tool].origin.t);
+}
+
+Eigen::Vector3d KinematicChain::Position(const double* q, const double* sin_q,
+                                         const double* cos_q, int tool) const {
+  DCHECK(tool >= 0 && tool < model_->num_tools());
+  if (all_z_) {
+    return BackwardPosition(*model_, q, [](int) { return true; }, sin_q, cos_q,
+                            model_->tools[tool].origin.t);
+  }
+  const unsigned char* z = z_revolute_.data();
+  return BackwardPosition(*model_, q, [z](int i) { return z[i] != 0; }, sin_q, cos_q,
                           model_->tools[tool].origin.t);
 }
 
@@ -449,8 +592,18 @@ BasisJacobian::BasisJacobian(const RobotModel& model, const Parameterization& p)
 
 Eigen::Vector3d BasisJacobian::Position(const double* q, int tool, double* J, int ld,
                                         FrameRt* frames) const {
+  return Position(q, nullptr, nullptr, tool, J, ld, frames);
+}
+
+SE3d BasisJacobian::Pose(const double* q, int tool, double* J, int ld, FrameRt* frames) const {
+  return Pose(q, nullptr, nullptr, tool, J, ld, frames);
+}
+
+// (Null sin_q and cos_q: computed by the chain.)
+Eigen::Vector3d BasisJacobian::Position(const double* q, const double* sin_q, const double* cos_q,
+                                        int tool, double* J, int ld, FrameRt* frames) const {
   const int n = num_joints_;
-  chain_.Frames(q, tool, frames);
+  chain_.Frames(q, sin_q, cos_q, tool, frames);
   const Eigen::Vector3d P = frames[n].t;
   const int F = static_cast<int>(plan_.size());
   for (int f = 0; f < F; ++f) {
@@ -480,9 +633,10 @@ Eigen::Vector3d BasisJacobian::Position(const double* q, int tool, double* J, in
   return P;
 }
 
-SE3d BasisJacobian::Pose(const double* q, int tool, double* J, int ld, FrameRt* frames) const {
+SE3d BasisJacobian::Pose(const double* q, const double* sin_q, const double* cos_q, int tool,
+                         double* J, int ld, FrameRt* frames) const {
   const int n = num_joints_;
-  chain_.Frames(q, tool, frames);
+  chain_.Frames(q, sin_q, cos_q, tool, frames);
   const int F = static_cast<int>(plan_.size());
   for (int f = 0; f < F; ++f) {
     const FramePlan& fp = plan_[f];

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #include "lpoe/kinematics.h"
 #include "lpoe/parallel.h"
@@ -10,11 +12,48 @@
 namespace lpoe {
 namespace {
 
+// The k-th smallest (0-based) of v[0..n), all non-negative (or NaN, which counts as largest),
+// without reordering them: the bit patterns of non-negative floats order like their values, so two
+// counting passes over the high and the low 16 bits find it exactly (the value nth_element finds).
+template <typename Count>
+float KthSmallestNonNegative(const float* v, size_t n, size_t k) {
+  std::vector<Count> count(size_t{1} << 16, 0);
+  auto bits = [](float f) {
+    uint32_t b;
+    std::memcpy(&b, &f, sizeof(b));
+    return b;
+  };
+  for (size_t i = 0; i < n; ++i) ++count[bits(v[i]) >> 16];
+  uint32_t high = 0;
+  for (; k >= count[high]; ++high) k -= count[high];
+  std::fill(count.begin(), count.end(), Count(0));
+  for (size_t i = 0; i < n; ++i) {
+    const uint32_t b = bits(v[i]);
+    if ((b >> 16) == high) ++count[b & 0xFFFFu];
+  }
+  uint32_t low = 0;
+  for (; k >= count[low]; ++low) k -= count[low];
+  const uint32_t b = (high << 16) | low;
+  float out;
+  std::memcpy(&out, &b, sizeof(out));
+  return out;
+}
+
+float KthSmallestNonNegative(const float* v, size_t n, size_t k) {
+  return n <= UINT32_MAX ? KthSmallestNonNegative<uint32_t>(v, n, k)
+                         : KthSmallestNonNegative<uint64_t>(v, n, k);
+}
+
+// Index of the nearest-rank 95th percentile among n values.
+size_t P95Index(size_t n) {
+  const size_t rank = static_cast<size_t>(std::ceil(0.95 * static_cast<double>(n)));
+  return rank == 0 ? 0 : rank - 1;
+}
+
 // Nearest-rank 95th percentile of `values` (reordered).
 template <typename T>
 double P95(std::vector<T>* values) {
-  const size_t rank = static_cast<size_t>(std::ceil(0.95 * static_cast<double>(values->size())));
-  const size_t k = rank == 0 ? 0 : rank - 1;
+  const size_t k = P95Index(values->size());
   std::nth_element(values->begin(), values->begin() + k, values->end());
   return static_cast<double>((*values)[k]);
 }
@@ -74,43 +113,88 @@ std::vector<Eigen::Vector3d> PositionErrors(const RobotModel& model, const Measu
   return errors;
 }
 
+void PositionErrorRows::Reset(int rows, int chunks) {
+  rows_ = rows;
+  values_.resize(4 * static_cast<size_t>(rows));
+  moments_.assign(chunks, ChunkMoments());
+}
+
+void PositionErrorRows::Clear() {
+  rows_ = 0;
+  std::vector<float>().swap(values_);
+  std::vector<ChunkMoments>().swap(moments_);
+}
+
+ErrorStatistics PositionErrorRows::Statistics() const {
+  ErrorStatistics out;
+  const size_t n = static_cast<size_t>(rows_);
+  out.count = rows_;
+  if (n == 0) return out;
+  Moments total[4];
+  for (const ChunkMoments& m : moments_) {
+    for (int a = 0; a < 4; ++a) {
+      Moments c;
+      c.max = m.max[a];
+      c.sum = m.sum[a];
+      c.sum_sq = m.sum_sq[a];
+      total[a].Add(c);
+    }
+  }
+  const int threads = n < 20000 ? 1 : std::min(4, ThreadsFor(4));
+  ForEachTask(4, threads, [&](int a, int) {
+    AxisStatistics& s = a < 3 ? out.axis[a] : out.norm;
+    s = total[a].Finish(n);
+    s.p95_abs = KthSmallestNonNegative(values_.data() + a * n, n, P95Index(n));
+  });
+  return out;
+}
+
+double PositionErrorRows::MedianAbsComponent() const {
+  const size_t m = 3 * static_cast<size_t>(rows_);
+  if (m == 0) return 0;
+  // The element nth_element puts at m / 2 (the upper median for an even count).
+  return KthSmallestNonNegative(values_.data(), m, m / 2);
+}
+
+void CollectPositionErrors(const RobotModel& model, const MeasurementSet& data,
+                           PositionErrorRows* rows) {
+  // One forward-kinematics pass in fixed chunks on the hardware's threads (parallel.h); sin and cos
+  // of a block of rows at once (SinCosMany).
+  constexpr int kBlockRows = 64;
+  const int n = data.size();
+  const RowChunks chunks = KinematicsRowChunks(n);
+  rows->Reset(n, chunks.chunks);
+  if (n == 0) return;
+  const KinematicChain chain(model);
+  const int joints = data.num_joints();
+  const int threads = KinematicsThreads(chunks);
+  std::vector<std::vector<double>> sin_q(threads), cos_q(threads);
+  ForEachTask(chunks.chunks, threads, [&](int c, int thread) {
+    std::vector<double>& s = sin_q[thread];
+    std::vector<double>& co = cos_q[thread];
+    s.resize(static_cast<size_t>(kBlockRows) * joints);
+    co.resize(s.size());
+    for (int r0 = chunks.begin(c); r0 < chunks.end(c); r0 += kBlockRows) {
+      const int count = std::min(kBlockRows, chunks.end(c) - r0);
+      SinCosMany(data.q(r0), count * joints, s.data(), co.data());
+      for (int k = 0; k < count; ++k) {
+        const int r = r0 + k;
+        const size_t at = static_cast<size_t>(k) * joints;
+        rows->Record(c, r,
+                     data.position(r) -
+                         chain.Position(data.q(r), s.data() + at, co.data() + at, data.target(r)));
+      }
+    }
+  });
+}
+
 ErrorStatistics PositionErrorStatistics(const RobotModel& model, const MeasurementSet& data) {
   // One forward-kinematics pass. Max, mean and RMS are exact (double sums); the 95th percentiles
   // come from the absolute errors rounded to float (relative 6e-8, far below any reported digit),
-  // which keeps the memory at 16 bytes a row: 10^7 rows must fit in 1 GB with their data. The rows
-  // run in fixed chunks on the hardware's threads (parallel.h), their sums added in chunk order.
-  ErrorStatistics out;
-  const int n = data.size();
-  out.count = n;
-  if (n == 0) return out;
-  std::vector<float> values[4];
-  for (auto& v : values) v.resize(n);
-  const RowChunks chunks = KinematicsRowChunks(n);
-  std::vector<std::array<Moments, 4>> chunk_moments(chunks.chunks);
-  const int threads = KinematicsThreads(chunks);
-  ForEachTask(chunks.chunks, threads, [&](int c, int) {
-    std::array<Moments, 4>& moments = chunk_moments[c];
-    for (int r = chunks.begin(c); r < chunks.end(c); ++r) {
-      const Eigen::Vector3d e = data.position(r) - ToolPosition(model, data.q(r), data.target(r));
-      for (int a = 0; a < 3; ++a) {
-        moments[a].Add(std::abs(e(a)));
-        values[a][r] = static_cast<float>(std::abs(e(a)));
-      }
-      moments[3].Add(e.norm());
-      values[3][r] = static_cast<float>(e.norm());
-    }
-  });
-  Moments moments[4];
-  for (const auto& m : chunk_moments) {
-    for (int a = 0; a < 4; ++a) moments[a].Add(m[a]);
-  }
-  ForEachTask(4, std::min(threads, 4), [&](int a, int) {
-    AxisStatistics& s = a < 3 ? out.axis[a] : out.norm;
-    s = moments[a].Finish(n);
-    s.p95_abs = P95(&values[a]);
-    std::vector<float>().swap(values[a]);
-  });
-  return out;
+  // which keeps the memory at 16 bytes a row: 10^7 rows must fit in 1 GB with their data.
+  PositionErrorRows rows;
+  CollectPositionErrors(model, data, &rows);
+  return rows.Statistics();
 }
 
 }  // namespace lpoe

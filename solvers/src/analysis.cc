@@ -5,6 +5,7 @@
 #include <numeric>
 #include <random>
 #include <sstream>
+#include <vector>
 
 #include <glog/logging.h>
 
@@ -64,13 +65,22 @@ IdentifiabilityReport AnalyzeIdentifiability(const RobotModel& nominal, const Me
     r.most_correlated = std::move(pairs);
   }
 
-  // Excitation: a joint that barely moves leaves its frame poorly determined.
-  for (int i = 0; i < nominal.num_joints() && !data.empty(); ++i) {
-    double lo = data.q(0)[i], hi = lo;
+  // Excitation: a joint that barely moves leaves its frame poorly determined. The ranges of every
+  // joint in one pass over the rows (in memory order).
+  const int joints = std::min(nominal.num_joints(), data.num_joints());
+  std::vector<double> lows(joints), highs(joints);
+  if (!data.empty()) {
+    for (int i = 0; i < joints; ++i) lows[i] = highs[i] = data.q(0)[i];
     for (int k = 1; k < data.size(); ++k) {
-      lo = std::min(lo, data.q(k)[i]);
-      hi = std::max(hi, data.q(k)[i]);
+      const double* q = data.q(k);
+      for (int i = 0; i < joints; ++i) {
+        lows[i] = std::min(lows[i], q[i]);
+        highs[i] = std::max(highs[i], q[i]);
+      }
     }
+  }
+  for (int i = 0; i < joints && !data.empty(); ++i) {
+    const double lo = lows[i], hi = highs[i];
     const bool revolute = nominal.joints[i].type == JointType::kRevolute;
     const double limit = revolute ? kMinRevoluteExcursion : kMinPrismaticExcursion;
     if (hi - lo < limit) {
@@ -96,27 +106,22 @@ IdentifiabilityReport AnalyzeIdentifiability(const RobotModel& nominal, const Me
 std::vector<Outlier> FindOutliers(const RobotModel& model, const MeasurementSet& data,
                                   double threshold, double* robust_sigma) {
   // Memory: 16 bytes a row (float components and norms), not the 48 of double errors plus their
-  // components, so that 10^7 rows fit in 1 GB with their data. The median is that of the rounded
-  // components (relative 6e-8); the rows above the threshold are then decided and reported from
-  // their exact errors.
-  // The rows run in fixed chunks on the hardware's threads, each writing its own values.
+  // components, so that 10^7 rows fit in 1 GB with their data.
+  PositionErrorRows errors;
+  CollectPositionErrors(model, data, &errors);
+  return FindOutliers(model, data, errors, threshold, robust_sigma);
+}
+
+std::vector<Outlier> FindOutliers(const RobotModel& model, const MeasurementSet& data,
+                                  const PositionErrorRows& errors, double threshold,
+                                  double* robust_sigma) {
+  // The median is that of the rounded components (relative 6e-8); the rows above the threshold are
+  // then decided and reported from their exact errors.
+  CHECK_EQ(errors.size(), data.size()) << "errors collected on other data";
   const int n = data.size();
-  std::vector<float> comps(3 * static_cast<size_t>(n)), norms(n);
-  const RowChunks chunks = KinematicsRowChunks(n);
-  ForEachTask(chunks.chunks, KinematicsThreads(chunks), [&](int c, int) {
-    for (int k = chunks.begin(c); k < chunks.end(c); ++k) {
-      const Eigen::Vector3d e = data.position(k) - ToolPosition(model, data.q(k), data.target(k));
-      for (int a = 0; a < 3; ++a) {
-        comps[3 * static_cast<size_t>(k) + a] = static_cast<float>(std::abs(e(a)));
-      }
-      norms[k] = static_cast<float>(e.norm());
-    }
-  });
   std::vector<Outlier> out;
-  if (comps.empty()) return out;
-  std::nth_element(comps.begin(), comps.begin() + comps.size() / 2, comps.end());
-  const double sigma = std::max(1.4826 * static_cast<double>(comps[comps.size() / 2]), 1e-9);
-  std::vector<float>().swap(comps);
+  if (n == 0) return out;
+  const double sigma = std::max(1.4826 * errors.MedianAbsComponent(), 1e-9);
   if (robust_sigma) *robust_sigma = sigma;
   // |e| of a 3-D Gaussian exceeds 5 sigma with probability ~1e-5, so large data sets would list
   // noise as outliers: raise the threshold to the level pure noise reaches once in 100 data sets of
@@ -124,7 +129,7 @@ std::vector<Outlier> FindOutliers(const RobotModel& model, const MeasurementSet&
   const double t = std::max(threshold, Chi3Quantile(0.01 / std::max(1, data.size())));
   constexpr double kFloatMargin = 1e-6;  // candidates by the rounded norm, decided exactly
   for (int k = 0; k < n; ++k) {
-    if (static_cast<double>(norms[k]) <= t * sigma * (1 - kFloatMargin)) continue;
+    if (static_cast<double>(errors.norm(k)) <= t * sigma * (1 - kFloatMargin)) continue;
     const double e =
         (data.position(k) - ToolPosition(model, data.q(k), data.target(k))).norm();
     if (e > t * sigma) out.push_back({k, data.source_line(k), e, e / sigma});

@@ -79,9 +79,10 @@ namespace {
 Linearization Linearize(const RobotModel& model, const Eigen::VectorXd& joint_state,
                         const MeasurementSet& data, const Parameterization& p,
                         const LinearSolverOptions& options, bool stack,
-                        const Eigen::MatrixXd* joint_rows = nullptr) {
+                        const Eigen::MatrixXd* joint_rows = nullptr,
+                        PositionErrorRows* errors = nullptr) {
   return internal::NormalEquationsOf(model, data, p, joint_state, options.use_orientation,
-                                     options.orientation_weight, stack, joint_rows);
+                                     options.orientation_weight, stack, joint_rows, errors);
 }
 
 // The identifiability check shared with the Ceres solver (identifiability.h).
@@ -146,7 +147,19 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   const auto start = std::chrono::steady_clock::now();
   CalibrationResult result;
   result.model = nominal;
+  // The rows' errors of every main linearization go to options.errors->final_errors; they are kept
+  // when the last one is that of the returned model.
+  PositionErrorRows* errors = options.errors ? &options.errors->final_errors : nullptr;
+  if (errors != nullptr) {
+    errors->Clear();
+    options.errors->have_start_statistics = false;
+  }
+  bool errors_current = false;
   auto finish = [&](Termination t, const std::string& message) {
+    if (errors != nullptr && !(errors_current && (t == Termination::kConverged ||
+                                                  t == Termination::kMaxIterations))) {
+      errors->Clear();
+    }
     result.termination = t;
     result.message = message;
     result.wall_time_seconds =
@@ -210,7 +223,12 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     x.tail(K) = joint_state;
     return JointValuesOf(p, x);
   };
-  Linearization lin = Linearize(model, joint_state, data, p, options, stack, &joint_rows);
+  Linearization lin = Linearize(model, joint_state, data, p, options, stack, &joint_rows, errors);
+  errors_current = errors != nullptr && !errors->empty();
+  if (errors_current && options.errors->want_start_statistics && lin.finite) {
+    options.errors->start_statistics = errors->Statistics();
+    options.errors->have_start_statistics = true;
+  }
   if (!lin.finite) {
     return finish(Termination::kNumericalFailure,
                   "non-finite residuals or Jacobian at the nominal model (check the input values)");
@@ -300,8 +318,10 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       ApplyUpdate(p, alpha * x, &candidate);
       const Eigen::VectorXd candidate_joints = joint_state + alpha * x.tail(K);
       Linearization next =
-          Linearize(candidate, candidate_joints, data, p, options, stack, &joint_rows);
+          Linearize(candidate, candidate_joints, data, p, options, stack, &joint_rows, errors);
+      errors_current = false;
       if (next.finite && next.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
+        errors_current = errors != nullptr && !errors->empty();
         model = std::move(candidate);
         joint_state = candidate_joints;
         previous_cost = lin.cost;

@@ -46,6 +46,8 @@ struct Scratch {
   Eigen::MatrixXd A;  // m * kBlockPoses x P stacked Jacobian rows
   Eigen::VectorXd Y;  // m * kBlockPoses residuals
   std::vector<FrameRt> frames;
+  // sin and cos of the joint values of a block of rows (SinCosMany; no joint-space blocks).
+  std::vector<double> sin_q, cos_q;
   // Joint-space blocks only.
   Eigen::MatrixXd term_Y;     // n x P_b: one term's regressor
   Eigen::MatrixXd R;          // n x K: [Y_b(q) basis_b] of the row
@@ -159,12 +161,164 @@ void SyrkLower(const Eigen::MatrixXd& A, int rows, Eigen::MatrixXd* H) {
   H->selfadjointView<Eigen::Lower>().rankUpdate(A.topRows(rows).transpose());
 }
 
+#ifdef LPOE_HAVE_AVX2_KERNEL
+// ---- Position rows four at a time.
+//
+// The common case at scale (position data, no joint-space blocks, every joint revolute about z,
+// every basis column a canonical direction: the identifiable parameterization of such a chain)
+// evaluates four rows at once, one per AVX2 lane: the forward pass on the frames
+// G_i = T_0,i-1(q) T_{i-1,i}(0) (BasisJacobian::Position, eq. (29)) and the canonical columns of
+// each frame's block. A block's rows are stored component-major (row i * stride + k: component i of
+// pose k, so that four poses' values are one store) with y as the extra column P, so that one SYRK
+// gives J^T J and J^T y together. The sums are those of AccumulateRows up to round-off (another
+// order of the same products).
+
+// Which columns the four-row path writes: per frame, the canonical direction of each basis column.
+struct FourRowPlan {
+  bool ok = false;
+  struct Frame {
+    int offset = 0;
+    std::vector<int> select;
+  };
+  std::vector<Frame> frames;
+};
+
+FourRowPlan MakeFourRowPlan(const RobotModel& model, const Parameterization& p) {
+  FourRowPlan plan;
+  if (!HaveAvx2() || model.num_joints() > kMaxGivenSinCosJoints ||
+      p.num_joint_parameters() > 0) {
+    return plan;
+  }
+  for (const Joint& j : model.joints) {
+    if (!IsRevoluteZ(j)) return plan;
+  }
+  for (int f = 0; f < model.num_frames(); ++f) {
+    FourRowPlan::Frame fr;
+    fr.offset = p.offset[f];
+    const Eigen::MatrixXd& B = p.basis[f];
+    for (int c = 0; c < B.cols(); ++c) {
+      int one = -1;
+      for (int r = 0; r < 6; ++r) {
+        if (B(r, c) == 1.0 && one < 0) {
+          one = r;
+        } else if (B(r, c) != 0.0) {
+          return plan;
+        }
+      }
+      if (one < 0) return plan;
+      fr.select.push_back(one);
+    }
+    plan.frames.push_back(std::move(fr));
+  }
+  plan.ok = true;
+  return plan;
+}
+
+// X <- X M for 4-lane transforms (R column-major in X[0..8], t in X[9..11]).
+__attribute__((target("avx2,fma"))) inline void RightMultiply4(__m256d* X, const __m256d* M) {
+  __m256d R[9];
+  for (int c = 0; c < 3; ++c) {
+    for (int r = 0; r < 3; ++r) {
+      R[3 * c + r] = _mm256_fmadd_pd(
+          X[6 + r], M[3 * c + 2],
+          _mm256_fmadd_pd(X[3 + r], M[3 * c + 1], _mm256_mul_pd(X[r], M[3 * c])));
+    }
+  }
+  for (int r = 0; r < 3; ++r) {
+    X[9 + r] = _mm256_fmadd_pd(
+        X[6 + r], M[11],
+        _mm256_fmadd_pd(X[3 + r], M[10], _mm256_fmadd_pd(X[r], M[9], X[9 + r])));
+  }
+  for (int k = 0; k < 9; ++k) X[k] = R[k];
+}
+
+// The same transform in every lane.
+__attribute__((target("avx2,fma"))) inline void Broadcast4(const SE3d& O, __m256d* out) {
+  for (int k = 0; k < 9; ++k) out[k] = _mm256_set1_pd(O.R.data()[k]);
+  for (int k = 0; k < 3; ++k) out[9 + k] = _mm256_set1_pd(O.t(k));
+}
+
+// Four rows (lanes) of the position Jacobian into A (column c, component i of lane l at
+// A[c * ld + i * stride + l]; lanes from `valid` on get zeros) and their positions into P
+// (P[4 i + l]). sin_q, cos_q: n values per lane, lane after lane.
+__attribute__((target("avx2,fma"))) void PositionRows4(const RobotModel& model,
+                                                       const FourRowPlan& plan,
+                                                       const double* sin_q, const double* cos_q,
+                                                       const int* tool, int valid, double* A,
+                                                       int ld, int stride, double* P) {
+  const int n = model.num_joints();
+  __m256d F[kMaxGivenSinCosJoints + 1][12];
+  __m256d X[12], M[12];
+  Broadcast4(model.joints[0].origin, X);
+  for (int i = 0; i < n; ++i) {
+    if (i > 0) {
+      Broadcast4(model.joints[i].origin, M);
+      RightMultiply4(X, M);
+    }
+    for (int k = 0; k < 12; ++k) F[i][k] = X[k];
+    // R <- R Rz(q_i): columns 0 and 1.
+    const __m256d c = _mm256_set_pd(cos_q[3 * n + i], cos_q[2 * n + i], cos_q[n + i], cos_q[i]);
+    const __m256d s = _mm256_set_pd(sin_q[3 * n + i], sin_q[2 * n + i], sin_q[n + i], sin_q[i]);
+    for (int r = 0; r < 3; ++r) {
+      const __m256d x0 = X[r], x1 = X[3 + r];
+      X[r] = _mm256_fmadd_pd(s, x1, _mm256_mul_pd(c, x0));
+      X[3 + r] = _mm256_fnmadd_pd(s, x0, _mm256_mul_pd(c, x1));
+    }
+  }
+  // The tool frame of each lane's target.
+  const SE3d* T[4];
+  for (int l = 0; l < 4; ++l) T[l] = &model.tools[tool[l]].origin;
+  for (int k = 0; k < 9; ++k) {
+    M[k] = _mm256_set_pd(T[3]->R.data()[k], T[2]->R.data()[k], T[1]->R.data()[k],
+                         T[0]->R.data()[k]);
+  }
+  for (int k = 0; k < 3; ++k) M[9 + k] = _mm256_set_pd(T[3]->t(k), T[2]->t(k), T[1]->t(k), T[0]->t(k));
+  RightMultiply4(X, M);
+  for (int k = 0; k < 12; ++k) F[n][k] = X[k];
+  for (int i = 0; i < 3; ++i) _mm256_storeu_pd(P + 4 * i, X[9 + i]);
+
+  const __m256d lane = _mm256_set_pd(3, 2, 1, 0);
+  const __m256d valid_mask = _mm256_cmp_pd(lane, _mm256_set1_pd(valid), _CMP_LT_OQ);
+  const __m256d* p = X + 9;
+  for (int f = 0; f < static_cast<int>(plan.frames.size()); ++f) {
+    const FourRowPlan::Frame& fr = plan.frames[f];
+    if (fr.select.empty()) continue;
+    const __m256d* G = F[f < n ? f : n];
+    __m256d mask = valid_mask;
+    if (f >= n) {  // a tool: only the lanes measuring it
+      const int t = f - n;
+      mask = _mm256_and_pd(
+          mask, _mm256_castsi256_pd(_mm256_set_epi64x(-(tool[3] == t), -(tool[2] == t),
+                                                      -(tool[1] == t), -(tool[0] == t))));
+    }
+    const __m256d d[3] = {_mm256_sub_pd(p[0], G[9]), _mm256_sub_pd(p[1], G[10]),
+                          _mm256_sub_pd(p[2], G[11])};
+    double* out = A + static_cast<std::ptrdiff_t>(fr.offset) * ld;
+    for (size_t c = 0; c < fr.select.size(); ++c) {
+      const int k = fr.select[c];
+      __m256d col[3];
+      if (k < 3) {  // R_k x (P - t)
+        const __m256d* Rk = G + 3 * k;
+        col[0] = _mm256_fmsub_pd(Rk[1], d[2], _mm256_mul_pd(Rk[2], d[1]));
+        col[1] = _mm256_fmsub_pd(Rk[2], d[0], _mm256_mul_pd(Rk[0], d[2]));
+        col[2] = _mm256_fmsub_pd(Rk[0], d[1], _mm256_mul_pd(Rk[1], d[0]));
+      } else {  // R_k
+        for (int i = 0; i < 3; ++i) col[i] = G[3 * (k - 3) + i];
+      }
+      double* o = out + static_cast<std::ptrdiff_t>(c) * ld;
+      for (int i = 0; i < 3; ++i) _mm256_storeu_pd(o + i * stride, _mm256_and_pd(col[i], mask));
+    }
+  }
+}
+#endif
+
 // Accumulates rows [begin, end) into `sums` (and into the stacked J and y when `stacked`).
 template <typename Kind>
 void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameterization& p,
                     const Eigen::VectorXd& joint_state, const MeasurementSet& data, int begin,
                     int end, const Eigen::MatrixXd* joint_rows, Scratch* scratch,
-                    ChunkSums* sums, NormalEquations* stacked) {
+                    ChunkSums* sums, NormalEquations* stacked, int chunk,
+                    PositionErrorRows* errors) {
   constexpr int m = Kind::kResiduals;
   const int ld = m * kBlockPoses;
   const int K = p.num_joint_parameters();
@@ -174,8 +328,14 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
   double* A = scratch->A.data();
   double* Y = scratch->Y.data();
   FrameRt* frames = scratch->frames.data();
+  // Without joint-space blocks the rows' joint values are the measured ones: sin and cos of a whole
+  // block at once.
+  const bool block_sincos = K == 0 && n <= kMaxGivenSinCosJoints;
   for (int r0 = begin; r0 < end; r0 += kBlockPoses) {
     const int count = std::min(kBlockPoses, end - r0);
+    if (block_sincos) {
+      SinCosMany(data.q(r0), count * n, scratch->sin_q.data(), scratch->cos_q.data());
+    }
     for (int k = 0; k < count; ++k) {
       const int r = r0 + k;
       double* Jr = A + m * k;
@@ -183,7 +343,10 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
       const typename Kind::Observation measured = Kind::Observe(data, r);
       double e;
       if (K == 0) {
-        e = kind.Linearize(bj, data.q(r), data.target(r), measured, Jr, ld, nullptr, 0, frames, y);
+        const double* s = block_sincos ? scratch->sin_q.data() + k * n : nullptr;
+        const double* c = block_sincos ? scratch->cos_q.data() + k * n : nullptr;
+        e = kind.Linearize(bj, data.q(r), data.target(r), measured, Jr, ld, nullptr, 0, frames, y,
+                           s, c);
       } else {
         const double* q = data.q(r);
         if (!cached) EvaluateJointRegressor(p, q, scratch);
@@ -207,6 +370,9 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
             Jr + static_cast<std::ptrdiff_t>(frame_columns) * ld, m, K, Eigen::OuterStride<>(ld));
         Jj.noalias() = scratch->J_q.lazyProduct(Rj);  // small: no GEMM packing
       }
+      if constexpr (m == 3) {
+        if (errors != nullptr) errors->Record(chunk, r, Eigen::Vector3d(y[0], y[1], y[2]));
+      }
       double y_sq = 0;
       for (int i = 0; i < m; ++i) y_sq += y[i] * y[i];
       sums->cost += 0.5 * y_sq;
@@ -224,10 +390,54 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
   }
 }
 
+#ifdef LPOE_HAVE_AVX2_KERNEL
+// Rows [begin, end) four at a time (PositionRows4) into `sums`, whose H is (P + 1) square: J^T J,
+// then J^T y in row P.
+void AccumulatePositionRows4(const RobotModel& model, const FourRowPlan& plan,
+                             const MeasurementSet& data, int begin, int end, Scratch* scratch,
+                             ChunkSums* sums, int chunk, PositionErrorRows* errors) {
+  const int n = model.num_joints();
+  const int P1 = static_cast<int>(scratch->A.cols());  // P + 1
+  const int ld = static_cast<int>(scratch->A.rows());
+  double* A = scratch->A.data();
+  double* Y = A + static_cast<std::ptrdiff_t>(P1 - 1) * ld;
+  for (int r0 = begin; r0 < end; r0 += kBlockPoses) {
+    const int count = std::min(kBlockPoses, end - r0);
+    const int stride = (count + 3) & ~3;
+    SinCosMany(data.q(r0), count * n, scratch->sin_q.data(), scratch->cos_q.data());
+    for (int g = 0; g < count; g += 4) {
+      const int valid = std::min(4, count - g);
+      int tool[4];
+      for (int l = 0; l < 4; ++l) tool[l] = l < valid ? data.target(r0 + g + l) : 0;
+      double Pm[12];
+      PositionRows4(model, plan, scratch->sin_q.data() + static_cast<std::ptrdiff_t>(g) * n,
+                    scratch->cos_q.data() + static_cast<std::ptrdiff_t>(g) * n, tool, valid,
+                    A + g, ld, stride, Pm);
+      for (int l = 0; l < 4; ++l) {
+        for (int i = 0; i < 3; ++i) {
+          Y[i * stride + g + l] = l < valid ? data.position(r0 + g + l)(i) - Pm[4 * i + l] : 0.0;
+        }
+      }
+    }
+    for (int k = 0; k < count; ++k) {
+      const Eigen::Vector3d y(Y[k], Y[stride + k], Y[2 * stride + k]);
+      if (errors != nullptr) errors->Record(chunk, r0 + k, y);
+      const double y_sq = y.squaredNorm();
+      const double e = y.norm();
+      sums->cost += 0.5 * y_sq;
+      sums->max_error = std::max(sums->max_error, e);
+      sums->sum_error += e;
+    }
+    SyrkLowerAvx2(A, ld, 3 * stride, P1, sums->H.data());
+  }
+}
+#endif
+
 template <typename Kind>
 NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const MeasurementSet& data,
                            const Parameterization& p, const Eigen::VectorXd& joint_state,
-                           bool stack, const Eigen::MatrixXd* joint_rows) {
+                           bool stack, const Eigen::MatrixXd* joint_rows,
+                           PositionErrorRows* errors) {
   constexpr int m = Kind::kResiduals;
   const int P = p.num_parameters;
   const int N = data.size();
@@ -245,14 +455,28 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
   }
   const BasisJacobian bj(model, p);
 
+#ifdef LPOE_HAVE_AVX2_KERNEL
+  const FourRowPlan plan =
+      m == 3 && K == 0 && !stack ? MakeFourRowPlan(model, p) : FourRowPlan();
+  const bool four = plan.ok;
+#else
+  const bool four = false;
+#endif
   const RowChunks chunks = PartitionRows(N, kMinChunkPoses, kMaxChunks);
   std::vector<ChunkSums> sums(chunks.chunks);
+  if (m != 3 || K > 0) errors = nullptr;
+  if (errors != nullptr) errors->Reset(N, chunks.chunks);
   const int threads = N < kMinPosesForThreads ? 1 : ThreadsFor(chunks.chunks);
   std::vector<Scratch> scratch(threads);
   for (Scratch& s : scratch) {
-    s.A.resize(static_cast<Eigen::Index>(m) * kBlockPoses, P);
+    // The four-row path keeps y as column P of A (and reads up to three lanes past a block).
+    s.A.setZero(static_cast<Eigen::Index>(m) * kBlockPoses, four ? P + 1 : P);
     s.Y.resize(static_cast<Eigen::Index>(m) * kBlockPoses);
     s.frames.resize(n + 1);
+    if (K == 0) {
+      s.sin_q.resize(static_cast<size_t>(n) * (kBlockPoses + 4));
+      s.cos_q.resize(static_cast<size_t>(n) * (kBlockPoses + 4));
+    }
     if (K > 0) {
       s.R.resize(n, K);
       s.J_q.resize(m, n);
@@ -262,16 +486,28 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
   // Chunks are taken in any order; each writes only its own sums (and its own rows of J, y).
   ForEachTask(chunks.chunks, threads, [&](int c, int thread) {
     ChunkSums& cs = sums[c];
-    cs.H.setZero(P, P);
+    cs.H.setZero(four ? P + 1 : P, four ? P + 1 : P);
     cs.g.setZero(P);
+#ifdef LPOE_HAVE_AVX2_KERNEL
+    if (four) {
+      AccumulatePositionRows4(model, plan, data, chunks.begin(c), chunks.end(c), &scratch[thread],
+                              &cs, c, errors);
+      return;
+    }
+#endif
     AccumulateRows(kind, bj, p, joint_state, data, chunks.begin(c), chunks.end(c), joint_rows,
-                   &scratch[thread], &cs, stack ? &lin : nullptr);
+                   &scratch[thread], &cs, stack ? &lin : nullptr, c, errors);
   });
   // Fixed-order reduction.
   double sum_error = 0;
   for (const ChunkSums& cs : sums) {
-    lin.H += cs.H;
-    lin.g += cs.g;
+    if (four) {
+      lin.H += cs.H.topLeftCorner(P, P);
+      lin.g += cs.H.row(P).head(P).transpose();
+    } else {
+      lin.H += cs.H;
+      lin.g += cs.g;
+    }
     lin.cost += cs.cost;
     lin.max_error = std::max(lin.max_error, cs.max_error);
     sum_error += cs.sum_error;
@@ -287,13 +523,13 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
 NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
                                   const Parameterization& p, const Eigen::VectorXd& joint_state,
                                   bool use_orientation, double orientation_weight, bool stack,
-                                  const Eigen::MatrixXd* joint_rows) {
+                                  const Eigen::MatrixXd* joint_rows, PositionErrorRows* errors) {
   if (use_orientation) {
     PoseMeasurement kind;
     kind.orientation_weight = orientation_weight;
-    return Accumulate(kind, model, data, p, joint_state, stack, joint_rows);
+    return Accumulate(kind, model, data, p, joint_state, stack, joint_rows, errors);
   }
-  return Accumulate(PositionMeasurement(), model, data, p, joint_state, stack, joint_rows);
+  return Accumulate(PositionMeasurement(), model, data, p, joint_state, stack, joint_rows, errors);
 }
 
 Eigen::MatrixXd JointRegressorRows(const Parameterization& p, const MeasurementSet& data) {

@@ -9,6 +9,7 @@
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/robot_model.h"
+#include "lpoe/statistics.h"
 
 namespace lpoe {
 namespace internal {
@@ -35,10 +36,13 @@ struct NormalEquations {
 // `joint_rows`, when given and not empty, holds every row's R = [Y_b(q) basis_b] (JointRegressorRows
 // of the same p and data): the rows' regressors are then read, not evaluated (same result, bit for
 // bit).
+// `errors`, when given, receives the position errors of every row (PositionErrorRows, replaced) for
+// position data without joint-space blocks; it is left alone otherwise.
 NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
                                   const Parameterization& p, const Eigen::VectorXd& joint_state,
                                   bool use_orientation, double orientation_weight, bool stack,
-                                  const Eigen::MatrixXd* joint_rows = nullptr);
+                                  const Eigen::MatrixXd* joint_rows = nullptr,
+                                  PositionErrorRows* errors = nullptr);
 
 // Largest cache JointRegressorRows builds (bytes); above it the regressors are evaluated per row at
 // every linearization.

@@ -35,12 +35,36 @@ RobotModel Geometric(const RobotModel& model) {
   return g;
 }
 
-}  // namespace
+// True when a and b predict the same tool positions from the same joint values: the same joints
+// (type, twist, local frame) and tool frames (joint-error terms and gravity aside).
+bool SameGeometry(const RobotModel& a, const RobotModel& b) {
+  auto same = [](const SE3d& x, const SE3d& y) { return x.R == y.R && x.t == y.t; };
+  if (a.num_joints() != b.num_joints() || a.num_tools() != b.num_tools()) return false;
+  for (int i = 0; i < a.num_joints(); ++i) {
+    const Joint& x = a.joints[i];
+    const Joint& y = b.joints[i];
+    if (x.type != y.type || x.twist != y.twist || !same(x.origin, y.origin)) return false;
+  }
+  for (int t = 0; t < a.num_tools(); ++t) {
+    if (!same(a.tools[t].origin, b.tools[t].origin)) return false;
+  }
+  return true;
+}
 
-CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementSet& data,
-                                   const PipelineOptions& options, const std::string& stage,
-                                   RegistrationReport* registration, RobotModel* before,
-                                   RobotModel* start_out) {
+// What the analysis would otherwise compute with passes of its own over the identification rows
+// (docs/performance.md): the statistics of `before`, and the solver's errors at its result.
+struct SolveErrors {
+  LinearSolverErrors solver;
+  bool have_before = false;
+  ErrorStatistics before;
+};
+
+// SolveCalibration; with `errors`, also fills them (the linear solver on position data without
+// joint-space terms; otherwise they stay empty).
+CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
+                        const PipelineOptions& options, const std::string& stage,
+                        RegistrationReport* registration, RobotModel* before,
+                        RobotModel* start_out, SolveErrors* errors) {
   RobotModel start = nominal;
   if (before) *before = nominal;
   if (options.register_frames) {
@@ -128,7 +152,25 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
     o.gravity_tilt = tilt_model;
     o.initial_joint_terms = initial;
     if (tilt_model) o.convergence.sd_fraction *= kTiltSdFraction;
-    return CalibrateLinear(start, data, o);
+    if (errors != nullptr && before != nullptr && !options.use_orientation && terms.empty() &&
+        !tilt_model) {
+      // The errors before calibration come from the solver's first linearization when it starts
+      // there; otherwise from a pass of their own now, so that its 16 bytes a row are freed
+      // before the solver keeps its own.
+      if (SameGeometry(*before, start)) {
+        errors->solver.want_start_statistics = true;
+      } else {
+        errors->before = PositionErrorStatistics(*before, data);
+        errors->have_before = true;
+      }
+      o.errors = &errors->solver;
+    }
+    CalibrationResult r = CalibrateLinear(start, data, o);
+    if (errors != nullptr && errors->solver.have_start_statistics) {
+      errors->before = errors->solver.start_statistics;
+      errors->have_before = true;
+    }
+    return r;
   };
   CalibrationResult result = solve(nullptr, {});
   if (!tilt || !result.converged()) return StoreJointErrors(std::move(result), start);
@@ -163,6 +205,15 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
   return StoreJointErrors(std::move(tilted), start);
 }
 
+}  // namespace
+
+CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementSet& data,
+                                   const PipelineOptions& options, const std::string& stage,
+                                   RegistrationReport* registration, RobotModel* before,
+                                   RobotModel* start) {
+  return Solve(nominal, data, options, stage, registration, before, start, nullptr);
+}
+
 PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
                                       const MeasurementSet& identification,
                                       const MeasurementSet& verification,
@@ -176,8 +227,9 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
     chosen.joint_errors = sel.candidates[sel.chosen].terms;
     chosen.joint_errors_auto = false;
   }
-  out.result = SolveCalibration(nominal, identification, chosen, "calibrating", &out.registration,
-                                &out.before, &out.start);
+  SolveErrors errors;
+  out.result = Solve(nominal, identification, chosen, "calibrating", &out.registration, &out.before,
+                     &out.start, &errors);
   const CalibrationResult& result = out.result;
   if (result.termination == Termination::kNotIdentifiable) return out;
 
@@ -191,16 +243,28 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   const MeasurementSet& identification_eff =
       result.joint_terms.empty() ? identification : with_joint_terms;
   out.identifiability = AnalyzeIdentifiability(nominal, identification_eff, result);
-  out.identification_before = PositionErrorStatistics(out.before, identification);
-  out.identification_after = PositionErrorStatistics(out.geometric, identification_eff);
+  // The solver's last linearization is that of result.model, i.e. of `geometric` on the measured
+  // joint values (no joint terms): its errors serve the statistics and the outlier search.
+  PositionErrorRows& final_errors = errors.solver.final_errors;
+  const bool have_final = !final_errors.empty() && result.joint_terms.empty() &&
+                          final_errors.size() == identification.size();
+  out.identification_before = errors.have_before
+                                  ? errors.before
+                                  : PositionErrorStatistics(out.before, identification);
+  out.identification_after = have_final
+                                 ? final_errors.Statistics()
+                                 : PositionErrorStatistics(out.geometric, identification_eff);
   if (!verification.empty()) {
     out.has_verification = true;
     out.verification_before = PositionErrorStatistics(out.before, verification);
     out.verification_after = PositionErrorStatistics(
         out.geometric, WithEffectiveJointValues(result.joint_terms, verification));
   }
-  out.outliers = FindOutliers(out.geometric, identification_eff, options.outlier_threshold,
-                              &out.robust_sigma);
+  out.outliers = have_final ? FindOutliers(out.geometric, identification_eff, final_errors,
+                                           options.outlier_threshold, &out.robust_sigma)
+                             : FindOutliers(out.geometric, identification_eff,
+                                            options.outlier_threshold, &out.robust_sigma);
+  final_errors.Clear();
   if (!result.converged()) return out;
 
   PlausibilityOptions plausibility = options.plausibility;

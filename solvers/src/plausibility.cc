@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <vector>
 
 #include "lpoe/kinematics.h"
 #include "lpoe/parameterization.h"
@@ -95,10 +96,14 @@ Verdict AssessPlausibility(const RobotModel& start, const RobotModel& calibrated
   // ---- Units of the joint values (before anything else: they explain the rest).
   double max_q = 0;
   bool any_revolute = false;
-  for (int j = 0; j < start.num_joints(); ++j) {
-    if (start.joints[j].type != JointType::kRevolute) continue;
-    any_revolute = true;
-    for (int r = 0; r < data.size(); ++r) max_q = std::max(max_q, std::abs(data.q(r)[j]));
+  std::vector<int> revolute;
+  for (int j = 0; j < start.num_joints() && j < data.num_joints(); ++j) {
+    if (start.joints[j].type == JointType::kRevolute) revolute.push_back(j);
+  }
+  any_revolute = !revolute.empty();
+  for (int r = 0; r < data.size() && any_revolute; ++r) {  // one pass, in memory order
+    const double* q = data.q(r);
+    for (int j : revolute) max_q = std::max(max_q, std::abs(q[j]));
   }
   if (any_revolute && !data.empty()) {
     if (!options.joint_values_in_degrees) {

@@ -35,9 +35,17 @@ inline RowChunks PartitionRows(int rows, int min_chunk_rows, int max_chunks) {
 // 4096 rows, at most 64 of them.
 inline RowChunks KinematicsRowChunks(int rows) { return PartitionRows(rows, 4096, 64); }
 
+// When above 0: the thread count ThreadsFor uses instead of the hardware's (tests compare results
+// across thread counts with it; set it while no parallel loop runs).
+inline std::atomic<int>& ThreadCountOverride() {
+  static std::atomic<int> count(0);
+  return count;
+}
+
 // Threads worth starting for `tasks` tasks: the hardware's, at most one per task.
 inline int ThreadsFor(int tasks) {
-  const int hardware = static_cast<int>(std::thread::hardware_concurrency());
+  const int forced = ThreadCountOverride().load();
+  const int hardware = forced > 0 ? forced : static_cast<int>(std::thread::hardware_concurrency());
   return std::max(1, std::min(hardware, tasks));
 }
 

@@ -54,11 +54,11 @@ struct PoseMeasurement {
 
   // Analytic path (see PositionMeasurement::Linearize): y = W log(T_measured T_model^-1) (6), the
   // frame columns of W A and, when J_q is not null, of W dT/dq (6 x n). Returns the position error
-  // |t_measured - t_model| (mm).
+  // |t_measured - t_model| (mm). sin_q, cos_q as there.
   double Linearize(const BasisJacobian& bj, const double* q, int tool, const Observation& measured,
-                   double* J, int ld, double* J_q, int ld_q, FrameRt* frames,
-                   double* y) const {
-    const SE3d T = bj.Pose(q, tool, J, ld, frames);
+                   double* J, int ld, double* J_q, int ld_q, FrameRt* frames, double* y,
+                   const double* sin_q = nullptr, const double* cos_q = nullptr) const {
+    const SE3d T = bj.Pose(q, sin_q, cos_q, tool, J, ld, frames);
     if (J_q != nullptr) bj.PoseJointJacobian(frames, J_q, ld_q);
     Vector6d e = LogSE3(measured * T.Inverse());  // eq. (17)
     // Weight the rotation rows: 1 rad counts as orientation_weight mm.

@@ -50,11 +50,12 @@ struct PositionMeasurement {
 
   // Analytic path at the model of `bj` and joint values q: y = P_measured - P_model (3), the frame
   // columns of J (3 x bj.num_parameters(), leading dimension ld) and, when J_q is not null,
-  // dP/dq (3 x n, leading dimension ld_q). Returns |y| (mm).
+  // dP/dq (3 x n, leading dimension ld_q). Returns |y| (mm). sin_q, cos_q: sin and cos of q when
+  // the caller has them (BasisJacobian::Position), else null.
   double Linearize(const BasisJacobian& bj, const double* q, int tool, const Observation& measured,
-                   double* J, int ld, double* J_q, int ld_q, FrameRt* frames,
-                   double* y) const {
-    const Eigen::Vector3d P = bj.Position(q, tool, J, ld, frames);
+                   double* J, int ld, double* J_q, int ld_q, FrameRt* frames, double* y,
+                   const double* sin_q = nullptr, const double* cos_q = nullptr) const {
+    const Eigen::Vector3d P = bj.Position(q, sin_q, cos_q, tool, J, ld, frames);
     if (J_q != nullptr) bj.PositionJointJacobian(frames, J_q, ld_q);
     const Eigen::Vector3d e = measured - P;  // eq. (30)
     y[0] = e(0);

@@ -13,6 +13,7 @@
 #include "lpoe/calibration.h"
 #include "lpoe/measurements.h"
 #include "lpoe/robot_model.h"
+#include "lpoe/statistics.h"
 
 namespace lpoe {
 
@@ -55,6 +56,12 @@ struct Outlier {
 };
 std::vector<Outlier> FindOutliers(const RobotModel& model, const MeasurementSet& data,
                                   double threshold = 5.0, double* robust_sigma = nullptr);
+// The same from the errors of `model` on `data` collected by a pass that computed them
+// (PositionErrorRows, e.g. the linear solver's last linearization): forward kinematics only for the
+// rows above the threshold, which are decided and reported from their exact errors.
+std::vector<Outlier> FindOutliers(const RobotModel& model, const MeasurementSet& data,
+                                  const PositionErrorRows& errors, double threshold,
+                                  double* robust_sigma);
 
 // How rows are split for verification and cross-validation.
 //   kRandom:     a seeded shuffle (portable: the same everywhere for a seed).

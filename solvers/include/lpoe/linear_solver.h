@@ -22,8 +22,24 @@
 #include "lpoe/calibration.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/convergence.h"
+#include "lpoe/statistics.h"
 
 namespace lpoe {
+
+// What the solver's passes over the rows leave for the caller's analysis, so that the statistics and
+// the outlier search need no forward-kinematics pass of their own (docs/performance.md). Filled for
+// position data without joint-space terms; otherwise left as it is.
+struct LinearSolverErrors {
+  // In: also keep the statistics of the errors at the model the solve starts from (those of its
+  // first linearization).
+  bool want_start_statistics = false;
+  // Out: those statistics (as PositionErrorStatistics, to round-off).
+  bool have_start_statistics = false;
+  ErrorStatistics start_statistics;
+  // Out: the errors of the last linearization when it is that of the returned model (converged,
+  // or at the iteration limit); empty otherwise. 16 bytes a row.
+  PositionErrorRows final_errors;
+};
 
 struct LinearSolverOptions {
   ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
@@ -72,6 +88,8 @@ struct LinearSolverOptions {
   std::vector<JointTermValues> initial_joint_terms;
   // Called after every iteration (e.g. for a progress line).
   std::function<void(const IterationRecord&)> on_iteration;
+  // When not null: filled as described there. Not owned.
+  LinearSolverErrors* errors = nullptr;
 };
 
 CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSet& data,
