@@ -72,9 +72,24 @@ namespace {
 Linearization Linearize(const RobotModel& model, const Eigen::VectorXd& joint_state,
                         const MeasurementSet& data, const Parameterization& p,
                         const LinearSolverOptions& options, bool stack,
-                        const Eigen::MatrixXd* joint_rows = nullptr) {
+                        const Eigen::MatrixXd* joint_rows = nullptr,
+                        const internal::JointColumnsOptions& joint = {}) {
   return internal::NormalEquationsOf(model, data, p, joint_state, options.use_orientation,
-                                     options.orientation_weight, stack, joint_rows);
+                                     options.orientation_weight, stack, joint_rows, joint);
+}
+
+// Whether a and b have the same frame directions (blocks, offsets and bases).
+bool SameFrames(const Parameterization& a, const Parameterization& b) {
+  if (a.num_frame_parameters() != b.num_frame_parameters() || a.basis.size() != b.basis.size()) {
+    return false;
+  }
+  for (size_t f = 0; f < a.basis.size(); ++f) {
+    if (a.offset[f] != b.offset[f] || a.basis[f].cols() != b.basis[f].cols() ||
+        a.basis[f] != b.basis[f]) {
+      return false;
+    }
+  }
+  return true;
 }
 
 // The identifiability check shared with the Ceres solver (identifiability.h).
@@ -159,12 +174,19 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   const bool override_basis = options.parameterization_override != nullptr;
   CHECK(!override_basis || options.joint_terms.empty())
       << "joint-space terms with a parameterization override";
+  // With joint-space terms, the analysis that reduces them also gives the rows' regressors and the
+  // normal equations at the nominal model with every term whole: the first linearization below is
+  // their projection onto the reduced blocks (no second pass over the rows).
+  internal::NormalEquations analysed;
+  internal::JointSpaceRegressors regressors;
+  Parameterization analysed_p;
   result.parameterization =
       override_basis ? *options.parameterization_override
                      : internal::SolverParameterization(
                            nominal, data, options.parameterization, options.use_orientation,
                            options.orientation_weight, options.joint_terms,
-                           options.joint_term_tolerance, options.structure_reference);
+                           options.joint_term_tolerance, options.structure_reference, &analysed,
+                           &regressors, &analysed_p);
   if (!override_basis) internal::LeaveOutUnmeasuredTools(nominal, data, &result.parameterization);
   const Parameterization& p = result.parameterization;
   const bool full = !override_basis && options.parameterization == ParameterizationKind::kFull;
@@ -189,14 +211,26 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   // The joint-space blocks' coordinates (they start at zero: no joint error).
   const int K = p.num_joint_parameters();
   Eigen::VectorXd joint_state = Eigen::VectorXd::Zero(K);
-  // The rows' joint regressors do not change during the solve: evaluated once.
-  const Eigen::MatrixXd joint_rows = internal::JointRegressorRows(p, data);
+  // The rows' joint regressors do not change during the solve: evaluated once. The full
+  // parameterization solves the stacked rows (dense joint columns, JointRegressorRows); otherwise
+  // the normal equations are formed by the joint blocks' structure (normal_equations.h).
+  const Eigen::MatrixXd joint_rows =
+      stack ? internal::JointRegressorRows(p, data) : Eigen::MatrixXd();
+  const bool structured = K > 0 && !stack;
+  if (structured) internal::SetSlotBasis(p, &regressors);
+  internal::JointColumnsOptions exact_blocks;
+  exact_blocks.regressors = &regressors;
+  internal::JointColumnsOptions gradient_only = exact_blocks;
+  gradient_only.gradient_only = true;
   auto joint_values = [&]() {
     Eigen::VectorXd x = Eigen::VectorXd::Zero(p.num_parameters);
     x.tail(K) = joint_state;
     return JointValuesOf(p, x);
   };
-  Linearization lin = Linearize(model, joint_state, data, p, options, stack, &joint_rows);
+  Linearization lin =
+      structured && SameFrames(analysed_p, p)
+          ? internal::ProjectJointBlocks(analysed, p)
+          : Linearize(model, joint_state, data, p, options, stack, &joint_rows, exact_blocks);
   if (!lin.finite) {
     return finish(Termination::kNumericalFailure,
                   "non-finite residuals or Jacobian at the nominal model (check the input values)");
@@ -237,12 +271,41 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     }
   }
 
+  // Frozen joint blocks (structured path): the joint-space columns J_q(q_eff) R change with the
+  // geometry and the terms by about their relative size (1e-3), so the iterations form the frames'
+  // block, the gradient and the cost exactly and keep the joint blocks of H (frames x joint,
+  // joint x joint) from the last exact linearization: the step solves the exact gradient with a
+  // slightly older H, which converges to the same solution (where the gradient is zero) with a
+  // contraction of about that relative change per iteration. When the steps stop shrinking by
+  // kFrozenContraction the blocks are formed again at the current point, and the covariance is
+  // always computed from exact ones.
+  constexpr double kFrozenContraction = 0.25;
+  Eigen::MatrixXd frozen;  // P x K: H's joint columns
+  auto freeze = [&](const Linearization& l) { frozen = l.H.rightCols(K); };
+  auto complete = [&](Linearization* l) {
+    l->H.rightCols(K) = frozen;
+    l->H.bottomLeftCorner(K, p.num_parameters - K) = frozen.topRows(p.num_parameters - K).transpose();
+  };
+  auto exact = [&]() {
+    Linearization l = Linearize(model, joint_state, data, p, options, stack, &joint_rows, exact_blocks);
+    freeze(l);
+    return l;
+  };
+  if (structured) freeze(lin);
+
   ConvergenceOptions stop = options.convergence;
   stop.step_tolerance = options.step_tolerance;
   const long dof = static_cast<long>(per_row) * data.size() - identifiable;
   double previous_cost = -1;
+  double previous_step = -1;
   for (int it = 1; it <= options.max_iterations; ++it) {
-    const Eigen::VectorXd x = SolveStep(lin, full, identifiable, options);
+    Eigen::VectorXd x = SolveStep(lin, full, identifiable, options);
+    if (structured && !lin.joint_blocks &&
+        (!x.allFinite() || (previous_step >= 0 && x.norm() > kFrozenContraction * previous_step))) {
+      lin = exact();
+      x = SolveStep(lin, full, identifiable, options);
+    }
+    previous_step = x.norm();
     if (!x.allFinite()) {
       return finish(Termination::kNumericalFailure,
                     "the least-squares step is not finite (numerically singular normal equations)");
@@ -267,6 +330,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       result.iterations = it - 1;
       result.final_cost = lin.cost;
       if (options.compute_covariance && !full) {
+        if (structured && !lin.joint_blocks) lin = exact();
         if (dof > 0) {
           const double s2 = 2.0 * lin.cost / static_cast<double>(dof);
           const Eigen::VectorXd d = ColumnScale(lin.H);
@@ -285,7 +349,9 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       ApplyUpdate(p, alpha * x, &candidate);
       const Eigen::VectorXd candidate_joints = joint_state + alpha * x.tail(K);
       Linearization next =
-          Linearize(candidate, candidate_joints, data, p, options, stack, &joint_rows);
+          Linearize(candidate, candidate_joints, data, p, options, stack, &joint_rows,
+                    structured ? gradient_only : exact_blocks);
+      if (structured) complete(&next);
       if (next.finite && next.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
         model = std::move(candidate);
         joint_state = candidate_joints;
