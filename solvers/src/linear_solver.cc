@@ -324,13 +324,32 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     state.previous_cost = previous_cost;
     const ConvergenceDecision decision = TestConvergence(stop, state);
     if (decision.converged()) {
+      if (structured && !lin.joint_blocks) {
+        // With frozen joint blocks the contraction per step is about their relative change, not
+        // quadratic: the last (tiny) step is taken too, and the solution's normal equations are
+        // formed exactly (the covariance's, and the final cost).
+        RobotModel candidate = model;
+        ApplyUpdate(p, x, &candidate);
+        const Eigen::VectorXd candidate_joints = joint_state + x.tail(K);
+        const RobotModel kept_model = model;
+        const Eigen::VectorXd kept_joints = joint_state;
+        model = std::move(candidate);
+        joint_state = candidate_joints;
+        Linearization last = exact();
+        if (last.finite && last.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
+          lin = std::move(last);
+        } else {
+          model = kept_model;
+          joint_state = kept_joints;
+          lin = exact();
+        }
+      }
       result.stop_rule = decision.rule;
       result.model = model;
       result.joint_terms = joint_values();
       result.iterations = it - 1;
       result.final_cost = lin.cost;
       if (options.compute_covariance && !full) {
-        if (structured && !lin.joint_blocks) lin = exact();
         if (dof > 0) {
           const double s2 = 2.0 * lin.cost / static_cast<double>(dof);
           const Eigen::VectorXd d = ColumnScale(lin.H);
