@@ -279,7 +279,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   // contraction of about that relative change per iteration. When the steps stop shrinking by
   // kFrozenContraction the blocks are formed again at the current point, and the covariance is
   // always computed from exact ones.
-  constexpr double kFrozenContraction = 0.25;
+  constexpr double kFrozenContraction = 0.05;
   Eigen::MatrixXd frozen;  // P x K: H's joint columns
   auto freeze = [&](const Linearization& l) { frozen = l.H.rightCols(K); };
   auto complete = [&](Linearization* l) {
