@@ -150,6 +150,15 @@ void ExpectStructuredEqualsDense(bool pose, bool reduce) {
     EXPECT_NEAR(b.max_error, a.max_error, kRelative * a.max_error);
     EXPECT_NEAR(b.mean_error, a.mean_error, kRelative * a.mean_error);
     EXPECT_EQ(b.H, b.H.transpose());
+    // Regressors not stored (above kMaxJointRowsBytes): evaluated per row, the same numbers.
+    internal::JointSpaceRegressors unstored = regs;
+    unstored.values.resize(0, 0);
+    internal::JointColumnsOptions evaluated;
+    evaluated.regressors = &unstored;
+    const internal::NormalEquations u = internal::NormalEquationsOf(
+        d.model, d.data, p, state, pose, 1000.0, false, nullptr, evaluated);
+    EXPECT_LE(RelativeDifference(u.H, b.H), 1e-14);
+    EXPECT_LE(RelativeDifference(u.g, b.g), 1e-14);
     // Without regressors given, the same (built for the call).
     const internal::NormalEquations c =
         internal::NormalEquationsOf(d.model, d.data, p, state, pose, 1000.0, false);
