@@ -9,9 +9,12 @@
 
 #include <benchmark/benchmark.h>
 
+#include "identifiability.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/simulation.h"
+#include "normal_equations.h"
 
 namespace lpoe {
 namespace {
@@ -53,6 +56,7 @@ void BM_Calibrate(benchmark::State& state) {
             : SolveCalibration(d.nominal, d.data, o, "benchmark", nullptr, nullptr, nullptr);
     if (!r.converged()) state.SkipWithError(r.message.c_str());
     benchmark::DoNotOptimize(r.model.joints[0].origin.t.data());
+    state.counters["iterations"] = r.iterations;
   }
   state.counters["poses"] = d.data.size();
 }
@@ -64,6 +68,80 @@ BENCHMARK(BM_Calibrate)
     ->Args({1, 0})
     ->Args({1, 1})
     ->Unit(benchmark::kMillisecond);
+
+// The passes of a linear-solver calibration with compliance + harmonics (normal_equations.h), at the
+// nominal model. range(0): 0 evaluating the rows' regressors (BuildJointSpaceRegressors), 1 the
+// reduction's normal equations (every term whole, 141 columns, by structure), 2 the same with
+// dense rows, 3 deciding the combinations from them (JointBlockBases), 4 an iteration's normal
+// equations of the reduced problem by structure, 5 the same with dense rows, 6 an iteration with
+// frozen joint blocks (gradient only), 7 the geometric normal equations alone.
+void BM_Pass(benchmark::State& state) {
+  const Data& d = Poses1000();
+  std::vector<std::shared_ptr<const JointTerm>> terms;
+  for (const char* name : {"compliance", "harmonics"}) {
+    std::shared_ptr<const JointTerm> t;
+    if (!MakeJointTerm(name, d.nominal, &t).ok()) state.SkipWithError("term");
+    terms.push_back(t);
+  }
+  internal::NormalEquations analysed;
+  internal::JointSpaceRegressors regs;
+  Parameterization whole;
+  const Parameterization reduced = internal::SolverParameterization(
+      d.nominal, d.data, ParameterizationKind::kIdentifiable, false, 1.0, terms, 1e-4, nullptr,
+      &analysed, &regs, &whole);
+  internal::JointSpaceRegressors reduced_regs = regs;
+  internal::SetSlotBasis(reduced, &reduced_regs);
+  const Parameterization geometric = MakeParameterization(
+      d.nominal, ParameterizationKind::kIdentifiable, DataKind::kPosition);
+  internal::JointColumnsOptions structured, dense, gradient;
+  dense.dense = true;
+  gradient.gradient_only = true;
+  gradient.regressors = &reduced_regs;
+  const Eigen::VectorXd none;
+  const int pass = static_cast<int>(state.range(0));
+  for (auto _ : state) {
+    switch (pass) {
+      case 0:
+        benchmark::DoNotOptimize(internal::BuildJointSpaceRegressors(whole, d.data).values.data());
+        break;
+      case 1:
+        structured.regressors = &regs;
+        benchmark::DoNotOptimize(
+            internal::NormalEquationsOf(d.nominal, d.data, whole, none, false, 1, false, nullptr, nullptr,
+                                        structured).H.data());
+        break;
+      case 2:
+        benchmark::DoNotOptimize(internal::NormalEquationsOf(d.nominal, d.data, whole, none, false,
+                                                             1, false, nullptr, nullptr, dense).H.data());
+        break;
+      case 3:
+        benchmark::DoNotOptimize(internal::JointBlockBases(analysed.H, whole, 1e-4).data());
+        break;
+      case 4:
+        structured.regressors = &reduced_regs;
+        benchmark::DoNotOptimize(
+            internal::NormalEquationsOf(d.nominal, d.data, reduced, none, false, 1, false, nullptr, nullptr,
+                                        structured).H.data());
+        break;
+      case 5:
+        benchmark::DoNotOptimize(internal::NormalEquationsOf(d.nominal, d.data, reduced, none,
+                                                             false, 1, false, nullptr, nullptr, dense).H.data());
+        break;
+      case 6:
+        benchmark::DoNotOptimize(
+            internal::NormalEquationsOf(d.nominal, d.data, reduced, none, false, 1, false, nullptr, nullptr,
+                                        gradient).H.data());
+        break;
+      default:
+        benchmark::DoNotOptimize(
+            internal::NormalEquationsOf(d.nominal, d.data, geometric, none, false, 1, false).H.data());
+    }
+  }
+  state.counters["columns"] = pass <= 3 ? whole.num_parameters
+                              : pass == 7 ? geometric.num_parameters
+                                          : reduced.num_parameters;
+}
+BENCHMARK(BM_Pass)->ArgName("pass")->DenseRange(0, 7)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace lpoe

@@ -242,7 +242,7 @@ Status ValidateJointErrorTerms(const RobotModel& model) {
 }
 
 void ComplianceRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y) {
-  ChainState state;
+  thread_local ChainState state;  // no allocation per call (solvers evaluate it for every row)
   ComputeChainState(model, q, &state);
   ComplianceRegressorFor(model, state, model.gravity, Y);
 }

@@ -262,9 +262,15 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
 
   // ---- Covariance in the tangent spaces, in the parameterization's order.
   if (options.compute_covariance && termination == Termination::kConverged) {
-    // Batched rows: from the normal equations (ceres::Covariance would form the dense Jacobian
-    // of every row, 650 MB for 10^6 rows, and its SVD).
-    const Status s = builder.BatchedRows() > 1
+    // From the normal equations when they are the whole problem (no robust loss) and full rank
+    // (identifiable parameterization), or for batched rows: ceres::Covariance would form the dense
+    // Jacobian of every row (650 MB for 10^6 rows) and take its SVD, the most expensive step of a
+    // 1000-row calibration with joint-space terms; the normal equations are formed by the joint
+    // blocks' structure, and the same rank test refuses a rank-deficient Jacobian.
+    // (A gravity tilt's bilinear block keeps ceres::Covariance: its a-priori form, as before.)
+    const bool normal_equations =
+        builder.BatchedRows() > 1 || (!full && options.loss == "none" && !options.gravity_tilt);
+    const Status s = normal_equations
                          ? builder.NormalEquationsCovariance(&result.covariance)
                          : builder.Covariance(&problem, options.num_threads, &result.covariance);
     if (!s.ok()) {

@@ -68,11 +68,92 @@ Eigen::MatrixXd NormalMatrix(const RobotModel& model, const MeasurementSet& data
       .H;
 }
 
+std::vector<Eigen::MatrixXd> JointBlockBases(const Eigen::MatrixXd& H, const Parameterization& pi,
+                                             double tolerance) {
+  // Columns kept so far, as combinations of pi's parameters: the identifiable frames, then each
+  // block's kept combinations (basis_b on the block's rows). Kept^T X is formed from those rows,
+  // and Kept^T H Kept grown block by block: no product with the whole matrix.
+  const int frame_columns = pi.num_frame_parameters();
+  std::vector<Eigen::MatrixXd> bases;
+  auto kept_transpose_times = [&](const Eigen::MatrixXd& X) {
+    int rows = frame_columns;
+    for (const Eigen::MatrixXd& B : bases) rows += static_cast<int>(B.cols());
+    Eigen::MatrixXd out(rows, X.cols());
+    out.topRows(frame_columns) = X.topRows(frame_columns);
+    int row = frame_columns;
+    for (size_t b = 0; b < bases.size(); ++b) {
+      const Eigen::MatrixXd& B = bases[b];
+      out.middleRows(row, B.cols()).noalias() =
+          B.transpose() * X.middleRows(pi.joint_blocks[b].offset, B.rows());
+      row += static_cast<int>(B.cols());
+    }
+    return out;
+  };
+  Eigen::MatrixXd Hkk = H.topLeftCorner(frame_columns, frame_columns);
+  for (const JointBlock& block : pi.joint_blocks) {
+    const int P = block.term->num_parameters();
+    const Eigen::MatrixXd Hkb = kept_transpose_times(H.middleCols(block.offset, P));
+    const Eigen::MatrixXd Hbb = H.block(block.offset, block.offset, P, P);
+    // Pseudo-inverse of the (column-scaled) kept block.
+    const Eigen::VectorXd dk = ColumnScale(Hkk);
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ek(dk.asDiagonal() * Hkk * dk.asDiagonal());
+    const double kmax = ek.eigenvalues().size() > 0 ? ek.eigenvalues().maxCoeff() : 0.0;
+    Eigen::VectorXd inv = ek.eigenvalues();
+    for (int k = 0; k < inv.size(); ++k) inv(k) = inv(k) > 1e-14 * kmax ? 1.0 / inv(k) : 0.0;
+    const Eigen::MatrixXd W = ek.eigenvectors().transpose() * (dk.asDiagonal() * Hkb);
+    const Eigen::MatrixXd S =
+        Hbb - W.transpose() * inv.asDiagonal() * W;  // Schur complement
+    const Eigen::VectorXd db = ColumnScale(Hbb);
+    // Parameters that move nothing at these rows (a zero column, e.g. the gravity torque about a
+    // vertical axis) have a zero row and column in S: they are left out of the eigenproblem, whose
+    // cost grows with the cube of its size, and can only be left out of the basis.
+    std::vector<int> live;
+    for (int k = 0; k < P; ++k) {
+      if (Hbb(k, k) != 0) live.push_back(k);
+    }
+    const int L = static_cast<int>(live.size());
+    Eigen::MatrixXd Ss(L, L);
+    for (int a = 0; a < L; ++a) {
+      for (int c = 0; c < L; ++c) Ss(a, c) = db(live[a]) * S(live[a], live[c]) * db(live[c]);
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Ss);
+    std::vector<int> keep;
+    for (int k = 0; k < L; ++k) {
+      if (std::sqrt(std::max(0.0, es.eigenvalues()(k))) > tolerance) keep.push_back(k);
+    }
+    Eigen::MatrixXd basis;
+    if (static_cast<int>(keep.size()) == P) {
+      basis = Eigen::MatrixXd::Identity(P, P);  // every parameter: keep their own names
+    } else {
+      Eigen::MatrixXd V = Eigen::MatrixXd::Zero(P, keep.size());
+      // Scaled coordinates z = theta / db: theta = db * z.
+      for (size_t k = 0; k < keep.size(); ++k) {
+        for (int a = 0; a < L; ++a) V(live[a], k) = db(live[a]) * es.eigenvectors()(a, keep[k]);
+      }
+      basis = V.householderQr().householderQ() * Eigen::MatrixXd::Identity(P, keep.size());
+    }
+    // Kept^T H Kept with the new block's combinations.
+    const Eigen::MatrixXd cross = Hkb * basis;
+    const int k0 = static_cast<int>(Hkk.rows()), kb = static_cast<int>(basis.cols());
+    Eigen::MatrixXd grown(k0 + kb, k0 + kb);
+    grown.topLeftCorner(k0, k0) = Hkk;
+    grown.topRightCorner(k0, kb) = cross;
+    grown.bottomLeftCorner(kb, k0) = cross.transpose();
+    grown.bottomRightCorner(kb, kb) = basis.transpose() * Hbb * basis;
+    Hkk = std::move(grown);
+    bases.push_back(basis);
+  }
+  return bases;
+}
+
 Parameterization SolverParameterization(const RobotModel& nominal, const MeasurementSet& data,
                                         ParameterizationKind kind, bool use_orientation,
                                         double orientation_weight,
                                         const std::vector<std::shared_ptr<const JointTerm>>& terms,
-                                        double tolerance, const RobotModel* structure_reference) {
+                                        double tolerance, const RobotModel* structure_reference,
+                                        NormalEquations* analysed,
+                                        JointSpaceRegressors* regressors,
+                                        Parameterization* analysed_parameterization) {
   const DataKind data_kind = use_orientation ? DataKind::kPose : DataKind::kPosition;
   Parameterization p = MakeParameterization(nominal, kind, data_kind);
   LeaveOutStructurallyUnidentifiable(structure_reference ? *structure_reference : nominal, data,
@@ -88,49 +169,19 @@ Parameterization SolverParameterization(const RobotModel& nominal, const Measure
     CHECK_EQ(term->num_joints(), nominal.num_joints()) << term->name();
     AddJointBlock(term, &pi);
   }
-  const Eigen::MatrixXd H = NormalMatrix(nominal, data, pi, use_orientation, orientation_weight);
-  const int total = pi.num_parameters;
-  // Columns kept so far, as combinations of pi's parameters: the identifiable frames first.
-  const int frame_columns = pi.num_frame_parameters();
-  Eigen::MatrixXd kept = Eigen::MatrixXd::Identity(total, frame_columns);
-  std::vector<Eigen::MatrixXd> bases;
-  for (const JointBlock& block : pi.joint_blocks) {
-    const int P = block.term->num_parameters();
-    const Eigen::MatrixXd C = Eigen::MatrixXd::Identity(total, total).middleCols(block.offset, P);
-    const Eigen::MatrixXd Hkk = kept.transpose() * H * kept;
-    const Eigen::MatrixXd Hkb = kept.transpose() * H * C;
-    const Eigen::MatrixXd Hbb = C.transpose() * H * C;
-    // Pseudo-inverse of the (column-scaled) kept block.
-    const Eigen::VectorXd dk = ColumnScale(Hkk);
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ek(dk.asDiagonal() * Hkk * dk.asDiagonal());
-    const double kmax = ek.eigenvalues().size() > 0 ? ek.eigenvalues().maxCoeff() : 0.0;
-    Eigen::VectorXd inv = ek.eigenvalues();
-    for (int k = 0; k < inv.size(); ++k) inv(k) = inv(k) > 1e-14 * kmax ? 1.0 / inv(k) : 0.0;
-    const Eigen::MatrixXd Hkk_pinv = dk.asDiagonal() * ek.eigenvectors() * inv.asDiagonal() *
-                                     ek.eigenvectors().transpose() * dk.asDiagonal();
-    const Eigen::MatrixXd S = Hbb - Hkb.transpose() * Hkk_pinv * Hkb;  // Schur complement
-    const Eigen::VectorXd db = ColumnScale(Hbb);
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(db.asDiagonal() * S * db.asDiagonal());
-    std::vector<int> keep;
-    for (int k = 0; k < P; ++k) {
-      if (std::sqrt(std::max(0.0, es.eigenvalues()(k))) > tolerance) keep.push_back(k);
-    }
-    Eigen::MatrixXd basis;
-    if (static_cast<int>(keep.size()) == P) {
-      basis = Eigen::MatrixXd::Identity(P, P);  // every parameter: keep their own names
-    } else {
-      Eigen::MatrixXd V(P, keep.size());
-      // Scaled coordinates z = theta / db: theta = db * z.
-      for (size_t k = 0; k < keep.size(); ++k) {
-        V.col(k) = db.asDiagonal() * es.eigenvectors().col(keep[k]);
-      }
-      basis = V.householderQr().householderQ() * Eigen::MatrixXd::Identity(P, keep.size());
-    }
-    bases.push_back(basis);
-    Eigen::MatrixXd grown(total, kept.cols() + basis.cols());
-    grown << kept, C * basis;
-    kept = std::move(grown);
-  }
+  if (analysed_parameterization) *analysed_parameterization = pi;
+  // The analysis' normal equations by the joint blocks' structure (normal_equations.h), kept for
+  // the caller: they are the first linearization at `nominal` of any reduction of these blocks.
+  JointSpaceRegressors local_regs;
+  JointSpaceRegressors& regs = regressors ? *regressors : local_regs;
+  regs = BuildJointSpaceRegressors(pi, data);
+  JointColumnsOptions jc;
+  jc.regressors = &regs;
+  NormalEquations local_ne;
+  NormalEquations& ne = analysed ? *analysed : local_ne;
+  ne = NormalEquationsOf(nominal, data, pi, Eigen::VectorXd(), use_orientation, orientation_weight,
+                         false, nullptr, nullptr, jc);
+  const std::vector<Eigen::MatrixXd> bases = JointBlockBases(ne.H, pi, tolerance);
   for (const auto& term : terms) AddJointBlock(term, &p);
   for (size_t b = 0; b < bases.size(); ++b) {
     SetJointBlockBasis(static_cast<int>(b), bases[b],

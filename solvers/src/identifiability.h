@@ -56,7 +56,19 @@ Parameterization SolverParameterization(const RobotModel& nominal, const Measure
                                         ParameterizationKind kind, bool use_orientation,
                                         double orientation_weight,
                                         const std::vector<std::shared_ptr<const JointTerm>>& terms,
-                                        double tolerance, const RobotModel* structure_reference);
+                                        double tolerance, const RobotModel* structure_reference,
+                                        NormalEquations* analysed = nullptr,
+                                        JointSpaceRegressors* regressors = nullptr,
+                                        Parameterization* analysed_parameterization = nullptr);
+// When `terms` is not empty, the analysis' by-products (optional): `analysed` its normal equations
+// at `nominal` (identifiable frames, every joint block whole: `analysed_parameterization`; frames
+// and blocks as in the returned parameterization when `kind` is kIdentifiable), `regressors` the
+// rows' joint-space regressors (slot_basis for the whole blocks).
+
+// The analysis of SolverParameterization on the normal matrix H of `pi` (identifiable frames, then
+// every joint block whole): per block, the basis of the combinations kept.
+std::vector<Eigen::MatrixXd> JointBlockBases(const Eigen::MatrixXd& H, const Parameterization& pi,
+                                             double tolerance);
 
 // Removes the directions of tools that no row of `data` measures from `p` (listed in
 // p->unidentifiable with the reason): they keep their given frames (defined in linear_solver.cc).

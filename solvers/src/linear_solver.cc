@@ -80,9 +80,24 @@ Linearization Linearize(const RobotModel& model, const Eigen::VectorXd& joint_st
                         const MeasurementSet& data, const Parameterization& p,
                         const LinearSolverOptions& options, bool stack,
                         const Eigen::MatrixXd* joint_rows = nullptr,
-                        PositionErrorRows* errors = nullptr) {
+                        PositionErrorRows* errors = nullptr,
+                        const internal::JointColumnsOptions& joint = {}) {
   return internal::NormalEquationsOf(model, data, p, joint_state, options.use_orientation,
-                                     options.orientation_weight, stack, joint_rows, errors);
+                                     options.orientation_weight, stack, joint_rows, errors, joint);
+}
+
+// Whether a and b have the same frame directions (blocks, offsets and bases).
+bool SameFrames(const Parameterization& a, const Parameterization& b) {
+  if (a.num_frame_parameters() != b.num_frame_parameters() || a.basis.size() != b.basis.size()) {
+    return false;
+  }
+  for (size_t f = 0; f < a.basis.size(); ++f) {
+    if (a.offset[f] != b.offset[f] || a.basis[f].cols() != b.basis[f].cols() ||
+        a.basis[f] != b.basis[f]) {
+      return false;
+    }
+  }
+  return true;
 }
 
 // The identifiability check shared with the Ceres solver (identifiability.h).
@@ -179,12 +194,19 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   const bool override_basis = options.parameterization_override != nullptr;
   CHECK(!override_basis || options.joint_terms.empty())
       << "joint-space terms with a parameterization override";
+  // With joint-space terms, the analysis that reduces them also gives the rows' regressors and the
+  // normal equations at the nominal model with every term whole: the first linearization below is
+  // their projection onto the reduced blocks (no second pass over the rows).
+  internal::NormalEquations analysed;
+  internal::JointSpaceRegressors regressors;
+  Parameterization analysed_p;
   result.parameterization =
       override_basis ? *options.parameterization_override
                      : internal::SolverParameterization(
                            nominal, data, options.parameterization, options.use_orientation,
                            options.orientation_weight, options.joint_terms,
-                           options.joint_term_tolerance, options.structure_reference);
+                           options.joint_term_tolerance, options.structure_reference, &analysed,
+                           &regressors, &analysed_p);
   if (!override_basis) internal::LeaveOutUnmeasuredTools(nominal, data, &result.parameterization);
   if (options.gravity_tilt) {
     CHECK(!override_basis) << "a gravity tilt with a parameterization override";
@@ -216,14 +238,28 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   // The joint-space blocks' coordinates (they start at zero: no joint error).
   const int K = p.num_joint_parameters();
   Eigen::VectorXd joint_state = internal::InitialJointState(p, options.initial_joint_terms);
-  // The rows' joint regressors do not change during the solve: evaluated once.
-  const Eigen::MatrixXd joint_rows = internal::JointRegressorRows(p, data);
+  // The rows' joint regressors do not change during the solve: evaluated once. The full
+  // parameterization (stacked rows) and a gravity tilt's solve (bilinear columns, gravity_tilt.h)
+  // take the dense joint columns (JointRegressorRows); otherwise the normal equations are formed by
+  // the joint blocks' structure (normal_equations.h).
+  const bool structured = K > 0 && !stack && !p.gravity_tilt;
+  const Eigen::MatrixXd joint_rows =
+      structured ? Eigen::MatrixXd() : internal::JointRegressorRows(p, data);
+  if (structured) internal::SetSlotBasis(p, &regressors);
+  internal::JointColumnsOptions exact_blocks;
+  exact_blocks.regressors = &regressors;
+  internal::JointColumnsOptions gradient_only = exact_blocks;
+  gradient_only.gradient_only = true;
   auto joint_values = [&]() {
     Eigen::VectorXd x = Eigen::VectorXd::Zero(p.num_parameters);
     x.tail(K) = joint_state;
     return JointValuesOf(p, x);
   };
-  Linearization lin = Linearize(model, joint_state, data, p, options, stack, &joint_rows, errors);
+  Linearization lin =
+      structured && joint_state.isZero() && SameFrames(analysed_p, p)
+          ? internal::ProjectJointBlocks(analysed, p)
+          : Linearize(model, joint_state, data, p, options, stack, &joint_rows, errors,
+                      exact_blocks);
   errors_current = errors != nullptr && !errors->empty();
   if (errors_current && options.errors->want_start_statistics && lin.finite) {
     options.errors->start_statistics = errors->Statistics();
@@ -269,12 +305,42 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     }
   }
 
+  // Frozen joint blocks (structured path): the joint-space columns J_q(q_eff) R change with the
+  // geometry and the terms by about their relative size (1e-3), so the iterations form the frames'
+  // block, the gradient and the cost exactly and keep the joint blocks of H (frames x joint,
+  // joint x joint) from the last exact linearization: the step solves the exact gradient with a
+  // slightly older H, which converges to the same solution (where the gradient is zero) with a
+  // contraction of about that relative change per iteration. When the steps stop shrinking by
+  // kFrozenContraction the blocks are formed again at the current point, and the covariance is
+  // always computed from exact ones.
+  constexpr double kFrozenContraction = 0.05;
+  Eigen::MatrixXd frozen;  // P x K: H's joint columns
+  auto freeze = [&](const Linearization& l) { frozen = l.H.rightCols(K); };
+  auto complete = [&](Linearization* l) {
+    l->H.rightCols(K) = frozen;
+    l->H.bottomLeftCorner(K, p.num_parameters - K) = frozen.topRows(p.num_parameters - K).transpose();
+  };
+  auto exact = [&]() {
+    Linearization l = Linearize(model, joint_state, data, p, options, stack, &joint_rows, nullptr,
+                                exact_blocks);
+    freeze(l);
+    return l;
+  };
+  if (structured) freeze(lin);
+
   ConvergenceOptions stop = options.convergence;
   stop.step_tolerance = options.step_tolerance;
   const long dof = static_cast<long>(per_row) * data.size() - identifiable;
   double previous_cost = -1;
+  double previous_step = -1;
   for (int it = 1; it <= options.max_iterations; ++it) {
-    const Eigen::VectorXd x = SolveStep(lin, full, identifiable, options);
+    Eigen::VectorXd x = SolveStep(lin, full, identifiable, options);
+    if (structured && !lin.joint_blocks &&
+        (!x.allFinite() || (previous_step >= 0 && x.norm() > kFrozenContraction * previous_step))) {
+      lin = exact();
+      x = SolveStep(lin, full, identifiable, options);
+    }
+    previous_step = x.norm();
     if (!x.allFinite()) {
       return finish(Termination::kNumericalFailure,
                     "the least-squares step is not finite (numerically singular normal equations)");
@@ -293,6 +359,26 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     state.previous_cost = previous_cost;
     const ConvergenceDecision decision = TestConvergence(stop, state);
     if (decision.converged()) {
+      if (structured && !lin.joint_blocks) {
+        // With frozen joint blocks the contraction per step is about their relative change, not
+        // quadratic: the last (tiny) step is taken too, and the solution's normal equations are
+        // formed exactly (the covariance's, and the final cost).
+        RobotModel candidate = model;
+        ApplyUpdate(p, x, &candidate);
+        const Eigen::VectorXd candidate_joints = joint_state + x.tail(K);
+        const RobotModel kept_model = model;
+        const Eigen::VectorXd kept_joints = joint_state;
+        model = std::move(candidate);
+        joint_state = candidate_joints;
+        Linearization last = exact();
+        if (last.finite && last.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
+          lin = std::move(last);
+        } else {
+          model = kept_model;
+          joint_state = kept_joints;
+          lin = exact();
+        }
+      }
       result.stop_rule = decision.rule;
       result.model = model;
       result.joint_terms = joint_values();
@@ -318,8 +404,10 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       ApplyUpdate(p, alpha * x, &candidate);
       const Eigen::VectorXd candidate_joints = joint_state + alpha * x.tail(K);
       Linearization next =
-          Linearize(candidate, candidate_joints, data, p, options, stack, &joint_rows, errors);
+          Linearize(candidate, candidate_joints, data, p, options, stack, &joint_rows, errors,
+                    structured ? gradient_only : exact_blocks);
       errors_current = false;
+      if (structured) complete(&next);
       if (next.finite && next.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
         errors_current = errors != nullptr && !errors->empty();
         model = std::move(candidate);

@@ -11,6 +11,7 @@
 #endif
 
 #include "gravity_tilt.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/parallel.h"
 #include "lpoe/pose_measurement.h"
@@ -312,6 +313,17 @@ __attribute__((target("avx2,fma"))) void PositionRows4(const RobotModel& model,
 }
 #endif
 
+// The same on A's first `cols` columns (H: cols x cols).
+void SyrkLowerColumns(const Eigen::MatrixXd& A, int rows, int cols, Eigen::MatrixXd* H) {
+#ifdef LPOE_HAVE_AVX2_KERNEL
+  if (HaveAvx2()) {
+    SyrkLowerAvx2(A.data(), static_cast<int>(A.rows()), rows, cols, H->data());
+    return;
+  }
+#endif
+  H->selfadjointView<Eigen::Lower>().rankUpdate(A.topLeftCorner(rows, cols).transpose());
+}
+
 // Accumulates rows [begin, end) into `sums` (and into the stacked J and y when `stacked`).
 template <typename Kind>
 void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameterization& p,
@@ -518,12 +530,268 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
   return lin;
 }
 
+
+// ---- Joint-space blocks by their structure (normal_equations.h, JointSpaceRegressors).
+
+// Per-chunk sums of the structured path: the frames' block as in the dense path, the frames x slots
+// block, W with W + W^T the slots' block, and the slots' gradient.
+struct SlotSums {
+  Eigen::MatrixXd H;    // F x F, lower triangle
+  Eigen::VectorXd g;    // F
+  Eigen::MatrixXd Hfs;  // F x S
+  Eigen::MatrixXd W;    // S x S
+  Eigen::VectorXd gs;   // S
+  double cost = 0;
+  double max_error = 0;
+  double sum_error = 0;
+};
+
+struct SlotScratch {
+  Eigen::MatrixXd A;   // m * kBlockPoses x P: frame rows in the first F columns (the measurement
+                       // kinds may touch all P, see PoseMeasurement::Linearize)
+  Eigen::VectorXd Y;   // m * kBlockPoses residuals
+  std::vector<FrameRt> frames;
+  Eigen::MatrixXd J_q;     // m x n
+  Eigen::VectorXd q_eff;   // n
+  Eigen::VectorXd h;       // n: J_q^T y
+  Eigen::MatrixXd V;       // S x kBlockPoses: slot values (when not stored)
+  Eigen::MatrixXd G;       // F x (n kBlockPoses): J_frames^T J_q of each pose, n columns a pose
+  Eigen::MatrixXd Mp;      // n (n + 1) / 2 x kBlockPoses: (J_q^T J_q)(j, k), j <= k, per pose
+  Eigen::MatrixXd scaled;  // slots of one joint x kBlockPoses
+  Eigen::MatrixXd term_Y;  // one block's regressor
+};
+
+// Row r's slot values into v (the regressors evaluated at q).
+void EvaluateSlots(const Parameterization& p, const JointSpaceRegressors& regs, const double* q,
+                   Eigen::MatrixXd* term_Y, double* v) {
+  const int n = regs.num_joints;
+  int s = 0;
+  for (int j = 0; j < n; ++j) {
+    for (; s < regs.slot_begin[j + 1]; ++s) v[s] = 0;
+  }
+  for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
+    const JointTerm& term = *p.joint_blocks[b].term;
+    term_Y->resize(n, term.num_parameters());
+    term.Regressor(q, term_Y->data());
+    const int first = regs.column_offset[b], last = regs.column_offset[b + 1];
+    for (int j = 0; j < n; ++j) {
+      for (int t = regs.slot_begin[j]; t < regs.slot_begin[j + 1]; ++t) {
+        const int c = regs.slot_column[t];
+        if (c >= first && c < last) v[t] = (*term_Y)(j, c - first);
+      }
+    }
+  }
+}
+
+template <typename Kind>
+void AccumulateSlots(const Kind& kind, const BasisJacobian& bj, const Parameterization& p,
+                     const Eigen::VectorXd& theta_slots, const JointSpaceRegressors& regs,
+                     bool blocks, const MeasurementSet& data, int begin, int end, SlotScratch* s,
+                     SlotSums* sums) {
+  constexpr int m = Kind::kResiduals;
+  const int ld = m * kBlockPoses;
+  const int F = p.num_frame_parameters();
+  const int n = data.num_joints();
+  const int S = regs.num_slots();
+  const bool stored = regs.values.size() > 0;
+  const bool moved = theta_slots.size() > 0;
+  double* A = s->A.data();
+  double* Y = s->Y.data();
+  FrameRt* frames = s->frames.data();
+  for (int r0 = begin; r0 < end; r0 += kBlockPoses) {
+    const int count = std::min(kBlockPoses, end - r0);
+    for (int k = 0; k < count; ++k) {
+      const int r = r0 + k;
+      const double* q = data.q(r);
+      double* vk = s->V.col(k).data();
+      if (!stored) EvaluateSlots(p, regs, q, &s->term_Y, vk);
+      const double* v = stored ? regs.values.col(r).data() : vk;
+      for (int j = 0; j < n; ++j) {
+        double dq = 0;
+        if (moved) {
+          for (int t = regs.slot_begin[j]; t < regs.slot_begin[j + 1]; ++t) {
+            dq += v[t] * theta_slots(t);
+          }
+        }
+        s->q_eff(j) = q[j] + dq;
+      }
+      double* Jr = A + m * k;
+      double* y = Y + m * k;
+      const double e = kind.Linearize(bj, s->q_eff.data(), data.target(r), Kind::Observe(data, r),
+                                      Jr, ld, s->J_q.data(), m, frames, y);
+      const Eigen::Map<const Eigen::Matrix<double, m, 1>> yv(y);
+      s->h.noalias() = s->J_q.transpose() * yv;
+      for (int j = 0; j < n; ++j) {
+        const double hj = s->h(j);
+        for (int t = regs.slot_begin[j]; t < regs.slot_begin[j + 1]; ++t) sums->gs(t) += v[t] * hj;
+      }
+      if (blocks) {
+        const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Jf(
+            Jr, m, F, Eigen::OuterStride<>(ld));
+        s->G.middleCols(static_cast<Eigen::Index>(k) * n, n).noalias() = Jf.transpose() * s->J_q;
+        int pair = 0;
+        for (int j = 0; j < n; ++j) {
+          for (int i = j; i < n; ++i) s->Mp(pair++, k) = s->J_q.col(j).dot(s->J_q.col(i));
+        }
+      }
+      double y_sq = 0;
+      for (int i = 0; i < m; ++i) y_sq += y[i] * y[i];
+      sums->cost += 0.5 * y_sq;
+      sums->max_error = std::max(sums->max_error, e);
+      sums->sum_error += e;
+    }
+    const int rows = m * count;
+    SyrkLowerColumns(s->A, rows, F, &sums->H);
+    sums->g.noalias() += s->A.topLeftCorner(rows, F).transpose() * s->Y.head(rows);
+    if (!blocks || S == 0) continue;
+    // Block of poses: per joint pair, the slots' values times (J_q^T J_q)(j, i) over the poses:
+    // W_ji += V_j diag(M_ji) V_i^T (half on the diagonal blocks), and the frames x slots block
+    // Hfs_j += [J_frames^T J_q col j of each pose] V_j^T: products with `count` inner terms.
+    const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> V(
+        stored ? regs.values.col(r0).data() : s->V.data(), S, count,
+        Eigen::OuterStride<>(stored ? regs.values.rows() : s->V.rows()));
+    int pair = 0;
+    for (int j = 0; j < n; ++j) {
+      const int sj = regs.slot_begin[j], pj = regs.slot_begin[j + 1] - sj;
+      if (pj > 0) {
+        const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Gj(
+            s->G.data() + static_cast<std::ptrdiff_t>(j) * F, F, count,
+            Eigen::OuterStride<>(static_cast<Eigen::Index>(n) * F));
+        sums->Hfs.middleCols(sj, pj).noalias() += Gj * V.middleRows(sj, pj).transpose();
+      }
+      for (int i = j; i < n; ++i, ++pair) {
+        const int si = regs.slot_begin[i], pi = regs.slot_begin[i + 1] - si;
+        if (pj == 0 || pi == 0) continue;
+        const double half = i == j ? 0.5 : 1.0;
+        auto scaled = s->scaled.topLeftCorner(pi, count);
+        scaled.noalias() =
+            V.middleRows(si, pi) * (half * s->Mp.row(pair).head(count).transpose()).asDiagonal();
+        sums->W.block(sj, si, pj, pi).noalias() += V.middleRows(sj, pj) * scaled.transpose();
+      }
+    }
+  }
+}
+
+template <typename Kind>
+NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
+                                     const MeasurementSet& data, const Parameterization& p,
+                                     const Eigen::VectorXd& joint_state,
+                                     const JointSpaceRegressors& regs, bool gradient_only) {
+  constexpr int m = Kind::kResiduals;
+  const int P = p.num_parameters;
+  const int K = p.num_joint_parameters();
+  const int F = P - K;
+  const int N = data.size();
+  const int n = model.num_joints();
+  const int S = regs.num_slots();
+  CHECK(joint_state.size() == 0 || joint_state.size() == K);
+  CHECK_EQ(regs.slot_basis.rows(), S);
+  CHECK_EQ(regs.slot_basis.cols(), K);
+  CHECK(regs.values.size() == 0 || regs.values.cols() == N) << "regressors of other data";
+  const bool blocks = !gradient_only;
+  NormalEquations lin;
+  lin.H.setZero(P, P);
+  lin.g.setZero(P);
+  lin.joint_blocks = blocks;
+  const BasisJacobian bj(model, p);
+  // bj writes the frame columns only (the first F).
+  Eigen::VectorXd theta_slots;
+  if (joint_state.size() > 0) theta_slots = regs.slot_basis * joint_state;
+
+  int max_slots = 0;
+  for (int j = 0; j < n; ++j) max_slots = std::max(max_slots, regs.slot_begin[j + 1] - regs.slot_begin[j]);
+  const RowChunks chunks = PartitionRows(N, kMinChunkPoses, kMaxChunks);
+  std::vector<SlotSums> sums(chunks.chunks);
+  const int threads = N < kMinPosesForThreads ? 1 : ThreadsFor(chunks.chunks);
+  std::vector<SlotScratch> scratch(threads);
+  for (SlotScratch& s : scratch) {
+    s.A.resize(static_cast<Eigen::Index>(m) * kBlockPoses, P);
+    s.Y.resize(static_cast<Eigen::Index>(m) * kBlockPoses);
+    s.frames.resize(n + 1);
+    s.J_q.resize(m, n);
+    s.q_eff.resize(n);
+    s.h.resize(n);
+    if (regs.values.size() == 0) s.V.resize(S, kBlockPoses);
+    if (blocks) {
+      s.G.resize(F, static_cast<Eigen::Index>(n) * kBlockPoses);
+      s.Mp.resize(n * (n + 1) / 2, kBlockPoses);
+      s.scaled.resize(max_slots, kBlockPoses);
+    }
+  }
+  ForEachTask(chunks.chunks, threads, [&](int c, int thread) {
+    SlotSums& cs = sums[c];
+    cs.H.setZero(F, F);
+    cs.g.setZero(F);
+    cs.gs.setZero(S);
+    if (blocks) {
+      cs.Hfs.setZero(F, S);
+      cs.W.setZero(S, S);
+    }
+    AccumulateSlots(kind, bj, p, theta_slots, regs, blocks, data, chunks.begin(c), chunks.end(c),
+                    &scratch[thread], &cs);
+  });
+  Eigen::MatrixXd Hff = Eigen::MatrixXd::Zero(F, F);
+  Eigen::VectorXd gs = Eigen::VectorXd::Zero(S);
+  Eigen::MatrixXd Hfs, W;
+  if (blocks) {
+    Hfs.setZero(F, S);
+    W.setZero(S, S);
+  }
+  double sum_error = 0;
+  for (const SlotSums& cs : sums) {
+    Hff += cs.H;
+    lin.g.head(F) += cs.g;
+    gs += cs.gs;
+    if (blocks) {
+      Hfs += cs.Hfs;
+      W += cs.W;
+    }
+    lin.cost += cs.cost;
+    lin.max_error = std::max(lin.max_error, cs.max_error);
+    sum_error += cs.sum_error;
+  }
+  Hff.triangularView<Eigen::StrictlyUpper>() = Hff.transpose();
+  lin.H.topLeftCorner(F, F) = Hff;
+  const Eigen::MatrixXd& T = regs.slot_basis;
+  lin.g.tail(K).noalias() = T.transpose() * gs;
+  if (blocks) {
+    const Eigen::MatrixXd Wsym = W + W.transpose();
+    lin.H.topRightCorner(F, K).noalias() = Hfs * T;
+    lin.H.bottomLeftCorner(K, F) = lin.H.topRightCorner(F, K).transpose();
+    const Eigen::MatrixXd WT = Wsym * T;
+    lin.H.bottomRightCorner(K, K).noalias() = T.transpose() * WT;
+    // Exactly symmetric (the product's two triangles round differently).
+    Eigen::MatrixXd Hkk = lin.H.bottomRightCorner(K, K);
+    lin.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
+  }
+  lin.mean_error = data.empty() ? 0.0 : sum_error / data.size();
+  lin.finite = std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
+  return lin;
+}
+
 }  // namespace
 
 NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
                                   const Parameterization& p, const Eigen::VectorXd& joint_state,
                                   bool use_orientation, double orientation_weight, bool stack,
-                                  const Eigen::MatrixXd* joint_rows, PositionErrorRows* errors) {
+                                  const Eigen::MatrixXd* joint_rows, PositionErrorRows* errors,
+                                  const JointColumnsOptions& joint) {
+  // A gravity tilt's columns are bilinear (gravity_tilt.h): its solve takes the dense rows.
+  if (p.num_joint_parameters() > 0 && !stack && !joint.dense && !p.gravity_tilt) {
+    JointSpaceRegressors local;
+    const JointSpaceRegressors* regs = joint.regressors;
+    if (regs == nullptr) {
+      local = BuildJointSpaceRegressors(p, data);
+      regs = &local;
+    }
+    if (use_orientation) {
+      PoseMeasurement kind;
+      kind.orientation_weight = orientation_weight;
+      return AccumulateStructured(kind, model, data, p, joint_state, *regs, joint.gradient_only);
+    }
+    return AccumulateStructured(PositionMeasurement(), model, data, p, joint_state, *regs,
+                                joint.gradient_only);
+  }
   if (use_orientation) {
     PoseMeasurement kind;
     kind.orientation_weight = orientation_weight;
@@ -546,6 +814,155 @@ Eigen::MatrixXd JointRegressorRows(const Parameterization& p, const MeasurementS
     rows.middleCols(static_cast<Eigen::Index>(r) * K, K) = s.R;
   }
   return rows;
+}
+
+JointSpaceRegressors BuildJointSpaceRegressors(const Parameterization& p,
+                                               const MeasurementSet& data) {
+  const int n = data.num_joints();
+  const int N = data.size();
+  JointSpaceRegressors regs;
+  regs.num_joints = n;
+  regs.column_offset.push_back(0);
+  // Per joint: the unreduced columns that may move it (JointTerm::ParameterJoint).
+  std::vector<std::vector<int>> columns(n);
+  std::vector<int> joint_of;  // per unreduced column, -1: several joints
+  for (const JointBlock& block : p.joint_blocks) {
+    const JointTerm& term = *block.term;
+    CHECK_EQ(term.num_joints(), n) << term.name();
+    const int first = regs.column_offset.back();
+    for (int k = 0; k < term.num_parameters(); ++k) {
+      const int j = term.ParameterJoint(k);
+      CHECK(j >= -1 && j < n) << term.name() << ": ParameterJoint(" << k << ") = " << j;
+      joint_of.push_back(j);
+      for (int i = 0; i < n; ++i) {
+        if (j < 0 || i == j) columns[i].push_back(first + k);
+      }
+    }
+    regs.column_offset.push_back(first + term.num_parameters());
+  }
+  auto set_slots = [&]() {
+    regs.slot_begin.assign(1, 0);
+    regs.slot_column.clear();
+    for (int j = 0; j < n; ++j) {
+      regs.slot_column.insert(regs.slot_column.end(), columns[j].begin(), columns[j].end());
+      regs.slot_begin.push_back(static_cast<int>(regs.slot_column.size()));
+    }
+  };
+  set_slots();
+  const int S = regs.num_slots();
+  const double bytes = 8.0 * S * static_cast<double>(N);
+  if (S > 0 && N > 0 && bytes <= kMaxJointRowsBytes) {
+    // Every row's regressors, checked against the declared pattern; slots that stay zero in every
+    // row are dropped. Slot t reads entry source[t] of its block's Y (column-major n x P_b).
+    std::vector<int> source(S), block_of(S);
+    for (int j = 0; j < n; ++j) {
+      for (int t = regs.slot_begin[j]; t < regs.slot_begin[j + 1]; ++t) {
+        const int c = regs.slot_column[t];
+        int b = 0;
+        while (c >= regs.column_offset[b + 1]) ++b;
+        block_of[t] = b;
+        source[t] = (c - regs.column_offset[b]) * n + j;
+      }
+    }
+    Eigen::MatrixXd values(S, N);
+    std::vector<Eigen::MatrixXd> Y(p.joint_blocks.size());
+    std::vector<char> used(S, 0);
+    for (int r = 0; r < N; ++r) {
+      const double* q = data.q(r);
+      for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
+        const JointTerm& term = *p.joint_blocks[b].term;
+        Y[b].resize(n, term.num_parameters());
+        term.Regressor(q, Y[b].data());
+        // A column that moves only its declared joint sums (exactly: the others add zeros) to that
+        // joint's entry.
+        const Eigen::RowVectorXd moved = Y[b].cwiseAbs().colwise().sum();
+        for (int k = 0; k < Y[b].cols(); ++k) {
+          const int j = joint_of[regs.column_offset[b] + k];
+          if (j >= 0 && moved(k) != std::abs(Y[b](j, k))) {
+            int i = 0;
+            while (i + 1 < n && (i == j || Y[b](i, k) == 0)) ++i;
+            LOG(FATAL) << "joint-space term " << term.name() << ": parameter "
+                       << term.ParameterName(k) << " moves joint " << i + 1
+                       << " but ParameterJoint() says joint " << j + 1;
+          }
+        }
+      }
+      double* v = values.col(r).data();
+      for (int t = 0; t < S; ++t) {
+        v[t] = Y[block_of[t]].data()[source[t]];
+        used[t] |= v[t] != 0;
+      }
+    }
+    std::vector<int> kept;
+    for (int j = 0; j < n; ++j) {
+      std::vector<int> live;
+      for (int t = regs.slot_begin[j]; t < regs.slot_begin[j + 1]; ++t) {
+        if (used[t]) {
+          live.push_back(regs.slot_column[t]);
+          kept.push_back(t);
+        }
+      }
+      columns[j] = std::move(live);
+    }
+    set_slots();
+    if (static_cast<int>(kept.size()) == S) {
+      regs.values = std::move(values);
+    } else {
+      regs.values.resize(static_cast<Eigen::Index>(kept.size()), N);
+      for (int r = 0; r < N; ++r) {
+        for (size_t t = 0; t < kept.size(); ++t) regs.values(t, r) = values(kept[t], r);
+      }
+    }
+  }
+  SetSlotBasis(p, &regs);
+  return regs;
+}
+
+void SetSlotBasis(const Parameterization& p, JointSpaceRegressors* r) {
+  CHECK_EQ(r->column_offset.size(), p.joint_blocks.size() + 1);
+  const int F = p.num_frame_parameters();
+  r->slot_basis.setZero(r->num_slots(), p.num_joint_parameters());
+  for (int t = 0; t < r->num_slots(); ++t) {
+    const int c = r->slot_column[t];
+    size_t b = 0;
+    while (c >= r->column_offset[b + 1]) ++b;
+    const JointBlock& block = p.joint_blocks[b];
+    CHECK_EQ(block.basis.rows(), r->column_offset[b + 1] - r->column_offset[b])
+        << "regressors of other joint-space terms";
+    r->slot_basis.row(t).segment(block.offset - F, block.basis.cols()) =
+        block.basis.row(c - r->column_offset[b]);
+  }
+}
+
+NormalEquations ProjectJointBlocks(const NormalEquations& full, const Parameterization& reduced) {
+  const int F = reduced.num_frame_parameters();
+  const int K = reduced.num_joint_parameters();
+  int unreduced = 0;
+  for (const JointBlock& b : reduced.joint_blocks) unreduced += static_cast<int>(b.basis.rows());
+  CHECK_EQ(full.H.rows(), F + unreduced);
+  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(unreduced, K);
+  int row = 0;
+  for (const JointBlock& b : reduced.joint_blocks) {
+    T.block(row, b.offset - F, b.basis.rows(), b.basis.cols()) = b.basis;
+    row += static_cast<int>(b.basis.rows());
+  }
+  NormalEquations out;
+  out.cost = full.cost;
+  out.max_error = full.max_error;
+  out.mean_error = full.mean_error;
+  out.joint_blocks = full.joint_blocks;
+  out.H.resize(F + K, F + K);
+  out.g.resize(F + K);
+  out.H.topLeftCorner(F, F) = full.H.topLeftCorner(F, F);
+  out.H.topRightCorner(F, K).noalias() = full.H.topRightCorner(F, unreduced) * T;
+  out.H.bottomLeftCorner(K, F) = out.H.topRightCorner(F, K).transpose();
+  const Eigen::MatrixXd HT = full.H.bottomRightCorner(unreduced, unreduced) * T;
+  Eigen::MatrixXd Hkk = T.transpose() * HT;
+  out.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
+  out.g.head(F) = full.g.head(F);
+  out.g.tail(K).noalias() = T.transpose() * full.g.tail(unreduced);
+  out.finite = full.finite && out.H.allFinite() && out.g.allFinite();
+  return out;
 }
 
 }  // namespace internal

@@ -4,6 +4,8 @@
 #ifndef LPOE_SOLVERS_SRC_NORMAL_EQUATIONS_H_
 #define LPOE_SOLVERS_SRC_NORMAL_EQUATIONS_H_
 
+#include <vector>
+
 #include <Eigen/Core>
 
 #include "lpoe/measurements.h"
@@ -23,6 +25,7 @@ struct NormalEquations {
   double max_error = 0;   // mm, position error norm
   double mean_error = 0;  // mm
   bool finite = true;
+  bool joint_blocks = true;  // false: H's joint-space blocks were not formed (gradient_only)
 };
 
 // Residuals y (position: P_measured - P_model, eq. (30); pose: log(T_measured T_model^-1), eq. (17),
@@ -38,11 +41,66 @@ struct NormalEquations {
 // bit).
 // `errors`, when given, receives the position errors of every row (PositionErrorRows, replaced) for
 // position data without joint-space blocks; it is left alone otherwise.
+//
+// Joint-space parameters (p's joint blocks) are handled by their structure unless `stack` or
+// `joint.dense` is set or p has a gravity tilt (its columns are bilinear, gravity_tilt.h; that solve
+// takes the dense rows): every joint-space parameter acts through the effective joint values, and a
+// row's d(dq)/d(theta) is sparse (JointSpaceRegressors), so the blocks of J^T J are formed per row
+// from J_q^T J_q (n x n), J_frames^T J_q (F x n), J_q^T y and the regressor's non-zero entries
+// instead of rows with every joint column (docs/joint_errors.md, Cost). Same numbers up to rounding.
+struct JointSpaceRegressors;
+struct JointColumnsOptions {
+  // The rows' sparse regressors for p (BuildJointSpaceRegressors, or SetSlotBasis for p after a
+  // build with other bases of the same terms); null: built for this call.
+  const JointSpaceRegressors* regressors = nullptr;
+  // Leave the joint blocks of H (frames x joint and joint x joint) zero: g, the cost and the
+  // frames' block stay exact (the linear solver's iterations with frozen joint blocks).
+  bool gradient_only = false;
+  // Form every row with all its columns (the algebra before the structured path; for tests).
+  bool dense = false;
+};
 NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
                                   const Parameterization& p, const Eigen::VectorXd& joint_state,
                                   bool use_orientation, double orientation_weight, bool stack,
                                   const Eigen::MatrixXd* joint_rows = nullptr,
-                                  PositionErrorRows* errors = nullptr);
+                                  PositionErrorRows* errors = nullptr,
+                                  const JointColumnsOptions& joint = JointColumnsOptions());
+
+// Joint-space parameters with a per-row sparse d(dq)/d(theta), in "slots". The unreduced columns are
+// every joint block's own parameters side by side (block b from column_offset[b]); joint j's row of
+// d(dq)/d(theta) may be non-zero only in its slots [slot_begin[j], slot_begin[j + 1]), slot s
+// standing for unreduced column slot_column[s] (JointTerm::ParameterJoint: one slot for a parameter
+// that moves one joint, one per joint for a parameter that may move several). values(s, r) is the
+// entry of row r; slot_basis (slots x K) maps p's joint coordinates x to the slots' parameter
+// values (row s: block basis row of slot_column[s]), so dq_j = sum_{s in j} values(s, r) *
+// (slot_basis x)(s) and a row's joint columns are sum_{s in j} J_q col j * values(s, r) *
+// slot_basis row s. Extension point: a joint-space column group whose d(dq)/d(theta) depends on the
+// calibration state (e.g. a gravity tilt acting through the compliance torque) appends its slots and
+// refills its rows of `values` before each linearization; the accumulation is the same.
+struct JointSpaceRegressors {
+  int num_joints = 0;
+  std::vector<int> column_offset;  // joint blocks + 1
+  std::vector<int> slot_begin;     // num_joints + 1
+  std::vector<int> slot_column;    // per slot
+  Eigen::MatrixXd values;          // slots x rows; empty when above kMaxJointRowsBytes (evaluated
+                                   // per row and linearization)
+  Eigen::MatrixXd slot_basis;      // slots x K
+  int num_slots() const { return static_cast<int>(slot_column.size()); }
+  int num_columns() const { return column_offset.empty() ? 0 : column_offset.back(); }
+};
+
+// The slots of p's joint blocks over the rows of `data`, with slot_basis for p. Slots that are zero
+// in every row (a joint that feels no gravity torque) are dropped when the values are stored. Checks
+// every evaluated regressor against JointTerm::ParameterJoint.
+JointSpaceRegressors BuildJointSpaceRegressors(const Parameterization& p,
+                                               const MeasurementSet& data);
+// Sets r->slot_basis for p, whose joint blocks are the same terms as r was built for.
+void SetSlotBasis(const Parameterization& p, JointSpaceRegressors* r);
+
+// The normal equations of `reduced` from those of `full` (same frames, same joint-space terms,
+// every block with the identity basis): H_reduced = T^T H_full T, g_reduced = T^T g_full, with T
+// the identity on the frames and the blocks' bases of `reduced`. Cost and errors are copied.
+NormalEquations ProjectJointBlocks(const NormalEquations& full, const Parameterization& reduced);
 
 // Largest cache JointRegressorRows builds (bytes); above it the regressors are evaluated per row at
 // every linearization.

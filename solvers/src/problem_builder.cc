@@ -18,6 +18,23 @@
 #include "normal_equations.h"
 
 namespace lpoe {
+namespace {
+
+// Whether a and b have the same frame directions (blocks, offsets and bases).
+bool SameFrameDirections(const Parameterization& a, const Parameterization& b) {
+  if (a.num_frame_parameters() != b.num_frame_parameters() || a.basis.size() != b.basis.size()) {
+    return false;
+  }
+  for (size_t f = 0; f < a.basis.size(); ++f) {
+    if (a.offset[f] != b.offset[f] || a.basis[f].cols() != b.basis[f].cols() ||
+        a.basis[f] != b.basis[f]) {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
 
 Status ValidateCalibrationProblemOptions(const CalibrationProblemOptions& options) {
   if (options.loss != "none" && options.loss != "huber" && options.loss != "cauchy") {
@@ -76,9 +93,15 @@ CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const Measurem
     const Status s = ValidateCalibrationProblem(nominal, data, options);
     CHECK(s.ok()) << s.message();
   }
+  if (!options.joint_terms.empty()) {
+    regressors_ = std::make_shared<internal::JointSpaceRegressors>();
+    analysed_ = std::make_shared<internal::NormalEquations>();
+  }
   parameterization_ = internal::SolverParameterization(
       nominal, data, options.parameterization, options.use_orientation, options.orientation_weight,
-      options.joint_terms, options.joint_term_tolerance, options.structure_reference);
+      options.joint_terms, options.joint_term_tolerance, options.structure_reference,
+      analysed_.get(), regressors_.get(), &analysed_parameterization_);
+  if (regressors_) internal::SetSlotBasis(parameterization_, regressors_.get());
   const int n = nominal.num_joints();
   const int F = nominal.num_frames();
   frames_.resize(F);
@@ -303,9 +326,12 @@ Parameterization CalibrationProblem::SolvedParameterization() const {
 ProblemNormalEquations CalibrationProblem::NormalEquations() const {
   ProblemNormalEquations out;
   out.parameterization = SolvedParameterization();
+  internal::JointColumnsOptions joint;
+  joint.regressors = regressors_.get();
   const internal::NormalEquations lin =
       internal::NormalEquationsOf(Model(), *data_, out.parameterization, JointState(),
-                                  options_.use_orientation, options_.orientation_weight, false);
+                                  options_.use_orientation, options_.orientation_weight, false,
+                                  nullptr, nullptr, joint);
   const double w = 1.0 / (options_.sigma * options_.sigma);
   out.H = w * lin.H;
   out.g = w * lin.g;
@@ -379,10 +405,21 @@ ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
                                                    out.num_parameters, per_row);
     return out;
   }
-  const Eigen::MatrixXd H_all =
-      internal::NormalEquationsOf(model, data, all, JointState(), options_.use_orientation,
-                                  options_.orientation_weight, false)
-          .H;
+  // At the start values the reduction's normal equations give H by projection (no pass).
+  bool at_start = analysed_ != nullptr && frames_ == initial_frames_;
+  for (const std::vector<double>& b : joint_blocks_) {
+    for (double v : b) at_start = at_start && v == 0;
+  }
+  Eigen::MatrixXd H_all;
+  if (at_start && !all.gravity_tilt && SameFrameDirections(analysed_parameterization_, all)) {
+    H_all = internal::ProjectJointBlocks(*analysed_, all).H;
+  } else {
+    internal::JointColumnsOptions joint;
+    joint.regressors = regressors_.get();
+    H_all = internal::NormalEquationsOf(model, data, all, JointState(), options_.use_orientation,
+                                        options_.orientation_weight, false, nullptr, nullptr, joint)
+                .H;
+  }
   Eigen::MatrixXd& H = out.normal_matrix;
   H.resize(out.num_parameters, out.num_parameters);
   for (int a = 0; a < out.num_parameters; ++a) {
@@ -468,7 +505,13 @@ Status CalibrationProblem::NormalEquationsCovariance(Eigen::MatrixXd* covariance
     const Eigen::VectorXd d = internal::ColumnScale(ne.H);
     const Eigen::MatrixXd Hs = d.asDiagonal() * ne.H * d.asDiagonal();
     Eigen::LLT<Eigen::MatrixXd> llt(Hs);
-    if (llt.info() != Eigen::Success) {
+    // Compute()'s test (DENSE_SVD): the reciprocal condition number of the Jacobian, here the
+    // column-scaled one, i.e. the square root of the eigenvalue ratio of Hs.
+    const double min_ratio = ceres::Covariance::Options().min_reciprocal_condition_number;
+    const Eigen::VectorXd l =
+        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Hs, Eigen::EigenvaluesOnly).eigenvalues();
+    if (llt.info() != Eigen::Success || l.size() == 0 ||
+        !(std::sqrt(std::max(0.0, l(0)) / l(l.size() - 1)) >= min_ratio)) {
       return Status::Error("covariance not computed (rank-deficient Jacobian at the solution)");
     }
     C = d.asDiagonal() * llt.solve(Eigen::MatrixXd::Identity(Hs.rows(), Hs.cols())) *

@@ -45,6 +45,14 @@ class JointTerm {
   // at the joint values `q` (num_joints() values). Must depend on q only (not on the calibration
   // state): the solvers may evaluate it once per row or again at every iteration.
   virtual void Regressor(const double* q, double* Y) const = 0;
+  // The one joint that parameter k can move (row of Y's column k that may be non-zero; every other
+  // row is zero at every q), or -1 when it may move several joints. The solvers use it to form the
+  // normal equations from Y's sparsity (solvers/src/normal_equations.h) and check it on every
+  // regressor they evaluate. The default, -1 for every parameter, is always correct.
+  virtual int ParameterJoint(int k) const {
+    (void)k;
+    return -1;
+  }
 };
 
 // A term with identified values.

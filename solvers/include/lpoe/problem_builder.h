@@ -43,6 +43,11 @@
 
 namespace lpoe {
 
+namespace internal {
+struct JointSpaceRegressors;  // solvers/src/normal_equations.h
+struct NormalEquations;
+}  // namespace internal
+
 struct CalibrationProblemOptions {
   ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
   // Pose residuals (needs measured orientations); else position residuals.
@@ -191,7 +196,10 @@ class CalibrationProblem {
   // An error when ceres::Covariance::Compute() fails (rank-deficient Jacobian).
   Status Covariance(ceres::Problem* problem, int num_threads, Eigen::MatrixXd* covariance);
   // The same covariance from NormalEquations() (H^-1; full: Ceres's pseudo-inverse rule), for a
-  // problem of this builder's residuals alone: no Jacobian of all rows is formed (10^6 rows).
+  // problem of this builder's residuals alone without a robust loss: no Jacobian of all rows is
+  // formed (10^6 rows) and no SVD of it. An error, as Compute()'s, when the column-scaled Jacobian's
+  // reciprocal condition number is below ceres::Covariance::Options's
+  // min_reciprocal_condition_number (or H is not positive definite).
   Status NormalEquationsCovariance(Eigen::MatrixXd* covariance) const;
 
  private:
@@ -208,6 +216,12 @@ class CalibrationProblem {
   std::vector<std::vector<double>> joint_blocks_;
   std::array<double, 2> tilt_ = {0.0, 0.0};
   Status tilt_status_;
+  // With joint-space terms, the reduction's by-products (solvers/src/normal_equations.h): the rows'
+  // regressors (slot basis of parameterization_'s blocks) and the normal equations at the nominal
+  // values with every term whole, in analysed_parameterization_.
+  std::shared_ptr<internal::JointSpaceRegressors> regressors_;
+  std::shared_ptr<internal::NormalEquations> analysed_;
+  Parameterization analysed_parameterization_;
 };
 
 }  // namespace lpoe
