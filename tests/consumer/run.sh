@@ -12,9 +12,13 @@ cmake -S "$src" -B "$tmp/build" -DCMAKE_PREFIX_PATH="$tmp/prefix" -DCMAKE_BUILD_
 cmake --build "$tmp/build" -j2 >/dev/null
 "$tmp/build/consumer"
 # The shared build really loads the installed shared libraries, and the static one does not.
-ldd "$tmp/build/consumer_shared" | grep -q "liblpoe_solvers.so.* => $tmp/prefix/" ||
+# ldd's output is captured first: `ldd | grep -q` under pipefail fails when grep stops reading
+# before ldd has written everything (SIGPIPE), which happened under a loaded parallel ctest.
+shared_deps=$(ldd "$tmp/build/consumer_shared")
+static_deps=$(ldd "$tmp/build/consumer")
+grep -q "liblpoe_solvers.so.* => $tmp/prefix/" <<<"$shared_deps" ||
   { echo "FAIL: consumer_shared does not load the installed liblpoe_solvers.so" >&2; exit 1; }
-if ldd "$tmp/build/consumer" | grep -q liblpoe_; then
+if grep -q liblpoe_ <<<"$static_deps"; then
   echo "FAIL: the static consumer loads a shared lpoe library" >&2; exit 1
 fi
 "$tmp/build/consumer_shared"
