@@ -86,20 +86,6 @@ Linearization Linearize(const RobotModel& model, const Eigen::VectorXd& joint_st
                                      options.orientation_weight, stack, joint_rows, errors, joint);
 }
 
-// Whether a and b have the same frame directions (blocks, offsets and bases).
-bool SameFrames(const Parameterization& a, const Parameterization& b) {
-  if (a.num_frame_parameters() != b.num_frame_parameters() || a.basis.size() != b.basis.size()) {
-    return false;
-  }
-  for (size_t f = 0; f < a.basis.size(); ++f) {
-    if (a.offset[f] != b.offset[f] || a.basis[f].cols() != b.basis[f].cols() ||
-        a.basis[f] != b.basis[f]) {
-      return false;
-    }
-  }
-  return true;
-}
-
 // The identifiability check shared with the Ceres solver (identifiability.h).
 using internal::Analyze;
 using internal::ColumnScale;
@@ -256,7 +242,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     return JointValuesOf(p, x);
   };
   Linearization lin =
-      structured && joint_state.isZero() && SameFrames(analysed_p, p)
+      structured && joint_state.isZero() && internal::SameFrameDirections(analysed_p, p)
           ? internal::ProjectJointBlocks(analysed, p)
           : Linearize(model, joint_state, data, p, options, stack, &joint_rows, errors,
                       exact_blocks);

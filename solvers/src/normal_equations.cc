@@ -603,9 +603,15 @@ void AccumulateSlots(const Kind& kind, const BasisJacobian& bj, const Parameteri
     for (int k = 0; k < count; ++k) {
       const int r = r0 + k;
       const double* q = data.q(r);
-      double* vk = s->V.col(k).data();
-      if (!stored) EvaluateSlots(p, regs, q, &s->term_Y, vk);
-      const double* v = stored ? regs.values.col(r).data() : vk;
+      // Stored values are read; otherwise evaluated into the scratch V (sized only then).
+      const double* v;
+      if (stored) {
+        v = regs.values.col(r).data();
+      } else {
+        double* vk = s->V.col(k).data();
+        EvaluateSlots(p, regs, q, &s->term_Y, vk);
+        v = vk;
+      }
       for (int j = 0; j < n; ++j) {
         double dq = 0;
         if (moved) {
@@ -814,6 +820,19 @@ Eigen::MatrixXd JointRegressorRows(const Parameterization& p, const MeasurementS
     rows.middleCols(static_cast<Eigen::Index>(r) * K, K) = s.R;
   }
   return rows;
+}
+
+bool SameFrameDirections(const Parameterization& a, const Parameterization& b) {
+  if (a.num_frame_parameters() != b.num_frame_parameters() || a.basis.size() != b.basis.size()) {
+    return false;
+  }
+  for (size_t f = 0; f < a.basis.size(); ++f) {
+    if (a.offset[f] != b.offset[f] || a.basis[f].cols() != b.basis[f].cols() ||
+        a.basis[f] != b.basis[f]) {
+      return false;
+    }
+  }
+  return true;
 }
 
 JointSpaceRegressors BuildJointSpaceRegressors(const Parameterization& p,

@@ -102,6 +102,10 @@ void SetSlotBasis(const Parameterization& p, JointSpaceRegressors* r);
 // the identity on the frames and the blocks' bases of `reduced`. Cost and errors are copied.
 NormalEquations ProjectJointBlocks(const NormalEquations& full, const Parameterization& reduced);
 
+// Whether a and b have the same frame directions (blocks, offsets and bases): ProjectJointBlocks
+// applies between them.
+bool SameFrameDirections(const Parameterization& a, const Parameterization& b);
+
 // Largest cache JointRegressorRows builds (bytes); above it the regressors are evaluated per row at
 // every linearization.
 constexpr double kMaxJointRowsBytes = 256.0 * 1024 * 1024;

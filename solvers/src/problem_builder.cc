@@ -18,23 +18,6 @@
 #include "normal_equations.h"
 
 namespace lpoe {
-namespace {
-
-// Whether a and b have the same frame directions (blocks, offsets and bases).
-bool SameFrameDirections(const Parameterization& a, const Parameterization& b) {
-  if (a.num_frame_parameters() != b.num_frame_parameters() || a.basis.size() != b.basis.size()) {
-    return false;
-  }
-  for (size_t f = 0; f < a.basis.size(); ++f) {
-    if (a.offset[f] != b.offset[f] || a.basis[f].cols() != b.basis[f].cols() ||
-        a.basis[f] != b.basis[f]) {
-      return false;
-    }
-  }
-  return true;
-}
-
-}  // namespace
 
 Status ValidateCalibrationProblemOptions(const CalibrationProblemOptions& options) {
   if (options.loss != "none" && options.loss != "huber" && options.loss != "cauchy") {
@@ -411,7 +394,8 @@ ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
     for (double v : b) at_start = at_start && v == 0;
   }
   Eigen::MatrixXd H_all;
-  if (at_start && !all.gravity_tilt && SameFrameDirections(analysed_parameterization_, all)) {
+  if (at_start && !all.gravity_tilt &&
+      internal::SameFrameDirections(analysed_parameterization_, all)) {
     H_all = internal::ProjectJointBlocks(*analysed_, all).H;
   } else {
     internal::JointColumnsOptions joint;
