@@ -131,8 +131,8 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
   constexpr double kTiltSdFraction = 1e-2;
   auto solve = [&](std::shared_ptr<const GravityTiltModel> tilt_model,
                    const std::vector<JointTermValues>& initial) {
-    if (options.solver == SolverKind::kCeres) {
-      CeresSolverOptions o = options.ceres;
+    // The settings both solvers' options share (the same member names in each).
+    auto common = [&](auto& o) {
       o.parameterization = options.parameterization;
       o.use_orientation = options.use_orientation;
       o.on_iteration = progress;
@@ -141,17 +141,14 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
       o.gravity_tilt = tilt_model;
       o.initial_joint_terms = initial;
       if (tilt_model) o.convergence.sd_fraction *= kTiltSdFraction;
+    };
+    if (options.solver == SolverKind::kCeres) {
+      CeresSolverOptions o = options.ceres;
+      common(o);
       return CalibrateCeres(start, data, o);
     }
     LinearSolverOptions o = options.linear;
-    o.parameterization = options.parameterization;
-    o.use_orientation = options.use_orientation;
-    o.on_iteration = progress;
-    o.joint_terms = terms;
-    o.structure_reference = &nominal;
-    o.gravity_tilt = tilt_model;
-    o.initial_joint_terms = initial;
-    if (tilt_model) o.convergence.sd_fraction *= kTiltSdFraction;
+    common(o);
     if (errors != nullptr && before != nullptr && !options.use_orientation && terms.empty() &&
         !tilt_model) {
       // The errors before calibration come from the solver's first linearization when it starts
