@@ -162,6 +162,29 @@ class HistoryCallback : public ceres::IterationCallback {
   std::function<void(const IterationRecord&)> on_iteration_;
 };
 
+// The covariance C in `all`'s numbering (every tool) restricted to `solved` (all with unmeasured
+// tools left out, LeaveOutUnmeasuredTools: the same frames, joint blocks and tilt in the same order).
+Eigen::MatrixXd SolvedCovariance(const Parameterization& all, const Parameterization& solved,
+                                 const Eigen::MatrixXd& C) {
+  std::vector<int> index(solved.num_parameters);
+  for (size_t f = 0; f < solved.basis.size(); ++f) {
+    for (int c = 0; c < solved.basis[f].cols(); ++c) index[solved.offset[f] + c] = all.offset[f] + c;
+  }
+  for (size_t b = 0; b < solved.joint_blocks.size(); ++b) {
+    for (int c = 0; c < solved.joint_blocks[b].basis.cols(); ++c) {
+      index[solved.joint_blocks[b].offset + c] = all.joint_blocks[b].offset + c;
+    }
+  }
+  for (int a = 0; a < solved.num_tilt_parameters(); ++a) {
+    index[solved.tilt_offset + a] = all.tilt_offset + a;
+  }
+  Eigen::MatrixXd out(solved.num_parameters, solved.num_parameters);
+  for (int i = 0; i < solved.num_parameters; ++i) {
+    for (int j = 0; j < solved.num_parameters; ++j) out(i, j) = C(index[i], index[j]);
+  }
+  return out;
+}
+
 // The full parameterization's projector and truncated standard deviations (see ConvergenceWatch)
 // from the normal equations at the start: the frames' block (the joint-space blocks eliminated by
 // their Schur complement), column-scaled, its `rank` largest eigenpairs less the joint-space ones.
@@ -267,7 +290,11 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   if (!builder.tilt_status().ok()) {
     return finish(Termination::kNotIdentifiable, builder.tilt_status().message());
   }
-  result.parameterization = builder.parameterization();
+  // The result's parameterization is the solved one, unmeasured tools left out and listed as not
+  // identifiable (with the reason), as the linear solver's; the builder's numbering (every tool)
+  // is used during the solve and mapped at the end (SolvedCovariance).
+  const Parameterization& all = builder.parameterization();
+  result.parameterization = builder.SolvedParameterization();
   const bool full = options.parameterization == ParameterizationKind::kFull;
   const int per_row = options.use_orientation ? 6 : 3;
   result.joint_terms = builder.JointTerms();
@@ -287,12 +314,12 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
 
   ConvergenceWatch watch;
   watch.options = options.convergence;
-  watch.p = &result.parameterization;
+  watch.p = &all;
   // The step is measured in p's coordinates of the solved blocks (full: of the solved frames).
   const std::vector<int> sizes = builder.tangent_sizes();
   const std::vector<int> offsets = builder.tangent_offsets();
   for (size_t b = 0; b < sizes.size(); ++b) {
-    if (full && offsets[b] >= result.parameterization.num_frame_parameters()) break;
+    if (full && offsets[b] >= all.num_frame_parameters()) break;
     for (int c = 0; c < sizes[b]; ++c) watch.columns.push_back(offsets[b] + c);
   }
   watch.dof = static_cast<long>(per_row) * data.size() - identifiable;
@@ -372,8 +399,20 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
       if (dof > 0) result.covariance *= 2.0 * summary.final_cost / static_cast<double>(dof);
     }
   }
-  internal::FillGravityTiltResult(builder.parameterization(), builder.JointState(),
-                                  result.covariance, &result.gravity_tilt);
+  internal::FillGravityTiltResult(all, builder.JointState(), result.covariance,
+                                  &result.gravity_tilt);
+  if (all.gravity_tilt && !options.a_posteriori_covariance &&
+      result.gravity_tilt.standard_deviation.maxCoeff() > 0) {
+    // The tilt's standard deviation is reported a posteriori by both solvers (calibration.h): the
+    // a-priori one (sigma) is kept beside it, in the form of this covariance.
+    result.gravity_tilt.a_priori_standard_deviation = result.gravity_tilt.standard_deviation;
+    const long dof = static_cast<long>(per_row) * data.size() - identifiable;
+    result.gravity_tilt.standard_deviation *=
+        dof > 0 ? std::sqrt(2.0 * summary.final_cost / static_cast<double>(dof)) : 0.0;
+  }
+  if (result.covariance.rows() == all.num_parameters) {
+    result.covariance = SolvedCovariance(all, result.parameterization, result.covariance);
+  }
   return finish(termination, message);
 }
 
