@@ -431,6 +431,37 @@ int Run() {
     std::cout << line;
   }
 
+  // The gravity tilt's predicted standard deviations with the plan (the last two parameters of
+  // M^-1, at the model's compliance values): what the calibration's a-posteriori ones will be at
+  // that noise.
+  nlohmann::json tilt_json = {{"planned", pm.num_tilt_parameters() > 0}};
+  if (!tilt_note.empty()) tilt_json["note"] = tilt_note;
+  if (pm.num_tilt_parameters() > 0) {
+    const Eigen::MatrixXd M = Information(pool, plan.selected);
+    const int P = pm.num_parameters();
+    const Eigen::VectorXd d = M.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+    const Eigen::MatrixXd Ms = d.asDiagonal() * M * d.asDiagonal();
+    const Eigen::MatrixXd Cs = Ms.ldlt().solve(Eigen::MatrixXd::Identity(P, P));
+    nlohmann::json per_unit = nlohmann::json::array();
+    nlohmann::json at_noise = nlohmann::json::array();
+    std::string text;
+    for (int a = 0; a < 2; ++a) {
+      const int k = P - 2 + a;
+      const double sd_deg = std::sqrt(std::max(0.0, Cs(k, k))) * d(k) * 180.0 / kPi;  // per mm
+      per_unit.push_back(std::isfinite(sd_deg) ? nlohmann::json(sd_deg) : nlohmann::json(nullptr));
+      if (FLAGS_noise_sigma > 0) at_noise.push_back(FLAGS_noise_sigma * sd_deg);
+      char buf[32];
+      std::snprintf(buf, sizeof(buf), "%.4g", FLAGS_noise_sigma > 0 ? FLAGS_noise_sigma * sd_deg
+                                                                     : sd_deg);
+      text += (a ? ", " : "") + std::string(buf);
+    }
+    tilt_json["predicted_std_dev_deg_per_unit_noise"] = per_unit;
+    if (FLAGS_noise_sigma > 0) tilt_json["predicted_std_dev_deg"] = at_noise;
+    std::cout << "gravity tilt: predicted standard deviations " << text
+              << (FLAGS_noise_sigma > 0 ? " deg" : " deg per mm of noise")
+              << " (at the model's compliance values)\n";
+  }
+
   // The plan CSV.
   std::string planned_terms;
   for (const std::string& name : term_names) {
@@ -498,6 +529,7 @@ int Run() {
                                                   : nlohmann::json(nullptr)}}}};
   if (FLAGS_noise_sigma > 0) report["noise_sigma_mm"] = FLAGS_noise_sigma;
   if (automatic) report["target_accuracy_mm"] = FLAGS_target_accuracy;
+  report["gravity_tilt"] = tilt_json;
   nlohmann::json rows = nlohmann::json::array();
   for (int c : plan.selected) rows.push_back(pool.source[c]);
   report["candidate_rows"] = rows;

@@ -419,8 +419,8 @@ Status PlanningGravityTiltStatus(const RobotModel& model,
   bool compliance = false;
   for (const auto& term : terms) compliance = compliance || term->name() == "compliance";
   if (!compliance) return Status::Error(kGravityTiltNeedsCompliance);
-  const Eigen::VectorXd& c = model.joint_errors.compliance;
-  if (c.size() == 0 || c.cwiseAbs().maxCoeff() == 0) {
+  const std::vector<double>& c = model.joint_errors.compliance;
+  if (std::all_of(c.begin(), c.end(), [](double v) { return v == 0; })) {
     return Status::Error(
         "the gravity tilt cannot be planned for with a model that carries no compliance values: "
         "the tilt is seen only through the gravity torques' compliance offsets, so its "
@@ -444,7 +444,8 @@ PlanningModel::PlanningModel(const RobotModel& model,
   if (gravity_tilt_) {
     const Status s = PlanningGravityTiltStatus(model_, terms);
     CHECK(s.ok()) << s.message();
-    compliance_ = model_.joint_errors.compliance;
+    const std::vector<double>& c = model_.joint_errors.compliance;
+    compliance_ = Eigen::Map<const Eigen::VectorXd>(c.data(), static_cast<Eigen::Index>(c.size()));
     const double zero[2] = {0.0, 0.0};
     gravity_tilt_jacobian_ =
         TiltedGravityJacobian(model_.gravity, GravityTiltAxes(model_.gravity), zero);
