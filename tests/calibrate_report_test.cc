@@ -110,6 +110,11 @@ TEST_F(CalibrateReport, GravityTiltInEveryReport) {
   const double t1 = t["tilt_deg"][0].get<double>(), sd1 = t["std_dev_deg"][0].get<double>();
   EXPECT_GT(sd1, 0);
   EXPECT_LT(std::abs(t1 - 0.6), 4 * sd1) << t.dump();
+  // The form of the standard deviation is stated (a posteriori for both solvers; the linear
+  // solver has no a-priori form).
+  EXPECT_EQ(t["std_dev_form"], "a posteriori") << t.dump();
+  EXPECT_TRUE(t["std_dev_deg_a_priori"].is_null()) << t.dump();
+  EXPECT_NE(err.find("standard deviations a posteriori"), std::string::npos) << err;
   EXPECT_NE(ReadAll(dir_ + "/report.html").find("Gravity tilt: "), std::string::npos);
   const std::string yaml = ReadAll(dir_ + "/cal.yaml");
   EXPECT_NE(yaml.find("gravity: ["), std::string::npos) << yaml;

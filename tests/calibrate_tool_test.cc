@@ -200,6 +200,38 @@ TEST_F(CalibrateTool, IterationLimitExitsNotConvergedWithoutOutput) {
   EXPECT_FALSE(Exists("out.yaml"));
 }
 
+// Regression: a UR-like arm whose tool lies exactly on joint 6's axis (the actual one too: no
+// errors), calibrated by Ceres on the full parameterization, ran Levenberg-Marquardt along the lost
+// axis tilt until the iteration limit and exited 4. It now converges and exits 0 like the linear
+// solver, with the tilt reported as not identifiable and the model written.
+TEST_F(CalibrateTool, CeresFullParameterizationWithTheToolOnTheLastAxisConverges) {
+  std::ofstream(dir_ / "ur.yaml") << R"(name: ur_tool_on_axis
+joints:
+  - {name: joint1, type: revolute, origin: {xyz: [0, 0, 0], rpy: [0, 0, 0]}}
+  - {name: joint2, type: revolute, origin: {xyz: [0, 0, 89.159], rpy: [1.5707963267948966, 0, 0]}}
+  - {name: joint3, type: revolute, origin: {xyz: [-425, 0, 0], rpy: [0, 0, 0]}}
+  - {name: joint4, type: revolute, origin: {xyz: [-392.25, 0, 0], rpy: [0, 0, 0]}}
+  - {name: joint5, type: revolute, origin: {xyz: [0, 0, 109.15], rpy: [1.5707963267948966, 0, 0]}}
+  - {name: joint6, type: revolute, origin: {xyz: [0, 0, 94.65], rpy: [-1.5707963267948966, 0, 0]}}
+tools:
+  - {name: tool0, origin: {xyz: [0, 0, 82.3], rpy: [0, 0, 0]}}
+)";
+  const Output sim = Run(LPOE_SIMULATE_PATH, "--model=" + Path("ur.yaml") +
+                                                 " --errors=none --count=200 --noise_sigma=0.01 "
+                                                 "--out=" + Path("id.csv"));
+  ASSERT_EQ(sim.exit_code, kExitOk) << sim.err;
+  for (const char* solver : {"ceres", "linear"}) {
+    const std::string out = std::string("cal_") + solver + ".yaml";
+    const Output o = Calibrate("--model=" + Path("ur.yaml") + " --measurements=" + Path("id.csv") +
+                               " --solver=" + solver + " --parameterization=full --plots_dir= " +
+                               "--output=" + Path(out));
+    EXPECT_EQ(o.exit_code, kExitOk) << solver << "\n" << o.out << o.err;
+    EXPECT_TRUE(Exists(out)) << solver;
+    EXPECT_NE(o.out.find("joint6.rx: no configuration separates it"), std::string::npos) << o.out;
+    EXPECT_NE(o.out.find("result: converged"), std::string::npos) << o.out;
+  }
+}
+
 TEST_F(CalibrateTool, OutputEqualToAnInputIsRefused) {
   Simulate();
   const std::string model_before = ReadAll(RawPath("nominal.yaml"));

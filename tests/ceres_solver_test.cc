@@ -323,7 +323,9 @@ TEST(CeresSolver, LeavesUnmeasuredToolsAlone) {
   KinematicErrors errors = PaperTable2Errors();
   errors.frame.push_back(Vector6d::Zero());
   const DataSet d = Simulate(nominal, errors, kPaperSigma, 51);  // measures tool 0 only
-  const CalibrationResult r = CalibrateCeres(d.nominal, d.identification, CeresOptions());
+  CeresSolverOptions co = CeresOptions();
+  co.a_posteriori_covariance = true;  // the linear solver's form, compared below
+  const CalibrationResult r = CalibrateCeres(d.nominal, d.identification, co);
   ASSERT_TRUE(r.converged()) << r.message;
   EXPECT_EQ((r.model.tools[1].origin.t - spare.origin.t).norm(), 0.0);
   const Parameterization& p = r.parameterization;
@@ -331,6 +333,29 @@ TEST(CeresSolver, LeavesUnmeasuredToolsAlone) {
   ASSERT_EQ(r.covariance.rows(), p.num_parameters);
   EXPECT_EQ(r.covariance.middleRows(p.offset[f], p.basis[f].cols()).norm(), 0.0);
   EXPECT_GT(r.covariance.topRows(p.offset[f]).norm(), 0.0);
+  // As the linear solver: the unmeasured tool is not among the solved parameters, its translations
+  // are listed as not identifiable with the reason, and the covariance (solved numbering) equals
+  // the linear solver's in size and, to the solvers' agreement, in value.
+  const CalibrationResult lin = CalibrateLinear(d.nominal, d.identification, LinearSolverOptions());
+  ASSERT_TRUE(lin.converged()) << lin.message;
+  EXPECT_EQ(p.num_parameters, lin.parameterization.num_parameters);
+  EXPECT_EQ(p.basis[f].cols(), 0);
+  int listed = 0;
+  for (const Direction& dir : p.unidentifiable) {
+    if (dir.name.rfind("spare.t", 0) == 0) {
+      ++listed;
+      EXPECT_NE(dir.reason.find("never measured"), std::string::npos) << dir.reason;
+    }
+  }
+  EXPECT_EQ(listed, 3);
+  for (const Direction& dir : p.parameters) EXPECT_NE(dir.name.rfind("spare.", 0), 0u) << dir.name;
+  ASSERT_EQ(lin.covariance.rows(), p.num_parameters);
+  for (int k = 0; k < p.num_parameters; ++k) {
+    EXPECT_EQ(p.parameters[k].name, lin.parameterization.parameters[k].name);
+    EXPECT_NEAR(std::sqrt(r.covariance(k, k)), std::sqrt(lin.covariance(k, k)),
+                0.02 * std::sqrt(lin.covariance(k, k)))
+        << p.parameters[k].name;
+  }
 }
 
 TEST(CeresSolver, ValidatesOptions) {

@@ -344,6 +344,46 @@ TEST(GravityTilt, RecoveredFromSimulationAndSolversAgree) {
   EXPECT_LT(max_diff, 1e-6);
 }
 
+// The tilt's standard deviation is reported in one form, a posteriori, by both solvers: the linear
+// solver's, Ceres's with its covariance a posteriori (lpoe_calibrate without --sigma) and Ceres's
+// with an a-priori covariance from a sigma 5x the true noise agree to 1% on the same data; the last
+// also keeps the a-priori form, about 5x larger (sigma / the noise the residuals show).
+TEST(GravityTilt, SolversReportTheSameStandardDeviation) {
+  const TiltFixture f(0.3, -0.2);
+  const PipelineResult lin = RunTilt(f, SolverKind::kLinear, kWithTilt);
+  ASSERT_TRUE(lin.result.converged()) << lin.result.message;
+  const GravityTiltResult& tl = lin.result.gravity_tilt;
+  ASSERT_TRUE(tl.identified) << tl.message;
+  EXPECT_EQ(tl.a_priori_standard_deviation.maxCoeff(), 0.0);  // the linear solver has no a priori
+  for (const bool a_posteriori : {true, false}) {
+    PipelineOptions o;
+    o.solver = SolverKind::kCeres;
+    o.joint_errors = kWithTilt;
+    o.ceres.a_posteriori_covariance = a_posteriori;
+    o.ceres.sigma = 5 * f.noise;
+    const PipelineResult cer =
+        RunCalibrationPipeline(f.nominal, f.identification, f.verification, o);
+    ASSERT_TRUE(cer.result.converged()) << cer.result.message;
+    const GravityTiltResult& tc = cer.result.gravity_tilt;
+    ASSERT_TRUE(tc.identified) << tc.message;
+    Print(a_posteriori ? "ceres, a-posteriori covariance" : "ceres, a-priori covariance", cer);
+    for (int a = 0; a < 2; ++a) {
+      ASSERT_GT(tl.standard_deviation(a), 0);
+      EXPECT_NEAR(tc.standard_deviation(a), tl.standard_deviation(a),
+                  0.01 * tl.standard_deviation(a))
+          << "tilt " << a << (a_posteriori ? ", a posteriori" : ", a priori");
+      if (a_posteriori) {
+        EXPECT_EQ(tc.a_priori_standard_deviation(a), 0.0);
+      } else {
+        // sigma / s with s the residuals' noise estimate (about the simulated 0.01 mm).
+        const double ratio = tc.a_priori_standard_deviation(a) / tc.standard_deviation(a);
+        EXPECT_GT(ratio, 4.0) << ratio;
+        EXPECT_LT(ratio, 6.0) << ratio;
+      }
+    }
+  }
+}
+
 // With a tilt of 1 deg, identifying it beats keeping the model's gravity on held-out data.
 TEST(GravityTilt, LargeTiltImprovesTheHeldOutError) {
   const TiltFixture f(1.0, 0.5);

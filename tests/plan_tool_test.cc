@@ -247,6 +247,60 @@ TEST_F(PlanTool, JointErrorTermsJoinThePlannedParameters) {
   EXPECT_NE(few.err.find("identify only"), std::string::npos) << few.err;
 }
 
+// --joint_errors with the gravity tilt: refused with the reason for a nominal model (no compliance
+// values: the tilt's information is zero) and without compliance in the list; accepted for a model
+// that carries compliance values (lpoe_simulate's actual robot here; a calibrated model's YAML in
+// practice), with the tilt's two parameters and its predicted standard deviations in the report.
+TEST_F(PlanTool, GravityTiltNeedsAModelWithComplianceValues) {
+  const Output nominal = Plan("--count=40 --output=t.csv --joint_errors=compliance,tilt");
+  EXPECT_EQ(nominal.exit_code, kExitUsage) << nominal.err;
+  EXPECT_NE(nominal.err.find("--joint_errors=compliance,tilt"), std::string::npos) << nominal.err;
+  EXPECT_NE(nominal.err.find("carries no compliance values"), std::string::npos) << nominal.err;
+  EXPECT_FALSE(fs::exists(dir_ / "t.csv"));
+  const Output alone = Plan("--count=40 --output=t.csv --joint_errors=harmonics,tilt");
+  EXPECT_EQ(alone.exit_code, kExitUsage) << alone.err;
+  EXPECT_NE(alone.err.find("needs it in the list"), std::string::npos) << alone.err;
+
+  const Output sim = Run(LPOE_SIMULATE_PATH, "--model=m.yaml --errors=none --joint_errors=compliance "
+                                             "--payload_mass=1 --count=10 --out=s.csv "
+                                             "--actual_out=actual.yaml");
+  ASSERT_EQ(sim.exit_code, kExitOk) << sim.err;
+  const std::string common = "--model=actual.yaml --candidate_count=800 --workspace_count=200 "
+                             "--count=60 --noise_sigma=0.01 ";
+  const Output without = Run(LPOE_PLAN_PATH, common + "--output=c.csv --joint_errors=compliance");
+  ASSERT_EQ(without.exit_code, kExitOk) << without.err;
+  const Output with = Run(LPOE_PLAN_PATH, common + "--output=t.csv --joint_errors=compliance,tilt");
+  ASSERT_EQ(with.exit_code, kExitOk) << with.err;
+  EXPECT_NE(with.out.find("gravity tilt 2"), std::string::npos) << with.out;
+  const nlohmann::json c = nlohmann::json::parse(ReadAll(dir_ / "c.json"));
+  const nlohmann::json t = nlohmann::json::parse(ReadAll(dir_ / "t.json"));
+  EXPECT_EQ(t["parameters"].get<int>(), c["parameters"].get<int>() + 2);
+  EXPECT_EQ(t["plan"]["rank"], t["parameters"]);
+  ASSERT_EQ(t["joint_errors"].size(), 2u);
+  EXPECT_EQ(t["joint_errors"][1]["term"], "tilt");
+  EXPECT_EQ(t["joint_errors"][1]["parameters"], 2);
+  ASSERT_TRUE(t["gravity_tilt"]["planned"].get<bool>()) << t.dump();
+  EXPECT_FALSE(c["gravity_tilt"]["planned"].get<bool>());
+  for (int a = 0; a < 2; ++a) {
+    const double sd = t["gravity_tilt"]["predicted_std_dev_deg"][a].get<double>();
+    EXPECT_GT(sd, 0);
+    EXPECT_LT(sd, 10);  // degrees: determined, if loosely with 60 poses of light links
+    EXPECT_NEAR(sd, 0.01 * t["gravity_tilt"]["predicted_std_dev_deg_per_unit_noise"][a].get<double>(),
+                1e-12 * sd);
+  }
+  EXPECT_NE(ReadAll(dir_ / "t.csv").find("joint errors compliance,tilt"), std::string::npos);
+  // auto plans for the tilt too when the model carries compliance values, and says why not when not.
+  const Output a = Run(LPOE_PLAN_PATH, common + "--output=a.csv --joint_errors=auto");
+  ASSERT_EQ(a.exit_code, kExitOk) << a.err;
+  EXPECT_TRUE(nlohmann::json::parse(ReadAll(dir_ / "a.json"))["gravity_tilt"]["planned"].get<bool>());
+  const Output an = Plan("--count=40 --output=an.csv --joint_errors=auto");
+  ASSERT_EQ(an.exit_code, kExitOk) << an.err;
+  const nlohmann::json jn = nlohmann::json::parse(ReadAll(dir_ / "an.json"));
+  EXPECT_FALSE(jn["gravity_tilt"]["planned"].get<bool>());
+  EXPECT_NE(jn["gravity_tilt"]["note"].get<std::string>().find("no compliance values"),
+            std::string::npos);
+}
+
 TEST_F(PlanTool, TrackerConstraintKeepsOnlyVisiblePoses) {
   const Output o = Plan("--count=15 --output=p.csv --tracker=0,2500,600 --max_range=4000");
   ASSERT_EQ(o.exit_code, kExitOk) << o.err;

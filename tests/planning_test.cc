@@ -159,6 +159,80 @@ TEST(Planning, JointTermColumnsAreTheSolversColumns) {
   EXPECT_EQ(e.head(P - pm.num_joint_parameters()), geometric.ErrorScale());
 }
 
+// The gravity tilt (docs/planning.md, "Gravity tilt"): planned for only with a model that carries
+// compliance values (its information is proportional to them) and with the compliance term; its two
+// columns are then the derivative of the tools' positions when the model's gravity tilts about the
+// calibration's axes, and a plan determines it.
+TEST(Planning, GravityTiltColumnsAreTheTiltOfGravity) {
+  RobotModel nominal = ThreeSmrCobot();
+  nominal.payload.mass = 1.0;
+  nominal.payload.com = Eigen::Vector3d(0, 0, 50);
+  const std::vector<double> reference = Sample(nominal, 300, 51);
+  // Refused: no compliance values, or no compliance term.
+  const Status none = PlanningGravityTiltStatus(nominal, ComplianceAndHarmonics(nominal));
+  EXPECT_FALSE(none.ok());
+  EXPECT_NE(none.message().find("carries no compliance values"), std::string::npos)
+      << none.message();
+  RobotModel model = nominal;
+  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), true, false, &model);
+  std::shared_ptr<const JointTerm> harmonics;
+  ASSERT_TRUE(MakeJointTerm("harmonics", model, &harmonics).ok());
+  const Status no_term = PlanningGravityTiltStatus(model, {harmonics});
+  EXPECT_FALSE(no_term.ok());
+  EXPECT_EQ(no_term.message(), kGravityTiltNeedsCompliance);
+  const auto terms = ComplianceAndHarmonics(model);
+  ASSERT_TRUE(PlanningGravityTiltStatus(model, terms).ok());
+
+  const PlanningModel without(model, terms, reference);
+  const PlanningModel pm(model, terms, reference, /*gravity_tilt=*/true);
+  ASSERT_EQ(pm.num_tilt_parameters(), 2);
+  ASSERT_EQ(pm.num_parameters(), without.num_parameters() + 2);
+  EXPECT_EQ(pm.num_joint_parameters(), without.num_joint_parameters() + 2);
+  const int P = pm.num_parameters();
+  const Eigen::Matrix<double, 3, 2> axes = GravityTiltAxes(model.gravity);
+  const std::vector<double> q = Sample(model, 3, 52);
+  const std::vector<int> tools = {0, 1, 2};
+  double largest = 0;
+  for (int r = 0; r < 3; ++r) {
+    const double* qr = q.data() + 6 * r;
+    Eigen::MatrixXd J, J0;
+    pm.Rows(qr, tools, &J);
+    without.Rows(qr, tools, &J0);
+    ASSERT_EQ(J.cols(), P);
+    EXPECT_EQ(J.leftCols(P - 2), J0);  // the other columns are unchanged
+    for (int t = 0; t < 3; ++t) {
+      for (int a = 0; a < 2; ++a) {
+        const double h = 1e-4;  // rad
+        double tp[2] = {0, 0}, tm[2] = {0, 0};
+        tp[a] = h;
+        tm[a] = -h;
+        RobotModel plus = model, minus = model;
+        plus.gravity = TiltedGravity<double>(model.gravity, axes, tp);
+        minus.gravity = TiltedGravity<double>(model.gravity, axes, tm);
+        const Eigen::Vector3d fd =
+            (PredictToolPosition(plus, qr, t) - PredictToolPosition(minus, qr, t)) / (2 * h);
+        const Eigen::Vector3d column = J.block(3 * t, P - 2 + a, 3, 1);
+        largest = std::max(largest, column.norm());
+        // Within the deflection's own size (the rows take J_q at q, the prediction at q + dq).
+        EXPECT_LT((column - fd).norm(), 1e-2 * fd.norm() + 1e-9)
+            << "pose " << r << " tool " << t << " tilt " << a << ": " << column.transpose()
+            << " vs " << fd.transpose();
+      }
+    }
+  }
+  EXPECT_GT(largest, 1e-2);  // mm per rad: not vacuous (the compliance offsets do turn)
+  // A plan of the pool determines every parameter, the tilt included.
+  CandidatePool pool;
+  const std::unique_ptr<PlanningModel> planned =
+      BuildPlanningPool(model, terms, Sample(model, 2000, 53), PlanConstraints(), &pool, true);
+  ASSERT_EQ(planned->num_parameters(), P);
+  PlanResult plan;
+  ASSERT_TRUE(SelectPlan(*planned, pool, 80, Eigen::MatrixXd(), PlanOptions(), &plan).ok());
+  const PlanQuality quality =
+      EvaluatePlan(*planned, pool, plan.selected, WorkspaceMoment(*planned, reference));
+  EXPECT_EQ(quality.rank, P);
+}
+
 TEST(Planning, JointRangesUseLimitsOrPi) {
   RobotModel model = MakeCobot6();
   model.joints[1].lower = -1.0;

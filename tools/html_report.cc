@@ -401,7 +401,10 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
              Fmt("%.4f", tilt["std_dev_deg"][1].get<double>()) +
              " deg about the two axes perpendicular to the model's gravity (" +
              Fmt("%.4f", tilt["angle_deg"].get<double>()) +
-             " deg in all); the calibrated model carries the tilted gravity.</p>\n";
+             " deg in all; standard deviations " +
+             (tilt.contains("std_dev_form") ? tilt["std_dev_form"].get<std::string>()
+                                            : std::string("a posteriori")) +
+             "); the calibrated model carries the tilted gravity.</p>\n";
       } else {
         h += "<p>" + Esc(Str(tilt["message"])) + ".</p>\n";
       }

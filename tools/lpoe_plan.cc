@@ -65,10 +65,14 @@ DEFINE_double(noise_sigma, 0,
 DEFINE_int32(random_draws, 30, "Random plans of the same size evaluated for comparison.");
 DEFINE_string(joint_errors, "none",
               "Joint-space error terms the calibration will identify: none | compliance | "
-              "harmonics | compliance,harmonics | auto. Their identifiable combinations join the "
-              "parameters the plan must determine (and the predicted accuracy). 'auto' plans for "
-              "every term lpoe_calibrate --joint_errors=auto may choose (all of them): a plan that "
-              "identifies the richest model identifies each of its subsets.");
+              "harmonics | compliance,harmonics | auto, with ',tilt' after compliance for the "
+              "gravity tilt. Their identifiable combinations join the parameters the plan must "
+              "determine (and the predicted accuracy). 'auto' plans for every term lpoe_calibrate "
+              "--joint_errors=auto may choose (all of them; the tilt too when the model carries "
+              "compliance values): a plan that identifies the richest model identifies each of its "
+              "subsets. The tilt's information is proportional to the compliance values, so "
+              "'tilt' needs a --model that carries them (a calibrated model's YAML); with a "
+              "nominal model it is refused (docs/planning.md).");
 
 namespace lpoe {
 namespace {
@@ -131,12 +135,19 @@ nlohmann::json QualityJson(const PlanQuality& q, double noise_sigma) {
 }
 
 // The joint-space terms planned for and their identifiable combinations.
+// The gravity tilt, when planned for, is the last entry ("tilt", 2 parameters, linearised at the
+// model's compliance values).
 nlohmann::json JointErrorsJson(const PlanningModel& pm) {
   nlohmann::json j = nlohmann::json::array();
   for (const JointBlock& block : pm.parameterization().joint_blocks) {
     j.push_back({{"term", block.term->name()},
                  {"parameters", block.term->num_parameters()},
                  {"identifiable_combinations", block.basis.cols()}});
+  }
+  if (pm.num_tilt_parameters() > 0) {
+    j.push_back({{"term", kGravityTiltName},
+                 {"parameters", pm.num_tilt_parameters()},
+                 {"identifiable_combinations", pm.num_tilt_parameters()}});
   }
   return j;
 }
@@ -181,17 +192,21 @@ int Run() {
   }
   // The joint-space terms, compliance first as lpoe_calibrate orders them (docs/joint_errors.md).
   std::vector<std::string> term_names;
+  bool tilt = false;  // the gravity tilt, asked for
+  std::vector<JointErrorKind> kinds;
+  std::string error;
   if (FLAGS_joint_errors == "auto") {
     term_names = JointTermNames();
-  } else if (std::vector<JointErrorKind> kinds; ParseJointErrorKinds(FLAGS_joint_errors, &kinds)) {
+  } else if (ParseJointErrorList(FLAGS_joint_errors, &kinds, &tilt, &error)) {
     for (JointErrorKind k : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
       if (std::find(kinds.begin(), kinds.end(), k) != kinds.end()) {
         term_names.push_back(JointErrorKindName(k));
       }
     }
   } else {
-    std::cerr << "error: --joint_errors must be none, compliance, harmonics, "
-                 "compliance,harmonics or auto\n";
+    std::cerr << "error: --joint_errors=" << FLAGS_joint_errors << ": " << error
+              << " (expected none, compliance, harmonics, compliance,harmonics or auto, with "
+                 "tilt after compliance)\n";
     return kExitUsage;
   }
   PlanConstraints constraints;
@@ -289,13 +304,27 @@ int Run() {
     }
     terms.push_back(std::move(term));
   }
+  // The gravity tilt: planned for when asked (refused with the reason when the model carries no
+  // compliance values) and, with auto, whenever the model carries them.
+  std::string tilt_note;
+  if (const Status s = PlanningGravityTiltStatus(model, terms); tilt && !s.ok()) {
+    std::cerr << "error: --joint_errors=" << FLAGS_joint_errors << " with --model=" << FLAGS_model
+              << ": " << s.message() << "\n";
+    return kExitUsage;
+  } else if (FLAGS_joint_errors == "auto") {
+    tilt = s.ok();
+    if (!tilt) {
+      tilt_note = "the model carries no compliance values, so the gravity tilt's information is "
+                  "zero (docs/planning.md)";
+    }
+  }
 
   // The feasible candidates; with joint-space terms, their identifiable combinations are those the
   // feasible candidates separate from the geometry (the solvers' reduction), and the pool's rows
   // gain their columns.
   CandidatePool pool;
   const std::unique_ptr<PlanningModel> planning =
-      BuildPlanningPool(model, terms, candidates, constraints, &pool);
+      BuildPlanningPool(model, terms, candidates, constraints, &pool, tilt);
   const PlanningModel& pm = *planning;
   const int offered = static_cast<int>(candidates.size() / model.num_joints());
   std::cout << "candidates: " << offered << " offered, " << pool.size() << " feasible ("
@@ -307,7 +336,9 @@ int Run() {
     std::cout << ", " << block.term->name() << " " << block.basis.cols() << " of "
               << block.term->num_parameters();
   }
+  if (pm.num_tilt_parameters() > 0) std::cout << ", gravity tilt 2";
   std::cout << ")\n";
+  if (!tilt_note.empty()) std::cout << "auto: gravity tilt not planned for: " << tilt_note << "\n";
   const Eigen::MatrixXd L = WorkspaceMoment(pm, workspace);
 
   // The plan, or for --count=auto the smallest plan predicted to reach the target.
@@ -400,11 +431,43 @@ int Run() {
     std::cout << line;
   }
 
+  // The gravity tilt's predicted standard deviations with the plan (the last two parameters of
+  // M^-1, at the model's compliance values): what the calibration's a-posteriori ones will be at
+  // that noise.
+  nlohmann::json tilt_json = {{"planned", pm.num_tilt_parameters() > 0}};
+  if (!tilt_note.empty()) tilt_json["note"] = tilt_note;
+  if (pm.num_tilt_parameters() > 0) {
+    const Eigen::MatrixXd M = Information(pool, plan.selected);
+    const int P = pm.num_parameters();
+    const Eigen::VectorXd d = M.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+    const Eigen::MatrixXd Ms = d.asDiagonal() * M * d.asDiagonal();
+    const Eigen::MatrixXd Cs = Ms.ldlt().solve(Eigen::MatrixXd::Identity(P, P));
+    nlohmann::json per_unit = nlohmann::json::array();
+    nlohmann::json at_noise = nlohmann::json::array();
+    std::string text;
+    for (int a = 0; a < 2; ++a) {
+      const int k = P - 2 + a;
+      const double sd_deg = std::sqrt(std::max(0.0, Cs(k, k))) * d(k) * 180.0 / kPi;  // per mm
+      per_unit.push_back(std::isfinite(sd_deg) ? nlohmann::json(sd_deg) : nlohmann::json(nullptr));
+      if (FLAGS_noise_sigma > 0) at_noise.push_back(FLAGS_noise_sigma * sd_deg);
+      char buf[32];
+      std::snprintf(buf, sizeof(buf), "%.4g", FLAGS_noise_sigma > 0 ? FLAGS_noise_sigma * sd_deg
+                                                                     : sd_deg);
+      text += (a ? ", " : "") + std::string(buf);
+    }
+    tilt_json["predicted_std_dev_deg_per_unit_noise"] = per_unit;
+    if (FLAGS_noise_sigma > 0) tilt_json["predicted_std_dev_deg"] = at_noise;
+    std::cout << "gravity tilt: predicted standard deviations " << text
+              << (FLAGS_noise_sigma > 0 ? " deg" : " deg per mm of noise")
+              << " (at the model's compliance values)\n";
+  }
+
   // The plan CSV.
   std::string planned_terms;
   for (const std::string& name : term_names) {
     planned_terms += (planned_terms.empty() ? "" : ",") + name;
   }
+  if (tilt) planned_terms += std::string(",") + kGravityTiltName;
   if (planned_terms.empty()) planned_terms = "none";
   std::string csv;
   csv += "# lpoe_plan: model " + model.name + ", criterion " + PlanCriterionName(options.criterion) +
@@ -466,6 +529,7 @@ int Run() {
                                                   : nlohmann::json(nullptr)}}}};
   if (FLAGS_noise_sigma > 0) report["noise_sigma_mm"] = FLAGS_noise_sigma;
   if (automatic) report["target_accuracy_mm"] = FLAGS_target_accuracy;
+  report["gravity_tilt"] = tilt_json;
   nlohmann::json rows = nlohmann::json::array();
   for (int c : plan.selected) rows.push_back(pool.source[c]);
   report["candidate_rows"] = rows;

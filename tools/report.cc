@@ -90,6 +90,12 @@ Json GravityTiltJson(const GravityTiltResult& t) {
           {"tilt_deg", Json::array({t.tilt(0) * kDegrees, t.tilt(1) * kDegrees})},
           {"std_dev_deg", Json::array({t.standard_deviation(0) * kDegrees,
                                        t.standard_deviation(1) * kDegrees})},
+          {"std_dev_form", "a posteriori"},
+          {"std_dev_deg_a_priori",
+           t.a_priori_standard_deviation.maxCoeff() > 0
+               ? Json::array({t.a_priori_standard_deviation(0) * kDegrees,
+                              t.a_priori_standard_deviation(1) * kDegrees})
+               : Json(nullptr)},
           {"angle_deg", t.tilt.norm() * kDegrees},
           {"axes", Json::array({Vector3Json(t.axes.col(0)), Vector3Json(t.axes.col(1))})},
           {"gravity_before", Vector3Json(t.gravity_before)},
@@ -212,7 +218,18 @@ std::string GravityTiltSummary(const GravityTiltResult& t) {
                 t.standard_deviation(1) * kDegrees, t.axes(0, 1), t.axes(1, 1), t.axes(2, 1),
                 t.tilt.norm() * kDegrees, t.gravity_after(0), t.gravity_after(1),
                 t.gravity_after(2));
-  return line;
+  std::string out = line;
+  if (t.a_priori_standard_deviation.maxCoeff() > 0) {
+    std::snprintf(line, sizeof(line),
+                  "  (standard deviations a posteriori, noise estimated from the residuals; a "
+                  "priori with --sigma: %.4f and %.4f deg)\n",
+                  t.a_priori_standard_deviation(0) * kDegrees,
+                  t.a_priori_standard_deviation(1) * kDegrees);
+  } else {
+    std::snprintf(line, sizeof(line),
+                  "  (standard deviations a posteriori, noise estimated from the residuals)\n");
+  }
+  return out + line;
 }
 
 std::string JointErrorTermNames(const RobotModel& model) {

@@ -75,15 +75,39 @@ PyProblem MakeProblem(const RobotModel& model, const MeasurementSet& data,
   o.orientation_weight = orientation_weight;
   o.loss = loss;
   o.loss_scale = loss_scale;
-  for (const std::string& name : JointErrorNames(joint_errors)) {
+  // "tilt" (after compliance): the gravity tilt's block of 2, with the compliance term built on
+  // the same model; the terms start from the values the model carries (zero when none: the
+  // tilt's columns are then zero, so identify the compliance first, docs/joint_errors.md).
+  bool tilt = false;
+  for (const std::string& name : JointErrorNames(joint_errors, /*allow_tilt=*/true)) {
+    if (name == kGravityTiltName) {
+      tilt = true;
+      continue;
+    }
     std::shared_ptr<const JointTerm> term;
     Check(MakeJointTerm(name, model, &term));
     o.joint_terms.push_back(term);
+  }
+  if (tilt) {
+    o.gravity_tilt = std::make_shared<const GravityTiltModel>(model);
+    for (const auto& term : o.joint_terms) {
+      JointTermValues v;
+      v.term = term;
+      const std::vector<double>& carried = term->name() == "compliance"
+                                               ? model.joint_errors.compliance
+                                               : model.joint_errors.harmonics;
+      v.theta = static_cast<int>(carried.size()) == term->num_parameters()
+                    ? Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(
+                          carried.data(), static_cast<Eigen::Index>(carried.size())))
+                    : Eigen::VectorXd::Zero(term->num_parameters());
+      o.initial_joint_terms.push_back(std::move(v));
+    }
   }
   Check(ValidateCalibrationProblem(model, data, o));
   PyProblem p;
   py::gil_scoped_release release;
   p.problem = std::make_unique<CalibrationProblem>(model, data, o);
+  if (tilt) Check(p.problem->tilt_status());
   return p;
 }
 
@@ -276,6 +300,7 @@ struct PyPlan {
   double random_predicted_rms = 0;  // RMS over the random plans of the same size
   int offered = 0, feasible = 0, outside_limits = 0, near_singular = 0, nothing_visible = 0;
   int num_parameters = 0, exchanges = 0;
+  bool gravity_tilt = false;  // the gravity tilt planned for (its 2 parameters are the last)
 };
 
 py::dict QualityDict(const PlanQuality& q) {
@@ -306,14 +331,26 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
             double max_range, double acceptance_angle, const py::object& smr_facing_obj,
             double min_singularity, int random_draws, const std::string& joint_errors) {
   Check(model.Validate());
-  // As lpoe_plan --joint_errors: 'auto' plans for every term the calibration may choose.
+  // As lpoe_plan --joint_errors: 'auto' plans for every term the calibration may choose (and the
+  // gravity tilt when the model carries compliance values); "tilt" is refused with the reason for
+  // a model without them (PlanningGravityTiltStatus).
   const std::vector<std::string> term_names =
-      joint_errors == "auto" ? JointTermNames() : JointErrorNames(joint_errors);
+      joint_errors == "auto" ? JointTermNames() : JointErrorNames(joint_errors, true);
   std::vector<std::shared_ptr<const JointTerm>> terms;
+  bool tilt = false;
   for (const std::string& name : term_names) {
+    if (name == kGravityTiltName) {
+      tilt = true;
+      continue;
+    }
     std::shared_ptr<const JointTerm> term;
     Check(MakeJointTerm(name, model, &term));
     terms.push_back(std::move(term));
+  }
+  {
+    const Status s = PlanningGravityTiltStatus(model, terms);
+    if (tilt && !s.ok()) throw LpoeError("joint_errors='" + joint_errors + "': " + s.message());
+    if (joint_errors == "auto") tilt = s.ok();
   }
   const int n = model.num_joints();
   PlanOptions options;
@@ -380,8 +417,9 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
     py::gil_scoped_release release;
     CandidatePool pool;
     const std::unique_ptr<PlanningModel> planning =
-        BuildPlanningPool(model, terms, candidates, constraints, &pool);
+        BuildPlanningPool(model, terms, candidates, constraints, &pool, tilt);
     const PlanningModel& pm = *planning;
+    out.gravity_tilt = pm.num_tilt_parameters() > 0;
     const Eigen::MatrixXd L = WorkspaceMoment(pm, workspace);
     PlanResult plan;
     status = SelectPlan(pm, pool, count, L, options, &plan);
@@ -615,6 +653,9 @@ void BindAnalysis(py::module_& m) {
       .def_readonly("candidates", &PyPlan::candidates, "the candidates offered (given or sampled)")
       .def_readonly("criterion", &PyPlan::criterion)
       .def_readonly("num_parameters", &PyPlan::num_parameters)
+      .def_readonly("gravity_tilt", &PyPlan::gravity_tilt,
+                    "whether the gravity tilt was planned for (joint_errors with 'tilt', or 'auto' "
+                    "with a model that carries compliance values)")
       .def_readonly("exchanges", &PyPlan::exchanges)
       .def_property_readonly("quality", [](const PyPlan& p) { return QualityDict(p.quality); },
                              "rank, condition number, predicted RMS per mm of noise, criteria")
@@ -652,7 +693,8 @@ void BindAnalysis(py::module_& m) {
         "candidate_count sampled within the limits; criterion D | A | E | I | O1 | O3; optional "
         "tracker (3,) mm with max_range (mm), acceptance_angle (degrees), smr_facing (3,) or "
         "(tools, 3); joint_errors as lpoe_plan's (the terms' identifiable combinations join the "
-        "parameters to determine).");
+        "parameters to determine; 'tilt' after compliance needs a model that carries compliance "
+        "values).");
 }
 
 }  // namespace python

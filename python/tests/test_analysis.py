@@ -1,10 +1,14 @@
 """pytest: identifiability, the problem builder's normal equations, compensation, planning and the
 calibrate options added for them (joint_errors, holdout, unknown options)."""
 
+import os
+
 import numpy as np
 import pytest
 
 import lpoe
+
+DATA = os.environ.get("LPOE_DATA_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "data"))
 
 
 
@@ -169,3 +173,51 @@ def test_calibrate_with_joint_errors(inputs):
         # The harmonics found in data without any stay small, and the verification is as good.
         after = r.report["verification"]["after"]["norm"]["rms"]
         assert after < 0.1
+
+
+COMPLIANCE_YAML = """joint_errors:
+  compliance:
+    - joint: joint2
+      links:
+        joint2: [2.0e-5, 8.0e-5, -1.8e-4, 2.5e-3]
+        joint3: [1.8e-5, 1.8e-3, 5.9e-4, 4.6e-4]
+        joint4: [4.0e-6, 2.0e-4, 1.0e-4, 1.0e-4]
+    - joint: joint3
+      links:
+        joint3: [9.0e-5, 9.0e-3, 3.0e-3, 2.3e-3]
+        joint4: [2.0e-5, 1.0e-3, 5.0e-4, 5.0e-4]
+"""
+
+
+def test_gravity_tilt_in_problem_and_plan(inputs, tmp_path):
+    """'tilt' after compliance: a Problem gets the tilt's two parameters (their columns are zero
+    until there are compliance values); a plan accounts for the tilt only for a model that
+    carries compliance values and refuses it with the reason otherwise."""
+    m, d, _ = inputs
+    base = open(os.path.join(DATA, "cobot6.yaml")).read()
+    (tmp_path / "compliant.yaml").write_text(base + COMPLIANCE_YAML)
+    mc = lpoe.read_model(str(tmp_path / "compliant.yaml"))
+
+    p = lpoe.Problem(m, d, joint_errors="compliance,tilt")
+    without = lpoe.Problem(m, d, joint_errors="compliance")
+    assert p.names[-2:] == ["gravity.tilt1", "gravity.tilt2"]
+    assert len(p.names) == len(without.names) + 2
+    H = p.normal_equations().H
+    assert H[-1, -1] == 0 and H[-2, -2] == 0  # no compliance values: the tilt is not seen
+    Hc = lpoe.Problem(mc, d, joint_errors="compliance,tilt").normal_equations().H
+    assert Hc[-1, -1] > 0 and Hc[-2, -2] > 0
+    with pytest.raises(lpoe.Error, match="compliance"):
+        lpoe.Problem(m, d, joint_errors="tilt")
+
+    with pytest.raises(lpoe.Error, match="carries no compliance values"):
+        lpoe.plan(m, 40, joint_errors="compliance,tilt")
+    with pytest.raises(lpoe.Error, match="compliance"):
+        lpoe.plan(mc, 40, joint_errors="harmonics,tilt")
+    opts = dict(candidate_count=600, workspace_count=200, random_draws=3)
+    tilted = lpoe.plan(mc, 60, joint_errors="compliance,tilt", **opts)
+    plain = lpoe.plan(mc, 60, joint_errors="compliance", **opts)
+    assert tilted.gravity_tilt and not plain.gravity_tilt
+    assert tilted.num_parameters == plain.num_parameters + 2
+    assert tilted.quality["rank"] == tilted.num_parameters
+    assert lpoe.plan(mc, 60, joint_errors="auto", **opts).gravity_tilt
+    assert not lpoe.plan(m, 60, joint_errors="auto", **opts).gravity_tilt

@@ -3,6 +3,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <sstream>
 #include <utility>
@@ -11,7 +12,11 @@
 #include <ceres/ceres.h>
 #include <glog/logging.h>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
 #include "gravity_tilt.h"
+#include "identifiability.h"
 #include "lpoe/problem_builder.h"
 
 namespace lpoe {
@@ -41,11 +46,23 @@ CalibrationProblemOptions ProblemOptions(const CeresSolverOptions& options) {
 // The stopping rules of convergence.h on Ceres's accepted steps: the step is the difference of the
 // models before and after it in the solved directions, the standard deviations come from J^T J at
 // the start (`H`, solved columns only; empty: unknown) and the current cost.
+//
+// The full parameterization solves the frames' gauge directions too (Levenberg-Marquardt's damping
+// keeps the rank-deficient steps finite). Its step is measured after projecting it onto the
+// identifiable directions at the start (`projector`), and its standard deviations are those of the
+// pseudo-inverse truncated to the identifiable rank (`unit_sd`, for s = 1): what the linear solver's
+// truncated pseudo-inverse solves. Otherwise a structurally lost direction (a tool on the last
+// joint's axis: the axis' tilt about the tool), null at the start but weakly curved once the model
+// moves through the gauge, lets LM drift along it with no change of the cost, and no rule fired.
 struct ConvergenceWatch {
   ConvergenceOptions options;
   const Parameterization* p = nullptr;
   std::vector<int> columns;  // solved parameters (used frames) in p's order
   Eigen::MatrixXd H;
+  Eigen::MatrixXd projector;  // full parameterization: onto the identifiable directions
+  Eigen::VectorXd unit_sd;    // full parameterization: standard deviations at s = 1
+  std::vector<int> moved;     // full parameterization: the entries of unit_sd that are not zero
+  int small_drops = 0;        // full parameterization: consecutive steps that changed nothing
   long dof = 0;
   ConvergenceDecision decision;
 
@@ -55,10 +72,43 @@ struct ConvergenceWatch {
     state.step.resize(static_cast<Eigen::Index>(columns.size()));
     for (size_t k = 0; k < columns.size(); ++k) state.step(k) = all(columns[k]);
     if (H.size() > 0) state.standard_deviation = StandardDeviations(H, cost, dof);
+    if (projector.size() > 0) {
+      // The parameters the identifiable directions move (a pure gauge parameter, e.g. a tool
+      // orientation with position data, has neither step nor variance there).
+      const Eigen::VectorXd projected = projector * state.step;
+      const double s = dof > 0 ? std::sqrt(2.0 * cost / dof) : 0.0;
+      state.step.resize(static_cast<Eigen::Index>(moved.size()));
+      state.standard_deviation.resize(static_cast<Eigen::Index>(moved.size()));
+      for (size_t k = 0; k < moved.size(); ++k) {
+        state.step(k) = projected(moved[k]);
+        state.standard_deviation(k) = s * unit_sd(moved[k]);
+      }
+    }
     state.parameter_scale = ParameterScale(after);
     state.cost = cost;
     state.previous_cost = previous_cost;
     decision = TestConvergence(options, state);
+    if (projector.size() > 0 && !decision.converged() && dof > 0 && previous_cost > 0 &&
+        cost > 0) {
+      // Full parameterization: LM can also crawl along a weakly curved valley that the projection
+      // at the start does not separate (a registered start: the lost direction is then not exactly
+      // null), a fraction of a standard deviation per step at a cost change of 1e-8. A step that
+      // lowers chi^2 = 2 cost / s^2 by less than sd_fraction^2 (a Gauss-Newton step of
+      // sd_fraction standard deviations in the Mahalanobis norm would lower it by about that) is
+      // statistically nothing; two in a row end the iterations.
+      const double chi2_drop = (previous_cost - cost) * static_cast<double>(dof) / cost;
+      const double limit = options.sd_fraction * options.sd_fraction;
+      small_drops = chi2_drop <= limit ? small_drops + 1 : 0;
+      if (small_drops >= 2) {
+        char buf[256];
+        std::snprintf(buf, sizeof(buf),
+                      "converged: the last two steps lowered chi^2 by at most %.3g (tolerance "
+                      "%.3g, sd_fraction squared; |x| = %.3g)",
+                      chi2_drop, limit, decision.step_norm);
+        decision.rule = StopRule::kCost;
+        decision.message = buf;
+      }
+    }
     return decision.converged();
   }
 };
@@ -111,6 +161,62 @@ class HistoryCallback : public ceres::IterationCallback {
   std::vector<IterationRecord>* history_;
   std::function<void(const IterationRecord&)> on_iteration_;
 };
+
+// The covariance C in `all`'s numbering (every tool) restricted to `solved` (all with unmeasured
+// tools left out, LeaveOutUnmeasuredTools: the same frames, joint blocks and tilt in the same order).
+Eigen::MatrixXd SolvedCovariance(const Parameterization& all, const Parameterization& solved,
+                                 const Eigen::MatrixXd& C) {
+  std::vector<int> index(solved.num_parameters);
+  for (size_t f = 0; f < solved.basis.size(); ++f) {
+    for (int c = 0; c < solved.basis[f].cols(); ++c) index[solved.offset[f] + c] = all.offset[f] + c;
+  }
+  for (size_t b = 0; b < solved.joint_blocks.size(); ++b) {
+    for (int c = 0; c < solved.joint_blocks[b].basis.cols(); ++c) {
+      index[solved.joint_blocks[b].offset + c] = all.joint_blocks[b].offset + c;
+    }
+  }
+  for (int a = 0; a < solved.num_tilt_parameters(); ++a) {
+    index[solved.tilt_offset + a] = all.tilt_offset + a;
+  }
+  Eigen::MatrixXd out(solved.num_parameters, solved.num_parameters);
+  for (int i = 0; i < solved.num_parameters; ++i) {
+    for (int j = 0; j < solved.num_parameters; ++j) out(i, j) = C(index[i], index[j]);
+  }
+  return out;
+}
+
+// The full parameterization's projector and truncated standard deviations (see ConvergenceWatch)
+// from the normal equations at the start: the frames' block (the joint-space blocks eliminated by
+// their Schur complement), column-scaled, its `rank` largest eigenpairs less the joint-space ones.
+void FullParameterizationWatch(const CalibrationProblem& builder, double sigma, int rank,
+                               ConvergenceWatch* watch) {
+  const ProblemNormalEquations ne = builder.NormalEquations();
+  const int F = static_cast<int>(watch->columns.size());
+  const int S = static_cast<int>(ne.H.rows());
+  if (!ne.finite || S < F || F == 0) return;
+  Eigen::MatrixXd H = sigma * sigma * ne.H;  // J^T J, unweighted
+  Eigen::MatrixXd Hf = H.topLeftCorner(F, F);
+  if (S > F) {
+    Eigen::LLT<Eigen::MatrixXd> llt(H.bottomRightCorner(S - F, S - F));
+    if (llt.info() != Eigen::Success) return;
+    Hf -= H.topRightCorner(F, S - F) * llt.solve(H.bottomLeftCorner(S - F, F));
+  }
+  const int r = std::min(F, rank - (S - F));
+  if (r <= 0) return;
+  const Eigen::VectorXd d = internal::ColumnScale(Hf);
+  const Eigen::MatrixXd Hs = d.asDiagonal() * Hf * d.asDiagonal();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Hs);
+  if (eig.info() != Eigen::Success || !(eig.eigenvalues()(F - r) > 0)) return;
+  const Eigen::MatrixXd V = eig.eigenvectors().rightCols(r);  // the largest r
+  const Eigen::VectorXd inv_l = eig.eigenvalues().tail(r).cwiseInverse();
+  watch->projector = d.asDiagonal() * V * V.transpose() * d.cwiseInverse().asDiagonal();
+  const Eigen::MatrixXd C = d.asDiagonal() * V * inv_l.asDiagonal() * V.transpose() * d.asDiagonal();
+  watch->unit_sd = C.diagonal().cwiseMax(0.0).cwiseSqrt();
+  const double largest = watch->unit_sd.maxCoeff();
+  for (int k = 0; k < F; ++k) {
+    if (watch->unit_sd(k) > 1e-12 * largest) watch->moved.push_back(k);
+  }
+}
 
 Termination MapTermination(ceres::TerminationType t) {
   switch (t) {
@@ -184,7 +290,11 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   if (!builder.tilt_status().ok()) {
     return finish(Termination::kNotIdentifiable, builder.tilt_status().message());
   }
-  result.parameterization = builder.parameterization();
+  // The result's parameterization is the solved one, unmeasured tools left out and listed as not
+  // identifiable (with the reason), as the linear solver's; the builder's numbering (every tool)
+  // is used during the solve and mapped at the end (SolvedCovariance).
+  const Parameterization& all = builder.parameterization();
+  result.parameterization = builder.SolvedParameterization();
   const bool full = options.parameterization == ParameterizationKind::kFull;
   const int per_row = options.use_orientation ? 6 : 3;
   result.joint_terms = builder.JointTerms();
@@ -204,16 +314,17 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
 
   ConvergenceWatch watch;
   watch.options = options.convergence;
-  watch.p = &result.parameterization;
+  watch.p = &all;
   // The step is measured in p's coordinates of the solved blocks (full: of the solved frames).
   const std::vector<int> sizes = builder.tangent_sizes();
   const std::vector<int> offsets = builder.tangent_offsets();
   for (size_t b = 0; b < sizes.size(); ++b) {
-    if (full && offsets[b] >= result.parameterization.num_frame_parameters()) break;
+    if (full && offsets[b] >= all.num_frame_parameters()) break;
     for (int c = 0; c < sizes[b]; ++c) watch.columns.push_back(offsets[b] + c);
   }
   watch.dof = static_cast<long>(per_row) * data.size() - identifiable;
   if (!full) watch.H = analysis.normal_matrix;
+  if (full) FullParameterizationWatch(builder, options.sigma, analysis.rank, &watch);
 
   ceres::Problem problem;
   builder.AddTo(&problem);
@@ -270,9 +381,17 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
     // (A gravity tilt's bilinear block keeps ceres::Covariance: its a-priori form, as before.)
     const bool normal_equations =
         builder.BatchedRows() > 1 || (!full && options.loss == "none" && !options.gravity_tilt);
-    const Status s = normal_equations
-                         ? builder.NormalEquationsCovariance(&result.covariance)
-                         : builder.Covariance(&problem, options.num_threads, &result.covariance);
+    // Full parameterization: truncated to the identifiable rank, as the steps were measured.
+    int null_space_rank = -1;
+    if (full) {
+      int tangent = 0;
+      for (int s : sizes) tangent += s;
+      null_space_rank = std::max(0, tangent - analysis.rank);
+    }
+    const Status s =
+        normal_equations
+            ? builder.NormalEquationsCovariance(&result.covariance, null_space_rank)
+            : builder.Covariance(&problem, options.num_threads, &result.covariance, null_space_rank);
     if (!s.ok()) {
       message += "; " + s.message();
     } else if (options.a_posteriori_covariance) {
@@ -280,8 +399,20 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
       if (dof > 0) result.covariance *= 2.0 * summary.final_cost / static_cast<double>(dof);
     }
   }
-  internal::FillGravityTiltResult(builder.parameterization(), builder.JointState(),
-                                  result.covariance, &result.gravity_tilt);
+  internal::FillGravityTiltResult(all, builder.JointState(), result.covariance,
+                                  &result.gravity_tilt);
+  if (all.gravity_tilt && !options.a_posteriori_covariance &&
+      result.gravity_tilt.standard_deviation.maxCoeff() > 0) {
+    // The tilt's standard deviation is reported a posteriori by both solvers (calibration.h): the
+    // a-priori one (sigma) is kept beside it, in the form of this covariance.
+    result.gravity_tilt.a_priori_standard_deviation = result.gravity_tilt.standard_deviation;
+    const long dof = static_cast<long>(per_row) * data.size() - identifiable;
+    result.gravity_tilt.standard_deviation *=
+        dof > 0 ? std::sqrt(2.0 * summary.final_cost / static_cast<double>(dof)) : 0.0;
+  }
+  if (result.covariance.rows() == all.num_parameters) {
+    result.covariance = SolvedCovariance(all, result.parameterization, result.covariance);
+  }
   return finish(termination, message);
 }
 

@@ -196,6 +196,7 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
   check.identified = true;
   check.tilt = tilted.gravity_tilt.tilt;
   check.standard_deviation = tilted.gravity_tilt.standard_deviation;
+  check.a_priori_standard_deviation = tilted.gravity_tilt.a_priori_standard_deviation;
   check.gravity_after = tilted.gravity_tilt.gravity_after;
   check.message.clear();
   tilted.gravity_tilt = check;

@@ -19,6 +19,7 @@
 #include "identifiability.h"
 #include "lpoe/analysis.h"
 #include "lpoe/eigen_decompositions.h"
+#include "lpoe/joint_errors.h"
 #include "lpoe/linear_solver.h"
 #include "lpoe/measurements.h"
 
@@ -413,12 +414,42 @@ PlanningModel::PlanningModel(const RobotModel& model)
           MakeParameterization(model_, ParameterizationKind::kIdentifiable, DataKind::kPosition)),
       basis_(model_, parameterization_) {}
 
+Status PlanningGravityTiltStatus(const RobotModel& model,
+                                 const std::vector<std::shared_ptr<const JointTerm>>& terms) {
+  bool compliance = false;
+  for (const auto& term : terms) compliance = compliance || term->name() == "compliance";
+  if (!compliance) return Status::Error(kGravityTiltNeedsCompliance);
+  const std::vector<double>& c = model.joint_errors.compliance;
+  if (std::all_of(c.begin(), c.end(), [](double v) { return v == 0; })) {
+    return Status::Error(
+        "the gravity tilt cannot be planned for with a model that carries no compliance values: "
+        "the tilt is seen only through the gravity torques' compliance offsets, so its "
+        "information is proportional to the compliance products, which a calibration identifies "
+        "(at zero compliance the tilt's columns vanish). Plan with compliance (poses that load "
+        "the joints differently serve the tilt too) and calibrate with compliance,tilt, which "
+        "checks at the compliance solution whether the data determine the tilt; or plan a "
+        "recalibration from a calibrated model whose YAML carries joint_errors: compliance");
+  }
+  if (Status s = model.Validate(); !s.ok()) return s;
+  return Status::Ok();
+}
+
 PlanningModel::PlanningModel(const RobotModel& model,
                              const std::vector<std::shared_ptr<const JointTerm>>& terms,
-                             const std::vector<double>& reference)
+                             const std::vector<double>& reference, bool gravity_tilt)
     : model_(model),
       parameterization_(PlanningParameterization(model_, terms, reference)),
-      basis_(model_, parameterization_) {
+      basis_(model_, parameterization_),
+      gravity_tilt_(gravity_tilt) {
+  if (gravity_tilt_) {
+    const Status s = PlanningGravityTiltStatus(model_, terms);
+    CHECK(s.ok()) << s.message();
+    const std::vector<double>& c = model_.joint_errors.compliance;
+    compliance_ = Eigen::Map<const Eigen::VectorXd>(c.data(), static_cast<Eigen::Index>(c.size()));
+    const double zero[2] = {0.0, 0.0};
+    gravity_tilt_jacobian_ =
+        TiltedGravityJacobian(model_.gravity, GravityTiltAxes(model_.gravity), zero);
+  }
   // O3's scale of the joint-space combinations: RMS tool effect of each column over the reference.
   const int frames = parameterization_.num_frame_parameters();
   const int k = num_joint_parameters();
@@ -454,14 +485,27 @@ void PlanningModel::Rows(const double* q, const std::vector<int>& tools, Eigen::
     blocks[b].term->Regressor(q, Y.data());
     Yb[b] = Y * blocks[b].basis;
   }
+  // The gravity tilt's joint-space columns at zero tilt and the model's compliance values:
+  // d(dq)/dt = sum_a (dg/dt)_a Y_a(q) theta (n x 2), as the solvers' (gravity_tilt.h) at their
+  // linearisation point.
+  Eigen::MatrixXd D;
+  if (gravity_tilt_) {
+    Eigen::MatrixXd Ya[3];
+    ComplianceRegressorGravityAxes(model_, q, Ya);
+    Eigen::MatrixXd offsets(n, 3);
+    for (int a = 0; a < 3; ++a) offsets.col(a) = Ya[a] * compliance_;
+    D = offsets * gravity_tilt_jacobian_;
+  }
+  const int tilt_offset = parameterization_.num_parameters;
   Eigen::Matrix<double, 3, Eigen::Dynamic> J_q(3, n);
   for (size_t k = 0; k < tools.size(); ++k) {
     basis_.Position(q, tools[k], J->data() + 3 * k, rows, frames.data());
-    if (blocks.empty()) continue;
+    if (blocks.empty() && !gravity_tilt_) continue;
     basis_.PositionJointJacobian(frames.data(), J_q.data(), 3);
     for (size_t b = 0; b < blocks.size(); ++b) {
       J->block(3 * k, blocks[b].offset, 3, Yb[b].cols()).noalias() = J_q * Yb[b];
     }
+    if (gravity_tilt_) J->block(3 * k, tilt_offset, 3, 2).noalias() = J_q * D;
   }
 }
 
@@ -561,11 +605,11 @@ Status SampleConfigurations(const RobotModel& model, int count, uint64_t seed,
 std::unique_ptr<PlanningModel> BuildPlanningPool(
     const RobotModel& model, const std::vector<std::shared_ptr<const JointTerm>>& terms,
     const std::vector<double>& candidates, const PlanConstraints& constraints,
-    CandidatePool* pool) {
+    CandidatePool* pool, bool gravity_tilt) {
   auto geometric = std::make_unique<PlanningModel>(model);
   *pool = BuildCandidatePool(*geometric, candidates, constraints);
   if (terms.empty()) return geometric;
-  auto with_terms = std::make_unique<PlanningModel>(model, terms, pool->q);
+  auto with_terms = std::make_unique<PlanningModel>(model, terms, pool->q, gravity_tilt);
   CandidatePool full = BuildCandidatePool(*with_terms, pool->q, constraints);
   CHECK_EQ(full.size(), pool->size());
   full.source = pool->source;

@@ -428,14 +428,14 @@ ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
 }
 
 Status CalibrationProblem::Covariance(ceres::Problem* problem, int num_threads,
-                                      Eigen::MatrixXd* covariance) {
+                                      Eigen::MatrixXd* covariance, int null_space_rank) {
   ceres::Covariance::Options cov_options;
   cov_options.algorithm_type = ceres::DENSE_SVD;
   cov_options.num_threads = std::max(1, num_threads);
   // Full parameterization: the gauge directions are a known null space; take the pseudo-inverse
   // (singular values below min_reciprocal_condition_number are dropped).
   cov_options.null_space_rank =
-      options_.parameterization == ParameterizationKind::kFull ? -1 : 0;
+      options_.parameterization == ParameterizationKind::kFull ? null_space_rank : 0;
   ceres::Covariance cov(cov_options);
   const std::vector<double*> blocks = parameter_blocks();
   const std::vector<const double*> const_blocks(blocks.begin(), blocks.end());
@@ -467,7 +467,8 @@ Eigen::MatrixXd CalibrationProblem::ScatterCovariance(const Eigen::MatrixXd& C) 
   return covariance;
 }
 
-Status CalibrationProblem::NormalEquationsCovariance(Eigen::MatrixXd* covariance) const {
+Status CalibrationProblem::NormalEquationsCovariance(Eigen::MatrixXd* covariance,
+                                                     int null_space_rank) const {
   // H's columns are the solved parameters in parameter_blocks() order, as Covariance()'s C.
   const ProblemNormalEquations ne = NormalEquations();
   if (!ne.finite) return Status::Error("covariance not computed (non-finite normal equations)");
@@ -480,8 +481,12 @@ Status CalibrationProblem::NormalEquationsCovariance(Eigen::MatrixXd* covariance
     const Eigen::VectorXd& l = eig.eigenvalues();
     const double largest = l.maxCoeff();
     Eigen::VectorXd inv_l = Eigen::VectorXd::Zero(l.size());
-    for (int k = 0; k < l.size(); ++k) {
-      if (l(k) > min_ratio * largest) inv_l(k) = 1.0 / l(k);
+    for (int k = std::max(0, null_space_rank); k < l.size(); ++k) {  // ascending
+      if (null_space_rank >= 0 || l(k) > min_ratio * largest) inv_l(k) = 1.0 / l(k);
+    }
+    if (null_space_rank >= 0 && null_space_rank < l.size() &&
+        !(l(null_space_rank) > min_ratio * largest)) {
+      return Status::Error("covariance not computed (rank-deficient Jacobian at the solution)");
     }
     C = eig.eigenvectors() * inv_l.asDiagonal() * eig.eigenvectors().transpose();
   } else {

@@ -48,7 +48,14 @@ struct GravityTiltResult {
   bool requested = false;   // asked for (joint_errors "tilt")
   bool identified = false;  // solved (the data determine it)
   Eigen::Vector2d tilt = Eigen::Vector2d::Zero();                // rad, about axes.col(0), col(1)
-  Eigen::Vector2d standard_deviation = Eigen::Vector2d::Zero();  // rad (0: no covariance)
+  // rad (0: no covariance). A posteriori for both solvers (the noise estimated from the
+  // residuals, s^2 = 2 cost / (m - p): the linear solver's covariance, and the form of
+  // predicted_standard_deviation), so that the solvers' tilts and the check compare directly.
+  Eigen::Vector2d standard_deviation = Eigen::Vector2d::Zero();
+  // The a-priori form (noise = the solver's sigma), when the solver's covariance is a priori
+  // (Ceres with sigma given: its other parameters' standard deviations are in this form); zero
+  // otherwise.
+  Eigen::Vector2d a_priori_standard_deviation = Eigen::Vector2d::Zero();
   Eigen::Matrix<double, 3, 2> axes = Eigen::Matrix<double, 3, 2>::Zero();  // model base frame
   Eigen::Vector3d gravity_before = Eigen::Vector3d::Zero();  // the model's (start) gravity
   Eigen::Vector3d gravity_after = Eigen::Vector3d::Zero();   // tilted (the calibrated model's)

@@ -59,16 +59,24 @@ class PlanningModel {
   // (row-major, every tool measured at each; normally the feasible candidates) separate from the
   // geometry and from the earlier terms: the reduction both solvers make (with the linear solver's
   // default tolerance), so that a plan identifies what the calibration will solve.
+  // `gravity_tilt`: the two tilt angles of the model's gravity (docs/joint_errors.md) join the
+  // parameters after the terms' combinations, linearised at the model's own compliance values
+  // (see PlanningGravityTiltStatus: the model must carry them and `terms` must hold "compliance").
   PlanningModel(const RobotModel& model, const std::vector<std::shared_ptr<const JointTerm>>& terms,
-                const std::vector<double>& reference);
+                const std::vector<double>& reference, bool gravity_tilt = false);
   PlanningModel(const PlanningModel&) = delete;
   PlanningModel& operator=(const PlanningModel&) = delete;
 
   const RobotModel& model() const { return model_; }
   const Parameterization& parameterization() const { return parameterization_; }
-  int num_parameters() const { return parameterization_.num_parameters; }
-  // Of num_parameters(): the joint-space combinations (after the frame parameters).
-  int num_joint_parameters() const { return parameterization_.num_joint_parameters(); }
+  int num_parameters() const { return parameterization_.num_parameters + num_tilt_parameters(); }
+  // Of num_parameters(): the joint-space combinations (after the frame parameters), the gravity
+  // tilt's two included (last).
+  int num_joint_parameters() const {
+    return parameterization_.num_joint_parameters() + num_tilt_parameters();
+  }
+  // 2 when the gravity tilt is planned for (the last two parameters), else 0.
+  int num_tilt_parameters() const { return gravity_tilt_ ? 2 : 0; }
 
   // The position Jacobians (eq. (29), restricted to the identifiable directions, and the
   // joint-space columns J_q(q) Y(q) basis) of the listed tools at q, stacked: 3 rows per tool,
@@ -85,7 +93,20 @@ class PlanningModel {
   Parameterization parameterization_;
   BasisJacobian basis_;
   Eigen::VectorXd joint_error_scale_;  // ErrorScale of the joint-space combinations
+  bool gravity_tilt_ = false;
+  Eigen::VectorXd compliance_;          // the model's compliance products (the tilt's columns)
+  Eigen::Matrix<double, 3, 2> gravity_tilt_jacobian_ = Eigen::Matrix<double, 3, 2>::Zero();
 };
+
+// Whether a plan can account for the gravity tilt (docs/planning.md, "Gravity tilt"). The tilt's
+// columns are the change of the compliance offsets when gravity turns, d(dq)/dt = sum_a
+// (dg/dt)_a Y_a(q) theta: proportional to the compliance values theta. A nominal model has none
+// (they are what the calibration identifies), so its tilt information is zero and a plan cannot
+// be chosen for it: an error that says so and what to do. A model that carries compliance values
+// (a calibrated model's YAML, planning a recalibration) gives the tilt's information at those
+// values. `terms` must include "compliance" (the tilt is identified with it).
+Status PlanningGravityTiltStatus(const RobotModel& model,
+                                 const std::vector<std::shared_ptr<const JointTerm>>& terms);
 
 // ---- Constraints of the cell.
 
@@ -155,10 +176,11 @@ CandidatePool BuildCandidatePool(const PlanningModel& pm, const std::vector<doub
 // the feasible candidates are found with the geometric model; the terms keep the combinations those
 // candidates separate from the geometry (PlanningModel's reduction), and the pool's rows gain the
 // terms' columns. Returns the planning model the pool's rows belong to.
+// `gravity_tilt`: plan for the gravity tilt too (PlanningGravityTiltStatus must be ok).
 std::unique_ptr<PlanningModel> BuildPlanningPool(
     const RobotModel& model, const std::vector<std::shared_ptr<const JointTerm>>& terms,
     const std::vector<double>& candidates, const PlanConstraints& constraints,
-    CandidatePool* pool);
+    CandidatePool* pool, bool gravity_tilt = false);
 
 // L = mean over the workspace configurations (row-major) and every tool of J_w^T J_w: the predicted
 // mean squared position error of the tools there is sigma^2 trace(L M^-1).

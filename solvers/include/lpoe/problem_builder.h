@@ -194,13 +194,19 @@ class CalibrationProblem {
   // constant blocks), in parameterization()'s numbering (num_parameters square; unsolved tools'
   // rows and columns zero), in the residuals' units (a priori: scale by s^2 for a posteriori).
   // An error when ceres::Covariance::Compute() fails (rank-deficient Jacobian).
-  Status Covariance(ceres::Problem* problem, int num_threads, Eigen::MatrixXd* covariance);
-  // The same covariance from NormalEquations() (H^-1; full: Ceres's pseudo-inverse rule), for a
+  // `null_space_rank` (full parameterization): the number of smallest eigenvalues dropped, i.e. the
+  // pseudo-inverse truncated to the identifiable rank, as the solvers' steps are (a structurally
+  // lost direction can come back weakly through the gauge once the model moved, and would
+  // otherwise get a huge variance); -1: Ceres's rule (eigenvalues below
+  // min_reciprocal_condition_number of the largest are dropped).
+  Status Covariance(ceres::Problem* problem, int num_threads, Eigen::MatrixXd* covariance,
+                    int null_space_rank = -1);
+  // The same covariance from NormalEquations() (H^-1; full: the same pseudo-inverse), for a
   // problem of this builder's residuals alone without a robust loss: no Jacobian of all rows is
   // formed (10^6 rows) and no SVD of it. An error, as Compute()'s, when the column-scaled Jacobian's
   // reciprocal condition number is below ceres::Covariance::Options's
   // min_reciprocal_condition_number (or H is not positive definite).
-  Status NormalEquationsCovariance(Eigen::MatrixXd* covariance) const;
+  Status NormalEquationsCovariance(Eigen::MatrixXd* covariance, int null_space_rank = -1) const;
 
  private:
   // C (parameter_blocks() order) in parameterization()'s numbering.
