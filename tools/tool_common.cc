@@ -217,7 +217,7 @@ void PrintIterationTable(std::ostream& os, const CalibrationResult& result) {
   int subsample = 0;
   for (const IterationRecord& r : result.history) {
     // The linear solver's warm start (linear_solver.h): records on a subsample are marked.
-    std::snprintf(line, sizeof(line), "%8d%c %16.6f %17.6f %11.4e %10.3e\n", r.iteration,
+    std::snprintf(line, sizeof(line), "%9d%c%16.6f %17.6f %11.4e %10.3e\n", r.iteration,
                   r.rows > 0 ? '*' : ' ', r.max_error, r.mean_error, r.cost, r.step_norm);
     if (r.rows > 0) subsample = r.rows;
     os << line;
