@@ -297,57 +297,5 @@ TEST(JointNormalEquations, LinearSolverConvergesToTheExactStationaryPoint) {
   EXPECT_LE(r.iterations, 6);
 }
 
-// A pass without the rank-k update (JointColumnsOptions::no_hessian, the linear solver's warm
-// start): where the rows go four at a time (position data on cobot6's revolute-z chain, the
-// identifiable parameterization), g, the cost and the errors are those of the complete pass and H
-// is left zero; elsewhere (pose data) the request is ignored and H formed.
-TEST(JointNormalEquations, PassWithoutTheHessianKeepsGradientAndCost) {
-  SimulationOptions o;
-  o.count = 5000;
-  o.noise_sigma = 0.03;
-  const KinematicErrors errors = PaperTable2Errors();
-  const MeasurementSet data =
-      SimulateMeasurements(ApplyErrors(MakeCobot6(), errors), errors.joint_zero, o);
-  const RobotModel model = MakeCobot6();
-  const Parameterization p =
-      MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
-  internal::JointColumnsOptions no_hessian;
-  no_hessian.no_hessian = true;
-  PositionErrorRows kept_full, kept_gradient;
-  const internal::NormalEquations full = internal::NormalEquationsOf(
-      model, data, p, Eigen::VectorXd(), false, 1.0, false, nullptr, &kept_full);
-  const internal::NormalEquations g = internal::NormalEquationsOf(
-      model, data, p, Eigen::VectorXd(), false, 1.0, false, nullptr, &kept_gradient, no_hessian);
-  EXPECT_TRUE(full.hessian);
-  ASSERT_GT(full.H.norm(), 0);
-#if defined(__x86_64__)
-  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
-    EXPECT_FALSE(g.hessian);
-    EXPECT_EQ(g.H.norm(), 0);
-  }
-#endif
-  EXPECT_EQ(g.cost, full.cost);
-  EXPECT_EQ(g.max_error, full.max_error);
-  EXPECT_EQ(g.mean_error, full.mean_error);
-  EXPECT_LT((g.g - full.g).norm(), 1e-12 * full.g.norm());
-  EXPECT_TRUE(g.finite);
-  ASSERT_EQ(kept_gradient.size(), kept_full.size());
-  EXPECT_EQ(kept_gradient.Statistics().norm.rms, kept_full.Statistics().norm.rms);
-  // Pose data take the one-row path: H is formed whatever is asked.
-  const Parameterization pp =
-      MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPose);
-  const MeasurementSet poses = SimulateMeasurements(ApplyErrors(MakeCobot6(), errors),
-                                                    errors.joint_zero, [] {
-                                                      SimulationOptions q;
-                                                      q.count = 200;
-                                                      q.pose = true;
-                                                      return q;
-                                                    }());
-  const internal::NormalEquations pose = internal::NormalEquationsOf(
-      model, poses, pp, Eigen::VectorXd(), true, 1000.0, false, nullptr, nullptr, no_hessian);
-  EXPECT_TRUE(pose.hessian);
-  EXPECT_GT(pose.H.norm(), 0);
-}
-
 }  // namespace
 }  // namespace lpoe

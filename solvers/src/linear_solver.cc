@@ -316,15 +316,15 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
 
   // The warm start: at the first iteration the step x computed on all rows at the start model is
   // taken, and the solve continues on every `every`-th row (kept in order) to its own convergence;
-  // all rows are then linearized at that solution, which must not raise the cost of the start
-  // model. Records the subsample's iterations (with their row count) and the new linearization's;
-  // returns the number of subsample iterations recorded, or -1 when the warm start did not apply
-  // (then nothing changed: the caller continues as without it).
+  // all rows are then linearized at that solution (its errors, when kept, replace the start's),
+  // which must not raise the cost of the start model. Records the subsample's iterations (with
+  // their row count) and the new linearization's; returns the number of subsample iterations
+  // recorded, or -1 when the warm start did not apply (then nothing changed but the kept errors,
+  // no longer current: the caller continues as without it).
   const bool warm_start = !full && !override_basis && options.joint_terms.empty() &&
                           !options.gravity_tilt && K == 0 && options.warm_start_rows > 0 &&
                           data.size() >= options.warm_start_min_rows &&
                           data.size() >= 2 * options.warm_start_rows;
-  bool approximate = false;  // lin.H is the warm start's estimate (below)
   auto WarmStart = [&](const Eigen::VectorXd& x, Linearization* current,
                        RobotModel* current_model) -> int {
     if (!x.allFinite()) return -1;
@@ -345,30 +345,11 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     sub.max_iterations = std::max(1, options.max_iterations - 2);
     const CalibrationResult s = CalibrateLinear(first, subset, sub);
     if (!s.converged() || s.history.empty()) return -1;
-    // All rows at the subsample's solution, without their rank-k update where the rows go four at
-    // a time (g, the cost and the errors' statistics only; the errors themselves are not kept: this
-    // is not the last linearization). Its H then comes from the start's, corrected by the change
-    // the subsample sees between the two models (scaled to all rows): a control variate whose
-    // error is the subsample's relative error (about 1/sqrt(rows)) times that change (about the
-    // model's relative change, 1e-3), not of H itself. The step from it is the exact one to that
-    // relative accuracy, and the next linearization, on all rows and exact, tests convergence.
-    internal::JointColumnsOptions no_hessian = exact_blocks;
-    no_hessian.no_hessian = true;
-    Linearization at = Linearize(s.model, joint_state, data, p, options, stack, &joint_rows, nullptr,
-                                 no_hessian);
-    if (!at.hessian) {
-      const Linearization start = Linearize(*current_model, joint_state, subset, p, options, false);
-      const Linearization end = Linearize(s.model, joint_state, subset, p, options, false);
-      at.H = current->H +
-             (static_cast<double>(data.size()) / subset.size()) * (end.H - start.H);
-      at.finite = at.finite && at.H.allFinite();
-      approximate = true;
-    }
-    if (!at.finite || !(at.cost <= current->cost * (1 + kCostIncreaseTolerance) + 1e-300)) {
-      approximate = false;
-      return -1;
-    }
-    errors_current = false;  // those kept are the start's
+    Linearization at = Linearize(s.model, joint_state, data, p, options, stack, &joint_rows, errors,
+                                 exact_blocks);
+    errors_current = false;
+    if (!at.finite || !(at.cost <= current->cost * (1 + kCostIncreaseTolerance) + 1e-300)) return -1;
+    errors_current = errors != nullptr && !errors->empty();
     result.history.back().step_norm = x.norm();
     // The subsample's records but its last (the point linearized on all rows now).
     const int taken = static_cast<int>(s.history.size()) - 1;
@@ -417,20 +398,6 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     state.cost = lin.cost;
     state.previous_cost = previous_cost;
     const ConvergenceDecision decision = TestConvergence(stop, state);
-    if (decision.converged() && approximate) {
-      // Converged by the warm start's estimated H: the same point again, exactly (on all rows,
-      // its errors kept), and the test again.
-      lin = Linearize(model, joint_state, data, p, options, stack, &joint_rows, errors,
-                      exact_blocks);
-      errors_current = errors != nullptr && !errors->empty();
-      approximate = false;
-      if (!lin.finite) {
-        return finish(Termination::kNumericalFailure,
-                      "non-finite residuals or Jacobian (check the input values)");
-      }
-      --it;  // this iteration once more
-      continue;
-    }
     if (decision.converged()) {
       if (structured && !lin.joint_blocks) {
         // With frozen joint blocks the contraction per step is about their relative change, not
@@ -494,7 +461,6 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       if (structured) complete(&next);
       if (next.finite && next.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
         errors_current = errors != nullptr && !errors->empty();
-        approximate = false;
         model = std::move(candidate);
         joint_state = candidate_joints;
         previous_cost = lin.cost;

@@ -145,31 +145,6 @@ __attribute__((target("avx2,fma"))) void SyrkLowerAvx2(const double* A, int ld, 
   }
 }
 
-// Only the last row of the same update, H(P - 1, j) += A_{P-1} . A_j for every j: with y in
-// column P - 1 (the four-row path), J^T y and y^T y without J^T J.
-__attribute__((target("avx2,fma"))) void LastRowAvx2(const double* A, int ld, int rows, int P,
-                                                     double* H) {
-  const double* y = A + static_cast<std::ptrdiff_t>(P - 1) * ld;
-  const int k4 = rows & ~3;
-  for (int j0 = 0; j0 < P; j0 += 4) {
-    const double* b[4];
-    for (int t = 0; t < 4; ++t) b[t] = A + static_cast<std::ptrdiff_t>(std::min(j0 + t, P - 1)) * ld;
-    __m256d acc[4];
-    for (__m256d& v : acc) v = _mm256_setzero_pd();
-    for (int k = 0; k < k4; k += 4) {
-      const __m256d yv = _mm256_loadu_pd(y + k);
-      for (int t = 0; t < 4; ++t) acc[t] = _mm256_fmadd_pd(_mm256_loadu_pd(b[t] + k), yv, acc[t]);
-    }
-    for (int t = 0; t < 4 && j0 + t < P; ++t) {
-      alignas(32) double lanes[4];
-      _mm256_store_pd(lanes, acc[t]);
-      double sum = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
-      for (int k = k4; k < rows; ++k) sum += y[k] * b[t][k];
-      H[static_cast<std::ptrdiff_t>(j0 + t) * P + (P - 1)] += sum;
-    }
-  }
-}
-
 bool HaveAvx2() {
   static const bool have = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
   return have;
@@ -432,8 +407,7 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
 // then J^T y in row P.
 void AccumulatePositionRows4(const RobotModel& model, const FourRowPlan& plan,
                              const MeasurementSet& data, int begin, int end, Scratch* scratch,
-                             ChunkSums* sums, int chunk, PositionErrorRows* errors,
-                             bool no_hessian) {
+                             ChunkSums* sums, int chunk, PositionErrorRows* errors) {
   const int n = model.num_joints();
   const int P1 = static_cast<int>(scratch->A.cols());  // P + 1
   const int ld = static_cast<int>(scratch->A.rows());
@@ -466,11 +440,7 @@ void AccumulatePositionRows4(const RobotModel& model, const FourRowPlan& plan,
       sums->max_error = std::max(sums->max_error, e);
       sums->sum_error += e;
     }
-    if (no_hessian) {
-      LastRowAvx2(A, ld, 3 * stride, P1, sums->H.data());
-    } else {
-      SyrkLowerAvx2(A, ld, 3 * stride, P1, sums->H.data());
-    }
+    SyrkLowerAvx2(A, ld, 3 * stride, P1, sums->H.data());
   }
 }
 #endif
@@ -479,7 +449,7 @@ template <typename Kind>
 NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const MeasurementSet& data,
                            const Parameterization& p, const Eigen::VectorXd& joint_state,
                            bool stack, const Eigen::MatrixXd* joint_rows,
-                           PositionErrorRows* errors, bool no_hessian = false) {
+                           PositionErrorRows* errors) {
   constexpr int m = Kind::kResiduals;
   const int P = p.num_parameters;
   const int N = data.size();
@@ -533,7 +503,7 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
 #ifdef LPOE_HAVE_AVX2_KERNEL
     if (four) {
       AccumulatePositionRows4(model, plan, data, chunks.begin(c), chunks.end(c), &scratch[thread],
-                              &cs, c, errors, no_hessian);
+                              &cs, c, errors);
       return;
     }
 #endif
@@ -555,7 +525,6 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
     sum_error += cs.sum_error;
   }
   lin.H.triangularView<Eigen::StrictlyUpper>() = lin.H.transpose();
-  lin.hessian = !(four && no_hessian);
   lin.mean_error = data.empty() ? 0.0 : sum_error / data.size();
   lin.finite = std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
   return lin;
@@ -834,8 +803,7 @@ NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet&
     kind.orientation_weight = orientation_weight;
     return Accumulate(kind, model, data, p, joint_state, stack, joint_rows, errors);
   }
-  return Accumulate(PositionMeasurement(), model, data, p, joint_state, stack, joint_rows, errors,
-                    joint.no_hessian);
+  return Accumulate(PositionMeasurement(), model, data, p, joint_state, stack, joint_rows, errors);
 }
 
 Eigen::MatrixXd JointRegressorRows(const Parameterization& p, const MeasurementSet& data) {

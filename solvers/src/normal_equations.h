@@ -26,7 +26,6 @@ struct NormalEquations {
   double mean_error = 0;  // mm
   bool finite = true;
   bool joint_blocks = true;  // false: H's joint-space blocks were not formed (gradient_only)
-  bool hessian = true;       // false: H was not formed at all (JointColumnsOptions::no_hessian)
 };
 
 // Residuals y (position: P_measured - P_model, eq. (30); pose: log(T_measured T_model^-1), eq. (17),
@@ -59,11 +58,6 @@ struct JointColumnsOptions {
   bool gradient_only = false;
   // Form every row with all its columns (the algebra before the structured path; for tests).
   bool dense = false;
-  // Leave H zero (NormalEquations::hessian false) where the rows go four at a time (position data
-  // without joint-space blocks, see normal_equations.cc): g, the cost and the errors only, a pass
-  // without the rank-k update (the linear solver's warm start, linear_solver.cc). Elsewhere H is
-  // formed all the same.
-  bool no_hessian = false;
 };
 NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
                                   const Parameterization& p, const Eigen::VectorXd& joint_state,
