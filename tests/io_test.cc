@@ -297,6 +297,13 @@ TEST(Io, PlainDecimalFastPathIsExactOrDeclines) {
       if (after == nullptr) continue;
       ASSERT_EQ(after, end) << text;
       ASSERT_TRUE(same_bits(v, reference(text))) << text;
+      // Followed by more of a line (the digits are then read eight bytes at a time to the end).
+      const std::string line = text + ",smr1,12345678";
+      double w = 0;
+      const char* stop =
+          internal::ParsePlainDecimal(line.data(), line.data() + line.size(), &w);
+      ASSERT_EQ(stop, line.data() + text.size()) << line;
+      ASSERT_TRUE(same_bits(w, v)) << line;
     }
   }
 #if defined(__x86_64__)

@@ -128,11 +128,13 @@ inline uint64_t Load8(const char* p) {
   return v;  // little-endian: p[0] in the low byte
 }
 
-// Whether the 8 bytes are all ASCII digits, and their value (SWAR: 3 multiplications).
-inline bool EightDigits(uint64_t v) {
-  return ((v & 0xF0F0F0F0F0F0F0F0ULL) |
-          (((v + 0x0606060606060606ULL) & 0xF0F0F0F0F0F0F0F0ULL) >> 4)) == 0x3333333333333333ULL;
+// The bytes that are not ASCII digits, as their high bits (SWAR). Only the lowest one set is
+// exact (a carry or borrow runs upwards, and only out of a byte that is itself flagged): the first
+// non-digit.
+inline uint64_t NonDigits(uint64_t v) {
+  return ((v + 0x4646464646464646ULL) | (v - 0x3030303030303030ULL)) & 0x8080808080808080ULL;
 }
+// The value of 8 ASCII digits (SWAR: 3 multiplications).
 inline uint64_t EightDigitsValue(uint64_t v) {
   v -= 0x3030303030303030ULL;
   v = v * 10 + (v >> 8);
@@ -141,13 +143,27 @@ inline uint64_t EightDigitsValue(uint64_t v) {
          32;
 }
 
-// Digits from p into *m (which may wrap when there are more than 19: the caller counts them).
+constexpr uint64_t kPow10Int[] = {1,      10,      100,      1000,     10000,
+                                  100000, 1000000, 10000000, 100000000};
+
+// Digits from p into *m (which may wrap when there are more than 19: the caller counts them),
+// eight bytes at a time while eight can be read: a run of fewer than eight digits is shifted to
+// the top of its word, the bytes below filled with '0', and read the same way.
 inline const char* Digits(const char* p, const char* last, uint64_t* m) {
   while (last - p >= 8) {
     const uint64_t v = Load8(p);
-    if (!EightDigits(v)) break;
-    *m = *m * 100000000ULL + EightDigitsValue(v);
-    p += 8;
+    const uint64_t non_digits = NonDigits(v);
+    if (non_digits == 0) {
+      *m = *m * 100000000ULL + EightDigitsValue(v);
+      p += 8;
+      continue;
+    }
+    const int n = __builtin_ctzll(non_digits) >> 3;  // leading digits, 0..7
+    if (n > 0) {
+      const uint64_t w = (v << (8 * (8 - n))) | (0x3030303030303030ULL >> (8 * n));
+      *m = *m * kPow10Int[n] + EightDigitsValue(w);
+    }
+    return p + n;
   }
   while (p < last && static_cast<unsigned>(*p - '0') < 10) {
     *m = *m * 10 + static_cast<unsigned>(*p - '0');
