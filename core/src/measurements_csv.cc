@@ -480,16 +480,13 @@ class CsvReader {
   }
 
   // A number field's value into the row being parsed, range-checked: false, with *error set, when
-  // it is out of range.
+  // it is out of range (the message in a function of its own, off the per-field path).
   bool Store(const Column& col, double v, std::string_view field, int64_t line_number,
              RowSink* sink, Status* error) const {
     switch (col.kind) {
       case ColumnKind::kQ:
         if (std::abs(v) > kMaxAbsJointValue) {
-          *error = LineError(
-              source_, line_number,
-              "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
-              "a joint value of magnitude at most " + ShortNumber(kMaxAbsJointValue));
+          *error = OutOfRange(col, field, line_number);
           return false;
         }
         sink->q[col.joint] = v * scale_[col.joint];
@@ -499,13 +496,7 @@ class CsvReader {
       case ColumnKind::kZ:
         v *= length_scale_;
         if (std::abs(v) > kMaxAbsPositionMm) {
-          *error = LineError(
-              source_, line_number,
-              "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
-              "a position of magnitude at most " + ShortNumber(kMaxAbsPositionMm) + " mm" +
-                  (length_scale_ == 1.0
-                       ? std::string()
-                       : " (" + ShortNumber(kMaxAbsPositionMm / length_scale_) + " m)"));
+          *error = OutOfRange(col, field, line_number);
           return false;
         }
         sink->position(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kX)) = v;
@@ -521,6 +512,22 @@ class CsvReader {
         break;
     }
     return true;
+  }
+
+  __attribute__((noinline, cold)) Status OutOfRange(const Column& col, std::string_view field,
+                                                    int64_t line_number) const {
+    if (col.kind == ColumnKind::kQ) {
+      return LineError(
+          source_, line_number,
+          "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
+          "a joint value of magnitude at most " + ShortNumber(kMaxAbsJointValue));
+    }
+    return LineError(
+        source_, line_number,
+        "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
+        "a position of magnitude at most " + ShortNumber(kMaxAbsPositionMm) + " mm" +
+            (length_scale_ == 1.0 ? std::string()
+                                  : " (" + ShortNumber(kMaxAbsPositionMm / length_scale_) + " m)"));
   }
 
   Status Row(std::string_view line, RowSink* sink) const {
