@@ -8,6 +8,8 @@
 
 #include <sys/stat.h>
 
+#include <charconv>
+#include <cstring>
 #include <limits>
 #include <cmath>
 #include <cstdio>
@@ -23,6 +25,7 @@
 #include "lpoe/measurements.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/se3.h"
+#include "parse_util.h"
 
 namespace lpoe {
 namespace {
@@ -253,6 +256,111 @@ void ExpectSameMeasurements(const MeasurementSet& a, const MeasurementSet& b) {
       EXPECT_LE((a.orientation(r) - b.orientation(r)).norm(), kRotationRoundTripTolerance);
     }
   }
+}
+
+// The CSV readers' fast path for plain decimals gives from_chars's value bit for bit, or declines.
+TEST(Io, PlainDecimalFastPathIsExactOrDeclines) {
+  auto reference = [](const std::string& text) {
+    const char* first = text.data();
+    const bool negate = *first == '-';
+    if (*first == '-' || *first == '+') ++first;
+    double v = 0;
+    const auto r = std::from_chars(first, text.data() + text.size(), v);
+    EXPECT_EQ(r.ptr, text.data() + text.size()) << text;
+    return negate ? -v : v;
+  };
+  auto same_bits = [](double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::uniform_int_distribution<int> exponent(-8, 6);
+  int parsed = 0, declined = 0;
+  for (int k = 0; k < 50000; ++k) {
+    const double x = unit(rng) * std::pow(10.0, exponent(rng));
+    char buf[64];
+    std::string texts[4];
+    texts[0] = std::string(buf, std::to_chars(buf, buf + sizeof buf, x,
+                                              std::chars_format::fixed).ptr);  // shortest
+    std::snprintf(buf, sizeof buf, "%.17f", x);
+    texts[1] = buf;
+    std::snprintf(buf, sizeof buf, "%.9f", x);
+    texts[2] = buf;
+    std::snprintf(buf, sizeof buf, "%.3f", x);
+    texts[3] = buf;
+    for (int t = 0; t < 4; ++t) {
+      const std::string& text = texts[t];
+      double v = 0;
+      const char* end = text.data() + text.size();
+      const char* after = internal::ParsePlainDecimal(text.data(), end, &v);
+      // The shortest and 17-decimal spellings may have more than 18 digits; 9 and 3 decimals of
+      // values below 10^7 never do.
+      if (t >= 2) (after == nullptr ? declined : parsed) += 1;
+      if (after == nullptr) continue;
+      ASSERT_EQ(after, end) << text;
+      ASSERT_TRUE(same_bits(v, reference(text))) << text;
+      // Followed by more of a line (the digits are then read eight bytes at a time to the end).
+      const std::string line = text + ",smr1,12345678";
+      double w = 0;
+      const char* stop =
+          internal::ParsePlainDecimal(line.data(), line.data() + line.size(), &w);
+      ASSERT_EQ(stop, line.data() + text.size()) << line;
+      ASSERT_TRUE(same_bits(w, v)) << line;
+    }
+  }
+#if defined(__x86_64__)
+  EXPECT_LT(declined, parsed / 1000 + 1);  // declined only exactly halfway between two doubles
+#endif
+  // Exactly halfway between two doubles, and one unit of the last digit either side.
+  for (const std::string text : {"9007199254740993", "9007199254740992", "9007199254740994",
+                                 "0.5", "-0.0", "0", "+12.25", "123456789012345678"}) {
+    double v = 1;
+    const char* after = internal::ParsePlainDecimal(text.data(), text.data() + text.size(), &v);
+    if (after != nullptr) {
+      EXPECT_EQ(after, text.data() + text.size()) << text;
+      EXPECT_TRUE(same_bits(v, reference(text))) << text;
+    }
+  }
+  {
+    const std::string tie = "9007199254740993";  // 2^53 + 1: the quotient is the midpoint
+    double v = 0;
+    EXPECT_EQ(internal::ParsePlainDecimal(tie.data(), tie.data() + tie.size(), &v), nullptr);
+  }
+  // Other spellings are declined, or parsed up to where the plain number ends (the caller checks
+  // what follows).
+  for (const std::string text : {"", "-", ".5", "1.", "1234567890123456789", "abc", "+-1", " 1"}) {
+    double v = 0;
+    EXPECT_EQ(internal::ParsePlainDecimal(text.data(), text.data() + text.size(), &v), nullptr)
+        << text;
+  }
+  const std::string exp = "1.5e3,2";
+  double v = 0;
+  const char* after = internal::ParsePlainDecimal(exp.data(), exp.data() + exp.size(), &v);
+  ASSERT_NE(after, nullptr);
+  EXPECT_EQ(*after, 'e');
+}
+
+// Numbers in other spellings than the fast path's go the general way, to the same values.
+TEST(Io, CsvNumberSpellingsReadTheSameValues) {
+  const RobotModel model = MakeCobot6();
+  const std::string header = "q1,q2,q3,q4,q5,q6,x,y,z\n";
+  const std::string a = header + "0.25,-1.5,2,0.125,-0.5,3,100.5,-200.25,300\n";
+  const std::string b =
+      header + "2.5e-1, -1.50 ,+2.0,1.25E-1,-.5,3.,1005e-1,-200.250000000000000000001,3e2\n";
+  MeasurementSet da, db;
+  ASSERT_TRUE(ParseMeasurementsCsv(a, "a.csv", model, AngleUnit::kRadians, &da).ok());
+  ASSERT_TRUE(ParseMeasurementsCsv(b, "b.csv", model, AngleUnit::kRadians, &db).ok());
+  ASSERT_EQ(da.size(), 1);
+  ASSERT_EQ(db.size(), 1);
+  for (int j = 0; j < 6; ++j) EXPECT_EQ(da.q(0)[j], db.q(0)[j]) << j;
+  EXPECT_EQ(da.position(0), db.position(0));
+  // A value out of range is reported with its text either way.
+  MeasurementSet dc;
+  const Status s =
+      ParseMeasurementsCsv(header + "0,0,0,0,0,0,1,2,3000000\n", "c.csv", model,
+                           AngleUnit::kRadians, &dc);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("c.csv:2: column 'z': value '3000000' is out of range"),
+            std::string::npos)
+      << s.message();
 }
 
 TEST(Io, CsvRoundTripExact) {

@@ -453,5 +453,130 @@ TEST(LinearSolver, ResultDoesNotDependOnTheThreadCount) {
   }
 }
 
+// The warm start (LinearSolverOptions::warm_start_rows): on large data the iterations after the
+// first step run on a subsample, and the solve ends on all rows. The result is the cold solve's to
+// within its convergence tolerance; the start model's record, statistics and identifiability are
+// the cold solve's exactly; fewer linearizations go over all rows.
+TEST(LinearSolver, WarmStartGivesTheColdSolution) {
+  constexpr int kRows = 40000;
+  constexpr int kSubsample = 4000;
+  SimulationOptions o;
+  o.count = kRows;
+  o.noise_sigma = kPaperSigma;
+  const KinematicErrors errors = PaperTable2Errors();
+  const MeasurementSet data =
+      SimulateMeasurements(ApplyErrors(MakeCobot6(), errors), errors.joint_zero, o);
+  const RobotModel nominal = MakeCobot6();
+  auto solve = [&](bool warm, LinearSolverErrors* kept) {
+    LinearSolverOptions options;
+    options.warm_start_min_rows = kRows;
+    options.warm_start_rows = warm ? kSubsample : 0;
+    kept->want_start_statistics = true;
+    options.errors = kept;
+    return CalibrateLinear(nominal, data, options);
+  };
+  LinearSolverErrors kept_warm, kept_cold;
+  const CalibrationResult warm = solve(true, &kept_warm);
+  const CalibrationResult cold = solve(false, &kept_cold);
+  ASSERT_EQ(warm.termination, Termination::kConverged) << warm.message;
+  ASSERT_EQ(cold.termination, Termination::kConverged) << cold.message;
+  EXPECT_EQ(warm.warm_start_rows, kSubsample);
+  EXPECT_EQ(cold.warm_start_rows, 0);
+
+  // The history: the start record on all rows (the same pass), then the subsample's iterations
+  // (marked with their rows), then at least two on all rows; fewer of those than cold.
+  int full_warm = 0, sub_warm = 0;
+  for (size_t k = 0; k < warm.history.size(); ++k) {
+    EXPECT_EQ(warm.history[k].iteration, static_cast<int>(k));
+    EXPECT_TRUE(warm.history[k].rows == 0 || warm.history[k].rows == kSubsample) << k;
+    (warm.history[k].rows == 0 ? full_warm : sub_warm) += 1;
+  }
+  for (const IterationRecord& r : cold.history) EXPECT_EQ(r.rows, 0);
+  ASSERT_GE(sub_warm, 1);
+  EXPECT_EQ(warm.history.front().rows, 0);
+  EXPECT_EQ(warm.history[1].rows, kSubsample);
+  EXPECT_EQ(warm.history.back().rows, 0);
+  EXPECT_EQ(warm.history[warm.history.size() - 2].rows, 0);
+  EXPECT_LT(full_warm, static_cast<int>(cold.history.size()));
+  EXPECT_EQ(warm.iterations, static_cast<int>(warm.history.size()) - 1);
+  EXPECT_EQ(warm.history.front().cost, cold.history.front().cost);
+  EXPECT_EQ(warm.history.front().step_norm, cold.history.front().step_norm);
+  EXPECT_EQ(warm.rank, cold.rank);
+  EXPECT_EQ(warm.condition_number, cold.condition_number);
+  EXPECT_EQ(warm.singular_values, cold.singular_values);
+
+  // The solution: the same to within the stopping rule (each solve stops where its step is at most
+  // sd_fraction = 0.01 standard deviations of every parameter, so the two are within twice that of
+  // each other), and the same fit.
+  ASSERT_EQ(warm.covariance.rows(), cold.covariance.rows());
+  ASSERT_GT(cold.covariance.rows(), 0);
+  EXPECT_NEAR(warm.final_cost, cold.final_cost, 1e-9 * cold.final_cost);
+  const Eigen::VectorXd dx = ParameterDifference(cold.parameterization, cold.model, warm.model);
+  const double fraction = LinearSolverOptions().convergence.sd_fraction;
+  for (int i = 0; i < dx.size(); ++i) {
+    const double sd = std::sqrt(cold.covariance(i, i));
+    EXPECT_LE(std::abs(dx(i)), 2 * fraction * sd) << cold.parameterization.parameters[i].name;
+  }
+  const double c_scale = cold.covariance.cwiseAbs().maxCoeff();
+  EXPECT_LT((warm.covariance - cold.covariance).cwiseAbs().maxCoeff(), 1e-6 * c_scale);
+  const std::vector<Eigen::Vector3d> ew = PositionErrors(warm.model, data);
+  const std::vector<Eigen::Vector3d> ec = PositionErrors(cold.model, data);
+  double largest = 0;
+  for (int r = 0; r < kRows; ++r) largest = std::max(largest, (ew[r] - ec[r]).norm());
+  EXPECT_LT(largest, 1e-7);  // mm; the noise is 1e-2
+
+  // The errors kept for the analysis: the start model's and the returned model's, on all rows.
+  ASSERT_TRUE(kept_warm.have_start_statistics);
+  EXPECT_EQ(kept_warm.start_statistics.count, kRows);
+  EXPECT_EQ(kept_warm.start_statistics.norm.rms, kept_cold.start_statistics.norm.rms);
+  EXPECT_EQ(kept_warm.start_statistics.norm.p95_abs, kept_cold.start_statistics.norm.p95_abs);
+  ASSERT_EQ(kept_warm.final_errors.size(), kRows);
+  const ErrorStatistics after = kept_warm.final_errors.Statistics();
+  const ErrorStatistics direct = PositionErrorStatistics(warm.model, data);
+  EXPECT_NEAR(after.norm.rms, direct.norm.rms, 1e-10 * direct.norm.rms);
+  EXPECT_NEAR(after.norm.max_abs, direct.norm.max_abs, 1e-10 * direct.norm.max_abs);
+  EXPECT_NEAR(after.norm.rms, kept_cold.final_errors.Statistics().norm.rms, 1e-9 * after.norm.rms);
+}
+
+// Below warm_start_min_rows (the default 10^5 among them) nothing changes: the result is the one
+// without a warm start, bit for bit.
+TEST(LinearSolver, NoWarmStartBelowItsRowCount) {
+  constexpr int kRows = 20000;
+  SimulationOptions o;
+  o.count = kRows;
+  o.noise_sigma = kPaperSigma;
+  const KinematicErrors errors = PaperTable2Errors();
+  const MeasurementSet data =
+      SimulateMeasurements(ApplyErrors(MakeCobot6(), errors), errors.joint_zero, o);
+  LinearSolverOptions defaults;
+  ASSERT_GT(defaults.warm_start_min_rows, kRows);
+  LinearSolverOptions above = defaults;  // one row more than there are
+  above.warm_start_min_rows = kRows + 1;
+  above.warm_start_rows = 1000;
+  LinearSolverOptions off = defaults;
+  off.warm_start_rows = 0;
+  off.warm_start_min_rows = 0;
+  const CalibrationResult base = CalibrateLinear(MakeCobot6(), data, off);
+  ASSERT_EQ(base.termination, Termination::kConverged) << base.message;
+  for (const LinearSolverOptions& options : {defaults, above}) {
+    const CalibrationResult r = CalibrateLinear(MakeCobot6(), data, options);
+    ASSERT_EQ(r.termination, Termination::kConverged);
+    EXPECT_EQ(r.warm_start_rows, 0);
+    ASSERT_EQ(r.history.size(), base.history.size());
+    for (size_t k = 0; k < r.history.size(); ++k) {
+      EXPECT_EQ(r.history[k].rows, 0);
+      EXPECT_EQ(r.history[k].cost, base.history[k].cost);
+    }
+    EXPECT_EQ(r.covariance, base.covariance);
+    for (int f = 0; f < r.model.num_frames(); ++f) {
+      EXPECT_EQ(testing::FrameOf(r.model, f).R, testing::FrameOf(base.model, f).R);
+      EXPECT_EQ(testing::FrameOf(r.model, f).t, testing::FrameOf(base.model, f).t);
+    }
+  }
+  // At the threshold it applies.
+  above.warm_start_min_rows = kRows;
+  EXPECT_EQ(CalibrateLinear(MakeCobot6(), data, above).warm_start_rows, 1000);
+}
+
 }  // namespace
 }  // namespace lpoe

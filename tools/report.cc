@@ -376,6 +376,8 @@ Json BuildJson(const RunSummary& s) {
                        {"mean_error", r.mean_error},
                        {"cost", r.cost},
                        {"step_norm", r.step_norm}});
+    // A record of the linear solver's warm start (linear_solver.h): the rows of its subsample.
+    if (r.rows > 0) history.back()["rows"] = r.rows;
   }
   j["history"] = history;
   if (s.registered) {

@@ -214,10 +214,17 @@ int ExitCodeFor(Termination t) {
 void PrintIterationTable(std::ostream& os, const CalibrationResult& result) {
   char line[160];
   os << "iteration   max error [mm]   mean error [mm]        cost        |x|\n";
+  int subsample = 0;
   for (const IterationRecord& r : result.history) {
-    std::snprintf(line, sizeof(line), "%9d %16.6f %17.6f %11.4e %10.3e\n", r.iteration,
-                  r.max_error, r.mean_error, r.cost, r.step_norm);
+    // The linear solver's warm start (linear_solver.h): records on a subsample are marked.
+    std::snprintf(line, sizeof(line), "%9d%c%16.6f %17.6f %11.4e %10.3e\n", r.iteration,
+                  r.rows > 0 ? '*' : ' ', r.max_error, r.mean_error, r.cost, r.step_norm);
+    if (r.rows > 0) subsample = r.rows;
     os << line;
+  }
+  if (subsample > 0) {
+    os << "        * warm start: on " << subsample
+       << " evenly spaced rows (errors and cost of those rows only)\n";
   }
 }
 

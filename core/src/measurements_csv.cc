@@ -479,6 +479,57 @@ class CsvReader {
                          std::to_string(header_line_));
   }
 
+  // A number field's value into the row being parsed, range-checked: false, with *error set, when
+  // it is out of range (the message in a function of its own, off the per-field path).
+  bool Store(const Column& col, double v, std::string_view field, int64_t line_number,
+             RowSink* sink, Status* error) const {
+    switch (col.kind) {
+      case ColumnKind::kQ:
+        if (std::abs(v) > kMaxAbsJointValue) {
+          *error = OutOfRange(col, field, line_number);
+          return false;
+        }
+        sink->q[col.joint] = v * scale_[col.joint];
+        break;
+      case ColumnKind::kX:
+      case ColumnKind::kY:
+      case ColumnKind::kZ:
+        v *= length_scale_;
+        if (std::abs(v) > kMaxAbsPositionMm) {
+          *error = OutOfRange(col, field, line_number);
+          return false;
+        }
+        sink->position(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kX)) = v;
+        break;
+      case ColumnKind::kQuatX:
+      case ColumnKind::kQuatY:
+      case ColumnKind::kQuatZ:
+      case ColumnKind::kQuatW:
+        sink->quat(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kQuatX)) = v;
+        break;
+      case ColumnKind::kTarget:
+      case ColumnKind::kIgnored:
+        break;
+    }
+    return true;
+  }
+
+  __attribute__((noinline, cold)) Status OutOfRange(const Column& col, std::string_view field,
+                                                    int64_t line_number) const {
+    if (col.kind == ColumnKind::kQ) {
+      return LineError(
+          source_, line_number,
+          "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
+          "a joint value of magnitude at most " + ShortNumber(kMaxAbsJointValue));
+    }
+    return LineError(
+        source_, line_number,
+        "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
+        "a position of magnitude at most " + ShortNumber(kMaxAbsPositionMm) + " mm" +
+            (length_scale_ == 1.0 ? std::string()
+                                  : " (" + ShortNumber(kMaxAbsPositionMm / length_scale_) + " m)"));
+  }
+
   Status Row(std::string_view line, RowSink* sink) const {
     const int64_t line_number = sink->line_number;
     const std::vector<Column>& columns = header_.columns();
@@ -486,15 +537,30 @@ class CsvReader {
     const char* const end = line.data() + line.size();
     int target = 0;
     bool lost_beam = false;
+    Status status = Status::Ok();
     bool more = true;  // a comma ended the last field
     for (size_t c = 0; c < columns.size(); ++c) {
       if (!more) return FieldCountError(line, line_number);
+      const Column& col = columns[c];
+      double v = 0;
+      std::string_view field;
+      if (col.kind != ColumnKind::kIgnored && col.kind != ColumnKind::kTarget) {
+        // The common spelling of a number, read up to the comma or the line end that must follow
+        // it (the same value as below, without the search for the comma and the blanks).
+        const char* after = internal::ParsePlainDecimal(p, end, &v);
+        if (after != nullptr && (after == end || *after == ',')) {
+          field = std::string_view(p, static_cast<size_t>(after - p));
+          more = after != end;
+          if (more) p = after + 1;
+          if (Store(col, v, field, line_number, sink, &status)) continue;
+          return status;
+        }
+      }
       const char* comma = static_cast<const char*>(std::memchr(p, ',', end - p));
       const char* field_end = comma == nullptr ? end : comma;
-      const std::string_view field = Trim(std::string_view(p, static_cast<size_t>(field_end - p)));
+      field = Trim(std::string_view(p, static_cast<size_t>(field_end - p)));
       more = comma != nullptr;
       if (more) p = comma + 1;
-      const Column& col = columns[c];
       if (col.kind == ColumnKind::kIgnored) continue;
       if (col.kind == ColumnKind::kTarget) {
         target = ResolveTarget(field, model_);
@@ -505,7 +571,6 @@ class CsvReader {
         }
         continue;
       }
-      double v = 0;
       const NumberParse r = ParseNumber(field, &v);
       const bool is_position = col.kind == ColumnKind::kX || col.kind == ColumnKind::kY ||
                                col.kind == ColumnKind::kZ;
@@ -522,41 +587,7 @@ class CsvReader {
                 : "column " + Quote(col.name) + ": non-finite value " + Quote(field);
         return LineError(source_, line_number, what, "a finite decimal number");
       }
-      switch (col.kind) {
-        case ColumnKind::kQ:
-          if (std::abs(v) > kMaxAbsJointValue) {
-            return LineError(
-                source_, line_number,
-                "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
-                "a joint value of magnitude at most " + ShortNumber(kMaxAbsJointValue));
-          }
-          sink->q[col.joint] = v * scale_[col.joint];
-          break;
-        case ColumnKind::kX:
-        case ColumnKind::kY:
-        case ColumnKind::kZ:
-          v *= length_scale_;
-          if (std::abs(v) > kMaxAbsPositionMm) {
-            return LineError(
-                source_, line_number,
-                "column " + Quote(col.name) + ": value " + Quote(field) + " is out of range",
-                "a position of magnitude at most " + ShortNumber(kMaxAbsPositionMm) + " mm" +
-                    (length_scale_ == 1.0
-                         ? std::string()
-                         : " (" + ShortNumber(kMaxAbsPositionMm / length_scale_) + " m)"));
-          }
-          sink->position(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kX)) = v;
-          break;
-        case ColumnKind::kQuatX:
-        case ColumnKind::kQuatY:
-        case ColumnKind::kQuatZ:
-        case ColumnKind::kQuatW:
-          sink->quat(static_cast<int>(col.kind) - static_cast<int>(ColumnKind::kQuatX)) = v;
-          break;
-        case ColumnKind::kTarget:
-        case ColumnKind::kIgnored:
-          break;
-      }
+      if (!Store(col, v, field, line_number, sink, &status)) return status;
     }
     if (more) return FieldCountError(line, line_number);  // fields left over
     const Eigen::Vector3d& position = sink->position;

@@ -314,6 +314,60 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   };
   if (structured) freeze(lin);
 
+  // The warm start: at the first iteration the step x computed on all rows at the start model is
+  // taken, and the solve continues on every `every`-th row (kept in order) to its own convergence;
+  // all rows are then linearized at that solution (its errors, when kept, replace the start's),
+  // which must not raise the cost of the start model. Records the subsample's iterations (with
+  // their row count) and the new linearization's; returns the number of subsample iterations
+  // recorded, or -1 when the warm start did not apply (then nothing changed but the kept errors,
+  // no longer current: the caller continues as without it).
+  const bool warm_start = !full && !override_basis && options.joint_terms.empty() &&
+                          !options.gravity_tilt && K == 0 && options.warm_start_rows > 0 &&
+                          data.size() >= options.warm_start_min_rows &&
+                          data.size() >= 2 * options.warm_start_rows;
+  auto WarmStart = [&](const Eigen::VectorXd& x, Linearization* current,
+                       RobotModel* current_model) -> int {
+    if (!x.allFinite()) return -1;
+    const int every = (data.size() + options.warm_start_rows - 1) / options.warm_start_rows;
+    std::vector<int> rows;
+    rows.reserve(data.size() / every + 1);
+    for (int r = 0; r < data.size(); r += every) rows.push_back(r);
+    const MeasurementSet subset = data.Subset(rows);
+    RobotModel first = *current_model;
+    ApplyUpdate(p, x, &first);
+    LinearSolverOptions sub = options;
+    sub.parameterization_override = &p;  // the same directions (and no warm start of its own)
+    sub.structure_reference = nullptr;
+    sub.compute_covariance = false;
+    sub.verbose = false;
+    sub.on_iteration = nullptr;
+    sub.errors = nullptr;
+    sub.max_iterations = std::max(1, options.max_iterations - 2);
+    const CalibrationResult s = CalibrateLinear(first, subset, sub);
+    if (!s.converged() || s.history.empty()) return -1;
+    Linearization at = Linearize(s.model, joint_state, data, p, options, stack, &joint_rows, errors,
+                                 exact_blocks);
+    errors_current = false;
+    if (!at.finite || !(at.cost <= current->cost * (1 + kCostIncreaseTolerance) + 1e-300)) return -1;
+    errors_current = errors != nullptr && !errors->empty();
+    result.history.back().step_norm = x.norm();
+    // The subsample's records but its last (the point linearized on all rows now).
+    const int taken = static_cast<int>(s.history.size()) - 1;
+    for (int k = 0; k < taken; ++k) {
+      IterationRecord r = s.history[k];
+      r.iteration = 1 + k;
+      r.rows = subset.size();
+      result.history.push_back(r);
+      if (options.on_iteration) options.on_iteration(r);
+    }
+    result.warm_start_rows = subset.size();
+    *current_model = s.model;
+    *current = std::move(at);
+    result.history.push_back(Record(1 + taken, *current));
+    if (options.on_iteration) options.on_iteration(result.history.back());
+    return taken;
+  };
+
   ConvergenceOptions stop = options.convergence;
   stop.step_tolerance = options.step_tolerance;
   const long dof = static_cast<long>(per_row) * data.size() - identifiable;
@@ -381,6 +435,17 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       }
       internal::FillGravityTiltResult(p, joint_state, result.covariance, &result.gravity_tilt);
       return finish(Termination::kConverged, decision.message);
+    }
+    // Warm start (large data, linear_solver.h): the iterations that cross the model's large
+    // initial errors run on a subsample; all rows are linearized again only at its solution.
+    if (it == 1 && warm_start) {
+      const int taken = WarmStart(x, &lin, &model);
+      if (taken >= 0) {
+        previous_cost = result.history.front().cost;
+        previous_step = -1;
+        it += taken;  // the subsample's iterations; the next one is on all rows
+        continue;
+      }
     }
     // Gauss-Newton step with backtracking: a step that raises the cost is halved.
     bool accepted = false;

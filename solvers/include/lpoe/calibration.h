@@ -31,6 +31,9 @@ struct IterationRecord {
   double max_error = 0;   // mm, largest position error norm
   double mean_error = 0;  // mm, mean position error norm
   double step_norm = 0;   // ||x|| of the update computed at this iteration
+  // The rows of this record's linearization when they are a subsample (the linear solver's warm
+  // start, linear_solver.h: cost and errors are those of these rows); 0: all rows.
+  int rows = 0;
 };
 
 enum class Termination {
@@ -78,6 +81,8 @@ struct CalibrationResult {
   std::vector<IterationRecord> history;
   int iterations = 0;
   double final_cost = 0;
+  // Rows of the linear solver's warm-start subsample when one was used (linear_solver.h); 0: none.
+  int warm_start_rows = 0;
   // The rule of convergence.h that ended the iterations (kNone unless converged by it; a Ceres
   // criterion of its own also leaves kNone).
   StopRule stop_rule = StopRule::kNone;

@@ -90,6 +90,17 @@ struct LinearSolverOptions {
   std::function<void(const IterationRecord&)> on_iteration;
   // When not null: filled as described there. Not owned.
   LinearSolverErrors* errors = nullptr;
+  // Warm start on large data (docs/performance.md): with at least `warm_start_min_rows` rows (and
+  // twice `warm_start_rows`), in the identifiable parameterization of the frames only (no override,
+  // no joint-space terms, no gravity tilt), the first step is computed on all rows as always, and
+  // the iterations after it run on every k-th row (about `warm_start_rows` of them, in order) until
+  // they converge there; the solve then continues on all rows from that point, where convergence
+  // is tested as always. The start model's statistics, the identifiability check, and the
+  // solution's normal equations and covariance are those of all rows; the subsample's iterations
+  // are in the history with their row count (IterationRecord::rows). The solution is that of the
+  // solve without it to within the convergence tolerance. warm_start_rows = 0: never.
+  int warm_start_min_rows = 100000;
+  int warm_start_rows = 20000;
 };
 
 CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSet& data,
