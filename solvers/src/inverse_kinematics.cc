@@ -29,6 +29,12 @@ constexpr double kIncrementalStep = 0.25;
 constexpr int kIncrementalRefresh = 8;
 // The null-space pull toward the seed is halved (down to this) when successive steps reverse.
 constexpr double kMinPull = 1.0 / 64;
+// Square tasks: after a damped step (a rejected step before it; no step of the run cut at a joint
+// limit) that achieved at least this fraction of the reduction of the merit its linear model
+// predicted, the next step is Newton's again (damping zero) instead of a damping that decays by 10
+// per step. The pull toward the seed in the damped step holds the error near lambda^2 times the
+// pull, so a slowly decaying damping made the error fall by only 10 per iteration.
+constexpr double kGoodModel = 0.75;
 
 // sin(d), cos(d) for |d| <= kIncrementalStep: Taylor series to d^13 and d^14.
 inline void SinCosSmall(double d, double* s, double* c) {
@@ -49,6 +55,20 @@ inline void SinCosStep(double d, double* s, double* c) {
     return;
   }
   SinCosSmall(d, s, c);
+}
+
+// sin and cos of x[j] for the `count` joints j in idx, into s[j] and c[j]: gathered into one
+// SinCosMany call (four values per polynomial evaluation where the processor has AVX2 and FMA; each
+// value's result depends on that value only, so both paths get the same bits).
+inline void SinCosOf(const double* x, const int* idx, int count, double* s, double* c) {
+  if (count == 0) return;
+  double xs[kMax], ss[kMax], cs[kMax];
+  for (int k = 0; k < count; ++k) xs[k] = x[idx[k]];
+  SinCosMany(xs, count, ss, cs);
+  for (int k = 0; k < count; ++k) {
+    s[idx[k]] = ss[k];
+    c[idx[k]] = cs[k];
+  }
 }
 
 // log(R_target R^T)^vee. Near the target (angle below 0.01 rad) from the skew part alone:
@@ -244,8 +264,8 @@ inline void CorrectedNewtonStep6(const SquareLu<6>& lu, const double* e, const d
   }
 }
 
-// Smallest eigenvalue of a symmetric positive semi-definite M x M matrix A (sigma_min^2; a
-// diagnostic and a threshold). Householder reflections reduce A to a tridiagonal T with the same
+// Smallest eigenvalue of the Gram matrix A = J J^T of an M x n column-major J (sigma_min^2 of J for
+// M <= n; a diagnostic and a threshold). Householder reflections reduce A to a tridiagonal T with the same
 // eigenvalues; Laguerre's iteration on det(T - x I) then climbs from x = 0 to the smallest one. For
 // a polynomial with only real roots, Laguerre's step from below the smallest root stays below it
 // and converges to it monotonically, cubically (in one step when all roots coincide), so no test of
@@ -253,14 +273,22 @@ inline void CorrectedNewtonStep6(const SquareLu<6>& lu, const double* e, const d
 // H = sum_i 1 / (lambda_i - x)^2 come from the pivots d_i of T - x I (the LDL^T recurrence
 // d_i = a_i - x - b_{i-1}^2 / d_{i-1}, differentiated twice); all pivots positive is the proof that
 // x is below the smallest eigenvalue (Sylvester's law of inertia). 0 when A is singular to
-// round-off (a pivot of A itself not positive).
+// round-off (a pivot of T itself not positive).
 template <int M>
-double SmallestEigenvalue(const Eigen::Matrix<double, M, M>& A_in) {
-  double A[M][M];
-  for (int i = 0; i < M; ++i) {
-    for (int j = 0; j < M; ++j) A[i][j] = A_in(i, j);
+double SmallestEigenvalueOfGram(const double* J, int n) {
+  // A = J J^T (lower triangle, A[i][j] for j <= i), as a sum of the columns' outer products.
+  double A[M][M] = {};
+  for (int k = 0; k < n; ++k) {
+    const double* c = J + M * k;
+#pragma GCC unroll 6
+    for (int i = 0; i < M; ++i) {
+#pragma GCC unroll 6
+      for (int j = 0; j <= i; ++j) A[i][j] += c[i] * c[j];
+    }
   }
+  auto at = [&A](int i, int j) -> double& { return i >= j ? A[i][j] : A[j][i]; };
   double diag[M], off2[M];  // T's diagonal and squared off-diagonal
+#pragma GCC unroll 4
   for (int k = 0; k + 2 < M; ++k) {
     // The reflection H = I - beta v v^T that zeroes A[k+2.., k]; A <- H A H on rows/columns k+1...
     double s = 0;
@@ -277,16 +305,20 @@ double SmallestEigenvalue(const Eigen::Matrix<double, M, M>& A_in) {
     for (int i = k + 2; i < M; ++i) v[i] = A[i][k];
     const double beta = 1 / (norm * norm - x0 * alpha);  // 2 / (v^T v)
     double vp = 0;
+#pragma GCC unroll 6
     for (int i = k + 1; i < M; ++i) {
       double t = 0;
-      for (int j = k + 1; j < M; ++j) t += A[i][j] * v[j];
+#pragma GCC unroll 6
+      for (int j = k + 1; j < M; ++j) t += at(i, j) * v[j];
       p[i] = beta * t;
       vp += v[i] * p[i];
     }
     const double half = 0.5 * beta * vp;
     for (int i = k + 1; i < M; ++i) p[i] -= half * v[i];
+#pragma GCC unroll 6
     for (int i = k + 1; i < M; ++i) {
-      for (int j = k + 1; j < M; ++j) A[i][j] -= v[i] * p[j] + p[i] * v[j];
+#pragma GCC unroll 6
+      for (int j = k + 1; j <= i; ++j) A[i][j] -= v[i] * p[j] + p[i] * v[j];
     }
     off2[k] = alpha * alpha;
   }
@@ -659,20 +691,22 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
     } else {
       for (int j = 0; j < n; ++j) it->x[j] = it->q(j);
     }
+    int fresh[kMax], count = 0;  // joints whose sin/cos are computed afresh
     for (int j = 0; j < n; ++j) {
       if (!z_revolute_[j]) continue;
       const double delta = from != nullptr ? it->x[j] - from->x[j] : HUGE_VAL;
       if (std::abs(delta) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
         double sd, cd;
-        SinCosSmall(delta, &sd, &cd);
+        SinCosStep(delta, &sd, &cd);
         it->sin_x[j] = from->sin_x[j] * cd + from->cos_x[j] * sd;
         it->cos_x[j] = from->cos_x[j] * cd - from->sin_x[j] * sd;
         it->age[j] = from->age[j] + 1;
       } else {
-        SinCos(it->x[j], &it->sin_x[j], &it->cos_x[j]);
+        fresh[count++] = j;
         it->age[j] = 0;
       }
     }
+    SinCosOf(it->x, fresh, count, it->sin_x, it->cos_x);
     chain_.Frames(it->x, it->sin_x, it->cos_x, target.tool, it->frames);
     const FrameRt& T = it->frames[n];
     it->e.template head<3>() = target.position - T.t;
@@ -835,14 +869,21 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
     for (int j = 0; j < n; ++j) {
       trial->q(j) = std::min(std::max(cur->q(j) + d(j), lower(j)), upper(j));
     }
+    // Square tasks, damped steps: the linear model's merit after the step (see kGoodModel).
+    double predicted = 0;
+    if constexpr (N == M) {
+      if (lambda2 > 0) predicted = (cur->e - cur->J * d).squaredNorm();
+    }
     evaluate(cur, trial);
     // Near the target, a step toward the seed in the null space may raise the task error at
     // second order; the next step removes that, so such steps are accepted (kNullSpaceSlack).
     if (trial->merit <= cur->merit || trial->merit <= kNullSpaceSlack * kNullSpaceSlack ||
         task_ok(trial->e)) {
+      const bool model_good = N == M && lambda2 > 0 && !limit_hit &&
+                              cur->merit - trial->merit >= kGoodModel * (cur->merit - predicted);
       std::swap(cur, trial);
       lambda2 *= 0.1;
-      if (lambda2 < 1e-12 * cur->J.squaredNorm() / M) lambda2 = 0;
+      if (lambda2 < 1e-12 * cur->J.squaredNorm() / M || model_good) lambda2 = 0;
       // The pull toward the seed is a fixed-point iteration that overshoots (successive steps
       // reverse) where the task's curvature times its multiplier exceeds one, e.g. near a
       // singularity: halve it for the rest of the run.
@@ -864,7 +905,7 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
   // Smallest singular value of the weighted task Jacobian at q.
   const MatJ& J = cur->J;
   if (M <= n) {
-    result.sigma_min = std::sqrt(SmallestEigenvalue<M>(J * J.transpose()));
+    result.sigma_min = std::sqrt(SmallestEigenvalueOfGram<M>(J.data(), n));
   } else {
     const Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN> A = J.transpose() * J;
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN>> eig(
@@ -927,6 +968,7 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
     } else {
       for (int j = 0; j < 6; ++j) it->x[j] = it->q[j];
     }
+    int fresh[6], count = 0;  // joints whose sin/cos are computed afresh
     for (int j = 0; j < 6; ++j) {
       const double delta = from != nullptr ? it->x[j] - from->x[j] : HUGE_VAL;
       if (std::abs(delta) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
@@ -936,10 +978,11 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
         it->cos_x[j] = from->cos_x[j] * cd - from->sin_x[j] * sd;
         it->age[j] = from->age[j] + 1;
       } else {
-        SinCos(it->x[j], &it->sin_x[j], &it->cos_x[j]);
+        fresh[count++] = j;
         it->age[j] = 0;
       }
     }
+    SinCosOf(it->x, fresh, count, it->sin_x, it->cos_x);
     Sweep6(model, target.tool, it);
     const double* P = it->P;
     double* J = it->J;
@@ -1053,12 +1096,21 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
       if (o.respect_limits && (x > upper[j] || x < lower[j])) return false;  // Run's active set
       trial->q[j] = std::min(std::max(x, lower[j]), upper[j]);
     }
+    double predicted = 0;  // damped steps: the linear model's merit after the step (kGoodModel)
+    if (lambda2 > 0) {
+      const Vec6 rest = Eigen::Map<const Vec6>(cur->e) - J * Eigen::Map<const Vec6>(d);
+      predicted = rest.squaredNorm();
+    }
     evaluate(cur, trial);
     if (trial->merit <= cur->merit || trial->merit <= kNullSpaceSlack * kNullSpaceSlack ||
         task_ok(trial->e)) {
+      const bool model_good =
+          lambda2 > 0 && cur->merit - trial->merit >= kGoodModel * (cur->merit - predicted);
       std::swap(cur, trial);
       lambda2 *= 0.1;
-      if (lambda2 < 1e-12 * Eigen::Map<const Mat6>(cur->J).squaredNorm() / 6) lambda2 = 0;
+      if (lambda2 < 1e-12 * Eigen::Map<const Mat6>(cur->J).squaredNorm() / 6 || model_good) {
+        lambda2 = 0;
+      }
       beta = 1;
     } else {
       const double s2 = std::max(J.squaredNorm() / 6, 1e-30);
@@ -1070,10 +1122,7 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
 
   IkResult& result = *out;
   result = IkResult();
-  {
-    const Eigen::Map<const Mat6> J(cur->J);
-    result.sigma_min = std::sqrt(SmallestEigenvalue<6>(J * J.transpose()));
-  }
+  result.sigma_min = std::sqrt(SmallestEigenvalueOfGram<6>(cur->J, 6));
   result.position_error = std::sqrt(cur->e[0] * cur->e[0] + cur->e[1] * cur->e[1] +
                                     cur->e[2] * cur->e[2]);
   result.orientation_error =
