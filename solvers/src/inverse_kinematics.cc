@@ -12,6 +12,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "lpoe/joint_errors.h"
 
@@ -372,17 +375,69 @@ int Sign(double x) { return x > 0 ? 1 : (x < 0 ? -1 : 0); }
 struct FastIterate {
   double q[6], x[6], sin_x[6], cos_x[6];
   int age[6];
-  double w[6][3], t[6][3];
-  double R[9], P[3];
+  double w[6][4], t[6][4];  // the fourth value is padding (the AVX sweep stores four)
+  double R[12], P[4];       // R column-major in R[0..8]
   double J[36];
   double Jx[36], dg_dq[36];  // with a joint map: J before the chain rule, and dg/dq
   double e[6];
   double merit;
 };
 
+#if defined(__GNUC__) && defined(__x86_64__)
+#define LPOE_IK_AVX_SWEEP 1
+// Sweep6 with each column of the running frame (and its origin) in one AVX register, lanes 0-2:
+// the SSE2 sweep's multiplications and additions in the same order, so the same bits with half the
+// instructions. Lane 3 carries junk that is never read.
+__attribute__((target("avx"))) void Sweep6Avx(const RobotModel& model, int tool,
+                                               FastIterate* it) {
+  const SE3d& O0 = model.joints[0].origin;
+  const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
+  __m256d r[4];
+  for (int k = 0; k < 3; ++k) r[k] = _mm256_maskload_pd(O0.R.data() + 3 * k, three);
+  r[3] = _mm256_maskload_pd(O0.t.data(), three);
+  for (int i = 0; i < 6; ++i) {
+    _mm256_storeu_pd(it->w[i], r[2]);
+    _mm256_storeu_pd(it->t[i], r[3]);
+    const __m256d c = _mm256_set1_pd(it->cos_x[i]), ns = _mm256_set1_pd(-it->sin_x[i]);
+    const __m256d x0 = r[0];  // R <- R Rz(x_i) (internal::PlaneRotation(c, -s, ...))
+    r[0] = _mm256_sub_pd(_mm256_mul_pd(c, x0), _mm256_mul_pd(ns, r[1]));
+    r[1] = _mm256_add_pd(_mm256_mul_pd(ns, x0), _mm256_mul_pd(c, r[1]));
+    const SE3d& O = i < 5 ? model.joints[i + 1].origin : model.tools[tool].origin;
+    const double* M = O.R.data();
+    __m256d n[3];
+    for (int col = 0; col < 3; ++col) {
+      const __m256d a = _mm256_broadcast_sd(M + 3 * col);
+      const __m256d b = _mm256_broadcast_sd(M + 3 * col + 1);
+      const __m256d d = _mm256_broadcast_sd(M + 3 * col + 2);
+      n[col] = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(r[0], a), _mm256_mul_pd(r[1], b)),
+                             _mm256_mul_pd(r[2], d));
+    }
+    const __m256d a = _mm256_broadcast_sd(O.t.data());
+    const __m256d b = _mm256_broadcast_sd(O.t.data() + 1);
+    const __m256d d = _mm256_broadcast_sd(O.t.data() + 2);
+    r[3] = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(r[0], a), r[3]),
+                         _mm256_add_pd(_mm256_mul_pd(r[1], b), _mm256_mul_pd(r[2], d)));
+    for (int col = 0; col < 3; ++col) r[col] = n[col];
+  }
+  for (int k = 0; k < 3; ++k) _mm256_storeu_pd(it->R + 3 * k, r[k]);  // in order: lane 3 rewritten
+  _mm256_storeu_pd(it->P, r[3]);
+}
+
+bool HaveAvx() {
+  static const bool have = __builtin_cpu_supports("avx");
+  return have;
+}
+#endif
+
 // The forward sweep of a chain of 6 revolute-z joints: G_i = T_0,i-1(q) T_{i-1,i}(0) as its axis
 // w_i (third column) and point t_i, then the tool frame (the values of KinematicChain::Frames).
 inline void Sweep6(const RobotModel& model, int tool, FastIterate* it) {
+#ifdef LPOE_IK_AVX_SWEEP
+  if (HaveAvx()) {
+    Sweep6Avx(model, tool, it);
+    return;
+  }
+#endif
   const SE3d& O0 = model.joints[0].origin;
 #if defined(__SSE2__)
   // The running product in SSE2 registers as kinematics.cc's accumulator: rows 0 and 1 of each
