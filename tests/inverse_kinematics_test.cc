@@ -464,6 +464,30 @@ TEST(InverseKinematics, FastPathAgreesWithTheGeneralPath) {
   EXPECT_GT(statuses[static_cast<int>(IkStatus::kSingular)], 0);
 }
 
+// Newton's step with its second-order correction (cubic convergence) and the return to Newton's
+// step after a good damped step: from seeds 5 degrees away a pose target takes under 3.2 iterations
+// on average (plain Newton steps took 4.1), and under 2% of the targets take more than 8.
+TEST(InverseKinematics, SecondOrderStepConvergesInFewIterations) {
+  const RobotModel model = WithLimits(MakeCobot6());
+  const InverseKinematics ik(model);
+  TestRandom rng(91);
+  int reached = 0, iterations = 0, long_runs = 0;
+  for (int trial = 0; trial < 1000; ++trial) {
+    const std::vector<double> q_true = RandomWithinLimits(model, &rng);
+    const std::vector<double> seed = PerturbedSeed(model, q_true, &rng);
+    const IkTarget target = PoseTarget(model, q_true.data(), true);
+    std::vector<double> q(6);
+    const IkResult r = ik.Solve(target, seed.data(), q.data());
+    if (r.status != IkStatus::kOk && r.status != IkStatus::kBranch) continue;
+    ++reached;
+    iterations += r.iterations;
+    long_runs += r.iterations > 8;
+  }
+  ASSERT_GT(reached, 990);
+  EXPECT_LT(static_cast<double>(iterations) / reached, 3.2);
+  EXPECT_LT(long_runs, reached / 50);
+}
+
 // Compensation as lpoe_compensate does it: a hidden truth robot is calibrated from noisy data; the
 // calibrated IK makes the truth reach the program's targets within the calibration's prediction
 // error, against millimetres with the program's joints.

@@ -12,6 +12,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "lpoe/joint_errors.h"
 
@@ -29,6 +32,12 @@ constexpr double kIncrementalStep = 0.25;
 constexpr int kIncrementalRefresh = 8;
 // The null-space pull toward the seed is halved (down to this) when successive steps reverse.
 constexpr double kMinPull = 1.0 / 64;
+// Square tasks: after a damped step (a rejected step before it; no step of the run cut at a joint
+// limit) that achieved at least this fraction of the reduction of the merit its linear model
+// predicted, the next step is Newton's again (damping zero) instead of a damping that decays by 10
+// per step. The pull toward the seed in the damped step holds the error near lambda^2 times the
+// pull, so a slowly decaying damping made the error fall by only 10 per iteration.
+constexpr double kGoodModel = 0.75;
 
 // sin(d), cos(d) for |d| <= kIncrementalStep: Taylor series to d^13 and d^14.
 inline void SinCosSmall(double d, double* s, double* c) {
@@ -49,6 +58,20 @@ inline void SinCosStep(double d, double* s, double* c) {
     return;
   }
   SinCosSmall(d, s, c);
+}
+
+// sin and cos of x[j] for the `count` joints j in idx, into s[j] and c[j]: gathered into one
+// SinCosMany call (four values per polynomial evaluation where the processor has AVX2 and FMA; each
+// value's result depends on that value only, so both paths get the same bits).
+inline void SinCosOf(const double* x, const int* idx, int count, double* s, double* c) {
+  if (count == 0) return;
+  double xs[kMax], ss[kMax], cs[kMax];
+  for (int k = 0; k < count; ++k) xs[k] = x[idx[k]];
+  SinCosMany(xs, count, ss, cs);
+  for (int k = 0; k < count; ++k) {
+    s[idx[k]] = ss[k];
+    c[idx[k]] = cs[k];
+  }
 }
 
 // log(R_target R^T)^vee. Near the target (angle below 0.01 rad) from the skew part alone:
@@ -111,309 +134,240 @@ class SmallCholesky {
   bool ok_ = true;
 };
 
-// Solves the square system J d = e by LU with partial pivoting (Newton's step of a regular square
-// task); false when a pivot is below `tiny` (then the damped form is used).
+// LU factors with partial pivoting of a square M x M matrix (column-major, A[M c + r]): Newton's
+// step of a regular square task, and its second-order correction with the same factors. Ok() false
+// when a pivot is below `tiny` (then the damped form is used). Both paths use it, so their steps
+// agree to the bit.
 template <int M>
-bool SquareSolve(const Eigen::Matrix<double, M, M>& J, Eigen::Matrix<double, M, 1>* x, double tiny) {
-  Eigen::Matrix<double, M, M, Eigen::RowMajor> A = J;  // rows contiguous: swaps and updates
-  Eigen::Matrix<double, M, 1>& b = *x;
-  for (int k = 0; k < M; ++k) {
-    int p = k;
-    double best = std::abs(A(k, k));
-    for (int i = k + 1; i < M; ++i) {
-      const double v = std::abs(A(i, k));
-      if (v > best) {
-        best = v;
-        p = i;
-      }
-    }
-    if (!(best > tiny)) return false;
-    if (p != k) {
-      for (int c = k; c < M; ++c) std::swap(A(p, c), A(k, c));
-      std::swap(b(p), b(k));
-    }
-    const double inv = 1 / A(k, k);
-    for (int i = k + 1; i < M; ++i) {
-      const double f = A(i, k) * inv;
-      for (int c = k + 1; c < M; ++c) A(i, c) -= f * A(k, c);
-      b(i) -= f * b(k);
-    }
-  }
-  for (int i = M - 1; i >= 0; --i) {
-    double v = b(i);
-    for (int c = i + 1; c < M; ++c) v -= A(i, c) * b(c);
-    b(i) = v / A(i, i);
-  }
-  return true;
-}
-
-// LDL^T of a symmetric M x M matrix without pivoting, for its negative pivots (by Sylvester's law of
-// inertia, the number of eigenvalues of B below zero). Ok() false on a zero pivot.
-template <int M>
-class SymmetricLdlt {
+class SquareLu {
  public:
-  explicit SymmetricLdlt(const Eigen::Matrix<double, M, M>& B) {
-    for (int j = 0; j < M; ++j) {
-      double d = B(j, j);
-      for (int k = 0; k < j; ++k) d -= L_(j, k) * L_(j, k) * D_[k];
-      if (d == 0 || !std::isfinite(d)) {
+  SquareLu(const double* A_in, double tiny) {
+    for (int k = 0; k < M * M; ++k) A_[k] = A_in[k];
+#pragma GCC unroll 6
+    for (int k = 0; k < M; ++k) {
+      int p = k;
+      double best = std::abs(A_[M * k + k]);
+#pragma GCC unroll 6
+      for (int i = k + 1; i < M; ++i) {
+        const double v = std::abs(A_[M * k + i]);
+        if (v > best) {
+          best = v;
+          p = i;
+        }
+      }
+      pivot_[k] = p;
+      if (!(best > tiny)) {
         ok_ = false;
         return;
       }
-      D_[j] = d;
-      negative_ += d < 0;
-      for (int i = j + 1; i < M; ++i) {
-        double v = B(i, j);
-        for (int k = 0; k < j; ++k) v -= L_(i, k) * L_(j, k) * D_[k];
-        L_(i, j) = v / d;
+      if (p != k) {  // columns k.. only: the multipliers of earlier columns stay where they were
+#pragma GCC unroll 6
+        for (int c = k; c < M; ++c) std::swap(A_[M * c + p], A_[M * c + k]);
+      }
+      const double inv = 1 / A_[M * k + k];
+#pragma GCC unroll 6
+      for (int i = k + 1; i < M; ++i) A_[M * k + i] *= inv;  // the multipliers
+#pragma GCC unroll 6
+      for (int c = k + 1; c < M; ++c) {
+        const double a = A_[M * c + k];
+#pragma GCC unroll 6
+        for (int i = k + 1; i < M; ++i) A_[M * c + i] -= A_[M * k + i] * a;
       }
     }
   }
   bool Ok() const { return ok_; }
-  int negative() const { return negative_; }
+  // d = A^-1 b (d may alias b).
+  void Solve(const double* b_in, double* d) const {
+    double b[M];
+    for (int k = 0; k < M; ++k) b[k] = b_in[k];
+#pragma GCC unroll 6
+    for (int k = 0; k < M; ++k) {
+      std::swap(b[pivot_[k]], b[k]);
+#pragma GCC unroll 6
+      for (int i = k + 1; i < M; ++i) b[i] -= A_[M * k + i] * b[k];
+    }
+#pragma GCC unroll 6
+    for (int i = M - 1; i >= 0; --i) {
+      double v = b[i];
+#pragma GCC unroll 6
+      for (int c = i + 1; c < M; ++c) v -= A_[M * c + i] * b[c];
+      b[i] = v / A_[M * i + i];
+    }
+    for (int k = 0; k < M; ++k) d[k] = b[k];
+  }
 
  private:
-  Eigen::Matrix<double, M, M> L_;
-  double D_[M];
-  int negative_ = 0;
+  double A_[M * M];
+  int pivot_[M];
   bool ok_ = true;
 };
 
-// Smallest eigenvalue of a symmetric positive semi-definite M x M matrix (relative accuracy about
-// 1e-9; sigma_min is a diagnostic and a threshold). A few steps of inverse iteration on its Cholesky
-// factor turn the start vector toward the smallest eigenvalue's eigenvector; Rayleigh-quotient
-// iteration (shift = the current Rayleigh quotient, solves by LU with partial pivoting, cubic
-// convergence) then converges to an eigenvalue, which is the smallest when A - shift (1 + 1e-9) I
-// has exactly one negative pivot (Sylvester's law of inertia). Otherwise (two nearly equal smallest
-// eigenvalues) bisection on positive definiteness. 0 when A is singular.
+// The second-order term Q(dx) of the weighted pose error along a step dx of the chain's joint
+// values, from the weighted Jacobian Jx (6 x n, column-major; column j is (u_j, L w_j): the tool
+// point's velocity and L times the axis). With the axes at x, FK(x + dx) = exp(dx_1 xi_1) ...
+// exp(dx_n xi_n) FK(x) (spatial twists xi_j), so with b_j = dx_j w_j and a_j = dx_j u_j
+//   p(x + dx) - p          = sum_j a_j + sum_i b_i x (a_i / 2 + sum_{j>i} a_j) + O(dx^3),
+//   log(R(x + dx) R(x)^T)  = sum_j b_j + 1/2 sum_i b_i x sum_{j>i} b_j + O(dx^3)  (Baker-Campbell-
+// Hausdorff), and Q = [the second-order position term; L times the second-order rotation term].
+// One backward pass of cross products (prismatic joints: w_j = 0, the formulas hold as they are).
+inline void PoseSecondOrder(const double* Jx, const double* dx, int n, double L, double* Q) {
+  double sa[3] = {0, 0, 0}, sb[3] = {0, 0, 0}, qp[3] = {0, 0, 0}, qr[3] = {0, 0, 0};
+  const double inv_l = 1 / L;
+  for (int i = n - 1; i >= 0; --i) {
+    const double* c = Jx + 6 * i;
+    const double t = dx[i] * inv_l;
+    const double a[3] = {dx[i] * c[0], dx[i] * c[1], dx[i] * c[2]};
+    const double b[3] = {t * c[3], t * c[4], t * c[5]};
+    const double h[3] = {0.5 * a[0] + sa[0], 0.5 * a[1] + sa[1], 0.5 * a[2] + sa[2]};
+    qp[0] += b[1] * h[2] - b[2] * h[1];
+    qp[1] += b[2] * h[0] - b[0] * h[2];
+    qp[2] += b[0] * h[1] - b[1] * h[0];
+    qr[0] += b[1] * sb[2] - b[2] * sb[1];
+    qr[1] += b[2] * sb[0] - b[0] * sb[2];
+    qr[2] += b[0] * sb[1] - b[1] * sb[0];
+    for (int r = 0; r < 3; ++r) {
+      sa[r] += a[r];
+      sb[r] += b[r];
+    }
+  }
+  const double half_l = 0.5 * L;
+  for (int r = 0; r < 3; ++r) {
+    Q[r] = qp[r];
+    Q[3 + r] = half_l * qr[r];
+  }
+}
+
+// Newton's step of a square pose task (6 x 6, weighted J = Jx dg/dq, error e) with its second-order
+// correction: d0 = J^-1 e, then d = d0 - J^-1 Q(dg/dq d0) (Chebyshev's method: the error after the
+// step is of third order in d0 instead of second). The correction is dropped when it is not small
+// against the step (|c|_inf > |d0|_inf / 2: far from the solution, where the expansion says
+// nothing). Jx: the Jacobian before the chain rule; dg_dq: null for the identity.
+inline void CorrectedNewtonStep6(const SquareLu<6>& lu, const double* e, const double* Jx,
+                                 const double* dg_dq, double L, double* d) {
+  lu.Solve(e, d);
+  double dx[6], Q[6], c[6];
+  const double* step = d;
+  if (dg_dq != nullptr) {
+    for (int r = 0; r < 6; ++r) {
+      double v = 0;
+      for (int k = 0; k < 6; ++k) v += dg_dq[6 * k + r] * d[k];
+      dx[r] = v;
+    }
+    step = dx;
+  }
+  PoseSecondOrder(Jx, step, 6, L, Q);
+  lu.Solve(Q, c);
+  double dmax = 0, cmax = 0;
+  for (int j = 0; j < 6; ++j) {
+    dmax = std::max(dmax, std::abs(d[j]));
+    cmax = std::max(cmax, std::abs(c[j]));
+  }
+  if (cmax <= 0.5 * dmax) {
+    for (int j = 0; j < 6; ++j) d[j] -= c[j];
+  }
+}
+
+// Smallest eigenvalue of the Gram matrix A = J J^T of an M x n column-major J (sigma_min^2 of J for
+// M <= n; a diagnostic and a threshold). Householder reflections reduce A to a tridiagonal T with the same
+// eigenvalues; Laguerre's iteration on det(T - x I) then climbs from x = 0 to the smallest one. For
+// a polynomial with only real roots, Laguerre's step from below the smallest root stays below it
+// and converges to it monotonically, cubically (in one step when all roots coincide), so no test of
+// which eigenvalue was found is needed. Its sums G = sum_i 1 / (lambda_i - x) and
+// H = sum_i 1 / (lambda_i - x)^2 come from the pivots d_i of T - x I (the LDL^T recurrence
+// d_i = a_i - x - b_{i-1}^2 / d_{i-1}, differentiated twice); all pivots positive is the proof that
+// x is below the smallest eigenvalue (Sylvester's law of inertia). 0 when A is singular to
+// round-off (a pivot of T itself not positive).
 template <int M>
-double SmallestEigenvalue(const Eigen::Matrix<double, M, M>& A) {
-  using VecM = Eigen::Matrix<double, M, 1>;
-  using MatM = Eigen::Matrix<double, M, M>;
-  const SmallCholesky<M> llt(A);
-  if (!llt.Ok()) return 0.0;
-  VecM x = VecM::Constant(1.0 / std::sqrt(M));
-  x(0) *= 1.3;  // not orthogonal to any axis-aligned eigenvector
-  x.normalize();
-  double mu = 0;  // x . A^-1 x, at most 1 / lambda_min
-  auto inverse_step = [&]() {
-    VecM y = x;
-    llt.Solve(&y);
-    mu = x.dot(y);
-    const double norm = y.norm();
-    if (!std::isfinite(norm) || norm == 0) return false;
-    x = y / norm;
+double SmallestEigenvalueOfGram(const double* J, int n) {
+  // A = J J^T (lower triangle, A[i][j] for j <= i), as a sum of the columns' outer products.
+  double A[M][M] = {};
+  for (int k = 0; k < n; ++k) {
+    const double* c = J + M * k;
+#pragma GCC unroll 6
+    for (int i = 0; i < M; ++i) {
+#pragma GCC unroll 6
+      for (int j = 0; j <= i; ++j) A[i][j] += c[i] * c[j];
+    }
+  }
+  auto at = [&A](int i, int j) -> double& { return i >= j ? A[i][j] : A[j][i]; };
+  double diag[M], off2[M];  // T's diagonal and squared off-diagonal
+#pragma GCC unroll 4
+  for (int k = 0; k + 2 < M; ++k) {
+    // The reflection H = I - beta v v^T that zeroes A[k+2.., k]; A <- H A H on rows/columns k+1...
+    double s = 0;
+    for (int i = k + 2; i < M; ++i) s += A[i][k] * A[i][k];
+    const double x0 = A[k + 1][k];
+    if (s == 0) {  // already tridiagonal in this column
+      off2[k] = x0 * x0;
+      continue;
+    }
+    const double norm = std::sqrt(x0 * x0 + s);
+    const double alpha = x0 > 0 ? -norm : norm;
+    double v[M], p[M];
+    v[k + 1] = x0 - alpha;
+    for (int i = k + 2; i < M; ++i) v[i] = A[i][k];
+    const double beta = 1 / (norm * norm - x0 * alpha);  // 2 / (v^T v)
+    double vp = 0;
+#pragma GCC unroll 6
+    for (int i = k + 1; i < M; ++i) {
+      double t = 0;
+#pragma GCC unroll 6
+      for (int j = k + 1; j < M; ++j) t += at(i, j) * v[j];
+      p[i] = beta * t;
+      vp += v[i] * p[i];
+    }
+    const double half = 0.5 * beta * vp;
+    for (int i = k + 1; i < M; ++i) p[i] -= half * v[i];
+#pragma GCC unroll 6
+    for (int i = k + 1; i < M; ++i) {
+#pragma GCC unroll 6
+      for (int j = k + 1; j <= i; ++j) A[i][j] -= v[i] * p[j] + p[i] * v[j];
+    }
+    off2[k] = alpha * alpha;
+  }
+  if (M >= 2) off2[M - 2] = A[M - 1][M - 2] * A[M - 1][M - 2];
+  for (int i = 0; i < M; ++i) diag[i] = A[i][i];
+
+  // G and H at x; false when a pivot of T - x I is not positive (x not below every eigenvalue).
+  auto sums = [&](double x, double* G, double* H) {
+    double g = 0, h = 0, r = 0, q = 0, inv = 0;  // r = d'/d, q = d''/d of the previous pivot
+    for (int i = 0; i < M; ++i) {
+      double d = diag[i] - x, d1 = -1, d2 = 0;
+      if (i > 0) {
+        const double c = off2[i - 1] * inv;  // b^2 / d_{i-1}
+        d -= c;
+        d1 += c * r;
+        d2 = c * (q - 2 * r * r);
+      }
+      if (!(d > 0)) return false;
+      inv = 1 / d;
+      r = d1 * inv;
+      q = d2 * inv;
+      g -= r;
+      h += r * r - q;
+    }
+    *G = g;
+    *H = h;
     return true;
   };
-  for (int k = 0; k < 3; ++k) {
-    if (!inverse_step()) return 0.0;
+  double G, H;
+  if (!sums(0.0, &G, &H)) return 0.0;
+  double x = 0;
+  for (int k = 0; k < 100; ++k) {
+    const double root = std::sqrt(std::max(0.0, (M - 1) * (M * H - G * G)));
+    const double step = M / (G + root);
+    const double next = x + step;
+    // Converged (cubically: what is left is far smaller than the step), or `next` lies on the
+    // eigenvalue to round-off (a pivot not positive there).
+    if (!(step > 1e-13 * next) || !sums(next, &G, &H)) return next;
+    x = next;
   }
-  const double upper = 1 / mu;  // the Rayleigh quotient: at least lambda_min
-  double shift = x.dot(A * x);
-  bool converged = false;
-  const double tiny = 1e-15 * A.diagonal().cwiseAbs().maxCoeff();
-  for (int k = 0; k < 8 && !converged; ++k) {
-    MatM B = A;
-    B.diagonal().array() -= shift;
-    VecM y = x;
-    if (!SquareSolve<M>(B, &y, tiny)) {  // the shift is an eigenvalue
-      converged = true;
-      break;
-    }
-    const double norm = y.norm();
-    if (!std::isfinite(norm) || norm == 0) break;
-    x = y / norm;
-    const double next = x.dot(A * x);
-    converged = std::abs(next - shift) <= 1e-10 * std::abs(next);
-    shift = next;
-  }
-  if (converged && shift >= 0) {
-    MatM B = A;
-    B.diagonal().array() -= shift * (1 + 1e-9) + 1e-300;
-    const SymmetricLdlt<M> ldlt(B);
-    if (ldlt.Ok() && ldlt.negative() == 1) return shift;
-  }
-  // Another eigenvalue (two nearly equal smallest ones), or no convergence: bisection between 0
-  // and an upper bound on whether A - s I is positive definite (its Cholesky factorization exists).
-  double lo = 0, hi = converged && shift >= 0 ? shift * (1 + 1e-9) : upper;
-  for (int k = 0; k < 200 && hi - lo > 1e-10 * hi; ++k) {
-    const double mid = 0.5 * (lo + hi);
-    MatM B = A;
-    B.diagonal().array() -= mid;
-    if (SmallCholesky<M>(B).Ok()) {
-      lo = mid;
-    } else {
-      hi = mid;
-    }
-  }
-  return 0.5 * (lo + hi);
+  return x;
 }
 
 int Sign(double x) { return x > 0 ? 1 : (x < 0 ? -1 : 0); }
 
 // ---- The fast path (6 revolute-z joints, pose target; IkOptions::fast_path).
-
-// Solves A d = b for a 6 x 6 column-major A (A[6 c + r]) by LU with partial pivoting, unrolled;
-// false when a pivot is below `tiny` (as SquareSolve).
-inline bool Lu6Solve(const double* A_in, const double* b_in, double tiny, double* d) {
-  double A[36], b[6];
-  for (int k = 0; k < 36; ++k) A[k] = A_in[k];
-  for (int k = 0; k < 6; ++k) b[k] = b_in[k];
-#pragma GCC unroll 6
-  for (int k = 0; k < 6; ++k) {
-    int p = k;
-    double best = std::abs(A[6 * k + k]);
-#pragma GCC unroll 6
-    for (int i = k + 1; i < 6; ++i) {
-      const double v = std::abs(A[6 * k + i]);
-      if (v > best) {
-        best = v;
-        p = i;
-      }
-    }
-    if (!(best > tiny)) return false;
-    if (p != k) {
-#pragma GCC unroll 6
-      for (int c = k; c < 6; ++c) std::swap(A[6 * c + p], A[6 * c + k]);
-      std::swap(b[p], b[k]);
-    }
-    const double inv = 1 / A[6 * k + k];
-    double l[6];
-#pragma GCC unroll 6
-    for (int i = k + 1; i < 6; ++i) {
-      l[i] = A[6 * k + i] * inv;
-      b[i] -= l[i] * b[k];
-    }
-#pragma GCC unroll 6
-    for (int c = k + 1; c < 6; ++c) {
-      const double a = A[6 * c + k];
-#pragma GCC unroll 6
-      for (int i = k + 1; i < 6; ++i) A[6 * c + i] -= l[i] * a;
-    }
-  }
-#pragma GCC unroll 6
-  for (int i = 5; i >= 0; --i) {
-    double v = b[i];
-#pragma GCC unroll 6
-    for (int c = i + 1; c < 6; ++c) v -= A[6 * c + i] * d[c];
-    d[i] = v / A[6 * i + i];
-  }
-  return true;
-}
-
-// LDL^T of a symmetric 6 x 6 matrix without pivoting, with its negative-pivot count (SymmetricLdlt)
-// and a solve; Ok() false on a zero or non-finite pivot.
-class Ldlt6 {
- public:
-  explicit Ldlt6(const Eigen::Matrix<double, 6, 6>& B) {
-#pragma GCC unroll 6
-    for (int j = 0; j < 6; ++j) {
-      double d = B(j, j);
-      for (int k = 0; k < j; ++k) d -= L_[j][k] * L_[j][k] * D_[k];
-      if (d == 0 || !std::isfinite(d)) {
-        ok_ = false;
-        return;
-      }
-      D_[j] = d;
-      negative_ += d < 0;
-      const double inv = 1 / d;
-      for (int i = j + 1; i < 6; ++i) {
-        double v = B(i, j);
-        for (int k = 0; k < j; ++k) v -= L_[i][k] * L_[j][k] * D_[k];
-        L_[i][j] = v * inv;
-      }
-    }
-  }
-  bool Ok() const { return ok_; }
-  int negative() const { return negative_; }
-  // x <- B^-1 x.
-  void Solve(double* x) const {
-    for (int i = 0; i < 6; ++i) {
-      for (int k = 0; k < i; ++k) x[i] -= L_[i][k] * x[k];
-    }
-    for (int i = 0; i < 6; ++i) x[i] /= D_[i];
-    for (int i = 5; i >= 0; --i) {
-      for (int k = i + 1; k < 6; ++k) x[i] -= L_[k][i] * x[k];
-    }
-  }
-
- private:
-  double L_[6][6];
-  double D_[6];
-  int negative_ = 0;
-  bool ok_ = true;
-};
-
-// SmallestEigenvalue<6> of the Gram matrix A = J^T J of a 6 x 6 column-major J (the same
-// eigenvalues as J J^T): three steps of inverse iteration on A's LDL^T factors, then Rayleigh-
-// quotient iteration whose solves are LDL^T factorizations of A - shift I. Their negative pivots
-// count the eigenvalues below the shift (Sylvester's law of inertia): two or more mean the shift
-// passed lambda_2, and two more inverse steps draw it back. The result is accepted on the same test
-// as SmallestEigenvalue's (exactly one eigenvalue below 1.000000001 shift); otherwise once more from
-// twelve inverse steps, then (a breakdown, no convergence) SmallestEigenvalue<6> itself answers.
-double SmallestEigenvalueGram6(const double* J) {
-  using Vec6 = Eigen::Matrix<double, 6, 1>;
-  using Mat6 = Eigen::Matrix<double, 6, 6>;
-  Mat6 A;
-#pragma GCC unroll 6
-  for (int i = 0; i < 6; ++i) {
-    for (int j = i; j < 6; ++j) {
-      double v = 0;
-#pragma GCC unroll 6
-      for (int r = 0; r < 6; ++r) v += J[6 * i + r] * J[6 * j + r];
-      A(i, j) = A(j, i) = v;
-    }
-  }
-  // A's Cholesky factor: its LDL^T with positive pivots (the same factorization, no square roots).
-  const Ldlt6 llt(A);
-  if (!llt.Ok() || llt.negative() > 0) return 0.0;
-  Vec6 x;
-  auto inverse_steps = [&](int steps) {
-    for (int k = 0; k < steps; ++k) {
-      llt.Solve(x.data());
-      const double norm = x.norm();
-      if (!std::isfinite(norm) || norm == 0) return false;
-      x /= norm;
-    }
-    return true;
-  };
-  // Two attempts: from the start vector with 3 inverse steps, then (Rayleigh-quotient iteration
-  // having found another eigenvalue) with 12.
-  for (const int steps : {3, 12}) {
-    x = Vec6::Constant(1.0 / std::sqrt(6.0));
-    x(0) *= 1.3;
-    x.normalize();
-    if (!inverse_steps(steps)) return 0.0;
-    double shift = x.dot(A * x);
-    bool converged = false;
-    for (int k = 0; k < 10 && !converged; ++k) {
-      Mat6 B = A;
-      B.diagonal().array() -= shift;
-      const Ldlt6 ldlt(B);
-      if (!ldlt.Ok()) break;
-      if (ldlt.negative() >= 2) {  // past lambda_2: back toward the smallest eigenvector
-        if (!inverse_steps(2)) break;
-        shift = x.dot(A * x);
-        continue;
-      }
-      Vec6 y = x;
-      ldlt.Solve(y.data());
-      const double norm = y.norm();
-      if (!std::isfinite(norm) || norm == 0) break;
-      x = y / norm;
-      const double next = x.dot(A * x);
-      converged = std::abs(next - shift) <= 1e-10 * std::abs(next);
-      shift = next;
-    }
-    if (converged && shift >= 0) {
-      Mat6 B = A;
-      B.diagonal().array() -= shift * (1 + 1e-9) + 1e-300;
-      const Ldlt6 ldlt(B);
-      if (ldlt.Ok() && ldlt.negative() == 1) return shift;
-    }
-  }
-  return SmallestEigenvalue<6>(A);
-}
 
 // One iterate of the fast path: joints, the chain's joint values x with their sin/cos, the joint
 // axes w_i and points t_i of the frames G_i, the tool frame, weighted task error and Jacobian
@@ -421,16 +375,69 @@ double SmallestEigenvalueGram6(const double* J) {
 struct FastIterate {
   double q[6], x[6], sin_x[6], cos_x[6];
   int age[6];
-  double w[6][3], t[6][3];
-  double R[9], P[3];
+  double w[6][4], t[6][4];  // the fourth value is padding (the AVX sweep stores four)
+  double R[12], P[4];       // R column-major in R[0..8]
   double J[36];
+  double Jx[36], dg_dq[36];  // with a joint map: J before the chain rule, and dg/dq
   double e[6];
   double merit;
 };
 
+#if defined(__GNUC__) && defined(__x86_64__)
+#define LPOE_IK_AVX_SWEEP 1
+// Sweep6 with each column of the running frame (and its origin) in one AVX register, lanes 0-2:
+// the SSE2 sweep's multiplications and additions in the same order, so the same bits with half the
+// instructions. Lane 3 carries junk that is never read.
+__attribute__((target("avx"))) void Sweep6Avx(const RobotModel& model, int tool,
+                                               FastIterate* it) {
+  const SE3d& O0 = model.joints[0].origin;
+  const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
+  __m256d r[4];
+  for (int k = 0; k < 3; ++k) r[k] = _mm256_maskload_pd(O0.R.data() + 3 * k, three);
+  r[3] = _mm256_maskload_pd(O0.t.data(), three);
+  for (int i = 0; i < 6; ++i) {
+    _mm256_storeu_pd(it->w[i], r[2]);
+    _mm256_storeu_pd(it->t[i], r[3]);
+    const __m256d c = _mm256_set1_pd(it->cos_x[i]), ns = _mm256_set1_pd(-it->sin_x[i]);
+    const __m256d x0 = r[0];  // R <- R Rz(x_i) (internal::PlaneRotation(c, -s, ...))
+    r[0] = _mm256_sub_pd(_mm256_mul_pd(c, x0), _mm256_mul_pd(ns, r[1]));
+    r[1] = _mm256_add_pd(_mm256_mul_pd(ns, x0), _mm256_mul_pd(c, r[1]));
+    const SE3d& O = i < 5 ? model.joints[i + 1].origin : model.tools[tool].origin;
+    const double* M = O.R.data();
+    __m256d n[3];
+    for (int col = 0; col < 3; ++col) {
+      const __m256d a = _mm256_broadcast_sd(M + 3 * col);
+      const __m256d b = _mm256_broadcast_sd(M + 3 * col + 1);
+      const __m256d d = _mm256_broadcast_sd(M + 3 * col + 2);
+      n[col] = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(r[0], a), _mm256_mul_pd(r[1], b)),
+                             _mm256_mul_pd(r[2], d));
+    }
+    const __m256d a = _mm256_broadcast_sd(O.t.data());
+    const __m256d b = _mm256_broadcast_sd(O.t.data() + 1);
+    const __m256d d = _mm256_broadcast_sd(O.t.data() + 2);
+    r[3] = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(r[0], a), r[3]),
+                         _mm256_add_pd(_mm256_mul_pd(r[1], b), _mm256_mul_pd(r[2], d)));
+    for (int col = 0; col < 3; ++col) r[col] = n[col];
+  }
+  for (int k = 0; k < 3; ++k) _mm256_storeu_pd(it->R + 3 * k, r[k]);  // in order: lane 3 rewritten
+  _mm256_storeu_pd(it->P, r[3]);
+}
+
+bool HaveAvx() {
+  static const bool have = __builtin_cpu_supports("avx");
+  return have;
+}
+#endif
+
 // The forward sweep of a chain of 6 revolute-z joints: G_i = T_0,i-1(q) T_{i-1,i}(0) as its axis
 // w_i (third column) and point t_i, then the tool frame (the values of KinematicChain::Frames).
 inline void Sweep6(const RobotModel& model, int tool, FastIterate* it) {
+#ifdef LPOE_IK_AVX_SWEEP
+  if (HaveAvx()) {
+    Sweep6Avx(model, tool, it);
+    return;
+  }
+#endif
   const SE3d& O0 = model.joints[0].origin;
 #if defined(__SSE2__)
   // The running product in SSE2 registers as kinematics.cc's accumulator: rows 0 and 1 of each
@@ -724,6 +731,8 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
     VecM e;
     MatJ J;
     double merit = 0;
+    // Square pose tasks with a joint map: J before the chain rule, and dg/dq (the second order).
+    double Jx[M == 6 && N == 6 ? 36 : 1], dg_dq[M == 6 && N == 6 ? 36 : 1];
   };
   Iterate iterates[2];
   Iterate* cur = &iterates[0];
@@ -737,20 +746,22 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
     } else {
       for (int j = 0; j < n; ++j) it->x[j] = it->q(j);
     }
+    int fresh[kMax], count = 0;  // joints whose sin/cos are computed afresh
     for (int j = 0; j < n; ++j) {
       if (!z_revolute_[j]) continue;
       const double delta = from != nullptr ? it->x[j] - from->x[j] : HUGE_VAL;
       if (std::abs(delta) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
         double sd, cd;
-        SinCosSmall(delta, &sd, &cd);
+        SinCosStep(delta, &sd, &cd);
         it->sin_x[j] = from->sin_x[j] * cd + from->cos_x[j] * sd;
         it->cos_x[j] = from->cos_x[j] * cd - from->sin_x[j] * sd;
         it->age[j] = from->age[j] + 1;
       } else {
-        SinCos(it->x[j], &it->sin_x[j], &it->cos_x[j]);
+        fresh[count++] = j;
         it->age[j] = 0;
       }
     }
+    SinCosOf(it->x, fresh, count, it->sin_x, it->cos_x);
     chain_.Frames(it->x, it->sin_x, it->cos_x, target.tool, it->frames);
     const FrameRt& T = it->frames[n];
     it->e.template head<3>() = target.position - T.t;
@@ -766,9 +777,22 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
       it->J = J6.template topRows<3>();
     }
     if (effective_ != nullptr) {
-      const Eigen::Map<const Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN>> G(dg_dq, n, n);
-      const MatJ Jq = it->J * G;
-      it->J = Jq;
+      if constexpr (M == 6 && N == 6) {  // as the fast path
+        std::copy(dg_dq, dg_dq + 36, it->dg_dq);
+        std::copy(it->J.data(), it->J.data() + 36, it->Jx);
+        double* J = it->J.data();
+        for (int c = 0; c < 6; ++c) {
+          for (int r = 0; r < 6; ++r) {
+            double v = 0;
+            for (int k = 0; k < 6; ++k) v += it->Jx[6 * k + r] * dg_dq[6 * c + k];
+            J[6 * c + r] = v;
+          }
+        }
+      } else {
+        const Eigen::Map<const Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN>> G(dg_dq, n, n);
+        const MatJ Jq = it->J * G;
+        it->J = Jq;
+      }
     }
     it->merit = it->e.squaredNorm();
   };
@@ -809,10 +833,18 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
       bool solved = false;
       if constexpr (N == M) {
         if (!any_locked && lambda2 == 0) {
-          VecM x = cur->e;
           const double tiny = 1e-9 * std::max(J.template lpNorm<Eigen::Infinity>(), 1e-30);
-          solved = SquareSolve<M>(J, &x, tiny);
-          if (solved) *d = x;
+          const SquareLu<M> lu(J.data(), tiny);
+          solved = lu.Ok();
+          if (solved) {
+            if constexpr (M == 6) {  // with the second-order correction
+              const bool mapped = effective_ != nullptr;
+              CorrectedNewtonStep6(lu, cur->e.data(), mapped ? cur->Jx : J.data(),
+                                   mapped ? cur->dg_dq : nullptr, L, d->data());
+            } else {
+              lu.Solve(cur->e.data(), d->data());
+            }
+          }
         }
       }
       if (!solved) {
@@ -892,14 +924,21 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
     for (int j = 0; j < n; ++j) {
       trial->q(j) = std::min(std::max(cur->q(j) + d(j), lower(j)), upper(j));
     }
+    // Square tasks, damped steps: the linear model's merit after the step (see kGoodModel).
+    double predicted = 0;
+    if constexpr (N == M) {
+      if (lambda2 > 0) predicted = (cur->e - cur->J * d).squaredNorm();
+    }
     evaluate(cur, trial);
     // Near the target, a step toward the seed in the null space may raise the task error at
     // second order; the next step removes that, so such steps are accepted (kNullSpaceSlack).
     if (trial->merit <= cur->merit || trial->merit <= kNullSpaceSlack * kNullSpaceSlack ||
         task_ok(trial->e)) {
+      const bool model_good = N == M && lambda2 > 0 && !limit_hit &&
+                              cur->merit - trial->merit >= kGoodModel * (cur->merit - predicted);
       std::swap(cur, trial);
       lambda2 *= 0.1;
-      if (lambda2 < 1e-12 * cur->J.squaredNorm() / M) lambda2 = 0;
+      if (lambda2 < 1e-12 * cur->J.squaredNorm() / M || model_good) lambda2 = 0;
       // The pull toward the seed is a fixed-point iteration that overshoots (successive steps
       // reverse) where the task's curvature times its multiplier exceeds one, e.g. near a
       // singularity: halve it for the rest of the run.
@@ -921,7 +960,7 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
   // Smallest singular value of the weighted task Jacobian at q.
   const MatJ& J = cur->J;
   if (M <= n) {
-    result.sigma_min = std::sqrt(SmallestEigenvalue<M>(J * J.transpose()));
+    result.sigma_min = std::sqrt(SmallestEigenvalueOfGram<M>(J.data(), n));
   } else {
     const Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN> A = J.transpose() * J;
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN>> eig(
@@ -978,12 +1017,13 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
   const Eigen::Matrix3d& Rt = target.rotation;
 
   auto evaluate = [&](const FastIterate* from, FastIterate* it) {
-    double dg_dq[36];
+    const double* dg_dq = it->dg_dq;
     if (effective_ != nullptr) {
-      effective_->Evaluate(it->q, it->x, dg_dq);
+      effective_->Evaluate(it->q, it->x, it->dg_dq);
     } else {
       for (int j = 0; j < 6; ++j) it->x[j] = it->q[j];
     }
+    int fresh[6], count = 0;  // joints whose sin/cos are computed afresh
     for (int j = 0; j < 6; ++j) {
       const double delta = from != nullptr ? it->x[j] - from->x[j] : HUGE_VAL;
       if (std::abs(delta) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
@@ -993,10 +1033,11 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
         it->cos_x[j] = from->cos_x[j] * cd - from->sin_x[j] * sd;
         it->age[j] = from->age[j] + 1;
       } else {
-        SinCos(it->x[j], &it->sin_x[j], &it->cos_x[j]);
+        fresh[count++] = j;
         it->age[j] = 0;
       }
     }
+    SinCosOf(it->x, fresh, count, it->sin_x, it->cos_x);
     Sweep6(model, target.tool, it);
     const double* P = it->P;
     double* J = it->J;
@@ -1010,16 +1051,15 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
       J[6 * i + 4] = L * w[1];
       J[6 * i + 5] = L * w[2];
     }
-    if (effective_ != nullptr) {  // chain rule: J dg/dq
-      double Jq[36];
+    if (effective_ != nullptr) {  // chain rule: J dg/dq (J before it kept for the second order)
+      std::copy(J, J + 36, it->Jx);
       for (int c = 0; c < 6; ++c) {
         for (int r = 0; r < 6; ++r) {
           double v = 0;
-          for (int k = 0; k < 6; ++k) v += J[6 * k + r] * dg_dq[6 * c + k];
-          Jq[6 * c + r] = v;
+          for (int k = 0; k < 6; ++k) v += it->Jx[6 * k + r] * dg_dq[6 * c + k];
+          J[6 * c + r] = v;
         }
       }
-      std::copy(Jq, Jq + 36, J);
     }
     const Eigen::Map<const Eigen::Matrix3d> R(it->R);
     const Eigen::Vector3d re = L * RotationError(Rt, R);
@@ -1072,7 +1112,13 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
     if (lambda2 == 0) {
       double amax = 0;
       for (int k = 0; k < 36; ++k) amax = std::max(amax, std::abs(cur->J[k]));
-      solved = Lu6Solve(cur->J, cur->e, 1e-9 * std::max(amax, 1e-30), d);
+      const SquareLu<6> lu(cur->J, 1e-9 * std::max(amax, 1e-30));
+      solved = lu.Ok();
+      if (solved) {
+        const bool mapped = effective_ != nullptr;
+        CorrectedNewtonStep6(lu, cur->e, mapped ? cur->Jx : cur->J, mapped ? cur->dg_dq : nullptr,
+                             L, d);
+      }
     }
     if (!solved) {  // d = r + J^T (J J^T + lambda^2 I)^-1 (e - J r), r = beta (seed - q)
       Vec6 r;
@@ -1105,12 +1151,21 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
       if (o.respect_limits && (x > upper[j] || x < lower[j])) return false;  // Run's active set
       trial->q[j] = std::min(std::max(x, lower[j]), upper[j]);
     }
+    double predicted = 0;  // damped steps: the linear model's merit after the step (kGoodModel)
+    if (lambda2 > 0) {
+      const Vec6 rest = Eigen::Map<const Vec6>(cur->e) - J * Eigen::Map<const Vec6>(d);
+      predicted = rest.squaredNorm();
+    }
     evaluate(cur, trial);
     if (trial->merit <= cur->merit || trial->merit <= kNullSpaceSlack * kNullSpaceSlack ||
         task_ok(trial->e)) {
+      const bool model_good =
+          lambda2 > 0 && cur->merit - trial->merit >= kGoodModel * (cur->merit - predicted);
       std::swap(cur, trial);
       lambda2 *= 0.1;
-      if (lambda2 < 1e-12 * Eigen::Map<const Mat6>(cur->J).squaredNorm() / 6) lambda2 = 0;
+      if (lambda2 < 1e-12 * Eigen::Map<const Mat6>(cur->J).squaredNorm() / 6 || model_good) {
+        lambda2 = 0;
+      }
       beta = 1;
     } else {
       const double s2 = std::max(J.squaredNorm() / 6, 1e-30);
@@ -1122,7 +1177,7 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
 
   IkResult& result = *out;
   result = IkResult();
-  result.sigma_min = std::sqrt(SmallestEigenvalueGram6(cur->J));
+  result.sigma_min = std::sqrt(SmallestEigenvalueOfGram<6>(cur->J, 6));
   result.position_error = std::sqrt(cur->e[0] * cur->e[0] + cur->e[1] * cur->e[1] +
                                     cur->e[2] * cur->e[2]);
   result.orientation_error =
