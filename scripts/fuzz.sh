@@ -22,7 +22,8 @@ build=build-fuzz
 # Only lpoe_core's sources are compiled (instrumented, as lpoe_core_fuzz) plus the fuzz targets.
 # -O1 with line tables (libFuzzer's recommended level; much faster to compile than -O2 -g), linked
 # with lld.
-CC=clang CXX=clang++ cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLPOE_FUZZ=ON \
+gen=(); [ -f "$build/CMakeCache.txt" ] || gen=(-G Ninja)  # Ninja for a new build directory
+CC=clang CXX=clang++ cmake "${gen[@]}" -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLPOE_FUZZ=ON \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -gline-tables-only" -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld \
   -DBUILD_TESTING=OFF -DLPOE_BUILD_BENCHMARKS=OFF -DLPOE_BUILD_TOOLS=OFF -DLPOE_BUILD_PYTHON=OFF >/dev/null
 cmake --build "$build" -j2 --target lpoe_fuzz

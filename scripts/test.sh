@@ -6,7 +6,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 # lld links the ~40 test and benchmark programs (each with static Ceres) several times faster than ld.
-cmake -S . -B build-test -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=ON -DLPOE_BUILD_BENCHMARKS=ON \
+# Ninja for a new build directory (an existing one keeps the generator it was made with).
+gen=(); [ -f build-test/CMakeCache.txt ] || gen=(-G Ninja)
+cmake "${gen[@]}" -S . -B build-test -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=ON -DLPOE_BUILD_BENCHMARKS=ON \
   -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld -DCMAKE_SHARED_LINKER_FLAGS=-fuse-ld=lld \
   -DCMAKE_MODULE_LINKER_FLAGS=-fuse-ld=lld >/dev/null
 cmake --build build-test -j2
