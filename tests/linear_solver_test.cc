@@ -43,6 +43,15 @@ constexpr double kParameterizationAgreement = 1e-6;
 const std::vector<ParameterizationKind> kKinds = {ParameterizationKind::kIdentifiable,
                                                   ParameterizationKind::kFull};
 
+// `rows` rows measured on the paper's actual robot (Table 2 errors) with the paper's noise.
+MeasurementSet PaperData(int rows) {
+  SimulationOptions o;
+  o.count = rows;
+  o.noise_sigma = kPaperSigma;
+  const KinematicErrors errors = PaperTable2Errors();
+  return SimulateMeasurements(ApplyErrors(MakeCobot6(), errors), errors.joint_zero, o);
+}
+
 struct DataSet {
   RobotModel nominal;
   RobotModel actual;
@@ -365,11 +374,7 @@ TEST(LinearSolver, KeptErrorsEqualADirectRecomputation) {
   constexpr int kLargeRows = 30000;  // several chunks on several threads
   constexpr double kMomentTolerance = 1e-10;
   constexpr double kPercentileTolerance = 1e-7;
-  SimulationOptions o;
-  o.count = kLargeRows;
-  o.noise_sigma = kPaperSigma;
-  const KinematicErrors errors = PaperTable2Errors();
-  MeasurementSet data = SimulateMeasurements(ApplyErrors(MakeCobot6(), errors), errors.joint_zero, o);
+  MeasurementSet data = PaperData(kLargeRows);
   for (int r : {17, 12345, 29999}) data.mutable_position(r)(1) += 2.0;  // gross errors
   const RobotModel nominal = MakeCobot6();
   LinearSolverErrors kept;
@@ -419,12 +424,7 @@ TEST(LinearSolver, KeptErrorsEqualADirectRecomputation) {
 // on one thread or several.
 TEST(LinearSolver, ResultDoesNotDependOnTheThreadCount) {
   constexpr int kLargeRows = 30000;
-  SimulationOptions o;
-  o.count = kLargeRows;
-  o.noise_sigma = kPaperSigma;
-  const KinematicErrors errors = PaperTable2Errors();
-  const MeasurementSet data =
-      SimulateMeasurements(ApplyErrors(MakeCobot6(), errors), errors.joint_zero, o);
+  const MeasurementSet data = PaperData(kLargeRows);
   std::vector<CalibrationResult> results;
   std::vector<ErrorStatistics> stats;
   for (int threads : {1, 2, 3}) {
@@ -460,12 +460,7 @@ TEST(LinearSolver, ResultDoesNotDependOnTheThreadCount) {
 TEST(LinearSolver, WarmStartGivesTheColdSolution) {
   constexpr int kRows = 40000;
   constexpr int kSubsample = 4000;
-  SimulationOptions o;
-  o.count = kRows;
-  o.noise_sigma = kPaperSigma;
-  const KinematicErrors errors = PaperTable2Errors();
-  const MeasurementSet data =
-      SimulateMeasurements(ApplyErrors(MakeCobot6(), errors), errors.joint_zero, o);
+  const MeasurementSet data = PaperData(kRows);
   const RobotModel nominal = MakeCobot6();
   auto solve = [&](bool warm, LinearSolverErrors* kept) {
     LinearSolverOptions options;
@@ -542,12 +537,7 @@ TEST(LinearSolver, WarmStartGivesTheColdSolution) {
 // without a warm start, bit for bit.
 TEST(LinearSolver, NoWarmStartBelowItsRowCount) {
   constexpr int kRows = 20000;
-  SimulationOptions o;
-  o.count = kRows;
-  o.noise_sigma = kPaperSigma;
-  const KinematicErrors errors = PaperTable2Errors();
-  const MeasurementSet data =
-      SimulateMeasurements(ApplyErrors(MakeCobot6(), errors), errors.joint_zero, o);
+  const MeasurementSet data = PaperData(kRows);
   LinearSolverOptions defaults;
   ASSERT_GT(defaults.warm_start_min_rows, kRows);
   LinearSolverOptions above = defaults;  // one row more than there are
