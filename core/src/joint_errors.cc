@@ -39,31 +39,73 @@ void ComputeChainState(const RobotModel& model, const double* q, ChainState* sta
   }
 }
 
-// The compliance regressor for gravity g (linear in g).
-void ComplianceRegressorFor(const RobotModel& model, const ChainState& state,
-                            const Eigen::Vector3d& g, Eigen::MatrixXd* Y) {
+// The compliance regressor's entries at their own joints for gravity g (linear in g): y[c] =
+// Y(j, c) for every parameter c of joint j (layout of NumComplianceParameters: joint j's links, then
+// its payload column); every other entry of Y is zero.
+void ComplianceValuesFor(const RobotModel& model, const ChainState& state, const Eigen::Vector3d& g,
+                         double* y) {
   const int n = model.num_joints();
-  Y->setZero(n, NumComplianceParameters(n));
   for (int j = 0; j < n; ++j) {
     const Eigen::Vector3d w = state.twist[j].head<3>();
     const Eigen::Vector3d v = state.twist[j].tail<3>();
     const double scale =
         model.joints[j].type == JointType::kRevolute ? kMetresPerMillimetre : 1.0;
     const Eigen::Vector3d gw = g.cross(w);
+    const double vg = v.dot(g);
     double a = 0;
     Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    for (int k = j; k < n; ++k) {
+    double* out = y + ComplianceLinkIndex(n, j, j);
+    for (int k = j; k < n; ++k, out += 4) {
       const SE3d& L = state.link[k];
-      a = scale * (gw.dot(L.t) + v.dot(g));
+      a = scale * (gw.dot(L.t) + vg);
       b = scale * (L.R.transpose() * gw);
-      const int c = ComplianceLinkIndex(n, j, k);
-      (*Y)(j, c) = a;
-      (*Y)(j, c + 1) = b(0);
-      (*Y)(j, c + 2) = b(1);
-      (*Y)(j, c + 3) = b(2);
+      out[0] = a;
+      out[1] = b(0);
+      out[2] = b(1);
+      out[3] = b(2);
     }
     // The payload sits on the last link: a and b are link n-1's.
-    (*Y)(j, CompliancePayloadIndex(n, j)) = model.payload.mass * (a + b.dot(model.payload.com));
+    *out = model.payload.mass * (a + b.dot(model.payload.com));
+  }
+}
+
+// The compliance regressor for gravity g (linear in g).
+void ComplianceRegressorFor(const RobotModel& model, const ChainState& state,
+                            const Eigen::Vector3d& g, Eigen::MatrixXd* Y) {
+  const int n = model.num_joints();
+  const int P = NumComplianceParameters(n);
+  thread_local std::vector<double> y;
+  y.resize(P);
+  ComplianceValuesFor(model, state, g, y.data());
+  Y->setZero(n, P);
+  for (int j = 0; j < n; ++j) {
+    for (int c = ComplianceLinkIndex(n, j, j); c <= CompliancePayloadIndex(n, j); ++c) {
+      (*Y)(j, c) = y[c];
+    }
+  }
+}
+
+// Joint j's 4 harmonic entries (zero for a prismatic joint).
+void HarmonicsValues(const RobotModel& model, const double* q, int j, double* out) {
+  if (model.joints[j].type != JointType::kRevolute) {
+    out[0] = out[1] = out[2] = out[3] = 0;
+    return;
+  }
+  double s1, c1;
+  SinCos(q[j], &s1, &c1);
+  out[0] = s1;
+  out[1] = c1;
+  out[2] = 2 * s1 * c1;       // sin 2q
+  out[3] = c1 * c1 - s1 * s1;  // cos 2q
+}
+
+// Entries below kJointErrorRoundingCutoff of the largest |y| set to exact zeros.
+void ZeroRoundingNoise(double* y, int size) {
+  double largest = 0;
+  for (int k = 0; k < size; ++k) largest = std::max(largest, std::abs(y[k]));
+  const double cutoff = kJointErrorRoundingCutoff * largest;
+  for (int k = 0; k < size; ++k) {
+    if (std::abs(y[k]) < cutoff) y[k] = 0.0;
   }
 }
 
@@ -319,15 +361,10 @@ void GravityTiltJointColumns(const Eigen::Vector3d& gravity,
 void HarmonicsRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y) {
   const int n = model.num_joints();
   Y->setZero(n, NumHarmonicsParameters(n));
+  double y[kHarmonicsPerJoint];
   for (int j = 0; j < n; ++j) {
-    if (model.joints[j].type != JointType::kRevolute) continue;
-    double s1, c1;
-    SinCos(q[j], &s1, &c1);
-    const int c = kHarmonicsPerJoint * j;
-    (*Y)(j, c) = s1;
-    (*Y)(j, c + 1) = c1;
-    (*Y)(j, c + 2) = 2 * s1 * c1;       // sin 2q
-    (*Y)(j, c + 3) = c1 * c1 - s1 * s1;  // cos 2q
+    HarmonicsValues(model, q, j, y);
+    for (int c = 0; c < kHarmonicsPerJoint; ++c) (*Y)(j, kHarmonicsPerJoint * j + c) = y[c];
   }
 }
 
@@ -343,6 +380,18 @@ void JointErrorRegressor(const RobotModel& model, JointErrorKind kind, const dou
   // identified with huge values that cancel only on this very geometry.
   const double cutoff = kJointErrorRoundingCutoff * Y->cwiseAbs().maxCoeff();
   *Y = (Y->array().abs() < cutoff).select(0.0, *Y);
+}
+
+void JointErrorRegressorValues(const RobotModel& model, JointErrorKind kind, const double* q,
+                               double* y) {
+  if (kind == JointErrorKind::kCompliance) {
+    thread_local ChainState state;  // no allocation per call (solvers evaluate it for every row)
+    ComputeChainState(model, q, &state);
+    ComplianceValuesFor(model, state, model.gravity, y);
+  } else {
+    for (int j = 0; j < model.num_joints(); ++j) HarmonicsValues(model, q, j, y + kHarmonicsPerJoint * j);
+  }
+  ZeroRoundingNoise(y, NumJointErrorParameters(model.num_joints(), kind));
 }
 
 void JointErrorOffsets(const RobotModel& model, const double* q, double* dq) {

@@ -27,10 +27,11 @@ Eigen::VectorXd ColumnScale(const Eigen::MatrixXd& H) {
   return d;
 }
 
-Identifiability Analyze(const Eigen::MatrixXd& H) {
+Identifiability Analyze(const Eigen::MatrixXd& H, bool weakest) {
   const Eigen::VectorXd d = ColumnScale(H);
   const Eigen::MatrixXd Hs = d.asDiagonal() * H * d.asDiagonal();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Hs);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(
+      Hs, weakest ? Eigen::ComputeEigenvectors : Eigen::EigenvaluesOnly);
   Identifiability out;
   out.condition = std::numeric_limits<double>::infinity();
   const int P = static_cast<int>(H.rows());
@@ -44,7 +45,7 @@ Identifiability Analyze(const Eigen::MatrixXd& H) {
   for (int k = 0; k < P; ++k) out.rank += out.singular_values(k) > tol;
   const double smin = out.singular_values(P - 1);
   out.condition = smin > 0 ? smax / smin : std::numeric_limits<double>::infinity();
-  out.weakest = eig.eigenvectors().col(0);
+  if (weakest) out.weakest = eig.eigenvectors().col(0);
   return out;
 }
 

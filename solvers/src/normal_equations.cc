@@ -571,9 +571,22 @@ void EvaluateSlots(const Parameterization& p, const JointSpaceRegressors& regs, 
   }
   for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
     const JointTerm& term = *p.joint_blocks[b].term;
+    const int first = regs.column_offset[b], last = regs.column_offset[b + 1];
+    // The entries at each parameter's joint alone when the term gives them (RegressorValues).
+    bool single_joint = true;
+    for (int k = 0; k < term.num_parameters() && single_joint; ++k) {
+      single_joint = term.ParameterJoint(k) >= 0;
+    }
+    term_Y->resize(term.num_parameters(), 1);
+    if (single_joint && term.RegressorValues(q, term_Y->data())) {
+      for (int t = 0; t < regs.num_slots(); ++t) {
+        const int c = regs.slot_column[t];
+        if (c >= first && c < last) v[t] = (*term_Y)(c - first);
+      }
+      continue;
+    }
     term_Y->resize(n, term.num_parameters());
     term.Regressor(q, term_Y->data());
-    const int first = regs.column_offset[b], last = regs.column_offset[b + 1];
     for (int j = 0; j < n; ++j) {
       for (int t = regs.slot_begin[j]; t < regs.slot_begin[j + 1]; ++t) {
         const int c = regs.slot_column[t];
@@ -883,13 +896,26 @@ JointSpaceRegressors BuildJointSpaceRegressors(const Parameterization& p,
         source[t] = (c - regs.column_offset[b]) * n + j;
       }
     }
+    // A block whose every parameter moves one joint may give those entries alone
+    // (JointTerm::RegressorValues): slot t then reads entry slot_column[t] - column_offset[b].
+    const size_t B = p.joint_blocks.size();
+    std::vector<char> single_joint(B, 1), from_values(B, 0);
+    std::vector<Eigen::VectorXd> y(B);
+    for (size_t b = 0; b < B; ++b) {
+      for (int c = regs.column_offset[b]; c < regs.column_offset[b + 1]; ++c) {
+        if (joint_of[c] < 0) single_joint[b] = 0;
+      }
+      y[b].resize(p.joint_blocks[b].term->num_parameters());
+    }
     Eigen::MatrixXd values(S, N);
-    std::vector<Eigen::MatrixXd> Y(p.joint_blocks.size());
+    std::vector<Eigen::MatrixXd> Y(B);
     std::vector<char> used(S, 0);
     for (int r = 0; r < N; ++r) {
       const double* q = data.q(r);
-      for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
+      for (size_t b = 0; b < B; ++b) {
         const JointTerm& term = *p.joint_blocks[b].term;
+        from_values[b] = single_joint[b] && term.RegressorValues(q, y[b].data());
+        if (from_values[b]) continue;
         Y[b].resize(n, term.num_parameters());
         term.Regressor(q, Y[b].data());
         // A column that moves only its declared joint sums (exactly: the others add zeros) to that
@@ -908,7 +934,9 @@ JointSpaceRegressors BuildJointSpaceRegressors(const Parameterization& p,
       }
       double* v = values.col(r).data();
       for (int t = 0; t < S; ++t) {
-        v[t] = Y[block_of[t]].data()[source[t]];
+        const int b = block_of[t];
+        v[t] = from_values[b] ? y[b](regs.slot_column[t] - regs.column_offset[b])
+                              : Y[b].data()[source[t]];
         used[t] |= v[t] != 0;
       }
     }
