@@ -197,7 +197,13 @@ void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& 
   JointBlock& block = p->joint_blocks[b];
   const int P = block.term->num_parameters();
   CHECK_EQ(basis.rows(), P);
-  // The left-out combinations: the orthogonal complement of the kept ones.
+  // The left-out combinations: the orthogonal complement of the kept ones (none when every
+  // parameter is kept: no eigenproblem).
+  if (basis.cols() == P) {
+    block.basis = basis;
+    RenumberJointBlocks(p);
+    return;
+  }
   const Eigen::MatrixXd projector = Eigen::MatrixXd::Identity(P, P) - basis * basis.transpose();
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(projector);
   for (int k = 0; k < P; ++k) {

@@ -668,6 +668,24 @@ void AccumulateSlots(const Kind& kind, const BasisJacobian& bj, const Parameteri
   }
 }
 
+// Whether T only selects columns: every row zero but for at most one entry equal to 1. `column`:
+// that entry's column per row, -1 for a zero row (left empty when T does more than select).
+bool SlotSelection(const Eigen::MatrixXd& T, std::vector<int>* column) {
+  column->assign(T.rows(), -1);
+  for (Eigen::Index c = 0; c < T.cols(); ++c) {
+    for (Eigen::Index r = 0; r < T.rows(); ++r) {
+      const double x = T(r, c);
+      if (x == 0) continue;
+      if (x != 1 || (*column)[r] >= 0) {
+        column->clear();
+        return false;
+      }
+      (*column)[r] = static_cast<int>(c);
+    }
+  }
+  return true;
+}
+
 template <typename Kind>
 NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
                                      const MeasurementSet& data, const Parameterization& p,
@@ -730,8 +748,31 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
   Hall.triangularView<Eigen::StrictlyUpper>() = Hall.transpose();
   lin.H.topLeftCorner(F, F) = Hall.topLeftCorner(F, F);
   const Eigen::MatrixXd& T = regs.slot_basis;
-  lin.g.tail(K).noalias() = T.transpose() * gs;
-  if (blocks) {
+  std::vector<int> selected;
+  const bool select = SlotSelection(T, &selected);
+  if (select) {
+    // Every block with the identity basis (the reduction's analysis): T only picks each slot's
+    // column, so the products below are sums of the slots' entries (the same numbers exactly).
+    for (int t = 0; t < S; ++t) {
+      const int k = selected[t];
+      if (k < 0) continue;
+      lin.g(F + k) += gs(t);
+      if (!blocks) continue;
+      lin.H.col(F + k).head(F) += Hall.col(F + t).head(F);
+      for (int u = 0; u < S; ++u) {
+        if (selected[u] >= 0) lin.H(F + selected[u], F + k) += Hall(F + u, F + t);
+      }
+    }
+    if (blocks) {
+      lin.H.bottomLeftCorner(K, F) = lin.H.topRightCorner(F, K).transpose();
+      // Exactly symmetric (a column picked by several slots sums them in another order).
+      Eigen::MatrixXd Hkk = lin.H.bottomRightCorner(K, K);
+      lin.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
+    }
+  } else {
+    lin.g.tail(K).noalias() = T.transpose() * gs;
+  }
+  if (blocks && !select) {
     const Eigen::MatrixXd Wsym = Hall.bottomRightCorner(S, S);
     lin.H.topRightCorner(F, K).noalias() = Hall.topRightCorner(F, S) * T;
     lin.H.bottomLeftCorner(K, F) = lin.H.topRightCorner(F, K).transpose();
