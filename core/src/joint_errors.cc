@@ -396,26 +396,33 @@ void JointErrorRegressorValues(const RobotModel& model, JointErrorKind kind, con
 
 void JointErrorOffsets(const RobotModel& model, const double* q, double* dq) {
   const int n = model.num_joints();
-  Eigen::Map<Eigen::VectorXd> out(dq, n);
-  out.setZero();
+  for (int j = 0; j < n; ++j) dq[j] = 0;
   const std::vector<SE3d>& origins = model.joint_errors.regressor_origins;
-  ChainState state;
-  bool have_state = false;
-  Eigen::MatrixXd Y;
+  thread_local ChainState state;  // no allocation per call
+  thread_local std::vector<double> y;
   for (JointErrorKind kind : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
     const std::vector<double>& theta = JointErrorParameters(model, kind);
     if (theta.empty()) continue;
+    const int P = static_cast<int>(theta.size());
+    y.resize(P);
+    // The regressor's entries at their joints (every other entry of Y is zero).
     if (kind == JointErrorKind::kCompliance && !origins.empty()) {
       // On the stored reference geometry (the calibration's start model), as the solver did.
-      if (!have_state) ComputeChainState(model, q, &state, &origins);
-      have_state = true;
-      ComplianceRegressorFor(model, state, model.gravity, &Y);
-      const double cutoff = kJointErrorRoundingCutoff * Y.cwiseAbs().maxCoeff();
-      Y = (Y.array().abs() < cutoff).select(0.0, Y);
+      ComputeChainState(model, q, &state, &origins);
+      ComplianceValuesFor(model, state, model.gravity, y.data());
+      ZeroRoundingNoise(y.data(), P);
     } else {
-      JointErrorRegressor(model, kind, q, &Y);
+      JointErrorRegressorValues(model, kind, q, y.data());
     }
-    out += Y * Eigen::Map<const Eigen::VectorXd>(theta.data(), theta.size());
+    for (int j = 0; j < n; ++j) {
+      const int first = kind == JointErrorKind::kCompliance ? ComplianceLinkIndex(n, j, j)
+                                                            : kHarmonicsPerJoint * j;
+      const int last = kind == JointErrorKind::kCompliance ? CompliancePayloadIndex(n, j) + 1
+                                                           : first + kHarmonicsPerJoint;
+      double sum = 0;
+      for (int c = first; c < last; ++c) sum += y[c] * theta[c];
+      dq[j] += sum;
+    }
   }
 }
 
