@@ -906,6 +906,11 @@ JointSpaceRegressors BuildJointSpaceRegressors(const Parameterization& p,
       }
       y[b].resize(p.joint_blocks[b].term->num_parameters());
     }
+    std::vector<const double*> value_of(S);  // y's entry of each slot (y is not resized below)
+    for (int t = 0; t < S; ++t) {
+      const int b = block_of[t];
+      value_of[t] = y[b].data() + (regs.slot_column[t] - regs.column_offset[b]);
+    }
     Eigen::MatrixXd values(S, N);
     std::vector<Eigen::MatrixXd> Y(B);
     std::vector<char> used(S, 0);
@@ -932,6 +937,15 @@ JointSpaceRegressors BuildJointSpaceRegressors(const Parameterization& p,
         }
       }
       double* v = values.col(r).data();
+      bool all_values = true;
+      for (size_t b = 0; b < B; ++b) all_values = all_values && from_values[b];
+      if (all_values) {  // every block gave its entries: slot t reads value_of[t]
+        for (int t = 0; t < S; ++t) {
+          v[t] = *value_of[t];
+          used[t] |= v[t] != 0;
+        }
+        continue;
+      }
       for (int t = 0; t < S; ++t) {
         const int b = block_of[t];
         v[t] = from_values[b] ? y[b](regs.slot_column[t] - regs.column_offset[b])
