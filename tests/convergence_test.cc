@@ -9,6 +9,7 @@
 #include <random>
 #include <string>
 
+#include <Eigen/LU>
 #include <gtest/gtest.h>
 
 #include "lpoe/ceres_solver.h"
@@ -165,6 +166,28 @@ TEST(Convergence, StandardDeviationsOfAKnownProblem) {
   ConvergenceOptions bad;
   bad.step_tolerance = INFINITY;
   EXPECT_FALSE(ValidateConvergenceOptions(bad).empty());
+}
+
+// A dense, badly scaled H: the standard deviations (the diagonal of the inverse from the Cholesky
+// factor alone) equal those of the whole inverse.
+TEST(Convergence, StandardDeviationsOfADenseProblemEqualTheWholeInverses) {
+  std::mt19937 rng(5);
+  std::normal_distribution<double> normal;
+  const int rows = 120, P = 40;
+  Eigen::MatrixXd J(rows, P);
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < P; ++c) J(r, c) = normal(rng) * std::pow(10.0, (c % 7) - 3);
+  }
+  const Eigen::MatrixXd H = J.transpose() * J;
+  const double cost = 3.7;
+  const long dof = rows - P;
+  const Eigen::VectorXd sd = StandardDeviations(H, cost, dof);
+  ASSERT_EQ(sd.size(), P);
+  const Eigen::MatrixXd inverse = H.fullPivLu().inverse();
+  for (int k = 0; k < P; ++k) {
+    const double expected = std::sqrt(2.0 * cost / dof * inverse(k, k));
+    EXPECT_NEAR(sd(k), expected, 1e-9 * expected) << k;
+  }
 }
 
 }  // namespace

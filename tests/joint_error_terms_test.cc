@@ -37,6 +37,52 @@ TEST(JointErrorTerms, RegisteredAndSized) {
   }
 }
 
+// RegressorValues (what the solvers and the effective joint values read) are exactly the
+// regressor's entries at each parameter's joint, every other entry of Y is zero, and the
+// effective joint values from them equal Y theta.
+TEST(JointErrorTerms, RegressorValuesAreTheRegressorsEntriesAtTheirJoints) {
+  RobotModel m = MakeCobot6();
+  m.payload.mass = 1.5;
+  m.payload.com = Eigen::Vector3d(10, -5, 40);
+  m.gravity = Eigen::Vector3d(0.3, -0.2, -9.8);  // tilted: every joint feels a torque
+  const int n = m.num_joints();
+  const std::vector<std::vector<double>> configurations = {
+      {0.1, -0.4, 0.7, 0.2, -1.1, 0.5}, {0, 0, 0, 0, 0, 0}, {-2.9, 1.3, -2.2, 3.0, 0.01, -1.7}};
+  for (JointErrorKind kind : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
+    std::shared_ptr<const JointTerm> term;
+    ASSERT_TRUE(MakeJointTerm(JointErrorKindName(kind), m, &term).ok());
+    const int P = term->num_parameters();
+    Eigen::VectorXd theta(P);
+    for (int k = 0; k < P; ++k) theta(k) = 1e-5 * std::sin(1.0 + 0.7 * k);
+    for (const std::vector<double>& q : configurations) {
+      Eigen::MatrixXd Y(n, P);
+      term->Regressor(q.data(), Y.data());
+      Eigen::VectorXd y(P);
+      ASSERT_TRUE(term->RegressorValues(q.data(), y.data()));
+      int nonzero = 0;
+      for (int k = 0; k < P; ++k) {
+        const int j = term->ParameterJoint(k);
+        ASSERT_GE(j, 0);
+        EXPECT_EQ(y(k), Y(j, k)) << term->ParameterName(k);
+        nonzero += y(k) != 0;
+        for (int i = 0; i < n; ++i) {
+          if (i != j) {
+            EXPECT_EQ(Y(i, k), 0.0) << term->ParameterName(k) << " row " << i;
+          }
+        }
+      }
+      EXPECT_GE(nonzero, P / 2);  // not a vacuous comparison (sin q = 0 at q = 0)
+      JointTermValues values;
+      values.term = term;
+      values.theta = theta;
+      std::vector<double> q_eff(n);
+      EffectiveJointValues({values}, n, q.data(), q_eff.data());
+      const Eigen::VectorXd expected = Eigen::Map<const Eigen::VectorXd>(q.data(), n) + Y * theta;
+      for (int j = 0; j < n; ++j) EXPECT_NEAR(q_eff[j], expected(j), 1e-15) << "joint " << j;
+    }
+  }
+}
+
 struct Fixture {
   RobotModel nominal = MakeCobot6();
   MeasurementSet identification, verification;

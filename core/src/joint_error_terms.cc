@@ -45,6 +45,10 @@ class JointErrorTerm : public JointTerm {
     CHECK_EQ(m.cols(), num_parameters());
     Eigen::Map<Eigen::MatrixXd>(Y, m.rows(), m.cols()) = m;
   }
+  bool RegressorValues(const double* q, double* y) const override {
+    JointErrorRegressorValues(reference_, kind_, q, y);  // rounding noise already zero
+    return true;
+  }
   int ParameterJoint(int k) const override {
     CHECK_GE(k, 0);
     CHECK_LT(k, static_cast<int>(joint_of_.size()));

@@ -39,31 +39,73 @@ void ComputeChainState(const RobotModel& model, const double* q, ChainState* sta
   }
 }
 
-// The compliance regressor for gravity g (linear in g).
-void ComplianceRegressorFor(const RobotModel& model, const ChainState& state,
-                            const Eigen::Vector3d& g, Eigen::MatrixXd* Y) {
+// The compliance regressor's entries at their own joints for gravity g (linear in g): y[c] =
+// Y(j, c) for every parameter c of joint j (layout of NumComplianceParameters: joint j's links, then
+// its payload column); every other entry of Y is zero.
+void ComplianceValuesFor(const RobotModel& model, const ChainState& state, const Eigen::Vector3d& g,
+                         double* y) {
   const int n = model.num_joints();
-  Y->setZero(n, NumComplianceParameters(n));
   for (int j = 0; j < n; ++j) {
     const Eigen::Vector3d w = state.twist[j].head<3>();
     const Eigen::Vector3d v = state.twist[j].tail<3>();
     const double scale =
         model.joints[j].type == JointType::kRevolute ? kMetresPerMillimetre : 1.0;
     const Eigen::Vector3d gw = g.cross(w);
+    const double vg = v.dot(g);
     double a = 0;
     Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    for (int k = j; k < n; ++k) {
+    double* out = y + ComplianceLinkIndex(n, j, j);
+    for (int k = j; k < n; ++k, out += 4) {
       const SE3d& L = state.link[k];
-      a = scale * (gw.dot(L.t) + v.dot(g));
+      a = scale * (gw.dot(L.t) + vg);
       b = scale * (L.R.transpose() * gw);
-      const int c = ComplianceLinkIndex(n, j, k);
-      (*Y)(j, c) = a;
-      (*Y)(j, c + 1) = b(0);
-      (*Y)(j, c + 2) = b(1);
-      (*Y)(j, c + 3) = b(2);
+      out[0] = a;
+      out[1] = b(0);
+      out[2] = b(1);
+      out[3] = b(2);
     }
     // The payload sits on the last link: a and b are link n-1's.
-    (*Y)(j, CompliancePayloadIndex(n, j)) = model.payload.mass * (a + b.dot(model.payload.com));
+    *out = model.payload.mass * (a + b.dot(model.payload.com));
+  }
+}
+
+// The compliance regressor for gravity g (linear in g).
+void ComplianceRegressorFor(const RobotModel& model, const ChainState& state,
+                            const Eigen::Vector3d& g, Eigen::MatrixXd* Y) {
+  const int n = model.num_joints();
+  const int P = NumComplianceParameters(n);
+  thread_local std::vector<double> y;
+  y.resize(P);
+  ComplianceValuesFor(model, state, g, y.data());
+  Y->setZero(n, P);
+  for (int j = 0; j < n; ++j) {
+    for (int c = ComplianceLinkIndex(n, j, j); c <= CompliancePayloadIndex(n, j); ++c) {
+      (*Y)(j, c) = y[c];
+    }
+  }
+}
+
+// Joint j's 4 harmonic entries (zero for a prismatic joint).
+void HarmonicsValues(const RobotModel& model, const double* q, int j, double* out) {
+  if (model.joints[j].type != JointType::kRevolute) {
+    out[0] = out[1] = out[2] = out[3] = 0;
+    return;
+  }
+  double s1, c1;
+  SinCos(q[j], &s1, &c1);
+  out[0] = s1;
+  out[1] = c1;
+  out[2] = 2 * s1 * c1;       // sin 2q
+  out[3] = c1 * c1 - s1 * s1;  // cos 2q
+}
+
+// Entries below kJointErrorRoundingCutoff of the largest |y| set to exact zeros.
+void ZeroRoundingNoise(double* y, int size) {
+  double largest = 0;
+  for (int k = 0; k < size; ++k) largest = std::max(largest, std::abs(y[k]));
+  const double cutoff = kJointErrorRoundingCutoff * largest;
+  for (int k = 0; k < size; ++k) {
+    if (std::abs(y[k]) < cutoff) y[k] = 0.0;
   }
 }
 
@@ -319,15 +361,10 @@ void GravityTiltJointColumns(const Eigen::Vector3d& gravity,
 void HarmonicsRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y) {
   const int n = model.num_joints();
   Y->setZero(n, NumHarmonicsParameters(n));
+  double y[kHarmonicsPerJoint];
   for (int j = 0; j < n; ++j) {
-    if (model.joints[j].type != JointType::kRevolute) continue;
-    double s1, c1;
-    SinCos(q[j], &s1, &c1);
-    const int c = kHarmonicsPerJoint * j;
-    (*Y)(j, c) = s1;
-    (*Y)(j, c + 1) = c1;
-    (*Y)(j, c + 2) = 2 * s1 * c1;       // sin 2q
-    (*Y)(j, c + 3) = c1 * c1 - s1 * s1;  // cos 2q
+    HarmonicsValues(model, q, j, y);
+    for (int c = 0; c < kHarmonicsPerJoint; ++c) (*Y)(j, kHarmonicsPerJoint * j + c) = y[c];
   }
 }
 
@@ -345,28 +382,47 @@ void JointErrorRegressor(const RobotModel& model, JointErrorKind kind, const dou
   *Y = (Y->array().abs() < cutoff).select(0.0, *Y);
 }
 
+void JointErrorRegressorValues(const RobotModel& model, JointErrorKind kind, const double* q,
+                               double* y) {
+  if (kind == JointErrorKind::kCompliance) {
+    thread_local ChainState state;  // no allocation per call (solvers evaluate it for every row)
+    ComputeChainState(model, q, &state);
+    ComplianceValuesFor(model, state, model.gravity, y);
+  } else {
+    for (int j = 0; j < model.num_joints(); ++j) HarmonicsValues(model, q, j, y + kHarmonicsPerJoint * j);
+  }
+  ZeroRoundingNoise(y, NumJointErrorParameters(model.num_joints(), kind));
+}
+
 void JointErrorOffsets(const RobotModel& model, const double* q, double* dq) {
   const int n = model.num_joints();
-  Eigen::Map<Eigen::VectorXd> out(dq, n);
-  out.setZero();
+  for (int j = 0; j < n; ++j) dq[j] = 0;
   const std::vector<SE3d>& origins = model.joint_errors.regressor_origins;
-  ChainState state;
-  bool have_state = false;
-  Eigen::MatrixXd Y;
+  thread_local ChainState state;  // no allocation per call
+  thread_local std::vector<double> y;
   for (JointErrorKind kind : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
     const std::vector<double>& theta = JointErrorParameters(model, kind);
     if (theta.empty()) continue;
+    const int P = static_cast<int>(theta.size());
+    y.resize(P);
+    // The regressor's entries at their joints (every other entry of Y is zero).
     if (kind == JointErrorKind::kCompliance && !origins.empty()) {
       // On the stored reference geometry (the calibration's start model), as the solver did.
-      if (!have_state) ComputeChainState(model, q, &state, &origins);
-      have_state = true;
-      ComplianceRegressorFor(model, state, model.gravity, &Y);
-      const double cutoff = kJointErrorRoundingCutoff * Y.cwiseAbs().maxCoeff();
-      Y = (Y.array().abs() < cutoff).select(0.0, Y);
+      ComputeChainState(model, q, &state, &origins);
+      ComplianceValuesFor(model, state, model.gravity, y.data());
+      ZeroRoundingNoise(y.data(), P);
     } else {
-      JointErrorRegressor(model, kind, q, &Y);
+      JointErrorRegressorValues(model, kind, q, y.data());
     }
-    out += Y * Eigen::Map<const Eigen::VectorXd>(theta.data(), theta.size());
+    for (int j = 0; j < n; ++j) {
+      const int first = kind == JointErrorKind::kCompliance ? ComplianceLinkIndex(n, j, j)
+                                                            : kHarmonicsPerJoint * j;
+      const int last = kind == JointErrorKind::kCompliance ? CompliancePayloadIndex(n, j) + 1
+                                                           : first + kHarmonicsPerJoint;
+      double sum = 0;
+      for (int c = first; c < last; ++c) sum += y[c] * theta[c];
+      dq[j] += sum;
+    }
   }
 }
 

@@ -5,6 +5,7 @@
 #include <numeric>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <Eigen/SVD>
 #include <glog/logging.h>
 
@@ -197,14 +198,17 @@ void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& 
   JointBlock& block = p->joint_blocks[b];
   const int P = block.term->num_parameters();
   CHECK_EQ(basis.rows(), P);
-  // The left-out combinations: the orthogonal complement of the kept ones.
-  const Eigen::MatrixXd projector = Eigen::MatrixXd::Identity(P, P) - basis * basis.transpose();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(projector);
-  for (int k = 0; k < P; ++k) {
-    if (eig.eigenvalues()(k) < 0.5) continue;
-    Direction d = JointDirection(*p, b, eig.eigenvectors().col(k));
-    d.reason = reason;
-    p->unidentifiable.push_back(d);
+  // The left-out combinations: an orthonormal basis of the kept ones' complement, the last P - k
+  // columns of the Householder Q of the (orthonormal) basis (none when every parameter is kept).
+  const int k = static_cast<int>(basis.cols());
+  if (k < P) {
+    const Eigen::MatrixXd Q = k == 0 ? Eigen::MatrixXd::Identity(P, P)
+                                     : Eigen::MatrixXd(basis.householderQr().householderQ());
+    for (int c = k; c < P; ++c) {
+      Direction d = JointDirection(*p, b, Q.col(c));
+      d.reason = reason;
+      p->unidentifiable.push_back(d);
+    }
   }
   block.basis = basis;
   RenumberJointBlocks(p);

@@ -40,11 +40,23 @@ Eigen::VectorXd StandardDeviations(const Eigen::MatrixXd& H, double cost, long d
   const Eigen::MatrixXd Hs = d.asDiagonal() * H * d.asDiagonal();
   Eigen::LLT<Eigen::MatrixXd> llt(Hs);
   if (llt.info() != Eigen::Success) return {};
-  const Eigen::MatrixXd inv = llt.solve(Eigen::MatrixXd::Identity(H.rows(), H.cols()));
+  // diag(Hs^-1) only: Hs^-1 = L^-T L^-1, so (Hs^-1)_kk is the squared norm of column k of L^-1,
+  // L x = e_k solved forward from row k (x is zero above it): n^3 / 6 multiply-adds instead of the
+  // whole inverse's n^3.
+  const Eigen::Index n = H.rows();
+  const Eigen::MatrixXd& L = llt.matrixLLT();  // lower triangle
+  Eigen::VectorXd x(n);
   const double s2 = 2.0 * cost / static_cast<double>(dof);
-  Eigen::VectorXd sd(H.rows());
-  for (Eigen::Index k = 0; k < H.rows(); ++k) {
-    sd(k) = d(k) * std::sqrt(std::max(0.0, s2 * inv(k, k)));
+  Eigen::VectorXd sd(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    x.tail(n - k).setZero();
+    x(k) = 1.0;
+    for (Eigen::Index m = k; m < n; ++m) {
+      x(m) /= L(m, m);
+      const Eigen::Index rest = n - m - 1;
+      if (rest > 0) x.tail(rest) -= x(m) * L.col(m).tail(rest);
+    }
+    sd(k) = d(k) * std::sqrt(std::max(0.0, s2 * x.tail(n - k).squaredNorm()));
   }
   if (!sd.allFinite()) return {};
   return sd;

@@ -6,6 +6,7 @@
 #include <sstream>
 #include <vector>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <glog/logging.h>
@@ -27,10 +28,11 @@ Eigen::VectorXd ColumnScale(const Eigen::MatrixXd& H) {
   return d;
 }
 
-Identifiability Analyze(const Eigen::MatrixXd& H) {
+Identifiability Analyze(const Eigen::MatrixXd& H, bool weakest) {
   const Eigen::VectorXd d = ColumnScale(H);
   const Eigen::MatrixXd Hs = d.asDiagonal() * H * d.asDiagonal();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Hs);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(
+      Hs, weakest ? Eigen::ComputeEigenvectors : Eigen::EigenvaluesOnly);
   Identifiability out;
   out.condition = std::numeric_limits<double>::infinity();
   const int P = static_cast<int>(H.rows());
@@ -44,7 +46,7 @@ Identifiability Analyze(const Eigen::MatrixXd& H) {
   for (int k = 0; k < P; ++k) out.rank += out.singular_values(k) > tol;
   const double smin = out.singular_values(P - 1);
   out.condition = smin > 0 ? smax / smin : std::numeric_limits<double>::infinity();
-  out.weakest = eig.eigenvectors().col(0);
+  if (weakest) out.weakest = eig.eigenvectors().col(0);
   return out;
 }
 
@@ -94,15 +96,29 @@ std::vector<Eigen::MatrixXd> JointBlockBases(const Eigen::MatrixXd& H, const Par
     const int P = block.term->num_parameters();
     const Eigen::MatrixXd Hkb = kept_transpose_times(H.middleCols(block.offset, P));
     const Eigen::MatrixXd Hbb = H.block(block.offset, block.offset, P, P);
-    // Pseudo-inverse of the (column-scaled) kept block.
+    // Schur complement S = Hbb - Hkb^T Hkk^+ Hkb with the (column-scaled) kept block's
+    // pseudo-inverse. The kept block is well conditioned by construction (identifiable frames and
+    // kept combinations): then its Cholesky factor L gives the same S from Z = L^-1 Hkb; the
+    // eigenproblem (the pseudo-inverse proper) only when the factorization fails or its
+    // reciprocal condition estimate is below 1e-10, where eigenvalues under 1e-14 of the largest
+    // might be dropped.
     const Eigen::VectorXd dk = ColumnScale(Hkk);
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ek(dk.asDiagonal() * Hkk * dk.asDiagonal());
-    const double kmax = ek.eigenvalues().size() > 0 ? ek.eigenvalues().maxCoeff() : 0.0;
-    Eigen::VectorXd inv = ek.eigenvalues();
-    for (int k = 0; k < inv.size(); ++k) inv(k) = inv(k) > 1e-14 * kmax ? 1.0 / inv(k) : 0.0;
-    const Eigen::MatrixXd W = ek.eigenvectors().transpose() * (dk.asDiagonal() * Hkb);
-    const Eigen::MatrixXd S =
-        Hbb - W.transpose() * inv.asDiagonal() * W;  // Schur complement
+    const Eigen::MatrixXd Hks = dk.asDiagonal() * Hkk * dk.asDiagonal();
+    const Eigen::MatrixXd Hkb_s = dk.asDiagonal() * Hkb;
+    Eigen::MatrixXd S;
+    const Eigen::LLT<Eigen::MatrixXd> lk(Hks);
+    if (Hks.rows() > 0 && lk.info() == Eigen::Success && lk.rcond() > 1e-10) {
+      const Eigen::MatrixXd Z = lk.matrixL().solve(Hkb_s);
+      S = Hbb;
+      S.noalias() -= Z.transpose() * Z;
+    } else {
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ek(Hks);
+      const double kmax = ek.eigenvalues().size() > 0 ? ek.eigenvalues().maxCoeff() : 0.0;
+      Eigen::VectorXd inv = ek.eigenvalues();
+      for (int k = 0; k < inv.size(); ++k) inv(k) = inv(k) > 1e-14 * kmax ? 1.0 / inv(k) : 0.0;
+      const Eigen::MatrixXd W = ek.eigenvectors().transpose() * Hkb_s;
+      S = Hbb - W.transpose() * inv.asDiagonal() * W;
+    }
     const Eigen::VectorXd db = ColumnScale(Hbb);
     // Parameters that move nothing at these rows (a zero column, e.g. the gravity torque about a
     // vertical axis) have a zero row and column in S: they are left out of the eigenproblem, whose

@@ -31,8 +31,9 @@ struct Identifiability {
 };
 
 // Numerical rank (relative 1e-8 on singular values, i.e. sqrt(eps) on J^T J) and condition number
-// of the column-scaled Jacobian, from H = J^T J.
-Identifiability Analyze(const Eigen::MatrixXd& H);
+// of the column-scaled Jacobian, from H = J^T J. `weakest` false: the eigenvalues only (about a
+// third of the work), Identifiability::weakest left empty.
+Identifiability Analyze(const Eigen::MatrixXd& H, bool weakest = true);
 
 // The (up to) three parameter names carrying most of `v`.
 std::string WeakestDirections(const Parameterization& p, const Eigen::VectorXd& v);

@@ -262,21 +262,23 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   // Identifiability in the calibrated directions, at the nominal model. For the full
   // parameterization this is analyzed in the identifiable basis (the full J^T J is singular by
   // construction).
-  auto analyze = [&](const RobotModel& at, const Linearization& l) {
-    if (!full) return Analyze(l.H);
+  auto analyze = [&](const RobotModel& at, const Linearization& l, bool weakest) {
+    if (!full) return Analyze(l.H, weakest);
     Parameterization pi = MakeParameterization(at, ParameterizationKind::kIdentifiable, kind);
     internal::LeaveOutStructurallyUnidentifiable(structure, data, options.use_orientation,
                                                  options.orientation_weight, &pi);
     CopyJointBlocks(p, &pi);
     internal::LeaveOutUnmeasuredTools(at, data, &pi);
-    return Analyze(Linearize(at, joint_state, data, pi, options, false).H);
+    return Analyze(Linearize(at, joint_state, data, pi, options, false).H, weakest);
   };
   {
-    const Identifiability id = analyze(model, lin);
+    // The eigenvalues decide; the weakest direction is computed only for the refusal's message.
+    Identifiability id = analyze(model, lin, false);
     result.rank = id.rank;
     result.condition_number = id.condition;
     result.singular_values = id.singular_values;
     if (id.rank < identifiable || !(id.condition <= options.max_condition_number)) {
+      id = analyze(model, lin, true);
       Parameterization pi = p;
       if (full) {
         pi = MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind);

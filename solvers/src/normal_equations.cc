@@ -536,10 +536,9 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
 // Per-chunk sums of the structured path: the frames' block as in the dense path, the frames x slots
 // block, W with W + W^T the slots' block, and the slots' gradient.
 struct SlotSums {
-  Eigen::MatrixXd H;    // F x F, lower triangle
+  Eigen::MatrixXd H;    // lower triangle; F x F, or (F + S) x (F + S) with the joint blocks (the
+                        // frames' and the slots' columns: H_ff, H_sf and W)
   Eigen::VectorXd g;    // F
-  Eigen::MatrixXd Hfs;  // F x S
-  Eigen::MatrixXd W;    // S x S
   Eigen::VectorXd gs;   // S
   double cost = 0;
   double max_error = 0;
@@ -547,17 +546,15 @@ struct SlotSums {
 };
 
 struct SlotScratch {
-  Eigen::MatrixXd A;   // m * kBlockPoses x P: frame rows in the first F columns (the measurement
-                       // kinds may touch all P, see PoseMeasurement::Linearize)
+  Eigen::MatrixXd A;   // m * kBlockPoses x max(P, F + S): frame rows in the first F columns (the
+                       // measurement kinds may touch all P, see PoseMeasurement::Linearize), then
+                       // with the joint blocks the rows in slot coordinates (S columns)
   Eigen::VectorXd Y;   // m * kBlockPoses residuals
   std::vector<FrameRt> frames;
   Eigen::MatrixXd J_q;     // m x n
   Eigen::VectorXd q_eff;   // n
   Eigen::VectorXd h;       // n: J_q^T y
   Eigen::MatrixXd V;       // S x kBlockPoses: slot values (when not stored)
-  Eigen::MatrixXd G;       // F x (n kBlockPoses): J_frames^T J_q of each pose, n columns a pose
-  Eigen::MatrixXd Mp;      // n (n + 1) / 2 x kBlockPoses: (J_q^T J_q)(j, k), j <= k, per pose
-  Eigen::MatrixXd scaled;  // slots of one joint x kBlockPoses
   Eigen::MatrixXd term_Y;  // one block's regressor
 };
 
@@ -571,9 +568,22 @@ void EvaluateSlots(const Parameterization& p, const JointSpaceRegressors& regs, 
   }
   for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
     const JointTerm& term = *p.joint_blocks[b].term;
+    const int first = regs.column_offset[b], last = regs.column_offset[b + 1];
+    // The entries at each parameter's joint alone when the term gives them (RegressorValues).
+    bool single_joint = true;
+    for (int k = 0; k < term.num_parameters() && single_joint; ++k) {
+      single_joint = term.ParameterJoint(k) >= 0;
+    }
+    term_Y->resize(term.num_parameters(), 1);
+    if (single_joint && term.RegressorValues(q, term_Y->data())) {
+      for (int t = 0; t < regs.num_slots(); ++t) {
+        const int c = regs.slot_column[t];
+        if (c >= first && c < last) v[t] = (*term_Y)(c - first);
+      }
+      continue;
+    }
     term_Y->resize(n, term.num_parameters());
     term.Regressor(q, term_Y->data());
-    const int first = regs.column_offset[b], last = regs.column_offset[b + 1];
     for (int j = 0; j < n; ++j) {
       for (int t = regs.slot_begin[j]; t < regs.slot_begin[j + 1]; ++t) {
         const int c = regs.slot_column[t];
@@ -632,12 +642,15 @@ void AccumulateSlots(const Kind& kind, const BasisJacobian& bj, const Parameteri
         for (int t = regs.slot_begin[j]; t < regs.slot_begin[j + 1]; ++t) sums->gs(t) += v[t] * hj;
       }
       if (blocks) {
-        const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Jf(
-            Jr, m, F, Eigen::OuterStride<>(ld));
-        s->G.middleCols(static_cast<Eigen::Index>(k) * n, n).noalias() = Jf.transpose() * s->J_q;
-        int pair = 0;
+        // The pose's rows in slot coordinates, after its frame columns: column F + t holds
+        // J_q col j * v[t] for slot t of joint j (the dense rows' column of slot_column[t]).
         for (int j = 0; j < n; ++j) {
-          for (int i = j; i < n; ++i) s->Mp(pair++, k) = s->J_q.col(j).dot(s->J_q.col(i));
+          const double* jq = s->J_q.col(j).data();
+          for (int t = regs.slot_begin[j]; t < regs.slot_begin[j + 1]; ++t) {
+            double* u = A + static_cast<std::ptrdiff_t>(F + t) * ld + m * k;
+            const double vt = v[t];
+            for (int c = 0; c < m; ++c) u[c] = jq[c] * vt;
+          }
         }
       }
       double y_sq = 0;
@@ -647,35 +660,30 @@ void AccumulateSlots(const Kind& kind, const BasisJacobian& bj, const Parameteri
       sums->sum_error += e;
     }
     const int rows = m * count;
-    SyrkLowerColumns(s->A, rows, F, &sums->H);
+    // With the joint blocks one product gives H_ff, H_sf and W = sum of the slot columns' outer
+    // products (the frames' kernel on F + S columns): W's pairs of joints j, i are
+    // V_j diag((J_q^T J_q)_ji) V_i^T over the poses, formed here from the factor J_q instead.
+    SyrkLowerColumns(s->A, rows, blocks ? F + S : F, &sums->H);
     sums->g.noalias() += s->A.topLeftCorner(rows, F).transpose() * s->Y.head(rows);
-    if (!blocks || S == 0) continue;
-    // Block of poses: per joint pair, the slots' values times (J_q^T J_q)(j, i) over the poses:
-    // W_ji += V_j diag(M_ji) V_i^T (half on the diagonal blocks), and the frames x slots block
-    // Hfs_j += [J_frames^T J_q col j of each pose] V_j^T: products with `count` inner terms.
-    const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> V(
-        stored ? regs.values.col(r0).data() : s->V.data(), S, count,
-        Eigen::OuterStride<>(stored ? regs.values.rows() : s->V.rows()));
-    int pair = 0;
-    for (int j = 0; j < n; ++j) {
-      const int sj = regs.slot_begin[j], pj = regs.slot_begin[j + 1] - sj;
-      if (pj > 0) {
-        const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Gj(
-            s->G.data() + static_cast<std::ptrdiff_t>(j) * F, F, count,
-            Eigen::OuterStride<>(static_cast<Eigen::Index>(n) * F));
-        sums->Hfs.middleCols(sj, pj).noalias() += Gj * V.middleRows(sj, pj).transpose();
+  }
+}
+
+// Whether T only selects columns: every row zero but for at most one entry equal to 1. `column`:
+// that entry's column per row, -1 for a zero row (left empty when T does more than select).
+bool SlotSelection(const Eigen::MatrixXd& T, std::vector<int>* column) {
+  column->assign(T.rows(), -1);
+  for (Eigen::Index c = 0; c < T.cols(); ++c) {
+    for (Eigen::Index r = 0; r < T.rows(); ++r) {
+      const double x = T(r, c);
+      if (x == 0) continue;
+      if (x != 1 || (*column)[r] >= 0) {
+        column->clear();
+        return false;
       }
-      for (int i = j; i < n; ++i, ++pair) {
-        const int si = regs.slot_begin[i], pi = regs.slot_begin[i + 1] - si;
-        if (pj == 0 || pi == 0) continue;
-        const double half = i == j ? 0.5 : 1.0;
-        auto scaled = s->scaled.topLeftCorner(pi, count);
-        scaled.noalias() =
-            V.middleRows(si, pi) * (half * s->Mp.row(pair).head(count).transpose()).asDiagonal();
-        sums->W.block(sj, si, pj, pi).noalias() += V.middleRows(sj, pj) * scaled.transpose();
-      }
+      (*column)[r] = static_cast<int>(c);
     }
   }
+  return true;
 }
 
 template <typename Kind>
@@ -695,6 +703,7 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
   CHECK_EQ(regs.slot_basis.cols(), K);
   CHECK(regs.values.size() == 0 || regs.values.cols() == N) << "regressors of other data";
   const bool blocks = !gradient_only;
+  const int FS = blocks ? F + S : F;  // SlotSums::H
   NormalEquations lin;
   lin.H.setZero(P, P);
   lin.g.setZero(P);
@@ -704,65 +713,68 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
   Eigen::VectorXd theta_slots;
   if (joint_state.size() > 0) theta_slots = regs.slot_basis * joint_state;
 
-  int max_slots = 0;
-  for (int j = 0; j < n; ++j) max_slots = std::max(max_slots, regs.slot_begin[j + 1] - regs.slot_begin[j]);
   const RowChunks chunks = PartitionRows(N, kMinChunkPoses, kMaxChunks);
   std::vector<SlotSums> sums(chunks.chunks);
   const int threads = N < kMinPosesForThreads ? 1 : ThreadsFor(chunks.chunks);
   std::vector<SlotScratch> scratch(threads);
   for (SlotScratch& s : scratch) {
-    s.A.resize(static_cast<Eigen::Index>(m) * kBlockPoses, P);
+    s.A.resize(static_cast<Eigen::Index>(m) * kBlockPoses, blocks ? std::max(P, F + S) : P);
     s.Y.resize(static_cast<Eigen::Index>(m) * kBlockPoses);
     s.frames.resize(n + 1);
     s.J_q.resize(m, n);
     s.q_eff.resize(n);
     s.h.resize(n);
     if (regs.values.size() == 0) s.V.resize(S, kBlockPoses);
-    if (blocks) {
-      s.G.resize(F, static_cast<Eigen::Index>(n) * kBlockPoses);
-      s.Mp.resize(n * (n + 1) / 2, kBlockPoses);
-      s.scaled.resize(max_slots, kBlockPoses);
-    }
   }
   ForEachTask(chunks.chunks, threads, [&](int c, int thread) {
     SlotSums& cs = sums[c];
-    cs.H.setZero(F, F);
+    cs.H.setZero(FS, FS);
     cs.g.setZero(F);
     cs.gs.setZero(S);
-    if (blocks) {
-      cs.Hfs.setZero(F, S);
-      cs.W.setZero(S, S);
-    }
     AccumulateSlots(kind, bj, p, theta_slots, regs, blocks, data, chunks.begin(c), chunks.end(c),
                     &scratch[thread], &cs);
   });
-  Eigen::MatrixXd Hff = Eigen::MatrixXd::Zero(F, F);
+  Eigen::MatrixXd Hall = Eigen::MatrixXd::Zero(FS, FS);
   Eigen::VectorXd gs = Eigen::VectorXd::Zero(S);
-  Eigen::MatrixXd Hfs, W;
-  if (blocks) {
-    Hfs.setZero(F, S);
-    W.setZero(S, S);
-  }
   double sum_error = 0;
   for (const SlotSums& cs : sums) {
-    Hff += cs.H;
+    Hall += cs.H;
     lin.g.head(F) += cs.g;
     gs += cs.gs;
-    if (blocks) {
-      Hfs += cs.Hfs;
-      W += cs.W;
-    }
     lin.cost += cs.cost;
     lin.max_error = std::max(lin.max_error, cs.max_error);
     sum_error += cs.sum_error;
   }
-  Hff.triangularView<Eigen::StrictlyUpper>() = Hff.transpose();
-  lin.H.topLeftCorner(F, F) = Hff;
+  Hall.triangularView<Eigen::StrictlyUpper>() = Hall.transpose();
+  lin.H.topLeftCorner(F, F) = Hall.topLeftCorner(F, F);
   const Eigen::MatrixXd& T = regs.slot_basis;
-  lin.g.tail(K).noalias() = T.transpose() * gs;
-  if (blocks) {
-    const Eigen::MatrixXd Wsym = W + W.transpose();
-    lin.H.topRightCorner(F, K).noalias() = Hfs * T;
+  std::vector<int> selected;
+  const bool select = SlotSelection(T, &selected);
+  if (select) {
+    // Every block with the identity basis (the reduction's analysis): T only picks each slot's
+    // column, so the products below are sums of the slots' entries (the same numbers exactly).
+    for (int t = 0; t < S; ++t) {
+      const int k = selected[t];
+      if (k < 0) continue;
+      lin.g(F + k) += gs(t);
+      if (!blocks) continue;
+      lin.H.col(F + k).head(F) += Hall.col(F + t).head(F);
+      for (int u = 0; u < S; ++u) {
+        if (selected[u] >= 0) lin.H(F + selected[u], F + k) += Hall(F + u, F + t);
+      }
+    }
+    if (blocks) {
+      lin.H.bottomLeftCorner(K, F) = lin.H.topRightCorner(F, K).transpose();
+      // Exactly symmetric (a column picked by several slots sums them in another order).
+      Eigen::MatrixXd Hkk = lin.H.bottomRightCorner(K, K);
+      lin.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
+    }
+  } else {
+    lin.g.tail(K).noalias() = T.transpose() * gs;
+  }
+  if (blocks && !select) {
+    const Eigen::MatrixXd Wsym = Hall.bottomRightCorner(S, S);
+    lin.H.topRightCorner(F, K).noalias() = Hall.topRightCorner(F, S) * T;
     lin.H.bottomLeftCorner(K, F) = lin.H.topRightCorner(F, K).transpose();
     const Eigen::MatrixXd WT = Wsym * T;
     lin.H.bottomRightCorner(K, K).noalias() = T.transpose() * WT;
@@ -883,13 +895,31 @@ JointSpaceRegressors BuildJointSpaceRegressors(const Parameterization& p,
         source[t] = (c - regs.column_offset[b]) * n + j;
       }
     }
+    // A block whose every parameter moves one joint may give those entries alone
+    // (JointTerm::RegressorValues): slot t then reads entry slot_column[t] - column_offset[b].
+    const size_t B = p.joint_blocks.size();
+    std::vector<char> single_joint(B, 1), from_values(B, 0);
+    std::vector<Eigen::VectorXd> y(B);
+    for (size_t b = 0; b < B; ++b) {
+      for (int c = regs.column_offset[b]; c < regs.column_offset[b + 1]; ++c) {
+        if (joint_of[c] < 0) single_joint[b] = 0;
+      }
+      y[b].resize(p.joint_blocks[b].term->num_parameters());
+    }
+    std::vector<const double*> value_of(S);  // y's entry of each slot (y is not resized below)
+    for (int t = 0; t < S; ++t) {
+      const int b = block_of[t];
+      value_of[t] = y[b].data() + (regs.slot_column[t] - regs.column_offset[b]);
+    }
     Eigen::MatrixXd values(S, N);
-    std::vector<Eigen::MatrixXd> Y(p.joint_blocks.size());
+    std::vector<Eigen::MatrixXd> Y(B);
     std::vector<char> used(S, 0);
     for (int r = 0; r < N; ++r) {
       const double* q = data.q(r);
-      for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
+      for (size_t b = 0; b < B; ++b) {
         const JointTerm& term = *p.joint_blocks[b].term;
+        from_values[b] = single_joint[b] && term.RegressorValues(q, y[b].data());
+        if (from_values[b]) continue;
         Y[b].resize(n, term.num_parameters());
         term.Regressor(q, Y[b].data());
         // A column that moves only its declared joint sums (exactly: the others add zeros) to that
@@ -907,8 +937,19 @@ JointSpaceRegressors BuildJointSpaceRegressors(const Parameterization& p,
         }
       }
       double* v = values.col(r).data();
+      bool all_values = true;
+      for (size_t b = 0; b < B; ++b) all_values = all_values && from_values[b];
+      if (all_values) {  // every block gave its entries: slot t reads value_of[t]
+        for (int t = 0; t < S; ++t) {
+          v[t] = *value_of[t];
+          used[t] |= v[t] != 0;
+        }
+        continue;
+      }
       for (int t = 0; t < S; ++t) {
-        v[t] = Y[block_of[t]].data()[source[t]];
+        const int b = block_of[t];
+        v[t] = from_values[b] ? y[b](regs.slot_column[t] - regs.column_offset[b])
+                              : Y[b].data()[source[t]];
         used[t] |= v[t] != 0;
       }
     }

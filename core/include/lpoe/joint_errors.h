@@ -98,6 +98,11 @@ constexpr double kJointErrorRoundingCutoff = 1e-10;
 // The term's regressor on the model's own geometry, rounding noise set to zero.
 void JointErrorRegressor(const RobotModel& model, JointErrorKind kind, const double* q,
                          Eigen::MatrixXd* Y);
+// The same regressor's only entries that can be non-zero: y[k] = Y(joint of parameter k, k) for
+// k < NumJointErrorParameters (every other entry of Y is zero), equal to JointErrorRegressor's
+// without forming the num_joints x P matrix (what the solvers evaluate for every row).
+void JointErrorRegressorValues(const RobotModel& model, JointErrorKind kind, const double* q,
+                               double* y);
 
 // The joint offsets dq (num_joints) of every term the model carries, at commanded joints q. The
 // compliance regressor is evaluated on model.joint_errors.regressor_origins when given.

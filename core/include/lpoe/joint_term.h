@@ -53,6 +53,15 @@ class JointTerm {
     (void)k;
     return -1;
   }
+  // Optional fast path for a term whose every parameter moves one joint (ParameterJoint(k) >= 0 for
+  // every k): y[k] = Y(ParameterJoint(k), k) at `q` (num_parameters() values), the only entries of Y
+  // that can be non-zero, exactly equal to Regressor's. The solvers then read these instead of
+  // forming Y for every row. Returns false (the default) when the term does not provide it.
+  virtual bool RegressorValues(const double* q, double* y) const {
+    (void)q;
+    (void)y;
+    return false;
+  }
 };
 
 // A term with identified values.
