@@ -10,7 +10,7 @@ bash scripts/setup.sh
 gen=(); [ -f build-test/CMakeCache.txt ] || gen=(-G Ninja)
 cmake "${gen[@]}" -S . -B build-test -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=ON -DLPOE_BUILD_BENCHMARKS=ON \
   -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld -DCMAKE_SHARED_LINKER_FLAGS=-fuse-ld=lld \
-  -DCMAKE_MODULE_LINKER_FLAGS=-fuse-ld=lld >/dev/null
+  -DCMAKE_MODULE_LINKER_FLAGS=-fuse-ld=lld -DLPOE_PRECOMPILED_HEADERS=ON >/dev/null
 cmake --build build-test -j2
 ctest --test-dir build-test --output-on-failure -j2 --timeout 600
 bash scripts/fuzz.sh 45
