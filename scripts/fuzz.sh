@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (fuzz/) with clang in build-fuzz and runs each for the given number of
-# seconds (default 60): fuzz_csv (measurements CSV), fuzz_yaml (robot model YAML), fuzz_urdf (robot
+# Builds the libFuzzer targets (fuzz/) with clang in build-fuzz and runs them side by side for the given
+# number of seconds (default 60): fuzz_csv (measurements CSV), fuzz_yaml (robot model YAML), fuzz_urdf (robot
 # model URDF). Each run starts from a copy of the committed seed corpus fuzz/corpus/<kind>/ in
 # build-fuzz/corpus/ (the committed corpus is never modified). Fails on any crash, sanitizer report,
 # leak, timeout (> 10 s per input) or out-of-memory (> 2048 MB); the reproducer is left in
@@ -31,6 +31,9 @@ cmake --build "$build" -j2 --target lpoe_fuzz
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 failed=()
+# The three targets run at the same time (they share the machine's cores; with 2 cores each gets
+# about two thirds of one, so `seconds` of wall time is about 2/3 * seconds of fuzzing per target).
+declare -A pids
 for kind in csv yaml urdf; do
   target="fuzz_$kind"
   exe="$build/fuzz/$target"
@@ -45,11 +48,18 @@ for kind in csv yaml urdf; do
   mkdir -p "$work" "$artifacts" "$(dirname "$log")"
   cp -f fuzz/corpus/"$kind"/* "$work"/
   echo "fuzz: $target for ${seconds}s (corpus $work, log $log)"
-  if "$exe" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=8192 \
-      -dict="fuzz/$kind.dict" -artifact_prefix="$artifacts" -print_final_stats=1 \
-      "$work" >"$log" 2>&1; then
-    grep -E '^stat::number_of_executed_units|^stat::new_units_added|^Done ' "$log" | tr '\n' ' ' \
-      | sed 's/^/  /'; echo
+  "$exe" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=8192 \
+    -dict="fuzz/$kind.dict" -artifact_prefix="$artifacts" -print_final_stats=1 \
+    "$work" >"$log" 2>&1 &
+  pids[$kind]=$!
+done
+for kind in csv yaml urdf; do
+  [ -n "${pids[$kind]:-}" ] || continue
+  target="fuzz_$kind"
+  log="$build/logs/$target.log"
+  if wait "${pids[$kind]}"; then
+    echo -n "fuzz: $target: "
+    grep -E '^stat::number_of_executed_units|^stat::new_units_added|^Done ' "$log" | tr '\n' ' '; echo
   else
     echo "fuzz: $target FAILED; last lines of $log:" >&2
     tail -n 60 "$log" >&2

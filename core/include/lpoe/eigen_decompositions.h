@@ -18,3 +18,10 @@ extern template class Eigen::JacobiSVD<Eigen::MatrixXd>;
 extern template class Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>;
 extern template class Eigen::ColPivHouseholderQR<Eigen::MatrixXd>;
 extern template class Eigen::HouseholderQR<Eigen::MatrixXd>;
+// `extern template class` does not reach member templates: SelfAdjointEigenSolver's compute() is
+// one (templated on the input's type), and it holds the expensive part (the tridiagonalization and
+// the Householder back-transformation). Declared here for the input type every caller uses, a
+// plain MatrixXd (including the constructor's call of it).
+extern template Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>&
+Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>::compute<Eigen::MatrixXd>(
+    const Eigen::EigenBase<Eigen::MatrixXd>&, int);
