@@ -39,6 +39,17 @@ constexpr double kMinPull = 1.0 / 64;
 // pull, so a slowly decaying damping made the error fall by only 10 per iteration.
 constexpr double kGoodModel = 0.75;
 
+#if defined(__GNUC__) && defined(__x86_64__)
+// AVX code (the sweep, the 6 x 6 LU, the Gram matrix, the sin/cos updates) is compiled for AVX
+// alone and chosen at run time; multiplications and additions stay separate (no FMA), in the
+// scalar code's order, so both give the same bits.
+#define LPOE_IK_AVX 1
+bool HaveAvx() {
+  static const bool have = __builtin_cpu_supports("avx");
+  return have;
+}
+#endif
+
 // sin(d), cos(d) for |d| <= kIncrementalStep: Taylor series to d^13 and d^14.
 inline void SinCosSmall(double d, double* s, double* c) {
   const double d2 = d * d;
@@ -59,6 +70,42 @@ inline void SinCosStep(double d, double* s, double* c) {
   }
   SinCosSmall(d, s, c);
 }
+
+#if defined(__SSE2__)
+// SinCosStep of d[0..5] into s, c, two lanes at a time in SSE2 registers: the short series in every
+// lane, the long one only for a pair with a lane at d^2 >= 1e-4, each lane taking the series the
+// scalar code takes, with the scalar code's operations in its order, so its bits.
+inline void SinCosStep6(const double* d_in, double* s_out, double* c_out) {
+  static constexpr double kSinLong[] = {1.0 / 6227020800.0, -1.0 / 39916800, 1.0 / 362880,
+                                        -1.0 / 5040, 1.0 / 120, -1.0 / 6, 1};
+  static constexpr double kCosLong[] = {-1.0 / 87178291200.0, 1.0 / 479001600, -1.0 / 3628800,
+                                        1.0 / 40320, -1.0 / 720, 1.0 / 24, -0.5, 1};
+  static constexpr double kSinShort[] = {-1.0 / 5040, 1.0 / 120, -1.0 / 6, 1};
+  static constexpr double kCosShort[] = {1.0 / 40320, -1.0 / 720, 1.0 / 24, -0.5, 1};
+  // Horner's rule, highest degree first.
+  auto horner = [](__m128d d2, const double* a, int count) {
+    __m128d p = _mm_set1_pd(a[0]);
+    for (int k = 1; k < count; ++k) p = _mm_add_pd(_mm_set1_pd(a[k]), _mm_mul_pd(d2, p));
+    return p;
+  };
+#pragma GCC unroll 3
+  for (int h = 0; h < 6; h += 2) {
+    const __m128d d = _mm_loadu_pd(d_in + h);
+    const __m128d d2 = _mm_mul_pd(d, d);
+    __m128d s = _mm_mul_pd(d, horner(d2, kSinShort, 4));
+    __m128d c = horner(d2, kCosShort, 5);
+    const __m128d long_lane = _mm_cmpnlt_pd(d2, _mm_set1_pd(1e-4));  // !(d2 < 1e-4), as scalar
+    if (_mm_movemask_pd(long_lane) != 0) {
+      const __m128d s_long = _mm_mul_pd(d, horner(d2, kSinLong, 7));
+      const __m128d c_long = horner(d2, kCosLong, 8);
+      s = _mm_or_pd(_mm_and_pd(long_lane, s_long), _mm_andnot_pd(long_lane, s));
+      c = _mm_or_pd(_mm_and_pd(long_lane, c_long), _mm_andnot_pd(long_lane, c));
+    }
+    _mm_storeu_pd(s_out + h, s);
+    _mm_storeu_pd(c_out + h, c);
+  }
+}
+#endif
 
 // sin and cos of x[j] for the `count` joints j in idx, into s[j] and c[j]: gathered into one
 // SinCosMany call (four values per polynomial evaluation where the processor has AVX2 and FMA; each
@@ -202,6 +249,128 @@ class SquareLu {
   bool ok_ = true;
 };
 
+// The 6 x 6 case (both paths' Newton steps): columns stored 8 apart (two AVX registers each, rows
+// 6-7 zero), the elimination's column updates in AVX where the processor has it (with the
+// multipliers of rows <= k zeroed, so those rows are unchanged: the same values as the scalar
+// loop), and the pivots' reciprocals kept for the back substitution (a multiplication instead of a
+// division on its serial chain).
+template <>
+class SquareLu<6> {
+ public:
+  SquareLu(const double* A_in, double tiny) {
+#ifdef LPOE_IK_AVX
+    if (HaveAvx()) {
+      ok_ = FactorAvx(A_in, tiny);
+      return;
+    }
+#endif
+    ok_ = FactorScalar(A_in, tiny);
+  }
+  bool Ok() const { return ok_; }
+  // d = A^-1 b (d may alias b).
+  void Solve(const double* b_in, double* d) const {
+    double b[6];
+    for (int k = 0; k < 6; ++k) b[k] = b_in[k];
+#pragma GCC unroll 6
+    for (int k = 0; k < 6; ++k) {
+      std::swap(b[pivot_[k]], b[k]);
+#pragma GCC unroll 6
+      for (int i = k + 1; i < 6; ++i) b[i] -= A_[8 * k + i] * b[k];
+    }
+#pragma GCC unroll 6
+    for (int i = 5; i >= 0; --i) {
+      double v = b[i];
+#pragma GCC unroll 6
+      for (int c = i + 1; c < 6; ++c) v -= A_[8 * c + i] * b[c];
+      b[i] = v * inv_[i];
+    }
+    for (int k = 0; k < 6; ++k) d[k] = b[k];
+  }
+
+ private:
+  // Partial pivoting on column k: the pivot row p (rows k..5), swapped with row k in columns k..5
+  // (the multipliers of earlier columns stay where they were); false when the pivot is below tiny.
+  bool Pivot(int k, double tiny) {
+    int p = k;
+    double best = std::abs(A_[8 * k + k]);
+#pragma GCC unroll 6
+    for (int i = k + 1; i < 6; ++i) {
+      const double v = std::abs(A_[8 * k + i]);
+      if (v > best) {
+        best = v;
+        p = i;
+      }
+    }
+    pivot_[k] = p;
+    if (!(best > tiny)) return false;
+    if (p != k) {
+#pragma GCC unroll 6
+      for (int c = k; c < 6; ++c) std::swap(A_[8 * c + p], A_[8 * c + k]);
+    }
+    inv_[k] = 1 / A_[8 * k + k];
+    return true;
+  }
+  bool FactorScalar(const double* A_in, double tiny) {
+    for (int c = 0; c < 6; ++c) {
+      for (int r = 0; r < 6; ++r) A_[8 * c + r] = A_in[6 * c + r];
+      A_[8 * c + 6] = A_[8 * c + 7] = 0;
+    }
+#pragma GCC unroll 6
+    for (int k = 0; k < 6; ++k) {
+      if (!Pivot(k, tiny)) return false;
+      const double inv = inv_[k];
+#pragma GCC unroll 6
+      for (int i = k + 1; i < 6; ++i) A_[8 * k + i] *= inv;  // the multipliers
+#pragma GCC unroll 6
+      for (int c = k + 1; c < 6; ++c) {
+        const double a = A_[8 * c + k];
+#pragma GCC unroll 6
+        for (int i = k + 1; i < 6; ++i) A_[8 * c + i] -= A_[8 * k + i] * a;
+      }
+    }
+    return true;
+  }
+#ifdef LPOE_IK_AVX
+  __attribute__((target("avx"))) bool FactorAvx(const double* A_in, double tiny) {
+    const __m256i two = _mm256_set_epi64x(0, 0, -1, -1);
+    for (int c = 0; c < 6; ++c) {
+      _mm256_storeu_pd(A_ + 8 * c, _mm256_loadu_pd(A_in + 6 * c));
+      _mm256_storeu_pd(A_ + 8 * c + 4, _mm256_maskload_pd(A_in + 6 * c + 4, two));
+    }
+    return StepAvx<0>(tiny) && StepAvx<1>(tiny) && StepAvx<2>(tiny) && StepAvx<3>(tiny) &&
+           StepAvx<4>(tiny) && StepAvx<5>(tiny);
+  }
+  // Elimination step K: the multipliers (rows > K of column K; blend masks select those rows).
+  template <int K>
+  __attribute__((target("avx"))) bool StepAvx(double tiny) {
+    if (!Pivot(K, tiny)) return false;
+    constexpr int kLo = (0xF << (K + 1)) & 0xF;
+    constexpr int kHi = K < 3 ? 0xF : (0xF << (K - 3)) & 0xF;
+    const __m256d inv = _mm256_set1_pd(inv_[K]), zero = _mm256_setzero_pd();
+    const __m256d lo = _mm256_loadu_pd(A_ + 8 * K), hi = _mm256_loadu_pd(A_ + 8 * K + 4);
+    const __m256d m_lo = _mm256_mul_pd(lo, inv), m_hi = _mm256_mul_pd(hi, inv);
+    _mm256_storeu_pd(A_ + 8 * K, _mm256_blend_pd(lo, m_lo, kLo));
+    _mm256_storeu_pd(A_ + 8 * K + 4, _mm256_blend_pd(hi, m_hi, kHi));
+    const __m256d l_lo = _mm256_blend_pd(zero, m_lo, kLo), l_hi = _mm256_blend_pd(zero, m_hi, kHi);
+#pragma GCC unroll 6
+    for (int c = K + 1; c < 6; ++c) {
+      const __m256d a = _mm256_broadcast_sd(A_ + 8 * c + K);
+      double* col = A_ + 8 * c;
+      if (kLo != 0) {
+        _mm256_storeu_pd(col, _mm256_sub_pd(_mm256_loadu_pd(col), _mm256_mul_pd(l_lo, a)));
+      }
+      _mm256_storeu_pd(col + 4, _mm256_sub_pd(_mm256_loadu_pd(col + 4), _mm256_mul_pd(l_hi, a)));
+    }
+    return true;
+  }
+#endif
+
+  double A_[48];
+  double inv_[6];
+  int pivot_[6];
+  bool ok_ = true;
+};
+
 // The second-order term Q(dx) of the weighted pose error along a step dx of the chain's joint
 // values, from the weighted Jacobian Jx (6 x n, column-major; column j is (u_j, L w_j): the tool
 // point's velocity and L times the axis). With the axes at x, FK(x + dx) = exp(dx_1 xi_1) ...
@@ -277,16 +446,66 @@ inline void CorrectedNewtonStep6(const SquareLu<6>& lu, const double* e, const d
 // d_i = a_i - x - b_{i-1}^2 / d_{i-1}, differentiated twice); all pivots positive is the proof that
 // x is below the smallest eigenvalue (Sylvester's law of inertia). 0 when A is singular to
 // round-off (a pivot of T itself not positive).
+#ifdef LPOE_IK_AVX
+// The 6 x 6 Gram matrix J J^T of a 6 x n column-major J, whole (A[j] its column j), in AVX: the
+// scalar loop's sums in the same order (over the columns of J), so the same values.
+__attribute__((target("avx"))) void Gram6Avx(const double* J, int n, double (*A)[6]) {
+  // Column j of A in lo_j (rows 0-3) and hi_j (rows 4-5), twelve named registers.
+  __m256d lo0 = _mm256_setzero_pd(), lo1 = lo0, lo2 = lo0, lo3 = lo0, lo4 = lo0, lo5 = lo0;
+  __m128d hi0 = _mm_setzero_pd(), hi1 = hi0, hi2 = hi0, hi3 = hi0, hi4 = hi0, hi5 = hi0;
+  for (int k = 0; k < n; ++k) {
+    const double* c = J + 6 * k;
+    const __m256d c_lo = _mm256_loadu_pd(c);
+    const __m128d c_hi = _mm_loadu_pd(c + 4);
+#define LPOE_GRAM_COLUMN(j)                                             \
+  {                                                                     \
+    const __m256d b = _mm256_broadcast_sd(c + j);                       \
+    lo##j = _mm256_add_pd(lo##j, _mm256_mul_pd(c_lo, b));               \
+    hi##j = _mm_add_pd(hi##j, _mm_mul_pd(c_hi, _mm256_castpd256_pd128(b))); \
+  }
+    LPOE_GRAM_COLUMN(0)
+    LPOE_GRAM_COLUMN(1)
+    LPOE_GRAM_COLUMN(2)
+    LPOE_GRAM_COLUMN(3)
+    LPOE_GRAM_COLUMN(4)
+    LPOE_GRAM_COLUMN(5)
+#undef LPOE_GRAM_COLUMN
+  }
+  _mm256_storeu_pd(A[0], lo0);
+  _mm256_storeu_pd(A[1], lo1);
+  _mm256_storeu_pd(A[2], lo2);
+  _mm256_storeu_pd(A[3], lo3);
+  _mm256_storeu_pd(A[4], lo4);
+  _mm256_storeu_pd(A[5], lo5);
+  _mm_storeu_pd(A[0] + 4, hi0);
+  _mm_storeu_pd(A[1] + 4, hi1);
+  _mm_storeu_pd(A[2] + 4, hi2);
+  _mm_storeu_pd(A[3] + 4, hi3);
+  _mm_storeu_pd(A[4] + 4, hi4);
+  _mm_storeu_pd(A[5] + 4, hi5);
+}
+#endif
+
 template <int M>
 double SmallestEigenvalueOfGram(const double* J, int n) {
-  // A = J J^T (lower triangle, A[i][j] for j <= i), as a sum of the columns' outer products.
-  double A[M][M] = {};
-  for (int k = 0; k < n; ++k) {
-    const double* c = J + M * k;
-#pragma GCC unroll 6
+  // A = J J^T (lower triangle, A[i][j] for j <= i, read), as a sum of the columns' outer products.
+  double A[M][M];
+#ifdef LPOE_IK_AVX
+  if (M == 6 && HaveAvx()) {
+    Gram6Avx(J, n, reinterpret_cast<double(*)[6]>(A));
+  } else
+#endif
+  {
     for (int i = 0; i < M; ++i) {
+      for (int j = 0; j < M; ++j) A[i][j] = 0;
+    }
+    for (int k = 0; k < n; ++k) {
+      const double* c = J + M * k;
 #pragma GCC unroll 6
-      for (int j = 0; j <= i; ++j) A[i][j] += c[i] * c[j];
+      for (int i = 0; i < M; ++i) {
+#pragma GCC unroll 6
+        for (int j = 0; j <= i; ++j) A[i][j] += c[i] * c[j];
+      }
     }
   }
   auto at = [&A](int i, int j) -> double& { return i >= j ? A[i][j] : A[j][i]; };
@@ -365,6 +584,25 @@ double SmallestEigenvalueOfGram(const double* J, int n) {
   return x;
 }
 
+// max |J_k| over the 36 entries of a 6 x 6 matrix (two lanes at a time where SSE2 is there).
+inline double MaxAbs36(const double* J) {
+#if defined(__SSE2__)
+  const __m128d magnitude = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffffLL));
+  __m128d m0 = _mm_setzero_pd(), m1 = _mm_setzero_pd();
+#pragma GCC unroll 9
+  for (int k = 0; k < 36; k += 4) {
+    m0 = _mm_max_pd(m0, _mm_and_pd(_mm_loadu_pd(J + k), magnitude));
+    m1 = _mm_max_pd(m1, _mm_and_pd(_mm_loadu_pd(J + k + 2), magnitude));
+  }
+  m0 = _mm_max_pd(m0, m1);
+  return std::max(_mm_cvtsd_f64(m0), _mm_cvtsd_f64(_mm_unpackhi_pd(m0, m0)));
+#else
+  double amax = 0;
+  for (int k = 0; k < 36; ++k) amax = std::max(amax, std::abs(J[k]));
+  return amax;
+#endif
+}
+
 int Sign(double x) { return x > 0 ? 1 : (x < 0 ? -1 : 0); }
 
 // ---- The fast path (6 revolute-z joints, pose target; IkOptions::fast_path).
@@ -383,7 +621,7 @@ struct FastIterate {
   double merit;
 };
 
-#if defined(__GNUC__) && defined(__x86_64__)
+#ifdef LPOE_IK_AVX
 #define LPOE_IK_AVX_SWEEP 1
 // Sweep6 with each column of the running frame (and its origin) in one AVX register, lanes 0-2:
 // the SSE2 sweep's multiplications and additions in the same order, so the same bits with half the
@@ -423,10 +661,6 @@ __attribute__((target("avx"))) void Sweep6Avx(const RobotModel& model, int tool,
   _mm256_storeu_pd(it->P, r[3]);
 }
 
-bool HaveAvx() {
-  static const bool have = __builtin_cpu_supports("avx");
-  return have;
-}
 #endif
 
 // The forward sweep of a chain of 6 revolute-z joints: G_i = T_0,i-1(q) T_{i-1,i}(0) as its axis
@@ -1024,17 +1258,31 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
       for (int j = 0; j < 6; ++j) it->x[j] = it->q[j];
     }
     int fresh[6], count = 0;  // joints whose sin/cos are computed afresh
-    for (int j = 0; j < 6; ++j) {
-      const double delta = from != nullptr ? it->x[j] - from->x[j] : HUGE_VAL;
-      if (std::abs(delta) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
-        double sd, cd;
-        SinCosStep(delta, &sd, &cd);
-        it->sin_x[j] = from->sin_x[j] * cd + from->cos_x[j] * sd;
-        it->cos_x[j] = from->cos_x[j] * cd - from->sin_x[j] * sd;
-        it->age[j] = from->age[j] + 1;
-      } else {
+    if (from == nullptr) {
+      for (int j = 0; j < 6; ++j) {
         fresh[count++] = j;
         it->age[j] = 0;
+      }
+    } else {
+      // The steps' sin/cos (SinCosStep), two joints at a time where SSE2 is there.
+      double delta[6], sd[6], cd[6];
+      for (int j = 0; j < 6; ++j) delta[j] = it->x[j] - from->x[j];
+#if defined(__SSE2__)
+      constexpr bool vector = true;
+      SinCosStep6(delta, sd, cd);
+#else
+      constexpr bool vector = false;
+#endif
+      for (int j = 0; j < 6; ++j) {
+        if (std::abs(delta[j]) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
+          if (!vector) SinCosStep(delta[j], &sd[j], &cd[j]);
+          it->sin_x[j] = from->sin_x[j] * cd[j] + from->cos_x[j] * sd[j];
+          it->cos_x[j] = from->cos_x[j] * cd[j] - from->sin_x[j] * sd[j];
+          it->age[j] = from->age[j] + 1;
+        } else {
+          fresh[count++] = j;
+          it->age[j] = 0;
+        }
       }
     }
     SinCosOf(it->x, fresh, count, it->sin_x, it->cos_x);
@@ -1110,9 +1358,7 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
     double d[6];
     bool solved = false;
     if (lambda2 == 0) {
-      double amax = 0;
-      for (int k = 0; k < 36; ++k) amax = std::max(amax, std::abs(cur->J[k]));
-      const SquareLu<6> lu(cur->J, 1e-9 * std::max(amax, 1e-30));
+      const SquareLu<6> lu(cur->J, 1e-9 * std::max(MaxAbs36(cur->J), 1e-30));
       solved = lu.Ok();
       if (solved) {
         const bool mapped = effective_ != nullptr;
