@@ -436,16 +436,6 @@ inline void CorrectedNewtonStep6(const SquareLu<6>& lu, const double* e, const d
   }
 }
 
-// Smallest eigenvalue of the Gram matrix A = J J^T of an M x n column-major J (sigma_min^2 of J for
-// M <= n; a diagnostic and a threshold). Householder reflections reduce A to a tridiagonal T with the same
-// eigenvalues; Laguerre's iteration on det(T - x I) then climbs from x = 0 to the smallest one. For
-// a polynomial with only real roots, Laguerre's step from below the smallest root stays below it
-// and converges to it monotonically, cubically (in one step when all roots coincide), so no test of
-// which eigenvalue was found is needed. Its sums G = sum_i 1 / (lambda_i - x) and
-// H = sum_i 1 / (lambda_i - x)^2 come from the pivots d_i of T - x I (the LDL^T recurrence
-// d_i = a_i - x - b_{i-1}^2 / d_{i-1}, differentiated twice); all pivots positive is the proof that
-// x is below the smallest eigenvalue (Sylvester's law of inertia). 0 when A is singular to
-// round-off (a pivot of T itself not positive).
 #ifdef LPOE_IK_AVX
 // The 6 x 6 Gram matrix J J^T of a 6 x n column-major J, whole (A[j] its column j), in AVX: the
 // scalar loop's sums in the same order (over the columns of J), so the same values.
@@ -486,6 +476,16 @@ __attribute__((target("avx"))) void Gram6Avx(const double* J, int n, double (*A)
 }
 #endif
 
+// Smallest eigenvalue of the Gram matrix A = J J^T of an M x n column-major J (sigma_min^2 of J for
+// M <= n; a diagnostic and a threshold). Householder reflections reduce A to a tridiagonal T with the same
+// eigenvalues; Laguerre's iteration on det(T - x I) then climbs from x = 0 to the smallest one. For
+// a polynomial with only real roots, Laguerre's step from below the smallest root stays below it
+// and converges to it monotonically, cubically (in one step when all roots coincide), so no test of
+// which eigenvalue was found is needed. Its sums G = sum_i 1 / (lambda_i - x) and
+// H = sum_i 1 / (lambda_i - x)^2 come from the leading principal minors p_i of T - x I (the
+// three-term recurrence, differentiated twice); all p_i positive (so all pivots p_i / p_{i-1} of
+// its LDL^T) is the proof that x is below the smallest eigenvalue (Sylvester's law of inertia). 0
+// when A is singular to round-off (a minor of T itself not positive).
 template <int M>
 double SmallestEigenvalueOfGram(const double* J, int n) {
   // A = J J^T (lower triangle, A[i][j] for j <= i, read), as a sum of the columns' outer products.
@@ -547,26 +547,34 @@ double SmallestEigenvalueOfGram(const double* J, int n) {
   if (M >= 2) off2[M - 2] = A[M - 1][M - 2] * A[M - 1][M - 2];
   for (int i = 0; i < M; ++i) diag[i] = A[i][i];
 
-  // G and H at x; false when a pivot of T - x I is not positive (x not below every eigenvalue).
+  // G and H at x from the leading principal minors of T - x I, p_i = (a_i - x) p_{i-1} -
+  // b_{i-1}^2 p_{i-2}, and their first two derivatives in x: G = -p'/p, H = G^2 - p''/p for
+  // p = p_M (p = prod (lambda_i - x)). False when a minor is not positive (then a pivot
+  // p_i / p_{i-1} is not: x is not below every eigenvalue). No division on the recurrence's chain
+  // (the pivots' divisions were the routine's latency); the entries (mm^2) keep p far from overflow.
   auto sums = [&](double x, double* G, double* H) {
-    double g = 0, h = 0, r = 0, q = 0, inv = 0;  // r = d'/d, q = d''/d of the previous pivot
+    double p1 = 1, d1 = 0, e1 = 0;  // p_{i-1}, p'_{i-1}, p''_{i-1}
+    double p2 = 0, d2 = 0, e2 = 0;  // p_{i-2}, ...
+    bool positive = true;
+#pragma GCC unroll 6
     for (int i = 0; i < M; ++i) {
-      double d = diag[i] - x, d1 = -1, d2 = 0;
-      if (i > 0) {
-        const double c = off2[i - 1] * inv;  // b^2 / d_{i-1}
-        d -= c;
-        d1 += c * r;
-        d2 = c * (q - 2 * r * r);
-      }
-      if (!(d > 0)) return false;
-      inv = 1 / d;
-      r = d1 * inv;
-      q = d2 * inv;
-      g -= r;
-      h += r * r - q;
+      const double t = diag[i] - x, b2 = i > 0 ? off2[i - 1] : 0.0;
+      const double p = t * p1 - b2 * p2;
+      const double d = t * d1 - p1 - b2 * d2;
+      const double e = t * e1 - 2 * d1 - b2 * e2;
+      positive = positive && p > 0;
+      p2 = p1;
+      d2 = d1;
+      e2 = e1;
+      p1 = p;
+      d1 = d;
+      e1 = e;
     }
+    if (!positive) return false;
+    const double inv = 1 / p1;
+    const double g = -d1 * inv;
     *G = g;
-    *H = h;
+    *H = g * g - e1 * inv;
     return true;
   };
   double G, H;
