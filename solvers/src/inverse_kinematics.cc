@@ -249,11 +249,17 @@ class SquareLu {
   bool ok_ = true;
 };
 
-// The 6 x 6 case (both paths' Newton steps): columns stored 8 apart (two AVX registers each, rows
-// 6-7 zero), the elimination's column updates in AVX where the processor has it (with the
-// multipliers of rows <= k zeroed, so those rows are unchanged: the same values as the scalar
-// loop), and the pivots' reciprocals kept for the back substitution (a multiplication instead of a
-// division on its serial chain).
+// The 6 x 6 case (both paths' Newton steps), with implicit row pivoting: no rows are swapped; step
+// k takes as pivot the row (among those not yet pivots, the "free" rows) with the largest |A(i, k)|,
+// the first such row on ties, and eliminates column k from the other free rows. U's row k is then
+// row pivot_[k] of A_ (columns 8 apart: two AVX registers, rows 6-7 zero), L_ column k holds the
+// multipliers in the rows free after step k and zeros elsewhere, so each column update and each
+// forward-substitution step is one vector operation on the whole column (zero multipliers leave
+// the other rows as they are). The same arithmetic as partial pivoting with swapped rows; where the
+// processor has AVX the search, the updates and the forward substitution run in its registers
+// without branches on the data (no mispredicted pivot choices, no stalls on rows swapped in
+// memory), else scalar loops compute the same values. The pivots' reciprocals serve the back
+// substitution (a multiplication instead of a division on its serial chain).
 template <>
 class SquareLu<6> {
  public:
@@ -269,63 +275,61 @@ class SquareLu<6> {
   bool Ok() const { return ok_; }
   // d = A^-1 b (d may alias b).
   void Solve(const double* b_in, double* d) const {
-    double b[6];
-    for (int k = 0; k < 6; ++k) b[k] = b_in[k];
-#pragma GCC unroll 6
-    for (int k = 0; k < 6; ++k) {
-      std::swap(b[pivot_[k]], b[k]);
-#pragma GCC unroll 6
-      for (int i = k + 1; i < 6; ++i) b[i] -= A_[8 * k + i] * b[k];
+    double y[6];
+#ifdef LPOE_IK_AVX
+    if (HaveAvx()) {
+      ForwardAvx(b_in, y);
+    } else
+#endif
+    {
+      double b[6];
+      for (int i = 0; i < 6; ++i) b[i] = b_in[i];
+      for (int k = 0; k < 6; ++k) {
+        y[k] = b[pivot_[k]];
+        for (int i = 0; i < 6; ++i) b[i] -= L_[8 * k + i] * y[k];
+      }
     }
+    double x[6];
 #pragma GCC unroll 6
-    for (int i = 5; i >= 0; --i) {
-      double v = b[i];
+    for (int k = 5; k >= 0; --k) {
+      const double* u = A_ + pivot_[k];  // U(k, c) = u[8 c]
+      double v = y[k];
 #pragma GCC unroll 6
-      for (int c = i + 1; c < 6; ++c) v -= A_[8 * c + i] * b[c];
-      b[i] = v * inv_[i];
+      for (int c = k + 1; c < 6; ++c) v -= u[8 * c] * x[c];
+      x[k] = v * inv_[k];
     }
-    for (int k = 0; k < 6; ++k) d[k] = b[k];
+    for (int k = 0; k < 6; ++k) d[k] = x[k];
   }
 
  private:
-  // Partial pivoting on column k: the pivot row p (rows k..5), swapped with row k in columns k..5
-  // (the multipliers of earlier columns stay where they were); false when the pivot is below tiny.
-  bool Pivot(int k, double tiny) {
-    int p = k;
-    double best = std::abs(A_[8 * k + k]);
-#pragma GCC unroll 6
-    for (int i = k + 1; i < 6; ++i) {
-      const double v = std::abs(A_[8 * k + i]);
-      if (v > best) {
-        best = v;
-        p = i;
-      }
-    }
-    pivot_[k] = p;
-    if (!(best > tiny)) return false;
-    if (p != k) {
-#pragma GCC unroll 6
-      for (int c = k; c < 6; ++c) std::swap(A_[8 * c + p], A_[8 * c + k]);
-    }
-    inv_[k] = 1 / A_[8 * k + k];
-    return true;
-  }
   bool FactorScalar(const double* A_in, double tiny) {
     for (int c = 0; c < 6; ++c) {
       for (int r = 0; r < 6; ++r) A_[8 * c + r] = A_in[6 * c + r];
       A_[8 * c + 6] = A_[8 * c + 7] = 0;
     }
-#pragma GCC unroll 6
+    bool free_row[6] = {true, true, true, true, true, true};
     for (int k = 0; k < 6; ++k) {
-      if (!Pivot(k, tiny)) return false;
-      const double inv = inv_[k];
-#pragma GCC unroll 6
-      for (int i = k + 1; i < 6; ++i) A_[8 * k + i] *= inv;  // the multipliers
-#pragma GCC unroll 6
+      int p = -1;
+      double best = 0;
+      for (int i = 0; i < 6; ++i) {
+        const double v = std::abs(A_[8 * k + i]);
+        if (free_row[i] && (p < 0 || v > best)) {
+          best = v;
+          p = i;
+        }
+      }
+      if (!(best > tiny)) return false;
+      pivot_[k] = p;
+      free_row[p] = false;
+      inv_[k] = 1 / A_[8 * k + p];
+      for (int i = 0; i < 8; ++i) {
+        L_[8 * k + i] = i < 6 && free_row[i] ? A_[8 * k + i] * inv_[k] : 0.0;
+      }
       for (int c = k + 1; c < 6; ++c) {
-        const double a = A_[8 * c + k];
-#pragma GCC unroll 6
-        for (int i = k + 1; i < 6; ++i) A_[8 * c + i] -= A_[8 * k + i] * a;
+        const double a = A_[8 * c + p];
+        for (int i = 0; i < 6; ++i) {
+          if (free_row[i]) A_[8 * c + i] -= L_[8 * k + i] * a;
+        }
       }
     }
     return true;
@@ -337,35 +341,68 @@ class SquareLu<6> {
       _mm256_storeu_pd(A_ + 8 * c, _mm256_loadu_pd(A_in + 6 * c));
       _mm256_storeu_pd(A_ + 8 * c + 4, _mm256_maskload_pd(A_in + 6 * c + 4, two));
     }
-    return StepAvx<0>(tiny) && StepAvx<1>(tiny) && StepAvx<2>(tiny) && StepAvx<3>(tiny) &&
-           StepAvx<4>(tiny) && StepAvx<5>(tiny);
-  }
-  // Elimination step K: the multipliers (rows > K of column K; blend masks select those rows).
-  template <int K>
-  __attribute__((target("avx"))) bool StepAvx(double tiny) {
-    if (!Pivot(K, tiny)) return false;
-    constexpr int kLo = (0xF << (K + 1)) & 0xF;
-    constexpr int kHi = K < 3 ? 0xF : (0xF << (K - 3)) & 0xF;
-    const __m256d inv = _mm256_set1_pd(inv_[K]), zero = _mm256_setzero_pd();
-    const __m256d lo = _mm256_loadu_pd(A_ + 8 * K), hi = _mm256_loadu_pd(A_ + 8 * K + 4);
-    const __m256d m_lo = _mm256_mul_pd(lo, inv), m_hi = _mm256_mul_pd(hi, inv);
-    _mm256_storeu_pd(A_ + 8 * K, _mm256_blend_pd(lo, m_lo, kLo));
-    _mm256_storeu_pd(A_ + 8 * K + 4, _mm256_blend_pd(hi, m_hi, kHi));
-    const __m256d l_lo = _mm256_blend_pd(zero, m_lo, kLo), l_hi = _mm256_blend_pd(zero, m_hi, kHi);
+    const __m256d row_lo = _mm256_set_pd(3, 2, 1, 0), row_hi = _mm256_set_pd(7, 6, 5, 4);
+    const __m256d magnitude = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+    __m256d free_lo = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+    __m256d free_hi = _mm256_castsi256_pd(_mm256_set_epi64x(0, 0, -1, -1));
 #pragma GCC unroll 6
-    for (int c = K + 1; c < 6; ++c) {
-      const __m256d a = _mm256_broadcast_sd(A_ + 8 * c + K);
-      double* col = A_ + 8 * c;
-      if (kLo != 0) {
+    for (int k = 0; k < 6; ++k) {
+      const __m256d lo = _mm256_loadu_pd(A_ + 8 * k), hi = _mm256_loadu_pd(A_ + 8 * k + 4);
+      // The pivot: the first free row with the largest magnitude (non-free rows count as 0).
+      const __m256d a_lo = _mm256_and_pd(_mm256_and_pd(lo, magnitude), free_lo);
+      const __m256d a_hi = _mm256_and_pd(_mm256_and_pd(hi, magnitude), free_hi);
+      const __m256d m4 = _mm256_max_pd(a_lo, a_hi);
+      const __m128d m2 = _mm_max_pd(_mm256_castpd256_pd128(m4), _mm256_extractf128_pd(m4, 1));
+      const double best = std::max(_mm_cvtsd_f64(m2), _mm_cvtsd_f64(_mm_unpackhi_pd(m2, m2)));
+      if (!(best > tiny)) return false;
+      const __m256d b = _mm256_set1_pd(best);
+      const int at = _mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(a_lo, b, _CMP_EQ_OQ), free_lo)) |
+                     _mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(a_hi, b, _CMP_EQ_OQ), free_hi))
+                         << 4;
+      if (at == 0) return false;  // not reached for finite entries
+      const int p = __builtin_ctz(static_cast<unsigned>(at));
+      pivot_[k] = p;
+      const __m256d pp = _mm256_set1_pd(p);
+      free_lo = _mm256_andnot_pd(_mm256_cmp_pd(row_lo, pp, _CMP_EQ_OQ), free_lo);
+      free_hi = _mm256_andnot_pd(_mm256_cmp_pd(row_hi, pp, _CMP_EQ_OQ), free_hi);
+      const double inv_p = 1 / A_[8 * k + p];
+      inv_[k] = inv_p;
+      const __m256d inv = _mm256_set1_pd(inv_p);
+      const __m256d l_lo = _mm256_and_pd(_mm256_mul_pd(lo, inv), free_lo);
+      const __m256d l_hi = _mm256_and_pd(_mm256_mul_pd(hi, inv), free_hi);
+      _mm256_storeu_pd(L_ + 8 * k, l_lo);
+      _mm256_storeu_pd(L_ + 8 * k + 4, l_hi);
+#pragma GCC unroll 6
+      for (int c = k + 1; c < 6; ++c) {
+        double* col = A_ + 8 * c;
+        const __m256d a = _mm256_broadcast_sd(col + p);
         _mm256_storeu_pd(col, _mm256_sub_pd(_mm256_loadu_pd(col), _mm256_mul_pd(l_lo, a)));
+        _mm256_storeu_pd(col + 4, _mm256_sub_pd(_mm256_loadu_pd(col + 4), _mm256_mul_pd(l_hi, a)));
       }
-      _mm256_storeu_pd(col + 4, _mm256_sub_pd(_mm256_loadu_pd(col + 4), _mm256_mul_pd(l_hi, a)));
     }
     return true;
   }
+  // y_k = b(pivot_k) after steps < k, b <- b - L_k y_k (the whole column at once).
+  __attribute__((target("avx"))) void ForwardAvx(const double* b_in, double* y) const {
+    alignas(32) double b[8];
+    __m256d lo = _mm256_loadu_pd(b_in);
+    __m256d hi = _mm256_castpd128_pd256(_mm_loadu_pd(b_in + 4));
+    hi = _mm256_insertf128_pd(hi, _mm_setzero_pd(), 1);
+#pragma GCC unroll 6
+    for (int k = 0; k < 6; ++k) {
+      _mm256_store_pd(b, lo);
+      _mm256_store_pd(b + 4, hi);
+      const double yk = b[pivot_[k]];
+      y[k] = yk;
+      const __m256d v = _mm256_set1_pd(yk);
+      lo = _mm256_sub_pd(lo, _mm256_mul_pd(_mm256_loadu_pd(L_ + 8 * k), v));
+      hi = _mm256_sub_pd(hi, _mm256_mul_pd(_mm256_loadu_pd(L_ + 8 * k + 4), v));
+    }
+  }
 #endif
 
-  double A_[48];
+  double A_[48];  // U(k, c) = A_[8 c + pivot_[k]] for c >= k
+  double L_[48];  // column k: step k's multipliers in the rows free after it, else 0
   double inv_[6];
   int pivot_[6];
   bool ok_ = true;
