@@ -253,12 +253,11 @@ class SquareLu {
 // k takes as pivot the row (among those not yet pivots, the "free" rows) with the largest |A(i, k)|,
 // the first such row on ties, and eliminates column k from the other free rows. U's row k is then
 // row pivot_[k] of A_ (columns 8 apart: two AVX registers, rows 6-7 zero), L_ column k holds the
-// multipliers in the rows free after step k and zeros elsewhere, so each column update and each
-// forward-substitution step is one vector operation on the whole column (zero multipliers leave
-// the other rows as they are). The same arithmetic as partial pivoting with swapped rows; where the
-// processor has AVX the search, the updates and the forward substitution run in its registers
-// without branches on the data (no mispredicted pivot choices, no stalls on rows swapped in
-// memory), else scalar loops compute the same values. The pivots' reciprocals serve the back
+// multipliers in the rows free after step k and zeros elsewhere, so each column update is one
+// vector operation on the whole column (zero multipliers leave the other rows as they are). The
+// same arithmetic as partial pivoting with swapped rows; where the processor has AVX the search and
+// the updates run in its registers without branches on the data (no mispredicted pivot choices, no
+// stalls on rows swapped in memory), else scalar loops compute the same values. The pivots' reciprocals serve the back
 // substitution (a multiplication instead of a division on its serial chain).
 template <>
 class SquareLu<6> {
@@ -275,19 +274,16 @@ class SquareLu<6> {
   bool Ok() const { return ok_; }
   // d = A^-1 b (d may alias b).
   void Solve(const double* b_in, double* d) const {
+    // Forward substitution in the pivots' order: y_m = b(pivot_m) - sum_{k<m} l(pivot_m, k) y_k
+    // (the column updates of the elimination applied to b; scalar, its serial chain one
+    // multiplication and subtraction per step).
     double y[6];
-#ifdef LPOE_IK_AVX
-    if (HaveAvx()) {
-      ForwardAvx(b_in, y);
-    } else
-#endif
-    {
-      double b[6];
-      for (int i = 0; i < 6; ++i) b[i] = b_in[i];
-      for (int k = 0; k < 6; ++k) {
-        y[k] = b[pivot_[k]];
-        for (int i = 0; i < 6; ++i) b[i] -= L_[8 * k + i] * y[k];
-      }
+#pragma GCC unroll 6
+    for (int m = 0; m < 6; ++m) y[m] = b_in[pivot_[m]];
+#pragma GCC unroll 6
+    for (int k = 0; k < 6; ++k) {
+#pragma GCC unroll 6
+      for (int m = k + 1; m < 6; ++m) y[m] -= lower_[6 * m + k] * y[k];
     }
     double x[6];
 #pragma GCC unroll 6
@@ -332,6 +328,7 @@ class SquareLu<6> {
         }
       }
     }
+    GatherLower();
     return true;
   }
 #ifdef LPOE_IK_AVX
@@ -348,6 +345,12 @@ class SquareLu<6> {
 #pragma GCC unroll 6
     for (int k = 0; k < 6; ++k) {
       const __m256d lo = _mm256_loadu_pd(A_ + 8 * k), hi = _mm256_loadu_pd(A_ + 8 * k + 4);
+      // The reciprocals of the whole column, computed while the pivot is searched (the division
+      // off the step's critical path); the pivot's is then read from them.
+      alignas(32) double recip[8];
+      const __m256d one = _mm256_set1_pd(1.0);
+      _mm256_store_pd(recip, _mm256_div_pd(one, lo));
+      _mm256_store_pd(recip + 4, _mm256_div_pd(one, hi));
       // The pivot: the first free row with the largest magnitude (non-free rows count as 0).
       const __m256d a_lo = _mm256_and_pd(_mm256_and_pd(lo, magnitude), free_lo);
       const __m256d a_hi = _mm256_and_pd(_mm256_and_pd(hi, magnitude), free_hi);
@@ -365,7 +368,7 @@ class SquareLu<6> {
       const __m256d pp = _mm256_set1_pd(p);
       free_lo = _mm256_andnot_pd(_mm256_cmp_pd(row_lo, pp, _CMP_EQ_OQ), free_lo);
       free_hi = _mm256_andnot_pd(_mm256_cmp_pd(row_hi, pp, _CMP_EQ_OQ), free_hi);
-      const double inv_p = 1 / A_[8 * k + p];
+      const double inv_p = recip[p];  // 1 / A(p, k), correctly rounded as the scalar division
       inv_[k] = inv_p;
       const __m256d inv = _mm256_set1_pd(inv_p);
       const __m256d l_lo = _mm256_and_pd(_mm256_mul_pd(lo, inv), free_lo);
@@ -380,29 +383,23 @@ class SquareLu<6> {
         _mm256_storeu_pd(col + 4, _mm256_sub_pd(_mm256_loadu_pd(col + 4), _mm256_mul_pd(l_hi, a)));
       }
     }
+    GatherLower();
     return true;
-  }
-  // y_k = b(pivot_k) after steps < k, b <- b - L_k y_k (the whole column at once).
-  __attribute__((target("avx"))) void ForwardAvx(const double* b_in, double* y) const {
-    alignas(32) double b[8];
-    __m256d lo = _mm256_loadu_pd(b_in);
-    __m256d hi = _mm256_castpd128_pd256(_mm_loadu_pd(b_in + 4));
-    hi = _mm256_insertf128_pd(hi, _mm_setzero_pd(), 1);
-#pragma GCC unroll 6
-    for (int k = 0; k < 6; ++k) {
-      _mm256_store_pd(b, lo);
-      _mm256_store_pd(b + 4, hi);
-      const double yk = b[pivot_[k]];
-      y[k] = yk;
-      const __m256d v = _mm256_set1_pd(yk);
-      lo = _mm256_sub_pd(lo, _mm256_mul_pd(_mm256_loadu_pd(L_ + 8 * k), v));
-      hi = _mm256_sub_pd(hi, _mm256_mul_pd(_mm256_loadu_pd(L_ + 8 * k + 4), v));
-    }
   }
 #endif
 
+  // L in the pivots' order: lower_[6 m + k] = l(pivot_m, k) for k < m.
+  void GatherLower() {
+#pragma GCC unroll 6
+    for (int m = 1; m < 6; ++m) {
+#pragma GCC unroll 6
+      for (int k = 0; k < m; ++k) lower_[6 * m + k] = L_[8 * k + pivot_[m]];
+    }
+  }
+
   double A_[48];  // U(k, c) = A_[8 c + pivot_[k]] for c >= k
   double L_[48];  // column k: step k's multipliers in the rows free after it, else 0
+  double lower_[36];
   double inv_[6];
   int pivot_[6];
   bool ok_ = true;
