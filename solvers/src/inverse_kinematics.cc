@@ -413,7 +413,56 @@ class SquareLu<6> {
 //   log(R(x + dx) R(x)^T)  = sum_j b_j + 1/2 sum_i b_i x sum_{j>i} b_j + O(dx^3)  (Baker-Campbell-
 // Hausdorff), and Q = [the second-order position term; L times the second-order rotation term].
 // One backward pass of cross products (prismatic joints: w_j = 0, the formulas hold as they are).
+#ifdef LPOE_IK_AVX
+// (x, y, z, .) -> (y, z, x, .) in AVX (no cross-lane permute without AVX2: four operations).
+__attribute__((target("avx"))) inline __m256d Yzx(__m256d v) {
+  const __m256d t = _mm256_permute2f128_pd(v, v, 0x01);  // (z, ., x, .)
+  return _mm256_blend_pd(_mm256_permute_pd(v, 0x1), _mm256_permute_pd(t, 0x0), 0x6);
+}
+
+// PoseSecondOrder for 6 joints in AVX registers (lanes x, y, z). Every cross product is
+// a x b = (a * b.yzx - a.yzx * b).yzx, and the sums of them take the outer .yzx once at the end,
+// so each joint needs the permuted column u.yzx and w.yzx only (the running sums of the permuted
+// a and b are the permuted running sums). The scalar routine's sums in another order: the two
+// agree to round-off.
+__attribute__((target("avx"))) void PoseSecondOrder6Avx(const double* Jx, const double* dx,
+                                                        double L, double* Q) {
+  const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
+  const __m256d half = _mm256_set1_pd(0.5);
+  const double inv_l = 1 / L;
+  __m256d sa = _mm256_setzero_pd(), sa_y = sa, sb = sa, sb_y = sa, qp = sa, qr = sa;
+  for (int i = 5; i >= 0; --i) {
+    const __m256d u = _mm256_maskload_pd(Jx + 6 * i, three);
+    const __m256d w = _mm256_maskload_pd(Jx + 6 * i + 3, three);
+    const __m256d s = _mm256_set1_pd(dx[i]), t = _mm256_set1_pd(dx[i] * inv_l);
+    const __m256d a = _mm256_mul_pd(s, u), a_y = _mm256_mul_pd(s, Yzx(u));
+    const __m256d b = _mm256_mul_pd(t, w), b_y = _mm256_mul_pd(t, Yzx(w));
+    const __m256d h = _mm256_add_pd(_mm256_mul_pd(half, a), sa);
+    const __m256d h_y = _mm256_add_pd(_mm256_mul_pd(half, a_y), sa_y);
+    qp = _mm256_add_pd(qp, _mm256_sub_pd(_mm256_mul_pd(b, h_y), _mm256_mul_pd(b_y, h)));
+    qr = _mm256_add_pd(qr, _mm256_sub_pd(_mm256_mul_pd(b, sb_y), _mm256_mul_pd(b_y, sb)));
+    sa = _mm256_add_pd(sa, a);
+    sa_y = _mm256_add_pd(sa_y, a_y);
+    sb = _mm256_add_pd(sb, b);
+    sb_y = _mm256_add_pd(sb_y, b_y);
+  }
+  alignas(32) double p[4], r[4];
+  _mm256_store_pd(p, Yzx(qp));
+  _mm256_store_pd(r, _mm256_mul_pd(_mm256_set1_pd(0.5 * L), Yzx(qr)));
+  for (int k = 0; k < 3; ++k) {
+    Q[k] = p[k];
+    Q[3 + k] = r[k];
+  }
+}
+#endif
+
 inline void PoseSecondOrder(const double* Jx, const double* dx, int n, double L, double* Q) {
+#ifdef LPOE_IK_AVX
+  if (n == 6 && HaveAvx()) {
+    PoseSecondOrder6Avx(Jx, dx, L, Q);
+    return;
+  }
+#endif
   double sa[3] = {0, 0, 0}, sb[3] = {0, 0, 0}, qp[3] = {0, 0, 0}, qr[3] = {0, 0, 0};
   const double inv_l = 1 / L;
   for (int i = n - 1; i >= 0; --i) {
