@@ -122,8 +122,9 @@ inline void SinCosOf(const double* x, const int* idx, int count, double* s, doub
 }
 
 // log(R_target R^T)^vee. Near the target (angle below 0.01 rad) from the skew part alone:
-// v = sin(theta) axis and theta / sin(theta) = 1 + s^2/6 + 3 s^4/40 + 5 s^6/112 + 35 s^8/1152
-// (s = |v|; the next term is below 1e-21), without the quaternion and atan2 of LogSO3.
+// v = sin(theta) axis and theta / sin(theta) = arcsin(s) / s = 1 + s^2/6 + 3 s^4/40 + 5 s^6/112 +
+// 35 s^8/1152 (s = |v|; the next term is below 1e-21), without the quaternion and atan2 of LogSO3;
+// below 0.2 rad the longer series.
 inline Eigen::Vector3d RotationError(const Eigen::Matrix3d& R_target, const Eigen::Matrix3d& R) {
   const Eigen::Matrix3d E = R_target * R.transpose();
   const Eigen::Vector3d v(0.5 * (E(2, 1) - E(1, 2)), 0.5 * (E(0, 2) - E(2, 0)),
@@ -131,6 +132,14 @@ inline Eigen::Vector3d RotationError(const Eigen::Matrix3d& R_target, const Eige
   const double s2 = v.squaredNorm();
   if (s2 < 1e-4 && E.trace() > 1) {
     return v * (1 + s2 * (1.0 / 6 + s2 * (3.0 / 40 + s2 * (5.0 / 112 + s2 * (35.0 / 1152)))));
+  }
+  // Up to 0.2 rad (the first iterates from seeds a few degrees away): the same series to s^22
+  // (coefficients C(2k, k) / (4^k (2k + 1)); the next term below 3e-18).
+  if (s2 < 0.04 && E.trace() > 1) {
+    return v * (1 + s2 * (1.0 / 6 + s2 * (3.0 / 40 + s2 * (5.0 / 112 + s2 * (35.0 / 1152 +
+                s2 * (63.0 / 2816 + s2 * (231.0 / 13312 + s2 * (143.0 / 10240 +
+                s2 * (6435.0 / 557056 + s2 * (12155.0 / 1245184 + s2 * (46189.0 / 5505024 +
+                s2 * (88179.0 / 12058624))))))))))));
   }
   return LogSO3<double>(E);
 }
@@ -747,9 +756,11 @@ double SmallestEigenvalueOfGram(const double* J, int n) {
     const double root = std::sqrt(std::max(0.0, (M - 1) * (M * H - G * G)));
     const double step = M / (G + root);
     const double next = x + step;
-    // Converged (cubically: what is left is far smaller than the step), or `next` lies on the
-    // eigenvalue to round-off (a pivot not positive there).
-    if (!(step > 1e-13 * next) || !sums(next, &G, &H)) return next;
+    // Converged: the convergence is cubic, so after a step below 1e-6 of x what is left is of the
+    // order of 1e-18 of it (times the spread of the eigenvalues; far below the 1e-13 the routine
+    // resolves, and one evaluation of the sums fewer than with the next step's 1e-18). Or `next`
+    // lies on the eigenvalue to round-off (a minor not positive there).
+    if (!(step > 1e-6 * next) || !sums(next, &G, &H)) return next;
     x = next;
   }
   return x;
