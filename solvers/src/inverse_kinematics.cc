@@ -299,8 +299,9 @@ class SquareLu<6> {
     for (int k = 5; k >= 0; --k) {
       const double* u = A_ + pivot_[k];  // U(k, c) = u[8 c]
       double v = y[k];
+      // The last unknown found is subtracted last (the serial chain: one product, one difference).
 #pragma GCC unroll 6
-      for (int c = k + 1; c < 6; ++c) v -= u[8 * c] * x[c];
+      for (int c = 5; c > k; --c) v -= u[8 * c] * x[c];
       x[k] = v * inv_[k];
     }
     for (int k = 0; k < 6; ++k) d[k] = x[k];
@@ -568,80 +569,6 @@ __attribute__((target("avx"))) void Gram6Avx(const double* J, int n, double (*A)
 }
 #endif
 
-#ifdef LPOE_IK_AVX
-// One Householder step k of SmallestEigenvalueOfGram's reduction on the whole symmetric 6 x 6 A
-// (A[j] its column j; rows 0-3 in one AVX register, rows 4-5 in an SSE one), its operations in its
-// order lane by lane: v and p vectors with zeros in rows <= k, t = A v as a sum over the columns,
-// the rank-2 update on whole columns (both triangles, which stay equal: the products and sums
-// commute). Rows <= k see zero updates.
-template <int K>
-__attribute__((target("avx"))) void HouseholderStep6Avx(double (*A)[6], double* off2) {
-  double s = 0;
-  for (int i = K + 2; i < 6; ++i) s += A[K][i] * A[K][i];
-  const double x0 = A[K][K + 1];
-  if (s == 0) {  // already tridiagonal in this column
-    off2[K] = x0 * x0;
-    return;
-  }
-  const double norm = std::sqrt(x0 * x0 + s);
-  const double alpha = x0 > 0 ? -norm : norm;
-  const double beta = 1 / (norm * norm - x0 * alpha);  // 2 / (v^T v)
-  // v: rows >= K+2 of column K, x0 - alpha in row K+1, zero above.
-  constexpr int kBelowLo = (0xF << (K + 2)) & 0xF;
-  constexpr int kBelowHi = K <= 2 ? 0x3 : (0x3 << (K - 2)) & 0x3;
-  constexpr int kPivotLo = K + 1 < 4 ? 1 << (K + 1) : 0;
-  constexpr int kPivotHi = K + 1 >= 4 ? 1 << (K + 1 - 4) : 0;
-  constexpr int kFromLo = (0xF << (K + 1)) & 0xF;  // rows >= K+1
-  constexpr int kFromHi = K + 1 <= 4 ? 0x3 : 0x2;
-  const __m256d pivot4 = _mm256_set1_pd(x0 - alpha);
-  const __m128d pivot2 = _mm_set1_pd(x0 - alpha);
-  __m256d v_lo = _mm256_blend_pd(_mm256_setzero_pd(), _mm256_loadu_pd(A[K]), kBelowLo);
-  __m128d v_hi = _mm_blend_pd(_mm_setzero_pd(), _mm_loadu_pd(A[K] + 4), kBelowHi);
-  v_lo = _mm256_blend_pd(v_lo, pivot4, kPivotLo);
-  v_hi = _mm_blend_pd(v_hi, pivot2, kPivotHi);
-  alignas(32) double v[8], p[8];
-  _mm256_store_pd(v, v_lo);
-  _mm_store_pd(v + 4, v_hi);
-  // t = A v over the columns j >= K+1, in j's order from 0 (the scalar sum's order per row).
-  __m256d t_lo = _mm256_setzero_pd();
-  __m128d t_hi = _mm_setzero_pd();
-  for (int j = K + 1; j < 6; ++j) {
-    t_lo = _mm256_add_pd(t_lo, _mm256_mul_pd(_mm256_loadu_pd(A[j]), _mm256_set1_pd(v[j])));
-    t_hi = _mm_add_pd(t_hi, _mm_mul_pd(_mm_loadu_pd(A[j] + 4), _mm_set1_pd(v[j])));
-  }
-  __m256d p_lo = _mm256_blend_pd(_mm256_setzero_pd(),
-                                 _mm256_mul_pd(_mm256_set1_pd(beta), t_lo), kFromLo);
-  __m128d p_hi = _mm_blend_pd(_mm_setzero_pd(), _mm_mul_pd(_mm_set1_pd(beta), t_hi), kFromHi);
-  _mm256_store_pd(p, p_lo);
-  _mm_store_pd(p + 4, p_hi);
-  double vp = 0;
-  for (int i = K + 1; i < 6; ++i) vp += v[i] * p[i];
-  const double half = 0.5 * beta * vp;
-  p_lo = _mm256_sub_pd(p_lo, _mm256_mul_pd(_mm256_set1_pd(half), v_lo));
-  p_hi = _mm_sub_pd(p_hi, _mm_mul_pd(_mm_set1_pd(half), v_hi));
-  _mm256_store_pd(p, p_lo);
-  _mm_store_pd(p + 4, p_hi);
-  for (int j = K + 1; j < 6; ++j) {
-    const __m256d pj = _mm256_set1_pd(p[j]), vj = _mm256_set1_pd(v[j]);
-    _mm256_storeu_pd(A[j], _mm256_sub_pd(_mm256_loadu_pd(A[j]),
-                                         _mm256_add_pd(_mm256_mul_pd(v_lo, pj),
-                                                       _mm256_mul_pd(p_lo, vj))));
-    _mm_storeu_pd(A[j] + 4,
-                  _mm_sub_pd(_mm_loadu_pd(A[j] + 4),
-                             _mm_add_pd(_mm_mul_pd(v_hi, _mm256_castpd256_pd128(pj)),
-                                        _mm_mul_pd(p_hi, _mm256_castpd256_pd128(vj)))));
-  }
-  off2[K] = alpha * alpha;
-}
-
-__attribute__((target("avx"))) void Tridiagonalize6Avx(double (*A)[6], double* off2) {
-  HouseholderStep6Avx<0>(A, off2);
-  HouseholderStep6Avx<1>(A, off2);
-  HouseholderStep6Avx<2>(A, off2);
-  HouseholderStep6Avx<3>(A, off2);
-}
-#endif
-
 // Smallest eigenvalue of the Gram matrix A = J J^T of an M x n column-major J (sigma_min^2 of J for
 // M <= n; a diagnostic and a threshold). Householder reflections reduce A to a tridiagonal T with the same
 // eigenvalues; Laguerre's iteration on det(T - x I) then climbs from x = 0 to the smallest one. For
@@ -676,14 +603,8 @@ double SmallestEigenvalueOfGram(const double* J, int n) {
   }
   auto at = [&A](int i, int j) -> double& { return i >= j ? A[i][j] : A[j][i]; };
   double diag[M], off2[M];  // T's diagonal and squared off-diagonal
-#ifdef LPOE_IK_AVX
-  const bool avx = M == 6 && HaveAvx();
-  if (avx) Tridiagonalize6Avx(reinterpret_cast<double(*)[6]>(A), off2);
-#else
-  constexpr bool avx = false;
-#endif
 #pragma GCC unroll 4
-  for (int k = 0; !avx && k + 2 < M; ++k) {
+  for (int k = 0; k + 2 < M; ++k) {
     // The reflection H = I - beta v v^T that zeroes A[k+2.., k]; A <- H A H on rows/columns k+1...
     double s = 0;
     for (int i = k + 2; i < M; ++i) s += A[i][k] * A[i][k];
