@@ -266,8 +266,10 @@ class SquareLu {
 // vector operation on the whole column (zero multipliers leave the other rows as they are). The
 // same arithmetic as partial pivoting with swapped rows; where the processor has AVX the search and
 // the updates run in its registers without branches on the data (no mispredicted pivot choices, no
-// stalls on rows swapped in memory), else scalar loops compute the same values. The pivots' reciprocals serve the back
-// substitution (a multiplication instead of a division on its serial chain).
+// stalls on rows swapped in memory), else scalar loops compute the same values. The pivot's
+// reciprocal comes from a division of the whole column started before the search ends, and the
+// substitutions run on L and U gathered in the pivots' order, U's rows divided by their pivots (no
+// division on the solves' serial chains).
 template <>
 class SquareLu<6> {
  public:
@@ -294,15 +296,16 @@ class SquareLu<6> {
 #pragma GCC unroll 6
       for (int m = k + 1; m < 6; ++m) y[m] -= lower_[6 * m + k] * y[k];
     }
+    // Back substitution with U's rows divided by their pivots (x_k = y_k / u_kk - sum_c
+    // (u_kc / u_kk) x_c), the last unknown found subtracted last: the serial chain is one product
+    // and one difference per unknown.
     double x[6];
 #pragma GCC unroll 6
     for (int k = 5; k >= 0; --k) {
-      const double* u = A_ + pivot_[k];  // U(k, c) = u[8 c]
-      double v = y[k];
-      // The last unknown found is subtracted last (the serial chain: one product, one difference).
+      double v = y[k] * inv_[k];
 #pragma GCC unroll 6
-      for (int c = 5; c > k; --c) v -= u[8 * c] * x[c];
-      x[k] = v * inv_[k];
+      for (int c = 5; c > k; --c) v -= upper_[6 * k + c] * x[c];
+      x[k] = v;
     }
     for (int k = 0; k < 6; ++k) d[k] = x[k];
   }
@@ -398,18 +401,25 @@ class SquareLu<6> {
   }
 #endif
 
-  // L in the pivots' order: lower_[6 m + k] = l(pivot_m, k) for k < m.
+  // L in the pivots' order, lower_[6 m + k] = l(pivot_m, k) for k < m, and U with its rows
+  // divided by the pivots, upper_[6 k + c] = u_kc / u_kk for c > k.
   void GatherLower() {
 #pragma GCC unroll 6
     for (int m = 1; m < 6; ++m) {
 #pragma GCC unroll 6
       for (int k = 0; k < m; ++k) lower_[6 * m + k] = L_[8 * k + pivot_[m]];
     }
+#pragma GCC unroll 6
+    for (int k = 0; k < 5; ++k) {
+#pragma GCC unroll 6
+      for (int c = k + 1; c < 6; ++c) upper_[6 * k + c] = A_[8 * c + pivot_[k]] * inv_[k];
+    }
   }
 
   double A_[48];  // U(k, c) = A_[8 c + pivot_[k]] for c >= k
   double L_[48];  // column k: step k's multipliers in the rows free after it, else 0
   double lower_[36];
+  double upper_[36];
   double inv_[6];
   int pivot_[6];
   bool ok_ = true;
