@@ -650,12 +650,14 @@ double SmallestEigenvalueOfGram(const double* J, int n) {
   if (M >= 2) off2[M - 2] = A[M - 1][M - 2] * A[M - 1][M - 2];
   for (int i = 0; i < M; ++i) diag[i] = A[i][i];
 
-  // G and H at x from the leading principal minors of T - x I, p_i = (a_i - x) p_{i-1} -
-  // b_{i-1}^2 p_{i-2}, and their first two derivatives in x: G = -p'/p, H = G^2 - p''/p for
-  // p = p_M (p = prod (lambda_i - x)). False when a minor is not positive (then a pivot
-  // p_i / p_{i-1} is not: x is not below every eigenvalue). No division on the recurrence's chain
-  // (the pivots' divisions were the routine's latency); the entries (mm^2) keep p far from overflow.
-  auto sums = [&](double x, double* G, double* H) {
+  // Laguerre's step at x from the leading principal minors of T - x I, p_i = (a_i - x) p_{i-1} -
+  // b_{i-1}^2 p_{i-2}, and their first two derivatives in x (p = p_M = prod (lambda_i - x)):
+  // with G = -p'/p and H = G^2 - p''/p, the step M / (G + sqrt((M-1)(M H - G^2))) is, multiplied
+  // through by p > 0, M p / (-p' + sqrt((M-1)((M-1) p'^2 - M p p''))): one division (the step's)
+  // on the iteration's chain, none on the recurrence's. False when a minor is not positive (then a
+  // pivot p_i / p_{i-1} is not: x is not below every eigenvalue). The entries (mm^2) keep p and
+  // p'^2 far from overflow.
+  auto step_at = [&](double x, double* step) {
     double p1 = 1, d1 = 0, e1 = 0;  // p_{i-1}, p'_{i-1}, p''_{i-1}
     double p2 = 0, d2 = 0, e2 = 0;  // p_{i-2}, ...
     bool positive = true;
@@ -665,7 +667,7 @@ double SmallestEigenvalueOfGram(const double* J, int n) {
       const double p = t * p1 - b2 * p2;
       const double d = t * d1 - p1 - b2 * d2;
       const double e = t * e1 - 2 * d1 - b2 * e2;
-      positive = positive && p > 0;
+      positive &= p > 0;
       p2 = p1;
       d2 = d1;
       e2 = e1;
@@ -674,24 +676,20 @@ double SmallestEigenvalueOfGram(const double* J, int n) {
       e1 = e;
     }
     if (!positive) return false;
-    const double inv = 1 / p1;
-    const double g = -d1 * inv;
-    *G = g;
-    *H = g * g - e1 * inv;
+    const double root = std::sqrt(std::max(0.0, (M - 1) * ((M - 1) * (d1 * d1) - M * (p1 * e1))));
+    *step = M * p1 / (root - d1);
     return true;
   };
-  double G, H;
-  if (!sums(0.0, &G, &H)) return 0.0;
+  double step;
+  if (!step_at(0.0, &step)) return 0.0;
   double x = 0;
   for (int k = 0; k < 100; ++k) {
-    const double root = std::sqrt(std::max(0.0, (M - 1) * (M * H - G * G)));
-    const double step = M / (G + root);
     const double next = x + step;
     // Converged: the convergence is cubic, so after a step below 1e-6 of x what is left is of the
     // order of 1e-18 of it (times the spread of the eigenvalues; far below the 1e-13 the routine
     // resolves, and one evaluation of the sums fewer than with the next step's 1e-18). Or `next`
     // lies on the eigenvalue to round-off (a minor not positive there).
-    if (!(step > 1e-6 * next) || !sums(next, &G, &H)) return next;
+    if (!(step > 1e-6 * next) || !step_at(next, &step)) return next;
     x = next;
   }
   return x;
