@@ -298,7 +298,9 @@ class SquareLu<6> {
     }
     // Back substitution with U's rows divided by their pivots (x_k = y_k / u_kk - sum_c
     // (u_kc / u_kk) x_c), the last unknown found subtracted last: the serial chain is one product
-    // and one difference per unknown.
+    // and one difference per unknown. Each unknown is stored to d as it is found (b was read
+    // before): copied from a local array afterwards, the compiler's 16-byte copies each read two
+    // separate 8-byte stores, which the processor cannot forward (a stall per pair on every solve).
     double x[6];
 #pragma GCC unroll 6
     for (int k = 5; k >= 0; --k) {
@@ -306,8 +308,8 @@ class SquareLu<6> {
 #pragma GCC unroll 6
       for (int c = 5; c > k; --c) v -= upper_[6 * k + c] * x[c];
       x[k] = v;
+      d[k] = v;
     }
-    for (int k = 0; k < 6; ++k) d[k] = x[k];
   }
 
  private:
