@@ -511,6 +511,15 @@ inline void PoseSecondOrder(const double* Jx, const double* dx, int n, double L,
   }
 }
 
+// x, kept out of the compiler's vectors (x86: an empty asm on an SSE register), so a value stored
+// alone is loaded alone; elsewhere x itself.
+inline double OneLane(double x) {
+#if defined(__GNUC__) && defined(__SSE2__)
+  asm("" : "+x"(x));
+#endif
+  return x;
+}
+
 // Newton's step of a square pose task (6 x 6, weighted J = Jx dg/dq, error e) with its second-order
 // correction: d0 = J^-1 e, then d = d0 - J^-1 Q(dg/dq d0) (Chebyshev's method: the error after the
 // step is of third order in d0 instead of second). The correction is dropped when it is not small
@@ -537,7 +546,10 @@ inline void CorrectedNewtonStep6(const SquareLu<6>& lu, const double* e, const d
     cmax = std::max(cmax, std::abs(c[j]));
   }
   if (cmax <= 0.5 * dmax) {
-    for (int j = 0; j < 6; ++j) d[j] -= c[j];
+    // One load per value: d and c were just stored one value at a time (the solves), and the
+    // compiler's paired 16-byte loads of them could not be forwarded from those stores (a stall).
+#pragma GCC unroll 6
+    for (int j = 0; j < 6; ++j) d[j] = OneLane(d[j]) - OneLane(c[j]);
   }
 }
 
