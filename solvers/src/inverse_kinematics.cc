@@ -1380,7 +1380,9 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
     if (effective_ != nullptr) {
       effective_->Evaluate(it->q, it->x, it->dg_dq);
     } else {
-      for (int j = 0; j < 6; ++j) it->x[j] = it->q[j];
+      // One value per load (q was stored one joint at a time; see OneLane).
+#pragma GCC unroll 6
+      for (int j = 0; j < 6; ++j) it->x[j] = OneLane(it->q[j]);
     }
     int fresh[6], count = 0;  // joints whose sin/cos are computed afresh
     if (from == nullptr) {
@@ -1553,8 +1555,12 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
     }
   }
 
+  // Every field of the result set one by one (assigned from a value-initialized temporary, the
+  // copy's 16-byte loads read the temporary's separate stores: a store-forwarding stall).
   IkResult& result = *out;
-  result = IkResult();
+  result.restarts = 0;
+  result.at_limit = false;
+  result.branch_changed = false;
   result.sigma_min = std::sqrt(SmallestEigenvalueOfGram<6>(cur->J, 6));
   result.position_error = std::sqrt(cur->e[0] * cur->e[0] + cur->e[1] * cur->e[1] +
                                     cur->e[2] * cur->e[2]);
