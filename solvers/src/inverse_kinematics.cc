@@ -39,6 +39,17 @@ constexpr double kMinPull = 1.0 / 64;
 // pull, so a slowly decaying damping made the error fall by only 10 per iteration.
 constexpr double kGoodModel = 0.75;
 
+#if defined(__GNUC__) && defined(__x86_64__)
+// AVX code (the sweep, the 6 x 6 LU, the Gram matrix, the sin/cos updates) is compiled for AVX
+// alone and chosen at run time; multiplications and additions stay separate (no FMA), in the
+// scalar code's order, so both give the same bits.
+#define LPOE_IK_AVX 1
+bool HaveAvx() {
+  static const bool have = __builtin_cpu_supports("avx");
+  return have;
+}
+#endif
+
 // sin(d), cos(d) for |d| <= kIncrementalStep: Taylor series to d^13 and d^14.
 inline void SinCosSmall(double d, double* s, double* c) {
   const double d2 = d * d;
@@ -60,6 +71,42 @@ inline void SinCosStep(double d, double* s, double* c) {
   SinCosSmall(d, s, c);
 }
 
+#if defined(__SSE2__)
+// SinCosStep of d[0..5] into s, c, two lanes at a time in SSE2 registers: the short series in every
+// lane, the long one only for a pair with a lane at d^2 >= 1e-4, each lane taking the series the
+// scalar code takes, with the scalar code's operations in its order, so its bits.
+inline void SinCosStep6(const double* d_in, double* s_out, double* c_out) {
+  static constexpr double kSinLong[] = {1.0 / 6227020800.0, -1.0 / 39916800, 1.0 / 362880,
+                                        -1.0 / 5040, 1.0 / 120, -1.0 / 6, 1};
+  static constexpr double kCosLong[] = {-1.0 / 87178291200.0, 1.0 / 479001600, -1.0 / 3628800,
+                                        1.0 / 40320, -1.0 / 720, 1.0 / 24, -0.5, 1};
+  static constexpr double kSinShort[] = {-1.0 / 5040, 1.0 / 120, -1.0 / 6, 1};
+  static constexpr double kCosShort[] = {1.0 / 40320, -1.0 / 720, 1.0 / 24, -0.5, 1};
+  // Horner's rule, highest degree first.
+  auto horner = [](__m128d d2, const double* a, int count) {
+    __m128d p = _mm_set1_pd(a[0]);
+    for (int k = 1; k < count; ++k) p = _mm_add_pd(_mm_set1_pd(a[k]), _mm_mul_pd(d2, p));
+    return p;
+  };
+#pragma GCC unroll 3
+  for (int h = 0; h < 6; h += 2) {
+    const __m128d d = _mm_loadu_pd(d_in + h);
+    const __m128d d2 = _mm_mul_pd(d, d);
+    __m128d s = _mm_mul_pd(d, horner(d2, kSinShort, 4));
+    __m128d c = horner(d2, kCosShort, 5);
+    const __m128d long_lane = _mm_cmpnlt_pd(d2, _mm_set1_pd(1e-4));  // !(d2 < 1e-4), as scalar
+    if (_mm_movemask_pd(long_lane) != 0) {
+      const __m128d s_long = _mm_mul_pd(d, horner(d2, kSinLong, 7));
+      const __m128d c_long = horner(d2, kCosLong, 8);
+      s = _mm_or_pd(_mm_and_pd(long_lane, s_long), _mm_andnot_pd(long_lane, s));
+      c = _mm_or_pd(_mm_and_pd(long_lane, c_long), _mm_andnot_pd(long_lane, c));
+    }
+    _mm_storeu_pd(s_out + h, s);
+    _mm_storeu_pd(c_out + h, c);
+  }
+}
+#endif
+
 // sin and cos of x[j] for the `count` joints j in idx, into s[j] and c[j]: gathered into one
 // SinCosMany call (four values per polynomial evaluation where the processor has AVX2 and FMA; each
 // value's result depends on that value only, so both paths get the same bits).
@@ -75,8 +122,9 @@ inline void SinCosOf(const double* x, const int* idx, int count, double* s, doub
 }
 
 // log(R_target R^T)^vee. Near the target (angle below 0.01 rad) from the skew part alone:
-// v = sin(theta) axis and theta / sin(theta) = 1 + s^2/6 + 3 s^4/40 + 5 s^6/112 + 35 s^8/1152
-// (s = |v|; the next term is below 1e-21), without the quaternion and atan2 of LogSO3.
+// v = sin(theta) axis and theta / sin(theta) = arcsin(s) / s = 1 + s^2/6 + 3 s^4/40 + 5 s^6/112 +
+// 35 s^8/1152 (s = |v|; the next term is below 1e-21), without the quaternion and atan2 of LogSO3;
+// below 0.2 rad the longer series.
 inline Eigen::Vector3d RotationError(const Eigen::Matrix3d& R_target, const Eigen::Matrix3d& R) {
   const Eigen::Matrix3d E = R_target * R.transpose();
   const Eigen::Vector3d v(0.5 * (E(2, 1) - E(1, 2)), 0.5 * (E(0, 2) - E(2, 0)),
@@ -84,6 +132,14 @@ inline Eigen::Vector3d RotationError(const Eigen::Matrix3d& R_target, const Eige
   const double s2 = v.squaredNorm();
   if (s2 < 1e-4 && E.trace() > 1) {
     return v * (1 + s2 * (1.0 / 6 + s2 * (3.0 / 40 + s2 * (5.0 / 112 + s2 * (35.0 / 1152)))));
+  }
+  // Up to 0.2 rad (the first iterates from seeds a few degrees away): the same series to s^22
+  // (coefficients C(2k, k) / (4^k (2k + 1)); the next term below 3e-18).
+  if (s2 < 0.04 && E.trace() > 1) {
+    return v * (1 + s2 * (1.0 / 6 + s2 * (3.0 / 40 + s2 * (5.0 / 112 + s2 * (35.0 / 1152 +
+                s2 * (63.0 / 2816 + s2 * (231.0 / 13312 + s2 * (143.0 / 10240 +
+                s2 * (6435.0 / 557056 + s2 * (12155.0 / 1245184 + s2 * (46189.0 / 5505024 +
+                s2 * (88179.0 / 12058624))))))))))));
   }
   return LogSO3<double>(E);
 }
@@ -202,6 +258,175 @@ class SquareLu {
   bool ok_ = true;
 };
 
+// The 6 x 6 case (both paths' Newton steps), with implicit row pivoting: no rows are swapped; step
+// k takes as pivot the row (among those not yet pivots, the "free" rows) with the largest |A(i, k)|,
+// the first such row on ties, and eliminates column k from the other free rows. U's row k is then
+// row pivot_[k] of A_ (columns 8 apart: two AVX registers, rows 6-7 zero), L_ column k holds the
+// multipliers in the rows free after step k and zeros elsewhere, so each column update is one
+// vector operation on the whole column (zero multipliers leave the other rows as they are). The
+// same arithmetic as partial pivoting with swapped rows; where the processor has AVX the search and
+// the updates run in its registers without branches on the data (no mispredicted pivot choices, no
+// stalls on rows swapped in memory), else scalar loops compute the same values. The pivot's
+// reciprocal comes from a division of the whole column started before the search ends, and the
+// substitutions run on L and U gathered in the pivots' order, U's rows divided by their pivots (no
+// division on the solves' serial chains).
+template <>
+class SquareLu<6> {
+ public:
+  SquareLu(const double* A_in, double tiny) {
+#ifdef LPOE_IK_AVX
+    if (HaveAvx()) {
+      ok_ = FactorAvx(A_in, tiny);
+      return;
+    }
+#endif
+    ok_ = FactorScalar(A_in, tiny);
+  }
+  bool Ok() const { return ok_; }
+  // d = A^-1 b (d may alias b).
+  void Solve(const double* b_in, double* d) const {
+    // Forward substitution in the pivots' order: y_m = b(pivot_m) - sum_{k<m} l(pivot_m, k) y_k
+    // (the column updates of the elimination applied to b; scalar, its serial chain one
+    // multiplication and subtraction per step).
+    double y[6];
+#pragma GCC unroll 6
+    for (int m = 0; m < 6; ++m) y[m] = b_in[pivot_[m]];
+#pragma GCC unroll 6
+    for (int k = 0; k < 6; ++k) {
+#pragma GCC unroll 6
+      for (int m = k + 1; m < 6; ++m) y[m] -= lower_[6 * m + k] * y[k];
+    }
+    // Back substitution with U's rows divided by their pivots (x_k = y_k / u_kk - sum_c
+    // (u_kc / u_kk) x_c), the last unknown found subtracted last: the serial chain is one product
+    // and one difference per unknown. Each unknown is stored to d as it is found (b was read
+    // before): copied from a local array afterwards, the compiler's 16-byte copies each read two
+    // separate 8-byte stores, which the processor cannot forward (a stall per pair on every solve).
+    double x[6];
+#pragma GCC unroll 6
+    for (int k = 5; k >= 0; --k) {
+      double v = y[k] * inv_[k];
+#pragma GCC unroll 6
+      for (int c = 5; c > k; --c) v -= upper_[6 * k + c] * x[c];
+      x[k] = v;
+      d[k] = v;
+    }
+  }
+
+ private:
+  bool FactorScalar(const double* A_in, double tiny) {
+    for (int c = 0; c < 6; ++c) {
+      for (int r = 0; r < 6; ++r) A_[8 * c + r] = A_in[6 * c + r];
+      A_[8 * c + 6] = A_[8 * c + 7] = 0;
+    }
+    bool free_row[6] = {true, true, true, true, true, true};
+    for (int k = 0; k < 6; ++k) {
+      int p = -1;
+      double best = 0;
+      for (int i = 0; i < 6; ++i) {
+        const double v = std::abs(A_[8 * k + i]);
+        if (free_row[i] && (p < 0 || v > best)) {
+          best = v;
+          p = i;
+        }
+      }
+      if (!(best > tiny)) return false;
+      pivot_[k] = p;
+      free_row[p] = false;
+      inv_[k] = 1 / A_[8 * k + p];
+      for (int i = 0; i < 8; ++i) {
+        L_[8 * k + i] = i < 6 && free_row[i] ? A_[8 * k + i] * inv_[k] : 0.0;
+      }
+      for (int c = k + 1; c < 6; ++c) {
+        const double a = A_[8 * c + p];
+        for (int i = 0; i < 6; ++i) {
+          if (free_row[i]) A_[8 * c + i] -= L_[8 * k + i] * a;
+        }
+      }
+    }
+    GatherLower();
+    return true;
+  }
+#ifdef LPOE_IK_AVX
+  __attribute__((target("avx"))) bool FactorAvx(const double* A_in, double tiny) {
+    const __m256i two = _mm256_set_epi64x(0, 0, -1, -1);
+    for (int c = 0; c < 6; ++c) {
+      _mm256_storeu_pd(A_ + 8 * c, _mm256_loadu_pd(A_in + 6 * c));
+      _mm256_storeu_pd(A_ + 8 * c + 4, _mm256_maskload_pd(A_in + 6 * c + 4, two));
+    }
+    const __m256d row_lo = _mm256_set_pd(3, 2, 1, 0), row_hi = _mm256_set_pd(7, 6, 5, 4);
+    const __m256d magnitude = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+    __m256d free_lo = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+    __m256d free_hi = _mm256_castsi256_pd(_mm256_set_epi64x(0, 0, -1, -1));
+#pragma GCC unroll 6
+    for (int k = 0; k < 6; ++k) {
+      const __m256d lo = _mm256_loadu_pd(A_ + 8 * k), hi = _mm256_loadu_pd(A_ + 8 * k + 4);
+      // The reciprocals of the whole column, computed while the pivot is searched (the division
+      // off the step's critical path); the pivot's is then read from them.
+      alignas(32) double recip[8];
+      const __m256d one = _mm256_set1_pd(1.0);
+      _mm256_store_pd(recip, _mm256_div_pd(one, lo));
+      _mm256_store_pd(recip + 4, _mm256_div_pd(one, hi));
+      // The pivot: the first free row with the largest magnitude (non-free rows count as 0).
+      const __m256d a_lo = _mm256_and_pd(_mm256_and_pd(lo, magnitude), free_lo);
+      const __m256d a_hi = _mm256_and_pd(_mm256_and_pd(hi, magnitude), free_hi);
+      const __m256d m4 = _mm256_max_pd(a_lo, a_hi);
+      const __m128d m2 = _mm_max_pd(_mm256_castpd256_pd128(m4), _mm256_extractf128_pd(m4, 1));
+      const double best = std::max(_mm_cvtsd_f64(m2), _mm_cvtsd_f64(_mm_unpackhi_pd(m2, m2)));
+      if (!(best > tiny)) return false;
+      const __m256d b = _mm256_set1_pd(best);
+      const int at = _mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(a_lo, b, _CMP_EQ_OQ), free_lo)) |
+                     _mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(a_hi, b, _CMP_EQ_OQ), free_hi))
+                         << 4;
+      if (at == 0) return false;  // not reached for finite entries
+      const int p = __builtin_ctz(static_cast<unsigned>(at));
+      pivot_[k] = p;
+      const __m256d pp = _mm256_set1_pd(p);
+      free_lo = _mm256_andnot_pd(_mm256_cmp_pd(row_lo, pp, _CMP_EQ_OQ), free_lo);
+      free_hi = _mm256_andnot_pd(_mm256_cmp_pd(row_hi, pp, _CMP_EQ_OQ), free_hi);
+      const double inv_p = recip[p];  // 1 / A(p, k), correctly rounded as the scalar division
+      inv_[k] = inv_p;
+      const __m256d inv = _mm256_set1_pd(inv_p);
+      const __m256d l_lo = _mm256_and_pd(_mm256_mul_pd(lo, inv), free_lo);
+      const __m256d l_hi = _mm256_and_pd(_mm256_mul_pd(hi, inv), free_hi);
+      _mm256_storeu_pd(L_ + 8 * k, l_lo);
+      _mm256_storeu_pd(L_ + 8 * k + 4, l_hi);
+#pragma GCC unroll 6
+      for (int c = k + 1; c < 6; ++c) {
+        double* col = A_ + 8 * c;
+        const __m256d a = _mm256_broadcast_sd(col + p);
+        _mm256_storeu_pd(col, _mm256_sub_pd(_mm256_loadu_pd(col), _mm256_mul_pd(l_lo, a)));
+        _mm256_storeu_pd(col + 4, _mm256_sub_pd(_mm256_loadu_pd(col + 4), _mm256_mul_pd(l_hi, a)));
+      }
+    }
+    GatherLower();
+    return true;
+  }
+#endif
+
+  // L in the pivots' order, lower_[6 m + k] = l(pivot_m, k) for k < m, and U with its rows
+  // divided by the pivots, upper_[6 k + c] = u_kc / u_kk for c > k.
+  void GatherLower() {
+#pragma GCC unroll 6
+    for (int m = 1; m < 6; ++m) {
+#pragma GCC unroll 6
+      for (int k = 0; k < m; ++k) lower_[6 * m + k] = L_[8 * k + pivot_[m]];
+    }
+#pragma GCC unroll 6
+    for (int k = 0; k < 5; ++k) {
+#pragma GCC unroll 6
+      for (int c = k + 1; c < 6; ++c) upper_[6 * k + c] = A_[8 * c + pivot_[k]] * inv_[k];
+    }
+  }
+
+  double A_[48];  // U(k, c) = A_[8 c + pivot_[k]] for c >= k
+  double L_[48];  // column k: step k's multipliers in the rows free after it, else 0
+  double lower_[36];
+  double upper_[36];
+  double inv_[6];
+  int pivot_[6];
+  bool ok_ = true;
+};
+
 // The second-order term Q(dx) of the weighted pose error along a step dx of the chain's joint
 // values, from the weighted Jacobian Jx (6 x n, column-major; column j is (u_j, L w_j): the tool
 // point's velocity and L times the axis). With the axes at x, FK(x + dx) = exp(dx_1 xi_1) ...
@@ -210,7 +435,56 @@ class SquareLu {
 //   log(R(x + dx) R(x)^T)  = sum_j b_j + 1/2 sum_i b_i x sum_{j>i} b_j + O(dx^3)  (Baker-Campbell-
 // Hausdorff), and Q = [the second-order position term; L times the second-order rotation term].
 // One backward pass of cross products (prismatic joints: w_j = 0, the formulas hold as they are).
+#ifdef LPOE_IK_AVX
+// (x, y, z, .) -> (y, z, x, .) in AVX (no cross-lane permute without AVX2: four operations).
+__attribute__((target("avx"))) inline __m256d Yzx(__m256d v) {
+  const __m256d t = _mm256_permute2f128_pd(v, v, 0x01);  // (z, ., x, .)
+  return _mm256_blend_pd(_mm256_permute_pd(v, 0x1), _mm256_permute_pd(t, 0x0), 0x6);
+}
+
+// PoseSecondOrder for 6 joints in AVX registers (lanes x, y, z). Every cross product is
+// a x b = (a * b.yzx - a.yzx * b).yzx, and the sums of them take the outer .yzx once at the end,
+// so each joint needs the permuted column u.yzx and w.yzx only (the running sums of the permuted
+// a and b are the permuted running sums). The scalar routine's sums in another order: the two
+// agree to round-off.
+__attribute__((target("avx"))) void PoseSecondOrder6Avx(const double* Jx, const double* dx,
+                                                        double L, double* Q) {
+  const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
+  const __m256d half = _mm256_set1_pd(0.5);
+  const double inv_l = 1 / L;
+  __m256d sa = _mm256_setzero_pd(), sa_y = sa, sb = sa, sb_y = sa, qp = sa, qr = sa;
+  for (int i = 5; i >= 0; --i) {
+    const __m256d u = _mm256_maskload_pd(Jx + 6 * i, three);
+    const __m256d w = _mm256_maskload_pd(Jx + 6 * i + 3, three);
+    const __m256d s = _mm256_set1_pd(dx[i]), t = _mm256_set1_pd(dx[i] * inv_l);
+    const __m256d a = _mm256_mul_pd(s, u), a_y = _mm256_mul_pd(s, Yzx(u));
+    const __m256d b = _mm256_mul_pd(t, w), b_y = _mm256_mul_pd(t, Yzx(w));
+    const __m256d h = _mm256_add_pd(_mm256_mul_pd(half, a), sa);
+    const __m256d h_y = _mm256_add_pd(_mm256_mul_pd(half, a_y), sa_y);
+    qp = _mm256_add_pd(qp, _mm256_sub_pd(_mm256_mul_pd(b, h_y), _mm256_mul_pd(b_y, h)));
+    qr = _mm256_add_pd(qr, _mm256_sub_pd(_mm256_mul_pd(b, sb_y), _mm256_mul_pd(b_y, sb)));
+    sa = _mm256_add_pd(sa, a);
+    sa_y = _mm256_add_pd(sa_y, a_y);
+    sb = _mm256_add_pd(sb, b);
+    sb_y = _mm256_add_pd(sb_y, b_y);
+  }
+  alignas(32) double p[4], r[4];
+  _mm256_store_pd(p, Yzx(qp));
+  _mm256_store_pd(r, _mm256_mul_pd(_mm256_set1_pd(0.5 * L), Yzx(qr)));
+  for (int k = 0; k < 3; ++k) {
+    Q[k] = p[k];
+    Q[3 + k] = r[k];
+  }
+}
+#endif
+
 inline void PoseSecondOrder(const double* Jx, const double* dx, int n, double L, double* Q) {
+#ifdef LPOE_IK_AVX
+  if (n == 6 && HaveAvx()) {
+    PoseSecondOrder6Avx(Jx, dx, L, Q);
+    return;
+  }
+#endif
   double sa[3] = {0, 0, 0}, sb[3] = {0, 0, 0}, qp[3] = {0, 0, 0}, qr[3] = {0, 0, 0};
   const double inv_l = 1 / L;
   for (int i = n - 1; i >= 0; --i) {
@@ -235,6 +509,15 @@ inline void PoseSecondOrder(const double* Jx, const double* dx, int n, double L,
     Q[r] = qp[r];
     Q[3 + r] = half_l * qr[r];
   }
+}
+
+// x, kept out of the compiler's vectors (x86: an empty asm on an SSE register), so a value stored
+// alone is loaded alone; elsewhere x itself.
+inline double OneLane(double x) {
+#if defined(__GNUC__) && defined(__SSE2__)
+  asm("" : "+x"(x));
+#endif
+  return x;
 }
 
 // Newton's step of a square pose task (6 x 6, weighted J = Jx dg/dq, error e) with its second-order
@@ -263,9 +546,52 @@ inline void CorrectedNewtonStep6(const SquareLu<6>& lu, const double* e, const d
     cmax = std::max(cmax, std::abs(c[j]));
   }
   if (cmax <= 0.5 * dmax) {
-    for (int j = 0; j < 6; ++j) d[j] -= c[j];
+    // One load per value: d and c were just stored one value at a time (the solves), and the
+    // compiler's paired 16-byte loads of them could not be forwarded from those stores (a stall).
+#pragma GCC unroll 6
+    for (int j = 0; j < 6; ++j) d[j] = OneLane(d[j]) - OneLane(c[j]);
   }
 }
+
+#ifdef LPOE_IK_AVX
+// The 6 x 6 Gram matrix J J^T of a 6 x n column-major J, whole (A[j] its column j), in AVX: the
+// scalar loop's sums in the same order (over the columns of J), so the same values.
+__attribute__((target("avx"))) void Gram6Avx(const double* J, int n, double (*A)[6]) {
+  // Column j of A in lo_j (rows 0-3) and hi_j (rows 4-5), twelve named registers.
+  __m256d lo0 = _mm256_setzero_pd(), lo1 = lo0, lo2 = lo0, lo3 = lo0, lo4 = lo0, lo5 = lo0;
+  __m128d hi0 = _mm_setzero_pd(), hi1 = hi0, hi2 = hi0, hi3 = hi0, hi4 = hi0, hi5 = hi0;
+  for (int k = 0; k < n; ++k) {
+    const double* c = J + 6 * k;
+    const __m256d c_lo = _mm256_loadu_pd(c);
+    const __m128d c_hi = _mm_loadu_pd(c + 4);
+#define LPOE_GRAM_COLUMN(j)                                             \
+  {                                                                     \
+    const __m256d b = _mm256_broadcast_sd(c + j);                       \
+    lo##j = _mm256_add_pd(lo##j, _mm256_mul_pd(c_lo, b));               \
+    hi##j = _mm_add_pd(hi##j, _mm_mul_pd(c_hi, _mm256_castpd256_pd128(b))); \
+  }
+    LPOE_GRAM_COLUMN(0)
+    LPOE_GRAM_COLUMN(1)
+    LPOE_GRAM_COLUMN(2)
+    LPOE_GRAM_COLUMN(3)
+    LPOE_GRAM_COLUMN(4)
+    LPOE_GRAM_COLUMN(5)
+#undef LPOE_GRAM_COLUMN
+  }
+  _mm256_storeu_pd(A[0], lo0);
+  _mm256_storeu_pd(A[1], lo1);
+  _mm256_storeu_pd(A[2], lo2);
+  _mm256_storeu_pd(A[3], lo3);
+  _mm256_storeu_pd(A[4], lo4);
+  _mm256_storeu_pd(A[5], lo5);
+  _mm_storeu_pd(A[0] + 4, hi0);
+  _mm_storeu_pd(A[1] + 4, hi1);
+  _mm_storeu_pd(A[2] + 4, hi2);
+  _mm_storeu_pd(A[3] + 4, hi3);
+  _mm_storeu_pd(A[4] + 4, hi4);
+  _mm_storeu_pd(A[5] + 4, hi5);
+}
+#endif
 
 // Smallest eigenvalue of the Gram matrix A = J J^T of an M x n column-major J (sigma_min^2 of J for
 // M <= n; a diagnostic and a threshold). Householder reflections reduce A to a tridiagonal T with the same
@@ -273,20 +599,30 @@ inline void CorrectedNewtonStep6(const SquareLu<6>& lu, const double* e, const d
 // a polynomial with only real roots, Laguerre's step from below the smallest root stays below it
 // and converges to it monotonically, cubically (in one step when all roots coincide), so no test of
 // which eigenvalue was found is needed. Its sums G = sum_i 1 / (lambda_i - x) and
-// H = sum_i 1 / (lambda_i - x)^2 come from the pivots d_i of T - x I (the LDL^T recurrence
-// d_i = a_i - x - b_{i-1}^2 / d_{i-1}, differentiated twice); all pivots positive is the proof that
-// x is below the smallest eigenvalue (Sylvester's law of inertia). 0 when A is singular to
-// round-off (a pivot of T itself not positive).
+// H = sum_i 1 / (lambda_i - x)^2 come from the leading principal minors p_i of T - x I (the
+// three-term recurrence, differentiated twice); all p_i positive (so all pivots p_i / p_{i-1} of
+// its LDL^T) is the proof that x is below the smallest eigenvalue (Sylvester's law of inertia). 0
+// when A is singular to round-off (a minor of T itself not positive).
 template <int M>
 double SmallestEigenvalueOfGram(const double* J, int n) {
-  // A = J J^T (lower triangle, A[i][j] for j <= i), as a sum of the columns' outer products.
-  double A[M][M] = {};
-  for (int k = 0; k < n; ++k) {
-    const double* c = J + M * k;
-#pragma GCC unroll 6
+  // A = J J^T (lower triangle, A[i][j] for j <= i, read), as a sum of the columns' outer products.
+  double A[M][M];
+#ifdef LPOE_IK_AVX
+  if (M == 6 && HaveAvx()) {
+    Gram6Avx(J, n, reinterpret_cast<double(*)[6]>(A));
+  } else
+#endif
+  {
     for (int i = 0; i < M; ++i) {
+      for (int j = 0; j < M; ++j) A[i][j] = 0;
+    }
+    for (int k = 0; k < n; ++k) {
+      const double* c = J + M * k;
 #pragma GCC unroll 6
-      for (int j = 0; j <= i; ++j) A[i][j] += c[i] * c[j];
+      for (int i = 0; i < M; ++i) {
+#pragma GCC unroll 6
+        for (int j = 0; j <= i; ++j) A[i][j] += c[i] * c[j];
+      }
     }
   }
   auto at = [&A](int i, int j) -> double& { return i >= j ? A[i][j] : A[j][i]; };
@@ -328,41 +664,68 @@ double SmallestEigenvalueOfGram(const double* J, int n) {
   if (M >= 2) off2[M - 2] = A[M - 1][M - 2] * A[M - 1][M - 2];
   for (int i = 0; i < M; ++i) diag[i] = A[i][i];
 
-  // G and H at x; false when a pivot of T - x I is not positive (x not below every eigenvalue).
-  auto sums = [&](double x, double* G, double* H) {
-    double g = 0, h = 0, r = 0, q = 0, inv = 0;  // r = d'/d, q = d''/d of the previous pivot
+  // Laguerre's step at x from the leading principal minors of T - x I, p_i = (a_i - x) p_{i-1} -
+  // b_{i-1}^2 p_{i-2}, and their first two derivatives in x (p = p_M = prod (lambda_i - x)):
+  // with G = -p'/p and H = G^2 - p''/p, the step M / (G + sqrt((M-1)(M H - G^2))) is, multiplied
+  // through by p > 0, M p / (-p' + sqrt((M-1)((M-1) p'^2 - M p p''))): one division (the step's)
+  // on the iteration's chain, none on the recurrence's. False when a minor is not positive (then a
+  // pivot p_i / p_{i-1} is not: x is not below every eigenvalue). The entries (mm^2) keep p and
+  // p'^2 far from overflow.
+  auto step_at = [&](double x, double* step) {
+    double p1 = 1, d1 = 0, e1 = 0;  // p_{i-1}, p'_{i-1}, p''_{i-1}
+    double p2 = 0, d2 = 0, e2 = 0;  // p_{i-2}, ...
+    bool positive = true;
+#pragma GCC unroll 6
     for (int i = 0; i < M; ++i) {
-      double d = diag[i] - x, d1 = -1, d2 = 0;
-      if (i > 0) {
-        const double c = off2[i - 1] * inv;  // b^2 / d_{i-1}
-        d -= c;
-        d1 += c * r;
-        d2 = c * (q - 2 * r * r);
-      }
-      if (!(d > 0)) return false;
-      inv = 1 / d;
-      r = d1 * inv;
-      q = d2 * inv;
-      g -= r;
-      h += r * r - q;
+      const double t = diag[i] - x, b2 = i > 0 ? off2[i - 1] : 0.0;
+      const double p = t * p1 - b2 * p2;
+      const double d = t * d1 - p1 - b2 * d2;
+      const double e = t * e1 - 2 * d1 - b2 * e2;
+      positive &= p > 0;
+      p2 = p1;
+      d2 = d1;
+      e2 = e1;
+      p1 = p;
+      d1 = d;
+      e1 = e;
     }
-    *G = g;
-    *H = h;
+    if (!positive) return false;
+    const double root = std::sqrt(std::max(0.0, (M - 1) * ((M - 1) * (d1 * d1) - M * (p1 * e1))));
+    *step = M * p1 / (root - d1);
     return true;
   };
-  double G, H;
-  if (!sums(0.0, &G, &H)) return 0.0;
+  double step;
+  if (!step_at(0.0, &step)) return 0.0;
   double x = 0;
   for (int k = 0; k < 100; ++k) {
-    const double root = std::sqrt(std::max(0.0, (M - 1) * (M * H - G * G)));
-    const double step = M / (G + root);
     const double next = x + step;
-    // Converged (cubically: what is left is far smaller than the step), or `next` lies on the
-    // eigenvalue to round-off (a pivot not positive there).
-    if (!(step > 1e-13 * next) || !sums(next, &G, &H)) return next;
+    // Converged: the convergence is cubic, so after a step below 1e-6 of x what is left is of the
+    // order of 1e-18 of it (times the spread of the eigenvalues; far below the 1e-13 the routine
+    // resolves, and one evaluation of the sums fewer than with the next step's 1e-18). Or `next`
+    // lies on the eigenvalue to round-off (a minor not positive there).
+    if (!(step > 1e-6 * next) || !step_at(next, &step)) return next;
     x = next;
   }
   return x;
+}
+
+// max |J_k| over the 36 entries of a 6 x 6 matrix (two lanes at a time where SSE2 is there).
+inline double MaxAbs36(const double* J) {
+#if defined(__SSE2__)
+  const __m128d magnitude = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffffLL));
+  __m128d m0 = _mm_setzero_pd(), m1 = _mm_setzero_pd();
+#pragma GCC unroll 9
+  for (int k = 0; k < 36; k += 4) {
+    m0 = _mm_max_pd(m0, _mm_and_pd(_mm_loadu_pd(J + k), magnitude));
+    m1 = _mm_max_pd(m1, _mm_and_pd(_mm_loadu_pd(J + k + 2), magnitude));
+  }
+  m0 = _mm_max_pd(m0, m1);
+  return std::max(_mm_cvtsd_f64(m0), _mm_cvtsd_f64(_mm_unpackhi_pd(m0, m0)));
+#else
+  double amax = 0;
+  for (int k = 0; k < 36; ++k) amax = std::max(amax, std::abs(J[k]));
+  return amax;
+#endif
 }
 
 int Sign(double x) { return x > 0 ? 1 : (x < 0 ? -1 : 0); }
@@ -383,7 +746,7 @@ struct FastIterate {
   double merit;
 };
 
-#if defined(__GNUC__) && defined(__x86_64__)
+#ifdef LPOE_IK_AVX
 #define LPOE_IK_AVX_SWEEP 1
 // Sweep6 with each column of the running frame (and its origin) in one AVX register, lanes 0-2:
 // the SSE2 sweep's multiplications and additions in the same order, so the same bits with half the
@@ -423,10 +786,6 @@ __attribute__((target("avx"))) void Sweep6Avx(const RobotModel& model, int tool,
   _mm256_storeu_pd(it->P, r[3]);
 }
 
-bool HaveAvx() {
-  static const bool have = __builtin_cpu_supports("avx");
-  return have;
-}
 #endif
 
 // The forward sweep of a chain of 6 revolute-z joints: G_i = T_0,i-1(q) T_{i-1,i}(0) as its axis
@@ -1021,20 +1380,36 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
     if (effective_ != nullptr) {
       effective_->Evaluate(it->q, it->x, it->dg_dq);
     } else {
-      for (int j = 0; j < 6; ++j) it->x[j] = it->q[j];
+      // One value per load (q was stored one joint at a time; see OneLane).
+#pragma GCC unroll 6
+      for (int j = 0; j < 6; ++j) it->x[j] = OneLane(it->q[j]);
     }
     int fresh[6], count = 0;  // joints whose sin/cos are computed afresh
-    for (int j = 0; j < 6; ++j) {
-      const double delta = from != nullptr ? it->x[j] - from->x[j] : HUGE_VAL;
-      if (std::abs(delta) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
-        double sd, cd;
-        SinCosStep(delta, &sd, &cd);
-        it->sin_x[j] = from->sin_x[j] * cd + from->cos_x[j] * sd;
-        it->cos_x[j] = from->cos_x[j] * cd - from->sin_x[j] * sd;
-        it->age[j] = from->age[j] + 1;
-      } else {
+    if (from == nullptr) {
+      for (int j = 0; j < 6; ++j) {
         fresh[count++] = j;
         it->age[j] = 0;
+      }
+    } else {
+      // The steps' sin/cos (SinCosStep), two joints at a time where SSE2 is there.
+      double delta[6], sd[6], cd[6];
+      for (int j = 0; j < 6; ++j) delta[j] = it->x[j] - from->x[j];
+#if defined(__SSE2__)
+      constexpr bool vector = true;
+      SinCosStep6(delta, sd, cd);
+#else
+      constexpr bool vector = false;
+#endif
+      for (int j = 0; j < 6; ++j) {
+        if (std::abs(delta[j]) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
+          if (!vector) SinCosStep(delta[j], &sd[j], &cd[j]);
+          it->sin_x[j] = from->sin_x[j] * cd[j] + from->cos_x[j] * sd[j];
+          it->cos_x[j] = from->cos_x[j] * cd[j] - from->sin_x[j] * sd[j];
+          it->age[j] = from->age[j] + 1;
+        } else {
+          fresh[count++] = j;
+          it->age[j] = 0;
+        }
       }
     }
     SinCosOf(it->x, fresh, count, it->sin_x, it->cos_x);
@@ -1063,15 +1438,18 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
     }
     const Eigen::Map<const Eigen::Matrix3d> R(it->R);
     const Eigen::Vector3d re = L * RotationError(Rt, R);
-    it->e[0] = target.position(0) - P[0];
-    it->e[1] = target.position(1) - P[1];
-    it->e[2] = target.position(2) - P[2];
-    it->e[3] = re(0);
-    it->e[4] = re(1);
-    it->e[5] = re(2);
-    double m = 0;
-    for (int k = 0; k < 6; ++k) m += it->e[k] * it->e[k];
-    it->merit = m;
+    // The merit from the values in registers, in the sum's order (0 + e_0^2 + ... + e_5^2): read
+    // back from it->e, the compiler's pairs of loads each spanned two separate stores, which the
+    // processor cannot forward (a stall of the order of ten cycles each on every evaluation).
+    const double e0 = target.position(0) - P[0], e1 = target.position(1) - P[1],
+                 e2 = target.position(2) - P[2], e3 = re(0), e4 = re(1), e5 = re(2);
+    it->e[0] = e0;
+    it->e[1] = e1;
+    it->e[2] = e2;
+    it->e[3] = e3;
+    it->e[4] = e4;
+    it->e[5] = e5;
+    it->merit = e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3 + e4 * e4 + e5 * e5;
   };
   auto task_ok = [&](const double* e) {
     return std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) <= o.position_tolerance &&
@@ -1110,9 +1488,7 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
     double d[6];
     bool solved = false;
     if (lambda2 == 0) {
-      double amax = 0;
-      for (int k = 0; k < 36; ++k) amax = std::max(amax, std::abs(cur->J[k]));
-      const SquareLu<6> lu(cur->J, 1e-9 * std::max(amax, 1e-30));
+      const SquareLu<6> lu(cur->J, 1e-9 * std::max(MaxAbs36(cur->J), 1e-30));
       solved = lu.Ok();
       if (solved) {
         const bool mapped = effective_ != nullptr;
@@ -1162,9 +1538,13 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
       const bool model_good =
           lambda2 > 0 && cur->merit - trial->merit >= kGoodModel * (cur->merit - predicted);
       std::swap(cur, trial);
-      lambda2 *= 0.1;
-      if (lambda2 < 1e-12 * Eigen::Map<const Mat6>(cur->J).squaredNorm() / 6 || model_good) {
-        lambda2 = 0;
+      // (Newton's steps, lambda2 = 0, stay undamped: the test, whose outcome is then 0 either
+      // way, is skipped with the squared norm of J.)
+      if (lambda2 > 0) {
+        lambda2 *= 0.1;
+        if (lambda2 < 1e-12 * Eigen::Map<const Mat6>(cur->J).squaredNorm() / 6 || model_good) {
+          lambda2 = 0;
+        }
       }
       beta = 1;
     } else {
@@ -1175,8 +1555,12 @@ bool InverseKinematics::RunFast(const IkTarget& target, const double* seed_in,
     }
   }
 
+  // Every field of the result set one by one (assigned from a value-initialized temporary, the
+  // copy's 16-byte loads read the temporary's separate stores: a store-forwarding stall).
   IkResult& result = *out;
-  result = IkResult();
+  result.restarts = 0;
+  result.at_limit = false;
+  result.branch_changed = false;
   result.sigma_min = std::sqrt(SmallestEigenvalueOfGram<6>(cur->J, 6));
   result.position_error = std::sqrt(cur->e[0] * cur->e[0] + cur->e[1] * cur->e[1] +
                                     cur->e[2] * cur->e[2]);
