@@ -197,12 +197,15 @@ if "10^7 rows, no plots" in by_label:
           f"{verdict(rss <= 1024)} |")
 sizes = [by_label.get(f"10^{k} rows, no plots") for k in (5, 6, 7)]
 if all(sizes):
-    # Time per row at 10^5, 10^6 and 10^7 rows: linear when the largest is within 1.5x the smallest
-    # (startup, model and output costs make small runs slower per row, not faster).
+    # Time per row at 10^5, 10^6 and 10^7 rows: linear (no worse) when no larger run takes more
+    # than 1.5x the time per row of a smaller one. Startup, model and output costs, and the linear
+    # solver's warm start (a fixed 20,000-row subsample), make small runs slower per row, not
+    # faster, so a smaller time per row at larger N is expected and not a failure.
     per_row = [sec / rows * 1e6 for rows, sec, _ in sizes]
+    linear = all(per_row[j] <= 1.5 * per_row[i] for i in range(3) for j in range(i + 1, 3))
     print(f"| time linear in N (10^5, 10^6, 10^7 rows) | " +
           ", ".join(f"{t:.2f} us" for t in per_row) + " a row | " +
-          f"{verdict(max(per_row) <= 1.5 * min(per_row))} |")
+          f"{verdict(linear)} |")
 def ik_time(name):
     b = ik_runs.get(name)
     if b is None:
@@ -263,6 +266,7 @@ print()
 print("| run | rows | wall | CPU (user + sys) | peak RSS |")
 print("|---|---|---|---|---|")
 for label, rows, seconds, rss, cpu, flags in e2e:
+    flags = flags.replace(work + "/", "")  # the run's temporary folder says nothing
     shown = f"{label} (`{flags}`)" if flags else label
     print(f"| {shown} | {rows:,} | {seconds:.2f} s | {cpu:.2f} s | {rss:.0f} MB |")
 EOF
