@@ -128,6 +128,8 @@ def fmt(t):
         return "n/a"
     if t < 1e-6:
         return f"{t * 1e9:.0f} ns"
+    if t < 1e-5:
+        return f"{t * 1e6:.2f} us"  # the IK figures: 1.37 us, not "1 us"
     if t < 1e-3:
         return f"{t * 1e6:.0f} us"
     if t < 1:
