@@ -570,10 +570,7 @@ void EvaluateSlots(const Parameterization& p, const JointSpaceRegressors& regs, 
     const JointTerm& term = *p.joint_blocks[b].term;
     const int first = regs.column_offset[b], last = regs.column_offset[b + 1];
     // The entries at each parameter's joint alone when the term gives them (RegressorValues).
-    bool single_joint = true;
-    for (int k = 0; k < term.num_parameters() && single_joint; ++k) {
-      single_joint = term.ParameterJoint(k) >= 0;
-    }
+    const bool single_joint = b < regs.one_joint_each.size() && regs.one_joint_each[b];
     term_Y->resize(term.num_parameters(), 1);
     if (single_joint && term.RegressorValues(q, term_Y->data())) {
       for (int t = 0; t < regs.num_slots(); ++t) {
@@ -861,9 +858,11 @@ JointSpaceRegressors BuildJointSpaceRegressors(const Parameterization& p,
     const JointTerm& term = *block.term;
     CHECK_EQ(term.num_joints(), n) << term.name();
     const int first = regs.column_offset.back();
+    regs.one_joint_each.push_back(1);
     for (int k = 0; k < term.num_parameters(); ++k) {
       const int j = term.ParameterJoint(k);
       CHECK(j >= -1 && j < n) << term.name() << ": ParameterJoint(" << k << ") = " << j;
+      if (j < 0) regs.one_joint_each.back() = 0;
       joint_of.push_back(j);
       for (int i = 0; i < n; ++i) {
         if (j < 0 || i == j) columns[i].push_back(first + k);

@@ -82,6 +82,10 @@ NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet&
 struct JointSpaceRegressors {
   int num_joints = 0;
   std::vector<int> column_offset;  // joint blocks + 1
+  // Per joint block: every parameter moves one joint (JointTerm::ParameterJoint >= 0), so that the
+  // term's RegressorValues may give a row's entries; decided once here, not per row. Empty or
+  // false: the block's full regressor is evaluated.
+  std::vector<char> one_joint_each;
   std::vector<int> slot_begin;     // num_joints + 1
   std::vector<int> slot_column;    // per slot
   Eigen::MatrixXd values;          // slots x rows; empty when above kMaxJointRowsBytes (evaluated
