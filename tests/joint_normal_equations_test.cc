@@ -69,14 +69,14 @@ struct Data {
   RobotModel model;  // a linearization point away from nominal
   MeasurementSet data;
   std::vector<std::shared_ptr<const JointTerm>> terms;
-  explicit Data(bool pose) {
+  explicit Data(bool pose, int count = 157) {
     nominal.payload.mass = 0.8;
     nominal.payload.com = Eigen::Vector3d(5, -3, 40);
     const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, 21);
     RobotModel actual = ApplyErrors(nominal, errors);
     ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), true, true, &actual);
     SimulationOptions options;
-    options.count = 157;  // not a multiple of the accumulation's block of poses
+    options.count = count;  // 157: not a multiple of the accumulation's block of poses
     options.noise_sigma = 0.01;
     options.pose = pose;
     options.orientation_noise_sigma = pose ? 1e-5 : 0.0;
@@ -185,6 +185,107 @@ TEST(JointNormalEquations, StructuredEqualsDensePositionReducedBlocks) {
 }
 TEST(JointNormalEquations, StructuredEqualsDensePoseReducedBlocks) {
   ExpectStructuredEqualsDense(true, true);
+}
+
+// The four-row path (position data on revolute-z joints with canonical frame columns, as the
+// solver's parameterization of cobot6: the rows four poses at a time with J_q beside the frame
+// columns, the slots' blocks from the per-pose products J_q^T y, J_q^T J_q and A^T J_q as dot
+// products over groups of poses) equals the rows one at a time with the slot columns, every block
+// on its own scale: whole blocks (the reduction's analysis) and the solver's reduced blocks, with
+// the coupled term too (slots in every joint), a joint state away from zero, gradient only; 157
+// poses (a partial block) and 2100 (two chunks of rows, each more than one group of poses), with
+// stored and with evaluated regressors.
+TEST(JointNormalEquations, FourRowPathEqualsRowByRow) {
+  for (const int count : {157, 2100}) {
+    const Data d(false, count);
+    Parameterization whole;
+    const Parameterization solver = internal::SolverParameterization(
+        d.nominal, d.data, ParameterizationKind::kIdentifiable, false, 1.0,
+        {d.terms[0], d.terms[1]}, 1e-4, nullptr, nullptr, nullptr, &whole);
+    ASSERT_EQ(solver.joint_blocks.size(), 2u);
+    // A linearization point away from nominal as the solver's iterations reach it (ApplyUpdate:
+    // the frames move, the joints stay revolute about z; d.model's errors change the twists).
+    RobotModel model = d.nominal;
+    {
+      std::mt19937 rng(9);
+      std::normal_distribution<double> normal;
+      Eigen::VectorXd step(solver.num_parameters);
+      for (int k = 0; k < step.size(); ++k) step(k) = 1e-3 * normal(rng);
+      step.tail(solver.num_joint_parameters()).setZero();
+      ApplyUpdate(solver, step, &model);
+    }
+    for (const bool reduce : {false, true}) {
+      Parameterization p = reduce ? solver : whole;
+      AddJointBlock(d.terms[2], &p);  // coupled
+      const int K = p.num_joint_parameters();
+      const int F = p.num_frame_parameters();
+      Eigen::VectorXd x(K);
+      std::mt19937 rng(7);
+      std::normal_distribution<double> normal;
+      for (int k = 0; k < K; ++k) x(k) = 1e-4 * normal(rng);
+      const internal::JointSpaceRegressors regs = internal::BuildJointSpaceRegressors(p, d.data);
+      internal::JointSpaceRegressors unstored = regs;
+      unstored.values.resize(0, 0);
+      for (const Eigen::VectorXd& state : {Eigen::VectorXd(), x}) {
+        for (const bool gradient_only : {false, true}) {
+          SCOPED_TRACE(::testing::Message() << count << " poses, reduce " << reduce << ", state "
+                                            << state.size() << ", gradient only "
+                                            << gradient_only);
+          internal::JointColumnsOptions four;
+          four.regressors = &regs;
+          four.gradient_only = gradient_only;
+          internal::JointColumnsOptions rows = four;
+          rows.four_rows = false;
+          const internal::NormalEquations a = internal::NormalEquationsOf(
+              model, d.data, p, state, false, 1.0, false, nullptr, nullptr, rows);
+          const internal::NormalEquations b = internal::NormalEquationsOf(
+              model, d.data, p, state, false, 1.0, false, nullptr, nullptr, four);
+          ASSERT_TRUE(a.finite && b.finite);
+          EXPECT_FALSE(a.four_rows);
+          EXPECT_TRUE(b.four_rows) << "the four-row path no longer applies to cobot6";
+          EXPECT_EQ(b.joint_blocks, !gradient_only);
+          EXPECT_LE(RelativeDifference(b.H.topLeftCorner(F, F), a.H.topLeftCorner(F, F)),
+                    kRelative);
+          EXPECT_LE(RelativeDifference(b.g.head(F), a.g.head(F)), kRelative);
+          EXPECT_LE(RelativeDifference(b.g.tail(K), a.g.tail(K)), kRelative);
+          EXPECT_NEAR(b.cost, a.cost, kRelative * a.cost);
+          EXPECT_NEAR(b.max_error, a.max_error, kRelative * a.max_error);
+          EXPECT_NEAR(b.mean_error, a.mean_error, kRelative * a.mean_error);
+          EXPECT_EQ(b.H, b.H.transpose());
+          if (gradient_only) {
+            EXPECT_EQ(b.H.rightCols(K).cwiseAbs().maxCoeff(), 0.0);
+          } else {
+            EXPECT_LE(RelativeDifference(b.H.topRightCorner(F, K), a.H.topRightCorner(F, K)),
+                      kRelative);
+            EXPECT_LE(
+                RelativeDifference(b.H.bottomRightCorner(K, K), a.H.bottomRightCorner(K, K)),
+                kRelative);
+          }
+          if (!gradient_only) {  // and the dense rows
+            internal::JointColumnsOptions dense;
+            dense.dense = true;
+            const internal::NormalEquations e = internal::NormalEquationsOf(
+                model, d.data, p, state, false, 1.0, false, nullptr, nullptr, dense);
+            EXPECT_LE(RelativeDifference(b.H.topRightCorner(F, K), e.H.topRightCorner(F, K)),
+                      kRelative);
+            EXPECT_LE(
+                RelativeDifference(b.H.bottomRightCorner(K, K), e.H.bottomRightCorner(K, K)),
+                kRelative);
+            EXPECT_LE(RelativeDifference(b.g.tail(K), e.g.tail(K)), kRelative);
+          }
+          // Regressors evaluated per group of poses instead of stored: the same numbers.
+          internal::JointColumnsOptions evaluated = four;
+          evaluated.regressors = &unstored;
+          const internal::NormalEquations u = internal::NormalEquationsOf(
+              model, d.data, p, state, false, 1.0, false, nullptr, nullptr, evaluated);
+          EXPECT_TRUE(u.four_rows);
+          EXPECT_LE(RelativeDifference(u.H, b.H), 1e-14);
+          EXPECT_LE(RelativeDifference(u.g.tail(K), b.g.tail(K)), 1e-14);
+          EXPECT_EQ(u.cost, b.cost);
+        }
+      }
+    }
+  }
 }
 
 TEST(JointNormalEquations, ProjectionOfWholeBlocksEqualsTheReducedBlocks) {

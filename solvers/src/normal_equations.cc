@@ -184,10 +184,11 @@ struct FourRowPlan {
   std::vector<Frame> frames;
 };
 
-FourRowPlan MakeFourRowPlan(const RobotModel& model, const Parameterization& p) {
+FourRowPlan MakeFourRowPlan(const RobotModel& model, const Parameterization& p,
+                            bool joint_blocks = false) {
   FourRowPlan plan;
   if (!HaveAvx2() || model.num_joints() > kMaxGivenSinCosJoints ||
-      p.num_joint_parameters() > 0) {
+      (p.num_joint_parameters() > 0 && !joint_blocks)) {
     return plan;
   }
   for (const Joint& j : model.joints) {
@@ -241,12 +242,16 @@ __attribute__((target("avx2,fma"))) inline void Broadcast4(const SE3d& O, __m256
 
 // Four rows (lanes) of the position Jacobian into A (column c, component i of lane l at
 // A[c * ld + i * stride + l]; lanes from `valid` on get zeros) and their positions into P
-// (P[4 i + l]). sin_q, cos_q: n values per lane, lane after lane.
+// (P[4 i + l]). sin_q, cos_q: n values per lane, lane after lane. With jq_column >= 0 the joint
+// Jacobian dP/dq too, in the same layout from column jq_column on: joint j's column is
+// z_j x (P - t_j) with z_j, t_j the axis and origin of the joint's frame G_j (the frame's rotation
+// column about z, w_j x P + v_j).
 __attribute__((target("avx2,fma"))) void PositionRows4(const RobotModel& model,
                                                        const FourRowPlan& plan,
                                                        const double* sin_q, const double* cos_q,
                                                        const int* tool, int valid, double* A,
-                                                       int ld, int stride, double* P) {
+                                                       int ld, int stride, double* P,
+                                                       int jq_column = -1) {
   const int n = model.num_joints();
   __m256d F[kMaxGivenSinCosJoints + 1][12];
   __m256d X[12], M[12];
@@ -308,6 +313,22 @@ __attribute__((target("avx2,fma"))) void PositionRows4(const RobotModel& model,
       }
       double* o = out + static_cast<std::ptrdiff_t>(c) * ld;
       for (int i = 0; i < 3; ++i) _mm256_storeu_pd(o + i * stride, _mm256_and_pd(col[i], mask));
+    }
+  }
+  if (jq_column >= 0) {
+    for (int j = 0; j < n; ++j) {
+      const __m256d* G = F[j];
+      const __m256d d[3] = {_mm256_sub_pd(p[0], G[9]), _mm256_sub_pd(p[1], G[10]),
+                            _mm256_sub_pd(p[2], G[11])};
+      const __m256d* z = G + 6;
+      __m256d col[3];
+      col[0] = _mm256_fmsub_pd(z[1], d[2], _mm256_mul_pd(z[2], d[1]));
+      col[1] = _mm256_fmsub_pd(z[2], d[0], _mm256_mul_pd(z[0], d[2]));
+      col[2] = _mm256_fmsub_pd(z[0], d[1], _mm256_mul_pd(z[1], d[0]));
+      double* o = A + static_cast<std::ptrdiff_t>(jq_column + j) * ld;
+      for (int i = 0; i < 3; ++i) {
+        _mm256_storeu_pd(o + i * stride, _mm256_and_pd(col[i], valid_mask));
+      }
     }
   }
 }
@@ -474,6 +495,7 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
 #else
   const bool four = false;
 #endif
+  lin.four_rows = four;
   const RowChunks chunks = PartitionRows(N, kMinChunkPoses, kMaxChunks);
   std::vector<ChunkSums> sums(chunks.chunks);
   if (m != 3 || K > 0) errors = nullptr;
@@ -540,6 +562,9 @@ struct SlotSums {
                         // frames' and the slots' columns: H_ff, H_sf and W)
   Eigen::VectorXd g;    // F
   Eigen::VectorXd gs;   // S
+  // Four-row path (AccumulateSlots4): the frames' block and gradient as one (F + 1) square lower
+  // triangle (J^T J, then J^T y in row F); H then holds the slots' rows only.
+  Eigen::MatrixXd Hfy;
   double cost = 0;
   double max_error = 0;
   double sum_error = 0;
@@ -665,6 +690,216 @@ void AccumulateSlots(const Kind& kind, const BasisJacobian& bj, const Parameteri
   }
 }
 
+#ifdef LPOE_HAVE_AVX2_KERNEL
+// ---- Position rows four at a time with joint-space blocks.
+//
+// Where the four-row path applies (position data, revolute-z joints, canonical frame columns) the
+// rows are evaluated four poses at a time as in the geometric pass, with the joint Jacobian J_q as
+// n more columns, and the slots' blocks are not formed from slot columns per row but per group of
+// up to kSlotGroupPoses poses as a few matrix products over the poses, from three small per-pose
+// products: h_p = J_q^T y, G_p = J_q^T J_q (lower triangle) and C_p = A_p^T J_q (A_p: the pose's
+// frame rows). For slot t of joint j and slot u of joint i (v: the slots' values, V_j: joint j's
+// slot rows over the poses):
+//   gs_t = sum_p v_t(p) h_p(j)                  gs_j    = V_j h(j)
+//   (H_slots,frames)_t = sum_p v_t(p) C_p(:, j)  H_sj,f  = V_j C_j
+//   W_tu = sum_p v_t(p) v_u(p) G_p(j, i)          W_ji    = V_j diag(G(j, i)) V_i^T
+// the same sums as the slot columns' (J_q col j * v_t) products in another order:
+// (3 n + 3 n (n + 1) / 2 + 3 n F) multiply-adds per pose plus (F S + S (S + 1) / 2 + ...) in the
+// products, against 3 (F + S) (F + S + 1) / 2 for the rank-k update of the slot columns.
+constexpr int kSlotGroupPoses = 1024;
+
+struct SlotScratch4 {
+  Eigen::MatrixXd A;  // 3 kBlockPoses x (F + 1 + n): frame columns, y, J_q (PositionRows4 layout)
+  std::vector<double> q_eff, sin_q, cos_q;  // n values per pose of a block
+  int group = 0;      // rows of h, G, C (kSlotGroupPoses, or fewer for small data)
+  Eigen::MatrixXd V;  // S x group: slot values when not stored
+  Eigen::MatrixXd dq;  // n x group: q_eff - q
+  Eigen::MatrixXd h;   // group x n
+  Eigen::MatrixXd G;   // group x n (n + 1) / 2: column j (j + 1) / 2 + i, i <= j
+  Eigen::MatrixXd C;   // group x n F: column j F + f
+  Eigen::MatrixXd VT;  // group x S: the slots' values transposed (columns over the poses)
+  Eigen::MatrixXd term_Y;
+};
+
+// sum_c x[c * stride + lane] * b[c](lane) over the three components, four lanes.
+__attribute__((target("avx2,fma"))) inline __m256d Dot3Lanes(const double* x, int stride,
+                                                            const __m256d* b) {
+  return _mm256_fmadd_pd(_mm256_loadu_pd(x + 2 * stride), b[2],
+                         _mm256_fmadd_pd(_mm256_loadu_pd(x + stride), b[1],
+                                         _mm256_mul_pd(_mm256_loadu_pd(x), b[0])));
+}
+
+// out(a, b) += sum_k X_a[k] w[k] Y_b[k] (w[k] = 1 unless kWeighted) for a < nx, b < ny, over k < len:
+// columns X_a = X + a ldx, Y_b = Y + b ldy contiguous, out column-major with leading dimension
+// ldo. `lower`: only the entries a >= b are needed (others may be written too). Tiles of 2 x 4
+// dot products in 4-wide fused multiply-adds, as SyrkLowerAvx2.
+template <bool kWeighted>
+__attribute__((target("avx2,fma"))) void DotProductsAvx2(const double* X, int ldx, int nx,
+                                                         const double* Y, int ldy, int ny,
+                                                         const double* w, int len, bool lower,
+                                                         double* out, int ldo) {
+  constexpr int kTi = 2, kTj = 4;
+  const int k4 = len & ~3;
+  for (int b0 = 0; b0 < ny; b0 += kTj) {
+    for (int a0 = lower ? b0 : 0; a0 < nx; a0 += kTi) {  // b0 is even
+      // Columns past the last are read again from the last one and their results dropped.
+      const double* a[kTi];
+      const double* b[kTj];
+      for (int t = 0; t < kTi; ++t) a[t] = X + static_cast<std::ptrdiff_t>(std::min(a0 + t, nx - 1)) * ldx;
+      for (int t = 0; t < kTj; ++t) b[t] = Y + static_cast<std::ptrdiff_t>(std::min(b0 + t, ny - 1)) * ldy;
+      __m256d acc[kTi][kTj];
+      for (auto& row : acc) {
+        for (__m256d& v : row) v = _mm256_setzero_pd();
+      }
+      for (int k = 0; k < k4; k += 4) {
+        __m256d bv[kTj];
+        for (int t = 0; t < kTj; ++t) bv[t] = _mm256_loadu_pd(b[t] + k);
+        __m256d wv = _mm256_set1_pd(1.0);
+        if constexpr (kWeighted) wv = _mm256_loadu_pd(w + k);
+        for (int s = 0; s < kTi; ++s) {
+          __m256d av = _mm256_loadu_pd(a[s] + k);
+          if constexpr (kWeighted) av = _mm256_mul_pd(av, wv);
+          for (int t = 0; t < kTj; ++t) acc[s][t] = _mm256_fmadd_pd(av, bv[t], acc[s][t]);
+        }
+      }
+      for (int s = 0; s < kTi; ++s) {
+        for (int t = 0; t < kTj; ++t) {
+          const int i = a0 + s, j = b0 + t;
+          if (i >= nx || j >= ny) continue;
+          alignas(32) double lanes[4];
+          _mm256_store_pd(lanes, acc[s][t]);
+          double sum = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+          for (int k = k4; k < len; ++k) sum += (kWeighted ? a[s][k] * w[k] : a[s][k]) * b[t][k];
+          out[static_cast<std::ptrdiff_t>(j) * ldo + i] += sum;
+        }
+      }
+    }
+  }
+}
+
+// The per-pose products of a block written by PositionRows4 with J_q from column F + 1 and y in
+// column F (lanes k in [0, stride), zero past the block's poses), into rows row + k of h, G and C
+// (leading dimension ldo); G and C only with `blocks`.
+__attribute__((target("avx2,fma"))) void PoseProducts4(const double* A, int ld, int stride, int F,
+                                                       int n, bool blocks, double* h, double* G,
+                                                       double* C, int ldo, int row) {
+  const double* Y = A + static_cast<std::ptrdiff_t>(F) * ld;
+  const double* JQ = A + static_cast<std::ptrdiff_t>(F + 1) * ld;
+  for (int k = 0; k < stride; k += 4) {
+    for (int j = 0; j < n; ++j) {
+      const double* jq = JQ + static_cast<std::ptrdiff_t>(j) * ld + k;
+      const __m256d a[3] = {_mm256_loadu_pd(jq), _mm256_loadu_pd(jq + stride),
+                            _mm256_loadu_pd(jq + 2 * stride)};
+      const std::ptrdiff_t out = row + k;
+      _mm256_storeu_pd(h + static_cast<std::ptrdiff_t>(j) * ldo + out, Dot3Lanes(Y + k, stride, a));
+      if (!blocks) continue;
+      for (int i = 0; i <= j; ++i) {
+        _mm256_storeu_pd(G + static_cast<std::ptrdiff_t>(j * (j + 1) / 2 + i) * ldo + out,
+                         Dot3Lanes(JQ + static_cast<std::ptrdiff_t>(i) * ld + k, stride, a));
+      }
+      for (int f = 0; f < F; ++f) {
+        _mm256_storeu_pd(C + static_cast<std::ptrdiff_t>(j * F + f) * ldo + out,
+                         Dot3Lanes(A + static_cast<std::ptrdiff_t>(f) * ld + k, stride, a));
+      }
+    }
+  }
+}
+
+// Rows [begin, end) four at a time into `sums` (Hfy, gs and with `blocks` the slots' rows of H).
+void AccumulateSlots4(const RobotModel& model, const FourRowPlan& plan, const Parameterization& p,
+                      const Eigen::VectorXd& theta_slots, const JointSpaceRegressors& regs,
+                      bool blocks, const MeasurementSet& data, int begin, int end,
+                      SlotScratch4* s, SlotSums* sums) {
+  const int n = model.num_joints();
+  const int F = p.num_frame_parameters();
+  const int S = regs.num_slots();
+  const int ld = static_cast<int>(s->A.rows());
+  double* A = s->A.data();
+  double* Y = A + static_cast<std::ptrdiff_t>(F) * ld;
+  const bool stored = regs.values.size() > 0;
+  const bool moved = theta_slots.size() > 0;
+  const int ldo = s->group;
+  for (int s0 = begin; s0 < end; s0 += ldo) {
+    const int ns = std::min(ldo, end - s0);
+    if (!stored) {
+      for (int k = 0; k < ns; ++k) {
+        EvaluateSlots(p, regs, data.q(s0 + k), &s->term_Y, s->V.col(k).data());
+      }
+    }
+    const Eigen::Map<const Eigen::MatrixXd> V(
+        stored ? regs.values.data() + static_cast<std::ptrdiff_t>(s0) * S : s->V.data(), S, ns);
+    if (moved) {
+      for (int j = 0; j < n; ++j) {
+        const int b = regs.slot_begin[j], c = regs.slot_begin[j + 1] - b;
+        if (c == 0) {
+          s->dq.row(j).head(ns).setZero();
+        } else {
+          s->dq.row(j).head(ns).noalias() =
+              theta_slots.segment(b, c).transpose() * V.middleRows(b, c);
+        }
+      }
+    }
+    for (int r0 = s0; r0 < s0 + ns; r0 += kBlockPoses) {
+      const int count = std::min(kBlockPoses, s0 + ns - r0);
+      const int stride = (count + 3) & ~3;
+      const int k0 = r0 - s0;
+      const double* q = data.q(r0);
+      double* qe = s->q_eff.data();
+      for (int k = 0; k < count; ++k) {
+        for (int j = 0; j < n; ++j) {
+          qe[k * n + j] = moved ? q[k * n + j] + s->dq(j, k0 + k) : q[k * n + j];
+        }
+      }
+      SinCosMany(qe, count * n, s->sin_q.data(), s->cos_q.data());
+      for (int g = 0; g < count; g += 4) {
+        const int valid = std::min(4, count - g);
+        int tool[4];
+        for (int l = 0; l < 4; ++l) tool[l] = l < valid ? data.target(r0 + g + l) : 0;
+        double Pm[12];
+        PositionRows4(model, plan, s->sin_q.data() + static_cast<std::ptrdiff_t>(g) * n,
+                      s->cos_q.data() + static_cast<std::ptrdiff_t>(g) * n, tool, valid, A + g, ld,
+                      stride, Pm, F + 1);
+        for (int l = 0; l < 4; ++l) {
+          for (int i = 0; i < 3; ++i) {
+            Y[i * stride + g + l] = l < valid ? data.position(r0 + g + l)(i) - Pm[4 * i + l] : 0.0;
+          }
+        }
+      }
+      for (int k = 0; k < count; ++k) {
+        const Eigen::Vector3d y(Y[k], Y[stride + k], Y[2 * stride + k]);
+        const double e = y.norm();
+        sums->cost += 0.5 * y.squaredNorm();
+        sums->max_error = std::max(sums->max_error, e);
+        sums->sum_error += e;
+      }
+      SyrkLowerAvx2(A, ld, 3 * stride, F + 1, sums->Hfy.data());
+      PoseProducts4(A, ld, stride, F, n, blocks, s->h.data(), s->G.data(), s->C.data(), ldo, k0);
+    }
+    // The group's products over its poses: dot products of contiguous columns over the poses
+    // (the slots' values transposed once per group).
+    if (blocks) s->VT.topRows(ns) = V.transpose();
+    const int ldh = static_cast<int>(sums->H.rows());
+    for (int j = 0; j < n; ++j) {
+      const int b = regs.slot_begin[j], c = regs.slot_begin[j + 1] - b;
+      if (c == 0) continue;
+      sums->gs.segment(b, c).noalias() += V.middleRows(b, c) * s->h.col(j).head(ns);
+      if (!blocks) continue;
+      const double* Vj = s->VT.data() + static_cast<std::ptrdiff_t>(b) * ldo;
+      double* Hj = sums->H.data() + F + b;  // row F + b
+      DotProductsAvx2<false>(Vj, ldo, c, s->C.data() + static_cast<std::ptrdiff_t>(j) * F * ldo,
+                             ldo, F, nullptr, ns, false, Hj, ldh);
+      for (int i = 0; i <= j; ++i) {
+        const int bi = regs.slot_begin[i], ci = regs.slot_begin[i + 1] - bi;
+        if (ci == 0) continue;
+        DotProductsAvx2<true>(Vj, ldo, c, s->VT.data() + static_cast<std::ptrdiff_t>(bi) * ldo, ldo,
+                              ci, s->G.data() + static_cast<std::ptrdiff_t>(j * (j + 1) / 2 + i) * ldo,
+                              ns, i == j, Hj + static_cast<std::ptrdiff_t>(F + bi) * ldh, ldh);
+      }
+    }
+  }
+}
+#endif
+
 // Whether T only selects columns: every row zero but for at most one entry equal to 1. `column`:
 // that entry's column per row, -1 for a zero row (left empty when T does more than select).
 bool SlotSelection(const Eigen::MatrixXd& T, std::vector<int>* column) {
@@ -687,7 +922,8 @@ template <typename Kind>
 NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
                                      const MeasurementSet& data, const Parameterization& p,
                                      const Eigen::VectorXd& joint_state,
-                                     const JointSpaceRegressors& regs, bool gradient_only) {
+                                     const JointSpaceRegressors& regs, bool gradient_only,
+                                     bool four_rows) {
   constexpr int m = Kind::kResiduals;
   const int P = p.num_parameters;
   const int K = p.num_joint_parameters();
@@ -713,7 +949,31 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
   const RowChunks chunks = PartitionRows(N, kMinChunkPoses, kMaxChunks);
   std::vector<SlotSums> sums(chunks.chunks);
   const int threads = N < kMinPosesForThreads ? 1 : ThreadsFor(chunks.chunks);
-  std::vector<SlotScratch> scratch(threads);
+#ifdef LPOE_HAVE_AVX2_KERNEL
+  FourRowPlan plan;
+  if (m == 3 && four_rows) plan = MakeFourRowPlan(model, p, true);
+  const bool four = plan.ok;
+  std::vector<SlotScratch4> scratch4(four ? threads : 0);
+  for (SlotScratch4& s : scratch4) {
+    s.group = std::min(kSlotGroupPoses, (N + kBlockPoses - 1) / kBlockPoses * kBlockPoses);
+    s.A.setZero(3 * kBlockPoses, F + 1 + n);
+    s.q_eff.assign(static_cast<size_t>(n) * (kBlockPoses + 4), 0.0);
+    s.sin_q.assign(s.q_eff.size(), 0.0);
+    s.cos_q.assign(s.q_eff.size(), 0.0);
+    if (regs.values.size() == 0) s.V.resize(S, s.group);
+    if (joint_state.size() > 0) s.dq.resize(n, s.group);
+    s.h.resize(s.group, n);
+    if (blocks) {
+      s.G.resize(s.group, n * (n + 1) / 2);
+      s.C.resize(s.group, static_cast<Eigen::Index>(n) * F);
+      s.VT.resize(s.group, S);
+    }
+  }
+#else
+  const bool four = false;
+#endif
+  lin.four_rows = four;
+  std::vector<SlotScratch> scratch(four ? 0 : threads);
   for (SlotScratch& s : scratch) {
     s.A.resize(static_cast<Eigen::Index>(m) * kBlockPoses, blocks ? std::max(P, F + S) : P);
     s.Y.resize(static_cast<Eigen::Index>(m) * kBlockPoses);
@@ -728,6 +988,14 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
     cs.H.setZero(FS, FS);
     cs.g.setZero(F);
     cs.gs.setZero(S);
+#ifdef LPOE_HAVE_AVX2_KERNEL
+    if (four) {
+      cs.Hfy.setZero(F + 1, F + 1);
+      AccumulateSlots4(model, plan, p, theta_slots, regs, blocks, data, chunks.begin(c),
+                       chunks.end(c), &scratch4[thread], &cs);
+      return;
+    }
+#endif
     AccumulateSlots(kind, bj, p, theta_slots, regs, blocks, data, chunks.begin(c), chunks.end(c),
                     &scratch[thread], &cs);
   });
@@ -736,6 +1004,10 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
   double sum_error = 0;
   for (const SlotSums& cs : sums) {
     Hall += cs.H;
+    if (four) {
+      Hall.topLeftCorner(F, F) += cs.Hfy.topLeftCorner(F, F);
+      lin.g.head(F) += cs.Hfy.row(F).head(F).transpose();
+    }
     lin.g.head(F) += cs.g;
     gs += cs.gs;
     lin.cost += cs.cost;
@@ -802,10 +1074,11 @@ NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet&
     if (use_orientation) {
       PoseMeasurement kind;
       kind.orientation_weight = orientation_weight;
-      return AccumulateStructured(kind, model, data, p, joint_state, *regs, joint.gradient_only);
+      return AccumulateStructured(kind, model, data, p, joint_state, *regs, joint.gradient_only,
+                                  joint.four_rows);
     }
     return AccumulateStructured(PositionMeasurement(), model, data, p, joint_state, *regs,
-                                joint.gradient_only);
+                                joint.gradient_only, joint.four_rows);
   }
   if (use_orientation) {
     PoseMeasurement kind;

@@ -26,6 +26,7 @@ struct NormalEquations {
   double mean_error = 0;  // mm
   bool finite = true;
   bool joint_blocks = true;  // false: H's joint-space blocks were not formed (gradient_only)
+  bool four_rows = false;    // the position rows were evaluated four at a time (AVX2 path)
 };
 
 // Residuals y (position: P_measured - P_model, eq. (30); pose: log(T_measured T_model^-1), eq. (17),
@@ -60,6 +61,11 @@ struct JointColumnsOptions {
   bool gradient_only = false;
   // Form every row with all its columns (the algebra before the structured path; for tests).
   bool dense = false;
+  // Position rows four at a time where that path applies (AVX2 and FMA, every joint revolute about
+  // z, every frame basis column canonical), the slots' blocks from per-pose J_q products as matrix
+  // products over the poses (docs/joint_errors.md, Cost); false: one row at a time with the slot
+  // columns (the same numbers up to rounding; for tests).
+  bool four_rows = true;
 };
 NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
                                   const Parameterization& p, const Eigen::VectorXd& joint_state,
