@@ -32,6 +32,19 @@ void ComputeChainState(const RobotModel& model, const double* q, ChainState* sta
   for (int i = 0; i < n; ++i) {
     const Joint& joint = model.joints[i];
     X = X * (origins != nullptr ? (*origins)[i] : joint.origin);
+    if (IsRevoluteZ(joint)) {
+      // The same numbers without the general products: w = R e_z, v = t x w, and X Rz(q) turns
+      // R's first two columns (t unchanged).
+      const Eigen::Vector3d w = X.R.col(2);
+      state->twist[i] << w, X.t.cross(w);
+      double s, c;
+      SinCos(q[i], &s, &c);
+      const Eigen::Vector3d r0 = X.R.col(0), r1 = X.R.col(1);
+      X.R.col(0) = r0 * c + r1 * s;
+      X.R.col(1) = r0 * -s + r1 * c;
+      state->link[i] = X;
+      continue;
+    }
     const Eigen::Vector3d w = X.R * joint.twist.head<3>();
     state->twist[i] << w, X.R * joint.twist.tail<3>() + X.t.cross(w);  // Ad_X s (se3.h)
     X = X * JointMotion(joint, q[i]);

@@ -1272,10 +1272,16 @@ NormalEquations ProjectJointBlocks(const NormalEquations& full, const Parameteri
   int unreduced = 0;
   for (const JointBlock& b : reduced.joint_blocks) unreduced += static_cast<int>(b.basis.rows());
   CHECK_EQ(full.H.rows(), F + unreduced);
-  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(unreduced, K);
+  // T (unreduced x K) is block diagonal, one block per joint block (its basis): the products
+  // below go block by block.
+  struct Part {
+    int row, col;
+    const Eigen::MatrixXd* basis;
+  };
+  std::vector<Part> parts;
   int row = 0;
   for (const JointBlock& b : reduced.joint_blocks) {
-    T.block(row, b.offset - F, b.basis.rows(), b.basis.cols()) = b.basis;
+    parts.push_back({row, b.offset - F, &b.basis});
     row += static_cast<int>(b.basis.rows());
   }
   NormalEquations out;
@@ -1286,13 +1292,22 @@ NormalEquations ProjectJointBlocks(const NormalEquations& full, const Parameteri
   out.H.resize(F + K, F + K);
   out.g.resize(F + K);
   out.H.topLeftCorner(F, F) = full.H.topLeftCorner(F, F);
-  out.H.topRightCorner(F, K).noalias() = full.H.topRightCorner(F, unreduced) * T;
-  out.H.bottomLeftCorner(K, F) = out.H.topRightCorner(F, K).transpose();
-  const Eigen::MatrixXd HT = full.H.bottomRightCorner(unreduced, unreduced) * T;
-  Eigen::MatrixXd Hkk = T.transpose() * HT;
-  out.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
   out.g.head(F) = full.g.head(F);
-  out.g.tail(K).noalias() = T.transpose() * full.g.tail(unreduced);
+  Eigen::MatrixXd HT(unreduced, K);  // H_joint T
+  for (const Part& b : parts) {
+    const Eigen::MatrixXd& B = *b.basis;
+    const Eigen::Index r = B.rows(), k = B.cols();
+    out.H.block(0, F + b.col, F, k).noalias() = full.H.block(0, F + b.row, F, r) * B;
+    HT.middleCols(b.col, k).noalias() = full.H.block(F, F + b.row, unreduced, r) * B;
+    out.g.segment(F + b.col, k).noalias() = B.transpose() * full.g.segment(F + b.row, r);
+  }
+  out.H.bottomLeftCorner(K, F) = out.H.topRightCorner(F, K).transpose();
+  Eigen::MatrixXd Hkk(K, K);
+  for (const Part& a : parts) {
+    const Eigen::MatrixXd& B = *a.basis;
+    Hkk.middleRows(a.col, B.cols()).noalias() = B.transpose() * HT.middleRows(a.row, B.rows());
+  }
+  out.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
   out.finite = full.finite && out.H.allFinite() && out.g.allFinite();
   return out;
 }
