@@ -9,6 +9,7 @@
 #include <random>
 #include <string>
 
+#include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <gtest/gtest.h>
 
@@ -188,6 +189,16 @@ TEST(Convergence, StandardDeviationsOfADenseProblemEqualTheWholeInverses) {
     const double expected = std::sqrt(2.0 * cost / dof * inverse(k, k));
     EXPECT_NEAR(sd(k), expected, 1e-9 * expected) << k;
   }
+  // From a factor the caller has (the linear solver's step), under another scale: the same.
+  Eigen::VectorXd d(P);
+  for (int k = 0; k < P; ++k) d(k) = (1 + 0.5 * (k % 3)) / std::sqrt(H(k, k));
+  const Eigen::MatrixXd Hs = d.asDiagonal() * H * d.asDiagonal();
+  const Eigen::LLT<Eigen::MatrixXd> llt(Hs);
+  ASSERT_EQ(llt.info(), Eigen::Success);
+  const Eigen::VectorXd from_factor = StandardDeviationsFromFactor(llt.matrixLLT(), d, cost, dof);
+  ASSERT_EQ(from_factor.size(), P);
+  for (int k = 0; k < P; ++k) EXPECT_NEAR(from_factor(k), sd(k), 1e-9 * sd(k)) << k;
+  EXPECT_EQ(StandardDeviationsFromFactor(llt.matrixLLT(), d, cost, 0).size(), 0);
 }
 
 }  // namespace

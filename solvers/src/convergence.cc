@@ -40,21 +40,31 @@ Eigen::VectorXd StandardDeviations(const Eigen::MatrixXd& H, double cost, long d
   const Eigen::MatrixXd Hs = d.asDiagonal() * H * d.asDiagonal();
   Eigen::LLT<Eigen::MatrixXd> llt(Hs);
   if (llt.info() != Eigen::Success) return {};
+  return StandardDeviationsFromFactor(llt.matrixLLT(), d, cost, dof);
+}
+
+Eigen::VectorXd StandardDeviationsFromFactor(const Eigen::MatrixXd& L, const Eigen::VectorXd& d,
+                                             double cost, long dof) {
+  if (dof <= 0 || L.rows() == 0 || !(cost >= 0) || !std::isfinite(cost)) return {};
   // diag(Hs^-1) only: Hs^-1 = L^-T L^-1, so (Hs^-1)_kk is the squared norm of column k of L^-1,
   // L x = e_k solved forward from row k (x is zero above it): n^3 / 6 multiply-adds instead of the
   // whole inverse's n^3.
-  const Eigen::Index n = H.rows();
-  const Eigen::MatrixXd& L = llt.matrixLLT();  // lower triangle
+  const Eigen::Index n = L.rows();
   Eigen::VectorXd x(n);
   const double s2 = 2.0 * cost / static_cast<double>(dof);
   Eigen::VectorXd sd(n);
+  // Plain loops over contiguous columns (the same operations as x.tail() -= x(m) L.col(m).tail(),
+  // without an expression per column).
+  double* xs = x.data();
+  const Eigen::Index ld = L.outerStride();
   for (Eigen::Index k = 0; k < n; ++k) {
-    x.tail(n - k).setZero();
-    x(k) = 1.0;
+    for (Eigen::Index i = k; i < n; ++i) xs[i] = 0.0;
+    xs[k] = 1.0;
     for (Eigen::Index m = k; m < n; ++m) {
-      x(m) /= L(m, m);
-      const Eigen::Index rest = n - m - 1;
-      if (rest > 0) x.tail(rest) -= x(m) * L.col(m).tail(rest);
+      const double* Lm = L.data() + m * ld;
+      const double xm = xs[m] / Lm[m];
+      xs[m] = xm;
+      for (Eigen::Index i = m + 1; i < n; ++i) xs[i] -= xm * Lm[i];
     }
     sd(k) = d(k) * std::sqrt(std::max(0.0, s2 * x.tail(n - k).squaredNorm()));
   }

@@ -95,8 +95,12 @@ using internal::Identifiability;
 // identifiable count): the gauge directions are null at the start, but a structurally lost one
 // (structural_identifiability.h) comes back weakly through them once the model moves, and a
 // pseudo-inverse would take ever larger steps along it.
+// `factor`, `scale` (optional, not with `full`): the Cholesky factor of the column-scaled normal
+// matrix and the scale, for the standard deviations of the same linearization.
 Eigen::VectorXd SolveStep(const Linearization& lin, bool full, int rank,
-                          const LinearSolverOptions& options) {
+                          const LinearSolverOptions& options,
+                          Eigen::LLT<Eigen::MatrixXd>* factor = nullptr,
+                          Eigen::VectorXd* scale = nullptr) {
   const Eigen::VectorXd d = ColumnScale(lin.H);
   if (full) {
     // Minimum-norm solution of the rank-deficient system (the paper's eq. (32) read as a
@@ -115,7 +119,10 @@ Eigen::VectorXd SolveStep(const Linearization& lin, bool full, int rank,
   const Eigen::VectorXd gs = d.asDiagonal() * lin.g;
   Eigen::LLT<Eigen::MatrixXd> llt(Hs);
   if (llt.info() != Eigen::Success) return Eigen::VectorXd::Constant(lin.g.size(), NAN);
-  return d.asDiagonal() * llt.solve(gs);
+  Eigen::VectorXd x = d.asDiagonal() * llt.solve(gs);
+  if (factor != nullptr) *factor = std::move(llt);
+  if (scale != nullptr) *scale = d;
+  return x;
 }
 
 IterationRecord Record(int iteration, const Linearization& lin) {
@@ -376,11 +383,15 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   double previous_cost = -1;
   double previous_step = -1;
   for (int it = 1; it <= options.max_iterations; ++it) {
-    Eigen::VectorXd x = SolveStep(lin, full, identifiable, options);
+    // The step's factorization also gives the stopping rule's standard deviations.
+    Eigen::LLT<Eigen::MatrixXd> factor;
+    Eigen::VectorXd scale;
+    Eigen::VectorXd x = SolveStep(lin, full, identifiable, options, &factor, &scale);
     if (structured && !lin.joint_blocks &&
         (!x.allFinite() || (previous_step >= 0 && x.norm() > kFrozenContraction * previous_step))) {
       lin = exact();
-      x = SolveStep(lin, full, identifiable, options);
+      scale.resize(0);
+      x = SolveStep(lin, full, identifiable, options, &factor, &scale);
     }
     previous_step = x.norm();
     if (!x.allFinite()) {
@@ -395,7 +406,12 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     }
     ConvergenceState state;
     state.step = x;
-    if (!full) state.standard_deviation = StandardDeviations(lin.H, lin.cost, dof);
+    if (!full) {
+      state.standard_deviation =
+          scale.size() == lin.H.rows()
+              ? StandardDeviationsFromFactor(factor.matrixLLT(), scale, lin.cost, dof)
+              : StandardDeviations(lin.H, lin.cost, dof);
+    }
     state.parameter_scale = ParameterScale(model);
     state.cost = lin.cost;
     state.previous_cost = previous_cost;

@@ -63,6 +63,11 @@ double ParameterScale(const RobotModel& model);
 // Standard deviations from the normal matrix H = J^T J of the current linearization:
 // sqrt(diag(s^2 H^-1)), s^2 = 2 cost / dof. Empty when dof <= 0 or H is not positive definite.
 Eigen::VectorXd StandardDeviations(const Eigen::MatrixXd& H, double cost, long dof);
+// The same from a Cholesky factor the caller already has: L (lower triangle read) with
+// L L^T = diag(d) H diag(d) for a positive scale d (any: the result does not depend on it but for
+// rounding), e.g. the factor that solved the step.
+Eigen::VectorXd StandardDeviationsFromFactor(const Eigen::MatrixXd& L, const Eigen::VectorXd& d,
+                                             double cost, long dof);
 
 // Checks the options (user input): finite, step_tolerance > 0 and <= 1, the others in [0, 1).
 std::string ValidateConvergenceOptions(const ConvergenceOptions& options);
