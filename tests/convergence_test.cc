@@ -199,6 +199,14 @@ TEST(Convergence, StandardDeviationsOfADenseProblemEqualTheWholeInverses) {
   ASSERT_EQ(from_factor.size(), P);
   for (int k = 0; k < P; ++k) EXPECT_NEAR(from_factor(k), sd(k), 1e-9 * sd(k)) << k;
   EXPECT_EQ(StandardDeviationsFromFactor(llt.matrixLLT(), d, cost, 0).size(), 0);
+  // The whole inverse from the same factor (the linear solver's covariance).
+  const Eigen::MatrixXd inverse_s = InverseFromCholeskyFactor(llt.matrixLLT());
+  const Eigen::MatrixXd expected_s = Hs.fullPivLu().inverse();
+  EXPECT_EQ(inverse_s, inverse_s.transpose());
+  EXPECT_LE((inverse_s - expected_s).cwiseAbs().maxCoeff(), 1e-9 * expected_s.cwiseAbs().maxCoeff());
+  for (int k = 0; k < P; ++k) {
+    EXPECT_NEAR(inverse_s(k, k), expected_s(k, k), 1e-9 * expected_s(k, k)) << k;
+  }
 }
 
 }  // namespace

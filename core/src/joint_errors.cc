@@ -28,17 +28,21 @@ void ComputeChainState(const RobotModel& model, const double* q, ChainState* sta
   const int n = model.num_joints();
   state->link.resize(n);
   state->twist.resize(n);
+  // sin and cos of every joint value at once (SinCosMany: within 2 ulp of libm's, the same value
+  // for the same q wherever it is computed).
+  double sin_q[kMaxGivenSinCosJoints], cos_q[kMaxGivenSinCosJoints];
+  const bool given = n <= kMaxGivenSinCosJoints;
+  if (given) SinCosMany(q, n, sin_q, cos_q);
   SE3d X;
   for (int i = 0; i < n; ++i) {
     const Joint& joint = model.joints[i];
     X = X * (origins != nullptr ? (*origins)[i] : joint.origin);
-    if (IsRevoluteZ(joint)) {
-      // The same numbers without the general products: w = R e_z, v = t x w, and X Rz(q) turns
-      // R's first two columns (t unchanged).
+    if (given && IsRevoluteZ(joint)) {
+      // Without the general products: w = R e_z, v = t x w, and X Rz(q) turns R's first two
+      // columns (t unchanged).
       const Eigen::Vector3d w = X.R.col(2);
       state->twist[i] << w, X.t.cross(w);
-      double s, c;
-      SinCos(q[i], &s, &c);
+      const double s = sin_q[i], c = cos_q[i];
       const Eigen::Vector3d r0 = X.R.col(0), r1 = X.R.col(1);
       X.R.col(0) = r0 * c + r1 * s;
       X.R.col(1) = r0 * -s + r1 * c;
@@ -98,18 +102,25 @@ void ComplianceRegressorFor(const RobotModel& model, const ChainState& state,
   }
 }
 
-// Joint j's 4 harmonic entries (zero for a prismatic joint).
-void HarmonicsValues(const RobotModel& model, const double* q, int j, double* out) {
-  if (model.joints[j].type != JointType::kRevolute) {
-    out[0] = out[1] = out[2] = out[3] = 0;
-    return;
+// Every joint's 4 harmonic entries (zero for a prismatic joint), joint after joint; sin and cos of
+// all joint values at once (SinCosMany).
+void HarmonicsValues(const RobotModel& model, const double* q, double* out) {
+  const int n = model.num_joints();
+  double stack[2 * kMaxGivenSinCosJoints];
+  std::vector<double> heap(n <= kMaxGivenSinCosJoints ? 0 : 2 * static_cast<size_t>(n));
+  double* sc = heap.empty() ? stack : heap.data();
+  SinCosMany(q, n, sc, sc + n);
+  for (int j = 0; j < n; ++j, out += kHarmonicsPerJoint) {
+    if (model.joints[j].type != JointType::kRevolute) {
+      out[0] = out[1] = out[2] = out[3] = 0;
+      continue;
+    }
+    const double s1 = sc[j], c1 = sc[n + j];
+    out[0] = s1;
+    out[1] = c1;
+    out[2] = 2 * s1 * c1;       // sin 2q
+    out[3] = c1 * c1 - s1 * s1;  // cos 2q
   }
-  double s1, c1;
-  SinCos(q[j], &s1, &c1);
-  out[0] = s1;
-  out[1] = c1;
-  out[2] = 2 * s1 * c1;       // sin 2q
-  out[3] = c1 * c1 - s1 * s1;  // cos 2q
 }
 
 // Entries below kJointErrorRoundingCutoff of the largest |y| set to exact zeros.
@@ -374,10 +385,12 @@ void GravityTiltJointColumns(const Eigen::Vector3d& gravity,
 void HarmonicsRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y) {
   const int n = model.num_joints();
   Y->setZero(n, NumHarmonicsParameters(n));
-  double y[kHarmonicsPerJoint];
+  std::vector<double> y(static_cast<size_t>(kHarmonicsPerJoint) * n);
+  HarmonicsValues(model, q, y.data());
   for (int j = 0; j < n; ++j) {
-    HarmonicsValues(model, q, j, y);
-    for (int c = 0; c < kHarmonicsPerJoint; ++c) (*Y)(j, kHarmonicsPerJoint * j + c) = y[c];
+    for (int c = 0; c < kHarmonicsPerJoint; ++c) {
+      (*Y)(j, kHarmonicsPerJoint * j + c) = y[kHarmonicsPerJoint * j + c];
+    }
   }
 }
 
@@ -402,7 +415,7 @@ void JointErrorRegressorValues(const RobotModel& model, JointErrorKind kind, con
     ComputeChainState(model, q, &state);
     ComplianceValuesFor(model, state, model.gravity, y);
   } else {
-    for (int j = 0; j < model.num_joints(); ++j) HarmonicsValues(model, q, j, y + kHarmonicsPerJoint * j);
+    HarmonicsValues(model, q, y);
   }
   ZeroRoundingNoise(y, NumJointErrorParameters(model.num_joints(), kind));
 }

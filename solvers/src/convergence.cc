@@ -72,6 +72,35 @@ Eigen::VectorXd StandardDeviationsFromFactor(const Eigen::MatrixXd& L, const Eig
   return sd;
 }
 
+// (L L^T)^-1 for a lower-triangular L (the strict upper triangle is not read): L^-1 column by
+// column by forward substitution (column k is zero above row k), then L^-T L^-1 from the columns'
+// dot products over the rows where both are non-zero: n^3 / 3 multiply-adds in all, against n^3 for
+// two triangular solves with the identity. Exactly symmetric.
+Eigen::MatrixXd InverseFromCholeskyFactor(const Eigen::MatrixXd& L) {
+  const Eigen::Index n = L.rows();
+  Eigen::MatrixXd Li = Eigen::MatrixXd::Zero(n, n);
+  const Eigen::Index ld = L.outerStride();
+  for (Eigen::Index k = 0; k < n; ++k) {
+    double* x = Li.col(k).data();
+    x[k] = 1.0;
+    for (Eigen::Index m = k; m < n; ++m) {
+      const double* Lm = L.data() + m * ld;
+      const double xm = x[m] / Lm[m];
+      x[m] = xm;
+      for (Eigen::Index i = m + 1; i < n; ++i) x[i] -= xm * Lm[i];
+    }
+  }
+  Eigen::MatrixXd inv(n, n);
+  for (Eigen::Index b = 0; b < n; ++b) {
+    for (Eigen::Index a = b; a < n; ++a) {
+      const double v = Li.col(a).tail(n - a).dot(Li.col(b).tail(n - a));
+      inv(a, b) = v;
+      inv(b, a) = v;
+    }
+  }
+  return inv;
+}
+
 ConvergenceDecision TestConvergence(const ConvergenceOptions& o, const ConvergenceState& s) {
   ConvergenceDecision d;
   d.step_norm = s.step.norm();

@@ -447,8 +447,11 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
           const double s2 = 2.0 * lin.cost / static_cast<double>(dof);
           const Eigen::VectorXd d = ColumnScale(lin.H);
           const Eigen::MatrixXd Hs = d.asDiagonal() * lin.H * d.asDiagonal();
-          const Eigen::MatrixXd inv = Hs.llt().solve(Eigen::MatrixXd::Identity(Hs.rows(), Hs.cols()));
-          result.covariance = s2 * (d.asDiagonal() * inv * d.asDiagonal());
+          const Eigen::LLT<Eigen::MatrixXd> llt(Hs);
+          if (llt.info() == Eigen::Success) {
+            const Eigen::MatrixXd inv = InverseFromCholeskyFactor(llt.matrixLLT());
+            result.covariance = s2 * (d.asDiagonal() * inv * d.asDiagonal());
+          }
         }
       }
       internal::FillGravityTiltResult(p, joint_state, result.covariance, &result.gravity_tilt);
