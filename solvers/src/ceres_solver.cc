@@ -23,6 +23,10 @@ namespace lpoe {
 namespace {
 
 bool ParseLinearSolver(const std::string& name, ceres::LinearSolverType* type) {
+  if (name == "auto") {
+    *type = ceres::DENSE_QR;
+    return true;
+  }
   return ceres::StringToLinearSolverType(name, type);
 }
 
@@ -238,7 +242,7 @@ Status ValidateCeresSolverOptions(const CeresSolverOptions& options) {
   ceres::LinearSolverType type;
   if (!ParseLinearSolver(options.linear_solver, &type)) {
     return Status::Error("unknown Ceres linear solver '" + options.linear_solver +
-                         "' (dense_qr, dense_normal_cholesky, sparse_normal_cholesky, dense_schur, "
+                         "' (auto, dense_qr, dense_normal_cholesky, sparse_normal_cholesky, dense_schur, "
                          "sparse_schur, iterative_schur, cgnr)");
   }
   {
@@ -258,6 +262,28 @@ Status ValidateCeresSolverOptions(const CeresSolverOptions& options) {
     return Status::Error(e);
   }
   return Status::Ok();
+}
+
+std::string CeresLinearSolverFor(const CeresSolverOptions& options, double condition_number,
+                                 int batched_rows) {
+  const std::string& requested = options.linear_solver;
+  if (requested != "auto" && requested != "dense_qr") return requested;
+  // Dense QR would copy the 3N x P Jacobian (650 MB more for 10^6 rows) to factor it; the normal
+  // equations are P x P, and LM's Jacobi scaling keeps them well conditioned.
+  if (batched_rows > 1) return "dense_normal_cholesky";
+  if (requested == "dense_qr") return requested;
+  // The normal equations square the condition number: a step solved from them has a relative
+  // error of about kappa^2 eps (kappa of the column-scaled Jacobian, which LM's Jacobi scaling
+  // solves with). At kappa <= 1e4 that is 2e-8 of the step, and LM converges to the same point
+  // (where the gradient J^T r, formed exactly either way, vanishes). The check's kappa is that of
+  // the solved columns at the start; kept QR where it may not describe the solve: the full
+  // parameterization (gauge directions: rank-deficient), robust losses (rows reweighted during
+  // the solve) and the gravity tilt (a bilinear block whose columns change with the compliance).
+  const bool normal_equations =
+      options.parameterization == ParameterizationKind::kIdentifiable && options.loss == "none" &&
+      options.gravity_tilt == nullptr &&
+      condition_number <= CeresSolverOptions::kNormalEquationsMaxCondition;
+  return normal_equations ? "dense_normal_cholesky" : "dense_qr";
 }
 
 CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet& data,
@@ -331,12 +357,9 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
 
   // ---- Solve.
   ceres::Solver::Options solver_options;
-  CHECK(ParseLinearSolver(options.linear_solver, &solver_options.linear_solver_type));
-  if (builder.BatchedRows() > 1 && solver_options.linear_solver_type == ceres::DENSE_QR) {
-    // Dense QR would copy the 3N x P Jacobian (650 MB more for 10^6 rows) to factor it; the
-    // normal equations are P x P, and LM's Jacobi scaling keeps them well conditioned.
-    solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-  }
+  CHECK(ParseLinearSolver(
+      CeresLinearSolverFor(options, analysis.condition_number, builder.BatchedRows()),
+      &solver_options.linear_solver_type));
   solver_options.minimizer_type = ceres::TRUST_REGION;
   solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   solver_options.max_num_iterations = options.max_iterations;
