@@ -235,14 +235,10 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
     Eigen::MatrixXd R(n, K);
     if (from_slots) {
       Eigen::MatrixXd R_t = Eigen::MatrixXd::Zero(K, n);  // R transposed: joint j's row contiguous
-      const double* values = slots->values.col(r).data();
       for (int j = 0; j < n; ++j) {
-        double* row = R_t.col(j).data();
         for (int s = slots->slot_begin[j]; s < slots->slot_begin[j + 1]; ++s) {
-          const double v = values[s];
-          if (v == 0) continue;
-          const double* basis_row = slot_basis_t.col(s).data();
-          for (int c = 0; c < K; ++c) row[c] += v * basis_row[c];
+          const double v = slots->values(s, r);
+          if (v != 0) R_t.col(j) += v * slot_basis_t.col(s);
         }
       }
       R = R_t.transpose();
