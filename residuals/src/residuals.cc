@@ -38,17 +38,22 @@ class JointSpaceCost : public ceres::CostFunction {
     const int n = static_cast<int>(q_.size());
     const int m = num_residuals();
     const int blocks = static_cast<int>(block_sizes_.size());
-    // regressor_t_ is K x n column-major: joint j's row of R is contiguous (column j).
-    JointScratch<double, kStackJoints> q_eff(n);
-    for (int j = 0; j < n; ++j) q_eff[j] = q_[j];
+    // regressor_t_ is K x n column-major: joint j's row of R is contiguous (column j), so
+    // q_eff_j = q_j + R(j, :) x reads it in order (one stream per joint: this row's R is not in
+    // cache at the start of an evaluation, and strided reads of it stalled on every line).
+    const int K = static_cast<int>(regressor_t_.rows());
+    JointScratch<double, 256> x_all(K);
     {
       int column = 0;
       for (int b = 0; b < blocks; ++b) {
         const double* x = parameters[n + 1 + b];
-        for (int c = 0; c < block_sizes_[b]; ++c, ++column) {
-          for (int j = 0; j < n; ++j) q_eff[j] += regressor_t_(column, j) * x[c];
-        }
+        for (int c = 0; c < block_sizes_[b]; ++c) x_all[column++] = x[c];
       }
+    }
+    JointScratch<double, kStackJoints> q_eff(n);
+    {
+      const Eigen::Map<const Eigen::VectorXd> x(x_all.data(), K);
+      for (int j = 0; j < n; ++j) q_eff[j] = q_[j] + regressor_t_.col(j).dot(x);
     }
     // The gravity tilt: the compliance offsets' change and its derivative in the tilt by Jets
     // through the templated prediction of joint_errors.h; the compliance columns at the tilt.
