@@ -268,8 +268,8 @@ Status ValidateCeresSolverOptions(const CeresSolverOptions& options) {
   ceres::LinearSolverType type;
   if (!ParseLinearSolver(options.linear_solver, &type)) {
     return Status::Error("unknown Ceres linear solver '" + options.linear_solver +
-                         "' (auto, dense_qr, dense_normal_cholesky, sparse_normal_cholesky, dense_schur, "
-                         "sparse_schur, iterative_schur, cgnr)");
+                         "' (auto, dense_qr, dense_normal_cholesky, sparse_normal_cholesky, "
+                         "dense_schur, sparse_schur, iterative_schur, cgnr)");
   }
   {
     // Also catches solvers this Ceres build lacks (e.g. sparse ones without SuiteSparse).
