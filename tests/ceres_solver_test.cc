@@ -4,12 +4,15 @@
 #include <cmath>
 #include <cstdint>
 #include <iostream>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "lpoe/analysis.h"
+#include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"
 #include "lpoe/simulation.h"
@@ -355,6 +358,88 @@ TEST(CeresSolver, LeavesUnmeasuredToolsAlone) {
     EXPECT_NEAR(std::sqrt(r.covariance(k, k)), std::sqrt(lin.covariance(k, k)),
                 0.02 * std::sqrt(lin.covariance(k, k)))
         << p.parameters[k].name;
+  }
+}
+
+// linear_solver "auto" (the default) takes the normal equations only where they lose nothing that
+// matters: identifiable parameterization, no robust loss, no gravity tilt, column-scaled condition
+// number at most kNormalEquationsMaxCondition; a named solver is kept (dense_qr turns into the
+// normal equations for batched rows only).
+TEST(CeresSolver, AutoLinearSolverRule) {
+  const double limit = CeresSolverOptions::kNormalEquationsMaxCondition;
+  CeresSolverOptions o;
+  EXPECT_EQ(o.linear_solver, "auto");
+  EXPECT_TRUE(ValidateCeresSolverOptions(o).ok());
+  EXPECT_EQ(CeresLinearSolverFor(o, 20.0, 1), "dense_normal_cholesky");
+  EXPECT_EQ(CeresLinearSolverFor(o, limit, 1), "dense_normal_cholesky");
+  EXPECT_EQ(CeresLinearSolverFor(o, 1.01 * limit, 1), "dense_qr");
+  EXPECT_EQ(CeresLinearSolverFor(o, 1.01 * limit, 1024), "dense_normal_cholesky");  // batched
+  o.parameterization = ParameterizationKind::kFull;
+  EXPECT_EQ(CeresLinearSolverFor(o, 20.0, 1), "dense_qr");
+  o = CeresSolverOptions();
+  o.loss = "huber";
+  EXPECT_EQ(CeresLinearSolverFor(o, 20.0, 1), "dense_qr");
+  o = CeresSolverOptions();
+  o.gravity_tilt = std::make_shared<const GravityTiltModel>(MakeCobot6());
+  EXPECT_EQ(CeresLinearSolverFor(o, 20.0, 1), "dense_qr");
+  o = CeresSolverOptions();
+  o.linear_solver = "dense_qr";
+  EXPECT_EQ(CeresLinearSolverFor(o, 20.0, 1), "dense_qr");
+  EXPECT_EQ(CeresLinearSolverFor(o, 20.0, 1024), "dense_normal_cholesky");
+  o.linear_solver = "sparse_normal_cholesky";
+  EXPECT_EQ(CeresLinearSolverFor(o, 20.0, 1024), "sparse_normal_cholesky");
+}
+
+// "auto" (here the normal equations: condition numbers about 5 and 20) and dense_qr reach the
+// same calibration, geometric and with compliance + harmonics (cobot6, 300 poses of an arm that
+// deflects); the history's errors are those of PositionErrorStatistics at the effective joint
+// values.
+TEST(CeresSolver, AutoLinearSolverGivesTheQrSolution) {
+  RobotModel nominal = MakeCobot6();
+  nominal.payload.mass = 1.0;
+  nominal.payload.com = Eigen::Vector3d(0, 0, 50);
+  const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, 11);
+  RobotModel actual = ApplyErrors(nominal, errors);
+  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), true, true, &actual);
+  SimulationOptions so;
+  so.count = 300;
+  so.noise_sigma = 0.01;
+  so.seed = 7;
+  const MeasurementSet data = SimulateMeasurements(actual, errors.joint_zero, so);
+  std::vector<std::shared_ptr<const JointTerm>> terms;
+  for (const char* name : {"compliance", "harmonics"}) {
+    std::shared_ptr<const JointTerm> term;
+    ASSERT_TRUE(MakeJointTerm(name, nominal, &term).ok());
+    terms.push_back(term);
+  }
+  for (bool with_terms : {false, true}) {
+    CeresSolverOptions o = CeresOptions();
+    o.sigma = 0.01;
+    if (with_terms) o.joint_terms = terms;
+    ASSERT_EQ(o.linear_solver, "auto");
+    const CalibrationResult automatic = CalibrateCeres(nominal, data, o);
+    o.linear_solver = "dense_qr";
+    const CalibrationResult qr = CalibrateCeres(nominal, data, o);
+    ASSERT_TRUE(automatic.converged()) << automatic.message;
+    ASSERT_TRUE(qr.converged()) << qr.message;
+    EXPECT_LT(automatic.condition_number, CeresSolverOptions::kNormalEquationsMaxCondition);
+    const MeasurementSet q_auto =
+        with_terms ? WithEffectiveJointValues(automatic.joint_terms, data) : data;
+    const MeasurementSet q_qr = with_terms ? WithEffectiveJointValues(qr.joint_terms, data) : data;
+    double worst = 0;
+    for (int r = 0; r < data.size(); ++r) {
+      const Eigen::Vector3d a = ToolPosition(automatic.model, q_auto.q(r), data.target(r));
+      const Eigen::Vector3d b = ToolPosition(qr.model, q_qr.q(r), data.target(r));
+      worst = std::max(worst, (a - b).norm());
+    }
+    EXPECT_LT(worst, kAgreementMm) << "with terms: " << with_terms;
+    EXPECT_NEAR(automatic.final_cost, qr.final_cost, 1e-9 * qr.final_cost);
+    ASSERT_EQ(automatic.covariance.rows(), qr.covariance.rows());
+    EXPECT_LT((automatic.covariance - qr.covariance).norm(), 1e-6 * qr.covariance.norm());
+
+    const ErrorStatistics last = PositionErrorStatistics(automatic.model, q_auto);
+    EXPECT_NEAR(automatic.history.back().max_error, last.norm.max_abs, 1e-12);
+    EXPECT_NEAR(automatic.history.back().mean_error, last.norm.mean_abs, 1e-12);
   }
 }
 

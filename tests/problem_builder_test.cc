@@ -1,6 +1,9 @@
 #include "lpoe/problem_builder.h"
 
+#include <algorithm>
 #include <cmath>
+#include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -8,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "lpoe/ceres_solver.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"
 #include "lpoe/simulation.h"
@@ -114,6 +118,72 @@ TEST(ProblemBuilder, CallerSolveEqualsCalibrateCeres) {
   double cost = 0;
   problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr);
   EXPECT_NEAR(builder.NormalEquations().cost, cost, 1e-9 * cost);
+}
+
+// With joint-space terms (compliance + harmonics on data of an arm that deflects) and the blocks
+// moved away from the start: the effective joint values from the reduction's slots are those of
+// WithEffectiveJointValues on the terms' values, and the residuals of the rows AddTo builds (their
+// regressors from the same slots) are the position errors at those joint values.
+TEST(ProblemBuilder, JointSpaceRowsFromTheSlotsAreTheTerms) {
+  RobotModel nominal = MakeCobot6();
+  nominal.payload.mass = 1.0;
+  nominal.payload.com = Eigen::Vector3d(0, 0, 50);
+  const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, 11);
+  RobotModel actual = ApplyErrors(nominal, errors);
+  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), true, true, &actual);
+  SimulationOptions so;
+  so.count = 150;
+  so.noise_sigma = kNoiseSigma;
+  so.seed = 5;
+  const MeasurementSet data = SimulateMeasurements(actual, errors.joint_zero, so);
+  CalibrationProblemOptions po;
+  po.sigma = kNoiseSigma;
+  for (const char* name : {"compliance", "harmonics"}) {
+    std::shared_ptr<const JointTerm> term;
+    ASSERT_TRUE(MakeJointTerm(name, nominal, &term).ok());
+    po.joint_terms.push_back(term);
+  }
+  CalibrationProblem builder(nominal, data, po);
+  const Parameterization solved = builder.SolvedParameterization();
+  ASSERT_GT(solved.num_joint_parameters(), 0);
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::VectorXd x(solved.num_parameters);
+  for (int k = 0; k < x.size(); ++k) {
+    x(k) = (k < solved.num_frame_parameters() ? 1e-4 : 1e-2) * u(rng);
+  }
+  builder.Update(x);
+
+  const int n = nominal.num_joints();
+  const std::vector<double> q_eff = builder.EffectiveJointValues();
+  ASSERT_EQ(q_eff.size(), static_cast<size_t>(data.size()) * n);
+  const MeasurementSet expected = WithEffectiveJointValues(builder.JointTerms(), data);
+  double diff = 0, moved = 0;
+  for (int r = 0; r < data.size(); ++r) {
+    for (int j = 0; j < n; ++j) {
+      diff = std::max(diff, std::abs(q_eff[r * n + j] - expected.q(r)[j]));
+      moved = std::max(moved, std::abs(q_eff[r * n + j] - data.q(r)[j]));
+    }
+  }
+  EXPECT_GT(moved, 1e-5);  // the terms shift the joints (rad)
+  EXPECT_LT(diff, 1e-13);
+
+  ceres::Problem problem;
+  builder.AddTo(&problem);
+  std::vector<double> residuals;
+  ASSERT_TRUE(problem.Evaluate(ceres::Problem::EvaluateOptions(), nullptr, &residuals, nullptr,
+                               nullptr));
+  ASSERT_EQ(residuals.size(), static_cast<size_t>(3 * data.size()));
+  const RobotModel model = builder.Model();
+  double worst = 0;
+  for (int r = 0; r < data.size(); ++r) {
+    const Eigen::Vector3d e =
+        ToolPosition(model, expected.q(r), data.target(r)) - data.position(r);
+    for (int a = 0; a < 3; ++a) {
+      worst = std::max(worst, std::abs(residuals[3 * r + a] * kNoiseSigma - e(a)));
+    }
+  }
+  EXPECT_LT(worst, 1e-9);  // mm
 }
 
 TEST(ProblemBuilder, NormalEquationsAreTheLinearSolvers) {

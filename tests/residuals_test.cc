@@ -2,6 +2,7 @@
 #include <random>
 #include <vector>
 
+#include <ceres/dynamic_autodiff_cost_function.h>
 #include <ceres/gradient_checker.h>
 #include <gtest/gtest.h>
 
@@ -214,6 +215,113 @@ TEST(PositionResidual, JointSpaceBlocksFollowTheChainRule) {
     ceres::GradientChecker::ProbeResults results;
     EXPECT_TRUE(checker.Probe(b.pointers.data(), kGradientCheckPrecision, &results))
         << results.error_log;
+  }
+}
+
+// The functor before the motions in double: every autodiff pass evaluates the chain on the motions
+// of q_eff as Jets (blocks: the n + 1 frames, then q_eff), the reference for the cached motions.
+template <typename Kind>
+struct JetMotionsResidual {
+  std::shared_ptr<const RobotModel> model;
+  Kind kind;
+  typename Kind::Observation observation;
+  template <typename T>
+  bool operator()(T const* const* parameters, T* residuals) const {
+    const int n = model->num_joints();
+    kind.Residual(n, parameters, JointMotions<T>(*model, parameters[n + 1]), observation,
+                  residuals);
+    return true;
+  }
+};
+
+// Kind's residual with one joint-space block x of n values and R = I (q_eff = q + x, dr/dx =
+// dr/dq_eff) against full autodiff through Jet motions: equal values and Jacobians (to 1e-12
+// relative) at x1, then at x2 (residuals only, then with Jacobians), then at x1 again, so that
+// motions kept from another q_eff would show.
+template <typename Kind>
+void ExpectMotionsInDoubleMatchJetMotions(const RobotModel& model, const Kind& kind,
+                                          DataKind data_kind,
+                                          typename Kind::Observation (*observe)(
+                                              const RobotModel&, const double*, int)) {
+  const auto shared = std::make_shared<const RobotModel>(model);
+  const Parameterization p = MakeParameterization(model, ParameterizationKind::kIdentifiable,
+                                                  data_kind);
+  const int n = model.num_joints();
+  const int m = Kind::kResiduals;
+  std::mt19937_64 rng(12);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int trial = 0; trial < kNumConfigurations; ++trial) {
+    const int tool = trial % 2;
+    const std::vector<double> q = RandomQ(n, &rng);
+    const typename Kind::Observation measured = observe(model, q.data(), tool);
+    std::unique_ptr<ceres::CostFunction> cost(MeasurementResidual<Kind>::Create(
+        shared, kind, q.data(), measured, Eigen::MatrixXd::Identity(n, n), {n}));
+    ceres::DynamicAutoDiffCostFunction<JetMotionsResidual<Kind>, MeasurementResidual<Kind>::kStride>
+        reference(new JetMotionsResidual<Kind>{shared, kind, measured});
+    for (int i = 0; i <= n; ++i) reference.AddParameterBlock(kSe3AmbientSize);
+    reference.AddParameterBlock(n);
+    reference.SetNumResiduals(m);
+    ASSERT_EQ(cost->parameter_block_sizes().size(), static_cast<size_t>(n + 2));
+
+    Blocks b = MakeBlocks(model, p, tool);
+    std::vector<double> x1(n), x2(n);
+    for (int j = 0; j < n; ++j) {
+      x1[j] = 0.05 * u(rng);
+      x2[j] = 0.05 * u(rng);
+    }
+    for (int step = 0; step < 4; ++step) {
+      const std::vector<double>& x = step == 0 || step == 3 ? x1 : x2;
+      const bool with_jacobians = step != 1;
+      std::vector<double> q_eff(n);
+      for (int j = 0; j < n; ++j) q_eff[j] = q[j] + x[j];
+      std::vector<const double*> ours = b.pointers, theirs = b.pointers;
+      ours.push_back(x.data());
+      theirs.push_back(q_eff.data());
+      std::vector<RowMajor> J, J_ref;
+      std::vector<double*> J_ptr, J_ref_ptr;
+      for (int i = 0; i < n + 2; ++i) {
+        const int size = i <= n ? kSe3AmbientSize : n;
+        J.emplace_back(m, size);
+        J_ref.emplace_back(m, size);
+      }
+      for (int i = 0; i < n + 2; ++i) {
+        J_ptr.push_back(J[i].data());
+        J_ref_ptr.push_back(J_ref[i].data());
+      }
+      Eigen::VectorXd r(m), r_ref(m);
+      ASSERT_TRUE(cost->Evaluate(ours.data(), r.data(), with_jacobians ? J_ptr.data() : nullptr));
+      ASSERT_TRUE(reference.Evaluate(theirs.data(), r_ref.data(),
+                                     with_jacobians ? J_ref_ptr.data() : nullptr));
+      EXPECT_LE((r - r_ref).norm(), 1e-12 * r_ref.norm()) << "trial " << trial << " step " << step;
+      if (!with_jacobians) continue;
+      for (int i = 0; i < n + 2; ++i) {
+        EXPECT_LE((J[i] - J_ref[i]).norm(), 1e-12 * J_ref[i].norm())
+            << "trial " << trial << " step " << step << " block " << i;
+      }
+    }
+  }
+}
+
+Eigen::Vector3d OffsetPosition(const RobotModel& model, const double* q, int tool) {
+  return ToolPosition(model, q, tool) + Eigen::Vector3d(1, -2, 0.5);
+}
+
+SE3d OffsetPose(const RobotModel& model, const double* q, int tool) {
+  return ToolPose(model, q, tool) *
+         ExpSE3(Vector6d((Vector6d() << 0.01, -0.02, 0.005, 1, 2, -1).finished()));
+}
+
+// On cobot6 (revolute-z joints: plane rotations) and with every axis perturbed (general motions).
+TEST(PositionResidual, MotionsInDoubleMatchFullAutodiffThroughJetMotions) {
+  for (const RobotModel& model : {TwoToolCobot(), PerturbedTwoToolCobot()}) {
+    ExpectMotionsInDoubleMatchJetMotions(model, PositionKind(), DataKind::kPosition,
+                                         &OffsetPosition);
+  }
+}
+
+TEST(PoseResidual, MotionsInDoubleMatchFullAutodiffThroughJetMotions) {
+  for (const RobotModel& model : {TwoToolCobot(), PerturbedTwoToolCobot()}) {
+    ExpectMotionsInDoubleMatchJetMotions(model, PoseKind(), DataKind::kPose, &OffsetPose);
   }
 }
 

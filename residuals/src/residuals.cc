@@ -14,15 +14,16 @@ namespace lpoe {
 namespace {
 
 // The residual with joint-space blocks: q_eff = q + sum_b R_b x_b in double, the autodiff residual
-// `inner` (blocks: the n + 1 frames, then q_eff) and the blocks' columns (dr/dq_eff) R_b.
+// `inner` (blocks: q_eff, then the n + 1 frames; MeasurementResidual::operator()) and the blocks'
+// columns (dr/dq_eff) R_b. Scratch on the stack for up to kStackJoints joints.
 class JointSpaceCost : public ceres::CostFunction {
  public:
   JointSpaceCost(std::unique_ptr<ceres::CostFunction> inner, const double* q, int n,
-                 Eigen::MatrixXd joint_regressor, const std::vector<int>& block_sizes,
+                 const Eigen::MatrixXd& joint_regressor, const std::vector<int>& block_sizes,
                  std::shared_ptr<const GravityTiltRow> tilt)
       : inner_(std::move(inner)),
         q_(q, q + n),
-        regressor_(std::move(joint_regressor)),
+        regressor_t_(joint_regressor.transpose()),
         block_sizes_(block_sizes),
         tilt_(std::move(tilt)) {
     for (int i = 0; i <= n; ++i) mutable_parameter_block_sizes()->push_back(kSe3AmbientSize);
@@ -33,16 +34,26 @@ class JointSpaceCost : public ceres::CostFunction {
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
+    constexpr int kStackJoints = 16;
     const int n = static_cast<int>(q_.size());
     const int m = num_residuals();
     const int blocks = static_cast<int>(block_sizes_.size());
-    std::vector<double> q_eff(q_);
-    int column = 0;
-    for (int b = 0; b < blocks; ++b) {
-      const double* x = parameters[n + 1 + b];
-      for (int c = 0; c < block_sizes_[b]; ++c, ++column) {
-        for (int j = 0; j < n; ++j) q_eff[j] += regressor_(j, column) * x[c];
+    // regressor_t_ is K x n column-major: joint j's row of R is contiguous (column j), so
+    // q_eff_j = q_j + R(j, :) x reads it in order (one stream per joint: this row's R is not in
+    // cache at the start of an evaluation, and strided reads of it stalled on every line).
+    const int K = static_cast<int>(regressor_t_.rows());
+    JointScratch<double, 256> x_all(K);
+    {
+      int column = 0;
+      for (int b = 0; b < blocks; ++b) {
+        const double* x = parameters[n + 1 + b];
+        for (int c = 0; c < block_sizes_[b]; ++c) x_all[column++] = x[c];
       }
+    }
+    JointScratch<double, kStackJoints> q_eff(n);
+    {
+      const Eigen::Map<const Eigen::VectorXd> x(x_all.data(), K);
+      for (int j = 0; j < n; ++j) q_eff[j] = q_[j] + regressor_t_.col(j).dot(x);
     }
     // The gravity tilt: the compliance offsets' change and its derivative in the tilt by Jets
     // through the templated prediction of joint_errors.h; the compliance columns at the tilt.
@@ -67,37 +78,47 @@ class JointSpaceCost : public ceres::CostFunction {
       }
       compliance_dR = dg(0).a * tilt_->Z[0] + dg(1).a * tilt_->Z[1] + dg(2).a * tilt_->Z[2];
     }
-    std::vector<const double*> inner_parameters(parameters, parameters + n + 1);
-    inner_parameters.push_back(q_eff.data());
+    JointScratch<const double*, kStackJoints + 2> inner_parameters(n + 2);
+    inner_parameters[0] = q_eff.data();
+    for (int i = 0; i <= n; ++i) inner_parameters[i + 1] = parameters[i];
     bool need_q = false;
     for (int b = 0; jacobians != nullptr && b < blocks + (tilt_ ? 1 : 0); ++b) {
       need_q = need_q || jacobians[n + 1 + b] != nullptr;
     }
-    std::vector<double> J_q(need_q ? static_cast<size_t>(m) * n : 0);  // row-major m x n
-    std::vector<double*> inner_jacobians;
+    JointScratch<double, 6 * kStackJoints> J_q(need_q ? m * n : 0);  // row-major m x n
+    JointScratch<double*, kStackJoints + 2> inner_jacobians(jacobians != nullptr ? n + 2 : 0);
     if (jacobians != nullptr) {
-      inner_jacobians.assign(jacobians, jacobians + n + 1);
-      inner_jacobians.push_back(need_q ? J_q.data() : nullptr);
+      inner_jacobians[0] = need_q ? J_q.data() : nullptr;
+      for (int i = 0; i <= n; ++i) inner_jacobians[i + 1] = jacobians[i];
     }
     if (!inner_->Evaluate(inner_parameters.data(), residuals,
                           jacobians != nullptr ? inner_jacobians.data() : nullptr)) {
       return false;
     }
     if (!need_q) return true;
-    column = 0;
+    // J_b = J_q R_b (row-major m x k_b): row i is sum_j J_q(i, j) R_b(j, :), the sum over j in
+    // ascending order (vectorized over the block's columns).
+    int column = 0;
     for (int b = 0; b < blocks; ++b) {
       const int k = block_sizes_[b];
-      double* J = jacobians[n + 1 + b];  // row-major m x k
+      double* J = jacobians[n + 1 + b];
       if (J != nullptr) {
         const bool tilted = tilt_ && b == tilt_->block;
-        for (int i = 0; i < m; ++i) {
-          for (int c = 0; c < k; ++c) {
-            double sum = 0;
-            for (int j = 0; j < n; ++j) {
-              sum += J_q[i * n + j] *
-                     (regressor_(j, column + c) + (tilted ? compliance_dR(j, c) : 0.0));
+        JointScratch<double, 256> R(tilted ? k * n : 0);  // R_c + dR, row-major n x k
+        if (tilted) {
+          for (int j = 0; j < n; ++j) {
+            for (int c = 0; c < k; ++c) {
+              R[j * k + c] = regressor_t_(column + c, j) + compliance_dR(j, c);
             }
-            J[i * k + c] = sum;
+          }
+        }
+        for (int i = 0; i < m; ++i) {
+          double* Ji = J + i * k;
+          for (int c = 0; c < k; ++c) Ji[c] = 0;
+          for (int j = 0; j < n; ++j) {
+            const double a = J_q[i * n + j];
+            const double* Rj = tilted ? &R[j * k] : &regressor_t_(column, j);
+            for (int c = 0; c < k; ++c) Ji[c] += a * Rj[c];
           }
         }
       }
@@ -119,7 +140,7 @@ class JointSpaceCost : public ceres::CostFunction {
  private:
   std::unique_ptr<ceres::CostFunction> inner_;
   std::vector<double> q_;
-  Eigen::MatrixXd regressor_;  // n x sum(block_sizes)
+  Eigen::MatrixXd regressor_t_;  // sum(block_sizes) x n: R transposed
   std::vector<int> block_sizes_;
   std::shared_ptr<const GravityTiltRow> tilt_;
 };
@@ -147,11 +168,11 @@ ceres::CostFunction* MeasurementResidual<Kind>::Create(
   const bool joint_space = !block_sizes.empty();
   auto cost = std::make_unique<CostFunction>(
       new MeasurementResidual(std::move(model), kind, q, observation, joint_space));
+  if (joint_space) cost->AddParameterBlock(n);  // q_eff, first (operator())
   for (int i = 0; i <= n; ++i) cost->AddParameterBlock(kSe3AmbientSize);
-  if (joint_space) cost->AddParameterBlock(n);  // q_eff
   cost->SetNumResiduals(Kind::kResiduals);
   if (!joint_space) return cost.release();
-  return new JointSpaceCost(std::move(cost), q, n, std::move(joint_regressor), block_sizes,
+  return new JointSpaceCost(std::move(cost), q, n, joint_regressor, block_sizes,
                             std::move(tilt));
 }
 

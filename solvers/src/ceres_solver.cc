@@ -1,5 +1,6 @@
 #include "lpoe/ceres_solver.h"
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -17,12 +18,17 @@
 
 #include "gravity_tilt.h"
 #include "identifiability.h"
+#include "lpoe/kinematics.h"
 #include "lpoe/problem_builder.h"
 
 namespace lpoe {
 namespace {
 
 bool ParseLinearSolver(const std::string& name, ceres::LinearSolverType* type) {
+  if (name == "auto") {
+    *type = ceres::DENSE_QR;
+    return true;
+  }
   return ceres::StringToLinearSolverType(name, type);
 }
 
@@ -113,6 +119,36 @@ struct ConvergenceWatch {
   }
 };
 
+// The largest and the mean distance |P_measured - P_model(q)| over the rows, at the joint values
+// `q` (rows x n): what a history record keeps of the errors (PositionErrorStatistics's norm
+// max_abs and mean_abs, without its percentiles). One forward pass, sin and cos of blocks of rows
+// at once.
+void PositionErrorMaxMean(const RobotModel& model, const MeasurementSet& data,
+                          const std::vector<double>& q, double* max_error, double* mean_error) {
+  constexpr int kBlockRows = 64;
+  const int rows = data.size();
+  const int n = data.num_joints();
+  const KinematicChain chain(model);
+  std::vector<double> s(static_cast<size_t>(kBlockRows) * n), c(s.size());
+  double max = 0, sum = 0;
+  for (int r0 = 0; r0 < rows; r0 += kBlockRows) {
+    const int count = std::min(kBlockRows, rows - r0);
+    const double* q0 = q.data() + static_cast<size_t>(r0) * n;
+    SinCosMany(q0, count * n, s.data(), c.data());
+    for (int k = 0; k < count; ++k) {
+      const size_t at = static_cast<size_t>(k) * n;
+      const double e =
+          (data.position(r0 + k) -
+           chain.Position(q0 + at, s.data() + at, c.data() + at, data.target(r0 + k)))
+              .norm();
+      max = std::max(max, e);
+      sum += e;
+    }
+  }
+  *max_error = max;
+  *mean_error = rows > 0 ? sum / rows : 0.0;
+}
+
 // Records the history (IterationRecord per accepted step) with the state of the blocks, which Ceres
 // updates every iteration (update_state_every_iteration).
 class HistoryCallback : public ceres::IterationCallback {
@@ -131,17 +167,11 @@ class HistoryCallback : public ceres::IterationCallback {
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
     if (summary.iteration > 0 && !summary.step_is_successful) return ceres::SOLVER_CONTINUE;
     RobotModel model = problem_.Model();
-    const MeasurementSet& data = problem_.data();
-    const ErrorStatistics stats =
-        problem_.parameterization().joint_blocks.empty()
-            ? PositionErrorStatistics(model, data)
-            : PositionErrorStatistics(model,
-                                      WithEffectiveJointValues(problem_.JointTerms(), data));
     IterationRecord r;
     r.iteration = summary.iteration;
     r.cost = summary.cost * cost_scale_;
-    r.max_error = stats.norm.max_abs;
-    r.mean_error = stats.norm.mean_abs;
+    PositionErrorMaxMean(model, problem_.data(), problem_.EffectiveJointValues(), &r.max_error,
+                         &r.mean_error);
     r.step_norm = summary.iteration > 0 ? summary.step_norm : 0.0;
     const double previous_cost = history_->empty() ? -1.0 : history_->back().cost;
     history_->push_back(r);
@@ -238,8 +268,8 @@ Status ValidateCeresSolverOptions(const CeresSolverOptions& options) {
   ceres::LinearSolverType type;
   if (!ParseLinearSolver(options.linear_solver, &type)) {
     return Status::Error("unknown Ceres linear solver '" + options.linear_solver +
-                         "' (dense_qr, dense_normal_cholesky, sparse_normal_cholesky, dense_schur, "
-                         "sparse_schur, iterative_schur, cgnr)");
+                         "' (auto, dense_qr, dense_normal_cholesky, sparse_normal_cholesky, "
+                         "dense_schur, sparse_schur, iterative_schur, cgnr)");
   }
   {
     // Also catches solvers this Ceres build lacks (e.g. sparse ones without SuiteSparse).
@@ -258,6 +288,28 @@ Status ValidateCeresSolverOptions(const CeresSolverOptions& options) {
     return Status::Error(e);
   }
   return Status::Ok();
+}
+
+std::string CeresLinearSolverFor(const CeresSolverOptions& options, double condition_number,
+                                 int batched_rows) {
+  const std::string& requested = options.linear_solver;
+  if (requested != "auto" && requested != "dense_qr") return requested;
+  // Dense QR would copy the 3N x P Jacobian (650 MB more for 10^6 rows) to factor it; the normal
+  // equations are P x P, and LM's Jacobi scaling keeps them well conditioned.
+  if (batched_rows > 1) return "dense_normal_cholesky";
+  if (requested == "dense_qr") return requested;
+  // The normal equations square the condition number: a step solved from them has a relative
+  // error of about kappa^2 eps (kappa of the column-scaled Jacobian, which LM's Jacobi scaling
+  // solves with). At kappa <= 1e4 that is 2e-8 of the step, and LM converges to the same point
+  // (where the gradient J^T r, formed exactly either way, vanishes). The check's kappa is that of
+  // the solved columns at the start; kept QR where it may not describe the solve: the full
+  // parameterization (gauge directions: rank-deficient), robust losses (rows reweighted during
+  // the solve) and the gravity tilt (a bilinear block whose columns change with the compliance).
+  const bool normal_equations =
+      options.parameterization == ParameterizationKind::kIdentifiable && options.loss == "none" &&
+      options.gravity_tilt == nullptr &&
+      condition_number <= CeresSolverOptions::kNormalEquationsMaxCondition;
+  return normal_equations ? "dense_normal_cholesky" : "dense_qr";
 }
 
 CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet& data,
@@ -331,12 +383,9 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
 
   // ---- Solve.
   ceres::Solver::Options solver_options;
-  CHECK(ParseLinearSolver(options.linear_solver, &solver_options.linear_solver_type));
-  if (builder.BatchedRows() > 1 && solver_options.linear_solver_type == ceres::DENSE_QR) {
-    // Dense QR would copy the 3N x P Jacobian (650 MB more for 10^6 rows) to factor it; the
-    // normal equations are P x P, and LM's Jacobi scaling keeps them well conditioned.
-    solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-  }
+  CHECK(ParseLinearSolver(
+      CeresLinearSolverFor(options, analysis.condition_number, builder.BatchedRows()),
+      &solver_options.linear_solver_type));
   solver_options.minimizer_type = ceres::TRUST_REGION;
   solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   solver_options.max_num_iterations = options.max_iterations;

@@ -215,18 +215,42 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
   pose_kind.inverse_sigma = 1.0 / options_.sigma;
   pose_kind.orientation_weight = options_.orientation_weight;
   Eigen::MatrixXd term_Y;
+  // The rows' regressors from the reduction's slots when it stored them (regressors_: the non-zero
+  // entries of d(dq)/d(theta) per row, slot_basis mapping x to the slots' parameters): joint j's
+  // row of R is sum_{s in j} values(s, r) slot_basis row s, about 89 x K multiply-adds per row on
+  // cobot6 instead of each term's n x P regressor and its product with the basis.
+  const internal::JointSpaceRegressors* slots = regressors_.get();
+  const bool from_slots = K > 0 && !p.gravity_tilt && slots != nullptr &&
+                          slots->num_joints == n && slots->values.cols() == data.size() &&
+                          slots->values.rows() == slots->num_slots() &&
+                          slots->slot_basis.rows() == slots->num_slots() &&
+                          slots->slot_basis.cols() == K;
+  // slot_basis transposed (K x slots): slot s's row contiguous.
+  const Eigen::MatrixXd slot_basis_t =
+      from_slots ? Eigen::MatrixXd(slots->slot_basis.transpose()) : Eigen::MatrixXd();
   if (batch == 1) ids.reserve(data.size());
   for (int r = 0; batch == 1 && r < data.size(); ++r) {
     parameters[n] = frames_[n + data.target(r)].data();
     // This row's joint regressor [Y_b(q) basis_b] (data: evaluated once).
     Eigen::MatrixXd R(n, K);
-    int column = 0;
-    for (int b : solved_joint_blocks) {
-      const JointBlock& block = p.joint_blocks[b];
-      term_Y.resize(n, block.term->num_parameters());
-      block.term->Regressor(data.q(r), term_Y.data());
-      R.middleCols(column, block.basis.cols()) = term_Y * block.basis;
-      column += static_cast<int>(block.basis.cols());
+    if (from_slots) {
+      Eigen::MatrixXd R_t = Eigen::MatrixXd::Zero(K, n);  // R transposed: joint j's row contiguous
+      for (int j = 0; j < n; ++j) {
+        for (int s = slots->slot_begin[j]; s < slots->slot_begin[j + 1]; ++s) {
+          const double v = slots->values(s, r);
+          if (v != 0) R_t.col(j) += v * slot_basis_t.col(s);
+        }
+      }
+      R = R_t.transpose();
+    } else {
+      int column = 0;
+      for (int b : solved_joint_blocks) {
+        const JointBlock& block = p.joint_blocks[b];
+        term_Y.resize(n, block.term->num_parameters());
+        block.term->Regressor(data.q(r), term_Y.data());
+        R.middleCols(column, block.basis.cols()) = term_Y * block.basis;
+        column += static_cast<int>(block.basis.cols());
+      }
     }
     std::shared_ptr<GravityTiltRow> tilt;
     if (p.gravity_tilt) {
@@ -287,6 +311,39 @@ Eigen::VectorXd CalibrationProblem::JointState() const {
     x(k++) = tilt_[1];
   }
   return x;
+}
+
+std::vector<double> CalibrationProblem::EffectiveJointValues() const {
+  const MeasurementSet& data = *data_;
+  const int n = data.num_joints();
+  const Parameterization& p = parameterization_;
+  if (data.size() == 0) return {};
+  std::vector<double> q(data.q(0), data.q(0) + static_cast<size_t>(data.size()) * n);
+  if (p.joint_blocks.empty()) return q;
+  const internal::JointSpaceRegressors* slots = regressors_.get();
+  const Eigen::VectorXd x = JointState();
+  const bool from_slots = !p.gravity_tilt && slots != nullptr && slots->num_joints == n &&
+                          slots->values.cols() == data.size() &&
+                          slots->values.rows() == slots->num_slots() &&
+                          slots->slot_basis.rows() == slots->num_slots() &&
+                          slots->slot_basis.cols() == x.size();
+  if (!from_slots) {
+    const MeasurementSet shifted = WithEffectiveJointValues(JointTerms(), data);
+    std::copy(shifted.q(0), shifted.q(0) + q.size(), q.begin());
+    return q;
+  }
+  // The slots' parameter values theta(slot) = slot_basis x, then per row and joint
+  // dq_j = sum_{s in j} values(s, r) theta(s).
+  const Eigen::VectorXd theta = slots->slot_basis * x;
+  for (int r = 0; r < data.size(); ++r) {
+    const double* v = slots->values.col(r).data();
+    for (int j = 0; j < n; ++j) {
+      double dq = 0;
+      for (int s = slots->slot_begin[j]; s < slots->slot_begin[j + 1]; ++s) dq += v[s] * theta(s);
+      q[static_cast<size_t>(r) * n + j] += dq;
+    }
+  }
+  return q;
 }
 
 std::vector<JointTermValues> CalibrationProblem::JointTerms() const {

@@ -11,7 +11,9 @@
 // through the frames and q_eff only (q_eff is one more block of the functor: 7 (n + 1) + n
 // directions, whatever the number of joint-space parameters), and the cost function Create returns
 // adds the blocks' columns by the chain rule through the linear map: dr/dx_b = (dr/dq_eff) R_b.
-// Without joint-space blocks the joint motions are computed once, at construction.
+// Without joint-space blocks the joint motions are computed once, at construction; with them once
+// per q_eff, in double, for every autodiff pass (lifted to Jets in the passes that seed a q_eff
+// direction: operator()).
 //
 // With a gravity tilt (GravityTiltRow, docs/joint_errors.md) one more block of 2 follows the
 // joint-space blocks: the compliance block's offsets become bilinear,
@@ -23,6 +25,7 @@
 #define LPOE_MEASUREMENT_RESIDUAL_H_
 
 #include <memory>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -46,6 +49,108 @@ struct GravityTiltRow {
   Eigen::MatrixXd Z[3];
 };
 
+// The joint motions exp(s_i^ q_i) at one q_eff in double, kept by the functor of a row with
+// joint-space blocks (MeasurementResidual::MotionsAt): revolute-z joints their (sin, cos), other
+// joints their motion. A Motions policy of kinematics.h for the passes that do not seed q_eff.
+class JointValueMotions {
+ public:
+  void Set(const RobotModel& model, const double* q) {
+    const int n = model.num_joints();
+    q_.assign(q, q + n);
+    revolute_z_.resize(n);
+    s_.resize(n);
+    c_.resize(n);
+    general_.resize(n);
+    for (int i = 0; i < n; ++i) {
+      revolute_z_[i] = IsRevoluteZ(model.joints[i]);
+      if (revolute_z_[i]) {
+        SinCos(q[i], &s_[i], &c_[i]);
+      } else {
+        general_[i] = JointMotion(model.joints[i], q[i]);
+      }
+    }
+  }
+  // Whether these are the motions at q (n values, compared exactly).
+  bool At(const double* q, int n) const {
+    if (static_cast<int>(q_.size()) != n) return false;
+    for (int i = 0; i < n; ++i) {
+      if (q[i] != q_[i]) return false;
+    }
+    return true;
+  }
+
+  template <typename T>
+  void ApplyLeft(int i, Vector3<T>* p) const {
+    if (revolute_z_[i]) {
+      internal::PlaneRotation(c_[i], s_[i], &(*p)(0), &(*p)(1));
+    } else {
+      *p = general_[i].R.template cast<T>() * *p + general_[i].t.template cast<T>();
+    }
+  }
+  template <typename Accumulator>
+  void ApplyRight(int i, Accumulator* X) const {
+    if (revolute_z_[i]) {
+      X->RotZ(c_[i], s_[i]);
+    } else {
+      X->RightMultiply(general_[i]);
+    }
+  }
+
+  bool revolute_z(int i) const { return revolute_z_[i] != 0; }
+  double s(int i) const { return s_[i]; }
+  double c(int i) const { return c_[i]; }
+
+ private:
+  std::vector<double> q_;
+  std::vector<char> revolute_z_;
+  std::vector<double> s_, c_;
+  std::vector<SE3d> general_;
+};
+
+// The motions of a pass that seeds q_eff directions (Jets `q` with derivative parts): a revolute-z
+// joint's sin and cos lifted from their values in double, (sin q, cos q dq) and (cos q, -sin q dq)
+// -- the Jets Ceres's sin and cos return -- with no sin/cos call; other joints' motions computed on
+// the Jets as the chain reaches them.
+template <typename J>
+class LiftedMotions {
+ public:
+  LiftedMotions(const RobotModel& model, const JointValueMotions& values, const J* q)
+      : model_(model), values_(values), q_(q), s_(model.num_joints()), c_(model.num_joints()) {
+    for (int i = 0; i < model.num_joints(); ++i) {
+      if (!values.revolute_z(i)) continue;
+      s_[i].a = values.s(i);
+      s_[i].v = values.c(i) * q[i].v;
+      c_[i].a = values.c(i);
+      c_[i].v = -values.s(i) * q[i].v;
+    }
+  }
+
+  template <typename T>
+  void ApplyLeft(int i, Vector3<T>* p) const {
+    if (values_.revolute_z(i)) {
+      internal::PlaneRotation(c_[i], s_[i], &(*p)(0), &(*p)(1));
+    } else {
+      const SE3<J> M = JointMotion(model_.joints[i], q_[i]);
+      *p = M.R.template cast<T>() * *p + M.t.template cast<T>();
+    }
+  }
+  template <typename Accumulator>
+  void ApplyRight(int i, Accumulator* X) const {
+    if (values_.revolute_z(i)) {
+      X->RotZ(c_[i], s_[i]);
+    } else {
+      X->RightMultiply(JointMotion(model_.joints[i], q_[i]));
+    }
+  }
+
+ private:
+  const RobotModel& model_;
+  const JointValueMotions& values_;
+  const J* q_;
+  // Set by the constructor, read only after (JointScratch has no const access).
+  mutable JointScratch<J> s_, c_;
+};
+
 template <typename Kind>
 class MeasurementResidual {
  public:
@@ -56,16 +161,29 @@ class MeasurementResidual {
   using CostFunction = ceres::DynamicAutoDiffCostFunction<MeasurementResidual, kStride>;
 
   // `model` supplies the joints' twists (its frames are ignored: they are the parameters); `q`
-  // holds model->num_joints() values. With `joint_values_block`, the functor has one more block
-  // after the frames: the n joint values the chain is evaluated at (q_eff), and `q` is not used.
+  // holds model->num_joints() values. With `joint_values_block`, the functor's first block is the
+  // n joint values the chain is evaluated at (q_eff), the frames follow, and `q` is the first
+  // q_eff the motions are computed at.
   MeasurementResidual(std::shared_ptr<const RobotModel> model, const Kind& kind, const double* q,
                       const typename Kind::Observation& observation, bool joint_values_block)
       : model_(std::move(model)),
         kind_(kind),
         motions_(*model_, q),
         observation_(observation),
-        joint_values_block_(joint_values_block) {}
+        joint_values_block_(joint_values_block) {
+    if (joint_values_block_) value_motions_.Set(*model_, q);
+  }
 
+  // Blocks: without joint_values_block the n + 1 frames; with it q_eff, then the frames.
+  //
+  // With q_eff a block, the autodiff pass (DynamicAutoDiffCostFunction: kStride directions at a
+  // time) seeds q_eff's directions in the first ceil(n / kStride) passes only (q_eff is the first
+  // block); in the other passes q_eff's Jets have zero derivative parts, exp(s_i^ q_i) is a
+  // constant of the pass and the chain is evaluated on the motions in double (MotionsAt),
+  // computed once per q_eff: those passes cost what a geometric row's do, and give the same
+  // derivatives as Jet motions (the motions' derivative parts are exactly zero; products with
+  // them add exact zeros). A pass that seeds a q_eff direction runs the chain on Jet motions,
+  // lifted from the same values (LiftedMotions): the Jets sin and cos of q_eff would give.
   template <typename T>
   bool operator()(T const* const* parameters, T* residuals) const {
     const int n = model_->num_joints();
@@ -73,8 +191,18 @@ class MeasurementResidual {
       kind_.Residual(n, parameters, motions_, observation_, residuals);
       return true;
     }
-    kind_.Residual(n, parameters, JointMotions<T>(*model_, parameters[n + 1]), observation_,
-                   residuals);
+    const T* q = parameters[0];
+    const JointValueMotions& values = MotionsAt(q, n);
+    if constexpr (std::is_same_v<T, double>) {
+      kind_.Residual(n, parameters + 1, values, observation_, residuals);
+    } else {
+      if (HasDerivatives(q, n)) {
+        kind_.Residual(n, parameters + 1, LiftedMotions<T>(*model_, values, q), observation_,
+                       residuals);
+      } else {
+        kind_.Residual(n, parameters + 1, values, observation_, residuals);
+      }
+    }
     return true;
   }
 
@@ -89,9 +217,37 @@ class MeasurementResidual {
                                      std::shared_ptr<const GravityTiltRow> tilt = nullptr);
 
  private:
+  template <typename J>
+  static bool HasDerivatives(const J* q, int n) {
+    for (int i = 0; i < n; ++i) {
+      if (!(q[i].v.array() == 0.0).all()) return true;
+    }
+    return false;
+  }
+  static double Value(double x) { return x; }
+  template <typename J>
+  static double Value(const J& x) {
+    return x.a;
+  }
+
+  // The motions in double at the values of q (their scalar parts): computed again only when q
+  // differs from the last values (an evaluation's passes, and the Jacobian that Ceres evaluates at
+  // a point whose residuals it has evaluated, share them). The cache is this functor's own state:
+  // every cost function Create returns belongs to one residual block, and Ceres evaluates a
+  // residual block from one thread at a time (do not share one between residual blocks that may
+  // be evaluated concurrently).
+  template <typename T>
+  const JointValueMotions& MotionsAt(const T* q, int n) const {
+    JointScratch<double> values(n);
+    for (int i = 0; i < n; ++i) values[i] = Value(q[i]);
+    if (!value_motions_.At(values.data(), n)) value_motions_.Set(*model_, values.data());
+    return value_motions_;
+  }
+
   std::shared_ptr<const RobotModel> model_;
   Kind kind_;
-  JointMotions<double> motions_;  // exp(s_i^ q_i) at this row's q, computed once
+  JointMotions<double> motions_;  // exp(s_i^ q_i) at this row's q (no joint-values block)
+  mutable JointValueMotions value_motions_;  // at the last q_eff (MotionsAt)
   typename Kind::Observation observation_;
   bool joint_values_block_;
 };

@@ -43,11 +43,17 @@ struct CeresSolverOptions {
   // nominal model: registration moves the tools by the noise, so that a tool on the last axis would
   // look slightly off it, and the axis' tilt weakly "identified" from noise. Not owned.
   const RobotModel* structure_reference = nullptr;
-  // Ceres linear solver: dense_qr | dense_normal_cholesky | sparse_normal_cholesky | dense_schur |
-  // sparse_schur | iterative_schur | cgnr. The problem is small and dense (every residual touches
-  // every joint frame): dense_qr is the accurate default (with rows in batches, see rows_per_block,
-  // it is carried out as dense_normal_cholesky: a QR would copy the Jacobian of every row).
-  std::string linear_solver = "dense_qr";
+  // Ceres linear solver: auto | dense_qr | dense_normal_cholesky | sparse_normal_cholesky |
+  // dense_schur | sparse_schur | iterative_schur | cgnr. The problem is small and dense (every
+  // residual touches every joint frame). `auto` (CeresLinearSolverFor) takes
+  // dense_normal_cholesky where the normal equations lose nothing that matters (the identifiable
+  // parameterization, no robust loss, no gravity tilt, column-scaled condition number at most
+  // kNormalEquationsMaxCondition), else dense_qr. With rows in batches (rows_per_block) dense_qr
+  // and auto are carried out as dense_normal_cholesky: a QR would copy the Jacobian of every row.
+  std::string linear_solver = "auto";
+  // kappa^2 eps = 2.2e-8 at this condition number: the relative error of a step solved from the
+  // normal equations (docs/joint_errors.md, Cost).
+  static constexpr double kNormalEquationsMaxCondition = 1e4;
   int num_threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   // Rows per residual block (CalibrationProblemOptions::rows_per_block): 0 picks 1024 from
   // kBatchFromRows rows on (one block per row below, or with a robust loss, pose data or joint
@@ -105,6 +111,12 @@ struct CeresSolverOptions {
 // Checks the string options and ranges (user input): linear_solver and loss names, sigma > 0,
 // loss_scale > 0, orientation_weight > 0, max_iterations >= 1, num_threads >= 1.
 Status ValidateCeresSolverOptions(const CeresSolverOptions& options);
+
+// The Ceres linear solver (its name, as in CeresSolverOptions::linear_solver) that CalibrateCeres
+// uses for `options` when the shared identifiability check found the column-scaled condition
+// number `condition_number` and the rows are in blocks of `batched_rows`.
+std::string CeresLinearSolverFor(const CeresSolverOptions& options, double condition_number,
+                                 int batched_rows);
 
 // Calibrates `nominal` on `data` with Ceres. The result has the same meaning as CalibrateLinear's:
 //   * termination: ceres CONVERGENCE / USER_SUCCESS -> kConverged, NO_CONVERGENCE ->

@@ -174,6 +174,11 @@ class CalibrationProblem {
   std::vector<JointTermValues> JointTerms() const;
   // The joint blocks' coordinates, concatenated, then the tilt (num_joint_parameters()).
   Eigen::VectorXd JointState() const;
+  // The joint values the chain is evaluated at for every row (rows x n, row-major): data().q
+  // shifted by the joint-space terms at their current values, q + sum_b Y_b(q) theta_b (as
+  // WithEffectiveJointValues(JointTerms(), data())); data().q without terms. From the reduction's
+  // stored slots (n + 89 multiply-adds a row on cobot6) when it has them.
+  std::vector<double> EffectiveJointValues() const;
 
   // The solved parameters (unmeasured tools left out): the numbering of NormalEquations() and
   // Update().
