@@ -82,6 +82,54 @@ TEST(GravityTilt, AxesArePerpendicularAndTheJacobianIsExact) {
   EXPECT_LT((U.col(1) - Eigen::Vector3d::UnitY()).norm(), 1e-15);
 }
 
+// GravityTiltRowRegressors forms Z_a = Y_a(q) B from Y_a's entries at their joints only
+// (ComplianceValuesGravityAxes): equal to the dense product of ComplianceRegressorGravityAxes'
+// matrices with a general (not selecting) basis, and the values are those matrices' entries.
+TEST(GravityTilt, RowRegressorsEqualTheDenseProducts) {
+  const Loaded l;
+  const int n = 6;
+  Parameterization p =
+      MakeParameterization(l.model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
+  std::shared_ptr<const JointTerm> term;
+  ASSERT_TRUE(MakeJointTerm("compliance", l.model, &term).ok());
+  AddJointBlock(term, &p);
+  AddGravityTilt(std::make_shared<const GravityTiltModel>(l.model), 0, &p);
+  const int P = term->num_parameters();
+  ASSERT_EQ(P, NumComplianceParameters(n));
+  // A dense basis of 11 combinations (only the rows' product is under test here).
+  Eigen::MatrixXd B(P, 11);
+  for (int c = 0; c < B.cols(); ++c) {
+    for (int r = 0; r < P; ++r) B(r, c) = std::sin(0.7 * r + 1.3 * c + 0.1 * r * c);
+  }
+  p.joint_blocks[0].basis = B;
+  std::vector<double> values(3 * P);
+  double* const y[3] = {values.data(), values.data() + P, values.data() + 2 * P};
+  for (uint64_t trial = 0; trial < 5; ++trial) {
+    const std::vector<double> q = Configuration(trial + 11);
+    Eigen::MatrixXd Y[3], Z[3];
+    ComplianceRegressorGravityAxes(l.model, q.data(), Y);
+    internal::GravityTiltRowRegressors(p, q.data(), Z);
+    ComplianceValuesGravityAxes(l.model, q.data(), y);
+    for (int a = 0; a < 3; ++a) {
+      const Eigen::MatrixXd expected = Y[a] * B;
+      ASSERT_EQ(Z[a].rows(), n);
+      ASSERT_EQ(Z[a].cols(), B.cols());
+      const double scale = expected.cwiseAbs().maxCoeff();
+      ASSERT_GT(scale, 0);
+      EXPECT_LT((Z[a] - expected).cwiseAbs().maxCoeff(), 1e-13 * scale) << "axis " << a;
+      for (int c = 0; c < P; ++c) {
+        EXPECT_EQ(y[a][c], Y[a](term->ParameterJoint(c), c)) << "axis " << a << " c " << c;
+      }
+      // Every other entry of Y_a is zero.
+      int nonzero = 0;
+      for (int j = 0; j < n; ++j) {
+        for (int c = 0; c < P; ++c) nonzero += Y[a](j, c) != 0 && term->ParameterJoint(c) != j;
+      }
+      EXPECT_EQ(nonzero, 0) << "axis " << a;
+    }
+  }
+}
+
 // The extra joint-space columns of the linear solver (ApplyGravityTiltColumns): d(dq)/dt and the
 // compliance columns at the tilt, against central differences of the offsets and against Jets
 // through the templated TiltedGravity / ComplianceOffsets (what the Ceres residual uses); the

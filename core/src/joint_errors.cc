@@ -322,6 +322,12 @@ void ComplianceRegressorGravityAxes(const RobotModel& model, const double* q,
   }
 }
 
+void ComplianceValuesGravityAxes(const RobotModel& model, const double* q, double* const y[3]) {
+  thread_local ChainState state;  // no allocation per call (solvers evaluate it for every row)
+  ComputeChainState(model, q, &state);
+  for (int a = 0; a < 3; ++a) ComplianceValuesFor(model, state, Eigen::Vector3d::Unit(a), y[a]);
+}
+
 Eigen::Matrix<double, 3, 2> GravityTiltAxes(const Eigen::Vector3d& gravity) {
   Eigen::Matrix<double, 3, 2> axes = Eigen::Matrix<double, 3, 2>::Zero();
   const double norm = gravity.norm();
@@ -366,6 +372,10 @@ GravityTiltModel::GravityTiltModel(const RobotModel& reference)
 
 void GravityTiltModel::AxisRegressors(const double* q, Eigen::MatrixXd Y[3]) const {
   ComplianceRegressorGravityAxes(reference_, q, Y);
+}
+
+void GravityTiltModel::AxisValues(const double* q, double* const y[3]) const {
+  ComplianceValuesGravityAxes(reference_, q, y);
 }
 
 void GravityTiltJointColumns(const Eigen::Vector3d& gravity,

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <sstream>
+#include <vector>
 
 #include <Eigen/Eigenvalues>
 #include <glog/logging.h>
@@ -17,9 +18,39 @@ namespace internal {
 void GravityTiltRowRegressors(const Parameterization& p, const double* q, Eigen::MatrixXd Z[3]) {
   CHECK(p.gravity_tilt != nullptr);
   const JointBlock& block = p.joint_blocks[p.tilt_block];
-  Eigen::MatrixXd Y[3];
-  p.gravity_tilt->AxisRegressors(q, Y);
-  for (int a = 0; a < 3; ++a) Z[a].noalias() = Y[a] * block.basis;
+  const int n = p.gravity_tilt->reference().num_joints();
+  const int P = NumComplianceParameters(n);
+  CHECK_EQ(block.basis.rows(), P) << "the tilt's block is not the compliance term";
+  const Eigen::Index k = block.basis.cols();
+  // Y_a's entries at their joints only: row j of Z_a = Y_a(j, joint j's parameters) times those
+  // rows of the basis (the dense n x P product's zeros skipped; about n times fewer products).
+  thread_local std::vector<double> values;
+  values.resize(3 * static_cast<size_t>(P));
+  double* const y[3] = {values.data(), values.data() + P, values.data() + 2 * P};
+  p.gravity_tilt->AxisValues(q, y);
+  for (int a = 0; a < 3; ++a) Z[a].resize(n, k);
+  // Z_a(j, i) = basis column i's joint-j segment . y_a's joint-j segment: contiguous in both, the
+  // three axes in one pass over the basis.
+  const double* B = block.basis.data();
+  for (int j = 0; j < n; ++j) {
+    const int first = ComplianceLinkIndex(n, j, j);
+    const int count = CompliancePayloadIndex(n, j) - first + 1;
+    const double* y0 = y[0] + first;
+    const double* y1 = y[1] + first;
+    const double* y2 = y[2] + first;
+    for (Eigen::Index i = 0; i < k; ++i) {
+      const double* b = B + i * P + first;
+      double z0 = 0, z1 = 0, z2 = 0;
+      for (int c = 0; c < count; ++c) {
+        z0 += b[c] * y0[c];
+        z1 += b[c] * y1[c];
+        z2 += b[c] * y2[c];
+      }
+      Z[0](j, i) = z0;
+      Z[1](j, i) = z1;
+      Z[2](j, i) = z2;
+    }
+  }
 }
 
 void ApplyGravityTiltColumns(const Parameterization& p, const double* q,
@@ -31,22 +62,25 @@ void ApplyGravityTiltColumns(const Parameterization& p, const double* q,
   const int k = static_cast<int>(block.basis.cols());
   const int c0 = block.offset - F;  // the compliance block's first column in R
   const int t0 = p.tilt_offset - F;  // the tilt's first column
-  Eigen::VectorXd x = Eigen::VectorXd::Zero(k);
+  // Per-thread scratch: called for every row of every linearization.
+  struct Scratch {
+    Eigen::VectorXd x, ddq;
+    Eigen::MatrixXd Z[3], dR, D;
+  };
+  thread_local Scratch s;
+  s.x.setZero(k);
   double tilt[2] = {0, 0};
   if (joint_state.size() > 0) {
-    x = joint_state.segment(c0, k);
+    s.x = joint_state.segment(c0, k);
     tilt[0] = joint_state(t0);
     tilt[1] = joint_state(t0 + 1);
   }
-  Eigen::MatrixXd Z[3];
-  GravityTiltRowRegressors(p, q, Z);
-  Eigen::VectorXd ddq;
-  Eigen::MatrixXd dR, D;
-  GravityTiltJointColumns(p.gravity_tilt->gravity(), p.gravity_tilt->axes(), tilt, Z, x.data(),
-                          &ddq, &dR, &D);
-  R.middleCols(c0, k) += dR;
-  R.middleCols(t0, 2) = D;
-  *q_eff += ddq;
+  GravityTiltRowRegressors(p, q, s.Z);
+  GravityTiltJointColumns(p.gravity_tilt->gravity(), p.gravity_tilt->axes(), tilt, s.Z, s.x.data(),
+                          &s.ddq, &s.dR, &s.D);
+  R.middleCols(c0, k) += s.dR;
+  R.middleCols(t0, 2) = s.D;
+  *q_eff += s.ddq;
 }
 
 Status AddSolverGravityTilt(std::shared_ptr<const GravityTiltModel> tilt, Parameterization* p) {

@@ -90,6 +90,10 @@ void ComplianceRegressor(const RobotModel& model, const double* q, Eigen::Matrix
 // The compliance regressor is linear in the gravity vector: Y(g) = sum_a g_a Y_a. Fills Y_a for the
 // three base axes (for identifying a tilt of gravity, see TiltedGravity).
 void ComplianceRegressorGravityAxes(const RobotModel& model, const double* q, Eigen::MatrixXd Y[3]);
+// The same three regressors' only entries that can be non-zero, without the num_joints x P
+// matrices: y[a][c] = Y_a(joint of c, c) for c < NumComplianceParameters (joint j's parameters are
+// ComplianceLinkIndex(n, j, j) .. CompliancePayloadIndex(n, j)). What the solvers evaluate per row.
+void ComplianceValuesGravityAxes(const RobotModel& model, const double* q, double* const y[3]);
 void HarmonicsRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y);
 // Entries below this fraction of the largest |Y| at a configuration are set to zero by
 // JointErrorRegressor and JointErrorOffsets (rounding noise, e.g. the gravity torque about a
@@ -156,6 +160,8 @@ class GravityTiltModel {
   const Eigen::Matrix<double, 3, 2>& axes() const { return axes_; }
   // Y_a(q), a = x, y, z of the base (ComplianceRegressorGravityAxes on the reference).
   void AxisRegressors(const double* q, Eigen::MatrixXd Y[3]) const;
+  // Their entries at their own joints (ComplianceValuesGravityAxes on the reference).
+  void AxisValues(const double* q, double* const y[3]) const;
   Eigen::Vector3d Tilted(const double* tilt) const {
     return TiltedGravity<double>(gravity(), axes_, tilt);
   }
