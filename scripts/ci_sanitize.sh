@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Builds the library, tools and tests with clang + AddressSanitizer + UndefinedBehaviorSanitizer
+# Builds the library, tools, tests and the libFuzzer targets (run by `scripts/fuzz.sh SECONDS build-asan`)
+# with clang + AddressSanitizer + UndefinedBehaviorSanitizer
 # (-DLPOE_SANITIZE=ON, RelWithDebInfo at -O1 with line tables only, which is all the sanitizer
 # reports need and compiles much faster than -g) in build-asan and runs the whole test suite there. Any
 # sanitizer report fails the run (-fno-sanitize-recover=undefined, ASan aborts on the first error).
@@ -18,7 +19,7 @@ gen=(); [ -f "$build/CMakeCache.txt" ] || gen=(-G Ninja)  # Ninja for a new buil
 CC=clang CXX=clang++ cmake "${gen[@]}" -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -gline-tables-only" -DLPOE_SANITIZE=ON \
   -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld -DCMAKE_SHARED_LINKER_FLAGS=-fuse-ld=lld \
-  -DBUILD_TESTING=ON -DLPOE_BUILD_BENCHMARKS=OFF -DLPOE_BUILD_TOOLS=ON \
+  -DBUILD_TESTING=ON -DLPOE_BUILD_BENCHMARKS=OFF -DLPOE_BUILD_TOOLS=ON -DLPOE_FUZZ=ON \
   -DLPOE_BUILD_PYTHON=OFF -DLPOE_PRECOMPILED_HEADERS=ON >/dev/null
 cmake --build "$build" -j2
 

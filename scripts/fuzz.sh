@@ -8,24 +8,37 @@
 #   build-fuzz/fuzz/fuzz_csv build-fuzz/artifacts/fuzz_csv/crash-...
 # Fixed findings go into fuzz/corpus/<kind>/ as regression seeds.
 #
-#   bash scripts/fuzz.sh [seconds]
+# With a second argument, the targets are taken from that build directory instead, which must already
+# be configured with -DLPOE_FUZZ=ON and clang: CI (scripts/test.sh) passes the sanitizer build
+# (build-asan), whose lpoe_core then carries the coverage instrumentation, so that the core library is
+# not compiled a third time.
+#
+#   bash scripts/fuzz.sh [seconds] [configured build directory]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
 if ! [[ "$seconds" =~ ^[0-9]+$ ]] || [ "$seconds" -lt 1 ]; then
-  echo "usage: scripts/fuzz.sh [seconds >= 1]" >&2
+  echo "usage: scripts/fuzz.sh [seconds >= 1] [configured build directory]" >&2
   exit 1
 fi
 bash scripts/setup.sh
 
-build=build-fuzz
-# Only lpoe_core's sources are compiled (instrumented, as lpoe_core_fuzz) plus the fuzz targets.
-# -O1 with line tables (libFuzzer's recommended level; much faster to compile than -O2 -g), linked
-# with lld.
-gen=(); [ -f "$build/CMakeCache.txt" ] || gen=(-G Ninja)  # Ninja for a new build directory
-CC=clang CXX=clang++ cmake "${gen[@]}" -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLPOE_FUZZ=ON \
-  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -gline-tables-only" -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld \
-  -DBUILD_TESTING=OFF -DLPOE_BUILD_BENCHMARKS=OFF -DLPOE_BUILD_TOOLS=OFF -DLPOE_BUILD_PYTHON=OFF >/dev/null
+if [ $# -ge 2 ]; then
+  build=$2
+  if ! grep -q '^LPOE_FUZZ:BOOL=ON$' "$build/CMakeCache.txt" 2>/dev/null; then
+    echo "fuzz: $build is not a build directory configured with -DLPOE_FUZZ=ON" >&2
+    exit 1
+  fi
+else
+  build=build-fuzz
+  # Only lpoe_core's sources are compiled (instrumented, as lpoe_core_fuzz) plus the fuzz targets.
+  # -O1 with line tables (libFuzzer's recommended level; much faster to compile than -O2 -g), linked
+  # with lld.
+  gen=(); [ -f "$build/CMakeCache.txt" ] || gen=(-G Ninja)  # Ninja for a new build directory
+  CC=clang CXX=clang++ cmake "${gen[@]}" -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLPOE_FUZZ=ON \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -gline-tables-only" -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld \
+    -DBUILD_TESTING=OFF -DLPOE_BUILD_BENCHMARKS=OFF -DLPOE_BUILD_TOOLS=OFF -DLPOE_BUILD_PYTHON=OFF >/dev/null
+fi
 cmake --build "$build" -j2 --target lpoe_fuzz
 
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
