@@ -107,17 +107,24 @@ void EvaluateJointRegressor(const Parameterization& p, const double* q, Scratch*
 // in the last bits (another summation order), as builds with other flags would.
 #if defined(__x86_64__) && defined(__GNUC__)
 #define LPOE_HAVE_AVX2_KERNEL 1
-__attribute__((target("avx2,fma"))) void SyrkLowerAvx2(const double* A, int ld, int rows, int P,
-                                                       double* H) {
+// out(a, b) += sum_k X_a[k] w[k] Y_b[k] (w[k] = 1 unless kWeighted) for a < nx, b < ny, over k < len:
+// columns X_a = X + a ldx, Y_b = Y + b ldy contiguous, out column-major with leading dimension
+// ldo. `lower`: only the entries a >= b are formed and written (nx == ny). Tiles of 2 x 4 dot
+// products in 4-wide fused multiply-adds.
+template <bool kWeighted>
+__attribute__((target("avx2,fma"))) void DotProductsAvx2(const double* X, int ldx, int nx,
+                                                         const double* Y, int ldy, int ny,
+                                                         const double* w, int len, bool lower,
+                                                         double* out, int ldo) {
   constexpr int kTi = 2, kTj = 4;
-  const int k4 = rows & ~3;
-  for (int j0 = 0; j0 < P; j0 += kTj) {
-    for (int i0 = j0; i0 < P; i0 += kTi) {
+  const int k4 = len & ~3;
+  for (int b0 = 0; b0 < ny; b0 += kTj) {
+    for (int a0 = lower ? b0 : 0; a0 < nx; a0 += kTi) {  // b0 is even
       // Columns past the last are read again from the last one and their results dropped.
       const double* a[kTi];
       const double* b[kTj];
-      for (int t = 0; t < kTi; ++t) a[t] = A + static_cast<std::ptrdiff_t>(std::min(i0 + t, P - 1)) * ld;
-      for (int t = 0; t < kTj; ++t) b[t] = A + static_cast<std::ptrdiff_t>(std::min(j0 + t, P - 1)) * ld;
+      for (int t = 0; t < kTi; ++t) a[t] = X + static_cast<std::ptrdiff_t>(std::min(a0 + t, nx - 1)) * ldx;
+      for (int t = 0; t < kTj; ++t) b[t] = Y + static_cast<std::ptrdiff_t>(std::min(b0 + t, ny - 1)) * ldy;
       __m256d acc[kTi][kTj];
       for (auto& row : acc) {
         for (__m256d& v : row) v = _mm256_setzero_pd();
@@ -125,24 +132,33 @@ __attribute__((target("avx2,fma"))) void SyrkLowerAvx2(const double* A, int ld, 
       for (int k = 0; k < k4; k += 4) {
         __m256d bv[kTj];
         for (int t = 0; t < kTj; ++t) bv[t] = _mm256_loadu_pd(b[t] + k);
+        __m256d wv = _mm256_set1_pd(1.0);
+        if constexpr (kWeighted) wv = _mm256_loadu_pd(w + k);
         for (int s = 0; s < kTi; ++s) {
-          const __m256d av = _mm256_loadu_pd(a[s] + k);
+          __m256d av = _mm256_loadu_pd(a[s] + k);
+          if constexpr (kWeighted) av = _mm256_mul_pd(av, wv);
           for (int t = 0; t < kTj; ++t) acc[s][t] = _mm256_fmadd_pd(av, bv[t], acc[s][t]);
         }
       }
       for (int s = 0; s < kTi; ++s) {
         for (int t = 0; t < kTj; ++t) {
-          const int i = i0 + s, j = j0 + t;
-          if (i >= P || j >= P || i < j) continue;
+          const int i = a0 + s, j = b0 + t;
+          if (i >= nx || j >= ny || (lower && i < j)) continue;
           alignas(32) double lanes[4];
           _mm256_store_pd(lanes, acc[s][t]);
           double sum = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
-          for (int k = k4; k < rows; ++k) sum += a[s][k] * b[t][k];
-          H[static_cast<std::ptrdiff_t>(j) * P + i] += sum;
+          for (int k = k4; k < len; ++k) sum += (kWeighted ? a[s][k] * w[k] : a[s][k]) * b[t][k];
+          out[static_cast<std::ptrdiff_t>(j) * ldo + i] += sum;
         }
       }
     }
   }
+}
+
+// The SYRK above: the unweighted lower-triangle case of DotProductsAvx2 with X = Y = A and H's
+// leading dimension P (inlined, so that the compiler specializes the loop for it).
+__attribute__((target("avx2,fma"), flatten)) void SyrkLowerAvx2(const double* A, int ld, int rows, int P, double* H) {
+  DotProductsAvx2<false>(A, ld, P, A, ld, P, nullptr, rows, true, H, P);
 }
 
 bool HaveAvx2() {
@@ -727,54 +743,6 @@ __attribute__((target("avx2,fma"))) inline __m256d Dot3Lanes(const double* x, in
   return _mm256_fmadd_pd(_mm256_loadu_pd(x + 2 * stride), b[2],
                          _mm256_fmadd_pd(_mm256_loadu_pd(x + stride), b[1],
                                          _mm256_mul_pd(_mm256_loadu_pd(x), b[0])));
-}
-
-// out(a, b) += sum_k X_a[k] w[k] Y_b[k] (w[k] = 1 unless kWeighted) for a < nx, b < ny, over k < len:
-// columns X_a = X + a ldx, Y_b = Y + b ldy contiguous, out column-major with leading dimension
-// ldo. `lower`: only the entries a >= b are needed (others may be written too). Tiles of 2 x 4
-// dot products in 4-wide fused multiply-adds, as SyrkLowerAvx2.
-template <bool kWeighted>
-__attribute__((target("avx2,fma"))) void DotProductsAvx2(const double* X, int ldx, int nx,
-                                                         const double* Y, int ldy, int ny,
-                                                         const double* w, int len, bool lower,
-                                                         double* out, int ldo) {
-  constexpr int kTi = 2, kTj = 4;
-  const int k4 = len & ~3;
-  for (int b0 = 0; b0 < ny; b0 += kTj) {
-    for (int a0 = lower ? b0 : 0; a0 < nx; a0 += kTi) {  // b0 is even
-      // Columns past the last are read again from the last one and their results dropped.
-      const double* a[kTi];
-      const double* b[kTj];
-      for (int t = 0; t < kTi; ++t) a[t] = X + static_cast<std::ptrdiff_t>(std::min(a0 + t, nx - 1)) * ldx;
-      for (int t = 0; t < kTj; ++t) b[t] = Y + static_cast<std::ptrdiff_t>(std::min(b0 + t, ny - 1)) * ldy;
-      __m256d acc[kTi][kTj];
-      for (auto& row : acc) {
-        for (__m256d& v : row) v = _mm256_setzero_pd();
-      }
-      for (int k = 0; k < k4; k += 4) {
-        __m256d bv[kTj];
-        for (int t = 0; t < kTj; ++t) bv[t] = _mm256_loadu_pd(b[t] + k);
-        __m256d wv = _mm256_set1_pd(1.0);
-        if constexpr (kWeighted) wv = _mm256_loadu_pd(w + k);
-        for (int s = 0; s < kTi; ++s) {
-          __m256d av = _mm256_loadu_pd(a[s] + k);
-          if constexpr (kWeighted) av = _mm256_mul_pd(av, wv);
-          for (int t = 0; t < kTj; ++t) acc[s][t] = _mm256_fmadd_pd(av, bv[t], acc[s][t]);
-        }
-      }
-      for (int s = 0; s < kTi; ++s) {
-        for (int t = 0; t < kTj; ++t) {
-          const int i = a0 + s, j = b0 + t;
-          if (i >= nx || j >= ny) continue;
-          alignas(32) double lanes[4];
-          _mm256_store_pd(lanes, acc[s][t]);
-          double sum = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
-          for (int k = k4; k < len; ++k) sum += (kWeighted ? a[s][k] * w[k] : a[s][k]) * b[t][k];
-          out[static_cast<std::ptrdiff_t>(j) * ldo + i] += sum;
-        }
-      }
-    }
-  }
 }
 
 // The per-pose products of a block written by PositionRows4 with J_q from column F + 1 and y in
