@@ -172,15 +172,22 @@ Parameterization SolverParameterization(const RobotModel& nominal, const Measure
                                         Parameterization* analysed_parameterization) {
   const DataKind data_kind = use_orientation ? DataKind::kPose : DataKind::kPosition;
   Parameterization p = MakeParameterization(nominal, kind, data_kind);
-  LeaveOutStructurallyUnidentifiable(structure_reference ? *structure_reference : nominal, data,
-                                     use_orientation, orientation_weight, &p);
+  // The structural check (a Jacobian at generic configurations and its Gram-Schmidt) once for both
+  // parameterizations below: its result depends on the chain, the data's tools and the data kind.
+  const std::vector<Direction> lost =
+      StructurallyUnidentifiable(structure_reference ? *structure_reference : nominal, data,
+                                 use_orientation, orientation_weight);
+  LeaveOutDirections(lost, &p);
   if (terms.empty()) return p;
   // The analysis runs on the identifiable frames (the full ones are singular by construction) with
-  // every joint block whole.
-  Parameterization pi =
-      MakeParameterization(nominal, ParameterizationKind::kIdentifiable, data_kind);
-  LeaveOutStructurallyUnidentifiable(structure_reference ? *structure_reference : nominal, data,
-                                     use_orientation, orientation_weight, &pi);
+  // every joint block whole: p itself when it is the identifiable one.
+  Parameterization pi;
+  if (kind == ParameterizationKind::kIdentifiable) {
+    pi = p;
+  } else {
+    pi = MakeParameterization(nominal, ParameterizationKind::kIdentifiable, data_kind);
+    LeaveOutDirections(lost, &pi);
+  }
   for (const auto& term : terms) {
     CHECK_EQ(term->num_joints(), nominal.num_joints()) << term->name();
     AddJointBlock(term, &pi);
