@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
@@ -155,18 +158,53 @@ Direction JointDirection(const Parameterization& p, int b, const Eigen::VectorXd
   return d;
 }
 
-// Names and offsets of every joint block from the bases (blocks follow the frames).
-void RenumberJointBlocks(Parameterization* p) {
+// Whether `old`, from block.offset on, holds JointDirection's entries for block b as it is now
+// (term and basis unchanged since they were made).
+bool BlockDirectionsCurrent(const std::vector<Direction>& old, int frame_parameters, int b,
+                            const JointBlock& block) {
+  const Eigen::Index k = block.basis.cols();
+  if (block.offset < frame_parameters || block.offset + k > static_cast<Eigen::Index>(old.size())) {
+    return false;
+  }
+  const std::string prefix = block.term->name() + ".";
+  for (Eigen::Index c = 0; c < k; ++c) {
+    const Direction& d = old[block.offset + c];
+    if (d.frame != -1 || d.joint_block != b || !d.reason.empty() ||
+        d.combination.size() != block.basis.rows() || d.combination != block.basis.col(c) ||
+        d.name.compare(0, prefix.size(), prefix) != 0) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// Names and offsets of every joint block from the bases (blocks follow the frames). Blocks before
+// `first_changed` whose entries are still current (BlockDirectionsCurrent) keep them: naming a
+// combination (JointDirection) is most of the cost of adding a block or setting its basis, which
+// renumber every block.
+void RenumberJointBlocks(Parameterization* p, size_t first_changed = 0) {
   int frame_parameters = 0;
   for (const Eigen::MatrixXd& B : p->basis) frame_parameters += static_cast<int>(B.cols());
+  std::vector<Direction> old = std::move(p->parameters);
+  p->parameters.clear();
+  const size_t frames_kept = std::min(old.size(), static_cast<size_t>(frame_parameters));
+  p->parameters.reserve(old.size());
+  for (size_t k = 0; k < frames_kept; ++k) p->parameters.push_back(std::move(old[k]));
   p->parameters.resize(frame_parameters);
   p->num_parameters = frame_parameters;
   for (size_t b = 0; b < p->joint_blocks.size(); ++b) {
     JointBlock& block = p->joint_blocks[b];
+    const bool keep = b < first_changed &&
+                      BlockDirectionsCurrent(old, frame_parameters, static_cast<int>(b), block);
+    const int old_offset = block.offset;
     block.offset = p->num_parameters;
     p->num_parameters += static_cast<int>(block.basis.cols());
     for (int c = 0; c < block.basis.cols(); ++c) {
-      p->parameters.push_back(JointDirection(*p, static_cast<int>(b), block.basis.col(c)));
+      if (keep) {
+        p->parameters.push_back(std::move(old[old_offset + c]));
+      } else {
+        p->parameters.push_back(JointDirection(*p, static_cast<int>(b), block.basis.col(c)));
+      }
     }
   }
   if (p->gravity_tilt) {
@@ -190,7 +228,7 @@ void AddJointBlock(std::shared_ptr<const JointTerm> term, Parameterization* p) {
   block.basis = Eigen::MatrixXd::Identity(term->num_parameters(), term->num_parameters());
   block.term = std::move(term);
   p->joint_blocks.push_back(std::move(block));
-  RenumberJointBlocks(p);
+  RenumberJointBlocks(p, p->joint_blocks.size() - 1);
 }
 
 void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& reason,
@@ -211,7 +249,7 @@ void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& 
     }
   }
   block.basis = basis;
-  RenumberJointBlocks(p);
+  RenumberJointBlocks(p, static_cast<size_t>(b));
 }
 
 void AddGravityTilt(std::shared_ptr<const GravityTiltModel> tilt, int block, Parameterization* p) {

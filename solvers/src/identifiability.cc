@@ -148,6 +148,8 @@ std::vector<Eigen::MatrixXd> JointBlockBases(const Eigen::MatrixXd& H, const Par
       }
       basis = V.householderQr().householderQ() * Eigen::MatrixXd::Identity(P, keep.size());
     }
+    bases.push_back(basis);
+    if (bases.size() == pi.joint_blocks.size()) break;  // no later block reads it
     // Kept^T H Kept with the new block's combinations.
     const Eigen::MatrixXd cross = Hkb * basis;
     const int k0 = static_cast<int>(Hkk.rows()), kb = static_cast<int>(basis.cols());
@@ -157,7 +159,6 @@ std::vector<Eigen::MatrixXd> JointBlockBases(const Eigen::MatrixXd& H, const Par
     grown.bottomLeftCorner(kb, k0) = cross.transpose();
     grown.bottomRightCorner(kb, kb) = basis.transpose() * Hbb * basis;
     Hkk = std::move(grown);
-    bases.push_back(basis);
   }
   return bases;
 }
