@@ -33,6 +33,17 @@ constexpr int kMinChunkPoses = 1024;
 // Below this many poses everything runs on the calling thread.
 constexpr int kMinPosesForThreads = 2000;
 
+// Every entry finite: what Eigen's allFinite() tells, in one plain pass (allFinite evaluates x - x
+// == x - x entry by entry, about five times the instructions on a 79 x 79 normal matrix).
+template <typename Matrix>
+bool AllFinite(const Matrix& m) {
+  const double* x = m.data();
+  const Eigen::Index size = m.size();
+  bool finite = true;
+  for (Eigen::Index i = 0; i < size; ++i) finite &= std::isfinite(x[i]);
+  return finite;
+}
+
 // Partial sums of one chunk of rows.
 struct ChunkSums {
   Eigen::MatrixXd H;  // lower triangle
@@ -564,7 +575,7 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
   }
   lin.H.triangularView<Eigen::StrictlyUpper>() = lin.H.transpose();
   lin.mean_error = data.empty() ? 0.0 : sum_error / data.size();
-  lin.finite = std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
+  lin.finite = std::isfinite(lin.cost) && AllFinite(lin.H) && AllFinite(lin.g);
   return lin;
 }
 
@@ -1020,7 +1031,7 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
     lin.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
   }
   lin.mean_error = data.empty() ? 0.0 : sum_error / data.size();
-  lin.finite = std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
+  lin.finite = std::isfinite(lin.cost) && AllFinite(lin.H) && AllFinite(lin.g);
   return lin;
 }
 
@@ -1276,7 +1287,7 @@ NormalEquations ProjectJointBlocks(const NormalEquations& full, const Parameteri
     Hkk.middleRows(a.col, B.cols()).noalias() = B.transpose() * HT.middleRows(a.row, B.rows());
   }
   out.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
-  out.finite = full.finite && out.H.allFinite() && out.g.allFinite();
+  out.finite = full.finite && AllFinite(out.H) && AllFinite(out.g);
   return out;
 }
 
