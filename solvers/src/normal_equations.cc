@@ -1021,11 +1021,48 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
     lin.g.tail(K).noalias() = T.transpose() * gs;
   }
   if (blocks && !select) {
-    const Eigen::MatrixXd Wsym = Hall.bottomRightCorner(S, S);
-    lin.H.topRightCorner(F, K).noalias() = Hall.topRightCorner(F, S) * T;
+    // H_frames,K = H_frames,slots T, W T and T^T (W T) block by block: slot t's row of T has only
+    // its joint block's columns (SetSlotBasis), so per block b the rows of its slots and its
+    // columns form a dense T_b and every other entry is zero. The products run over those rows
+    // and columns only, the zero terms left out (half the multiply-adds with two blocks).
+    struct SlotPart {
+      int col = 0, cols = 0;
+      std::vector<int> rows;
+      Eigen::MatrixXd T;
+    };
+    std::vector<SlotPart> parts(p.joint_blocks.size());
+    for (size_t b = 0; b < parts.size(); ++b) {
+      parts[b].col = p.joint_blocks[b].offset - F;
+      parts[b].cols = static_cast<int>(p.joint_blocks[b].basis.cols());
+    }
+    for (int t = 0; t < S; ++t) {
+      size_t b = 0;
+      while (regs.slot_column[t] >= regs.column_offset[b + 1]) ++b;
+      parts[b].rows.push_back(t);
+    }
+    lin.H.topRightCorner(F, K).setZero();
+    Eigen::MatrixXd WT = Eigen::MatrixXd::Zero(S, K);
+    for (SlotPart& part : parts) {
+      const int nb = static_cast<int>(part.rows.size());
+      part.T.resize(nb, part.cols);
+      Eigen::MatrixXd Hf(F, nb), Wb(S, nb);
+      for (int i = 0; i < nb; ++i) {
+        const int t = part.rows[i];
+        part.T.row(i) = T.row(t).segment(part.col, part.cols);
+        Hf.col(i) = Hall.col(F + t).head(F);
+        Wb.col(i) = Hall.col(F + t).tail(S);
+      }
+      lin.H.block(0, F + part.col, F, part.cols).noalias() = Hf * part.T;
+      WT.middleCols(part.col, part.cols).noalias() = Wb * part.T;
+    }
     lin.H.bottomLeftCorner(K, F) = lin.H.topRightCorner(F, K).transpose();
-    const Eigen::MatrixXd WT = Wsym * T;
-    lin.H.bottomRightCorner(K, K).noalias() = T.transpose() * WT;
+    lin.H.bottomRightCorner(K, K).setZero();
+    for (const SlotPart& part : parts) {
+      const int nb = static_cast<int>(part.rows.size());
+      Eigen::MatrixXd WTb(nb, K);
+      for (int i = 0; i < nb; ++i) WTb.row(i) = WT.row(part.rows[i]);
+      lin.H.block(F + part.col, F, part.cols, K).noalias() = part.T.transpose() * WTb;
+    }
     // Exactly symmetric (the product's two triangles round differently).
     Eigen::MatrixXd Hkk = lin.H.bottomRightCorner(K, K);
     lin.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
