@@ -1,7 +1,7 @@
-// The "loaded cobot6" data shared by the joint-space tests and benchmarks/joint_errors_benchmark.cc:
-// cobot6 carrying 1 kg 50 mm along the flange's z, random geometric errors (seed 11), the
-// simulator's small-arm compliance and harmonics applied to the actual robot. Header only, so that
-// a test or benchmark includes it without a library of its own.
+// The "loaded cobot6" data shared by the joint-space tests and
+// benchmarks/joint_errors_benchmark.cc: cobot6 carrying 1 kg 50 mm along the flange's z, random
+// geometric errors (seed 11), the simulator's small-arm compliance and harmonics applied to the
+// actual robot. Header only, so that a test or benchmark includes it without a library of its own.
 #ifndef LPOE_TESTS_LOADED_COBOT6_H_
 #define LPOE_TESTS_LOADED_COBOT6_H_
 

@@ -111,11 +111,6 @@ void EvaluateJointRegressor(const Parameterization& p, const double* q, Scratch*
   s->R = s->R_t.transpose();
 }
 
-// H (lower triangle; column-major, leading dimension P) += A^T A for A (rows x P, column-major,
-// leading dimension ld): Eigen's blocked SYRK, or on processors with AVX2 and FMA (most x86-64 since
-// 2013) a kernel of 2 x 4 tiles of H, each a set of dot products of A's contiguous columns in
-// 4-wide fused multiply-adds, about twice as fast at P = 27. Either is deterministic; they differ
-// in the last bits (another summation order), as builds with other flags would.
 #if defined(__x86_64__) && defined(__GNUC__)
 #define LPOE_HAVE_AVX2_KERNEL 1
 // out(a, b) += sum_k X_a[k] w[k] Y_b[k] (w[k] = 1 unless kWeighted) for a < nx, b < ny, over k < len:
@@ -166,9 +161,15 @@ __attribute__((target("avx2,fma"))) void DotProductsAvx2(const double* X, int ld
   }
 }
 
-// The SYRK above: the unweighted lower-triangle case of DotProductsAvx2 with X = Y = A and H's
-// leading dimension P (inlined, so that the compiler specializes the loop for it).
-__attribute__((target("avx2,fma"), flatten)) void SyrkLowerAvx2(const double* A, int ld, int rows, int P, double* H) {
+// H (lower triangle; column-major, leading dimension P) += A^T A for A (rows x P, column-major,
+// leading dimension ld): Eigen's blocked SYRK, or on processors with AVX2 and FMA (most x86-64 since
+// 2013) a kernel of 2 x 4 tiles of H, each a set of dot products of A's contiguous columns in
+// 4-wide fused multiply-adds, about twice as fast at P = 27. Either is deterministic; they differ
+// in the last bits (another summation order), as builds with other flags would. The kernel is the
+// unweighted lower-triangle case of DotProductsAvx2 with X = Y = A (flattened: the loop is
+// specialized for it, as fast as a kernel of its own).
+__attribute__((target("avx2,fma"), flatten)) void SyrkLowerAvx2(const double* A, int ld, int rows,
+                                                                int P, double* H) {
   DotProductsAvx2<false>(A, ld, P, A, ld, P, nullptr, rows, true, H, P);
 }
 
