@@ -10,6 +10,7 @@
 #include <benchmark/benchmark.h>
 
 #include "identifiability.h"
+#include "loaded_cobot6.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/pipeline.h"
@@ -19,31 +20,16 @@
 namespace lpoe {
 namespace {
 
-struct Data {
-  RobotModel nominal = MakeCobot6();
-  MeasurementSet data;
-  explicit Data(int rows) {
-    nominal.payload.mass = 1.0;
-    nominal.payload.com = Eigen::Vector3d(0, 0, 50);
-    const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, 11);
-    RobotModel actual = ApplyErrors(nominal, errors);
-    ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), true, true, &actual);
-    SimulationOptions options;
-    options.count = rows;
-    options.noise_sigma = 0.01;
-    options.seed = 7;
-    data = SimulateMeasurements(actual, errors.joint_zero, options);
-  }
-};
-
-const Data& Poses1000() {
-  static const Data* data = new Data(1000);
+// The 1000 poses of the loaded cobot6 (tests/loaded_cobot6.h), 0.01 mm noise.
+const testing::LoadedCobot6& Poses1000() {
+  static const testing::LoadedCobot6* data =
+      new testing::LoadedCobot6(testing::MakeLoadedCobot6(1000, 0.01, 7));
   return *data;
 }
 
 // range(0): 0 linear, 1 Ceres; range(1): 0 geometry, 1 compliance + harmonics, 2 auto.
 void BM_Calibrate(benchmark::State& state) {
-  const Data& d = Poses1000();
+  const testing::LoadedCobot6& d = Poses1000();
   PipelineOptions o;
   o.solver = state.range(0) == 0 ? SolverKind::kLinear : SolverKind::kCeres;
   o.register_frames = false;
@@ -76,7 +62,7 @@ BENCHMARK(BM_Calibrate)
 // equations of the reduced problem by structure, 5 the same with dense rows, 6 an iteration with
 // frozen joint blocks (gradient only), 7 the geometric normal equations alone.
 void BM_Pass(benchmark::State& state) {
-  const Data& d = Poses1000();
+  const testing::LoadedCobot6& d = Poses1000();
   std::vector<std::shared_ptr<const JointTerm>> terms;
   for (const char* name : {"compliance", "harmonics"}) {
     std::shared_ptr<const JointTerm> t;

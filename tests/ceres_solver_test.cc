@@ -17,6 +17,7 @@
 #include "lpoe/linear_solver.h"
 #include "lpoe/simulation.h"
 #include "lpoe/statistics.h"
+#include "loaded_cobot6.h"
 
 namespace lpoe {
 namespace {
@@ -395,17 +396,9 @@ TEST(CeresSolver, AutoLinearSolverRule) {
 // deflects); the history's errors are those of PositionErrorStatistics at the effective joint
 // values.
 TEST(CeresSolver, AutoLinearSolverGivesTheQrSolution) {
-  RobotModel nominal = MakeCobot6();
-  nominal.payload.mass = 1.0;
-  nominal.payload.com = Eigen::Vector3d(0, 0, 50);
-  const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, 11);
-  RobotModel actual = ApplyErrors(nominal, errors);
-  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), true, true, &actual);
-  SimulationOptions so;
-  so.count = 300;
-  so.noise_sigma = 0.01;
-  so.seed = 7;
-  const MeasurementSet data = SimulateMeasurements(actual, errors.joint_zero, so);
+  const testing::LoadedCobot6 loaded = testing::MakeLoadedCobot6(300, 0.01, 7);
+  const RobotModel& nominal = loaded.nominal;
+  const MeasurementSet& data = loaded.data;
   std::vector<std::shared_ptr<const JointTerm>> terms;
   for (const char* name : {"compliance", "harmonics"}) {
     std::shared_ptr<const JointTerm> term;

@@ -5,6 +5,7 @@
 // state away from zero, position and pose data. And the reduction of the terms chooses the same
 // combinations as from the dense normal matrix.
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -306,6 +307,35 @@ TEST(JointNormalEquations, ProjectionOfWholeBlocksEqualsTheReducedBlocks) {
                                direct.H.bottomRightCorner(K, K)),
             kRelative);
   EXPECT_EQ(projected.cost, full.cost);
+}
+
+// A measurement that is not finite makes the normal equations non-finite (the solvers' "non-finite
+// residuals" refusal), by structure, projected, and without joint blocks; finite data do not.
+TEST(JointNormalEquations, NonFiniteDataAreFlagged) {
+  Data d(false);
+  const Parameterization whole = WithTerms(d, false, false);
+  const Parameterization reduced = WithTerms(d, false, true);
+  const Parameterization geometric =
+      MakeParameterization(d.model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
+  const internal::JointSpaceRegressors regs = internal::BuildJointSpaceRegressors(whole, d.data);
+  internal::JointColumnsOptions structured;
+  structured.regressors = &regs;
+  auto equations = [&](const Parameterization& p, bool with_regressors) {
+    return internal::NormalEquationsOf(d.model, d.data, p, Eigen::VectorXd(), false, 1.0, false,
+                                       nullptr, nullptr,
+                                       with_regressors ? structured : internal::JointColumnsOptions());
+  };
+  EXPECT_TRUE(equations(whole, true).finite);
+  EXPECT_TRUE(internal::ProjectJointBlocks(equations(whole, true), reduced).finite);
+  EXPECT_TRUE(equations(geometric, false).finite);
+  d.data.mutable_position(d.data.size() / 2)(1) = std::numeric_limits<double>::infinity();
+  const internal::NormalEquations whole_ne = equations(whole, true);
+  EXPECT_FALSE(whole_ne.finite);
+  EXPECT_FALSE(internal::ProjectJointBlocks(whole_ne, reduced).finite);
+  EXPECT_FALSE(equations(geometric, false).finite);
+  d.data.mutable_position(d.data.size() / 2)(1) = std::nan("");
+  EXPECT_FALSE(equations(whole, true).finite);
+  EXPECT_FALSE(equations(geometric, false).finite);
 }
 
 // Slots that no row moves (joint 1 of cobot6 is vertical: no gravity torque) are dropped, and the

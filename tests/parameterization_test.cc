@@ -5,6 +5,8 @@
 #include "lpoe/parameterization.h"
 
 #include <algorithm>
+#include <cmath>
+#include <memory>
 #include <set>
 #include <string>
 #include <vector>
@@ -13,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include "lpoe/eigen_decompositions.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/robot_model.h"
 #include "test_util.h"
@@ -330,6 +333,64 @@ TEST(Parameterization, ParseAndName) {
   EXPECT_FALSE(ParseParameterization("", &kind));
   EXPECT_STREQ(ParameterizationName(ParameterizationKind::kFull), "full");
   EXPECT_STREQ(ParameterizationName(ParameterizationKind::kIdentifiable), "identifiable");
+}
+
+// Every joint block's parameters follow the block's term and current basis (name of the dominant
+// parameter, "~" for a mixture, offsets after the frames), also when a block's basis was replaced
+// directly before the next block is added: renumbering keeps an earlier block's entries only while
+// they are current.
+void ExpectJointBlockDirections(const Parameterization& p) {
+  int offset = 0;
+  for (const Eigen::MatrixXd& B : p.basis) offset += static_cast<int>(B.cols());
+  for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
+    const JointBlock& block = p.joint_blocks[b];
+    ASSERT_EQ(block.offset, offset) << b;
+    for (int c = 0; c < block.basis.cols(); ++c) {
+      const Direction& d = p.parameters[offset + c];
+      EXPECT_EQ(d.joint_block, static_cast<int>(b));
+      ASSERT_EQ(d.combination.size(), block.basis.rows());
+      EXPECT_TRUE(d.combination == block.basis.col(c)) << d.name;
+      int best = 0;
+      const double top = block.basis.col(c).cwiseAbs().maxCoeff(&best);
+      EXPECT_EQ(d.name, block.term->name() + "." + block.term->ParameterName(best) +
+                            (top < 1.0 - 1e-9 ? "~" : ""));
+    }
+    offset += static_cast<int>(block.basis.cols());
+  }
+  EXPECT_EQ(p.num_parameters, offset);
+  EXPECT_EQ(static_cast<int>(p.parameters.size()), offset);
+}
+
+TEST(Parameterization, JointBlockNamesFollowTheirTermAndBasis) {
+  const RobotModel model = MakeCobot6();
+  std::shared_ptr<const JointTerm> compliance, harmonics;
+  ASSERT_TRUE(MakeJointTerm("compliance", model, &compliance).ok());
+  ASSERT_TRUE(MakeJointTerm("harmonics", model, &harmonics).ok());
+  Parameterization p =
+      MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
+  AddJointBlock(compliance, &p);
+  ExpectJointBlockDirections(p);
+  // Block 0 reduced to a mixture of its first two parameters and its third.
+  const int Pc = compliance->num_parameters();
+  ASSERT_GE(Pc, 3);
+  Eigen::MatrixXd mixed = Eigen::MatrixXd::Zero(Pc, 2);
+  mixed(0, 0) = mixed(1, 0) = std::sqrt(0.5);
+  mixed(2, 1) = 1.0;
+  SetJointBlockBasis(0, mixed, "test", &p);
+  ExpectJointBlockDirections(p);
+  EXPECT_EQ(p.parameters[p.joint_blocks[0].offset].name.back(), '~');
+  // Replaced directly (no renumbering) and then a block added: block 0 is named anew.
+  Eigen::MatrixXd other = Eigen::MatrixXd::Zero(Pc, 2);
+  other(Pc - 1, 0) = 1.0;
+  other(0, 1) = 1.0;
+  p.joint_blocks[0].basis = other;
+  AddJointBlock(harmonics, &p);
+  ExpectJointBlockDirections(p);
+  EXPECT_EQ(p.parameters[p.joint_blocks[0].offset].name,
+            compliance->name() + "." + compliance->ParameterName(Pc - 1));
+  // The second block reduced: the first block's entries stay those of its basis.
+  SetJointBlockBasis(1, Eigen::MatrixXd::Identity(harmonics->num_parameters(), 1), "test", &p);
+  ExpectJointBlockDirections(p);
 }
 
 }  // namespace

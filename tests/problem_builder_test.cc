@@ -16,6 +16,7 @@
 #include "lpoe/linear_solver.h"
 #include "lpoe/simulation.h"
 #include "lpoe/statistics.h"
+#include "loaded_cobot6.h"
 
 namespace lpoe {
 namespace {
@@ -125,17 +126,9 @@ TEST(ProblemBuilder, CallerSolveEqualsCalibrateCeres) {
 // WithEffectiveJointValues on the terms' values, and the residuals of the rows AddTo builds (their
 // regressors from the same slots) are the position errors at those joint values.
 TEST(ProblemBuilder, JointSpaceRowsFromTheSlotsAreTheTerms) {
-  RobotModel nominal = MakeCobot6();
-  nominal.payload.mass = 1.0;
-  nominal.payload.com = Eigen::Vector3d(0, 0, 50);
-  const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, 11);
-  RobotModel actual = ApplyErrors(nominal, errors);
-  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), true, true, &actual);
-  SimulationOptions so;
-  so.count = 150;
-  so.noise_sigma = kNoiseSigma;
-  so.seed = 5;
-  const MeasurementSet data = SimulateMeasurements(actual, errors.joint_zero, so);
+  const testing::LoadedCobot6 loaded = testing::MakeLoadedCobot6(150, kNoiseSigma, 5);
+  const RobotModel& nominal = loaded.nominal;
+  const MeasurementSet& data = loaded.data;
   CalibrationProblemOptions po;
   po.sigma = kNoiseSigma;
   for (const char* name : {"compliance", "harmonics"}) {

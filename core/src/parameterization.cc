@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
@@ -155,18 +158,53 @@ Direction JointDirection(const Parameterization& p, int b, const Eigen::VectorXd
   return d;
 }
 
-// Names and offsets of every joint block from the bases (blocks follow the frames).
-void RenumberJointBlocks(Parameterization* p) {
+// Whether `old`, from block.offset on, holds JointDirection's entries for block b as it is now
+// (term and basis unchanged since they were made).
+bool BlockDirectionsCurrent(const std::vector<Direction>& old, int frame_parameters, int b,
+                            const JointBlock& block) {
+  const Eigen::Index k = block.basis.cols();
+  if (block.offset < frame_parameters || block.offset + k > static_cast<Eigen::Index>(old.size())) {
+    return false;
+  }
+  const std::string prefix = block.term->name() + ".";
+  for (Eigen::Index c = 0; c < k; ++c) {
+    const Direction& d = old[block.offset + c];
+    if (d.frame != -1 || d.joint_block != b || !d.reason.empty() ||
+        d.combination.size() != block.basis.rows() || d.combination != block.basis.col(c) ||
+        d.name.compare(0, prefix.size(), prefix) != 0) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// Names and offsets of every joint block from the bases (blocks follow the frames). Blocks before
+// `first_changed` whose entries are still current (BlockDirectionsCurrent) keep them: naming a
+// combination (JointDirection) is most of the cost of adding a block or setting its basis, which
+// renumber every block.
+void RenumberJointBlocks(Parameterization* p, size_t first_changed = 0) {
   int frame_parameters = 0;
   for (const Eigen::MatrixXd& B : p->basis) frame_parameters += static_cast<int>(B.cols());
+  std::vector<Direction> old = std::move(p->parameters);
+  p->parameters.clear();
+  const size_t frames_kept = std::min(old.size(), static_cast<size_t>(frame_parameters));
+  p->parameters.reserve(old.size());
+  for (size_t k = 0; k < frames_kept; ++k) p->parameters.push_back(std::move(old[k]));
   p->parameters.resize(frame_parameters);
   p->num_parameters = frame_parameters;
   for (size_t b = 0; b < p->joint_blocks.size(); ++b) {
     JointBlock& block = p->joint_blocks[b];
+    const bool keep = b < first_changed &&
+                      BlockDirectionsCurrent(old, frame_parameters, static_cast<int>(b), block);
+    const int old_offset = block.offset;
     block.offset = p->num_parameters;
     p->num_parameters += static_cast<int>(block.basis.cols());
     for (int c = 0; c < block.basis.cols(); ++c) {
-      p->parameters.push_back(JointDirection(*p, static_cast<int>(b), block.basis.col(c)));
+      if (keep) {
+        p->parameters.push_back(std::move(old[old_offset + c]));
+      } else {
+        p->parameters.push_back(JointDirection(*p, static_cast<int>(b), block.basis.col(c)));
+      }
     }
   }
   if (p->gravity_tilt) {
@@ -190,8 +228,34 @@ void AddJointBlock(std::shared_ptr<const JointTerm> term, Parameterization* p) {
   block.basis = Eigen::MatrixXd::Identity(term->num_parameters(), term->num_parameters());
   block.term = std::move(term);
   p->joint_blocks.push_back(std::move(block));
-  RenumberJointBlocks(p);
+  RenumberJointBlocks(p, p->joint_blocks.size() - 1);
 }
+
+namespace {
+
+// Columns k..P-1 of the Householder Q of `basis` (P x k, k >= 1), as a P x (P - k) matrix: the
+// identity's last P - k columns with the reflectors H_{k-1} .. H_0 applied to the rows each acts
+// on, the operations HouseholderSequence::evalTo does on those columns (it forms the first k too).
+// Eigen forms Q by blocks of reflectors beyond kEigenBlock of them, and a single column's product
+// would be a dot product (another summation order): then from the whole Q as before, for the same
+// numbers.
+Eigen::MatrixXd ComplementColumns(const Eigen::MatrixXd& basis) {
+  constexpr int kEigenBlock = 48;  // HouseholderSequence's BlockSize
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(basis);
+  const Eigen::Index P = basis.rows(), k = basis.cols();
+  if (k > kEigenBlock || P - k < 2) return Eigen::MatrixXd(qr.householderQ()).rightCols(P - k);
+  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(P, P - k);
+  C.bottomRows(P - k).setIdentity();
+  Eigen::VectorXd workspace(P - k);
+  const auto H = qr.householderQ();
+  for (Eigen::Index j = k - 1; j >= 0; --j) {
+    C.bottomRows(P - j).applyHouseholderOnTheLeft(H.essentialVector(j), qr.hCoeffs().coeff(j),
+                                                   workspace.data());
+  }
+  return C;
+}
+
+}  // namespace
 
 void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& reason,
                         Parameterization* p) {
@@ -202,16 +266,15 @@ void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& 
   // columns of the Householder Q of the (orthonormal) basis (none when every parameter is kept).
   const int k = static_cast<int>(basis.cols());
   if (k < P) {
-    const Eigen::MatrixXd Q = k == 0 ? Eigen::MatrixXd::Identity(P, P)
-                                     : Eigen::MatrixXd(basis.householderQr().householderQ());
-    for (int c = k; c < P; ++c) {
-      Direction d = JointDirection(*p, b, Q.col(c));
+    const Eigen::MatrixXd C = k == 0 ? Eigen::MatrixXd::Identity(P, P) : ComplementColumns(basis);
+    for (int c = 0; c < P - k; ++c) {
+      Direction d = JointDirection(*p, b, C.col(c));
       d.reason = reason;
       p->unidentifiable.push_back(d);
     }
   }
   block.basis = basis;
-  RenumberJointBlocks(p);
+  RenumberJointBlocks(p, static_cast<size_t>(b));
 }
 
 void AddGravityTilt(std::shared_ptr<const GravityTiltModel> tilt, int block, Parameterization* p) {

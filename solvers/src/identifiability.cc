@@ -70,6 +70,31 @@ Eigen::MatrixXd NormalMatrix(const RobotModel& model, const MeasurementSet& data
       .H;
 }
 
+namespace {
+
+// The first k columns of the Householder Q of V (P x k): Q times the P x k identity. Eigen applies
+// each reflector H_j to every column; columns c < j are zero in the rows H_j acts on and stay
+// exactly zero, so they are skipped here (at least two columns each time, as a single column's
+// product would be a dot product: another summation order). Eigen applies blocks of reflectors
+// from kEigenBlock of them on: then its product as before, for the same numbers.
+Eigen::MatrixXd OrthonormalColumns(const Eigen::MatrixXd& V) {
+  constexpr Eigen::Index kEigenBlock = 48;  // HouseholderSequence's BlockSize
+  const Eigen::Index P = V.rows(), k = V.cols();
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(V);
+  if (k >= kEigenBlock || k < 2) return qr.householderQ() * Eigen::MatrixXd::Identity(P, k);
+  Eigen::MatrixXd Q = Eigen::MatrixXd::Identity(P, k);
+  Eigen::VectorXd workspace(k);
+  const auto H = qr.householderQ();
+  for (Eigen::Index j = k - 1; j >= 0; --j) {
+    const Eigen::Index c0 = std::min(j, k - 2);
+    Q.bottomRightCorner(P - j, k - c0)
+        .applyHouseholderOnTheLeft(H.essentialVector(j), qr.hCoeffs().coeff(j), workspace.data());
+  }
+  return Q;
+}
+
+}  // namespace
+
 std::vector<Eigen::MatrixXd> JointBlockBases(const Eigen::MatrixXd& H, const Parameterization& pi,
                                              double tolerance) {
   // Columns kept so far, as combinations of pi's parameters: the identifiable frames, then each
@@ -146,8 +171,10 @@ std::vector<Eigen::MatrixXd> JointBlockBases(const Eigen::MatrixXd& H, const Par
       for (size_t k = 0; k < keep.size(); ++k) {
         for (int a = 0; a < L; ++a) V(live[a], k) = db(live[a]) * es.eigenvectors()(a, keep[k]);
       }
-      basis = V.householderQr().householderQ() * Eigen::MatrixXd::Identity(P, keep.size());
+      basis = OrthonormalColumns(V);
     }
+    bases.push_back(basis);
+    if (bases.size() == pi.joint_blocks.size()) break;  // no later block reads it
     // Kept^T H Kept with the new block's combinations.
     const Eigen::MatrixXd cross = Hkb * basis;
     const int k0 = static_cast<int>(Hkk.rows()), kb = static_cast<int>(basis.cols());
@@ -157,7 +184,6 @@ std::vector<Eigen::MatrixXd> JointBlockBases(const Eigen::MatrixXd& H, const Par
     grown.bottomLeftCorner(kb, k0) = cross.transpose();
     grown.bottomRightCorner(kb, kb) = basis.transpose() * Hbb * basis;
     Hkk = std::move(grown);
-    bases.push_back(basis);
   }
   return bases;
 }
@@ -172,15 +198,22 @@ Parameterization SolverParameterization(const RobotModel& nominal, const Measure
                                         Parameterization* analysed_parameterization) {
   const DataKind data_kind = use_orientation ? DataKind::kPose : DataKind::kPosition;
   Parameterization p = MakeParameterization(nominal, kind, data_kind);
-  LeaveOutStructurallyUnidentifiable(structure_reference ? *structure_reference : nominal, data,
-                                     use_orientation, orientation_weight, &p);
+  // The structural check (a Jacobian at generic configurations and its Gram-Schmidt) once for both
+  // parameterizations below: its result depends on the chain, the data's tools and the data kind.
+  const std::vector<Direction> lost =
+      StructurallyUnidentifiable(structure_reference ? *structure_reference : nominal, data,
+                                 use_orientation, orientation_weight);
+  LeaveOutDirections(lost, &p);
   if (terms.empty()) return p;
   // The analysis runs on the identifiable frames (the full ones are singular by construction) with
-  // every joint block whole.
-  Parameterization pi =
-      MakeParameterization(nominal, ParameterizationKind::kIdentifiable, data_kind);
-  LeaveOutStructurallyUnidentifiable(structure_reference ? *structure_reference : nominal, data,
-                                     use_orientation, orientation_weight, &pi);
+  // every joint block whole: p itself when it is the identifiable one.
+  Parameterization pi;
+  if (kind == ParameterizationKind::kIdentifiable) {
+    pi = p;
+  } else {
+    pi = MakeParameterization(nominal, ParameterizationKind::kIdentifiable, data_kind);
+    LeaveOutDirections(lost, &pi);
+  }
   for (const auto& term : terms) {
     CHECK_EQ(term->num_joints(), nominal.num_joints()) << term->name();
     AddJointBlock(term, &pi);

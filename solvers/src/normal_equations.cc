@@ -33,6 +33,17 @@ constexpr int kMinChunkPoses = 1024;
 // Below this many poses everything runs on the calling thread.
 constexpr int kMinPosesForThreads = 2000;
 
+// Every entry finite: what Eigen's allFinite() tells, in one plain pass (allFinite evaluates x - x
+// == x - x entry by entry, about five times the instructions on a 79 x 79 normal matrix).
+template <typename Matrix>
+bool AllFinite(const Matrix& m) {
+  const double* x = m.data();
+  const Eigen::Index size = m.size();
+  bool finite = true;
+  for (Eigen::Index i = 0; i < size; ++i) finite &= std::isfinite(x[i]);
+  return finite;
+}
+
 // Partial sums of one chunk of rows.
 struct ChunkSums {
   Eigen::MatrixXd H;  // lower triangle
@@ -100,24 +111,26 @@ void EvaluateJointRegressor(const Parameterization& p, const double* q, Scratch*
   s->R = s->R_t.transpose();
 }
 
-// H (lower triangle; column-major, leading dimension P) += A^T A for A (rows x P, column-major,
-// leading dimension ld): Eigen's blocked SYRK, or on processors with AVX2 and FMA (most x86-64 since
-// 2013) a kernel of 2 x 4 tiles of H, each a set of dot products of A's contiguous columns in
-// 4-wide fused multiply-adds, about twice as fast at P = 27. Either is deterministic; they differ
-// in the last bits (another summation order), as builds with other flags would.
 #if defined(__x86_64__) && defined(__GNUC__)
 #define LPOE_HAVE_AVX2_KERNEL 1
-__attribute__((target("avx2,fma"))) void SyrkLowerAvx2(const double* A, int ld, int rows, int P,
-                                                       double* H) {
+// out(a, b) += sum_k X_a[k] w[k] Y_b[k] (w[k] = 1 unless kWeighted) for a < nx, b < ny, over k < len:
+// columns X_a = X + a ldx, Y_b = Y + b ldy contiguous, out column-major with leading dimension
+// ldo. `lower`: only the entries a >= b are formed and written (nx == ny). Tiles of 2 x 4 dot
+// products in 4-wide fused multiply-adds.
+template <bool kWeighted>
+__attribute__((target("avx2,fma"))) void DotProductsAvx2(const double* X, int ldx, int nx,
+                                                         const double* Y, int ldy, int ny,
+                                                         const double* w, int len, bool lower,
+                                                         double* out, int ldo) {
   constexpr int kTi = 2, kTj = 4;
-  const int k4 = rows & ~3;
-  for (int j0 = 0; j0 < P; j0 += kTj) {
-    for (int i0 = j0; i0 < P; i0 += kTi) {
+  const int k4 = len & ~3;
+  for (int b0 = 0; b0 < ny; b0 += kTj) {
+    for (int a0 = lower ? b0 : 0; a0 < nx; a0 += kTi) {  // b0 is even
       // Columns past the last are read again from the last one and their results dropped.
       const double* a[kTi];
       const double* b[kTj];
-      for (int t = 0; t < kTi; ++t) a[t] = A + static_cast<std::ptrdiff_t>(std::min(i0 + t, P - 1)) * ld;
-      for (int t = 0; t < kTj; ++t) b[t] = A + static_cast<std::ptrdiff_t>(std::min(j0 + t, P - 1)) * ld;
+      for (int t = 0; t < kTi; ++t) a[t] = X + static_cast<std::ptrdiff_t>(std::min(a0 + t, nx - 1)) * ldx;
+      for (int t = 0; t < kTj; ++t) b[t] = Y + static_cast<std::ptrdiff_t>(std::min(b0 + t, ny - 1)) * ldy;
       __m256d acc[kTi][kTj];
       for (auto& row : acc) {
         for (__m256d& v : row) v = _mm256_setzero_pd();
@@ -125,24 +138,39 @@ __attribute__((target("avx2,fma"))) void SyrkLowerAvx2(const double* A, int ld, 
       for (int k = 0; k < k4; k += 4) {
         __m256d bv[kTj];
         for (int t = 0; t < kTj; ++t) bv[t] = _mm256_loadu_pd(b[t] + k);
+        __m256d wv = _mm256_set1_pd(1.0);
+        if constexpr (kWeighted) wv = _mm256_loadu_pd(w + k);
         for (int s = 0; s < kTi; ++s) {
-          const __m256d av = _mm256_loadu_pd(a[s] + k);
+          __m256d av = _mm256_loadu_pd(a[s] + k);
+          if constexpr (kWeighted) av = _mm256_mul_pd(av, wv);
           for (int t = 0; t < kTj; ++t) acc[s][t] = _mm256_fmadd_pd(av, bv[t], acc[s][t]);
         }
       }
       for (int s = 0; s < kTi; ++s) {
         for (int t = 0; t < kTj; ++t) {
-          const int i = i0 + s, j = j0 + t;
-          if (i >= P || j >= P || i < j) continue;
+          const int i = a0 + s, j = b0 + t;
+          if (i >= nx || j >= ny || (lower && i < j)) continue;
           alignas(32) double lanes[4];
           _mm256_store_pd(lanes, acc[s][t]);
           double sum = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
-          for (int k = k4; k < rows; ++k) sum += a[s][k] * b[t][k];
-          H[static_cast<std::ptrdiff_t>(j) * P + i] += sum;
+          for (int k = k4; k < len; ++k) sum += (kWeighted ? a[s][k] * w[k] : a[s][k]) * b[t][k];
+          out[static_cast<std::ptrdiff_t>(j) * ldo + i] += sum;
         }
       }
     }
   }
+}
+
+// H (lower triangle; column-major, leading dimension P) += A^T A for A (rows x P, column-major,
+// leading dimension ld): Eigen's blocked SYRK, or on processors with AVX2 and FMA (most x86-64 since
+// 2013) a kernel of 2 x 4 tiles of H, each a set of dot products of A's contiguous columns in
+// 4-wide fused multiply-adds, about twice as fast at P = 27. Either is deterministic; they differ
+// in the last bits (another summation order), as builds with other flags would. The kernel is the
+// unweighted lower-triangle case of DotProductsAvx2 with X = Y = A (flattened: the loop is
+// specialized for it, as fast as a kernel of its own).
+__attribute__((target("avx2,fma"), flatten)) void SyrkLowerAvx2(const double* A, int ld, int rows,
+                                                                int P, double* H) {
+  DotProductsAvx2<false>(A, ld, P, A, ld, P, nullptr, rows, true, H, P);
 }
 
 bool HaveAvx2() {
@@ -548,7 +576,7 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
   }
   lin.H.triangularView<Eigen::StrictlyUpper>() = lin.H.transpose();
   lin.mean_error = data.empty() ? 0.0 : sum_error / data.size();
-  lin.finite = std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
+  lin.finite = std::isfinite(lin.cost) && AllFinite(lin.H) && AllFinite(lin.g);
   return lin;
 }
 
@@ -727,54 +755,6 @@ __attribute__((target("avx2,fma"))) inline __m256d Dot3Lanes(const double* x, in
   return _mm256_fmadd_pd(_mm256_loadu_pd(x + 2 * stride), b[2],
                          _mm256_fmadd_pd(_mm256_loadu_pd(x + stride), b[1],
                                          _mm256_mul_pd(_mm256_loadu_pd(x), b[0])));
-}
-
-// out(a, b) += sum_k X_a[k] w[k] Y_b[k] (w[k] = 1 unless kWeighted) for a < nx, b < ny, over k < len:
-// columns X_a = X + a ldx, Y_b = Y + b ldy contiguous, out column-major with leading dimension
-// ldo. `lower`: only the entries a >= b are needed (others may be written too). Tiles of 2 x 4
-// dot products in 4-wide fused multiply-adds, as SyrkLowerAvx2.
-template <bool kWeighted>
-__attribute__((target("avx2,fma"))) void DotProductsAvx2(const double* X, int ldx, int nx,
-                                                         const double* Y, int ldy, int ny,
-                                                         const double* w, int len, bool lower,
-                                                         double* out, int ldo) {
-  constexpr int kTi = 2, kTj = 4;
-  const int k4 = len & ~3;
-  for (int b0 = 0; b0 < ny; b0 += kTj) {
-    for (int a0 = lower ? b0 : 0; a0 < nx; a0 += kTi) {  // b0 is even
-      // Columns past the last are read again from the last one and their results dropped.
-      const double* a[kTi];
-      const double* b[kTj];
-      for (int t = 0; t < kTi; ++t) a[t] = X + static_cast<std::ptrdiff_t>(std::min(a0 + t, nx - 1)) * ldx;
-      for (int t = 0; t < kTj; ++t) b[t] = Y + static_cast<std::ptrdiff_t>(std::min(b0 + t, ny - 1)) * ldy;
-      __m256d acc[kTi][kTj];
-      for (auto& row : acc) {
-        for (__m256d& v : row) v = _mm256_setzero_pd();
-      }
-      for (int k = 0; k < k4; k += 4) {
-        __m256d bv[kTj];
-        for (int t = 0; t < kTj; ++t) bv[t] = _mm256_loadu_pd(b[t] + k);
-        __m256d wv = _mm256_set1_pd(1.0);
-        if constexpr (kWeighted) wv = _mm256_loadu_pd(w + k);
-        for (int s = 0; s < kTi; ++s) {
-          __m256d av = _mm256_loadu_pd(a[s] + k);
-          if constexpr (kWeighted) av = _mm256_mul_pd(av, wv);
-          for (int t = 0; t < kTj; ++t) acc[s][t] = _mm256_fmadd_pd(av, bv[t], acc[s][t]);
-        }
-      }
-      for (int s = 0; s < kTi; ++s) {
-        for (int t = 0; t < kTj; ++t) {
-          const int i = a0 + s, j = b0 + t;
-          if (i >= nx || j >= ny) continue;
-          alignas(32) double lanes[4];
-          _mm256_store_pd(lanes, acc[s][t]);
-          double sum = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
-          for (int k = k4; k < len; ++k) sum += (kWeighted ? a[s][k] * w[k] : a[s][k]) * b[t][k];
-          out[static_cast<std::ptrdiff_t>(j) * ldo + i] += sum;
-        }
-      }
-    }
-  }
 }
 
 // The per-pose products of a block written by PositionRows4 with J_q from column F + 1 and y in
@@ -1042,17 +1022,54 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
     lin.g.tail(K).noalias() = T.transpose() * gs;
   }
   if (blocks && !select) {
-    const Eigen::MatrixXd Wsym = Hall.bottomRightCorner(S, S);
-    lin.H.topRightCorner(F, K).noalias() = Hall.topRightCorner(F, S) * T;
+    // H_frames,K = H_frames,slots T, W T and T^T (W T) block by block: slot t's row of T has only
+    // its joint block's columns (SetSlotBasis), so per block b the rows of its slots and its
+    // columns form a dense T_b and every other entry is zero. The products run over those rows
+    // and columns only, the zero terms left out (half the multiply-adds with two blocks).
+    struct SlotPart {
+      int col = 0, cols = 0;
+      std::vector<int> rows;
+      Eigen::MatrixXd T;
+    };
+    std::vector<SlotPart> parts(p.joint_blocks.size());
+    for (size_t b = 0; b < parts.size(); ++b) {
+      parts[b].col = p.joint_blocks[b].offset - F;
+      parts[b].cols = static_cast<int>(p.joint_blocks[b].basis.cols());
+    }
+    for (int t = 0; t < S; ++t) {
+      size_t b = 0;
+      while (regs.slot_column[t] >= regs.column_offset[b + 1]) ++b;
+      parts[b].rows.push_back(t);
+    }
+    lin.H.topRightCorner(F, K).setZero();
+    Eigen::MatrixXd WT = Eigen::MatrixXd::Zero(S, K);
+    for (SlotPart& part : parts) {
+      const int nb = static_cast<int>(part.rows.size());
+      part.T.resize(nb, part.cols);
+      Eigen::MatrixXd Hf(F, nb), Wb(S, nb);
+      for (int i = 0; i < nb; ++i) {
+        const int t = part.rows[i];
+        part.T.row(i) = T.row(t).segment(part.col, part.cols);
+        Hf.col(i) = Hall.col(F + t).head(F);
+        Wb.col(i) = Hall.col(F + t).tail(S);
+      }
+      lin.H.block(0, F + part.col, F, part.cols).noalias() = Hf * part.T;
+      WT.middleCols(part.col, part.cols).noalias() = Wb * part.T;
+    }
     lin.H.bottomLeftCorner(K, F) = lin.H.topRightCorner(F, K).transpose();
-    const Eigen::MatrixXd WT = Wsym * T;
-    lin.H.bottomRightCorner(K, K).noalias() = T.transpose() * WT;
+    lin.H.bottomRightCorner(K, K).setZero();
+    for (const SlotPart& part : parts) {
+      const int nb = static_cast<int>(part.rows.size());
+      Eigen::MatrixXd WTb(nb, K);
+      for (int i = 0; i < nb; ++i) WTb.row(i) = WT.row(part.rows[i]);
+      lin.H.block(F + part.col, F, part.cols, K).noalias() = part.T.transpose() * WTb;
+    }
     // Exactly symmetric (the product's two triangles round differently).
     Eigen::MatrixXd Hkk = lin.H.bottomRightCorner(K, K);
     lin.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
   }
   lin.mean_error = data.empty() ? 0.0 : sum_error / data.size();
-  lin.finite = std::isfinite(lin.cost) && lin.H.allFinite() && lin.g.allFinite();
+  lin.finite = std::isfinite(lin.cost) && AllFinite(lin.H) && AllFinite(lin.g);
   return lin;
 }
 
@@ -1308,7 +1325,7 @@ NormalEquations ProjectJointBlocks(const NormalEquations& full, const Parameteri
     Hkk.middleRows(a.col, B.cols()).noalias() = B.transpose() * HT.middleRows(a.row, B.rows());
   }
   out.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
-  out.finite = full.finite && out.H.allFinite() && out.g.allFinite();
+  out.finite = full.finite && AllFinite(out.H) && AllFinite(out.g);
   return out;
 }
 

@@ -104,7 +104,10 @@ std::vector<Direction> StructurallyUnidentifiable(const RobotModel& model,
   // nothing.
   const Eigen::Index rows = lin.J.rows();
   const double zero_column = kRoundOffColumn * lin.J.colwise().norm().maxCoeff();
-  Eigen::MatrixXd Q(rows, 0), kept_columns(rows, 0);
+  // Q and the kept unit columns are allocated once for every candidate and filled from the left
+  // (growing them column by column copied them each time).
+  const Eigen::Index candidates = static_cast<Eigen::Index>(order.size());
+  Eigen::MatrixXd Q_all(rows, candidates), kept_all(rows, candidates);
   std::vector<int> kept;
   std::vector<int> dropped;
   for (int k : order) {
@@ -116,13 +119,12 @@ std::vector<Direction> StructurallyUnidentifiable(const RobotModel& model,
     }
     v /= norm;
     const Eigen::VectorXd unit_column = v;
+    const auto Q = Q_all.leftCols(static_cast<Eigen::Index>(kept.size()));
     for (int pass = 0; pass < 2; ++pass) v -= Q * (Q.transpose() * v);
     const double left = v.norm();
     if (left > kStructuralTolerance) {
-      Q.conservativeResize(Eigen::NoChange, Q.cols() + 1);
-      Q.col(Q.cols() - 1) = v / left;
-      kept_columns.conservativeResize(Eigen::NoChange, kept_columns.cols() + 1);
-      kept_columns.col(kept_columns.cols() - 1) = unit_column;
+      Q_all.col(static_cast<Eigen::Index>(kept.size())) = v / left;
+      kept_all.col(static_cast<Eigen::Index>(kept.size())) = unit_column;
       kept.push_back(k);
     } else {
       dropped.push_back(k);
@@ -130,6 +132,7 @@ std::vector<Direction> StructurallyUnidentifiable(const RobotModel& model,
   }
   if (dropped.empty()) return out;
 
+  const Eigen::MatrixXd kept_columns = kept_all.leftCols(static_cast<Eigen::Index>(kept.size()));
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(kept_columns);
   for (int k : dropped) {
     Direction d = p.parameters[k];
@@ -175,8 +178,13 @@ void LeaveOutStructurallyUnidentifiable(const RobotModel& reference, const Measu
                                         bool use_orientation, double orientation_weight,
                                         Parameterization* p) {
   CHECK(p->joint_blocks.empty()) << "frames are reduced before joint blocks are added";
-  const std::vector<Direction> lost =
-      StructurallyUnidentifiable(reference, data, use_orientation, orientation_weight);
+  LeaveOutDirections(StructurallyUnidentifiable(reference, data, use_orientation,
+                                                orientation_weight),
+                     p);
+}
+
+void LeaveOutDirections(const std::vector<Direction>& lost, Parameterization* p) {
+  CHECK(p->joint_blocks.empty()) << "frames are reduced before joint blocks are added";
   if (lost.empty()) return;
   p->unidentifiable.insert(p->unidentifiable.end(), lost.begin(), lost.end());
   Parameterization out = *p;

@@ -51,6 +51,10 @@ void LeaveOutStructurallyUnidentifiable(const RobotModel& reference, const Measu
                                         bool use_orientation, double orientation_weight,
                                         Parameterization* p);
 
+// The same with the directions given (StructurallyUnidentifiable's result): a caller reducing
+// several parameterizations of one chain and data computes them once.
+void LeaveOutDirections(const std::vector<Direction>& lost, Parameterization* p);
+
 }  // namespace internal
 }  // namespace lpoe
 
