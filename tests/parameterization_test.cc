@@ -394,4 +394,49 @@ TEST(Parameterization, JointBlockNamesFollowTheirTermAndBasis) {
 }
 
 }  // namespace
+// Two combinations of one joint block dominated by the same parameter (here two kept ones, and the
+// left-out ones beside them) get distinct names, so that the report's lists and correlation pairs
+// name each combination once.
+TEST(Parameterization, JointCombinationsSharingADominantParameterGetDistinctNames) {
+  const RobotModel model = MakeCobot6();
+  Parameterization p = MakeParameterization(model, ParameterizationKind::kIdentifiable,
+                                            DataKind::kPosition);
+  std::shared_ptr<const JointTerm> term;
+  ASSERT_TRUE(MakeJointTerm("harmonics", model, &term).ok());
+  AddJointBlock(term, &p);
+  const int P = term->num_parameters();
+  Eigen::MatrixXd basis = Eigen::MatrixXd::Zero(P, 2);  // orthonormal, both led by parameter 0
+  basis.col(0) << std::sqrt(0.5), 0.5, 0.5, Eigen::VectorXd::Zero(P - 3);
+  basis.col(1) << std::sqrt(0.5), -0.5, -0.5, Eigen::VectorXd::Zero(P - 3);
+  SetJointBlockBasis(0, basis, "test", &p);
+  const std::string lead = term->name() + "." + term->ParameterName(0) + "~";
+  std::vector<std::string> kept;
+  for (const Direction& d : p.parameters) {
+    if (d.joint_block == 0) kept.push_back(d.name);
+  }
+  ASSERT_EQ(kept.size(), 2u);
+  EXPECT_EQ(kept[0], lead);
+  EXPECT_EQ(kept[1], lead + "#2");
+  std::set<std::string> names(kept.begin(), kept.end());
+  int left_out = 0;
+  for (const Direction& d : p.unidentifiable) {
+    if (d.joint_block != 0) continue;
+    ++left_out;
+    EXPECT_TRUE(names.insert(d.name).second) << "repeated name " << d.name;
+  }
+  EXPECT_EQ(left_out, P - 2);
+  // Renumbering (here by copying the blocks into another parameterization) keeps the names.
+  Parameterization copy = MakeParameterization(model, ParameterizationKind::kIdentifiable,
+                                               DataKind::kPosition);
+  CopyJointBlocks(p, &copy);
+  std::set<std::string> copied;
+  for (const Direction& d : copy.parameters) {
+    if (d.joint_block == 0) copied.insert(d.name);
+  }
+  for (const Direction& d : copy.unidentifiable) {
+    if (d.joint_block == 0) copied.insert(d.name);
+  }
+  EXPECT_EQ(copied, names);
+}
+
 }  // namespace lpoe

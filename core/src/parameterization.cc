@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numeric>
 #include <string>
 #include <utility>
@@ -178,6 +179,25 @@ bool BlockDirectionsCurrent(const std::vector<Direction>& old, int frame_paramet
   return true;
 }
 
+// Two combinations of block b may share a dominant parameter (a kept one and a left-out one, or two
+// left out): the second and later get "#2", "#3", ..., kept ones first, so that each name in the
+// report's lists and correlation pairs stands for one combination. Idempotent (an earlier suffix is
+// dropped first).
+void DistinguishNames(int b, int offset, Parameterization* p) {
+  std::map<std::string, int> seen;
+  auto distinguish = [&seen](Direction* d) {
+    const size_t hash = d->name.rfind('#');
+    if (hash != std::string::npos) d->name.erase(hash);
+    const int n = ++seen[d->name];
+    if (n > 1) d->name += "#" + std::to_string(n);
+  };
+  const int k = static_cast<int>(p->joint_blocks[b].basis.cols());
+  for (int c = 0; c < k; ++c) distinguish(&p->parameters[offset + c]);
+  for (Direction& d : p->unidentifiable) {
+    if (d.joint_block == b) distinguish(&d);
+  }
+}
+
 // Names and offsets of every joint block from the bases (blocks follow the frames). Blocks before
 // `first_changed` whose entries are still current (BlockDirectionsCurrent) keep them: naming a
 // combination (JointDirection) is most of the cost of adding a block or setting its basis, which
@@ -206,6 +226,7 @@ void RenumberJointBlocks(Parameterization* p, size_t first_changed = 0) {
         p->parameters.push_back(JointDirection(*p, static_cast<int>(b), block.basis.col(c)));
       }
     }
+    if (!keep) DistinguishNames(static_cast<int>(b), block.offset, p);
   }
   if (p->gravity_tilt) {
     p->tilt_offset = p->num_parameters;

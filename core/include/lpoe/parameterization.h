@@ -40,7 +40,8 @@ bool ParseParameterization(const std::string& text, ParameterizationKind* kind);
 // combination of the term's parameters theta.
 struct Direction {
   int frame = 0;
-  Eigen::Matrix<double, 6, 1> vector;  // unit (omega, v) in the frame's own coordinates
+  // Unit (omega, v) in the frame's own coordinates; zero for a joint block's combination.
+  Eigen::Matrix<double, 6, 1> vector = Eigen::Matrix<double, 6, 1>::Zero();
   std::string name;
   std::string reason;  // empty for calibrated directions
   int joint_block = -1;
