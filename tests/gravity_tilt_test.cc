@@ -546,6 +546,14 @@ TEST(GravityTilt, AutoAddsTiltCandidatesOnlyWhenIdentifiable) {
   EXPECT_NE(std::find(with.begin(), with.end(), "compliance,tilt"), with.end());
   EXPECT_NE(std::find(with.begin(), with.end(), "compliance,harmonics,tilt"), with.end());
   const JointErrorSelection& sel = a.joint_error_selection;
+  for (const JointErrorCandidate& c : sel.candidates) {
+    const bool with_tilt = c.label.find("tilt") != std::string::npos;
+    EXPECT_TRUE(c.tilt_folds >= 0 && c.tilt_folds <= (with_tilt ? sel.folds : 0)) << c.label;
+    // The fullest model identified the tilt on all rows (the check above): on each fold's too.
+    if (c.label == "compliance,harmonics,tilt") {
+      EXPECT_EQ(c.tilt_folds, sel.folds);
+    }
+  }
   std::cout << "auto on a 1 deg tilt chose " << sel.candidates[sel.chosen].label << " ("
             << sel.reason << ")\n";
   const TiltFixture level(0.3, 0, false);

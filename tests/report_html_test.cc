@@ -199,6 +199,42 @@ TEST_F(ReportHtml, HundredThousandPointsStayBelowFiveMegabytes) {
   EXPECT_NE(html.find(Mm(s.verification_after.norm.rms)), std::string::npos);
 }
 
+// The auto table says when a tilt candidate could not identify the tilt in its folds (then it is the
+// model without the tilt, and its row repeats that model's figures).
+TEST(JointErrorSelectionTable, SaysWhenTheTiltWasNotIdentifiedInTheFolds) {
+  JointErrorSelection sel;
+  sel.ran = true;
+  sel.folds = 5;
+  sel.tilt_candidates = true;
+  auto candidate = [](std::vector<std::string> terms, const std::string& label, int tilt_folds) {
+    JointErrorCandidate c;
+    c.terms = std::move(terms);
+    c.label = label;
+    c.ok = true;
+    c.parameters = 30;
+    c.cv_rms = 0.06;
+    c.cv_mse = 0.0036;
+    c.tilt_folds = tilt_folds;
+    return c;
+  };
+  sel.candidates = {candidate({"compliance"}, "compliance", 0),
+                    candidate({"compliance", "tilt"}, "compliance,tilt", 0),
+                    candidate({"compliance", "harmonics", "tilt"}, "compliance,harmonics,tilt", 5)};
+  sel.best = sel.chosen = 0;
+  std::string table = JointErrorSelectionTable(sel);
+  EXPECT_NE(table.find("compliance,tilt: the gravity tilt was identified in none of the 5 folds, "
+                       "which kept the model's gravity: the same model as without the tilt\n"),
+            std::string::npos)
+      << table;
+  EXPECT_EQ(table.find("compliance,harmonics,tilt: the gravity tilt"), std::string::npos) << table;
+  sel.candidates[1].tilt_folds = 3;
+  table = JointErrorSelectionTable(sel);
+  EXPECT_NE(table.find("compliance,tilt: the gravity tilt was identified in 3 of 5 folds (the "
+                       "others kept the model's gravity)\n"),
+            std::string::npos)
+      << table;
+}
+
 }  // namespace
 }  // namespace tools
 }  // namespace lpoe

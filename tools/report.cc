@@ -136,7 +136,8 @@ Json JointErrorsJson(const RunSummary& s) {
                           {"cv_rms", c.cv_rms},
                           {"cv_mse", c.cv_mse},
                           {"cv_mse_standard_error", c.cv_mse_se},
-                          {"fold_rms", c.fold_rms}});
+                          {"fold_rms", c.fold_rms},
+                          {"tilt_identified_folds", c.tilt_folds}});
   }
   j["selection"] = {{"folds", sel.folds},
                     {"split", SplitKindName(sel.split)},
@@ -199,6 +200,18 @@ std::string JointErrorSelectionTable(const JointErrorSelection& sel) {
                     static_cast<int>(k) == sel.chosen ? "   <- chosen" : "");
     }
     out += line;
+  }
+  // A tilt candidate whose folds could not identify the tilt is the model without it.
+  for (const JointErrorCandidate& c : sel.candidates) {
+    const bool with_tilt =
+        std::find(c.terms.begin(), c.terms.end(), kGravityTiltName) != c.terms.end();
+    if (!with_tilt || !c.ok || c.tilt_folds == sel.folds) continue;
+    out += "  " + c.label +
+           (c.tilt_folds == 0
+                ? ": the gravity tilt was identified in none of the " + std::to_string(sel.folds) +
+                      " folds, which kept the model's gravity: the same model as without the tilt\n"
+                : ": the gravity tilt was identified in " + std::to_string(c.tilt_folds) + " of " +
+                      std::to_string(sel.folds) + " folds (the others kept the model's gravity)\n");
   }
   out += "  " + sel.reason + "\n";
   if (!sel.tilt_candidates && !sel.tilt_message.empty()) out += "  " + sel.tilt_message + "\n";

@@ -46,6 +46,7 @@ JointErrorCandidate CrossValidate(const RobotModel& nominal, const MeasurementSe
       return c;
     }
     c.parameters = std::max(c.parameters, r.parameterization.num_joint_parameters());
+    if (r.gravity_tilt.identified) ++c.tilt_folds;
     RobotModel geometric = r.model;
     geometric.joint_errors = JointErrorTerms();
     const std::vector<Eigen::Vector3d> e =

@@ -80,6 +80,9 @@ struct JointErrorCandidate {
   double cv_mse = 0;               // its square (mean squared error norm), mm^2
   double cv_mse_se = 0;            // standard error of cv_mse over the held-out points, mm^2
   std::vector<double> fold_rms;    // held-out RMS per fold, mm
+  // With the gravity tilt among the terms: the folds whose calibration identified it (the others
+  // kept the model's gravity, as a calibration with these terms does when the tilt check fails).
+  int tilt_folds = 0;
 };
 
 struct JointErrorSelection {
