@@ -29,15 +29,23 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-// cobot6 with a payload, its physical compliance products (SmallArmJointErrors) and a gravity
-// tilted by `tilt` (rad about the tilt axes of -z).
+// cobot6 with a payload, its physical compliance products (SmallArmJointErrors), and a position
+// parameterization with the compliance block and the gravity tilt on it.
 struct Loaded {
   RobotModel model = MakeCobot6();
   std::vector<double> theta;
+  std::shared_ptr<const JointTerm> term;
+  std::shared_ptr<const GravityTiltModel> tilt_model;
+  Parameterization p;
   Loaded() {
     model.payload.mass = 1.0;
     model.payload.com = Eigen::Vector3d(0, 0, 50);
     theta = CompliancePhysicsParameters(SmallArmJointErrors(model, SmallArmOptions()));
+    p = MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
+    EXPECT_TRUE(MakeJointTerm("compliance", model, &term).ok());
+    AddJointBlock(term, &p);
+    tilt_model = std::make_shared<const GravityTiltModel>(model);
+    AddGravityTilt(tilt_model, 0, &p);
   }
 };
 
@@ -88,12 +96,8 @@ TEST(GravityTilt, AxesArePerpendicularAndTheJacobianIsExact) {
 TEST(GravityTilt, RowRegressorsEqualTheDenseProducts) {
   const Loaded l;
   const int n = 6;
-  Parameterization p =
-      MakeParameterization(l.model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
-  std::shared_ptr<const JointTerm> term;
-  ASSERT_TRUE(MakeJointTerm("compliance", l.model, &term).ok());
-  AddJointBlock(term, &p);
-  AddGravityTilt(std::make_shared<const GravityTiltModel>(l.model), 0, &p);
+  Parameterization p = l.p;
+  const JointTerm* term = l.term.get();
   const int P = term->num_parameters();
   ASSERT_EQ(P, NumComplianceParameters(n));
   // A dense basis of 11 combinations (only the rows' product is under test here).
@@ -137,13 +141,9 @@ TEST(GravityTilt, RowRegressorsEqualTheDenseProducts) {
 TEST(GravityTilt, JointColumnsMatchFiniteDifferencesAndAutodiff) {
   const Loaded l;
   const int n = 6;
-  Parameterization p =
-      MakeParameterization(l.model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
-  std::shared_ptr<const JointTerm> term;
-  ASSERT_TRUE(MakeJointTerm("compliance", l.model, &term).ok());
-  AddJointBlock(term, &p);
-  auto tilt_model = std::make_shared<const GravityTiltModel>(l.model);
-  AddGravityTilt(tilt_model, 0, &p);
+  const Parameterization& p = l.p;
+  const JointTerm* term = l.term.get();
+  const GravityTiltModel* tilt_model = l.tilt_model.get();
   const int K = p.num_joint_parameters();
   const int P = term->num_parameters();
   ASSERT_EQ(K, P + 2);
