@@ -14,6 +14,7 @@
 #include <glog/logging.h>
 
 #include "lpoe/eigen_decompositions.h"
+#include "lpoe/householder.h"
 #include "lpoe/joint_errors.h"
 
 namespace lpoe {
@@ -252,32 +253,6 @@ void AddJointBlock(std::shared_ptr<const JointTerm> term, Parameterization* p) {
   RenumberJointBlocks(p, p->joint_blocks.size() - 1);
 }
 
-namespace {
-
-// Columns k..P-1 of the Householder Q of `basis` (P x k, k >= 1), as a P x (P - k) matrix: the
-// identity's last P - k columns with the reflectors H_{k-1} .. H_0 applied to the rows each acts
-// on, the operations HouseholderSequence::evalTo does on those columns (it forms the first k too).
-// Eigen forms Q by blocks of reflectors beyond kEigenBlock of them, and a single column's product
-// would be a dot product (another summation order): then from the whole Q as before, for the same
-// numbers.
-Eigen::MatrixXd ComplementColumns(const Eigen::MatrixXd& basis) {
-  constexpr int kEigenBlock = 48;  // HouseholderSequence's BlockSize
-  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(basis);
-  const Eigen::Index P = basis.rows(), k = basis.cols();
-  if (k > kEigenBlock || P - k < 2) return Eigen::MatrixXd(qr.householderQ()).rightCols(P - k);
-  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(P, P - k);
-  C.bottomRows(P - k).setIdentity();
-  Eigen::VectorXd workspace(P - k);
-  const auto H = qr.householderQ();
-  for (Eigen::Index j = k - 1; j >= 0; --j) {
-    C.bottomRows(P - j).applyHouseholderOnTheLeft(H.essentialVector(j), qr.hCoeffs().coeff(j),
-                                                   workspace.data());
-  }
-  return C;
-}
-
-}  // namespace
-
 void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& reason,
                         Parameterization* p) {
   JointBlock& block = p->joint_blocks[b];
@@ -287,7 +262,9 @@ void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& 
   // columns of the Householder Q of the (orthonormal) basis (none when every parameter is kept).
   const int k = static_cast<int>(basis.cols());
   if (k < P) {
-    const Eigen::MatrixXd C = k == 0 ? Eigen::MatrixXd::Identity(P, P) : ComplementColumns(basis);
+    const Eigen::MatrixXd C =
+        k == 0 ? Eigen::MatrixXd::Identity(P, P)
+               : HouseholderQColumns(Eigen::HouseholderQR<Eigen::MatrixXd>(basis), k, P - k);
     for (int c = 0; c < P - k; ++c) {
       Direction d = JointDirection(*p, b, C.col(c));
       d.reason = reason;

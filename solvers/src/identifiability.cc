@@ -12,6 +12,7 @@
 #include <glog/logging.h>
 
 #include "lpoe/eigen_decompositions.h"
+#include "lpoe/householder.h"
 #include "lpoe/kinematics.h"
 #include "structural_identifiability.h"
 
@@ -69,31 +70,6 @@ Eigen::MatrixXd NormalMatrix(const RobotModel& model, const MeasurementSet& data
                            false)
       .H;
 }
-
-namespace {
-
-// The first k columns of the Householder Q of V (P x k): Q times the P x k identity. Eigen applies
-// each reflector H_j to every column; columns c < j are zero in the rows H_j acts on and stay
-// exactly zero, so they are skipped here (at least two columns each time, as a single column's
-// product would be a dot product: another summation order). Eigen applies blocks of reflectors
-// from kEigenBlock of them on: then its product as before, for the same numbers.
-Eigen::MatrixXd OrthonormalColumns(const Eigen::MatrixXd& V) {
-  constexpr Eigen::Index kEigenBlock = 48;  // HouseholderSequence's BlockSize
-  const Eigen::Index P = V.rows(), k = V.cols();
-  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(V);
-  if (k >= kEigenBlock || k < 2) return qr.householderQ() * Eigen::MatrixXd::Identity(P, k);
-  Eigen::MatrixXd Q = Eigen::MatrixXd::Identity(P, k);
-  Eigen::VectorXd workspace(k);
-  const auto H = qr.householderQ();
-  for (Eigen::Index j = k - 1; j >= 0; --j) {
-    const Eigen::Index c0 = std::min(j, k - 2);
-    Q.bottomRightCorner(P - j, k - c0)
-        .applyHouseholderOnTheLeft(H.essentialVector(j), qr.hCoeffs().coeff(j), workspace.data());
-  }
-  return Q;
-}
-
-}  // namespace
 
 std::vector<Eigen::MatrixXd> JointBlockBases(const Eigen::MatrixXd& H, const Parameterization& pi,
                                              double tolerance) {
@@ -171,7 +147,7 @@ std::vector<Eigen::MatrixXd> JointBlockBases(const Eigen::MatrixXd& H, const Par
       for (size_t k = 0; k < keep.size(); ++k) {
         for (int a = 0; a < L; ++a) V(live[a], k) = db(live[a]) * es.eigenvectors()(a, keep[k]);
       }
-      basis = OrthonormalColumns(V);
+      basis = HouseholderQColumns(Eigen::HouseholderQR<Eigen::MatrixXd>(V), 0, V.cols());
     }
     bases.push_back(basis);
     if (bases.size() == pi.joint_blocks.size()) break;  // no later block reads it
