@@ -161,6 +161,24 @@ std::vector<int> CalibrationProblem::tangent_offsets() const {
   return out;
 }
 
+namespace {
+
+// The reduction's slots (the non-zero entries of d(dq)/d(theta) per row, slot_basis mapping the
+// joint state's K parameters to the slots' ones) when they were stored for these rows and can serve
+// the joint state: not with the gravity tilt, whose rows are not linear in it. Else nullptr.
+const internal::JointSpaceRegressors* UsableSlots(const internal::JointSpaceRegressors* slots,
+                                                  const Parameterization& p, int n, int rows,
+                                                  Eigen::Index K) {
+  const bool usable = K > 0 && !p.gravity_tilt && slots != nullptr && slots->num_joints == n &&
+                      slots->values.cols() == rows &&
+                      slots->values.rows() == slots->num_slots() &&
+                      slots->slot_basis.rows() == slots->num_slots() &&
+                      slots->slot_basis.cols() == K;
+  return usable ? slots : nullptr;
+}
+
+}  // namespace
+
 std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* problem) {
   const Parameterization& p = parameterization_;
   const MeasurementSet& data = *data_;
@@ -219,12 +237,9 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
   // entries of d(dq)/d(theta) per row, slot_basis mapping x to the slots' parameters): joint j's
   // row of R is sum_{s in j} values(s, r) slot_basis row s, about 89 x K multiply-adds per row on
   // cobot6 instead of each term's n x P regressor and its product with the basis.
-  const internal::JointSpaceRegressors* slots = regressors_.get();
-  const bool from_slots = K > 0 && !p.gravity_tilt && slots != nullptr &&
-                          slots->num_joints == n && slots->values.cols() == data.size() &&
-                          slots->values.rows() == slots->num_slots() &&
-                          slots->slot_basis.rows() == slots->num_slots() &&
-                          slots->slot_basis.cols() == K;
+  const internal::JointSpaceRegressors* slots =
+      UsableSlots(regressors_.get(), p, n, data.size(), K);
+  const bool from_slots = slots != nullptr;
   // slot_basis transposed (K x slots): slot s's row contiguous.
   const Eigen::MatrixXd slot_basis_t =
       from_slots ? Eigen::MatrixXd(slots->slot_basis.transpose()) : Eigen::MatrixXd();
@@ -320,14 +335,10 @@ std::vector<double> CalibrationProblem::EffectiveJointValues() const {
   if (data.size() == 0) return {};
   std::vector<double> q(data.q(0), data.q(0) + static_cast<size_t>(data.size()) * n);
   if (p.joint_blocks.empty()) return q;
-  const internal::JointSpaceRegressors* slots = regressors_.get();
   const Eigen::VectorXd x = JointState();
-  const bool from_slots = !p.gravity_tilt && slots != nullptr && slots->num_joints == n &&
-                          slots->values.cols() == data.size() &&
-                          slots->values.rows() == slots->num_slots() &&
-                          slots->slot_basis.rows() == slots->num_slots() &&
-                          slots->slot_basis.cols() == x.size();
-  if (!from_slots) {
+  const internal::JointSpaceRegressors* slots =
+      UsableSlots(regressors_.get(), p, n, data.size(), x.size());
+  if (slots == nullptr) {
     const MeasurementSet shifted = WithEffectiveJointValues(JointTerms(), data);
     std::copy(shifted.q(0), shifted.q(0) + q.size(), q.begin());
     return q;
