@@ -56,6 +56,29 @@ TEST(Statistics, OnePassStatisticsEqualADirectRecomputation) {
   ThreadCountOverride() = 0;
 }
 
+// The norm's moments at other joint values than the data's (a model with joint-space terms at its
+// effective joint values): those of a direct recomputation on a copy of the data with those values.
+TEST(Statistics, NormMomentsAtGivenJointValuesEqualADirectRecomputation) {
+  const RobotModel nominal = MakeCobot6();
+  const MeasurementSet data = Data(4);
+  MeasurementSet shifted = data;
+  std::vector<double> q(data.q(0), data.q(0) + static_cast<size_t>(data.size()) * 6);
+  for (size_t i = 0; i < q.size(); ++i) q[i] += 1e-3 * std::sin(0.7 * static_cast<double>(i));
+  for (int r = 0; r < data.size(); ++r) std::copy_n(q.data() + 6 * r, 6, shifted.mutable_q(r));
+  const AxisStatistics direct = ComputeStatistics(PositionErrors(nominal, shifted)).norm;
+  const AxisStatistics unshifted = ComputeStatistics(PositionErrors(nominal, data)).norm;
+  ASSERT_GT(std::abs(direct.mean_abs - unshifted.mean_abs), 1e-6 * direct.mean_abs);
+  for (int threads : {1, 2}) {
+    ThreadCountOverride() = threads;
+    const AxisStatistics got = PositionErrorNormMoments(nominal, data, q.data());
+    EXPECT_NEAR(got.max_abs, direct.max_abs, kMomentTolerance * direct.max_abs);
+    EXPECT_NEAR(got.mean_abs, direct.mean_abs, kMomentTolerance * direct.mean_abs);
+    EXPECT_NEAR(got.rms, direct.rms, kMomentTolerance * direct.rms);
+    EXPECT_EQ(got.p95_abs, 0.0);  // no percentile pass
+  }
+  ThreadCountOverride() = 0;
+}
+
 TEST(Statistics, CollectedErrorsDoNotDependOnTheThreadCount) {
   const RobotModel nominal = MakeCobot6();
   const MeasurementSet data = Data(4);

@@ -149,6 +149,19 @@ ErrorStatistics PositionErrorRows::Statistics() const {
   return out;
 }
 
+AxisStatistics PositionErrorRows::NormMoments() const {
+  if (rows_ == 0) return AxisStatistics();
+  Moments total;
+  for (const ChunkMoments& m : moments_) {
+    Moments c;
+    c.max = m.max[3];
+    c.sum = m.sum[3];
+    c.sum_sq = m.sum_sq[3];
+    total.Add(c);
+  }
+  return total.Finish(static_cast<size_t>(rows_));
+}
+
 double PositionErrorRows::MedianAbsComponent() const {
   const size_t m = 3 * static_cast<size_t>(rows_);
   if (m == 0) return 0;
@@ -156,8 +169,11 @@ double PositionErrorRows::MedianAbsComponent() const {
   return KthSmallestNonNegative(values_.data(), m, m / 2);
 }
 
-void CollectPositionErrors(const RobotModel& model, const MeasurementSet& data,
-                           PositionErrorRows* rows) {
+namespace {
+
+// CollectPositionErrors at the joint values q (rows x joints, row-major).
+void CollectPositionErrorsAt(const RobotModel& model, const MeasurementSet& data, const double* q,
+                             PositionErrorRows* rows) {
   // One forward-kinematics pass in fixed chunks on the hardware's threads (parallel.h); sin and cos
   // of a block of rows at once (SinCosMany).
   constexpr int kBlockRows = 64;
@@ -176,16 +192,24 @@ void CollectPositionErrors(const RobotModel& model, const MeasurementSet& data,
     co.resize(s.size());
     for (int r0 = chunks.begin(c); r0 < chunks.end(c); r0 += kBlockRows) {
       const int count = std::min(kBlockRows, chunks.end(c) - r0);
-      SinCosMany(data.q(r0), count * joints, s.data(), co.data());
+      SinCosMany(q + static_cast<size_t>(r0) * joints, count * joints, s.data(), co.data());
       for (int k = 0; k < count; ++k) {
         const int r = r0 + k;
         const size_t at = static_cast<size_t>(k) * joints;
+        const double* q_r = q + static_cast<size_t>(r) * joints;
         rows->Record(c, r,
                      data.position(r) -
-                         chain.Position(data.q(r), s.data() + at, co.data() + at, data.target(r)));
+                         chain.Position(q_r, s.data() + at, co.data() + at, data.target(r)));
       }
     }
   });
+}
+
+}  // namespace
+
+void CollectPositionErrors(const RobotModel& model, const MeasurementSet& data,
+                           PositionErrorRows* rows) {
+  CollectPositionErrorsAt(model, data, data.size() > 0 ? data.q(0) : nullptr, rows);
 }
 
 ErrorStatistics PositionErrorStatistics(const RobotModel& model, const MeasurementSet& data) {
@@ -195,6 +219,13 @@ ErrorStatistics PositionErrorStatistics(const RobotModel& model, const Measureme
   PositionErrorRows rows;
   CollectPositionErrors(model, data, &rows);
   return rows.Statistics();
+}
+
+AxisStatistics PositionErrorNormMoments(const RobotModel& model, const MeasurementSet& data,
+                                        const double* q) {
+  PositionErrorRows rows;
+  CollectPositionErrorsAt(model, data, q, &rows);
+  return rows.NormMoments();
 }
 
 }  // namespace lpoe

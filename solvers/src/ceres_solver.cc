@@ -18,8 +18,8 @@
 
 #include "gravity_tilt.h"
 #include "identifiability.h"
-#include "lpoe/kinematics.h"
 #include "lpoe/problem_builder.h"
+#include "lpoe/statistics.h"
 
 namespace lpoe {
 namespace {
@@ -119,36 +119,6 @@ struct ConvergenceWatch {
   }
 };
 
-// The largest and the mean distance |P_measured - P_model(q)| over the rows, at the joint values
-// `q` (rows x n): what a history record keeps of the errors (PositionErrorStatistics's norm
-// max_abs and mean_abs, without its percentiles). One forward pass, sin and cos of blocks of rows
-// at once.
-void PositionErrorMaxMean(const RobotModel& model, const MeasurementSet& data,
-                          const std::vector<double>& q, double* max_error, double* mean_error) {
-  constexpr int kBlockRows = 64;
-  const int rows = data.size();
-  const int n = data.num_joints();
-  const KinematicChain chain(model);
-  std::vector<double> s(static_cast<size_t>(kBlockRows) * n), c(s.size());
-  double max = 0, sum = 0;
-  for (int r0 = 0; r0 < rows; r0 += kBlockRows) {
-    const int count = std::min(kBlockRows, rows - r0);
-    const double* q0 = q.data() + static_cast<size_t>(r0) * n;
-    SinCosMany(q0, count * n, s.data(), c.data());
-    for (int k = 0; k < count; ++k) {
-      const size_t at = static_cast<size_t>(k) * n;
-      const double e =
-          (data.position(r0 + k) -
-           chain.Position(q0 + at, s.data() + at, c.data() + at, data.target(r0 + k)))
-              .norm();
-      max = std::max(max, e);
-      sum += e;
-    }
-  }
-  *max_error = max;
-  *mean_error = rows > 0 ? sum / rows : 0.0;
-}
-
 // Records the history (IterationRecord per accepted step) with the state of the blocks, which Ceres
 // updates every iteration (update_state_every_iteration).
 class HistoryCallback : public ceres::IterationCallback {
@@ -170,8 +140,10 @@ class HistoryCallback : public ceres::IterationCallback {
     IterationRecord r;
     r.iteration = summary.iteration;
     r.cost = summary.cost * cost_scale_;
-    PositionErrorMaxMean(model, problem_.data(), problem_.EffectiveJointValues(), &r.max_error,
-                         &r.mean_error);
+    const std::vector<double> q = problem_.EffectiveJointValues();
+    const AxisStatistics norm = PositionErrorNormMoments(model, problem_.data(), q.data());
+    r.max_error = norm.max_abs;
+    r.mean_error = norm.mean_abs;
     r.step_norm = summary.iteration > 0 ? summary.step_norm : 0.0;
     const double previous_cost = history_->empty() ? -1.0 : history_->back().cost;
     history_->push_back(r);

@@ -61,6 +61,8 @@ class PositionErrorRows {
   // Max, mean, RMS and 95th percentile per axis and of the norm (those of PositionErrorStatistics
   // on the same model and data, to round-off). Changes nothing.
   ErrorStatistics Statistics() const;
+  // The norm's max, mean and RMS of Statistics() without its percentile (p95_abs = 0).
+  AxisStatistics NormMoments() const;
   // The median of the 3 * size() absolute components (rounded to float). Changes nothing.
   double MedianAbsComponent() const;
 
@@ -84,6 +86,13 @@ std::vector<Eigen::Vector3d> PositionErrors(const RobotModel& model, const Measu
 // The same without storing the errors: one forward-kinematics pass, 16 bytes a row; the 95th
 // percentiles are those of the errors rounded to float (relative 6e-8).
 ErrorStatistics PositionErrorStatistics(const RobotModel& model, const MeasurementSet& data);
+
+// Max, mean and RMS of the error norms |e| at the joint values `q` (data.size() x
+// data.num_joints(), row-major) in place of the data's own, without the percentile's pass: what a
+// solver's per-iteration record keeps, for a model with joint-space terms at its effective joint
+// values without a copy of the data (CalibrationProblem::EffectiveJointValues).
+AxisStatistics PositionErrorNormMoments(const RobotModel& model, const MeasurementSet& data,
+                                        const double* q);
 
 // The errors of `model` on `data` (tool positions, the model's own frames) collected by one
 // forward-kinematics pass on the hardware's threads into `rows` (replaced).
