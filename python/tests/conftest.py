@@ -5,6 +5,11 @@ import pytest
 
 import lpoe
 
+# In a sanitizer build the suite runs in an interpreter with the sanitizer runtime preloaded
+# (python/CMakeLists.txt); the tools it starts carry their own copy and refuse a second one.
+if os.environ.pop("LPOE_SANITIZER_PRELOAD", None):
+    os.environ.pop("LD_PRELOAD", None)
+
 DATA = os.environ.get("LPOE_DATA_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "data"))
 
 

@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
 # Installs the built project into a temporary prefix and builds and runs tests/consumer against it,
-# linked once with the static and once with the shared libraries.
-# Usage: run.sh <build dir> <source dir of the consumer>
+# linked once with the static and once with the shared libraries, with the C++ compiler the project
+# was built with (a sanitizer build's libraries need that compiler's sanitizer runtime).
+# Usage: run.sh <build dir> <source dir of the consumer> [<C++ compiler>]
 set -euo pipefail
 build=$1
 src=$2
+compiler=(); [ -n "${3:-}" ] && compiler=(-DCMAKE_CXX_COMPILER="$3")
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 cmake --install "$build" --prefix "$tmp/prefix" >/dev/null
-cmake -S "$src" -B "$tmp/build" -DCMAKE_PREFIX_PATH="$tmp/prefix" -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake -S "$src" -B "$tmp/build" "${compiler[@]}" -DCMAKE_PREFIX_PATH="$tmp/prefix" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$tmp/build" -j2 >/dev/null
 "$tmp/build/consumer"
 # The shared build really loads the installed shared libraries, and the static one does not.
