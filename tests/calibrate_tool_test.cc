@@ -86,6 +86,45 @@ TEST_F(CalibrateTool, DefaultRunPrintsTheTableAndTheVerificationSet) {
   EXPECT_NE(o.out.find("converged"), std::string::npos) << o.out;
 }
 
+// The identifiability block is read by a person in a terminal: the joint-space terms leave out
+// dozens of combinations, which come wrapped under their reason, every one of them listed.
+TEST_F(CalibrateTool, IdentifiabilityListsWrapEveryLeftOutCombination) {
+  const Output sim = Run(LPOE_SIMULATE_PATH,
+                         "--count=150 --noise_sigma=0.01 --seed=3 --joint_errors=compliance,harmonics "
+                         "--out=" + Path("id.csv") + " --model_out=" + Path("nominal.yaml"));
+  ASSERT_EQ(sim.exit_code, kExitOk) << sim.err;
+  const Output o = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" + Path("id.csv") +
+                             " --joint_errors=compliance,harmonics --plots_dir= --output=" +
+                             Path("out.yaml"));
+  ASSERT_EQ(o.exit_code, kExitOk) << o.out << o.err;
+  std::istringstream lines(o.out);
+  std::string line;
+  bool in_block = false, in_left_out = false;
+  int listed = 0, announced = 0;
+  while (std::getline(lines, line)) {
+    if (line.rfind("identifiability:", 0) == 0) in_block = true;
+    if (!in_block) continue;
+    if (line.empty()) break;
+    EXPECT_LE(line.size(), 100u) << line;
+    if (line.find("not identifiable from this data kind") != std::string::npos) in_left_out = true;
+    if (line.rfind("  largest standard deviations", 0) == 0) in_left_out = false;
+    if (in_left_out && line.rfind("      ", 0) == 0) {  // a line of names under its reason
+      for (size_t at = line.find("compliance."); at != std::string::npos;
+           at = line.find("compliance.", at + 1)) {
+        ++listed;
+      }
+    }
+    const size_t term = line.find("joint-space term compliance: ");
+    if (term != std::string::npos) {
+      const size_t comb = line.find("combinations, ");
+      ASSERT_NE(comb, std::string::npos) << line;
+      announced = std::stoi(line.substr(comb + 14));
+    }
+  }
+  EXPECT_GT(announced, 10) << o.out;  // light links: most gravity products are not separable
+  EXPECT_EQ(listed, announced) << o.out;
+}
+
 TEST_F(CalibrateTool, OutputReadsBackAndPredictsLikeTheLibrary) {
   Simulate();
   const Output o = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" + Path("id.csv") +

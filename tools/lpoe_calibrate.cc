@@ -8,7 +8,9 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <sstream>
 #include <string>
+#include <vector>
 #include <sys/stat.h>
 
 #include <gflags/gflags.h>
@@ -197,10 +199,17 @@ void PrintIdentifiability(const IdentifiabilityReport& id) {
   }
   std::cout << "  not identifiable from this data kind (" << id.unidentifiable.size()
             << " directions, left out):\n";
+  // One name: "name: reason". Several names with one reason: the reason, then the names wrapped
+  // under it (the joint-space terms alone can leave out 60 combinations).
   std::string last_reason;
-  std::string names;
+  std::vector<std::string> names;
   auto flush = [&]() {
-    if (!names.empty()) std::cout << "    " << names << ": " << last_reason << "\n";
+    if (names.size() == 1) {
+      std::cout << "    " << names[0] << ": " << last_reason << "\n";
+    } else if (names.size() > 1) {
+      std::cout << "    " << last_reason << ":\n";
+      tools::PrintWrapped(std::cout, names, ", ", 6);
+    }
     names.clear();
   };
   for (const Direction& d : id.unidentifiable) {
@@ -208,7 +217,7 @@ void PrintIdentifiability(const IdentifiabilityReport& id) {
       flush();
       last_reason = d.reason;
     }
-    names += (names.empty() ? "" : ", ") + d.name;
+    names.push_back(d.name);
   }
   flush();
   if (id.standard_deviation.size() > 0) {
@@ -218,15 +227,22 @@ void PrintIdentifiability(const IdentifiabilityReport& id) {
     std::sort(order.begin(), order.end(), [&](int a, int b) {
       return id.standard_deviation(a) > id.standard_deviation(b);
     });
-    std::cout << "  largest standard deviations (rad or mm):";
+    std::vector<std::string> items;
     for (int k = 0; k < std::min<int>(4, static_cast<int>(order.size())); ++k) {
-      std::cout << " " << id.parameter_names[order[k]] << " " << id.standard_deviation(order[k]);
+      std::ostringstream item;
+      item << id.parameter_names[order[k]] << " " << id.standard_deviation(order[k]);
+      items.push_back(item.str());
     }
-    std::cout << "\n  most correlated pairs:";
+    std::cout << "  largest standard deviations (rad or mm):\n";
+    tools::PrintWrapped(std::cout, items, ", ", 6);
+    items.clear();
     for (const CorrelatedPair& c : id.most_correlated) {
-      std::cout << " " << c.a << "/" << c.b << " " << c.correlation << ";";
+      std::ostringstream item;
+      item << c.a << "/" << c.b << " " << c.correlation;
+      items.push_back(item.str());
     }
-    std::cout << "\n";
+    std::cout << "  most correlated pairs:\n";
+    tools::PrintWrapped(std::cout, items, "; ", 6);
   }
   for (const std::string& w : id.warnings) std::cout << "  warning: " << w << "\n";
 }

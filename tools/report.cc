@@ -262,7 +262,7 @@ std::string JointTermsIdentifiability(const CalibrationResult& result) {
            std::to_string(block.basis.cols()) + " identifiable combinations";
     int lost = 0;
     for (const Direction& d : par.unidentifiable) lost += d.joint_block == static_cast<int>(b);
-    if (lost > 0) out += " (" + std::to_string(lost) + " left out, listed above)";
+    if (lost > 0) out += ", " + std::to_string(lost) + " left out (above)";
     out += "\n";
   }
   return out;

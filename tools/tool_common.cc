@@ -211,6 +211,23 @@ int ExitCodeFor(Termination t) {
   return kExitNumerical;
 }
 
+void PrintWrapped(std::ostream& os, const std::vector<std::string>& items,
+                  const std::string& separator, int indent, int width) {
+  const std::string pad(static_cast<size_t>(std::max(indent, 0)), ' ');
+  std::string line;
+  for (size_t k = 0; k < items.size(); ++k) {
+    const std::string item = items[k] + (k + 1 < items.size() ? separator : "");
+    // The separator's trailing spaces do not count against the width at the end of a line.
+    const std::string shown = item.substr(0, item.find_last_not_of(' ') + 1);
+    if (!line.empty() && pad.size() + line.size() + shown.size() > static_cast<size_t>(width)) {
+      os << pad << line.substr(0, line.find_last_not_of(' ') + 1) << "\n";
+      line.clear();
+    }
+    line += item;
+  }
+  if (!line.empty()) os << pad << line.substr(0, line.find_last_not_of(' ') + 1) << "\n";
+}
+
 void PrintIterationTable(std::ostream& os, const CalibrationResult& result) {
   char line[160];
   os << "iteration   max error [mm]   mean error [mm]        cost        |x|\n";

@@ -105,6 +105,13 @@ int ExitCodeFor(Termination t);
 // Prints the convergence history (the paper's Fig. 6).
 void PrintIterationTable(std::ostream& os, const CalibrationResult& result);
 
+// Writes `items` joined by `separator`, in lines of at most `width` characters where the items
+// allow (an item longer than a line gets a line of its own), each line indented by `indent` spaces
+// and ended by a newline. For the long lists of the identifiability report (60 names of
+// joint-space combinations are common), which a person reads in a terminal.
+void PrintWrapped(std::ostream& os, const std::vector<std::string>& items,
+                  const std::string& separator, int indent, int width = 100);
+
 // Prints before/after statistics per axis and norm.
 void PrintBeforeAfter(std::ostream& os, const std::string& title, const ErrorStatistics& before,
                       const ErrorStatistics& after);
