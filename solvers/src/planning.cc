@@ -299,17 +299,19 @@ class Selector {
     Eigen::MatrixXd UtF;
     if (trace) UtF = U.transpose() * F_;  // r x P
     ForEachChunk(pool_.size(), num_threads_, [&](int begin, int end) {
+      // The chunk's rows against U and Kinv as two matrix products (blocked and vectorized), not a
+      // small lazy product per candidate; only each candidate's own r_c x r_c block of S is formed.
       const int o = pool_.row_offset[begin];
-      Eigen::MatrixXd V, VK_chunk(pool_.row_offset[end] - o, r);
+      const int rows = pool_.row_offset[end] - o;
+      const Eigen::MatrixXd V = Js_.middleRows(o, rows) * U;  // rows x r
+      const Eigen::MatrixXd VK = V * Kinv;
       for (int c = begin; c < end; ++c) {
         const int oc = pool_.row_offset[c];
         const int rc = pool_.rows(c);
-        V.noalias() = Js_.middleRows(oc, rc).lazyProduct(U);
-        auto VK = VK_chunk.middleRows(oc - o, rc);
-        VK.noalias() = V.lazyProduct(Kinv);
-        S_.block(oc, 0, rc, rc).noalias() -= VK.lazyProduct(V.transpose());
+        S_.block(oc, 0, rc, rc).noalias() -=
+            VK.middleRows(oc - o, rc).lazyProduct(V.middleRows(oc - o, rc).transpose());
       }
-      if (trace) Z_.middleRows(o, VK_chunk.rows()).noalias() -= VK_chunk * UtF;
+      if (trace) Z_.middleRows(o, rows).noalias() -= VK * UtF;
     });
   }
 
