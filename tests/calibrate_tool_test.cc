@@ -87,7 +87,8 @@ TEST_F(CalibrateTool, DefaultRunPrintsTheTableAndTheVerificationSet) {
 }
 
 // The identifiability block is read by a person in a terminal: the joint-space terms leave out
-// dozens of combinations, which come wrapped under their reason, every one of them listed.
+// dozens of combinations, which come wrapped under their reason, every one of them listed; the
+// largest standard deviations are the frames' (rad or mm).
 TEST_F(CalibrateTool, IdentifiabilityListsWrapEveryLeftOutCombination) {
   const Output sim = Run(LPOE_SIMULATE_PATH,
                          "--count=150 --noise_sigma=0.01 --seed=3 --joint_errors=compliance,harmonics "
@@ -99,7 +100,7 @@ TEST_F(CalibrateTool, IdentifiabilityListsWrapEveryLeftOutCombination) {
   ASSERT_EQ(o.exit_code, kExitOk) << o.out << o.err;
   std::istringstream lines(o.out);
   std::string line;
-  bool in_block = false, in_left_out = false;
+  bool in_block = false, in_left_out = false, in_sd = false;
   int listed = 0, announced = 0;
   while (std::getline(lines, line)) {
     if (line.rfind("identifiability:", 0) == 0) in_block = true;
@@ -107,7 +108,17 @@ TEST_F(CalibrateTool, IdentifiabilityListsWrapEveryLeftOutCombination) {
     if (line.empty()) break;
     EXPECT_LE(line.size(), 100u) << line;
     if (line.find("not identifiable from this data kind") != std::string::npos) in_left_out = true;
-    if (line.rfind("  largest standard deviations", 0) == 0) in_left_out = false;
+    if (line.rfind("  largest standard deviations", 0) == 0) {
+      in_left_out = false;
+      in_sd = true;
+      // The joint-space combinations have their terms' scaled units: not ranked with rad and mm.
+      EXPECT_NE(line.find("of the frames (rad or mm;"), std::string::npos) << line;
+    }
+    if (line.rfind("  most correlated pairs", 0) == 0) in_sd = false;
+    if (in_sd) {
+      EXPECT_EQ(line.find("compliance."), std::string::npos) << line;
+      EXPECT_EQ(line.find("harmonics."), std::string::npos) << line;
+    }
     if (in_left_out && line.rfind("      ", 0) == 0) {  // a line of names under its reason
       for (size_t at = line.find("compliance."); at != std::string::npos;
            at = line.find("compliance.", at + 1)) {

@@ -190,7 +190,9 @@ PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_ori
   return o;
 }
 
-void PrintIdentifiability(const IdentifiabilityReport& id) {
+// `num_frame_parameters`: the identified directions before it are the frames' (rad or mm); the
+// joint-space combinations after them have their terms' scaled units and are not ranked with them.
+void PrintIdentifiability(const IdentifiabilityReport& id, int num_frame_parameters) {
   std::cout << "identifiability: " << id.num_parameters << " parameters, rank " << id.rank
             << ", condition number of the column-scaled Jacobian " << id.condition_number << "\n";
   if (id.singular_values.size() > 0) {
@@ -222,7 +224,9 @@ void PrintIdentifiability(const IdentifiabilityReport& id) {
   flush();
   if (id.standard_deviation.size() > 0) {
     // The least certain parameters, as a quick read; all of them are in the JSON report.
-    std::vector<int> order(id.standard_deviation.size());
+    const int n = static_cast<int>(id.standard_deviation.size());
+    const bool joint_space = num_frame_parameters < n;
+    std::vector<int> order(static_cast<size_t>(std::min(n, num_frame_parameters)));
     for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int>(k);
     std::sort(order.begin(), order.end(), [&](int a, int b) {
       return id.standard_deviation(a) > id.standard_deviation(b);
@@ -233,7 +237,9 @@ void PrintIdentifiability(const IdentifiabilityReport& id) {
       item << id.parameter_names[order[k]] << " " << id.standard_deviation(order[k]);
       items.push_back(item.str());
     }
-    std::cout << "  largest standard deviations (rad or mm):\n";
+    std::cout << "  largest standard deviations" << (joint_space ? " of the frames" : "")
+              << " (rad or mm" << (joint_space ? "; the joint-space terms': JSON report" : "")
+              << "):\n";
     tools::PrintWrapped(std::cout, items, ", ", 6);
     items.clear();
     for (const CorrelatedPair& c : id.most_correlated) {
@@ -450,7 +456,7 @@ int Run() {
     std::cerr << "error: " << result.message << "\n";
     return tools::ExitCodeFor(result.termination);
   }
-  PrintIdentifiability(summary.identifiability);
+  PrintIdentifiability(summary.identifiability, result.parameterization.num_frame_parameters());
   std::cout << tools::JointTermsIdentifiability(result);
   std::cerr << tools::GravityTiltSummary(result.gravity_tilt);
   std::cout << "\n";
