@@ -305,11 +305,18 @@ class Selector {
       const int rows = pool_.row_offset[end] - o;
       const Eigen::MatrixXd V = Js_.middleRows(o, rows) * U;  // rows x r
       const Eigen::MatrixXd VK = V * Kinv;
+      // S_c -= VK_c V_c^T: r_c x r_c entries of r-long dot products (r, r_c <= 6), as plain loops:
+      // an Eigen product expression per candidate cost more to set up than these few multiply-adds.
       for (int c = begin; c < end; ++c) {
         const int oc = pool_.row_offset[c];
         const int rc = pool_.rows(c);
-        S_.block(oc, 0, rc, rc).noalias() -=
-            VK.middleRows(oc - o, rc).lazyProduct(V.middleRows(oc - o, rc).transpose());
+        for (int i = 0; i < rc; ++i) {
+          for (int j = 0; j < rc; ++j) {
+            double sum = 0;
+            for (int k = 0; k < r; ++k) sum += VK(oc - o + i, k) * V(oc - o + j, k);
+            S_(oc + i, j) -= sum;
+          }
+        }
       }
       if (trace) Z_.middleRows(o, rows).noalias() -= VK * UtF;
     });
