@@ -211,8 +211,11 @@ TEST(Generality, ToolOnTheLastAxisIsCalibratedWithTheAxisTiltReported) {
             ASSERT_EQ(r.result.termination, Termination::kConverged) << r.result.message;
             EXPECT_EQ(r.verdict.level, VerdictLevel::kPass) << r.verdict.reason;
             EXPECT_LT(r.identification_after.norm.rms, kFitRmsMm);
-            EXPECT_TRUE(ReportedOnTheAxis(r, "joint6.rx"));
-            EXPECT_TRUE(ReportedOnTheAxis(r, "joint6.ry"));
+            // Decided at the data's estimate, not at the nominal tool0: the tilt is left out only
+            // when the actual point is on the axis; about a millimetre off it (the random tool
+            // error), the data determine the tilt, weakly (docs/identifiability.md).
+            EXPECT_EQ(ReportedOnTheAxis(r, "joint6.rx"), on_axis);
+            EXPECT_EQ(ReportedOnTheAxis(r, "joint6.ry"), on_axis);
             // The errors are recovered: the calibrated robot predicts the actual one everywhere.
             EXPECT_LT(MaxPredictionDifference(actual, r.geometric), 4 * kFitRmsMm);
             EXPECT_GT(MaxPredictionDifference(actual, nominal), 1.0);  // not vacuous

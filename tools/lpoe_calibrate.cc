@@ -44,7 +44,9 @@ DEFINE_double(holdout, 0.0,
               "Instead of --verify: hold out this fraction of the measurements (0 <= f < 1) "
               "for verification, chosen as --split says.");
 DEFINE_string(split, "random",
-              "How --holdout, --kfold and --joint_errors=auto split the rows: random (seeded by "
+              "How --holdout, --kfold and --joint_errors=auto split the data, always by "
+              "configuration (rows with the same joint values, e.g. several SMRs at one pose, stay "
+              "on one side): random (seeded by "
               "--split_seed) | sequential (the held-out fraction is the last rows of the file and "
               "the folds are contiguous blocks: the honest choice when the rows were measured one "
               "after another and the cell drifts).");
@@ -399,9 +401,13 @@ int Run() {
       return kExitUsage;
     }
   }
-  if (FLAGS_kfold > identification.size()) {
+  std::vector<int> configuration_of_row;
+  const int identification_configurations =
+      ConfigurationGroups(identification, &configuration_of_row);
+  if (FLAGS_kfold > identification_configurations) {
     std::cerr << "error: --kfold=" << FLAGS_kfold << " is larger than the "
-              << identification.size() << " identification rows: every fold needs held-out rows\n";
+              << identification_configurations
+              << " identification configurations: every fold needs held-out configurations\n";
     return kExitUsage;
   }
 
@@ -489,7 +495,8 @@ int Run() {
 
   // ---- k-fold cross-validation.
   if (!run.folds.empty()) {
-    std::cout << "\n" << FLAGS_kfold << "-fold cross-validation (held-out position error, mm)\n"
+    std::cout << "\n" << FLAGS_kfold
+              << "-fold cross-validation by configuration (held-out position error, mm)\n"
               << "  fold  rows   termination        max      mean       rms       p95\n";
     char line[200];
     for (const FoldSummary& f : run.folds) {

@@ -369,6 +369,7 @@ Json BuildJson(const RunSummary& s) {
                  {"measurements", s.measurements_path},
                  {"verification", s.verification_source},
                  {"split", s.split},
+                 {"split_by", "configuration"},
                  {"angle_unit", s.angle_unit},
                  {"skipped_rows", s.skipped.skipped_zero_rows},
                  {"skipped_lines", s.skipped.skipped_lines}};

@@ -114,7 +114,7 @@ Status LoadInputs(const std::string& model_path, const std::string& measurements
   }
   if (holdout > 0.0) {
     std::vector<int> id_rows, ver_rows;
-    HoldoutSplit(all.size(), holdout, split_seed, &id_rows, &ver_rows, split);
+    HoldoutSplit(all, holdout, split_seed, &id_rows, &ver_rows, split);
     std::vector<bool> held_out(all.size(), false);
     for (int r : ver_rows) held_out[r] = true;
     all.MoveRowsOut(held_out, &in->verification);

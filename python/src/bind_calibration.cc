@@ -115,7 +115,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   MeasurementSet held_data(nominal.num_joints()), held_verify(nominal.num_joints());
   if (holdout > 0) {
     std::vector<int> id_rows, ver_rows;
-    HoldoutSplit(given_data.size(), holdout, split_seed, &id_rows, &ver_rows, split);
+    HoldoutSplit(given_data, holdout, split_seed, &id_rows, &ver_rows, split);
     held_data = given_data.Subset(id_rows);
     held_verify = given_data.Subset(ver_rows);
     if (Status s = tools::CheckHoldoutSplit(holdout, held_data.size(), held_verify.size());
@@ -141,8 +141,10 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   if (angle_unit != "rad" && angle_unit != "deg") {
     throw LpoeError("angle_unit: expected 'rad' or 'deg', got '" + angle_unit + "'");
   }
-  if (kfold != 0 && !(kfold >= 2 && kfold <= 100 && kfold <= data.size())) {
-    throw LpoeError("kfold: expected 0 (off) or 2..100 and at most the rows, got " +
+  std::vector<int> configuration_of_row;
+  if (kfold != 0 && !(kfold >= 2 && kfold <= 100 &&
+                      kfold <= ConfigurationGroups(data, &configuration_of_row))) {
+    throw LpoeError("kfold: expected 0 (off) or 2..100 and at most the configurations, got " +
                     std::to_string(kfold));
   }
   if (!(max_iterations >= 1 && max_iterations <= 10000) || !(step_tolerance > 0) ||

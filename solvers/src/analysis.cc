@@ -1,6 +1,9 @@
 #include "lpoe/analysis.h"
 
 #include <algorithm>
+#include <cstdint>
+#include <cstring>
+#include <unordered_map>
 #include <cmath>
 #include <numeric>
 #include <random>
@@ -205,6 +208,75 @@ std::vector<std::vector<int>> KFolds(int n, int k, uint64_t seed, SplitKind kind
   const std::vector<int> order = ShuffledIndices(n, seed);
   for (int i = 0; i < n; ++i) folds[i % k].push_back(order[i]);
   for (auto& f : folds) std::sort(f.begin(), f.end());
+  return folds;
+}
+
+int ConfigurationGroups(const MeasurementSet& data, std::vector<int>* group) {
+  const int n = data.size();
+  const int nj = data.num_joints();
+  group->assign(n, -1);
+  // Hash of the joint values' bytes; collisions resolved by comparing the values.
+  std::unordered_map<uint64_t, std::vector<int>> first_rows;  // hash -> first row of each group
+  first_rows.reserve(static_cast<size_t>(n));
+  int groups = 0;
+  for (int r = 0; r < n; ++r) {
+    const double* q = data.q(r);
+    uint64_t h = 1469598103934665603ull;
+    for (int j = 0; j < nj; ++j) {
+      double v = q[j] == 0.0 ? 0.0 : q[j];  // -0 and +0 are one value
+      uint64_t bits;
+      std::memcpy(&bits, &v, sizeof bits);
+      h = (h ^ bits) * 1099511628211ull;
+      h ^= h >> 29;
+    }
+    std::vector<int>& candidates = first_rows[h];
+    for (int first : candidates) {
+      if (std::equal(q, q + nj, data.q(first))) {
+        (*group)[r] = (*group)[first];
+        break;
+      }
+    }
+    if ((*group)[r] < 0) {
+      (*group)[r] = groups++;
+      candidates.push_back(r);
+    }
+  }
+  return groups;
+}
+
+namespace {
+
+// The rows of the configurations `chosen` (indices into groups), in file order.
+std::vector<int> RowsOfGroups(const std::vector<int>& group, int groups,
+                              const std::vector<int>& chosen) {
+  std::vector<bool> take(groups, false);
+  for (int g : chosen) take[g] = true;
+  std::vector<int> rows;
+  for (int r = 0; r < static_cast<int>(group.size()); ++r) {
+    if (take[group[r]]) rows.push_back(r);
+  }
+  return rows;
+}
+
+}  // namespace
+
+void HoldoutSplit(const MeasurementSet& data, double fraction, uint64_t seed,
+                  std::vector<int>* identification, std::vector<int>* verification,
+                  SplitKind kind) {
+  std::vector<int> group;
+  const int groups = ConfigurationGroups(data, &group);
+  std::vector<int> id_groups, ver_groups;
+  HoldoutSplit(groups, fraction, seed, &id_groups, &ver_groups, kind);
+  *verification = RowsOfGroups(group, groups, ver_groups);
+  *identification = Complement(data.size(), *verification);
+}
+
+std::vector<std::vector<int>> KFolds(const MeasurementSet& data, int k, uint64_t seed,
+                                     SplitKind kind) {
+  std::vector<int> group;
+  const int groups = ConfigurationGroups(data, &group);
+  std::vector<std::vector<int>> folds = KFolds(groups, k, seed, kind);
+  for (auto& f : folds) f = RowsOfGroups(group, groups, f);
   return folds;
 }
 

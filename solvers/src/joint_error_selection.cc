@@ -83,10 +83,12 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
                                       const PipelineOptions& options) {
   JointErrorSelection sel;
   sel.ran = true;
-  sel.folds = std::max(2, std::min(options.joint_error_folds, identification.size()));
+  std::vector<int> configuration_of_row;
+  const int configurations = ConfigurationGroups(identification, &configuration_of_row);
+  sel.folds = std::max(2, std::min(options.joint_error_folds, configurations));
   sel.seed = options.split_seed;
   sel.split = options.split;
-  const auto folds = KFolds(identification.size(), sel.folds, sel.seed, sel.split);
+  const auto folds = KFolds(identification, sel.folds, sel.seed, sel.split);
   // Compliance first: it keeps the combinations both terms could explain (joint_errors.md).
   std::vector<std::vector<std::string>> sets = {
       {}, {"compliance"}, {"harmonics"}, {"compliance", "harmonics"}};

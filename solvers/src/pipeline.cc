@@ -1,9 +1,11 @@
 #include "lpoe/pipeline.h"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 #include "gravity_tilt.h"
+#include "structural_identifiability.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 
@@ -67,6 +69,12 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
                         RobotModel* start_out, SolveErrors* errors) {
   RobotModel start = nominal;
   if (before) *before = nominal;
+  // The tool points fitted to the data with the nominal joints (registration's stage 2) and the
+  // RMS residual per axis of that fit: where the structural decision starts (below).
+  RobotModel fitted;
+  double fitted_rms = 0;
+  bool have_fitted = false;
+  bool start_is_fitted = false;  // the start is the registered model (tool points fitted)
   if (options.register_frames) {
     if (options.on_stage) options.on_stage("registering");
     RegistrationReport local;
@@ -79,6 +87,10 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
       if (start_out) *start_out = nominal;
       return failed;
     }
+    fitted = start;
+    fitted_rms = rep.rms_base_tools / std::sqrt(3.0);
+    have_fitted = true;
+    start_is_fitted = rep.moved;
     if (!rep.moved) {
       // The data are in the base frame already: start from the nominal model, as the paper does.
       start = nominal;
@@ -96,6 +108,50 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
   // terms the nominal model carries are not part of that cost, so they are not carried into the
   // calibrated model either (they would count twice, on a geometry they were not identified on).
   start.joint_errors = JointErrorTerms();
+  if (!options.register_frames) {
+    // The start stays the nominal model; the tool points are fitted only for the decision below.
+    RegistrationReport rep;
+    if (RegisterToMeasurements(nominal, data, &fitted, &rep).ok()) {
+      fitted_rms = rep.rms_base_tools / std::sqrt(3.0);
+      have_fitted = true;
+    }
+  }
+  // Which frame directions no data can determine is decided at an estimate, never at the nominal
+  // tool points alone (structural_identifiability.h, docs/identifiability.md): first at the start
+  // with the measured tool points where the fit put them, then again at each solution; when the
+  // decision there differs, the calibration is solved again with it (from the solution's tool
+  // points), until the decision a model was solved with is the one at that model.
+  const bool use_orientation = options.use_orientation;
+  const double orientation_weight = options.solver == SolverKind::kCeres
+                                        ? options.ceres.orientation_weight
+                                        : options.linear.orientation_weight;
+  std::vector<bool> measured(nominal.num_tools(), false);
+  for (int r = 0; r < data.size(); ++r) measured[data.target(r)] = true;
+  RobotModel reference = start;
+  if (have_fitted) {
+    for (int t = 0; t < start.num_tools(); ++t) {
+      if (measured[t]) reference.tools[t].origin.t = fitted.tools[t].origin.t;
+    }
+  }
+  reference = internal::StructureReference(reference, data, fitted_rms);
+  std::vector<Direction> lost =
+      internal::StructurallyUnidentifiable(reference, data, use_orientation, orientation_weight);
+  // The start must let the solver see what the decision keeps: when its own tool points would
+  // decide otherwise (a nominal tool0 on the axis for an SMR off it), it starts from the reference's
+  // (the fitted ones, those within the noise of the axis on it).
+  auto start_tools_from = [&](const RobotModel& from) {
+    for (int t = 0; t < start.num_tools(); ++t) {
+      if (measured[t]) start.tools[t].origin.t = from.tools[t].origin.t;
+    }
+  };
+  // A registered start has the fitted tool points already: those put on the axis start there too.
+  if (have_fitted &&
+      (start_is_fitted ||
+       !internal::SameDirections(internal::StructurallyUnidentifiable(
+                                     start, data, use_orientation, orientation_weight),
+                                 lost))) {
+    start_tools_from(reference);
+  }
   if (start_out) *start_out = start;
   std::vector<std::shared_ptr<const JointTerm>> terms;
   const bool tilt = std::find(options.joint_errors.begin(), options.joint_errors.end(),
@@ -137,7 +193,7 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
       o.use_orientation = options.use_orientation;
       o.on_iteration = progress;
       o.joint_terms = terms;
-      o.structure_reference = &nominal;
+      o.structure_reference = &reference;
       o.gravity_tilt = tilt_model;
       o.initial_joint_terms = initial;
       if (tilt_model) o.convergence.sd_fraction *= kTiltSdFraction;
@@ -170,6 +226,36 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
     return r;
   };
   CalibrationResult result = solve(nullptr, {});
+  // Rounds of the decision at the solution: one more solve is the rule (a tool point the fit left
+  // on the axis that the calibration moves off it, or back); the limit only bounds a cycle.
+  constexpr int kMaxDecisionRounds = 4;
+  for (int round = 1; round <= kMaxDecisionRounds; ++round) {
+    if (result.termination != Termination::kConverged &&
+        result.termination != Termination::kMaxIterations) {
+      break;
+    }
+    const RobotModel at = internal::StructureReference(
+        Geometric(result.model), data,
+        internal::RmsPerAxisOfCost(result.final_cost, data, use_orientation));
+    std::vector<Direction> lost_at =
+        internal::StructurallyUnidentifiable(at, data, use_orientation, orientation_weight);
+    if (internal::SameDirections(lost_at, lost)) break;
+    if (round == kMaxDecisionRounds) {
+      result.message += (result.message.empty() ? "" : "; ") +
+                        std::string("the directions left out did not settle after ") +
+                        std::to_string(kMaxDecisionRounds) +
+                        " solves: the data barely separate a tool point from the last axis";
+      break;
+    }
+    reference = at;
+    lost = std::move(lost_at);
+    // From the solution's tool points, those within the noise of the axis on it (exactly what was
+    // decided: a full parameterization must not find the left-out tilt weakly present at its start).
+    start_tools_from(reference);
+    if (start_out) *start_out = start;
+    if (options.on_stage) options.on_stage(stage + " (directions decided at the solution)");
+    result = solve(nullptr, {});
+  }
   if (!tilt || !result.converged()) return StoreJointErrors(std::move(result), start);
   // The gravity tilt: checked at the compliance solution, then solved from it.
   GravityTiltResult check;
@@ -269,9 +355,28 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   plausibility.use_orientation = options.use_orientation;
   out.verdict = AssessPlausibility(out.start, out.geometric, identification_eff,
                                    out.identification_after, plausibility);
+  // A fit much worse than the noise after directions were left out: name them as the likely cause
+  // (they are kept as given; if the data do determine them after all, the model is wrong there).
+  std::string left_out;
+  for (const Direction& d : result.parameterization.unidentifiable) {
+    if (d.joint_block < 0 && (d.reason.find("no configuration separates") != std::string::npos ||
+                              d.reason.find("moves no measured target") != std::string::npos)) {
+      left_out += (left_out.empty() ? "" : ", ") + d.name;
+    }
+  }
+  if (!left_out.empty()) {
+    for (VerdictCheck& c : out.verdict.checks) {
+      if (c.name != "residual" || c.level == VerdictLevel::kPass) continue;
+      const bool was_reason = out.verdict.reason == c.message;
+      c.message += "; likely cause: directions left out as not identifiable (" + left_out +
+                   ") are kept as given, and the data may not agree with them (a measured point "
+                   "off where the model puts it, or an axis the data cannot see)";
+      if (was_reason) out.verdict.reason = c.message;
+    }
+  }
 
   if (options.kfold >= 2) {
-    const auto folds = KFolds(identification.size(), options.kfold, options.split_seed, options.split);
+    const auto folds = KFolds(identification, options.kfold, options.split_seed, options.split);
     std::vector<Eigen::Vector3d> pooled;
     const PipelineOptions& fold_options = chosen;
     for (int f = 0; f < options.kfold; ++f) {

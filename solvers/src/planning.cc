@@ -47,17 +47,19 @@ constexpr double kJointErrorEffectScale = 0.1;  // mm
 Parameterization PlanningParameterization(
     const RobotModel& model, const std::vector<std::shared_ptr<const JointTerm>>& terms,
     const std::vector<double>& reference) {
-  if (terms.empty()) {
-    return MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
-  }
+  // The frames lose what the calibration of such data would leave out (structural_identifiability.h),
+  // decided at the model planned for, so that a plan never counts a direction the calibration then
+  // finds undetermined (a tool point on the last axis: that axis' tilt).
   const int n = model.num_joints();
   CHECK_EQ(reference.size() % std::max(n, 1), 0u);
-  const int count = static_cast<int>(reference.size() / std::max(n, 1));
+  const int count = std::max(1, static_cast<int>(reference.size() / std::max(n, 1)));
+  const std::vector<double> zero(n, 0.0);
   MeasurementSet data(n);
   data.Reserve(count * model.num_tools());
   for (int r = 0; r < count; ++r) {
     for (int t = 0; t < model.num_tools(); ++t) {
-      data.Add(reference.data() + static_cast<size_t>(r) * n, Eigen::Vector3d::Zero(), t);
+      data.Add(reference.empty() ? zero.data() : reference.data() + static_cast<size_t>(r) * n,
+               Eigen::Vector3d::Zero(), t);
     }
   }
   const LinearSolverOptions solver_defaults;

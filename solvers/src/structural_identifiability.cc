@@ -160,8 +160,9 @@ std::vector<Direction> StructurallyUnidentifiable(const RobotModel& model,
         const double scale = std::max(1.0, model.tools[t].origin.t.norm());
         if (DistanceFromLastAxis(model, t) <= kStructuralTolerance * scale) {
           reason << " (" << model.tools[t].name << " lies on " << model.joints[n - 1].name
-                 << "'s axis, so turning that joint never moves it: a target off the axis, or "
-                    "orientation data, would identify it)";
+                 << "'s axis, where these data put it within their noise, so turning that joint "
+                    "never moves it: a target off the axis, or orientation data, would identify "
+                    "it)";
           break;
         }
       }
@@ -172,6 +173,48 @@ std::vector<Direction> StructurallyUnidentifiable(const RobotModel& model,
   std::sort(out.begin(), out.end(),
             [&](const Direction& a, const Direction& b) { return a.frame < b.frame; });
   return out;
+}
+
+RobotModel StructureReference(const RobotModel& estimate, const MeasurementSet& data,
+                              double rms_axis) {
+  RobotModel reference = estimate;
+  const int n = estimate.num_joints();
+  if (n == 0 || estimate.joints.back().type != JointType::kRevolute) return reference;
+  std::vector<int> rows(estimate.num_tools(), 0);
+  for (int r = 0; r < data.size(); ++r) ++rows[data.target(r)];
+  const Joint& last = estimate.joints.back();
+  const Eigen::Vector3d w = last.twist.head<3>().normalized();
+  const Eigen::Vector3d on_axis = w.cross(last.twist.tail<3>());
+  const double sigma = std::isfinite(rms_axis) ? std::max(rms_axis, 0.0) : INFINITY;
+  for (int t = 0; t < estimate.num_tools(); ++t) {
+    if (rows[t] == 0) continue;
+    const double tolerance = kOnAxisSigmas * sigma * std::sqrt(2.0 / rows[t]);
+    if (DistanceFromLastAxis(estimate, t) <= tolerance) {
+      Eigen::Vector3d& p = reference.tools[t].origin.t;
+      p = on_axis + w * w.dot(p - on_axis);
+    }
+  }
+  return reference;
+}
+
+double RmsPerAxisOfCost(double cost, const MeasurementSet& data, bool use_orientation) {
+  const double per_row = use_orientation ? 6.0 : 3.0;
+  if (data.empty() || !(cost >= 0)) return INFINITY;
+  return std::sqrt(2.0 * cost / (per_row * data.size()));
+}
+
+bool SameDirections(const std::vector<Direction>& a, const std::vector<Direction>& b) {
+  if (a.size() != b.size()) return false;
+  std::vector<bool> used(b.size(), false);
+  for (const Direction& x : a) {
+    bool found = false;
+    for (size_t k = 0; k < b.size() && !found; ++k) {
+      if (used[k] || b[k].frame != x.frame || b[k].joint_block != x.joint_block) continue;
+      if ((b[k].vector - x.vector).norm() < 1e-9) found = used[k] = true;
+    }
+    if (!found) return false;
+  }
+  return true;
 }
 
 void LeaveOutStructurallyUnidentifiable(const RobotModel& reference, const MeasurementSet& data,

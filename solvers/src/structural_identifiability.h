@@ -51,6 +51,25 @@ void LeaveOutStructurallyUnidentifiable(const RobotModel& reference, const Measu
                                         bool use_orientation, double orientation_weight,
                                         Parameterization* p);
 
+// The decision is made at an estimate, never at the nominal model alone: where a measured point
+// really sits is what the calibration finds out, and a nominal tool point on the last axis (a
+// URDF's tool0) says nothing about an SMR 40 mm off it. StructureReference returns `estimate` (the
+// registered start with its tool points fitted to the data, or a solution) with each measured
+// tool's point that the data do not put significantly off the last joint's axis put on it: its
+// distance rho from the axis is compared with kOnAxisSigmas standard deviations of a fitted
+// point's offset, rms_axis * sqrt(2 / rows of that tool) (rms_axis: RMS residual per axis of the
+// fit that gave the points, mm). A point 1-3 mm off the axis stays off it (a weak direction, for
+// the solvers' rank and condition checks); one within the noise is on it (a structural zero).
+constexpr double kOnAxisSigmas = 5.0;
+RobotModel StructureReference(const RobotModel& estimate, const MeasurementSet& data,
+                              double rms_axis);
+
+// RMS residual per axis (mm) of a solve's final cost (0.5 |y|^2 over the rows of `data`).
+double RmsPerAxisOfCost(double cost, const MeasurementSet& data, bool use_orientation);
+
+// True when a and b leave out the same directions (frames and vectors, in any order).
+bool SameDirections(const std::vector<Direction>& a, const std::vector<Direction>& b);
+
 // The same with the directions given (StructurallyUnidentifiable's result): a caller reducing
 // several parameterizations of one chain and data computes them once.
 void LeaveOutDirections(const std::vector<Direction>& lost, Parameterization* p);

@@ -83,6 +83,21 @@ std::vector<std::vector<int>> KFolds(int n, int k, uint64_t seed,
 // The complement of `rows` in [0, n).
 std::vector<int> Complement(int n, const std::vector<int>& rows);
 
+// Splits by configuration: rows measured at the same joint values (several SMRs at one pose, or a
+// pose measured twice) are one configuration and always go to the same side, so that no
+// configuration is both identified and verified. group[r] is the configuration of row r, numbered
+// in order of first appearance (joint values compared exactly, as read). Returns the number of
+// configurations.
+int ConfigurationGroups(const MeasurementSet& data, std::vector<int>* group);
+// HoldoutSplit and KFolds over the configurations of `data` (the fraction and the folds count
+// configurations, not rows); rows in file order. With one row per configuration they are the row
+// splits above.
+void HoldoutSplit(const MeasurementSet& data, double fraction, uint64_t seed,
+                  std::vector<int>* identification, std::vector<int>* verification,
+                  SplitKind kind = SplitKind::kRandom);
+std::vector<std::vector<int>> KFolds(const MeasurementSet& data, int k, uint64_t seed,
+                                     SplitKind kind = SplitKind::kRandom);
+
 // Position-error covariance predicted at configuration q from the covariance of the identified
 // parameters: J_q C J_q^T with J_q the position Jacobian restricted to the parameterization.
 Eigen::Matrix3d PredictedPositionCovariance(const CalibrationResult& result, const double* q,
