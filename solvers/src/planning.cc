@@ -421,8 +421,7 @@ bool ParsePlanCriterion(const std::string& text, PlanCriterion* criterion) {
 
 PlanningModel::PlanningModel(const RobotModel& model)
     : model_(model),
-      parameterization_(
-          MakeParameterization(model_, ParameterizationKind::kIdentifiable, DataKind::kPosition)),
+      parameterization_(PlanningParameterization(model_, {}, {})),
       basis_(model_, parameterization_) {}
 
 Status PlanningGravityTiltStatus(const RobotModel& model,
