@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # Builds and runs the benchmarks (Release, -j2), measures lpoe_calibrate end to end (wall time and
-# peak RSS with /usr/bin/time -v) on 70,000, 10^6 and 10^7 simulated rows, and writes the results, with
-# the machine they ran on, into README.md between <!-- perf:begin --> and <!-- perf:end --> (in the
-# "## Performance" section, created at the end of the README if missing).
+# peak RSS with /usr/bin/time -v) on 70,000, 10^6 and 10^7 simulated rows, and writes the results
+# into docs/performance.md between <!-- perf:begin --> and <!-- perf:end --> (section "Measured
+# figures", created at the end of that file if missing). The block's first line names the machine
+# and the date of the run.
 #
 #   scripts/benchmarks.sh              # everything (about 3-4 minutes on 2 cores)
 #   BUILD_DIR=/tmp/b scripts/benchmarks.sh
-#   NO_README=1 scripts/benchmarks.sh  # print the table only
+#   NO_WRITE=1 scripts/benchmarks.sh   # print the table only (NO_README=1 is accepted too)
 #
 # KDL (liborocos-kdl-dev) is a benchmark-only dependency: installed here if missing (apt-get, via
 # sudo when not root); the normal build never needs it.
@@ -161,10 +162,10 @@ e70 = e2e[0]
 by_label = {label: (rows, seconds, rss) for label, rows, seconds, rss, _, _ in e2e}
 
 load = open("/proc/loadavg").read().split()[0] if __import__("os").path.exists("/proc/loadavg") else "?"
+# One header line: the machine and the date, then how the figures were taken.
 print(f"Measured by `scripts/benchmarks.sh` on {model}, {cores} cores, {date} "
-      "(Release, GCC default flags: SSE2, no -march; medians of 5 repetitions for the per-pose "
-      f"figures, wall time; load average {load} when the table was written: above {cores} the "
-      "machine was shared with other work and wall times are inflated).")
+      "(Release build, no -march; wall times, medians of 5 repetitions for the per-pose figures; "
+      f"load average {load} when the table was written).")
 print()
 print("| target | measured | verdict |")
 print("|---|---|---|")
@@ -274,13 +275,13 @@ for label, rows, seconds, rss, cpu, flags in e2e:
 EOF
 
 cat "$WORK/table.md"
-if [ -n "${NO_README:-}" ]; then exit 0; fi
+if [ -n "${NO_WRITE:-}${NO_README:-}" ]; then exit 0; fi
 
-README="$ROOT/README.md"
-python3 - "$README" "$WORK/table.md" <<'EOF'
+DOC="$ROOT/docs/performance.md"
+python3 - "$DOC" "$WORK/table.md" <<'EOF'
 import sys
-readme, table = sys.argv[1], open(sys.argv[2]).read().rstrip("\n")
-text = open(readme).read()
+doc, table = sys.argv[1], open(sys.argv[2]).read().rstrip("\n")
+text = open(doc).read()
 begin, end = "<!-- perf:begin -->", "<!-- perf:end -->"
 block = f"{begin}\n{table}\n{end}"
 if begin in text and end in text:
@@ -288,13 +289,7 @@ if begin in text and end in text:
     b = text.index(end) + len(end)
     text = text[:a] + block + text[b:]
 else:
-    if "## Performance" not in text:
-        text = text.rstrip("\n") + "\n\n## Performance\n"
-    # Append the block at the end of the Performance section (before the next "## " heading).
-    a = text.index("## Performance")
-    nxt = text.find("\n## ", a + 1)
-    insert = len(text) if nxt < 0 else nxt + 1
-    text = text[:insert].rstrip("\n") + "\n\n" + block + "\n" + ("\n" + text[insert:] if nxt >= 0 else "")
-open(readme, "w").write(text)
+    text = text.rstrip("\n") + "\n\n## Measured figures\n\n" + block + "\n"
+open(doc, "w").write(text)
 EOF
-echo "benchmarks: README.md updated" >&2
+echo "benchmarks: docs/performance.md updated" >&2

@@ -65,7 +65,7 @@ DEFINE_string(ur_kinematics_output, "",
               "With a URDF --model of a Universal Robots arm (joints shoulder_pan_joint .. "
               "wrist_3_joint): also write the calibrated joint origins in the format of "
               "ROS-Industrial's ur_description kinematics YAML.");
-DEFINE_string(report, "", "Write a machine-readable JSON report here (schema in the README).");
+DEFINE_string(report, "", "Write a machine-readable JSON report here (schema in docs/report.md).");
 DEFINE_string(html_report, "",
               "Write a self-contained HTML report here (verdict, statistics, plots, parameters; "
               "no scripts, inline SVG). Nothing is written on failure.");

@@ -1,4 +1,4 @@
-// The machine-readable calibration report (JSON; schema in the README).
+// The machine-readable calibration report (JSON; schema in docs/report.md).
 #ifndef LPOE_TOOLS_REPORT_H_
 #define LPOE_TOOLS_REPORT_H_
 
