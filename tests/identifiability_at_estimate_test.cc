@@ -50,6 +50,7 @@ struct Case {
   double axis_tilt = 0;       // rad: the actual last axis tilted about x
   bool on_axis = false;       // the actual point exactly on the actual last axis
   double noise = 0.02;        // mm per axis
+  bool pose = false;          // pose data (orientation noise 1e-5 rad)
 };
 
 struct Simulated {
@@ -94,6 +95,8 @@ Simulated Simulate(const RobotModel& nominal, const Case& c, bool tracker_frame)
   }
   SimulationOptions o = EveryToolAt(nominal, kPoses, 5);
   o.noise_sigma = c.noise;
+  o.pose = c.pose;
+  o.orientation_noise_sigma = c.pose ? 1e-5 : 0.0;
   o.seed = 5;
   Simulated s;
   s.data = SimulateMeasurements(with_errors, errors.joint_zero, o);
@@ -102,7 +105,11 @@ Simulated Simulate(const RobotModel& nominal, const Case& c, bool tracker_frame)
     const SE3d& T = TrackerFromBase();
     MeasurementSet moved(s.data.num_joints());
     for (int r = 0; r < s.data.size(); ++r) {
-      moved.Add(s.data.q(r), T * s.data.position(r), s.data.target(r));
+      if (c.pose) {
+        moved.AddPose(s.data.q(r), T * s.data.pose(r), s.data.target(r));
+      } else {
+        moved.Add(s.data.q(r), T * s.data.position(r), s.data.target(r));
+      }
     }
     s.data = moved;
     s.actual.joints[0].origin = T * s.actual.joints[0].origin;
@@ -192,11 +199,11 @@ std::vector<Direction> SolvedWithLeftOut(const PipelineResult& r) {
 
 // The decision at the solution is the one the solution was solved with.
 void ExpectDecisionStableAtTheSolution(const PipelineResult& r, const MeasurementSet& data,
-                                       bool use_orientation) {
+                                       bool use_orientation, double orientation_weight) {
   const RobotModel at = internal::StructureReference(
       r.geometric, data, internal::RmsPerAxisOfCost(r.result.final_cost, data, use_orientation));
   const std::vector<Direction> lost =
-      internal::StructurallyUnidentifiable(at, data, use_orientation, 1.0);
+      internal::StructurallyUnidentifiable(at, data, use_orientation, orientation_weight);
   EXPECT_TRUE(internal::SameDirections(lost, SolvedWithLeftOut(r)))
       << lost.size() << " left out at the solution, " << SolvedWithLeftOut(r).size()
       << " in the solve";
@@ -228,6 +235,7 @@ PipelineResult ExpectNearReference(const Case& c, const CalibrationSetup& run) {
   o.parameterization = run.kind;
   o.register_frames = run.register_frames;
   o.joint_errors = run.joint_errors;
+  o.use_orientation = c.pose;
   o.ceres.num_threads = 1;
   PipelineResult r = RunCalibrationPipeline(nominal, s.data, MeasurementSet(), o);
   EXPECT_EQ(r.result.termination, Termination::kConverged) << r.result.message;
@@ -237,7 +245,10 @@ PipelineResult ExpectNearReference(const Case& c, const CalibrationSetup& run) {
   std::cout << Describe(c, run) << ": held-out RMS " << ours << " mm, least-squares reference "
             << reference << " mm\n";
   EXPECT_GT(HeldOutRms(s.actual, r.before), 20 * ours);  // not vacuous: the errors were large
-  ExpectDecisionStableAtTheSolution(r, s.data, false);
+  ExpectDecisionStableAtTheSolution(r, s.data, c.pose,
+                                    run.solver == SolverKind::kCeres
+                                        ? o.ceres.orientation_weight
+                                        : o.linear.orientation_weight);
   return r;
 }
 
@@ -259,6 +270,20 @@ TEST(IdentifiabilityAtTheEstimate, SmrFortyMillimetresOffTool0BothSolversBothPar
       const PipelineResult r = ExpectNearReference(SmrOffTheAxis(40), run);
       EXPECT_FALSE(Reported(r, "joint6.rx"));  // the data determine the last axis' tilt
       EXPECT_FALSE(Reported(r, "joint6.ry"));
+    }
+  }
+}
+
+TEST(IdentifiabilityAtTheEstimate, PoseDataIdentifyTheTiltWhereverThePointIs) {
+  for (const bool on_axis : {false, true}) {
+    Case c = SmrOffTheAxis(on_axis ? 0.0 : 40.0);
+    c.on_axis = on_axis;
+    c.pose = true;
+    for (SolverKind solver : {SolverKind::kLinear, SolverKind::kCeres}) {
+      CalibrationSetup run;
+      run.solver = solver;
+      const PipelineResult r = ExpectNearReference(c, run);
+      EXPECT_FALSE(Reported(r, "joint6.rx"));
     }
   }
 }
