@@ -5,5 +5,6 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF -DLPOE_BUILD_BENCHMARKS=OFF >/dev/null
-cmake --build build -j2 --target lpoe_calibrate lpoe_simulate >/dev/null
+cmake --build build -j2 --target lpoe_calibrate lpoe_compare lpoe_simulate lpoe_plan lpoe_predict \
+  lpoe_compensate >/dev/null
 ./build/tools/lpoe_calibrate "$@"

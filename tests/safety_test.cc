@@ -155,8 +155,10 @@ TEST_F(Safety, ForceWritesAnImplausibleResult) {
   });
   const Result r = Run(kCalibrate, "--measurements=metres.csv --max_iterations=1000 --plots_dir= "
                                    "--force --output=out.yaml");
-  EXPECT_EQ(r.exit_code, kExitOk) << r.err;
+  // Written, and still exit 8: a script can tell a forced result from a plausible one.
+  EXPECT_EQ(r.exit_code, 8) << r.err;
   EXPECT_TRUE(Exists(Path("out.yaml")));
+  EXPECT_NE(r.err.find("outputs written because of --force"), std::string::npos) << r.err;
 }
 
 TEST_F(Safety, FlagsOutsideTheirRangesExitOneNamingTheFlag) {

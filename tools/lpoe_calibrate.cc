@@ -122,7 +122,8 @@ DEFINE_double(noise_sigma, 0.03,
               "Expected tracker noise per axis (mm) for the plausibility verdict: residuals far "
               "above it (plus the ~0.3 mm a geometric model leaves on a real robot) fail.");
 DEFINE_bool(force, false,
-            "Write the outputs and exit 0 even when the plausibility verdict fails.");
+            "Write the outputs even when the plausibility verdict fails; the exit code is still 8, "
+            "so that a script can tell a forced result.");
 DEFINE_bool(quiet, false, "No progress display on stderr.");
 DEFINE_double(max_condition, 1e8,
               "Refuse data whose column-scaled Jacobian has a larger condition number.");
@@ -611,6 +612,11 @@ int Run() {
     std::cout << "(use --output=FILE to save the calibrated model)\n";
   } else {
     for (const std::string& o : written) std::cout << "wrote " << o << "\n";
+  }
+  if (implausible) {  // --force: written, but a script must still tell the result failed
+    std::cerr << "error: the calibration is not plausible (" << verdict.reason
+              << "); outputs written because of --force\n";
+    return tools::kExitImplausible;
   }
   return kExitOk;
 }

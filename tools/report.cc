@@ -11,11 +11,9 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/version.h"
 #include "plot.h"
 
-#ifndef LPOE_VERSION
-#define LPOE_VERSION "unknown"
-#endif
 
 namespace lpoe {
 namespace tools {
@@ -353,7 +351,7 @@ namespace {
 Json BuildJson(const RunSummary& s) {
   Json j;
   j["schema"] = "lpoe-calib/report/2";
-  j["tool"] = {{"name", s.tool_name}, {"version", LPOE_VERSION}};
+  j["tool"] = {{"name", s.tool_name}, {"version", kLpoeVersion}};
   Json checks = Json::array();
   for (const VerdictCheck& c : s.verdict.checks) {
     checks.push_back({{"name", c.name},
