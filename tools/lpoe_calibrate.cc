@@ -171,6 +171,9 @@ PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_ori
     if (tilt) o.joint_errors.push_back(kGravityTiltName);
   }
   o.kfold = FLAGS_kfold;
+  // URDF and UR kinematics carry geometry only: with joint-space terms they get a geometry-only
+  // re-fit of the same data.
+  o.refit_geometry = !FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty();
   o.split_seed = FLAGS_split_seed;
   ParseSplitKind(FLAGS_split, &o.split);  // checked by ParseInputFlags
   o.outlier_threshold = FLAGS_outlier_threshold;
@@ -552,25 +555,42 @@ int Run() {
   }
   UrdfOverlayOptions overlay;
   overlay.in_measurement_frame = run.registered && run.registration.moved;
-  if (!FLAGS_urdf_output.empty() && staged.ok() && !result.model.joint_errors.empty()) {
-    std::cerr << "warning: --urdf_output: URDF cannot hold the identified joint-error terms ("
-              << tools::JointErrorTermNames(result.model)
-              << "); they are dropped from " << FLAGS_urdf_output
-              << ", which carries the geometry alone. Predict or compensate with the YAML model "
-                 "(--output; lpoe_predict, lpoe_compensate), which keeps them\n";
+  // The geometry-only outputs: with joint-space terms, the geometry-only re-fit of the same data
+  // (the geometry identified with the terms predicts worse without them).
+  const bool geometry_outputs = !FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty();
+  const RobotModel& geometry_model =
+      run.has_geometry_only ? run.geometry_only.model : result.model;
+  if (geometry_outputs && staged.ok() && !result.model.joint_errors.empty()) {
+    const auto rms = [](const ErrorStatistics& e) { return e.norm.rms; };
+    std::cerr << "warning: URDF and UR kinematics cannot hold the identified joint-error terms ("
+              << tools::JointErrorTermNames(result.model) << ")";
+    if (run.has_geometry_only) {
+      std::cerr << "; they get a geometry-only re-fit of the same data: RMS error "
+                << (run.has_verification ? rms(run.geometry_only_verification)
+                                         : rms(run.geometry_only_identification))
+                << " mm against " << (run.has_verification ? rms(run.verification_after)
+                                                           : rms(run.identification_after))
+                << " mm for the model with the terms ("
+                << (run.has_verification ? "verification" : "identification") << " set)";
+    } else {
+      std::cerr << "; the geometry-only re-fit did not converge: they carry the geometry "
+                   "identified with the terms, which predicts worse without them";
+    }
+    std::cerr << ". Predict or compensate with the YAML model (--output; lpoe_predict, "
+                 "lpoe_compensate), which keeps the terms\n";
   }
   if (!FLAGS_urdf_output.empty() && staged.ok()) {
     std::string xml;
     if (from_urdf) {
-      staged = CalibratedUrdfOverlay(urdf_source, result.model, overlay, &xml);
+      staged = CalibratedUrdfOverlay(urdf_source, geometry_model, overlay, &xml);
     } else {
-      xml = RobotModelToUrdf(result.model);
+      xml = RobotModelToUrdf(geometry_model);
     }
     if (staged.ok()) staged = outputs.Stage(FLAGS_urdf_output, xml);
   }
   if (!FLAGS_ur_kinematics_output.empty() && staged.ok()) {
     std::string ur_yaml;
-    staged = UrKinematicsYaml(urdf_source, result.model, overlay, &ur_yaml);
+    staged = UrKinematicsYaml(urdf_source, geometry_model, overlay, &ur_yaml);
     if (staged.ok()) staged = outputs.Stage(FLAGS_ur_kinematics_output, ur_yaml);
   }
   summary.model_path = model_path;

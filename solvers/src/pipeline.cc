@@ -351,6 +351,22 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   final_errors.Clear();
   if (!result.converged()) return out;
 
+  if (options.refit_geometry && !result.joint_terms.empty()) {
+    PipelineOptions geometric = chosen;
+    geometric.joint_errors.clear();
+    CalibrationResult g = SolveCalibration(nominal, identification, geometric,
+                                           "geometry-only re-fit", nullptr, nullptr, nullptr);
+    if (g.converged()) {
+      out.has_geometry_only = true;
+      g.model = Geometric(g.model);
+      out.geometry_only_identification = PositionErrorStatistics(g.model, identification);
+      if (!verification.empty()) {
+        out.geometry_only_verification = PositionErrorStatistics(g.model, verification);
+      }
+      out.geometry_only = std::move(g);
+    }
+  }
+
   PlausibilityOptions plausibility = options.plausibility;
   plausibility.use_orientation = options.use_orientation;
   out.verdict = AssessPlausibility(out.start, out.geometric, identification_eff,

@@ -56,6 +56,10 @@ struct PipelineOptions {
   SplitKind split = SplitKind::kRandom;
   double outlier_threshold = 5.0;
   PlausibilityOptions plausibility;
+  // With joint-space terms: also re-fit the geometry alone on the same data (PipelineResult::
+  // geometry_only), the best model for outputs that carry geometry only (URDF, UR kinematics): the
+  // geometry identified together with the terms is not the best geometry without them.
+  bool refit_geometry = false;
   // Progress: the stage ("calibrating", "fold 2") and each iteration's record.
   std::function<void(const std::string& stage, const IterationRecord&)> on_iteration;
   // Progress: called when a stage without iterations starts ("registering", "analysing").
@@ -133,6 +137,11 @@ struct PipelineResult {
   ErrorStatistics folds_pooled;
   Verdict verdict;  // of a converged result
   JointErrorSelection joint_error_selection;  // options.joint_errors_auto
+  // options.refit_geometry with joint-space terms in the result: the geometry-only calibration of
+  // the same data and its errors (verification ones when has_verification).
+  bool has_geometry_only = false;
+  CalibrationResult geometry_only;
+  ErrorStatistics geometry_only_identification, geometry_only_verification;
 };
 
 // Registration then the chosen solver on `data` (no analysis). `registration` and `before` may be
