@@ -14,6 +14,8 @@
 #include <nlohmann/json.hpp>
 
 #include "file_util.h"
+#include "lpoe/io.h"
+#include "lpoe/kinematics.h"
 
 #ifndef LPOE_PLAN_PATH
 #error "LPOE_PLAN_PATH must name the lpoe_plan binary"
@@ -308,6 +310,100 @@ TEST_F(PlanTool, TrackerConstraintKeepsOnlyVisiblePoses) {
   EXPECT_GT(report["candidates"]["nothing_visible"].get<int>(), 100);
   EXPECT_LT(report["plan"]["rows"].get<int>(), 15 * 9 + 1);
   EXPECT_EQ(report["plan"]["rank"], 33);
+}
+
+// The planned poses as joint vectors (the first n fields of each data line).
+std::vector<std::vector<double>> PlannedPoses(const std::string& csv, int n) {
+  std::vector<std::vector<double>> out;
+  for (const std::string& line : DataLines(csv)) {
+    if (line.rfind("q1", 0) == 0) continue;  // the header
+    std::stringstream ss(line);
+    std::vector<double> q;
+    std::string field;
+    for (int j = 0; j < n && std::getline(ss, field, ','); ++j) q.push_back(std::stod(field));
+    out.push_back(q);
+  }
+  return out;
+}
+
+// Joint i's origin in the base frame at q: the model cut after joint i - 1 with a tool there.
+Eigen::Vector3d JointOrigin(const lpoe::RobotModel& model, const std::vector<double>& q, int i) {
+  lpoe::RobotModel cut = model;
+  cut.joints.resize(i);
+  cut.tools = {lpoe::Tool{"origin", model.joints[i].origin}};
+  return lpoe::ToolPosition(cut, q.data(), 0);
+}
+
+TEST_F(PlanTool, CellConstraintsKeepEveryPlannedPoseInTheCell) {
+  std::ofstream(dir_ / "keep_out.csv") << "# the controller cabinet\n"
+                                       << "300, -800, -200, 1200, -300, 900\n";
+  const Output o = Plan("--count=30 --output=p.csv --min_z=50 "
+                        "--box=-1100,-1100,-500,1100,1100,1400 --keep_out=keep_out.csv "
+                        "--joint_ranges=,-2.5:-0.5,,,,");
+  ASSERT_EQ(o.exit_code, kExitOk) << o.err;
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(dir_ / "p.json"));
+  EXPECT_GT(report["candidates"]["outside_cell"].get<int>(), 50);  // not vacuous
+  lpoe::RobotModel model;
+  ASSERT_TRUE(lpoe::ReadRobotModel((dir_ / "m.yaml").string(), &model).ok());
+  const auto poses = PlannedPoses(ReadAll(dir_ / "p.csv"), model.num_joints());
+  ASSERT_EQ(poses.size(), 30u);
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(-1100, -1100, -500),
+                                Eigen::Vector3d(1100, 1100, 1400));
+  const Eigen::AlignedBox3d cabinet(Eigen::Vector3d(300, -800, -200),
+                                    Eigen::Vector3d(1200, -300, 900));
+  for (const auto& q : poses) {
+    EXPECT_GE(q[1], -2.5 - 1e-9);
+    EXPECT_LE(q[1], -0.5 + 1e-9);
+    for (int i = 1; i < model.num_joints(); ++i) {
+      const Eigen::Vector3d p = JointOrigin(model, q, i);
+      EXPECT_GE(p.z(), 50 - 1e-6) << "joint " << i + 1;
+      EXPECT_FALSE(cabinet.contains(p)) << "joint " << i + 1;
+    }
+    for (int t = 0; t < model.num_tools(); ++t) {
+      const Eigen::Vector3d p = lpoe::ToolPosition(model, q.data(), t);
+      EXPECT_GE(p.z(), 50 - 1e-6);
+      EXPECT_TRUE(box.contains(p));
+      EXPECT_FALSE(cabinet.contains(p));
+    }
+  }
+}
+
+TEST_F(PlanTool, CellFlagsAreCheckedBeforeAnyWork) {
+  std::ofstream(dir_ / "bad.csv") << "0,0,0,1,1,1\n0,0,0,1,1\n";
+  for (const char* args : {"--count=10 --output=p.csv --box=1,2,3",
+                           "--count=10 --output=p.csv --box=0,0,0,-1,1,1",
+                           "--count=10 --output=p.csv --joint_ranges=0:1",
+                           "--count=10 --output=p.csv --joint_ranges=,1:0,,,,"}) {
+    const Output o = Plan(args);
+    EXPECT_EQ(o.exit_code, kExitUsage) << args << "\n" << o.err;
+    EXPECT_FALSE(fs::exists(dir_ / "p.csv")) << args;
+  }
+  const Output o = Plan("--count=10 --output=p.csv --keep_out=bad.csv");
+  EXPECT_EQ(o.exit_code, kExitInput) << o.err;
+  EXPECT_NE(o.err.find("bad.csv:2:"), std::string::npos) << o.err;
+}
+
+TEST_F(PlanTool, TrackerPlanListsTheVisibleSmrsOfEachPose) {
+  const Output o = Plan("--count=15 --output=p.csv --tracker=0,2500,600 --max_range=4000");
+  ASSERT_EQ(o.exit_code, kExitOk) << o.err;
+  const std::string csv = ReadAll(dir_ / "p.csv");
+  EXPECT_NE(csv.find("# measure the SMRs of the visible column"), std::string::npos);
+  const std::vector<std::string> lines = DataLines(csv);
+  ASSERT_EQ(lines.size(), 16u);
+  EXPECT_EQ(lines[0], "q1,q2,q3,q4,q5,q6,visible");
+  int listed = 0;
+  for (size_t k = 1; k < lines.size(); ++k) {
+    const std::string names = lines[k].substr(lines[k].rfind(',') + 1);
+    EXPECT_FALSE(names.empty()) << lines[k];
+    std::stringstream ss(names);
+    for (std::string name; std::getline(ss, name, ';');) {
+      EXPECT_TRUE(name == "smr1" || name == "smr2" || name == "smr3") << name;
+      ++listed;
+    }
+  }
+  // The rows the report counts are the SMRs listed.
+  const nlohmann::json report = nlohmann::json::parse(ReadAll(dir_ / "p.json"));
+  EXPECT_EQ(3 * listed, report["plan"]["rows"].get<int>());
 }
 
 }  // namespace

@@ -58,6 +58,19 @@ DEFINE_string(smr_facing, "",
 DEFINE_double(min_singularity, 0.01,
               "Drop candidates whose singularity measure (smallest singular value of the "
               "length-normalized geometric Jacobian, docs/planning.md) is below this; 0: keep all.");
+DEFINE_double(min_z, -1e300,
+              "Floor of the cell (mm, base frame z): every joint origin after the first and every "
+              "SMR of a planned pose at least this high. Default: no floor.");
+DEFINE_string(box, "",
+              "xmin,ymin,zmin,xmax,ymax,zmax (mm, base frame): every SMR of a planned pose inside "
+              "this box. Default: no box.");
+DEFINE_string(keep_out, "",
+              "CSV of keep-out boxes, one xmin,ymin,zmin,xmax,ymax,zmax (mm, base frame) per line "
+              "('#' comments): no joint origin nor SMR of a planned pose inside any.");
+DEFINE_string(joint_ranges, "",
+              "Joint ranges narrower than the model's limits, lo:hi per joint separated by commas "
+              "(--angle_unit for revolute joints, mm for prismatic; an empty item keeps the "
+              "limits), e.g. ':,-1.5:0.5,,,,'. Candidates outside are dropped.");
 DEFINE_double(target_accuracy, 0, "--count=auto: predicted held-out RMS to reach (mm).");
 DEFINE_double(noise_sigma, 0,
               "Measurement noise per axis (mm): scales the predicted accuracy into mm; required "
@@ -261,6 +274,78 @@ int Run() {
     }
   }
 
+  // The cell: floor, box, keep-out boxes, narrower joint ranges.
+  if (!std::isfinite(FLAGS_min_z) && FLAGS_min_z != -1e300) {
+    std::cerr << "error: --min_z must be a finite height in mm\n";
+    return kExitUsage;
+  }
+  if (FLAGS_min_z != -1e300) constraints.cell.min_z = FLAGS_min_z;
+  if (!FLAGS_box.empty()) {
+    if (Status s = ParseBox(FLAGS_box, &constraints.cell.box); !s.ok()) {
+      std::cerr << "error: --box: " << s.message() << "\n";
+      return kExitUsage;
+    }
+  }
+  if (!FLAGS_keep_out.empty()) {
+    std::string text;
+    if (Status s = ReadFile(FLAGS_keep_out, &text); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitInput;
+    }
+    std::stringstream lines(text);
+    std::string line;
+    for (int number = 1; std::getline(lines, line); ++number) {
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      const size_t first = line.find_first_not_of(" \t");
+      if (first == std::string::npos || line[first] == '#') continue;
+      Eigen::AlignedBox3d b;
+      if (Status s = ParseBox(line.substr(first), &b); !s.ok()) {
+        std::cerr << "error: " << FLAGS_keep_out << ":" << number << ": " << s.message() << "\n";
+        return kExitInput;
+      }
+      constraints.cell.keep_out.push_back(b);
+    }
+  }
+  if (!FLAGS_joint_ranges.empty()) {
+    std::vector<std::string> items;
+    std::stringstream ss(FLAGS_joint_ranges);
+    for (std::string item; std::getline(ss, item, ',');) items.push_back(item);
+    if (!FLAGS_joint_ranges.empty() && FLAGS_joint_ranges.back() == ',') items.push_back("");
+    if (static_cast<int>(items.size()) != model.num_joints()) {
+      std::cerr << "error: --joint_ranges gives " << items.size() << " items; the model has "
+                << model.num_joints() << " joints\n";
+      return kExitUsage;
+    }
+    for (int j = 0; j < model.num_joints(); ++j) {
+      const std::string& item = items[j];
+      if (item.find_first_not_of(" :") == std::string::npos) continue;  // "" or ":": the limits
+      const size_t colon = item.find(':');
+      char* end_lo = nullptr;
+      char* end_hi = nullptr;
+      const std::string lo_text = colon == std::string::npos ? "" : item.substr(0, colon);
+      const std::string hi_text = colon == std::string::npos ? "" : item.substr(colon + 1);
+      const double lo = std::strtod(lo_text.c_str(), &end_lo);
+      const double hi = std::strtod(hi_text.c_str(), &end_hi);
+      if (colon == std::string::npos || lo_text.empty() || hi_text.empty() || *end_lo != '\0' ||
+          *end_hi != '\0' || !std::isfinite(lo) || !std::isfinite(hi) || !(lo < hi)) {
+        std::cerr << "error: --joint_ranges: '" << item << "' for " << model.joints[j].name
+                  << " is not lo:hi with lo < hi\n";
+        return kExitUsage;
+      }
+      const double scale =
+          unit == AngleUnit::kDegrees && model.joints[j].type == JointType::kRevolute ? kPi / 180.0
+                                                                                      : 1.0;
+      Joint& joint = model.joints[j];
+      joint.lower = std::max(joint.lower, lo * scale);
+      joint.upper = std::min(joint.upper, hi * scale);
+      if (!(joint.lower < joint.upper)) {
+        std::cerr << "error: --joint_ranges: " << item << " for " << joint.name
+                  << " does not overlap the joint's limits\n";
+        return kExitUsage;
+      }
+    }
+  }
+
   // Candidates and workspace.
   std::vector<double> candidates, workspace;
   JointTable table;
@@ -328,8 +413,9 @@ int Run() {
   const PlanningModel& pm = *planning;
   const int offered = static_cast<int>(candidates.size() / model.num_joints());
   std::cout << "candidates: " << offered << " offered, " << pool.size() << " feasible ("
-            << pool.outside_limits << " outside the joint limits, " << pool.near_singular
-            << " near a singularity, " << pool.nothing_visible << " with no SMR visible)\n";
+            << pool.outside_limits << " outside the joint limits, " << pool.outside_cell
+            << " outside the cell, " << pool.near_singular << " near a singularity, "
+            << pool.nothing_visible << " with no SMR visible)\n";
   std::cout << "parameters: " << pm.num_parameters() << " identifiable (" << model.num_joints()
             << " joints, " << model.num_tools() << " tools";
   for (const JointBlock& block : pm.parameterization().joint_blocks) {
@@ -381,7 +467,8 @@ int Run() {
     }
   } else if (Status s = plan_of(count); !s.ok()) {
     std::cerr << "error: " << s.message() << " (" << pool.outside_limits << " outside the limits, "
-              << pool.near_singular << " near a singularity, " << pool.nothing_visible
+              << pool.outside_cell << " outside the cell, " << pool.near_singular
+              << " near a singularity, " << pool.nothing_visible
               << " with no SMR visible)\n";
     return kExitNotIdentifiable;
   }
@@ -475,18 +562,27 @@ int Run() {
          " feasible candidates, joint errors " + planned_terms + ", seed " +
          std::to_string(FLAGS_seed) + "; joint values in " +
          FLAGS_angle_unit + "\n";
-  csv += "# measure every SMR at every pose; predicted held-out RMS per unit noise " +
-         FormatNumber(quality.predicted_rms) + "\n";
+  csv += std::string(tracker.enabled ? "# measure the SMRs of the visible column (names separated "
+                                       "by ';') at each pose"
+                                     : "# measure every SMR at every pose") +
+         "; predicted held-out RMS per unit noise " + FormatNumber(quality.predicted_rms) + "\n";
   const int n = model.num_joints();
+  // With a tracker: the SMRs it sees at each planned pose.
+  auto visible = [&](int c) {
+    std::string names;
+    for (int t : pool.visible[c]) names += (names.empty() ? "" : ";") + model.tools[t].name;
+    return names;
+  };
   if (!FLAGS_candidates.empty()) {
-    csv += table.header + ",candidate_row\n";
+    csv += table.header + ",candidate_row" + (tracker.enabled ? ",visible" : "") + "\n";
     for (int c : plan.selected) {
       const int row = pool.source[c];
-      csv += table.lines[row] + "," + std::to_string(row) + "\n";
+      csv += table.lines[row] + "," + std::to_string(row) +
+             (tracker.enabled ? "," + visible(c) : "") + "\n";
     }
   } else {
     for (int j = 0; j < n; ++j) csv += (j ? ",q" : "q") + std::to_string(j + 1);
-    csv += "\n";
+    csv += tracker.enabled ? ",visible\n" : "\n";
     for (int c : plan.selected) {
       for (int j = 0; j < n; ++j) {
         double v = pool.q[static_cast<size_t>(c) * n + j];
@@ -495,7 +591,7 @@ int Run() {
         }
         csv += (j ? "," : "") + FormatNumber(v);
       }
-      csv += "\n";
+      csv += (tracker.enabled ? "," + visible(c) : "") + "\n";
     }
   }
 
@@ -514,6 +610,7 @@ int Run() {
         {"outside_limits", pool.outside_limits},
         {"near_singular", pool.near_singular},
         {"nothing_visible", pool.nothing_visible},
+        {"outside_cell", pool.outside_cell},
         {"source", FLAGS_candidates.empty() ? "sampled" : FLAGS_candidates}}},
       {"workspace_configurations", static_cast<int>(workspace.size() / n)},
       {"exchanges", plan.exchanges},

@@ -3,10 +3,13 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <memory>
 #include <numeric>
 #include <random>
+#include <sstream>
+#include <string>
 #include <thread>
 #include <utility>
 
@@ -626,8 +629,72 @@ std::unique_ptr<PlanningModel> BuildPlanningPool(
   full.outside_limits = pool->outside_limits;
   full.near_singular = pool->near_singular;
   full.nothing_visible = pool->nothing_visible;
+  full.outside_cell = pool->outside_cell;
   *pool = std::move(full);
   return with_terms;
+}
+
+bool InsideCell(const RobotModel& model, const CellConstraint& cell, const double* q,
+                std::string* why) {
+  if (!cell.enabled()) return true;
+  auto check = [&](const Eigen::Vector3d& p, const std::string& what, bool tool) {
+    std::ostringstream os;
+    if (p.z() < cell.min_z) {
+      os << what << " at z = " << p.z() << " mm, below the floor at " << cell.min_z << " mm";
+    } else if (tool && !cell.box.isEmpty() && !cell.box.contains(p)) {
+      os << what << " at (" << p.x() << ", " << p.y() << ", " << p.z()
+         << ") mm, outside the box";
+    } else {
+      for (size_t k = 0; k < cell.keep_out.size(); ++k) {
+        if (cell.keep_out[k].contains(p)) {
+          os << what << " at (" << p.x() << ", " << p.y() << ", " << p.z()
+             << ") mm, inside keep-out box " << k + 1;
+          break;
+        }
+      }
+    }
+    if (os.tellp() == 0) return true;
+    if (why) *why = os.str();
+    return false;
+  };
+  // The joint frames: joint i's origin in the base frame is the product of the earlier joints'
+  // origins and motions with its own origin.
+  SE3d T = SE3d();
+  for (int i = 0; i < model.num_joints(); ++i) {
+    T = T * model.joints[i].origin;
+    if (i > 0 && !check(T.t, model.joints[i].name + " origin", false)) return false;
+    T = T * JointMotion(model.joints[i], q[i]);
+  }
+  for (int t = 0; t < model.num_tools(); ++t) {
+    if (!check(ToolPosition(model, q, t), model.tools[t].name, true)) return false;
+  }
+  return true;
+}
+
+Status ParseBox(const std::string& text, Eigen::AlignedBox3d* box) {
+  std::vector<double> v;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    char* end = nullptr;
+    const double x = std::strtod(item.c_str(), &end);
+    while (end && *end == ' ') ++end;
+    if (item.empty() || end == item.c_str() || (end && *end != '\0') || !std::isfinite(x)) {
+      return Status::Error("expected six finite numbers xmin,ymin,zmin,xmax,ymax,zmax (mm), got '" +
+                           text + "'");
+    }
+    v.push_back(x);
+  }
+  if (v.size() != 6) {
+    return Status::Error("expected six numbers xmin,ymin,zmin,xmax,ymax,zmax (mm), got " +
+                         std::to_string(v.size()) + " in '" + text + "'");
+  }
+  const Eigen::Vector3d lo(v[0], v[1], v[2]), hi(v[3], v[4], v[5]);
+  if (!(lo.array() <= hi.array()).all()) {
+    return Status::Error("a box's minimum must not exceed its maximum on any axis: '" + text + "'");
+  }
+  *box = Eigen::AlignedBox3d(lo, hi);
+  return Status::Ok();
 }
 
 CandidatePool BuildCandidatePool(const PlanningModel& pm, const std::vector<double>& q,
@@ -651,6 +718,10 @@ CandidatePool BuildCandidatePool(const PlanningModel& pm, const std::vector<doub
     }
     if (!inside) {
       ++pool.outside_limits;
+      continue;
+    }
+    if (!InsideCell(model, constraints.cell, qr)) {
+      ++pool.outside_cell;
       continue;
     }
     if (constraints.min_singularity > 0 &&

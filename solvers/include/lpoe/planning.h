@@ -33,6 +33,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
@@ -121,8 +122,31 @@ struct TrackerConstraint {
   std::vector<Eigen::Vector3d> facing;
 };
 
+// The cell around the robot, in the model's base frame (mm). A pose is feasible when every joint
+// origin after the first (the first does not move) and every tool point is at least min_z high and
+// outside every keep-out box, and every tool point is inside `box` (when it is not empty).
+struct CellConstraint {
+  double min_z = -std::numeric_limits<double>::infinity();
+  Eigen::AlignedBox3d box;  // empty (the default): no box
+  std::vector<Eigen::AlignedBox3d> keep_out;
+
+  bool enabled() const {
+    return min_z > -std::numeric_limits<double>::infinity() || !box.isEmpty() || !keep_out.empty();
+  }
+};
+
+// Whether the robot at q stays in the cell; when not and `why` is given, what is violated ("joint3
+// origin at z = -120 mm, below --min_z", ...).
+bool InsideCell(const RobotModel& model, const CellConstraint& cell, const double* q,
+                std::string* why = nullptr);
+
+// "xmin,ymin,zmin,xmax,ymax,zmax" (mm) -> a box; an error names what is wrong (six finite numbers,
+// min <= max).
+Status ParseBox(const std::string& text, Eigen::AlignedBox3d* box);
+
 struct PlanConstraints {
   TrackerConstraint tracker;
+  CellConstraint cell;
   // Poses whose singularity measure (see SingularityMeasure) is below this are not used.
   double min_singularity = 0.0;
 };
@@ -162,6 +186,7 @@ struct CandidatePool {
   int outside_limits = 0;
   int near_singular = 0;
   int nothing_visible = 0;
+  int outside_cell = 0;  // PlanConstraints::cell
 
   int size() const { return static_cast<int>(source.size()); }
   int rows(int c) const { return row_offset[c + 1] - row_offset[c]; }
