@@ -407,7 +407,7 @@ int Run() {
   }
   std::vector<int> configuration_of_row;
   const int identification_configurations =
-      ConfigurationGroups(identification, &configuration_of_row);
+      FLAGS_kfold > 0 ? ConfigurationGroups(identification, &configuration_of_row) : 0;
   if (FLAGS_kfold > identification_configurations) {
     std::cerr << "error: --kfold=" << FLAGS_kfold << " is larger than the "
               << identification_configurations

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
-#include <unordered_map>
 #include <cmath>
 #include <numeric>
 #include <random>
@@ -214,33 +213,49 @@ std::vector<std::vector<int>> KFolds(int n, int k, uint64_t seed, SplitKind kind
 int ConfigurationGroups(const MeasurementSet& data, std::vector<int>* group) {
   const int n = data.size();
   const int nj = data.num_joints();
-  group->assign(n, -1);
-  // Hash of the joint values' bytes; collisions resolved by comparing the values.
-  std::unordered_map<uint64_t, std::vector<int>> first_rows;  // hash -> first row of each group
-  first_rows.reserve(static_cast<size_t>(n));
-  int groups = 0;
+  // Rows sorted by a hash of their joint values (then by row): equal configurations are neighbours
+  // with equal hashes; within a run of equal hashes the values are compared. 16 bytes a row.
+  std::vector<std::pair<uint64_t, int>> keys(static_cast<size_t>(n));
   for (int r = 0; r < n; ++r) {
     const double* q = data.q(r);
     uint64_t h = 1469598103934665603ull;
     for (int j = 0; j < nj; ++j) {
-      double v = q[j] == 0.0 ? 0.0 : q[j];  // -0 and +0 are one value
+      const double v = q[j] == 0.0 ? 0.0 : q[j];  // -0 and +0 are one value
       uint64_t bits;
       std::memcpy(&bits, &v, sizeof bits);
       h = (h ^ bits) * 1099511628211ull;
       h ^= h >> 29;
     }
-    std::vector<int>& candidates = first_rows[h];
-    for (int first : candidates) {
-      if (std::equal(q, q + nj, data.q(first))) {
-        (*group)[r] = (*group)[first];
-        break;
+    keys[r] = {h, r};
+  }
+  std::sort(keys.begin(), keys.end());
+  // first[r]: the first row (in file order) with row r's joint values.
+  group->assign(static_cast<size_t>(n), -1);
+  std::vector<int>& first = *group;
+  std::vector<int> firsts_in_run;
+  for (size_t a = 0; a < keys.size();) {
+    size_t b = a;
+    while (b < keys.size() && keys[b].first == keys[a].first) ++b;
+    firsts_in_run.clear();
+    for (size_t k = a; k < b; ++k) {  // rows ascending within the run
+      const int r = keys[k].second;
+      const double* q = data.q(r);
+      for (int f : firsts_in_run) {
+        if (std::equal(q, q + nj, data.q(f))) {
+          first[r] = f;
+          break;
+        }
+      }
+      if (first[r] < 0) {
+        first[r] = r;
+        firsts_in_run.push_back(r);
       }
     }
-    if ((*group)[r] < 0) {
-      (*group)[r] = groups++;
-      candidates.push_back(r);
-    }
+    a = b;
   }
+  // Numbered in order of first appearance (first[r] <= r, so its number is known).
+  int groups = 0;
+  for (int r = 0; r < n; ++r) first[r] = first[r] == r ? groups++ : first[first[r]];
   return groups;
 }
 
