@@ -24,6 +24,8 @@
 #include "lpoe/joint_table.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/planning.h"
+#include "lpoe/refusals.h"
+#include "output_files.h"
 #include "tool_common.h"
 
 DEFINE_string(model, "", "Nominal robot model, YAML or URDF (.urdf). Required.");
@@ -237,6 +239,29 @@ int Run() {
     return kExitUsage;
   }
 
+  // Every output against every input and the other output, and its directory writable, before
+  // any work (tools/output_files.h); both are committed together at the end or neither.
+  std::string report_path = FLAGS_report;
+  if (report_path.empty()) {
+    const size_t slash = FLAGS_output.find_last_of('/');
+    const size_t dot = FLAGS_output.find_last_of('.');
+    report_path = (dot != std::string::npos && (slash == std::string::npos || dot > slash)
+                       ? FLAGS_output.substr(0, dot)
+                       : FLAGS_output) +
+                  ".json";
+  }
+  tools::OutputSet outputs;
+  outputs.AddInput("--model", FLAGS_model);
+  outputs.AddInput("--candidates", FLAGS_candidates);
+  outputs.AddInput("--workspace", FLAGS_workspace);
+  outputs.AddOutput("--output", FLAGS_output);
+  outputs.AddOutput(FLAGS_report.empty() ? "--report (default: --output with .json)" : "--report",
+                    report_path);
+  if (Status s = outputs.Check(); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
+  }
+
   RobotModel model;
   if (Status s = ReadRobotModelFile(FLAGS_model, &model); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
@@ -360,7 +385,8 @@ int Run() {
       return kExitNotIdentifiable;
     }
     auto reaches = [&](int n) {
-      return plan_of(n).ok() && FLAGS_noise_sigma * quality.predicted_rms <= FLAGS_target_accuracy;
+      return plan_of(n).ok() && PlanRefusal(quality, pm.num_parameters(), n).ok() &&
+             FLAGS_noise_sigma * quality.predicted_rms <= FLAGS_target_accuracy;
     };
     int max_rows = 3;
     for (int c = 0; c < pool.size(); ++c) max_rows = std::max(max_rows, pool.rows(c));
@@ -385,10 +411,9 @@ int Run() {
               << " with no SMR visible)\n";
     return kExitNotIdentifiable;
   }
-  if (quality.rank < pm.num_parameters()) {
-    std::cerr << "error: the " << count << " planned poses identify only " << quality.rank << " of "
-              << pm.num_parameters()
-              << " parameters: plan more poses or offer candidates that move every joint\n";
+  // The refusals lpoe.plan shares (lpoe/refusals.h): full rank, and more rows than parameters.
+  if (Status s = PlanRefusal(quality, pm.num_parameters(), count); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitNotIdentifiable;
   }
 
@@ -534,28 +559,15 @@ int Run() {
   for (int c : plan.selected) rows.push_back(pool.source[c]);
   report["candidate_rows"] = rows;
 
-  std::string report_path = FLAGS_report;
-  if (report_path.empty()) {
-    const size_t slash = FLAGS_output.find_last_of('/');
-    const size_t dot = FLAGS_output.find_last_of('.');
-    report_path = (dot != std::string::npos && (slash == std::string::npos || dot > slash)
-                       ? FLAGS_output.substr(0, dot)
-                       : FLAGS_output) +
-                  ".json";
+  std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
+  Status staged = outputs.Stage(FLAGS_output, csv);
+  if (staged.ok()) staged = outputs.Stage(report_path, tools::JsonText(report));
+  std::vector<std::string> written;
+  if (Status s = staged.ok() ? outputs.Commit(&written) : staged; !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitOutput;
   }
-  if (tools::SameFile(report_path, FLAGS_output) ||
-      (!FLAGS_candidates.empty() && tools::SameFile(FLAGS_output, FLAGS_candidates))) {
-    std::cerr << "error: --output must differ from --report and --candidates\n";
-    return kExitUsage;
-  }
-  for (const auto& [path, text] : {std::pair<std::string, std::string>{FLAGS_output, csv},
-                                   {report_path, report.dump(2) + "\n"}}) {
-    if (Status s = WriteFileAtomically(path, text); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitOutput;
-    }
-    std::cout << "wrote " << path << "\n";
-  }
+  for (const std::string& path : written) std::cout << "wrote " << path << "\n";
   return kExitOk;
 }
 

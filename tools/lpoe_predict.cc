@@ -18,6 +18,7 @@
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/urdf.h"
+#include "output_files.h"
 #include "tool_common.h"
 
 DEFINE_string(model, "", "Robot model: YAML, or URDF when the name ends in .urdf (required).");
@@ -53,8 +54,14 @@ int Run() {
     std::cerr << "error: --angle_unit must be rad or deg\n";
     return kExitUsage;
   }
-  if (tools::SameFile(FLAGS_output, FLAGS_joints) || tools::SameFile(FLAGS_output, FLAGS_model)) {
-    std::cerr << "error: --output must not overwrite an input file\n";
+  // The output against the inputs, and its directory writable, before any work
+  // (tools/output_files.h).
+  tools::OutputSet outputs;
+  outputs.AddInput("--model", FLAGS_model);
+  outputs.AddInput("--joints", FLAGS_joints);
+  outputs.AddOutput("--output", FLAGS_output);
+  if (Status s = outputs.Check(); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
   RobotModel model;
@@ -95,7 +102,9 @@ int Run() {
     std::cerr << "error: " << FLAGS_joints << ": " << s.message() << "\n";
     return kExitInput;
   }
-  if (Status s = WriteFileAtomically(FLAGS_output, PositionsToCsv(positions)); !s.ok()) {
+  std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
+  Status staged = outputs.Stage(FLAGS_output, PositionsToCsv(positions));
+  if (Status s = staged.ok() ? outputs.Commit(nullptr) : staged; !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;
   }

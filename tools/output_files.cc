@@ -244,10 +244,29 @@ Status OutputSet::Check() const {
     }
   }
   for (const Entry& o : outputs_) {
-    std::string resolved;
-    if (o.create_directory) continue;
-    if (Status r = Resolve(o.path, &resolved); !r.ok()) {
-      return Status::Error(o.flag + "=" + r.message());
+    // A device, FIFO or descriptor is written straight (its directory is not written).
+    struct stat st;
+    if (::stat(o.path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) continue;
+    std::string dir;
+    if (o.create_directory) {
+      // The deepest existing ancestor is where the missing directories will be created.
+      dir = ResolveLexically(DirName(o.path));
+      while (::stat(dir.c_str(), &st) != 0 && dir != "/") dir = DirName(dir);
+      if (!S_ISDIR(st.st_mode)) {
+        return Status::Error(o.flag + "=" + o.path + ": " + dir + " is not a directory");
+      }
+    } else {
+      std::string resolved;
+      if (Status r = Resolve(o.path, &resolved); !r.ok()) {
+        return Status::Error(o.flag + "=" + r.message());
+      }
+      dir = DirName(resolved);
+    }
+    // The temporary is created beside the target and renamed onto it: the directory itself must
+    // be writable, even when the target file exists and is.
+    if (::access(dir.c_str(), W_OK | X_OK) != 0) {
+      return Status::Error(o.flag + "=" + o.path + ": the directory " + dir +
+                           " is not writable (" + std::strerror(errno) + ")");
     }
   }
   return Status::Ok();
@@ -302,12 +321,37 @@ Status OutputSet::StagingPath(const std::string& path, std::string* resolved,
   return Status::Ok();
 }
 
+StagedFile::~StagedFile() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+Status StagedFile::Create(const std::string& temporary) {
+  if (fd_ >= 0) return Status::Error(path_ + ": already open");
+  path_ = temporary;
+  fd_ = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+  if (fd_ < 0) return Status::Error(temporary + ": cannot create: " + std::strerror(errno));
+  return Status::Ok();
+}
+
+Status StagedFile::Append(const std::string& text) {
+  if (fd_ < 0) return Status::Error(path_ + ": not open");
+  return WriteAll(fd_, text.data(), text.size(), path_);
+}
+
+Status StagedFile::Close() {
+  if (fd_ < 0) return Status::Error(path_ + ": not open");
+  const int fd = fd_;
+  fd_ = -1;
+  if (::close(fd) != 0) return Status::Error(path_ + ": cannot close: " + std::strerror(errno));
+  return Status::Ok();
+}
+
 Status OutputSet::Stage(const std::string& path, const std::string& contents) {
   return StageWith(path, [&contents](const std::string& tmp) {
-    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
-    if (fd < 0) return Status::Error(tmp + ": cannot create: " + std::strerror(errno));
-    Status s = WriteAll(fd, contents.data(), contents.size(), tmp);
-    if (::close(fd) != 0 && s.ok()) s = Status::Error(tmp + ": cannot close: " + std::strerror(errno));
+    StagedFile file;
+    Status s = file.Create(tmp);
+    if (s.ok()) s = file.Append(contents);
+    if (s.ok()) s = file.Close();
     return s;
   });
 }

@@ -11,6 +11,7 @@
 #include <limits>
 
 #include "lpoe/io.h"
+#include "tool_common.h"
 
 namespace lpoe {
 namespace tools {
@@ -353,9 +354,31 @@ std::string Num(double v) {
   return buf;
 }
 
+// Longest label handed to PLplot (bytes, before "..."): its text routines copy into fixed-size
+// buffers (a joint name of ~2,000 characters crashed it), and a longer label does not fit a panel.
+constexpr size_t kMaxLabelBytes = 120;
+
+// A label as PLplot may take it: valid UTF-8, truncated, and PLplot's escape character '#' doubled
+// (so that a name holding "#u" or "#[0x25c6]" is drawn as written, not interpreted).
+std::string PlotLabel(const std::string& text) {
+  const std::string cut = TruncateUtf8(ValidUtf8(text), kMaxLabelBytes);
+  std::string out;
+  for (char c : cut) {
+    if (c == '#') out += '#';
+    out += c;
+  }
+  return out;
+}
+
 }  // namespace
 
-Status RenderFigure(const Figure& fig, ImageFormat format, std::string* bytes) {
+Status RenderFigure(const Figure& figure, ImageFormat format, std::string* bytes) {
+  // Every text of the figure made safe for PLplot in this one place.
+  Figure fig = figure;
+  for (Panel& p : fig.panels) {
+    for (std::string* t : {&p.title, &p.x_label, &p.y_label, &p.color_label}) *t = PlotLabel(*t);
+    for (Series& s : p.series) s.label = PlotLabel(s.label);
+  }
   if (Status s = CheckFigure(fig); !s.ok()) return s;
   const char* device = DeviceName(format);
   if (!DeviceInstalled(device))

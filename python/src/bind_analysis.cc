@@ -20,6 +20,7 @@
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/planning.h"
+#include "lpoe/refusals.h"
 #include "lpoe/problem_builder.h"
 #include "python_api.h"
 
@@ -160,11 +161,8 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
   if (!nominal_obj.is_none()) {
     nominal = nominal_obj.cast<const RobotModel*>();
     Check(nominal->Validate());
-    if (nominal->num_joints() != n || nominal->num_tools() < model.num_tools()) {
-      throw LpoeError("nominal: the nominal model has " + std::to_string(nominal->num_joints()) +
-                      " joints and " + std::to_string(nominal->num_tools()) +
-                      " tools; the calibrated model " + std::to_string(n) + " and " +
-                      std::to_string(model.num_tools()));
+    if (Status s = CheckNominalMatches(model, *nominal); !s.ok()) {
+      throw LpoeError("nominal: " + s.message());
     }
   }
   // Tool of every row: one index or name for all rows, or an (M,) integer array.
@@ -408,6 +406,9 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
   }
   if (!workspace_obj.is_none()) {
     workspace = RowMajor(workspace_obj.cast<RowArray>(), n, "workspace");
+    // lpoe_plan refuses a --workspace file without rows (exit 2): the accuracy over no
+    // configuration is no accuracy at all.
+    if (workspace.empty()) throw LpoeError("workspace: no configurations (expected (W, N), W >= 1)");
   } else {
     Check(SampleConfigurations(model, workspace_count, seed + 1, &workspace));
   }
@@ -431,6 +432,10 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
     out.num_parameters = pm.num_parameters();
     if (status.ok()) {
       out.quality = EvaluatePlan(pm, pool, plan.selected, L);
+      // The refusals lpoe_plan makes (exit 3 there): rank deficiency, no redundancy.
+      status = PlanRefusal(out.quality, pm.num_parameters(), count);
+    }
+    if (status.ok()) {
       out.exchanges = plan.exchanges;
       out.q.resize(count, n);
       for (int k = 0; k < count; ++k) {
@@ -452,6 +457,7 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
           finite > 0 ? std::sqrt(mean_sq / finite) : std::numeric_limits<double>::infinity();
     }
   }
+  if (!status.ok() && out.quality.num_poses > 0) throw LpoeError(status.message());
   if (!status.ok()) {
     throw LpoeError(status.message() + " (" + std::to_string(out.outside_limits) +
                     " outside the limits, " + std::to_string(out.near_singular) +
