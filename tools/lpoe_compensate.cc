@@ -383,8 +383,9 @@ int Run() {
                           ? FLAGS_threads
                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
 
-  std::string header = "# lpoe_compensate: model " + FLAGS_model + ", " +
-                       (joints_mode ? "joints " : "targets ") + in_path + ", angles in " +
+  std::string header = "# lpoe_compensate: model " + tools::CommentText(FLAGS_model) + ", " +
+                       (joints_mode ? "joints " : "targets ") + tools::CommentText(in_path) +
+                       ", angles in " +
                        FLAGS_angle_unit + "\n";
   for (int j = 0; j < n; ++j) header += "q" + std::to_string(j + 1) + ",";
   header += "status,residual,sigma_min";

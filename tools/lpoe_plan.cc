@@ -495,7 +495,7 @@ int Run() {
   if (tilt) planned_terms += std::string(",") + kGravityTiltName;
   if (planned_terms.empty()) planned_terms = "none";
   std::string csv;
-  csv += "# lpoe_plan: model " + model.name + ", criterion " + PlanCriterionName(options.criterion) +
+  csv += "# lpoe_plan: model " + tools::CommentText(model.name) + ", criterion " + PlanCriterionName(options.criterion) +
          ", " + std::to_string(count) + " of " + std::to_string(pool.size()) +
          " feasible candidates, joint errors " + planned_terms + ", seed " +
          std::to_string(FLAGS_seed) + "; joint values in " +

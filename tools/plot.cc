@@ -354,22 +354,6 @@ std::string Num(double v) {
   return buf;
 }
 
-// Longest label handed to PLplot (bytes, before "..."): its text routines copy into fixed-size
-// buffers (a joint name of ~2,000 characters crashed it), and a longer label does not fit a panel.
-constexpr size_t kMaxLabelBytes = 120;
-
-// A label as PLplot may take it: valid UTF-8, truncated, and PLplot's escape character '#' doubled
-// (so that a name holding "#u" or "#[0x25c6]" is drawn as written, not interpreted).
-std::string PlotLabel(const std::string& text) {
-  const std::string cut = TruncateUtf8(ValidUtf8(text), kMaxLabelBytes);
-  std::string out;
-  for (char c : cut) {
-    if (c == '#') out += '#';
-    out += c;
-  }
-  return out;
-}
-
 }  // namespace
 
 Status RenderFigure(const Figure& figure, ImageFormat format, std::string* bytes) {

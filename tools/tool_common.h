@@ -12,6 +12,7 @@
 #include "lpoe/io.h"
 #include "lpoe/statistics.h"
 #include "lpoe/urdf.h"
+#include "text_safety.h"
 
 namespace lpoe {
 namespace tools {
@@ -95,17 +96,6 @@ struct InputPaths {
 };
 InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& measurements_flag,
                              const std::string& verify_flag, bool holdout);
-
-// `text` with every byte sequence that is not valid UTF-8 (stray continuation bytes, truncated or
-// overlong sequences, surrogates, code points above U+10FFFF) replaced by U+FFFD, one per maximal
-// invalid subpart (as nlohmann::json's error_handler_t::replace does). Names and paths may hold
-// any bytes; every text a report writer emits (JSON, HTML, plot labels) goes through this or
-// JsonText (tools/json_text.h), never aborting on such bytes.
-std::string ValidUtf8(const std::string& text);
-
-// `text` cut to at most `max_bytes` bytes at a UTF-8 character boundary, with "..." appended when
-// cut (then at most max_bytes + 3 bytes). For labels that reach fixed-size buffers (PLplot).
-std::string TruncateUtf8(const std::string& text, size_t max_bytes);
 
 // True when both paths name the same existing file (same device and inode), or are equal strings.
 bool SameFile(const std::string& a, const std::string& b);
