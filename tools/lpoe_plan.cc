@@ -25,6 +25,7 @@
 #include "lpoe/joint_term.h"
 #include "lpoe/planning.h"
 #include "lpoe/refusals.h"
+#include "json_text.h"
 #include "output_files.h"
 #include "tool_common.h"
 
