@@ -88,3 +88,15 @@ def test_compensate_refuses_a_nominal_model_of_another_robot(inputs, tmp_path):
     other = lpoe.model_from_yaml("\n".join(lines) + "\n")
     with pytest.raises(lpoe.Error, match="joint 2 is prismatic"):
         lpoe.compensate(m, joints=np.array(d.q[:3]), nominal=other)
+
+
+def test_calibration_report_of_a_non_utf8_model_name(inputs, tmp_path):
+    m, d, _ = inputs
+    text = m.to_yaml().encode()
+    text = text.replace(b"name: joint2", b'name: "j\xff\xfe2"', 1)
+    path = tmp_path / "bytes.yaml"
+    path.write_bytes(text)
+    bad = lpoe.read_model(str(path))
+    c = lpoe.calibrate(bad, d)  # nlohmann's type_error 316 escaped as RuntimeError before
+    assert c.report["tool"]["name"]
+    assert "j\ufffd\ufffd2" in c.report_json
