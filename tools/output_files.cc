@@ -36,6 +36,26 @@ extern "C" void CleanupAndReraise(int sig) {
   ::raise(sig);
 }
 
+// Faults (a crash in a library: PLplot, a solver) and abort(): the temporaries are removed, the
+// previous action (the default, or a sanitizer's handler) is restored, and the handler returns: a
+// fault re-executes the faulting instruction and abort() raises again, so the process dies as it
+// would have (with the sanitizer's report), leaving no .lpoe-staging-* directory behind.
+constexpr int kFaultSignals[] = {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT};
+struct sigaction g_previous[sizeof(kFaultSignals) / sizeof(kFaultSignals[0])];
+
+extern "C" void CleanupAndChain(int sig) {
+  const int n = g_cleanup_count.load();
+  for (int k = n - 1; k >= 0; --k) {
+    if (g_cleanup[k][0] != 0) {
+      ::unlink(g_cleanup[k]);
+      ::rmdir(g_cleanup[k]);
+    }
+  }
+  for (size_t k = 0; k < sizeof(kFaultSignals) / sizeof(kFaultSignals[0]); ++k) {
+    if (kFaultSignals[k] == sig) ::sigaction(sig, &g_previous[k], nullptr);
+  }
+}
+
 void RegisterCleanup(const std::string& path) {
   if (!g_handlers.exchange(true)) {
     struct sigaction sa;
@@ -45,6 +65,14 @@ void RegisterCleanup(const std::string& path) {
     ::sigaction(SIGINT, &sa, nullptr);
     ::sigaction(SIGTERM, &sa, nullptr);
     ::sigaction(SIGHUP, &sa, nullptr);
+    struct sigaction fault;
+    std::memset(&fault, 0, sizeof(fault));
+    fault.sa_handler = CleanupAndChain;
+    sigemptyset(&fault.sa_mask);
+    fault.sa_flags = SA_ONSTACK;  // a stack overflow still reaches it when an altstack exists
+    for (size_t k = 0; k < sizeof(kFaultSignals) / sizeof(kFaultSignals[0]); ++k) {
+      ::sigaction(kFaultSignals[k], &fault, &g_previous[k]);
+    }
   }
   const int k = g_cleanup_count.load();
   if (k >= kMaxCleanup || path.size() > PATH_MAX) return;
