@@ -246,6 +246,13 @@ TEST(ToolContract, LongJointNamesDoNotCrashThePlots) {
   EXPECT_GT(ReadAll(d / "r.html").size(), 1000u);
   EXPECT_FALSE(ListDir(d / "plots").empty());
   EXPECT_TRUE(NoStagingLeft(d.path()));
+  // lpoe_compare's HTML report draws the same plots.
+  const ToolOutput c = RunInDir(d.path(), std::string(LPOE_COMPARE_PATH) +
+                                              " --model=long.yaml --measurements=" +
+                                              Q(kIdentification) + " --html_report=c.html");
+  EXPECT_TRUE(c.exit_code == 0 || c.exit_code == 7) << c.err;  // 7: the solvers disagree
+  EXPECT_GT(ReadAll(d / "c.html").size(), 1000u) << c.err;
+  EXPECT_TRUE(NoStagingLeft(d.path()));
 }
 
 // ---- One strict CSV reader.
