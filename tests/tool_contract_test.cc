@@ -315,6 +315,12 @@ TEST(ToolContract, CompensateRangeLimitsAndUnitHint) {
   r = Compensate(d, "--model=" + Q(kModel) + " --targets=deg.csv --output=o.csv --angle_unit=deg");
   EXPECT_EQ(r.exit_code, kExitOk) << r.err;
   EXPECT_EQ(r.err.find("--angle_unit=deg"), std::string::npos) << r.err;
+  // lpoe_predict gives the same hint.
+  r = Predict(d, "--model=" + Q(kModel) + " --joints=deg.csv --output=p.csv");
+  EXPECT_EQ(r.exit_code, kExitOk) << r.err;
+  EXPECT_NE(r.err.find("--angle_unit=deg"), std::string::npos) << r.err;
+  r = Predict(d, "--model=" + Q(kModel) + " --joints=deg.csv --output=p.csv --angle_unit=deg");
+  EXPECT_EQ(r.err.find("--angle_unit=deg"), std::string::npos) << r.err;
 }
 
 TEST(ToolContract, CompensateRefusesANominalModelOfAnotherRobot) {

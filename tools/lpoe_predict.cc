@@ -8,6 +8,8 @@
 // row, which then overrides --tool); other columns are ignored. OUT.csv has the header x,y,z and one
 // row per input row, in mm in the model's frame (the measurement frame of a registered calibration).
 // Exit codes: 0 written, 1 bad flags, 2 bad input file, 6 output not written.
+#include <algorithm>
+#include <cmath>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -15,6 +17,7 @@
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 
+#include "lpoe/csv_rules.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/urdf.h"
@@ -96,6 +99,13 @@ int Run() {
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
+  }
+  if (unit == AngleUnit::kRadians) {  // the hint every joint reader gives (lpoe/csv_rules.h)
+    const int n = model.num_joints();
+    std::vector<double> max_abs(n, 0.0);
+    for (size_t k = 0; k < q.size(); ++k) max_abs[k % n] = std::max(max_abs[k % n], std::abs(q[k]));
+    const std::string hint = JointUnitHint(model, max_abs);
+    if (!hint.empty()) std::cerr << "warning: " << FLAGS_joints << ": " << hint << "\n";
   }
   std::vector<Eigen::Vector3d> positions;
   if (Status s = PredictPositions(model, q, targets, tool, &positions); !s.ok()) {
