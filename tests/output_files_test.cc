@@ -125,14 +125,29 @@ TEST_F(OutputFiles, SigtermRemovesTheTemporaries) {
 // (the temporary is created beside the target: a writable target in a read-only directory fails
 // at commit otherwise).
 TEST_F(OutputFiles, UnwritableDirectoryIsRefusedByCheck) {
-  if (::geteuid() == 0) GTEST_SKIP() << "root writes every directory";
   const std::string ro = dir_ + "/ro";
   ASSERT_EQ(::mkdir(ro.c_str(), 0555), 0);
-  OutputSet out;
-  out.AddOutput("--output", ro + "/x.csv");
-  const Status s = out.Check();
-  EXPECT_FALSE(s.ok());
-  EXPECT_NE(s.message().find("not writable"), std::string::npos) << s.message();
+  ASSERT_EQ(::chmod(dir_.c_str(), 0755), 0);  // searchable by the unprivileged child below
+  // Root writes every directory: the check runs in a child that drops to an unprivileged user.
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    if (::geteuid() == 0 && (::setgid(65534) != 0 || ::setuid(65534) != 0)) _exit(10);
+    OutputSet out;
+    out.AddOutput("--output", ro + "/x.csv");
+    const Status s = out.Check();
+    if (s.ok()) _exit(1);
+    if (s.message().find("not writable") == std::string::npos) _exit(2);
+    // A writable directory beside it passes.
+    OutputSet fine;
+    fine.AddOutput("--output", "/tmp/lpoe_output_files_test_unused.csv");
+    _exit(fine.Check().ok() ? 0 : 3);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  if (WEXITSTATUS(status) == 10) GTEST_SKIP() << "cannot drop privileges here";
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "1: accepted, 2: another message, 3: /tmp refused";
   ::chmod(ro.c_str(), 0755);
 }
 
