@@ -71,8 +71,10 @@ constexpr char kUsage[] =
     "  lpoe_compensate --model=calibrated.yaml --targets=targets.csv --output=joints.csv\n"
     "  lpoe_compensate --model=calibrated.yaml --joints=program.csv --nominal=nominal.yaml \\\n"
     "      --output=joints.csv --report=summary.json\n\n"
-    "Exit codes: 0 file processed (rows may carry a status other than ok), 1 bad flags, 2 bad "
-    "input file, 6 output not written, 8 --strict and some row not ok.";
+    "Exit codes: 0 file processed (rows may carry a status other than ok), 1 bad flags or outputs "
+    "(one names an input or the other output, or its directory is missing or not writable: "
+    "checked before any row is read), 2 bad input file, 6 output not written (then neither is), "
+    "8 --strict and some row not ok.";
 
 constexpr int kExitNotAllOk = 8;
 constexpr int kMaxJointsRead = InverseKinematics::kMaxJoints;

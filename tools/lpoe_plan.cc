@@ -93,9 +93,11 @@ constexpr char kUsage[] =
     "      --output=poses.csv --tracker=2500,0,800 --max_range=6000\n"
     "  lpoe_plan --model=nominal.yaml --count=auto --target_accuracy=0.02 --noise_sigma=0.015 \\\n"
     "      --output=poses.csv\n\n"
-    "Exit codes: 0 plan written, 1 bad flags, 2 unreadable input, 3 no plan possible (too few\n"
-    "feasible candidates, the candidates cannot identify the model, or the target accuracy is out\n"
-    "of reach), 6 an output could not be written.";
+    "Exit codes: 0 plan written, 1 bad flags or outputs (one names an input or another output,\n"
+    "or its directory is missing or not writable: checked before any work), 2 unreadable input,\n"
+    "3 no plan possible (too few feasible candidates, the candidates cannot identify the model,\n"
+    "no more rows than parameters, or the target accuracy is out of reach), 6 an output could\n"
+    "not be written (then none is).";
 
 constexpr double kPi = 3.14159265358979323846;
 

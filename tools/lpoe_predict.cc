@@ -7,7 +7,8 @@
 // IN.csv names q1..qN in its header and may have a `target` column (tool name or 0-based index per
 // row, which then overrides --tool); other columns are ignored. OUT.csv has the header x,y,z and one
 // row per input row, in mm in the model's frame (the measurement frame of a registered calibration).
-// Exit codes: 0 written, 1 bad flags, 2 bad input file, 6 output not written.
+// Exit codes: 0 written, 1 bad flags or output (an input's file, or a missing or unwritable
+// directory: checked before any work), 2 bad input file, 6 output not written.
 #include <algorithm>
 #include <cmath>
 #include <iostream>
@@ -41,7 +42,8 @@ constexpr char kUsage[] =
     "  lpoe_predict --model=calibrated.yaml --joints=poses.csv --output=predicted.csv\n"
     "  lpoe_predict --model=robot.urdf --joints=poses.csv --angle_unit=deg --tool=smr2 \\\n"
     "      --output=predicted.csv\n\n"
-    "Exit codes: 0 written, 1 bad flags, 2 bad input file, 6 output not written.";
+    "Exit codes: 0 written, 1 bad flags or output (an input's file, or a missing or unwritable "
+    "directory), 2 bad input file, 6 output not written.";
 
 int Run() {
   using tools::kExitInput;
