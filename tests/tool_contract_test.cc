@@ -353,5 +353,33 @@ TEST(ToolContract, PlanWithoutRedundancyIsRefused) {
   EXPECT_EQ(r.exit_code, kExitOk) << r.err;
 }
 
+// The same refusal for a data set: 9 points of cobot6 (27 rows for 27 parameters) fit exactly and
+// used to pass the verdict with a residual of 1e-13 mm and no standard deviation.
+TEST(ToolContract, CalibrationWithoutRedundancyIsRefused) {
+  TempDir d;
+  const std::string all = ReadAll(kIdentification);
+  std::string nine, ten;
+  int data_rows = 0;
+  size_t start = 0;
+  while (start < all.size()) {
+    const size_t end = all.find('\n', start);
+    const std::string line = all.substr(start, end == std::string::npos ? std::string::npos : end - start + 1);
+    start = end == std::string::npos ? all.size() : end + 1;
+    const bool data = !line.empty() && line[0] != '#' && line.rfind("q1,", 0) != 0;
+    if (data) ++data_rows;
+    if (!data || data_rows <= 9) nine += line;
+    if (!data || data_rows <= 10) ten += line;
+  }
+  ASSERT_TRUE(WriteAll(d / "nine.csv", nine));
+  ASSERT_TRUE(WriteAll(d / "ten.csv", ten));
+  ToolOutput r = Calibrate(d, "--model=" + Q(kModel) + " --measurements=nine.csv --output=cal.yaml");
+  EXPECT_EQ(r.exit_code, kExitNotIdentifiable) << r.out << r.err;
+  EXPECT_NE((r.out + r.err).find("cannot check itself"), std::string::npos) << r.out << r.err;
+  EXPECT_FALSE(Exists(d / "cal.yaml"));
+  r = Calibrate(d, "--model=" + Q(kModel) + " --measurements=ten.csv --output=cal.yaml");
+  EXPECT_NE(r.exit_code, kExitNotIdentifiable) << r.out << r.err;
+  EXPECT_EQ((r.out + r.err).find("cannot check itself"), std::string::npos) << r.out << r.err;
+}
+
 }  // namespace
 }  // namespace lpoe

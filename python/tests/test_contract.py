@@ -100,3 +100,15 @@ def test_calibration_report_of_a_non_utf8_model_name(inputs, tmp_path):
     c = lpoe.calibrate(bad, d)  # nlohmann's type_error 316 escaped as RuntimeError before
     assert c.report["tool"]["name"]
     assert "j\ufffd\ufffd2" in c.report_json
+
+
+def test_calibration_without_redundancy_is_refused(inputs):
+    m, d, _ = inputs
+    # 9 points, 27 rows for 27 parameters: not identifiable, as lpoe_calibrate exits 3 (lpoe.calibrate
+    # reports a termination other than converged, as for any data that cannot identify the model).
+    nine = lpoe.measurements(m, np.array(d.q[:9]), np.array(d.positions[:9]))
+    c = lpoe.calibrate(m, nine)
+    assert c.termination != "converged"
+    assert "cannot check itself" in c.message
+    ten = lpoe.measurements(m, np.array(d.q[:10]), np.array(d.positions[:10]))
+    assert "cannot check itself" not in lpoe.calibrate(m, ten).message
