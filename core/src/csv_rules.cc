@@ -1,5 +1,6 @@
 #include "lpoe/csv_rules.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "parse_util.h"
@@ -71,7 +72,13 @@ Status CheckCsvRowFields(size_t fields, const CsvHeader& header, const std::stri
 std::string JointUnitHint(const RobotModel& model, const std::vector<double>& max_abs) {
   constexpr double kTwoPi = 2 * 3.14159265358979323846;
   for (int j = 0; j < model.num_joints() && j < static_cast<int>(max_abs.size()); ++j) {
-    if (model.joints[j].type != JointType::kRevolute || !(max_abs[j] > kTwoPi)) continue;
+    const Joint& joint = model.joints[j];
+    if (joint.type != JointType::kRevolute || !(max_abs[j] > kTwoPi)) continue;
+    // A joint whose declared limits reach beyond one turn may be commanded there.
+    if (std::isfinite(joint.lower) && std::isfinite(joint.upper) &&
+        std::max(-joint.lower, joint.upper) >= max_abs[j]) {
+      continue;
+    }
     return "revolute joint values up to " + internal::ShortNumber(max_abs[j]) + " (q" +
            std::to_string(j + 1) +
            ") read as radians look like degrees: use --angle_unit=deg if they are";

@@ -22,7 +22,8 @@ Status CheckRedundancy(int rows, int parameters, const std::string& what) {
                        std::to_string(parameters) +
                        " parameters: a plan or data set with no more rows than parameters cannot "
                        "check itself (every residual is zero whatever the errors, no standard "
-                       "deviation can be estimated); use more poses than parameters / 3");
+                       "deviation can be estimated): use more poses, so that the rows outnumber "
+                       "the parameters");
 }
 
 Status CheckFullRank(int rank, int parameters, const std::string& what) {

@@ -44,7 +44,8 @@ Status CheckCsvRowFields(size_t fields, const CsvHeader& header, const std::stri
 
 // A warning (empty when none) when joint values read as radians look like degrees: some revolute
 // joint's largest magnitude `max_abs[j]` (rad) is above 2 pi, where no revolute joint of a serial
-// arm is normally commanded and where degrees of ordinary poses land.
+// arm is normally commanded and where degrees of ordinary poses land (unless the joint's declared
+// limits reach that far).
 std::string JointUnitHint(const RobotModel& model, const std::vector<double>& max_abs);
 
 }  // namespace lpoe
