@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -351,6 +352,21 @@ TEST(ToolContract, PlanWithoutRedundancyIsRefused) {
   EXPECT_FALSE(Exists(d / "p.json"));
   r = Plan(d, "--model=" + Q(kModel) + " --count=10 --output=p.csv");
   EXPECT_EQ(r.exit_code, kExitOk) << r.err;
+  // --count=auto on 9 candidates (27 rows at most): refused, not an endless search.
+  std::string nine = "q1,q2,q3,q4,q5,q6\n";
+  for (int k = 0; k < 9; ++k) {
+    for (int j = 0; j < 6; ++j) {
+      nine += (j ? "," : "") + std::to_string(0.3 * std::sin(1.7 * k + 2.3 * j + 0.4 * k * j));
+    }
+    nine += "\n";
+  }
+  ASSERT_TRUE(WriteAll(d / "nine.csv", nine));
+  r = RunInDir(d.path(), "timeout 60 " + std::string(LPOE_PLAN_PATH) +
+                             " --model=" + Q(kModel) + " --count=auto --target_accuracy=100 "
+                             "--noise_sigma=0.01 --candidates=nine.csv --min_singularity=0 "
+                             "--workspace_count=50 --random_draws=2 --output=a.csv");
+  EXPECT_EQ(r.exit_code, kExitNotIdentifiable) << r.out << r.err;
+  EXPECT_FALSE(Exists(d / "a.csv"));
 }
 
 // The same refusal for a data set: 9 points of cobot6 (27 rows for 27 parameters) fit exactly and

@@ -396,6 +396,14 @@ int Run() {
     int lo = std::max(1, (pm.num_parameters() + max_rows - 1) / max_rows) - 1;  // fails
     int hi = std::min(pool.size(), std::max(lo + 1, 2 * lo));
     while (!reaches(hi)) {
+      if (hi >= pool.size()) {  // even every feasible candidate: refused, never a loop
+        const Status refusal = plan_of(hi).ok() ? PlanRefusal(quality, pm.num_parameters(), hi)
+                                                : Status::Error("no plan of all candidates");
+        std::cerr << "error: all " << pool.size() << " feasible candidates: "
+                  << (refusal.ok() ? "the target accuracy is out of reach" : refusal.message())
+                  << ": offer more candidates\n";
+        return kExitNotIdentifiable;
+      }
       lo = hi;
       hi = std::min(pool.size(), 2 * hi);
     }
