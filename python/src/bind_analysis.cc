@@ -17,6 +17,7 @@
 
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/csv_rules.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/planning.h"
@@ -30,11 +31,18 @@ namespace lpoe {
 namespace python {
 namespace {
 
-void CheckFinite(const RowArray& a, const std::string& what) {
+// Finite values of magnitude at most `limit`: the limits of the CSV readers (lpoe/csv_rules.h),
+// the same for arrays as for the tools' files.
+void CheckFinite(const RowArray& a, const std::string& what, double limit) {
   const double* d = a.data();
   for (py::ssize_t k = 0; k < a.size(); ++k) {
     if (!std::isfinite(d[k])) {
       throw LpoeError(what + ": non-finite value at flat index " + std::to_string(k));
+    }
+    if (std::abs(d[k]) > limit) {
+      throw LpoeError(what + ": value of magnitude above " +
+                      (limit == kMaxAbsCsvPositionMm ? std::string("1e6 mm") : std::string("1e4")) +
+                      " at flat index " + std::to_string(k));
     }
   }
 }
@@ -173,7 +181,7 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
     throw LpoeError("compensate: targets= needs seeds= (the program's joints, one row per target)");
   }
   const py::ssize_t m = RowsOf(seeds, n, joints_mode ? "joints" : "seeds");
-  CheckFinite(seeds, joints_mode ? "joints" : "seeds");
+  CheckFinite(seeds, joints_mode ? "joints" : "seeds", kMaxAbsCsvJointValue);
   std::vector<int> tools(m, 0);
   if (py::isinstance<py::array>(tool_obj) || py::isinstance<py::list>(tool_obj)) {
     auto t = tool_obj.cast<py::array_t<int, py::array::c_style | py::array::forcecast>>();
@@ -207,7 +215,7 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
       throw LpoeError("targets: " + std::to_string(p.ndim() == 1 ? 1 : p.shape(0)) +
                       " rows, seeds: " + std::to_string(m));
     }
-    CheckFinite(p, "targets");
+    CheckFinite(p, "targets", kMaxAbsCsvPositionMm);
     RowArray quat;
     if (!orientations_obj.is_none()) {
       quat = orientations_obj.cast<RowArray>();
@@ -319,7 +327,7 @@ py::dict QualityDict(const PlanQuality& q) {
 
 std::vector<double> RowMajor(const RowArray& a, int n, const std::string& what) {
   const py::ssize_t m = RowsOf(a, n, what);
-  CheckFinite(a, what);
+  CheckFinite(a, what, kMaxAbsCsvJointValue);
   return std::vector<double>(a.data(), a.data() + m * n);
 }
 

@@ -112,3 +112,21 @@ def test_calibration_without_redundancy_is_refused(inputs):
     assert "cannot check itself" in c.message
     ten = lpoe.measurements(m, np.array(d.q[:10]), np.array(d.positions[:10]))
     assert "cannot check itself" not in lpoe.calibrate(m, ten).message
+
+
+def test_compensate_and_plan_arrays_have_the_readers_range_limits(inputs):
+    m, d, _ = inputs
+    seeds = np.array(d.q[:3], dtype=float)
+    targets = np.array(d.positions[:3], dtype=float)
+    bad_seeds = seeds.copy()
+    bad_seeds[1, 2] = 1e300
+    with pytest.raises(lpoe.Error, match="magnitude above 1e4"):
+        lpoe.compensate(m, targets=targets, seeds=bad_seeds)
+    bad_targets = targets.copy()
+    bad_targets[2, 0] = 1e300
+    with pytest.raises(lpoe.Error, match="magnitude above 1e6 mm"):
+        lpoe.compensate(m, targets=bad_targets, seeds=seeds)
+    cand = np.tile(seeds, (10, 1))
+    cand[4, 0] = 1e5
+    with pytest.raises(lpoe.Error, match="candidates: value of magnitude above 1e4"):
+        lpoe.plan(m, 12, candidates=cand, workspace_count=50, random_draws=2)
