@@ -258,7 +258,7 @@ TEST_F(CompensateTool, OutputIndependentOfThreadCount) {
                         " --output=" + Path("bad_out.csv") + " --threads=2",
                     &out),
             kExitInput);
-  EXPECT_NE(out.find("bad.csv:" + std::to_string(kRows + 2) + ": z is not a finite number"),
+  EXPECT_NE(out.find("bad.csv:" + std::to_string(kRows + 2) + ": z 'oops' is not a position"),
             std::string::npos)
       << out;
   EXPECT_FALSE(std::filesystem::exists(Path("bad_out.csv")));
@@ -274,7 +274,7 @@ TEST_F(CompensateTool, BadInputNamesFileAndLine) {
                         " --output=" + Path("out.csv"),
                     &out),
             kExitInput);
-  EXPECT_NE(out.find("targets.csv:3: q3 is not a finite number"), std::string::npos) << out;
+  EXPECT_NE(out.find("targets.csv:3: q3 'zero' is not a joint value"), std::string::npos) << out;
   EXPECT_FALSE(std::filesystem::exists(Path("out.csv")));
   out.clear();
   EXPECT_EQ(RunTool("--model=" + Path("cal.yaml") + " --joints=" + Path("targets.csv") +

@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "lpoe/csv_rules.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/measurements.h"
 #include "lpoe/robot_model.h"
@@ -488,7 +489,7 @@ TEST(Io, CsvErrorLeavesOutputUntouched) {
   const Status s = ParseMeasurementsCsv("q1,q2,q3,q4,q5,q6,x,y,z\n0,0,0,0,0,0,0,0,0\n1,2\n",
                                         "short.csv", model, AngleUnit::kRadians, &data, &report);
   ASSERT_FALSE(s.ok());
-  EXPECT_NE(s.message().find("short.csv:3: 2 fields; expected 9"), std::string::npos)
+  EXPECT_NE(s.message().find("short.csv:3: the row has 2 fields, no 'q3'; expected 9 fields"), std::string::npos)
       << s.message();
   EXPECT_EQ(data.size(), 3);
   EXPECT_EQ(report.skipped_zero_rows, 42);
@@ -805,7 +806,8 @@ TEST(Io, CsvBlocksOnTwoThreadsKeepLinesAndFirstError) {
   replace_row(3000, "0.1,0.2,0.3,0.4,0.5,0.6,500,20");
   s = ParseMeasurementsCsv(bad, "blocks.csv", model, CsvOptions(), &data, nullptr);
   ASSERT_FALSE(s.ok());
-  EXPECT_NE(s.message().find("blocks.csv:3000: 8 fields"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("blocks.csv:3000: the row has 8 fields, no 'z'"), std::string::npos)
+      << s.message();
 }
 
 // A file that is one huge line (no '\n', or a wrong line end) fails at the line-length bound instead
@@ -1001,6 +1003,38 @@ TEST(Io, MalformedFlowAfterCommentDoesNotHang) {
   const Status s = ParseRobotModelYaml(text, "hang.yaml", &model);
   EXPECT_FALSE(s.ok());
   EXPECT_NE(s.message().find("hang.yaml:"), std::string::npos) << s.message();
+}
+
+// The rules every CSV reader shares (lpoe/csv_rules.h, issue 30).
+TEST(CsvRules, HeaderAndRowFieldCounts) {
+  CsvHeader header;
+  EXPECT_TRUE(ParseCsvHeader({"q1", "q2", "x"}, "f.csv", 1, &header).ok());
+  EXPECT_EQ(header.Find("Q2"), 1);
+  EXPECT_EQ(header.Find("z"), -1);
+  const Status twice = ParseCsvHeader({"q1", "x", "Q1"}, "f.csv", 4, &header);
+  ASSERT_FALSE(twice.ok());
+  EXPECT_NE(twice.message().find("f.csv:4: column 'Q1' appears twice (columns 1 and 3)"),
+            std::string::npos)
+      << twice.message();
+  ASSERT_TRUE(ParseCsvHeader({"q1", "q2", "x"}, "f.csv", 2, &header).ok());
+  EXPECT_TRUE(CheckCsvRowFields(3, header, "f.csv", 5).ok());
+  EXPECT_NE(CheckCsvRowFields(1, header, "f.csv", 5).message().find(
+                "f.csv:5: the row has 1 field, no 'q2'"),
+            std::string::npos);
+  EXPECT_NE(CheckCsvRowFields(6, header, "f.csv", 7).message().find(
+                "f.csv:7: the row has 6 fields, the header 3"),
+            std::string::npos);
+}
+
+TEST(CsvRules, JointUnitHint) {
+  RobotModel model = MakeCobot6();
+  EXPECT_EQ(JointUnitHint(model, {1, 2, 3, 3, 2, 1}), "");
+  EXPECT_NE(JointUnitHint(model, {1, 45, 3, 3, 2, 1}).find("q2"), std::string::npos);
+  // Limits of two turns: 10 rad may be meant.
+  model.joints[1].lower = -4 * M_PI;
+  model.joints[1].upper = 4 * M_PI;
+  EXPECT_EQ(JointUnitHint(model, {1, 10, 3, 3, 2, 1}), "");
+  EXPECT_NE(JointUnitHint(model, {1, 30, 3, 3, 2, 1}), "");
 }
 
 }  // namespace lpoe

@@ -246,7 +246,7 @@ TEST_F(PlanTool, JointErrorTermsJoinThePlannedParameters) {
   // Too few poses for the 80-odd parameters: refused.
   const Output few = Plan("--count=8 --output=f.csv --joint_errors=compliance,harmonics");
   EXPECT_EQ(few.exit_code, kExitNoPlan) << few.err;
-  EXPECT_NE(few.err.find("identify only"), std::string::npos) << few.err;
+  EXPECT_NE(few.err.find("identifies only"), std::string::npos) << few.err;
 }
 
 // --joint_errors with the gravity tilt: refused with the reason for a nominal model (no compliance

@@ -2,6 +2,7 @@
 // right size, real content and the series colors, and to well-formed SVG; the bytes are the same on
 // every run; failures leave nothing behind.
 #include "plot.h"
+#include "text_safety.h"
 
 #include <gtest/gtest.h>
 #include <png.h>
@@ -180,6 +181,30 @@ TEST(PlotTest, ConvergenceFigure) {
   const ReportData d = MakeReportData(40);
   const Figure f = ConvergenceFigure(d.iteration, d.max_err, d.mean_err);
   ExpectGoodFigure(f, {kColorMax, kColorMean}, "convergence");
+}
+
+// Names of any length and bytes (issue 30): a 2,000-character joint name in a title or axis label
+// crashed PLplot (fixed-size text buffers); invalid UTF-8 made the SVG unparsable. Every label is
+// cut, made valid UTF-8 and has PLplot's escape '#' doubled before PLplot sees it.
+TEST(PlotTest, LongAndInvalidLabelsRender) {
+  const ReportData d = MakeReportData(30);
+  Figure f = ConvergenceFigure(d.iteration, d.max_err, d.mean_err);
+  f.panels[0].title = std::string(2000, 'j') + "\xff\xfe#u";
+  f.panels[0].x_label = std::string(5000, 'x');
+  f.panels[0].y_label = "error \xc3 #[0x25c6] [mm]";
+  f.panels[0].series[0].label = std::string(3000, 's') + "\x80";
+  for (ImageFormat format : {ImageFormat::kSvg, ImageFormat::kPng}) {
+    std::string bytes;
+    ASSERT_TRUE(RenderFigure(f, format, &bytes).ok());
+    EXPECT_GT(bytes.size(), 1000u);
+    if (format == ImageFormat::kSvg) {
+      tinyxml2::XMLDocument doc;
+      EXPECT_EQ(doc.Parse(bytes.c_str(), bytes.size()), tinyxml2::XML_SUCCESS);
+      EXPECT_EQ(bytes.find(std::string(200, 'j')), std::string::npos) << "the title was not cut";
+    }
+  }
+  EXPECT_EQ(PlotLabel("a#u"), "a##u");
+  EXPECT_EQ(PlotLabel(std::string(500, 'z')).size(), kMaxPlotLabelBytes + 3);
 }
 
 TEST(PlotTest, AxisErrorFigureHasAfterOnItsOwnScale) {

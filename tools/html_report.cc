@@ -10,6 +10,7 @@
 
 #include "plot.h"
 #include "report.h"
+#include "tool_common.h"
 
 namespace lpoe {
 namespace tools {
@@ -21,7 +22,8 @@ using Json = nlohmann::ordered_json;
 // order) are kept, so outliers stay visible and 10^5 points stay well below 5 MB of SVG.
 constexpr int kMaxScatterPoints = 700;
 
-std::string Esc(const std::string& text) {
+std::string Esc(const std::string& raw) {
+  const std::string text = ValidUtf8(raw);  // names and paths may hold any bytes
   std::string out;
   out.reserve(text.size());
   for (char c : text) {

@@ -22,6 +22,7 @@
 #include "lpoe/linear_solver.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/pipeline.h"
+#include "lpoe/refusals.h"
 #include "lpoe/registration.h"
 #include "lpoe/statistics.h"
 #include "lpoe/urdf.h"
@@ -550,6 +551,11 @@ int Run() {
     RobotModel calibrated = result.model;
     if (run.registered && run.registration.moved) {
       calibrated.T_measurement_base = run.registration.T_measurement_base;
+    }
+    // Non-finite values are written nowhere (lpoe/refusals.h): exit 5, nothing committed.
+    if (Status s = CheckModelFinite(calibrated); !s.ok()) {
+      std::cerr << "error: --output=" << FLAGS_output << ": " << s.message() << "\n";
+      return tools::kExitNumerical;
     }
     staged = outputs.Stage(FLAGS_output, RobotModelToYaml(calibrated));
   }

@@ -25,9 +25,13 @@
 #include <glog/logging.h>
 #include <nlohmann/json.hpp>
 
+#include "lpoe/csv_rules.h"
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/refusals.h"
+#include "json_text.h"
+#include "output_files.h"
 #include "tool_common.h"
 
 DEFINE_string(model, "", "Calibrated robot model (YAML written by lpoe_calibrate, or URDF).");
@@ -67,10 +71,13 @@ constexpr char kUsage[] =
     "  lpoe_compensate --model=calibrated.yaml --targets=targets.csv --output=joints.csv\n"
     "  lpoe_compensate --model=calibrated.yaml --joints=program.csv --nominal=nominal.yaml \\\n"
     "      --output=joints.csv --report=summary.json\n\n"
-    "Exit codes: 0 file processed (rows may carry a status other than ok), 1 bad flags, 2 bad "
-    "input file, 6 output not written, 8 --strict and some row not ok.";
+    "Exit codes: 0 file processed (rows may carry a status other than ok), 1 bad flags or outputs "
+    "(one names an input or the other output, or its directory is missing or not writable: "
+    "checked before any row is read), 2 bad input file, 6 output not written (then neither is), "
+    "8 --strict and some row not ok.";
 
 constexpr int kExitNotAllOk = 8;
+constexpr int kMaxJointsRead = InverseKinematics::kMaxJoints;
 constexpr double kDegreesPerRadian = 180.0 / 3.14159265358979323846;
 
 struct Row {
@@ -120,21 +127,15 @@ class RowReader {
     const int n = model_.num_joints();
     std::string_view l;
     while (NextLine(&l)) {
-      const int nf = Split(l);
-      for (int c = 0; c < nf; ++c) {
-        const std::string_view h = f_[c];
-        if (h == "x") col_x_ = c;
-        if (h == "y") col_y_ = c;
-        if (h == "z") col_z_ = c;
-        if (h == "target") col_target_ = c;
-        const char* quat[4] = {"quat_x", "quat_y", "quat_z", "quat_w"};
-        for (int k = 0; k < 4; ++k) {
-          if (h == quat[k]) col_quat_[k] = c;
-        }
-        for (int j = 0; j < n; ++j) {
-          if (h == "q" + std::to_string(j + 1)) col_q_[j] = c;
-        }
-      }
+      // The header by the rules every reader shares (lpoe/csv_rules.h): no column twice.
+      if (Status s = ParseCsvHeader(Fields(l), path_, line_, &header_); !s.ok()) return s;
+      col_x_ = header_.Find("x");
+      col_y_ = header_.Find("y");
+      col_z_ = header_.Find("z");
+      col_target_ = header_.Find("target");
+      const char* quat[4] = {"quat_x", "quat_y", "quat_z", "quat_w"};
+      for (int k = 0; k < 4; ++k) col_quat_[k] = header_.Find(quat[k]);
+      for (int j = 0; j < n; ++j) col_q_[j] = header_.Find("q" + std::to_string(j + 1));
       for (int j = 0; j < n; ++j) {
         if (col_q_[j] < 0) {
           return Error("the header has no column q" + std::to_string(j + 1) + "; expected q1..q" +
@@ -157,6 +158,8 @@ class RowReader {
   }
 
   bool has_quaternion() const { return col_quat_[0] >= 0; }
+  // Largest magnitude per joint of the seeds read so far (as read, before unit conversion).
+  const std::vector<double>& max_abs() const { return max_abs_; }
 
   // Appends up to `max_rows` rows; fewer only at the end of the file.
   Status Read(int max_rows, std::vector<double>* seeds, std::vector<Row>* rows) {
@@ -164,14 +167,21 @@ class RowReader {
     std::string_view l;
     for (int count = 0; count < max_rows && NextLine(&l); ++count) {
       const int nf = Split(l);
-      auto field = [&](int c) { return c < nf ? f_[c] : std::string_view(); };
+      // Every field the header names, no more (a decimal comma), no fewer ("no q6").
+      if (Status s = CheckCsvRowFields(static_cast<size_t>(nf), header_, path_, line_); !s.ok()) {
+        return s;
+      }
+      auto field = [&](int c) { return f_[c]; };
       const size_t base = seeds->size();
       seeds->resize(base + n);
       for (int j = 0; j < n; ++j) {
         double v;
-        if (!ParseNumber(field(col_q_[j]), &v)) {
-          return Error("q" + std::to_string(j + 1) + " is not a finite number");
+        if (!ParseNumber(field(col_q_[j]), &v) || std::abs(v) > kMaxAbsCsvJointValue) {
+          return Error("q" + std::to_string(j + 1) + " '" +
+                       std::string(field(col_q_[j]).substr(0, 40)) +
+                       "' is not a joint value; expected a finite number of magnitude at most 1e4");
         }
+        max_abs_[j] = std::max(max_abs_[j], std::abs(v));
         if (unit_ == AngleUnit::kDegrees && model_.joints[j].type == JointType::kRevolute) {
           v /= kDegreesPerRadian;
         }
@@ -191,8 +201,12 @@ class RowReader {
       if (need_position_) {
         const int xyz[3] = {col_x_, col_y_, col_z_};
         for (int k = 0; k < 3; ++k) {
-          if (!ParseNumber(field(xyz[k]), &row.target.position(k))) {
-            return Error(std::string("xyz").substr(k, 1) + " is not a finite number (mm)");
+          if (!ParseNumber(field(xyz[k]), &row.target.position(k)) ||
+              std::abs(row.target.position(k)) > kMaxAbsCsvPositionMm) {
+            return Error(std::string("xyz").substr(k, 1) + " '" +
+                         std::string(field(xyz[k]).substr(0, 40)) +
+                         "' is not a position; expected a finite number of magnitude at most "
+                         "1e6 mm");
           }
         }
         if (col_quat_[0] >= 0) {
@@ -237,6 +251,10 @@ class RowReader {
     }
     return false;
   }
+  std::vector<std::string_view> Fields(std::string_view l) {
+    Split(l);
+    return f_;
+  }
   int Split(std::string_view l) {
     f_.clear();
     size_t a = 0;
@@ -259,6 +277,8 @@ class RowReader {
   int line_ = 0;
   std::vector<std::string_view> f_;
   std::vector<int> col_q_;
+  std::vector<double> max_abs_ = std::vector<double>(kMaxJointsRead, 0.0);
+  CsvHeader header_;
   int col_x_ = -1, col_y_ = -1, col_z_ = -1, col_target_ = -1, col_quat_[4] = {-1, -1, -1, -1};
 };
 
@@ -300,14 +320,18 @@ int Run() {
                  "0 <= --restarts <= 100, positive tolerances, --singular_threshold >= 0\n";
     return kExitUsage;
   }
-  for (const std::string* out : {&FLAGS_report, &FLAGS_output}) {
-    if (out->empty()) continue;
-    for (const std::string* in : {&FLAGS_model, &FLAGS_targets, &FLAGS_joints, &FLAGS_nominal}) {
-      if (!in->empty() && tools::SameFile(*out, *in)) {
-        std::cerr << "error: " << *out << " is also an input\n";
-        return kExitUsage;
-      }
-    }
+  // Every output against every input and the other output, and its directory writable, before
+  // any work (tools/output_files.h); both are committed together at the end or neither.
+  tools::OutputSet outputs;
+  outputs.AddInput("--model", FLAGS_model);
+  outputs.AddInput("--targets", FLAGS_targets);
+  outputs.AddInput("--joints", FLAGS_joints);
+  outputs.AddInput("--nominal", FLAGS_nominal);
+  outputs.AddOutput("--output", FLAGS_output);
+  outputs.AddOutput("--report", FLAGS_report);
+  if (Status s = outputs.Check(); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
   }
 
   // ---- Inputs.
@@ -326,11 +350,8 @@ int Run() {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
-    if (nominal.num_joints() != model.num_joints() || nominal.num_tools() < model.num_tools()) {
-      std::cerr << "error: " << FLAGS_nominal << ": the nominal model has "
-                << nominal.num_joints() << " joints and " << nominal.num_tools()
-                << " tools; the calibrated model " << model.num_joints() << " and "
-                << model.num_tools() << "\n";
+    if (Status s = CheckNominalMatches(model, nominal); !s.ok()) {
+      std::cerr << "error: " << FLAGS_nominal << ": " << s.message() << "\n";
       return kExitInput;
     }
   }
@@ -364,13 +385,9 @@ int Run() {
                           ? FLAGS_threads
                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
 
-  AtomicFileWriter output;
-  if (Status s = output.Open(FLAGS_output); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
-  std::string header = "# lpoe_compensate: model " + FLAGS_model + ", " +
-                       (joints_mode ? "joints " : "targets ") + in_path + ", angles in " +
+  std::string header = "# lpoe_compensate: model " + tools::CommentText(FLAGS_model) + ", " +
+                       (joints_mode ? "joints " : "targets ") + tools::CommentText(in_path) +
+                       ", angles in " +
                        FLAGS_angle_unit + "\n";
   for (int j = 0; j < n; ++j) header += "q" + std::to_string(j + 1) + ",";
   header += "status,residual,sigma_min";
@@ -381,10 +398,6 @@ int Run() {
     }
   }
   header += "\n";
-  if (Status s = output.Append(header); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
 
   // Per worker: its rows' output text and summary.
   struct Part {
@@ -441,72 +454,83 @@ int Run() {
     }
   };
 
-  // ---- Stream: read a chunk, solve it on all threads (each a contiguous share, so the output
-  // keeps the input's order), write it.
-  constexpr int kChunkRows = 1 << 15;
-  std::vector<double> seeds;
-  std::vector<Row> rows;
-  std::vector<Part> parts(threads);
+  // ---- The output, streamed into its staged temporary (committed with the report at the end).
   Part total;
   int count = 0;
-  while (true) {
-    seeds.clear();
-    rows.clear();
-    if (Status s = reader.Read(kChunkRows, &seeds, &rows); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitInput;
+  bool input_failed = false;  // a bad row (exit 2), not an unwritable output (exit 6)
+  Status staged = outputs.StageWith(FLAGS_output, [&](const std::string& temporary) -> Status {
+    tools::StagedFile out;
+    if (Status s = out.Create(temporary); !s.ok()) return s;
+    if (Status s = out.Append(header); !s.ok()) return s;
+    // ---- Stream: read a chunk, solve it on all threads (each a contiguous share, so the output
+    // keeps the input's order), write it.
+    constexpr int kChunkRows = 1 << 15;
+    std::vector<double> seeds;
+    std::vector<Row> rows;
+    std::vector<Part> parts(threads);
+    while (true) {
+      seeds.clear();
+      rows.clear();
+      if (Status s = reader.Read(kChunkRows, &seeds, &rows); !s.ok()) {
+        input_failed = true;
+        return s;
+      }
+      const int chunk = static_cast<int>(rows.size());
+      if (chunk == 0) break;
+      // Joint-program mode: the nominal tool pose at the program's joints, in the calibrated
+      // model's (measurement) frame.
+      if (joints_mode) {
+        for (int k = 0; k < chunk; ++k) {
+          IkTarget& t = rows[k].target;
+          const SE3d T = model.T_measurement_base * nominal_chain.Pose(&seeds[size_t(k) * n], t.tool);
+          t.position = T.t;
+          t.rotation = T.R;
+          t.has_orientation = FLAGS_joints_target == "pose";
+        }
+      }
+      const int workers = std::max(1, std::min(threads, chunk / 256));
+      std::vector<std::thread> pool;
+      for (int t = 0; t < workers; ++t) {
+        parts[t].text.clear();
+        const int begin = static_cast<int>(int64_t{chunk} * t / workers);
+        const int end = static_cast<int>(int64_t{chunk} * (t + 1) / workers);
+        if (t + 1 < workers) {
+          pool.emplace_back(solve_rows, std::cref(rows), std::cref(seeds), begin, end, &parts[t]);
+        } else {
+          solve_rows(rows, seeds, begin, end, &parts[t]);
+        }
+      }
+      for (std::thread& th : pool) th.join();
+      // Worker t's rows precede worker t+1's: in order.
+      for (int t = 0; t < workers; ++t) {
+        if (Status s = out.Append(parts[t].text); !s.ok()) return s;
+        Part& p = parts[t];
+        for (int c = 0; c < 5; ++c) total.per_status[c] += p.per_status[c];
+        if (p.max_correction > total.max_correction) {
+          total.max_correction = p.max_correction;
+          total.max_correction_line = p.max_correction_line;
+        }
+        if (p.max_residual > total.max_residual) {
+          total.max_residual = p.max_residual;
+          total.max_residual_line = p.max_residual_line;
+        }
+        total.max_orientation_residual =
+            std::max(total.max_orientation_residual, p.max_orientation_residual);
+        p = Part();
+      }
+      count += chunk;
     }
-    const int chunk = static_cast<int>(rows.size());
-    if (chunk == 0) break;
-    // Joint-program mode: the nominal tool pose at the program's joints, in the calibrated
-    // model's (measurement) frame.
-    if (joints_mode) {
-      for (int k = 0; k < chunk; ++k) {
-        IkTarget& t = rows[k].target;
-        const SE3d T = model.T_measurement_base * nominal_chain.Pose(&seeds[size_t(k) * n], t.tool);
-        t.position = T.t;
-        t.rotation = T.R;
-        t.has_orientation = FLAGS_joints_target == "pose";
-      }
-    }
-    const int workers = std::max(1, std::min(threads, chunk / 256));
-    std::vector<std::thread> pool;
-    for (int t = 0; t < workers; ++t) {
-      parts[t].text.clear();
-      const int begin = static_cast<int>(int64_t{chunk} * t / workers);
-      const int end = static_cast<int>(int64_t{chunk} * (t + 1) / workers);
-      if (t + 1 < workers) {
-        pool.emplace_back(solve_rows, std::cref(rows), std::cref(seeds), begin, end, &parts[t]);
-      } else {
-        solve_rows(rows, seeds, begin, end, &parts[t]);
-      }
-    }
-    for (std::thread& th : pool) th.join();
-    // Worker t's rows precede worker t+1's: in order.
-    for (int t = 0; t < workers; ++t) {
-      if (Status s = output.Append(parts[t].text); !s.ok()) {
-        std::cerr << "error: " << s.message() << "\n";
-        return kExitOutput;
-      }
-      Part& p = parts[t];
-      for (int c = 0; c < 5; ++c) total.per_status[c] += p.per_status[c];
-      if (p.max_correction > total.max_correction) {
-        total.max_correction = p.max_correction;
-        total.max_correction_line = p.max_correction_line;
-      }
-      if (p.max_residual > total.max_residual) {
-        total.max_residual = p.max_residual;
-        total.max_residual_line = p.max_residual_line;
-      }
-      total.max_orientation_residual =
-          std::max(total.max_orientation_residual, p.max_orientation_residual);
-      p = Part();
-    }
-    count += chunk;
+    return out.Close();
+  });
+  if (!staged.ok()) {
+    std::cerr << "error: " << staged.message() << "\n";
+    return input_failed ? kExitInput : kExitOutput;
   }
-  if (Status s = output.Commit(); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
+  if (unit == AngleUnit::kRadians) {
+    std::vector<double> max_abs = reader.max_abs();
+    max_abs.resize(n);
+    const std::string hint = JointUnitHint(model, max_abs);
+    if (!hint.empty()) std::cerr << "warning: " << in_path << ": " << hint << "\n";
   }
   const int* per_status = total.per_status;
   const double max_correction = total.max_correction, max_residual = total.max_residual;
@@ -535,11 +559,10 @@ int Run() {
   report["largest_residual_mm"] = {{"value", max_residual}, {"line", max_residual_line}};
   report["largest_orientation_residual_rad"] = max_orientation_residual;
   report["output"] = FLAGS_output;
-  if (!FLAGS_report.empty()) {
-    if (Status s = WriteFileAtomically(FLAGS_report, report.dump(2) + "\n"); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitOutput;
-    }
+  if (!FLAGS_report.empty()) staged = outputs.Stage(FLAGS_report, tools::JsonText(report));
+  if (Status s = staged.ok() ? outputs.Commit(nullptr) : staged; !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitOutput;
   }
   if (FLAGS_strict && per_status[static_cast<int>(IkStatus::kOk)] != count) return kExitNotAllOk;
   return kExitOk;

@@ -24,6 +24,9 @@
 #include "lpoe/joint_table.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/planning.h"
+#include "lpoe/refusals.h"
+#include "json_text.h"
+#include "output_files.h"
 #include "tool_common.h"
 
 DEFINE_string(model, "", "Nominal robot model, YAML or URDF (.urdf). Required.");
@@ -103,9 +106,11 @@ constexpr char kUsage[] =
     "      --output=poses.csv --tracker=2500,0,800 --max_range=6000\n"
     "  lpoe_plan --model=nominal.yaml --count=auto --target_accuracy=0.02 --noise_sigma=0.015 \\\n"
     "      --output=poses.csv\n\n"
-    "Exit codes: 0 plan written, 1 bad flags, 2 unreadable input, 3 no plan possible (too few\n"
-    "feasible candidates, the candidates cannot identify the model, or the target accuracy is out\n"
-    "of reach), 6 an output could not be written.";
+    "Exit codes: 0 plan written, 1 bad flags or outputs (one names an input or another output,\n"
+    "or its directory is missing or not writable: checked before any work), 2 unreadable input,\n"
+    "3 no plan possible (too few feasible candidates, the candidates cannot identify the model,\n"
+    "no more rows than parameters, or the target accuracy is out of reach), 6 an output could\n"
+    "not be written (then none is).";
 
 constexpr double kPi = 3.14159265358979323846;
 
@@ -247,6 +252,29 @@ int Run() {
     if (FLAGS_max_range > 0) tracker.max_range = FLAGS_max_range;
   } else if (!FLAGS_smr_facing.empty() || FLAGS_max_range > 0) {
     std::cerr << "error: --smr_facing and --max_range need --tracker\n";
+    return kExitUsage;
+  }
+
+  // Every output against every input and the other output, and its directory writable, before
+  // any work (tools/output_files.h); both are committed together at the end or neither.
+  std::string report_path = FLAGS_report;
+  if (report_path.empty()) {
+    const size_t slash = FLAGS_output.find_last_of('/');
+    const size_t dot = FLAGS_output.find_last_of('.');
+    report_path = (dot != std::string::npos && (slash == std::string::npos || dot > slash)
+                       ? FLAGS_output.substr(0, dot)
+                       : FLAGS_output) +
+                  ".json";
+  }
+  tools::OutputSet outputs;
+  outputs.AddInput("--model", FLAGS_model);
+  outputs.AddInput("--candidates", FLAGS_candidates);
+  outputs.AddInput("--workspace", FLAGS_workspace);
+  outputs.AddOutput("--output", FLAGS_output);
+  outputs.AddOutput(FLAGS_report.empty() ? "--report (default: --output with .json)" : "--report",
+                    report_path);
+  if (Status s = outputs.Check(); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
 
@@ -446,13 +474,22 @@ int Run() {
       return kExitNotIdentifiable;
     }
     auto reaches = [&](int n) {
-      return plan_of(n).ok() && FLAGS_noise_sigma * quality.predicted_rms <= FLAGS_target_accuracy;
+      return plan_of(n).ok() && PlanRefusal(quality, pm.num_parameters(), n).ok() &&
+             FLAGS_noise_sigma * quality.predicted_rms <= FLAGS_target_accuracy;
     };
     int max_rows = 3;
     for (int c = 0; c < pool.size(); ++c) max_rows = std::max(max_rows, pool.rows(c));
     int lo = std::max(1, (pm.num_parameters() + max_rows - 1) / max_rows) - 1;  // fails
     int hi = std::min(pool.size(), std::max(lo + 1, 2 * lo));
     while (!reaches(hi)) {
+      if (hi >= pool.size()) {  // even every feasible candidate: refused, never a loop
+        const Status refusal = plan_of(hi).ok() ? PlanRefusal(quality, pm.num_parameters(), hi)
+                                                : Status::Error("no plan of all candidates");
+        std::cerr << "error: all " << pool.size() << " feasible candidates: "
+                  << (refusal.ok() ? "the target accuracy is out of reach" : refusal.message())
+                  << ": offer more candidates\n";
+        return kExitNotIdentifiable;
+      }
       lo = hi;
       hi = std::min(pool.size(), 2 * hi);
     }
@@ -472,10 +509,9 @@ int Run() {
               << " with no SMR visible)\n";
     return kExitNotIdentifiable;
   }
-  if (quality.rank < pm.num_parameters()) {
-    std::cerr << "error: the " << count << " planned poses identify only " << quality.rank << " of "
-              << pm.num_parameters()
-              << " parameters: plan more poses or offer candidates that move every joint\n";
+  // The refusals lpoe.plan shares (lpoe/refusals.h): full rank, and more rows than parameters.
+  if (Status s = PlanRefusal(quality, pm.num_parameters(), count); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitNotIdentifiable;
   }
 
@@ -557,7 +593,7 @@ int Run() {
   if (tilt) planned_terms += std::string(",") + kGravityTiltName;
   if (planned_terms.empty()) planned_terms = "none";
   std::string csv;
-  csv += "# lpoe_plan: model " + model.name + ", criterion " + PlanCriterionName(options.criterion) +
+  csv += "# lpoe_plan: model " + tools::CommentText(model.name) + ", criterion " + PlanCriterionName(options.criterion) +
          ", " + std::to_string(count) + " of " + std::to_string(pool.size()) +
          " feasible candidates, joint errors " + planned_terms + ", seed " +
          std::to_string(FLAGS_seed) + "; joint values in " +
@@ -631,28 +667,15 @@ int Run() {
   for (int c : plan.selected) rows.push_back(pool.source[c]);
   report["candidate_rows"] = rows;
 
-  std::string report_path = FLAGS_report;
-  if (report_path.empty()) {
-    const size_t slash = FLAGS_output.find_last_of('/');
-    const size_t dot = FLAGS_output.find_last_of('.');
-    report_path = (dot != std::string::npos && (slash == std::string::npos || dot > slash)
-                       ? FLAGS_output.substr(0, dot)
-                       : FLAGS_output) +
-                  ".json";
+  std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
+  Status staged = outputs.Stage(FLAGS_output, csv);
+  if (staged.ok()) staged = outputs.Stage(report_path, tools::JsonText(report));
+  std::vector<std::string> written;
+  if (Status s = staged.ok() ? outputs.Commit(&written) : staged; !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitOutput;
   }
-  if (tools::SameFile(report_path, FLAGS_output) ||
-      (!FLAGS_candidates.empty() && tools::SameFile(FLAGS_output, FLAGS_candidates))) {
-    std::cerr << "error: --output must differ from --report and --candidates\n";
-    return kExitUsage;
-  }
-  for (const auto& [path, text] : {std::pair<std::string, std::string>{FLAGS_output, csv},
-                                   {report_path, report.dump(2) + "\n"}}) {
-    if (Status s = WriteFileAtomically(path, text); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitOutput;
-    }
-    std::cout << "wrote " << path << "\n";
-  }
+  for (const std::string& path : written) std::cout << "wrote " << path << "\n";
   return kExitOk;
 }
 

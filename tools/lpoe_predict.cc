@@ -7,7 +7,10 @@
 // IN.csv names q1..qN in its header and may have a `target` column (tool name or 0-based index per
 // row, which then overrides --tool); other columns are ignored. OUT.csv has the header x,y,z and one
 // row per input row, in mm in the model's frame (the measurement frame of a registered calibration).
-// Exit codes: 0 written, 1 bad flags, 2 bad input file, 6 output not written.
+// Exit codes: 0 written, 1 bad flags or output (an input's file, or a missing or unwritable
+// directory: checked before any work), 2 bad input file, 6 output not written.
+#include <algorithm>
+#include <cmath>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -15,9 +18,11 @@
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 
+#include "lpoe/csv_rules.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/urdf.h"
+#include "output_files.h"
 #include "tool_common.h"
 
 DEFINE_string(model, "", "Robot model: YAML, or URDF when the name ends in .urdf (required).");
@@ -37,7 +42,8 @@ constexpr char kUsage[] =
     "  lpoe_predict --model=calibrated.yaml --joints=poses.csv --output=predicted.csv\n"
     "  lpoe_predict --model=robot.urdf --joints=poses.csv --angle_unit=deg --tool=smr2 \\\n"
     "      --output=predicted.csv\n\n"
-    "Exit codes: 0 written, 1 bad flags, 2 bad input file, 6 output not written.";
+    "Exit codes: 0 written, 1 bad flags or output (an input's file, or a missing or unwritable "
+    "directory), 2 bad input file, 6 output not written.";
 
 int Run() {
   using tools::kExitInput;
@@ -53,8 +59,14 @@ int Run() {
     std::cerr << "error: --angle_unit must be rad or deg\n";
     return kExitUsage;
   }
-  if (tools::SameFile(FLAGS_output, FLAGS_joints) || tools::SameFile(FLAGS_output, FLAGS_model)) {
-    std::cerr << "error: --output must not overwrite an input file\n";
+  // The output against the inputs, and its directory writable, before any work
+  // (tools/output_files.h).
+  tools::OutputSet outputs;
+  outputs.AddInput("--model", FLAGS_model);
+  outputs.AddInput("--joints", FLAGS_joints);
+  outputs.AddOutput("--output", FLAGS_output);
+  if (Status s = outputs.Check(); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
   RobotModel model;
@@ -90,12 +102,21 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
+  if (unit == AngleUnit::kRadians) {  // the hint every joint reader gives (lpoe/csv_rules.h)
+    const int n = model.num_joints();
+    std::vector<double> max_abs(n, 0.0);
+    for (size_t k = 0; k < q.size(); ++k) max_abs[k % n] = std::max(max_abs[k % n], std::abs(q[k]));
+    const std::string hint = JointUnitHint(model, max_abs);
+    if (!hint.empty()) std::cerr << "warning: " << FLAGS_joints << ": " << hint << "\n";
+  }
   std::vector<Eigen::Vector3d> positions;
   if (Status s = PredictPositions(model, q, targets, tool, &positions); !s.ok()) {
     std::cerr << "error: " << FLAGS_joints << ": " << s.message() << "\n";
     return kExitInput;
   }
-  if (Status s = WriteFileAtomically(FLAGS_output, PositionsToCsv(positions)); !s.ok()) {
+  std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
+  Status staged = outputs.Stage(FLAGS_output, PositionsToCsv(positions));
+  if (Status s = staged.ok() ? outputs.Commit(nullptr) : staged; !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;
   }

@@ -18,6 +18,7 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_table.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/refusals.h"
 #include "lpoe/simulation.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
@@ -325,6 +326,14 @@ int Run() {
   }
   if (!FLAGS_model_out.empty()) outputs.push_back({FLAGS_model_out, RobotModelToYaml(nominal)});
   if (!FLAGS_actual_out.empty()) outputs.push_back({FLAGS_actual_out, RobotModelToYaml(actual_out)});
+  // Non-finite values are written nowhere (lpoe/refusals.h).
+  for (const auto& [path, m] : {std::pair<const std::string*, const RobotModel*>{&FLAGS_model_out, &nominal},
+                                {&FLAGS_actual_out, &actual_out}}) {
+    if (Status s = CheckModelFinite(*m); !path->empty() && !s.ok()) {
+      std::cerr << "error: " << *path << ": " << s.message() << "\n";
+      return tools::kExitNumerical;
+    }
+  }
   for (const Output& o : outputs) {
     if (Status s = files.Stage(o.path, o.text); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";

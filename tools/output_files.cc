@@ -36,6 +36,26 @@ extern "C" void CleanupAndReraise(int sig) {
   ::raise(sig);
 }
 
+// Faults (a crash in a library: PLplot, a solver) and abort(): the temporaries are removed, the
+// previous action (the default, or a sanitizer's handler) is restored, and the handler returns: a
+// fault re-executes the faulting instruction and abort() raises again, so the process dies as it
+// would have (with the sanitizer's report), leaving no .lpoe-staging-* directory behind.
+constexpr int kFaultSignals[] = {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT};
+struct sigaction g_previous[sizeof(kFaultSignals) / sizeof(kFaultSignals[0])];
+
+extern "C" void CleanupAndChain(int sig) {
+  const int n = g_cleanup_count.load();
+  for (int k = n - 1; k >= 0; --k) {
+    if (g_cleanup[k][0] != 0) {
+      ::unlink(g_cleanup[k]);
+      ::rmdir(g_cleanup[k]);
+    }
+  }
+  for (size_t k = 0; k < sizeof(kFaultSignals) / sizeof(kFaultSignals[0]); ++k) {
+    if (kFaultSignals[k] == sig) ::sigaction(sig, &g_previous[k], nullptr);
+  }
+}
+
 void RegisterCleanup(const std::string& path) {
   if (!g_handlers.exchange(true)) {
     struct sigaction sa;
@@ -45,6 +65,14 @@ void RegisterCleanup(const std::string& path) {
     ::sigaction(SIGINT, &sa, nullptr);
     ::sigaction(SIGTERM, &sa, nullptr);
     ::sigaction(SIGHUP, &sa, nullptr);
+    struct sigaction fault;
+    std::memset(&fault, 0, sizeof(fault));
+    fault.sa_handler = CleanupAndChain;
+    sigemptyset(&fault.sa_mask);
+    fault.sa_flags = SA_ONSTACK;  // a stack overflow still reaches it when an altstack exists
+    for (size_t k = 0; k < sizeof(kFaultSignals) / sizeof(kFaultSignals[0]); ++k) {
+      ::sigaction(kFaultSignals[k], &fault, &g_previous[k]);
+    }
   }
   const int k = g_cleanup_count.load();
   if (k >= kMaxCleanup || path.size() > PATH_MAX) return;
@@ -244,10 +272,29 @@ Status OutputSet::Check() const {
     }
   }
   for (const Entry& o : outputs_) {
-    std::string resolved;
-    if (o.create_directory) continue;
-    if (Status r = Resolve(o.path, &resolved); !r.ok()) {
-      return Status::Error(o.flag + "=" + r.message());
+    // A device, FIFO or descriptor is written straight (its directory is not written).
+    struct stat st;
+    if (::stat(o.path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) continue;
+    std::string dir;
+    if (o.create_directory) {
+      // The deepest existing ancestor is where the missing directories will be created.
+      dir = ResolveLexically(DirName(o.path));
+      while (::stat(dir.c_str(), &st) != 0 && dir != "/") dir = DirName(dir);
+      if (!S_ISDIR(st.st_mode)) {
+        return Status::Error(o.flag + "=" + o.path + ": " + dir + " is not a directory");
+      }
+    } else {
+      std::string resolved;
+      if (Status r = Resolve(o.path, &resolved); !r.ok()) {
+        return Status::Error(o.flag + "=" + r.message());
+      }
+      dir = DirName(resolved);
+    }
+    // The temporary is created beside the target and renamed onto it: the directory itself must
+    // be writable, even when the target file exists and is.
+    if (::access(dir.c_str(), W_OK | X_OK) != 0) {
+      return Status::Error(o.flag + "=" + o.path + ": the directory " + dir +
+                           " is not writable (" + std::strerror(errno) + ")");
     }
   }
   return Status::Ok();
@@ -302,12 +349,37 @@ Status OutputSet::StagingPath(const std::string& path, std::string* resolved,
   return Status::Ok();
 }
 
+StagedFile::~StagedFile() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+Status StagedFile::Create(const std::string& temporary) {
+  if (fd_ >= 0) return Status::Error(path_ + ": already open");
+  path_ = temporary;
+  fd_ = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+  if (fd_ < 0) return Status::Error(temporary + ": cannot create: " + std::strerror(errno));
+  return Status::Ok();
+}
+
+Status StagedFile::Append(const std::string& text) {
+  if (fd_ < 0) return Status::Error(path_ + ": not open");
+  return WriteAll(fd_, text.data(), text.size(), path_);
+}
+
+Status StagedFile::Close() {
+  if (fd_ < 0) return Status::Error(path_ + ": not open");
+  const int fd = fd_;
+  fd_ = -1;
+  if (::close(fd) != 0) return Status::Error(path_ + ": cannot close: " + std::strerror(errno));
+  return Status::Ok();
+}
+
 Status OutputSet::Stage(const std::string& path, const std::string& contents) {
   return StageWith(path, [&contents](const std::string& tmp) {
-    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
-    if (fd < 0) return Status::Error(tmp + ": cannot create: " + std::strerror(errno));
-    Status s = WriteAll(fd, contents.data(), contents.size(), tmp);
-    if (::close(fd) != 0 && s.ok()) s = Status::Error(tmp + ": cannot close: " + std::strerror(errno));
+    StagedFile file;
+    Status s = file.Create(tmp);
+    if (s.ok()) s = file.Append(contents);
+    if (s.ok()) s = file.Close();
     return s;
   });
 }

@@ -15,7 +15,8 @@
 // to x, and x itself are one file; an output named like a plot in --plots_dir collides with it.
 // Targets: a symlink is resolved and its target replaced (the link stays); a non-regular target
 // (/dev/null, a FIFO) or a descriptor (/dev/stdout, /dev/fd/N, /proc/...) is written straight, never
-// replaced (its contents staged under $TMPDIR); a directory is refused.
+// replaced (its contents staged under $TMPDIR); a directory is refused, and so is an output whose
+// directory the process cannot write (checked by Check(), before any work).
 // Temporaries: one private directory per target directory, created by mkdtemp (mode 0700) in it,
 // files inside created with O_EXCL | O_NOFOLLOW; so nothing planted can be followed, and
 // concurrent runs into one directory never share a temporary. SIGINT/SIGTERM remove them.
@@ -34,6 +35,24 @@ namespace tools {
 
 // Creates `dir` and its missing parents (mode 0755). Existing non-directories are an error.
 Status EnsureDirectories(const std::string& dir);
+
+// A staged temporary written in pieces (a streamed output: StageWith's writer creates it on the
+// temporary it is given, appends, and closes it). Created with O_EXCL | O_NOFOLLOW, mode 0600.
+class StagedFile {
+ public:
+  StagedFile() = default;
+  StagedFile(const StagedFile&) = delete;
+  StagedFile& operator=(const StagedFile&) = delete;
+  ~StagedFile();  // closes (the OutputSet removes the file when it is not committed)
+
+  Status Create(const std::string& temporary);
+  Status Append(const std::string& text);
+  Status Close();
+
+ private:
+  int fd_ = -1;
+  std::string path_;
+};
 
 class OutputSet {
  public:

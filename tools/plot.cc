@@ -11,6 +11,7 @@
 #include <limits>
 
 #include "lpoe/io.h"
+#include "tool_common.h"
 
 namespace lpoe {
 namespace tools {
@@ -355,7 +356,13 @@ std::string Num(double v) {
 
 }  // namespace
 
-Status RenderFigure(const Figure& fig, ImageFormat format, std::string* bytes) {
+Status RenderFigure(const Figure& figure, ImageFormat format, std::string* bytes) {
+  // Every text of the figure made safe for PLplot in this one place.
+  Figure fig = figure;
+  for (Panel& p : fig.panels) {
+    for (std::string* t : {&p.title, &p.x_label, &p.y_label, &p.color_label}) *t = PlotLabel(*t);
+    for (Series& s : p.series) s.label = PlotLabel(s.label);
+  }
   if (Status s = CheckFigure(fig); !s.ok()) return s;
   const char* device = DeviceName(format);
   if (!DeviceInstalled(device))

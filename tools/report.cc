@@ -12,6 +12,7 @@
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/version.h"
+#include "json_text.h"
 #include "plot.h"
 
 
@@ -266,7 +267,7 @@ std::string JointTermsIdentifiability(const CalibrationResult& result) {
   return out;
 }
 
-std::string RunSummaryToJson(const RunSummary& s) { return BuildJson(s).dump(2) + "\n"; }
+std::string RunSummaryToJson(const RunSummary& s) { return JsonText(BuildJson(s)); }
 
 Status RenderPlotFiles(const RunSummary& s, std::vector<std::pair<std::string, std::string>>* files) {
   std::vector<int> it;

@@ -12,6 +12,7 @@
 #include "lpoe/io.h"
 #include "lpoe/statistics.h"
 #include "lpoe/urdf.h"
+#include "text_safety.h"
 
 namespace lpoe {
 namespace tools {

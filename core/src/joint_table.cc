@@ -4,6 +4,7 @@
 #include <cmath>
 #include <string_view>
 
+#include "lpoe/csv_rules.h"
 #include "parse_util.h"
 
 namespace lpoe {
@@ -25,6 +26,7 @@ Status ParseJointTable(const std::string& text, const std::string& source, const
   const int n = model.num_joints();
   JointTable out;
   std::vector<int> q_column(n, -1);
+  CsvHeader csv_header;
   std::string_view rest(text);
   if (rest.substr(0, 3) == "\xEF\xBB\xBF") rest.remove_prefix(3);
   int line_number = 0;
@@ -41,17 +43,12 @@ Status ParseJointTable(const std::string& text, const std::string& source, const
     if (!have_header) {
       have_header = true;
       out.header = std::string(line);
-      for (size_t c = 0; c < fields.size(); ++c) {
-        std::string name(fields[c]);
-        out.names.push_back(name);
-        for (char& ch : name) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-        for (int j = 0; j < n; ++j) {
-          if (name != "q" + std::to_string(j + 1)) continue;
-          if (q_column[j] >= 0) return Error(source, line_number, "duplicated column '" + name + "'");
-          q_column[j] = static_cast<int>(c);
-        }
-      }
+      CsvHeader header;  // the shared rules (lpoe/csv_rules.h): no column twice
+      if (Status s = ParseCsvHeader(fields, source, line_number, &header); !s.ok()) return s;
+      out.names = header.names;
+      csv_header = std::move(header);
       for (int j = 0; j < n; ++j) {
+        q_column[j] = csv_header.Find("q" + std::to_string(j + 1));
         if (q_column[j] < 0) {
           return Error(source, line_number,
                        "missing column 'q" + std::to_string(j + 1) + "'; expected a header with q1..q" +
@@ -60,15 +57,13 @@ Status ParseJointTable(const std::string& text, const std::string& source, const
       }
       continue;
     }
-    if (fields.size() != out.names.size()) {
-      return Error(source, line_number,
-                   std::to_string(fields.size()) + " fields; expected " +
-                       std::to_string(out.names.size()) + " as in the header");
+    if (Status s = CheckCsvRowFields(fields.size(), csv_header, source, line_number); !s.ok()) {
+      return s;
     }
     for (int j = 0; j < n; ++j) {
       const std::string_view f = fields[q_column[j]];
       double v = 0;
-      if (internal::ParseNumber(f, &v) != internal::NumberParse::kOk || std::abs(v) > 1e4) {
+      if (internal::ParseNumber(f, &v) != internal::NumberParse::kOk || std::abs(v) > kMaxAbsCsvJointValue) {
         return Error(source, line_number,
                      "column 'q" + std::to_string(j + 1) + "': '" + std::string(f.substr(0, 40)) +
                          "' is not a joint value; expected a finite number of magnitude at most 1e4");

@@ -5,6 +5,7 @@
 #include <string_view>
 #include <vector>
 
+#include "lpoe/csv_rules.h"
 #include "lpoe/joint_errors.h"
 #include "parse_util.h"
 
@@ -19,11 +20,6 @@ bool ParseFinite(std::string_view s, double* v) {
   return internal::ParseNumber(s, v) == internal::NumberParse::kOk;
 }
 
-std::string Lower(std::string_view s) {
-  std::string out(s);
-  for (char& c : out) c = static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
-  return out;
-}
 
 }  // namespace
 
@@ -36,6 +32,7 @@ Status ParseJointsCsv(const std::string& text, const std::string& source, const 
   if (rest.substr(0, 3) == "\xEF\xBB\xBF") rest.remove_prefix(3);
   std::vector<int> column;  // joint column of q1..qN
   int target_column = -1;
+  CsvHeader header;
   std::vector<double> values;
   std::vector<int> row_targets;
   const std::string expected_header = "a header naming q1..q" + std::to_string(n);
@@ -49,28 +46,12 @@ Status ParseJointsCsv(const std::string& text, const std::string& source, const 
     ++line_number;
     if (line.empty() || line[0] == '#') continue;
     const std::vector<std::string_view> fields = internal::SplitFields(line);
-    if (column.empty()) {  // the header
+    if (column.empty()) {  // the header, by the shared rules (lpoe/csv_rules.h)
+      if (Status s = ParseCsvHeader(fields, source, line_number, &header); !s.ok()) return s;
       column.assign(n, -1);
-      for (size_t c = 0; c < fields.size(); ++c) {
-        const std::string name = Lower(fields[c]);
-        int j = -1;
-        if (name == "target") {
-          if (target_column >= 0) return LineError(source, line_number, "two 'target' columns", "one");
-          target_column = static_cast<int>(c);
-          continue;
-        }
-        if (name.size() >= 2 && name[0] == 'q' && name[1] != '0' &&
-            std::from_chars(name.data() + 1, name.data() + name.size(), j).ptr ==
-                name.data() + name.size() &&
-            j >= 1 && j <= n) {
-          if (column[j - 1] >= 0) {
-            return LineError(source, line_number, "column " + Quote(fields[c]) + " appears twice",
-                             "each of q1..q" + std::to_string(n) + " once");
-          }
-          column[j - 1] = static_cast<int>(c);
-        }
-      }
+      target_column = header.Find("target");
       for (int j = 0; j < n; ++j) {
+        column[j] = header.Find("q" + std::to_string(j + 1));
         if (column[j] < 0) {
           return LineError(source, line_number, "no column q" + std::to_string(j + 1),
                            expected_header + " (the model has " + std::to_string(n) + " joints)");
@@ -78,18 +59,15 @@ Status ParseJointsCsv(const std::string& text, const std::string& source, const 
       }
       continue;
     }
+    if (Status s = CheckCsvRowFields(fields.size(), header, source, line_number); !s.ok()) return s;
     for (int j = 0; j < n; ++j) {
       double v = 0;
-      if (column[j] >= static_cast<int>(fields.size())) {
-        return LineError(source, line_number, "the row has " + std::to_string(fields.size()) +
-                                                  " fields, no q" + std::to_string(j + 1),
-                         "one field per header column");
-      }
       const std::string_view field = fields[column[j]];
-      if (!ParseFinite(field, &v)) {
+      if (!ParseFinite(field, &v) || std::abs(v) > kMaxAbsCsvJointValue) {
         return LineError(source, line_number,
-                         "q" + std::to_string(j + 1) + " " + Quote(field) + " is not a finite number",
-                         "joint values in rad (deg with --angle_unit=deg) or mm");
+                         "q" + std::to_string(j + 1) + " " + Quote(field) + " is not a joint value",
+                         "a finite number of magnitude at most 1e4: joint values in rad (deg with "
+                         "--angle_unit=deg) or mm");
       }
       if (degrees && model.joints[j].type == JointType::kRevolute) v *= kRadiansPerDegree;
       values.push_back(v);

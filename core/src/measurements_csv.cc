@@ -18,6 +18,7 @@
 #include "file_util.h"
 #include "lpoe/io.h"
 #include "lpoe/parallel.h"
+#include "lpoe/csv_rules.h"
 #include "parse_util.h"
 
 namespace lpoe {
@@ -473,10 +474,13 @@ class CsvReader {
   }
 
   Status FieldCountError(std::string_view line, int64_t line_number) const {
+    // The rule every CSV reader shares (lpoe/csv_rules.h): the count, and the first column a short
+    // row lacks ("the row has 5 fields, no 'q6'").
     const size_t fields = static_cast<size_t>(std::count(line.begin(), line.end(), ',')) + 1;
-    return LineError(source_, line_number, std::to_string(fields) + " fields",
-                     std::to_string(header_.columns().size()) + " as in the header on line " +
-                         std::to_string(header_line_));
+    ::lpoe::CsvHeader header;
+    header.line = header_line_;
+    for (const Column& c : header_.columns()) header.names.push_back(c.name);
+    return CheckCsvRowFields(fields, header, source_, line_number);
   }
 
   // A number field's value into the row being parsed, range-checked: false, with *error set, when

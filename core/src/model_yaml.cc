@@ -17,6 +17,7 @@
 #include "lpoe/io.h"
 #include "lpoe/urdf.h"
 #include "joint_errors_yaml.h"
+#include "lpoe/refusals.h"
 #include "parse_util.h"
 
 namespace lpoe {
@@ -591,6 +592,7 @@ Status ReadRobotModelFile(const std::string& path, RobotModel* model) {
 }
 
 Status WriteRobotModel(const std::string& path, const RobotModel& model) {
+  if (Status s = CheckModelFinite(model); !s.ok()) return Status::Error(path + ": " + s.message());
   return WriteFileAtomically(path, RobotModelToYaml(model));
 }
 

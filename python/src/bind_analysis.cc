@@ -17,9 +17,11 @@
 
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/csv_rules.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/planning.h"
+#include "lpoe/refusals.h"
 #include "lpoe/problem_builder.h"
 #include "python_api.h"
 
@@ -29,11 +31,18 @@ namespace lpoe {
 namespace python {
 namespace {
 
-void CheckFinite(const RowArray& a, const std::string& what) {
+// Finite values of magnitude at most `limit`: the limits of the CSV readers (lpoe/csv_rules.h),
+// the same for arrays as for the tools' files.
+void CheckFinite(const RowArray& a, const std::string& what, double limit) {
   const double* d = a.data();
   for (py::ssize_t k = 0; k < a.size(); ++k) {
     if (!std::isfinite(d[k])) {
       throw LpoeError(what + ": non-finite value at flat index " + std::to_string(k));
+    }
+    if (std::abs(d[k]) > limit) {
+      throw LpoeError(what + ": value of magnitude above " +
+                      (limit == kMaxAbsCsvPositionMm ? std::string("1e6 mm") : std::string("1e4")) +
+                      " at flat index " + std::to_string(k));
     }
   }
 }
@@ -160,11 +169,8 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
   if (!nominal_obj.is_none()) {
     nominal = nominal_obj.cast<const RobotModel*>();
     Check(nominal->Validate());
-    if (nominal->num_joints() != n || nominal->num_tools() < model.num_tools()) {
-      throw LpoeError("nominal: the nominal model has " + std::to_string(nominal->num_joints()) +
-                      " joints and " + std::to_string(nominal->num_tools()) +
-                      " tools; the calibrated model " + std::to_string(n) + " and " +
-                      std::to_string(model.num_tools()));
+    if (Status s = CheckNominalMatches(model, *nominal); !s.ok()) {
+      throw LpoeError("nominal: " + s.message());
     }
   }
   // Tool of every row: one index or name for all rows, or an (M,) integer array.
@@ -175,7 +181,7 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
     throw LpoeError("compensate: targets= needs seeds= (the program's joints, one row per target)");
   }
   const py::ssize_t m = RowsOf(seeds, n, joints_mode ? "joints" : "seeds");
-  CheckFinite(seeds, joints_mode ? "joints" : "seeds");
+  CheckFinite(seeds, joints_mode ? "joints" : "seeds", kMaxAbsCsvJointValue);
   std::vector<int> tools(m, 0);
   if (py::isinstance<py::array>(tool_obj) || py::isinstance<py::list>(tool_obj)) {
     auto t = tool_obj.cast<py::array_t<int, py::array::c_style | py::array::forcecast>>();
@@ -209,7 +215,7 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
       throw LpoeError("targets: " + std::to_string(p.ndim() == 1 ? 1 : p.shape(0)) +
                       " rows, seeds: " + std::to_string(m));
     }
-    CheckFinite(p, "targets");
+    CheckFinite(p, "targets", kMaxAbsCsvPositionMm);
     RowArray quat;
     if (!orientations_obj.is_none()) {
       quat = orientations_obj.cast<RowArray>();
@@ -321,7 +327,7 @@ py::dict QualityDict(const PlanQuality& q) {
 
 std::vector<double> RowMajor(const RowArray& a, int n, const std::string& what) {
   const py::ssize_t m = RowsOf(a, n, what);
-  CheckFinite(a, what);
+  CheckFinite(a, what, kMaxAbsCsvJointValue);
   return std::vector<double>(a.data(), a.data() + m * n);
 }
 
@@ -408,6 +414,9 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
   }
   if (!workspace_obj.is_none()) {
     workspace = RowMajor(workspace_obj.cast<RowArray>(), n, "workspace");
+    // lpoe_plan refuses a --workspace file without rows (exit 2): the accuracy over no
+    // configuration is no accuracy at all.
+    if (workspace.empty()) throw LpoeError("workspace: no configurations (expected (W, N), W >= 1)");
   } else {
     Check(SampleConfigurations(model, workspace_count, seed + 1, &workspace));
   }
@@ -431,6 +440,10 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
     out.num_parameters = pm.num_parameters();
     if (status.ok()) {
       out.quality = EvaluatePlan(pm, pool, plan.selected, L);
+      // The refusals lpoe_plan makes (exit 3 there): rank deficiency, no redundancy.
+      status = PlanRefusal(out.quality, pm.num_parameters(), count);
+    }
+    if (status.ok()) {
       out.exchanges = plan.exchanges;
       out.q.resize(count, n);
       for (int k = 0; k < count; ++k) {
@@ -452,6 +465,7 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
           finite > 0 ? std::sqrt(mean_sq / finite) : std::numeric_limits<double>::infinity();
     }
   }
+  if (!status.ok() && out.quality.num_poses > 0) throw LpoeError(status.message());
   if (!status.ok()) {
     throw LpoeError(status.message() + " (" + std::to_string(out.outside_limits) +
                     " outside the limits, " + std::to_string(out.near_singular) +

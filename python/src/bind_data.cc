@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "lpoe/csv_rules.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
@@ -269,9 +270,17 @@ void BindMeasurements(py::module_& m) {
             if (!std::isfinite(qr[j])) {
               throw LpoeError("q: row " + std::to_string(r) + ": non-finite joint value");
             }
+            // The CSV reader's limits (lpoe/csv_rules.h), the same for arrays.
+            if (std::abs(qr[j]) > kMaxAbsCsvJointValue) {
+              throw LpoeError("q: row " + std::to_string(r) + ": joint value of magnitude above 1e4");
+            }
           }
           if (!p.allFinite()) {
             throw LpoeError("positions: row " + std::to_string(r) + ": non-finite position");
+          }
+          if (p.cwiseAbs().maxCoeff() > kMaxAbsCsvPositionMm) {
+            throw LpoeError("positions: row " + std::to_string(r) +
+                            ": position of magnitude above 1e6 mm");
           }
           if (pose) {
             Eigen::Quaterniond qq(quat.at(r, 3), quat.at(r, 0), quat.at(r, 1), quat.at(r, 2));

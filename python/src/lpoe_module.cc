@@ -74,7 +74,18 @@ PYBIND11_MODULE(_lpoe, m) {
   using namespace lpoe;
   using namespace lpoe::python;
   m.doc() = "lpoe-calib: LPoE kinematic calibration of serial robots from laser-tracker data";
-  py::register_exception<LpoeError>(m, "Error", PyExc_ValueError);
+  static py::exception<LpoeError> error(m, "Error", PyExc_ValueError);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const LpoeError& e) {
+      error(e.what());
+    } catch (const py::cast_error& e) {
+      // An argument of the wrong type reaching a cast inside a function (tool=None, tool=1.0,
+      // verify=5): lpoe.Error like every other bad argument, not pybind11's RuntimeError.
+      error((std::string("an argument has the wrong type: ") + e.what()).c_str());
+    }
+  });
 
   py::class_<RobotModel>(m, "Model", "A robot model: local joint frames, twists, tools (mm, rad).")
       .def(py::init<>())

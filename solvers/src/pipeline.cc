@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <utility>
 
 #include "gravity_tilt.h"
 #include "structural_identifiability.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
+#include "lpoe/refusals.h"
 
 namespace lpoe {
 namespace {
@@ -255,6 +257,21 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
     if (start_out) *start_out = start;
     if (options.on_stage) options.on_stage(stage + " (directions decided at the solution)");
     result = solve(nullptr, {});
+  }
+  // A data set with no more rows than parameters cannot check itself (lpoe/refusals.h, the check
+  // lpoe_plan and lpoe.plan make on a plan): the fit is exact whatever the errors, every residual
+  // zero and no standard deviation estimable. Refused as not identifiable (exit 3), not passed.
+  if (result.converged()) {
+    const int64_t rows = int64_t{data.size()} *
+                         (options.use_orientation && data.has_orientation() ? 6 : 3);
+    const int parameters = result.parameterization.num_parameters;
+    if (rows <= parameters) {
+      result.termination = Termination::kNotIdentifiable;
+      result.message = CheckRedundancy(static_cast<int>(rows), parameters,
+                                       "the data set of " + std::to_string(data.size()) + " points")
+                           .message();
+      return StoreJointErrors(std::move(result), start);
+    }
   }
   if (!tilt || !result.converged()) return StoreJointErrors(std::move(result), start);
   // The gravity tilt: checked at the compliance solution, then solved from it.

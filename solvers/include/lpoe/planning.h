@@ -35,6 +35,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "lpoe/refusals.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/parameterization.h"
@@ -231,6 +232,16 @@ Eigen::MatrixXd Information(const CandidatePool& pool, const std::vector<int>& s
 
 PlanQuality EvaluatePlan(const PlanningModel& pm, const CandidatePool& pool,
                          const std::vector<int>& selected, const Eigen::MatrixXd& workspace_moment);
+
+// The refusals of a plan, shared by lpoe_plan and lpoe.plan (lpoe/refusals.h): a plan of `count`
+// poses must identify every parameter (rank) and have more rows than parameters (redundancy: with
+// no more, it cannot check itself). The message says which and why.
+inline Status PlanRefusal(const PlanQuality& quality, int parameters, int count) {
+  const std::string what = "the plan of " + std::to_string(count) + " pose" +
+                           (count == 1 ? "" : "s");
+  if (Status s = CheckFullRank(quality.rank, parameters, what); !s.ok()) return s;
+  return CheckRedundancy(quality.num_rows, parameters, what);
+}
 
 // ---- Selection.
 
