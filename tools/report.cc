@@ -247,8 +247,9 @@ std::string GravityTiltSummary(const GravityTiltResult& t) {
 
 std::string JointErrorTermNames(const RobotModel& model) {
   std::string out;
-  if (!model.joint_errors.compliance.empty()) out += "compliance";
-  if (!model.joint_errors.harmonics.empty()) out += out.empty() ? "harmonics" : ", harmonics";
+  for (const std::string& name : JointTermNames()) {
+    if (model.joint_errors.Has(name)) out += out.empty() ? name : ", " + name;
+  }
   return out;
 }
 
