@@ -168,7 +168,7 @@ TEST(GravityTilt, JointColumnsMatchFiniteDifferencesAndAutodiff) {
     // The offsets are the compliance of the model with the tilted gravity.
     RobotModel tilted = l.model;
     tilted.gravity = tilt_model->Tilted(state.data() + P);
-    tilted.joint_errors.compliance = l.theta;
+    *tilted.joint_errors.MutableValues("compliance") = l.theta;
     std::vector<double> expected(n);
     JointErrorOffsets(tilted, q.data(), expected.data());
     for (int j = 0; j < n; ++j) {
@@ -235,7 +235,7 @@ struct TiltFixture {
                                                         actual.joints[0].origin.R.transpose() *
                                                         actual.gravity);
     if (joint_errors) {
-      ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), true, true, &actual);
+      ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), {"compliance", "harmonics"}, &actual);
     }
     SimulationOptions options;
     options.count = rows + 200;
@@ -571,7 +571,7 @@ TEST(GravityTilt, AutoAddsTiltCandidatesOnlyWhenIdentifiable) {
 
 // Bad use: the tilt without compliance.
 TEST(GravityTilt, RejectedWithoutCompliance) {
-  std::vector<JointErrorKind> kinds;
+  std::vector<std::string> kinds;
   bool tilt = false;
   std::string error;
   ASSERT_TRUE(ParseJointErrorList("compliance,tilt", &kinds, &tilt, &error)) << error;
