@@ -34,9 +34,9 @@ struct PipelineOptions {
   // Stages 1-2 of registration.h first (skipped when the data are in the base frame already).
   bool register_frames = true;
   // Joint-space error terms to identify with the geometry, by registry name (joint_term.h,
-  // JointTermNames(): "compliance", "harmonics", "gear_ratio"). Built on the registered start model; the identified values are
-  // stored in the calibrated model's joint_errors (so its YAML carries them) and in
-  // result.joint_terms. "tilt" (with "compliance" only) also identifies the tilt of the model's
+  // JointTermNames(): "compliance", "harmonics", ...), in registry order. Built on the registered
+  // start model; the identified values are stored in the calibrated model's joint_errors (so its
+  // YAML carries them) and in result.joint_terms. "tilt" (with "compliance" only) also identifies the tilt of the model's
   // gravity when the data determine it (docs/joint_errors.md, "Gravity tilt"): the compliance
   // solve first, the tilt's check at its solution (result.gravity_tilt.message when it fails),
   // then the solve with the tilt from there; the tilted gravity goes into the calibrated model.
@@ -101,15 +101,15 @@ struct JointErrorSelection {
   std::string tilt_message;
 };
 
-// Cross-validates each candidate set of terms: every subset of the registry (2^T sets for T terms;
-// with compliance, harmonics and gear_ratio: 8), and each subset with compliance again with the
-// gravity tilt when the tilt is identifiable (2^(T-1) more). Cost: one solve with every term and
-// the tilt (the tilt's check), then one solve per candidate and fold: 1 + 8 k solves, 1 + 12 k with
-// the tilt, for k = options.joint_error_folds (5: 41 or 61). Candidates are
-// on options.joint_error_folds seeded folds of `identification` with the pipeline's solver and
-// registration, and chooses by the one-standard-error rule: the candidate with the fewest
-// identified joint-error combinations whose pooled held-out mean squared error is at most the
-// lowest one plus that lowest estimate's standard error (docs/joint_errors.md).
+// Cross-validates each candidate set of terms on options.joint_error_folds seeded folds of
+// `identification` with the pipeline's solver and registration, and chooses by the
+// one-standard-error rule: the candidate with the fewest identified joint-error combinations whose
+// pooled held-out mean squared error is at most the lowest one plus that lowest estimate's standard
+// error (docs/joint_errors.md). The candidates: every subset of the registry (2^T sets for T terms,
+// 8 with today's three), and each subset with compliance again with the gravity tilt when the tilt
+// is identifiable (2^(T-1) more). Cost: one solve with every term and the tilt (the tilt's check),
+// then one per candidate and fold: 1 + 8 k solves, 1 + 12 k with the tilt, for
+// k = options.joint_error_folds (k = 5: 41 or 61).
 JointErrorSelection SelectJointErrors(const RobotModel& nominal,
                                       const MeasurementSet& identification,
                                       const PipelineOptions& options);
