@@ -138,11 +138,11 @@ const std::vector<double>& JointErrorTerms::Values(const std::string& name) cons
   return kNone;
 }
 
-bool JointErrorTerms::Has(const std::string& name) const {
+bool JointErrorTerms::empty() const {
   for (const JointTermEntry& t : terms) {
-    if (t.name == name) return true;
+    if (!t.values.empty()) return false;
   }
-  return false;
+  return true;
 }
 
 std::vector<double>* JointErrorTerms::MutableValues(const std::string& name) {

@@ -65,17 +65,19 @@ struct JointTermEntry {
 // name at most once (Validate checks both).
 struct JointErrorTerms {
   // The terms, each name once; their order does not matter (prediction and YAML follow the
-  // registry's order).
+  // registry's order). An entry with no values is an absent term.
   std::vector<JointTermEntry> terms;
   // The joint origins (T_{j-1,j}(0), one per joint) the regressors are evaluated on; empty: the
   // model's own. A calibration stores its registered start model's origins here, the geometry its
   // solver evaluated the regressors on, so that predicting with the calibrated model reproduces the
   // solver's residuals exactly (docs/joint_errors.md).
   std::vector<SE3d> regressor_origins;
-  bool empty() const { return terms.empty(); }
+  // No term with values.
+  bool empty() const;
   // The values of term `name`; an empty vector when the model does not carry it.
   const std::vector<double>& Values(const std::string& name) const;
-  bool Has(const std::string& name) const;
+  // The model carries term `name` (with values).
+  bool Has(const std::string& name) const { return !Values(name).empty(); }
   // The values of term `name`, an empty entry appended when the model does not carry it yet.
   std::vector<double>* MutableValues(const std::string& name);
   // Removes term `name` (nothing when absent).
