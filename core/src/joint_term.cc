@@ -38,10 +38,10 @@ void JointTermKind::AddOffsets(const RobotModel& model, const std::vector<double
   const int P = static_cast<int>(theta.size());
   thread_local std::vector<double> y;
   y.resize(P);
-  if (RegressorValues(model, q, y.data())) {
-    thread_local std::vector<int> joints;
-    joints = ParameterJoints(model);
-    CHECK_EQ(static_cast<int>(joints.size()), P);
+  const std::vector<int> joints = ParameterJoints(model);
+  CHECK_EQ(static_cast<int>(joints.size()), P) << name();
+  const bool single = std::all_of(joints.begin(), joints.end(), [](int j) { return j >= 0; });
+  if (single && RegressorValues(model, q, y.data())) {
     // Per joint, the sum over its parameters, then added (as a per-joint block sum).
     thread_local std::vector<double> sum;
     sum.assign(n, 0.0);
