@@ -15,6 +15,7 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/parameterization.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/simulation.h"
 #include "lpoe/statistics.h"
@@ -184,6 +185,72 @@ TEST(GearRatio, CombinesWithCompliance) {
                                                      : "ceres compliance,gear_ratio";
     ExpectRatiosRecovered(f, p, what);
     EXPECT_FALSE(p.result.model.joint_errors.Values("compliance").empty());
+  }
+}
+
+// The rank logic (ReduceJointErrorTerms, the solvers' joint blocks) needs nothing term-specific:
+// where a joint does not move over the data, its ratio error is a constant joint offset that the
+// geometry already has, and that combination is left out; with the joint spanning +-pi it is kept.
+TEST(GearRatio, AJointHeldStillLosesItsRatioToTheJointOffset) {
+  const RobotModel model = MakeCobot6();
+  SimulationOptions options;
+  options.count = 150;
+  options.seed = 9;
+  options.lower.assign(6, -3.14159265358979);
+  options.upper.assign(6, 3.14159265358979);
+  const Parameterization p =
+      MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
+  std::vector<JointErrorReduction> reductions;
+  ASSERT_TRUE(ReduceJointErrorTerms(model, p, SimulateMeasurements(model, {}, options),
+                                    {"harmonics", kGearRatio}, &reductions)
+                  .ok());
+  ASSERT_EQ(reductions.size(), 2u);
+  EXPECT_EQ(reductions[1].term, kGearRatio);
+  EXPECT_EQ(reductions[1].basis.cols(), 6);  // every joint's ratio, after the harmonics too
+  constexpr int kStill = 3;                  // joint 4
+  options.lower[kStill] = options.upper[kStill] = 0.7;
+  ASSERT_TRUE(ReduceJointErrorTerms(model, p, SimulateMeasurements(model, {}, options),
+                                    {kGearRatio}, &reductions)
+                  .ok());
+  EXPECT_EQ(reductions[0].rank_alone, 6);  // seen at the tool ...
+  EXPECT_EQ(reductions[0].basis.cols(), 5);  // ... but as joint 4's offset: left out
+  EXPECT_EQ(reductions[0].per_joint[kStill], 0);
+  for (int c = 0; c < reductions[0].basis.cols(); ++c) {
+    EXPECT_LT(std::abs(reductions[0].basis(kStill, c)), 1e-6) << c;
+  }
+}
+
+// A joint whose motion does not move the tool (joint 6 with the tool on its axis) loses its ratio
+// in the calibration as it loses its harmonics; both solvers still recover the others.
+TEST(GearRatio, InvisibleJointIsLeftOutByBothSolvers) {
+  const RobotModel nominal = MakeCobot6(Eigen::Vector3d(0, 0, 60));
+  const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, 17);
+  RobotModel actual = ApplyErrors(nominal, errors);
+  actual.tools[0].origin = nominal.tools[0].origin;  // keep the tool on joint 6's axis
+  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), {kGearRatio}, &actual);
+  SimulationOptions options;
+  options.count = 250;
+  options.noise_sigma = 0.005;
+  options.seed = 9;
+  const MeasurementSet data = SimulateMeasurements(actual, errors.joint_zero, options);
+  std::vector<int> id(200), ver(50);
+  std::iota(id.begin(), id.end(), 0);
+  std::iota(ver.begin(), ver.end(), 200);
+  for (SolverKind solver : {SolverKind::kLinear, SolverKind::kCeres}) {
+    PipelineOptions o;
+    o.solver = solver;
+    o.register_frames = false;
+    o.joint_errors = {kGearRatio};
+    const PipelineResult p = RunCalibrationPipeline(nominal, data.Subset(id), data.Subset(ver), o);
+    ASSERT_TRUE(p.result.converged()) << p.result.message;
+    ASSERT_EQ(p.result.parameterization.joint_blocks.size(), 1u);
+    EXPECT_EQ(p.result.parameterization.joint_blocks[0].basis.cols(), 5);
+    const std::vector<double>& truth = actual.joint_errors.Values(kGearRatio);
+    const std::vector<double>& found = p.result.model.joint_errors.Values(kGearRatio);
+    ASSERT_EQ(found.size(), 6u);
+    EXPECT_LT(std::abs(found[5]), 1e-9);  // left out, not fitted to noise
+    for (int j = 0; j < 5; ++j) EXPECT_NEAR(found[j], truth[j], 1e-5) << "joint " << j + 1;
+    EXPECT_LT(p.verification_after.norm.rms, 1.5 * std::sqrt(3.0) * options.noise_sigma);
   }
 }
 
