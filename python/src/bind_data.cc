@@ -83,8 +83,9 @@ std::vector<std::string> JointErrorNames(const std::string& text, bool allow_til
   bool tilt = false;
   std::string error;
   if (allow_tilt && !ParseJointErrorList(text, &kinds, &tilt, &error)) {
-    throw LpoeError("joint_errors: '" + text + "': " + error + " (expected none, a comma-separated list of " +
-                    JointTermNameList() + ", with tilt in a list with compliance, or auto)");
+    throw LpoeError("joint_errors: '" + text + "': " + error +
+                    " (expected none, a comma-separated list of " + JointTermNameList() +
+                    ", with tilt in a list with compliance, or auto)");
   }
   if (!allow_tilt && !ParseJointTermList(text, &kinds, &error)) {
     throw LpoeError("joint_errors: expected none or a comma-separated list of " +

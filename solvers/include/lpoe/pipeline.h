@@ -36,9 +36,9 @@ struct PipelineOptions {
   // Joint-space error terms to identify with the geometry, by registry name (joint_term.h,
   // JointTermNames(): "compliance", "harmonics", ...), in registry order. Built on the registered
   // start model; the identified values are stored in the calibrated model's joint_errors (so its
-  // YAML carries them) and in result.joint_terms. "tilt" (with "compliance" only) also identifies the tilt of the model's
-  // gravity when the data determine it (docs/joint_errors.md, "Gravity tilt"): the compliance
-  // solve first, the tilt's check at its solution (result.gravity_tilt.message when it fails),
+  // YAML carries them) and in result.joint_terms. "tilt" (with "compliance" only) also identifies
+  // the tilt of the model's gravity when the data determine it (docs/joint_errors.md, "Gravity
+  // tilt"): the compliance solve first, the tilt's check at its solution (result.gravity_tilt.message when it fails),
   // then the solve with the tilt from there; the tilted gravity goes into the calibrated model.
   std::vector<std::string> joint_errors;
   // The tilt counts as identifiable when each angle's predicted standard deviation is at most this
