@@ -3,6 +3,7 @@
 // calibration. Each test runs the built binaries in its own temporary directory.
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -14,6 +15,7 @@
 
 #include "file_util.h"
 #include "lpoe/io.h"
+#include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"
 #include "lpoe/statistics.h"
@@ -180,6 +182,51 @@ TEST_F(CalibrateTool, OutputReadsBackAndPredictsLikeTheLibrary) {
                                               .norm());
   }
   EXPECT_LE(worst_actual, 3 * kNoiseSigma);
+}
+
+// A registry term end to end through the tools: lpoe_simulate puts the gear ratios into the truth
+// robot (and its YAML), lpoe_calibrate identifies them with compliance and writes them to the
+// calibrated model, which predicts the held-out data to the noise; an unknown term is refused
+// naming the registry.
+TEST_F(CalibrateTool, GearRatioFromSimulationToCalibratedModel) {
+  const Output sim = Run(LPOE_SIMULATE_PATH,
+                         "--joint_errors=gear_ratio --errors=random --count=200 --noise_sigma=0.005 "
+                         "--seed=3 --out=" + Path("id.csv") + " --verify_count=60 --verify_out=" +
+                             Path("ver.csv") + " --model_out=" + Path("nominal.yaml") +
+                             " --actual_out=" + Path("actual.yaml"));
+  ASSERT_EQ(sim.exit_code, kExitOk) << sim.err;
+  RobotModel actual, nominal, calibrated;
+  ASSERT_TRUE(ReadRobotModel(RawPath("actual.yaml"), &actual).ok());
+  ASSERT_TRUE(ReadRobotModel(RawPath("nominal.yaml"), &nominal).ok());
+  const std::vector<double>& truth = actual.joint_errors.Values("gear_ratio");
+  ASSERT_EQ(truth.size(), 6u);
+  for (double s : truth) EXPECT_TRUE(std::abs(s) >= 1e-4 && std::abs(s) <= 1e-3) << s;
+
+  const Output o = Calibrate("--quiet --model=" + Path("nominal.yaml") + " --measurements=" +
+                             Path("id.csv") + " --verify=" + Path("ver.csv") +
+                             " --joint_errors=gear_ratio,compliance --output=" +
+                             Path("calibrated.yaml"));
+  ASSERT_EQ(o.exit_code, kExitOk) << o.out << o.err;
+  const Status read = ReadRobotModel(RawPath("calibrated.yaml"), &calibrated);
+  ASSERT_TRUE(read.ok()) << read.message();
+  const std::vector<double>& found = calibrated.joint_errors.Values("gear_ratio");
+  ASSERT_EQ(found.size(), 6u);
+  for (int j = 0; j < 6; ++j) EXPECT_NEAR(found[j], truth[j], 1e-5) << "joint " << j + 1;
+  EXPECT_FALSE(calibrated.joint_errors.Values("compliance").empty());
+  MeasurementSet verification;
+  ASSERT_TRUE(ReadMeasurements(RawPath("ver.csv"), nominal, AngleUnit::kRadians, &verification).ok());
+  std::vector<Eigen::Vector3d> residuals;
+  for (int r = 0; r < verification.size(); ++r) {
+    residuals.push_back(verification.position(r) -
+                        PredictToolPosition(calibrated, verification.q(r), verification.target(r)));
+  }
+  EXPECT_LT(ComputeStatistics(residuals).norm.rms, 1.5 * std::sqrt(3.0) * 0.005);
+
+  const Output bad = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" +
+                               Path("id.csv") + " --joint_errors=compliance,gear_ration");
+  EXPECT_EQ(bad.exit_code, kExitUsage);
+  EXPECT_NE(bad.err.find("unknown joint error term 'gear_ration'"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("gear_ratio"), std::string::npos) << bad.err;
 }
 
 TEST_F(CalibrateTool, TooFewRowsExitsNotIdentifiableWithoutOutput) {

@@ -349,9 +349,9 @@ TEST(InverseKinematics, EffectiveJointsThroughTheChainRule) {
 // deflections (tenths of a millimetre).
 TEST(InverseKinematics, ModelJointErrorTermsAreHonoured) {
   RobotModel model = MakeCobot6();
-  ApplyJointErrorPhysics(SmallArmJointErrors(model, SmallArmOptions()), true, true, &model);
-  ASSERT_FALSE(model.joint_errors.compliance.empty());
-  ASSERT_FALSE(model.joint_errors.harmonics.empty());
+  ApplyJointErrorPhysics(SmallArmJointErrors(model, SmallArmOptions()), {"compliance", "harmonics"}, &model);
+  ASSERT_FALSE(model.joint_errors.Values("compliance").empty());
+  ASSERT_FALSE(model.joint_errors.Values("harmonics").empty());
   RobotModel geometric = model;
   geometric.joint_errors = JointErrorTerms();
   InverseKinematics ik(model), ik_geometric(geometric);
@@ -422,7 +422,7 @@ void ExpectPathsAgree(const RobotModel& model, const IkTarget& target, const std
 
 TEST(InverseKinematics, FastPathAgreesWithTheGeneralPath) {
   RobotModel with_terms = MakeCobot6();
-  ApplyJointErrorPhysics(SmallArmJointErrors(with_terms, SmallArmOptions()), true, true,
+  ApplyJointErrorPhysics(SmallArmJointErrors(with_terms, SmallArmOptions()), {"compliance", "harmonics"},
                          &with_terms);
   ASSERT_FALSE(with_terms.joint_errors.empty());
   TestRandom rng(71);

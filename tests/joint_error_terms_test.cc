@@ -23,12 +23,12 @@ namespace {
 
 TEST(JointErrorTerms, RegisteredAndSized) {
   const RobotModel m = MakeCobot6();
-  for (JointErrorKind kind : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
+  for (const std::string& kind : JointTermNames()) {
     std::shared_ptr<const JointTerm> term;
-    ASSERT_TRUE(MakeJointTerm(JointErrorKindName(kind), m, &term).ok());
-    EXPECT_EQ(term->name(), JointErrorKindName(kind));
+    ASSERT_TRUE(MakeJointTerm(kind, m, &term).ok());
+    EXPECT_EQ(term->name(), kind);
     EXPECT_EQ(term->num_joints(), m.num_joints());
-    EXPECT_EQ(term->num_parameters(), NumJointErrorParameters(m.num_joints(), kind));
+    EXPECT_EQ(term->num_parameters(), NumJointErrorParameters(m, kind));
     const std::vector<double> q = {0.1, -0.4, 0.7, 0.2, -1.1, 0.5};
     Eigen::MatrixXd Y(m.num_joints(), term->num_parameters()), ref;
     term->Regressor(q.data(), Y.data());
@@ -48,9 +48,9 @@ TEST(JointErrorTerms, RegressorValuesAreTheRegressorsEntriesAtTheirJoints) {
   const int n = m.num_joints();
   const std::vector<std::vector<double>> configurations = {
       {0.1, -0.4, 0.7, 0.2, -1.1, 0.5}, {0, 0, 0, 0, 0, 0}, {-2.9, 1.3, -2.2, 3.0, 0.01, -1.7}};
-  for (JointErrorKind kind : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
+  for (const std::string kind : {"compliance", "harmonics"}) {
     std::shared_ptr<const JointTerm> term;
-    ASSERT_TRUE(MakeJointTerm(JointErrorKindName(kind), m, &term).ok());
+    ASSERT_TRUE(MakeJointTerm(kind, m, &term).ok());
     const int P = term->num_parameters();
     Eigen::VectorXd theta(P);
     for (int k = 0; k < P; ++k) theta(k) = 1e-5 * std::sin(1.0 + 0.7 * k);
@@ -93,7 +93,7 @@ struct Fixture {
     const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, 5);
     RobotModel actual = ApplyErrors(nominal, errors);
     SmallArmOptions small_arm;
-    ApplyJointErrorPhysics(SmallArmJointErrors(nominal, small_arm), true, true, &actual);
+    ApplyJointErrorPhysics(SmallArmJointErrors(nominal, small_arm), {"compliance", "harmonics"}, &actual);
     SimulationOptions options;
     options.count = 300;
     options.noise_sigma = noise;
@@ -138,9 +138,9 @@ TEST(JointErrorTerms, PipelineRecoversComplianceAndHarmonics) {
   // The identified values are stored in the calibrated model: its own prediction (EffectiveJoints
   // on its geometry) stays at the noise level
   // although its regressor is evaluated on the calibrated geometry, not the start model.
-  EXPECT_EQ(JointErrorParameters(with.result.model, JointErrorKind::kCompliance).size(),
+  EXPECT_EQ(with.result.model.joint_errors.Values("compliance").size(),
             static_cast<size_t>(NumComplianceParameters(6)));
-  EXPECT_EQ(JointErrorParameters(with.result.model, JointErrorKind::kHarmonics).size(),
+  EXPECT_EQ(with.result.model.joint_errors.Values("harmonics").size(),
             static_cast<size_t>(NumHarmonicsParameters(6)));
   std::vector<Eigen::Vector3d> own;
   for (int r = 0; r < f.verification.size(); ++r) {
@@ -178,7 +178,7 @@ struct AutoFixture {
     const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, 11);
     RobotModel actual = ApplyErrors(nominal, errors);
     if (joint_errors) {
-      ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), true, true, &actual);
+      ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), {"compliance", "harmonics"}, &actual);
     }
     truth = FoldJointZeros(actual, errors.joint_zero);
     SimulationOptions options;
@@ -242,11 +242,17 @@ TEST(JointErrorAuto, ChoosesTheTermsAndRecoversTheDeflection) {
   ASSERT_TRUE(clean.result.converged()) << clean.result.message;
   PrintSelection("with joint errors", automatic);
   EXPECT_EQ(Chosen(automatic), "compliance,harmonics");
-  // Four sets, and the two with the gravity tilt when the data determine it (they do here: the
-  // compliance torques are large; the level base keeps the simpler set chosen above).
+  // Every subset of the registry's T terms (2^T), and the 2^(T-1) with compliance once more with
+  // the gravity tilt when the data determine it (they do here: the compliance torques are large;
+  // the level base keeps the simpler set chosen above).
   ASSERT_TRUE(automatic.joint_error_selection.tilt_candidates)
       << automatic.joint_error_selection.tilt_message;
-  ASSERT_EQ(automatic.joint_error_selection.candidates.size(), 6u);
+  const size_t T = JointTermNames().size();
+  ASSERT_EQ(automatic.joint_error_selection.candidates.size(),
+            (size_t{1} << T) + (size_t{1} << (T - 1)));
+  for (const JointErrorCandidate& c : automatic.joint_error_selection.candidates) {
+    EXPECT_TRUE(c.ok) << c.label << ": " << c.failure;
+  }
   EXPECT_EQ(automatic.joint_error_selection.candidates[0].label, "none");
 
   // Held-out RMS of the error norm: auto, geometric, the same data without joint errors.

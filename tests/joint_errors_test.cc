@@ -14,6 +14,7 @@
 
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/io.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/simulation.h"
 #include "test_util.h"
@@ -97,21 +98,30 @@ TEST(JointErrors, LayoutIsContiguous) {
     EXPECT_EQ(NumComplianceParameters(n), expected);
   }
   const RobotModel model = MakeCobot6();
-  EXPECT_EQ(JointErrorParameterNames(model, JointErrorKind::kCompliance).size(), 90u);
-  EXPECT_EQ(JointErrorParameterNames(model, JointErrorKind::kCompliance)[4], "joint1.c*m_joint2");
-  EXPECT_EQ(JointErrorParameterNames(model, JointErrorKind::kHarmonics)[6], "joint2.sin2");
+  EXPECT_EQ(JointErrorParameterNames(model, "compliance").size(), 90u);
+  EXPECT_EQ(JointErrorParameterNames(model, "compliance")[4], "joint1.c*m_joint2");
+  EXPECT_EQ(JointErrorParameterNames(model, "harmonics")[6], "joint2.sin2");
 }
 
 TEST(JointErrors, ParsesKindLists) {
-  std::vector<JointErrorKind> kinds;
-  ASSERT_TRUE(ParseJointErrorKinds("none", &kinds));
+  std::vector<std::string> kinds;
+  std::string error;
+  ASSERT_TRUE(ParseJointTermList("none", &kinds, &error));
   EXPECT_TRUE(kinds.empty());
-  ASSERT_TRUE(ParseJointErrorKinds("harmonics,compliance", &kinds));
+  ASSERT_TRUE(ParseJointTermList("harmonics,compliance", &kinds, &error));
   ASSERT_EQ(kinds.size(), 2u);
-  EXPECT_EQ(kinds[0], JointErrorKind::kHarmonics);
-  EXPECT_FALSE(ParseJointErrorKinds("compliance,compliance", &kinds));
-  EXPECT_FALSE(ParseJointErrorKinds("compliance,", &kinds));
-  EXPECT_FALSE(ParseJointErrorKinds("stiffness", &kinds));
+  EXPECT_EQ(kinds[0], "harmonics");
+  EXPECT_EQ(InRegistryOrder(kinds), (std::vector<std::string>{"compliance", "harmonics"}));
+  EXPECT_FALSE(ParseJointTermList("compliance,compliance", &kinds, &error));
+  EXPECT_FALSE(ParseJointTermList("compliance,", &kinds, &error));
+  EXPECT_FALSE(ParseJointTermList("stiffness", &kinds, &error));
+  // The message lists the registry's names.
+  EXPECT_NE(error.find("unknown joint error term 'stiffness'"), std::string::npos) << error;
+  for (const std::string& name : JointTermNames()) {
+    EXPECT_NE(error.find(name), std::string::npos) << error;
+    ASSERT_TRUE(ParseJointTermList(name, &kinds, &error)) << name;
+    ASSERT_EQ(kinds.size(), 1u);
+  }
 }
 
 // dq = c tau with c = 1: the regressor times the physical products is the gravity torque, for
@@ -195,7 +205,7 @@ TEST(JointErrors, JointJacobianMatchesFiniteDifferences) {
 TEST(JointErrors, ParameterJacobianMatchesFiniteDifferences) {
   RobotModel model = MakeLoaded(MakeCobot6(), 6).model;
   SmallArmOptions options;
-  ApplyJointErrorPhysics(SmallArmJointErrors(model, options), true, true, &model);
+  ApplyJointErrorPhysics(SmallArmJointErrors(model, options), {"compliance", "harmonics"}, &model);
   TestRandom rng(10);
   for (int t = 0; t < 5; ++t) {
     const std::vector<double> q = rng.Configuration(model);
@@ -203,11 +213,11 @@ TEST(JointErrors, ParameterJacobianMatchesFiniteDifferences) {
     EffectiveJoints(model, q.data(), q_eff.data());
     Eigen::Matrix<double, 3, Eigen::Dynamic> J_q;
     ToolPositionJointJacobian(model, q_eff.data(), 0, &J_q);
-    for (JointErrorKind kind : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
+    for (const std::string kind : {"compliance", "harmonics"}) {
       Eigen::MatrixXd Y;
       JointErrorRegressor(model, kind, q.data(), &Y);
       const Eigen::MatrixXd J = J_q * Y;
-      std::vector<double>& theta = *MutableJointErrorParameters(&model, kind);
+      std::vector<double>& theta = *model.joint_errors.MutableValues(kind);
       for (int c = 0; c < J.cols(); c += 3) {
         const double largest = Y.col(c).cwiseAbs().maxCoeff();
         if (largest == 0) continue;
@@ -220,7 +230,7 @@ TEST(JointErrors, ParameterJacobianMatchesFiniteDifferences) {
         theta[c] = saved;
         const Eigen::Vector3d fd = (plus - minus) / (2 * h);
         EXPECT_LT((fd - J.col(c)).norm(), 1e-5 * (1 + J.col(c).norm()))
-            << JointErrorKindName(kind) << " column " << c;
+            << kind << " column " << c;
       }
     }
   }
@@ -290,8 +300,8 @@ int Rank(const Eigen::MatrixXd& A) {
 }
 
 // The tool effects of the terms, stacked over the rows, for rank checks.
-Eigen::MatrixXd Effects(const RobotModel& model, const MeasurementSet& data, JointErrorKind kind) {
-  Eigen::MatrixXd A(3 * data.size(), NumJointErrorParameters(model.num_joints(), kind));
+Eigen::MatrixXd Effects(const RobotModel& model, const MeasurementSet& data, const std::string& kind) {
+  Eigen::MatrixXd A(3 * data.size(), NumJointErrorParameters(model, kind));
   Eigen::MatrixXd Y;
   for (int r = 0; r < data.size(); ++r) {
     Eigen::Matrix<double, 3, Eigen::Dynamic> J;
@@ -323,13 +333,13 @@ TEST(JointErrors, ReductionKeepsExactlyTheIdentifiableCombinations) {
       MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
   std::vector<JointErrorReduction> reductions;
   ASSERT_TRUE(ReduceJointErrorTerms(model, p, data,
-                                    {JointErrorKind::kCompliance, JointErrorKind::kHarmonics},
+                                    {"compliance", "harmonics"},
                                     &reductions)
                   .ok());
   ASSERT_EQ(reductions.size(), 2u);
   const Eigen::MatrixXd G = Geometric(model, p, data);
-  const Eigen::MatrixXd C = Effects(model, data, JointErrorKind::kCompliance);
-  const Eigen::MatrixXd H = Effects(model, data, JointErrorKind::kHarmonics);
+  const Eigen::MatrixXd C = Effects(model, data, "compliance");
+  const Eigen::MatrixXd H = Effects(model, data, "harmonics");
   const int kept_c = static_cast<int>(reductions[0].basis.cols());
   const int kept_h = static_cast<int>(reductions[1].basis.cols());
   Eigen::MatrixXd GC(G.rows(), G.cols() + C.cols());
@@ -356,7 +366,7 @@ TEST(JointErrors, ReductionDropsInvisibleHarmonics) {
       MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
   std::vector<JointErrorReduction> reductions;
   ASSERT_TRUE(
-      ReduceJointErrorTerms(model, p, data, {JointErrorKind::kHarmonics}, &reductions).ok());
+      ReduceJointErrorTerms(model, p, data, {"harmonics"}, &reductions).ok());
   EXPECT_EQ(reductions[0].rank_alone, 20);
   EXPECT_EQ(reductions[0].per_joint[5], 0);
 }
@@ -367,7 +377,7 @@ TEST(JointErrors, SimulatedSmallArmHasRealisticMagnitudes) {
   const RobotModel nominal = MakeCobot6();
   RobotModel actual = nominal;
   const JointErrorPhysics physics = SmallArmJointErrors(nominal, SmallArmOptions());
-  ApplyJointErrorPhysics(physics, true, false, &actual);
+  ApplyJointErrorPhysics(physics, {"compliance"}, &actual);
   for (const Eigen::Vector4d& h : physics.harmonics) {
     for (int order = 0; order < 2; ++order) {
       const double amplitude = std::hypot(h(2 * order), h(2 * order + 1)) * kArcsecPerRadian;
@@ -402,7 +412,7 @@ TEST(JointErrors, SimulatedSmallArmHasRealisticMagnitudes) {
 // The simulator measures at q + joint zero + the terms' offsets there.
 TEST(JointErrors, SimulationMeasuresTheEffectiveJoints) {
   RobotModel actual = MakeCobot6();
-  ApplyJointErrorPhysics(SmallArmJointErrors(actual, SmallArmOptions()), true, true, &actual);
+  ApplyJointErrorPhysics(SmallArmJointErrors(actual, SmallArmOptions()), {"compliance", "harmonics"}, &actual);
   const std::vector<double> zero = {0.01, -0.02, 0.005, 0.0, 0.01, -0.01};
   SimulationOptions options;
   options.count = 20;
@@ -423,8 +433,8 @@ TEST(JointErrors, YamlRoundTripReproducesPredictions) {
   for (const RobotModel& base : {MakeCobot6(), MakeArmWithPrismatic()}) {
     RobotModel model = MakeLoaded(base, 13).model;
     model.joints[1].name = "shoulder \"pitch\"";
-    ApplyJointErrorPhysics(SmallArmJointErrors(model, SmallArmOptions()), true, true, &model);
-    model.joint_errors.compliance[ComplianceLinkIndex(6, 2, 4) + 1] = 0;  // a partial row
+    ApplyJointErrorPhysics(SmallArmJointErrors(model, SmallArmOptions()), {"compliance", "harmonics"}, &model);
+    (*model.joint_errors.MutableValues("compliance"))[ComplianceLinkIndex(6, 2, 4) + 1] = 0;  // a partial row
     const std::string text = RobotModelToYaml(model);
     RobotModel back;
     const Status s = ParseRobotModelYaml(text, "model.yaml", &back);
@@ -432,8 +442,8 @@ TEST(JointErrors, YamlRoundTripReproducesPredictions) {
     EXPECT_EQ(back.gravity, model.gravity);
     EXPECT_EQ(back.payload.mass, model.payload.mass);
     EXPECT_EQ(back.payload.com, model.payload.com);
-    EXPECT_EQ(back.joint_errors.compliance, model.joint_errors.compliance);
-    EXPECT_EQ(back.joint_errors.harmonics, model.joint_errors.harmonics);
+    EXPECT_EQ(back.joint_errors.Values("compliance"), model.joint_errors.Values("compliance"));
+    EXPECT_EQ(back.joint_errors.Values("harmonics"), model.joint_errors.Values("harmonics"));
     TestRandom rng(14);
     for (int t = 0; t < kTrials; ++t) {
       const std::vector<double> q = rng.Configuration(model);
@@ -485,7 +495,7 @@ TEST(JointErrors, YamlErrorsNameLineAndReason) {
 TEST(JointErrors, PredictPositionsChecksItsInput) {
   RobotModel model = MakeCobot6();
   model.tools.push_back(Tool{"smr2", SE3d(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 50, 60))});
-  ApplyJointErrorPhysics(SmallArmJointErrors(model, SmallArmOptions()), true, true, &model);
+  ApplyJointErrorPhysics(SmallArmJointErrors(model, SmallArmOptions()), {"compliance", "harmonics"}, &model);
   TestRandom rng(15);
   std::vector<double> q;
   for (int r = 0; r < 4; ++r) {

@@ -75,7 +75,7 @@ struct Data {
     nominal.payload.com = Eigen::Vector3d(5, -3, 40);
     const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, 21);
     RobotModel actual = ApplyErrors(nominal, errors);
-    ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), true, true, &actual);
+    ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), {"compliance", "harmonics"}, &actual);
     SimulationOptions options;
     options.count = count;  // 157: not a multiple of the accumulation's block of poses
     options.noise_sigma = 0.01;

@@ -29,7 +29,7 @@ inline LoadedCobot6 MakeLoadedCobot6(int count, double noise_sigma, uint64_t see
   d.nominal.payload.com = Eigen::Vector3d(0, 0, 50);
   const KinematicErrors errors = RandomErrors(d.nominal, 2e-3, 0.5, 1e-3, 2e-3, 11);
   RobotModel actual = ApplyErrors(d.nominal, errors);
-  ApplyJointErrorPhysics(SmallArmJointErrors(d.nominal, SmallArmOptions()), true, true, &actual);
+  ApplyJointErrorPhysics(SmallArmJointErrors(d.nominal, SmallArmOptions()), {"compliance", "harmonics"}, &actual);
   SimulationOptions options;
   options.count = count;
   options.noise_sigma = noise_sigma;

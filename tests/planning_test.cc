@@ -176,7 +176,7 @@ TEST(Planning, GravityTiltColumnsAreTheTiltOfGravity) {
   EXPECT_NE(none.message().find("carries no compliance values"), std::string::npos)
       << none.message();
   RobotModel model = nominal;
-  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), true, false, &model);
+  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), {"compliance"}, &model);
   std::shared_ptr<const JointTerm> harmonics;
   ASSERT_TRUE(MakeJointTerm("harmonics", model, &harmonics).ok());
   const Status no_term = PlanningGravityTiltStatus(model, {harmonics});
@@ -618,7 +618,7 @@ class PlanningWithJointErrors : public ::testing::Test {
         L_(WorkspaceMoment(pm_, workspace_)) {
     errors_ = RandomErrors(model_, 2e-3, 0.5, 1e-3, 2e-3, 63);
     actual_ = ApplyErrors(model_, errors_);
-    ApplyJointErrorPhysics(SmallArmJointErrors(model_, SmallArmOptions()), true, true, &actual_);
+    ApplyJointErrorPhysics(SmallArmJointErrors(model_, SmallArmOptions()), {"compliance", "harmonics"}, &actual_);
     truth_ = FoldJointZeros(actual_, errors_.joint_zero);
     truth_geometry_ = truth_;
     truth_geometry_.joint_errors = JointErrorTerms();

@@ -21,6 +21,7 @@
 #include "lpoe/io.h"
 #include "lpoe/linear_solver.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/refusals.h"
 #include "lpoe/registration.h"
@@ -77,15 +78,16 @@ DEFINE_string(solver, "linear",
               "linear: the paper's iterative least squares; ceres: Levenberg-Marquardt on SE(3) "
               "manifolds (robust losses, a-priori covariance).");
 DEFINE_string(joint_errors, "none",
-              "Joint-space error terms identified with the geometry: none | compliance | harmonics "
-              "| compliance,harmonics | auto (gravity and payload from the model; the identified "
+              "Joint-space error terms identified with the geometry: none | a comma-separated list "
+              "of the registry's terms (compliance, harmonics, ...: docs/joint_errors.md lists "
+              "them; e.g. compliance,harmonics) | auto (gravity and payload from the model; the identified "
               "values are written to the model's joint_errors). Add tilt to a list with compliance "
               "(compliance,tilt) to identify the tilt of the model's gravity too, when the data "
               "determine it (the tilted gravity goes into the calibrated model). auto: k-fold "
               "cross-validation on the identification rows (--kfold folds, 5 when not given; "
               "--split_seed) picks the simplest set within one standard error of the lowest "
-              "held-out error, with the tilt among the candidates when identifiable "
-              "(docs/joint_errors.md).");
+              "held-out error among every subset of the terms, with the tilt among the "
+              "candidates when identifiable (docs/joint_errors.md).");
 DEFINE_string(loss, "none",
               "Ceres solver: robust loss against gross errors in the data: none | huber | cauchy.");
 DEFINE_double(loss_scale, 1.0,
@@ -158,17 +160,14 @@ PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_ori
   o.parameterization = kind;
   o.use_orientation = use_orientation;
   o.register_frames = FLAGS_register;
-  std::vector<JointErrorKind> kinds;
+  std::vector<std::string> kinds;
   o.joint_errors_auto = FLAGS_joint_errors == "auto";
   o.joint_error_folds = FLAGS_kfold >= 2 ? FLAGS_kfold : 5;
   bool tilt = false;
   if (std::string error; ParseJointErrorList(FLAGS_joint_errors, &kinds, &tilt, &error)) {
-    // Compliance first (docs/joint_errors.md): it keeps the combinations both terms could explain.
-    for (JointErrorKind k : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
-      if (std::find(kinds.begin(), kinds.end(), k) != kinds.end()) {
-        o.joint_errors.push_back(JointErrorKindName(k));
-      }
-    }
+    // In registry order, compliance first (docs/joint_errors.md): it keeps the combinations both
+    // terms could explain.
+    o.joint_errors = InRegistryOrder(kinds);
     if (tilt) o.joint_errors.push_back(kGravityTiltName);
   }
   o.kfold = FLAGS_kfold;
@@ -314,13 +313,13 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  if (std::vector<JointErrorKind> kinds; FLAGS_joint_errors != "auto") {
+  if (std::vector<std::string> kinds; FLAGS_joint_errors != "auto") {
     bool tilt = false;
     std::string error;
     if (!ParseJointErrorList(FLAGS_joint_errors, &kinds, &tilt, &error)) {
       std::cerr << "error: --joint_errors='" << FLAGS_joint_errors << "': " << error
-                << " (expected none, compliance, harmonics, compliance,harmonics, with tilt after "
-                   "compliance (compliance,tilt), or auto)\n";
+                << " (expected none, a comma-separated list of " << JointTermNameList()
+                << ", with tilt in a list with compliance (compliance,tilt), or auto)\n";
       return kExitUsage;
     }
   }

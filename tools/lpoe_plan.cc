@@ -80,8 +80,9 @@ DEFINE_double(noise_sigma, 0,
               "with --count=auto.");
 DEFINE_int32(random_draws, 30, "Random plans of the same size evaluated for comparison.");
 DEFINE_string(joint_errors, "none",
-              "Joint-space error terms the calibration will identify: none | compliance | "
-              "harmonics | compliance,harmonics | auto, with ',tilt' after compliance for the "
+              "Joint-space error terms the calibration will identify: none | a comma-separated "
+              "list of the registry's terms (compliance, harmonics, ...: docs/joint_errors.md) | "
+              "auto, with ',tilt' in a list with compliance for the "
               "gravity tilt. Their identifiable combinations join the parameters the plan must "
               "determine (and the predicted accuracy). 'auto' plans for every term lpoe_calibrate "
               "--joint_errors=auto may choose (all of them; the tilt too when the model carries "
@@ -211,20 +212,16 @@ int Run() {
   // The joint-space terms, compliance first as lpoe_calibrate orders them (docs/joint_errors.md).
   std::vector<std::string> term_names;
   bool tilt = false;  // the gravity tilt, asked for
-  std::vector<JointErrorKind> kinds;
+  std::vector<std::string> kinds;
   std::string error;
   if (FLAGS_joint_errors == "auto") {
     term_names = JointTermNames();
   } else if (ParseJointErrorList(FLAGS_joint_errors, &kinds, &tilt, &error)) {
-    for (JointErrorKind k : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
-      if (std::find(kinds.begin(), kinds.end(), k) != kinds.end()) {
-        term_names.push_back(JointErrorKindName(k));
-      }
-    }
+    term_names = InRegistryOrder(kinds);
   } else {
     std::cerr << "error: --joint_errors=" << FLAGS_joint_errors << ": " << error
-              << " (expected none, compliance, harmonics, compliance,harmonics or auto, with "
-                 "tilt after compliance)\n";
+              << " (expected none, a comma-separated list of " << JointTermNameList()
+              << " or auto, with tilt in a list with compliance)\n";
     return kExitUsage;
   }
   PlanConstraints constraints;

@@ -16,6 +16,7 @@
 
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/joint_table.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/refusals.h"
@@ -56,9 +57,11 @@ DEFINE_bool(all_tools, false,
 DEFINE_uint64(seed, 1, "Seed of the configurations and the noise.");
 DEFINE_string(angle_unit, "rad", "Unit of the revolute joint values written: rad | deg.");
 DEFINE_string(joint_errors, "none",
-              "Non-geometric errors of the actual robot (docs/joint_errors.md): none | compliance | "
-              "harmonics | compliance,harmonics. Compliance: joints deflect under the gravity "
-              "torque of the links beyond them; harmonics: joint errors periodic in q and 2q.");
+              "Non-geometric errors of the actual robot (docs/joint_errors.md): none | a "
+              "comma-separated list of the registry's joint-space terms (compliance, harmonics, "
+              "...; docs/joint_errors.md lists them and how each is simulated). Compliance: joints "
+              "deflect under the gravity torque of the links beyond them; harmonics: joint errors "
+              "periodic in q and 2q.");
 DEFINE_string(stiffness, "",
               "Joint stiffnesses, comma-separated, one per joint (N m/rad; N/mm for prismatic "
               "joints; 0 = rigid). Default: 2e4 for joints 1-2, 3e3 for joint 3, 1.5e3 beyond.");
@@ -210,10 +213,10 @@ int Run() {
     std::cerr << "error: --errors must be table2, random or none\n";
     return kExitUsage;
   }
-  std::vector<JointErrorKind> joint_error_kinds;
-  if (!ParseJointErrorKinds(FLAGS_joint_errors, &joint_error_kinds)) {
-    std::cerr << "error: --joint_errors must be none or a comma-separated list of compliance, "
-                 "harmonics\n";
+  std::vector<std::string> joint_error_kinds;
+  if (std::string why; !ParseJointTermList(FLAGS_joint_errors, &joint_error_kinds, &why)) {
+    std::cerr << "error: --joint_errors must be none or a comma-separated list of "
+              << JointTermNameList() << ": " << why << "\n";
     return kExitUsage;
   }
   SmallArmOptions small_arm;
@@ -269,12 +272,8 @@ int Run() {
     const double t[2] = {tilt_deg[0] * M_PI / 180.0, tilt_deg[1] * M_PI / 180.0};
     actual.gravity = TiltedGravity<double>(nominal.gravity, t);
   }
-  const auto has = [&](JointErrorKind kind) {
-    return std::find(joint_error_kinds.begin(), joint_error_kinds.end(), kind) !=
-           joint_error_kinds.end();
-  };
-  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, small_arm),
-                         has(JointErrorKind::kCompliance), has(JointErrorKind::kHarmonics), &actual);
+  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, small_arm), InRegistryOrder(joint_error_kinds),
+                         &actual);
 
   SimulationOptions options;
   options.count = FLAGS_count;

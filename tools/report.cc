@@ -184,17 +184,22 @@ std::string JointErrorSelectionTable(const JointErrorSelection& sel) {
                     (sel.split == SplitKind::kSequential
                          ? std::string("contiguous folds")
                          : "seed " + std::to_string(sel.seed)) +
-                    "), held-out position error\n" +
-                    "  terms                     combinations   CV rms (mm)   CV mse (mm^2)   "
-                    "std error\n";
-  char line[256];
+                    "), held-out position error\n";
+  // The terms column: 25 wide, wider when a label needs it (every registry subset is a candidate).
+  int width = 25;
+  for (const JointErrorCandidate& c : sel.candidates) {
+    width = std::max(width, static_cast<int>(c.label.size()));
+  }
+  out += "  " + std::string("terms") + std::string(width - 5, ' ') +
+         " combinations   CV rms (mm)   CV mse (mm^2)   std error\n";
+  char line[512];
   for (size_t k = 0; k < sel.candidates.size(); ++k) {
     const JointErrorCandidate& c = sel.candidates[k];
     if (!c.ok) {
-      std::snprintf(line, sizeof(line), "  %-25s %12d   FAILED: %s\n", c.label.c_str(),
+      std::snprintf(line, sizeof(line), "  %-*s %12d   FAILED: %s\n", width, c.label.c_str(),
                     c.parameters, c.failure.c_str());
     } else {
-      std::snprintf(line, sizeof(line), "  %-25s %12d   %11.5f   %13.6g   %9.3g%s\n",
+      std::snprintf(line, sizeof(line), "  %-*s %12d   %11.5f   %13.6g   %9.3g%s\n", width,
                     c.label.c_str(), c.parameters, c.cv_rms, c.cv_mse, c.cv_mse_se,
                     static_cast<int>(k) == sel.chosen ? "   <- chosen" : "");
     }
@@ -246,8 +251,9 @@ std::string GravityTiltSummary(const GravityTiltResult& t) {
 
 std::string JointErrorTermNames(const RobotModel& model) {
   std::string out;
-  if (!model.joint_errors.compliance.empty()) out += "compliance";
-  if (!model.joint_errors.harmonics.empty()) out += out.empty() ? "harmonics" : ", harmonics";
+  for (const std::string& name : JointTermNames()) {
+    if (model.joint_errors.Has(name)) out += out.empty() ? name : ", " + name;
+  }
   return out;
 }
 

@@ -11,6 +11,7 @@
 #include <glog/logging.h>
 
 #include "lpoe/eigen_decompositions.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 
 namespace lpoe {
@@ -130,7 +131,7 @@ void HarmonicsValues(const RobotModel& model, const double* q, double* out) {
 // Every row of a calibration passes here: with SSE2 two entries at a time. A maximum is exact in
 // any order, and maxpd(|y|, largest) keeps `largest` for a NaN |y| as std::max(largest, |y|) does;
 // the cut keeps y where |y| >= cutoff (a NaN is kept, as the scalar comparison keeps it).
-void ZeroRoundingNoise(double* y, int size) {
+void ZeroRoundingNoiseImpl(double* y, int size) {
   double largest = 0;
   int k = 0;
 #ifdef __SSE2__
@@ -157,14 +158,6 @@ void ZeroRoundingNoise(double* y, int size) {
   }
 }
 
-// The joint (0-based) whose offset a parameter of `kind` enters.
-int JointOfParameter(int num_joints, JointErrorKind kind, int index) {
-  if (kind == JointErrorKind::kHarmonics) return index / kHarmonicsPerJoint;
-  int j = 0;
-  while (j + 1 < num_joints && CompliancePayloadIndex(num_joints, j) < index) ++j;
-  return j;
-}
-
 bool AllFinite(const std::vector<double>& v) {
   for (double x : v) {
     if (!std::isfinite(x)) return false;
@@ -174,37 +167,39 @@ bool AllFinite(const std::vector<double>& v) {
 
 }  // namespace
 
-const char* JointErrorKindName(JointErrorKind kind) {
-  return kind == JointErrorKind::kCompliance ? "compliance" : "harmonics";
-}
-
-bool ParseJointErrorKinds(const std::string& text, std::vector<JointErrorKind>* kinds) {
-  std::vector<JointErrorKind> out;
+bool ParseJointTermList(const std::string& text, std::vector<std::string>* names,
+                        std::string* error) {
   if (text.empty() || text == "none") {
-    kinds->clear();
+    names->clear();
     return true;
   }
+  std::vector<std::string> out;
   std::stringstream ss(text);
   std::string item;
   while (std::getline(ss, item, ',')) {
-    JointErrorKind kind;
-    if (item == "compliance") {
-      kind = JointErrorKind::kCompliance;
-    } else if (item == "harmonics") {
-      kind = JointErrorKind::kHarmonics;
-    } else {
+    if (!IsJointTermName(item)) {
+      *error = "unknown joint error term " + std::string("'") + item + "' (known: " +
+               JointTermNameList() + ")";
       return false;
     }
-    if (std::find(out.begin(), out.end(), kind) != out.end()) return false;
-    out.push_back(kind);
+    if (std::find(out.begin(), out.end(), item) != out.end()) {
+      *error = "'" + item + "' is listed more than once";
+      return false;
+    }
+    out.push_back(item);
   }
-  if (out.empty() || text.back() == ',') return false;
-  *kinds = out;
+  if (out.empty() || text.back() == ',') {
+    *error = "not a comma-separated list of " + JointTermNameList();
+    return false;
+  }
+  *names = out;
   return true;
 }
 
-bool ParseJointErrorList(const std::string& text, std::vector<JointErrorKind>* kinds, bool* tilt,
+bool ParseJointErrorList(const std::string& text, std::vector<std::string>* names, bool* tilt,
                          std::string* error) {
+  const std::string expected =
+      "not a comma-separated list of " + JointTermNameList() + ", " + kGravityTiltName;
   std::stringstream ss(text);
   std::string item, rest;
   int tilts = 0;
@@ -220,24 +215,24 @@ bool ParseJointErrorList(const std::string& text, std::vector<JointErrorKind>* k
     return false;
   }
   if (tilts == 1 && (text.back() == ',' || text.front() == ',')) {
-    *error = "not a comma-separated list of compliance, harmonics, tilt";
+    *error = expected;
     return false;
   }
   if (tilts == 1 && (rest.empty() || rest == "none")) {
     *error = kGravityTiltNeedsCompliance;
     return false;
   }
-  std::vector<JointErrorKind> out;
-  if ((tilts == 0 || !rest.empty()) && !ParseJointErrorKinds(rest, &out)) {
-    *error = "not a comma-separated list of compliance, harmonics, tilt";
+  std::vector<std::string> out;
+  std::string why;
+  if ((tilts == 0 || !rest.empty()) && !ParseJointTermList(rest, &out, &why)) {
+    *error = expected + ": " + why;
     return false;
   }
-  if (tilts == 1 &&
-      std::find(out.begin(), out.end(), JointErrorKind::kCompliance) == out.end()) {
+  if (tilts == 1 && std::find(out.begin(), out.end(), "compliance") == out.end()) {
     *error = kGravityTiltNeedsCompliance;
     return false;
   }
-  *kinds = out;
+  *names = out;
   *tilt = tilts == 1;
   return true;
 }
@@ -260,39 +255,6 @@ int CompliancePayloadIndex(int num_joints, int joint) {
 
 int NumHarmonicsParameters(int num_joints) { return kHarmonicsPerJoint * num_joints; }
 
-int NumJointErrorParameters(int num_joints, JointErrorKind kind) {
-  return kind == JointErrorKind::kCompliance ? NumComplianceParameters(num_joints)
-                                             : NumHarmonicsParameters(num_joints);
-}
-
-std::vector<std::string> JointErrorParameterNames(const RobotModel& model, JointErrorKind kind) {
-  const int n = model.num_joints();
-  std::vector<std::string> names;
-  for (int j = 0; j < n; ++j) {
-    const std::string& joint = model.joints[j].name;
-    if (kind == JointErrorKind::kHarmonics) {
-      for (const char* s : {".sin1", ".cos1", ".sin2", ".cos2"}) names.push_back(joint + s);
-      continue;
-    }
-    for (int k = j; k < n; ++k) {
-      const std::string& link = model.joints[k].name;
-      for (const char* s : {".c*m_", ".c*hx_", ".c*hy_", ".c*hz_"}) names.push_back(joint + s + link);
-    }
-    names.push_back(joint + ".c");
-  }
-  return names;
-}
-
-const std::vector<double>& JointErrorParameters(const RobotModel& model, JointErrorKind kind) {
-  return kind == JointErrorKind::kCompliance ? model.joint_errors.compliance
-                                             : model.joint_errors.harmonics;
-}
-
-std::vector<double>* MutableJointErrorParameters(RobotModel* model, JointErrorKind kind) {
-  return kind == JointErrorKind::kCompliance ? &model->joint_errors.compliance
-                                             : &model->joint_errors.harmonics;
-}
-
 Status ValidateJointErrorTerms(const RobotModel& model) {
   if (!model.gravity.allFinite()) return Status::Error("gravity: non-finite number");
   if (!std::isfinite(model.payload.mass) || model.payload.mass < 0) {
@@ -314,18 +276,26 @@ Status ValidateJointErrorTerms(const RobotModel& model) {
       return Status::Error("joint_errors: a regressor origin is not a finite rigid transform");
     }
   }
-  for (JointErrorKind kind : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
-    const std::vector<double>& v = JointErrorParameters(model, kind);
-    const int expected = NumJointErrorParameters(model.num_joints(), kind);
+  const std::vector<JointTermEntry>& terms = model.joint_errors.terms;
+  for (size_t t = 0; t < terms.size(); ++t) {
+    const std::string& name = terms[t].name;
+    if (!IsJointTermName(name)) {
+      return Status::Error("joint_errors: unknown term '" + name + "' (known: " +
+                           JointTermNameList() + ")");
+    }
+    for (size_t u = 0; u < t; ++u) {
+      if (terms[u].name == name) return Status::Error("joint_errors: '" + name + "' twice");
+    }
+    const std::vector<double>& v = terms[t].values;
+    const int expected = NumJointErrorParameters(model, name);
     if (!v.empty() && static_cast<int>(v.size()) != expected) {
       std::ostringstream os;
-      os << "joint_errors: " << JointErrorKindName(kind) << " has " << v.size()
-         << " parameters; expected " << expected << " for " << model.num_joints() << " joints";
+      os << "joint_errors: " << name << " has " << v.size() << " parameters; expected "
+         << expected << " for " << model.num_joints() << " joints";
       return Status::Error(os.str());
     }
     if (!AllFinite(v)) {
-      return Status::Error(std::string("joint_errors: non-finite ") + JointErrorKindName(kind) +
-                           " parameter");
+      return Status::Error("joint_errors: non-finite " + name + " parameter");
     }
   }
   return Status::Ok();
@@ -428,62 +398,28 @@ void HarmonicsRegressor(const RobotModel& model, const double* q, Eigen::MatrixX
   }
 }
 
-void JointErrorRegressor(const RobotModel& model, JointErrorKind kind, const double* q,
-                         Eigen::MatrixXd* Y) {
-  if (kind == JointErrorKind::kCompliance) {
-    ComplianceRegressor(model, q, Y);
-  } else {
-    HarmonicsRegressor(model, q, Y);
-  }
+void ZeroJointErrorRoundingNoise(Eigen::MatrixXd* Y) {
   // Entries at rounding level (e.g. the gravity torque about a vertical axis) are exact zeros: the
   // solvers scale every column to unit norm, and a column of rounding noise would otherwise be
   // identified with huge values that cancel only on this very geometry.
+  if (Y->size() == 0) return;
   const double cutoff = kJointErrorRoundingCutoff * Y->cwiseAbs().maxCoeff();
   *Y = (Y->array().abs() < cutoff).select(0.0, *Y);
 }
 
-void JointErrorRegressorValues(const RobotModel& model, JointErrorKind kind, const double* q,
-                               double* y) {
-  if (kind == JointErrorKind::kCompliance) {
-    thread_local ChainState state;  // no allocation per call (solvers evaluate it for every row)
-    ComputeChainState(model, q, &state);
-    ComplianceValuesFor(model, state, model.gravity, y);
-  } else {
-    HarmonicsValues(model, q, y);
-  }
-  ZeroRoundingNoise(y, NumJointErrorParameters(model.num_joints(), kind));
+void ZeroJointErrorRoundingNoise(double* y, int size) { ZeroRoundingNoiseImpl(y, size); }
+
+void ComplianceRegressorValues(const RobotModel& model, const double* q, double* y,
+                               const std::vector<SE3d>* origins) {
+  thread_local ChainState state;  // no allocation per call (solvers evaluate it for every row)
+  ComputeChainState(model, q, &state, origins);
+  ComplianceValuesFor(model, state, model.gravity, y);
+  ZeroRoundingNoiseImpl(y, NumComplianceParameters(model.num_joints()));
 }
 
-void JointErrorOffsets(const RobotModel& model, const double* q, double* dq) {
-  const int n = model.num_joints();
-  for (int j = 0; j < n; ++j) dq[j] = 0;
-  const std::vector<SE3d>& origins = model.joint_errors.regressor_origins;
-  thread_local ChainState state;  // no allocation per call
-  thread_local std::vector<double> y;
-  for (JointErrorKind kind : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
-    const std::vector<double>& theta = JointErrorParameters(model, kind);
-    if (theta.empty()) continue;
-    const int P = static_cast<int>(theta.size());
-    y.resize(P);
-    // The regressor's entries at their joints (every other entry of Y is zero).
-    if (kind == JointErrorKind::kCompliance && !origins.empty()) {
-      // On the stored reference geometry (the calibration's start model), as the solver did.
-      ComputeChainState(model, q, &state, &origins);
-      ComplianceValuesFor(model, state, model.gravity, y.data());
-      ZeroRoundingNoise(y.data(), P);
-    } else {
-      JointErrorRegressorValues(model, kind, q, y.data());
-    }
-    for (int j = 0; j < n; ++j) {
-      const int first = kind == JointErrorKind::kCompliance ? ComplianceLinkIndex(n, j, j)
-                                                            : kHarmonicsPerJoint * j;
-      const int last = kind == JointErrorKind::kCompliance ? CompliancePayloadIndex(n, j) + 1
-                                                           : first + kHarmonicsPerJoint;
-      double sum = 0;
-      for (int c = first; c < last; ++c) sum += y[c] * theta[c];
-      dq[j] += sum;
-    }
-  }
+void HarmonicsRegressorValues(const RobotModel& model, const double* q, double* y) {
+  HarmonicsValues(model, q, y);
+  ZeroRoundingNoiseImpl(y, NumHarmonicsParameters(model.num_joints()));
 }
 
 void EffectiveJoints(const RobotModel& model, const double* q, double* q_eff) {
@@ -552,7 +488,7 @@ Status PredictPositions(const RobotModel& model, const std::vector<double>& q,
 }
 
 Status ReduceJointErrorTerms(const RobotModel& reference, const Parameterization& geometric,
-                             const MeasurementSet& data, const std::vector<JointErrorKind>& kinds,
+                             const MeasurementSet& data, const std::vector<std::string>& terms,
                              std::vector<JointErrorReduction>* reductions) {
   const int n = reference.num_joints();
   const int rows = data.size();
@@ -596,13 +532,18 @@ Status ReduceJointErrorTerms(const RobotModel& reference, const Parameterization
 
   reductions->clear();
   Eigen::MatrixXd Y;
-  for (JointErrorKind kind : kinds) {
+  for (const std::string& name : terms) {
+    if (!IsJointTermName(name)) {
+      return Status::Error("unknown joint error term '" + name + "' (known: " +
+                           JointTermNameList() + ")");
+    }
     JointErrorReduction red;
-    red.kind = kind;
-    red.num_full = NumJointErrorParameters(n, kind);
+    red.term = name;
+    red.num_full = NumJointErrorParameters(reference, name);
+    const std::vector<int> joint_of = JointErrorParameterJoints(reference, name);
     Eigen::MatrixXd A(m, red.num_full);
     for (int r = 0; r < rows; ++r) {
-      JointErrorRegressor(reference, kind, data.q(r), &Y);
+      JointErrorRegressor(reference, name, data.q(r), &Y);
       A.middleRows(3 * r, 3) = J_q[r] * Y;
     }
     scaled(&A, &inverse_norms);
@@ -626,7 +567,8 @@ Status ReduceJointErrorTerms(const RobotModel& reference, const Parameterization
     for (int c = 0; c < rank; ++c) {
       Eigen::Index largest = 0;
       V.col(c).cwiseAbs().maxCoeff(&largest);
-      ++red.per_joint[JointOfParameter(n, kind, static_cast<int>(largest))];
+      // A parameter that may move several joints counts for the first (JointTerm::ParameterJoint).
+      ++red.per_joint[std::max(0, joint_of[static_cast<size_t>(largest)])];
     }
     // The kept combinations' effects are orthogonal to Q and to each other (U of the SVD).
     Eigen::MatrixXd grown(m, Q.cols() + rank);

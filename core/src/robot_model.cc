@@ -130,6 +130,38 @@ Status RobotModel::Validate() const {
   return ValidateJointErrorTerms(*this);
 }
 
+const std::vector<double>& JointErrorTerms::Values(const std::string& name) const {
+  static const std::vector<double> kNone;
+  for (const JointTermEntry& t : terms) {
+    if (t.name == name) return t.values;
+  }
+  return kNone;
+}
+
+bool JointErrorTerms::empty() const {
+  for (const JointTermEntry& t : terms) {
+    if (!t.values.empty()) return false;
+  }
+  return true;
+}
+
+std::vector<double>* JointErrorTerms::MutableValues(const std::string& name) {
+  for (JointTermEntry& t : terms) {
+    if (t.name == name) return &t.values;
+  }
+  terms.push_back(JointTermEntry{name, {}});
+  return &terms.back().values;
+}
+
+void JointErrorTerms::Remove(const std::string& name) {
+  for (size_t i = 0; i < terms.size(); ++i) {
+    if (terms[i].name == name) {
+      terms.erase(terms.begin() + static_cast<std::ptrdiff_t>(i));
+      return;
+    }
+  }
+}
+
 RobotModel MakeCobot6(const Eigen::Vector3d& tool_xyz) {
   // Joint frames at q = 0 in base coordinates (docs/conventions.md, paper Table 1).
   const double H1 = 96, W1 = 138, L1 = 418, W2 = 114, L2 = 398, W3 = 98, H2 = 98, W4 = 89;

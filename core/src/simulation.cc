@@ -6,6 +6,7 @@
 
 #include <glog/logging.h>
 
+#include "joint_term_kind.h"
 #include "lpoe/kinematics.h"
 
 namespace lpoe {
@@ -132,6 +133,7 @@ JointErrorPhysics SmallArmJointErrors(const RobotModel& model, const SmallArmOpt
   CHECK(options.stiffness.empty() || static_cast<int>(options.stiffness.size()) == n);
   Random rng(options.seed);
   JointErrorPhysics physics;
+  physics.seed = options.seed;
   for (int k = 0; k < n; ++k) {
     physics.stiffness.push_back(!options.stiffness.empty() ? options.stiffness[k]
                                 : k < 2                    ? 2e4
@@ -161,36 +163,31 @@ JointErrorPhysics SmallArmJointErrors(const RobotModel& model, const SmallArmOpt
   return physics;
 }
 
-void ApplyJointErrorPhysics(const JointErrorPhysics& physics, bool compliance, bool harmonics,
+void ApplyJointErrorPhysics(const JointErrorPhysics& physics, const std::vector<std::string>& terms,
                             RobotModel* actual) {
-  const int n = actual->num_joints();
-  CHECK_EQ(static_cast<int>(physics.stiffness.size()), n);
-  if (compliance) actual->joint_errors.compliance = CompliancePhysicsParameters(physics);
-  if (harmonics) {
-    CHECK_EQ(static_cast<int>(physics.harmonics.size()), n);
-    actual->joint_errors.harmonics.assign(NumHarmonicsParameters(n), 0.0);
-    for (int j = 0; j < n; ++j) {
-      for (int c = 0; c < kHarmonicsPerJoint; ++c) {
-        actual->joint_errors.harmonics[kHarmonicsPerJoint * j + c] = physics.harmonics[j](c);
-      }
-    }
+  CHECK_EQ(static_cast<int>(physics.stiffness.size()), actual->num_joints());
+  for (const std::string& name : terms) {
+    const internal::JointTermKind* kind = internal::FindJointTermKind(name);
+    CHECK(kind != nullptr) << "unknown joint error term '" << name << "'";
+    *actual->joint_errors.MutableValues(name) = kind->Simulate(*actual, physics);
   }
 }
 
 RobotModel FoldJointZeros(const RobotModel& actual, const std::vector<double>& joint_zero) {
   CHECK_EQ(static_cast<int>(joint_zero.size()), actual.num_joints());
   RobotModel out = actual;
-  std::vector<double>& h = out.joint_errors.harmonics;
+  // Each term rewritten for the commanded angle; what it leaves over joins the joint zero.
+  std::vector<double> zero = joint_zero;
+  for (JointTermEntry& t : out.joint_errors.terms) {
+    if (t.values.empty()) continue;
+    const internal::JointTermKind* kind = internal::FindJointTermKind(t.name);
+    CHECK(kind != nullptr) << "unknown joint error term '" << t.name << "'";
+    std::vector<double> extra(joint_zero.size(), 0.0);
+    kind->FoldJointZeros(actual, joint_zero, &t.values, &extra);
+    for (size_t j = 0; j < zero.size(); ++j) zero[j] += extra[j];
+  }
   for (int i = 0; i < out.num_joints(); ++i) {
-    out.joints[i].origin = out.joints[i].origin * JointMotion(out.joints[i], joint_zero[i]);
-    if (h.empty() || out.joints[i].type != JointType::kRevolute) continue;
-    for (int order = 1; order <= 2; ++order) {
-      double* ab = &h[kHarmonicsPerJoint * i + 2 * (order - 1)];
-      const double s = std::sin(order * joint_zero[i]), c = std::cos(order * joint_zero[i]);
-      const double a = ab[0], b = ab[1];
-      ab[0] = a * c - b * s;
-      ab[1] = a * s + b * c;
-    }
+    out.joints[i].origin = out.joints[i].origin * JointMotion(out.joints[i], zero[i]);
   }
   return out;
 }

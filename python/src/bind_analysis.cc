@@ -102,9 +102,7 @@ PyProblem MakeProblem(const RobotModel& model, const MeasurementSet& data,
     for (const auto& term : o.joint_terms) {
       JointTermValues v;
       v.term = term;
-      const std::vector<double>& carried = term->name() == "compliance"
-                                               ? model.joint_errors.compliance
-                                               : model.joint_errors.harmonics;
+      const std::vector<double>& carried = model.joint_errors.Values(term->name());
       v.theta = static_cast<int>(carried.size()) == term->num_parameters()
                     ? Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(
                           carried.data(), static_cast<Eigen::Index>(carried.size())))

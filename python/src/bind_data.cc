@@ -12,6 +12,7 @@
 #include "lpoe/csv_rules.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/measurement_model.h"
 #include "lpoe/measurements.h"
@@ -79,25 +80,21 @@ bool ParseDataKindOption(const std::string& text, const MeasurementSet& data) {
 }
 
 std::vector<std::string> JointErrorNames(const std::string& text, bool allow_tilt) {
-  std::vector<JointErrorKind> kinds;
+  std::vector<std::string> kinds;
   bool tilt = false;
   std::string error;
   if (allow_tilt && !ParseJointErrorList(text, &kinds, &tilt, &error)) {
     throw LpoeError("joint_errors: '" + text + "': " + error +
-                    " (expected none, compliance, harmonics, compliance,harmonics, with tilt after "
-                    "compliance, or auto)");
+                    " (expected none, a comma-separated list of " + JointTermNameList() +
+                    ", with tilt in a list with compliance, or auto)");
   }
-  if (!allow_tilt && !ParseJointErrorKinds(text, &kinds)) {
-    throw LpoeError("joint_errors: expected none, compliance, harmonics, compliance,harmonics "
-                    "(or auto where the tool accepts it), got '" + text + "'");
+  if (!allow_tilt && !ParseJointTermList(text, &kinds, &error)) {
+    throw LpoeError("joint_errors: expected none or a comma-separated list of " +
+                    JointTermNameList() + " (or auto where the tool accepts it), got '" + text +
+                    "': " + error);
   }
-  std::vector<std::string> names;
-  // Compliance first (docs/joint_errors.md), as lpoe_calibrate orders them.
-  for (JointErrorKind k : {JointErrorKind::kCompliance, JointErrorKind::kHarmonics}) {
-    if (std::find(kinds.begin(), kinds.end(), k) != kinds.end()) {
-      names.push_back(JointErrorKindName(k));
-    }
-  }
+  // In registry order, compliance first (docs/joint_errors.md), as lpoe_calibrate orders them.
+  std::vector<std::string> names = InRegistryOrder(kinds);
   if (tilt) names.push_back(kGravityTiltName);
   return names;
 }
@@ -131,7 +128,7 @@ void PredictPositionsInto(const RobotModel& model, const double* q, long rows, i
   std::vector<double> q_eff(n);
   for (long r = 0; r < rows; ++r) {
     const double* qr = q + r * n;
-    if (!model.joint_errors.empty()) {  // compliance, harmonics (lpoe/joint_errors.h)
+    if (!model.joint_errors.empty()) {  // the registry's terms (lpoe/joint_term.h)
       EffectiveJoints(model, qr, q_eff.data());
       qr = q_eff.data();
     }
@@ -204,6 +201,11 @@ void BindMeasurements(py::module_& m) {
             return d.Subset(rows);
           },
           py::arg("rows"), "the listed rows, in that order");
+
+  m.def(
+      "joint_error_terms", [] { return JointTermNames(); },
+      "the joint-space terms a calibration can identify, in registry order (the names "
+      "joint_errors= accepts, docs/joint_errors.md)");
 
   m.def(
       "read_measurements",

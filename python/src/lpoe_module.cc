@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "lpoe/io.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
@@ -140,6 +141,17 @@ PYBIND11_MODULE(_lpoe, m) {
           [](RobotModel& r, const Eigen::Matrix4d& M) { r.T_measurement_base = FromMatrix(M); },
           "4x4 pose of the robot base in the measurement (tracker) frame, as registration found "
           "it (identity when the data were in the base frame); compensate() uses it")
+      .def_property_readonly(
+          "joint_errors",
+          [](const RobotModel& r) {
+            py::dict d;  // registry order (lpoe.joint_error_terms())
+            for (const std::string& name : JointTermNames()) {
+              if (r.joint_errors.Has(name)) d[py::str(name)] = r.joint_errors.Values(name);
+            }
+            return d;
+          },
+          "the joint-space terms the model carries: {term name: list of values in the term's "
+          "layout} (docs/joint_errors.md)")
       .def("validate", [](const RobotModel& r) { Check(r.Validate()); },
            "raises lpoe.Error when the model is not usable")
       .def("to_yaml", &RobotModelToYaml, "the model as YAML text (as lpoe_calibrate writes it)")

@@ -44,8 +44,8 @@ Status WriteAnyRobotModel(const std::string& path, const RobotModel& model);
 
 // Options shared by several functions, parsed as the tools parse their flags (raising lpoe.Error):
 // --parameterization; --data_kind (auto | position | pose; returns use_orientation);
-// --joint_errors (none | compliance | harmonics | compliance,harmonics; in the solvers' order,
-// compliance first); a tool by index or name.
+// --joint_errors (none | a comma-separated list of registry terms, lpoe/joint_term.h; returned in
+// registry order, compliance first); a tool by index or name.
 ParameterizationKind ParseParameterizationOption(const std::string& text);
 bool ParseDataKindOption(const std::string& text, const MeasurementSet& data);
 // `allow_tilt`: the gravity tilt ("compliance,tilt") is accepted and listed last as "tilt".

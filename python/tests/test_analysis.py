@@ -221,3 +221,26 @@ def test_gravity_tilt_in_problem_and_plan(inputs, tmp_path):
     assert tilted.quality["rank"] == tilted.num_parameters
     assert lpoe.plan(mc, 60, joint_errors="auto", **opts).gravity_tilt
     assert not lpoe.plan(m, 60, joint_errors="auto", **opts).gravity_tilt
+
+
+def test_joint_error_terms_come_from_the_registry(inputs, tmp_path):
+    """The term names joint_errors= accepts are the registry's, each usable alone or in a list; a
+    model's joint_errors holds what its YAML carries, in registry order."""
+    m, d, _ = inputs
+    names = lpoe.joint_error_terms()
+    assert names[:2] == ["compliance", "harmonics"] and "gear_ratio" in names
+    for name in names:
+        p = lpoe.Problem(m, d, joint_errors=name)
+        assert any(n.startswith(name + ".") for n in p.names)
+    both = lpoe.Problem(m, d, joint_errors="gear_ratio,compliance")
+    first = [n.split(".")[0] for n in both.names if n.split(".")[0] in names]
+    assert first.index("compliance") < first.index("gear_ratio")  # registry order
+    with pytest.raises(lpoe.Error, match="gear_ratio"):  # the message lists the registry
+        lpoe.Problem(m, d, joint_errors="backlash")
+    base = open(os.path.join(DATA, "cobot6.yaml")).read()
+    (tmp_path / "geared.yaml").write_text(
+        base + COMPLIANCE_YAML + "  gear_ratio:\n    - joint: joint2\n      s: 2.5e-4\n")
+    mg = lpoe.read_model(str(tmp_path / "geared.yaml"))
+    assert list(mg.joint_errors) == ["compliance", "gear_ratio"]
+    assert mg.joint_errors["gear_ratio"] == [0, 2.5e-4, 0, 0, 0, 0]
+    assert m.joint_errors == {}

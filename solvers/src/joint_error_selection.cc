@@ -89,16 +89,29 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
   sel.seed = options.split_seed;
   sel.split = options.split;
   const auto folds = KFolds(identification, sel.folds, sel.seed, sel.split);
-  // Compliance first: it keeps the combinations both terms could explain (joint_errors.md).
-  std::vector<std::vector<std::string>> sets = {
-      {}, {"compliance"}, {"harmonics"}, {"compliance", "harmonics"}};
+  // Every subset of the registry (JointTermNames(), 2^T sets for T terms), each in registry order
+  // (compliance first: it keeps the combinations both terms could explain, joint_errors.md), listed
+  // by the binary count of registry bits: none, compliance, harmonics, compliance,harmonics, then
+  // the sets with the next term, and so on. With the gravity tilt, every set that has compliance
+  // once more with the tilt (2^(T-1) sets). Each candidate is one solve per fold.
+  const std::vector<std::string> registry = JointTermNames();
+  const size_t num_sets = size_t{1} << registry.size();
+  std::vector<std::vector<std::string>> sets;
+  for (size_t bits = 0; bits < num_sets; ++bits) {
+    std::vector<std::string> set;
+    for (size_t t = 0; t < registry.size(); ++t) {
+      if (bits & (size_t{1} << t)) set.push_back(registry[t]);
+    }
+    sets.push_back(set);
+  }
   {
     // The gravity tilt joins the compliance candidates only when these rows determine it (its
-    // check at the compliance + harmonics solution of all identification rows: the fullest model,
-    // whose residuals estimate the noise best).
+    // check at the solution with every registry term of all identification rows: the fullest
+    // model, whose residuals estimate the noise best).
     if (options.on_stage) options.on_stage("checking the gravity tilt");
     PipelineOptions check = options;
-    check.joint_errors = {"compliance", "harmonics", kGravityTiltName};
+    check.joint_errors = registry;
+    check.joint_errors.push_back(kGravityTiltName);
     check.joint_errors_auto = false;
     const CalibrationResult r = SolveCalibration(nominal, identification, check,
                                                  "auto gravity tilt check", nullptr, nullptr,
@@ -111,8 +124,12 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
                              "gravity (the compliance calibration did not converge: " +
                                  r.message + ")";
     if (sel.tilt_candidates) {
-      sets.push_back({"compliance", kGravityTiltName});
-      sets.push_back({"compliance", "harmonics", kGravityTiltName});
+      for (size_t k = 0; k < num_sets; ++k) {
+        if (std::find(sets[k].begin(), sets[k].end(), "compliance") == sets[k].end()) continue;
+        std::vector<std::string> with_tilt = sets[k];
+        with_tilt.push_back(kGravityTiltName);
+        sets.push_back(with_tilt);
+      }
     }
   }
   for (const auto& terms : sets) {

@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <utility>
 
+#include <glog/logging.h>
+
 #include "gravity_tilt.h"
 #include "structural_identifiability.h"
 #include "lpoe/joint_errors.h"
@@ -18,9 +20,9 @@ namespace {
 // with the geometry their regressors were evaluated on (`start`'s joint origins).
 CalibrationResult StoreJointErrors(CalibrationResult result, const RobotModel& start) {
   for (const JointTermValues& t : result.joint_terms) {
-    std::vector<JointErrorKind> kinds;
-    if (!ParseJointErrorKinds(t.term->name(), &kinds) || kinds.size() != 1) continue;
-    *MutableJointErrorParameters(&result.model, kinds[0]) =
+    // Every solver term is a registry entry (MakeJointTerm), so its name is the model's key.
+    CHECK(IsJointTermName(t.term->name())) << t.term->name();
+    *result.model.joint_errors.MutableValues(t.term->name()) =
         std::vector<double>(t.theta.data(), t.theta.data() + t.theta.size());
     result.model.joint_errors.regressor_origins.clear();
     for (const Joint& j : start.joints) {

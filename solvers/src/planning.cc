@@ -432,7 +432,7 @@ Status PlanningGravityTiltStatus(const RobotModel& model,
   bool compliance = false;
   for (const auto& term : terms) compliance = compliance || term->name() == "compliance";
   if (!compliance) return Status::Error(kGravityTiltNeedsCompliance);
-  const std::vector<double>& c = model.joint_errors.compliance;
+  const std::vector<double>& c = model.joint_errors.Values("compliance");
   if (std::all_of(c.begin(), c.end(), [](double v) { return v == 0; })) {
     return Status::Error(
         "the gravity tilt cannot be planned for with a model that carries no compliance values: "
@@ -457,7 +457,7 @@ PlanningModel::PlanningModel(const RobotModel& model,
   if (gravity_tilt_) {
     const Status s = PlanningGravityTiltStatus(model_, terms);
     CHECK(s.ok()) << s.message();
-    const std::vector<double>& c = model_.joint_errors.compliance;
+    const std::vector<double>& c = model_.joint_errors.Values("compliance");
     compliance_ = Eigen::Map<const Eigen::VectorXd>(c.data(), static_cast<Eigen::Index>(c.size()));
     const double zero[2] = {0.0, 0.0};
     gravity_tilt_jacobian_ =

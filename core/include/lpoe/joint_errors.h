@@ -1,5 +1,8 @@
-// Non-geometric joint-space error terms (docs/joint_errors.md): joint compliance under gravity and
-// joint harmonics. Every term is linear in its parameters,
+// Non-geometric joint-space error terms (docs/joint_errors.md): the mathematics of the compliance
+// under gravity and of the joint harmonics, prediction with every term a model carries, and the
+// identifiability analysis. The terms themselves are entries of the one registry (lpoe/joint_term.h,
+// core/src/joint_term_registry.inc); this header never lists them. Every term is linear in its
+// parameters,
 //
 //   dq = Y(q) theta,        q_eff = q + sum over terms of Y_term(q) theta_term,
 //   P  = FK(q_eff) * tool,
@@ -30,6 +33,7 @@
 #ifndef LPOE_JOINT_ERRORS_H_
 #define LPOE_JOINT_ERRORS_H_
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -43,12 +47,11 @@
 
 namespace lpoe {
 
-enum class JointErrorKind { kCompliance, kHarmonics };
-
-const char* JointErrorKindName(JointErrorKind kind);
-// Parses a comma-separated list of kind names ("compliance", "harmonics"), each at most once, in the
-// order given. "none" or an empty text gives an empty list. Returns false on anything else.
-bool ParseJointErrorKinds(const std::string& text, std::vector<JointErrorKind>* kinds);
+// Parses a comma-separated list of registry term names (JointTermNames(): "compliance",
+// "harmonics", ...), each at most once, in the order given. "none" or an empty text gives an empty
+// list. Returns false (and `error`) on anything else.
+bool ParseJointTermList(const std::string& text, std::vector<std::string>* names,
+                        std::string* error);
 
 // The gravity tilt's name in a list of joint errors ("compliance,tilt"; docs/joint_errors.md). It
 // is not a term of its own: it makes the compliance term bilinear (TiltedGravity below).
@@ -56,13 +59,14 @@ constexpr const char kGravityTiltName[] = "tilt";
 constexpr const char kGravityTiltNeedsCompliance[] =
     "the gravity tilt ('tilt' in the joint errors) is identified with the compliance term and "
     "needs it in the list, e.g. compliance,tilt or compliance,harmonics,tilt";
-// ParseJointErrorKinds with the gravity tilt allowed once anywhere in the list: `tilt` tells
+// ParseJointTermList with the gravity tilt allowed once anywhere in the list: `tilt` tells
 // whether it was there. Returns false (and `error`) on unknown or repeated names and on a tilt
 // without compliance.
-bool ParseJointErrorList(const std::string& text, std::vector<JointErrorKind>* kinds, bool* tilt,
+bool ParseJointErrorList(const std::string& text, std::vector<std::string>* names, bool* tilt,
                          std::string* error);
 
-// ---- Parameter layout (RobotModel::joint_errors, see robot_model.h).
+// ---- Parameter layout of the compliance and harmonics terms (their values in
+// RobotModel::joint_errors, see robot_model.h).
 
 // sum over j of 4 (n - j) + 1.
 int NumComplianceParameters(int num_joints);
@@ -72,19 +76,13 @@ int ComplianceLinkIndex(int num_joints, int joint, int link);
 int CompliancePayloadIndex(int num_joints, int joint);
 constexpr int kHarmonicsPerJoint = 4;
 int NumHarmonicsParameters(int num_joints);
-int NumJointErrorParameters(int num_joints, JointErrorKind kind);
 
-// "joint2.c*m[link3]", "joint2.c*hx[link3]", "joint2.c", "joint4.sin2q", ...
-std::vector<std::string> JointErrorParameterNames(const RobotModel& model, JointErrorKind kind);
-
-// The parameters of `kind` stored in the model (an empty vector when the term is absent).
-const std::vector<double>& JointErrorParameters(const RobotModel& model, JointErrorKind kind);
-std::vector<double>* MutableJointErrorParameters(RobotModel* model, JointErrorKind kind);
-
-// Checks gravity, payload and the sizes and values of the joint-error terms (called by Validate).
+// Checks gravity, payload and the joint-error terms (called by Validate): every term a registry
+// name, at most once, with the term's number of finite values.
 Status ValidateJointErrorTerms(const RobotModel& model);
 
-// ---- Regressors: Y is resized to num_joints x NumJointErrorParameters and overwritten.
+// ---- Regressors of compliance and harmonics: Y is resized to num_joints x P and overwritten.
+// (Any term's regressor by name: JointErrorRegressor of joint_term.h.)
 
 void ComplianceRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y);
 // The compliance regressor is linear in the gravity vector: Y(g) = sum_a g_a Y_a. Fills Y_a for the
@@ -99,17 +97,21 @@ void HarmonicsRegressor(const RobotModel& model, const double* q, Eigen::MatrixX
 // JointErrorRegressor and JointErrorOffsets (rounding noise, e.g. the gravity torque about a
 // vertical axis).
 constexpr double kJointErrorRoundingCutoff = 1e-10;
-// The term's regressor on the model's own geometry, rounding noise set to zero.
-void JointErrorRegressor(const RobotModel& model, JointErrorKind kind, const double* q,
-                         Eigen::MatrixXd* Y);
-// The same regressor's only entries that can be non-zero: y[k] = Y(joint of parameter k, k) for
-// k < NumJointErrorParameters (every other entry of Y is zero), equal to JointErrorRegressor's
-// without forming the num_joints x P matrix (what the solvers evaluate for every row).
-void JointErrorRegressorValues(const RobotModel& model, JointErrorKind kind, const double* q,
-                               double* y);
+// Sets the entries of Y (or of the `size` values y) below kJointErrorRoundingCutoff of the largest
+// |entry| to exact zeros.
+void ZeroJointErrorRoundingNoise(Eigen::MatrixXd* Y);
+void ZeroJointErrorRoundingNoise(double* y, int size);
+// The compliance and harmonics regressors' only entries that can be non-zero: y[k] = Y(joint of
+// parameter k, k) (every other entry of Y is zero), rounding noise set to zero, without forming the
+// num_joints x P matrix (what the solvers evaluate for every row). Compliance on the joint origins
+// `origins` (one per joint) when not null, else on the model's.
+void ComplianceRegressorValues(const RobotModel& model, const double* q, double* y,
+                               const std::vector<SE3d>* origins = nullptr);
+void HarmonicsRegressorValues(const RobotModel& model, const double* q, double* y);
 
-// The joint offsets dq (num_joints) of every term the model carries, at commanded joints q. The
-// compliance regressor is evaluated on model.joint_errors.regressor_origins when given.
+// The joint offsets dq (num_joints) of every term the model carries, at commanded joints q, summed
+// in registry order (each term's JointTermKind::AddOffsets; a geometry-dependent regressor such as
+// compliance's is evaluated on model.joint_errors.regressor_origins when given).
 void JointErrorOffsets(const RobotModel& model, const double* q, double* dq);
 // q_eff = q + dq.
 void EffectiveJoints(const RobotModel& model, const double* q, double* q_eff);
@@ -232,7 +234,7 @@ std::string PositionsToCsv(const std::vector<Eigen::Vector3d>& positions);
 
 // The combinations of one term that the data can see: theta = basis * x.
 struct JointErrorReduction {
-  JointErrorKind kind = JointErrorKind::kCompliance;
+  std::string term;             // the registry name
   int num_full = 0;             // NumJointErrorParameters
   int rank_alone = 0;           // rank of the term's tool effect, geometry not considered
   Eigen::MatrixXd basis;        // num_full x r (r = basis.cols(), the identifiable combinations)
@@ -243,13 +245,13 @@ struct JointErrorReduction {
 // Relative singular-value threshold below which a combination counts as not identifiable.
 constexpr double kJointErrorRankTolerance = 1e-7;
 
-// For the terms in `kinds` (in that order), the combinations whose effect on the measured tool
+// For the terms named `terms` (in that order), the combinations whose effect on the measured tool
 // positions at the rows of `data` (joint values and targets; positions are not used) lies outside
 // the span of the geometric parameters of `geometric` and of the terms before them. Evaluated on
 // `reference` (the registered start model). Each term's parameters are scaled by the norm of their
 // tool effect before the singular value decomposition, so `basis` is in those units.
 Status ReduceJointErrorTerms(const RobotModel& reference, const Parameterization& geometric,
-                             const MeasurementSet& data, const std::vector<JointErrorKind>& kinds,
+                             const MeasurementSet& data, const std::vector<std::string>& terms,
                              std::vector<JointErrorReduction>* reductions);
 
 // ---- Physical description (the simulator's truth; also a way to enter known stiffnesses).
@@ -259,6 +261,9 @@ struct JointErrorPhysics {
   std::vector<double> link_mass;  // per link, kg
   std::vector<Eigen::Vector3d> link_com;  // per link, mm in link k's frame
   std::vector<Eigen::Vector4d> harmonics;  // per joint (a1, b1, a2, b2), rad; empty: none
+  // The seed of the terms without a physical description here, which draw their truth values
+  // themselves (each from its own stream; JointTermKind::Simulate).
+  uint64_t seed = 11;
 };
 
 // The compliance products c_j (m_k, m_k com_k) and c_j of the physical description.

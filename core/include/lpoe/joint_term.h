@@ -80,13 +80,37 @@ MeasurementSet WithEffectiveJointValues(const std::vector<JointTermValues>& term
                                         const MeasurementSet& data);
 
 // ---- Registry: the terms a user can ask for by name.
+//
+// One registry (core/src/joint_term_registry.inc) lists every joint-space term. Its entry
+// (core/src/joint_term_kind.h) owns the term's name, parameter layout and names, regressor, the
+// offsets a model carrying the term predicts with, its YAML block under `joint_errors` and its
+// simulated truth values. Everything else (both solvers, prediction, IK, planning, simulation, the
+// tools and the Python module) goes through the functions below and never names a term.
 
-// Builds a term by name for `reference` (the nominal, registered model). The factories are listed
-// in core/src/joint_term_registry.inc.
+// Builds a term by name for `reference` (the nominal, registered model): its regressor is evaluated
+// on `reference`'s geometry.
 Status MakeJointTerm(const std::string& name, const RobotModel& reference,
                      std::shared_ptr<const JointTerm>* term);
 // The names MakeJointTerm accepts, in registry order.
 std::vector<std::string> JointTermNames();
+// True when `name` is in the registry.
+bool IsJointTermName(const std::string& name);
+// `names` (each a registry name) sorted into registry order.
+std::vector<std::string> InRegistryOrder(const std::vector<std::string>& names);
+// "compliance, harmonics, ..." (the registry's names, for messages).
+std::string JointTermNameList();
+
+// The number of parameters and their names of term `name` on `model` (CHECK-fails on an unknown
+// name: check it with IsJointTermName first).
+int NumJointErrorParameters(const RobotModel& model, const std::string& name);
+std::vector<std::string> JointErrorParameterNames(const RobotModel& model,
+                                                  const std::string& name);
+// The term's regressor Y(q) (num_joints x NumJointErrorParameters) on `model`'s own geometry,
+// rounding noise set to zero (kJointErrorRoundingCutoff of joint_errors.h).
+void JointErrorRegressor(const RobotModel& model, const std::string& name, const double* q,
+                         Eigen::MatrixXd* Y);
+// The joint (0-based) each parameter of term `name` moves, -1 when it may move several.
+std::vector<int> JointErrorParameterJoints(const RobotModel& model, const std::string& name);
 
 }  // namespace lpoe
 

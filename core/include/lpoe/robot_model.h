@@ -48,24 +48,40 @@ struct Payload {
   Eigen::Vector3d com = Eigen::Vector3d::Zero();  // centre of mass, mm, in the last joint's frame
 };
 
-// Non-geometric joint-space error terms (lpoe/joint_errors.h, docs/joint_errors.md). The robot moves
-// to the effective joint values q + Y_c(q) compliance + Y_h(q) harmonics, where the regressors Y are
-// evaluated on the model that carries the terms. An empty vector means the term is absent.
+// One joint-space error term a model carries (lpoe/joint_term.h): the registry name of the term
+// ("compliance", "harmonics", ...; JointTermNames()) and its parameter values in the term's layout
+// (JointTermParameterNames(name, model); JointTermNumParameters(name, model) numbers).
+struct JointTermEntry {
+  std::string name;
+  std::vector<double> values;
+  bool operator==(const JointTermEntry& o) const { return name == o.name && values == o.values; }
+  bool operator!=(const JointTermEntry& o) const { return !(*this == o); }
+};
+
+// Non-geometric joint-space error terms (lpoe/joint_term.h, docs/joint_errors.md). The robot moves
+// to the effective joint values q + sum over terms of Y_term(q) theta_term, where the regressors Y
+// are evaluated on the model that carries the terms (with `regressor_origins` as its joint origins
+// when given). Every term is an entry of the one registry (core/src/joint_term_registry.inc); each
+// name at most once (Validate checks both).
 struct JointErrorTerms {
-  // For each joint j = 0..n-1: for each link k = j..n-1 the products c_j * (m_k, h_k) (4 numbers:
-  // c m, c h_x, c h_y, c h_z), then c_j itself (the payload's column); NumComplianceParameters(n)
-  // numbers. c_j in rad/(N m) (mm/N for a prismatic joint), m_k in kg, h_k = m_k * com_k in kg mm
-  // in link k's frame.
-  std::vector<double> compliance;
-  // For each joint: a1, b1, a2, b2 of a1 sin q + b1 cos q + a2 sin 2q + b2 cos 2q (rad; zero for a
-  // prismatic joint).
-  std::vector<double> harmonics;
+  // The terms, each name once; their order does not matter (prediction and YAML follow the
+  // registry's order). An entry with no values is an absent term.
+  std::vector<JointTermEntry> terms;
   // The joint origins (T_{j-1,j}(0), one per joint) the regressors are evaluated on; empty: the
   // model's own. A calibration stores its registered start model's origins here, the geometry its
   // solver evaluated the regressors on, so that predicting with the calibrated model reproduces the
   // solver's residuals exactly (docs/joint_errors.md).
   std::vector<SE3d> regressor_origins;
-  bool empty() const { return compliance.empty() && harmonics.empty(); }
+  // No term with values.
+  bool empty() const;
+  // The values of term `name`; an empty vector when the model does not carry it.
+  const std::vector<double>& Values(const std::string& name) const;
+  // The model carries term `name` (with values).
+  bool Has(const std::string& name) const { return !Values(name).empty(); }
+  // The values of term `name`, an empty entry appended when the model does not carry it yet.
+  std::vector<double>* MutableValues(const std::string& name);
+  // Removes term `name` (nothing when absent).
+  void Remove(const std::string& name);
 };
 
 // Standard gravity, m/s^2.

@@ -5,6 +5,7 @@
 #define LPOE_SIMULATION_H_
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -54,13 +55,16 @@ struct SmallArmOptions {
 };
 JointErrorPhysics SmallArmJointErrors(const RobotModel& model, const SmallArmOptions& options);
 
-// Gives `actual` the compliance and/or harmonic terms of `physics` (its gravity and payload are
-// used as they are).
-void ApplyJointErrorPhysics(const JointErrorPhysics& physics, bool compliance, bool harmonics,
+// Gives `actual` the joint-space terms named `terms` (registry names, lpoe/joint_term.h), each with
+// its truth values from `physics` (JointTermKind::Simulate: compliance from the stiffnesses and
+// masses, harmonics from their coefficients, a term without a physical description here from
+// physics.seed). Its gravity and payload are used as they are.
+void ApplyJointErrorPhysics(const JointErrorPhysics& physics, const std::vector<std::string>& terms,
                             RobotModel* actual);
 
-// `actual` with its joint-zero errors folded in: T_i(0) <- T_i(0) exp(s_i^ zero_i), and harmonic
-// coefficients re-expressed in the commanded angle (a sin(q + z) + b cos(q + z) = a' sin q + b' cos q).
+// `actual` with its joint-zero errors folded in: T_i(0) <- T_i(0) exp(s_i^ zero_i), and every term
+// re-expressed in the commanded angle by its registry entry (harmonics: a sin(q + z) + b cos(q + z)
+// = a' sin q + b' cos q; a term that leaves a constant over adds it to the joint's zero).
 // Its prediction at the commanded q reproduces what SimulateMeasurements measures without noise.
 RobotModel FoldJointZeros(const RobotModel& actual, const std::vector<double>& joint_zero);
 

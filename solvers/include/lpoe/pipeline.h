@@ -33,20 +33,20 @@ struct PipelineOptions {
   bool use_orientation = false;
   // Stages 1-2 of registration.h first (skipped when the data are in the base frame already).
   bool register_frames = true;
-  // Joint-space error terms to identify with the geometry, by registry name (joint_term.h):
-  // "compliance", "harmonics". Built on the registered start model; the identified values are
-  // stored in the calibrated model's joint_errors (so its YAML carries them) and in
-  // result.joint_terms. "tilt" (with "compliance" only) also identifies the tilt of the model's
-  // gravity when the data determine it (docs/joint_errors.md, "Gravity tilt"): the compliance
-  // solve first, the tilt's check at its solution (result.gravity_tilt.message when it fails),
+  // Joint-space error terms to identify with the geometry, by registry name (joint_term.h,
+  // JointTermNames(): "compliance", "harmonics", ...), in registry order. Built on the registered
+  // start model; the identified values are stored in the calibrated model's joint_errors (so its
+  // YAML carries them) and in result.joint_terms. "tilt" (with "compliance" only) also identifies
+  // the tilt of the model's gravity when the data determine it (docs/joint_errors.md, "Gravity
+  // tilt"): the compliance solve first, the tilt's check at its solution (result.gravity_tilt.message when it fails),
   // then the solve with the tilt from there; the tilted gravity goes into the calibrated model.
   std::vector<std::string> joint_errors;
   // The tilt counts as identifiable when each angle's predicted standard deviation is at most this
   // (rad; 0.1 deg) and its columns keep joint_term_tolerance of their norm.
   double gravity_tilt_max_sigma = 0.1 * 3.14159265358979323846 / 180.0;
-  // Instead of `joint_errors`: choose the terms by cross-validation (SelectJointErrors) among none,
-  // compliance, harmonics and both, on `joint_error_folds` folds of the identification rows
-  // (seed `split_seed`).
+  // Instead of `joint_errors`: choose the terms by cross-validation (SelectJointErrors) among every
+  // subset of the registry's terms, on `joint_error_folds` folds of the identification rows (seed
+  // `split_seed`).
   bool joint_errors_auto = false;
   int joint_error_folds = 5;
   int kfold = 0;  // >= 2: k-fold cross-validation on the identification rows
@@ -98,19 +98,22 @@ struct JointErrorSelection {
   int best = -1;    // lowest cv_mse
   int chosen = -1;  // the simplest within one standard error of the best
   std::string reason;
-  // The gravity tilt joins the compliance candidates ("compliance,tilt",
-  // "compliance,harmonics,tilt") only when the identification rows determine it (the check of
+  // The gravity tilt joins the candidates that have compliance ("compliance,tilt",
+  // "compliance,harmonics,tilt", ...) only when the identification rows determine it (the check of
   // PipelineOptions::joint_errors "tilt" at the compliance solution); else why not.
   bool tilt_candidates = false;
   std::string tilt_message;
 };
 
-// Cross-validates each candidate set of terms (none, compliance, harmonics, compliance+harmonics,
-// and with the gravity tilt when identifiable)
-// on options.joint_error_folds seeded folds of `identification` with the pipeline's solver and
-// registration, and chooses by the one-standard-error rule: the candidate with the fewest
-// identified joint-error combinations whose pooled held-out mean squared error is at most the
-// lowest one plus that lowest estimate's standard error (docs/joint_errors.md).
+// Cross-validates each candidate set of terms on options.joint_error_folds seeded folds of
+// `identification` with the pipeline's solver and registration, and chooses by the
+// one-standard-error rule: the candidate with the fewest identified joint-error combinations whose
+// pooled held-out mean squared error is at most the lowest one plus that lowest estimate's standard
+// error (docs/joint_errors.md). The candidates: every subset of the registry (2^T sets for T terms,
+// 8 with today's three), and each subset with compliance again with the gravity tilt when the tilt
+// is identifiable (2^(T-1) more). Cost: one solve with every term and the tilt (the tilt's check),
+// then one per candidate and fold: 1 + 8 k solves, 1 + 12 k with the tilt, for
+// k = options.joint_error_folds (k = 5: 41 or 61).
 JointErrorSelection SelectJointErrors(const RobotModel& nominal,
                                       const MeasurementSet& identification,
                                       const PipelineOptions& options);
