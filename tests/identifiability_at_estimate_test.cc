@@ -445,7 +445,7 @@ TEST(GeometryOnlyOutputs, RefitPredictsBetterThanTheGeometryIdentifiedWithTheTer
   const RobotModel nominal = MakeCobot6();
   KinematicErrors errors = RandomErrors(nominal, 0.002, 1.0, 0.002, 0.002, 12);
   RobotModel actual = ApplyErrors(nominal, errors);
-  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), true, false, &actual);
+  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), {"compliance"}, &actual);
   SimulationOptions o;
   o.count = 300;
   o.noise_sigma = 0.02;

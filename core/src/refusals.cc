@@ -1,5 +1,7 @@
 #include "lpoe/refusals.h"
 
+#include <algorithm>
+
 #include <cmath>
 
 namespace lpoe {
@@ -70,7 +72,8 @@ Status CheckModelFinite(const RobotModel& model) {
   }
   if (!Finite(model.T_measurement_base) || !model.gravity.allFinite() ||
       !std::isfinite(model.payload.mass) || !model.payload.com.allFinite() ||
-      !FiniteValues(model.joint_errors.compliance) || !FiniteValues(model.joint_errors.harmonics)) {
+      !std::all_of(model.joint_errors.terms.begin(), model.joint_errors.terms.end(),
+                   [](const JointTermEntry& t) { return FiniteValues(t.values); })) {
     return Status::Error(
         "the registration, gravity, payload or joint-error values hold a non-finite value: a "
         "model with NaN or infinity is not written");
