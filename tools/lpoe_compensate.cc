@@ -28,6 +28,7 @@
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
+#include "compensate_program.h"
 #include "tool_common.h"
 
 DEFINE_string(model, "", "Calibrated robot model (YAML written by lpoe_calibrate, or URDF).");
@@ -550,5 +551,6 @@ int Run() {
 
 int main(int argc, char** argv) {
   lpoe::tools::InitTool(lpoe::kUsage, &argc, &argv);
+  if (lpoe::tools::ProgramModeRequested()) return lpoe::tools::RunProgramMode();  // issue 32
   return lpoe::Run();
 }
