@@ -6,12 +6,17 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "lpoe/inverse_kinematics.h"
+#include "lpoe/io.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/program.h"
@@ -574,6 +579,73 @@ TEST(Program, RunTimeValuesAreReportedNotChanged) {
   EXPECT_NE(out.substr(0, 60), text.substr(0, 60));  // home_q changed
   EXPECT_EQ(out.substr(out.find("  global a_p")), text.substr(text.find("  global a_p")));
 }
+
+#ifdef LPOE_COMPENSATE_PATH
+std::string ReadAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Runs the tool; its exit code, stderr in *err.
+int RunTool(const std::string& args, const std::string& dir, std::string* err) {
+  const std::string log = dir + "/stderr.txt";
+  const int rc = std::system((std::string(LPOE_COMPENSATE_PATH) + " " + args + " 2>" + log).c_str());
+  *err = ReadAll(log);
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+TEST(Program, ToolWritesTheProgramAndRefusesBadInput) {
+  const Cell& c = TheCell();
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("lpoe_program_test_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string d = dir.string();
+  ASSERT_TRUE(WriteRobotModel(d + "/cal.yaml", c.calibrated).ok());
+  ASSERT_TRUE(WriteRobotModel(d + "/nom.yaml", c.nominal).ok());
+  const Generated g = UrProgram(c, 12);
+  std::ofstream(d + "/in.script", std::ios::binary) << g.text;
+  const std::string models = "--model=" + d + "/cal.yaml --nominal=" + d + "/nom.yaml ";
+  std::string err;
+  // The library's result, from the models as written.
+  RobotModel cal, nom;
+  ASSERT_TRUE(ReadRobotModel(d + "/cal.yaml", &cal).ok());
+  ASSERT_TRUE(ReadRobotModel(d + "/nom.yaml", &nom).ok());
+  ParsedProgram program;
+  std::string expected;
+  ASSERT_TRUE(CompensateProgramText(g.text, ProgramLanguage::kUrScript, cal, nom, ProgramOptions(),
+                                    &expected, &program).ok());
+  EXPECT_EQ(RunTool(models + "--program=" + d + "/in.script --output=" + d + "/out.script --report=" +
+                        d + "/report.json", d, &err),
+            0)
+      << err;
+  EXPECT_EQ(ReadAll(d + "/out.script"), expected);
+  EXPECT_NE(ReadAll(d + "/report.json").find("\"compensated\": "), std::string::npos);
+  EXPECT_NE(err.find("not compensated: computed at run time"), std::string::npos) << err;
+  // --strict: the run-time target makes it exit 8, the output written all the same.
+  EXPECT_EQ(RunTool(models + "--strict --program=" + d + "/in.script --output=" + d + "/strict.script",
+                    d, &err),
+            8)
+      << err;
+  EXPECT_EQ(ReadAll(d + "/strict.script"), expected);
+  // OUT == IN refused, the program untouched.
+  EXPECT_EQ(RunTool(models + "--program=" + d + "/in.script --output=" + d + "/./in.script", d, &err),
+            1);
+  EXPECT_EQ(ReadAll(d + "/in.script"), g.text);
+  // A malformed program: the line named, nothing written.
+  std::ofstream(d + "/bad.mod", std::ios::binary)
+      << "MODULE M\n  PROC main()\n    MoveL [[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], "
+         "v100, z10, tool9;\n  ENDPROC\nENDMODULE\n";
+  EXPECT_EQ(RunTool(models + "--program=" + d + "/bad.mod --output=" + d + "/bad_out.mod", d, &err),
+            2);
+  EXPECT_NE(err.find("line 3: unknown tool 'tool9'"), std::string::npos) << err;
+  EXPECT_FALSE(std::filesystem::exists(d + "/bad_out.mod"));
+  // No language.
+  EXPECT_EQ(RunTool(models + "--program=" + d + "/in.txt --output=" + d + "/x.txt", d, &err), 1);
+  std::filesystem::remove_all(dir);
+}
+#endif
 
 TEST(Program, LanguageFromPath) {
   ProgramLanguage l;
