@@ -28,7 +28,7 @@
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
-#include "compensate_program.h"
+#include "lpoe_compensate_program.h"
 #include "tool_common.h"
 
 DEFINE_string(model, "", "Calibrated robot model (YAML written by lpoe_calibrate, or URDF).");

@@ -1,7 +1,7 @@
 // lpoe_compensate --program: a robot program (URScript, RAPID) compensated in place (issue 32).
 // The library side is solvers/include/lpoe/program.h; this is the tool's flags and files.
-#ifndef LPOE_TOOLS_COMPENSATE_PROGRAM_H_
-#define LPOE_TOOLS_COMPENSATE_PROGRAM_H_
+#ifndef LPOE_TOOLS_LPOE_COMPENSATE_PROGRAM_H_
+#define LPOE_TOOLS_LPOE_COMPENSATE_PROGRAM_H_
 
 namespace lpoe {
 namespace tools {
@@ -14,4 +14,4 @@ int RunProgramMode();
 }  // namespace tools
 }  // namespace lpoe
 
-#endif  // LPOE_TOOLS_COMPENSATE_PROGRAM_H_
+#endif  // LPOE_TOOLS_LPOE_COMPENSATE_PROGRAM_H_

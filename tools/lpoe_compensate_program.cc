@@ -1,6 +1,7 @@
-// lpoe_compensate --program=IN --output=OUT (issue 32): see compensate_program.h and
-// docs/programs.md. The flags shared with the CSV modes are defined in lpoe_compensate.cc.
-#include "compensate_program.h"
+// lpoe_compensate --program=IN --output=OUT (issue 32): see lpoe_compensate_program.h and
+// docs/programs.md. The flags shared with the CSV modes are defined in lpoe_compensate.cc. (The file
+// name contains the tool's: tool_common's --help lists the flags of such files.)
+#include "lpoe_compensate_program.h"
 
 #include <iostream>
 #include <regex>
