@@ -230,6 +230,9 @@ int TokenView::Number(int i, ProgramNumber* n, int decimals) const {
     ++i;
   }
   if (i >= size() || t_[i].kind != Token::kNumber) return -1;
+  // A sign apart from its digits ("- 5", a line break between) is not taken as a literal: the
+  // rewritten number replaces sign and digits, and every other byte must stay.
+  if (i != first && t_[i].begin != t_[first].end) return -1;
   n->begin = t_[first].begin;
   n->end = t_[i].end;
   n->value = sign * t_[i].value;
@@ -274,7 +277,11 @@ namespace {
 std::string FormatNumber(double x, int decimals) {
   if (std::abs(x) < 0.5 * std::pow(10.0, -decimals)) x = 0;
   char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", decimals, x);
+  if (!(std::abs(x) < 1e15)) {  // never a coordinate; exact, and short enough for the buffer
+    std::snprintf(buf, sizeof(buf), "%.17g", x);
+    return buf;
+  }
+  std::snprintf(buf, sizeof(buf), "%.*f", std::min(decimals, 20), x);
   std::string s(buf);
   if (s.find('.') != std::string::npos) {
     while (s.back() == '0') s.pop_back();
