@@ -3,8 +3,9 @@
 # number of seconds (default 60): fuzz_csv (measurements CSV), fuzz_yaml (robot model YAML), fuzz_urdf (robot
 # model URDF), fuzz_urscript and fuzz_rapid (robot programs). Each run starts from a copy of the
 # committed seed corpus fuzz/corpus/<kind>/ in build-fuzz/corpus/ (the committed corpus is never
-# modified). Fails on any crash, sanitizer report, leak, timeout (> 10 s per input) or out-of-memory (> 2048 MB); the reproducer is left in
-# build-fuzz/artifacts/<target>/ and its log in build-fuzz/logs/. To replay one:
+# modified). Fails on any crash, sanitizer report, leak, timeout (> 10 s per input) or out-of-memory
+# (> 2048 MB); the reproducer is left in build-fuzz/artifacts/<target>/ and its log in
+# build-fuzz/logs/. To replay one:
 #   build-fuzz/fuzz/fuzz_csv build-fuzz/artifacts/fuzz_csv/crash-...
 # Fixed findings go into fuzz/corpus/<kind>/ as regression seeds.
 #
