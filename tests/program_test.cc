@@ -306,8 +306,9 @@ Generated UrProgram(const Cell& c, int waypoints) {
                 "_q), a=1.39, v=1.04)\n";
         g.planned.push_back({w + "_p", q});
         break;
-      case 2:  // movel in the feature
+      case 2:  // movel in the feature; Polyscope's companion joints, unused
         head += "  global " + w + "_p=" + pose_text(plane_used.Inverse() * base_tcp) + "\n";
+        head += "  global " + w + "_q=" + joint_text(q) + "\n";
         body += "  movel(pose_trans(Plane_1, " + w + "_p), a=1.2, v=0.25)\r\n";
         g.planned.push_back({w + "_p", q});
         break;
@@ -368,12 +369,12 @@ TEST(Program, UrScriptCompensatedOnTheTrueRobot) {
   }
   EXPECT_EQ(runtime, 1);
   EXPECT_GE(compensated, 100);
-  // No feature, TCP or qnear among the targets.
+  // No feature, TCP, qnear or unused companion among the targets.
   for (const ProgramTarget& t : program.targets) {
     EXPECT_NE(t.name, "Plane_1");
     EXPECT_FALSE(t.name.size() > 2 && t.name.compare(t.name.size() - 2, 2, "_q") == 0 &&
                  t.name.rfind("Waypoint_", 0) == 0 &&
-                 std::stoi(t.name.substr(9)) % 5 == 1);
+                 std::stoi(t.name.substr(9)) % 5 != 0);
   }
   ExpectOnlyNumbersChanged(g.text, out, program);
   ExpectCompensated(RunOnTrueRobot(c, program, out, ProgramLanguage::kUrScript, g.planned), 100);
@@ -562,17 +563,16 @@ TEST(Program, RunTimeValuesAreReportedNotChanged) {
   std::string out;
   ASSERT_TRUE(CompensateProgramText(text, ProgramLanguage::kUrScript, c.calibrated, c.nominal,
                                     ProgramOptions(), &out, &program).ok());
-  ASSERT_EQ(program.targets.size(), 5u);
+  // The literal assigned to a_p on line 4 is never moved to (reassigned first): not a target.
+  ASSERT_EQ(program.targets.size(), 4u);
   EXPECT_EQ(program.targets[0].name, "home_q");
   EXPECT_EQ(program.targets[0].status, ProgramTargetStatus::kCompensated);
-  EXPECT_EQ(program.targets[1].name, "a_p");  // the literal: never moved to (reassigned first)
-  EXPECT_NE(program.targets[1].reason.find("not used"), std::string::npos);
-  EXPECT_EQ(program.targets[2].name, "a_p");
-  EXPECT_EQ(program.targets[2].line, 6);
-  EXPECT_NE(program.targets[2].reason.find("assigned at run time on line 5"), std::string::npos);
-  EXPECT_NE(program.targets[3].reason.find("set_tcp on line 7"), std::string::npos);
-  EXPECT_EQ(program.targets[4].name, "unknown_p");
-  for (size_t k = 1; k < 5; ++k) {
+  EXPECT_EQ(program.targets[1].name, "a_p");
+  EXPECT_EQ(program.targets[1].line, 6);
+  EXPECT_NE(program.targets[1].reason.find("assigned at run time on line 5"), std::string::npos);
+  EXPECT_NE(program.targets[2].reason.find("set_tcp on line 7"), std::string::npos);
+  EXPECT_EQ(program.targets[3].name, "unknown_p");
+  for (size_t k = 1; k < 4; ++k) {
     EXPECT_EQ(program.targets[k].status, ProgramTargetStatus::kNotCompensated);
   }
   ExpectOnlyNumbersChanged(text, out, program);

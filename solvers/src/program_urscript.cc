@@ -316,13 +316,15 @@ class UrParser {
     return Status::Ok();
   }
 
-  // Resolves each record's context from its uses; drops records that are only frames or seeds.
+  // Resolves each record's context from its uses; drops the literals no motion uses.
   Status Finish() {
     std::vector<ProgramTarget> kept;
     for (size_t k = 0; k < program_->targets.size(); ++k) {
       ProgramTarget& t = program_->targets[k];
       const std::vector<Use>& uses = uses_[k];
-      if (uses.empty() && frame_use_[k] > 0) continue;  // a feature, TCP or qnear, not a target
+      // A literal no motion uses is data, not a target: a feature, TCP or qnear, or one of
+      // Polyscope's companion variables (Waypoint_1_q of a movel waypoint). Left out.
+      if (uses.empty() && !t.numbers.empty()) continue;
       if (!uses.empty()) {
         const Use& u = uses.front();
         t.used = true;
