@@ -406,8 +406,9 @@ class RapidParser {
       }
       use.tcp = it->second.pose;
       use.tcp_name = std::string(v_.Text(ta.first));
-      if (!it->second.runtime.empty()) context_runtime = "its tool " + it->second.runtime;
-      if (assigned_.count(tool)) context_runtime = "its tool is " + assigned_[tool];
+      const std::string label = "tool " + use.tcp_name + ": ";
+      if (!it->second.runtime.empty()) context_runtime = label + it->second.runtime;
+      if (assigned_.count(tool)) context_runtime = label + assigned_[tool];
     } else {
       context_runtime = "its tool is computed at run time: " +
                         std::string(v_.Span(ta.first, ta.second));
@@ -428,8 +429,9 @@ class RapidParser {
         }
         use.frame = it->second.pose;
         use.frame_name = std::string(v_.Text(i + 4));
-        if (!it->second.runtime.empty()) context_runtime = "its work object " + it->second.runtime;
-        if (assigned_.count(w)) context_runtime = "its work object is " + assigned_[w];
+        const std::string label = "work object " + use.frame_name + ": ";
+        if (!it->second.runtime.empty()) context_runtime = label + it->second.runtime;
+        if (assigned_.count(w)) context_runtime = label + assigned_[w];
       }
     }
     for (size_t k = 0; k < m.targets.size(); ++k) {

@@ -367,6 +367,12 @@ std::string RewriteProgram(std::string_view text, const ParsedProgram& program) 
   for (const ProgramTarget& t : program.targets) {
     if (t.status != ProgramTargetStatus::kCompensated) continue;
     for (size_t k = 0; k < t.numbers.size() && k < t.new_values.size(); ++k) {
+      // A number the compensation leaves the same (to the decimals it is written with) keeps
+      // its bytes.
+      if (std::abs(t.new_values[k] - t.numbers[k].value) <
+          0.5 * std::pow(10.0, -std::min(t.numbers[k].decimals, 20))) {
+        continue;
+      }
       edits.push_back({t.numbers[k].begin, t.numbers[k].end,
                        FormatNumber(t.new_values[k], t.numbers[k].decimals)});
     }
