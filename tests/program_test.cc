@@ -220,10 +220,15 @@ Errors RunOnTrueRobot(const Cell& c, const ParsedProgram& before, const std::str
                          ControllerIk(c, wanted, b.tcp, seed, &q_orig);
     EXPECT_TRUE(reached) << b.name;
     if (!reached) continue;
+    const std::vector<double> q_direct = CalibratedIk(c, wanted, b.tcp, seed);
     e.compensated.push_back((TrueTcp(c, q_ctrl, b.tcp).t - wanted.t).norm());
-    e.direct.push_back(
-        (TrueTcp(c, CalibratedIk(c, wanted, b.tcp, seed), b.tcp).t - wanted.t).norm());
+    e.direct.push_back((TrueTcp(c, q_direct, b.tcp).t - wanted.t).norm());
     e.uncompensated.push_back((TrueTcp(c, q_orig, b.tcp).t - wanted.t).norm());
+    // The controller goes to the calibrated solution, and confdata (RAPID) is that solution's.
+    for (int j = 0; j < 6; ++j) EXPECT_NEAR(q_ctrl[j], q_direct[j], 1e-5) << b.name;
+    for (const auto& qd : a.quadrants) {
+      EXPECT_EQ(qd.number.value, std::floor(q_direct[qd.joint] / (kPi / 2))) << b.name;
+    }
   }
   return e;
 }
@@ -477,6 +482,13 @@ TEST(Program, RapidCompensatedOnTheTrueRobot) {
   EXPECT_EQ(offs, 15);
   EXPECT_GE(compensated, 70);
   ExpectOnlyNumbersChanged(g.text, out, program);
+  int quadrants_changed = 0;
+  for (const ProgramTarget& t : program.targets) {
+    for (size_t k = 0; k < t.new_quadrants.size(); ++k) {
+      quadrants_changed += t.new_quadrants[k] != t.quadrants[k].number.value;
+    }
+  }
+  EXPECT_GT(quadrants_changed, 0);  // joint 1 near 0: some targets change quadrant (checked above)
   // The CRLF line ends are all still there.
   EXPECT_EQ(std::count(out.begin(), out.end(), '\r'), std::count(g.text.begin(), g.text.end(), '\r'));
   ExpectCompensated(RunOnTrueRobot(c, program, out, ProgramLanguage::kRapid, g.planned), 70);
