@@ -82,14 +82,16 @@ inline void FuzzProgram(const uint8_t* data, size_t size, ProgramLanguage langua
     t.status = ProgramTargetStatus::kCompensated;
     t.new_values.clear();
     t.new_quadrants.clear();
-    for (const ProgramNumber& n : t.numbers) t.new_values.push_back(std::round(n.value * 8) / 16 - 1);
+    for (const ProgramNumber& n : t.numbers)
+      t.new_values.push_back(std::round(n.value * 8) / 16 - 1);
     for (const auto& q : t.quadrants) t.new_quadrants.push_back(q.number.value > 0 ? -2 : 3);
   }
   const std::string out = RewriteProgram(text, p);
   ParsedProgram again;
   const Status s2 = ParseProgram(out, language, &again);
   if (!s2.ok()) Fail("the rewritten program does not parse", s2.message() + "\n" + out);
-  if (again.targets.size() != p.targets.size()) Fail("the rewritten program has other targets", out);
+  if (again.targets.size() != p.targets.size())
+    Fail("the rewritten program has other targets", out);
   CheckRecords(out, again);
   for (size_t k = 0; k < p.targets.size(); ++k) {
     const ProgramTarget& a = p.targets[k];
@@ -99,10 +101,12 @@ inline void FuzzProgram(const uint8_t* data, size_t size, ProgramLanguage langua
       Fail("a rewritten target differs", a.name + " / " + b.name);
     }
     for (size_t i = 0; i < a.numbers.size(); ++i) {
-      if (b.numbers[i].value != a.new_values[i]) Fail("a rewritten number reads back otherwise", a.name);
+      if (b.numbers[i].value != a.new_values[i])
+        Fail("a rewritten number reads back otherwise", a.name);
     }
     for (size_t i = 0; i < a.quadrants.size(); ++i) {
-      if (b.quadrants[i].number.value != a.new_quadrants[i]) Fail("a rewritten quadrant differs", a.name);
+      if (b.quadrants[i].number.value != a.new_quadrants[i])
+        Fail("a rewritten quadrant differs", a.name);
     }
   }
 }

@@ -1,5 +1,5 @@
-// libFuzzer target: the UrScript program parser (solvers/src/program_urscript.cc) and the rewriter on
-// arbitrary bytes; the properties are fuzz_program.h's.
+// libFuzzer target: the URScript program parser (solvers/src/program_urscript.cc) and the rewriter
+// on arbitrary bytes; the properties are fuzz_program.h's.
 #include <cstddef>
 #include <cstdint>
 

@@ -2,6 +2,10 @@
 // module, generated on the nominal model; a true robot with errors; a calibration from simulated
 // tracker data; the compensated programs run by a simulated controller (the nominal model's
 // inverse kinematics) on the true robot.
+#include "lpoe/program.h"
+
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -13,13 +17,10 @@
 #include <string>
 #include <vector>
 
-#include <gtest/gtest.h>
-
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/pipeline.h"
-#include "lpoe/program.h"
 #include "lpoe/simulation.h"
 
 namespace lpoe {
@@ -105,8 +106,8 @@ SE3d TrueTcp(const Cell& c, const std::vector<double>& q, const SE3d& tcp) {
 }
 
 // The simulated controller: the nominal model's inverse kinematics from `seed`.
-bool ControllerIk(const Cell& c, const SE3d& tcp_base, const SE3d& tcp, const std::vector<double>& seed,
-                  std::vector<double>* q) {
+bool ControllerIk(const Cell& c, const SE3d& tcp_base, const SE3d& tcp,
+                  const std::vector<double>& seed, std::vector<double>* q) {
   IkOptions o;
   o.check_branch = false;
   const InverseKinematics ik(c.nominal, o);
@@ -245,9 +246,10 @@ void ExpectCompensated(const Errors& e, size_t at_least) {
   const double mean_unc = sum_unc / e.compensated.size();
   EXPECT_GT(mean_unc, 10.0);  // tens of mm before
   EXPECT_LT(max_comp, 0.1 * mean_unc);
-  std::printf("  %zu targets: uncompensated mean %.2f mm; compensated max %.4f mm, direct "
-              "calibrated IK max %.4f mm\n",
-              e.compensated.size(), mean_unc, max_comp, max_direct);
+  std::printf(
+      "  %zu targets: uncompensated mean %.2f mm; compensated max %.4f mm, direct "
+      "calibrated IK max %.4f mm\n",
+      e.compensated.size(), mean_unc, max_comp, max_direct);
 }
 
 // A Polyscope-style URScript program on the nominal model: globals for waypoints (pose and
@@ -262,10 +264,11 @@ Generated UrProgram(const Cell& c, int waypoints) {
   const SE3d tcp(ExpSO3(Eigen::Vector3d(0, 0, 0.3)), Eigen::Vector3d(15, -25, 160));
   const SE3d plane(ExpSO3(Eigen::Vector3d(0.05, -0.02, 0.6)), Eigen::Vector3d(-300, -250, 120));
   const Eigen::Vector3d tcp_rv = LogSO3(tcp.R), plane_rv = LogSO3(plane.R);
-  std::string head = "def Program():\n  set_standard_analog_input_domain(0, 1)\n"
-                     "  set_tcp(p[" + Num(tcp.t.x() / 1000, 6) + ", " + Num(tcp.t.y() / 1000, 6) +
-                     ", " + Num(tcp.t.z() / 1000, 6) + ", " + Num(tcp_rv.x(), 6) + ", " +
-                     Num(tcp_rv.y(), 6) + ", " + Num(tcp_rv.z(), 6) + "])\n";
+  std::string head =
+      "def Program():\n  set_standard_analog_input_domain(0, 1)\n"
+      "  set_tcp(p[" +
+      Num(tcp.t.x() / 1000, 6) + ", " + Num(tcp.t.y() / 1000, 6) + ", " + Num(tcp.t.z() / 1000, 6) +
+      ", " + Num(tcp_rv.x(), 6) + ", " + Num(tcp_rv.y(), 6) + ", " + Num(tcp_rv.z(), 6) + "])\n";
   head += "  global Plane_1=p[" + Num(plane.t.x() / 1000, 6) + "," + Num(plane.t.y() / 1000, 6) +
           "," + Num(plane.t.z() / 1000, 6) + "," + Num(plane_rv.x(), 6) + "," +
           Num(plane_rv.y(), 6) + "," + Num(plane_rv.z(), 6) + "]\n";
@@ -292,7 +295,8 @@ Generated UrProgram(const Cell& c, int waypoints) {
   // The TCP and plane the controller uses are the ones written (6 decimals): re-read them.
   ParsedProgram probe;
   EXPECT_TRUE(ParseProgram(head + "movel(pose_trans(Plane_1, p[0,0,0,0,0,0]))\n",
-                           ProgramLanguage::kUrScript, &probe).ok());
+                           ProgramLanguage::kUrScript, &probe)
+                  .ok());
   const SE3d tcp_used = probe.targets.at(0).tcp, plane_used = probe.targets.at(0).frame;
   for (int k = 1; k <= waypoints; ++k) {
     const std::vector<double> q = joints();
@@ -358,7 +362,8 @@ TEST(Program, UrScriptCompensatedOnTheTrueRobot) {
   std::string out;
   ProgramOptions options;
   ASSERT_TRUE(CompensateProgramText(g.text, ProgramLanguage::kUrScript, c.calibrated, c.nominal,
-                                    options, &out, &program).ok());
+                                    options, &out, &program)
+                  .ok());
   NameInline(program, &g.planned);
   int compensated = 0, runtime = 0;
   for (const ProgramTarget& t : program.targets) {
@@ -378,8 +383,7 @@ TEST(Program, UrScriptCompensatedOnTheTrueRobot) {
   for (const ProgramTarget& t : program.targets) {
     EXPECT_NE(t.name, "Plane_1");
     EXPECT_FALSE(t.name.size() > 2 && t.name.compare(t.name.size() - 2, 2, "_q") == 0 &&
-                 t.name.rfind("Waypoint_", 0) == 0 &&
-                 std::stoi(t.name.substr(9)) % 5 != 0);
+                 t.name.rfind("Waypoint_", 0) == 0 && std::stoi(t.name.substr(9)) % 5 != 0);
   }
   ExpectOnlyNumbersChanged(g.text, out, program);
   ExpectCompensated(RunOnTrueRobot(c, program, out, ProgramLanguage::kUrScript, g.planned), 100);
@@ -407,8 +411,12 @@ Generated RapidProgram(const Cell& c, int points) {
           "],[" + xyz(object.t, 3) + "," + quat(object.R) + "]];\r\n";
   std::string body = "  PROC main()\r\n";
   ParsedProgram probe;
-  EXPECT_TRUE(ParseProgram(decl + "PROC x()\r\nMoveL [[0,0,0],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v10, fine, tGripper\\WObj:=wTable;\r\nENDPROC\r\nENDMODULE\r\n",
-                           ProgramLanguage::kRapid, &probe).ok());
+  EXPECT_TRUE(
+      ParseProgram(
+          decl + "PROC x()\r\nMoveL [[0,0,0],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v10, "
+                 "fine, tGripper\\WObj:=wTable;\r\nENDPROC\r\nENDMODULE\r\n",
+          ProgramLanguage::kRapid, &probe)
+          .ok());
   const SE3d tcp_used = probe.targets.at(0).tcp, wobj_used = probe.targets.at(0).frame;
   Random rng(11);
   const double centre[6] = {0.3, -1.4, 1.5, -1.7, -1.5, 0.8};
@@ -447,8 +455,8 @@ Generated RapidProgram(const Cell& c, int points) {
       case 3: {
         const std::vector<double> q2 = joints();
         decl += "  PERS robtarget " + name + ":=" + robtarget(q2) + ";\r\n";
-        body += "    MoveC " + robtarget(q) + ", " + name +
-                ", v100, z5, tGripper\\WObj:=wTable;\r\n";
+        body +=
+            "    MoveC " + robtarget(q) + ", " + name + ", v100, z5, tGripper\\WObj:=wTable;\r\n";
         body += "    MoveL Offs(" + name + ", 0, 0, 50), v200, z10, tGripper\\WObj:=wTable;\r\n";
         g.planned.push_back({"#inline", q});
         g.planned.push_back({name, q2});
@@ -467,7 +475,8 @@ TEST(Program, RapidCompensatedOnTheTrueRobot) {
   ParsedProgram program;
   std::string out;
   ASSERT_TRUE(CompensateProgramText(g.text, ProgramLanguage::kRapid, c.calibrated, c.nominal,
-                                    ProgramOptions(), &out, &program).ok());
+                                    ProgramOptions(), &out, &program)
+                  .ok());
   NameInline(program, &g.planned);
   int offs = 0, compensated = 0;
   for (const ProgramTarget& t : program.targets) {
@@ -488,9 +497,10 @@ TEST(Program, RapidCompensatedOnTheTrueRobot) {
       quadrants_changed += t.new_quadrants[k] != t.quadrants[k].number.value;
     }
   }
-  EXPECT_GT(quadrants_changed, 0);  // joint 1 near 0: some targets change quadrant (checked above)
+  EXPECT_GT(quadrants_changed, 0);  // joint 1 near 0: some targets change quadrant (RunOnTrueRobot)
   // The CRLF line ends are all still there.
-  EXPECT_EQ(std::count(out.begin(), out.end(), '\r'), std::count(g.text.begin(), g.text.end(), '\r'));
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\r'),
+            std::count(g.text.begin(), g.text.end(), '\r'));
   ExpectCompensated(RunOnTrueRobot(c, program, out, ProgramLanguage::kRapid, g.planned), 70);
 }
 
@@ -502,13 +512,15 @@ TEST(Program, TargetsOnlyLeavesTaughtPointsAlone) {
   ProgramOptions options;
   options.targets_only = "Waypoint_1[0-9]?_.*";
   ASSERT_TRUE(CompensateProgramText(g.text, ProgramLanguage::kUrScript, c.calibrated, c.nominal,
-                                    options, &out, &program).ok());
+                                    options, &out, &program)
+                  .ok());
   int selected = 0;
   for (const ProgramTarget& t : program.targets) {
     if (t.numbers.empty()) continue;
-    const bool match = t.name.rfind("Waypoint_1", 0) == 0 &&
-                       (t.name.size() == 12 || t.name.size() == 13);
-    EXPECT_EQ(t.status, match ? ProgramTargetStatus::kCompensated : ProgramTargetStatus::kNotSelected)
+    const bool match =
+        t.name.rfind("Waypoint_1", 0) == 0 && (t.name.size() == 12 || t.name.size() == 13);
+    EXPECT_EQ(t.status,
+              match ? ProgramTargetStatus::kCompensated : ProgramTargetStatus::kNotSelected)
         << t.name;
     selected += match;
   }
@@ -539,19 +551,24 @@ TEST(Program, MalformedProgramsNameTheLine) {
               "line 2", "6 numbers");
   ExpectError("def p():\n  # caf\xC3\xA9 ok\n  movel(p[0.1, 0.2, 0.3, 0, 0, 0]) # \xFF\xFE\nend\n",
               ProgramLanguage::kUrScript, "line 3", "UTF-8");
-  const std::string head = "MODULE M\r\n  PERS tooldata t1:=[FALSE,[[0,0,100],[1,0,0,0]],"
-                           "[1,[0,0,1],[1,0,0,0],0,0,0]];\r\n";
-  ExpectError(head + "  CONST robtarget p1:=[[1,2,3],[1,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];"
-                     "\r\nENDMODULE\r\n",
+  const std::string head =
+      "MODULE M\r\n  PERS tooldata t1:=[FALSE,[[0,0,100],[1,0,0,0]],"
+      "[1,[0,0,1],[1,0,0,0],0,0,0]];\r\n";
+  ExpectError(head +
+                  "  CONST robtarget p1:=[[1,2,3],[1,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];"
+                  "\r\nENDMODULE\r\n",
               ProgramLanguage::kRapid, "line 3", "4 quaternion numbers");
-  ExpectError(head + "  PROC main()\r\n    MoveL [[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,"
-                     "9E9]], v100, z10, tFoo;\r\n  ENDPROC\r\nENDMODULE\r\n",
+  ExpectError(head +
+                  "  PROC main()\r\n    MoveL [[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,"
+                  "9E9]], v100, z10, tFoo;\r\n  ENDPROC\r\nENDMODULE\r\n",
               ProgramLanguage::kRapid, "line 4", "unknown tool 'tFoo'");
-  ExpectError(head + "  PROC main()\r\n    MoveL p1, v100, z10, t1\\WObj:=wNope;\r\n  ENDPROC\r\n"
-                     "ENDMODULE\r\n",
+  ExpectError(head +
+                  "  PROC main()\r\n    MoveL p1, v100, z10, t1\\WObj:=wNope;\r\n  ENDPROC\r\n"
+                  "ENDMODULE\r\n",
               ProgramLanguage::kRapid, "line 4", "unknown work object");
-  ExpectError(head + "  PROC main()\r\n    MoveL [[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,"
-                     "9E9], v100, z10, t1;\r\n  ENDPROC\r\nENDMODULE\r\n",
+  ExpectError(head +
+                  "  PROC main()\r\n    MoveL [[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,"
+                  "9E9], v100, z10, t1;\r\n  ENDPROC\r\nENDMODULE\r\n",
               ProgramLanguage::kRapid, "line 4", "never closed");
   std::string big(kMaxProgramBytes + 10, ' ');
   for (size_t i = 0; i < big.size(); i += 1000) big[i] = '\n';
@@ -574,7 +591,8 @@ TEST(Program, RunTimeValuesAreReportedNotChanged) {
   ParsedProgram program;
   std::string out;
   ASSERT_TRUE(CompensateProgramText(text, ProgramLanguage::kUrScript, c.calibrated, c.nominal,
-                                    ProgramOptions(), &out, &program).ok());
+                                    ProgramOptions(), &out, &program)
+                  .ok());
   // The literal assigned to a_p on line 4 is never moved to (reassigned first): not a target.
   ASSERT_EQ(program.targets.size(), 4u);
   EXPECT_EQ(program.targets[0].name, "home_q");
@@ -603,15 +621,16 @@ std::string ReadAll(const std::string& path) {
 // Runs the tool; its exit code, stderr in *err.
 int RunTool(const std::string& args, const std::string& dir, std::string* err) {
   const std::string log = dir + "/stderr.txt";
-  const int rc = std::system((std::string(LPOE_COMPENSATE_PATH) + " " + args + " 2>" + log).c_str());
+  const int rc =
+      std::system((std::string(LPOE_COMPENSATE_PATH) + " " + args + " 2>" + log).c_str());
   *err = ReadAll(log);
   return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
 }
 
 TEST(Program, ToolWritesTheProgramAndRefusesBadInput) {
   const Cell& c = TheCell();
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                                    ("lpoe_program_test_" + std::to_string(::getpid()));
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("lpoe_program_test_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   const std::string d = dir.string();
   ASSERT_TRUE(WriteRobotModel(d + "/cal.yaml", c.calibrated).ok());
@@ -627,27 +646,31 @@ TEST(Program, ToolWritesTheProgramAndRefusesBadInput) {
   ParsedProgram program;
   std::string expected;
   ASSERT_TRUE(CompensateProgramText(g.text, ProgramLanguage::kUrScript, cal, nom, ProgramOptions(),
-                                    &expected, &program).ok());
-  EXPECT_EQ(RunTool(models + "--program=" + d + "/in.script --output=" + d + "/out.script --report=" +
-                        d + "/report.json", d, &err),
+                                    &expected, &program)
+                  .ok());
+  EXPECT_EQ(RunTool(models + "--program=" + d + "/in.script --output=" + d +
+                        "/out.script --report=" + d + "/report.json",
+                    d, &err),
             0)
       << err;
   EXPECT_EQ(ReadAll(d + "/out.script"), expected);
   EXPECT_NE(ReadAll(d + "/report.json").find("\"compensated\": "), std::string::npos);
   EXPECT_NE(err.find("not compensated: computed at run time"), std::string::npos) << err;
   // --strict: the run-time target makes it exit 8, the output written all the same.
-  EXPECT_EQ(RunTool(models + "--strict --program=" + d + "/in.script --output=" + d + "/strict.script",
-                    d, &err),
-            8)
+  EXPECT_EQ(
+      RunTool(models + "--strict --program=" + d + "/in.script --output=" + d + "/strict.script", d,
+              &err),
+      8)
       << err;
   EXPECT_EQ(ReadAll(d + "/strict.script"), expected);
   // OUT == IN refused, the program untouched.
-  EXPECT_EQ(RunTool(models + "--program=" + d + "/in.script --output=" + d + "/./in.script", d, &err),
-            1);
+  EXPECT_EQ(
+      RunTool(models + "--program=" + d + "/in.script --output=" + d + "/./in.script", d, &err), 1);
   EXPECT_EQ(ReadAll(d + "/in.script"), g.text);
   // A malformed program: the line named, nothing written.
   std::ofstream(d + "/bad.mod", std::ios::binary)
-      << "MODULE M\n  PROC main()\n    MoveL [[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], "
+      << "MODULE M\n  PROC main()\n    MoveL "
+         "[[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], "
          "v100, z10, tool9;\n  ENDPROC\nENDMODULE\n";
   EXPECT_EQ(RunTool(models + "--program=" + d + "/bad.mod --output=" + d + "/bad_out.mod", d, &err),
             2);

@@ -1,14 +1,14 @@
 // lpoe_compensate --program=IN --output=OUT (issue 32): see lpoe_compensate_program.h and
-// docs/programs.md. The flags shared with the CSV modes are defined in lpoe_compensate.cc. (The file
-// name contains the tool's: tool_common's --help lists the flags of such files.)
+// docs/programs.md. The flags shared with the CSV modes are defined in lpoe_compensate.cc. (The
+// file name contains the tool's: tool_common's --help lists the flags of such files.)
 #include "lpoe_compensate_program.h"
+
+#include <gflags/gflags.h>
 
 #include <iostream>
 #include <regex>
 #include <string>
 #include <vector>
-
-#include <gflags/gflags.h>
 
 #include "lpoe/io.h"
 #include "lpoe/program.h"
@@ -19,7 +19,8 @@ DEFINE_string(program, "",
               "Robot program to compensate (URScript .script/.urscript, RAPID .mod/.modx/.prg): "
               "--output gets the same text with only the numbers of its motion targets changed. "
               "Needs --nominal (the model the controller runs).");
-DEFINE_string(language, "", "Language of --program: urscript | rapid (default: from its extension).");
+DEFINE_string(language, "",
+              "Language of --program: urscript | rapid (default: from its extension).");
 DEFINE_string(flange, "",
               "Tool of the models that is the controller's flange (tool0), which the program's TCP "
               "is relative to (default: the tool named 'flange', else the model's only tool).");
@@ -62,10 +63,10 @@ int RunProgramMode() {
   ProgramLanguage language;
   if (!FLAGS_language.empty() ? !ProgramLanguageFromName(FLAGS_language, &language)
                               : !ProgramLanguageFromPath(FLAGS_program, &language)) {
-    std::cerr << "error: " << (FLAGS_language.empty()
-                                   ? "cannot tell the language of " + FLAGS_program +
-                                         " from its extension; give --language=urscript|rapid"
-                                   : "--language must be urscript or rapid")
+    std::cerr << "error: "
+              << (FLAGS_language.empty() ? "cannot tell the language of " + FLAGS_program +
+                                               " from its extension; give --language=urscript|rapid"
+                                         : "--language must be urscript or rapid")
               << "\n";
     return kExitUsage;
   }
@@ -114,7 +115,8 @@ int RunProgramMode() {
   options.ik.singular_threshold = FLAGS_singular_threshold;
   ParsedProgram program;
   std::string out;
-  if (Status s = CompensateProgramText(text, language, calibrated, nominal, options, &out, &program);
+  if (Status s =
+          CompensateProgramText(text, language, calibrated, nominal, options, &out, &program);
       !s.ok()) {
     std::cerr << "error: " << FLAGS_program << ": " << s.message() << "\n";
     return kExitInput;
@@ -132,8 +134,8 @@ int RunProgramMode() {
   for (const ProgramTarget& t : program.targets) {
     ++counts[static_cast<int>(t.status)];
     if (t.status == ProgramTargetStatus::kNotCompensated) {
-      std::cerr << FLAGS_program << ":" << t.line << ": " << t.name << ": not compensated: "
-                << t.reason << "\n";
+      std::cerr << FLAGS_program << ":" << t.line << ": " << t.name
+                << ": not compensated: " << t.reason << "\n";
     }
   }
   std::cerr << "lpoe_compensate: " << program.targets.size() << " targets in "

@@ -28,8 +28,8 @@ PyProgramCompensation CompensateProgramPy(const RobotModel& model, const RobotMo
                                           int restarts) {
   ProgramLanguage lang;
   if (!ProgramLanguageFromName(language, &lang)) {
-    throw LpoeError("compensate_program: language must be 'urscript' or 'rapid', not '" +
-                    language + "'");
+    throw LpoeError("compensate_program: language must be 'urscript' or 'rapid', not '" + language +
+                    "'");
   }
   if (max_iterations < 1 || max_iterations > 10000 || restarts < 0 || restarts > 100) {
     throw LpoeError("compensate_program: need 1 <= max_iterations <= 10000, 0 <= restarts <= 100");

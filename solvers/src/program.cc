@@ -76,11 +76,16 @@ std::vector<double> EncodePose(const ProgramTarget& t, const SE3d& pose) {
 
 const char* IkReason(IkStatus s) {
   switch (s) {
-    case IkStatus::kOk: return "reached";
-    case IkStatus::kUnreachable: return "out of reach";
-    case IkStatus::kLimit: return "outside the joint limits";
-    case IkStatus::kSingular: return "at a singularity";
-    case IkStatus::kBranch: return "only on another configuration branch (across a singular surface)";
+    case IkStatus::kOk:
+      return "reached";
+    case IkStatus::kUnreachable:
+      return "out of reach";
+    case IkStatus::kLimit:
+      return "outside the joint limits";
+    case IkStatus::kSingular:
+      return "at a singularity";
+    case IkStatus::kBranch:
+      return "only on another configuration branch (across a singular surface)";
   }
   return "?";
 }
@@ -129,8 +134,8 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
   std::vector<double> prev(n, 0.0);
   if (!options.home.empty()) {
     if (static_cast<int>(options.home.size()) != n) {
-      return Status::Error("home has " + std::to_string(options.home.size()) + " joints, the model " +
-                           std::to_string(n));
+      return Status::Error("home has " + std::to_string(options.home.size()) +
+                           " joints, the model " + std::to_string(n));
     }
     prev = options.home;
   } else {

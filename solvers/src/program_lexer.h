@@ -22,8 +22,8 @@ struct Token {
 };
 
 struct LexerOptions {
-  char comment = '#';           // to the end of the line
-  bool single_quotes = false;   // '...' strings too
+  char comment = '#';          // to the end of the line
+  bool single_quotes = false;  // '...' strings too
 };
 
 // Splits `text` into tokens (comments and spaces dropped). Checks the size, UTF-8 and that
@@ -50,8 +50,8 @@ class TokenView {
   bool IsIdent(int i) const { return i < size() && t_[i].kind == Token::kIdent; }
   // A (signed) number at i: fills `n` and returns the index after it, or -1.
   int Number(int i, ProgramNumber* n, int decimals) const;
-  // End (exclusive) of the expression starting at i: the next ',' ';' or closing bracket at depth 0,
-  // or `limit`.
+  // End (exclusive) of the expression starting at i: the next ',' ';' or closing bracket at depth
+  // 0, or `limit`.
   int ExpressionEnd(int i, int limit) const;
   // Comma-separated items of the bracket at `open` (its contents, [begin, end) per item).
   std::vector<std::pair<int, int>> Items(int open) const;

@@ -4,8 +4,9 @@
 // robtarget [[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [eax_a .. eax_f]]: mm, quaternion
 // w first; the quadrants cf1, cf4, cf6 seed the inverse kinematics and are rewritten from the
 // compensated joints; cfx and the external axes are never touched. jointtarget [[j1 .. j6], [eax]]
-// (degrees) with MoveAbsJ. tooldata [robhold, [[x, y, z], [q]], load] and wobjdata [robhold, ufprog,
-// ufmec, uframe, oframe] resolved by name (tool0, wobj0 built in). A robtarget assigned anywhere
+// (degrees) with MoveAbsJ. tooldata [robhold, [[x, y, z], [q]], load] and wobjdata [robhold,
+// ufprog, ufmec, uframe, oframe] resolved by name (tool0, wobj0 built in). A robtarget assigned
+// anywhere
 // (`p := ...`), an array element, Offs(...), RelTool(...), CRobT() ... are run-time values:
 // reported, not compensated. Declarations are read first (RAPID data may follow the routines).
 #include <algorithm>
@@ -45,7 +46,7 @@ struct Motion {
 };
 
 bool FindMotion(const std::string& lower, Motion* m) {
-  static const char* kLinear[] = {"movel", "movej", "moveldo", "movejdo", "movelsync",
+  static const char* kLinear[] = {"movel",     "movej",   "moveldo", "movejdo", "movelsync",
                                   "movejsync", "movelao", "movejao", "movelgo", "movejgo"};
   static const char* kCircular[] = {"movec", "movecdo", "movecsync", "movecao", "movecgo"};
   for (const char* s : kLinear) {
@@ -163,12 +164,14 @@ class RapidParser {
       return Status::Ok();
     }
     if (t.size() != 3) {
-      return Error(v_[a].line, what + ": the position needs 3 numbers, found " +
-                                   std::to_string(t.size()));
+      return Error(v_[a].line,
+                   what + ": the position needs 3 numbers, found " + std::to_string(t.size()));
     }
     if (q.size() != 4) {
-      return Error(v_[a].line, what + ": the orientation needs 4 quaternion numbers [q1, q2, q3, "
-                                      "q4], found " + std::to_string(q.size()));
+      return Error(v_[a].line, what +
+                                   ": the orientation needs 4 quaternion numbers [q1, q2, q3, "
+                                   "q4], found " +
+                                   std::to_string(q.size()));
     }
     const Eigen::Vector4d qv(q[1].value, q[2].value, q[3].value, q[0].value);
     if (!(std::abs(qv.norm() - 1) < 1e-3)) {
@@ -186,10 +189,11 @@ class RapidParser {
     if (!(v_.Is(a, "[") && v_[a].match == e - 1)) return Status::Ok();
     const auto items = v_.Items(a);
     if (items.size() != 4) {
-      return Error(v_[a].line, "robtarget " + name + ": expected [[x, y, z], [q1, q2, q3, q4], "
-                                                     "[cf1, cf4, cf6, cfx], [eax_a, ..., eax_f]], "
-                                                     "found " + std::to_string(items.size()) +
-                                                     " parts");
+      return Error(v_[a].line, "robtarget " + name +
+                                   ": expected [[x, y, z], [q1, q2, q3, q4], "
+                                   "[cf1, cf4, cf6, cfx], [eax_a, ..., eax_f]], "
+                                   "found " +
+                                   std::to_string(items.size()) + " parts");
     }
     std::vector<ProgramNumber> t, q, conf, ext;
     const int nt = Numbers(items[0].first, items[0].second, kMmDecimals, &t);
@@ -202,17 +206,20 @@ class RapidParser {
                                    std::to_string(nt));
     }
     if (nq != 4) {
-      return Error(v_[a].line, "robtarget " + name + ": the orientation needs 4 quaternion "
-                                                     "numbers [q1, q2, q3, q4], found " +
-                                                     std::to_string(nq));
+      return Error(v_[a].line, "robtarget " + name +
+                                   ": the orientation needs 4 quaternion "
+                                   "numbers [q1, q2, q3, q4], found " +
+                                   std::to_string(nq));
     }
     if (nc != 4) {
-      return Error(v_[a].line, "robtarget " + name + ": confdata needs 4 numbers [cf1, cf4, cf6, "
-                                                     "cfx], found " + std::to_string(nc));
+      return Error(v_[a].line, "robtarget " + name +
+                                   ": confdata needs 4 numbers [cf1, cf4, cf6, "
+                                   "cfx], found " +
+                                   std::to_string(nc));
     }
     if (ne != 6) {
-      return Error(v_[a].line, "robtarget " + name + ": extjoint needs 6 numbers, found " +
-                                   std::to_string(ne));
+      return Error(v_[a].line,
+                   "robtarget " + name + ": extjoint needs 6 numbers, found " + std::to_string(ne));
     }
     ProgramTarget r;
     r.name = name;
@@ -238,8 +245,9 @@ class RapidParser {
     if (!(v_.Is(a, "[") && v_[a].match == e - 1)) return Status::Ok();
     const auto items = v_.Items(a);
     if (items.size() != 2) {
-      return Error(v_[a].line, "jointtarget " + name + ": expected [[j1, ..., j6], [eax_a, ..., "
-                                                       "eax_f]]");
+      return Error(v_[a].line, "jointtarget " + name +
+                                   ": expected [[j1, ..., j6], [eax_a, ..., "
+                                   "eax_f]]");
     }
     std::vector<ProgramNumber> j, ext;
     if (Numbers(items[0].first, items[0].second, kDegreeDecimals, &j) < 0 ||
@@ -321,8 +329,9 @@ class RapidParser {
         const bool robhold = !items.empty() && v_.IsNoCase(items[0].first, "TRUE");
         if (t == "tooldata") {
           if (items.size() != 3) {
-            return Error(v_[va].line, what + ": expected [robhold, [[x, y, z], [q1, q2, q3, q4]], "
-                                             "load]");
+            return Error(v_[va].line, what +
+                                          ": expected [robhold, [[x, y, z], [q1, q2, q3, q4]], "
+                                          "load]");
           }
           bool literal;
           if (Status st = PoseLiteral(items[1].first, items[1].second, what, &f.pose, &literal);
@@ -333,12 +342,14 @@ class RapidParser {
           if (robhold) f.runtime = "a stationary tool (robhold TRUE) is not supported";
         } else {
           if (items.size() != 5) {
-            return Error(v_[va].line, what + ": expected [robhold, ufprog, ufmec, uframe, "
-                                             "oframe]");
+            return Error(v_[va].line, what +
+                                          ": expected [robhold, ufprog, ufmec, uframe, "
+                                          "oframe]");
           }
           SE3d user, object;
           bool l1, l2;
-          if (Status st = PoseLiteral(items[3].first, items[3].second, what, &user, &l1); !st.ok()) {
+          if (Status st = PoseLiteral(items[3].first, items[3].second, what, &user, &l1);
+              !st.ok()) {
             return st;
           }
           if (Status st = PoseLiteral(items[4].first, items[4].second, what, &object, &l2);
@@ -350,7 +361,8 @@ class RapidParser {
           if (v_.IsNoCase(items[1].first, "FALSE")) {
             f.runtime = "a moving user frame (ufprog FALSE, coordinated motion) is not supported";
           }
-          if (robhold) f.runtime = "a work object held by the robot (robhold TRUE) is not supported";
+          if (robhold)
+            f.runtime = "a work object held by the robot (robhold TRUE) is not supported";
         }
       }
       (t == "tooldata" ? tools_ : wobjs_)[key] = f;
@@ -410,8 +422,8 @@ class RapidParser {
       if (!it->second.runtime.empty()) context_runtime = label + it->second.runtime;
       if (assigned_.count(tool)) context_runtime = label + assigned_[tool];
     } else {
-      context_runtime = "its tool is computed at run time: " +
-                        std::string(v_.Span(ta.first, ta.second));
+      context_runtime =
+          "its tool is computed at run time: " + std::string(v_.Span(ta.first, ta.second));
     }
     // Work object: \WObj:=name anywhere in the statement.
     use.frame_name = "wobj0";
@@ -446,8 +458,8 @@ class RapidParser {
           return st;
         }
         if (record < 0) {
-          Runtime(inline_name, line, "computed at run time: " +
-                                         std::string(v_.Span(arg.first, arg.second)));
+          Runtime(inline_name, line,
+                  "computed at run time: " + std::string(v_.Span(arg.first, arg.second)));
           continue;
         }
       } else if (arg.second == arg.first + 1 && v_.IsIdent(arg.first)) {
@@ -509,10 +521,12 @@ class RapidParser {
       t.frame_name = u.frame_name;
       t.tcp_name = u.tcp_name;
       for (const Use& w : uses) {
-        const bool same_tcp = (w.tcp.t - u.tcp.t).norm() < 1e-9 && (w.tcp.R - u.tcp.R).norm() < 1e-12;
+        const bool same_tcp =
+            (w.tcp.t - u.tcp.t).norm() < 1e-9 && (w.tcp.R - u.tcp.R).norm() < 1e-12;
         const bool same_frame =
             (w.frame.t - u.frame.t).norm() < 1e-9 && (w.frame.R - u.frame.R).norm() < 1e-12;
-        if (t.compensable && t.kind == ProgramTargetKind::kCartesian && (!same_tcp || !same_frame)) {
+        if (t.compensable && t.kind == ProgramTargetKind::kCartesian &&
+            (!same_tcp || !same_frame)) {
           t.compensable = false;
           t.reason = "used with different " + std::string(same_frame ? "tools" : "work objects") +
                      " (lines " + std::to_string(u.line) + " and " + std::to_string(w.line) + ")";

@@ -17,7 +17,6 @@ namespace lpoe {
 namespace program_internal {
 namespace {
 
-
 std::string LineError(int line, const std::string& what) {
   return "line " + std::to_string(line) + ": " + what;
 }
@@ -28,10 +27,17 @@ int Utf8Length(std::string_view s, size_t i) {
   if (c < 0x80) return 1;
   int n;
   unsigned int cp;
-  if ((c & 0xE0) == 0xC0) { n = 2; cp = c & 0x1F; }
-  else if ((c & 0xF0) == 0xE0) { n = 3; cp = c & 0x0F; }
-  else if ((c & 0xF8) == 0xF0) { n = 4; cp = c & 0x07; }
-  else return 0;
+  if ((c & 0xE0) == 0xC0) {
+    n = 2;
+    cp = c & 0x1F;
+  } else if ((c & 0xF0) == 0xE0) {
+    n = 3;
+    cp = c & 0x0F;
+  } else if ((c & 0xF8) == 0xF0) {
+    n = 4;
+    cp = c & 0x07;
+  } else
+    return 0;
   if (i + n > s.size()) return 0;
   for (int k = 1; k < n; ++k) {
     const unsigned char d = static_cast<unsigned char>(s[i + k]);
@@ -87,12 +93,12 @@ Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<
     }
     if (c >= 0x80) {
       if (Utf8Length(text, i) == 0) {
-        return Status::Error(LineError(line, "the text is not valid UTF-8 (byte " +
-                                                 std::to_string(i) + ")"));
+        return Status::Error(
+            LineError(line, "the text is not valid UTF-8 (byte " + std::to_string(i) + ")"));
       }
     } else if (c < 0x20 && c != '\t' && c != '\r' && c != '\f' && c != '\v') {
-      return Status::Error(LineError(line, "control character " + std::to_string(c) +
-                                               " in the program text"));
+      return Status::Error(
+          LineError(line, "control character " + std::to_string(c) + " in the program text"));
     }
     if (c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v') {
       ++i;
@@ -102,8 +108,8 @@ Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<
       while (i < n && text[i] != '\n') {
         const int len = Utf8Length(text, i);
         if (len == 0) {
-          return Status::Error(LineError(line, "the text is not valid UTF-8 (byte " +
-                                                   std::to_string(i) + ")"));
+          return Status::Error(
+              LineError(line, "the text is not valid UTF-8 (byte " + std::to_string(i) + ")"));
         }
         i += len;
       }
@@ -128,8 +134,8 @@ Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<
         }
         const int len = Utf8Length(text, i);
         if (len == 0) {
-          return Status::Error(LineError(line, "the text is not valid UTF-8 (byte " +
-                                                   std::to_string(i) + ")"));
+          return Status::Error(
+              LineError(line, "the text is not valid UTF-8 (byte " + std::to_string(i) + ")"));
         }
         i += len;
       }
@@ -137,7 +143,8 @@ Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<
       push(Token::kString, b, i);
       continue;
     }
-    if (std::isdigit(c) || (c == '.' && i + 1 < n && std::isdigit(static_cast<unsigned char>(text[i + 1])))) {
+    if (std::isdigit(c) ||
+        (c == '.' && i + 1 < n && std::isdigit(static_cast<unsigned char>(text[i + 1])))) {
       const size_t b = i;
       while (i < n && std::isdigit(static_cast<unsigned char>(text[i]))) ++i;
       if (i < n && text[i] == '.') {
@@ -153,15 +160,15 @@ Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<
         }
       }
       if (i < n && IdentChar(static_cast<unsigned char>(text[i]))) {
-        return Status::Error(LineError(line, "malformed number '" +
-                                                 std::string(text.substr(b, i + 1 - b)) + "'"));
+        return Status::Error(
+            LineError(line, "malformed number '" + std::string(text.substr(b, i + 1 - b)) + "'"));
       }
       push(Token::kNumber, b, i);
       double v = 0;
       const auto r = std::from_chars(text.data() + b, text.data() + i, v);
       if (r.ec != std::errc() || !std::isfinite(v)) {
-        return Status::Error(LineError(line, "number out of range '" +
-                                                 std::string(text.substr(b, i - b)) + "'"));
+        return Status::Error(
+            LineError(line, "number out of range '" + std::string(text.substr(b, i - b)) + "'"));
       }
       tokens->back().value = v;
       continue;
@@ -171,8 +178,8 @@ Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<
       while (i < n && IdentChar(static_cast<unsigned char>(text[i]))) {
         const int len = Utf8Length(text, i);
         if (len == 0) {
-          return Status::Error(LineError(line, "the text is not valid UTF-8 (byte " +
-                                                   std::to_string(i) + ")"));
+          return Status::Error(
+              LineError(line, "the text is not valid UTF-8 (byte " + std::to_string(i) + ")"));
         }
         i += len;
       }
@@ -185,16 +192,16 @@ Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<
       open.push_back(static_cast<int>(tokens->size()) - 1);
     } else if (c == ')' || c == ']' || c == '}') {
       if (open.empty()) {
-        return Status::Error(LineError(line, std::string("'") + static_cast<char>(c) +
-                                                 "' without an opening bracket"));
+        return Status::Error(LineError(
+            line, std::string("'") + static_cast<char>(c) + "' without an opening bracket"));
       }
       Token& o = (*tokens)[open.back()];
       const char oc = text[o.begin];
       const char want = oc == '(' ? ')' : oc == '[' ? ']' : '}';
       if (want != static_cast<char>(c)) {
-        return Status::Error(LineError(
-            line, std::string("'") + static_cast<char>(c) + "' does not close '" + oc +
-                      "' opened on line " + std::to_string(o.line)));
+        return Status::Error(LineError(line, std::string("'") + static_cast<char>(c) +
+                                                 "' does not close '" + oc + "' opened on line " +
+                                                 std::to_string(o.line)));
       }
       o.match = static_cast<int>(tokens->size()) - 1;
       tokens->back().match = open.back();
@@ -295,11 +302,21 @@ void JsonString(std::string_view s, std::string* out) {
   out->push_back('"');
   for (const char c : s) {
     switch (c) {
-      case '"': *out += "\\\""; break;
-      case '\\': *out += "\\\\"; break;
-      case '\n': *out += "\\n"; break;
-      case '\r': *out += "\\r"; break;
-      case '\t': *out += "\\t"; break;
+      case '"':
+        *out += "\\\"";
+        break;
+      case '\\':
+        *out += "\\\\";
+        break;
+      case '\n':
+        *out += "\\n";
+        break;
+      case '\r':
+        *out += "\\r";
+        break;
+      case '\t':
+        *out += "\\t";
+        break;
       default:
         if (static_cast<unsigned char>(c) < 0x20) {
           char b[8];
@@ -321,9 +338,12 @@ const char* ProgramLanguageName(ProgramLanguage language) {
 
 bool ProgramLanguageFromName(std::string_view name, ProgramLanguage* language) {
   const std::string l = program_internal::Lower(name);
-  if (l == "urscript") *language = ProgramLanguage::kUrScript;
-  else if (l == "rapid") *language = ProgramLanguage::kRapid;
-  else return false;
+  if (l == "urscript")
+    *language = ProgramLanguage::kUrScript;
+  else if (l == "rapid")
+    *language = ProgramLanguage::kRapid;
+  else
+    return false;
   return true;
 }
 
@@ -334,17 +354,23 @@ bool ProgramLanguageFromPath(std::string_view path, ProgramLanguage* language) {
     return false;
   }
   const std::string ext = program_internal::Lower(path.substr(dot + 1));
-  if (ext == "script" || ext == "urscript") *language = ProgramLanguage::kUrScript;
-  else if (ext == "mod" || ext == "modx" || ext == "prg") *language = ProgramLanguage::kRapid;
-  else return false;
+  if (ext == "script" || ext == "urscript")
+    *language = ProgramLanguage::kUrScript;
+  else if (ext == "mod" || ext == "modx" || ext == "prg")
+    *language = ProgramLanguage::kRapid;
+  else
+    return false;
   return true;
 }
 
 const char* ProgramTargetStatusName(ProgramTargetStatus status) {
   switch (status) {
-    case ProgramTargetStatus::kCompensated: return "compensated";
-    case ProgramTargetStatus::kNotCompensated: return "not_compensated";
-    case ProgramTargetStatus::kNotSelected: return "not_selected";
+    case ProgramTargetStatus::kCompensated:
+      return "compensated";
+    case ProgramTargetStatus::kNotCompensated:
+      return "not_compensated";
+    case ProgramTargetStatus::kNotSelected:
+      return "not_selected";
   }
   return "?";
 }
@@ -402,7 +428,8 @@ std::string ProgramReportJson(const ParsedProgram& program) {
   for (const ProgramTarget& t : program.targets) ++counts[static_cast<int>(t.status)];
   std::string out = "{\n  \"language\": \"";
   out += ProgramLanguageName(program.language);
-  out += "\",\n  \"targets\": " + std::to_string(program.targets.size()) + ",\n  \"status_counts\": {";
+  out +=
+      "\",\n  \"targets\": " + std::to_string(program.targets.size()) + ",\n  \"status_counts\": {";
   for (int s = 0; s < 3; ++s) {
     out += s ? ", \"" : "\"";
     out += ProgramTargetStatusName(static_cast<ProgramTargetStatus>(s));

@@ -29,8 +29,8 @@ struct Use {
 };
 
 struct Var {
-  int record = -1;           // the literal's record
-  std::string runtime;       // non-empty: not a literal (why)
+  int record = -1;      // the literal's record
+  std::string runtime;  // non-empty: not a literal (why)
 };
 
 class UrParser {
@@ -131,8 +131,10 @@ class UrParser {
       numbers->push_back(num);
     }
     if (want > 0 && static_cast<int>(numbers->size()) != want) {
-      *error = Error(v_[open].line, "a pose p[...] needs 6 numbers (x, y, z in m, rx, ry, rz), "
-                                    "found " + std::to_string(numbers->size()));
+      *error = Error(v_[open].line,
+                     "a pose p[...] needs 6 numbers (x, y, z in m, rx, ry, rz), "
+                     "found " +
+                         std::to_string(numbers->size()));
       return -1;
     }
     return numbers->empty() ? 0 : 1;
@@ -293,13 +295,11 @@ class UrParser {
                        "the variable is not assigned a literal earlier in the program");
       }
       if (!it->second.runtime.empty()) {
-        return Runtime(std::string(v_.Text(x)), use.line,
-                       "the variable is " + it->second.runtime);
+        return Runtime(std::string(v_.Text(x)), use.line, "the variable is " + it->second.runtime);
       }
       record = it->second.record;
     } else {
-      return Runtime(inline_name, use.line,
-                     "computed at run time: " + std::string(v_.Span(x, xe)));
+      return Runtime(inline_name, use.line, "computed at run time: " + std::string(v_.Span(x, xe)));
     }
     if (program_->targets[record].kind == ProgramTargetKind::kCartesian && !tcp_runtime_.empty()) {
       program_->targets[record].compensable = false;
@@ -335,15 +335,15 @@ class UrParser {
         t.tcp_name = u.tcp_name;
         t.qnear = u.qnear;
         for (const Use& w : uses) {
-          const bool same_tcp = (w.tcp.t - u.tcp.t).norm() < 1e-9 &&
-                                (w.tcp.R - u.tcp.R).norm() < 1e-12;
-          const bool same_frame = (w.frame.t - u.frame.t).norm() < 1e-9 &&
-                                  (w.frame.R - u.frame.R).norm() < 1e-12;
-          if (t.compensable && (!same_frame || (!same_tcp && t.kind == ProgramTargetKind::kCartesian))) {
+          const bool same_tcp =
+              (w.tcp.t - u.tcp.t).norm() < 1e-9 && (w.tcp.R - u.tcp.R).norm() < 1e-12;
+          const bool same_frame =
+              (w.frame.t - u.frame.t).norm() < 1e-9 && (w.frame.R - u.frame.R).norm() < 1e-12;
+          if (t.compensable &&
+              (!same_frame || (!same_tcp && t.kind == ProgramTargetKind::kCartesian))) {
             t.compensable = false;
             t.reason = "used with different " + std::string(same_frame ? "TCPs" : "features") +
-                       " (lines " + std::to_string(u.line) + " and " + std::to_string(w.line) +
-                       ")";
+                       " (lines " + std::to_string(u.line) + " and " + std::to_string(w.line) + ")";
           }
         }
         if (t.compensable && frame_use_[k] > 0 && t.kind == ProgramTargetKind::kCartesian) {

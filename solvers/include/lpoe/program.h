@@ -6,7 +6,8 @@
 //   parser (one file per language: program_urscript.cc, program_rapid.cc)
 //       text -> ParsedProgram: target records (name, line, kind, the byte range and value of every
 //       number, how the numbers encode the target, the frame and TCP the target is used with, a
-//       seed hint) and run-time targets (Offs(...), pose arithmetic...) reported as not compensated;
+//       seed hint) and run-time targets (Offs(...), pose arithmetic...) reported as not
+//       compensated;
 //   CompensateProgram (one step for every language)
 //       calibrated inverse kinematics per record, new numbers in the record's own encoding;
 //   RewriteProgram
@@ -49,8 +50,8 @@ enum class ProgramTargetKind { kCartesian, kJoint };
 
 // How a Cartesian target's numbers encode the pose of the TCP in its frame.
 enum class PoseEncoding {
-  kMetresRotationVector,      // x y z (m), rx ry rz (rotation vector, rad): URScript p[...]
-  kMillimetresQuaternionWxyz, // x y z (mm), q1..q4 = w x y z: RAPID robtarget
+  kMetresRotationVector,       // x y z (m), rx ry rz (rotation vector, rad): URScript p[...]
+  kMillimetresQuaternionWxyz,  // x y z (mm), q1..q4 = w x y z: RAPID robtarget
 };
 // How a joint target's numbers encode the joints (one number per joint).
 enum class JointEncoding { kRadians, kDegrees };
