@@ -530,6 +530,8 @@ TEST(Program, TargetsOnlyLeavesTaughtPointsAlone) {
   const std::string report = ProgramReportJson(program);
   EXPECT_NE(report.find("\"not_selected\": "), std::string::npos);
   EXPECT_NE(report.find("\"name\": \"Waypoint_2_p\""), std::string::npos);
+  // The TCP is (15, -25, 160) mm from the flange: 29.2 mm off its axis.
+  EXPECT_NE(report.find("\"tcp_off_flange_axis_mm\": 29.15"), std::string::npos) << report;
 }
 
 void ExpectError(const std::string& text, ProgramLanguage language, const std::string& line,

@@ -435,7 +435,24 @@ std::string ProgramReportJson(const ParsedProgram& program) {
     out += ProgramTargetStatusName(static_cast<ProgramTargetStatus>(s));
     out += "\": " + std::to_string(counts[s]);
   }
-  out += "},\n  \"rows\": [";
+  // The flange's rotation about its own axis is a convention of the calibration unless the SMR
+  // nests were held at known positions on the flange: a TCP at distance r from that axis is off by
+  // r * delta for a rotation error delta there.
+  double off_axis = 0;
+  for (const ProgramTarget& t : program.targets) {
+    if (t.status == ProgramTargetStatus::kCompensated && t.kind == ProgramTargetKind::kCartesian) {
+      off_axis = std::max(off_axis, std::hypot(t.tcp.t.x(), t.tcp.t.y()));
+    }
+  }
+  char note[512];
+  std::snprintf(note, sizeof(note),
+                "},\n  \"tcp_off_flange_axis_mm\": %.6g,\n  \"flange_note\": \"The TCPs of the "
+                "compensated targets are up to %.3g mm off the flange axis: an error of the "
+                "calibrated flange's rotation about its axis (not identified unless the SMR nests' "
+                "positions on the flange were held fixed) moves them by %.3g mm per mrad.\"",
+                off_axis, off_axis, off_axis * 1e-3);
+  out += note;
+  out += ",\n  \"rows\": [";
   for (size_t k = 0; k < program.targets.size(); ++k) {
     const ProgramTarget& t = program.targets[k];
     out += k ? ",\n    {" : "\n    {";
