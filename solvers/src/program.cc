@@ -4,16 +4,13 @@
 #include "lpoe/program.h"
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
-#include <cstdio>
 #include <regex>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "lpoe/kinematics.h"
-#include "program_lexer.h"
 
 namespace lpoe {
 
