@@ -684,6 +684,83 @@ TEST(Program, ToolWritesTheProgramAndRefusesBadInput) {
 }
 #endif
 
+TEST(Program, UrScriptForms) {
+  const Cell& c = TheCell();
+  const std::vector<double> q = {0.4, -1.3, 1.6, -1.9, -1.5, 0.4};
+  const SE3d tcp(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, 100));
+  const SE3d feature(ExpSO3(Eigen::Vector3d(0, 0, 0.2)), Eigen::Vector3d(100, -50, 20));
+  const SE3d X = ToolPose(c.nominal, q.data(), c.flange) * tcp;
+  auto lit = [](const SE3d& T) {
+    const Eigen::Vector3d rv = LogSO3(T.R);
+    return "p[" + Num(T.t.x() / 1000, 12) + "," + Num(T.t.y() / 1000, 12) + "," +
+           Num(T.t.z() / 1000, 12) + "," + Num(rv.x(), 12) + "," + Num(rv.y(), 12) + "," +
+           Num(rv.z(), 12) + "]";
+  };
+  std::string qs = "[";
+  for (int j = 0; j < 6; ++j) qs += (j ? "," : "") + Num(q[j], 12);
+  qs += "]";
+  const std::string text = "def p():\n  local tool_1 = " + lit(tcp) + "\n  set_tcp(tool_1)\n" +
+                           "  servoj(" + qs + ", t=0.002)\n" +  // joints
+                           "  movep(" + lit(X) + ", a=1.2, v=0.25, r=0.01)\n" +
+                           "  movej(get_inverse_kin(pose_trans(" + lit(feature) + ", " +
+                           lit(feature.Inverse() * X) + "), qnear=" + qs + "))\n" +
+                           "  movel(pose_trans(feature_var, " + lit(X) + "))\nend\n";
+  ParsedProgram program;
+  std::string out;
+  ASSERT_TRUE(CompensateProgramText(text, ProgramLanguage::kUrScript, c.calibrated, c.nominal,
+                                    ProgramOptions(), &out, &program)
+                  .ok());
+  ASSERT_EQ(program.targets.size(), 4u);
+  EXPECT_EQ(program.targets[0].kind, ProgramTargetKind::kJoint);
+  EXPECT_EQ(program.targets[0].name, "servoj:4");
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(program.targets[k].status, ProgramTargetStatus::kCompensated)
+        << program.targets[k].name << ": " << program.targets[k].reason;
+    EXPECT_EQ(program.targets[k].tcp_name, "tool_1");
+  }
+  EXPECT_EQ(program.targets[1].name, "movep:5");
+  EXPECT_EQ(program.targets[2].qnear.size(), 6u);
+  EXPECT_LT((program.targets[2].frame.t - feature.t).norm(), 1e-6);
+  // The same pose, in the base frame and in the feature: the same correction.
+  EXPECT_NEAR(program.targets[1].correction_mm, program.targets[2].correction_mm, 1e-4);
+  EXPECT_GT(program.targets[1].correction_mm, 1.0);
+  // A feature variable never assigned: run time.
+  EXPECT_EQ(program.targets[3].status, ProgramTargetStatus::kNotCompensated);
+  EXPECT_NE(program.targets[3].reason.find("feature_var"), std::string::npos)
+      << program.targets[3].reason;
+  ExpectOnlyNumbersChanged(text, out, program);
+}
+
+TEST(Program, RapidTargetUsedWithTwoToolsIsLeftAlone) {
+  const Cell& c = TheCell();
+  const std::string text =
+      "MODULE M\n"
+      "  PERS tooldata t1:=[FALSE,[[0,0,100],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n"
+      "  PERS tooldata t2:=[FALSE,[[0,0,150],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n"
+      "  VAR robtarget p1:=[[300,-200,400],[0,0,1,0],[0,-1,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  VAR robtarget p2:=[[300,-200,450],[0,0,1,0],[0,-1,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PROC main()\n"
+      "    MoveL p1, v100, fine, t1;\n"
+      "    MoveL p1, v100, fine, t2;\n"
+      "    p2.trans.z := p2.trans.z + 10;\n"
+      "    MoveL p2, v100, fine, tool0;\n"
+      "  ENDPROC\n"
+      "ENDMODULE\n";
+  ParsedProgram program;
+  std::string out;
+  ASSERT_TRUE(CompensateProgramText(text, ProgramLanguage::kRapid, c.calibrated, c.nominal,
+                                    ProgramOptions(), &out, &program)
+                  .ok());
+  ASSERT_EQ(program.targets.size(), 2u);
+  EXPECT_EQ(program.targets[0].name, "p1");
+  EXPECT_NE(program.targets[0].reason.find("different tools (lines 7 and 8)"), std::string::npos)
+      << program.targets[0].reason;
+  EXPECT_EQ(program.targets[1].name, "p2");
+  EXPECT_NE(program.targets[1].reason.find("assigned at run time on line 9"), std::string::npos)
+      << program.targets[1].reason;
+  EXPECT_EQ(out, text);
+}
+
 TEST(Program, LanguageFromPath) {
   ProgramLanguage l;
   EXPECT_TRUE(ProgramLanguageFromPath("dir/x.script", &l));
