@@ -46,7 +46,7 @@ export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 failed=()
 # The targets run at the same time (they share the machine's cores; with 2 cores each gets
-# about two thirds of one, so `seconds` of wall time is about 2/3 * seconds of fuzzing per target).
+# about two fifths of one, so `seconds` of wall time is about 2/5 * seconds of fuzzing per target).
 declare -A pids
 for kind in csv yaml urdf urscript rapid; do
   target="fuzz_$kind"
