@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets (fuzz/) with clang in build-fuzz and runs them side by side for the given
 # number of seconds (default 60): fuzz_csv (measurements CSV), fuzz_yaml (robot model YAML), fuzz_urdf (robot
-# model URDF), fuzz_report_text (names and paths of any bytes through the report writers' text functions). Each run starts from a copy of the committed seed corpus fuzz/corpus/<kind>/ in
-# build-fuzz/corpus/ (the committed corpus is never modified). Fails on any crash, sanitizer report,
-# leak, timeout (> 10 s per input) or out-of-memory (> 2048 MB); the reproducer is left in
-# build-fuzz/artifacts/<target>/ and its log in build-fuzz/logs/. To replay one:
+# model URDF), fuzz_report_text (names and paths of any bytes through the report writers' text
+# functions), fuzz_urscript and fuzz_rapid (robot programs). Each run starts from a copy of the
+# committed seed corpus fuzz/corpus/<kind>/ in build-fuzz/corpus/ (the committed corpus is never
+# modified). Fails on any crash, sanitizer report, leak, timeout (> 10 s per input) or out-of-memory
+# (> 2048 MB); the reproducer is left in build-fuzz/artifacts/<target>/ and its log in
+# build-fuzz/logs/. To replay one:
 #   build-fuzz/fuzz/fuzz_csv build-fuzz/artifacts/fuzz_csv/crash-...
 # Fixed findings go into fuzz/corpus/<kind>/ as regression seeds.
 #
@@ -44,10 +46,10 @@ cmake --build "$build" -j2 --target lpoe_fuzz
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 failed=()
-# The three targets run at the same time (they share the machine's cores; with 2 cores each gets
-# about two thirds of one, so `seconds` of wall time is about 2/3 * seconds of fuzzing per target).
+# The targets run at the same time (they share the machine's cores; with 2 cores each gets
+# about two fifths of one, so `seconds` of wall time is about 2/5 * seconds of fuzzing per target).
 declare -A pids
-for kind in csv yaml urdf report_text; do
+for kind in csv yaml urdf report_text urscript rapid; do
   target="fuzz_$kind"
   exe="$build/fuzz/$target"
   if [ ! -x "$exe" ]; then
@@ -66,7 +68,7 @@ for kind in csv yaml urdf report_text; do
     "$work" >"$log" 2>&1 &
   pids[$kind]=$!
 done
-for kind in csv yaml urdf report_text; do
+for kind in csv yaml urdf report_text urscript rapid; do
   [ -n "${pids[$kind]:-}" ] || continue
   target="fuzz_$kind"
   log="$build/logs/$target.log"

@@ -32,6 +32,7 @@
 #include "lpoe/refusals.h"
 #include "json_text.h"
 #include "output_files.h"
+#include "lpoe_compensate_program.h"
 #include "tool_common.h"
 
 DEFINE_string(model, "", "Calibrated robot model (YAML written by lpoe_calibrate, or URDF).");
@@ -573,5 +574,6 @@ int Run() {
 
 int main(int argc, char** argv) {
   lpoe::tools::InitTool(lpoe::kUsage, &argc, &argv);
+  if (lpoe::tools::ProgramModeRequested()) return lpoe::tools::RunProgramMode();  // issue 32
   return lpoe::Run();
 }

@@ -67,6 +67,7 @@ void BindMeasurements(py::module_& m);
 void BindCalibration(py::module_& m);
 void BindJacobians(py::module_& m);
 void BindAnalysis(py::module_& m);
+void BindProgram(py::module_& m);  // bind_program.cc (issue 32)
 
 }  // namespace python
 }  // namespace lpoe
@@ -200,4 +201,5 @@ PYBIND11_MODULE(_lpoe, m) {
   BindCalibration(m);
   BindJacobians(m);
   BindAnalysis(m);
+  BindProgram(m);
 }

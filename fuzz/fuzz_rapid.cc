@@ -1,0 +1,11 @@
+// libFuzzer target: the RAPID program parser (solvers/src/program_rapid.cc) and the rewriter on
+// arbitrary bytes; the properties are fuzz_program.h's.
+#include <cstddef>
+#include <cstdint>
+
+#include "fuzz_program.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  lpoe::fuzz::FuzzProgram(data, size, lpoe::ProgramLanguage::kRapid);
+  return 0;
+}

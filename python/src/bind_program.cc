@@ -1,0 +1,86 @@
+// Python bindings: robot programs compensated in place (issue 32, lpoe/program.h), as
+// lpoe_compensate --program does it.
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <string>
+#include <vector>
+
+#include "lpoe/program.h"
+#include "python_api.h"
+
+namespace py = pybind11;
+
+namespace lpoe {
+namespace python {
+namespace {
+
+struct PyProgramCompensation {
+  std::string text;    // the compensated program
+  std::string report;  // ProgramReportJson
+  py::list targets;    // one dict per target
+};
+
+PyProgramCompensation CompensateProgramPy(const RobotModel& model, const RobotModel& nominal,
+                                          const std::string& program, const std::string& language,
+                                          const std::string& flange,
+                                          const std::string& targets_only, int max_iterations,
+                                          int restarts) {
+  ProgramLanguage lang;
+  if (!ProgramLanguageFromName(language, &lang)) {
+    throw LpoeError("compensate_program: language must be 'urscript' or 'rapid', not '" + language +
+                    "'");
+  }
+  if (max_iterations < 1 || max_iterations > 10000 || restarts < 0 || restarts > 100) {
+    throw LpoeError("compensate_program: need 1 <= max_iterations <= 10000, 0 <= restarts <= 100");
+  }
+  ProgramOptions options;
+  options.flange = flange;
+  options.targets_only = targets_only;
+  options.ik.max_iterations = max_iterations;
+  options.ik.restarts = restarts;
+  ParsedProgram parsed;
+  PyProgramCompensation out;
+  {
+    py::gil_scoped_release release;
+    Check(CompensateProgramText(program, lang, model, nominal, options, &out.text, &parsed));
+  }
+  out.report = ProgramReportJson(parsed);
+  for (const ProgramTarget& t : parsed.targets) {
+    py::dict d;
+    d["name"] = t.name;
+    d["line"] = t.line;
+    d["kind"] = t.kind == ProgramTargetKind::kJoint ? "joint" : "cartesian";
+    d["status"] = ProgramTargetStatusName(t.status);
+    d["reason"] = t.reason;
+    d["frame"] = t.frame_name;
+    d["tcp"] = t.tcp_name;
+    d["correction_mm"] = t.correction_mm;
+    d["correction_deg"] = t.correction_deg;
+    out.targets.append(d);
+  }
+  return out;
+}
+
+}  // namespace
+
+void BindProgram(py::module_& m) {
+  py::class_<PyProgramCompensation>(m, "ProgramCompensation",
+                                    "The result of lpoe.compensate_program.")
+      .def_readonly("text", &PyProgramCompensation::text,
+                    "the compensated program: the input with only its targets' numbers changed")
+      .def_readonly("report", &PyProgramCompensation::report,
+                    "the JSON report lpoe_compensate --report writes")
+      .def_readonly("targets", &PyProgramCompensation::targets,
+                    "one dict per target: name, line, kind, status (compensated | "
+                    "not_compensated | not_selected), reason, frame, tcp, correction_mm, "
+                    "correction_deg");
+  m.def("compensate_program", &CompensateProgramPy, py::arg("model"), py::arg("nominal"),
+        py::arg("program"), py::kw_only(), py::arg("language"), py::arg("flange") = "",
+        py::arg("targets_only") = "", py::arg("max_iterations") = 100, py::arg("restarts") = 8,
+        "a robot program (URScript or RAPID text) compensated with the calibrated `model` for a "
+        "controller running `nominal` (as lpoe_compensate --program; docs/programs.md)");
+}
+
+}  // namespace python
+}  // namespace lpoe

@@ -1,0 +1,151 @@
+// Robot programs compensated in place (issue 32): a program's motion targets are read by a parser
+// per language, compensated with the calibrated model, and written back into a copy of the text in
+// which only the bytes of the targets' numbers change (docs/programs.md).
+//
+// Design (language-neutral):
+//   parser (one file per language: program_urscript.cc, program_rapid.cc)
+//       text -> ParsedProgram: target records (name, line, kind, the byte range and value of every
+//       number, how the numbers encode the target, the frame and TCP the target is used with, a
+//       seed hint) and run-time targets (Offs(...), pose arithmetic...) reported as not
+//       compensated;
+//   CompensateProgram (one step for every language)
+//       calibrated inverse kinematics per record, new numbers in the record's own encoding;
+//   RewriteProgram
+//       the original text with those byte ranges replaced, every other byte as it was.
+// A third language (KUKA KRL) is one more parser: it fills the same records.
+#ifndef LPOE_PROGRAM_H_
+#define LPOE_PROGRAM_H_
+
+#include <cstddef>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "lpoe/inverse_kinematics.h"
+#include "lpoe/robot_model.h"
+#include "lpoe/se3.h"
+#include "lpoe/status.h"
+
+namespace lpoe {
+
+enum class ProgramLanguage { kUrScript, kRapid };
+const char* ProgramLanguageName(ProgramLanguage language);
+// "urscript" | "rapid".
+bool ProgramLanguageFromName(std::string_view name, ProgramLanguage* language);
+// .script/.urscript -> URScript; .mod/.modx/.prg -> RAPID (case-insensitive).
+bool ProgramLanguageFromPath(std::string_view path, ProgramLanguage* language);
+
+// Largest program accepted (bytes).
+constexpr size_t kMaxProgramBytes = size_t{64} << 20;
+
+// One number of the program text: bytes [begin, end) (a leading sign included), its value as
+// written, and the decimals it is rewritten with.
+struct ProgramNumber {
+  size_t begin = 0, end = 0;
+  double value = 0;
+  int decimals = 6;
+};
+
+enum class ProgramTargetKind { kCartesian, kJoint };
+
+// How a Cartesian target's numbers encode the pose of the TCP in its frame.
+enum class PoseEncoding {
+  kMetresRotationVector,       // x y z (m), rx ry rz (rotation vector, rad): URScript p[...]
+  kMillimetresQuaternionWxyz,  // x y z (mm), q1..q4 = w x y z: RAPID robtarget
+};
+// How a joint target's numbers encode the joints (one number per joint).
+enum class JointEncoding { kRadians, kDegrees };
+
+enum class ProgramTargetStatus {
+  kCompensated,
+  kNotCompensated,  // see `reason`: computed at run time, unreachable, branch change, ...
+  kNotSelected,     // taught point left alone (its name does not match targets_only)
+};
+const char* ProgramTargetStatusName(ProgramTargetStatus status);
+
+struct ProgramTarget {
+  std::string name;  // variable / declaration name, or "<instruction>:<line>" for an inline one
+  int line = 0;      // line of its numbers (of the expression for a run-time target)
+  ProgramTargetKind kind = ProgramTargetKind::kCartesian;
+  // Cartesian: 6 numbers (kMetresRotationVector) or 7 (kMillimetresQuaternionWxyz). Joint: one per
+  // joint. Empty for a run-time target.
+  std::vector<ProgramNumber> numbers;
+  PoseEncoding pose_encoding = PoseEncoding::kMetresRotationVector;
+  JointEncoding joint_encoding = JointEncoding::kRadians;
+
+  // The context of its use by motion instructions, resolved by the parser.
+  bool used = false;  // by some motion instruction
+  int order = 0;      // program order of the first use (seeds are chained in this order)
+  SE3d frame;         // the work object / feature the target is expressed in, robot base (mm)
+  SE3d tcp;           // the TCP in the flange frame (mm)
+  std::string frame_name, tcp_name;
+  std::vector<double> qnear;  // rad: the controller's seed (URScript qnear); empty: none
+  // Quadrants of joints (RAPID confdata cf1, cf4, cf6): used for the seed, rewritten from the
+  // compensated joints.
+  struct Quadrant {
+    int joint = 0;
+    ProgramNumber number;
+  };
+  std::vector<Quadrant> quadrants;
+
+  // Set by the parser when the target cannot be compensated (run-time value, conflicting uses...).
+  bool compensable = true;
+  std::string reason;
+
+  // Set by CompensateProgram.
+  ProgramTargetStatus status = ProgramTargetStatus::kNotCompensated;
+  std::vector<double> new_values;     // one per number (in the program's units)
+  std::vector<double> new_quadrants;  // one per quadrant
+  double correction_mm = 0;           // change of the target's position (joint: of the TCP)
+  double correction_deg = 0;          // change of its orientation (joint: largest joint change)
+};
+
+struct ParsedProgram {
+  ProgramLanguage language = ProgramLanguage::kUrScript;
+  std::vector<ProgramTarget> targets;  // in text order
+};
+
+// Parses `text`; errors name the line ("line 12: ..."). Checks UTF-8, balanced brackets, the size.
+Status ParseProgram(std::string_view text, ProgramLanguage language, ParsedProgram* program);
+
+struct ProgramOptions {
+  // Tool of both models that is the controller's flange (tool0); empty: a tool named "flange",
+  // else the model's only tool.
+  std::string flange;
+  // ECMAScript regular expression: only targets whose whole name matches are compensated (the
+  // rest are taught points, kNotSelected). Empty: every target.
+  std::string targets_only;
+  // Joints (rad) the first target's inverse kinematics starts from when the program gives no
+  // seed; empty: the middle of each joint's limits (0 for unlimited joints).
+  std::vector<double> home;
+  IkOptions ik;
+};
+
+// Resolves the flange tool of `model` (see ProgramOptions::flange), -1 with a message.
+int ResolveFlangeTool(const RobotModel& model, const std::string& flange, std::string* message);
+
+// For each compensable record, in program order: the nominal model's inverse kinematics on the
+// original target (seeded by qnear, the quadrants, or the previous target's joints) gives the
+// controller's joints; the calibrated model's inverse kinematics from there gives joints q at which
+// the real robot's TCP is at the target; the nominal TCP pose at q, in the target's frame, is the
+// new target. Joint targets: the joints at which the calibrated TCP reaches the nominal TCP pose
+// of the original joints. Fills status, reason, new_values, corrections.
+Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal,
+                         const ProgramOptions& options, ParsedProgram* program);
+
+// `text` with the numbers of every compensated target replaced by its new values.
+std::string RewriteProgram(std::string_view text, const ParsedProgram& program);
+
+// JSON report: counts per status and one entry per target (name, line, kind, status, reason,
+// correction_mm, correction_deg).
+std::string ProgramReportJson(const ParsedProgram& program);
+
+// Parse, compensate, rewrite.
+Status CompensateProgramText(std::string_view text, ProgramLanguage language,
+                             const RobotModel& calibrated, const RobotModel& nominal,
+                             const ProgramOptions& options, std::string* output,
+                             ParsedProgram* program);
+
+}  // namespace lpoe
+
+#endif  // LPOE_PROGRAM_H_

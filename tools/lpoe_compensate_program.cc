@@ -1,0 +1,152 @@
+// lpoe_compensate --program=IN --output=OUT (issue 32): see lpoe_compensate_program.h and
+// docs/programs.md. The flags shared with the CSV modes are defined in lpoe_compensate.cc. (The
+// file name contains the tool's: tool_common's --help lists the flags of such files.)
+#include "lpoe_compensate_program.h"
+
+#include <gflags/gflags.h>
+
+#include <iostream>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "lpoe/io.h"
+#include "lpoe/program.h"
+#include "output_files.h"
+#include "tool_common.h"
+
+DEFINE_string(program, "",
+              "Robot program to compensate (URScript .script/.urscript, RAPID .mod/.modx/.prg): "
+              "--output gets the same text with only the numbers of its motion targets changed. "
+              "Needs --nominal (the model the controller runs).");
+DEFINE_string(language, "",
+              "Language of --program: urscript | rapid (default: from its extension).");
+DEFINE_string(flange, "",
+              "Tool of the models that is the controller's flange (tool0), which the program's TCP "
+              "is relative to (default: the tool named 'flange', else the model's only tool).");
+DEFINE_string(targets_only, "",
+              "Compensate only the program targets whose whole name matches this regular "
+              "expression (ECMAScript); the others (taught points) are left as they are.");
+
+DECLARE_string(model);
+DECLARE_string(nominal);
+DECLARE_string(output);
+DECLARE_string(report);
+DECLARE_string(targets);
+DECLARE_string(joints);
+DECLARE_bool(strict);
+DECLARE_int32(max_iterations);
+DECLARE_int32(restarts);
+DECLARE_double(position_tolerance);
+DECLARE_double(orientation_tolerance);
+DECLARE_double(singular_threshold);
+
+namespace lpoe {
+namespace tools {
+
+namespace {
+constexpr int kExitNotAllCompensated = 8;  // --strict, as in the CSV modes
+}  // namespace
+
+bool ProgramModeRequested() { return !FLAGS_program.empty(); }
+
+int RunProgramMode() {
+  if (FLAGS_model.empty() || FLAGS_nominal.empty() || FLAGS_output.empty()) {
+    std::cerr << "error: --program needs --model (calibrated), --nominal (the controller's model) "
+                 "and --output\n";
+    return kExitUsage;
+  }
+  if (!FLAGS_targets.empty() || !FLAGS_joints.empty()) {
+    std::cerr << "error: --program replaces --targets and --joints; give one of them\n";
+    return kExitUsage;
+  }
+  ProgramLanguage language;
+  if (!FLAGS_language.empty() ? !ProgramLanguageFromName(FLAGS_language, &language)
+                              : !ProgramLanguageFromPath(FLAGS_program, &language)) {
+    std::cerr << "error: "
+              << (FLAGS_language.empty() ? "cannot tell the language of " + FLAGS_program +
+                                               " from its extension; give --language=urscript|rapid"
+                                         : "--language must be urscript or rapid")
+              << "\n";
+    return kExitUsage;
+  }
+  if (!FLAGS_targets_only.empty()) {
+    try {
+      std::regex check(FLAGS_targets_only, std::regex::ECMAScript);
+    } catch (const std::regex_error& e) {
+      std::cerr << "error: --targets_only is not a regular expression: " << e.what() << "\n";
+      return kExitUsage;
+    }
+  }
+  OutputSet outputs;
+  outputs.AddInput("--model", FLAGS_model);
+  outputs.AddInput("--nominal", FLAGS_nominal);
+  outputs.AddInput("--program", FLAGS_program);
+  outputs.AddOutput("--output", FLAGS_output);
+  outputs.AddOutput("--report", FLAGS_report);
+  if (Status s = outputs.Check(); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
+  }
+  RobotModel calibrated, nominal;
+  for (auto [path, model] : {std::pair{&FLAGS_model, &calibrated}, {&FLAGS_nominal, &nominal}}) {
+    if (Status s = ReadRobotModelFile(*path, model); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitInput;
+    }
+  }
+  std::string message;
+  if (ResolveFlangeTool(calibrated, FLAGS_flange, &message) < 0) {
+    std::cerr << "error: " << FLAGS_model << ": " << message << "\n";
+    return kExitUsage;
+  }
+  std::string text;
+  if (Status s = ReadFile(FLAGS_program, &text); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitInput;
+  }
+  ProgramOptions options;
+  options.flange = FLAGS_flange;
+  options.targets_only = FLAGS_targets_only;
+  options.ik.max_iterations = FLAGS_max_iterations;
+  options.ik.restarts = FLAGS_restarts;
+  options.ik.position_tolerance = FLAGS_position_tolerance;
+  options.ik.orientation_tolerance = FLAGS_orientation_tolerance;
+  options.ik.singular_threshold = FLAGS_singular_threshold;
+  ParsedProgram program;
+  std::string out;
+  if (Status s =
+          CompensateProgramText(text, language, calibrated, nominal, options, &out, &program);
+      !s.ok()) {
+    std::cerr << "error: " << FLAGS_program << ": " << s.message() << "\n";
+    return kExitInput;
+  }
+  Status staged = outputs.Stage(FLAGS_output, out);
+  if (staged.ok() && !FLAGS_report.empty()) {
+    staged = outputs.Stage(FLAGS_report, ProgramReportJson(program));
+  }
+  std::vector<std::string> written;
+  if (Status s = staged.ok() ? outputs.Commit(&written) : staged; !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitOutput;
+  }
+  int counts[3] = {};
+  for (const ProgramTarget& t : program.targets) {
+    ++counts[static_cast<int>(t.status)];
+    if (t.status == ProgramTargetStatus::kNotCompensated) {
+      std::cerr << FLAGS_program << ":" << t.line << ": " << t.name
+                << ": not compensated: " << t.reason << "\n";
+    }
+  }
+  std::cerr << "lpoe_compensate: " << program.targets.size() << " targets in "
+            << ProgramLanguageName(language) << " program " << FLAGS_program << ": compensated "
+            << counts[0] << ", not_compensated " << counts[1] << ", not_selected " << counts[2]
+            << "\n";
+  if (FLAGS_strict && counts[static_cast<int>(ProgramTargetStatus::kNotCompensated)] > 0) {
+    return kExitNotAllCompensated;
+  }
+  return kExitOk;
+}
+
+}  // namespace tools
+}  // namespace lpoe
