@@ -2,12 +2,14 @@
 // identification rows (docs/joint_errors.md, "Choosing the terms").
 #include <algorithm>
 #include <cmath>
+#include <mutex>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
+#include "lpoe/parallel.h"
 #include "lpoe/pipeline.h"
 
 namespace lpoe {
@@ -20,43 +22,63 @@ std::string Label(const std::vector<std::string>& terms) {
   return s;
 }
 
-// The candidate's calibration on every fold's training rows and its errors on the held-out rows.
-JointErrorCandidate CrossValidate(const RobotModel& nominal, const MeasurementSet& identification,
-                                  const std::vector<std::vector<int>>& folds,
-                                  const PipelineOptions& base,
-                                  const std::vector<std::string>& terms) {
+// One candidate's calibration on one fold's training rows and its errors on the held-out rows.
+struct FoldOutcome {
+  bool converged = false;
+  std::string failure;  // when not converged
+  int parameters = 0;   // identified joint-space combinations
+  bool tilt = false;    // the gravity tilt was identified
+  std::vector<double> squared;  // per held-out point: |e|^2
+  double rms = 0;
+};
+
+FoldOutcome SolveFold(const RobotModel& nominal, const MeasurementSet& identification,
+                      const std::vector<int>& fold, int fold_number,
+                      const PipelineOptions& options, const std::string& label) {
+  FoldOutcome out;
+  const MeasurementSet train = identification.Subset(Complement(identification.size(), fold));
+  const MeasurementSet test = identification.Subset(fold);
+  const CalibrationResult r =
+      SolveCalibration(nominal, train, options,
+                       "auto " + label + " fold " + std::to_string(fold_number), nullptr, nullptr,
+                       nullptr);
+  if (!r.converged()) {
+    out.failure = "fold " + std::to_string(fold_number) + ": " + TerminationName(r.termination) +
+                  " (" + r.message + ")";
+    return out;
+  }
+  out.converged = true;
+  out.parameters = r.parameterization.num_joint_parameters();
+  out.tilt = r.gravity_tilt.identified;
+  RobotModel geometric = r.model;
+  geometric.joint_errors = JointErrorTerms();
+  const std::vector<Eigen::Vector3d> e =
+      PositionErrors(geometric, WithEffectiveJointValues(r.joint_terms, test));
+  double sum = 0;
+  for (const Eigen::Vector3d& v : e) {
+    out.squared.push_back(v.squaredNorm());
+    sum += v.squaredNorm();
+  }
+  out.rms = e.empty() ? 0.0 : std::sqrt(sum / e.size());
+  return out;
+}
+
+// The candidate from its folds' outcomes (in fold order): the first failing fold fails it.
+JointErrorCandidate Combine(const std::vector<std::string>& terms,
+                            const std::vector<FoldOutcome>& outcomes) {
   JointErrorCandidate c;
   c.terms = terms;
   c.label = Label(terms);
-  PipelineOptions options = base;
-  options.joint_errors = terms;
-  options.joint_errors_auto = false;
-  std::vector<double> squared;  // per held-out point: |e|^2
-  for (size_t f = 0; f < folds.size(); ++f) {
-    const MeasurementSet train =
-        identification.Subset(Complement(identification.size(), folds[f]));
-    const MeasurementSet test = identification.Subset(folds[f]);
-    const CalibrationResult r =
-        SolveCalibration(nominal, train, options,
-                         "auto " + c.label + " fold " + std::to_string(f + 1), nullptr, nullptr,
-                         nullptr);
-    if (!r.converged()) {
-      c.failure = "fold " + std::to_string(f + 1) + ": " + TerminationName(r.termination) +
-                  " (" + r.message + ")";
+  std::vector<double> squared;
+  for (const FoldOutcome& o : outcomes) {
+    if (!o.converged) {
+      c.failure = o.failure;
       return c;
     }
-    c.parameters = std::max(c.parameters, r.parameterization.num_joint_parameters());
-    if (r.gravity_tilt.identified) ++c.tilt_folds;
-    RobotModel geometric = r.model;
-    geometric.joint_errors = JointErrorTerms();
-    const std::vector<Eigen::Vector3d> e =
-        PositionErrors(geometric, WithEffectiveJointValues(r.joint_terms, test));
-    double sum = 0;
-    for (const Eigen::Vector3d& v : e) {
-      squared.push_back(v.squaredNorm());
-      sum += v.squaredNorm();
-    }
-    c.fold_rms.push_back(e.empty() ? 0.0 : std::sqrt(sum / e.size()));
+    c.parameters = std::max(c.parameters, o.parameters);
+    if (o.tilt) ++c.tilt_folds;
+    squared.insert(squared.end(), o.squared.begin(), o.squared.end());
+    c.fold_rms.push_back(o.rms);
   }
   const double n = static_cast<double>(squared.size());
   if (n < 2) {
@@ -74,6 +96,48 @@ JointErrorCandidate CrossValidate(const RobotModel& nominal, const MeasurementSe
   c.cv_rms = std::sqrt(mean);
   c.cv_mse_se = std::sqrt(var / n);
   return c;
+}
+
+// Every candidate on every fold: the (candidate, fold) calibrations are independent, so they run
+// side by side on the hardware's threads (ForEachTask); each writes only its own outcome and the
+// candidates are combined in order afterwards, so the selection does not depend on the threads.
+// Progress callbacks are serialized.
+std::vector<JointErrorCandidate> CrossValidateAll(
+    const RobotModel& nominal, const MeasurementSet& identification,
+    const std::vector<std::vector<int>>& folds, const PipelineOptions& base,
+    const std::vector<std::vector<std::string>>& sets) {
+  const int num_folds = static_cast<int>(folds.size());
+  const int tasks = static_cast<int>(sets.size()) * num_folds;
+  std::vector<FoldOutcome> outcomes(static_cast<size_t>(tasks));
+  std::mutex progress;
+  PipelineOptions options = base;
+  options.joint_errors_auto = false;
+  if (base.on_iteration) {
+    options.on_iteration = [&progress, &base](const std::string& stage, const IterationRecord& r) {
+      std::lock_guard<std::mutex> lock(progress);
+      base.on_iteration(stage, r);
+    };
+  }
+  if (base.on_stage) {
+    options.on_stage = [&progress, &base](const std::string& stage) {
+      std::lock_guard<std::mutex> lock(progress);
+      base.on_stage(stage);
+    };
+  }
+  ForEachTask(tasks, ThreadsFor(tasks), [&](int task, int /*thread*/) {
+    const int k = task / num_folds, f = task % num_folds;
+    PipelineOptions o = options;
+    o.joint_errors = sets[k];
+    if (f == 0 && o.on_stage) o.on_stage("cross-validating joint errors: " + Label(sets[k]));
+    outcomes[task] = SolveFold(nominal, identification, folds[f], f + 1, o, Label(sets[k]));
+  });
+  std::vector<JointErrorCandidate> out;
+  for (size_t k = 0; k < sets.size(); ++k) {
+    out.push_back(Combine(sets[k], std::vector<FoldOutcome>(
+                                       outcomes.begin() + static_cast<long>(k) * num_folds,
+                                       outcomes.begin() + static_cast<long>(k + 1) * num_folds)));
+  }
+  return out;
 }
 
 }  // namespace
@@ -132,10 +196,7 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
       }
     }
   }
-  for (const auto& terms : sets) {
-    if (options.on_stage) options.on_stage("cross-validating joint errors: " + Label(terms));
-    sel.candidates.push_back(CrossValidate(nominal, identification, folds, options, terms));
-  }
+  sel.candidates = CrossValidateAll(nominal, identification, folds, options, sets);
   // Simplest first (fewest identified combinations; ties keep the listed order).
   std::stable_sort(sel.candidates.begin(), sel.candidates.end(),
                    [](const JointErrorCandidate& a, const JointErrorCandidate& b) {
