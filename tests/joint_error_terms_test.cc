@@ -14,6 +14,7 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/parallel.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/simulation.h"
 #include "lpoe/statistics.h"
@@ -280,6 +281,29 @@ TEST(JointErrorAuto, ChoosesTheTermsAndRecoversTheDeflection) {
             << " mm (" << 100 * relative << "%)\n";
   EXPECT_GT(true2, 0);
   EXPECT_LT(relative, 0.05);
+}
+
+// The (candidate, fold) calibrations run side by side: the selection is the same, bit for bit,
+// on one thread and on four.
+TEST(JointErrorAuto, SelectionDoesNotDependOnTheThreads) {
+  const AutoFixture with(true, 150, 50);
+  PipelineOptions o;
+  o.register_frames = false;
+  o.joint_error_folds = 4;
+  ThreadCountOverride() = 1;
+  const JointErrorSelection one = SelectJointErrors(with.nominal, with.identification, o);
+  ThreadCountOverride() = 4;
+  const JointErrorSelection four = SelectJointErrors(with.nominal, with.identification, o);
+  ThreadCountOverride() = 0;
+  ASSERT_EQ(one.candidates.size(), four.candidates.size());
+  ASSERT_GT(one.candidates.size(), 4u);
+  for (size_t k = 0; k < one.candidates.size(); ++k) {
+    EXPECT_EQ(one.candidates[k].label, four.candidates[k].label);
+    EXPECT_EQ(one.candidates[k].cv_mse, four.candidates[k].cv_mse) << one.candidates[k].label;
+    EXPECT_EQ(one.candidates[k].fold_rms, four.candidates[k].fold_rms);
+    EXPECT_EQ(one.candidates[k].parameters, four.candidates[k].parameters);
+  }
+  EXPECT_EQ(one.chosen, four.chosen);
 }
 
 // Without non-geometric effects auto keeps the geometric model, or costs at most 2% of held-out RMS.
