@@ -15,6 +15,8 @@
 
 #include "file_util.h"
 #include "lpoe/io.h"
+#include "lpoe/kinematics.h"
+#include "lpoe/urdf.h"
 #include "lpoe/joint_errors.h"
 
 namespace lpoe {
@@ -177,6 +179,41 @@ TEST_F(LpoePredict, BadInputsGiveExitCodesAndNoOutput) {
             kExitUsage)
       << out;
   EXPECT_NE(out.find("does not exist"), std::string::npos) << out;
+}
+
+// The same chain-selection flags as lpoe_calibrate (issue 31): a URDF's SMR links as tools.
+TEST_F(LpoePredict, UrdfChainFlagsSelectTheToolsAsInEveryTool) {
+  const std::string urdf = std::string(LPOE_TEST_DATA_DIR) + "/urdf/ur_like.urdf";
+  std::ofstream(Path("q.csv")) << "q1,q2,q3,q4,q5,q6\n0.1,-0.5,0.7,0.2,1.1,-0.4\n";
+  RobotModel model;
+  UrdfOptions options;
+  options.tip_link = "flange";
+  options.tool_links = {"flange", "tool_smr"};
+  ASSERT_TRUE(ReadRobotModelUrdf(urdf, &model, options).ok());
+  const double q[6] = {0.1, -0.5, 0.7, 0.2, 1.1, -0.4};
+  std::string out;
+  for (int t = 0; t < 2; ++t) {
+    const std::string name = options.tool_links[t];
+    ASSERT_EQ(Predict("--model=" + urdf + " --tip_link=flange --tool_links=flange,tool_smr " +
+                          "--tool=" + name + " --joints=" + Path("q.csv") +
+                          " --output=" + Path(name + ".csv"),
+                      &out),
+              kExitOk)
+        << out;
+    const auto rows = ReadCsv(Path(name + ".csv"));
+    ASSERT_EQ(rows.size(), 1u);
+    const Eigen::Vector3d expected = ToolPosition(model, q, t);
+    for (int a = 0; a < 3; ++a) EXPECT_NEAR(rows[0][a], expected(a), kToleranceMm) << name;
+  }
+  EXPECT_GT((ToolPosition(model, q, 0) - ToolPosition(model, q, 1)).norm(), 1.0);  // not vacuous
+  // The flags select a URDF chain: with a YAML model they are a usage error.
+  Simulate("");
+  EXPECT_EQ(Predict("--model=" + Path("actual.yaml") + " --tool_links=smr1 --joints=" +
+                        Path("q.csv") + " --output=" + Path("y.csv"),
+                    &out),
+            kExitUsage)
+      << out;
+  EXPECT_NE(out.find("is not a URDF"), std::string::npos) << out;
 }
 
 }  // namespace

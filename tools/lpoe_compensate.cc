@@ -337,7 +337,12 @@ int Run() {
 
   // ---- Inputs.
   RobotModel model, nominal;
-  if (Status s = ReadRobotModelFile(FLAGS_model, &model); !s.ok()) {
+  if (Status s = tools::CheckUrdfFlagsHaveAUrdf({FLAGS_model, FLAGS_nominal}); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
+  }
+  if (Status s = tools::ReadModelWithUrdfFlags(FLAGS_model, &model, /*other_urdf=*/true);
+      !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
@@ -347,7 +352,8 @@ int Run() {
   }
   const bool with_nominal = !FLAGS_nominal.empty();
   if (with_nominal) {
-    if (Status s = ReadRobotModelFile(FLAGS_nominal, &nominal); !s.ok()) {
+    if (Status s = tools::ReadModelWithUrdfFlags(FLAGS_nominal, &nominal, /*other_urdf=*/true);
+        !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }

@@ -89,8 +89,12 @@ int RunProgramMode() {
     return kExitUsage;
   }
   RobotModel calibrated, nominal;
+  if (Status s = tools::CheckUrdfFlagsHaveAUrdf({FLAGS_model, FLAGS_nominal}); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
+  }
   for (auto [path, model] : {std::pair{&FLAGS_model, &calibrated}, {&FLAGS_nominal, &nominal}}) {
-    if (Status s = ReadRobotModelFile(*path, model); !s.ok()) {
+    if (Status s = tools::ReadModelWithUrdfFlags(*path, model, /*other_urdf=*/true); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }

@@ -276,7 +276,11 @@ int Run() {
   }
 
   RobotModel model;
-  if (Status s = ReadRobotModelFile(FLAGS_model, &model); !s.ok()) {
+  if (Status s = tools::CheckUrdfFlagsHaveAUrdf({FLAGS_model}); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return tools::kExitUsage;
+  }
+  if (Status s = tools::ReadModelWithUrdfFlags(FLAGS_model, &model); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }

@@ -40,8 +40,8 @@ constexpr char kUsage[] =
     "Predicts tool positions with every error term of a model (geometry, compliance, "
     "harmonics).\n\n"
     "  lpoe_predict --model=calibrated.yaml --joints=poses.csv --output=predicted.csv\n"
-    "  lpoe_predict --model=robot.urdf --joints=poses.csv --angle_unit=deg --tool=smr2 \\\n"
-    "      --output=predicted.csv\n\n"
+    "  lpoe_predict --model=robot.urdf --tip_link=flange --tool_links=smr1,smr2 \\\n"
+    "      --joints=poses.csv --angle_unit=deg --tool=smr2 --output=predicted.csv\n\n"
     "Exit codes: 0 written, 1 bad flags or output (an input's file, or a missing or unwritable "
     "directory), 2 bad input file, 6 output not written.";
 
@@ -70,10 +70,11 @@ int Run() {
     return kExitUsage;
   }
   RobotModel model;
-  const bool urdf = FLAGS_model.size() >= 5 &&
-                    FLAGS_model.compare(FLAGS_model.size() - 5, 5, ".urdf") == 0;
-  if (Status s = urdf ? ReadRobotModelUrdf(FLAGS_model, &model) : ReadRobotModel(FLAGS_model, &model);
-      !s.ok()) {
+  if (Status s = tools::CheckUrdfFlagsHaveAUrdf({FLAGS_model}); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return tools::kExitUsage;
+  }
+  if (Status s = tools::ReadModelWithUrdfFlags(FLAGS_model, &model); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }

@@ -49,6 +49,14 @@ std::string DataDir();
 // urdf_flags.cc, and so part of a tool only when it calls this). False when one of them is given
 // but `model_path` is not a URDF.
 bool UrdfOptionsFromFlags(const std::string& model_path, UrdfOptions* options);
+// Reads a model (YAML, or URDF when the name ends in .urdf) with the chain those flags select: the
+// same --base_link / --tip_link / --tool_links in every tool that reads a model. An error when the
+// flags are given with a YAML model.
+// `other_urdf`: another model of the tool may be the URDF the flags are for (lpoe_compensate's
+// --model and --nominal): a YAML model is then read as it is (CheckUrdfFlagsHaveAUrdf checks that
+// one of them is a URDF).
+Status ReadModelWithUrdfFlags(const std::string& path, RobotModel* model, bool other_urdf = false);
+Status CheckUrdfFlagsHaveAUrdf(const std::vector<std::string>& paths);
 
 bool ParseAngleUnit(const std::string& text, AngleUnit* unit);
 

@@ -2,9 +2,12 @@
 // tool only when it calls UrdfOptionsFromFlags (this object file of the static library).
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <gflags/gflags.h>
 
+#include "lpoe/io.h"
+#include "lpoe/urdf.h"
 #include "tool_common.h"
 
 DEFINE_string(base_link, "",
@@ -29,6 +32,28 @@ bool UrdfOptionsFromFlags(const std::string& model_path, UrdfOptions* options) {
   }
   return IsUrdfPath(model_path) ||
          (FLAGS_base_link.empty() && FLAGS_tip_link.empty() && FLAGS_tool_links.empty());
+}
+
+Status CheckUrdfFlagsHaveAUrdf(const std::vector<std::string>& paths) {
+  if (FLAGS_base_link.empty() && FLAGS_tip_link.empty() && FLAGS_tool_links.empty()) {
+    return Status::Ok();
+  }
+  for (const std::string& p : paths) {
+    if (IsUrdfPath(p)) return Status::Ok();
+  }
+  return Status::Error("--base_link, --tip_link and --tool_links select a URDF chain; " +
+                       (paths.size() == 1 ? paths[0] : std::string("no model given")) +
+                       " is not a URDF (a name ending in .urdf)");
+}
+
+Status ReadModelWithUrdfFlags(const std::string& path, RobotModel* model, bool other_urdf) {
+  UrdfOptions options;
+  if (!UrdfOptionsFromFlags(path, &options) && !other_urdf) {
+    return Status::Error("--base_link, --tip_link and --tool_links select a URDF chain; " + path +
+                         " is not a URDF (a name ending in .urdf)");
+  }
+  return IsUrdfPath(path) ? ReadRobotModelUrdf(path, model, options)
+                          : ReadRobotModelFile(path, model);
 }
 
 }  // namespace tools

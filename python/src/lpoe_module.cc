@@ -177,12 +177,31 @@ PYBIND11_MODULE(_lpoe, m) {
 
   m.def(
       "read_model",
-      [](const std::string& path) {
+      [](const std::string& path, const std::string& base_link, const std::string& tip_link,
+         const std::vector<std::string>& tool_links) {
         RobotModel model;
-        Check(ReadAnyRobotModel(path, &model));
+        const bool urdf = IsUrdfPath(path);
+        if (!urdf && (!base_link.empty() || !tip_link.empty() || !tool_links.empty())) {
+          throw LpoeError("base_link, tip_link and tool_links select a URDF chain; " + path +
+                          " is not a URDF (a name ending in .urdf)");
+        }
+        if (urdf) {
+          UrdfOptions options;
+          options.base_link = base_link;
+          options.tip_link = tip_link;
+          options.tool_links = tool_links;
+          Check(ReadRobotModelUrdf(path, &model, options));
+        } else {
+          Check(ReadAnyRobotModel(path, &model));
+        }
         return model;
       },
-      py::arg("path"), "reads a robot model: YAML, or URDF when the name ends in .urdf");
+      py::arg("path"), py::kw_only(), py::arg("base_link") = "", py::arg("tip_link") = "",
+      py::arg("tool_links") = std::vector<std::string>(),
+      "reads a robot model: YAML, or URDF when the name ends in .urdf, with the chain from "
+      "base_link (default: the root link) to tip_link and the measured tools tool_links (links fixed "
+      "to the last moving link; default: the tip), as lpoe_calibrate's --base_link, --tip_link and "
+      "--tool_links");
   m.def(
       "write_model",
       [](const std::string& path, const RobotModel& model) { Check(WriteAnyRobotModel(path, model)); },

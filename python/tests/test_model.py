@@ -143,3 +143,19 @@ def test_measurement_base_round_trip(tmp_path, model):
     lpoe.write_model(str(tmp_path / "r.yaml"), m)
     np.testing.assert_allclose(lpoe.read_model(str(tmp_path / "r.yaml")).measurement_base, T,
                                atol=1e-9)
+
+
+URDF = os.path.join(os.path.dirname(__file__), "..", "..", "tests", "data", "urdf", "ur_like.urdf")
+
+
+@pytest.mark.skipif(not os.path.exists(URDF), reason="the source tree's test URDF is not here")
+def test_read_model_selects_the_urdf_chain_as_the_tools_do():
+    # The same chain selection as every tool's --base_link / --tip_link / --tool_links.
+    m = lpoe.read_model(URDF, tip_link="flange", tool_links=["flange", "tool_smr"])
+    assert m.num_tools == 2
+    q = np.array([0.1, -0.5, 0.7, 0.2, 1.1, -0.4])
+    assert np.linalg.norm(m.predict(q, tool=0) - m.predict(q, tool=1)) > 1.0
+    with pytest.raises(lpoe.Error, match="not a URDF"):
+        lpoe.read_model(MODEL, tool_links=["smr1"])
+    with pytest.raises(lpoe.Error):
+        lpoe.read_model(URDF, tool_links=["no_such_link"])
