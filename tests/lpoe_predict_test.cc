@@ -15,6 +15,7 @@
 
 #include "file_util.h"
 #include "lpoe/io.h"
+#include "lpoe/se3.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/urdf.h"
 #include "lpoe/joint_errors.h"
@@ -55,7 +56,9 @@ class LpoePredict : public ::testing::Test {
     std::ifstream in(path);
     std::string line;
     std::vector<std::vector<double>> rows;
-    std::getline(in, line);
+    do {
+      std::getline(in, line);
+    } while (!line.empty() && line[0] == '#');
     EXPECT_EQ(line, "x,y,z");
     while (std::getline(in, line)) {
       std::vector<double> row;
@@ -179,6 +182,39 @@ TEST_F(LpoePredict, BadInputsGiveExitCodesAndNoOutput) {
             kExitUsage)
       << out;
   EXPECT_NE(out.find("does not exist"), std::string::npos) << out;
+}
+
+// Positions in the robot's base frame by default, in the calibration's measurement frame on request.
+TEST_F(LpoePredict, FrameBaseUndoesTheRecordedRegistration) {
+  Simulate("");
+  RobotModel model;
+  ASSERT_TRUE(ReadRobotModel(Path("actual.yaml"), &model).ok());
+  Vector6d xi;
+  xi << 0.2, -0.4, 1.0, 2500, -800, 400;
+  model.T_measurement_base = ExpSE3(xi);
+  model.joints[0].origin = model.T_measurement_base * model.joints[0].origin;
+  ASSERT_TRUE(WriteRobotModel(Path("registered.yaml"), model).ok());
+  std::ofstream(Path("q.csv")) << "q1,q2,q3,q4,q5,q6\n0.1,-0.5,0.7,0.2,1.1,-0.4\n";
+  std::string out;
+  for (const char* frame : {"base", "measurement"}) {
+    ASSERT_EQ(Predict("--model=" + Path("registered.yaml") + " --joints=" + Path("q.csv") +
+                          " --frame=" + frame + " --output=" + Path(std::string(frame) + ".csv"),
+                      &out),
+              kExitOk)
+        << out;
+  }
+  const auto base = ReadCsv(Path("base.csv")), measurement = ReadCsv(Path("measurement.csv"));
+  ASSERT_EQ(base.size(), 1u);
+  ASSERT_EQ(measurement.size(), 1u);
+  const Eigen::Vector3d pb(base[0][0], base[0][1], base[0][2]);
+  const Eigen::Vector3d pm(measurement[0][0], measurement[0][1], measurement[0][2]);
+  EXPECT_LT((model.T_measurement_base * pb - pm).norm(), 1e-6);
+  EXPECT_GT((pb - pm).norm(), 1000.0);  // not vacuous
+  EXPECT_NE(testing::ReadAll(Path("base.csv")).find("robot's base frame"), std::string::npos);
+  EXPECT_EQ(Predict("--model=" + Path("registered.yaml") + " --joints=" + Path("q.csv") +
+                        " --frame=tracker --output=" + Path("x.csv"),
+                    &out),
+            kExitUsage);
 }
 
 // The same chain-selection flags as lpoe_calibrate (issue 31): a URDF's SMR links as tools.

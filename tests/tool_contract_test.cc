@@ -191,7 +191,7 @@ TEST(ToolContract, SymlinkedOutputsKeepTheLink) {
     EXPECT_NE(text, "old\n") << name << ": the link's target was not written";
     EXPECT_GT(text.size(), 10u) << name;
   }
-  EXPECT_EQ(ReadAll(d / "real/y.csv").substr(0, 6), "x,y,z\n");
+  EXPECT_NE(ReadAll(d / "real/y.csv").find("\nx,y,z\n"), std::string::npos);  // after the frame line
   nlohmann::json report;
   EXPECT_NO_THROW(report = nlohmann::json::parse(ReadAll(d / "real/c.json")));
   EXPECT_TRUE(report.contains("status_counts"));

@@ -16,11 +16,13 @@
 #include <cmath>
 #include <fstream>
 #include <iostream>
+#include <sstream>
 #include <string>
 #include <string_view>
 #include <thread>
 #include <vector>
 
+#include <Eigen/Geometry>
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 #include <nlohmann/json.hpp>
@@ -52,6 +54,15 @@ DEFINE_string(nominal, "",
               "Nominal model (YAML or URDF): adds the nominal tool pose at the compensated joints "
               "(the target to send to a controller using nominal kinematics).");
 DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in and out: rad | deg.");
+DEFINE_string(frame, "base",
+              "Frame of the --targets positions and orientations: base (the robot's base frame, "
+              "what programs use; carried into the calibrated model's frame by its recorded "
+              "registration) | measurement (the frame the calibration's measurements were in, "
+              "e.g. the tracker's). The same for a model calibrated in the base frame.");
+DEFINE_string(tcp, "",
+              "The TCP the targets are for, when it was not measured: a tool of the models, or "
+              "x,y,z[,roll,pitch,yaw] (mm, rad; in the last joint's frame, where the models' tools "
+              "are) added to both models. Rows without a target column use it.");
 DEFINE_string(tool, "", "Tool name or index for rows without a target column (default: tool 0).");
 DEFINE_string(report, "", "JSON summary to write (counts per status, largest correction/residual).");
 DEFINE_bool(strict, false, "Exit 8 when any row is not 'ok' (the output is written anyway).");
@@ -80,6 +91,9 @@ constexpr char kUsage[] =
 constexpr int kExitNotAllOk = 8;
 constexpr int kMaxJointsRead = InverseKinematics::kMaxJoints;
 constexpr double kDegreesPerRadian = 180.0 / 3.14159265358979323846;
+
+// Targets this far (mm) from anything the robot reaches are in another frame (--frame).
+constexpr double kWrongFrameMm = 1000.0;
 
 struct Row {
   IkTarget target;
@@ -313,6 +327,32 @@ int Run() {
     std::cerr << "error: --angle_unit must be rad or deg\n";
     return kExitUsage;
   }
+  if (FLAGS_frame != "base" && FLAGS_frame != "measurement") {
+    std::cerr << "error: --frame must be base or measurement, got '" << FLAGS_frame << "'\n";
+    return kExitUsage;
+  }
+  // --tcp as numbers: x,y,z[,roll,pitch,yaw].
+  std::vector<double> tcp_numbers;
+  {
+    std::stringstream ss(FLAGS_tcp);
+    bool numeric = !FLAGS_tcp.empty();
+    for (std::string item; numeric && std::getline(ss, item, ',');) {
+      char* end = nullptr;
+      const double v = std::strtod(item.c_str(), &end);
+      if (item.empty() || *end != '\0' || !std::isfinite(v)) numeric = false;
+      tcp_numbers.push_back(v);
+    }
+    if (!numeric) tcp_numbers.clear();
+    if (numeric && tcp_numbers.size() != 3 && tcp_numbers.size() != 6) {
+      std::cerr << "error: --tcp=" << FLAGS_tcp
+                << ": expected x,y,z or x,y,z,roll,pitch,yaw (mm, rad), or a tool name\n";
+      return kExitUsage;
+    }
+  }
+  if (!FLAGS_tcp.empty() && !FLAGS_tool.empty()) {
+    std::cerr << "error: give --tcp or --tool, not both\n";
+    return kExitUsage;
+  }
   if (FLAGS_threads < 0 || FLAGS_threads > 256 || FLAGS_max_iterations < 1 ||
       FLAGS_max_iterations > 10000 || FLAGS_restarts < 0 || FLAGS_restarts > 100 ||
       !(FLAGS_position_tolerance > 0) || !(FLAGS_orientation_tolerance > 0) ||
@@ -363,6 +403,28 @@ int Run() {
     }
   }
   int default_tool = 0;
+  if (!tcp_numbers.empty()) {
+    // A TCP given by its offset: one more tool of both models (the same place on the flange).
+    Eigen::Vector3d rpy = Eigen::Vector3d::Zero();
+    if (tcp_numbers.size() == 6) rpy = Eigen::Vector3d(tcp_numbers[3], tcp_numbers[4], tcp_numbers[5]);
+    const Eigen::Matrix3d R = (Eigen::AngleAxisd(rpy(2), Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(rpy(1), Eigen::Vector3d::UnitY()) *
+                               Eigen::AngleAxisd(rpy(0), Eigen::Vector3d::UnitX()))
+                                  .toRotationMatrix();
+    const Tool tcp{"tcp", SE3d(R, Eigen::Vector3d(tcp_numbers[0], tcp_numbers[1], tcp_numbers[2]))};
+    model.tools.push_back(tcp);
+    if (with_nominal) nominal.tools.push_back(tcp);
+    default_tool = model.num_tools() - 1;
+  } else if (!FLAGS_tcp.empty()) {
+    default_tool = model.FindTool(FLAGS_tcp);
+    if (default_tool < 0 || (with_nominal && nominal.FindTool(FLAGS_tcp) != default_tool)) {
+      std::cerr << "error: --tcp=" << FLAGS_tcp << " is not a tool of "
+                << (default_tool < 0 ? FLAGS_model : FLAGS_nominal)
+                << " (at the same index in both models) nor x,y,z[,roll,pitch,yaw]; with a URDF, "
+                   "name its link in --tool_links\n";
+      return kExitUsage;
+    }
+  }
   if (!FLAGS_tool.empty()) {
     default_tool = ResolveTool(model, FLAGS_tool);
     if (default_tool < 0) {
@@ -394,8 +456,14 @@ int Run() {
 
   std::string header = "# lpoe_compensate: model " + tools::CommentText(FLAGS_model) + ", " +
                        (joints_mode ? "joints " : "targets ") + tools::CommentText(in_path) +
-                       ", angles in " +
-                       FLAGS_angle_unit + "\n";
+                       (joints_mode ? std::string()
+                                    : ", targets in the " +
+                                          std::string(FLAGS_frame == "base" ? "robot's base"
+                                                                            : "measurement") +
+                                          " frame") +
+                       ", angles in " + FLAGS_angle_unit +
+                       (with_nominal ? "; corrected_* in the nominal model's base frame" : "") +
+                       "\n";
   for (int j = 0; j < n; ++j) header += "q" + std::to_string(j + 1) + ",";
   header += "status,residual,sigma_min";
   if (with_nominal) {
@@ -412,6 +480,7 @@ int Run() {
     int per_status[5] = {};
     double max_correction = 0, max_residual = 0, max_orientation_residual = 0;
     int max_correction_line = 0, max_residual_line = 0;
+    int far_rows = 0;  // rows metres from anything the robot reaches (kWrongFrameMm)
   };
   // Solves rows [begin, end) of a chunk and formats them into `part`.
   auto solve_rows = [&](const std::vector<Row>& rows, const std::vector<double>& seeds, int begin,
@@ -452,6 +521,7 @@ int Run() {
         part->max_correction = r.correction;
         part->max_correction_line = row.line;
       }
+      if (r.position_error > kWrongFrameMm) ++part->far_rows;
       if (r.position_error > part->max_residual) {
         part->max_residual = r.position_error;
         part->max_residual_line = row.line;
@@ -484,6 +554,14 @@ int Run() {
       }
       const int chunk = static_cast<int>(rows.size());
       if (chunk == 0) break;
+      // Targets in the base frame: carried into the calibrated model's (measurement) frame.
+      if (!joints_mode && FLAGS_frame == "base") {
+        for (int k = 0; k < chunk; ++k) {
+          IkTarget& t = rows[k].target;
+          t.position = model.T_measurement_base * t.position;
+          t.rotation = model.T_measurement_base.R * t.rotation;
+        }
+      }
       // Joint-program mode: the nominal tool pose at the program's joints, in the calibrated
       // model's (measurement) frame.
       if (joints_mode) {
@@ -523,6 +601,7 @@ int Run() {
         }
         total.max_orientation_residual =
             std::max(total.max_orientation_residual, p.max_orientation_residual);
+        total.far_rows += p.far_rows;
         p = Part();
       }
       count += chunk;
@@ -561,6 +640,21 @@ int Run() {
   std::cerr << "\n  largest correction " << max_correction << " (rad/mm, Euclidean; line "
             << max_correction_line << ")\n  largest residual " << max_residual << " mm (line "
             << max_residual_line << "), orientation " << max_orientation_residual << " rad\n";
+  // Most targets metres from anything the robot reaches are in another frame, not beyond the
+  // robot's reach: an error that says which frame was assumed; nothing is written. (One far row
+  // is an unreachable target, written with its status.)
+  if (!joints_mode && count > 0 && 2 * total.far_rows > count) {
+    std::cerr << "error: " << in_path << ": " << total.far_rows << " of " << count
+              << " targets are more than " << kWrongFrameMm
+              << " mm from any pose the calibrated robot reaches (line " << max_residual_line
+              << ": " << max_residual << " mm): the targets were read in the " << (FLAGS_frame == "base" ? "robot's base" : "measurement")
+              << " frame (--frame=" << FLAGS_frame << "); if they are in the "
+              << (FLAGS_frame == "base" ? "measurement (tracker)" : "robot's base")
+              << " frame, use --frame=" << (FLAGS_frame == "base" ? "measurement" : "base")
+              << "; no output written\n";
+    return kExitInput;
+  }
+  report["frame"] = joints_mode ? "nominal program" : FLAGS_frame;
   report["status_counts"] = counts;
   report["largest_correction"] = {{"value", max_correction}, {"line", max_correction_line}};
   report["largest_residual_mm"] = {{"value", max_residual}, {"line", max_residual_line}};

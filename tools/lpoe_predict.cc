@@ -30,6 +30,11 @@ DEFINE_string(joints, "",
               "CSV of joint values: header with q1..qN, optional target column (required).");
 DEFINE_string(output, "", "CSV of predicted positions x,y,z in mm to write (required).");
 DEFINE_string(angle_unit, "rad", "Unit of the revolute joint values in --joints: rad | deg.");
+DEFINE_string(frame, "base",
+              "Frame of the written positions: base (the robot's base frame, where programs live; "
+              "from the calibrated model's recorded registration) | measurement (the frame the "
+              "calibration's measurements were in, e.g. the tracker's). The same for a model "
+              "calibrated in the base frame.");
 DEFINE_string(tool, "0",
               "Tool measured by rows without a target column: its name or 0-based index.");
 
@@ -67,6 +72,10 @@ int Run() {
   outputs.AddOutput("--output", FLAGS_output);
   if (Status s = outputs.Check(); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
+  }
+  if (FLAGS_frame != "base" && FLAGS_frame != "measurement") {
+    std::cerr << "error: --frame must be base or measurement, got '" << FLAGS_frame << "'\n";
     return kExitUsage;
   }
   RobotModel model;
@@ -115,8 +124,17 @@ int Run() {
     std::cerr << "error: " << FLAGS_joints << ": " << s.message() << "\n";
     return kExitInput;
   }
+  // The model's frame is the measurement frame of its calibration; the base frame is that of the
+  // nominal model it was registered from (T_measurement_base).
+  if (FLAGS_frame == "base") {
+    const SE3d base_from_measurement = model.T_measurement_base.Inverse();
+    for (Eigen::Vector3d& p : positions) p = base_from_measurement * p;
+  }
   std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
-  Status staged = outputs.Stage(FLAGS_output, PositionsToCsv(positions));
+  Status staged = outputs.Stage(
+      FLAGS_output, "# lpoe_predict: positions in mm in the " +
+                        std::string(FLAGS_frame == "base" ? "robot's base" : "measurement") +
+                        " frame\n" + PositionsToCsv(positions));
   if (Status s = staged.ok() ? outputs.Commit(nullptr) : staged; !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;
