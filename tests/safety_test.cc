@@ -148,6 +148,21 @@ TEST_F(Safety, MetreNoiseIsRefused) {
   ExpectImplausible("noisy.csv", "not plausible");
 }
 
+// Radians read as degrees: every joint moves a few "degrees", the calibration cannot converge or
+// identify anything, and the tool says why: a unit hint at the start and with the error.
+TEST_F(Safety, RadiansReadAsDegreesGetAUnitHint) {
+  Simulate("clean.csv");
+  const Result r = Run(kCalibrate, "--measurements=clean.csv --angle_unit=deg --plots_dir= "
+                                   "--output=out.yaml");
+  EXPECT_NE(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("warning:"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("they look like radians: use --angle_unit=rad"), std::string::npos) << r.err;
+  EXPECT_FALSE(Exists(Path("out.yaml")));
+  // Read as radians (what they are): no hint.
+  const Result d = Run(kCalibrate, "--measurements=clean.csv --plots_dir=");
+  EXPECT_EQ(d.err.find("look like radians"), std::string::npos) << d.err;
+}
+
 TEST_F(Safety, ForceWritesAnImplausibleResult) {
   Simulate("clean.csv");
   Transform("clean.csv", "metres.csv", [](double* p) {

@@ -463,7 +463,8 @@ int Run() {
   }
   std::cout << "\n";
   if (result.termination == Termination::kNotIdentifiable) {
-    std::cerr << "error: " << result.message << "\n";
+    std::cerr << "error: " << result.message
+              << (in.angle_unit_hint.empty() ? "" : " (" + in.angle_unit_hint + ")") << "\n";
     return tools::ExitCodeFor(result.termination);
   }
   PrintIdentifiability(summary.identifiability, result.parameterization.num_frame_parameters());
@@ -522,7 +523,8 @@ int Run() {
             << result.iterations << " iteration(s), " << result.wall_time_seconds * 1e3 << " ms ("
             << result.message << ")\n";
   if (!result.converged()) {
-    std::cerr << "error: " << result.message << "; no output written\n";
+    std::cerr << "error: " << result.message << "; no output written"
+              << (in.angle_unit_hint.empty() ? "" : " (" + in.angle_unit_hint + ")") << "\n";
     return tools::ExitCodeFor(result.termination);
   }
 

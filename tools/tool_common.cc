@@ -1,6 +1,7 @@
 #include "tool_common.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <iomanip>
@@ -14,6 +15,7 @@
 
 #include "lpoe/analysis.h"
 #include "lpoe/urdf.h"
+#include "lpoe/csv_rules.h"
 #include "lpoe/version.h"
 
 DECLARE_bool(help);
@@ -104,6 +106,17 @@ Status LoadInputs(const std::string& model_path, const std::string& measurements
   std::cerr << CsvReadWarnings(measurements_path, in->skipped);
   const std::string hint = LengthUnitHint(in->nominal, all);
   if (!hint.empty()) std::cerr << "warning: " << measurements_path << ": " << hint << "\n";
+  if (csv.angle_unit == AngleUnit::kDegrees) {
+    const int n = all.num_joints();
+    std::vector<double> max_abs(n, 0.0);
+    for (int r = 0; r < all.size(); ++r) {
+      for (int j = 0; j < n; ++j) max_abs[j] = std::max(max_abs[j], std::abs(all.q(r)[j]));
+    }
+    in->angle_unit_hint = DegreesUnitHint(in->nominal, max_abs);
+    if (!in->angle_unit_hint.empty()) {
+      std::cerr << "warning: " << measurements_path << ": " << in->angle_unit_hint << "\n";
+    }
+  }
   if (!verify_path.empty()) {
     in->identification = std::move(all);
     in->verification_source = verify_path;

@@ -85,6 +85,8 @@ struct Inputs {
   std::string verification_source;  // the --verify path, "holdout" or empty
   bool from_urdf = false;           // the model was read from a URDF, kept in `urdf`
   UrdfSource urdf;
+  // Joint values read as degrees that look like radians (DegreesUnitHint): also warned about.
+  std::string angle_unit_hint;
 };
 
 // Reads the model (YAML, or URDF when the name ends in .urdf in any case) and the measurements,

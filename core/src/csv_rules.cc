@@ -86,4 +86,22 @@ std::string JointUnitHint(const RobotModel& model, const std::vector<double>& ma
   return "";
 }
 
+std::string DegreesUnitHint(const RobotModel& model, const std::vector<double>& max_abs) {
+  // Every revolute joint within one turn *of degrees* (2 pi degrees = 0.11 rad): radians read as
+  // degrees. A real campaign moves some joint by more than 6.3 degrees.
+  constexpr double kTwoPiDegrees = 2 * 3.14159265358979323846 * 3.14159265358979323846 / 180.0;
+  int revolute = 0;
+  double largest = 0;
+  for (int j = 0; j < model.num_joints() && j < static_cast<int>(max_abs.size()); ++j) {
+    if (model.joints[j].type != JointType::kRevolute) continue;
+    ++revolute;
+    if (!(max_abs[j] <= kTwoPiDegrees)) return "";
+    largest = std::max(largest, max_abs[j]);
+  }
+  if (revolute == 0) return "";
+  return "revolute joint values read as degrees reach only " +
+         internal::ShortNumber(largest * 180.0 / 3.14159265358979323846) +
+         " deg on any joint: they look like radians: use --angle_unit=rad if they are";
+}
+
 }  // namespace lpoe

@@ -47,6 +47,9 @@ Status CheckCsvRowFields(size_t fields, const CsvHeader& header, const std::stri
 // arm is normally commanded and where degrees of ordinary poses land (unless the joint's declared
 // limits reach that far).
 std::string JointUnitHint(const RobotModel& model, const std::vector<double>& max_abs);
+// The reverse: values read as degrees (max_abs in radians after the conversion) that stay within
+// 2 pi degrees on every revolute joint look like radians; "" otherwise.
+std::string DegreesUnitHint(const RobotModel& model, const std::vector<double>& max_abs);
 
 }  // namespace lpoe
 
