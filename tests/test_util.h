@@ -30,7 +30,11 @@ class TestRandom {
     return lo + (hi - lo) * static_cast<double>(engine_() >> 11) * 0x1.0p-53;
   }
   Eigen::Vector3d Vector3(double bound) {
-    return Eigen::Vector3d(Uniform(-bound, bound), Uniform(-bound, bound), Uniform(-bound, bound));
+    // One by one, in gcc's (right-to-left) order: argument evaluation order is unspecified.
+    const double z = Uniform(-bound, bound);
+    const double y = Uniform(-bound, bound);
+    const double x = Uniform(-bound, bound);
+    return Eigen::Vector3d(x, y, z);
   }
   Eigen::Vector3d UnitVector() {
     Eigen::Vector3d v;

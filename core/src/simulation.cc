@@ -96,7 +96,13 @@ KinematicErrors RandomErrors(const RobotModel& model, double rot, double trans, 
     // perpendicular by an angle in [-tilt, tilt].
     const Eigen::Vector3d axis =
         j.type == JointType::kRevolute ? j.twist.head<3>() : j.twist.tail<3>();
-    Eigen::Vector3d r(rng.Gaussian(), rng.Gaussian(), rng.Gaussian());
+    // Drawn one by one: the order in which a constructor's arguments are evaluated is unspecified
+    // (gcc goes right to left, clang left to right), and a simulation must not depend on the
+    // compiler. This is gcc's order, so that the figures computed so far stay as they were.
+    const double rz = rng.Gaussian();
+    const double ry = rng.Gaussian();
+    const double rx = rng.Gaussian();
+    Eigen::Vector3d r(rx, ry, rz);
     r -= r.dot(axis) * axis;
     r.normalize();
     const Eigen::Vector3d tilted = ExpSO3(Eigen::Vector3d(rng.Uniform(-tilt, tilt) * r)) * axis;
