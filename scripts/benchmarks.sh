@@ -49,14 +49,14 @@ echo "benchmarks: inverse kinematics (10,000 TRAC-IK-style targets)" >&2
 
 # End to end: parse, register, calibrate, statistics, outputs.
 echo "benchmarks: lpoe_calibrate end to end" >&2
-"$BUILD/tools/lpoe_simulate" --count=70000 --noise_sigma=0.03 --out="$WORK/n70k.csv" >/dev/null
-"$BUILD/tools/lpoe_simulate" --count=100000 --noise_sigma=0.03 --out="$WORK/n100k.csv" >/dev/null
-"$BUILD/tools/lpoe_simulate" --count=1000000 --noise_sigma=0.03 --out="$WORK/n1m.csv" >/dev/null
+"$BUILD/tools/lpoe_simulate" --count=70000 --noise_sigma=0.03 --output="$WORK/n70k.csv" >/dev/null
+"$BUILD/tools/lpoe_simulate" --count=100000 --noise_sigma=0.03 --output="$WORK/n100k.csv" >/dev/null
+"$BUILD/tools/lpoe_simulate" --count=1000000 --noise_sigma=0.03 --output="$WORK/n1m.csv" >/dev/null
 # 10^7 rows (about 1.8 GB of CSV): ten 10^6-row simulations with different seeds, one header.
 cp "$WORK/n1m.csv" "$WORK/n10m.csv"
 for seed in 2 3 4 5 6 7 8 9 10; do
   "$BUILD/tools/lpoe_simulate" --count=1000000 --noise_sigma=0.03 --seed=$seed \
-    --out="$WORK/part.csv" >/dev/null
+    --output="$WORK/part.csv" >/dev/null
   grep -v -e '^#' -e '^q1,' "$WORK/part.csv" >>"$WORK/n10m.csv"
 done
 rm -f "$WORK/part.csv"
@@ -88,7 +88,7 @@ rm -f "$WORK/n10m.csv"
 # kinematic errors (1 mrad, 0.5 mm per frame, 2 mrad joint zeros) compensated with the nominal model.
 echo "benchmarks: lpoe_compensate end to end (10^6 targets)" >&2
 "$BUILD/tools/lpoe_simulate" --count=1000000 --errors=random --error_rotation=0.001 \
-  --error_translation=0.5 --error_tilt=0.001 --error_zero=0.002 --out="$WORK/t1m.csv" >/dev/null
+  --error_translation=0.5 --error_tilt=0.001 --error_zero=0.002 --output="$WORK/t1m.csv" >/dev/null
 /usr/bin/time -v "$BUILD/tools/lpoe_compensate" --model="$ROOT/data/cobot6.yaml" \
   --targets="$WORK/t1m.csv" --output="$WORK/t1m_out.csv" --report="$WORK/compensate.json" \
   >/dev/null 2>"$WORK/compensate.time" || { cat "$WORK/compensate.time" >&2; exit 1; }

@@ -95,7 +95,7 @@ TEST_F(CalibrateReport, GravityTiltInEveryReport) {
   const std::string cmd =
       "cd " + dir_ + " && " LPOE_SIMULATE_PATH
       " --errors=none --joint_errors=compliance,harmonics --gravity_tilt_deg=0.6,0 --count=800 "
-      "--noise_sigma=0.01 --model_out=nominal.yaml --out=data.csv > sim.txt 2>&1 && " LPOE_CALIBRATE_PATH
+      "--noise_sigma=0.01 --model_out=nominal.yaml --output=data.csv > sim.txt 2>&1 && " LPOE_CALIBRATE_PATH
       " --model=nominal.yaml --measurements=data.csv --joint_errors=compliance,harmonics,tilt "
       "--plots_dir= --report=report.json --html_report=report.html --output=cal.yaml "
       "> out.txt 2> err.txt";

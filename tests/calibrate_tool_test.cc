@@ -61,7 +61,7 @@ class CalibrateTool : public ::testing::Test {
   // models.
   void Simulate(double sigma = kNoiseSigma, int count = 100, int verify_count = 30) {
     std::ostringstream args;
-    args << "--count=" << count << " --noise_sigma=" << sigma << " --seed=11 --out=" << Path("id.csv")
+    args << "--count=" << count << " --noise_sigma=" << sigma << " --seed=11 --output=" << Path("id.csv")
          << " --model_out=" << Path("nominal.yaml") << " --actual_out=" << Path("actual.yaml");
     if (verify_count > 0) {
       args << " --verify_count=" << verify_count << " --verify_out=" << Path("ver.csv");
@@ -94,7 +94,7 @@ TEST_F(CalibrateTool, DefaultRunPrintsTheTableAndTheVerificationSet) {
 TEST_F(CalibrateTool, IdentifiabilityListsWrapEveryLeftOutCombination) {
   const Output sim = Run(LPOE_SIMULATE_PATH,
                          "--count=150 --noise_sigma=0.01 --seed=3 --joint_errors=compliance,harmonics "
-                         "--out=" + Path("id.csv") + " --model_out=" + Path("nominal.yaml"));
+                         "--output=" + Path("id.csv") + " --model_out=" + Path("nominal.yaml"));
   ASSERT_EQ(sim.exit_code, kExitOk) << sim.err;
   const Output o = Calibrate("--model=" + Path("nominal.yaml") + " --measurements=" + Path("id.csv") +
                              " --joint_errors=compliance,harmonics --plots_dir= --output=" +
@@ -191,7 +191,7 @@ TEST_F(CalibrateTool, OutputReadsBackAndPredictsLikeTheLibrary) {
 TEST_F(CalibrateTool, GearRatioFromSimulationToCalibratedModel) {
   const Output sim = Run(LPOE_SIMULATE_PATH,
                          "--joint_errors=gear_ratio --errors=random --count=200 --noise_sigma=0.005 "
-                         "--seed=3 --out=" + Path("id.csv") + " --verify_count=60 --verify_out=" +
+                         "--seed=3 --output=" + Path("id.csv") + " --verify_count=60 --verify_out=" +
                              Path("ver.csv") + " --model_out=" + Path("nominal.yaml") +
                              " --actual_out=" + Path("actual.yaml"));
   ASSERT_EQ(sim.exit_code, kExitOk) << sim.err;
@@ -315,7 +315,7 @@ tools:
 )";
   const Output sim = Run(LPOE_SIMULATE_PATH, "--model=" + Path("ur.yaml") +
                                                  " --errors=none --count=200 --noise_sigma=0.01 "
-                                                 "--out=" + Path("id.csv"));
+                                                 "--output=" + Path("id.csv"));
   ASSERT_EQ(sim.exit_code, kExitOk) << sim.err;
   for (const char* solver : {"ceres", "linear"}) {
     const std::string out = std::string("cal_") + solver + ".yaml";

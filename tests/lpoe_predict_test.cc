@@ -47,7 +47,7 @@ class LpoePredict : public ::testing::Test {
     ASSERT_EQ(RunCapture(std::string(LPOE_SIMULATE_PATH) +
                       " --errors=random --joint_errors=compliance,harmonics --count=40 "
                       "--payload_mass=0.7 --payload_com=5,0,25 --gravity_tilt=0.004 --all_tools " +
-                      extra + " --out=" + Path("data.csv") + " --actual_out=" + Path("actual.yaml"),
+                      extra + " --output=" + Path("data.csv") + " --actual_out=" + Path("actual.yaml"),
                   &out),
               kExitOk)
         << out;
@@ -102,7 +102,7 @@ TEST_F(LpoePredict, ActualModelPredictsItsNoiseFreeData) {
 // and y for gravity along -z); with --gravity_tilt, or out of range, it is refused.
 TEST_F(LpoePredict, SimulatorGravityTiltInDegrees) {
   std::string out;
-  const std::string base = std::string(LPOE_SIMULATE_PATH) + " --count=5 --out=" +
+  const std::string base = std::string(LPOE_SIMULATE_PATH) + " --count=5 --output=" +
                            Path("tilt.csv") + " --actual_out=" + Path("tilted.yaml");
   ASSERT_EQ(RunCapture(base + " --gravity_tilt_deg=0.3,-0.1", &out), kExitOk) << out;
   RobotModel actual;

@@ -142,7 +142,7 @@ TEST_F(PlanTool, SampledPlanIsReadBySimulateAndBeatsTheRandomPlan) {
   // lpoe_simulate measures every SMR at each planned pose (degrees read back as degrees).
   const Output s = Run(LPOE_SIMULATE_PATH,
                        "--model=m.yaml --errors=random --joints=p.csv --angle_unit=deg --all_tools "
-                       "--out=sim.csv");
+                       "--output=sim.csv");
   ASSERT_EQ(s.exit_code, kExitOk) << s.err;
   const std::vector<std::string> sim = DataLines(ReadAll(dir_ / "sim.csv"));
   ASSERT_EQ(sim.size(), 1u + 20 * 3);
@@ -274,7 +274,7 @@ TEST_F(PlanTool, GravityTiltNeedsAModelWithComplianceValues) {
   EXPECT_NE(alone.err.find("needs it in the list"), std::string::npos) << alone.err;
 
   const Output sim = Run(LPOE_SIMULATE_PATH, "--model=m.yaml --errors=none --joint_errors=compliance "
-                                             "--payload_mass=1 --count=10 --out=s.csv "
+                                             "--payload_mass=1 --count=10 --output=s.csv "
                                              "--actual_out=actual.yaml");
   ASSERT_EQ(sim.exit_code, kExitOk) << sim.err;
   const std::string common = "--model=actual.yaml --candidate_count=800 --workspace_count=200 "

@@ -49,7 +49,7 @@ class Safety : public ::testing::Test {
   // Simulated section-4-like data (cobot6, Table 2 errors) in `name`.
   void Simulate(const std::string& name, const std::string& extra = "") const {
     const Result r = Run(kSimulate, "--count=" + std::to_string(kRows) +
-                                        " --noise_sigma=0.03 --out=" + Path(name) + " " + extra);
+                                        " --noise_sigma=0.03 --output=" + Path(name) + " " + extra);
     ASSERT_EQ(r.exit_code, kExitOk) << r.err;
   }
 
@@ -143,7 +143,7 @@ TEST_F(Safety, RandomPositionsAreRefused) {
 }
 
 TEST_F(Safety, MetreNoiseIsRefused) {
-  const Result s = Run(kSimulate, "--count=150 --noise_sigma=1000 --out=noisy.csv");
+  const Result s = Run(kSimulate, "--count=150 --noise_sigma=1000 --output=noisy.csv");
   ASSERT_EQ(s.exit_code, kExitOk) << s.err;
   ExpectImplausible("noisy.csv", "not plausible");
 }
@@ -161,6 +161,18 @@ TEST_F(Safety, RadiansReadAsDegreesGetAUnitHint) {
   // Read as radians (what they are): no hint.
   const Result d = Run(kCalibrate, "--measurements=clean.csv --plots_dir=");
   EXPECT_EQ(d.err.find("look like radians"), std::string::npos) << d.err;
+}
+
+// lpoe_simulate's old --out still works for one release, with a warning; both at once is an error.
+TEST_F(Safety, SimulateOldOutFlagStillWorksWithAWarning) {
+  Result r = Run(kSimulate, "--count=5 --out=old.csv");
+  ASSERT_EQ(r.exit_code, kExitOk) << r.err;
+  EXPECT_TRUE(Exists(Path("old.csv")));
+  EXPECT_NE(r.err.find("--out is now --output"), std::string::npos) << r.err;
+  r = Run(kSimulate, "--count=5 --out=a.csv --output=b.csv");
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_FALSE(Exists(Path("a.csv")));
+  EXPECT_FALSE(Exists(Path("b.csv")));
 }
 
 TEST_F(Safety, ForceWritesAnImplausibleResult) {
@@ -209,7 +221,7 @@ TEST_F(Safety, SimulateBoundsItsFlags) {
   for (const std::string args : {"--count=2147483647", "--count=0", "--noise_sigma=inf",
                                  "--noise_sigma=nan", "--orientation_noise_sigma=inf"}) {
     SCOPED_TRACE(args);
-    const Result r = Run(kSimulate, args + " --out=x.csv");
+    const Result r = Run(kSimulate, args + " --output=x.csv");
     EXPECT_EQ(r.exit_code, kExitUsage) << r.err;
     EXPECT_FALSE(Exists(Path("x.csv")));
   }
@@ -248,7 +260,7 @@ TEST_F(Safety, DeviceOutputIsWrittenStraightNotReplaced) {
 TEST_F(Safety, CollisionsAreFoundByIdentityNotBySpelling) {
   ASSERT_EQ(mkdir(Path("d").c_str(), 0755), 0);
   ASSERT_EQ(symlink("d", Path("linked").c_str()), 0);
-  const Result s = Run(kSimulate, "--count=100 --out=sim.csv --model_out=model.yaml");
+  const Result s = Run(kSimulate, "--count=100 --output=sim.csv --model_out=model.yaml");
   ASSERT_EQ(s.exit_code, kExitOk) << s.err;
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"--output=d/x.yaml --urdf_output=d/./x.yaml", "name the same file"},
@@ -266,7 +278,7 @@ TEST_F(Safety, CollisionsAreFoundByIdentityNotBySpelling) {
     EXPECT_EQ(r.exit_code, kExitUsage) << r.err;
     EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
   }
-  const Result sim = Run(kSimulate, "--model=model.yaml --out=./d/../model.yaml");
+  const Result sim = Run(kSimulate, "--model=model.yaml --output=./d/../model.yaml");
   EXPECT_EQ(sim.exit_code, kExitUsage) << sim.err;
   EXPECT_NE(ReadAll(Path("model.yaml")).find("joints:"), std::string::npos);
 }

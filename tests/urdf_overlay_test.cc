@@ -101,7 +101,7 @@ class UrdfOverlay : public ::testing::Test {
     // Tracker data of an arm with random kinematic errors, measured at tool0 in the base frame...
     ASSERT_EQ(RunCommand(std::string(LPOE_SIMULATE_PATH) + " --model=" + Fixture() +
                          " --tip_link=tool0 --errors=random --count=60 --noise_sigma=0.01 --seed=5"
-                         " --out=" +
+                         " --output=" +
                          d + "base.csv"),
               0);
     // ... then moved into a tracker frame 2.8 m away and turned.
@@ -284,7 +284,7 @@ TEST_F(UrdfOverlay, UrdfFlagsWithoutAUrdfOrAUrAreUsageErrors) {
   // ur_like's joints are not named like a UR's.
   const std::string ur_like = std::string(LPOE_TEST_DATA_DIR) + "/urdf/ur_like.urdf";
   ASSERT_EQ(RunCommand(std::string(LPOE_SIMULATE_PATH) + " --model=" + ur_like +
-                       " --errors=none --count=30 --out=" + Path("ur_like.csv")),
+                       " --errors=none --count=30 --output=" + Path("ur_like.csv")),
             0);
   EXPECT_EQ(RunCommand(cal + "--model=" + ur_like + " --measurements=" + Path("ur_like.csv") +
                        " --ur_kinematics_output=" + out),

@@ -45,7 +45,7 @@ DEFINE_string(joints, "",
               "ignored; e.g. a plan of lpoe_plan) instead of random ones; with --all_tools every "
               "tool at each configuration.");
 DEFINE_int32(verify_count, 0,
-             "The last verify_count configurations go to --verify_out instead of --out.");
+             "The last verify_count configurations go to --verify_out instead of --output.");
 DEFINE_double(noise_sigma, 0.0,
               "Gaussian noise, standard deviation per axis (mm). The paper's 'variance 0.2' is "
               "sigma = sqrt(0.2) = 0.447 mm.");
@@ -81,7 +81,9 @@ DEFINE_string(gravity_tilt_deg, "",
               "perpendicular to the nominal gravity that lpoe_calibrate --joint_errors=...,tilt "
               "reports (x and y of the base for gravity along -z), e.g. 0.3,0.1. Not with "
               "--gravity_tilt.");
-DEFINE_string(out, "", "Measurement CSV to write (required).");
+DEFINE_string(output, "", "Measurement CSV to write (required).");
+DEFINE_string(out, "", "Old name of --output (every other tool says --output); accepted with a "
+                       "warning for one release.");
 DEFINE_string(verify_out, "", "Verification CSV (the last --verify_count rows).");
 DEFINE_string(model_out, "", "Write the nominal model here (YAML).");
 DEFINE_string(actual_out, "", "Write the actual (erroneous) robot here (YAML).");
@@ -91,13 +93,13 @@ namespace {
 
 constexpr char kUsage[] =
     "Simulates laser-tracker measurements of a robot with kinematic errors (paper section 4).\n\n"
-    "  lpoe_simulate --out=points.csv                       # cobot6, Table 2, 100 rows\n"
+    "  lpoe_simulate --output=points.csv                       # cobot6, Table 2, 100 rows\n"
     "  lpoe_simulate --count=100 --verify_count=30 --noise_sigma=0.03 \\\n"
-    "      --out=identification.csv --verify_out=verification.csv --model_out=cobot6.yaml\n"
+    "      --output=identification.csv --verify_out=verification.csv --model_out=cobot6.yaml\n"
     "  lpoe_simulate --model=nominal.yaml --errors=random --joints=poses.csv --all_tools \\\n"
-    "      --noise_sigma=0.02 --out=planned.csv                # at the poses of a plan\n"
+    "      --noise_sigma=0.02 --output=planned.csv                # at the poses of a plan\n"
     "  lpoe_simulate --joint_errors=compliance,harmonics --errors=random --count=300 \\\n"
-    "      --noise_sigma=0.01 --out=arm.csv --actual_out=actual.yaml   # a small arm that deflects";
+    "      --noise_sigma=0.01 --output=arm.csv --actual_out=actual.yaml   # a small arm that deflects";
 
 constexpr double kDegreesPerRadian = 180.0 / 3.14159265358979323846;
 constexpr double kRadiansPerArcsec = 1.0 / 206264.80624709636;
@@ -123,8 +125,17 @@ int Run() {
   using tools::kExitUsage;
   // 10^7 rows are about 2 GB of CSV text held before writing; more is not a test set.
   constexpr int kMaxCount = 10000000;
-  if (FLAGS_out.empty()) {
-    std::cerr << "error: --out is required (see --help)\n";
+  if (!FLAGS_out.empty()) {
+    if (!FLAGS_output.empty()) {
+      std::cerr << "error: give --output (or its old name --out), not both\n";
+      return kExitUsage;
+    }
+    std::cerr << "warning: --out is now --output, as in every other tool; --out will go in the "
+                 "next release\n";
+    FLAGS_output = FLAGS_out;
+  }
+  if (FLAGS_output.empty()) {
+    std::cerr << "error: --output is required (see --help)\n";
     return kExitUsage;
   }
   if (FLAGS_count < 1 || FLAGS_count > kMaxCount) {
@@ -155,7 +166,7 @@ int Run() {
   tools::OutputSet files;
   files.AddInput("--model", FLAGS_model);
   files.AddInput("--joints", FLAGS_joints);
-  files.AddOutput("--out", FLAGS_out);
+  files.AddOutput("--output", FLAGS_output);
   if (FLAGS_verify_count > 0) files.AddOutput("--verify_out", FLAGS_verify_out);
   files.AddOutput("--model_out", FLAGS_model_out);
   files.AddOutput("--actual_out", FLAGS_actual_out);
@@ -319,7 +330,7 @@ int Run() {
     std::string path;
     std::string text;
   };
-  std::vector<Output> outputs = {{FLAGS_out, MeasurementsToCsv(nominal, identification, comment.str())}};
+  std::vector<Output> outputs = {{FLAGS_output, MeasurementsToCsv(nominal, identification, comment.str())}};
   if (FLAGS_verify_count > 0) {
     outputs.push_back({FLAGS_verify_out, MeasurementsToCsv(nominal, verification, comment.str())});
   }

@@ -41,7 +41,7 @@ if LPOE_DATA_DIR=$tmp/work/empty "$prefix/bin/lpoe_calibrate" --plots_dir= >/dev
 fi
 
 # Simulation and comparison from the installed data.
-"$prefix/bin/lpoe_simulate" --model="$share/data/cobot6.yaml" --count=40 --out=sim.csv >/dev/null ||
+"$prefix/bin/lpoe_simulate" --model="$share/data/cobot6.yaml" --count=40 --output=sim.csv >/dev/null ||
   fail "lpoe_simulate exited $?"
 "$prefix/bin/lpoe_compare" --model="$share/data/cobot6.yaml" --measurements=sim.csv \
   >/dev/null || fail "lpoe_compare exited $?"
