@@ -82,6 +82,10 @@ TEST_F(ReportHtml, DefaultJobPageCarriesTheJsonFiguresAndIsDeterministic) {
           << set << " " << when << " RMS " << Mm(rms) << " is not on the page";
     }
   }
+  // A passing page ends with what to do next: deploy, and what accuracy to expect.
+  EXPECT_NE(html.find("<h2>Outputs and next steps</h2>"), std::string::npos);
+  EXPECT_NE(html.find("Deploy the calibrated YAML model"), std::string::npos);
+  EXPECT_EQ(html.find("Do not deploy"), std::string::npos);
   const double after_rms = j["verification"]["after"]["norm"]["rms"];
   EXPECT_LT(after_rms, 0.1);
   EXPECT_NE(html.find(Mm(after_rms) + " mm</span>"), std::string::npos);  // key figure on top

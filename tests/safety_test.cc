@@ -181,10 +181,16 @@ TEST_F(Safety, ForceWritesAnImplausibleResult) {
     for (int a = 0; a < 3; ++a) p[a] /= 1000;
   });
   const Result r = Run(kCalibrate, "--measurements=metres.csv --max_iterations=1000 --plots_dir= "
-                                   "--force --output=out.yaml");
+                                   "--force --output=out.yaml --html_report=page.html");
   // Written, and still exit 8: a script can tell a forced result from a plausible one.
   EXPECT_EQ(r.exit_code, 8) << r.err;
   EXPECT_TRUE(Exists(Path("out.yaml")));
+  // The page ends with what was written and what to do: not deploy.
+  const std::string page = ReadAll(Path("page.html"));
+  EXPECT_NE(page.find("<h2>Outputs and next steps</h2>"), std::string::npos);
+  EXPECT_NE(page.find("<code>out.yaml</code>"), std::string::npos);
+  EXPECT_NE(page.find("Do not deploy this model"), std::string::npos);
+  EXPECT_NE(page.find("only because of --force"), std::string::npos);
   EXPECT_NE(r.err.find("outputs written because of --force"), std::string::npos) << r.err;
 }
 

@@ -449,6 +449,51 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
     h += "</table>\n";
   }
 
+  // ---- What was written and what to do next, by verdict.
+  h += "<h2>Outputs and next steps</h2>\n";
+  if (j.contains("outputs") && !j["outputs"].empty()) {
+    h += "<p>Written with this page:</p>\n<ul>\n";
+    for (const Json& o : j["outputs"]) h += "<li><code>" + Esc(Str(o)) + "</code></li>\n";
+    h += "</ul>\n";
+  }
+  std::vector<std::string> left_out;
+  for (const Json& d : idj["unidentifiable"]) {
+    const std::string reason = d.contains("reason") ? Str(d["reason"]) : "";
+    if (reason.find("no configuration separates") != std::string::npos) {
+      left_out.push_back(Str(d["name"]));
+    }
+  }
+  h += "<ul>\n";
+  if (level == "pass") {
+    h += "<li>Deploy the calibrated YAML model: <code>lpoe_compensate</code> corrects targets, "
+         "joint programs and URScript / RAPID programs; <code>lpoe_predict</code> predicts "
+         "positions. A URDF or UR calibration file carries the geometry only.</li>\n"
+         "<li>Expect the held-out error above (the verification set) at other poses in the "
+         "measured workspace; outside it the model is extrapolated.</li>\n"
+         "<li>Calibrate again after a collision, a change of tool or mounting, or when a check "
+         "measurement drifts.</li>\n";
+  } else if (level == "check") {
+    h += "<li>The model was written, but read the checks above before deploying it: each says "
+         "what it measured against what limit.</li>\n"
+         "<li>A residual well above the tracker's noise: outliers (listed above), joint "
+         "non-geometric errors (try <code>--joint_errors=auto</code>), the wrong length or angle "
+         "unit, or SMRs named wrongly in the measurement file.</li>\n"
+         "<li>Large parameter changes: a nominal model that is not this robot, or a measurement "
+         "frame mix-up; compare with the nominal drawing.</li>\n";
+  } else {
+    h += std::string("<li><b>Do not deploy this model.</b> The verdict failed") +
+         (j.value("forced", false) ? "; the outputs were written only because of --force" : "") +
+         ". Fix the cause the verdict names, then measure and calibrate again.</li>\n";
+  }
+  if (!left_out.empty()) {
+    std::string names;
+    for (const std::string& n : left_out) names += (names.empty() ? "" : ", ") + n;
+    h += "<li>Left out as not identifiable and kept as in the model: " + Esc(names) +
+         ". Their reasons are in the identifiability section; a measured point off the last "
+         "axis, or orientation data, identifies a last-axis tilt.</li>\n";
+  }
+  h += "</ul>\n";
+
   // ---- Inputs and version.
   const Json& inp = j["inputs"];
   const Json& sol = j["solver"];

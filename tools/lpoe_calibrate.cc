@@ -613,20 +613,23 @@ int Run() {
       staged = outputs.Stage(plot_dir + plots[k].first, plots[k].second);
     }
   }
+  // The outputs of the run: the HTML page lists the models and plots (with the next steps), the
+  // JSON report every file, itself and the page included.
+  for (const std::string& o : {FLAGS_output, FLAGS_urdf_output, FLAGS_ur_kinematics_output}) {
+    if (!o.empty()) summary.outputs.push_back(o);
+  }
+  if (!plot_dir.empty()) {
+    for (const char* name : kPlotNames) summary.outputs.push_back(plot_dir + name);
+  }
+  summary.forced = implausible;
   if (!FLAGS_html_report.empty() && staged.ok()) {
     std::string html;
     staged = tools::RunSummaryToHtml(summary, &html);
     if (staged.ok()) staged = outputs.Stage(FLAGS_html_report, html);
   }
+  if (!FLAGS_html_report.empty()) summary.outputs.push_back(FLAGS_html_report);
+  if (!FLAGS_report.empty()) summary.outputs.push_back(FLAGS_report);
   if (!FLAGS_report.empty() && staged.ok()) {
-    for (const std::string& o : {FLAGS_output, FLAGS_urdf_output, FLAGS_ur_kinematics_output}) {
-      if (!o.empty()) summary.outputs.push_back(o);
-    }
-    if (!plot_dir.empty()) {
-      for (const char* name : kPlotNames) summary.outputs.push_back(plot_dir + name);
-    }
-    if (!FLAGS_html_report.empty()) summary.outputs.push_back(FLAGS_html_report);
-    summary.outputs.push_back(FLAGS_report);
     staged = outputs.Stage(FLAGS_report, tools::RunSummaryToJson(summary));
   }
   std::vector<std::string> written;

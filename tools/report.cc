@@ -466,6 +466,7 @@ Json BuildJson(const RunSummary& s) {
   }
   j["calibrated_frames"] = frames;
   j["outputs"] = s.outputs;
+  j["forced"] = s.forced;
 
   // Per SMR (tool): before/after on each set.
   const RobotModel& model = s.result.model;

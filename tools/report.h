@@ -38,6 +38,7 @@ struct RunSummary : PipelineResult {
   // pipeline's joint_error_selection.
   std::string joint_errors_requested = "none";
   std::vector<std::string> outputs;  // files written
+  bool forced = false;  // written although the verdict failed (--force)
 
   // Per-point data (AddPointResiduals) and the model the "before" errors refer to (the nominal
   // model, after the rigid registration when there was one).
