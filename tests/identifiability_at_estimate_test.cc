@@ -190,8 +190,7 @@ bool Reported(const PipelineResult& r, const std::string& name) {
 std::vector<Direction> SolvedWithLeftOut(const PipelineResult& r) {
   std::vector<Direction> out;
   for (const Direction& d : r.result.parameterization.unidentifiable) {
-    if (d.joint_block < 0 && (d.reason.find("no configuration separates") != std::string::npos ||
-                              d.reason.find("moves no measured target") != std::string::npos)) {
+    if (IsStructurallyLost(d)) {
       out.push_back(d);
     }
   }

@@ -458,8 +458,7 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
   }
   std::vector<std::string> left_out;
   for (const Json& d : idj["unidentifiable"]) {
-    const std::string reason = d.contains("reason") ? Str(d["reason"]) : "";
-    if (reason.find("no configuration separates") != std::string::npos) {
+    if (d.value("structural", false)) {
       left_out.push_back(Str(d["name"]));
     }
   }

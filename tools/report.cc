@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "lpoe/analysis.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
@@ -411,7 +412,7 @@ Json BuildJson(const RunSummary& s) {
   const IdentifiabilityReport& id = s.identifiability;
   Json unident = Json::array();
   for (const Direction& d : id.unidentifiable) {
-    unident.push_back({{"name", d.name}, {"reason", d.reason}});
+    unident.push_back({{"name", d.name}, {"reason", d.reason}, {"structural", IsStructurallyLost(d)}});
   }
   Json params = Json::array();
   for (size_t k = 0; k < id.parameter_names.size(); ++k) {

@@ -394,8 +394,7 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   // (they are kept as given; if the data do determine them after all, the model is wrong there).
   std::string left_out;
   for (const Direction& d : result.parameterization.unidentifiable) {
-    if (d.joint_block < 0 && (d.reason.find("no configuration separates") != std::string::npos ||
-                              d.reason.find("moves no measured target") != std::string::npos)) {
+    if (IsStructurallyLost(d)) {
       left_out += (left_out.empty() ? "" : ", ") + d.name;
     }
   }

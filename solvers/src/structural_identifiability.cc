@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "identifiability.h"
+#include "lpoe/analysis.h"
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
 #include "normal_equations.h"
@@ -21,6 +22,9 @@ namespace {
 
 // Range of the generic prismatic joint values (mm); any non-degenerate range does.
 constexpr double kGenericStrokeMm = 500.0;
+// The reasons StructurallyUnidentifiable gives (IsStructurallyLost recognizes them).
+constexpr char kMovesNothing[] = "moves no measured target at any configuration";
+constexpr char kNotSeparated[] = "no configuration separates it from";
 // Names quoted in a reason: the kept directions a left-out one trades with.
 constexpr int kTradeNames = 3;
 
@@ -139,14 +143,14 @@ std::vector<Direction> StructurallyUnidentifiable(const RobotModel& model,
     std::ostringstream reason;
     const double norm = lin.J.col(k).norm();
     if (!(norm > zero_column)) {
-      reason << "moves no measured target at any configuration";
+      reason << kMovesNothing;
     } else {
       const Eigen::VectorXd c = qr.solve(Eigen::VectorXd(lin.J.col(k) / norm));
       std::vector<int> idx(c.size());
       for (int j = 0; j < c.size(); ++j) idx[j] = j;
       std::sort(idx.begin(), idx.end(),
                 [&](int a, int b) { return std::abs(c(a)) > std::abs(c(b)); });
-      reason << "no configuration separates it from";
+      reason << kNotSeparated;
       for (int j = 0; j < std::min<int>(kTradeNames, static_cast<int>(idx.size())); ++j) {
         if (std::abs(c(idx[j])) < 1e-3) break;
         reason << (j ? ", " : " ") << p.parameters[kept[idx[j]]].name;
@@ -272,4 +276,10 @@ void LeaveOutDirections(const std::vector<Direction>& lost, Parameterization* p)
 }
 
 }  // namespace internal
+
+bool IsStructurallyLost(const Direction& d) {
+  return d.joint_block < 0 && (d.reason.rfind(internal::kMovesNothing, 0) == 0 ||
+                               d.reason.rfind(internal::kNotSeparated, 0) == 0);
+}
+
 }  // namespace lpoe
