@@ -22,7 +22,6 @@
 #include <thread>
 #include <vector>
 
-#include <Eigen/Geometry>
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 #include <nlohmann/json.hpp>
@@ -32,6 +31,7 @@
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/refusals.h"
+#include "lpoe/se3.h"
 #include "json_text.h"
 #include "output_files.h"
 #include "lpoe_compensate_program.h"
@@ -405,12 +405,9 @@ int Run() {
   int default_tool = 0;
   if (!tcp_numbers.empty()) {
     // A TCP given by its offset: one more tool of both models (the same place on the flange).
-    Eigen::Vector3d rpy = Eigen::Vector3d::Zero();
-    if (tcp_numbers.size() == 6) rpy = Eigen::Vector3d(tcp_numbers[3], tcp_numbers[4], tcp_numbers[5]);
-    const Eigen::Matrix3d R = (Eigen::AngleAxisd(rpy(2), Eigen::Vector3d::UnitZ()) *
-                               Eigen::AngleAxisd(rpy(1), Eigen::Vector3d::UnitY()) *
-                               Eigen::AngleAxisd(rpy(0), Eigen::Vector3d::UnitX()))
-                                  .toRotationMatrix();
+    const bool rpy = tcp_numbers.size() == 6;
+    const Eigen::Matrix3d R = RotationFromRpy(rpy ? tcp_numbers[3] : 0.0, rpy ? tcp_numbers[4] : 0.0,
+                                              rpy ? tcp_numbers[5] : 0.0);
     const Tool tcp{"tcp", SE3d(R, Eigen::Vector3d(tcp_numbers[0], tcp_numbers[1], tcp_numbers[2]))};
     model.tools.push_back(tcp);
     if (with_nominal) nominal.tools.push_back(tcp);
