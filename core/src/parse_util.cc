@@ -1,6 +1,5 @@
 #include "parse_util.h"
 
-#include <cfloat>
 #include <charconv>
 #include <cstdint>
 #include <cstring>
@@ -119,100 +118,18 @@ NumberParse ParseNumber(std::string_view text, double* out) {
   return NumberParse::kOk;
 }
 
-#if defined(__x86_64__) && LDBL_MANT_DIG == 64
-namespace {
-
-inline uint64_t Load8(const char* p) {
-  uint64_t v;
-  std::memcpy(&v, p, 8);
-  return v;  // little-endian: p[0] in the low byte
-}
-
-// The bytes that are not ASCII digits, as their high bits (SWAR). Only the lowest one set is
-// exact (a carry or borrow runs upwards, and only out of a byte that is itself flagged): the first
-// non-digit.
-inline uint64_t NonDigits(uint64_t v) {
-  return ((v + 0x4646464646464646ULL) | (v - 0x3030303030303030ULL)) & 0x8080808080808080ULL;
-}
-// The value of 8 ASCII digits (SWAR: 3 multiplications).
-inline uint64_t EightDigitsValue(uint64_t v) {
-  v -= 0x3030303030303030ULL;
-  v = v * 10 + (v >> 8);
-  return (((v & 0x000000FF000000FFULL) * (100 + (1000000ULL << 32))) +
-          (((v >> 16) & 0x000000FF000000FFULL) * (1 + (10000ULL << 32)))) >>
-         32;
-}
-
-constexpr uint64_t kPow10Int[] = {1,      10,      100,      1000,     10000,
-                                  100000, 1000000, 10000000, 100000000};
-
-// Digits from p into *m (which may wrap when there are more than 19: the caller counts them),
-// eight bytes at a time while eight can be read: a run of fewer than eight digits is shifted to
-// the top of its word, the bytes below filled with '0', and read the same way.
-inline const char* Digits(const char* p, const char* last, uint64_t* m) {
-  while (last - p >= 8) {
-    const uint64_t v = Load8(p);
-    const uint64_t non_digits = NonDigits(v);
-    if (non_digits == 0) {
-      *m = *m * 100000000ULL + EightDigitsValue(v);
-      p += 8;
-      continue;
-    }
-    const int n = __builtin_ctzll(non_digits) >> 3;  // leading digits, 0..7
-    if (n > 0) {
-      const uint64_t w = (v << (8 * (8 - n))) | (0x3030303030303030ULL >> (8 * n));
-      *m = *m * kPow10Int[n] + EightDigitsValue(w);
-    }
-    return p + n;
-  }
-  while (p < last && static_cast<unsigned>(*p - '0') < 10) {
-    *m = *m * 10 + static_cast<unsigned>(*p - '0');
-    ++p;
-  }
-  return p;
-}
-
-constexpr long double kPow10[] = {1e0L,  1e1L,  1e2L,  1e3L,  1e4L,  1e5L,  1e6L,
-                                  1e7L,  1e8L,  1e9L,  1e10L, 1e11L, 1e12L, 1e13L,
-                                  1e14L, 1e15L, 1e16L, 1e17L, 1e18L, 1e19L, 1e20L,
-                                  1e21L, 1e22L, 1e23L, 1e24L, 1e25L, 1e26L, 1e27L};
-
-}  // namespace
-
 const char* ParsePlainDecimal(const char* first, const char* last, double* out) {
-  const char* p = first;
-  bool negate = false;
-  if (p < last && (*p == '-' || *p == '+')) {
-    negate = *p == '-';
-    ++p;
-  }
-  uint64_t m = 0;
-  const char* int_begin = p;
-  p = Digits(p, last, &m);
-  const long int_digits = p - int_begin;
-  long frac_digits = 0;
-  if (int_digits == 0) return nullptr;
-  if (p < last && *p == '.') {
-    const char* frac_begin = ++p;
-    p = Digits(p, last, &m);
-    frac_digits = p - frac_begin;
-    if (frac_digits == 0) return nullptr;
-  }
-  if (int_digits + frac_digits > 18) return nullptr;  // m < 10^18 < 2^63, k <= 17
-  // Both operands exact; one correctly rounded division to 64 bits.
-  const long double q = static_cast<long double>(static_cast<int64_t>(m)) / kPow10[frac_digits];
-  uint64_t mantissa;
-  std::memcpy(&mantissa, &q, 8);
-  // Exactly halfway between two doubles (the 11 bits below the double's 53 are 100 0000 0000):
-  // the true quotient may lie on either side.
-  if ((mantissa & 0x7FF) == 0x400) return nullptr;
-  const double v = static_cast<double>(q);
-  *out = negate ? -v : v;
-  return p;
+  // from_chars (libstdc++ 12: the Eisel-Lemire algorithm of fast_float, correctly rounded) reads
+  // up to the first character that cannot continue the number; a leading '+', "inf" and "nan" are
+  // left to ParseNumber, so only a digit (after an optional '-') may start the number here.
+  const char* digit = first < last && *first == '-' ? first + 1 : first;
+  if (digit >= last || static_cast<unsigned>(*digit - '0') >= 10) return nullptr;
+  double v = 0;
+  const std::from_chars_result r = std::from_chars(first, last, v, std::chars_format::general);
+  if (r.ec != std::errc()) return nullptr;  // out of range: ParseNumber says which way
+  *out = v;
+  return r.ptr;
 }
-#else
-const char* ParsePlainDecimal(const char*, const char*, double*) { return nullptr; }
-#endif
 
 void AppendNumber(double v, std::string* out) {
   if (v == 0) v = 0;  // no "-0"

@@ -44,14 +44,12 @@ enum class NumberParse {
 // round to zero. `*out` is written only on kOk.
 NumberParse ParseNumber(std::string_view text, double* out);
 
-// The fast path of the CSV readers for the common spelling of a number, "[+-]digits[.digits]"
-// with at most 18 digits in all: parses it from `first` and returns the character after it, or
-// null when the text there is not such a number or its value cannot be rounded here with certainty
-// (the caller then takes ParseNumber). The value is ParseNumber's, bit for bit: the digits are an
-// exact integer m < 10^18 and the value m / 10^k is divided in x87 extended precision (64-bit
-// mantissa, itself exact for m and 10^k, k <= 27) and rounded to double, which is the correctly
-// rounded value unless the extended quotient lies exactly halfway between two doubles (then null).
-// Only where long double has a 64-bit mantissa (x86-64); null everywhere else.
+// The fast path of the CSV readers: the number that starts at `first` ("[-]digit...", with any
+// fraction and exponent std::from_chars reads), parsed up to where it ends, which is returned; null
+// when the text there does not start with a digit or '-' and a digit, or the value is out of range
+// (the caller then takes ParseNumber, which accepts '+', names non-finite spellings and tells
+// overflow from underflow). The value is ParseNumber's, bit for bit (both are std::from_chars,
+// correctly rounded: libstdc++ 12 implements it with fast_float's algorithm).
 const char* ParsePlainDecimal(const char* first, const char* last, double* out);
 
 // The shortest decimal text that reads back as exactly `v` (std::to_chars), with -0 written as 0.
