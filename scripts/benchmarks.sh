@@ -8,6 +8,10 @@
 #   scripts/benchmarks.sh              # everything (about 3-4 minutes on 2 cores)
 #   BUILD_DIR=/tmp/b scripts/benchmarks.sh
 #   NO_WRITE=1 scripts/benchmarks.sh   # print the table only (NO_README=1 is accepted too)
+#   BASELINE=v0.5.0 scripts/benchmarks.sh   # also: the end-to-end jobs before (that git ref, built
+#                                           # in a temporary worktree) and after (this tree), in turns
+#   BASELINE=v0.5.0 ONLY_BASELINE=1 scripts/benchmarks.sh   # the before/after table alone
+#   BASELINE_BUILD_DIR=DIR: the baseline's build directory (kept; reused when its tools exist)
 #
 # KDL (liborocos-kdl-dev) is a benchmark-only dependency: installed here if missing (apt-get, via
 # sudo when not root); the normal build never needs it.
@@ -34,6 +38,89 @@ cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=ON \
   -DLPOE_BUILD_BENCHMARKS=ON >/dev/null
 cmake --build "$BUILD" -j2 --target kinematics_benchmark solver_benchmark ik_benchmark \
   lpoe_calibrate lpoe_simulate lpoe_compensate >/dev/null
+
+# ---- Before and after: the end-to-end jobs users run, with BASELINE's tools and this tree's, in
+# turns (before, after, before, ...), best of REPEAT wall times each, so that both see the same
+# machine. Jobs: lpoe_calibrate on 10^6 rows (linear and Ceres), a 1000-pose --joint_errors=auto,
+# lpoe_compensate of 10^6 targets, lpoe_plan of 50 poses from 5,000 candidates, Python predict of
+# 10^6 configurations.
+baseline_compare() {
+  local ref="$1" repeat="${REPEAT:-3}"
+  local bdir="$WORK/baseline-src" bbuild="${BASELINE_BUILD_DIR:-$WORK/baseline-build}"
+  if [ -x "$bbuild/tools/lpoe_calibrate" ] && [ -n "${BASELINE_BUILD_DIR:-}" ]; then
+    echo "benchmarks: baseline tools from $bbuild (already built)" >&2
+  else
+    echo "benchmarks: building baseline $ref" >&2
+    git -C "$ROOT" worktree add -q --detach "$bdir" "$ref"
+    cmake -S "$bdir" -B "$bbuild" -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF >/dev/null
+    cmake --build "$bbuild" -j2 --target lpoe_calibrate lpoe_simulate lpoe_compensate lpoe_plan \
+      _lpoe >/dev/null
+    git -C "$ROOT" worktree remove --force "$bdir"
+  fi
+  cmake --build "$BUILD" -j2 --target lpoe_plan _lpoe >/dev/null
+  "$BUILD/tools/lpoe_simulate" --count=1000 --joint_errors=compliance,harmonics --noise_sigma=0.01 \
+    --output="$WORK/auto1000.csv" --model_out="$WORK/auto_nominal.yaml" >/dev/null
+  local py="$WORK/predict.py"
+  cat >"$py" <<'PY'
+import sys, time
+import numpy as np
+import lpoe
+model = lpoe.read_model(sys.argv[1])
+Q = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(1_000_000, 6))
+model.predict(Q)
+PY
+  # job label | command (with @B@ for the build directory)
+  local jobs=(
+    "calibrate 10^6 rows, linear|@B@/tools/lpoe_calibrate --measurements=$WORK/n1m.csv --output=$WORK/ba.yaml --plots_dir= --quiet"
+    "calibrate 10^6 rows, Ceres|@B@/tools/lpoe_calibrate --measurements=$WORK/n1m.csv --output=$WORK/ba.yaml --plots_dir= --solver=ceres --quiet"
+    "calibrate 1000 poses, --joint_errors=auto|@B@/tools/lpoe_calibrate --model=$WORK/auto_nominal.yaml --measurements=$WORK/auto1000.csv --joint_errors=auto --output=$WORK/ba.yaml --plots_dir= --quiet"
+    "compensate 10^6 targets|@B@/tools/lpoe_compensate --model=$ROOT/data/cobot6.yaml --targets=$WORK/t1m.csv --output=$WORK/ba.csv"
+    "plan 50 of 5,000 candidates|@B@/tools/lpoe_plan --model=$ROOT/data/cobot6.yaml --count=50 --candidate_count=5000 --output=$WORK/ba_plan.csv"
+    "Python predict 10^6 configurations|env PYTHONPATH=@B@/python /usr/bin/python3 $py $ROOT/data/cobot6.yaml"
+  )
+  : >"$WORK/baseline.txt"
+  local job label cmd side dir best t start
+  for job in "${jobs[@]}"; do
+    label="${job%%|*}"
+    cmd="${job#*|}"
+    echo "benchmarks: before/after: $label" >&2
+    declare -A bestof=([before]=0 [after]=0)
+    for ((r = 0; r < repeat; r++)); do
+      for side in before after; do
+        dir="$BUILD"
+        [ "$side" = before ] && dir="$bbuild"
+        rm -f "$WORK"/ba.* "$WORK"/ba_plan.*
+        start=$(date +%s%N)
+        (cd "$WORK" && eval "${cmd//@B@/$dir}") >/dev/null 2>"$WORK/ba.err" || {
+          echo "benchmarks: $side failed: $label" >&2; cat "$WORK/ba.err" >&2; exit 1; }
+        t=$(($(date +%s%N) - start))  # ns
+        if ((bestof[$side] == 0 || t < bestof[$side])); then bestof[$side]=$t; fi
+      done
+    done
+    echo "$label|${bestof[before]}|${bestof[after]}" >>"$WORK/baseline.txt"
+    unset bestof
+  done
+  python3 - "$WORK/baseline.txt" "$ref" "$repeat" >"$WORK/baseline.md" <<'PY'
+import sys
+rows = [line.rstrip("\n").split("|") for line in open(sys.argv[1])]
+print(f"Before ({sys.argv[2]}) and after (this tree), best wall time of {sys.argv[3]} runs each, "
+      "taken in turns in one run of the script:")
+print()
+print("| job | before | after | after / before |")
+print("|---|---|---|---|")
+for label, before, after in rows:
+    b, a = float(before) * 1e-9, float(after) * 1e-9
+    print(f"| {label} | {b:.2f} s | {a:.2f} s | {a / b:.2f} |")
+PY
+  cat "$WORK/baseline.md"
+}
+if [ -n "${BASELINE:-}" ] && [ -n "${ONLY_BASELINE:-}" ]; then
+  "$BUILD/tools/lpoe_simulate" --count=1000000 --noise_sigma=0.03 --output="$WORK/n1m.csv" >/dev/null
+  "$BUILD/tools/lpoe_simulate" --count=1000000 --errors=random --error_rotation=0.001 \
+    --error_translation=0.5 --error_tilt=0.001 --error_zero=0.002 --output="$WORK/t1m.csv" >/dev/null
+  baseline_compare "$BASELINE"
+  exit 0
+fi
 
 echo "benchmarks: kinematics (5 repetitions, medians)" >&2
 "$BUILD/benchmarks/kinematics_benchmark" --benchmark_repetitions=5 --benchmark_min_time=0.2 \
@@ -93,6 +180,8 @@ echo "benchmarks: lpoe_compensate end to end (10^6 targets)" >&2
   --targets="$WORK/t1m.csv" --output="$WORK/t1m_out.csv" --report="$WORK/compensate.json" \
   >/dev/null 2>"$WORK/compensate.time" || { cat "$WORK/compensate.time" >&2; exit 1; }
 sed -n 's/.*Elapsed (wall clock) time (h:mm:ss or m:ss): //p' "$WORK/compensate.time" >"$WORK/compensate.wall"
+
+if [ -n "${BASELINE:-}" ]; then baseline_compare "$BASELINE"; fi
 
 MODEL="$(lscpu | sed -n 's/^Model name: *//p' | head -1)"
 CORES="$(nproc)"
@@ -274,6 +363,7 @@ for label, rows, seconds, rss, cpu, flags in e2e:
     print(f"| {shown} | {rows:,} | {seconds:.2f} s | {cpu:.2f} s | {rss:.0f} MB |")
 EOF
 
+if [ -f "$WORK/baseline.md" ]; then printf '\n' >>"$WORK/table.md"; cat "$WORK/baseline.md" >>"$WORK/table.md"; fi
 cat "$WORK/table.md"
 if [ -n "${NO_WRITE:-}${NO_README:-}" ]; then exit 0; fi
 
