@@ -250,11 +250,9 @@ for line in open(f"{work}/e2e.txt"):
 e70 = e2e[0]
 by_label = {label: (rows, seconds, rss) for label, rows, seconds, rss, _, _ in e2e}
 
-load = open("/proc/loadavg").read().split()[0] if __import__("os").path.exists("/proc/loadavg") else "?"
 # One header line: the machine and the date, then how the figures were taken.
 print(f"Measured by `scripts/benchmarks.sh` on {model}, {cores} cores, {date} "
-      "(Release build, no -march; wall times, medians of 5 repetitions for the per-pose figures; "
-      f"load average {load} when the table was written).")
+      "(Release build, no -march; wall times, medians of 5 repetitions for the per-pose figures).")
 print()
 print("| target | measured | verdict |")
 print("|---|---|---|")
