@@ -45,7 +45,7 @@ MeasurementSet Measure(const RobotModel& actual, int rows, uint64_t seed) {
     for (double& v : q) v = angle(rng);
     const int tool = r % actual.num_tools();
     const Eigen::Vector3d P = ToolPosition(actual, q.data(), tool);
-    data.Add(q.data(), P + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)), tool, r + 2);
+    data.Add(q.data(), P + Eigen::Vector3d{noise(rng), noise(rng), noise(rng)}, tool, r + 2);
   }
   return data;
 }

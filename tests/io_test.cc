@@ -137,7 +137,7 @@ MeasurementSet SimulatedMeasurements(const RobotModel& model, int rows, bool pos
     const std::vector<double> q = RandomQ(model, &rng);
     const int tool = r % model.num_tools();
     SE3d X = ToolPose(model, q.data(), tool);
-    X.t += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    X.t += Eigen::Vector3d{noise(rng), noise(rng), noise(rng)};
     if (pose) {
       data.AddPose(q.data(), X, tool);
     } else {
@@ -269,7 +269,8 @@ TEST(Io, NumberFastPathIsCorrectlyRoundedOrDeclines) {
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   std::uniform_int_distribution<int> exponent(-8, 6);
   for (int k = 0; k < 50000; ++k) {
-    const double x = unit(rng) * std::pow(10.0, exponent(rng));
+    const double mantissa = unit(rng);  // drawn in this order on every compiler
+    const double x = mantissa * std::pow(10.0, exponent(rng));
     char buf[64];
     std::string texts[5];
     texts[0] = std::string(buf, std::to_chars(buf, buf + sizeof buf, x,

@@ -109,7 +109,7 @@ ReportData MakeReportData(int poses) {
     const double t = 0.21 * i;
     Eigen::Vector3d b(1.8 * std::sin(t) + 0.3 * noise(rng), -1.1 + 1.2 * std::cos(0.7 * t),
                       0.9 * std::sin(0.5 * t + 1.0) + 0.5);
-    Eigen::Vector3d a(0.04 * noise(rng), 0.04 * noise(rng), 0.05 * noise(rng));
+    Eigen::Vector3d a{0.04 * noise(rng), 0.04 * noise(rng), 0.05 * noise(rng)};
     d.before.push_back(b);
     d.after.push_back(a);
     d.before_norm.push_back(b.norm());

@@ -86,8 +86,8 @@ RobotModel OffAxisModel(uint64_t seed) {
   std::normal_distribution<double> normal;
   std::uniform_real_distribution<double> point(-150.0, 150.0);
   for (Joint& j : m.joints) {
-    const Eigen::Vector3d w = Eigen::Vector3d(normal(rng), normal(rng), normal(rng)).normalized();
-    const Eigen::Vector3d p(point(rng), point(rng), point(rng));
+    const Eigen::Vector3d w = Eigen::Vector3d{normal(rng), normal(rng), normal(rng)}.normalized();
+    const Eigen::Vector3d p{point(rng), point(rng), point(rng)};
     j.twist << w, p.cross(w);  // v = -w x p: rotation about the line through p
   }
   m.tools.push_back(
