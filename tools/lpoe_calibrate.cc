@@ -33,9 +33,6 @@
 #include "report.h"
 #include "tool_common.h"
 
-DEFINE_string(model, "",
-              "Nominal robot model: YAML, or URDF when the name ends in .urdf (metres converted to "
-              "mm, fixed joints folded in). Default: data/cobot6.yaml.");
 DEFINE_string(measurements, "",
               "Identification measurements (CSV: q1..qN,x,y,z[,target][,quat_x..quat_w]). "
               "Default: data/section4/identification.csv.");
@@ -56,7 +53,6 @@ DEFINE_int32(kfold, 0,
              "Also run k-fold cross-validation with this many folds (>= 2; 0 = off) on the "
              "identification set and report each fold's held-out errors.");
 DEFINE_uint64(split_seed, 1, "Seed of the --holdout and --kfold splits.");
-DEFINE_string(output, "", "Write the calibrated model here (YAML). Nothing is written on failure.");
 DEFINE_string(urdf_output, "",
               "Also write the calibrated model as URDF. When --model is a URDF: that same file with "
               "only the calibrated joint origins (and axes) changed, every name, limit, mesh, "
@@ -104,9 +100,6 @@ DEFINE_string(parameterization, "identifiable",
 DEFINE_string(data_kind, "auto",
               "position | pose | auto: pose-based calibration (paper eqs. 17-24) uses the measured "
               "orientations; auto picks pose when the CSV has quat_* columns.");
-DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in the CSV files: rad | deg.");
-DEFINE_string(length_unit, "mm",
-              "Unit of x, y, z (and prismatic joint values) in the CSV files: mm | m.");
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first when the measurements are not in "
             "its base frame (a rigid fit that moves the base by more than 50 mm or 0.05 rad): "
@@ -127,9 +120,14 @@ DEFINE_double(noise_sigma, 0.03,
 DEFINE_bool(force, false,
             "Write the outputs even when the plausibility verdict fails; the exit code is still 8, "
             "so that a script can tell a forced result.");
-DEFINE_bool(quiet, false, "No progress display on stderr.");
 DEFINE_double(max_condition, 1e8,
               "Refuse data whose column-scaled Jacobian has a larger condition number.");
+// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
+DECLARE_string(model);
+DECLARE_string(angle_unit);
+DECLARE_string(length_unit);
+DECLARE_bool(quiet);
+DECLARE_string(output);
 
 namespace lpoe {
 namespace {

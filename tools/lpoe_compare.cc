@@ -25,9 +25,6 @@
 #include "report.h"
 #include "tool_common.h"
 
-DEFINE_string(model, "",
-              "Nominal robot model: YAML, or URDF when the name ends in .urdf. Default: "
-              "data/cobot6.yaml.");
 DEFINE_string(measurements, "",
               "Identification measurements (CSV). Default: data/section4/identification.csv.");
 DEFINE_string(verify, "",
@@ -40,9 +37,6 @@ DEFINE_string(split, "random",
               "last rows of the file are held out).");
 DEFINE_uint64(split_seed, 1, "Seed of the --holdout split.");
 DEFINE_string(parameterization, "identifiable", "identifiable | full (see lpoe_calibrate).");
-DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in the CSV files: rad | deg.");
-DEFINE_string(length_unit, "mm",
-              "Unit of x, y, z (and prismatic joint values) in the CSV files: mm | m.");
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first (as lpoe_calibrate); both solvers "
             "start from the registered model.");
@@ -56,7 +50,12 @@ DEFINE_double(noise_sigma, 0.03,
               "Expected tracker noise per axis (mm) for the plausibility verdict (see "
               "lpoe_calibrate).");
 DEFINE_bool(force, false, "Compare even when a calibration fails the plausibility verdict.");
-DEFINE_bool(quiet, false, "No progress display on stderr.");
+// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
+DECLARE_string(model);
+DECLARE_string(angle_unit);
+DECLARE_string(length_unit);
+DECLARE_bool(quiet);
+DECLARE_string(output);
 
 namespace lpoe {
 namespace {

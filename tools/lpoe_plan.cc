@@ -29,12 +29,9 @@
 #include "output_files.h"
 #include "tool_common.h"
 
-DEFINE_string(model, "", "Nominal robot model, YAML or URDF (.urdf). Required.");
 DEFINE_string(count, "",
               "Number of poses to plan, or 'auto': the smallest plan predicted to reach "
               "--target_accuracy with --noise_sigma. Required.");
-DEFINE_string(output, "", "The plan, CSV (q1..qN; with --candidates the chosen rows of that file "
-                          "plus a candidate_row column). Required.");
 DEFINE_string(report, "", "JSON report (default: --output with its extension replaced by .json).");
 DEFINE_string(candidates, "",
               "Candidate configurations, CSV with q1..qN (other columns are kept): choose rows of "
@@ -44,7 +41,6 @@ DEFINE_string(workspace, "",
               "Configurations where the accuracy matters (CSV with q1..qN), for criterion I and "
               "the predicted accuracy. Default: --workspace_count samples within the joint limits.");
 DEFINE_int32(workspace_count, 1000, "Configurations sampled when no --workspace file is given.");
-DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in every CSV read or written: rad | deg.");
 DEFINE_uint64(seed, 1, "Seed of the sampled candidates, workspace and random comparison plans.");
 DEFINE_string(criterion, "D",
               "D (default: parameters) | A | E | I (average position variance over the workspace) "
@@ -90,6 +86,12 @@ DEFINE_string(joint_errors, "none",
               "subsets. The tilt's information is proportional to the compliance values, so "
               "'tilt' needs a --model that carries them (a calibrated model's YAML); with a "
               "nominal model it is refused (docs/planning.md).");
+// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
+DECLARE_string(model);
+DECLARE_string(angle_unit);
+DECLARE_string(length_unit);
+DECLARE_bool(quiet);
+DECLARE_string(output);
 
 namespace lpoe {
 namespace {

@@ -25,11 +25,8 @@
 #include "output_files.h"
 #include "tool_common.h"
 
-DEFINE_string(model, "", "Robot model: YAML, or URDF when the name ends in .urdf (required).");
 DEFINE_string(joints, "",
               "CSV of joint values: header with q1..qN, optional target column (required).");
-DEFINE_string(output, "", "CSV of predicted positions x,y,z in mm to write (required).");
-DEFINE_string(angle_unit, "rad", "Unit of the revolute joint values in --joints: rad | deg.");
 DEFINE_string(frame, "base",
               "Frame of the written positions: base (the robot's base frame, where programs live; "
               "from the calibrated model's recorded registration) | measurement (the frame the "
@@ -37,6 +34,12 @@ DEFINE_string(frame, "base",
               "calibrated in the base frame.");
 DEFINE_string(tool, "0",
               "Tool measured by rows without a target column: its name or 0-based index.");
+// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
+DECLARE_string(model);
+DECLARE_string(angle_unit);
+DECLARE_string(length_unit);
+DECLARE_bool(quiet);
+DECLARE_string(output);
 
 namespace lpoe {
 namespace {

@@ -28,9 +28,6 @@
 DEFINE_string(robot, "cobot6",
               "Built-in nominal robot: cobot6 (paper Table 1) | ur5 | arm7 | prismatic. Ignored "
               "when --model is given.");
-DEFINE_string(model, "",
-              "Nominal robot model to simulate instead of a built-in one: YAML, or URDF when the "
-              "name ends in .urdf. Joint values are drawn within the joints' limits.");
 DEFINE_string(errors, "table2",
               "Kinematic errors of the actual robot: table2 (paper Table 2, cobot6 only) | random "
               "| none.");
@@ -55,7 +52,6 @@ DEFINE_bool(all_tools, false,
             "Cycle the measured target through all tools of the model (with --joints: measure "
             "every tool at each configuration).");
 DEFINE_uint64(seed, 1, "Seed of the configurations and the noise.");
-DEFINE_string(angle_unit, "rad", "Unit of the revolute joint values written: rad | deg.");
 DEFINE_string(joint_errors, "none",
               "Non-geometric errors of the actual robot (docs/joint_errors.md): none | a "
               "comma-separated list of the registry's joint-space terms (compliance, harmonics, "
@@ -81,12 +77,17 @@ DEFINE_string(gravity_tilt_deg, "",
               "perpendicular to the nominal gravity that lpoe_calibrate --joint_errors=...,tilt "
               "reports (x and y of the base for gravity along -z), e.g. 0.3,0.1. Not with "
               "--gravity_tilt.");
-DEFINE_string(output, "", "Measurement CSV to write (required).");
 DEFINE_string(out, "", "Old name of --output (every other tool says --output); accepted with a "
                        "warning for one release.");
 DEFINE_string(verify_out, "", "Verification CSV (the last --verify_count rows).");
 DEFINE_string(model_out, "", "Write the nominal model here (YAML).");
 DEFINE_string(actual_out, "", "Write the actual (erroneous) robot here (YAML).");
+// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
+DECLARE_string(model);
+DECLARE_string(angle_unit);
+DECLARE_string(length_unit);
+DECLARE_bool(quiet);
+DECLARE_string(output);
 
 namespace lpoe {
 namespace {

@@ -214,6 +214,18 @@ const char* ParsePlainDecimal(const char* first, const char* last, double* out) 
 const char* ParsePlainDecimal(const char*, const char*, double*) { return nullptr; }
 #endif
 
+bool ParseNumberList(std::string_view text, char separator, std::vector<double>* values) {
+  values->clear();
+  while (true) {
+    const size_t end = text.find(separator);
+    double v = 0;
+    if (ParseNumber(Trim(text.substr(0, end)), &v) != NumberParse::kOk) return false;
+    values->push_back(v);
+    if (end == std::string_view::npos) return true;
+    text.remove_prefix(end + 1);
+  }
+}
+
 void AppendNumber(double v, std::string* out) {
   if (v == 0) v = 0;  // no "-0"
   char buf[32];

@@ -44,6 +44,12 @@ enum class NumberParse {
 // round to zero. `*out` is written only on kOk.
 NumberParse ParseNumber(std::string_view text, double* out);
 
+// The `separator`-separated numbers of a flag or option value ("2500,0,800", a box, a TCP offset),
+// each item trimmed and read by ParseNumber: false when an item is not a finite number (an empty
+// item included); `*values` then holds the items before it. The one reader of such lists (the
+// tools' --tracker, --box, --keep_out lines, --joint_ranges items, --tcp).
+bool ParseNumberList(std::string_view text, char separator, std::vector<double>* values);
+
 // The fast path of the CSV readers for the common spelling of a number, "[+-]digits[.digits]"
 // with at most 18 digits in all: parses it from `first` and returns the character after it, or
 // null when the text there is not such a number or its value cannot be rounded here with certainty
