@@ -15,7 +15,9 @@
 #include <thread>
 #include <vector>
 
+#include "lpoe/compensation.h"
 #include "lpoe/inverse_kinematics.h"
+#include "lpoe/options.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/csv_rules.h"
 #include "lpoe/joint_term.h"
@@ -142,72 +144,65 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
                           const py::object& seeds_obj, const py::object& orientations_obj,
                           const py::object& joints_obj, const py::object& nominal_obj,
                           const std::string& joints_target, const py::object& tool_obj,
-                          int threads, int max_iterations, int restarts,
-                          double position_tolerance, double orientation_tolerance,
-                          double singular_threshold) {
-  Check(InverseKinematics::CheckModel(model));
-  const int n = model.num_joints();
-  const bool joints_mode = !joints_obj.is_none();
-  if (joints_mode == !targets_obj.is_none()) {
+                          const std::string& frame, const py::object& tcp_obj, int threads,
+                          int max_iterations, int restarts, double position_tolerance,
+                          double orientation_tolerance, double singular_threshold) {
+  // The workflow of lpoe_compensate (lpoe/compensation.h): the same request, checks and solve.
+  CompensationRequest request;
+  request.model = model;
+  request.joints_mode = !joints_obj.is_none();
+  if (request.joints_mode == !targets_obj.is_none()) {
     throw LpoeError("compensate: give either targets= (with seeds=) or joints= (with nominal=)");
-  }
-  if (joints_mode && nominal_obj.is_none()) {
-    throw LpoeError("compensate: joints= needs nominal= (the model the program was planned with)");
   }
   if (joints_target != "pose" && joints_target != "position") {
     throw LpoeError("joints_target: expected 'pose' or 'position', got '" + joints_target + "'");
   }
-  if (threads < 0 || threads > 256 || max_iterations < 1 || max_iterations > 10000 ||
-      restarts < 0 || restarts > 100 || !(position_tolerance > 0) || !(orientation_tolerance > 0) ||
-      !(singular_threshold >= 0)) {
-    throw LpoeError("compensate: need 0 <= threads <= 256, 1 <= max_iterations <= 10000, "
-                    "0 <= restarts <= 100, positive tolerances, singular_threshold >= 0");
+  request.joints_target_pose = joints_target == "pose";
+  if (!ParseTargetFrame(frame, &request.frame)) {
+    throw LpoeError("frame: expected 'base' or 'measurement', got '" + frame + "'");
   }
-  const RobotModel* nominal = nullptr;
   if (!nominal_obj.is_none()) {
-    nominal = nominal_obj.cast<const RobotModel*>();
-    Check(nominal->Validate());
-    if (Status s = CheckNominalMatches(model, *nominal); !s.ok()) {
-      throw LpoeError("nominal: " + s.message());
-    }
+    request.has_nominal = true;
+    request.nominal = nominal_obj.cast<const RobotModel&>();
   }
-  // Tool of every row: one index or name for all rows, or an (M,) integer array.
-  RowArray seeds = (joints_mode ? joints_obj : seeds_obj).is_none()
-                       ? RowArray()
-                       : (joints_mode ? joints_obj : seeds_obj).cast<RowArray>();
+  if (py::isinstance<py::str>(tcp_obj)) {
+    request.tcp = tcp_obj.cast<std::string>();
+  } else if (!tcp_obj.is_none()) {
+    const RowArray t = tcp_obj.cast<RowArray>();
+    if (t.ndim() != 1 || (t.size() != 3 && t.size() != 6)) {
+      throw LpoeError("tcp: expected a tool name or [x, y, z] / [x, y, z, roll, pitch, yaw] (mm, "
+                      "rad), got shape " + ShapeText(t));
+    }
+    request.tcp_offset.assign(t.data(), t.data() + t.size());
+  }
+  const bool per_row_tool = !tool_obj.is_none() && !IsOneTool(tool_obj);
+  if (!tool_obj.is_none() && !per_row_tool) {
+    request.tool = py::isinstance<py::str>(tool_obj) ? tool_obj.cast<std::string>()
+                                                     : std::to_string(ToolIndexOf(model, py::int_(tool_obj)));
+  }
+  request.threads = threads;
+  request.ik.max_iterations = max_iterations;
+  request.ik.restarts = restarts;
+  request.ik.position_tolerance = position_tolerance;
+  request.ik.orientation_tolerance = orientation_tolerance;
+  request.ik.singular_threshold = singular_threshold;
+  std::unique_ptr<Compensator> compensator;
+  Check(Compensator::Create(request, &compensator));
+  const RobotModel& solved_model = compensator->model();
+  const int n = solved_model.num_joints();
+  const bool joints_mode = request.joints_mode;
   if (!joints_mode && seeds_obj.is_none()) {
     throw LpoeError("compensate: targets= needs seeds= (the program's joints, one row per target)");
   }
+  const RowArray seeds = (joints_mode ? joints_obj : seeds_obj).cast<RowArray>();
   const py::ssize_t m = RowsOf(seeds, n, joints_mode ? "joints" : "seeds");
   CheckFinite(seeds, joints_mode ? "joints" : "seeds", kMaxAbsCsvJointValue);
-  std::vector<int> tools(m, 0);
-  if (py::isinstance<py::array>(tool_obj) || py::isinstance<py::list>(tool_obj)) {
-    auto t = tool_obj.cast<py::array_t<int, py::array::c_style | py::array::forcecast>>();
-    if (t.ndim() != 1 || t.shape(0) != m) {
-      throw LpoeError("tool: expected one index per row, shape (" + std::to_string(m) + ",), got " +
-                      ShapeText(t));
-    }
-    for (py::ssize_t r = 0; r < m; ++r) tools[r] = t.at(r);
-  } else {
-    std::fill(tools.begin(), tools.end(), ToolIndexOf(model, tool_obj));
-  }
-  for (py::ssize_t r = 0; r < m; ++r) {
-    if (tools[r] < 0 || tools[r] >= model.num_tools()) {
-      throw LpoeError("tool: row " + std::to_string(r) + ": index " + std::to_string(tools[r]) +
-                      " out of range [0, " + std::to_string(model.num_tools()) + ")");
-    }
-  }
+  // The tool of every row: the request's (tool=, tcp=), or one name or index per row.
+  std::vector<int> tools(m, compensator->default_tool());
+  if (per_row_tool) tools = ToolsPerRow(solved_model, tool_obj, m, "tool");
   std::vector<IkTarget> targets(m);
-  if (joints_mode) {
-    const KinematicChain nominal_chain(*nominal);
-    for (py::ssize_t r = 0; r < m; ++r) {
-      const SE3d T = model.T_measurement_base * nominal_chain.Pose(seeds.data() + r * n, tools[r]);
-      targets[r].tool = tools[r];
-      targets[r].position = T.t;
-      targets[r].rotation = T.R;
-      targets[r].has_orientation = joints_target == "pose";
-    }
-  } else {
+  for (py::ssize_t r = 0; r < m; ++r) targets[r].tool = tools[r];
+  if (!joints_mode) {
     const RowArray p = targets_obj.cast<RowArray>();
     if (RowsOf(p, 3, "targets") != m) {
       throw LpoeError("targets: " + std::to_string(p.ndim() == 1 ? 1 : p.shape(0)) +
@@ -223,7 +218,6 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
       }
     }
     for (py::ssize_t r = 0; r < m; ++r) {
-      targets[r].tool = tools[r];
       targets[r].position = Eigen::Vector3d(p.data()[3 * r], p.data()[3 * r + 1], p.data()[3 * r + 2]);
       if (quat.size() > 0) {
         const double* v = quat.data() + 4 * r;
@@ -236,54 +230,38 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
       }
     }
   }
-
-  IkOptions options;
-  options.max_iterations = max_iterations;
-  options.restarts = restarts;
-  options.position_tolerance = position_tolerance;
-  options.orientation_tolerance = orientation_tolerance;
-  options.singular_threshold = singular_threshold;
-  std::vector<double> solved(static_cast<size_t>(m) * n);
-  std::vector<IkResult> results(m);
+  bool any_orientation = false;
+  for (const IkTarget& t : targets) any_orientation |= t.has_orientation;
+  any_orientation |= joints_mode && request.joints_target_pose;
+  CompensatedRows solved;
+  CompensationSummary summary;
   {
     py::gil_scoped_release release;
-    const InverseKinematics ik(model, options);
-    int workers = threads > 0 ? threads
-                              : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-    workers = std::max(1, std::min<int>(workers, static_cast<int>(m / 1000 + 1)));
-    auto work = [&](int t) {
-      for (py::ssize_t k = t; k < m; k += workers) {
-        results[k] = ik.Solve(targets[k], seeds.data() + k * n, &solved[size_t(k) * n]);
-      }
-    };
-    std::vector<std::thread> pool;
-    for (int t = 1; t < workers; ++t) pool.emplace_back(work, t);
-    work(0);
-    for (std::thread& th : pool) th.join();
+    compensator->Solve(seeds.data(), &targets, &solved);
+    summary.Add(solved);
   }
+  // Targets in another frame: refused as lpoe_compensate refuses them.
+  Check(summary.CheckFrame(request, "targets"));
   PyCompensation c;
   c.q = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
-      solved.data(), m, n);
+      solved.q.data(), m, n);
   c.position_error.resize(m);
   c.orientation_error.resize(m);
   c.sigma_min.resize(m);
   c.correction.resize(m);
-  bool any_orientation = false;
-  for (const IkTarget& t : targets) any_orientation |= t.has_orientation;
-  if (nominal != nullptr) {
+  if (request.has_nominal) {
     c.corrected.resize(m, 3);
     if (any_orientation) c.corrected_quaternions.setConstant(m, 4, NAN);
   }
-  const KinematicChain nominal_chain(nominal != nullptr ? *nominal : model);
   for (py::ssize_t k = 0; k < m; ++k) {
-    const IkResult& r = results[k];
+    const IkResult& r = solved.results[k];
     c.status.push_back(IkStatusName(r.status));
     c.position_error(k) = r.position_error;
     c.orientation_error(k) = r.orientation_error;
     c.sigma_min(k) = r.sigma_min;
     c.correction(k) = r.correction;
-    if (nominal != nullptr) {
-      const SE3d T = nominal_chain.Pose(&solved[size_t(k) * n], targets[k].tool);
+    if (request.has_nominal) {
+      const SE3d& T = solved.corrected[k];
       c.corrected.row(k) = T.t.transpose();
       if (targets[k].has_orientation) {
         c.corrected_quaternions.row(k) = RotationToQuaternion<double>(T.R).transpose();
@@ -479,6 +457,7 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
 }  // namespace
 
 void BindAnalysis(py::module_& m) {
+  const char* kCompensate = "lpoe_compensate";
   py::class_<PyNormalEquations>(
       m, "NormalEquations",
       "Normal equations of the calibration at the problem's current values: H = J^T W J, "
@@ -647,16 +626,29 @@ void BindAnalysis(py::module_& m) {
   m.def("compensate", &Compensate, py::arg("model"), py::arg("targets") = py::none(),
         py::kw_only(), py::arg("seeds") = py::none(), py::arg("orientations") = py::none(),
         py::arg("joints") = py::none(), py::arg("nominal") = py::none(),
-        py::arg("joints_target") = "pose", py::arg("tool") = 0, py::arg("threads") = 0,
-        py::arg("max_iterations") = 100, py::arg("restarts") = 8,
-        py::arg("position_tolerance") = 1e-7, py::arg("orientation_tolerance") = 1e-10,
-        py::arg("singular_threshold") = 1e-3,
-        "the joints that make the calibrated `model` reach its targets (as lpoe_compensate):\n"
-        "  targets mode: targets (M, 3) mm in the model's frame, seeds (M, N) the program's "
-        "joints, optional orientations (M, 4) [x, y, z, w] for pose targets;\n"
+        py::arg("joints_target") = "pose", py::arg("tool") = py::none(),
+        py::arg("frame") = "base", py::arg("tcp") = py::none(),
+        py::arg("threads") = static_cast<int>(OptionDefault(kCompensate, "threads")),
+        py::arg("max_iterations") = static_cast<int>(OptionDefault(kCompensate, "max_iterations")),
+        py::arg("restarts") = static_cast<int>(OptionDefault(kCompensate, "restarts")),
+        py::arg("position_tolerance") = OptionDefault(kCompensate, "position_tolerance"),
+        py::arg("orientation_tolerance") = OptionDefault(kCompensate, "orientation_tolerance"),
+        py::arg("singular_threshold") = OptionDefault(kCompensate, "singular_threshold"),
+        "the joints that make the calibrated `model` reach its targets (as lpoe_compensate, "
+        "through the same library workflow, lpoe/compensation.h):\n"
+        "  targets mode: targets (M, 3) mm in `frame` ('base': the robot's base frame, carried "
+        "into the calibrated model's frame by its recorded registration, as the tool's default; "
+        "'measurement': the tracker's frame), seeds (M, N) the program's joints, optional "
+        "orientations (M, 4) [x, y, z, w] for pose targets;\n"
         "  joints mode: joints (M, N) a program planned with `nominal`: reach the nominal tool "
         "pose (joints_target='pose') or position there.\n"
-        "With nominal=, also the corrected targets for a controller using nominal kinematics.");
+        "tool: a tool name or index for every row, or one per row (a list or array of names or "
+        "indices); tcp: a TCP that was not measured, a tool name or [x, y, z(, roll, pitch, yaw)] "
+        "in mm and rad in the last joint's frame (as --tcp), for rows without a tool of their own.\n"
+        "The IK options' defaults and ranges are lpoe_compensate's (lpoe/options.h).\n"
+        "With nominal=, also the corrected targets for a controller using nominal kinematics. "
+        "Targets mostly metres from anything the robot reaches raise lpoe.Error naming the frame "
+        "assumed.");
 
   py::class_<PyPlan>(m, "Plan", "The result of lpoe.plan.")
       .def_readonly("q", &PyPlan::q, "(count, N) the planned configurations")

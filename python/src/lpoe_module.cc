@@ -49,13 +49,13 @@ SE3d FromMatrix(const Eigen::Matrix4d& M) {
 py::array_t<double> Predict(const RobotModel& model, const RowArray& q, const py::object& tool) {
   const int n = model.num_joints();
   const py::ssize_t m = Rows(q, n, "joint values");
-  const int t = ToolIndex(model, tool);
+  const std::vector<int> tools = ToolsPerRow(model, tool, m, "tool");
   py::array_t<double> out({m, static_cast<py::ssize_t>(3)});
   const double* in = q.data();
   double* o = out.mutable_data();
   {
     py::gil_scoped_release release;
-    PredictPositionsInto(model, in, m, t, o);
+    PredictPositionsInto(model, in, m, tools.data(), o);
   }
   return out;
 }
@@ -158,7 +158,8 @@ PYBIND11_MODULE(_lpoe, m) {
       .def("to_yaml", &RobotModelToYaml, "the model as YAML text (as lpoe_calibrate writes it)")
       .def("predict", &Predict, py::arg("q"), py::arg("tool") = 0,
            "tool position (M, 3) in mm at joint values q (M, N), with every error term the model "
-           "carries")
+           "carries; tool: a name or index for every row, or one per row (a list or array of "
+           "names or indices, e.g. Measurements.targets)")
       .def(
           "pose",
           [](const RobotModel& r, const RowArray& q, const py::object& tool) {
