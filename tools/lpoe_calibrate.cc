@@ -90,8 +90,9 @@ DEFINE_double(loss_scale, 1.0,
               "Ceres solver: scale of the robust loss in mm (errors above it are down-weighted).");
 DEFINE_double(sigma, 1.0,
               "Ceres solver: measurement noise per axis in mm (residual whitening; sets the scale "
-              "of the covariance). Not given: the covariance is scaled by the noise estimated "
-              "from the residuals, as with the linear solver.");
+              "of the covariance), in [1e-6, 1e3]. Default (not given): estimated, the covariance "
+              "scaled by the noise estimated from the residuals as with the linear solver (the "
+              "default value 1 printed below is then only the whitening unit).");
 DEFINE_int32(threads, 0, "Ceres solver: threads (0: all hardware threads; at most 256).");
 DEFINE_string(parameterization, "identifiable",
               "identifiable: only the directions the data can see (27 for a 6R arm with position "
@@ -146,6 +147,8 @@ constexpr char kUsage[] =
     "Units: mm and rad (joint values may be given in degrees with --angle_unit=deg). The\n"
     "measurements may be in any rigid frame (e.g. the tracker's): the calibrated model is\n"
     "expressed in the measurement frame.\n"
+    "--model: the nominal model (default: the shipped cobot6); --output: the calibrated model "
+    "(YAML; nothing is written on failure).\n"
     "Exit codes: 0 converged, 1 bad flags, 2 bad input file, 3 data cannot identify the model,\n"
     "4 iteration limit reached, 5 numerical failure, 6 output not written, 8 the result is not\n"
     "plausible (residual, scale, units or parameter changes; see the verdict; --force writes it).";

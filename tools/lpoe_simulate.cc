@@ -23,6 +23,7 @@
 #include "lpoe/simulation.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
+#include "parse_util.h"
 #include "tool_common.h"
 
 DEFINE_string(robot, "cobot6",
@@ -100,23 +101,19 @@ constexpr char kUsage[] =
     "  lpoe_simulate --model=nominal.yaml --errors=random --joints=poses.csv --all_tools \\\n"
     "      --noise_sigma=0.02 --output=planned.csv                # at the poses of a plan\n"
     "  lpoe_simulate --joint_errors=compliance,harmonics --errors=random --count=300 \\\n"
-    "      --noise_sigma=0.01 --output=arm.csv --actual_out=actual.yaml   # a small arm that deflects";
+    "      --noise_sigma=0.01 --output=arm.csv --actual_out=actual.yaml   # a small arm that deflects\n\n"
+    "--model: the nominal model to simulate (default: the built-in --robot); --output: the "
+    "measurement CSV.\n\n"
+    "Exit codes: 0 written, 1 bad flags or outputs (one names an input or another output, or its "
+    "directory is missing or not writable: checked before any work), 2 bad input file, 5 a "
+    "non-finite model would be written, 6 an output could not be written (then none is).";
 
 constexpr double kDegreesPerRadian = 180.0 / 3.14159265358979323846;
 constexpr double kRadiansPerArcsec = 1.0 / 206264.80624709636;
 
-// A comma-separated list of finite numbers.
+// A comma-separated list of finite numbers (the one reader of such lists, parse_util.h).
 bool ParseNumberList(const std::string& text, std::vector<double>* out) {
-  out->clear();
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    char* end = nullptr;
-    const double v = std::strtod(item.c_str(), &end);
-    if (item.empty() || *end != '\0' || !std::isfinite(v)) return false;
-    out->push_back(v);
-  }
-  return !out->empty() && text.back() != ',';
+  return internal::ParseNumberList(text, ',', out);
 }
 
 int Run() {
@@ -176,10 +173,12 @@ int Run() {
     return kExitUsage;
   }
   AngleUnit unit;
-  if (!tools::ParseAngleUnit(FLAGS_angle_unit, &unit)) {
-    std::cerr << "error: --angle_unit must be rad or deg\n";
+  LengthUnit length_unit;
+  if (Status s = tools::ParseUnitFlags(&unit, &length_unit); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
+  const double mm_per_unit = tools::MillimetresPer(length_unit);
 
   RobotModel nominal;
   UrdfOptions urdf_options;
@@ -296,6 +295,7 @@ int Run() {
       return kExitInput;
     }
     options.configurations = table.q;
+    tools::ScalePrismaticJoints(nominal, length_unit, &options.configurations);
     const int rows = table.rows() * (FLAGS_all_tools ? nominal.num_tools() : 1);
     if (FLAGS_verify_count >= rows) {
       std::cerr << "error: --verify_count must be below the " << rows << " rows of --joints\n";
@@ -308,6 +308,14 @@ int Run() {
   options.seed = FLAGS_seed;
   options.all_tools = FLAGS_all_tools;
   MeasurementSet data = SimulateMeasurements(actual, errors.joint_zero, options);
+  if (length_unit != LengthUnit::kMillimetres) {  // --length_unit: positions and prismatic joints
+    for (int r = 0; r < data.size(); ++r) {
+      data.mutable_position(r) /= mm_per_unit;
+      for (int i = 0; i < nominal.num_joints(); ++i) {
+        if (nominal.joints[i].type == JointType::kPrismatic) data.mutable_q(r)[i] /= mm_per_unit;
+      }
+    }
+  }
   if (unit == AngleUnit::kDegrees) {
     for (int r = 0; r < data.size(); ++r) {
       for (int i = 0; i < nominal.num_joints(); ++i) {
@@ -319,7 +327,8 @@ int Run() {
   std::ostringstream comment;
   comment << "lpoe_simulate: robot " << nominal.name << ", errors " << FLAGS_errors
           << ", joint errors " << FLAGS_joint_errors << ", noise sigma " << FLAGS_noise_sigma << " mm, seed " << FLAGS_seed << ", joint values in "
-          << FLAGS_angle_unit;
+          << FLAGS_angle_unit
+          << (length_unit == LengthUnit::kMillimetres ? "" : ", lengths in " + FLAGS_length_unit);
   MeasurementSet identification, verification;
   data.SplitAt(data.size() - FLAGS_verify_count, &identification, &verification);
 
@@ -356,7 +365,9 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;
   }
-  for (const std::string& w : written) std::cout << "wrote " << w << "\n";
+  if (!FLAGS_quiet) {
+    for (const std::string& w : written) std::cout << "wrote " << w << "\n";
+  }
   return kExitOk;
 }
 
