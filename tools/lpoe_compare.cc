@@ -122,13 +122,7 @@ int Run() {
   const AngleUnit unit = settings.angle_unit;
   const CsvOptions& csv = settings.csv;
   const ParameterizationKind kind = settings.parameterization;
-  for (Status s : {tools::CheckRange("tolerance_mm", FLAGS_tolerance_mm, 0.0, 1000.0),
-                   tools::CheckRange("noise_sigma", FLAGS_noise_sigma, 1e-6, 100.0)}) {
-    if (!s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitUsage;
-    }
-  }
+  // --tolerance_mm and --noise_sigma: their ranges (lpoe/options.h) were checked by InitTool.
 
   tools::OutputSet outputs;
   outputs.AddInput("--model", model_path);

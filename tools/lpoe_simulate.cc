@@ -148,18 +148,7 @@ int Run() {
     std::cerr << "error: --verify_count needs --verify_out\n";
     return kExitUsage;
   }
-  for (Status s : {tools::CheckRange("noise_sigma", FLAGS_noise_sigma, 0.0, 1e4),
-                   tools::CheckRange("orientation_noise_sigma", FLAGS_orientation_noise_sigma, 0.0,
-                                     1.0),
-                   tools::CheckRange("error_rotation", FLAGS_error_rotation, 0.0, 1.0),
-                   tools::CheckRange("error_translation", FLAGS_error_translation, 0.0, 1e3),
-                   tools::CheckRange("error_tilt", FLAGS_error_tilt, 0.0, 1.0),
-                   tools::CheckRange("error_zero", FLAGS_error_zero, 0.0, 1e3)}) {
-    if (!s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitUsage;
-    }
-  }
+  // The error and noise bounds: their ranges (lpoe/options.h) were checked by InitTool.
   // No output may overwrite the model or another output (by file identity).
   tools::OutputSet files;
   files.AddInput("--model", FLAGS_model);

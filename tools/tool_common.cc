@@ -29,12 +29,9 @@ namespace tools {
 
 namespace {
 
-// A flag's default as written: the option table's text, else a double in its shortest form
-// (0.03, not gflags' 0.029999999999999999).
-std::string DefaultText(const gflags::CommandLineFlagInfo& f, const std::string& tool) {
-  if (const OptionSpec* spec = FindOption(tool, f.name); spec != nullptr) {
-    return f.type == "string" ? "\"" + std::string(spec->default_text) + "\"" : spec->default_text;
-  }
+// A flag's default as written: a double in its shortest form (0.03, not gflags'
+// 0.029999999999999999), a string in quotes.
+std::string DefaultText(const gflags::CommandLineFlagInfo& f) {
   if (f.type == "string") return "\"" + f.default_value + "\"";
   if (f.type == "double") {
     double v = 0;
@@ -69,7 +66,7 @@ void InitTool(const char* usage, int* argc, char*** argv) {
         const OptionSpec* spec = FindOption(name, f.name);
         const std::string range = spec != nullptr ? OptionRangeText(*spec) : "";
         std::cout << "  --" << f.name << " (" << f.description << ")\n      type: " << f.type
-                  << "  default: " << DefaultText(f, name)
+                  << "  default: " << DefaultText(f)
                   << (range.empty() ? "" : "  range: " + range) << "\n";
       }
     }
@@ -82,7 +79,12 @@ void InitTool(const char* usage, int* argc, char*** argv) {
     gflags::CommandLineFlagInfo info;
     if (!gflags::GetCommandLineFlagInfo(spec.name, &info)) continue;
     double v = 0;
-    if (internal::ParseNumber(info.current_value, &v) != internal::NumberParse::kOk) continue;
+    const internal::NumberParse parsed = internal::ParseNumber(info.current_value, &v);
+    if (parsed == internal::NumberParse::kNonFinite) {
+      v = std::strtod(info.current_value.c_str(), nullptr);  // inf or nan: out of every range
+    } else if (parsed != internal::NumberParse::kOk) {
+      continue;  // gflags parsed it: not a number it would accept
+    }
     if (Status s = CheckOption(name, spec.name, v); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       std::exit(kExitUsage);

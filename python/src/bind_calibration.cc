@@ -11,6 +11,7 @@
 
 #include "lpoe/analysis.h"
 #include "lpoe/io.h"
+#include "lpoe/options.h"
 #include "lpoe/pipeline.h"
 #include "python_api.h"
 #include "report.h"
@@ -97,6 +98,19 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   const int threads = k.Get<int>("threads", 0);
   const std::string angle_unit = k.Get<std::string>("angle_unit", "rad");
   k.Finish("calibrate");
+  // The ranges lpoe_calibrate's flags have (lpoe/options.h), with the same messages.
+  for (const auto& [name, value] :
+       std::vector<std::pair<const char*, double>>{{"max_iterations", max_iterations},
+                                                   {"step_tolerance", step_tolerance},
+                                                   {"sd_fraction", sd_fraction},
+                                                   {"max_condition", max_condition},
+                                                   {"outlier_threshold", outlier_threshold},
+                                                   {"sigma", sigma},
+                                                   {"loss_scale", loss_scale},
+                                                   {"threads", threads},
+                                                   {"noise_sigma", noise_sigma}}) {
+    if (Status s = CheckOption("lpoe_calibrate", name, value); !s.ok()) throw LpoeError(s.message());
+  }
 
   if (Status s = nominal.Validate(); !s.ok()) throw LpoeError(s.message());
   if (given_data.num_joints() != nominal.num_joints() ||

@@ -36,6 +36,9 @@ OptionSpec Number(const char* scope, const char* name, const char* default_text,
 std::vector<OptionSpec> MakeOptions() {
   const char* kCompensate = "lpoe_compensate";
   const char* kPlan = "lpoe_plan";
+  const char* kCalibrate = "lpoe_calibrate";
+  const char* kCompare = "lpoe_compare";
+  const char* kSimulate = "lpoe_simulate";
   return {
       // ---- Every tool: the model, its chain, the units of the files, quiet, the main output.
       Text("", "model", "",
@@ -61,6 +64,26 @@ std::vector<OptionSpec> MakeOptions() {
       Text("", "output", "",
            "The tool's main output file (what it holds: see the usage above). Checked before any "
            "work, written atomically, never over an input."),
+      // ---- lpoe_calibrate (and lpoe.calibrate): the ranges; the help is the flags'.
+      Number(kCalibrate, "max_iterations", "30", 1, 10000, "Iteration limit."),
+      Number(kCalibrate, "step_tolerance", "1e-10", 1e-300, 1e-3, "", true),
+      Number(kCalibrate, "sd_fraction", "0.01", 0, 0.5, ""),
+      Number(kCalibrate, "max_condition", "1e8", 10, 1e16, ""),
+      Number(kCalibrate, "outlier_threshold", "5", 1, 1e6, ""),
+      Number(kCalibrate, "sigma", "1", 1e-6, 1e3, ""),
+      Number(kCalibrate, "loss_scale", "1", 1e-6, 1e4, ""),
+      Number(kCalibrate, "threads", "0", 0, 256, ""),
+      Number(kCalibrate, "noise_sigma", "0.03", 1e-6, 100, ""),
+      // ---- lpoe_compare.
+      Number(kCompare, "tolerance_mm", "1e-6", 0, 1000, ""),
+      Number(kCompare, "noise_sigma", "0.03", 1e-6, 100, ""),
+      // ---- lpoe_simulate.
+      Number(kSimulate, "noise_sigma", "0", 0, 1e4, ""),
+      Number(kSimulate, "orientation_noise_sigma", "0", 0, 1, ""),
+      Number(kSimulate, "error_rotation", "0.005", 0, 1, ""),
+      Number(kSimulate, "error_translation", "3", 0, 1e3, ""),
+      Number(kSimulate, "error_tilt", "0.03", 0, 1, ""),
+      Number(kSimulate, "error_zero", "0.03", 0, 1e3, ""),
       // ---- lpoe_compensate.
       Number(kCompensate, "threads", "0", 0, 256,
              "Worker threads (0: all cores; the output order is the input's)."),
