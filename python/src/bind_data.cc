@@ -118,8 +118,9 @@ int ToolIndexOf(const RobotModel& model, const py::object& tool) {
 }
 
 bool IsOneTool(const py::object& tool) {
-  return py::isinstance<py::str>(tool) || PyIndex_Check(tool.ptr()) ||
-         (py::isinstance<py::array>(tool) && tool.cast<py::array>().ndim() == 0);
+  // An array is one tool only without dimensions (numpy arrays have __index__ when of size 1).
+  if (py::isinstance<py::array>(tool)) return tool.cast<py::array>().ndim() == 0;
+  return py::isinstance<py::str>(tool) || PyIndex_Check(tool.ptr());
 }
 
 std::vector<int> ToolsPerRow(const RobotModel& model, const py::object& tool, long rows,

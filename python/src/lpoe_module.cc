@@ -11,6 +11,7 @@
 #include <pybind11/stl.h>
 
 #include <cmath>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -179,7 +180,17 @@ PYBIND11_MODULE(_lpoe, m) {
   m.def(
       "read_model",
       [](const std::string& path, const std::string& base_link, const std::string& tip_link,
-         const std::vector<std::string>& tool_links) {
+         const py::object& tool_links_obj) {
+        // tool_links: a list of link names, or one string separated by commas as the flag.
+        std::vector<std::string> tool_links;
+        if (py::isinstance<py::str>(tool_links_obj)) {
+          std::stringstream ss(tool_links_obj.cast<std::string>());
+          for (std::string name; std::getline(ss, name, ',');) {
+            if (!name.empty()) tool_links.push_back(name);
+          }
+        } else if (!tool_links_obj.is_none()) {
+          tool_links = tool_links_obj.cast<std::vector<std::string>>();
+        }
         RobotModel model;
         const bool urdf = IsUrdfPath(path);
         if (!urdf && (!base_link.empty() || !tip_link.empty() || !tool_links.empty())) {
@@ -198,11 +209,12 @@ PYBIND11_MODULE(_lpoe, m) {
         return model;
       },
       py::arg("path"), py::kw_only(), py::arg("base_link") = "", py::arg("tip_link") = "",
-      py::arg("tool_links") = std::vector<std::string>(),
+      py::arg("tool_links") = py::none(),
       "reads a robot model: YAML, or URDF when the name ends in .urdf, with the chain from "
       "base_link (default: the root link) to tip_link and the measured tools tool_links (links fixed "
-      "to the last moving link; default: the tip), as lpoe_calibrate's --base_link, --tip_link and "
-      "--tool_links");
+      "to the last moving link, a list or a comma-separated string; default: the tip), as every "
+      "tool's --model, --base_link, --tip_link and --tool_links (the same option table, "
+      "lpoe/options.h)");
   m.def(
       "write_model",
       [](const std::string& path, const RobotModel& model) { Check(WriteAnyRobotModel(path, model)); },
