@@ -293,7 +293,9 @@ int Run() {
       std::cerr << "error: " << s.message() << "\n";
       return tools::kExitOutput;
     }
-    for (const std::string& w : written) std::cout << "wrote " << w << "\n";
+    if (!FLAGS_quiet) {
+      for (const std::string& w : written) std::cout << "wrote " << w << "\n";
+    }
   }
   if (!(position_difference <= FLAGS_tolerance_mm)) {
     std::cout << "\nresult: DISAGREE: predicted positions differ by up to " << position_difference

@@ -531,7 +531,9 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;
   }
-  for (const std::string& path : written) std::cout << "wrote " << path << "\n";
+  if (!FLAGS_quiet) {
+    for (const std::string& path : written) std::cout << "wrote " << path << "\n";
+  }
   return kExitOk;
 }
 
