@@ -376,6 +376,7 @@ int Run() {
   summary.split = SplitKindName(settings.split);
   const bool from_urdf = in.from_urdf;
   const UrdfSource& urdf_source = in.urdf;  // the URDF --model, for the overlay write-back
+  if (from_urdf) summary.urdf_frames = tools::UrdfFrameElements(urdf_source, in.nominal);
   // The UR file needs a UR arm with z axes: checked on the nominal model before solving.
   if (!FLAGS_ur_kinematics_output.empty()) {
     std::string ur_yaml;
