@@ -3,7 +3,6 @@
 #include "lpoe/planning.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -12,7 +11,6 @@
 #include <random>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <utility>
 
 #include <Eigen/Cholesky>

@@ -12,7 +12,6 @@
 #include <random>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <utility>
 
 #include <Eigen/Cholesky>
