@@ -59,6 +59,18 @@ std::vector<std::string_view> SplitFields(std::string_view line) {
   }
 }
 
+bool ParseNumberList(std::string_view text, char separator, std::vector<double>* values) {
+  values->clear();
+  while (true) {
+    const size_t end = text.find(separator);
+    double v = 0;
+    if (ParseNumber(Trim(text.substr(0, end)), &v) != NumberParse::kOk) return false;
+    values->push_back(v);
+    if (end == std::string_view::npos) return true;
+    text.remove_prefix(end + 1);
+  }
+}
+
 namespace {
 
 char Lower(char c) { return c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c; }
@@ -213,18 +225,6 @@ const char* ParsePlainDecimal(const char* first, const char* last, double* out) 
 #else
 const char* ParsePlainDecimal(const char*, const char*, double*) { return nullptr; }
 #endif
-
-bool ParseNumberList(std::string_view text, char separator, std::vector<double>* values) {
-  values->clear();
-  while (true) {
-    const size_t end = text.find(separator);
-    double v = 0;
-    if (ParseNumber(Trim(text.substr(0, end)), &v) != NumberParse::kOk) return false;
-    values->push_back(v);
-    if (end == std::string_view::npos) return true;
-    text.remove_prefix(end + 1);
-  }
-}
 
 void AppendNumber(double v, std::string* out) {
   if (v == 0) v = 0;  // no "-0"
