@@ -50,7 +50,6 @@ enum class NumberParse {
 // round to zero. `*out` is written only on kOk.
 NumberParse ParseNumber(std::string_view text, double* out);
 
-
 // The fast path of the CSV readers for the common spelling of a number, "[+-]digits[.digits]"
 // with at most 18 digits in all: parses it from `first` and returns the character after it, or
 // null when the text there is not such a number or its value cannot be rounded here with certainty
