@@ -9,6 +9,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -16,6 +17,7 @@
 
 #include "file_util.h"
 #include "lpoe/io.h"
+#include "lpoe/options.h"
 #include "lpoe/robot_model.h"
 
 namespace lpoe {
@@ -208,6 +210,39 @@ TEST_F(SharedOptions, TableRangesRefuseBeforeAnyWorkInEveryTool) {
   const ToolOutput help = Run(Tool(LPOE_CALIBRATE_PATH, "--help"));
   EXPECT_NE(help.out.find("default: 0.03  range: [1e-06, 100]"), std::string::npos) << help.out;
   EXPECT_EQ(help.out.find("0.0299999"), std::string::npos);
+}
+
+// The option table's defaults are the flags' defaults, in every tool that has the flag (the table
+// gives the Python keyword arguments theirs: they must not drift apart).
+TEST_F(SharedOptions, TableDefaultsAreTheFlagsDefaults) {
+  const std::pair<const char*, const char*> tools[] = {
+      {"lpoe_calibrate", LPOE_CALIBRATE_PATH}, {"lpoe_compare", LPOE_COMPARE_PATH},
+      {"lpoe_simulate", LPOE_SIMULATE_PATH},   {"lpoe_predict", LPOE_PREDICT_PATH},
+      {"lpoe_compensate", LPOE_COMPENSATE_PATH}, {"lpoe_plan", LPOE_PLAN_PATH}};
+  int compared = 0;
+  for (const auto& [name, path] : tools) {
+    const std::string xml = Run(Tool(path, "--helpxml")).out;
+    for (const OptionSpec& spec : Options()) {
+      if (spec.scope[0] != '\0' && std::string(spec.scope) != name) continue;
+      const std::string tag = "<name>" + std::string(spec.name) + "</name>";
+      const size_t at = xml.find(tag);
+      if (at == std::string::npos) {
+        // Every tool has the shared options; a tool's own ones are its flags.
+        ADD_FAILURE() << name << " has no --" << spec.name;
+        continue;
+      }
+      const size_t open = xml.find("<default>", at) + 9;
+      const std::string value = xml.substr(open, xml.find("</default>", open) - open);
+      if (spec.has_range) {
+        EXPECT_EQ(std::strtod(value.c_str(), nullptr), OptionDefault(name, spec.name))
+            << name << " --" << spec.name;
+      } else {
+        EXPECT_EQ(value, spec.default_text) << name << " --" << spec.name;
+      }
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 6 * 8);
 }
 
 }  // namespace
