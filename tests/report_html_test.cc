@@ -14,10 +14,12 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "file_util.h"
 #include "lpoe/io.h"
 #include "lpoe/simulation.h"
+#include "lpoe/urdf.h"
 #include "report.h"
 
 namespace lpoe {
@@ -237,6 +239,59 @@ TEST(JointErrorSelectionTable, SaysWhenTheTiltWasNotIdentifiedInTheFolds) {
                        "others kept the model's gravity)\n"),
             std::string::npos)
       << table;
+}
+
+// A model read from a URDF: each parameter is tied to the URDF element whose <origin> it changes
+// (the joint by its name and child link; a tool by the fixed joint to its link), in the JSON report
+// and beside the parameter on the page. A YAML model's report has no such column.
+TEST_F(ReportHtml, ParametersNameTheUrdfElementTheyChange) {
+  const std::string urdf = std::string(LPOE_TEST_DATA_DIR) + "/urdf/cell_ur5e.urdf";
+  RobotModel model;
+  UrdfSource source;
+  UrdfOptions options;
+  options.tip_link = "tool0";
+  ASSERT_TRUE(ReadRobotModelUrdf(urdf, &model, options, &source).ok());
+  const std::vector<std::string> elements = UrdfFrameElements(source, model);
+  ASSERT_EQ(elements.size(), static_cast<size_t>(model.num_joints() + model.num_tools()));
+  EXPECT_EQ(elements[3], "joint 'wrist_1_joint' (child link 'wrist_1_link')");
+  EXPECT_EQ(elements.back(), "joint 'flange-tool0' (link 'tool0')");
+
+  ASSERT_EQ(Run(LPOE_SIMULATE_PATH " --model=" + urdf + " --tip_link=tool0 --count=120 "
+                "--noise_sigma=0.02 --errors=random --output=pts.csv",
+                "s.txt"),
+            0)
+      << ReadAll(dir_ + "/s.txt");
+  ASSERT_EQ(Run(LPOE_CALIBRATE_PATH " --model=" + urdf + " --tip_link=tool0 --measurements=pts.csv "
+                "--holdout=0.3 --plots_dir= --report=r.json --html_report=r.html --quiet",
+                "c.txt"),
+            0)
+      << ReadAll(dir_ + "/c.txt");
+  const nlohmann::json j = nlohmann::json::parse(ReadAll(dir_ + "/r.json"));
+  const std::string html = ReadAll(dir_ + "/r.html");
+  EXPECT_EQ(HtmlProblems(dir_ + "/r.html"), "");
+  int tied = 0;
+  for (const auto& c : j["parameter_changes"]) {
+    const std::string name = c["name"];
+    const std::string frame = name.substr(0, name.find('.'));
+    ASSERT_TRUE(c.contains("urdf")) << name;
+    const std::string element = c["urdf"];
+    // wrist_1_joint.ty -> joint 'wrist_1_joint' (child link 'wrist_1_link'); tool0.tx -> the
+    // fixed joint whose child is tool0.
+    EXPECT_NE(element.find("'" + frame + "'"), std::string::npos) << name << ": " << element;
+    // On the page, in the parameter's row.
+    const size_t row = html.find("<tr><td>" + name + "</td>");
+    ASSERT_NE(row, std::string::npos) << name;
+    EXPECT_LT(html.find("<td>" + element + "</td>", row), html.find("</tr>", row)) << name;
+    ++tied;
+  }
+  EXPECT_GE(tied, 20);
+  // The shipped YAML job: no URDF column.
+  ASSERT_EQ(Run(LPOE_CALIBRATE_PATH " --plots_dir= --report=y.json --html_report=y.html --quiet",
+                "y.txt"),
+            0);
+  EXPECT_EQ(ReadAll(dir_ + "/y.html").find("in the URDF"), std::string::npos);
+  EXPECT_FALSE(nlohmann::json::parse(ReadAll(dir_ + "/y.json"))["parameter_changes"][0].contains(
+      "urdf"));
 }
 
 }  // namespace

@@ -352,15 +352,21 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
        "along the identified directions (rad for rotations, mm for translations), with the "
        "standard deviation from the covariance.</p>\n<table>\n"
        "<tr><th>parameter</th><th>change</th><th>unit</th><th>std. dev.</th><th>|change| / "
-       "std. dev.</th></tr>\n";
+       "std. dev.</th>";
+  // A model read from a URDF: the element of the file each parameter changes (its <origin>).
+  bool urdf = false;
+  for (const Json& c : j["parameter_changes"]) urdf = urdf || c.contains("urdf");
+  h += urdf ? "<th>in the URDF: the &lt;origin&gt; of</th></tr>\n" : "</tr>\n";
   for (const Json& c : j["parameter_changes"]) {
     const double v = c["change"].get<double>();
     std::string ratio = "&ndash;";
     if (c["std_dev"].is_number() && c["std_dev"].get<double>() > 0)
       ratio = Fmt("%.1f", std::abs(v) / c["std_dev"].get<double>());
     h += "<tr><td>" + Esc(Str(c["name"])) + "</td><td>" + Fmt("%.6f", v) + "</td><td>" +
-         Esc(Str(c["unit"])) + "</td><td>" + Sci(c["std_dev"]) + "</td><td>" + ratio +
-         "</td></tr>\n";
+         Esc(Str(c["unit"])) + "</td><td>" + Sci(c["std_dev"]) + "</td><td>" + ratio + "</td>" +
+         (urdf ? "<td>" + (c.contains("urdf") ? Esc(Str(c["urdf"])) : std::string()) + "</td>"
+               : std::string()) +
+         "</tr>\n";
   }
   h += "</table>\n";
 

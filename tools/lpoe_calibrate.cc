@@ -33,9 +33,6 @@
 #include "report.h"
 #include "tool_common.h"
 
-DEFINE_string(model, "",
-              "Nominal robot model: YAML, or URDF when the name ends in .urdf (metres converted to "
-              "mm, fixed joints folded in). Default: data/cobot6.yaml.");
 DEFINE_string(measurements, "",
               "Identification measurements (CSV: q1..qN,x,y,z[,target][,quat_x..quat_w]). "
               "Default: data/section4/identification.csv.");
@@ -56,7 +53,6 @@ DEFINE_int32(kfold, 0,
              "Also run k-fold cross-validation with this many folds (>= 2; 0 = off) on the "
              "identification set and report each fold's held-out errors.");
 DEFINE_uint64(split_seed, 1, "Seed of the --holdout and --kfold splits.");
-DEFINE_string(output, "", "Write the calibrated model here (YAML). Nothing is written on failure.");
 DEFINE_string(urdf_output, "",
               "Also write the calibrated model as URDF. When --model is a URDF: that same file with "
               "only the calibrated joint origins (and axes) changed, every name, limit, mesh, "
@@ -94,8 +90,9 @@ DEFINE_double(loss_scale, 1.0,
               "Ceres solver: scale of the robust loss in mm (errors above it are down-weighted).");
 DEFINE_double(sigma, 1.0,
               "Ceres solver: measurement noise per axis in mm (residual whitening; sets the scale "
-              "of the covariance). Not given: the covariance is scaled by the noise estimated "
-              "from the residuals, as with the linear solver.");
+              "of the covariance), in [1e-6, 1e3]. Default (not given): estimated, the covariance "
+              "scaled by the noise estimated from the residuals as with the linear solver (the "
+              "default value 1 printed below is then only the whitening unit).");
 DEFINE_int32(threads, 0, "Ceres solver: threads (0: all hardware threads; at most 256).");
 DEFINE_string(parameterization, "identifiable",
               "identifiable: only the directions the data can see (27 for a 6R arm with position "
@@ -104,9 +101,6 @@ DEFINE_string(parameterization, "identifiable",
 DEFINE_string(data_kind, "auto",
               "position | pose | auto: pose-based calibration (paper eqs. 17-24) uses the measured "
               "orientations; auto picks pose when the CSV has quat_* columns.");
-DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in the CSV files: rad | deg.");
-DEFINE_string(length_unit, "mm",
-              "Unit of x, y, z (and prismatic joint values) in the CSV files: mm | m.");
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first when the measurements are not in "
             "its base frame (a rigid fit that moves the base by more than 50 mm or 0.05 rad): "
@@ -127,9 +121,14 @@ DEFINE_double(noise_sigma, 0.03,
 DEFINE_bool(force, false,
             "Write the outputs even when the plausibility verdict fails; the exit code is still 8, "
             "so that a script can tell a forced result.");
-DEFINE_bool(quiet, false, "No progress display on stderr.");
 DEFINE_double(max_condition, 1e8,
               "Refuse data whose column-scaled Jacobian has a larger condition number.");
+// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
+DECLARE_string(model);
+DECLARE_string(angle_unit);
+DECLARE_string(length_unit);
+DECLARE_bool(quiet);
+DECLARE_string(output);
 
 namespace lpoe {
 namespace {
@@ -148,6 +147,8 @@ constexpr char kUsage[] =
     "Units: mm and rad (joint values may be given in degrees with --angle_unit=deg). The\n"
     "measurements may be in any rigid frame (e.g. the tracker's): the calibrated model is\n"
     "expressed in the measurement frame.\n"
+    "--model: the nominal model (default: the shipped cobot6); --output: the calibrated model "
+    "(YAML; nothing is written on failure).\n"
     "Exit codes: 0 converged, 1 bad flags, 2 bad input file, 3 data cannot identify the model,\n"
     "4 iteration limit reached, 5 numerical failure, 6 output not written, 8 the result is not\n"
     "plausible (residual, scale, units or parameter changes; see the verdict; --force writes it).";
@@ -259,20 +260,9 @@ void PrintIdentifiability(const IdentifiabilityReport& id, int num_frame_paramet
   for (const std::string& w : id.warnings) std::cout << "  warning: " << w << "\n";
 }
 
-// Flag ranges: a value outside gives exit 1 with a message naming the flag.
+// Flag combinations: a bad one gives exit 1 with a message naming the flag.
 Status CheckFlags() {
-  using tools::CheckRange;
-  for (Status s : {CheckRange("max_iterations", FLAGS_max_iterations, 1, 10000),
-                   CheckRange("step_tolerance", FLAGS_step_tolerance, 1e-300, 1e-3, true),
-                   CheckRange("sd_fraction", FLAGS_sd_fraction, 0.0, 0.5),
-                   CheckRange("max_condition", FLAGS_max_condition, 10.0, 1e16),
-                   CheckRange("outlier_threshold", FLAGS_outlier_threshold, 1.0, 1e6),
-                   CheckRange("sigma", FLAGS_sigma, 1e-6, 1e3),
-                   CheckRange("loss_scale", FLAGS_loss_scale, 1e-6, 1e4),
-                   CheckRange("threads", FLAGS_threads, 0, 256),
-                   CheckRange("noise_sigma", FLAGS_noise_sigma, 1e-6, 100.0)}) {
-    if (!s.ok()) return s;
-  }
+  // The ranges of the option table (lpoe/options.h) were checked by InitTool.
   if (FLAGS_kfold != 0 && !(FLAGS_kfold >= 2 && FLAGS_kfold <= 100)) {
     return Status::Error("--kfold must be 0 (off) or between 2 and 100, got " +
                          std::to_string(FLAGS_kfold));
@@ -386,6 +376,7 @@ int Run() {
   summary.split = SplitKindName(settings.split);
   const bool from_urdf = in.from_urdf;
   const UrdfSource& urdf_source = in.urdf;  // the URDF --model, for the overlay write-back
+  if (from_urdf) summary.urdf_frames = tools::UrdfFrameElements(urdf_source, in.nominal);
   // The UR file needs a UR arm with z axes: checked on the nominal model before solving.
   if (!FLAGS_ur_kinematics_output.empty()) {
     std::string ur_yaml;

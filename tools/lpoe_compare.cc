@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <gflags/gflags.h>
+#include <nlohmann/json.hpp>
 #include <glog/logging.h>
 
 #include "lpoe/analysis.h"
@@ -23,11 +24,9 @@
 #include "output_files.h"
 #include "progress.h"
 #include "report.h"
+#include "json_text.h"
 #include "tool_common.h"
 
-DEFINE_string(model, "",
-              "Nominal robot model: YAML, or URDF when the name ends in .urdf. Default: "
-              "data/cobot6.yaml.");
 DEFINE_string(measurements, "",
               "Identification measurements (CSV). Default: data/section4/identification.csv.");
 DEFINE_string(verify, "",
@@ -40,9 +39,6 @@ DEFINE_string(split, "random",
               "last rows of the file are held out).");
 DEFINE_uint64(split_seed, 1, "Seed of the --holdout split.");
 DEFINE_string(parameterization, "identifiable", "identifiable | full (see lpoe_calibrate).");
-DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in the CSV files: rad | deg.");
-DEFINE_string(length_unit, "mm",
-              "Unit of x, y, z (and prismatic joint values) in the CSV files: mm | m.");
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first (as lpoe_calibrate); both solvers "
             "start from the registered model.");
@@ -56,7 +52,12 @@ DEFINE_double(noise_sigma, 0.03,
               "Expected tracker noise per axis (mm) for the plausibility verdict (see "
               "lpoe_calibrate).");
 DEFINE_bool(force, false, "Compare even when a calibration fails the plausibility verdict.");
-DEFINE_bool(quiet, false, "No progress display on stderr.");
+// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
+DECLARE_string(model);
+DECLARE_string(angle_unit);
+DECLARE_string(length_unit);
+DECLARE_bool(quiet);
+DECLARE_string(output);
 
 namespace lpoe {
 namespace {
@@ -70,7 +71,10 @@ constexpr char kUsage[] =
     "Runs the paper's linear iterative least squares and the Ceres solver on the same model and\n"
     "data and prints one comparison table.\n\n"
     "  lpoe_compare                            # the shipped section-4 data set\n"
-    "  lpoe_compare --model=robot.yaml --measurements=points.csv --holdout=0.3\n\n"
+    "  lpoe_compare --model=robot.yaml --measurements=points.csv --holdout=0.3 \\\n"
+    "      --output=comparison.json\n\n"
+    "--model: the nominal model (default: the shipped cobot6); --output: the comparison table "
+    "as JSON (the rows printed, the largest differences, agree or not).\n\n"
     "Exit codes: 0 the predicted held-out positions agree within --tolerance_mm, 1 bad flags,\n"
     "2 bad input file, 3 data cannot identify the model, 4 iteration limit, 5 numerical\n"
     "failure, 6 output not written, 7 the solvers disagree, 8 a calibration is not plausible (see lpoe_calibrate).";
@@ -118,19 +122,14 @@ int Run() {
   const AngleUnit unit = settings.angle_unit;
   const CsvOptions& csv = settings.csv;
   const ParameterizationKind kind = settings.parameterization;
-  for (Status s : {tools::CheckRange("tolerance_mm", FLAGS_tolerance_mm, 0.0, 1000.0),
-                   tools::CheckRange("noise_sigma", FLAGS_noise_sigma, 1e-6, 100.0)}) {
-    if (!s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitUsage;
-    }
-  }
+  // --tolerance_mm and --noise_sigma: their ranges (lpoe/options.h) were checked by InitTool.
 
   tools::OutputSet outputs;
   outputs.AddInput("--model", model_path);
   outputs.AddInput("--measurements", meas_path);
   outputs.AddInput("--verify", verify_path);
   outputs.AddOutput("--html_report", FLAGS_html_report);
+  outputs.AddOutput("--output", FLAGS_output);
   if (Status s = outputs.Check(); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
@@ -254,21 +253,49 @@ int Run() {
                  "order without changing any prediction)\n";
   }
 
+  const bool agree = position_difference <= FLAGS_tolerance_mm;
+  std::vector<std::string> written;
+  if (!FLAGS_output.empty()) {  // the comparison as JSON, for a script
+    nlohmann::json j = {{"tool", "lpoe_compare"},
+                        {"model", model_path},
+                        {"measurements", meas_path},
+                        {"held_out", held_out ? in.verification_source : std::string()},
+                        {"tolerance_mm", FLAGS_tolerance_mm},
+                        {"position_difference_mm", position_difference},
+                        {"parameter_difference", parameter_difference},
+                        {"agree", agree}};
+    nlohmann::json table = nlohmann::json::array();
+    for (const auto& r : rows) {
+      table.push_back({{"quantity", r.quantity}, {"linear", r.linear}, {"ceres", r.ceres},
+                       {"difference", r.difference}});
+    }
+    j["rows"] = table;
+    if (Status s = outputs.Stage(FLAGS_output, tools::JsonText(j)); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return tools::kExitOutput;
+    }
+  }
   if (!FLAGS_html_report.empty()) {
     const tools::ComparisonPage page{model_path, meas_path, in.verification_source,
                                      FLAGS_angle_unit, ParameterizationName(kind), &cer_run,
                                      &identification, &verification, rows,
                                      position_difference <= FLAGS_tolerance_mm};
     std::string html;
-    std::vector<std::string> written;
     Status s = tools::ComparisonHtml(page, &html);
     if (s.ok()) s = outputs.Stage(FLAGS_html_report, html);
-    if (s.ok()) s = outputs.Commit(&written);
     if (!s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return tools::kExitOutput;
     }
-    std::cout << "wrote " << FLAGS_html_report << "\n";
+  }
+  if (!FLAGS_output.empty() || !FLAGS_html_report.empty()) {
+    if (Status s = outputs.Commit(&written); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return tools::kExitOutput;
+    }
+    if (!FLAGS_quiet) {
+      for (const std::string& w : written) std::cout << "wrote " << w << "\n";
+    }
   }
   if (!(position_difference <= FLAGS_tolerance_mm)) {
     std::cout << "\nresult: DISAGREE: predicted positions differ by up to " << position_difference

@@ -19,14 +19,15 @@
 #include <sstream>
 #include <string>
 #include <string_view>
-#include <thread>
 #include <vector>
 
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 #include <nlohmann/json.hpp>
 
+#include "lpoe/compensation.h"
 #include "lpoe/csv_rules.h"
+#include "lpoe/options.h"
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
@@ -35,12 +36,12 @@
 #include "json_text.h"
 #include "output_files.h"
 #include "lpoe_compensate_program.h"
+#include "parse_util.h"
 #include "tool_common.h"
 
-DEFINE_string(model, "", "Calibrated robot model (YAML written by lpoe_calibrate, or URDF).");
 DEFINE_string(targets, "",
               "Targets CSV: q1..qN (the seed: the joints the program would use), x,y,z (desired "
-              "tool position, mm, model frame), optional target (tool name or index), optional "
+              "tool position in --length_unit, in --frame), optional target (tool name or index), optional "
               "quat_x,quat_y,quat_z,quat_w (desired tool orientation; empty for a position row).");
 DEFINE_string(joints, "",
               "Joint-program CSV (q1..qN, optional target), planned with --nominal: the output "
@@ -48,12 +49,9 @@ DEFINE_string(joints, "",
               "--targets; needs --nominal.");
 DEFINE_string(joints_target, "pose",
               "Joint-program mode: reach the nominal tool 'pose' or only its 'position'.");
-DEFINE_string(output, "", "Output CSV: q1..qN (input unit), status, residual, sigma_min and, with "
-                          "--nominal, corrected_x,y,z (and corrected_quat_*).");
 DEFINE_string(nominal, "",
               "Nominal model (YAML or URDF): adds the nominal tool pose at the compensated joints "
               "(the target to send to a controller using nominal kinematics).");
-DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in and out: rad | deg.");
 DEFINE_string(frame, "base",
               "Frame of the --targets positions and orientations: base (the robot's base frame, "
               "what programs use; carried into the calibrated model's frame by its recorded "
@@ -66,14 +64,25 @@ DEFINE_string(tcp, "",
 DEFINE_string(tool, "", "Tool name or index for rows without a target column (default: tool 0).");
 DEFINE_string(report, "", "JSON summary to write (counts per status, largest correction/residual).");
 DEFINE_bool(strict, false, "Exit 8 when any row is not 'ok' (the output is written anyway).");
-DEFINE_int32(threads, 0, "Worker threads (0: all cores; the output order is the input's).");
-DEFINE_int32(max_iterations, 100, "Newton iterations per attempt (1..10000).");
-DEFINE_int32(restarts, 8, "Restarts from perturbed seeds when a solve stalls (0..100).");
-DEFINE_double(position_tolerance, 1e-7, "Target reached when the position error is below (mm).");
-DEFINE_double(orientation_tolerance, 1e-10, "... and the orientation error below (rad).");
-DEFINE_double(singular_threshold, 1e-3,
-              "Smallest singular value (mm per rad; rotation rows weighted 100 mm/rad) below which "
-              "a row is 'singular'.");
+// The IK options: defaults, ranges and help from the option table (lpoe/options.h), shared with
+// lpoe.compensate.
+#define LPOE_DEFAULT(name) lpoe::OptionDefault("lpoe_compensate", #name)
+#define LPOE_HELP(name) lpoe::OptionHelp("lpoe_compensate", #name)
+DEFINE_int32(threads, static_cast<int>(LPOE_DEFAULT(threads)), LPOE_HELP(threads));
+DEFINE_int32(max_iterations, static_cast<int>(LPOE_DEFAULT(max_iterations)),
+             LPOE_HELP(max_iterations));
+DEFINE_int32(restarts, static_cast<int>(LPOE_DEFAULT(restarts)), LPOE_HELP(restarts));
+DEFINE_double(position_tolerance, LPOE_DEFAULT(position_tolerance), LPOE_HELP(position_tolerance));
+DEFINE_double(orientation_tolerance, LPOE_DEFAULT(orientation_tolerance),
+              LPOE_HELP(orientation_tolerance));
+DEFINE_double(singular_threshold, LPOE_DEFAULT(singular_threshold), LPOE_HELP(singular_threshold));
+#undef LPOE_DEFAULT
+#undef LPOE_HELP
+DECLARE_string(model);
+DECLARE_string(output);
+DECLARE_string(angle_unit);
+DECLARE_string(length_unit);
+DECLARE_bool(quiet);
 
 namespace lpoe {
 namespace {
@@ -92,49 +101,23 @@ constexpr int kExitNotAllOk = 8;
 constexpr int kMaxJointsRead = InverseKinematics::kMaxJoints;
 constexpr double kDegreesPerRadian = 180.0 / 3.14159265358979323846;
 
-// Targets this far (mm) from anything the robot reaches are in another frame (--frame).
-constexpr double kWrongFrameMm = 1000.0;
+using internal::AppendNumber;
+using internal::NumberParse;
+using internal::Trim;
 
-struct Row {
-  IkTarget target;
-  int line = 0;
-};
-
-int ResolveTool(const RobotModel& model, std::string_view field) {
-  for (int t = 0; t < model.num_tools(); ++t) {
-    if (field == model.tools[t].name) return t;
-  }
-  int index = -1;
-  const auto [p, ec] = std::from_chars(field.data(), field.data() + field.size(), index);
-  if (ec != std::errc() || p != field.data() + field.size()) return -1;
-  return index >= 0 && index < model.num_tools() ? index : -1;
-}
-
-std::string_view Trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) {
-    s.remove_prefix(1);
-  }
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) {
-    s.remove_suffix(1);
-  }
-  return s;
-}
-
-bool ParseNumber(std::string_view s, double* x) {
-  s = Trim(s);
-  if (!s.empty() && s.front() == '+') s.remove_prefix(1);
-  const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), *x);
-  return ec == std::errc() && p == s.data() + s.size() && std::isfinite(*x);
+bool ParseFinite(std::string_view s, double* x) {
+  return internal::ParseNumber(s, x) == NumberParse::kOk;
 }
 
 // Reads the targets or joint-program CSV in chunks of rows (streamed: memory bounded by the chunk):
-// seeds (radians/mm) and targets (positions and orientations only in targets mode).
+// seeds (radians/mm) and targets (positions and orientations only in targets mode, in mm).
 class RowReader {
  public:
-  RowReader(const std::string& path, const RobotModel& model, AngleUnit unit, bool need_position,
-            int default_tool)
-      : path_(path), model_(model), unit_(unit), need_position_(need_position),
-        default_tool_(default_tool), col_q_(model.num_joints(), -1) {}
+  RowReader(const std::string& path, const Compensator& compensator, AngleUnit unit,
+            LengthUnit length_unit, bool need_position)
+      : path_(path), compensator_(compensator), model_(compensator.model()), unit_(unit),
+        mm_per_unit_(tools::MillimetresPer(length_unit)), need_position_(need_position),
+        col_q_(model_.num_joints(), -1) {}
 
   // Opens the file and reads up to its header line.
   Status Open() {
@@ -143,7 +126,9 @@ class RowReader {
     std::string_view l;
     while (NextLine(&l)) {
       // The header by the rules every reader shares (lpoe/csv_rules.h): no column twice.
-      if (Status s = ParseCsvHeader(Fields(l), path_, line_, &header_); !s.ok()) return s;
+      if (Status s = ParseCsvHeader(internal::SplitFields(l), path_, line_, &header_); !s.ok()) {
+        return s;
+      }
       col_x_ = header_.Find("x");
       col_y_ = header_.Find("y");
       col_z_ = header_.Find("z");
@@ -158,7 +143,8 @@ class RowReader {
         }
       }
       if (need_position_ && (col_x_ < 0 || col_y_ < 0 || col_z_ < 0)) {
-        return Error("the header has no x, y, z columns; expected the target position (mm)");
+        return Error("the header has no x, y, z columns; expected the target position (" +
+                     std::string(mm_per_unit_ == 1.0 ? "mm" : "m") + ")");
       }
       const int quats = (col_quat_[0] >= 0) + (col_quat_[1] >= 0) + (col_quat_[2] >= 0) +
                         (col_quat_[3] >= 0);
@@ -177,74 +163,73 @@ class RowReader {
   const std::vector<double>& max_abs() const { return max_abs_; }
 
   // Appends up to `max_rows` rows; fewer only at the end of the file.
-  Status Read(int max_rows, std::vector<double>* seeds, std::vector<Row>* rows) {
+  Status Read(int max_rows, std::vector<double>* seeds, std::vector<IkTarget>* targets,
+              std::vector<int>* lines) {
     const int n = model_.num_joints();
     std::string_view l;
     for (int count = 0; count < max_rows && NextLine(&l); ++count) {
-      const int nf = Split(l);
+      const std::vector<std::string_view> f = internal::SplitFields(l);
       // Every field the header names, no more (a decimal comma), no fewer ("no q6").
-      if (Status s = CheckCsvRowFields(static_cast<size_t>(nf), header_, path_, line_); !s.ok()) {
-        return s;
-      }
-      auto field = [&](int c) { return f_[c]; };
+      if (Status s = CheckCsvRowFields(f.size(), header_, path_, line_); !s.ok()) return s;
       const size_t base = seeds->size();
       seeds->resize(base + n);
       for (int j = 0; j < n; ++j) {
         double v;
-        if (!ParseNumber(field(col_q_[j]), &v) || std::abs(v) > kMaxAbsCsvJointValue) {
-          return Error("q" + std::to_string(j + 1) + " '" +
-                       std::string(field(col_q_[j]).substr(0, 40)) +
-                       "' is not a joint value; expected a finite number of magnitude at most 1e4");
+        if (!ParseFinite(f[col_q_[j]], &v) || std::abs(v) > kMaxAbsCsvJointValue) {
+          return Error("q" + std::to_string(j + 1) + " " + internal::Quote(f[col_q_[j]]) +
+                       " is not a joint value; expected a finite number of magnitude at most 1e4");
         }
         max_abs_[j] = std::max(max_abs_[j], std::abs(v));
-        if (unit_ == AngleUnit::kDegrees && model_.joints[j].type == JointType::kRevolute) {
-          v /= kDegreesPerRadian;
+        if (model_.joints[j].type == JointType::kRevolute) {
+          if (unit_ == AngleUnit::kDegrees) v /= kDegreesPerRadian;
+        } else {
+          v *= mm_per_unit_;
         }
         (*seeds)[base + j] = v;
       }
-      Row row;
-      row.line = line_;
-      row.target.tool = default_tool_;
-      if (col_target_ >= 0 && !field(col_target_).empty()) {
-        row.target.tool = ResolveTool(model_, field(col_target_));
-        if (row.target.tool < 0) {
-          return Error("target '" + std::string(field(col_target_)) +
-                       "' is neither a tool name nor an index below " +
+      IkTarget target;
+      target.tool = compensator_.default_tool();
+      if (col_target_ >= 0 && !f[col_target_].empty()) {
+        target.tool = compensator_.ResolveTool(std::string(f[col_target_]));
+        if (target.tool < 0) {
+          return Error("target " + internal::Quote(f[col_target_]) +
+                       " is neither a tool name nor an index below " +
                        std::to_string(model_.num_tools()));
         }
       }
       if (need_position_) {
         const int xyz[3] = {col_x_, col_y_, col_z_};
         for (int k = 0; k < 3; ++k) {
-          if (!ParseNumber(field(xyz[k]), &row.target.position(k)) ||
-              std::abs(row.target.position(k)) > kMaxAbsCsvPositionMm) {
-            return Error(std::string("xyz").substr(k, 1) + " '" +
-                         std::string(field(xyz[k]).substr(0, 40)) +
-                         "' is not a position; expected a finite number of magnitude at most "
+          double v;
+          if (!ParseFinite(f[xyz[k]], &v) || std::abs(v * mm_per_unit_) > kMaxAbsCsvPositionMm) {
+            return Error(std::string("xyz").substr(k, 1) + " " + internal::Quote(f[xyz[k]]) +
+                         " is not a position; expected a finite number of magnitude at most "
                          "1e6 mm");
           }
+          target.position(k) = v * mm_per_unit_;
         }
         if (col_quat_[0] >= 0) {
           int given = 0;
-          for (int k = 0; k < 4; ++k) given += !field(col_quat_[k]).empty();
+          for (int k = 0; k < 4; ++k) given += !f[col_quat_[k]].empty();
           if (given == 4) {
             Eigen::Vector4d qv;
             for (int k = 0; k < 4; ++k) {
-              if (!ParseNumber(field(col_quat_[k]), &qv(k))) {
+              if (!ParseFinite(f[col_quat_[k]], &qv(k))) {
                 return Error("quaternion component is not a finite number");
               }
             }
             if (std::abs(qv.norm() - 1) > 1e-3) {
               return Error("the quaternion is not unit (norm within 1e-3 expected)");
             }
-            row.target.has_orientation = true;
-            row.target.rotation = QuaternionToRotation<double>(qv / qv.norm());
+            target.has_orientation = true;
+            target.rotation = QuaternionToRotation<double>(qv / qv.norm());
           } else if (given != 0) {
             return Error("give all four quat_* values (a pose row) or none (a position row)");
           }
         }
       }
-      rows->push_back(row);
+      targets->push_back(target);
+      lines->push_back(line_);
     }
     return reader_.status();
   }
@@ -259,6 +244,7 @@ class RowReader {
       ++line_;
       std::string_view l(text_);
       if (line_ == 1 && l.compare(0, 3, "\xEF\xBB\xBF") == 0) l.remove_prefix(3);
+      while (!l.empty() && l.back() == '\r') l.remove_suffix(1);
       l = Trim(l);
       if (l.empty() || l.front() == '#') continue;
       *out = l;
@@ -266,42 +252,21 @@ class RowReader {
     }
     return false;
   }
-  std::vector<std::string_view> Fields(std::string_view l) {
-    Split(l);
-    return f_;
-  }
-  int Split(std::string_view l) {
-    f_.clear();
-    size_t a = 0;
-    while (true) {
-      const size_t b = l.find(',', a);
-      f_.push_back(Trim(l.substr(a, b == std::string_view::npos ? std::string_view::npos : b - a)));
-      if (b == std::string_view::npos) break;
-      a = b + 1;
-    }
-    return static_cast<int>(f_.size());
-  }
 
   const std::string path_;
+  const Compensator& compensator_;
   const RobotModel& model_;
   const AngleUnit unit_;
+  const double mm_per_unit_;
   const bool need_position_;
-  const int default_tool_;
   LineReader reader_;
   std::string text_;
   int line_ = 0;
-  std::vector<std::string_view> f_;
   std::vector<int> col_q_;
   std::vector<double> max_abs_ = std::vector<double>(kMaxJointsRead, 0.0);
   CsvHeader header_;
   int col_x_ = -1, col_y_ = -1, col_z_ = -1, col_target_ = -1, col_quat_[4] = {-1, -1, -1, -1};
 };
-
-void AppendNumber(double x, std::string* out) {
-  char buf[32];
-  const auto [p, ec] = std::to_chars(buf, buf + sizeof(buf), x);
-  out->append(buf, p);
-}
 
 int Run() {
   using tools::kExitInput;
@@ -314,51 +279,36 @@ int Run() {
     std::cerr << "error: need --model, --output and one of --targets or --joints (see --help)\n";
     return kExitUsage;
   }
-  if (joints_mode && FLAGS_nominal.empty()) {
-    std::cerr << "error: --joints needs --nominal (the model the program was planned with)\n";
-    return kExitUsage;
-  }
   if (FLAGS_joints_target != "pose" && FLAGS_joints_target != "position") {
     std::cerr << "error: --joints_target must be pose or position\n";
     return kExitUsage;
   }
   AngleUnit unit;
-  if (!tools::ParseAngleUnit(FLAGS_angle_unit, &unit)) {
-    std::cerr << "error: --angle_unit must be rad or deg\n";
+  LengthUnit length_unit;
+  if (Status s = tools::ParseUnitFlags(&unit, &length_unit); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  if (FLAGS_frame != "base" && FLAGS_frame != "measurement") {
+  const double mm_per_unit = tools::MillimetresPer(length_unit);
+  // The workflow's request (lpoe/compensation.h): the models are read below.
+  CompensationRequest request;
+  request.has_nominal = !FLAGS_nominal.empty();
+  request.joints_mode = joints_mode;
+  request.joints_target_pose = FLAGS_joints_target == "pose";
+  if (!ParseTargetFrame(FLAGS_frame, &request.frame)) {
     std::cerr << "error: --frame must be base or measurement, got '" << FLAGS_frame << "'\n";
     return kExitUsage;
   }
-  // --tcp as numbers: x,y,z[,roll,pitch,yaw].
-  std::vector<double> tcp_numbers;
-  {
-    std::stringstream ss(FLAGS_tcp);
-    bool numeric = !FLAGS_tcp.empty();
-    for (std::string item; numeric && std::getline(ss, item, ',');) {
-      char* end = nullptr;
-      const double v = std::strtod(item.c_str(), &end);
-      if (item.empty() || *end != '\0' || !std::isfinite(v)) numeric = false;
-      tcp_numbers.push_back(v);
-    }
-    if (!numeric) tcp_numbers.clear();
-    if (numeric && tcp_numbers.size() != 3 && tcp_numbers.size() != 6) {
-      std::cerr << "error: --tcp=" << FLAGS_tcp
-                << ": expected x,y,z or x,y,z,roll,pitch,yaw (mm, rad), or a tool name\n";
-      return kExitUsage;
-    }
-  }
-  if (!FLAGS_tcp.empty() && !FLAGS_tool.empty()) {
-    std::cerr << "error: give --tcp or --tool, not both\n";
-    return kExitUsage;
-  }
-  if (FLAGS_threads < 0 || FLAGS_threads > 256 || FLAGS_max_iterations < 1 ||
-      FLAGS_max_iterations > 10000 || FLAGS_restarts < 0 || FLAGS_restarts > 100 ||
-      !(FLAGS_position_tolerance > 0) || !(FLAGS_orientation_tolerance > 0) ||
-      !(FLAGS_singular_threshold >= 0)) {
-    std::cerr << "error: need 0 <= --threads <= 256, 1 <= --max_iterations <= 10000, "
-                 "0 <= --restarts <= 100, positive tolerances, --singular_threshold >= 0\n";
+  request.tcp = FLAGS_tcp;
+  request.tool = FLAGS_tool;
+  request.ik.max_iterations = FLAGS_max_iterations;
+  request.ik.restarts = FLAGS_restarts;
+  request.ik.position_tolerance = FLAGS_position_tolerance;
+  request.ik.orientation_tolerance = FLAGS_orientation_tolerance;
+  request.ik.singular_threshold = FLAGS_singular_threshold;
+  request.threads = FLAGS_threads;
+  if (Status s = CheckCompensationRequest(request); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
   // Every output against every input and the other output, and its directory writable, before
@@ -376,89 +326,56 @@ int Run() {
   }
 
   // ---- Inputs.
-  RobotModel model, nominal;
   if (Status s = tools::CheckUrdfFlagsHaveAUrdf({FLAGS_model, FLAGS_nominal}); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  if (Status s = tools::ReadModelWithUrdfFlags(FLAGS_model, &model, /*other_urdf=*/true);
+  if (Status s = tools::ReadModelWithUrdfFlags(FLAGS_model, &request.model, /*other_urdf=*/true);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
-  if (Status s = InverseKinematics::CheckModel(model); !s.ok()) {
-    std::cerr << "error: " << FLAGS_model << ": " << s.message() << "\n";
-    return kExitInput;
-  }
-  const bool with_nominal = !FLAGS_nominal.empty();
-  if (with_nominal) {
-    if (Status s = tools::ReadModelWithUrdfFlags(FLAGS_nominal, &nominal, /*other_urdf=*/true);
+  if (request.has_nominal) {
+    if (Status s = tools::ReadModelWithUrdfFlags(FLAGS_nominal, &request.nominal,
+                                                 /*other_urdf=*/true);
         !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
-    if (Status s = CheckNominalMatches(model, nominal); !s.ok()) {
-      std::cerr << "error: " << FLAGS_nominal << ": " << s.message() << "\n";
-      return kExitInput;
-    }
   }
-  int default_tool = 0;
-  if (!tcp_numbers.empty()) {
-    // A TCP given by its offset: one more tool of both models (the same place on the flange).
-    const bool rpy = tcp_numbers.size() == 6;
-    const Eigen::Matrix3d R = RotationFromRpy(rpy ? tcp_numbers[3] : 0.0, rpy ? tcp_numbers[4] : 0.0,
-                                              rpy ? tcp_numbers[5] : 0.0);
-    const Tool tcp{"tcp", SE3d(R, Eigen::Vector3d(tcp_numbers[0], tcp_numbers[1], tcp_numbers[2]))};
-    model.tools.push_back(tcp);
-    if (with_nominal) nominal.tools.push_back(tcp);
-    default_tool = model.num_tools() - 1;
-  } else if (!FLAGS_tcp.empty()) {
-    default_tool = model.FindTool(FLAGS_tcp);
-    if (default_tool < 0 || (with_nominal && nominal.FindTool(FLAGS_tcp) != default_tool)) {
-      std::cerr << "error: --tcp=" << FLAGS_tcp << " is not a tool of "
-                << (default_tool < 0 ? FLAGS_model : FLAGS_nominal)
-                << " (at the same index in both models) nor x,y,z[,roll,pitch,yaw]; with a URDF, "
-                   "name its link in --tool_links\n";
-      return kExitUsage;
-    }
+  std::unique_ptr<Compensator> compensator;
+  bool input_error = false;
+  if (Status s = Compensator::Create(request, &compensator, &input_error); !s.ok()) {
+    std::cerr << "error: "
+              << (input_error ? (s.message().rfind("nominal: ", 0) == 0
+                                     ? FLAGS_nominal + ": " + s.message().substr(9)
+                                     : FLAGS_model + ": " + s.message())
+                              : s.message())
+              << "\n";
+    return input_error ? kExitInput : kExitUsage;
   }
-  if (!FLAGS_tool.empty()) {
-    default_tool = ResolveTool(model, FLAGS_tool);
-    if (default_tool < 0) {
-      std::cerr << "error: --tool=" << FLAGS_tool << " is neither a tool name of "
-                << FLAGS_model << " nor an index below " << model.num_tools() << "\n";
-      return kExitUsage;
-    }
-  }
+  const RobotModel& model = compensator->model();
+  const bool with_nominal = request.has_nominal;
   const std::string& in_path = joints_mode ? FLAGS_joints : FLAGS_targets;
-  RowReader reader(in_path, model, unit, !joints_mode, default_tool);
+  RowReader reader(in_path, *compensator, unit, length_unit, !joints_mode);
   if (Status s = reader.Open(); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
   const int n = model.num_joints();
-  IkOptions options;
-  options.max_iterations = FLAGS_max_iterations;
-  options.restarts = FLAGS_restarts;
-  options.position_tolerance = FLAGS_position_tolerance;
-  options.orientation_tolerance = FLAGS_orientation_tolerance;
-  options.singular_threshold = FLAGS_singular_threshold;
-  const InverseKinematics ik(model, options);  // with the model's joint-error terms
-  const KinematicChain nominal_chain(with_nominal ? nominal : model);
   const bool orientation_columns =
-      joints_mode ? FLAGS_joints_target == "pose" : reader.has_quaternion();
-  const int threads = FLAGS_threads > 0
-                          ? FLAGS_threads
-                          : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+      joints_mode ? request.joints_target_pose : reader.has_quaternion();
 
   std::string header = "# lpoe_compensate: model " + tools::CommentText(FLAGS_model) + ", " +
                        (joints_mode ? "joints " : "targets ") + tools::CommentText(in_path) +
                        (joints_mode ? std::string()
                                     : ", targets in the " +
-                                          std::string(FLAGS_frame == "base" ? "robot's base"
-                                                                            : "measurement") +
+                                          std::string(request.frame == TargetFrame::kBase
+                                                          ? "robot's base"
+                                                          : "measurement") +
                                           " frame") +
                        ", angles in " + FLAGS_angle_unit +
+                       (length_unit == LengthUnit::kMillimetres ? "" : ", lengths in m") +
                        (with_nominal ? "; corrected_* in the nominal model's base frame" : "") +
                        "\n";
   for (int j = 0; j < n; ++j) header += "q" + std::to_string(j + 1) + ",";
@@ -471,137 +388,77 @@ int Run() {
   }
   header += "\n";
 
-  // Per worker: its rows' output text and summary.
-  struct Part {
-    std::string text;
-    int per_status[5] = {};
-    double max_correction = 0, max_residual = 0, max_orientation_residual = 0;
-    int max_correction_line = 0, max_residual_line = 0;
-    int far_rows = 0;  // rows metres from anything the robot reaches (kWrongFrameMm)
-  };
-  // Solves rows [begin, end) of a chunk and formats them into `part`.
-  auto solve_rows = [&](const std::vector<Row>& rows, const std::vector<double>& seeds, int begin,
-                        int end, Part* part) {
-    double q[InverseKinematics::kMaxJoints];
+  // Formats rows [begin, end) of a solved chunk into `text`.
+  auto format_rows = [&](const std::vector<IkTarget>& targets, const CompensatedRows& solved,
+                         int begin, int end, std::string* text) {
+    std::string& out = *text;
     for (int k = begin; k < end; ++k) {
-      const Row& row = rows[k];
-      const IkResult r = ik.Solve(row.target, &seeds[size_t(k) * n], q);
-      std::string& out = part->text;
+      const double* q = &solved.q[size_t(k) * n];
+      const IkResult& r = solved.results[k];
       for (int j = 0; j < n; ++j) {
-        const bool deg =
-            unit == AngleUnit::kDegrees && model.joints[j].type == JointType::kRevolute;
-        AppendNumber(deg ? q[j] * kDegreesPerRadian : q[j], &out);
+        const bool revolute = model.joints[j].type == JointType::kRevolute;
+        AppendNumber(revolute ? (unit == AngleUnit::kDegrees ? q[j] * kDegreesPerRadian : q[j])
+                              : q[j] / mm_per_unit,
+                     &out);
         out += ',';
       }
       out += IkStatusName(r.status);
       out += ',';
-      AppendNumber(r.position_error, &out);
+      AppendNumber(r.position_error / mm_per_unit, &out);
       out += ',';
       AppendNumber(r.sigma_min, &out);
       if (with_nominal) {
-        const SE3d T = nominal_chain.Pose(q, row.target.tool);
+        const SE3d& T = solved.corrected[k];
         for (int c = 0; c < 3; ++c) {
           out += ',';
-          AppendNumber(T.t(c), &out);
+          AppendNumber(T.t(c) / mm_per_unit, &out);
         }
         if (orientation_columns) {
           const Eigen::Vector4d qv = RotationToQuaternion<double>(T.R);
           for (int c = 0; c < 4; ++c) {
             out += ',';
-            if (row.target.has_orientation) AppendNumber(qv(c), &out);
+            if (targets[k].has_orientation) AppendNumber(qv(c), &out);
           }
         }
       }
       out += '\n';
-      ++part->per_status[static_cast<int>(r.status)];
-      if (r.correction > part->max_correction) {
-        part->max_correction = r.correction;
-        part->max_correction_line = row.line;
-      }
-      if (r.position_error > kWrongFrameMm) ++part->far_rows;
-      if (r.position_error > part->max_residual) {
-        part->max_residual = r.position_error;
-        part->max_residual_line = row.line;
-      }
-      part->max_orientation_residual =
-          std::max(part->max_orientation_residual, r.orientation_error);
     }
   };
 
   // ---- The output, streamed into its staged temporary (committed with the report at the end).
-  Part total;
-  int count = 0;
+  CompensationSummary total;
   bool input_failed = false;  // a bad row (exit 2), not an unwritable output (exit 6)
   Status staged = outputs.StageWith(FLAGS_output, [&](const std::string& temporary) -> Status {
     tools::StagedFile out;
     if (Status s = out.Create(temporary); !s.ok()) return s;
     if (Status s = out.Append(header); !s.ok()) return s;
-    // ---- Stream: read a chunk, solve it on all threads (each a contiguous share, so the output
-    // keeps the input's order), write it.
+    // ---- Stream: read a chunk, solve it on all threads (each a contiguous block, so the output
+    // keeps the input's order), format it the same way, write it.
     constexpr int kChunkRows = 1 << 15;
     std::vector<double> seeds;
-    std::vector<Row> rows;
-    std::vector<Part> parts(threads);
+    std::vector<IkTarget> targets;
+    std::vector<int> lines;
+    CompensatedRows solved;
+    std::vector<std::string> texts;
     while (true) {
       seeds.clear();
-      rows.clear();
-      if (Status s = reader.Read(kChunkRows, &seeds, &rows); !s.ok()) {
+      targets.clear();
+      lines.clear();
+      if (Status s = reader.Read(kChunkRows, &seeds, &targets, &lines); !s.ok()) {
         input_failed = true;
         return s;
       }
-      const int chunk = static_cast<int>(rows.size());
+      const int chunk = static_cast<int>(targets.size());
       if (chunk == 0) break;
-      // Targets in the base frame: carried into the calibrated model's (measurement) frame.
-      if (!joints_mode && FLAGS_frame == "base") {
-        for (int k = 0; k < chunk; ++k) {
-          IkTarget& t = rows[k].target;
-          t.position = model.T_measurement_base * t.position;
-          t.rotation = model.T_measurement_base.R * t.rotation;
-        }
+      compensator->Solve(seeds.data(), &targets, &solved);
+      texts.assign(compensator->Blocks(chunk), std::string());
+      compensator->ForEachBlock(chunk, [&](int block, int begin, int end) {
+        format_rows(targets, solved, begin, end, &texts[block]);
+      });
+      for (const std::string& text : texts) {
+        if (Status s = out.Append(text); !s.ok()) return s;
       }
-      // Joint-program mode: the nominal tool pose at the program's joints, in the calibrated
-      // model's (measurement) frame.
-      if (joints_mode) {
-        for (int k = 0; k < chunk; ++k) {
-          IkTarget& t = rows[k].target;
-          const SE3d T = model.T_measurement_base * nominal_chain.Pose(&seeds[size_t(k) * n], t.tool);
-          t.position = T.t;
-          t.rotation = T.R;
-          t.has_orientation = FLAGS_joints_target == "pose";
-        }
-      }
-      const int workers = std::max(1, std::min(threads, chunk / 256));
-      std::vector<std::thread> pool;
-      for (int t = 0; t < workers; ++t) {
-        parts[t].text.clear();
-        const int begin = static_cast<int>(int64_t{chunk} * t / workers);
-        const int end = static_cast<int>(int64_t{chunk} * (t + 1) / workers);
-        if (t + 1 < workers) {
-          pool.emplace_back(solve_rows, std::cref(rows), std::cref(seeds), begin, end, &parts[t]);
-        } else {
-          solve_rows(rows, seeds, begin, end, &parts[t]);
-        }
-      }
-      for (std::thread& th : pool) th.join();
-      // Worker t's rows precede worker t+1's: in order.
-      for (int t = 0; t < workers; ++t) {
-        if (Status s = out.Append(parts[t].text); !s.ok()) return s;
-        Part& p = parts[t];
-        for (int c = 0; c < 5; ++c) total.per_status[c] += p.per_status[c];
-        if (p.max_correction > total.max_correction) {
-          total.max_correction = p.max_correction;
-          total.max_correction_line = p.max_correction_line;
-        }
-        if (p.max_residual > total.max_residual) {
-          total.max_residual = p.max_residual;
-          total.max_residual_line = p.max_residual_line;
-        }
-        total.max_orientation_residual =
-            std::max(total.max_orientation_residual, p.max_orientation_residual);
-        total.far_rows += p.far_rows;
-        p = Part();
-      }
-      count += chunk;
+      total.Add(solved, lines.data());
     }
     return out.Close();
   });
@@ -615,11 +472,7 @@ int Run() {
     const std::string hint = JointUnitHint(model, max_abs);
     if (!hint.empty()) std::cerr << "warning: " << in_path << ": " << hint << "\n";
   }
-  const int* per_status = total.per_status;
-  const double max_correction = total.max_correction, max_residual = total.max_residual;
-  const double max_orientation_residual = total.max_orientation_residual;
-  const int max_correction_line = total.max_correction_line;
-  const int max_residual_line = total.max_residual_line;
+  const int count = total.rows;
 
   // ---- Summary.
   nlohmann::json report;
@@ -628,41 +481,40 @@ int Run() {
   report["mode"] = joints_mode ? "joints" : "targets";
   report["rows"] = count;
   nlohmann::json counts;
-  std::cerr << "lpoe_compensate: " << count << " rows:";
+  std::ostringstream summary;
+  summary << "lpoe_compensate: " << count << " rows:";
   for (int s = 0; s < 5; ++s) {
     const char* name = IkStatusName(static_cast<IkStatus>(s));
-    counts[name] = per_status[s];
-    std::cerr << " " << name << " " << per_status[s];
+    counts[name] = total.per_status[s];
+    summary << " " << name << " " << total.per_status[s];
   }
-  std::cerr << "\n  largest correction " << max_correction << " (rad/mm, Euclidean; line "
-            << max_correction_line << ")\n  largest residual " << max_residual << " mm (line "
-            << max_residual_line << "), orientation " << max_orientation_residual << " rad\n";
-  // Most targets metres from anything the robot reaches are in another frame, not beyond the
-  // robot's reach: an error that says which frame was assumed; nothing is written. (One far row
-  // is an unreachable target, written with its status.)
-  if (!joints_mode && count > 0 && 2 * total.far_rows > count) {
-    std::cerr << "error: " << in_path << ": " << total.far_rows << " of " << count
-              << " targets are more than " << kWrongFrameMm
-              << " mm from any pose the calibrated robot reaches (line " << max_residual_line
-              << ": " << max_residual << " mm): the targets were read in the " << (FLAGS_frame == "base" ? "robot's base" : "measurement")
-              << " frame (--frame=" << FLAGS_frame << "); if they are in the "
-              << (FLAGS_frame == "base" ? "measurement (tracker)" : "robot's base")
-              << " frame, use --frame=" << (FLAGS_frame == "base" ? "measurement" : "base")
-              << "; no output written\n";
+  summary << "\n  largest correction " << total.max_correction << " (rad/mm, Euclidean; line "
+          << total.max_correction_line << ")\n  largest residual " << total.max_residual
+          << " mm (line " << total.max_residual_line << "), orientation "
+          << total.max_orientation_residual << " rad\n";
+  if (!FLAGS_quiet) std::cerr << summary.str();
+  // Most targets metres from anything the robot reaches are in another frame: an error that
+  // says which frame was assumed; nothing is written.
+  if (Status s = total.CheckFrame(request, in_path); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
   report["frame"] = joints_mode ? "nominal program" : FLAGS_frame;
   report["status_counts"] = counts;
-  report["largest_correction"] = {{"value", max_correction}, {"line", max_correction_line}};
-  report["largest_residual_mm"] = {{"value", max_residual}, {"line", max_residual_line}};
-  report["largest_orientation_residual_rad"] = max_orientation_residual;
+  report["largest_correction"] = {{"value", total.max_correction},
+                                  {"line", total.max_correction_line}};
+  report["largest_residual_mm"] = {{"value", total.max_residual},
+                                   {"line", total.max_residual_line}};
+  report["largest_orientation_residual_rad"] = total.max_orientation_residual;
   report["output"] = FLAGS_output;
   if (!FLAGS_report.empty()) staged = outputs.Stage(FLAGS_report, tools::JsonText(report));
   if (Status s = staged.ok() ? outputs.Commit(nullptr) : staged; !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;
   }
-  if (FLAGS_strict && per_status[static_cast<int>(IkStatus::kOk)] != count) return kExitNotAllOk;
+  if (FLAGS_strict && total.per_status[static_cast<int>(IkStatus::kOk)] != count) {
+    return kExitNotAllOk;
+  }
   return kExitOk;
 }
 

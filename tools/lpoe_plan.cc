@@ -23,44 +23,43 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_table.h"
 #include "lpoe/joint_term.h"
+#include "lpoe/options.h"
 #include "lpoe/planning.h"
+#include "lpoe/planning_workflow.h"
 #include "lpoe/refusals.h"
 #include "json_text.h"
 #include "output_files.h"
+#include "parse_util.h"
 #include "tool_common.h"
 
-DEFINE_string(model, "", "Nominal robot model, YAML or URDF (.urdf). Required.");
+// Defaults, ranges and help of the numeric options from the option table (lpoe/options.h), shared
+// with lpoe.plan.
+#define LPOE_DEFAULT(name) lpoe::OptionDefault("lpoe_plan", #name)
+#define LPOE_HELP(name) lpoe::OptionHelp("lpoe_plan", #name)
 DEFINE_string(count, "",
               "Number of poses to plan, or 'auto': the smallest plan predicted to reach "
               "--target_accuracy with --noise_sigma. Required.");
-DEFINE_string(output, "", "The plan, CSV (q1..qN; with --candidates the chosen rows of that file "
-                          "plus a candidate_row column). Required.");
 DEFINE_string(report, "", "JSON report (default: --output with its extension replaced by .json).");
 DEFINE_string(candidates, "",
               "Candidate configurations, CSV with q1..qN (other columns are kept): choose rows of "
               "this file. Default: sample --candidate_count configurations within the joint limits.");
-DEFINE_int32(candidate_count, 5000, "Configurations sampled when no --candidates file is given.");
+DEFINE_int32(candidate_count, static_cast<int>(LPOE_DEFAULT(candidate_count)), LPOE_HELP(candidate_count));
 DEFINE_string(workspace, "",
               "Configurations where the accuracy matters (CSV with q1..qN), for criterion I and "
               "the predicted accuracy. Default: --workspace_count samples within the joint limits.");
-DEFINE_int32(workspace_count, 1000, "Configurations sampled when no --workspace file is given.");
-DEFINE_string(angle_unit, "rad", "Unit of revolute joint values in every CSV read or written: rad | deg.");
+DEFINE_int32(workspace_count, static_cast<int>(LPOE_DEFAULT(workspace_count)), LPOE_HELP(workspace_count));
 DEFINE_uint64(seed, 1, "Seed of the sampled candidates, workspace and random comparison plans.");
 DEFINE_string(criterion, "D",
               "D (default: parameters) | A | E | I (average position variance over the workspace) "
               "| O1 | O3 (observability indices; see docs/planning.md).");
 DEFINE_string(tracker, "", "Tracker position x,y,z in the model's base frame (mm). Enables the "
                            "visibility constraints (--max_range, --acceptance_angle, --smr_facing).");
-DEFINE_double(max_range, 0, "Maximum tracker-to-SMR distance (mm); 0: unlimited.");
-DEFINE_double(acceptance_angle, 30.0,
-              "Half-angle (degrees) of the cone around an SMR's facing direction within which the "
-              "tracker must lie, in (0, 90].");
+DEFINE_double(max_range, LPOE_DEFAULT(max_range), LPOE_HELP(max_range));
+DEFINE_double(acceptance_angle, LPOE_DEFAULT(acceptance_angle), LPOE_HELP(acceptance_angle));
 DEFINE_string(smr_facing, "",
               "Facing direction of the SMRs in their tool frames: 'x,y,z' for all, or one 'x,y,z' "
               "per tool separated by ';'. Default: +z of each tool frame.");
-DEFINE_double(min_singularity, 0.01,
-              "Drop candidates whose singularity measure (smallest singular value of the "
-              "length-normalized geometric Jacobian, docs/planning.md) is below this; 0: keep all.");
+DEFINE_double(min_singularity, LPOE_DEFAULT(min_singularity), LPOE_HELP(min_singularity));
 DEFINE_double(min_z, -1e300,
               "Floor of the cell (mm, base frame z): every joint origin after the first and every "
               "SMR of a planned pose at least this high. Default: no floor.");
@@ -74,11 +73,9 @@ DEFINE_string(joint_ranges, "",
               "Joint ranges narrower than the model's limits, lo:hi per joint separated by commas "
               "(--angle_unit for revolute joints, mm for prismatic; an empty item keeps the "
               "limits), e.g. ':,-1.5:0.5,,,,'. Candidates outside are dropped.");
-DEFINE_double(target_accuracy, 0, "--count=auto: predicted held-out RMS to reach (mm).");
-DEFINE_double(noise_sigma, 0,
-              "Measurement noise per axis (mm): scales the predicted accuracy into mm; required "
-              "with --count=auto.");
-DEFINE_int32(random_draws, 30, "Random plans of the same size evaluated for comparison.");
+DEFINE_double(target_accuracy, LPOE_DEFAULT(target_accuracy), LPOE_HELP(target_accuracy));
+DEFINE_double(noise_sigma, LPOE_DEFAULT(noise_sigma), LPOE_HELP(noise_sigma));
+DEFINE_int32(random_draws, static_cast<int>(LPOE_DEFAULT(random_draws)), LPOE_HELP(random_draws));
 DEFINE_string(joint_errors, "none",
               "Joint-space error terms the calibration will identify: none | a comma-separated "
               "list of the registry's terms (compliance, harmonics, ...: docs/joint_errors.md) | "
@@ -90,6 +87,14 @@ DEFINE_string(joint_errors, "none",
               "subsets. The tilt's information is proportional to the compliance values, so "
               "'tilt' needs a --model that carries them (a calibrated model's YAML); with a "
               "nominal model it is refused (docs/planning.md).");
+// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
+#undef LPOE_DEFAULT
+#undef LPOE_HELP
+DECLARE_string(model);
+DECLARE_string(angle_unit);
+DECLARE_string(length_unit);
+DECLARE_bool(quiet);
+DECLARE_string(output);
 
 namespace lpoe {
 namespace {
@@ -116,17 +121,10 @@ constexpr char kUsage[] =
 constexpr double kPi = 3.14159265358979323846;
 
 bool ParseVector3(const std::string& text, Eigen::Vector3d* v) {
-  std::stringstream ss(text);
-  std::string item;
-  int k = 0;
-  while (std::getline(ss, item, ',')) {
-    if (k >= 3) return false;
-    char* end = nullptr;
-    (*v)(k) = std::strtod(item.c_str(), &end);
-    if (end == item.c_str() || *end != '\0' || !std::isfinite((*v)(k))) return false;
-    ++k;
-  }
-  return k == 3;
+  std::vector<double> x;
+  if (!internal::ParseNumberList(text, ',', &x) || x.size() != 3) return false;
+  *v = Eigen::Vector3d(x[0], x[1], x[2]);
+  return true;
 }
 
 std::string FormatNumber(double v) {
@@ -176,79 +174,61 @@ int Run() {
     std::cerr << "error: --model, --count and --output are required (see --help)\n";
     return kExitUsage;
   }
-  const bool automatic = FLAGS_count == "auto";
-  int count = 0;
-  if (!automatic) {
-    const auto r = std::from_chars(FLAGS_count.data(), FLAGS_count.data() + FLAGS_count.size(), count);
-    if (r.ec != std::errc() || r.ptr != FLAGS_count.data() + FLAGS_count.size() || count < 1 ||
-        count > 1000000) {
-      std::cerr << "error: --count must be a number of poses from 1 to 1000000, or 'auto'\n";
-      return kExitUsage;
-    }
-  } else if (!(FLAGS_target_accuracy > 0) || !(FLAGS_noise_sigma > 0)) {
-    std::cerr << "error: --count=auto needs --target_accuracy > 0 and --noise_sigma > 0 (mm)\n";
-    return kExitUsage;
+  // The workflow's request (lpoe/planning_workflow.h), checked before any file is read.
+  PlanRequest request;
+  request.model_source = FLAGS_model;
+  request.count_auto = FLAGS_count == "auto";
+  if (!request.count_auto) {
+    const auto r = std::from_chars(FLAGS_count.data(), FLAGS_count.data() + FLAGS_count.size(),
+                                   request.count);
+    if (r.ec != std::errc() || r.ptr != FLAGS_count.data() + FLAGS_count.size()) request.count = 0;
   }
-  if (!(FLAGS_noise_sigma >= 0) || !(FLAGS_target_accuracy >= 0) || !std::isfinite(FLAGS_noise_sigma)) {
-    std::cerr << "error: --noise_sigma and --target_accuracy must be >= 0\n";
-    return kExitUsage;
-  }
+  request.target_accuracy = FLAGS_target_accuracy;
+  request.noise_sigma = FLAGS_noise_sigma;
   AngleUnit unit;
-  if (!tools::ParseAngleUnit(FLAGS_angle_unit, &unit)) {
-    std::cerr << "error: --angle_unit must be rad or deg\n";
+  LengthUnit length_unit;
+  if (Status s = tools::ParseUnitFlags(&unit, &length_unit); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  PlanOptions options;
+  PlanOptions& options = request.options;
   if (!ParsePlanCriterion(FLAGS_criterion, &options.criterion)) {
     std::cerr << "error: --criterion must be one of D, A, E, I, O1, O3\n";
     return kExitUsage;
   }
-  if (FLAGS_candidate_count < 1 || FLAGS_candidate_count > 1000000 || FLAGS_workspace_count < 1 ||
-      FLAGS_workspace_count > 1000000 || FLAGS_random_draws < 1 || FLAGS_random_draws > 10000) {
-    std::cerr << "error: --candidate_count and --workspace_count must be in [1, 1000000], "
-                 "--random_draws in [1, 10000]\n";
-    return kExitUsage;
-  }
-  // The joint-space terms, compliance first as lpoe_calibrate orders them (docs/joint_errors.md).
-  std::vector<std::string> term_names;
-  bool tilt = false;  // the gravity tilt, asked for
-  std::vector<std::string> kinds;
-  std::string error;
-  if (FLAGS_joint_errors == "auto") {
-    term_names = JointTermNames();
-  } else if (ParseJointErrorList(FLAGS_joint_errors, &kinds, &tilt, &error)) {
-    term_names = InRegistryOrder(kinds);
-  } else {
-    std::cerr << "error: --joint_errors=" << FLAGS_joint_errors << ": " << error
-              << " (expected none, a comma-separated list of " << JointTermNameList()
-              << " or auto, with tilt in a list with compliance)\n";
-    return kExitUsage;
-  }
-  PlanConstraints constraints;
-  if (!(FLAGS_min_singularity >= 0) || !(FLAGS_min_singularity < 1)) {
-    std::cerr << "error: --min_singularity must be in [0, 1)\n";
-    return kExitUsage;
-  }
+  request.candidate_count = FLAGS_candidate_count;
+  request.workspace_count = FLAGS_workspace_count;
+  request.random_draws = FLAGS_random_draws;
+  request.seed = FLAGS_seed;
+  request.joint_errors = FLAGS_joint_errors;
+  PlanConstraints& constraints = request.constraints;
   constraints.min_singularity = FLAGS_min_singularity;
-  if (!(FLAGS_acceptance_angle > 0) || !(FLAGS_acceptance_angle <= 90)) {
-    std::cerr << "error: --acceptance_angle must be in (0, 90] degrees\n";
-    return kExitUsage;
-  }
-  if (!(FLAGS_max_range >= 0) || !std::isfinite(FLAGS_max_range)) {
-    std::cerr << "error: --max_range must be >= 0 (mm; 0 = unlimited)\n";
-    return kExitUsage;
-  }
   TrackerConstraint& tracker = constraints.tracker;
+  tracker.acceptance_angle = FLAGS_acceptance_angle * kPi / 180.0;
+  if (FLAGS_max_range > 0) tracker.max_range = FLAGS_max_range;
   if (!FLAGS_tracker.empty()) {
     tracker.enabled = true;
     if (!ParseVector3(FLAGS_tracker, &tracker.position)) {
       std::cerr << "error: --tracker must be x,y,z in mm (three finite numbers)\n";
       return kExitUsage;
     }
-    tracker.acceptance_angle = FLAGS_acceptance_angle * kPi / 180.0;
-    if (FLAGS_max_range > 0) tracker.max_range = FLAGS_max_range;
-  } else if (!FLAGS_smr_facing.empty() || FLAGS_max_range > 0) {
+  } else if (!FLAGS_smr_facing.empty()) {
     std::cerr << "error: --smr_facing and --max_range need --tracker\n";
+    return kExitUsage;
+  }
+  if (!std::isfinite(FLAGS_min_z) && FLAGS_min_z != -1e300) {
+    std::cerr << "error: --min_z must be a finite height in mm\n";
+    return kExitUsage;
+  }
+  if (FLAGS_min_z != -1e300) constraints.cell.min_z = FLAGS_min_z;
+  if (!FLAGS_box.empty()) {
+    if (Status s = ParseBox(FLAGS_box, &constraints.cell.box); !s.ok()) {
+      std::cerr << "error: --box: " << s.message() << "\n";
+      return kExitUsage;
+    }
+  }
+  if (Status s = CheckPlanRequest(request); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
 
@@ -267,6 +247,7 @@ int Run() {
   outputs.AddInput("--model", FLAGS_model);
   outputs.AddInput("--candidates", FLAGS_candidates);
   outputs.AddInput("--workspace", FLAGS_workspace);
+  outputs.AddInput("--keep_out", FLAGS_keep_out);
   outputs.AddOutput("--output", FLAGS_output);
   outputs.AddOutput(FLAGS_report.empty() ? "--report (default: --output with .json)" : "--report",
                     report_path);
@@ -275,7 +256,7 @@ int Run() {
     return kExitUsage;
   }
 
-  RobotModel model;
+  RobotModel& model = request.model;
   if (Status s = tools::CheckUrdfFlagsHaveAUrdf({FLAGS_model}); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return tools::kExitUsage;
@@ -303,18 +284,7 @@ int Run() {
     }
   }
 
-  // The cell: floor, box, keep-out boxes, narrower joint ranges.
-  if (!std::isfinite(FLAGS_min_z) && FLAGS_min_z != -1e300) {
-    std::cerr << "error: --min_z must be a finite height in mm\n";
-    return kExitUsage;
-  }
-  if (FLAGS_min_z != -1e300) constraints.cell.min_z = FLAGS_min_z;
-  if (!FLAGS_box.empty()) {
-    if (Status s = ParseBox(FLAGS_box, &constraints.cell.box); !s.ok()) {
-      std::cerr << "error: --box: " << s.message() << "\n";
-      return kExitUsage;
-    }
-  }
+  // The cell: keep-out boxes, narrower joint ranges.
   if (!FLAGS_keep_out.empty()) {
     std::string text;
     if (Status s = ReadFile(FLAGS_keep_out, &text); !s.ok()) {
@@ -336,47 +306,35 @@ int Run() {
     }
   }
   if (!FLAGS_joint_ranges.empty()) {
+    // lo:hi per joint (--angle_unit for revolute joints, --length_unit for prismatic ones); an
+    // empty item (or ':') keeps the joint's limits.
     std::vector<std::string> items;
     std::stringstream ss(FLAGS_joint_ranges);
     for (std::string item; std::getline(ss, item, ',');) items.push_back(item);
-    if (!FLAGS_joint_ranges.empty() && FLAGS_joint_ranges.back() == ',') items.push_back("");
-    if (static_cast<int>(items.size()) != model.num_joints()) {
-      std::cerr << "error: --joint_ranges gives " << items.size() << " items; the model has "
-                << model.num_joints() << " joints\n";
-      return kExitUsage;
-    }
-    for (int j = 0; j < model.num_joints(); ++j) {
+    if (FLAGS_joint_ranges.back() == ',') items.push_back("");
+    std::vector<std::pair<double, double>> ranges(items.size(), {NAN, NAN});
+    for (size_t j = 0; static_cast<int>(items.size()) == model.num_joints() && j < items.size();
+         ++j) {
       const std::string& item = items[j];
       if (item.find_first_not_of(" :") == std::string::npos) continue;  // "" or ":": the limits
-      const size_t colon = item.find(':');
-      char* end_lo = nullptr;
-      char* end_hi = nullptr;
-      const std::string lo_text = colon == std::string::npos ? "" : item.substr(0, colon);
-      const std::string hi_text = colon == std::string::npos ? "" : item.substr(colon + 1);
-      const double lo = std::strtod(lo_text.c_str(), &end_lo);
-      const double hi = std::strtod(hi_text.c_str(), &end_hi);
-      if (colon == std::string::npos || lo_text.empty() || hi_text.empty() || *end_lo != '\0' ||
-          *end_hi != '\0' || !std::isfinite(lo) || !std::isfinite(hi) || !(lo < hi)) {
+      std::vector<double> v;
+      if (!internal::ParseNumberList(item, ':', &v) || v.size() != 2 || !(v[0] < v[1])) {
         std::cerr << "error: --joint_ranges: '" << item << "' for " << model.joints[j].name
                   << " is not lo:hi with lo < hi\n";
         return kExitUsage;
       }
-      const double scale =
-          unit == AngleUnit::kDegrees && model.joints[j].type == JointType::kRevolute ? kPi / 180.0
-                                                                                      : 1.0;
-      Joint& joint = model.joints[j];
-      joint.lower = std::max(joint.lower, lo * scale);
-      joint.upper = std::min(joint.upper, hi * scale);
-      if (!(joint.lower < joint.upper)) {
-        std::cerr << "error: --joint_ranges: " << item << " for " << joint.name
-                  << " does not overlap the joint's limits\n";
-        return kExitUsage;
-      }
+      const double scale = model.joints[j].type == JointType::kRevolute
+                               ? (unit == AngleUnit::kDegrees ? kPi / 180.0 : 1.0)
+                               : tools::MillimetresPer(length_unit);
+      ranges[j] = {v[0] * scale, v[1] * scale};
+    }
+    if (Status s = NarrowJointRanges(ranges, &model); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitUsage;
     }
   }
 
-  // Candidates and workspace.
-  std::vector<double> candidates, workspace;
+  // Candidates and workspace: files in the tool's units, else sampled by the workflow.
   JointTable table;
   if (!FLAGS_candidates.empty()) {
     if (Status s = ReadJointTable(FLAGS_candidates, model, unit, &table); !s.ok()) {
@@ -390,11 +348,9 @@ int Run() {
         return kExitInput;
       }
     }
-    candidates = table.q;
-  } else if (Status s = SampleConfigurations(model, FLAGS_candidate_count, FLAGS_seed, &candidates);
-             !s.ok()) {
-    std::cerr << "error: " << FLAGS_model << ": " << s.message() << "\n";
-    return kExitInput;
+    request.has_candidates = true;
+    request.candidates = table.q;
+    tools::ScalePrismaticJoints(model, length_unit, &request.candidates);
   }
   if (!FLAGS_workspace.empty()) {
     JointTable w;
@@ -402,176 +358,76 @@ int Run() {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
-    workspace = w.q;
-  } else if (Status s = SampleConfigurations(model, FLAGS_workspace_count, FLAGS_seed + 1, &workspace);
-             !s.ok()) {
-    std::cerr << "error: " << FLAGS_model << ": " << s.message() << "\n";
-    return kExitInput;
+    request.has_workspace = true;
+    request.workspace = w.q;
+    tools::ScalePrismaticJoints(model, length_unit, &request.workspace);
   }
 
-  std::vector<std::shared_ptr<const JointTerm>> terms;
-  for (const std::string& name : term_names) {
-    std::shared_ptr<const JointTerm> term;
-    if (Status s = MakeJointTerm(name, model, &term); !s.ok()) {
-      std::cerr << "error: " << FLAGS_model << ": " << s.message() << "\n";
-      return kExitInput;
-    }
-    terms.push_back(std::move(term));
-  }
-  // The gravity tilt: planned for when asked (refused with the reason when the model carries no
-  // compliance values) and, with auto, whenever the model carries them.
-  std::string tilt_note;
-  if (const Status s = PlanningGravityTiltStatus(model, terms); tilt && !s.ok()) {
-    std::cerr << "error: --joint_errors=" << FLAGS_joint_errors << " with --model=" << FLAGS_model
-              << ": " << s.message() << "\n";
-    return kExitUsage;
-  } else if (FLAGS_joint_errors == "auto") {
-    tilt = s.ok();
-    if (!tilt) {
-      tilt_note = "the model carries no compliance values, so the gravity tilt's information is "
-                  "zero (docs/planning.md)";
-    }
-  }
-
-  // The feasible candidates; with joint-space terms, their identifiable combinations are those the
-  // feasible candidates separate from the geometry (the solvers' reduction), and the pool's rows
-  // gain their columns.
-  CandidatePool pool;
-  const std::unique_ptr<PlanningModel> planning =
-      BuildPlanningPool(model, terms, candidates, constraints, &pool, tilt);
-  const PlanningModel& pm = *planning;
-  const int offered = static_cast<int>(candidates.size() / model.num_joints());
-  std::cout << "candidates: " << offered << " offered, " << pool.size() << " feasible ("
-            << pool.outside_limits << " outside the joint limits, " << pool.outside_cell
-            << " outside the cell, " << pool.near_singular << " near a singularity, "
-            << pool.nothing_visible << " with no SMR visible)\n";
-  std::cout << "parameters: " << pm.num_parameters() << " identifiable (" << model.num_joints()
-            << " joints, " << model.num_tools() << " tools";
-  for (const JointBlock& block : pm.parameterization().joint_blocks) {
-    std::cout << ", " << block.term->name() << " " << block.basis.cols() << " of "
-              << block.term->num_parameters();
-  }
-  if (pm.num_tilt_parameters() > 0) std::cout << ", gravity tilt 2";
-  std::cout << ")\n";
-  if (!tilt_note.empty()) std::cout << "auto: gravity tilt not planned for: " << tilt_note << "\n";
-  const Eigen::MatrixXd L = WorkspaceMoment(pm, workspace);
-
-  // The plan, or for --count=auto the smallest plan predicted to reach the target.
-  PlanResult plan;
-  PlanQuality quality;
-  auto plan_of = [&](int n) -> Status {
-    if (Status s = SelectPlan(pm, pool, n, L, options, &plan); !s.ok()) return s;
-    quality = EvaluatePlan(pm, pool, plan.selected, L);
-    return Status::Ok();
-  };
-  if (automatic) {
-    std::vector<int> all(pool.size());
-    for (int c = 0; c < pool.size(); ++c) all[c] = c;
-    const double best = FLAGS_noise_sigma * EvaluatePlan(pm, pool, all, L).predicted_rms;
-    if (pool.size() == 0 || !(best <= FLAGS_target_accuracy)) {
-      std::cerr << "error: even all " << pool.size() << " feasible candidates are predicted to reach "
-                << best << " mm, not " << FLAGS_target_accuracy
-                << " mm: offer more candidates or accept a larger target\n";
-      return kExitNotIdentifiable;
-    }
-    auto reaches = [&](int n) {
-      return plan_of(n).ok() && PlanRefusal(quality, pm.num_parameters(), n).ok() &&
-             FLAGS_noise_sigma * quality.predicted_rms <= FLAGS_target_accuracy;
-    };
-    int max_rows = 3;
-    for (int c = 0; c < pool.size(); ++c) max_rows = std::max(max_rows, pool.rows(c));
-    int lo = std::max(1, (pm.num_parameters() + max_rows - 1) / max_rows) - 1;  // fails
-    int hi = std::min(pool.size(), std::max(lo + 1, 2 * lo));
-    while (!reaches(hi)) {
-      if (hi >= pool.size()) {  // even every feasible candidate: refused, never a loop
-        const Status refusal = plan_of(hi).ok() ? PlanRefusal(quality, pm.num_parameters(), hi)
-                                                : Status::Error("no plan of all candidates");
-        std::cerr << "error: all " << pool.size() << " feasible candidates: "
-                  << (refusal.ok() ? "the target accuracy is out of reach" : refusal.message())
-                  << ": offer more candidates\n";
-        return kExitNotIdentifiable;
-      }
-      lo = hi;
-      hi = std::min(pool.size(), 2 * hi);
-    }
-    while (hi - lo > 1) {  // reaches(hi), not reaches(lo)
-      const int mid = lo + (hi - lo) / 2;
-      (reaches(mid) ? hi : lo) = mid;
-    }
-    count = hi;
-    if (Status s = plan_of(count); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitNotIdentifiable;
-    }
-  } else if (Status s = plan_of(count); !s.ok()) {
-    std::cerr << "error: " << s.message() << " (" << pool.outside_limits << " outside the limits, "
-              << pool.outside_cell << " outside the cell, " << pool.near_singular
-              << " near a singularity, " << pool.nothing_visible
-              << " with no SMR visible)\n";
-    return kExitNotIdentifiable;
-  }
-  // The refusals lpoe.plan shares (lpoe/refusals.h): full rank, and more rows than parameters.
-  if (Status s = PlanRefusal(quality, pm.num_parameters(), count); !s.ok()) {
+  PlanningResult planned;
+  PlanFailure failure = PlanFailure::kNone;
+  if (Status s = RunPlanning(request, &planned, &failure); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
-    return kExitNotIdentifiable;
+    return failure == PlanFailure::kUsage   ? kExitUsage
+           : failure == PlanFailure::kInput ? kExitInput
+                                            : kExitNotIdentifiable;
   }
-
-  // Random plans of the same size, for comparison.
-  std::vector<double> random_rms;
-  PlanQuality random_quality;
-  for (int k = 0; k < FLAGS_random_draws; ++k) {
-    const PlanQuality r =
-        EvaluatePlan(pm, pool, RandomPlan(pool.size(), count, FLAGS_seed + 1000 + k), L);
-    if (k == 0) random_quality = r;
-    random_rms.push_back(r.predicted_rms);
-  }
-  std::sort(random_rms.begin(), random_rms.end());
-  double mean_sq = 0;
-  int finite = 0;
-  for (double v : random_rms) {
-    if (std::isfinite(v)) {
-      mean_sq += v * v;
-      ++finite;
+  const PlanningModel& pm = *planned.planning;
+  const CandidatePool& pool = planned.pool;
+  const PlanResult& plan = planned.plan;
+  const PlanQuality& quality = planned.quality;
+  const PlanQuality& random_quality = planned.random_quality;
+  const std::vector<double>& random_rms = planned.random_rms;
+  const double random_rms_mean = planned.random_rms_mean;
+  const std::string& tilt_note = planned.tilt_note;
+  const int count = planned.count;
+  const int offered = planned.offered;
+  const bool automatic = request.count_auto;
+  if (!FLAGS_quiet) {
+    std::cout << "candidates: " << offered << " offered, " << pool.size() << " feasible ("
+              << pool.outside_limits << " outside the joint limits, " << pool.outside_cell
+              << " outside the cell, " << pool.near_singular << " near a singularity, "
+              << pool.nothing_visible << " with no SMR visible)\n";
+    std::cout << "parameters: " << pm.num_parameters() << " identifiable (" << model.num_joints()
+              << " joints, " << model.num_tools() << " tools";
+    for (const JointBlock& block : pm.parameterization().joint_blocks) {
+      std::cout << ", " << block.term->name() << " " << block.basis.cols() << " of "
+                << block.term->num_parameters();
     }
+    if (pm.num_tilt_parameters() > 0) std::cout << ", gravity tilt 2";
+    std::cout << ")\n";
+    if (!tilt_note.empty()) std::cout << "auto: gravity tilt not planned for: " << tilt_note << "\n";
   }
-  const double random_rms_mean = finite > 0 ? std::sqrt(mean_sq / finite)
-                                            : std::numeric_limits<double>::infinity();
 
   char line[256];
-  std::printf("criterion %s: %d poses (%d rows), %d exchanges in %d passes\n",
-              PlanCriterionName(options.criterion), count, quality.num_rows, plan.exchanges,
-              plan.passes);
-  std::snprintf(line, sizeof(line),
-                "predicted held-out RMS per unit noise: plan %.4f, random plan %.4f (RMS of %d "
-                "random plans %.4f, best %.4f); scaled condition number %.1f\n",
-                quality.predicted_rms, random_quality.predicted_rms, FLAGS_random_draws,
-                random_rms_mean, random_rms.front(), quality.condition_number);
-  std::cout << line;
-  if (FLAGS_noise_sigma > 0) {
+  if (!FLAGS_quiet) {
+    std::printf("criterion %s: %d poses (%d rows), %d exchanges in %d passes\n",
+                PlanCriterionName(options.criterion), count, quality.num_rows, plan.exchanges,
+                plan.passes);
     std::snprintf(line, sizeof(line),
-                  "with noise sigma %.4g mm: plan %.4f mm, random plan %.4f mm\n",
-                  FLAGS_noise_sigma, FLAGS_noise_sigma * quality.predicted_rms,
-                  FLAGS_noise_sigma * random_quality.predicted_rms);
+                  "predicted held-out RMS per unit noise: plan %.4f, random plan %.4f (RMS of %d "
+                  "random plans %.4f, best %.4f); scaled condition number %.1f\n",
+                  quality.predicted_rms, random_quality.predicted_rms, FLAGS_random_draws,
+                  random_rms_mean, random_rms.front(), quality.condition_number);
     std::cout << line;
+    if (FLAGS_noise_sigma > 0) {
+      std::snprintf(line, sizeof(line),
+                    "with noise sigma %.4g mm: plan %.4f mm, random plan %.4f mm\n",
+                    FLAGS_noise_sigma, FLAGS_noise_sigma * quality.predicted_rms,
+                    FLAGS_noise_sigma * random_quality.predicted_rms);
+      std::cout << line;
+    }
   }
 
-  // The gravity tilt's predicted standard deviations with the plan (the last two parameters of
-  // M^-1, at the model's compliance values): what the calibration's a-posteriori ones will be at
-  // that noise.
+  // The gravity tilt's predicted standard deviations with the plan (at the model's compliance
+  // values): what the calibration's a-posteriori ones will be at that noise.
   nlohmann::json tilt_json = {{"planned", pm.num_tilt_parameters() > 0}};
   if (!tilt_note.empty()) tilt_json["note"] = tilt_note;
   if (pm.num_tilt_parameters() > 0) {
-    const Eigen::MatrixXd M = Information(pool, plan.selected);
-    const int P = pm.num_parameters();
-    const Eigen::VectorXd d = M.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
-    const Eigen::MatrixXd Ms = d.asDiagonal() * M * d.asDiagonal();
-    const Eigen::MatrixXd Cs = Ms.ldlt().solve(Eigen::MatrixXd::Identity(P, P));
     nlohmann::json per_unit = nlohmann::json::array();
     nlohmann::json at_noise = nlohmann::json::array();
     std::string text;
     for (int a = 0; a < 2; ++a) {
-      const int k = P - 2 + a;
-      const double sd_deg = std::sqrt(std::max(0.0, Cs(k, k))) * d(k) * 180.0 / kPi;  // per mm
+      const double sd_deg = planned.tilt_sd_deg_per_unit[a];
       per_unit.push_back(std::isfinite(sd_deg) ? nlohmann::json(sd_deg) : nlohmann::json(nullptr));
       if (FLAGS_noise_sigma > 0) at_noise.push_back(FLAGS_noise_sigma * sd_deg);
       char buf[32];
@@ -581,24 +437,21 @@ int Run() {
     }
     tilt_json["predicted_std_dev_deg_per_unit_noise"] = per_unit;
     if (FLAGS_noise_sigma > 0) tilt_json["predicted_std_dev_deg"] = at_noise;
-    std::cout << "gravity tilt: predicted standard deviations " << text
-              << (FLAGS_noise_sigma > 0 ? " deg" : " deg per mm of noise")
-              << " (at the model's compliance values)\n";
+    if (!FLAGS_quiet) {
+      std::cout << "gravity tilt: predicted standard deviations " << text
+                << (FLAGS_noise_sigma > 0 ? " deg" : " deg per mm of noise")
+                << " (at the model's compliance values)\n";
+    }
   }
 
   // The plan CSV.
-  std::string planned_terms;
-  for (const std::string& name : term_names) {
-    planned_terms += (planned_terms.empty() ? "" : ",") + name;
-  }
-  if (tilt) planned_terms += std::string(",") + kGravityTiltName;
-  if (planned_terms.empty()) planned_terms = "none";
+  const std::string planned_terms = planned.PlannedTerms();
   std::string csv;
   csv += "# lpoe_plan: model " + tools::CommentText(model.name) + ", criterion " + PlanCriterionName(options.criterion) +
          ", " + std::to_string(count) + " of " + std::to_string(pool.size()) +
          " feasible candidates, joint errors " + planned_terms + ", seed " +
          std::to_string(FLAGS_seed) + "; joint values in " +
-         FLAGS_angle_unit + "\n";
+         FLAGS_angle_unit + (length_unit == LengthUnit::kMetres ? " and m" : "") + "\n";
   csv += std::string(tracker.enabled ? "# measure the SMRs of the visible column (names separated "
                                        "by ';') at each pose"
                                      : "# measure every SMR at every pose") +
@@ -623,8 +476,10 @@ int Run() {
     for (int c : plan.selected) {
       for (int j = 0; j < n; ++j) {
         double v = pool.q[static_cast<size_t>(c) * n + j];
-        if (unit == AngleUnit::kDegrees && model.joints[j].type == JointType::kRevolute) {
-          v *= 180.0 / kPi;
+        if (model.joints[j].type == JointType::kRevolute) {
+          if (unit == AngleUnit::kDegrees) v *= 180.0 / kPi;
+        } else {
+          v /= tools::MillimetresPer(length_unit);
         }
         csv += (j ? "," : "") + FormatNumber(v);
       }
@@ -649,7 +504,7 @@ int Run() {
         {"nothing_visible", pool.nothing_visible},
         {"outside_cell", pool.outside_cell},
         {"source", FLAGS_candidates.empty() ? "sampled" : FLAGS_candidates}}},
-      {"workspace_configurations", static_cast<int>(workspace.size() / n)},
+      {"workspace_configurations", planned.workspace_configurations},
       {"exchanges", plan.exchanges},
       {"plan", QualityJson(quality, FLAGS_noise_sigma)},
       {"random_plan", QualityJson(random_quality, FLAGS_noise_sigma)},
@@ -676,7 +531,9 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;
   }
-  for (const std::string& path : written) std::cout << "wrote " << path << "\n";
+  if (!FLAGS_quiet) {
+    for (const std::string& path : written) std::cout << "wrote " << path << "\n";
+  }
   return kExitOk;
 }
 

@@ -25,11 +25,8 @@
 #include "output_files.h"
 #include "tool_common.h"
 
-DEFINE_string(model, "", "Robot model: YAML, or URDF when the name ends in .urdf (required).");
 DEFINE_string(joints, "",
               "CSV of joint values: header with q1..qN, optional target column (required).");
-DEFINE_string(output, "", "CSV of predicted positions x,y,z in mm to write (required).");
-DEFINE_string(angle_unit, "rad", "Unit of the revolute joint values in --joints: rad | deg.");
 DEFINE_string(frame, "base",
               "Frame of the written positions: base (the robot's base frame, where programs live; "
               "from the calibrated model's recorded registration) | measurement (the frame the "
@@ -37,6 +34,12 @@ DEFINE_string(frame, "base",
               "calibrated in the base frame.");
 DEFINE_string(tool, "0",
               "Tool measured by rows without a target column: its name or 0-based index.");
+// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
+DECLARE_string(model);
+DECLARE_string(angle_unit);
+DECLARE_string(length_unit);
+DECLARE_bool(quiet);
+DECLARE_string(output);
 
 namespace lpoe {
 namespace {
@@ -60,10 +63,12 @@ int Run() {
     return kExitUsage;
   }
   AngleUnit unit;
-  if (!tools::ParseAngleUnit(FLAGS_angle_unit, &unit)) {
-    std::cerr << "error: --angle_unit must be rad or deg\n";
+  LengthUnit length_unit;
+  if (Status s = tools::ParseUnitFlags(&unit, &length_unit); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
+  const double mm_per_unit = tools::MillimetresPer(length_unit);
   // The output against the inputs, and its directory writable, before any work
   // (tools/output_files.h).
   tools::OutputSet outputs;
@@ -112,6 +117,7 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
+  tools::ScalePrismaticJoints(model, length_unit, &q);  // --length_unit: prismatic values to mm
   if (unit == AngleUnit::kRadians) {  // the hint every joint reader gives (lpoe/csv_rules.h)
     const int n = model.num_joints();
     std::vector<double> max_abs(n, 0.0);
@@ -130,16 +136,19 @@ int Run() {
     const SE3d base_from_measurement = model.T_measurement_base.Inverse();
     for (Eigen::Vector3d& p : positions) p = base_from_measurement * p;
   }
+  for (Eigen::Vector3d& p : positions) p /= mm_per_unit;  // --length_unit
   std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
   Status staged = outputs.Stage(
-      FLAGS_output, "# lpoe_predict: positions in mm in the " +
+      FLAGS_output, "# lpoe_predict: positions in " + FLAGS_length_unit + " in the " +
                         std::string(FLAGS_frame == "base" ? "robot's base" : "measurement") +
                         " frame\n" + PositionsToCsv(positions));
   if (Status s = staged.ok() ? outputs.Commit(nullptr) : staged; !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;
   }
-  std::cout << "wrote " << FLAGS_output << " (" << positions.size() << " positions)\n";
+  if (!FLAGS_quiet) {
+    std::cout << "wrote " << FLAGS_output << " (" << positions.size() << " positions)\n";
+  }
   return kExitOk;
 }
 

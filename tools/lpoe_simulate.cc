@@ -23,14 +23,12 @@
 #include "lpoe/simulation.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
+#include "parse_util.h"
 #include "tool_common.h"
 
 DEFINE_string(robot, "cobot6",
               "Built-in nominal robot: cobot6 (paper Table 1) | ur5 | arm7 | prismatic. Ignored "
               "when --model is given.");
-DEFINE_string(model, "",
-              "Nominal robot model to simulate instead of a built-in one: YAML, or URDF when the "
-              "name ends in .urdf. Joint values are drawn within the joints' limits.");
 DEFINE_string(errors, "table2",
               "Kinematic errors of the actual robot: table2 (paper Table 2, cobot6 only) | random "
               "| none.");
@@ -55,7 +53,6 @@ DEFINE_bool(all_tools, false,
             "Cycle the measured target through all tools of the model (with --joints: measure "
             "every tool at each configuration).");
 DEFINE_uint64(seed, 1, "Seed of the configurations and the noise.");
-DEFINE_string(angle_unit, "rad", "Unit of the revolute joint values written: rad | deg.");
 DEFINE_string(joint_errors, "none",
               "Non-geometric errors of the actual robot (docs/joint_errors.md): none | a "
               "comma-separated list of the registry's joint-space terms (compliance, harmonics, "
@@ -81,12 +78,17 @@ DEFINE_string(gravity_tilt_deg, "",
               "perpendicular to the nominal gravity that lpoe_calibrate --joint_errors=...,tilt "
               "reports (x and y of the base for gravity along -z), e.g. 0.3,0.1. Not with "
               "--gravity_tilt.");
-DEFINE_string(output, "", "Measurement CSV to write (required).");
 DEFINE_string(out, "", "Old name of --output (every other tool says --output); accepted with a "
                        "warning for one release.");
 DEFINE_string(verify_out, "", "Verification CSV (the last --verify_count rows).");
 DEFINE_string(model_out, "", "Write the nominal model here (YAML).");
 DEFINE_string(actual_out, "", "Write the actual (erroneous) robot here (YAML).");
+// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
+DECLARE_string(model);
+DECLARE_string(angle_unit);
+DECLARE_string(length_unit);
+DECLARE_bool(quiet);
+DECLARE_string(output);
 
 namespace lpoe {
 namespace {
@@ -99,23 +101,19 @@ constexpr char kUsage[] =
     "  lpoe_simulate --model=nominal.yaml --errors=random --joints=poses.csv --all_tools \\\n"
     "      --noise_sigma=0.02 --output=planned.csv                # at the poses of a plan\n"
     "  lpoe_simulate --joint_errors=compliance,harmonics --errors=random --count=300 \\\n"
-    "      --noise_sigma=0.01 --output=arm.csv --actual_out=actual.yaml   # a small arm that deflects";
+    "      --noise_sigma=0.01 --output=arm.csv --actual_out=actual.yaml   # a small arm that deflects\n\n"
+    "--model: the nominal model to simulate (default: the built-in --robot); --output: the "
+    "measurement CSV.\n\n"
+    "Exit codes: 0 written, 1 bad flags or outputs (one names an input or another output, or its "
+    "directory is missing or not writable: checked before any work), 2 bad input file, 5 a "
+    "non-finite model would be written, 6 an output could not be written (then none is).";
 
 constexpr double kDegreesPerRadian = 180.0 / 3.14159265358979323846;
 constexpr double kRadiansPerArcsec = 1.0 / 206264.80624709636;
 
-// A comma-separated list of finite numbers.
+// A comma-separated list of finite numbers (the one reader of such lists, parse_util.h).
 bool ParseNumberList(const std::string& text, std::vector<double>* out) {
-  out->clear();
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    char* end = nullptr;
-    const double v = std::strtod(item.c_str(), &end);
-    if (item.empty() || *end != '\0' || !std::isfinite(v)) return false;
-    out->push_back(v);
-  }
-  return !out->empty() && text.back() != ',';
+  return internal::ParseNumberList(text, ',', out);
 }
 
 int Run() {
@@ -150,18 +148,7 @@ int Run() {
     std::cerr << "error: --verify_count needs --verify_out\n";
     return kExitUsage;
   }
-  for (Status s : {tools::CheckRange("noise_sigma", FLAGS_noise_sigma, 0.0, 1e4),
-                   tools::CheckRange("orientation_noise_sigma", FLAGS_orientation_noise_sigma, 0.0,
-                                     1.0),
-                   tools::CheckRange("error_rotation", FLAGS_error_rotation, 0.0, 1.0),
-                   tools::CheckRange("error_translation", FLAGS_error_translation, 0.0, 1e3),
-                   tools::CheckRange("error_tilt", FLAGS_error_tilt, 0.0, 1.0),
-                   tools::CheckRange("error_zero", FLAGS_error_zero, 0.0, 1e3)}) {
-    if (!s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitUsage;
-    }
-  }
+  // The error and noise bounds: their ranges (lpoe/options.h) were checked by InitTool.
   // No output may overwrite the model or another output (by file identity).
   tools::OutputSet files;
   files.AddInput("--model", FLAGS_model);
@@ -175,10 +162,12 @@ int Run() {
     return kExitUsage;
   }
   AngleUnit unit;
-  if (!tools::ParseAngleUnit(FLAGS_angle_unit, &unit)) {
-    std::cerr << "error: --angle_unit must be rad or deg\n";
+  LengthUnit length_unit;
+  if (Status s = tools::ParseUnitFlags(&unit, &length_unit); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
+  const double mm_per_unit = tools::MillimetresPer(length_unit);
 
   RobotModel nominal;
   UrdfOptions urdf_options;
@@ -295,6 +284,7 @@ int Run() {
       return kExitInput;
     }
     options.configurations = table.q;
+    tools::ScalePrismaticJoints(nominal, length_unit, &options.configurations);
     const int rows = table.rows() * (FLAGS_all_tools ? nominal.num_tools() : 1);
     if (FLAGS_verify_count >= rows) {
       std::cerr << "error: --verify_count must be below the " << rows << " rows of --joints\n";
@@ -307,6 +297,14 @@ int Run() {
   options.seed = FLAGS_seed;
   options.all_tools = FLAGS_all_tools;
   MeasurementSet data = SimulateMeasurements(actual, errors.joint_zero, options);
+  if (length_unit != LengthUnit::kMillimetres) {  // --length_unit: positions and prismatic joints
+    for (int r = 0; r < data.size(); ++r) {
+      data.mutable_position(r) /= mm_per_unit;
+      for (int i = 0; i < nominal.num_joints(); ++i) {
+        if (nominal.joints[i].type == JointType::kPrismatic) data.mutable_q(r)[i] /= mm_per_unit;
+      }
+    }
+  }
   if (unit == AngleUnit::kDegrees) {
     for (int r = 0; r < data.size(); ++r) {
       for (int i = 0; i < nominal.num_joints(); ++i) {
@@ -318,7 +316,8 @@ int Run() {
   std::ostringstream comment;
   comment << "lpoe_simulate: robot " << nominal.name << ", errors " << FLAGS_errors
           << ", joint errors " << FLAGS_joint_errors << ", noise sigma " << FLAGS_noise_sigma << " mm, seed " << FLAGS_seed << ", joint values in "
-          << FLAGS_angle_unit;
+          << FLAGS_angle_unit
+          << (length_unit == LengthUnit::kMillimetres ? "" : ", lengths in " + FLAGS_length_unit);
   MeasurementSet identification, verification;
   data.SplitAt(data.size() - FLAGS_verify_count, &identification, &verification);
 
@@ -355,7 +354,9 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;
   }
-  for (const std::string& w : written) std::cout << "wrote " << w << "\n";
+  if (!FLAGS_quiet) {
+    for (const std::string& w : written) std::cout << "wrote " << w << "\n";
+  }
   return kExitOk;
 }
 

@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 
 #include <sys/stat.h>
 
 #include <nlohmann/json.hpp>
+#include <tinyxml2.h>
 
 #include "lpoe/analysis.h"
 #include "lpoe/joint_errors.h"
@@ -173,6 +175,38 @@ void AddPointResiduals(const RobotModel& before, const RobotModel& after,
   };
   fill(identification, &summary->identification_points);
   fill(verification, &summary->verification_points);
+}
+
+std::vector<std::string> UrdfFrameElements(const UrdfSource& source, const RobotModel& model) {
+  tinyxml2::XMLDocument doc;
+  if (doc.Parse(source.xml.c_str(), source.xml.size()) != tinyxml2::XML_SUCCESS) return {};
+  const tinyxml2::XMLElement* robot = doc.FirstChildElement("robot");
+  if (robot == nullptr) return {};
+  auto attribute = [](const tinyxml2::XMLElement* e, const char* name) {
+    const char* v = e != nullptr ? e->Attribute(name) : nullptr;
+    return std::string(v != nullptr ? v : "");
+  };
+  // joint name -> child link, and child link -> joint name.
+  std::map<std::string, std::string> child_of, joint_to;
+  for (const tinyxml2::XMLElement* j = robot->FirstChildElement("joint"); j != nullptr;
+       j = j->NextSiblingElement("joint")) {
+    const std::string link = attribute(j->FirstChildElement("child"), "link");
+    child_of[attribute(j, "name")] = link;
+    joint_to[link] = attribute(j, "name");
+  }
+  std::vector<std::string> out;
+  for (const Joint& joint : model.joints) {
+    const auto child = child_of.find(joint.name);
+    out.push_back("joint '" + joint.name + "'" +
+                  (child != child_of.end() ? " (child link '" + child->second + "')" : ""));
+  }
+  for (const Tool& tool : model.tools) {
+    const auto joint = joint_to.find(tool.name);
+    out.push_back(joint != joint_to.end()
+                      ? "joint '" + joint->second + "' (link '" + tool.name + "')"
+                      : "link '" + tool.name + "'");
+  }
+  return out;
 }
 
 void AddPipelineResult(const PipelineResult& run, RunSummary* s) {
@@ -505,6 +539,7 @@ Json BuildJson(const RunSummary& s) {
     Json c = {{"name", d.name},
               {"change", d.vector.dot(dp)},
               {"unit", rotation ? "rad" : "mm"}};
+    if (static_cast<size_t>(d.frame) < s.urdf_frames.size()) c["urdf"] = s.urdf_frames[d.frame];
     c["std_dev"] = id.standard_deviation.size() > static_cast<Eigen::Index>(k)
                        ? Json(id.standard_deviation(k))
                        : Json(nullptr);

@@ -10,6 +10,7 @@
 #include "lpoe/calibration.h"
 #include "lpoe/io.h"
 #include "lpoe/pipeline.h"
+#include "lpoe/urdf.h"
 #include "lpoe/plausibility.h"
 #include "lpoe/registration.h"
 #include "lpoe/statistics.h"
@@ -38,6 +39,9 @@ struct RunSummary : PipelineResult {
   // pipeline's joint_error_selection.
   std::string joint_errors_requested = "none";
   std::vector<std::string> outputs;  // files written
+  // A model read from a URDF: for each frame (joints, then tools) the URDF element its parameters
+  // change (UrdfFrameElements); empty otherwise.
+  std::vector<std::string> urdf_frames;
   bool forced = false;  // written although the verdict failed (--force)
 
   // Per-point data (AddPointResiduals) and the model the "before" errors refer to (the nominal
@@ -67,6 +71,12 @@ struct ComparisonPage {
   bool agree = true;
 };
 Status ComparisonHtml(const ComparisonPage& page, std::string* html);
+
+// For each frame of `model` read from `source` (its joints, then its tools), the URDF element whose
+// <origin> its parameters change, as a person finds it in the file: "joint 'wrist_1_joint'
+// (child link 'wrist_1_link')" for a joint's frame, "joint 'flange-tool0' (link 'tool0')" for a
+// tool (the fixed joint to its link).
+std::vector<std::string> UrdfFrameElements(const UrdfSource& source, const RobotModel& model);
 
 // Copies what the pipeline found into `summary` (its PipelineResult part).
 void AddPipelineResult(const PipelineResult& run, RunSummary* summary);

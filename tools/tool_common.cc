@@ -16,7 +16,9 @@
 #include "lpoe/analysis.h"
 #include "lpoe/urdf.h"
 #include "lpoe/csv_rules.h"
+#include "lpoe/options.h"
 #include "lpoe/version.h"
+#include "parse_util.h"
 
 DECLARE_bool(help);
 DECLARE_bool(helpfull);
@@ -25,14 +27,31 @@ DECLARE_bool(helpshort);
 namespace lpoe {
 namespace tools {
 
+namespace {
+
+// A flag's default as written: a double in its shortest form (0.03, not gflags'
+// 0.029999999999999999), a string in quotes.
+std::string DefaultText(const gflags::CommandLineFlagInfo& f) {
+  if (f.type == "string") return "\"" + f.default_value + "\"";
+  if (f.type == "double") {
+    double v = 0;
+    if (internal::ParseNumber(f.default_value, &v) == internal::NumberParse::kOk) {
+      return internal::FormatNumber(v);
+    }
+  }
+  return f.default_value;
+}
+
+}  // namespace
+
 void InitTool(const char* usage, int* argc, char*** argv) {
   gflags::SetUsageMessage(usage);
   gflags::SetVersionString(kLpoeVersion);
   gflags::ParseCommandLineNonHelpFlags(argc, argv, /*remove_flags=*/true);
+  std::string name = (*argv)[0];
+  const size_t slash = name.find_last_of('/');
+  if (slash != std::string::npos) name = name.substr(slash + 1);
   if (FLAGS_help || FLAGS_helpfull || FLAGS_helpshort) {
-    std::string name = (*argv)[0];
-    const size_t slash = name.find_last_of('/');
-    if (slash != std::string::npos) name = name.substr(slash + 1);
     if (FLAGS_helpfull) {
       gflags::ShowUsageWithFlags((*argv)[0]);
     } else {
@@ -41,20 +60,49 @@ void InitTool(const char* usage, int* argc, char*** argv) {
       gflags::GetAllFlags(&flags);
       for (const auto& f : flags) {
         if (f.filename.find(name) == std::string::npos &&
-            f.filename.find("urdf_flags.cc") == std::string::npos) {
+            f.filename.find("common_flags.cc") == std::string::npos) {
           continue;
         }
+        const OptionSpec* spec = FindOption(name, f.name);
+        const std::string range = spec != nullptr ? OptionRangeText(*spec) : "";
         std::cout << "  --" << f.name << " (" << f.description << ")\n      type: " << f.type
-                  << "  default: " << (f.type == "string" ? "\"" + f.default_value + "\""
-                                                            : f.default_value)
-                  << "\n";
+                  << "  default: " << DefaultText(f)
+                  << (range.empty() ? "" : "  range: " + range) << "\n";
       }
     }
     std::exit(kExitOk);
   }
   gflags::HandleCommandLineHelpFlags();
+  // The ranges of the option table, for the flags this tool has.
+  for (const OptionSpec& spec : Options()) {
+    if (!spec.has_range || (spec.scope[0] != '\0' && name != spec.scope)) continue;
+    gflags::CommandLineFlagInfo info;
+    if (!gflags::GetCommandLineFlagInfo(spec.name, &info)) continue;
+    double v = 0;
+    const internal::NumberParse parsed = internal::ParseNumber(info.current_value, &v);
+    if (parsed == internal::NumberParse::kNonFinite) {
+      v = std::strtod(info.current_value.c_str(), nullptr);  // inf or nan: out of every range
+    } else if (parsed != internal::NumberParse::kOk) {
+      continue;  // gflags parsed it: not a number it would accept
+    }
+    if (Status s = CheckOption(name, spec.name, v); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      std::exit(kExitUsage);
+    }
+  }
   FLAGS_logtostderr = true;
   google::InitGoogleLogging((*argv)[0]);
+}
+
+void ScalePrismaticJoints(const RobotModel& model, LengthUnit unit, std::vector<double>* q,
+                          bool to_unit) {
+  const double s = MillimetresPer(unit);
+  if (s == 1.0) return;
+  const size_t n = static_cast<size_t>(model.num_joints());
+  for (size_t j = 0; j < n; ++j) {
+    if (model.joints[j].type != JointType::kPrismatic) continue;
+    for (size_t k = j; k < q->size(); k += n) (*q)[k] = to_unit ? (*q)[k] / s : (*q)[k] * s;
+  }
 }
 
 std::string DataDir() {

@@ -36,9 +36,22 @@ Status CheckRange(const char* name, double value, double lo, double hi, bool lo_
 // A --holdout split that leaves the verification set empty or too few identification rows.
 Status CheckHoldoutSplit(double holdout, int identification_rows, int verification_rows);
 
-// Parses flags; on --help / --helpfull prints the usage message and this tool's flags only and
-// exits 0. Initializes glog to stderr.
+// Parses flags; on --help / --helpfull prints the usage message and this tool's flags only (with
+// their ranges from lpoe/options.h and defaults as written) and exits 0. Checks every flag the
+// option table gives a range (lpoe/options.h) and exits 1 naming the first out of range.
+// Initializes glog to stderr.
 void InitTool(const char* usage, int* argc, char*** argv);
+
+// The shared --angle_unit and --length_unit (common_flags.cc); the error names the flag.
+Status ParseUnitFlags(AngleUnit* angle, LengthUnit* length);
+// Millimetres per unit of --length_unit (1 or 1000).
+inline double MillimetresPer(LengthUnit unit) {
+  return unit == LengthUnit::kMetres ? 1000.0 : 1.0;
+}
+// Joint values (row-major, the model's joints per row) read in `unit` to mm: prismatic joints
+// scaled, revolute ones untouched. `to_unit`: the reverse (mm to `unit`, for writing).
+void ScalePrismaticJoints(const RobotModel& model, LengthUnit unit, std::vector<double>* q,
+                          bool to_unit = false);
 
 // The directory of the shipped data: $LPOE_DATA_DIR when set, else share/lpoe_calib/data of the
 // install prefix the running program sits in (<prefix>/bin/..), else data/ of the source tree the
@@ -46,7 +59,7 @@ void InitTool(const char* usage, int* argc, char*** argv);
 std::string DataDir();
 
 // The chain selection from this tool's --base_link, --tip_link and --tool_links flags (defined in
-// urdf_flags.cc, and so part of a tool only when it calls this). False when one of them is given
+// common_flags.cc with the other shared options). False when one of them is given
 // but `model_path` is not a URDF.
 bool UrdfOptionsFromFlags(const std::string& model_path, UrdfOptions* options);
 // Reads a model (YAML, or URDF when the name ends in .urdf) with the chain those flags select: the

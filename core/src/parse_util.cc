@@ -58,6 +58,18 @@ std::vector<std::string_view> SplitFields(std::string_view line) {
   }
 }
 
+bool ParseNumberList(std::string_view text, char separator, std::vector<double>* values) {
+  values->clear();
+  while (true) {
+    const size_t end = text.find(separator);
+    double v = 0;
+    if (ParseNumber(Trim(text.substr(0, end)), &v) != NumberParse::kOk) return false;
+    values->push_back(v);
+    if (end == std::string_view::npos) return true;
+    text.remove_prefix(end + 1);
+  }
+}
+
 namespace {
 
 char Lower(char c) { return c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c; }

@@ -31,6 +31,12 @@ std::string_view Trim(std::string_view s);
 // have none). An empty line gives one empty field.
 std::vector<std::string_view> SplitFields(std::string_view line);
 
+// The `separator`-separated numbers of a flag or option value ("2500,0,800", a box, a TCP
+// offset), each item trimmed and read by ParseNumber (below): false when an item is not a finite
+// number (an empty item included); `*values` then holds the items before it. The one reader of
+// such lists (the tools' --tracker, --box, --keep_out lines, --joint_ranges items, --tcp).
+bool ParseNumberList(std::string_view text, char separator, std::vector<double>* values);
+
 // Result of ParseNumber.
 enum class NumberParse {
   kOk,

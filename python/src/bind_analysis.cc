@@ -12,15 +12,17 @@
 #include <memory>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
+#include "lpoe/compensation.h"
 #include "lpoe/inverse_kinematics.h"
+#include "lpoe/options.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/csv_rules.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/planning.h"
+#include "lpoe/planning_workflow.h"
 #include "lpoe/refusals.h"
 #include "lpoe/problem_builder.h"
 #include "python_api.h"
@@ -142,72 +144,65 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
                           const py::object& seeds_obj, const py::object& orientations_obj,
                           const py::object& joints_obj, const py::object& nominal_obj,
                           const std::string& joints_target, const py::object& tool_obj,
-                          int threads, int max_iterations, int restarts,
-                          double position_tolerance, double orientation_tolerance,
-                          double singular_threshold) {
-  Check(InverseKinematics::CheckModel(model));
-  const int n = model.num_joints();
-  const bool joints_mode = !joints_obj.is_none();
-  if (joints_mode == !targets_obj.is_none()) {
+                          const std::string& frame, const py::object& tcp_obj, int threads,
+                          int max_iterations, int restarts, double position_tolerance,
+                          double orientation_tolerance, double singular_threshold) {
+  // The workflow of lpoe_compensate (lpoe/compensation.h): the same request, checks and solve.
+  CompensationRequest request;
+  request.model = model;
+  request.joints_mode = !joints_obj.is_none();
+  if (request.joints_mode == !targets_obj.is_none()) {
     throw LpoeError("compensate: give either targets= (with seeds=) or joints= (with nominal=)");
-  }
-  if (joints_mode && nominal_obj.is_none()) {
-    throw LpoeError("compensate: joints= needs nominal= (the model the program was planned with)");
   }
   if (joints_target != "pose" && joints_target != "position") {
     throw LpoeError("joints_target: expected 'pose' or 'position', got '" + joints_target + "'");
   }
-  if (threads < 0 || threads > 256 || max_iterations < 1 || max_iterations > 10000 ||
-      restarts < 0 || restarts > 100 || !(position_tolerance > 0) || !(orientation_tolerance > 0) ||
-      !(singular_threshold >= 0)) {
-    throw LpoeError("compensate: need 0 <= threads <= 256, 1 <= max_iterations <= 10000, "
-                    "0 <= restarts <= 100, positive tolerances, singular_threshold >= 0");
+  request.joints_target_pose = joints_target == "pose";
+  if (!ParseTargetFrame(frame, &request.frame)) {
+    throw LpoeError("frame: expected 'base' or 'measurement', got '" + frame + "'");
   }
-  const RobotModel* nominal = nullptr;
   if (!nominal_obj.is_none()) {
-    nominal = nominal_obj.cast<const RobotModel*>();
-    Check(nominal->Validate());
-    if (Status s = CheckNominalMatches(model, *nominal); !s.ok()) {
-      throw LpoeError("nominal: " + s.message());
-    }
+    request.has_nominal = true;
+    request.nominal = nominal_obj.cast<const RobotModel&>();
   }
-  // Tool of every row: one index or name for all rows, or an (M,) integer array.
-  RowArray seeds = (joints_mode ? joints_obj : seeds_obj).is_none()
-                       ? RowArray()
-                       : (joints_mode ? joints_obj : seeds_obj).cast<RowArray>();
+  if (py::isinstance<py::str>(tcp_obj)) {
+    request.tcp = tcp_obj.cast<std::string>();
+  } else if (!tcp_obj.is_none()) {
+    const RowArray t = tcp_obj.cast<RowArray>();
+    if (t.ndim() != 1 || (t.size() != 3 && t.size() != 6)) {
+      throw LpoeError("tcp: expected a tool name or [x, y, z] / [x, y, z, roll, pitch, yaw] (mm, "
+                      "rad), got shape " + ShapeText(t));
+    }
+    request.tcp_offset.assign(t.data(), t.data() + t.size());
+  }
+  const bool per_row_tool = !tool_obj.is_none() && !IsOneTool(tool_obj);
+  if (!tool_obj.is_none() && !per_row_tool) {
+    request.tool = py::isinstance<py::str>(tool_obj) ? tool_obj.cast<std::string>()
+                                                     : std::to_string(ToolIndexOf(model, py::int_(tool_obj)));
+  }
+  request.threads = threads;
+  request.ik.max_iterations = max_iterations;
+  request.ik.restarts = restarts;
+  request.ik.position_tolerance = position_tolerance;
+  request.ik.orientation_tolerance = orientation_tolerance;
+  request.ik.singular_threshold = singular_threshold;
+  std::unique_ptr<Compensator> compensator;
+  Check(Compensator::Create(request, &compensator));
+  const RobotModel& solved_model = compensator->model();
+  const int n = solved_model.num_joints();
+  const bool joints_mode = request.joints_mode;
   if (!joints_mode && seeds_obj.is_none()) {
     throw LpoeError("compensate: targets= needs seeds= (the program's joints, one row per target)");
   }
+  const RowArray seeds = (joints_mode ? joints_obj : seeds_obj).cast<RowArray>();
   const py::ssize_t m = RowsOf(seeds, n, joints_mode ? "joints" : "seeds");
   CheckFinite(seeds, joints_mode ? "joints" : "seeds", kMaxAbsCsvJointValue);
-  std::vector<int> tools(m, 0);
-  if (py::isinstance<py::array>(tool_obj) || py::isinstance<py::list>(tool_obj)) {
-    auto t = tool_obj.cast<py::array_t<int, py::array::c_style | py::array::forcecast>>();
-    if (t.ndim() != 1 || t.shape(0) != m) {
-      throw LpoeError("tool: expected one index per row, shape (" + std::to_string(m) + ",), got " +
-                      ShapeText(t));
-    }
-    for (py::ssize_t r = 0; r < m; ++r) tools[r] = t.at(r);
-  } else {
-    std::fill(tools.begin(), tools.end(), ToolIndexOf(model, tool_obj));
-  }
-  for (py::ssize_t r = 0; r < m; ++r) {
-    if (tools[r] < 0 || tools[r] >= model.num_tools()) {
-      throw LpoeError("tool: row " + std::to_string(r) + ": index " + std::to_string(tools[r]) +
-                      " out of range [0, " + std::to_string(model.num_tools()) + ")");
-    }
-  }
+  // The tool of every row: the request's (tool=, tcp=), or one name or index per row.
+  std::vector<int> tools(m, compensator->default_tool());
+  if (per_row_tool) tools = ToolsPerRow(solved_model, tool_obj, m, "tool");
   std::vector<IkTarget> targets(m);
-  if (joints_mode) {
-    const KinematicChain nominal_chain(*nominal);
-    for (py::ssize_t r = 0; r < m; ++r) {
-      const SE3d T = model.T_measurement_base * nominal_chain.Pose(seeds.data() + r * n, tools[r]);
-      targets[r].tool = tools[r];
-      targets[r].position = T.t;
-      targets[r].rotation = T.R;
-      targets[r].has_orientation = joints_target == "pose";
-    }
-  } else {
+  for (py::ssize_t r = 0; r < m; ++r) targets[r].tool = tools[r];
+  if (!joints_mode) {
     const RowArray p = targets_obj.cast<RowArray>();
     if (RowsOf(p, 3, "targets") != m) {
       throw LpoeError("targets: " + std::to_string(p.ndim() == 1 ? 1 : p.shape(0)) +
@@ -223,7 +218,6 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
       }
     }
     for (py::ssize_t r = 0; r < m; ++r) {
-      targets[r].tool = tools[r];
       targets[r].position = Eigen::Vector3d(p.data()[3 * r], p.data()[3 * r + 1], p.data()[3 * r + 2]);
       if (quat.size() > 0) {
         const double* v = quat.data() + 4 * r;
@@ -236,54 +230,38 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
       }
     }
   }
-
-  IkOptions options;
-  options.max_iterations = max_iterations;
-  options.restarts = restarts;
-  options.position_tolerance = position_tolerance;
-  options.orientation_tolerance = orientation_tolerance;
-  options.singular_threshold = singular_threshold;
-  std::vector<double> solved(static_cast<size_t>(m) * n);
-  std::vector<IkResult> results(m);
+  bool any_orientation = false;
+  for (const IkTarget& t : targets) any_orientation |= t.has_orientation;
+  any_orientation |= joints_mode && request.joints_target_pose;
+  CompensatedRows solved;
+  CompensationSummary summary;
   {
     py::gil_scoped_release release;
-    const InverseKinematics ik(model, options);
-    int workers = threads > 0 ? threads
-                              : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-    workers = std::max(1, std::min<int>(workers, static_cast<int>(m / 1000 + 1)));
-    auto work = [&](int t) {
-      for (py::ssize_t k = t; k < m; k += workers) {
-        results[k] = ik.Solve(targets[k], seeds.data() + k * n, &solved[size_t(k) * n]);
-      }
-    };
-    std::vector<std::thread> pool;
-    for (int t = 1; t < workers; ++t) pool.emplace_back(work, t);
-    work(0);
-    for (std::thread& th : pool) th.join();
+    compensator->Solve(seeds.data(), &targets, &solved);
+    summary.Add(solved);
   }
+  // Targets in another frame: refused as lpoe_compensate refuses them.
+  Check(summary.CheckFrame(request, "targets"));
   PyCompensation c;
   c.q = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
-      solved.data(), m, n);
+      solved.q.data(), m, n);
   c.position_error.resize(m);
   c.orientation_error.resize(m);
   c.sigma_min.resize(m);
   c.correction.resize(m);
-  bool any_orientation = false;
-  for (const IkTarget& t : targets) any_orientation |= t.has_orientation;
-  if (nominal != nullptr) {
+  if (request.has_nominal) {
     c.corrected.resize(m, 3);
     if (any_orientation) c.corrected_quaternions.setConstant(m, 4, NAN);
   }
-  const KinematicChain nominal_chain(nominal != nullptr ? *nominal : model);
   for (py::ssize_t k = 0; k < m; ++k) {
-    const IkResult& r = results[k];
+    const IkResult& r = solved.results[k];
     c.status.push_back(IkStatusName(r.status));
     c.position_error(k) = r.position_error;
     c.orientation_error(k) = r.orientation_error;
     c.sigma_min(k) = r.sigma_min;
     c.correction(k) = r.correction;
-    if (nominal != nullptr) {
-      const SE3d T = nominal_chain.Pose(&solved[size_t(k) * n], targets[k].tool);
+    if (request.has_nominal) {
+      const SE3d& T = solved.corrected[k];
       c.corrected.row(k) = T.t.transpose();
       if (targets[k].has_orientation) {
         c.corrected_quaternions.row(k) = RotationToQuaternion<double>(T.R).transpose();
@@ -303,6 +281,8 @@ struct PyPlan {
   PlanQuality quality;
   double random_predicted_rms = 0;  // RMS over the random plans of the same size
   int offered = 0, feasible = 0, outside_limits = 0, near_singular = 0, nothing_visible = 0;
+  int outside_cell = 0;
+  std::vector<std::vector<std::string>> visible;  // the tools counted at each planned pose
   int num_parameters = 0, exchanges = 0;
   bool gravity_tilt = false;  // the gravity tilt planned for (its 2 parameters are the last)
 };
@@ -333,152 +313,137 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
             int candidate_count, const py::object& workspace_obj, int workspace_count,
             uint64_t seed, const std::string& criterion, const py::object& tracker_obj,
             double max_range, double acceptance_angle, const py::object& smr_facing_obj,
-            double min_singularity, int random_draws, const std::string& joint_errors) {
+            double min_singularity, int random_draws, const std::string& joint_errors,
+            const py::object& min_z_obj, const py::object& box_obj, const py::object& keep_out_obj,
+            const py::object& joint_ranges_obj) {
+  // The workflow of lpoe_plan (lpoe/planning_workflow.h): the same request, checks and plan.
   Check(model.Validate());
-  // As lpoe_plan --joint_errors: 'auto' plans for every term the calibration may choose (and the
-  // gravity tilt when the model carries compliance values); "tilt" is refused with the reason for
-  // a model without them (PlanningGravityTiltStatus).
-  const std::vector<std::string> term_names =
-      joint_errors == "auto" ? JointTermNames() : JointErrorNames(joint_errors, true);
-  std::vector<std::shared_ptr<const JointTerm>> terms;
-  bool tilt = false;
-  for (const std::string& name : term_names) {
-    if (name == kGravityTiltName) {
-      tilt = true;
-      continue;
-    }
-    std::shared_ptr<const JointTerm> term;
-    Check(MakeJointTerm(name, model, &term));
-    terms.push_back(std::move(term));
-  }
-  {
-    const Status s = PlanningGravityTiltStatus(model, terms);
-    if (tilt && !s.ok()) throw LpoeError("joint_errors='" + joint_errors + "': " + s.message());
-    if (joint_errors == "auto") tilt = s.ok();
-  }
-  const int n = model.num_joints();
-  PlanOptions options;
-  if (!ParsePlanCriterion(criterion, &options.criterion)) {
+  PlanRequest request;
+  request.model = model;
+  request.model_source = "model '" + model.name + "'";
+  request.count = count;
+  request.candidate_count = candidate_count;
+  request.workspace_count = workspace_count;
+  request.seed = seed;
+  request.random_draws = random_draws;
+  request.joint_errors = joint_errors;
+  if (!ParsePlanCriterion(criterion, &request.options.criterion)) {
     throw LpoeError("criterion: expected one of D, A, E, I, O1, O3, got '" + criterion + "'");
   }
-  if (count < 1 || candidate_count < 1 || candidate_count > 1000000 || workspace_count < 1 ||
-      workspace_count > 1000000 || random_draws < 1 || random_draws > 10000) {
-    throw LpoeError("plan: count must be >= 1, candidate_count and workspace_count in "
-                    "[1, 1000000], random_draws in [1, 10000]");
-  }
-  if (!(min_singularity >= 0 && min_singularity < 1)) {
-    throw LpoeError("min_singularity must be in [0, 1)");
-  }
-  if (!(acceptance_angle > 0 && acceptance_angle <= 90)) {
-    throw LpoeError("acceptance_angle must be in (0, 90] degrees");
-  }
+  const int n = model.num_joints();
+  PlanConstraints& constraints = request.constraints;
+  constraints.min_singularity = min_singularity;
+  TrackerConstraint& tracker = constraints.tracker;
+  tracker.acceptance_angle = acceptance_angle * 3.14159265358979323846 / 180.0;
+  if (max_range > 0) tracker.max_range = max_range;
   if (!(max_range >= 0) || !std::isfinite(max_range)) {
     throw LpoeError("max_range must be >= 0 (mm; 0 = unlimited)");
   }
-  PlanConstraints constraints;
-  constraints.min_singularity = min_singularity;
-  TrackerConstraint& tracker = constraints.tracker;
   if (!tracker_obj.is_none()) {
-    const Eigen::Vector3d t = tracker_obj.cast<Eigen::Vector3d>();
-    if (!t.allFinite()) throw LpoeError("tracker: expected three finite numbers (mm)");
+    const RowArray t = tracker_obj.cast<RowArray>();
+    if (t.size() != 3) throw LpoeError("tracker: expected three finite numbers (mm)");
     tracker.enabled = true;
-    tracker.position = t;
-    tracker.acceptance_angle = acceptance_angle * 3.14159265358979323846 / 180.0;
-    if (max_range > 0) tracker.max_range = max_range;
-    if (!smr_facing_obj.is_none()) {
-      const RowArray f = smr_facing_obj.cast<RowArray>();
-      const py::ssize_t k = RowsOf(f, 3, "smr_facing");
-      if (k != 1 && k != model.num_tools()) {
-        throw LpoeError("smr_facing: one direction for all tools or one per tool (" +
-                        std::to_string(model.num_tools()) + "), got " + std::to_string(k));
-      }
-      for (py::ssize_t r = 0; r < k; ++r) {
-        const Eigen::Vector3d v(f.data()[3 * r], f.data()[3 * r + 1], f.data()[3 * r + 2]);
-        if (!v.allFinite() || v.norm() == 0) {
-          throw LpoeError("smr_facing: row " + std::to_string(r) + " is not a direction");
-        }
-        tracker.facing.push_back(v.normalized());
-      }
-      if (tracker.facing.size() == 1) tracker.facing.resize(model.num_tools(), tracker.facing[0]);
-    }
-  } else if (max_range > 0 || !smr_facing_obj.is_none()) {
-    throw LpoeError("max_range and smr_facing need tracker= (its position)");
+    tracker.position = Eigen::Vector3d(t.data()[0], t.data()[1], t.data()[2]);
   }
-  std::vector<double> candidates, workspace;
+  if (!smr_facing_obj.is_none()) {
+    const RowArray f = smr_facing_obj.cast<RowArray>();
+    const py::ssize_t k = RowsOf(f, 3, "smr_facing");
+    if (k != 1 && k != model.num_tools()) {
+      throw LpoeError("smr_facing: one direction for all tools or one per tool (" +
+                      std::to_string(model.num_tools()) + "), got " + std::to_string(k));
+    }
+    for (py::ssize_t r = 0; r < k; ++r) {
+      const Eigen::Vector3d v(f.data()[3 * r], f.data()[3 * r + 1], f.data()[3 * r + 2]);
+      if (!v.allFinite() || v.norm() == 0) {
+        throw LpoeError("smr_facing: row " + std::to_string(r) + " is not a direction");
+      }
+      tracker.facing.push_back(v.normalized());
+    }
+    if (tracker.facing.size() == 1) tracker.facing.resize(model.num_tools(), tracker.facing[0]);
+  }
+  // The cell, as lpoe_plan's --min_z, --box, --keep_out (mm, base frame) and --joint_ranges.
+  auto box_of = [](const double* v, const std::string& what) {
+    const Eigen::Vector3d lo(v[0], v[1], v[2]), hi(v[3], v[4], v[5]);
+    if (!lo.allFinite() || !hi.allFinite() || !(lo.array() <= hi.array()).all()) {
+      throw LpoeError(what + ": expected finite xmin, ymin, zmin, xmax, ymax, zmax with min <= max");
+    }
+    return Eigen::AlignedBox3d(lo, hi);
+  };
+  if (!min_z_obj.is_none()) {
+    constraints.cell.min_z = min_z_obj.cast<double>();
+    if (!std::isfinite(constraints.cell.min_z)) throw LpoeError("min_z must be a finite height in mm");
+  }
+  if (!box_obj.is_none()) {
+    const RowArray b = box_obj.cast<RowArray>();
+    if (b.size() != 6) throw LpoeError("box: expected 6 numbers, got shape " + ShapeText(b));
+    constraints.cell.box = box_of(b.data(), "box");
+  }
+  if (!keep_out_obj.is_none()) {
+    const RowArray b = keep_out_obj.cast<RowArray>();
+    const py::ssize_t k = RowsOf(b, 6, "keep_out");
+    for (py::ssize_t r = 0; r < k; ++r) {
+      constraints.cell.keep_out.push_back(box_of(b.data() + 6 * r, "keep_out row " + std::to_string(r)));
+    }
+  }
+  if (!joint_ranges_obj.is_none()) {
+    const RowArray j = joint_ranges_obj.cast<RowArray>();
+    if (j.ndim() != 2 || j.shape(0) != n || j.shape(1) != 2) {
+      throw LpoeError("joint_ranges: expected (" + std::to_string(n) +
+                      ", 2) [lo, hi] per joint (NaN, NaN keeps the limits), got " + ShapeText(j));
+    }
+    std::vector<std::pair<double, double>> ranges;
+    for (int r = 0; r < n; ++r) ranges.emplace_back(j.data()[2 * r], j.data()[2 * r + 1]);
+    Check(NarrowJointRanges(ranges, &request.model));
+  }
+  Check(CheckPlanRequest(request));
   if (!candidates_obj.is_none()) {
-    candidates = RowMajor(candidates_obj.cast<RowArray>(), n, "candidates");
-  } else {
-    Check(SampleConfigurations(model, candidate_count, seed, &candidates));
+    request.has_candidates = true;
+    request.candidates = RowMajor(candidates_obj.cast<RowArray>(), n, "candidates");
   }
   if (!workspace_obj.is_none()) {
-    workspace = RowMajor(workspace_obj.cast<RowArray>(), n, "workspace");
-    // lpoe_plan refuses a --workspace file without rows (exit 2): the accuracy over no
-    // configuration is no accuracy at all.
-    if (workspace.empty()) throw LpoeError("workspace: no configurations (expected (W, N), W >= 1)");
-  } else {
-    Check(SampleConfigurations(model, workspace_count, seed + 1, &workspace));
+    request.has_workspace = true;
+    request.workspace = RowMajor(workspace_obj.cast<RowArray>(), n, "workspace");
   }
-  PyPlan out;
+  PlanningResult planned;
   Status status;
   {
     py::gil_scoped_release release;
-    CandidatePool pool;
-    const std::unique_ptr<PlanningModel> planning =
-        BuildPlanningPool(model, terms, candidates, constraints, &pool, tilt);
-    const PlanningModel& pm = *planning;
-    out.gravity_tilt = pm.num_tilt_parameters() > 0;
-    const Eigen::MatrixXd L = WorkspaceMoment(pm, workspace);
-    PlanResult plan;
-    status = SelectPlan(pm, pool, count, L, options, &plan);
-    out.offered = static_cast<int>(candidates.size() / n);
-    out.feasible = pool.size();
-    out.outside_limits = pool.outside_limits;
-    out.near_singular = pool.near_singular;
-    out.nothing_visible = pool.nothing_visible;
-    out.num_parameters = pm.num_parameters();
-    if (status.ok()) {
-      out.quality = EvaluatePlan(pm, pool, plan.selected, L);
-      // The refusals lpoe_plan makes (exit 3 there): rank deficiency, no redundancy.
-      status = PlanRefusal(out.quality, pm.num_parameters(), count);
-    }
-    if (status.ok()) {
-      out.exchanges = plan.exchanges;
-      out.q.resize(count, n);
-      for (int k = 0; k < count; ++k) {
-        const int c = plan.selected[k];
-        out.candidate_rows.push_back(pool.source[c]);
-        for (int j = 0; j < n; ++j) out.q(k, j) = pool.q[size_t(c) * n + j];
-      }
-      double mean_sq = 0;
-      int finite = 0;
-      for (int k = 0; k < random_draws; ++k) {
-        const double v =
-            EvaluatePlan(pm, pool, RandomPlan(pool.size(), count, seed + 1000 + k), L).predicted_rms;
-        if (std::isfinite(v)) {
-          mean_sq += v * v;
-          ++finite;
-        }
-      }
-      out.random_predicted_rms =
-          finite > 0 ? std::sqrt(mean_sq / finite) : std::numeric_limits<double>::infinity();
-    }
+    status = RunPlanning(request, &planned);
   }
-  if (!status.ok() && out.quality.num_poses > 0) throw LpoeError(status.message());
-  if (!status.ok()) {
-    throw LpoeError(status.message() + " (" + std::to_string(out.outside_limits) +
-                    " outside the limits, " + std::to_string(out.near_singular) +
-                    " near a singularity, " + std::to_string(out.nothing_visible) +
-                    " with no SMR visible)");
+  Check(status);
+  PyPlan out;
+  const CandidatePool& pool = planned.pool;
+  out.gravity_tilt = planned.tilt;
+  out.offered = planned.offered;
+  out.feasible = pool.size();
+  out.outside_limits = pool.outside_limits;
+  out.near_singular = pool.near_singular;
+  out.nothing_visible = pool.nothing_visible;
+  out.outside_cell = pool.outside_cell;
+  out.num_parameters = planned.planning->num_parameters();
+  out.quality = planned.quality;
+  out.exchanges = planned.plan.exchanges;
+  out.q.resize(planned.count, n);
+  for (int k = 0; k < planned.count; ++k) {
+    const int c = planned.plan.selected[k];
+    out.candidate_rows.push_back(pool.source[c]);
+    for (int j = 0; j < n; ++j) out.q(k, j) = pool.q[size_t(c) * n + j];
+    std::vector<std::string> names;
+    for (int t : pool.visible[c]) names.push_back(model.tools[t].name);
+    out.visible.push_back(names);
   }
+  out.random_predicted_rms = planned.random_rms_mean;
   out.candidates = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
-      candidates.data(), out.offered, n);
-  out.criterion = PlanCriterionName(options.criterion);
+      planned.candidates.data(), out.offered, n);
+  out.criterion = PlanCriterionName(request.options.criterion);
   return out;
 }
 
 }  // namespace
 
 void BindAnalysis(py::module_& m) {
+  const char* kCompensate = "lpoe_compensate";
+  const char* kPlan = "lpoe_plan";
   py::class_<PyNormalEquations>(
       m, "NormalEquations",
       "Normal equations of the calibration at the problem's current values: H = J^T W J, "
@@ -647,16 +612,29 @@ void BindAnalysis(py::module_& m) {
   m.def("compensate", &Compensate, py::arg("model"), py::arg("targets") = py::none(),
         py::kw_only(), py::arg("seeds") = py::none(), py::arg("orientations") = py::none(),
         py::arg("joints") = py::none(), py::arg("nominal") = py::none(),
-        py::arg("joints_target") = "pose", py::arg("tool") = 0, py::arg("threads") = 0,
-        py::arg("max_iterations") = 100, py::arg("restarts") = 8,
-        py::arg("position_tolerance") = 1e-7, py::arg("orientation_tolerance") = 1e-10,
-        py::arg("singular_threshold") = 1e-3,
-        "the joints that make the calibrated `model` reach its targets (as lpoe_compensate):\n"
-        "  targets mode: targets (M, 3) mm in the model's frame, seeds (M, N) the program's "
-        "joints, optional orientations (M, 4) [x, y, z, w] for pose targets;\n"
+        py::arg("joints_target") = "pose", py::arg("tool") = py::none(),
+        py::arg("frame") = "base", py::arg("tcp") = py::none(),
+        py::arg("threads") = static_cast<int>(OptionDefault(kCompensate, "threads")),
+        py::arg("max_iterations") = static_cast<int>(OptionDefault(kCompensate, "max_iterations")),
+        py::arg("restarts") = static_cast<int>(OptionDefault(kCompensate, "restarts")),
+        py::arg("position_tolerance") = OptionDefault(kCompensate, "position_tolerance"),
+        py::arg("orientation_tolerance") = OptionDefault(kCompensate, "orientation_tolerance"),
+        py::arg("singular_threshold") = OptionDefault(kCompensate, "singular_threshold"),
+        "the joints that make the calibrated `model` reach its targets (as lpoe_compensate, "
+        "through the same library workflow, lpoe/compensation.h):\n"
+        "  targets mode: targets (M, 3) mm in `frame` ('base': the robot's base frame, carried "
+        "into the calibrated model's frame by its recorded registration, as the tool's default; "
+        "'measurement': the tracker's frame), seeds (M, N) the program's joints, optional "
+        "orientations (M, 4) [x, y, z, w] for pose targets;\n"
         "  joints mode: joints (M, N) a program planned with `nominal`: reach the nominal tool "
         "pose (joints_target='pose') or position there.\n"
-        "With nominal=, also the corrected targets for a controller using nominal kinematics.");
+        "tool: a tool name or index for every row, or one per row (a list or array of names or "
+        "indices); tcp: a TCP that was not measured, a tool name or [x, y, z(, roll, pitch, yaw)] "
+        "in mm and rad in the last joint's frame (as --tcp), for rows without a tool of their own.\n"
+        "The IK options' defaults and ranges are lpoe_compensate's (lpoe/options.h).\n"
+        "With nominal=, also the corrected targets for a controller using nominal kinematics. "
+        "Targets mostly metres from anything the robot reaches raise lpoe.Error naming the frame "
+        "assumed.");
 
   py::class_<PyPlan>(m, "Plan", "The result of lpoe.plan.")
       .def_readonly("q", &PyPlan::q, "(count, N) the planned configurations")
@@ -669,6 +647,9 @@ void BindAnalysis(py::module_& m) {
                     "whether the gravity tilt was planned for (joint_errors with 'tilt', or 'auto' "
                     "with a model that carries compliance values)")
       .def_readonly("exchanges", &PyPlan::exchanges)
+      .def_readonly("visible", &PyPlan::visible,
+                    "the tools (SMR names) to measure at each planned pose: the tracker's visible "
+                    "ones with tracker=, else every tool")
       .def_property_readonly("quality", [](const PyPlan& p) { return QualityDict(p.quality); },
                              "rank, condition number, predicted RMS per mm of noise, criteria")
       .def_readonly("random_predicted_rms", &PyPlan::random_predicted_rms,
@@ -682,6 +663,7 @@ void BindAnalysis(py::module_& m) {
             d["outside_limits"] = p.outside_limits;
             d["near_singular"] = p.near_singular;
             d["nothing_visible"] = p.nothing_visible;
+            d["outside_cell"] = p.outside_cell;
             return d;
           },
           "how many candidates were offered, kept and why the others were dropped")
@@ -695,18 +677,28 @@ void BindAnalysis(py::module_& m) {
       });
 
   m.def("plan", &Plan, py::arg("model"), py::arg("count"), py::kw_only(),
-        py::arg("candidates") = py::none(), py::arg("candidate_count") = 5000,
-        py::arg("workspace") = py::none(), py::arg("workspace_count") = 1000,
+        py::arg("candidates") = py::none(),
+        py::arg("candidate_count") = static_cast<int>(OptionDefault(kPlan, "candidate_count")),
+        py::arg("workspace") = py::none(),
+        py::arg("workspace_count") = static_cast<int>(OptionDefault(kPlan, "workspace_count")),
         py::arg("seed") = 1, py::arg("criterion") = "D", py::arg("tracker") = py::none(),
-        py::arg("max_range") = 0.0, py::arg("acceptance_angle") = 30.0,
-        py::arg("smr_facing") = py::none(), py::arg("min_singularity") = 0.01,
-        py::arg("random_draws") = 30, py::arg("joint_errors") = "none",
+        py::arg("max_range") = OptionDefault(kPlan, "max_range"),
+        py::arg("acceptance_angle") = OptionDefault(kPlan, "acceptance_angle"),
+        py::arg("smr_facing") = py::none(),
+        py::arg("min_singularity") = OptionDefault(kPlan, "min_singularity"),
+        py::arg("random_draws") = static_cast<int>(OptionDefault(kPlan, "random_draws")),
+        py::arg("joint_errors") = "none", py::arg("min_z") = py::none(),
+        py::arg("box") = py::none(), py::arg("keep_out") = py::none(),
+        py::arg("joint_ranges") = py::none(),
         "chooses `count` poses to measure (as lpoe_plan): candidates (C, N) rad/mm or "
         "candidate_count sampled within the limits; criterion D | A | E | I | O1 | O3; optional "
         "tracker (3,) mm with max_range (mm), acceptance_angle (degrees), smr_facing (3,) or "
         "(tools, 3); joint_errors as lpoe_plan's (the terms' identifiable combinations join the "
         "parameters to determine; 'tilt' after compliance needs a model that carries compliance "
-        "values).");
+        "values); the cell: min_z (mm), box [xmin, ymin, zmin, xmax, ymax, zmax] (mm), keep_out "
+        "(K, 6) boxes, joint_ranges (N, 2) [lo, hi] per joint (NaN, NaN: the limits), all in the "
+        "base frame as lpoe_plan's flags. The same workflow as lpoe_plan "
+        "(lpoe/planning_workflow.h): the same seeds give the same plan.");
 }
 
 }  // namespace python

@@ -11,6 +11,7 @@
 
 #include "lpoe/analysis.h"
 #include "lpoe/io.h"
+#include "lpoe/options.h"
 #include "lpoe/pipeline.h"
 #include "python_api.h"
 #include "report.h"
@@ -97,6 +98,19 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   const int threads = k.Get<int>("threads", 0);
   const std::string angle_unit = k.Get<std::string>("angle_unit", "rad");
   k.Finish("calibrate");
+  // The ranges lpoe_calibrate's flags have (lpoe/options.h), with the same messages.
+  for (const auto& [name, value] :
+       std::vector<std::pair<const char*, double>>{{"max_iterations", max_iterations},
+                                                   {"step_tolerance", step_tolerance},
+                                                   {"sd_fraction", sd_fraction},
+                                                   {"max_condition", max_condition},
+                                                   {"outlier_threshold", outlier_threshold},
+                                                   {"sigma", sigma},
+                                                   {"loss_scale", loss_scale},
+                                                   {"threads", threads},
+                                                   {"noise_sigma", noise_sigma}}) {
+    if (Status s = CheckOption("lpoe_calibrate", name, value); !s.ok()) throw LpoeError(s.message());
+  }
 
   if (Status s = nominal.Validate(); !s.ok()) throw LpoeError(s.message());
   if (given_data.num_joints() != nominal.num_joints() ||
@@ -243,29 +257,74 @@ void BindCalibration(py::module_& m) {
         return s + ">";
       });
 
+  // Explicit keyword-only arguments (visible in help() and inspect.signature), named as
+  // lpoe_calibrate's flags with the same defaults; passed on as the options KeywordOptions reads.
   m.def(
       "calibrate",
       [](const RobotModel& model, const MeasurementSet& data, const py::object& verify,
-         const py::kwargs& kwargs) {
+         const std::string& solver, const std::string& parameterization,
+         const std::string& data_kind, const std::string& joint_errors, bool register_frames,
+         double holdout, int kfold, const std::string& split, uint64_t split_seed,
+         double outlier_threshold, int max_iterations, double step_tolerance, double sd_fraction,
+         double max_condition, double noise_sigma, const std::string& loss, double loss_scale,
+         const py::object& sigma, int threads, const std::string& angle_unit) {
         const MeasurementSet* v = verify.is_none() ? nullptr : verify.cast<const MeasurementSet*>();
-        return Calibrate(model, data, v, kwargs);
+        py::kwargs k;
+        k["solver"] = solver;
+        k["parameterization"] = parameterization;
+        k["data_kind"] = data_kind;
+        k["joint_errors"] = joint_errors;
+        k["register"] = register_frames;
+        k["holdout"] = holdout;
+        k["kfold"] = kfold;
+        k["split"] = split;
+        k["split_seed"] = split_seed;
+        k["outlier_threshold"] = outlier_threshold;
+        k["max_iterations"] = max_iterations;
+        k["step_tolerance"] = step_tolerance;
+        k["sd_fraction"] = sd_fraction;
+        k["max_condition"] = max_condition;
+        k["noise_sigma"] = noise_sigma;
+        k["loss"] = loss;
+        k["loss_scale"] = loss_scale;
+        k["sigma"] = sigma;
+        k["threads"] = threads;
+        k["angle_unit"] = angle_unit;
+        return Calibrate(model, data, v, k);
       },
-      py::arg("model"), py::arg("data"), py::arg("verify") = py::none(),
-      "calibrate(model, data, verify=None, **options) -> Calibration\n\n"
+      py::arg("model"), py::arg("data"), py::arg("verify") = py::none(), py::kw_only(),
+      py::arg("solver") = "linear", py::arg("parameterization") = "identifiable",
+      py::arg("data_kind") = "auto", py::arg("joint_errors") = "none",
+      py::arg("register") = true, py::arg("holdout") = 0.0, py::arg("kfold") = 0,
+      py::arg("split") = "random", py::arg("split_seed") = 1,
+      py::arg("outlier_threshold") = OptionDefault("lpoe_calibrate", "outlier_threshold"),
+      py::arg("max_iterations") =
+          static_cast<int>(OptionDefault("lpoe_calibrate", "max_iterations")),
+      py::arg("step_tolerance") = OptionDefault("lpoe_calibrate", "step_tolerance"),
+      py::arg("sd_fraction") = OptionDefault("lpoe_calibrate", "sd_fraction"),
+      py::arg("max_condition") = OptionDefault("lpoe_calibrate", "max_condition"),
+      py::arg("noise_sigma") = OptionDefault("lpoe_calibrate", "noise_sigma"),
+      py::arg("loss") = "none", py::arg("loss_scale") = OptionDefault("lpoe_calibrate", "loss_scale"),
+      py::arg("sigma") = py::none(),
+      py::arg("threads") = static_cast<int>(OptionDefault("lpoe_calibrate", "threads")),
+      py::arg("angle_unit") = "rad",
       "Calibrates `model` from `data` (and verifies on `verify`) as lpoe_calibrate does, through "
       "the same pipeline (registration, solver, analysis, cross-validation, verdict). The keyword "
-      "options are named as its flags, with the same defaults:\n"
+      "arguments are named as its flags, with the same defaults and ranges (lpoe/options.h):\n"
       "  solver='linear' | 'ceres'; parameterization='identifiable' | 'full';\n"
       "  data_kind='auto' | 'position' | 'pose'; joint_errors='none' | a comma-separated "
       "list of lpoe.joint_error_terms() (e.g. 'compliance,harmonics') | 'auto';\n"
-      "  register=True; holdout=0.0 (fraction held out, instead of verify); kfold=0; "
-      "split='random' | 'sequential'; split_seed=1;\n"
-      "  outlier_threshold=5.0; max_iterations=30; step_tolerance=1e-10; sd_fraction=0.01;\n"
-      "  max_condition=1e8; noise_sigma=0.03 (mm, plausibility); loss='none' | 'huber' | "
-      "'cauchy'; loss_scale=1.0;\n"
-      "  sigma=None (mm; Ceres covariance a priori when given); threads=0; angle_unit='rad' "
-      "(the unit the joint values were read in, for the report).\n"
-      "An unknown option raises lpoe.Error listing the known ones.");
+      "  register: register the model to the measurement frame first; holdout: fraction held out "
+      "(instead of verify); kfold: k-fold cross-validation (0: off); split: 'random' | "
+      "'sequential' folds and hold-out, seeded by split_seed;\n"
+      "  outlier_threshold (robust sigmas), max_iterations, step_tolerance, sd_fraction, "
+      "max_condition: as the flags; noise_sigma: expected tracker noise (mm) of the plausibility "
+      "verdict; loss='none' | 'huber' | 'cauchy' with loss_scale (mm);\n"
+      "  sigma=None: Ceres noise per axis (mm), None estimates it from the residuals; threads "
+      "(0: all); angle_unit: the unit the joint values were read in ('rad' | 'deg': the data "
+      "are converted when read, lpoe.read_measurements(angle_unit=...); here it only names the "
+      "unit in the report and enables the degrees hint of the verdict).\n"
+      "An unknown keyword raises lpoe.Error naming it.");
 }
 
 }  // namespace python

@@ -100,6 +100,10 @@ std::vector<std::string> JointErrorNames(const std::string& text, bool allow_til
 }
 
 int ToolIndexOf(const RobotModel& model, const py::object& tool) {
+  if (!py::isinstance<py::str>(tool) && !PyIndex_Check(tool.ptr())) {
+    throw LpoeError("tool: an argument has the wrong type: expected a tool name or index, got " +
+                    py::str(tool.get_type().attr("__name__")).cast<std::string>());
+  }
   if (py::isinstance<py::str>(tool)) {
     const int t = model.FindTool(tool.cast<std::string>());
     if (t < 0) throw LpoeError("no tool named '" + tool.cast<std::string>() + "' in the model");
@@ -113,6 +117,41 @@ int ToolIndexOf(const RobotModel& model, const py::object& tool) {
   return t;
 }
 
+bool IsOneTool(const py::object& tool) {
+  // An array is one tool only without dimensions (numpy arrays have __index__ when of size 1).
+  if (py::isinstance<py::array>(tool)) return tool.cast<py::array>().ndim() == 0;
+  return py::isinstance<py::str>(tool) || PyIndex_Check(tool.ptr());
+}
+
+std::vector<int> ToolsPerRow(const RobotModel& model, const py::object& tool, long rows,
+                             const std::string& what) {
+  if (IsOneTool(tool)) return std::vector<int>(rows, ToolIndexOf(model, py::isinstance<py::str>(tool) ? tool : py::object(py::int_(tool))));
+  if (!py::isinstance<py::sequence>(tool) && !py::isinstance<py::array>(tool)) {
+    throw LpoeError(what + ": an argument has the wrong type: expected a tool name or index, or "
+                    "one per row, got " +
+                    py::str(tool.get_type().attr("__name__")).cast<std::string>());
+  }
+  std::vector<int> out;
+  out.reserve(rows);
+  for (const py::handle item : tool) {
+    const py::object value = py::reinterpret_borrow<py::object>(item);
+    try {
+      out.push_back(py::isinstance<py::str>(value) ? ToolIndexOf(model, value)
+                                                   : ToolIndexOf(model, py::int_(value)));
+    } catch (const LpoeError& e) {
+      throw LpoeError(what + ": row " + std::to_string(out.size()) + ": " + e.what());
+    } catch (const py::error_already_set&) {
+      throw LpoeError(what + ": row " + std::to_string(out.size()) + ": " +
+                      py::repr(value).cast<std::string>() + " is neither a tool name nor an index");
+    }
+  }
+  if (static_cast<long>(out.size()) != rows) {
+    throw LpoeError(what + ": " + std::to_string(out.size()) + " tools for " +
+                    std::to_string(rows) + " rows (one per row, or one for all)");
+  }
+  return out;
+}
+
 Status ReadAnyRobotModel(const std::string& path, RobotModel* model) {
   return EndsWithUrdf(path) ? ReadRobotModelUrdf(path, model) : ReadRobotModel(path, model);
 }
@@ -123,6 +162,12 @@ Status WriteAnyRobotModel(const std::string& path, const RobotModel& model) {
 
 void PredictPositionsInto(const RobotModel& model, const double* q, long rows, int tool,
                           double* out) {
+  const std::vector<int> tools(static_cast<size_t>(rows), tool);
+  PredictPositionsInto(model, q, rows, tools.data(), out);
+}
+
+void PredictPositionsInto(const RobotModel& model, const double* q, long rows, const int* tools,
+                          double* out) {
   const int n = model.num_joints();
   const KinematicChain chain(model);
   std::vector<double> q_eff(n);
@@ -132,7 +177,7 @@ void PredictPositionsInto(const RobotModel& model, const double* q, long rows, i
       EffectiveJoints(model, qr, q_eff.data());
       qr = q_eff.data();
     }
-    const Eigen::Vector3d p = chain.Position(qr, tool);
+    const Eigen::Vector3d p = chain.Position(qr, tools[r]);
     out[3 * r + 0] = p.x();
     out[3 * r + 1] = p.y();
     out[3 * r + 2] = p.z();

@@ -11,6 +11,7 @@
 #include <pybind11/stl.h>
 
 #include <cmath>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -49,13 +50,13 @@ SE3d FromMatrix(const Eigen::Matrix4d& M) {
 py::array_t<double> Predict(const RobotModel& model, const RowArray& q, const py::object& tool) {
   const int n = model.num_joints();
   const py::ssize_t m = Rows(q, n, "joint values");
-  const int t = ToolIndex(model, tool);
+  const std::vector<int> tools = ToolsPerRow(model, tool, m, "tool");
   py::array_t<double> out({m, static_cast<py::ssize_t>(3)});
   const double* in = q.data();
   double* o = out.mutable_data();
   {
     py::gil_scoped_release release;
-    PredictPositionsInto(model, in, m, t, o);
+    PredictPositionsInto(model, in, m, tools.data(), o);
   }
   return out;
 }
@@ -158,7 +159,8 @@ PYBIND11_MODULE(_lpoe, m) {
       .def("to_yaml", &RobotModelToYaml, "the model as YAML text (as lpoe_calibrate writes it)")
       .def("predict", &Predict, py::arg("q"), py::arg("tool") = 0,
            "tool position (M, 3) in mm at joint values q (M, N), with every error term the model "
-           "carries")
+           "carries; tool: a name or index for every row, or one per row (a list or array of "
+           "names or indices, e.g. Measurements.targets)")
       .def(
           "pose",
           [](const RobotModel& r, const RowArray& q, const py::object& tool) {
@@ -178,7 +180,17 @@ PYBIND11_MODULE(_lpoe, m) {
   m.def(
       "read_model",
       [](const std::string& path, const std::string& base_link, const std::string& tip_link,
-         const std::vector<std::string>& tool_links) {
+         const py::object& tool_links_obj) {
+        // tool_links: a list of link names, or one string separated by commas as the flag.
+        std::vector<std::string> tool_links;
+        if (py::isinstance<py::str>(tool_links_obj)) {
+          std::stringstream ss(tool_links_obj.cast<std::string>());
+          for (std::string name; std::getline(ss, name, ',');) {
+            if (!name.empty()) tool_links.push_back(name);
+          }
+        } else if (!tool_links_obj.is_none()) {
+          tool_links = tool_links_obj.cast<std::vector<std::string>>();
+        }
         RobotModel model;
         const bool urdf = IsUrdfPath(path);
         if (!urdf && (!base_link.empty() || !tip_link.empty() || !tool_links.empty())) {
@@ -197,11 +209,12 @@ PYBIND11_MODULE(_lpoe, m) {
         return model;
       },
       py::arg("path"), py::kw_only(), py::arg("base_link") = "", py::arg("tip_link") = "",
-      py::arg("tool_links") = std::vector<std::string>(),
+      py::arg("tool_links") = py::none(),
       "reads a robot model: YAML, or URDF when the name ends in .urdf, with the chain from "
       "base_link (default: the root link) to tip_link and the measured tools tool_links (links fixed "
-      "to the last moving link; default: the tip), as lpoe_calibrate's --base_link, --tip_link and "
-      "--tool_links");
+      "to the last moving link, a list or a comma-separated string; default: the tip), as every "
+      "tool's --model, --base_link, --tip_link and --tool_links (the same option table, "
+      "lpoe/options.h)");
   m.def(
       "write_model",
       [](const std::string& path, const RobotModel& model) { Check(WriteAnyRobotModel(path, model)); },

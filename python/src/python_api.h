@@ -51,10 +51,19 @@ bool ParseDataKindOption(const std::string& text, const MeasurementSet& data);
 // `allow_tilt`: the gravity tilt ("compliance,tilt") is accepted and listed last as "tilt".
 std::vector<std::string> JointErrorNames(const std::string& text, bool allow_tilt = false);
 int ToolIndexOf(const RobotModel& model, const pybind11::object& tool);
+// One tool for every row: a name, an integer (any with __index__) or a 0-d array.
+bool IsOneTool(const pybind11::object& tool);
+// The tool of each of `rows` rows: one name or index for all, or a sequence (list, tuple, array) of
+// names or indices, one per row; raises lpoe.Error naming `what` and the row otherwise.
+std::vector<int> ToolsPerRow(const RobotModel& model, const pybind11::object& tool, long rows,
+                             const std::string& what);
 
 // Tool positions (mm) of `rows` configurations stored row-major in `q` (num_joints each) into
 // `out` (3 per row). No Python objects are touched: callable without the GIL.
 void PredictPositionsInto(const RobotModel& model, const double* q, long rows, int tool,
+                          double* out);
+// The same with the tool of each row (`tools`, `rows` entries).
+void PredictPositionsInto(const RobotModel& model, const double* q, long rows, const int* tools,
                           double* out);
 
 }  // namespace python

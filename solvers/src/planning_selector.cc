@@ -1,3 +1,5 @@
+// Measurement planning, the selector (lpoe/planning.h): the criteria, the greedy selection and
+// exchange with rank-r updates of the information matrix, evaluation and random plans.
 #include "lpoe/planning.h"
 
 #include <algorithm>
@@ -10,7 +12,6 @@
 #include <random>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <utility>
 
 #include <Eigen/Cholesky>
@@ -25,6 +26,8 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/linear_solver.h"
 #include "lpoe/measurements.h"
+#include "lpoe/parallel.h"
+
 
 namespace lpoe {
 namespace {
@@ -46,31 +49,6 @@ constexpr double kLimitTolerance = 1e-9;
 constexpr double kJointErrorEffectScale = 0.1;  // mm
 
 // The frame directions identifiable from positions, then the joint-space terms reduced as the
-// solvers reduce them on the data `reference` (every tool at every configuration).
-Parameterization PlanningParameterization(
-    const RobotModel& model, const std::vector<std::shared_ptr<const JointTerm>>& terms,
-    const std::vector<double>& reference) {
-  // The frames lose what the calibration of such data would leave out (structural_identifiability.h),
-  // decided at the model planned for, so that a plan never counts a direction the calibration then
-  // finds undetermined (a tool point on the last axis: that axis' tilt).
-  const int n = model.num_joints();
-  CHECK_EQ(reference.size() % std::max(n, 1), 0u);
-  const int count = std::max(1, static_cast<int>(reference.size() / std::max(n, 1)));
-  const std::vector<double> zero(n, 0.0);
-  MeasurementSet data(n);
-  data.Reserve(count * model.num_tools());
-  for (int r = 0; r < count; ++r) {
-    for (int t = 0; t < model.num_tools(); ++t) {
-      data.Add(reference.empty() ? zero.data() : reference.data() + static_cast<size_t>(r) * n,
-               Eigen::Vector3d::Zero(), t);
-    }
-  }
-  const LinearSolverOptions solver_defaults;
-  return internal::SolverParameterization(model, data, ParameterizationKind::kIdentifiable,
-                                          /*use_orientation=*/false,
-                                          solver_defaults.orientation_weight, terms,
-                                          solver_defaults.joint_term_tolerance, nullptr);
-}
 
 // Log-determinant of a symmetric positive definite matrix; -inf when it is not.
 double LogDetSpd(const Eigen::MatrixXd& M) {
@@ -140,23 +118,10 @@ constexpr int kMinCandidatesForThreads = 1000;
 template <typename Fn>
 void ForEachChunk(int n, int max_threads, const Fn& fn) {
   const int chunks = (n + kChunk - 1) / kChunk;
-  const int hardware = max_threads > 0
-                           ? max_threads
-                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-  const int threads = n < kMinCandidatesForThreads ? 1 : std::min(hardware, chunks);
-  auto run = [&](int k) { fn(k * kChunk, std::min(n, (k + 1) * kChunk)); };
-  if (threads <= 1) {
-    for (int k = 0; k < chunks; ++k) run(k);
-    return;
-  }
-  std::atomic<int> next(0);
-  auto worker = [&]() {
-    for (int k = next.fetch_add(1); k < chunks; k = next.fetch_add(1)) run(k);
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (std::thread& t : pool) t.join();
+  const int threads =
+      n < kMinCandidatesForThreads ? 1 : (max_threads > 0 ? std::min(max_threads, chunks)
+                                                          : ThreadsFor(chunks));
+  ForEachTask(chunks, threads, [&](int k, int) { fn(k * kChunk, std::min(n, (k + 1) * kChunk)); });
 }
 
 // The greedy / exchange state, in pool-scaled coordinates: M = delta I + sum of the plan's J^T J,
@@ -389,6 +354,7 @@ class Selector {
   Eigen::MatrixXd u_;
 };
 
+
 }  // namespace
 
 const char* PlanCriterionName(PlanCriterion criterion) {
@@ -420,352 +386,6 @@ bool ParsePlanCriterion(const std::string& text, PlanCriterion* criterion) {
   return false;
 }
 
-// ---------------------------------------------------------------------------------------------------
-
-PlanningModel::PlanningModel(const RobotModel& model)
-    : model_(model),
-      parameterization_(PlanningParameterization(model_, {}, {})),
-      basis_(model_, parameterization_) {}
-
-Status PlanningGravityTiltStatus(const RobotModel& model,
-                                 const std::vector<std::shared_ptr<const JointTerm>>& terms) {
-  bool compliance = false;
-  for (const auto& term : terms) compliance = compliance || term->name() == "compliance";
-  if (!compliance) return Status::Error(kGravityTiltNeedsCompliance);
-  const std::vector<double>& c = model.joint_errors.Values("compliance");
-  if (std::all_of(c.begin(), c.end(), [](double v) { return v == 0; })) {
-    return Status::Error(
-        "the gravity tilt cannot be planned for with a model that carries no compliance values: "
-        "the tilt is seen only through the gravity torques' compliance offsets, so its "
-        "information is proportional to the compliance products, which a calibration identifies "
-        "(at zero compliance the tilt's columns vanish). Plan with compliance (poses that load "
-        "the joints differently serve the tilt too) and calibrate with compliance,tilt, which "
-        "checks at the compliance solution whether the data determine the tilt; or plan a "
-        "recalibration from a calibrated model whose YAML carries joint_errors: compliance");
-  }
-  if (Status s = model.Validate(); !s.ok()) return s;
-  return Status::Ok();
-}
-
-PlanningModel::PlanningModel(const RobotModel& model,
-                             const std::vector<std::shared_ptr<const JointTerm>>& terms,
-                             const std::vector<double>& reference, bool gravity_tilt)
-    : model_(model),
-      parameterization_(PlanningParameterization(model_, terms, reference)),
-      basis_(model_, parameterization_),
-      gravity_tilt_(gravity_tilt) {
-  if (gravity_tilt_) {
-    const Status s = PlanningGravityTiltStatus(model_, terms);
-    CHECK(s.ok()) << s.message();
-    const std::vector<double>& c = model_.joint_errors.Values("compliance");
-    compliance_ = Eigen::Map<const Eigen::VectorXd>(c.data(), static_cast<Eigen::Index>(c.size()));
-    const double zero[2] = {0.0, 0.0};
-    gravity_tilt_jacobian_ =
-        TiltedGravityJacobian(model_.gravity, GravityTiltAxes(model_.gravity), zero);
-  }
-  // O3's scale of the joint-space combinations: RMS tool effect of each column over the reference.
-  const int frames = parameterization_.num_frame_parameters();
-  const int k = num_joint_parameters();
-  Eigen::VectorXd sum = Eigen::VectorXd::Zero(k);
-  const int n = model_.num_joints();
-  const int count = n > 0 ? static_cast<int>(reference.size() / n) : 0;
-  std::vector<int> all(model_.num_tools());
-  std::iota(all.begin(), all.end(), 0);
-  Eigen::MatrixXd J;
-  for (int r = 0; r < count && k > 0; ++r) {
-    Rows(reference.data() + static_cast<size_t>(r) * n, all, &J);
-    sum += J.rightCols(k).colwise().squaredNorm().transpose();
-  }
-  joint_error_scale_.resize(k);
-  const double rows = std::max(1, count * model_.num_tools());
-  for (int j = 0; j < k; ++j) {
-    const double rms = std::sqrt(sum(j) / rows);
-    joint_error_scale_(j) = rms > 0 ? kJointErrorEffectScale / rms : 1.0;
-  }
-  CHECK_EQ(frames + k, num_parameters());
-}
-
-void PlanningModel::Rows(const double* q, const std::vector<int>& tools, Eigen::MatrixXd* J) const {
-  const int rows = 3 * static_cast<int>(tools.size());
-  J->resize(rows, num_parameters());
-  const int n = model_.num_joints();
-  std::vector<FrameRt> frames(n + 1);
-  const std::vector<JointBlock>& blocks = parameterization_.joint_blocks;
-  // Y(q) basis per block (num_joints x k_b): the same for every tool.
-  std::vector<Eigen::MatrixXd> Yb(blocks.size());
-  for (size_t b = 0; b < blocks.size(); ++b) {
-    Eigen::MatrixXd Y(n, blocks[b].term->num_parameters());
-    blocks[b].term->Regressor(q, Y.data());
-    Yb[b] = Y * blocks[b].basis;
-  }
-  // The gravity tilt's joint-space columns at zero tilt and the model's compliance values:
-  // d(dq)/dt = sum_a (dg/dt)_a Y_a(q) theta (n x 2), as the solvers' (gravity_tilt.h) at their
-  // linearisation point.
-  Eigen::MatrixXd D;
-  if (gravity_tilt_) {
-    Eigen::MatrixXd Ya[3];
-    ComplianceRegressorGravityAxes(model_, q, Ya);
-    Eigen::MatrixXd offsets(n, 3);
-    for (int a = 0; a < 3; ++a) offsets.col(a) = Ya[a] * compliance_;
-    D = offsets * gravity_tilt_jacobian_;
-  }
-  const int tilt_offset = parameterization_.num_parameters;
-  Eigen::Matrix<double, 3, Eigen::Dynamic> J_q(3, n);
-  for (size_t k = 0; k < tools.size(); ++k) {
-    basis_.Position(q, tools[k], J->data() + 3 * k, rows, frames.data());
-    if (blocks.empty() && !gravity_tilt_) continue;
-    basis_.PositionJointJacobian(frames.data(), J_q.data(), 3);
-    for (size_t b = 0; b < blocks.size(); ++b) {
-      J->block(3 * k, blocks[b].offset, 3, Yb[b].cols()).noalias() = J_q * Yb[b];
-    }
-    if (gravity_tilt_) J->block(3 * k, tilt_offset, 3, 2).noalias() = J_q * D;
-  }
-}
-
-Eigen::VectorXd PlanningModel::ErrorScale() const {
-  Eigen::VectorXd e(num_parameters());
-  const int frames = parameterization_.num_frame_parameters();
-  e.tail(num_joint_parameters()) = joint_error_scale_;
-  for (int j = 0; j < frames; ++j) {
-    const auto& v = parameterization_.parameters[j].vector;
-    e(j) = std::hypot(kRotationErrorScale * v.head<3>().norm(),
-                      kTranslationErrorScale * v.tail<3>().norm());
-  }
-  return e;
-}
-
-std::vector<int> VisibleTools(const RobotModel& model, const TrackerConstraint& tracker,
-                              const double* q) {
-  std::vector<int> visible;
-  const double cos_accept = std::cos(tracker.acceptance_angle);
-  for (int t = 0; t < model.num_tools(); ++t) {
-    if (!tracker.enabled) {
-      visible.push_back(t);
-      continue;
-    }
-    const SE3d pose = ToolPose(model, q, t);
-    const Eigen::Vector3d to_tracker = tracker.position - pose.t;
-    const double distance = to_tracker.norm();
-    if (distance > tracker.max_range || distance == 0) continue;
-    const Eigen::Vector3d facing =
-        t < static_cast<int>(tracker.facing.size()) ? tracker.facing[t] : Eigen::Vector3d::UnitZ();
-    if ((pose.R * facing).normalized().dot(to_tracker) >= cos_accept * distance) {
-      visible.push_back(t);
-    }
-  }
-  return visible;
-}
-
-double CharacteristicLength(const RobotModel& model) {
-  double length = model.num_tools() > 0 ? model.tools[0].origin.t.norm() : 0.0;
-  for (int i = 1; i < model.num_joints(); ++i) length += model.joints[i].origin.t.norm();
-  return length > 0 ? length : 1.0;
-}
-
-double SingularityMeasure(const RobotModel& model, const double* q) {
-  const int n = model.num_joints();
-  Eigen::MatrixXd J_p, J_pose;
-  ToolPositionJointJacobian(model, q, 0, &J_p);
-  ToolPoseJointJacobian(model, q, 0, &J_pose);
-  Eigen::MatrixXd G(6, n);
-  G.topRows<3>() = J_pose.topRows<3>();
-  G.bottomRows<3>() = J_p / CharacteristicLength(model);
-  const Eigen::VectorXd sv = G.jacobiSvd().singularValues();
-  return sv(std::min(6, n) - 1);
-}
-
-Status JointRanges(const RobotModel& model, std::vector<double>* lower, std::vector<double>* upper) {
-  lower->clear();
-  upper->clear();
-  for (const Joint& j : model.joints) {
-    double lo = j.lower, hi = j.upper;
-    if (j.type == JointType::kPrismatic) {
-      if (!std::isfinite(lo) || !std::isfinite(hi)) {
-        return Status::Error("prismatic joint '" + j.name +
-                             "' has no limits: give `limits: [lo, hi]` (mm) in the model so that "
-                             "its poses can be sampled");
-      }
-    } else if (!std::isfinite(lo) && !std::isfinite(hi)) {
-      lo = -kPi;
-      hi = kPi;
-    } else if (!std::isfinite(lo)) {
-      lo = hi - 2 * kPi;
-    } else if (!std::isfinite(hi)) {
-      hi = lo + 2 * kPi;
-    }
-    lower->push_back(lo);
-    upper->push_back(hi);
-  }
-  return Status::Ok();
-}
-
-Status SampleConfigurations(const RobotModel& model, int count, uint64_t seed,
-                            std::vector<double>* q) {
-  std::vector<double> lo, hi;
-  if (Status s = JointRanges(model, &lo, &hi); !s.ok()) return s;
-  const int n = model.num_joints();
-  std::mt19937_64 rng(seed);
-  q->resize(static_cast<size_t>(count) * n);
-  for (int r = 0; r < count; ++r) {
-    for (int i = 0; i < n; ++i) {
-      const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;  // [0, 1), portable
-      (*q)[static_cast<size_t>(r) * n + i] = lo[i] + (hi[i] - lo[i]) * u;
-    }
-  }
-  return Status::Ok();
-}
-
-std::unique_ptr<PlanningModel> BuildPlanningPool(
-    const RobotModel& model, const std::vector<std::shared_ptr<const JointTerm>>& terms,
-    const std::vector<double>& candidates, const PlanConstraints& constraints,
-    CandidatePool* pool, bool gravity_tilt) {
-  auto geometric = std::make_unique<PlanningModel>(model);
-  *pool = BuildCandidatePool(*geometric, candidates, constraints);
-  if (terms.empty()) return geometric;
-  auto with_terms = std::make_unique<PlanningModel>(model, terms, pool->q, gravity_tilt);
-  CandidatePool full = BuildCandidatePool(*with_terms, pool->q, constraints);
-  CHECK_EQ(full.size(), pool->size());
-  full.source = pool->source;
-  full.outside_limits = pool->outside_limits;
-  full.near_singular = pool->near_singular;
-  full.nothing_visible = pool->nothing_visible;
-  full.outside_cell = pool->outside_cell;
-  *pool = std::move(full);
-  return with_terms;
-}
-
-bool InsideCell(const RobotModel& model, const CellConstraint& cell, const double* q,
-                std::string* why) {
-  if (!cell.enabled()) return true;
-  auto check = [&](const Eigen::Vector3d& p, const std::string& what, bool tool) {
-    std::ostringstream os;
-    if (p.z() < cell.min_z) {
-      os << what << " at z = " << p.z() << " mm, below the floor at " << cell.min_z << " mm";
-    } else if (tool && !cell.box.isEmpty() && !cell.box.contains(p)) {
-      os << what << " at (" << p.x() << ", " << p.y() << ", " << p.z()
-         << ") mm, outside the box";
-    } else {
-      for (size_t k = 0; k < cell.keep_out.size(); ++k) {
-        if (cell.keep_out[k].contains(p)) {
-          os << what << " at (" << p.x() << ", " << p.y() << ", " << p.z()
-             << ") mm, inside keep-out box " << k + 1;
-          break;
-        }
-      }
-    }
-    if (os.tellp() == 0) return true;
-    if (why) *why = os.str();
-    return false;
-  };
-  // The joint frames: joint i's origin in the base frame is the product of the earlier joints'
-  // origins and motions with its own origin.
-  SE3d T = SE3d();
-  for (int i = 0; i < model.num_joints(); ++i) {
-    T = T * model.joints[i].origin;
-    if (i > 0 && !check(T.t, model.joints[i].name + " origin", false)) return false;
-    T = T * JointMotion(model.joints[i], q[i]);
-  }
-  for (int t = 0; t < model.num_tools(); ++t) {
-    if (!check(ToolPosition(model, q, t), model.tools[t].name, true)) return false;
-  }
-  return true;
-}
-
-Status ParseBox(const std::string& text, Eigen::AlignedBox3d* box) {
-  std::vector<double> v;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    char* end = nullptr;
-    const double x = std::strtod(item.c_str(), &end);
-    while (end && *end == ' ') ++end;
-    if (item.empty() || end == item.c_str() || (end && *end != '\0') || !std::isfinite(x)) {
-      return Status::Error("expected six finite numbers xmin,ymin,zmin,xmax,ymax,zmax (mm), got '" +
-                           text + "'");
-    }
-    v.push_back(x);
-  }
-  if (v.size() != 6) {
-    return Status::Error("expected six numbers xmin,ymin,zmin,xmax,ymax,zmax (mm), got " +
-                         std::to_string(v.size()) + " in '" + text + "'");
-  }
-  const Eigen::Vector3d lo(v[0], v[1], v[2]), hi(v[3], v[4], v[5]);
-  if (!(lo.array() <= hi.array()).all()) {
-    return Status::Error("a box's minimum must not exceed its maximum on any axis: '" + text + "'");
-  }
-  *box = Eigen::AlignedBox3d(lo, hi);
-  return Status::Ok();
-}
-
-CandidatePool BuildCandidatePool(const PlanningModel& pm, const std::vector<double>& q,
-                                 const PlanConstraints& constraints) {
-  const RobotModel& model = pm.model();
-  const int n = model.num_joints();
-  CHECK_EQ(q.size() % std::max(n, 1), 0u);
-  const int count = static_cast<int>(q.size() / n);
-  CandidatePool pool;
-  pool.num_joints = n;
-  pool.num_parameters = pm.num_parameters();
-  pool.row_offset.push_back(0);
-  std::vector<Eigen::MatrixXd> rows;
-  int total = 0;
-  for (int r = 0; r < count; ++r) {
-    const double* qr = q.data() + static_cast<size_t>(r) * n;
-    bool inside = true;
-    for (int i = 0; i < n; ++i) {
-      const Joint& j = model.joints[i];
-      inside &= qr[i] >= j.lower - kLimitTolerance && qr[i] <= j.upper + kLimitTolerance;
-    }
-    if (!inside) {
-      ++pool.outside_limits;
-      continue;
-    }
-    if (!InsideCell(model, constraints.cell, qr)) {
-      ++pool.outside_cell;
-      continue;
-    }
-    if (constraints.min_singularity > 0 &&
-        SingularityMeasure(model, qr) < constraints.min_singularity) {
-      ++pool.near_singular;
-      continue;
-    }
-    std::vector<int> visible = VisibleTools(model, constraints.tracker, qr);
-    if (visible.empty()) {
-      ++pool.nothing_visible;
-      continue;
-    }
-    Eigen::MatrixXd J;
-    pm.Rows(qr, visible, &J);
-    total += static_cast<int>(J.rows());
-    pool.row_offset.push_back(total);
-    rows.push_back(std::move(J));
-    pool.q.insert(pool.q.end(), qr, qr + n);
-    pool.source.push_back(r);
-    pool.visible.push_back(std::move(visible));
-  }
-  pool.J.resize(total, pool.num_parameters);
-  for (size_t c = 0; c < rows.size(); ++c) {
-    pool.J.middleRows(pool.row_offset[c], rows[c].rows()) = rows[c];
-  }
-  return pool;
-}
-
-Eigen::MatrixXd WorkspaceMoment(const PlanningModel& pm, const std::vector<double>& workspace) {
-  const int n = pm.model().num_joints();
-  const int P = pm.num_parameters();
-  std::vector<int> all(pm.model().num_tools());
-  std::iota(all.begin(), all.end(), 0);
-  const int count = static_cast<int>(workspace.size() / n);
-  Eigen::MatrixXd L = Eigen::MatrixXd::Zero(P, P);
-  Eigen::MatrixXd J;
-  for (int r = 0; r < count; ++r) {
-    pm.Rows(workspace.data() + static_cast<size_t>(r) * n, all, &J);
-    L.selfadjointView<Eigen::Lower>().rankUpdate(J.transpose());
-  }
-  L = L.selfadjointView<Eigen::Lower>();
-  if (count > 0) L /= static_cast<double>(count) * pm.model().num_tools();
-  return L;
-}
 
 Eigen::MatrixXd Information(const CandidatePool& pool, const std::vector<int>& selected) {
   const int P = pool.num_parameters;
@@ -942,5 +562,6 @@ std::vector<int> RandomPlan(int pool_size, int count, uint64_t seed) {
   order.resize(std::min(count, pool_size));
   return order;
 }
+
 
 }  // namespace lpoe

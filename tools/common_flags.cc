@@ -1,5 +1,6 @@
-// The URDF chain-selection flags, shared by every tool that reads a model. They are linked into a
-// tool only when it calls UrdfOptionsFromFlags (this object file of the static library).
+// The options every tool shares, defined once (their help and defaults from lpoe/options.h, the
+// table the Python module uses too): the model and its URDF chain, the units of the CSV files,
+// --quiet and the main --output. Each tool reads them with the same meaning.
 #include <sstream>
 #include <string>
 #include <vector>
@@ -7,20 +8,31 @@
 #include <gflags/gflags.h>
 
 #include "lpoe/io.h"
+#include "lpoe/options.h"
 #include "lpoe/urdf.h"
 #include "tool_common.h"
 
-DEFINE_string(base_link, "",
-              "URDF --model: the link whose frame is the model's base frame. Default: the root link.");
-DEFINE_string(tip_link, "",
-              "URDF --model: the link that ends the chain (e.g. tool0). Needed when moving joints "
-              "lead to several leaf links (the error lists them). Default: the one candidate tip.");
-DEFINE_string(tool_links, "",
-              "URDF --model: comma-separated links fixed to the last moving link that are the "
-              "measured tools (CSV target names). Default: the tip link.");
+DEFINE_string(model, "", lpoe::OptionHelp("", "model"));
+DEFINE_string(base_link, "", lpoe::OptionHelp("", "base_link"));
+DEFINE_string(tip_link, "", lpoe::OptionHelp("", "tip_link"));
+DEFINE_string(tool_links, "", lpoe::OptionHelp("", "tool_links"));
+DEFINE_string(angle_unit, "rad", lpoe::OptionHelp("", "angle_unit"));
+DEFINE_string(length_unit, "mm", lpoe::OptionHelp("", "length_unit"));
+DEFINE_bool(quiet, false, lpoe::OptionHelp("", "quiet"));
+DEFINE_string(output, "", lpoe::OptionHelp("", "output"));
 
 namespace lpoe {
 namespace tools {
+
+Status ParseUnitFlags(AngleUnit* angle, LengthUnit* length) {
+  if (!ParseAngleUnit(FLAGS_angle_unit, angle)) {
+    return Status::Error("--angle_unit must be rad or deg, got '" + FLAGS_angle_unit + "'");
+  }
+  if (!ParseLengthUnit(FLAGS_length_unit, length)) {
+    return Status::Error("--length_unit must be mm or m, got '" + FLAGS_length_unit + "'");
+  }
+  return Status::Ok();
+}
 
 bool UrdfOptionsFromFlags(const std::string& model_path, UrdfOptions* options) {
   *options = UrdfOptions();

@@ -1,0 +1,212 @@
+#include "lpoe/compensation.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "lpoe/options.h"
+#include "lpoe/refusals.h"
+#include "parse_util.h"
+
+namespace lpoe {
+
+const char* TargetFrameName(TargetFrame frame) {
+  return frame == TargetFrame::kBase ? "base" : "measurement";
+}
+
+bool ParseTargetFrame(const std::string& text, TargetFrame* frame) {
+  if (text == "base") {
+    *frame = TargetFrame::kBase;
+  } else if (text == "measurement") {
+    *frame = TargetFrame::kMeasurement;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+// "x,y,z[,roll,pitch,yaw]" -> 3 or 6 numbers; false when the text is not such a list (then a tool
+// name).
+bool TcpNumbers(const std::string& text, std::vector<double>* numbers) {
+  return !text.empty() && internal::ParseNumberList(text, ',', numbers);
+}
+
+}  // namespace
+
+Status CheckCompensationRequest(const CompensationRequest& r) {
+  if (r.joints_mode && !r.has_nominal) {
+    return Status::Error("--joints needs --nominal (the model the program was planned with)");
+  }
+  const IkOptions& o = r.ik;
+  // The ranges of lpoe/options.h (the tool's flags and lpoe.compensate's keyword arguments).
+  const char* kTool = "lpoe_compensate";
+  for (const Status& s : {CheckOption(kTool, "threads", r.threads),
+                          CheckOption(kTool, "max_iterations", o.max_iterations),
+                          CheckOption(kTool, "restarts", o.restarts),
+                          CheckOption(kTool, "position_tolerance", o.position_tolerance),
+                          CheckOption(kTool, "orientation_tolerance", o.orientation_tolerance),
+                          CheckOption(kTool, "singular_threshold", o.singular_threshold)}) {
+    if (!s.ok()) return s;
+  }
+  const bool has_tcp = !r.tcp.empty() || !r.tcp_offset.empty();
+  if (has_tcp && !r.tool.empty()) return Status::Error("give --tcp or --tool, not both");
+  std::vector<double> numbers = r.tcp_offset;
+  if (!r.tcp.empty() && !r.tcp_offset.empty()) {
+    return Status::Error("--tcp: a tool name or an offset, not both");
+  }
+  if (r.tcp.empty() ? !numbers.empty() : TcpNumbers(r.tcp, &numbers)) {
+    bool finite = true;
+    for (double v : numbers) finite = finite && std::isfinite(v);
+    if ((numbers.size() != 3 && numbers.size() != 6) || !finite) {
+      return Status::Error("--tcp=" + r.tcp +
+                           ": expected x,y,z or x,y,z,roll,pitch,yaw (mm, rad), or a tool name");
+    }
+  }
+  return Status::Ok();
+}
+
+int Compensator::ResolveTool(const std::string& field) const {
+  const int by_name = model_.FindTool(field);
+  if (by_name >= 0) return by_name;
+  int index = -1;
+  const auto [p, ec] = std::from_chars(field.data(), field.data() + field.size(), index);
+  if (ec != std::errc() || p != field.data() + field.size()) return -1;
+  return index >= 0 && index < model_.num_tools() ? index : -1;
+}
+
+Status Compensator::Create(const CompensationRequest& request, std::unique_ptr<Compensator>* out,
+                           bool* input_error) {
+  bool scratch = false;
+  bool& input = input_error != nullptr ? *input_error : scratch;
+  input = false;
+  if (Status s = CheckCompensationRequest(request); !s.ok()) return s;
+  std::unique_ptr<Compensator> c(new Compensator());
+  c->request_ = request;
+  c->model_ = request.model;
+  if (Status s = InverseKinematics::CheckModel(c->model_); !s.ok()) {
+    input = true;
+    return s;
+  }
+  if (request.has_nominal) {
+    c->nominal_ = request.nominal;
+    if (Status s = c->nominal_.Validate(); !s.ok()) {
+      input = true;
+      return s;
+    }
+    if (Status s = CheckNominalMatches(c->model_, c->nominal_); !s.ok()) {
+      input = true;
+      return Status::Error("nominal: " + s.message());
+    }
+  }
+  std::vector<double> numbers = request.tcp_offset;
+  if (!request.tcp_offset.empty() || TcpNumbers(request.tcp, &numbers)) {
+    // A TCP given by its offset: one more tool of both models (the same place on the flange).
+    const bool rpy = numbers.size() == 6;
+    const Eigen::Matrix3d R = RotationFromRpy(rpy ? numbers[3] : 0.0, rpy ? numbers[4] : 0.0,
+                                              rpy ? numbers[5] : 0.0);
+    const Tool tcp{"tcp", SE3d(R, Eigen::Vector3d(numbers[0], numbers[1], numbers[2]))};
+    c->model_.tools.push_back(tcp);
+    if (request.has_nominal) c->nominal_.tools.push_back(tcp);
+    c->default_tool_ = c->model_.num_tools() - 1;
+  } else if (!request.tcp.empty()) {
+    c->default_tool_ = c->model_.FindTool(request.tcp);
+    if (c->default_tool_ < 0 ||
+        (request.has_nominal && c->nominal_.FindTool(request.tcp) != c->default_tool_)) {
+      return Status::Error("--tcp=" + request.tcp + " is not a tool of the " +
+                           (c->default_tool_ < 0 ? "calibrated" : "nominal") +
+                           " model (at the same index in both models) nor x,y,z[,roll,pitch,yaw]; "
+                           "with a URDF, name its link in --tool_links");
+    }
+  }
+  if (!request.tool.empty()) {
+    c->default_tool_ = c->ResolveTool(request.tool);
+    if (c->default_tool_ < 0) {
+      return Status::Error("--tool=" + request.tool + " is neither a tool name of the model nor " +
+                           "an index below " + std::to_string(c->model_.num_tools()));
+    }
+  }
+  c->ik_ = std::make_unique<InverseKinematics>(c->model_, request.ik);  // with its joint terms
+  c->nominal_chain_ = std::make_unique<KinematicChain>(c->nominal());
+  *out = std::move(c);
+  return Status::Ok();
+}
+
+int Compensator::Blocks(int rows) const {
+  const int threads = request_.threads > 0
+                          ? request_.threads
+                          : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  return std::max(1, std::min(threads, rows / 256));
+}
+
+void Compensator::Solve(const double* seeds, std::vector<IkTarget>* targets,
+                        CompensatedRows* out) const {
+  const int rows = static_cast<int>(targets->size());
+  const int n = model_.num_joints();
+  const SE3d& T_mb = model_.T_measurement_base;
+  out->q.resize(static_cast<size_t>(rows) * n);
+  out->results.resize(rows);
+  out->corrected.resize(request_.has_nominal ? rows : 0);
+  ForEachBlock(rows, [&](int, int begin, int end) {
+    for (int k = begin; k < end; ++k) {
+      IkTarget& t = (*targets)[k];
+      const double* seed = seeds + static_cast<size_t>(k) * n;
+      if (request_.joints_mode) {
+        // The nominal tool pose at the program's joints, in the calibrated model's frame.
+        const SE3d T = T_mb * nominal_chain_->Pose(seed, t.tool);
+        t.position = T.t;
+        t.rotation = T.R;
+        t.has_orientation = request_.joints_target_pose;
+      } else if (request_.frame == TargetFrame::kBase) {
+        t.position = T_mb * t.position;
+        t.rotation = T_mb.R * t.rotation;
+      }
+      double* q = &out->q[static_cast<size_t>(k) * n];
+      out->results[k] = ik_->Solve(t, seed, q);
+      if (request_.has_nominal) out->corrected[k] = nominal_chain_->Pose(q, t.tool);
+    }
+  });
+}
+
+void CompensationSummary::Add(const CompensatedRows& out, const int* lines) {
+  for (int k = 0; k < out.size(); ++k) {
+    const IkResult& r = out.results[k];
+    const int64_t line = lines != nullptr ? lines[k] : rows + k;
+    ++per_status[static_cast<int>(r.status)];
+    if (r.correction > max_correction) {
+      max_correction = r.correction;
+      max_correction_line = line;
+    }
+    if (r.position_error > kWrongFrameMm) ++far_rows;
+    if (r.position_error > max_residual) {
+      max_residual = r.position_error;
+      max_residual_line = line;
+    }
+    max_orientation_residual = std::max(max_orientation_residual, r.orientation_error);
+  }
+  rows += out.size();
+}
+
+Status CompensationSummary::CheckFrame(const CompensationRequest& request,
+                                       const std::string& source) const {
+  if (request.joints_mode || rows == 0 || 2 * far_rows <= rows) return Status::Ok();
+  const bool base = request.frame == TargetFrame::kBase;
+  char residual[32];
+  std::snprintf(residual, sizeof(residual), "%g", max_residual);
+  char limit[32];
+  std::snprintf(limit, sizeof(limit), "%g", kWrongFrameMm);
+  return Status::Error(
+      source + ": " + std::to_string(far_rows) + " of " + std::to_string(rows) +
+      " targets are more than " + limit + " mm from any pose the calibrated robot reaches (line " +
+      std::to_string(max_residual_line) + ": " + residual + " mm): the targets were read in the " +
+      (base ? "robot's base" : "measurement") + " frame (--frame=" + TargetFrameName(request.frame) +
+      "); if they are in the " + (base ? "measurement (tracker)" : "robot's base") +
+      " frame, use --frame=" + (base ? "measurement" : "base") + "; no output written");
+}
+
+}  // namespace lpoe

@@ -1,0 +1,282 @@
+#include "lpoe/planning_workflow.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <Eigen/Cholesky>
+
+#include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
+#include "lpoe/options.h"
+#include "lpoe/refusals.h"
+
+namespace lpoe {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr char kTool[] = "lpoe_plan";
+
+Status Fail(PlanFailure kind, PlanFailure* failure, const std::string& message) {
+  if (failure != nullptr) *failure = kind;
+  return Status::Error(message);
+}
+
+}  // namespace
+
+std::string PlanningResult::PlannedTerms() const {
+  std::string text;
+  for (const std::string& name : term_names) text += (text.empty() ? "" : ",") + name;
+  if (tilt) text += std::string(",") + kGravityTiltName;
+  return text.empty() ? "none" : text;
+}
+
+Status CheckPlanRequest(const PlanRequest& r) {
+  if (r.count_auto) {
+    if (!(r.target_accuracy > 0) || !(r.noise_sigma > 0)) {
+      return Status::Error("--count=auto needs --target_accuracy > 0 and --noise_sigma > 0 (mm)");
+    }
+  } else if (r.count < 1 || r.count > 1000000) {
+    return Status::Error("--count must be a number of poses from 1 to 1000000, or 'auto'");
+  }
+  const TrackerConstraint& t = r.constraints.tracker;
+  for (const Status& s :
+       {CheckOption(kTool, "noise_sigma", r.noise_sigma),
+        CheckOption(kTool, "target_accuracy", r.target_accuracy),
+        CheckOption(kTool, "candidate_count", r.candidate_count),
+        CheckOption(kTool, "workspace_count", r.workspace_count),
+        CheckOption(kTool, "random_draws", r.random_draws),
+        CheckOption(kTool, "min_singularity", r.constraints.min_singularity),
+        CheckOption(kTool, "acceptance_angle", t.acceptance_angle * 180.0 / kPi),
+        CheckOption(kTool, "max_range", std::isinf(t.max_range) ? 0.0 : t.max_range)}) {
+    if (!s.ok()) return s;
+  }
+  if (!t.enabled && (!t.facing.empty() || std::isfinite(t.max_range))) {
+    return Status::Error("--smr_facing and --max_range need --tracker");
+  }
+  if (t.enabled && !t.position.allFinite()) {
+    return Status::Error("--tracker must be x,y,z in mm (three finite numbers)");
+  }
+  if (!t.facing.empty() && static_cast<int>(t.facing.size()) != r.model.num_tools()) {
+    return Status::Error("--smr_facing gives " + std::to_string(t.facing.size()) +
+                         " directions; the model has " + std::to_string(r.model.num_tools()) +
+                         " tools");
+  }
+  if (std::isnan(r.constraints.cell.min_z) ||
+      r.constraints.cell.min_z == std::numeric_limits<double>::infinity()) {
+    return Status::Error("--min_z must be a finite height in mm");
+  }
+  return Status::Ok();
+}
+
+Status NarrowJointRanges(const std::vector<std::pair<double, double>>& ranges, RobotModel* model) {
+  if (static_cast<int>(ranges.size()) != model->num_joints()) {
+    return Status::Error("--joint_ranges gives " + std::to_string(ranges.size()) +
+                         " items; the model has " + std::to_string(model->num_joints()) +
+                         " joints");
+  }
+  for (int j = 0; j < model->num_joints(); ++j) {
+    const auto [lo, hi] = ranges[j];
+    if (std::isnan(lo) && std::isnan(hi)) continue;  // the limits
+    Joint& joint = model->joints[j];
+    if (!std::isfinite(lo) || !std::isfinite(hi) || !(lo < hi)) {
+      return Status::Error("--joint_ranges: the range for " + joint.name +
+                           " is not lo:hi with lo < hi");
+    }
+    joint.lower = std::max(joint.lower, lo);
+    joint.upper = std::min(joint.upper, hi);
+    if (!(joint.lower < joint.upper)) {
+      return Status::Error("--joint_ranges: the range for " + joint.name +
+                           " does not overlap the joint's limits");
+    }
+  }
+  return Status::Ok();
+}
+
+Status RunPlanning(const PlanRequest& request, PlanningResult* result, PlanFailure* failure) {
+  PlanningResult& out = *result;
+  out = PlanningResult();
+  if (failure != nullptr) *failure = PlanFailure::kNone;
+  if (Status s = CheckPlanRequest(request); !s.ok()) {
+    return Fail(PlanFailure::kUsage, failure, s.message());
+  }
+  const RobotModel& model = request.model;
+  const std::string& source = request.model_source.empty() ? model.name : request.model_source;
+  if (Status s = model.Validate(); !s.ok()) {
+    return Fail(PlanFailure::kInput, failure, source + ": " + s.message());
+  }
+  const int n = model.num_joints();
+
+  // The joint-space terms, compliance first as lpoe_calibrate orders them (docs/joint_errors.md).
+  bool tilt = false;  // the gravity tilt, asked for
+  const bool terms_auto = request.joint_errors == "auto";
+  if (terms_auto) {
+    out.term_names = JointTermNames();
+  } else {
+    std::vector<std::string> kinds;
+    std::string error;
+    if (!ParseJointErrorList(request.joint_errors, &kinds, &tilt, &error)) {
+      return Fail(PlanFailure::kUsage, failure,
+                  "--joint_errors=" + request.joint_errors + ": " + error +
+                      " (expected none, a comma-separated list of " + JointTermNameList() +
+                      " or auto, with tilt in a list with compliance)");
+    }
+    out.term_names = InRegistryOrder(kinds);
+  }
+
+  // Candidates and workspace.
+  if (request.has_candidates) {
+    out.candidates = request.candidates;
+  } else if (Status s = SampleConfigurations(model, request.candidate_count, request.seed,
+                                             &out.candidates);
+             !s.ok()) {
+    return Fail(PlanFailure::kInput, failure, source + ": " + s.message());
+  }
+  std::vector<double> workspace;
+  if (request.has_workspace) {
+    workspace = request.workspace;
+    // The accuracy over no configuration is no accuracy at all.
+    if (workspace.empty()) {
+      return Fail(PlanFailure::kInput, failure,
+                  "workspace: no configurations (expected at least one)");
+    }
+  } else if (Status s = SampleConfigurations(model, request.workspace_count, request.seed + 1,
+                                             &workspace);
+             !s.ok()) {
+    return Fail(PlanFailure::kInput, failure, source + ": " + s.message());
+  }
+  out.offered = static_cast<int>(out.candidates.size() / n);
+  out.workspace_configurations = static_cast<int>(workspace.size() / n);
+
+  std::vector<std::shared_ptr<const JointTerm>> terms;
+  for (const std::string& name : out.term_names) {
+    std::shared_ptr<const JointTerm> term;
+    if (Status s = MakeJointTerm(name, model, &term); !s.ok()) {
+      return Fail(PlanFailure::kInput, failure, source + ": " + s.message());
+    }
+    terms.push_back(std::move(term));
+  }
+  // The gravity tilt: planned for when asked (refused with the reason when the model carries no
+  // compliance values) and, with auto, whenever the model carries them.
+  if (const Status s = PlanningGravityTiltStatus(model, terms); tilt && !s.ok()) {
+    return Fail(PlanFailure::kUsage, failure,
+                "--joint_errors=" + request.joint_errors + " with --model=" + source + ": " +
+                    s.message());
+  } else if (terms_auto) {
+    tilt = s.ok();
+    if (!tilt) {
+      out.tilt_note = "the model carries no compliance values, so the gravity tilt's information "
+                      "is zero (docs/planning.md)";
+    }
+  }
+  out.tilt = tilt;
+
+  // The feasible candidates; with joint-space terms, their identifiable combinations are those the
+  // feasible candidates separate from the geometry (the solvers' reduction), and the pool's rows
+  // gain their columns.
+  out.planning =
+      BuildPlanningPool(model, terms, out.candidates, request.constraints, &out.pool, tilt);
+  const PlanningModel& pm = *out.planning;
+  const CandidatePool& pool = out.pool;
+  out.workspace_moment = WorkspaceMoment(pm, workspace);
+  const Eigen::MatrixXd& L = out.workspace_moment;
+  const int P = pm.num_parameters();
+
+  // The plan, or for count_auto the smallest plan predicted to reach the target.
+  auto plan_of = [&](int count) -> Status {
+    if (Status s = SelectPlan(pm, pool, count, L, request.options, &out.plan); !s.ok()) return s;
+    out.quality = EvaluatePlan(pm, pool, out.plan.selected, L);
+    return Status::Ok();
+  };
+  int count = request.count;
+  if (request.count_auto) {
+    const double sigma = request.noise_sigma, target = request.target_accuracy;
+    std::vector<int> all(pool.size());
+    for (int c = 0; c < pool.size(); ++c) all[c] = c;
+    const double best = sigma * EvaluatePlan(pm, pool, all, L).predicted_rms;
+    if (pool.size() == 0 || !(best <= target)) {
+      char text[200];
+      std::snprintf(text, sizeof(text),
+                    "even all %d feasible candidates are predicted to reach %g mm, not %g mm: "
+                    "offer more candidates or accept a larger target",
+                    pool.size(), best, target);
+      return Fail(PlanFailure::kNoPlan, failure, text);
+    }
+    auto reaches = [&](int k) {
+      return plan_of(k).ok() && PlanRefusal(out.quality, P, k).ok() &&
+             sigma * out.quality.predicted_rms <= target;
+    };
+    int max_rows = 3;
+    for (int c = 0; c < pool.size(); ++c) max_rows = std::max(max_rows, pool.rows(c));
+    int lo = std::max(1, (P + max_rows - 1) / max_rows) - 1;  // fails
+    int hi = std::min(pool.size(), std::max(lo + 1, 2 * lo));
+    while (!reaches(hi)) {
+      if (hi >= pool.size()) {  // even every feasible candidate: refused, never a loop
+        const Status refusal = plan_of(hi).ok() ? PlanRefusal(out.quality, P, hi)
+                                                : Status::Error("no plan of all candidates");
+        return Fail(PlanFailure::kNoPlan, failure,
+                    "all " + std::to_string(pool.size()) + " feasible candidates: " +
+                        (refusal.ok() ? "the target accuracy is out of reach" : refusal.message()) +
+                        ": offer more candidates");
+      }
+      lo = hi;
+      hi = std::min(pool.size(), 2 * hi);
+    }
+    while (hi - lo > 1) {  // reaches(hi), not reaches(lo)
+      const int mid = lo + (hi - lo) / 2;
+      (reaches(mid) ? hi : lo) = mid;
+    }
+    count = hi;
+    if (Status s = plan_of(count); !s.ok()) return Fail(PlanFailure::kNoPlan, failure, s.message());
+  } else if (Status s = plan_of(count); !s.ok()) {
+    return Fail(PlanFailure::kNoPlan, failure,
+                s.message() + " (" + std::to_string(pool.outside_limits) +
+                    " outside the limits, " + std::to_string(pool.outside_cell) +
+                    " outside the cell, " + std::to_string(pool.near_singular) +
+                    " near a singularity, " + std::to_string(pool.nothing_visible) +
+                    " with no SMR visible)");
+  }
+  out.count = count;
+  // The refusals: full rank, and more rows than parameters (lpoe/refusals.h).
+  if (Status s = PlanRefusal(out.quality, P, count); !s.ok()) {
+    return Fail(PlanFailure::kNoPlan, failure, s.message());
+  }
+
+  // Random plans of the same size, for comparison.
+  for (int k = 0; k < request.random_draws; ++k) {
+    const PlanQuality r =
+        EvaluatePlan(pm, pool, RandomPlan(pool.size(), count, request.seed + 1000 + k), L);
+    if (k == 0) out.random_quality = r;
+    out.random_rms.push_back(r.predicted_rms);
+  }
+  std::sort(out.random_rms.begin(), out.random_rms.end());
+  double mean_sq = 0;
+  int finite = 0;
+  for (double v : out.random_rms) {
+    if (std::isfinite(v)) {
+      mean_sq += v * v;
+      ++finite;
+    }
+  }
+  out.random_rms_mean =
+      finite > 0 ? std::sqrt(mean_sq / finite) : std::numeric_limits<double>::infinity();
+
+  // The gravity tilt's predicted standard deviations with the plan (the last two parameters of
+  // M^-1, at the model's compliance values): what the calibration's a-posteriori ones will be.
+  if (pm.num_tilt_parameters() > 0) {
+    const Eigen::MatrixXd M = Information(pool, out.plan.selected);
+    const Eigen::VectorXd d = M.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+    const Eigen::MatrixXd Ms = d.asDiagonal() * M * d.asDiagonal();
+    const Eigen::MatrixXd Cs = Ms.ldlt().solve(Eigen::MatrixXd::Identity(P, P));
+    for (int a = 0; a < 2; ++a) {
+      const int k = P - 2 + a;
+      out.tilt_sd_deg_per_unit[a] = std::sqrt(std::max(0.0, Cs(k, k))) * d(k) * 180.0 / kPi;
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace lpoe
