@@ -12,6 +12,7 @@
 #include "lpoe/analysis.h"
 #include "lpoe/io.h"
 #include "lpoe/pipeline.h"
+#include "lpoe/refusals.h"
 #include "python_api.h"
 #include "report.h"
 #include "tool_common.h"
@@ -96,9 +97,30 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   const double sigma = k.Get<double>("sigma", 1.0);
   const int threads = k.Get<int>("threads", 0);
   const std::string angle_unit = k.Get<std::string>("angle_unit", "rad");
+  // Known SMR nests: a list of tool names (or one comma-separated string, as --fixed_tools).
+  const py::object fixed_tools = k.Get<py::object>("fixed_tools", py::none());
   k.Finish("calibrate");
 
   if (Status s = nominal.Validate(); !s.ok()) throw LpoeError(s.message());
+  std::vector<std::string> fixed_names;
+  if (!fixed_tools.is_none()) {
+    if (py::isinstance<py::str>(fixed_tools)) {
+      if (Status s = ParseNameList(fixed_tools.cast<std::string>(), &fixed_names); !s.ok()) {
+        throw LpoeError("fixed_tools: " + s.message());
+      }
+    } else {
+      try {
+        fixed_names = fixed_tools.cast<std::vector<std::string>>();
+      } catch (const py::cast_error&) {
+        throw LpoeError("fixed_tools: expected a list of tool names, got " +
+                        py::repr(fixed_tools).cast<std::string>());
+      }
+    }
+  }
+  RobotModel with_fixed = nominal;
+  if (Status s = SetFixedTools(fixed_names, &with_fixed); !s.ok()) {
+    throw LpoeError("fixed_tools: " + s.message());
+  }
   if (given_data.num_joints() != nominal.num_joints() ||
       (given_verify != nullptr && given_verify->num_joints() != nominal.num_joints())) {
     throw LpoeError("the measurements have a different number of joints than the model");
@@ -183,7 +205,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   PipelineResult run;
   {
     py::gil_scoped_release release;
-    run = RunCalibrationPipeline(nominal, data, verification, o);
+    run = RunCalibrationPipeline(with_fixed, data, verification, o);
   }
   const CalibrationResult& result = run.result;
 
@@ -264,7 +286,9 @@ void BindCalibration(py::module_& m) {
       "  max_condition=1e8; noise_sigma=0.03 (mm, plausibility); loss='none' | 'huber' | "
       "'cauchy'; loss_scale=1.0;\n"
       "  sigma=None (mm; Ceres covariance a priori when given); threads=0; angle_unit='rad' "
-      "(the unit the joint values were read in, for the report).\n"
+      "(the unit the joint values were read in, for the report);\n"
+      "  fixed_tools=[] (tool names held as given: known SMR nests, so that the flange frame "
+      "is identified in full; the model's fixed: true tools are held too).\n"
       "An unknown option raises lpoe.Error listing the known ones.");
 }
 

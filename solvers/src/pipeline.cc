@@ -134,7 +134,9 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
   RobotModel reference = start;
   if (have_fitted) {
     for (int t = 0; t < start.num_tools(); ++t) {
-      if (measured[t]) reference.tools[t].origin.t = fitted.tools[t].origin.t;
+      if (measured[t] && !start.tools[t].fixed) {
+        reference.tools[t].origin.t = fitted.tools[t].origin.t;
+      }
     }
   }
   reference = internal::StructureReference(reference, data, fitted_rms);
@@ -145,7 +147,7 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
   // (the fitted ones, those within the noise of the axis on it).
   auto start_tools_from = [&](const RobotModel& from) {
     for (int t = 0; t < start.num_tools(); ++t) {
-      if (measured[t]) start.tools[t].origin.t = from.tools[t].origin.t;
+      if (measured[t] && !start.tools[t].fixed) start.tools[t].origin.t = from.tools[t].origin.t;
     }
   };
   // A registered start has the fitted tool points already: those put on the axis start there too.
@@ -346,6 +348,25 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   const MeasurementSet& identification_eff =
       result.joint_terms.empty() ? identification : with_joint_terms;
   out.identifiability = AnalyzeIdentifiability(nominal, identification_eff, result);
+  // Known SMR nests (Tool::fixed) the data never measure identify nothing: said, not refused.
+  {
+    std::vector<bool> measured(nominal.num_tools(), false);
+    for (int r = 0; r < identification.size(); ++r) measured[identification.target(r)] = true;
+    bool any_measured = false;
+    std::string unmeasured;
+    for (int t = 0; t < nominal.num_tools(); ++t) {
+      if (!nominal.tools[t].fixed) continue;
+      any_measured = any_measured || measured[t];
+      if (!measured[t]) unmeasured += (unmeasured.empty() ? "" : ", ") + nominal.tools[t].name;
+    }
+    if (!unmeasured.empty()) {
+      out.identifiability.warnings.push_back(
+          "fixed tool(s) " + unmeasured + " not measured in these data: held as given, they " +
+          (any_measured ? "add nothing to the calibration"
+                        : "identify nothing, and the last joint's zero and its translation along "
+                          "the axis stay a convention traded against the other tools' offsets"));
+    }
+  }
   // The solver's last linearization is that of result.model, i.e. of `geometric` on the measured
   // joint values (no joint terms): its errors serve the statistics and the outlier search.
   PositionErrorRows& final_errors = errors.solver.final_errors;
@@ -396,6 +417,28 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   for (const Direction& d : result.parameterization.unidentifiable) {
     if (IsStructurallyLost(d)) {
       left_out += (left_out.empty() ? "" : ", ") + d.name;
+    }
+  }
+  // Fixed tools are held as given: a nest position that is wrong leaves an error nothing can take.
+  std::string fixed;
+  {
+    std::vector<bool> measured(nominal.num_tools(), false);
+    for (int r = 0; r < identification.size(); ++r) measured[identification.target(r)] = true;
+    for (int t = 0; t < nominal.num_tools(); ++t) {
+      if (nominal.tools[t].fixed && measured[t]) {
+        fixed += (fixed.empty() ? "" : ", ") + nominal.tools[t].name;
+      }
+    }
+  }
+  if (!fixed.empty()) {
+    for (VerdictCheck& c : out.verdict.checks) {
+      if (c.name != "residual" || c.level == VerdictLevel::kPass) continue;
+      const bool was_reason = out.verdict.reason == c.message;
+      c.message += "; likely cause: the fixed tools (" + fixed +
+                   ") are held where the model puts them, and the data may not agree (a nest "
+                   "position off its drawing or CMM value shows here; calibrate without "
+                   "--fixed_tools to see where the data put them)";
+      if (was_reason) out.verdict.reason = c.message;
     }
   }
   if (!left_out.empty()) {
