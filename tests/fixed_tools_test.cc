@@ -281,6 +281,30 @@ TEST(FixedTools, FlangeFrameIdentifiedWithBothSolvers) {
   }
 }
 
+// The full parameterization (both solvers) and a robust loss (Ceres: its covariance with a held
+// block) reach the same flange.
+TEST(FixedTools, FullParameterizationAndRobustLoss) {
+  const RobotModel fixed = WithFixed(Nominal(), {"smr1", "smr2", "smr3"});
+  const Cell cell = Simulate(Nominal(), 3, false);
+  const RobotModel reference = LeastSquaresReference(fixed, cell.data);
+  for (int k = 0; k < 3; ++k) {
+    PipelineOptions o;
+    o.ceres.num_threads = 1;
+    o.solver = k == 0 ? SolverKind::kLinear : SolverKind::kCeres;
+    o.parameterization = k < 2 ? ParameterizationKind::kFull : ParameterizationKind::kIdentifiable;
+    if (k == 2) o.ceres.loss = "huber";  // scale 1 mm: the 0.02 mm residuals are quadratic
+    SCOPED_TRACE(k);
+    const PipelineResult r = RunCalibrationPipeline(fixed, cell.data, MeasurementSet(), o);
+    ASSERT_EQ(r.result.termination, Termination::kConverged) << r.result.message;
+    EXPECT_LT(FlangeErrorOf(r.geometric, reference).tcp_mm, 1e-3);
+    EXPECT_EQ(r.result.model.tools[0].origin.t, fixed.tools[0].origin.t);
+    if (k == 2) {
+      EXPECT_EQ(r.result.covariance.rows(), r.result.parameterization.num_parameters);
+      EXPECT_TRUE(r.result.covariance.allFinite());
+    }
+  }
+}
+
 // One fixed nest off the axis is enough to identify the flange; the other nests are fitted.
 TEST(FixedTools, OneFixedNestAmongFreeOnes) {
   const RobotModel fixed = WithFixed(Nominal(), {"smr2"});
