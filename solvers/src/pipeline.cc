@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <utility>
 
 #include <glog/logging.h>
@@ -427,6 +428,57 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
     for (int t = 0; t < nominal.num_tools(); ++t) {
       if (nominal.tools[t].fixed && measured[t]) {
         fixed += (fixed.empty() ? "" : ", ") + nominal.tools[t].name;
+      }
+    }
+  }
+  if (!fixed.empty()) {
+    // Do the data agree with the fixed tools? The same calibration with them free: holding them
+    // costs about chi^2(k) noise variances when they are right (k: the parameters the free fit
+    // has more), much more when a nest is off. Significant: "check"; and when holding them also
+    // costs more than the tracker noise per axis: "fail" (the flange then carries the nests' error).
+    RobotModel free_nominal = nominal;
+    for (Tool& t : free_nominal.tools) t.fixed = false;
+    PipelineOptions free_options = chosen;
+    free_options.kfold = 0;
+    const CalibrationResult g = SolveCalibration(free_nominal, identification, free_options,
+                                                 "fixed tools against free ones", nullptr,
+                                                 nullptr, nullptr);
+    const int per_row = options.use_orientation && identification.has_orientation() ? 6 : 3;
+    const long rows = static_cast<long>(per_row) * identification.size();
+    const int k = g.parameterization.num_parameters - result.parameterization.num_parameters;
+    if (g.converged() && k > 0 && rows > g.parameterization.num_parameters && g.final_cost > 0) {
+      const double s2 =
+          2.0 * g.final_cost / static_cast<double>(rows - g.parameterization.num_parameters);
+      const double chi2 = 2.0 * (result.final_cost - g.final_cost) / s2;
+      const double rms_fixed = internal::RmsPerAxisOfCost(result.final_cost, identification,
+                                                          per_row == 6);
+      const double rms_free = internal::RmsPerAxisOfCost(g.final_cost, identification,
+                                                         per_row == 6);
+      // About 5 standard deviations of chi^2(k) above its mean.
+      const double significant = k + 5.0 * std::sqrt(2.0 * k);
+      VerdictCheck c;
+      c.name = "fixed_tools";
+      c.value = chi2;
+      c.limit = significant;
+      const bool costly = rms_fixed - rms_free > options.plausibility.noise_sigma;
+      c.level = !(chi2 > significant) ? VerdictLevel::kPass
+                : costly               ? VerdictLevel::kFail
+                                       : VerdictLevel::kCheck;
+      char buf[512];
+      std::snprintf(buf, sizeof(buf),
+                    "the fixed tools (%s) %s the data: held as given the fit is %.4g mm per axis, "
+                    "with them free %.4g mm (%.3g noise variances for %d parameters)%s",
+                    fixed.c_str(), c.level == VerdictLevel::kPass ? "agree with" : "disagree with",
+                    rms_fixed, rms_free, chi2, k,
+                    c.level == VerdictLevel::kPass
+                        ? ""
+                        : ": a nest is not where the model puts it (check the drawing or CMM "
+                          "values; the flange frame takes that error)");
+      c.message = buf;
+      out.verdict.checks.push_back(c);
+      if (c.level > out.verdict.level) {
+        out.verdict.level = c.level;
+        out.verdict.reason = c.message;
       }
     }
   }
