@@ -3,6 +3,7 @@
 // tracker data; the compensated programs run by a simulated controller (the nominal model's
 // inverse kinematics) on the true robot.
 #include "lpoe/program.h"
+#include "lpoe/refusals.h"
 
 #include <gtest/gtest.h>
 
@@ -64,15 +65,13 @@ const Cell& TheCell() {
     c->nominal.tools.push_back(flange);
     c->flange = c->nominal.FindTool("flange");
     KinematicErrors errors = RandomErrors(c->nominal, 0.02, 8.0, 0.01, 0.02, 32);
-    // The nest's and the flange's frames are known (the fixture): no error there. One SMR cannot
-    // tell the last link's frame and its joint zero from the tool frames (the calibration keeps
-    // them nominal): the true robot has no error there either, which is what calibrating with
-    // known, fixed tools would identify (--fixed_tools, issue 32, not implemented yet).
+    // The nest's and the flange's frames are known (the fixture): no error there. The last link's
+    // frame and its joint zero have errors like every other joint's: calibrating with the nest
+    // held fixed (--fixed_tools, docs/identifiability.md "Known SMR nests") identifies them.
     const int n = c->nominal.num_joints();
     for (int t = 0; t < c->nominal.num_tools(); ++t) errors.frame[n + t].setZero();
-    errors.frame[n - 1].setZero();
-    errors.joint_zero[n - 1] = 0;
     c->actual = ApplyErrors(c->nominal, errors);
+    EXPECT_TRUE(SetFixedTools({c->nominal.tools[0].name}, &c->nominal).ok());
     c->joint_zero = errors.joint_zero;
     SimulationOptions o;
     o.count = 200;
@@ -532,6 +531,22 @@ TEST(Program, TargetsOnlyLeavesTaughtPointsAlone) {
   EXPECT_NE(report.find("\"name\": \"Waypoint_2_p\""), std::string::npos);
   // The TCP is (15, -25, 160) mm from the flange: 29.2 mm off its axis.
   EXPECT_NE(report.find("\"tcp_off_flange_axis_mm\": 29.15"), std::string::npos) << report;
+  // Calibrated with the nest fixed: the flange's rotation about its axis was identified.
+  EXPECT_TRUE(program.flange_rotation_identified);
+  EXPECT_NE(report.find("\"flange_rotation_identified\": true"), std::string::npos) << report;
+  EXPECT_NE(FlangeRotationNote(program).find("was identified"), std::string::npos);
+  // Without fixed tools the report says it was not, with the lever arm: 29.15 mm * 0.1 deg.
+  RobotModel unfixed = c.calibrated;
+  for (Tool& t : unfixed.tools) t.fixed = false;
+  ASSERT_TRUE(CompensateProgramText(g.text, ProgramLanguage::kUrScript, unfixed, c.nominal,
+                                    options, &out, &program)
+                  .ok());
+  EXPECT_FALSE(program.flange_rotation_identified);
+  const std::string free_report = ProgramReportJson(program);
+  EXPECT_NE(free_report.find("\"flange_rotation_identified\": false"), std::string::npos);
+  EXPECT_NE(free_report.find("\"tcp_error_mm_per_0.1_deg\": 0.0508"), std::string::npos)
+      << free_report;
+  EXPECT_NE(FlangeRotationNote(program).find("was not identified"), std::string::npos);
 }
 
 void ExpectError(const std::string& text, ProgramLanguage language, const std::string& line,

@@ -121,6 +121,12 @@ DEFINE_double(noise_sigma, 0.03,
 DEFINE_bool(force, false,
             "Write the outputs even when the plausibility verdict fails; the exit code is still 8, "
             "so that a script can tell a forced result.");
+DEFINE_string(fixed_tools, "",
+              "Comma-separated tools of the model whose frames are known (SMR nests measured on "
+              "the fixture, e.g. smr1,smr2,smr3): held as given, so that the flange frame is "
+              "identified in full, the last joint's zero and the rotation about its axis included "
+              "(docs/identifiability.md, 'Known SMR nests'). The model's tools with fixed: true "
+              "are held too; the calibrated model records them.");
 DEFINE_double(max_condition, 1e8,
               "Refuse data whose column-scaled Jacobian has a larger condition number.");
 // The options every tool shares (tools/common_flags.cc, lpoe/options.h).
@@ -313,6 +319,11 @@ int Run() {
       return kExitUsage;
     }
   }
+  std::vector<std::string> fixed_tools;
+  if (Status s = ParseNameList(FLAGS_fixed_tools, &fixed_tools); !s.ok()) {
+    std::cerr << "error: --fixed_tools: " << s.message() << "\n";
+    return kExitUsage;
+  }
   if (FLAGS_solver == "linear" && FLAGS_loss != "none") {
     std::cerr << "error: --loss needs --solver=ceres (the linear solver is plain least squares)\n";
     return kExitUsage;
@@ -370,6 +381,10 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
+  if (Status s = SetFixedTools(fixed_tools, &in.nominal); !s.ok()) {
+    std::cerr << "error: --fixed_tools: " << model_path << ": " << s.message() << "\n";
+    return kExitUsage;
+  }
   progress.Rows(meas_path, in.identification.size() + in.verification.size());
   summary.skipped = std::move(in.skipped);
   summary.verification_source = in.verification_source;
@@ -421,6 +436,14 @@ int Run() {
     std::cout << "verification:   "
               << (verify_path.empty() ? "held out from the identification file" : verify_path)
               << " (" << verification.size() << " rows)\n";
+  }
+  if (nominal.HasFixedTool()) {
+    std::string names;
+    for (const Tool& t : nominal.tools) {
+      if (t.fixed) names += (names.empty() ? "" : ", ") + t.name;
+    }
+    std::cout << "fixed tools:    " << names
+              << " (held as given: the flange frame is identified in full)\n";
   }
   std::cout << "solver:         " << FLAGS_solver << ", " << ParameterizationName(kind)
             << " parameterization, " << (use_orientation ? "pose" : "position") << " data\n";

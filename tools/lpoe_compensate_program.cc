@@ -142,6 +142,7 @@ int RunProgramMode() {
                 << ": not compensated: " << t.reason << "\n";
     }
   }
+  std::cerr << "lpoe_compensate: " << FlangeRotationNote(program) << "\n";
   std::cerr << "lpoe_compensate: " << program.targets.size() << " targets in "
             << ProgramLanguageName(language) << " program " << FLAGS_program << ": compensated "
             << counts[0] << ", not_compensated " << counts[1] << ", not_selected " << counts[2]

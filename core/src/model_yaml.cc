@@ -39,7 +39,7 @@ using internal::Trim;
 
 const char* const kModelKeys = "name, joints, tools, registration";
 const char* const kJointKeys = "name, type, origin, twist, limits";
-const char* const kToolKeys = "name, origin";
+const char* const kToolKeys = "name, origin, fixed";
 const char* const kOriginKeys = "xyz and one of rpy or quaternion";
 
 struct MapEntry {
@@ -393,16 +393,29 @@ class ModelYamlReader {
     const int line = LineOf(node, fallback_line);
     *tool_line = line;
     std::vector<MapEntry> keys;
-    Status s = ReadMap(node, line, "a tool", {"name", "origin"}, kToolKeys, &keys);
+    Status s = ReadMap(node, line, "a tool", {"name", "origin", "fixed"}, kToolKeys, &keys);
     if (!s.ok()) return s;
     const MapEntry* name = Find(keys, "name");
     const MapEntry* origin = Find(keys, "origin");
+    const MapEntry* fixed = Find(keys, "fixed");
     if (name == nullptr) return Error(line, "tool has no 'name'", "name: <tool name>");
     s = ReadString(*name, /*allow_empty=*/false, &tool->name);
     if (!s.ok()) return s;
     if (origin == nullptr) {
       return Error(line, "tool " + Quote(tool->name) + " has no 'origin'",
                    "origin: {xyz: [x, y, z], rpy: [r, p, y]}");
+    }
+    if (fixed != nullptr) {
+      // A known SMR nest (robot_model.h, Tool::fixed): held as given by a calibration.
+      const int fixed_line = LineOf(fixed->value, fixed->line);
+      const std::string value = fixed->value.IsScalar() ? fixed->value.Scalar() : std::string();
+      if (value != "true" && value != "false") {
+        return Error(fixed_line,
+                     "tool " + Quote(tool->name) + ": 'fixed' is " +
+                         (fixed->value.IsScalar() ? Quote(value) : std::string("not a scalar")),
+                     "fixed: true (a known tool frame, held as given) or fixed: false");
+      }
+      tool->fixed = value == "true";
     }
     return ReadOrigin(*origin, &tool->origin);
   }
@@ -564,6 +577,7 @@ std::string RobotModelToYaml(const RobotModel& model) {
   for (const Tool& tool : model.tools) {
     out += "  - name: " + YamlName(tool.name) + "\n    ";
     AppendOrigin(tool.origin, &out);
+    if (tool.fixed) out += "    fixed: true\n";
   }
   // Optional model sections (gravity, payload, joint errors) are written here, one call each.
   if (!model.T_measurement_base.R.isIdentity(0) || !model.T_measurement_base.t.isZero(0)) {

@@ -60,6 +60,9 @@ std::string FrameName(const RobotModel& model, int frame) {
 
 }  // namespace
 
+const char* const kFixedToolReason =
+    "a fixed tool (a known SMR nest: fixed: true, --fixed_tools): held as given, not calibrated";
+
 const char* ParameterizationName(ParameterizationKind kind) {
   return kind == ParameterizationKind::kIdentifiable ? "identifiable" : "full";
 }
@@ -98,10 +101,17 @@ Parameterization MakeParameterization(const RobotModel& model, ParameterizationK
   p.kind = kind;
   p.data = data;
   const int n = model.num_joints();
+  // With a fixed tool (a known SMR nest) nothing after the last joint can absorb a perturbation of
+  // its frame that commutes with its motion: the last joint's zero and its translation along the
+  // axis are calibrated directions. Whether data see them (a fixed tool measured, off the axis) is
+  // the structural decision's (solvers/src/structural_identifiability.h).
+  const bool fixed_tools = model.HasFixedTool();
   for (int f = 0; f < model.num_frames(); ++f) {
     Eigen::MatrixXd lost;  // 6 x k directions data cannot see
     std::string reason;
-    if (f < n) {
+    if (f == n - 1 && fixed_tools) {
+      lost = Eigen::MatrixXd::Zero(6, 0);
+    } else if (f < n) {
       lost = TwistCentralizer(model.joints[f].twist);
       reason = model.joints[f].type == JointType::kRevolute
                    ? "commutes with the joint's rotation (about or along its own axis): absorbed "
@@ -122,6 +132,23 @@ Parameterization MakeParameterization(const RobotModel& model, ParameterizationK
       d.name = FrameName(model, f) + "." + DirectionName(d.vector);
       d.reason = reason;
       p.unidentifiable.push_back(d);
+    }
+    if (f >= n && model.tools[f - n].fixed) {
+      // Held as given, in both parameterizations: no columns (the linear solver leaves them out,
+      // the Ceres problem holds the block constant). Listed with what else holds them.
+      const Eigen::MatrixXd all = Eigen::MatrixXd::Identity(6, 6);
+      const Eigen::MatrixXd held = data == DataKind::kPosition ? all.rightCols(3) : all;
+      for (int c = 0; c < held.cols(); ++c) {
+        Direction d;
+        d.frame = f;
+        d.vector = held.col(c);
+        d.name = FrameName(model, f) + "." + DirectionName(d.vector);
+        d.reason = kFixedToolReason;
+        p.unidentifiable.push_back(d);
+      }
+      p.offset.push_back(p.num_parameters);
+      p.basis.push_back(Eigen::MatrixXd::Zero(6, 0));
+      continue;
     }
     Eigen::MatrixXd basis;
     if (kind == ParameterizationKind::kFull) {

@@ -87,4 +87,39 @@ Status CheckModelFinite(const RobotModel& model) {
   return Status::Ok();
 }
 
+Status SetFixedTools(const std::vector<std::string>& names, RobotModel* model) {
+  for (const std::string& name : names) {
+    if (!name.empty() && model->FindTool(name) >= 0) continue;
+    std::string tools;
+    for (const Tool& t : model->tools) tools += (tools.empty() ? "" : ", ") + t.name;
+    return Status::Error(name.empty() ? "an empty tool name among the fixed tools"
+                                      : "no tool named '" + name + "' in the model (its tools: " +
+                                            tools + ")");
+  }
+  for (const std::string& name : names) model->tools[model->FindTool(name)].fixed = true;
+  return Status::Ok();
+}
+
+Status ParseNameList(const std::string& text, std::vector<std::string>* names) {
+  names->clear();
+  if (text.empty()) return Status::Ok();
+  size_t begin = 0;
+  while (true) {
+    const size_t comma = text.find(',', begin);
+    std::string item = text.substr(begin, comma == std::string::npos ? std::string::npos
+                                                                      : comma - begin);
+    const size_t first = item.find_first_not_of(" \t");
+    const size_t last = item.find_last_not_of(" \t");
+    item = first == std::string::npos ? "" : item.substr(first, last - first + 1);
+    if (item.empty()) {
+      names->clear();
+      return Status::Error("an empty name in the list '" + text + "'");
+    }
+    names->push_back(std::move(item));
+    if (comma == std::string::npos) break;
+    begin = comma + 1;
+  }
+  return Status::Ok();
+}
+
 }  // namespace lpoe

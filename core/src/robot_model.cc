@@ -95,6 +95,13 @@ int RobotModel::FindTool(const std::string& tool_name) const {
   return -1;
 }
 
+bool RobotModel::HasFixedTool() const {
+  for (const Tool& t : tools) {
+    if (t.fixed) return true;
+  }
+  return false;
+}
+
 Status RobotModel::Validate() const {
   if (joints.empty()) return Status::Error("the model has no joints; expected at least one");
   if (tools.empty()) {

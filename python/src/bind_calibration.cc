@@ -13,6 +13,7 @@
 #include "lpoe/io.h"
 #include "lpoe/options.h"
 #include "lpoe/pipeline.h"
+#include "lpoe/refusals.h"
 #include "python_api.h"
 #include "report.h"
 #include "tool_common.h"
@@ -97,6 +98,8 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   const double sigma = k.Get<double>("sigma", 1.0);
   const int threads = k.Get<int>("threads", 0);
   const std::string angle_unit = k.Get<std::string>("angle_unit", "rad");
+  // Known SMR nests: a list of tool names (or one comma-separated string, as --fixed_tools).
+  const py::object fixed_tools = k.Get<py::object>("fixed_tools", py::none());
   k.Finish("calibrate");
   // The ranges lpoe_calibrate's flags have (lpoe/options.h), with the same messages.
   for (const auto& [name, value] :
@@ -113,6 +116,25 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   }
 
   if (Status s = nominal.Validate(); !s.ok()) throw LpoeError(s.message());
+  std::vector<std::string> fixed_names;
+  if (!fixed_tools.is_none()) {
+    if (py::isinstance<py::str>(fixed_tools)) {
+      if (Status s = ParseNameList(fixed_tools.cast<std::string>(), &fixed_names); !s.ok()) {
+        throw LpoeError("fixed_tools: " + s.message());
+      }
+    } else {
+      try {
+        fixed_names = fixed_tools.cast<std::vector<std::string>>();
+      } catch (const py::cast_error&) {
+        throw LpoeError("fixed_tools: expected a list of tool names, got " +
+                        py::repr(fixed_tools).cast<std::string>());
+      }
+    }
+  }
+  RobotModel with_fixed = nominal;
+  if (Status s = SetFixedTools(fixed_names, &with_fixed); !s.ok()) {
+    throw LpoeError("fixed_tools: " + s.message());
+  }
   if (given_data.num_joints() != nominal.num_joints() ||
       (given_verify != nullptr && given_verify->num_joints() != nominal.num_joints())) {
     throw LpoeError("the measurements have a different number of joints than the model");
@@ -197,7 +219,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   PipelineResult run;
   {
     py::gil_scoped_release release;
-    run = RunCalibrationPipeline(nominal, data, verification, o);
+    run = RunCalibrationPipeline(with_fixed, data, verification, o);
   }
   const CalibrationResult& result = run.result;
 
@@ -267,7 +289,8 @@ void BindCalibration(py::module_& m) {
          double holdout, int kfold, const std::string& split, uint64_t split_seed,
          double outlier_threshold, int max_iterations, double step_tolerance, double sd_fraction,
          double max_condition, double noise_sigma, const std::string& loss, double loss_scale,
-         const py::object& sigma, int threads, const std::string& angle_unit) {
+         const py::object& sigma, int threads, const std::string& angle_unit,
+         const py::object& fixed_tools) {
         const MeasurementSet* v = verify.is_none() ? nullptr : verify.cast<const MeasurementSet*>();
         py::kwargs k;
         k["solver"] = solver;
@@ -290,6 +313,7 @@ void BindCalibration(py::module_& m) {
         k["sigma"] = sigma;
         k["threads"] = threads;
         k["angle_unit"] = angle_unit;
+        k["fixed_tools"] = fixed_tools;
         return Calibrate(model, data, v, k);
       },
       py::arg("model"), py::arg("data"), py::arg("verify") = py::none(), py::kw_only(),
@@ -307,7 +331,7 @@ void BindCalibration(py::module_& m) {
       py::arg("loss") = "none", py::arg("loss_scale") = OptionDefault("lpoe_calibrate", "loss_scale"),
       py::arg("sigma") = py::none(),
       py::arg("threads") = static_cast<int>(OptionDefault("lpoe_calibrate", "threads")),
-      py::arg("angle_unit") = "rad",
+      py::arg("angle_unit") = "rad", py::arg("fixed_tools") = py::none(),
       "Calibrates `model` from `data` (and verifies on `verify`) as lpoe_calibrate does, through "
       "the same pipeline (registration, solver, analysis, cross-validation, verdict). The keyword "
       "arguments are named as its flags, with the same defaults and ranges (lpoe/options.h):\n"
@@ -323,7 +347,10 @@ void BindCalibration(py::module_& m) {
       "  sigma=None: Ceres noise per axis (mm), None estimates it from the residuals; threads "
       "(0: all); angle_unit: the unit the joint values were read in ('rad' | 'deg': the data "
       "are converted when read, lpoe.read_measurements(angle_unit=...); here it only names the "
-      "unit in the report and enables the degrees hint of the verdict).\n"
+      "unit in the report and enables the degrees hint of the verdict);\n"
+      "  fixed_tools=None: tool names held as given (a list, or one comma-separated string): "
+      "known SMR nests, so that the flange frame is identified in full; the model's fixed: true "
+      "tools are held too.\n"
       "An unknown keyword raises lpoe.Error naming it.");
 }
 

@@ -19,6 +19,8 @@ struct PyProgramCompensation {
   std::string text;    // the compensated program
   std::string report;  // ProgramReportJson
   py::list targets;    // one dict per target
+  bool flange_rotation_identified = false;
+  std::string flange_note;  // FlangeRotationNote
 };
 
 PyProgramCompensation CompensateProgramPy(const RobotModel& model, const RobotModel& nominal,
@@ -46,6 +48,8 @@ PyProgramCompensation CompensateProgramPy(const RobotModel& model, const RobotMo
     Check(CompensateProgramText(program, lang, model, nominal, options, &out.text, &parsed));
   }
   out.report = ProgramReportJson(parsed);
+  out.flange_rotation_identified = parsed.flange_rotation_identified;
+  out.flange_note = FlangeRotationNote(parsed);
   for (const ProgramTarget& t : parsed.targets) {
     py::dict d;
     d["name"] = t.name;
@@ -71,6 +75,13 @@ void BindProgram(py::module_& m) {
                     "the compensated program: the input with only its targets' numbers changed")
       .def_readonly("report", &PyProgramCompensation::report,
                     "the JSON report lpoe_compensate --report writes")
+      .def_readonly("flange_rotation_identified",
+                    &PyProgramCompensation::flange_rotation_identified,
+                    "the calibration held tools fixed (known SMR nests), so the flange's rotation "
+                    "about its axis was identified")
+      .def_readonly("flange_note", &PyProgramCompensation::flange_note,
+                    "what the TCPs owe to the flange's rotation about its axis (the report's "
+                    "flange_note)")
       .def_readonly("targets", &PyProgramCompensation::targets,
                     "one dict per target: name, line, kind, status (compensated | "
                     "not_compensated | not_selected), reason, frame, tcp, correction_mm, "

@@ -114,6 +114,17 @@ PYBIND11_MODULE(_lpoe, m) {
                                return v;
                              })
       .def_property_readonly(
+          "fixed_tools",
+          [](const RobotModel& r) {
+            std::vector<std::string> v;
+            for (const Tool& t : r.tools) {
+              if (t.fixed) v.push_back(t.name);
+            }
+            return v;
+          },
+          "names of the tools held as given by a calibration (known SMR nests: YAML fixed: true, "
+          "calibrate(fixed_tools=...))")
+      .def_property_readonly(
           "limits",
           [](const RobotModel& r) {
             Eigen::MatrixX2d L(r.num_joints(), 2);

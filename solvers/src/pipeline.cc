@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <utility>
 
 #include <glog/logging.h>
@@ -134,7 +135,9 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
   RobotModel reference = start;
   if (have_fitted) {
     for (int t = 0; t < start.num_tools(); ++t) {
-      if (measured[t]) reference.tools[t].origin.t = fitted.tools[t].origin.t;
+      if (measured[t] && !start.tools[t].fixed) {
+        reference.tools[t].origin.t = fitted.tools[t].origin.t;
+      }
     }
   }
   reference = internal::StructureReference(reference, data, fitted_rms);
@@ -145,7 +148,7 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
   // (the fitted ones, those within the noise of the axis on it).
   auto start_tools_from = [&](const RobotModel& from) {
     for (int t = 0; t < start.num_tools(); ++t) {
-      if (measured[t]) start.tools[t].origin.t = from.tools[t].origin.t;
+      if (measured[t] && !start.tools[t].fixed) start.tools[t].origin.t = from.tools[t].origin.t;
     }
   };
   // A registered start has the fitted tool points already: those put on the axis start there too.
@@ -346,6 +349,25 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   const MeasurementSet& identification_eff =
       result.joint_terms.empty() ? identification : with_joint_terms;
   out.identifiability = AnalyzeIdentifiability(nominal, identification_eff, result);
+  // Known SMR nests (Tool::fixed) the data never measure identify nothing: said, not refused.
+  {
+    std::vector<bool> measured(nominal.num_tools(), false);
+    for (int r = 0; r < identification.size(); ++r) measured[identification.target(r)] = true;
+    bool any_measured = false;
+    std::string unmeasured;
+    for (int t = 0; t < nominal.num_tools(); ++t) {
+      if (!nominal.tools[t].fixed) continue;
+      any_measured = any_measured || measured[t];
+      if (!measured[t]) unmeasured += (unmeasured.empty() ? "" : ", ") + nominal.tools[t].name;
+    }
+    if (!unmeasured.empty()) {
+      out.identifiability.warnings.push_back(
+          "fixed tool(s) " + unmeasured + " not measured in these data: held as given, they " +
+          (any_measured ? "add nothing to the calibration"
+                        : "identify nothing, and the last joint's zero and its translation along "
+                          "the axis stay a convention traded against the other tools' offsets"));
+    }
+  }
   // The solver's last linearization is that of result.model, i.e. of `geometric` on the measured
   // joint values (no joint terms): its errors serve the statistics and the outlier search.
   PositionErrorRows& final_errors = errors.solver.final_errors;
@@ -396,6 +418,79 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   for (const Direction& d : result.parameterization.unidentifiable) {
     if (IsStructurallyLost(d)) {
       left_out += (left_out.empty() ? "" : ", ") + d.name;
+    }
+  }
+  // Fixed tools are held as given: a nest position that is wrong leaves an error nothing can take.
+  std::string fixed;
+  {
+    std::vector<bool> measured(nominal.num_tools(), false);
+    for (int r = 0; r < identification.size(); ++r) measured[identification.target(r)] = true;
+    for (int t = 0; t < nominal.num_tools(); ++t) {
+      if (nominal.tools[t].fixed && measured[t]) {
+        fixed += (fixed.empty() ? "" : ", ") + nominal.tools[t].name;
+      }
+    }
+  }
+  if (!fixed.empty()) {
+    // Do the data agree with the fixed tools? The same calibration with them free: holding them
+    // costs about chi^2(k) noise variances when they are right (k: the parameters the free fit
+    // has more), much more when a nest is off. Significant: "check"; and when holding them also
+    // costs more than the tracker noise per axis: "fail" (the flange then carries the nests' error).
+    RobotModel free_nominal = nominal;
+    for (Tool& t : free_nominal.tools) t.fixed = false;
+    PipelineOptions free_options = chosen;
+    free_options.kfold = 0;
+    const CalibrationResult g = SolveCalibration(free_nominal, identification, free_options,
+                                                 "fixed tools against free ones", nullptr,
+                                                 nullptr, nullptr);
+    const int per_row = options.use_orientation && identification.has_orientation() ? 6 : 3;
+    const long rows = static_cast<long>(per_row) * identification.size();
+    const int k = g.parameterization.num_parameters - result.parameterization.num_parameters;
+    if (g.converged() && k > 0 && rows > g.parameterization.num_parameters && g.final_cost > 0) {
+      const double s2 =
+          2.0 * g.final_cost / static_cast<double>(rows - g.parameterization.num_parameters);
+      const double chi2 = 2.0 * (result.final_cost - g.final_cost) / s2;
+      const double rms_fixed = internal::RmsPerAxisOfCost(result.final_cost, identification,
+                                                          per_row == 6);
+      const double rms_free = internal::RmsPerAxisOfCost(g.final_cost, identification,
+                                                         per_row == 6);
+      // About 5 standard deviations of chi^2(k) above its mean.
+      const double significant = k + 5.0 * std::sqrt(2.0 * k);
+      VerdictCheck c;
+      c.name = "fixed_tools";
+      c.value = chi2;
+      c.limit = significant;
+      const bool costly = rms_fixed - rms_free > options.plausibility.noise_sigma;
+      c.level = !(chi2 > significant) ? VerdictLevel::kPass
+                : costly               ? VerdictLevel::kFail
+                                       : VerdictLevel::kCheck;
+      char buf[512];
+      std::snprintf(buf, sizeof(buf),
+                    "the fixed tools (%s) %s the data: held as given the fit is %.4g mm per axis, "
+                    "with them free %.4g mm (%.3g noise variances for %d parameters)%s",
+                    fixed.c_str(), c.level == VerdictLevel::kPass ? "agree with" : "disagree with",
+                    rms_fixed, rms_free, chi2, k,
+                    c.level == VerdictLevel::kPass
+                        ? ""
+                        : ": a nest is not where the model puts it (check the drawing or CMM "
+                          "values; the flange frame takes that error)");
+      c.message = buf;
+      out.verdict.checks.push_back(c);
+      if (c.level > out.verdict.level) {
+        out.verdict.level = c.level;
+        out.verdict.reason = c.message;
+      }
+    }
+  }
+  if (!fixed.empty()) {
+    for (VerdictCheck& c : out.verdict.checks) {
+      if (c.name != "residual" || c.level == VerdictLevel::kPass) continue;
+      const bool was_reason = out.verdict.reason == c.message;
+      c.message += "; likely cause: the fixed tools (" + fixed +
+                   ") are held where the model puts them, and the data may not agree (a nest "
+                   "position off its drawing or CMM value shows here; calibrate without "
+                   "--fixed_tools to see where the data put them)";
+      if (was_reason) out.verdict.reason = c.message;
     }
   }
   if (!left_out.empty()) {

@@ -506,9 +506,15 @@ Status CalibrationProblem::Covariance(ceres::Problem* problem, int num_threads,
       options_.parameterization == ParameterizationKind::kFull ? null_space_rank : 0;
   ceres::Covariance cov(cov_options);
   const std::vector<double*> blocks = parameter_blocks();
-  const std::vector<const double*> const_blocks(blocks.begin(), blocks.end());
+  const std::vector<int> sizes = tangent_sizes();  // in the order of parameter_blocks()
+  // A frame with no columns (a fixed tool, or every direction left out) is a constant block: Ceres
+  // would give it its ambient size, so it is not asked for (its rows of C are empty anyway).
+  std::vector<const double*> const_blocks;
+  for (size_t k = 0; k < blocks.size(); ++k) {
+    if (sizes[k] > 0) const_blocks.push_back(blocks[k]);
+  }
   int tangent = 0;
-  for (int s : tangent_sizes()) tangent += s;
+  for (int s : sizes) tangent += s;
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> C(tangent, tangent);
   if (!cov.Compute(const_blocks, problem) ||
       !cov.GetCovarianceMatrixInTangentSpace(const_blocks, C.data())) {

@@ -164,6 +164,23 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
     return program->targets[a].order < program->targets[b].order;
   });
+  // The flange's rotation about the last joint's axis: identified only with known SMR nests.
+  program->flange_rotation_identified = calibrated.HasFixedTool();
+  program->fixed_tools.clear();
+  for (const Tool& tool : calibrated.tools) {
+    if (tool.fixed) program->fixed_tools += (program->fixed_tools.empty() ? "" : ", ") + tool.name;
+  }
+  program->tcp_off_flange_axis_mm = 0;
+  const Joint& last = calibrated.joints.back();
+  const bool last_revolute = last.type == JointType::kRevolute;
+  const Eigen::Vector3d axis_w = last.twist.head<3>().normalized();
+  const Eigen::Vector3d axis_point = axis_w.cross(last.twist.tail<3>());
+  auto note_tcp = [&](const SE3d& tcp) {
+    if (!last_revolute) return;
+    const Eigen::Vector3d r = (calibrated.tools[flange_cal].origin * tcp).t - axis_point;
+    program->tcp_off_flange_axis_mm =
+        std::max(program->tcp_off_flange_axis_mm, (r - axis_w * axis_w.dot(r)).norm());
+  };
   std::vector<double> seed(n), q_nom(n), q_cal(n);
   for (const int k : order) {
     ProgramTarget& t = program->targets[k];
@@ -212,6 +229,7 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
       t.correction_deg = max_dq;
       t.status = ProgramTargetStatus::kCompensated;
       t.reason.clear();
+      note_tcp(t.tcp);
       continue;
     }
     SE3d pose;
@@ -268,6 +286,7 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
     t.correction_deg = Angle(pose.R.transpose() * corrected.R) * kDeg;
     t.status = ProgramTargetStatus::kCompensated;
     t.reason.clear();
+    note_tcp(t.tcp);
   }
   return Status::Ok();
 }

@@ -423,6 +423,49 @@ std::string RewriteProgram(std::string_view text, const ParsedProgram& program) 
   return out;
 }
 
+std::string FlangeRotationNote(const ParsedProgram& program) {
+  constexpr double kPi = 3.14159265358979323846;
+  char text[640];
+  const double r = program.tcp_off_flange_axis_mm;
+  if (program.flange_rotation_identified) {
+    std::snprintf(text, sizeof(text),
+                  "The flange's rotation about its axis (the last joint's zero) was identified: "
+                  "the calibration held the tools %s at their known positions on the flange. The "
+                  "compensated TCPs are up to %.3g mm off that axis.",
+                  program.fixed_tools.c_str(), r);
+  } else {
+    std::snprintf(text, sizeof(text),
+                  "The flange's rotation about its axis (the last joint's zero) was not "
+                  "identified: without fixed tools (lpoe_calibrate --fixed_tools) it is a "
+                  "convention traded against the SMR offsets, and the flange keeps its nominal "
+                  "angle. The compensated TCPs are up to %.3g mm off that axis: each 0.1 deg of "
+                  "error there moves such a TCP by %.3g mm (and turns every TCP by 0.1 deg).",
+                  r, r * 0.1 * kPi / 180.0);
+  }
+  return text;
+}
+
+namespace {
+
+std::string FlangeRotationNoteJson(const ParsedProgram& program) {
+  constexpr double kPi = 3.14159265358979323846;
+  char buf[160];
+  std::snprintf(buf, sizeof(buf),
+                "  \"tcp_off_flange_axis_mm\": %.6g,\n  \"flange_rotation_identified\": %s,\n"
+                "  \"tcp_error_mm_per_0.1_deg\": %.6g,\n  \"flange_note\": ",
+                program.tcp_off_flange_axis_mm,
+                program.flange_rotation_identified ? "true" : "false",
+                program.flange_rotation_identified
+                    ? 0.0
+                    : program.tcp_off_flange_axis_mm * 0.1 * kPi / 180.0);
+  std::string out = buf;
+  JsonString(FlangeRotationNote(program), &out);
+  out += ",\n";
+  return out;
+}
+
+}  // namespace
+
 std::string ProgramReportJson(const ParsedProgram& program) {
   int counts[3] = {};
   for (const ProgramTarget& t : program.targets) ++counts[static_cast<int>(t.status)];
@@ -435,24 +478,9 @@ std::string ProgramReportJson(const ParsedProgram& program) {
     out += ProgramTargetStatusName(static_cast<ProgramTargetStatus>(s));
     out += "\": " + std::to_string(counts[s]);
   }
-  // The flange's rotation about its own axis is a convention of the calibration unless the SMR
-  // nests were held at known positions on the flange: a TCP at distance r from that axis is off by
-  // r * delta for a rotation error delta there.
-  double off_axis = 0;
-  for (const ProgramTarget& t : program.targets) {
-    if (t.status == ProgramTargetStatus::kCompensated && t.kind == ProgramTargetKind::kCartesian) {
-      off_axis = std::max(off_axis, std::hypot(t.tcp.t.x(), t.tcp.t.y()));
-    }
-  }
-  char note[512];
-  std::snprintf(note, sizeof(note),
-                "},\n  \"tcp_off_flange_axis_mm\": %.6g,\n  \"flange_note\": \"The TCPs of the "
-                "compensated targets are up to %.3g mm off the flange axis: an error of the "
-                "calibrated flange's rotation about its axis (not identified unless the SMR nests' "
-                "positions on the flange were held fixed) moves them by %.3g mm per mrad.\"",
-                off_axis, off_axis, off_axis * 1e-3);
-  out += note;
-  out += ",\n  \"rows\": [";
+  out += "},\n";
+  out += FlangeRotationNoteJson(program);
+  out += "  \"rows\": [";
   for (size_t k = 0; k < program.targets.size(); ++k) {
     const ProgramTarget& t = program.targets[k];
     out += k ? ",\n    {" : "\n    {";

@@ -191,7 +191,7 @@ RobotModel StructureReference(const RobotModel& estimate, const MeasurementSet& 
   const Eigen::Vector3d on_axis = w.cross(last.twist.tail<3>());
   const double sigma = std::isfinite(rms_axis) ? std::max(rms_axis, 0.0) : INFINITY;
   for (int t = 0; t < estimate.num_tools(); ++t) {
-    if (rows[t] == 0) continue;
+    if (rows[t] == 0 || estimate.tools[t].fixed) continue;  // a known nest stays where it is
     const double tolerance = kOnAxisSigmas * sigma * std::sqrt(2.0 / rows[t]);
     if (DistanceFromLastAxis(estimate, t) <= tolerance) {
       Eigen::Vector3d& p = reference.tools[t].origin.t;

@@ -92,8 +92,15 @@ Eigen::MatrixXd TwistCentralizer(const Vector6d& twist);
 // The orthogonal complement of the centralizer: the directions of a joint frame that data can see.
 Eigen::MatrixXd IdentifiableJointBasis(const Vector6d& twist);
 
+// A fixed tool (Tool::fixed) has no columns: its directions are listed in `unidentifiable` with
+// kFixedToolReason (with position data its rotations with the usual reason), and the last joint's
+// frame keeps every direction, its zero and its translation along the axis included (nothing after
+// it can absorb them: docs/identifiability.md, "Known SMR nests").
 Parameterization MakeParameterization(const RobotModel& model, ParameterizationKind kind,
                                       DataKind data);
+
+// The reason given for the directions of a fixed tool.
+extern const char* const kFixedToolReason;
 
 // Appends a joint-space block for `term` with the identity basis (every parameter) and its names.
 void AddJointBlock(std::shared_ptr<const JointTerm> term, Parameterization* p);

@@ -4,6 +4,7 @@
 #define LPOE_REFUSALS_H_
 
 #include <string>
+#include <vector>
 
 #include "lpoe/robot_model.h"
 #include "lpoe/status.h"
@@ -28,6 +29,16 @@ Status CheckNominalMatches(const RobotModel& calibrated, const RobotModel& nomin
 // Every number of the model (joint origins and twists, limits where given, tools, registration,
 // payload, joint-error values) finite: a model with NaN or infinity is written nowhere.
 Status CheckModelFinite(const RobotModel& model);
+
+// Known SMR nests (lpoe_calibrate --fixed_tools, lpoe.calibrate fixed_tools=): marks the tools
+// `names` of `model` fixed (Tool::fixed; tools the model marks already stay fixed). An empty name
+// or one that is not a tool of the model is refused, naming it and the model's tools; nothing is
+// changed then.
+Status SetFixedTools(const std::vector<std::string>& names, RobotModel* model);
+
+// Splits a comma-separated list of names ("smr1,smr2"; surrounding blanks trimmed); an empty item
+// ("smr1,,smr2", a trailing comma) is refused. An empty text is an empty list.
+Status ParseNameList(const std::string& text, std::vector<std::string>* names);
 
 }  // namespace lpoe
 

@@ -39,6 +39,12 @@ struct Joint {
 struct Tool {
   std::string name;
   SE3d origin;  // T_{n,tool}, in the last joint's frame
+  // A known tool frame (an SMR nest whose position on the flange is known from the fixture's
+  // drawing or a CMM; YAML `fixed: true`, lpoe_calibrate --fixed_tools): a calibration holds it as
+  // given, so that the last joint's frame is identified in full (its zero and its translation along
+  // the axis included) instead of being a convention traded against the tool offsets
+  // (docs/identifiability.md, "Known SMR nests").
+  bool fixed = false;
 };
 
 // An optional payload fixed to the flange (the last joint's frame). Its weight enters the gravity
@@ -112,6 +118,8 @@ class RobotModel {
 
   // Index of the tool called `name`, or -1.
   int FindTool(const std::string& tool_name) const;
+  // Some tool is fixed (Tool::fixed).
+  bool HasFixedTool() const;
 
   // Checks that the model is usable: at least one joint and one tool, unique names, finite numbers,
   // orthonormal rotations, and twists of the declared type (revolute: |omega| = 1, omega . v = 0;

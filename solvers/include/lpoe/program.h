@@ -103,6 +103,17 @@ struct ProgramTarget {
 struct ParsedProgram {
   ProgramLanguage language = ProgramLanguage::kUrScript;
   std::vector<ProgramTarget> targets;  // in text order
+
+  // Set by CompensateProgram: how far the program's TCP can be off because of the flange's
+  // rotation about the last joint's axis (docs/programs.md, "Frames and the flange").
+  // The largest distance (mm) of a compensated target's TCP from the last joint's axis of the
+  // calibrated model: a rotation error delta about that axis moves such a TCP by this times delta.
+  double tcp_off_flange_axis_mm = 0;
+  // The calibrated model holds tools fixed (known SMR nests, Tool::fixed): the flange rotation
+  // about its axis (the last joint's zero) was identified. Otherwise it is a convention of the
+  // calibration, traded against the SMR offsets, and not identified.
+  bool flange_rotation_identified = false;
+  std::string fixed_tools;  // their names, comma-separated
 };
 
 // Parses `text`; errors name the line ("line 12: ..."). Checks UTF-8, balanced brackets, the size.
@@ -139,6 +150,11 @@ std::string RewriteProgram(std::string_view text, const ParsedProgram& program);
 // JSON report: counts per status and one entry per target (name, line, kind, status, reason,
 // correction_mm, correction_deg).
 std::string ProgramReportJson(const ParsedProgram& program);
+
+// What the program's TCPs owe to the flange's rotation about its axis, in words: identified (the
+// calibration held tools fixed), or not, with the lever arm (tcp_off_flange_axis_mm, and the mm a
+// TCP moves per 0.1 deg there). The JSON report carries it as `flange_note`.
+std::string FlangeRotationNote(const ParsedProgram& program);
 
 // Parse, compensate, rewrite.
 Status CompensateProgramText(std::string_view text, ProgramLanguage language,
