@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <memory>
 #include <random>
 #include <string>
@@ -296,10 +295,6 @@ TEST(ResidualLayerPipeline, GpReachesTheNoiseFloorHeldOutAndAutoChoosesIt) {
     ASSERT_TRUE(gp.result.model.residual_layer);
     EXPECT_LT(gp.verification_after.norm.rms, 1.15 * floor)
         << "without the layer " << gp.residual_layer.verification_parametric.norm.rms;
-    std::printf("floor %.5f none %.5f gp %.5f (identification %.5f -> %.5f, inducing %d)\n", floor,
-                none.verification_after.norm.rms, gp.verification_after.norm.rms,
-                gp.identification_after.norm.rms, gp.residual_layer.identification_with_layer.norm.rms,
-                gp.residual_layer.inducing);
     EXPECT_NEAR(gp.residual_layer.verification_parametric.norm.rms, none.verification_after.norm.rms,
                 1e-3 * none.verification_after.norm.rms);
     // The calibrated model predicts the held-out points with its layer (PredictToolPosition).

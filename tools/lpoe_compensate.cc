@@ -28,6 +28,7 @@
 
 #include "lpoe/csv_rules.h"
 #include "lpoe/inverse_kinematics.h"
+#include "lpoe/residual_layer.h"
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/refusals.h"
@@ -303,6 +304,10 @@ void AppendNumber(double x, std::string* out) {
   out->append(buf, p);
 }
 
+// A solution farther than this from every inducing configuration of the model's residual layer
+// (in length-scale units) gets less than exp(-3^2 / 2) = 1 % of the kernel's weight there.
+constexpr double kLayerFarDistance = 3.0;
+
 int Run() {
   using tools::kExitInput;
   using tools::kExitOk;
@@ -478,6 +483,9 @@ int Run() {
     double max_correction = 0, max_residual = 0, max_orientation_residual = 0;
     int max_correction_line = 0, max_residual_line = 0;
     int far_rows = 0;  // rows metres from anything the robot reaches (kWrongFrameMm)
+    // Rows whose solution is far from every identification configuration of the model's residual
+    // layer (kLayerFarDistance): there its correction fades to the parametric model's.
+    int layer_far_rows = 0, layer_far_line = 0;
   };
   // Solves rows [begin, end) of a chunk and formats them into `part`.
   auto solve_rows = [&](const std::vector<Row>& rows, const std::vector<double>& seeds, int begin,
@@ -519,6 +527,9 @@ int Run() {
         part->max_correction_line = row.line;
       }
       if (r.position_error > kWrongFrameMm) ++part->far_rows;
+      if (model.residual_layer && model.residual_layer->KernelDistance(q) > kLayerFarDistance) {
+        if (part->layer_far_rows++ == 0) part->layer_far_line = row.line;
+      }
       if (r.position_error > part->max_residual) {
         part->max_residual = r.position_error;
         part->max_residual_line = row.line;
@@ -599,6 +610,8 @@ int Run() {
         total.max_orientation_residual =
             std::max(total.max_orientation_residual, p.max_orientation_residual);
         total.far_rows += p.far_rows;
+        if (total.layer_far_rows == 0) total.layer_far_line = p.layer_far_line;
+        total.layer_far_rows += p.layer_far_rows;
         p = Part();
       }
       count += chunk;
@@ -621,12 +634,21 @@ int Run() {
   const int max_correction_line = total.max_correction_line;
   const int max_residual_line = total.max_residual_line;
 
+  if (total.layer_far_rows > 0) {
+    std::cerr << "warning: " << in_path << ": " << total.layer_far_rows << " of " << count
+              << " row(s) are far from every configuration the residual layer was identified on "
+                 "(kernel distance above "
+              << kLayerFarDistance << " length scales; first on line " << total.layer_far_line
+              << "): there its correction fades and the parametric model's accuracy applies "
+                 "(docs/residual_layer.md)\n";
+  }
   // ---- Summary.
   nlohmann::json report;
   report["model"] = FLAGS_model;
   report["input"] = in_path;
   report["mode"] = joints_mode ? "joints" : "targets";
   report["rows"] = count;
+  report["residual_layer_far_rows"] = total.layer_far_rows;
   nlohmann::json counts;
   std::cerr << "lpoe_compensate: " << count << " rows:";
   for (int s = 0; s < 5; ++s) {
