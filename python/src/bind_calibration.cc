@@ -79,6 +79,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   const std::string parameterization = k.Get<std::string>("parameterization", "identifiable");
   const std::string data_kind = k.Get<std::string>("data_kind", "auto");
   const std::string joint_errors = k.Get<std::string>("joint_errors", "none");
+  const std::string residual_model = k.Get<std::string>("residual_model", "none");
   const bool register_frames = k.Get<bool>("register", true);
   const double holdout = k.Get<double>("holdout", 0.0);
   const int kfold = k.Get<int>("kfold", 0);
@@ -138,6 +139,10 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   o.joint_errors_auto = joint_errors == "auto";
   o.joint_error_folds = kfold >= 2 ? kfold : 5;
   if (!o.joint_errors_auto) o.joint_errors = JointErrorNames(joint_errors, true);
+  if (!ParseResidualModelKind(residual_model, &o.residual_model)) {
+    throw LpoeError("residual_model: expected 'none', 'gp' or 'auto', got '" + residual_model +
+                    "'");
+  }
   if (angle_unit != "rad" && angle_unit != "deg") {
     throw LpoeError("angle_unit: expected 'rad' or 'deg', got '" + angle_unit + "'");
   }
@@ -159,6 +164,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   o.register_frames = register_frames;
   o.kfold = kfold;
   o.split_seed = split_seed;
+  o.residual_layer.seed = split_seed;
   o.split = split;
   o.outlier_threshold = outlier_threshold;
   o.plausibility.noise_sigma = noise_sigma;
@@ -211,6 +217,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   tools::AddPipelineResult(run, &summary);
   tools::AddPointResiduals(run.before, result.model, data, verification, &summary);
   summary.joint_errors_requested = joint_errors;
+  summary.residual_model_requested = residual_model;
   summary.tool_name = "lpoe (Python)";
   c.report_json = tools::RunSummaryToJson(summary);
   return c;
@@ -258,6 +265,8 @@ void BindCalibration(py::module_& m) {
       "  solver='linear' | 'ceres'; parameterization='identifiable' | 'full';\n"
       "  data_kind='auto' | 'position' | 'pose'; joint_errors='none' | a comma-separated "
       "list of lpoe.joint_error_terms() (e.g. 'compliance,harmonics') | 'auto';\n"
+      "  residual_model='none' | 'gp' | 'auto' (the learned residual layer, "
+      "docs/residual_layer.md: the model carries it and predict uses it);\n"
       "  register=True; holdout=0.0 (fraction held out, instead of verify); kfold=0; "
       "split='random' | 'sequential'; split_seed=1;\n"
       "  outlier_threshold=5.0; max_iterations=30; step_tolerance=1e-10; sd_fraction=0.01;\n"
