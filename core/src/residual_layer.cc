@@ -139,14 +139,20 @@ int MinimizeLbfgs(const F& f, const Eigen::VectorXd& lower, const Eigen::VectorX
 
 void ResidualLayer::KernelVector(const double* q, int tool, Eigen::VectorXd* k) const {
   const int m = num_inducing();
-  Eigen::ArrayXd e = Eigen::ArrayXd::Zero(m);
+  k->resize(m);
+  // Half the squared distance in length-scale units, accumulated in k, then the exponential (both
+  // vectorized by Eigen).
+  auto e = k->array();
   for (int j = 0; j < num_joints; ++j) {
-    const double inv_l = 1.0 / length_scales(j);
-    e += ((inducing_q.col(j).array() - q[j]) * inv_l).square();
+    const double s = std::sqrt(0.5) / length_scales(j);
+    if (j == 0) {
+      e = ((inducing_q.col(j).array() - q[j]) * s).square();
+    } else {
+      e += ((inducing_q.col(j).array() - q[j]) * s).square();
+    }
   }
   const double log_sf2 = 2 * std::log(signal_std);
-  k->resize(m);
-  k->array() = (log_sf2 - 0.5 * e).exp();
+  e = (log_sf2 - e).exp();
   if (tool_correlation != 1.0) {
     for (int i = 0; i < m; ++i) {
       if (inducing_tool[i] != tool) (*k)(i) *= tool_correlation;
