@@ -333,6 +333,26 @@ TEST(ResidualLayerPipeline, PureNoiseResidualMakesAutoChooseNone) {
   EXPECT_LE(gp.verification_after.norm.rms, 1.01 * none.verification_after.norm.rms);
 }
 
+TEST(ResidualLayerPipeline, WithJointSpaceTermsThePredictionIsTheTermsPlusTheLayer) {
+  const Arm arm(1.0, 43);
+  PipelineOptions o;
+  o.joint_errors = {"compliance"};
+  o.residual_model = ResidualModelKind::kGp;
+  const PipelineResult gp =
+      RunCalibrationPipeline(arm.nominal, arm.identification, arm.verification, o);
+  ASSERT_TRUE(gp.residual_layer.fitted) << gp.residual_layer.message;
+  ASSERT_FALSE(gp.result.model.joint_errors.empty());
+  // The held-out figure is the calibrated model's own prediction: terms and layer together.
+  double sum = 0;
+  for (int r = 0; r < arm.verification.size(); ++r) {
+    sum += (arm.verification.position(r) -
+            PredictToolPosition(gp.result.model, arm.verification.q(r), arm.verification.target(r)))
+               .squaredNorm();
+  }
+  EXPECT_NEAR(std::sqrt(sum / arm.verification.size()), gp.verification_after.norm.rms, 1e-9);
+  EXPECT_LT(gp.verification_after.norm.rms, 0.8 * gp.residual_layer.verification_parametric.norm.rms);
+}
+
 TEST(ResidualLayerPipeline, KFoldIncludesTheFoldsOwnLayer) {
   const Arm arm(1.0, 31);
   PipelineOptions o;
