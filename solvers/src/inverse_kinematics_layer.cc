@@ -21,6 +21,8 @@ IkResult InverseKinematics::SolveThroughLayer(const IkTarget& target, const doub
   int iterations = r.iterations;
   Eigen::Vector3d correction = layer.Mean(solved, target.tool);
   for (int round = 0; round < kMaxRounds; ++round) {
+    // A target the chain does not reach stays unreached a tenth of a millimetre away.
+    if (r.status == IkStatus::kUnreachable) break;
     moved.position = target.position - correction;
     r = SolveParametric(moved, seed_copy, solved);
     iterations += r.iterations;
