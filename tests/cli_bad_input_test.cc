@@ -294,6 +294,8 @@ INSTANTIATE_TEST_SUITE_P(
         FlagCase{"kfold_1", {"--kfold=1"}, {"--kfold"}},
         FlagCase{"split_time", {"--holdout=0.3", "--split=time"}, {"--split", "time"}},
         FlagCase{"parameterization_foo", {"--parameterization=foo"}, {"--parameterization", "foo"}},
+        FlagCase{"residual_model_kriging", {"--residual_model=kriging"},
+                 {"--residual_model", "kriging", "none, gp or auto"}},
         FlagCase{"verify_and_holdout",
                  {"--verify=" + kGoodVerification, "--holdout=0.3"},
                  {"--verify", "--holdout"}},

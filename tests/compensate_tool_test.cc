@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -19,6 +20,8 @@
 
 #include "file_util.h"
 #include "lpoe/io.h"
+#include "lpoe/joint_errors.h"
+#include "lpoe/residual_layer.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/simulation.h"
@@ -95,6 +98,72 @@ TEST_F(CompensateTool, RegistrationRoundTripsThroughTheModelFile) {
   RobotModel nominal;
   ASSERT_TRUE(ReadRobotModel(Path("nom.yaml"), &nominal).ok());
   EXPECT_TRUE(nominal.T_measurement_base.R.isIdentity(0));
+}
+
+// A calibrated model with a residual layer fitted around one region of the workspace: targets
+// there are reached as the layered model predicts; a target far from every configuration the layer
+// was identified on is compensated too, with a warning (docs/residual_layer.md).
+TEST_F(CompensateTool, ResidualLayerTargetsAndTheFarWarning) {
+  RobotModel layered = calibrated_;
+  std::vector<double> q;
+  std::vector<int> tools;
+  std::vector<Eigen::Vector3d> residuals;
+  // Around a configuration of the program of TargetsModeMixedRowsInDegrees.
+  const double centre[6] = {10 * kDeg, -30 * kDeg, 60 * kDeg, 20 * kDeg, 45 * kDeg, -10 * kDeg};
+  for (int i = 0; i < 200; ++i) {
+    double qr[6];
+    for (int j = 0; j < 6; ++j) qr[j] = centre[j] + 0.4 * std::sin(1.7 * i + 2.3 * j);
+    q.insert(q.end(), qr, qr + 6);
+    tools.push_back(0);
+    residuals.emplace_back(0.05 * std::sin(qr[1] + qr[2]), 0.03 * std::cos(qr[0]), -0.02);
+  }
+  auto layer = std::make_shared<ResidualLayer>();
+  ASSERT_TRUE(
+      FitResidualLayer(q, tools, residuals, 6, 1, ResidualLayerOptions(), layer.get()).ok());
+  layered.residual_layer = layer;
+  ASSERT_TRUE(WriteRobotModel(Path("layered.yaml"), layered).ok());
+  // Targets in the measurement frame: what the layered model predicts at two configurations, one
+  // inside the region, one far outside it (every joint beyond 2 rad).
+  std::vector<std::vector<double>> at(2, std::vector<double>(centre, centre + 6));
+  at[0][1] += 0.1;
+  for (int j = 0; j < 6; ++j) at[1][j] += j % 2 ? -2.5 : 2.5;
+  ASSERT_LT(layer->KernelDistance(at[0].data()), 3.0);
+  ASSERT_GT(layer->KernelDistance(at[1].data()), 3.0);
+  std::string csv = "q1,q2,q3,q4,q5,q6,x,y,z\n";
+  std::vector<Eigen::Vector3d> targets;
+  for (const std::vector<double>& c : at) {
+    targets.push_back(PredictToolPosition(layered, c.data(), 0));
+    std::ostringstream row;
+    row.precision(17);
+    for (int j = 0; j < 6; ++j) row << c[j] + 0.02 << ",";  // seeds near the configuration
+    row << targets.back()(0) << "," << targets.back()(1) << "," << targets.back()(2) << "\n";
+    csv += row.str();
+  }
+  Write("targets.csv", csv);
+  std::string out;
+  ASSERT_EQ(RunTool("--model=" + Path("layered.yaml") + " --targets=" + Path("targets.csv") +
+                        " --frame=measurement --output=" + Path("out.csv"),
+                    &out),
+            kExitOk)
+      << out;
+  EXPECT_NE(out.find("1 of 2 row(s) are far from every configuration the residual layer"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("first on line 3"), std::string::npos) << out;
+  std::vector<std::string> header;
+  const auto rows = ReadCsv(Path("out.csv"), &header);
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0][6], "ok");
+  for (size_t k = 0; k < rows.size(); ++k) {
+    EXPECT_NE(rows[k][6], "unreachable") << k;
+    double solved[6];
+    for (int j = 0; j < 6; ++j) solved[j] = std::stod(rows[k][j]);
+    EXPECT_LT((PredictToolPosition(layered, solved, 0) - targets[k]).norm(), 1e-6) << k;
+  }
+  // Inside the region the layer moved the solution: the parametric model is off there.
+  double inside[6];
+  for (int j = 0; j < 6; ++j) inside[j] = std::stod(rows[0][j]);
+  EXPECT_GT((PredictToolPosition(calibrated_, inside, 0) - targets[0]).norm(), 0.01);
 }
 
 TEST_F(CompensateTool, TargetsModeMixedRowsInDegrees) {

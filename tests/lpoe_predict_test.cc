@@ -3,7 +3,9 @@
 // honoured, and bad flags, bad files and unwritable outputs give their exit codes and leave nothing.
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
+#include <memory>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -19,6 +21,7 @@
 #include "lpoe/kinematics.h"
 #include "lpoe/urdf.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/residual_layer.h"
 
 namespace lpoe {
 namespace {
@@ -118,6 +121,68 @@ TEST_F(LpoePredict, SimulatorGravityTiltInDegrees) {
     EXPECT_EQ(RunCapture(base + " " + bad, &out), kExitUsage) << bad;
     EXPECT_NE(out.find("--gravity_tilt"), std::string::npos) << out;
   }
+}
+
+// A model with a residual layer (docs/residual_layer.md): the positions include its correction
+// and --predict_std adds its standard deviation per row; a model without one refuses the flag.
+TEST_F(LpoePredict, ResidualLayerAndPredictStd) {
+  Simulate("");
+  RobotModel model;
+  ASSERT_TRUE(ReadRobotModel(Path("actual.yaml"), &model).ok());
+  MeasurementSet data;
+  ASSERT_TRUE(ReadMeasurements(Path("data.csv"), model, AngleUnit::kRadians, &data).ok());
+  std::vector<double> q;
+  std::vector<int> tools;
+  std::vector<Eigen::Vector3d> residuals;
+  for (int r = 0; r < data.size(); ++r) {
+    q.insert(q.end(), data.q(r), data.q(r) + 6);
+    tools.push_back(data.target(r));
+    residuals.emplace_back(0.04 * std::sin(data.q(r)[1]), -0.02 * std::cos(data.q(r)[0]), 0.01);
+  }
+  auto layer = std::make_shared<ResidualLayer>();
+  ASSERT_TRUE(FitResidualLayer(q, tools, residuals, 6, model.num_tools(), ResidualLayerOptions(),
+                               layer.get())
+                  .ok());
+  const RobotModel parametric = model;
+  model.residual_layer = layer;
+  ASSERT_TRUE(WriteRobotModel(Path("layered.yaml"), model).ok());
+  std::string out;
+  ASSERT_EQ(Predict("--model=" + Path("layered.yaml") + " --joints=" + Path("data.csv") +
+                        " --frame=measurement --predict_std --output=" + Path("std.csv"),
+                    &out),
+            kExitOk)
+      << out;
+  std::ifstream in(Path("std.csv"));
+  std::string line;
+  std::getline(in, line);
+  EXPECT_NE(line.find("std"), std::string::npos) << line;  // the comment names the column
+  std::getline(in, line);
+  EXPECT_EQ(line, "x,y,z,std");
+  double largest = 0;
+  for (int r = 0; r < data.size(); ++r) {
+    ASSERT_TRUE(std::getline(in, line)) << r;
+    std::vector<double> v;
+    std::stringstream ss(line);
+    std::string field;
+    while (std::getline(ss, field, ',')) v.push_back(std::stod(field));
+    ASSERT_EQ(v.size(), 4u);
+    const Eigen::Vector3d p(v[0], v[1], v[2]);
+    EXPECT_LT((p - PredictToolPosition(model, data.q(r), data.target(r))).norm(), kToleranceMm);
+    largest = std::max(largest,
+                       (p - PredictToolPosition(parametric, data.q(r), data.target(r))).norm());
+    // Near the data the variance is the small difference s_f^2 - k^T W k: a few 1e-9 mm of
+    // rounding between two evaluations (Eigen's product kernels), far below any use.
+    EXPECT_NEAR(v[3], layer->Std(data.q(r), data.target(r)), 1e-8);
+    EXPECT_GT(v[3], 0);
+  }
+  EXPECT_GT(largest, 0.01);  // the layer's correction is in the positions
+  out.clear();
+  EXPECT_EQ(Predict("--model=" + Path("actual.yaml") + " --joints=" + Path("data.csv") +
+                        " --predict_std --output=" + Path("none.csv"),
+                    &out),
+            kExitUsage);
+  EXPECT_NE(out.find("needs a model with a residual layer"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(Path("none.csv")));
 }
 
 TEST_F(LpoePredict, ToolFlagAndTargetColumn) {

@@ -144,6 +144,44 @@ TEST_F(ReportHtml, DefaultJobPageCarriesTheJsonFiguresAndIsDeterministic) {
   EXPECT_GT(plot_blue, 500u) << "no after-calibration data drawn";
 }
 
+// --residual_model=gp: the page has the layer's section (its figures from the JSON) and its picture
+// of the predicted accuracy over the workspace, one more plot than without; the page stays
+// well-formed and deterministic.
+TEST_F(ReportHtml, ResidualLayerSectionAndPicture) {
+  ASSERT_EQ(Run(LPOE_CALIBRATE_PATH " --plots_dir= --html_report=none.html", "a.txt"), 0);
+  ASSERT_EQ(Run(LPOE_CALIBRATE_PATH
+                " --plots_dir= --residual_model=gp --report=gp.json --html_report=gp.html",
+                "b.txt"),
+            0)
+      << ReadAll(dir_ + "/b.txt");
+  ASSERT_EQ(Run(LPOE_CALIBRATE_PATH " --plots_dir= --residual_model=gp --html_report=again.html",
+                "c.txt"),
+            0);
+  const std::string none = ReadAll(dir_ + "/none.html"), gp = ReadAll(dir_ + "/gp.html");
+  EXPECT_EQ(gp, ReadAll(dir_ + "/again.html"));
+  EXPECT_EQ(HtmlProblems(dir_ + "/gp.html"), "");
+  auto count = [](const std::string& text, const std::string& what) {
+    size_t n = 0;
+    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(count(gp, "<svg"), count(none, "<svg") + 1);
+  EXPECT_EQ(none.find("<h2>Residual layer</h2>"), std::string::npos);
+  EXPECT_NE(gp.find("<h2>Residual layer</h2>"), std::string::npos);
+  EXPECT_NE(gp.find("predicted accuracy"), std::string::npos);
+  const nlohmann::json j = nlohmann::json::parse(ReadAll(dir_ + "/gp.json"));
+  const nlohmann::json& rm = j["residual_model"];
+  ASSERT_TRUE(rm["fitted"].get<bool>()) << rm["message"];
+  EXPECT_EQ(rm["requested"], "gp");
+  EXPECT_TRUE(rm["selection"].is_null());
+  EXPECT_NE(gp.find(Mm(rm["verification_without_layer"]["norm"]["rms"].get<double>()) + " mm"),
+            std::string::npos);
+  EXPECT_NE(gp.find(Mm(j["verification"]["after"]["norm"]["rms"].get<double>()) + " mm"),
+            std::string::npos);
+  // The tool's own lines: the layer's summary on stdout.
+  EXPECT_NE(ReadAll(dir_ + "/b.txt").find("residual layer: Gaussian process"), std::string::npos);
+}
+
 TEST_F(ReportHtml, ComparePageIsWellFormed) {
   ASSERT_EQ(Run(LPOE_COMPARE_PATH " --html_report=c.html", "c.txt"), 0) << ReadAll(dir_ + "/c.txt");
   const std::string html = ReadAll(dir_ + "/c.html");

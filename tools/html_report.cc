@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "plot.h"
+#include "lpoe/residual_layer.h"
 #include "report.h"
 #include "tool_common.h"
 
@@ -343,6 +344,54 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
          "verification points, colored by the error after calibration (one color scale for both "
          "views).</p>\n";
   }
+  if (const ResidualLayer* layer = model.residual_layer.get(); layer != nullptr) {
+    // The residual layer's predicted accuracy over the workspace: its predictive standard
+    // deviation at each measured configuration (docs/residual_layer.md).
+    Figure f;
+    f.columns = 2;
+    f.width = 1000;
+    f.height = 460;
+    Panel top, side;
+    top.title = "residual layer: predicted accuracy, top";
+    side.title = "residual layer: predicted accuracy, side";
+    top.x_label = side.x_label = "x [mm]";
+    top.y_label = "y [mm]";
+    side.y_label = "z [mm]";
+    top.equal_axes = side.equal_axes = true;
+    top.color_label = "layer's predictive std. dev. per axis [mm]";
+    Series ct = Scatter("", 0), cs = Scatter("", 0);
+    double lo = 1e300, hi = -1e300;
+    for (const std::vector<int>* rows : {&rows_id, &rows_ver}) {
+      for (int r : *rows) {
+        const PointResidual& pt = *in.points[r];
+        const Eigen::Vector3d pb = T_base_measurement * pt.measured;
+        const double sd = layer->Std(pt.q.data(), pt.target);
+        lo = std::min(lo, sd);
+        hi = std::max(hi, sd);
+        ct.x.push_back(pb.x());
+        ct.y.push_back(pb.y());
+        cs.x.push_back(pb.x());
+        cs.y.push_back(pb.z());
+        ct.color_value.push_back(sd);
+        cs.color_value.push_back(sd);
+      }
+    }
+    if (!(hi > lo)) hi = lo + 1e-9;
+    for (Series* sr : {&ct, &cs}) {
+      sr->color_min = lo;
+      sr->color_max = hi;
+    }
+    top.series = {ct};
+    side.series = {cs};
+    f.panels = {top, side};
+    if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
+    h += "<p class=\"note\">The learned residual layer's predictive standard deviation (per axis, "
+         "mm) at the measured configurations: small where the identification data are dense, up "
+         "to " +
+         Fmt("%.4f", layer->signal_std) +
+         " mm (the layer's prior) far from them, where the correction fades and the parametric "
+         "model's accuracy applies.</p>\n";
+  }
 
   // ---- Parameters.
   const Json& idj = j["identifiability"];
@@ -432,6 +481,43 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
         h += "<tr><td>" + Esc(Str(c["terms"])) + "</td><td>" + Str(c["identified_combinations"]) +
              "</td><td>" + (c["converged"].get<bool>() ? Fmt("%.5f", c["cv_rms"].get<double>())
                                                       : std::string("failed")) +
+             "</td><td>" + Sci(c["cv_mse"]) + "</td><td>" + Sci(c["cv_mse_standard_error"]) +
+             "</td></tr>\n";
+      }
+      h += "</table>\n";
+    }
+  }
+
+  // ---- The residual layer (docs/residual_layer.md): auto's choice and the fitted layer.
+  const Json& rm = j["residual_model"];
+  if (rm["requested"].get<std::string>() != "none") {
+    h += "<h2>Residual layer</h2>\n";
+    if (rm["fitted"].get<bool>()) {
+      const Json& l = rm["layer"];
+      h += "<p>A Gaussian process over the joint configuration and the SMR corrects every "
+           "predicted position (" +
+           Str(l["inducing"]) + " inducing inputs, signal " + Mm(l["signal_std"]) + " mm, noise " +
+           Mm(l["noise_std"]) + " mm). Identification RMS with the layer " +
+           Mm(rm["identification_with_layer"]["norm"]["rms"]) + " mm";
+      if (!rm["verification_without_layer"].is_null()) {
+        h += "; verification RMS " + Mm(rm["verification_without_layer"]["norm"]["rms"]) +
+             " mm without it, " + Mm(j["verification"]["after"]["norm"]["rms"]) +
+             " mm with it (fitted on the identification rows only)";
+      }
+      h += ". URDF and UR kinematics outputs cannot carry it.</p>\n";
+    } else {
+      h += "<p>No layer: " + Esc(Str(rm["message"])) + ".</p>\n";
+    }
+    const Json& sel = rm["selection"];
+    if (!sel.is_null()) {
+      h += "<p>Chosen by " + Str(sel["folds"]) + "-fold cross-validation by configuration: <b>" +
+           Esc(Str(sel["chosen"])) + "</b>.</p>\n<table>\n" +
+           "<tr><th>model</th><th>CV rms [mm]</th><th>CV mse [mm&sup2;]</th><th>std error</th>"
+           "</tr>\n";
+      for (const Json& c : sel["candidates"]) {
+        h += "<tr><td>" + Esc(Str(c["model"])) + "</td><td>" +
+             (c["ok"].get<bool>() ? Fmt("%.5f", c["cv_rms"].get<double>())
+                                  : std::string("failed")) +
              "</td><td>" + Sci(c["cv_mse"]) + "</td><td>" + Sci(c["cv_mse_standard_error"]) +
              "</td></tr>\n";
       }

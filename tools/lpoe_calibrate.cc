@@ -84,6 +84,13 @@ DEFINE_string(joint_errors, "none",
               "--split_seed) picks the simplest set within one standard error of the lowest "
               "held-out error among every subset of the terms, with the tilt among the "
               "candidates when identifiable (docs/joint_errors.md).");
+DEFINE_string(residual_model, "none",
+              "Learned residual layer after the parametric solve (docs/residual_layer.md): none | "
+              "gp (a sparse Gaussian process over the joint configuration and the SMR, fitted on "
+              "the identification residuals, stored in --output and used by every prediction) | "
+              "auto (k-fold cross-validation by configuration, --kfold folds or 5, picks none or "
+              "gp by the one-standard-error rule). Held-out figures include a layer fitted on the "
+              "training rows only.");
 DEFINE_string(loss, "none",
               "Ceres solver: robust loss against gross errors in the data: none | huber | cauchy.");
 DEFINE_double(loss_scale, 1.0,
@@ -178,6 +185,8 @@ PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_ori
     if (tilt) o.joint_errors.push_back(kGravityTiltName);
   }
   o.kfold = FLAGS_kfold;
+  ParseResidualModelKind(FLAGS_residual_model, &o.residual_model);  // checked in Run()
+  o.residual_layer.seed = FLAGS_split_seed;
   // URDF and UR kinematics carry geometry only: with joint-space terms they get a geometry-only
   // re-fit of the same data.
   o.refit_geometry = !FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty();
@@ -319,6 +328,11 @@ int Run() {
       return kExitUsage;
     }
   }
+  if (ResidualModelKind kind; !ParseResidualModelKind(FLAGS_residual_model, &kind)) {
+    std::cerr << "error: --residual_model must be none, gp or auto, got '" << FLAGS_residual_model
+              << "'\n";
+    return kExitUsage;
+  }
   std::vector<std::string> fixed_tools;
   if (Status s = ParseNameList(FLAGS_fixed_tools, &fixed_tools); !s.ok()) {
     std::cerr << "error: --fixed_tools: " << s.message() << "\n";
@@ -459,8 +473,12 @@ int Run() {
   const CalibrationResult& result = run.result;
   tools::AddPipelineResult(run, &summary);
   summary.joint_errors_requested = FLAGS_joint_errors;
+  summary.residual_model_requested = FLAGS_residual_model;
   if (run.joint_error_selection.ran) {
     std::cerr << tools::JointErrorSelectionTable(run.joint_error_selection);
+  }
+  if (run.residual_model_selection.ran) {
+    std::cerr << tools::ResidualModelSelectionTable(run.residual_model_selection);
   }
   if (run.registered && result.termination != Termination::kNotIdentifiable) {
     const RegistrationReport& reg = run.registration;
@@ -493,6 +511,9 @@ int Run() {
     std::cout << "\n";
     tools::PrintBeforeAfter(std::cout, "verification set", summary.verification_before,
                             summary.verification_after);
+  }
+  if (const std::string layer = tools::ResidualLayerSummaryText(run); !layer.empty()) {
+    std::cout << "\n" << layer;
   }
 
   // Per-point residuals (about 170 bytes a row) only for the outputs that show them.
@@ -599,6 +620,11 @@ int Run() {
     }
     std::cerr << ". Predict or compensate with the YAML model (--output; lpoe_predict, "
                  "lpoe_compensate), which keeps the terms\n";
+  }
+  if (geometry_outputs && staged.ok() && result.model.residual_layer) {
+    std::cerr << "warning: URDF and UR kinematics cannot carry the residual layer "
+                 "(docs/residual_layer.md): they predict without its correction. Predict or "
+                 "compensate with the YAML model (--output), which keeps it\n";
   }
   if (!FLAGS_urdf_output.empty() && staged.ok()) {
     std::string xml;

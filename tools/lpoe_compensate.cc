@@ -29,6 +29,7 @@
 #include "lpoe/csv_rules.h"
 #include "lpoe/options.h"
 #include "lpoe/inverse_kinematics.h"
+#include "lpoe/residual_layer.h"
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/refusals.h"
@@ -474,12 +475,21 @@ int Run() {
   }
   const int count = total.rows;
 
+  if (total.layer_far_rows > 0) {
+    std::cerr << "warning: " << in_path << ": " << total.layer_far_rows << " of " << count
+              << " row(s) are far from every configuration the residual layer was identified on "
+                 "(kernel distance above "
+              << kLayerFarDistance << " length scales; first on line " << total.layer_far_line
+              << "): there its correction fades and the parametric model's accuracy applies "
+                 "(docs/residual_layer.md)\n";
+  }
   // ---- Summary.
   nlohmann::json report;
   report["model"] = FLAGS_model;
   report["input"] = in_path;
   report["mode"] = joints_mode ? "joints" : "targets";
   report["rows"] = count;
+  report["residual_layer_far_rows"] = total.layer_far_rows;
   nlohmann::json counts;
   std::ostringstream summary;
   summary << "lpoe_compensate: " << count << " rows:";

@@ -10,6 +10,7 @@
 // Exit codes: 0 written, 1 bad flags or output (an input's file, or a missing or unwritable
 // directory: checked before any work), 2 bad input file, 6 output not written.
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <iostream>
 #include <string>
@@ -21,6 +22,7 @@
 #include "lpoe/csv_rules.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/residual_layer.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
 #include "tool_common.h"
@@ -32,6 +34,9 @@ DEFINE_string(frame, "base",
               "from the calibrated model's recorded registration) | measurement (the frame the "
               "calibration's measurements were in, e.g. the tracker's). The same for a model "
               "calibrated in the base frame.");
+DEFINE_bool(predict_std, false,
+            "Also write the column std: the residual layer's predictive standard deviation (mm, "
+            "per axis) at each row (docs/residual_layer.md); the model must carry a layer.");
 DEFINE_string(tool, "0",
               "Tool measured by rows without a target column: its name or 0-based index.");
 // The options every tool shares (tools/common_flags.cc, lpoe/options.h).
@@ -92,6 +97,12 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
+  if (FLAGS_predict_std && !model.residual_layer) {
+    std::cerr << "error: --predict_std needs a model with a residual layer (lpoe_calibrate "
+                 "--residual_model=gp or auto writes one); "
+              << FLAGS_model << " has none\n";
+    return kExitUsage;
+  }
   int tool = model.FindTool(FLAGS_tool);
   if (tool < 0) {
     char* end = nullptr;
@@ -137,11 +148,34 @@ int Run() {
     for (Eigen::Vector3d& p : positions) p = base_from_measurement * p;
   }
   for (Eigen::Vector3d& p : positions) p /= mm_per_unit;  // --length_unit
+  std::string csv = PositionsToCsv(positions);
+  if (FLAGS_predict_std) {
+    // The layer's standard deviation per row, a fourth column (the same in every frame).
+    const int n = model.num_joints();
+    std::string with_std = "x,y,z,std\n";
+    size_t at = csv.find('\n') + 1;
+    for (size_t r = 0; r < positions.size(); ++r) {
+      const size_t end = csv.find('\n', at);
+      with_std.append(csv, at, end - at);
+      with_std += ',';
+      const int t = targets.empty() ? tool : targets[r];
+      char buf[32];
+      const auto [end_of_number, ec] = std::to_chars(
+          buf, buf + sizeof(buf), model.residual_layer->Std(q.data() + r * n, t) / mm_per_unit);
+      with_std.append(buf, end_of_number);
+      with_std += '\n';
+      at = end + 1;
+    }
+    csv.swap(with_std);
+  }
   std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
   Status staged = outputs.Stage(
       FLAGS_output, "# lpoe_predict: positions in " + FLAGS_length_unit + " in the " +
                         std::string(FLAGS_frame == "base" ? "robot's base" : "measurement") +
-                        " frame\n" + PositionsToCsv(positions));
+                        " frame" + (FLAGS_predict_std ? "; std: the residual layer's predictive "
+                                                        "standard deviation per axis, " + FLAGS_length_unit
+                                                      : "") +
+                        "\n" + csv);
   if (Status s = staged.ok() ? outputs.Commit(nullptr) : staged; !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitOutput;

@@ -1,5 +1,7 @@
 #include "report.h"
 
+#include "lpoe/residual_layer.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -153,7 +155,105 @@ Json JointErrorsJson(const RunSummary& s) {
   return j;
 }
 
+// The residual layer: what was asked, the auto choice and the fitted layer's figures.
+Json ResidualModelJson(const RunSummary& s) {
+  const ResidualLayerSummary& l = s.residual_layer;
+  Json j = {{"requested", s.residual_model_requested},
+            {"fitted", l.fitted},
+            {"message", l.message}};
+  const ResidualLayer* layer = s.result.model.residual_layer.get();
+  if (l.fitted && layer != nullptr) {
+    std::vector<double> scales(layer->length_scales.data(),
+                               layer->length_scales.data() + layer->length_scales.size());
+    j["layer"] = {{"kernel", ResidualLayer::kKernel},
+                  {"frame", ResidualLayer::kFrame},
+                  {"inducing", layer->num_inducing()},
+                  {"length_scales", scales},
+                  {"tool_correlation", layer->tool_correlation},
+                  {"signal_std", layer->signal_std},
+                  {"noise_std", layer->noise_std},
+                  {"hyperparameter_rows", l.fit.hyperparameter_rows},
+                  {"iterations", l.fit.iterations},
+                  {"log_marginal_likelihood", l.fit.log_marginal_likelihood}};
+    j["identification_with_layer"] = StatsJson(l.identification_with_layer);
+    j["verification_without_layer"] =
+        s.has_verification ? StatsJson(l.verification_parametric) : Json(nullptr);
+  } else {
+    j["layer"] = nullptr;
+  }
+  const ResidualModelSelection& sel = s.residual_model_selection;
+  if (!sel.ran) {
+    j["selection"] = nullptr;
+    return j;
+  }
+  Json candidates = Json::array();
+  for (const ResidualModelCandidate& c : sel.candidates) {
+    candidates.push_back({{"model", c.label},
+                          {"ok", c.ok},
+                          {"failure", c.failure},
+                          {"cv_rms", c.cv_rms},
+                          {"cv_mse", c.cv_mse},
+                          {"cv_mse_standard_error", c.cv_mse_se},
+                          {"fold_rms", c.fold_rms}});
+  }
+  j["selection"] = {{"folds", sel.folds},
+                    {"split", SplitKindName(sel.split)},
+                    {"seed", sel.seed},
+                    {"candidates", candidates},
+                    {"best", sel.candidates[sel.best < 0 ? sel.chosen : sel.best].label},
+                    {"chosen", sel.candidates[sel.chosen].label},
+                    {"reason", sel.reason}};
+  return j;
+}
+
 }  // namespace
+
+std::string ResidualModelSelectionTable(const ResidualModelSelection& sel) {
+  std::string out = "residual model (auto): " + std::to_string(sel.folds) +
+                    "-fold cross-validation by configuration on the identification rows (" +
+                    (sel.split == SplitKind::kSequential
+                         ? std::string("contiguous folds")
+                         : "seed " + std::to_string(sel.seed)) +
+                    "), held-out position error\n";
+  out += "  model   CV rms (mm)   CV mse (mm^2)   std error\n";
+  char line[512];
+  for (size_t k = 0; k < sel.candidates.size(); ++k) {
+    const ResidualModelCandidate& c = sel.candidates[k];
+    if (!c.ok) {
+      std::snprintf(line, sizeof(line), "  %-5s   FAILED: %s\n", c.label.c_str(),
+                    c.failure.c_str());
+    } else {
+      std::snprintf(line, sizeof(line), "  %-5s   %11.5f   %13.6g   %9.3g%s\n", c.label.c_str(),
+                    c.cv_rms, c.cv_mse, c.cv_mse_se,
+                    static_cast<int>(k) == sel.chosen ? "   <- chosen" : "");
+    }
+    out += line;
+  }
+  out += "  " + sel.reason + "\n";
+  return out;
+}
+
+std::string ResidualLayerSummaryText(const PipelineResult& run) {
+  const ResidualLayerSummary& l = run.residual_layer;
+  if (!l.requested) return "";
+  if (!l.fitted) return "residual layer: none (" + l.message + ")\n";
+  char line[512];
+  std::snprintf(line, sizeof(line),
+                "residual layer: Gaussian process, %d inducing inputs, signal %.4g mm, noise %.4g "
+                "mm; identification RMS %.5f -> %.5f mm with the layer\n",
+                l.inducing, run.result.model.residual_layer->signal_std,
+                run.result.model.residual_layer->noise_std, run.identification_after.norm.rms,
+                l.identification_with_layer.norm.rms);
+  std::string out = line;
+  if (run.has_verification) {
+    std::snprintf(line, sizeof(line),
+                  "  verification RMS %.5f mm without the layer, %.5f mm with it (fitted on the "
+                  "identification rows only)\n",
+                  l.verification_parametric.norm.rms, run.verification_after.norm.rms);
+    out += line;
+  }
+  return out;
+}
 
 void AddPointResiduals(const RobotModel& before, const RobotModel& after,
                        const MeasurementSet& identification, const MeasurementSet& verification,
@@ -492,6 +592,7 @@ Json BuildJson(const RunSummary& s) {
   }
   j["cross_validation"] = folds;
   j["joint_errors"] = JointErrorsJson(s);
+  j["residual_model"] = ResidualModelJson(s);
   Json frames = Json::array();
   for (const Joint& jt : s.result.model.joints) {
     frames.push_back({{"name", jt.name}, {"origin", PoseJson(jt.origin)}});

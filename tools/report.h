@@ -38,6 +38,8 @@ struct RunSummary : PipelineResult {
   // --joint_errors: what was asked for ("none", a list or "auto"); for auto, the choice is the
   // pipeline's joint_error_selection.
   std::string joint_errors_requested = "none";
+  // --residual_model: none | gp | auto (the choice is the pipeline's residual_model_selection).
+  std::string residual_model_requested = "none";
   std::vector<std::string> outputs;  // files written
   // A model read from a URDF: for each frame (joints, then tools) the URDF element its parameters
   // change (UrdfFrameElements); empty otherwise.
@@ -90,6 +92,10 @@ void AddPointResiduals(const RobotModel& before, const RobotModel& after,
 // --joint_errors=auto: the cross-validation table and the choice, as text (lpoe_calibrate prints it
 // to stderr).
 std::string JointErrorSelectionTable(const JointErrorSelection& selection);
+// --residual_model=auto: the cross-validation table and the choice, as text.
+std::string ResidualModelSelectionTable(const ResidualModelSelection& selection);
+// The fitted layer in a line or two (or why there is none); "" when none was asked for.
+std::string ResidualLayerSummaryText(const PipelineResult& run);
 // "compliance, harmonics": the joint-error terms a model carries ("" when none).
 std::string JointErrorTermNames(const RobotModel& model);
 // The gravity tilt in degrees with its standard deviations, or why it was not identified (one

@@ -13,6 +13,8 @@
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/parallel.h"
+#include "lpoe/residual_layer.h"
 
 namespace lpoe {
 namespace {
@@ -443,10 +445,16 @@ Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double*
 }
 
 Eigen::Vector3d PredictToolPosition(const RobotModel& model, const double* q, int tool) {
-  if (model.joint_errors.empty()) return ToolPosition(model, q, tool);
-  std::vector<double> q_eff(model.num_joints());
-  EffectiveJoints(model, q, q_eff.data());
-  return ToolPosition(model, q_eff.data(), tool);
+  Eigen::Vector3d p;
+  if (model.joint_errors.empty()) {
+    p = ToolPosition(model, q, tool);
+  } else {
+    std::vector<double> q_eff(model.num_joints());
+    EffectiveJoints(model, q, q_eff.data());
+    p = ToolPosition(model, q_eff.data(), tool);
+  }
+  if (model.residual_layer) p += model.residual_layer->Mean(q, tool);
+  return p;
 }
 
 Status PredictPositions(const RobotModel& model, const std::vector<double>& q,
@@ -464,7 +472,6 @@ Status PredictPositions(const RobotModel& model, const std::vector<double>& q,
     os << targets.size() << " targets for " << rows << " rows";
     return Status::Error(os.str());
   }
-  std::vector<Eigen::Vector3d> out(rows);
   for (int r = 0; r < rows; ++r) {
     const int t = targets.empty() ? tool : targets[r];
     if (t < 0 || t >= model.num_tools()) {
@@ -481,8 +488,21 @@ Status PredictPositions(const RobotModel& model, const std::vector<double>& q,
         return Status::Error(os.str());
       }
     }
-    out[r] = PredictToolPosition(model, qr, t);
   }
+  // The rows checked, the predictions in fixed chunks on the hardware's threads (lpoe/parallel.h):
+  // a residual layer costs microseconds a row.
+  std::vector<Eigen::Vector3d> out(rows);
+  const RowChunks chunks =
+      model.residual_layer ? PartitionRows(rows, 256, 64) : KinematicsRowChunks(rows);
+  const int threads = model.residual_layer
+                          ? (rows < 512 ? 1 : ThreadsFor(chunks.chunks))
+                          : KinematicsThreads(chunks);
+  ForEachTask(chunks.chunks, threads, [&](int c, int /*thread*/) {
+    for (int r = chunks.begin(c); r < chunks.end(c); ++r) {
+      const int t = targets.empty() ? tool : targets[r];
+      out[r] = PredictToolPosition(model, q.data() + static_cast<size_t>(r) * n, t);
+    }
+  });
   *positions = std::move(out);
   return Status::Ok();
 }

@@ -241,7 +241,7 @@ Status ReadModelWithJointErrors(
     const char* name;
     YAML::Node value;
     int line = 0;
-  } keys[] = {{"gravity", {}, 0}, {"payload", {}, 0}, {"joint_errors", {}, 0}};
+  } keys[] = {{"gravity", {}, 0}, {"payload", {}, 0}, {"joint_errors", {}, 0}, {"residual_layer", {}, 0}};
   // The other keys, with their own nodes (and so their line numbers), go to the model reader.
   // (Assigning to a YAML::Node would overwrite the node it refers to: `filtered` is built apart.)
   YAML::Node filtered(YAML::NodeType::Map);
@@ -272,6 +272,9 @@ Status ReadModelWithJointErrors(
   if (s.ok() && keys[1].line > 0) s = reader.ReadPayload(keys[1].value, keys[1].line, &out.payload);
   if (s.ok() && keys[2].line > 0) {
     s = reader.ReadJointErrors(keys[2].value, keys[2].line, &out.joint_errors);
+  }
+  if (s.ok() && keys[3].line > 0) {
+    s = ReadResidualLayerYaml(reader, keys[3].value, keys[3].line, &out.residual_layer);
   }
   if (!s.ok()) return s;
   s = out.Validate();

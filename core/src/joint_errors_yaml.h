@@ -6,6 +6,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -73,12 +74,18 @@ class JointErrorsYamlReader {
   const RobotModel& model_;
 };
 
-// Takes the keys gravity, payload and joint_errors out of the top-level mapping `root` (left unchanged), reads the
+// Takes the keys gravity, payload, joint_errors and residual_layer out of the top-level mapping `root` (left unchanged), reads the
 // rest with `read_geometry` (the model reader), then reads those keys against the model and
 // validates it. Errors read "<source>:<line>: <what>; expected <what>".
 Status ReadModelWithJointErrors(
     const std::string& source, const YAML::Node& root, RobotModel* model,
     const std::function<Status(const YAML::Node&, RobotModel*)>& read_geometry);
+
+// The `residual_layer` block (residual_layer_yaml.cc) against the model `reader` holds.
+Status ReadResidualLayerYaml(const JointErrorsYamlReader& reader, const YAML::Node& node, int line,
+                             std::shared_ptr<const ResidualLayer>* out);
+// The block as YAML text (empty when the model carries no layer).
+std::string ResidualLayerToYaml(const RobotModel& model);
 
 // The same keys as YAML text (empty for the defaults: level gravity, no payload, no terms), numbers
 // with 17 significant digits.

@@ -587,6 +587,7 @@ std::string RobotModelToYaml(const RobotModel& model) {
     out += "registration: " + origin.substr(origin.find('{'));
   }
   out += internal::JointErrorsToYaml(model);
+  out += internal::ResidualLayerToYaml(model);
   return out;
 }
 

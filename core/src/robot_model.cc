@@ -1,6 +1,7 @@
 #include "lpoe/robot_model.h"
 
 #include "lpoe/joint_errors.h"
+#include "lpoe/residual_layer.h"
 
 #include <cmath>
 #include <limits>
@@ -133,6 +134,9 @@ Status RobotModel::Validate() const {
     if (!IsFinite(t.origin)) return Status::Error(where + ": non-finite number in origin");
     const std::string rot = CheckRotation(t.origin.R);
     if (!rot.empty()) return Status::Error(where + ": origin " + rot);
+  }
+  if (residual_layer) {
+    if (Status s = residual_layer->Validate(num_joints(), num_tools()); !s.ok()) return s;
   }
   return ValidateJointErrorTerms(*this);
 }

@@ -81,6 +81,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   const std::string parameterization = k.Get<std::string>("parameterization", "identifiable");
   const std::string data_kind = k.Get<std::string>("data_kind", "auto");
   const std::string joint_errors = k.Get<std::string>("joint_errors", "none");
+  const std::string residual_model = k.Get<std::string>("residual_model", "none");
   const bool register_frames = k.Get<bool>("register", true);
   const double holdout = k.Get<double>("holdout", 0.0);
   const int kfold = k.Get<int>("kfold", 0);
@@ -174,6 +175,10 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   o.joint_errors_auto = joint_errors == "auto";
   o.joint_error_folds = kfold >= 2 ? kfold : 5;
   if (!o.joint_errors_auto) o.joint_errors = JointErrorNames(joint_errors, true);
+  if (!ParseResidualModelKind(residual_model, &o.residual_model)) {
+    throw LpoeError("residual_model: expected 'none', 'gp' or 'auto', got '" + residual_model +
+                    "'");
+  }
   if (angle_unit != "rad" && angle_unit != "deg") {
     throw LpoeError("angle_unit: expected 'rad' or 'deg', got '" + angle_unit + "'");
   }
@@ -195,6 +200,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   o.register_frames = register_frames;
   o.kfold = kfold;
   o.split_seed = split_seed;
+  o.residual_layer.seed = split_seed;
   o.split = split;
   o.outlier_threshold = outlier_threshold;
   o.plausibility.noise_sigma = noise_sigma;
@@ -247,6 +253,7 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   tools::AddPipelineResult(run, &summary);
   tools::AddPointResiduals(run.before, result.model, data, verification, &summary);
   summary.joint_errors_requested = joint_errors;
+  summary.residual_model_requested = residual_model;
   summary.tool_name = "lpoe (Python)";
   c.report_json = tools::RunSummaryToJson(summary);
   return c;
@@ -285,7 +292,8 @@ void BindCalibration(py::module_& m) {
       "calibrate",
       [](const RobotModel& model, const MeasurementSet& data, const py::object& verify,
          const std::string& solver, const std::string& parameterization,
-         const std::string& data_kind, const std::string& joint_errors, bool register_frames,
+         const std::string& data_kind, const std::string& joint_errors,
+         const std::string& residual_model, bool register_frames,
          double holdout, int kfold, const std::string& split, uint64_t split_seed,
          double outlier_threshold, int max_iterations, double step_tolerance, double sd_fraction,
          double max_condition, double noise_sigma, const std::string& loss, double loss_scale,
@@ -297,6 +305,7 @@ void BindCalibration(py::module_& m) {
         k["parameterization"] = parameterization;
         k["data_kind"] = data_kind;
         k["joint_errors"] = joint_errors;
+        k["residual_model"] = residual_model;
         k["register"] = register_frames;
         k["holdout"] = holdout;
         k["kfold"] = kfold;
@@ -319,7 +328,7 @@ void BindCalibration(py::module_& m) {
       py::arg("model"), py::arg("data"), py::arg("verify") = py::none(), py::kw_only(),
       py::arg("solver") = "linear", py::arg("parameterization") = "identifiable",
       py::arg("data_kind") = "auto", py::arg("joint_errors") = "none",
-      py::arg("register") = true, py::arg("holdout") = 0.0, py::arg("kfold") = 0,
+      py::arg("residual_model") = "none", py::arg("register") = true, py::arg("holdout") = 0.0, py::arg("kfold") = 0,
       py::arg("split") = "random", py::arg("split_seed") = 1,
       py::arg("outlier_threshold") = OptionDefault("lpoe_calibrate", "outlier_threshold"),
       py::arg("max_iterations") =
@@ -338,6 +347,8 @@ void BindCalibration(py::module_& m) {
       "  solver='linear' | 'ceres'; parameterization='identifiable' | 'full';\n"
       "  data_kind='auto' | 'position' | 'pose'; joint_errors='none' | a comma-separated "
       "list of lpoe.joint_error_terms() (e.g. 'compliance,harmonics') | 'auto';\n"
+      "  residual_model='none' | 'gp' | 'auto' (the learned residual layer, "
+      "docs/residual_layer.md: the model carries it and predict uses it);\n"
       "  register: register the model to the measurement frame first; holdout: fraction held out "
       "(instead of verify); kfold: k-fold cross-validation (0: off); split: 'random' | "
       "'sequential' folds and hold-out, seeded by split_seed;\n"

@@ -12,6 +12,7 @@
 #include "lpoe/csv_rules.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/residual_layer.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/measurement_model.h"
@@ -177,7 +178,9 @@ void PredictPositionsInto(const RobotModel& model, const double* q, long rows, c
       EffectiveJoints(model, qr, q_eff.data());
       qr = q_eff.data();
     }
-    const Eigen::Vector3d p = chain.Position(qr, tools[r]);
+    Eigen::Vector3d p = chain.Position(qr, tools[r]);
+    // The residual layer at the commanded joints (lpoe/residual_layer.h).
+    if (model.residual_layer) p += model.residual_layer->Mean(q + r * n, tools[r]);
     out[3 * r + 0] = p.x();
     out[3 * r + 1] = p.y();
     out[3 * r + 2] = p.z();

@@ -20,6 +20,7 @@
 #include "lpoe/kinematics.h"
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
+#include "lpoe/residual_layer.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/urdf.h"
 #include "python_api.h"
@@ -172,6 +173,27 @@ PYBIND11_MODULE(_lpoe, m) {
            "tool position (M, 3) in mm at joint values q (M, N), with every error term the model "
            "carries; tool: a name or index for every row, or one per row (a list or array of "
            "names or indices, e.g. Measurements.targets)")
+      .def_property_readonly(
+          "has_residual_layer", [](const RobotModel& r) { return bool(r.residual_layer); },
+          "whether the model carries a learned residual layer (docs/residual_layer.md), which "
+          "predict() adds")
+      .def(
+          "predict_std",
+          [](const RobotModel& r, const RowArray& q, const py::object& tool) {
+            if (!r.residual_layer) {
+              throw LpoeError("predict_std: the model carries no residual layer");
+            }
+            const int n = r.num_joints();
+            const py::ssize_t m = Rows(q, n, "joint values");
+            const int t = ToolIndex(r, tool);
+            py::array_t<double> out(m);
+            double* o = out.mutable_data();
+            for (py::ssize_t k = 0; k < m; ++k) o[k] = r.residual_layer->Std(q.data() + k * n, t);
+            return out;
+          },
+          py::arg("q"), py::arg("tool") = 0,
+          "the residual layer's predictive standard deviation per axis (M,) in mm at joint values "
+          "q (M, N), as lpoe_predict --predict_std writes it")
       .def(
           "pose",
           [](const RobotModel& r, const RowArray& q, const py::object& tool) {

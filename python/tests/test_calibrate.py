@@ -33,6 +33,7 @@ def test_calibrate_default_data(inputs):
     (["--solver=ceres"], {"solver": "ceres"}),
     (["--joint_errors=harmonics"], {"joint_errors": "harmonics"}),
     (["--joint_errors=auto"], {"joint_errors": "auto"}),
+    (["--residual_model=gp"], {"residual_model": "gp"}),
     (["--holdout=0.25", "--split_seed=4"], {"holdout": 0.25, "split_seed": 4}),
     (["--holdout=0.25", "--split=sequential", "--joint_errors=auto"],
      {"holdout": 0.25, "split": "sequential", "joint_errors": "auto"}),
@@ -108,3 +109,37 @@ def test_joint_errors_auto(inputs, tmp_path):
     assert np.sqrt(np.mean(err**2)) == pytest.approx(rms_auto, rel=1e-9)
     with pytest.raises(lpoe.Error, match="joint_errors"):
         lpoe.calibrate(m, ident, joint_errors="backlash")
+
+
+def test_residual_layer_is_carried_and_predicted(inputs):
+    m, d, v = inputs
+    r = lpoe.calibrate(m, d, verify=v, residual_model="gp")
+    assert r.converged and r.model.has_residual_layer
+    rep = r.report["residual_model"]
+    assert rep["requested"] == "gp" and rep["fitted"] is True
+    # The report's held-out figure is the model's own error, layer included (predict adds it).
+    after = r.report["verification"]["after"]["norm"]["rms"]
+    err = np.linalg.norm(v.positions - r.model.predict(v.q), axis=1)
+    assert np.sqrt(np.mean(err**2)) == pytest.approx(after, rel=1e-9)
+    without = rep["verification_without_layer"]["norm"]["rms"]
+    assert after != without
+    # Its YAML carries the layer: the same predictions after a round trip.
+    back = lpoe.model_from_yaml(r.model.to_yaml(), "calibrated.yaml")
+    assert back.has_residual_layer
+    np.testing.assert_allclose(back.predict(v.q), r.model.predict(v.q), rtol=0, atol=1e-9)
+    sd = back.predict_std(v.q)
+    assert sd.shape == (v.q.shape[0],) and np.all(sd > 0)
+    assert np.all(sd <= rep["layer"]["signal_std"] + 1e-12)
+    with pytest.raises(lpoe.Error, match="no residual layer"):
+        m.predict_std(v.q)
+
+
+def test_residual_model_auto_and_bad_value(inputs):
+    m, d, v = inputs
+    r = lpoe.calibrate(m, d, verify=v, residual_model="auto")
+    sel = r.report["residual_model"]["selection"]
+    assert [c["model"] for c in sel["candidates"]] == ["none", "gp"]
+    assert sel["chosen"] in ("none", "gp")
+    assert r.model.has_residual_layer == (sel["chosen"] == "gp")
+    with pytest.raises(lpoe.Error, match="residual_model"):
+        lpoe.calibrate(m, d, residual_model="kriging")

@@ -1,5 +1,7 @@
 #include "lpoe/compensation.h"
 
+#include "lpoe/residual_layer.h"
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -152,6 +154,7 @@ void Compensator::Solve(const double* seeds, std::vector<IkTarget>* targets,
   out->q.resize(static_cast<size_t>(rows) * n);
   out->results.resize(rows);
   out->corrected.resize(request_.has_nominal ? rows : 0);
+  out->layer_distance.resize(model_.residual_layer ? rows : 0);
   ForEachBlock(rows, [&](int, int begin, int end) {
     for (int k = begin; k < end; ++k) {
       IkTarget& t = (*targets)[k];
@@ -169,6 +172,7 @@ void Compensator::Solve(const double* seeds, std::vector<IkTarget>* targets,
       double* q = &out->q[static_cast<size_t>(k) * n];
       out->results[k] = ik_->Solve(t, seed, q);
       if (request_.has_nominal) out->corrected[k] = nominal_chain_->Pose(q, t.tool);
+      if (model_.residual_layer) out->layer_distance[k] = model_.residual_layer->KernelDistance(q);
     }
   });
 }
@@ -183,6 +187,9 @@ void CompensationSummary::Add(const CompensatedRows& out, const int* lines) {
       max_correction_line = line;
     }
     if (r.position_error > kWrongFrameMm) ++far_rows;
+    if (!out.layer_distance.empty() && out.layer_distance[k] > kLayerFarDistance) {
+      if (layer_far_rows++ == 0) layer_far_line = line;
+    }
     if (r.position_error > max_residual) {
       max_residual = r.position_error;
       max_residual_line = line;

@@ -995,6 +995,12 @@ void InverseKinematics::BranchSigns(const double* q, int signs[2]) const {
 }
 
 IkResult InverseKinematics::Solve(const IkTarget& target, const double* seed, double* q) const {
+  if (model_->residual_layer) return SolveThroughLayer(target, seed, q);
+  return SolveParametric(target, seed, q);
+}
+
+IkResult InverseKinematics::SolveParametric(const IkTarget& target, const double* seed,
+                                            double* q) const {
   CHECK(target.tool >= 0 && target.tool < model_->num_tools()) << "tool index " << target.tool;
   const int n = chain_.num_joints();
   if (target.has_orientation) {

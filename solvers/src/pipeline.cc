@@ -39,6 +39,7 @@ CalibrationResult StoreJointErrors(CalibrationResult result, const RobotModel& s
 RobotModel Geometric(const RobotModel& model) {
   RobotModel g = model;
   g.joint_errors = JointErrorTerms();
+  g.residual_layer = nullptr;
   return g;
 }
 
@@ -113,6 +114,9 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
   // terms the nominal model carries are not part of that cost, so they are not carried into the
   // calibrated model either (they would count twice, on a geometry they were not identified on).
   start.joint_errors = JointErrorTerms();
+  // Likewise a residual layer (it was fitted on another model's residuals).
+  start.residual_layer = nullptr;
+  if (before) before->residual_layer = nullptr;
   if (!options.register_frames) {
     // The start stays the nominal model; the tool points are fitted only for the decision below.
     RegistrationReport rep;
@@ -408,6 +412,47 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
     }
   }
 
+  // The residual layer (docs/residual_layer.md): chosen by cross-validation (auto) or asked for
+  // (gp), fitted on the identification residuals of the calibrated model; the verification errors
+  // are then those of the model with its layer.
+  ResidualModelKind residual = options.residual_model;
+  out.residual_layer.requested = residual != ResidualModelKind::kNone;
+  if (residual == ResidualModelKind::kAuto) {
+    out.residual_model_selection = SelectResidualModel(nominal, identification, chosen);
+    const ResidualModelSelection& sel = out.residual_model_selection;
+    residual = sel.chosen >= 0 && sel.candidates[sel.chosen].label == "gp" ? ResidualModelKind::kGp
+                                                                          : ResidualModelKind::kNone;
+    if (residual == ResidualModelKind::kNone) {
+      out.residual_layer.message = "auto chose none (" + sel.reason + ")";
+    }
+  }
+  if (residual == ResidualModelKind::kGp) {
+    if (options.on_stage) options.on_stage("fitting the residual layer");
+    auto layer = std::make_shared<ResidualLayer>();
+    const Status s = FitResidualLayerOn(out.result, identification, options.residual_layer,
+                                        layer.get(), &out.residual_layer.fit);
+    if (!s.ok()) {
+      out.residual_layer.message = "residual layer not fitted: " + s.message();
+    } else {
+      out.residual_layer.fitted = true;
+      out.residual_layer.inducing = layer->num_inducing();
+      std::vector<Eigen::Vector3d> e = ParametricResiduals(out.result, identification);
+      for (int r = 0; r < identification.size(); ++r) {
+        e[r] -= layer->Mean(identification.q(r), identification.target(r));
+      }
+      out.residual_layer.identification_with_layer = ComputeStatistics(e);
+      if (!verification.empty()) {
+        out.residual_layer.verification_parametric = out.verification_after;
+        std::vector<Eigen::Vector3d> v = ParametricResiduals(out.result, verification);
+        for (int r = 0; r < verification.size(); ++r) {
+          v[r] -= layer->Mean(verification.q(r), verification.target(r));
+        }
+        out.verification_after = ComputeStatistics(v);
+      }
+      out.result.model.residual_layer = std::move(layer);
+    }
+  }
+
   PlausibilityOptions plausibility = options.plausibility;
   plausibility.use_orientation = options.use_orientation;
   out.verdict = AssessPlausibility(out.start, out.geometric, identification_eff,
@@ -519,8 +564,17 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
       fs.fold = f + 1;
       fs.identification_rows = train.size();
       fs.termination = r.termination;
-      const std::vector<Eigen::Vector3d> e =
+      std::vector<Eigen::Vector3d> e =
           PositionErrors(Geometric(r.model), WithEffectiveJointValues(r.joint_terms, test));
+      if (out.residual_layer.fitted && r.converged()) {
+        // The fold's own layer, fitted on its training rows only.
+        ResidualLayer layer;
+        if (FitResidualLayerOn(r, train, options.residual_layer, &layer, nullptr).ok()) {
+          for (int row = 0; row < test.size(); ++row) {
+            e[row] -= layer.Mean(test.q(row), test.target(row));
+          }
+        }
+      }
       pooled.insert(pooled.end(), e.begin(), e.end());
       fs.verification_after = ComputeStatistics(e);
       out.folds.push_back(fs);

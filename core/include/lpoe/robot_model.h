@@ -13,6 +13,7 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -90,6 +91,8 @@ struct JointErrorTerms {
   void Remove(const std::string& name);
 };
 
+class ResidualLayer;  // lpoe/residual_layer.h
+
 // Standard gravity, m/s^2.
 constexpr double kStandardGravity = 9.80665;
 
@@ -110,6 +113,11 @@ class RobotModel {
   Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -kStandardGravity);
   Payload payload;
   JointErrorTerms joint_errors;
+  // The learned residual layer (lpoe/residual_layer.h, docs/residual_layer.md): a correction of the
+  // tool positions over the joint configuration, in this model's base frame, that every prediction
+  // (PredictToolPosition, PredictPositions, the inverse kinematics) adds. Null: none. Shared and
+  // immutable, so copies of a model are cheap.
+  std::shared_ptr<const ResidualLayer> residual_layer;
 
   int num_joints() const { return static_cast<int>(joints.size()); }
   int num_tools() const { return static_cast<int>(tools.size()); }

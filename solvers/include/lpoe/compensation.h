@@ -37,6 +37,10 @@ bool ParseTargetFrame(const std::string& text, TargetFrame* frame);
 
 // Targets this far (mm) from anything the robot reaches are in another frame.
 constexpr double kWrongFrameMm = 1000.0;
+// A solution farther than this from every inducing configuration of the model's residual layer
+// (kernel distance, in length scales) gets less than exp(-3^2 / 2) = 1 % of the kernel's weight
+// there: the layer's correction has faded to the parametric model's.
+constexpr double kLayerFarDistance = 3.0;
 
 struct CompensationRequest {
   RobotModel model;  // the calibrated model (its frame: the measurement frame)
@@ -73,6 +77,8 @@ struct CompensatedRows {
   std::vector<double> q;
   std::vector<IkResult> results;
   std::vector<SE3d> corrected;  // with a nominal model
+  // With a residual layer: its kernel distance at each compensated q (ResidualLayer::KernelDistance).
+  std::vector<double> layer_distance;
   int size() const { return static_cast<int>(results.size()); }
 };
 
@@ -128,6 +134,10 @@ struct CompensationSummary {
   double max_correction = 0, max_residual = 0, max_orientation_residual = 0;
   int64_t max_correction_line = 0, max_residual_line = 0;  // the caller's line (or row) numbers
   int far_rows = 0;  // rows kWrongFrameMm or more from anything the robot reaches
+  // Rows whose solution is kLayerFarDistance or more from every identification configuration of
+  // the model's residual layer, and the first of them.
+  int layer_far_rows = 0;
+  int64_t layer_far_line = 0;
 
   // `lines` (may be null: the 0-based row over all chunks) names each row of `out`.
   void Add(const CompensatedRows& out, const int* lines = nullptr);

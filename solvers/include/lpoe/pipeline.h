@@ -17,11 +17,18 @@
 #include "lpoe/linear_solver.h"
 #include "lpoe/plausibility.h"
 #include "lpoe/registration.h"
+#include "lpoe/residual_layer.h"
 #include "lpoe/statistics.h"
 
 namespace lpoe {
 
 enum class SolverKind { kLinear, kCeres };
+
+// The learned residual layer after the parametric solve (lpoe/residual_layer.h,
+// docs/residual_layer.md): none, a Gaussian process, or chosen by k-fold cross-validation.
+enum class ResidualModelKind { kNone, kGp, kAuto };
+bool ParseResidualModelKind(const std::string& text, ResidualModelKind* kind);  // none|gp|auto
+const char* ResidualModelKindName(ResidualModelKind kind);
 
 struct PipelineOptions {
   SolverKind solver = SolverKind::kLinear;
@@ -55,6 +62,12 @@ struct PipelineOptions {
   uint64_t split_seed = 1;
   SplitKind split = SplitKind::kRandom;
   double outlier_threshold = 5.0;
+  // After the parametric solve: a residual layer fitted on its identification residuals (gp), or
+  // chosen between none and gp by the one-standard-error rule on joint_error_folds folds by
+  // configuration (auto; SelectResidualModel). The layer is stored in result.model.residual_layer;
+  // the verification (and k-fold) errors include a layer fitted on the training rows only.
+  ResidualModelKind residual_model = ResidualModelKind::kNone;
+  ResidualLayerOptions residual_layer;
   PlausibilityOptions plausibility;
   // With joint-space terms: also re-fit the geometry alone on the same data (PipelineResult::
   // geometry_only), the best model for outputs that carry geometry only (URDF, UR kinematics): the
@@ -118,6 +131,57 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
                                       const MeasurementSet& identification,
                                       const PipelineOptions& options);
 
+// --residual_model=auto: one candidate (none or gp) and its cross-validated held-out error.
+struct ResidualModelCandidate {
+  std::string label;       // "none" | "gp"
+  bool ok = false;         // every fold's calibration (and layer fit) succeeded
+  std::string failure;     // why not (first failing fold)
+  double cv_rms = 0;       // pooled held-out RMS of the error norm, mm
+  double cv_mse = 0;       // its square, mm^2
+  double cv_mse_se = 0;    // standard error of cv_mse over the held-out points, mm^2
+  std::vector<double> fold_rms;  // held-out RMS per fold, mm
+};
+
+struct ResidualModelSelection {
+  bool ran = false;
+  int folds = 0;
+  uint64_t seed = 0;
+  SplitKind split = SplitKind::kRandom;
+  std::vector<ResidualModelCandidate> candidates;  // none, gp
+  int best = -1;    // lowest cv_mse
+  int chosen = -1;  // the simplest within one standard error of the best
+  std::string reason;
+};
+
+// Cross-validates the parametric model alone ("none") against it plus a layer fitted on each
+// fold's training residuals ("gp"), on options.joint_error_folds folds by configuration (seed
+// options.split_seed, options.split), with the calibration `options` asks for (joint errors as
+// given: run after the joint-error choice); one-standard-error rule, none being the simpler.
+// Cost: one calibration and one layer fit per fold.
+ResidualModelSelection SelectResidualModel(const RobotModel& nominal,
+                                           const MeasurementSet& identification,
+                                           const PipelineOptions& options);
+
+// The layer of a run (options.residual_model gp, or auto choosing gp).
+struct ResidualLayerSummary {
+  bool requested = false;  // gp, or auto (whatever it chose)
+  bool fitted = false;     // result.model carries a layer
+  std::string message;     // why not, when requested and not fitted
+  ResidualLayerFit fit;
+  int inducing = 0;
+  ErrorStatistics identification_with_layer;  // the calibrated model with its layer
+  ErrorStatistics verification_parametric;    // verification errors without the layer
+};
+
+// The residuals (measured - predicted, mm) of a calibration result's model with its joint terms
+// (no layer) on `data`.
+std::vector<Eigen::Vector3d> ParametricResiduals(const CalibrationResult& result,
+                                                 const MeasurementSet& data);
+// Fits a layer on those residuals at data's joint values and tools.
+Status FitResidualLayerOn(const CalibrationResult& result, const MeasurementSet& data,
+                          const ResidualLayerOptions& options, ResidualLayer* layer,
+                          ResidualLayerFit* fit);
+
 struct PipelineResult {
   bool registered = false;  // registration was run (options.register_frames)
   RegistrationReport registration;
@@ -140,6 +204,8 @@ struct PipelineResult {
   ErrorStatistics folds_pooled;
   Verdict verdict;  // of a converged result
   JointErrorSelection joint_error_selection;  // options.joint_errors_auto
+  ResidualModelSelection residual_model_selection;  // options.residual_model auto
+  ResidualLayerSummary residual_layer;
   // options.refit_geometry with joint-space terms in the result: the geometry-only calibration of
   // the same data and its errors (verification ones when has_verification).
   bool has_geometry_only = false;

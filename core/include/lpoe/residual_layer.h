@@ -1,0 +1,117 @@
+// The learned residual layer (docs/residual_layer.md): a sparse Gaussian process over the joint
+// configuration and the measured tool (SMR) that predicts what the parametric model (geometry and
+// joint-space terms) leaves of the tool position error. A model that carries one
+// (RobotModel::residual_layer) predicts
+//
+//   P(q, tool) = FK(q_eff) p_tool + m(q, tool)          (mm, the calibrated model's base frame)
+//
+// Kernel (squared exponential, automatic relevance determination; the tool as a one-hot coordinate
+// with its own length scale):
+//
+//   k(x, x') = s_f^2 exp(-1/2 sum_j ((q_j - q'_j) / l_j)^2) * (tool == tool' ? 1 : rho)
+//
+// with rho = exp(-1 / l_tool^2) in [0, 1]. The three position components are independent outputs
+// sharing the hyperparameters (l_j, rho, s_f, noise s_n). Prediction (deterministic training
+// conditional, DTC, with m inducing inputs z_i chosen among the identification rows):
+//
+//   m(x)      = k_m(x)^T alpha                  alpha = (m x 3) weights
+//   var(x)    = s_f^2 - k_m(x)^T W k_m(x)       W = K_mm^-1 - (K_mm + s_n^-2 K_mn K_nm)^-1
+//   dm/dq_j   = -sum_i alpha_i k_i(x) (q_j - z_ij) / l_j^2
+//
+// Far from every inducing input k_m(x) -> 0: the correction returns to zero (the parametric
+// model's prediction) and the standard deviation to s_f.
+#ifndef LPOE_RESIDUAL_LAYER_H_
+#define LPOE_RESIDUAL_LAYER_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lpoe/status.h"
+
+namespace lpoe {
+
+class ResidualLayer {
+ public:
+  // The frame of the corrections: the calibrated model's base frame (for a registered calibration,
+  // the measurement frame its data were in). The only value written and read.
+  static constexpr const char* kFrame = "base";
+  static constexpr const char* kKernel = "se_ard";
+
+  int num_joints = 0;
+  int num_tools = 0;
+  Eigen::VectorXd length_scales;  // per joint: rad (revolute) / mm (prismatic)
+  double tool_correlation = 1.0;  // rho in [0, 1]
+  double signal_std = 0;          // s_f, mm
+  double noise_std = 0;           // s_n, mm
+  Eigen::MatrixXd inducing_q;     // m x num_joints
+  std::vector<int> inducing_tool; // m tool indices
+  Eigen::MatrixXd weights;        // m x 3 (alpha)
+  Eigen::MatrixXd variance;       // m x m symmetric (W)
+  int fitted_rows = 0;            // identification rows it was fitted on (information only)
+
+  int num_inducing() const { return static_cast<int>(inducing_q.rows()); }
+
+  // The correction m(q, tool) (mm). With `dm_dq` (3 x num_joints, column-major, leading dimension
+  // 3), also its derivative.
+  Eigen::Vector3d Mean(const double* q, int tool, double* dm_dq = nullptr) const;
+  // The predictive standard deviation of each component of the correction (mm; the same for x, y
+  // and z). Between 0 and signal_std.
+  double Std(const double* q, int tool) const;
+  // The smallest distance from q to an inducing configuration in length-scale units
+  // (sqrt(sum_j ((q_j - z_ij) / l_j)^2)); the kernel between them is exp(-d^2 / 2) s_f^2.
+  double KernelDistance(const double* q) const;
+
+  // Sizes, finite values, positive length scales, rho in [0, 1], tool indices in range, W
+  // symmetric. Messages say what is wrong, without file or line.
+  Status Validate(int model_joints, int model_tools) const;
+
+  // k_m(x) into `k` (m values).
+  void KernelVector(const double* q, int tool, Eigen::VectorXd* k) const;
+};
+
+struct ResidualLayerOptions {
+  // Inducing inputs (farthest-point among the identification rows in length-scale units); the
+  // stored layer and the prediction cost grow with it (docs/residual_layer.md).
+  int max_inducing = 256;
+  // Rows of the exact marginal likelihood the hyperparameters maximize (a seeded subsample when
+  // there are more).
+  int max_hyperparameter_rows = 600;
+  int max_iterations = 150;  // L-BFGS iterations on the hyperparameters
+  uint64_t seed = 1;
+};
+
+struct ResidualLayerFit {
+  double log_marginal_likelihood = 0;  // at the optimum, on the hyperparameter rows
+  int hyperparameter_rows = 0;
+  int iterations = 0;
+  double residual_rms_before = 0;  // RMS of |residual| on the fitting rows, mm
+  double residual_rms_after = 0;   // after subtracting the layer's mean, mm
+};
+
+// Fits the layer on `rows` residuals (measured - parametric prediction, mm, base frame) at the
+// joint values q (rows x num_joints, row-major) of tools `tools` (rows indices). Hyperparameters by
+// the exact marginal likelihood on at most options.max_hyperparameter_rows rows (L-BFGS, analytic
+// gradient), then the sparse (DTC) posterior on every row. Fails on wrong sizes, fewer than 3 rows
+// or non-finite values.
+Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& tools,
+                        const std::vector<Eigen::Vector3d>& residuals, int num_joints,
+                        int num_tools, const ResidualLayerOptions& options, ResidualLayer* layer,
+                        ResidualLayerFit* fit = nullptr);
+
+namespace internal {
+
+// The hyperparameter vector of the fit: log l_1..log l_n, log l_tool (only when `with_tool`),
+// log s_f, log s_n.
+// Log marginal likelihood of the three outputs Y (rows x 3) at inputs X (rows x n) and tools under
+// the kernel above (exact GP), and its gradient with respect to theta.
+double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
+                               const Eigen::MatrixXd& X, const std::vector<int>& tools,
+                               const Eigen::MatrixXd& Y, Eigen::VectorXd* gradient);
+
+}  // namespace internal
+}  // namespace lpoe
+
+#endif  // LPOE_RESIDUAL_LAYER_H_

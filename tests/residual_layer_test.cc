@@ -1,0 +1,398 @@
+// The learned residual layer (lpoe/residual_layer.h, docs/residual_layer.md): its derivatives
+// against finite differences, its storage, its prediction far from the data, the pipeline's gp and
+// auto on a simulated arm with an error no term models and on one whose residual is noise, and the
+// inverse kinematics through it.
+#include "lpoe/residual_layer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+#include "lpoe/inverse_kinematics.h"
+#include "lpoe/io.h"
+#include "lpoe/joint_errors.h"
+#include "lpoe/kinematics.h"
+#include "lpoe/pipeline.h"
+#include "lpoe/robot_model.h"
+#include "lpoe/simulation.h"
+#include "lpoe/statistics.h"
+
+namespace lpoe {
+namespace {
+
+// A smooth joint-dependent deflection (mm) no registry term models.
+Eigen::Vector3d Deflection(const double* q) {
+  const double a = 0.05 * std::sin(q[1] + q[2]) * std::cos(q[0]);
+  return Eigen::Vector3d(a, -0.6 * a, 0.03 * std::cos(q[1]) * std::sin(q[2] - q[0]));
+}
+
+// A layer fitted on `rows` random configurations of cobot6 (two tools) with residual Deflection +
+// noise.
+ResidualLayer FitOnDeflection(int rows, double noise, uint64_t seed, int max_inducing = 256) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1.5, 1.5);
+  std::normal_distribution<double> g(0.0, noise);
+  std::vector<double> q;
+  std::vector<int> tools;
+  std::vector<Eigen::Vector3d> e;
+  for (int r = 0; r < rows; ++r) {
+    double qr[6];
+    for (double& v : qr) v = u(rng);
+    q.insert(q.end(), qr, qr + 6);
+    tools.push_back(r % 2);
+    e.push_back(Deflection(qr) + Eigen::Vector3d(g(rng), g(rng), g(rng)) +
+                Eigen::Vector3d(0, 0, r % 2 ? 0.01 : 0.0));
+  }
+  ResidualLayerOptions options;
+  options.max_inducing = max_inducing;
+  ResidualLayer layer;
+  const Status s = FitResidualLayer(q, tools, e, 6, 2, options, &layer);
+  EXPECT_TRUE(s.ok()) << s.message();
+  return layer;
+}
+
+RobotModel TwoToolCobot() {
+  RobotModel m = MakeCobot6(Eigen::Vector3d(40, 0, 60));
+  Tool second = m.tools[0];
+  second.name = "smr2";
+  second.origin.t = Eigen::Vector3d(-35, 30, 55);
+  m.tools.push_back(second);
+  return m;
+}
+
+TEST(ResidualLayer, MarginalLikelihoodGradientMatchesFiniteDifferences) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const int N = 40, n = 3;
+  Eigen::MatrixXd X(N, n), Y(N, 3);
+  std::vector<int> tools(N);
+  for (int i = 0; i < N; ++i) {
+    for (int j = 0; j < n; ++j) X(i, j) = u(rng);
+    tools[i] = i % 3 == 0 ? 1 : 0;
+    Y.row(i) << 0.05 * std::sin(2 * X(i, 0)) + 0.01 * u(rng), 0.03 * X(i, 1) * X(i, 2),
+        0.01 * u(rng);
+  }
+  for (bool with_tool : {false, true}) {
+    Eigen::VectorXd theta(n + (with_tool ? 1 : 0) + 2);
+    theta << std::log(0.7), std::log(1.3), std::log(0.4);
+    int k = n;
+    if (with_tool) theta(k++) = std::log(0.8);
+    theta(k++) = std::log(0.04);
+    theta(k) = std::log(0.012);
+    Eigen::VectorXd gradient;
+    internal::GpLogMarginalLikelihood(theta, with_tool, X, tools, Y, &gradient);
+    ASSERT_EQ(gradient.size(), theta.size());
+    for (int i = 0; i < theta.size(); ++i) {
+      const double h = 1e-6;
+      Eigen::VectorXd tp = theta, tm = theta;
+      tp(i) += h;
+      tm(i) -= h;
+      const double fd = (internal::GpLogMarginalLikelihood(tp, with_tool, X, tools, Y, nullptr) -
+                         internal::GpLogMarginalLikelihood(tm, with_tool, X, tools, Y, nullptr)) /
+                        (2 * h);
+      EXPECT_NEAR(gradient(i), fd, 1e-5 * (1 + std::abs(fd)))
+          << "parameter " << i << " with_tool " << with_tool;
+    }
+  }
+}
+
+TEST(ResidualLayer, MeanJacobianMatchesFiniteDifferences) {
+  const ResidualLayer layer = FitOnDeflection(300, 0.01, 5);
+  ASSERT_GT(layer.num_inducing(), 10);
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-1.2, 1.2);
+  for (int trial = 0; trial < 5; ++trial) {
+    double q[6];
+    for (double& v : q) v = u(rng);
+    Eigen::Matrix<double, 3, 6> J;
+    const Eigen::Vector3d m = layer.Mean(q, trial % 2, J.data());
+    EXPECT_GT(m.norm(), 1e-4);  // a real correction there
+    for (int j = 0; j < 6; ++j) {
+      const double h = 1e-6;
+      double qp[6], qm[6];
+      std::copy(q, q + 6, qp);
+      std::copy(q, q + 6, qm);
+      qp[j] += h;
+      qm[j] -= h;
+      const Eigen::Vector3d fd =
+          (layer.Mean(qp, trial % 2) - layer.Mean(qm, trial % 2)) / (2 * h);
+      EXPECT_LT((J.col(j) - fd).norm(), 1e-8 + 1e-6 * fd.norm()) << "joint " << j + 1;
+    }
+  }
+}
+
+TEST(ResidualLayer, LearnsTheDeflectionAndReturnsToZeroFarAway) {
+  const ResidualLayer layer = FitOnDeflection(400, 0.005, 7);
+  // Inside the data: the deflection within a few noise levels.
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.2, 1.2);
+  double sum = 0, sum_truth = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    double q[6];
+    for (double& v : q) v = u(rng);
+    const Eigen::Vector3d truth = Deflection(q) + Eigen::Vector3d(0, 0, trial % 2 ? 0.01 : 0.0);
+    sum += (layer.Mean(q, trial % 2) - truth).squaredNorm();
+    sum_truth += truth.squaredNorm();
+    EXPECT_LT(layer.Std(q, trial % 2), layer.signal_std);
+  }
+  EXPECT_LT(std::sqrt(sum / 200), 0.25 * std::sqrt(sum_truth / 200));
+  // Far from every identification configuration (joints 2 and 3 far outside [-1.5, 1.5]): no
+  // correction, the parametric model's prediction, and the prior's standard deviation.
+  RobotModel model = TwoToolCobot();
+  const RobotModel parametric = model;
+  model.residual_layer = std::make_shared<const ResidualLayer>(layer);
+  ASSERT_TRUE(model.Validate().ok()) << model.Validate().message();
+  const double far[6] = {0.3, 2.9 + 12 * layer.length_scales(1), -2.9 - 12 * layer.length_scales(2),
+                         0.2, 0.1, 0.0};
+  EXPECT_GT(layer.KernelDistance(far), 10.0);
+  for (int tool = 0; tool < 2; ++tool) {
+    EXPECT_LT((PredictToolPosition(model, far, tool) - PredictToolPosition(parametric, far, tool))
+                  .norm(),
+              1e-9);
+    EXPECT_NEAR(layer.Std(far, tool), layer.signal_std, 1e-12);
+  }
+}
+
+TEST(ResidualLayer, YamlRoundTripReproducesPredictions) {
+  RobotModel model = TwoToolCobot();
+  model.residual_layer = std::make_shared<const ResidualLayer>(FitOnDeflection(200, 0.01, 13, 64));
+  const std::string text = RobotModelToYaml(model);
+  RobotModel back;
+  const Status s = ParseRobotModelYaml(text, "calibrated.yaml", &back);
+  ASSERT_TRUE(s.ok()) << s.message();
+  ASSERT_TRUE(back.residual_layer);
+  EXPECT_EQ(RobotModelToYaml(back), text);  // written byte for byte the same again
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(-1.5, 1.5);
+  std::vector<double> q;
+  std::vector<int> targets;
+  for (int r = 0; r < 100; ++r) {
+    for (int j = 0; j < 6; ++j) q.push_back(u(rng));
+    targets.push_back(r % 2);
+  }
+  std::vector<Eigen::Vector3d> a, b;
+  ASSERT_TRUE(PredictPositions(model, q, targets, 0, &a).ok());
+  ASSERT_TRUE(PredictPositions(back, q, targets, 0, &b).ok());
+  double largest_correction = 0;
+  for (int r = 0; r < 100; ++r) {
+    EXPECT_LT((a[r] - b[r]).norm(), 1e-9);
+    EXPECT_NEAR(model.residual_layer->Std(&q[6 * r], r % 2),
+                back.residual_layer->Std(&q[6 * r], r % 2), 1e-12);
+    largest_correction =
+        std::max(largest_correction, model.residual_layer->Mean(&q[6 * r], r % 2).norm());
+  }
+  EXPECT_GT(largest_correction, 0.01);  // the layer is there and matters
+}
+
+// Replaces the first occurrence of `from` (after `after`) in `text`; returns its 1-based line.
+int Replace(std::string* text, const std::string& after, const std::string& from,
+            const std::string& to) {
+  const size_t start = text->find(after);
+  EXPECT_NE(start, std::string::npos) << after;
+  const size_t at = text->find(from, start);
+  EXPECT_NE(at, std::string::npos) << from;
+  text->replace(at, from.size(), to);
+  return 1 + static_cast<int>(std::count(text->begin(), text->begin() + at, '\n'));
+}
+
+TEST(ResidualLayer, BadYamlBlocksAreRejectedWithFileAndLine) {
+  RobotModel model = TwoToolCobot();
+  model.residual_layer = std::make_shared<const ResidualLayer>(FitOnDeflection(60, 0.01, 19, 8));
+  const std::string good = RobotModelToYaml(model);
+  struct Case {
+    std::string after, from, to, expect;
+  } cases[] = {
+      {"residual_layer:", "  kernel: se_ard", "  kernel: matern", "kernel is not se_ard"},
+      {"residual_layer:", "  frame: base", "  frame: tracker", "frame is not base"},
+      {"residual_layer:", "  signal_std: ", "  signal_std: -", "out of range"},
+      {"residual_layer:", "  tool_correlation: ", "  tool_correlation: 1", "out of range"},
+      {"residual_layer:", "  length_scales: [", "  length_scales: [0, ", "length_scales"},
+      {"residual_layer:", "  inducing_tools: [", "  inducing_tools: [7, ", "inducing_tools"},
+      {"  weights:", "    - [", "    - [1, ", "'weights' row 1"},
+      {"  variance:", "    - [", "    - [oops, ", "'variance' row 1"},
+      {"residual_layer:", "  noise_std:", "  noise_sd:", "unknown key"},
+  };
+  for (const Case& c : cases) {
+    std::string bad = good;
+    const int line = Replace(&bad, c.after, c.from, c.to);
+    RobotModel back;
+    const Status s = ParseRobotModelYaml(bad, "m.yaml", &back);
+    ASSERT_FALSE(s.ok()) << c.to;
+    EXPECT_NE(s.message().find("m.yaml:" + std::to_string(line) + ":"), std::string::npos)
+        << c.to << ": " << s.message();
+    EXPECT_NE(s.message().find(c.expect), std::string::npos) << c.to << ": " << s.message();
+  }
+  // A missing block key names the block's line.
+  std::string bad = good;
+  const size_t at = bad.find("  weights:");
+  const size_t end = bad.find("  variance:");
+  bad.erase(at, end - at);
+  RobotModel back;
+  const Status s = ParseRobotModelYaml(bad, "m.yaml", &back);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("has no 'weights'"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("m.yaml:"), std::string::npos) << s.message();
+}
+
+// Cobot6 with two SMRs tens of mm off the nominal tool point, random geometric errors and joint
+// zeros, measured by a tracker metres away (noise 0.015 mm per axis), plus `deflection` times the
+// smooth joint-dependent error no term models.
+struct Arm {
+  RobotModel nominal = TwoToolCobot();
+  MeasurementSet identification, verification;
+  double noise = 0.015;
+  Arm(double deflection, uint64_t seed) {
+    const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, seed);
+    RobotModel actual = ApplyErrors(nominal, errors);
+    actual.tools[0].origin.t += Eigen::Vector3d(12, -20, 15);
+    actual.tools[1].origin.t += Eigen::Vector3d(-18, 10, 22);
+    SimulationOptions options;
+    options.count = 360;
+    options.noise_sigma = noise;
+    options.seed = seed + 1;
+    options.all_tools = true;
+    options.lower.assign(6, -1.6);
+    options.upper.assign(6, 1.6);
+    MeasurementSet data = SimulateMeasurements(actual, errors.joint_zero, options);
+    const SE3d tracker(RotationFromRpy(0.02, -0.01, 2.1), Eigen::Vector3d(2400, -1300, 350));
+    for (int r = 0; r < data.size(); ++r) {
+      data.mutable_position(r) =
+          tracker * (data.position(r) + deflection * Deflection(data.q(r)));
+    }
+    // Sequential 70/30 split by configuration (rows pose by pose, both SMRs at each pose).
+    std::vector<int> id, ver;
+    for (int r = 0; r < data.size(); ++r) (r < 0.7 * data.size() ? id : ver).push_back(r);
+    identification = data.Subset(id);
+    verification = data.Subset(ver);
+  }
+};
+
+PipelineResult Calibrate(const Arm& arm, ResidualModelKind kind, SolverKind solver) {
+  PipelineOptions o;
+  o.solver = solver;
+  o.residual_model = kind;
+  return RunCalibrationPipeline(arm.nominal, arm.identification, arm.verification, o);
+}
+
+TEST(ResidualLayerPipeline, GpReachesTheNoiseFloorHeldOutAndAutoChoosesIt) {
+  const Arm arm(1.0, 23);
+  // The noise floor of the held-out error norm: sqrt(3) sigma.
+  const double floor = std::sqrt(3.0) * arm.noise;
+  const PipelineResult none = Calibrate(arm, ResidualModelKind::kNone, SolverKind::kLinear);
+  ASSERT_TRUE(none.result.converged()) << none.result.message;
+  EXPECT_FALSE(none.result.model.residual_layer);
+  EXPECT_GT(none.verification_after.norm.rms, 1.3 * floor);
+  for (SolverKind solver : {SolverKind::kLinear, SolverKind::kCeres}) {
+    const PipelineResult gp = Calibrate(arm, ResidualModelKind::kGp, solver);
+    ASSERT_TRUE(gp.result.converged()) << gp.result.message;
+    ASSERT_TRUE(gp.residual_layer.fitted) << gp.residual_layer.message;
+    ASSERT_TRUE(gp.result.model.residual_layer);
+    EXPECT_LT(gp.verification_after.norm.rms, 1.15 * floor)
+        << "without the layer " << gp.residual_layer.verification_parametric.norm.rms;
+    EXPECT_NEAR(gp.residual_layer.verification_parametric.norm.rms, none.verification_after.norm.rms,
+                1e-3 * none.verification_after.norm.rms);
+    // The calibrated model predicts the held-out points with its layer (PredictToolPosition).
+    double sum = 0;
+    for (int r = 0; r < arm.verification.size(); ++r) {
+      sum += (arm.verification.position(r) -
+              PredictToolPosition(gp.result.model, arm.verification.q(r),
+                                  arm.verification.target(r)))
+                 .squaredNorm();
+    }
+    EXPECT_NEAR(std::sqrt(sum / arm.verification.size()), gp.verification_after.norm.rms, 1e-9);
+  }
+  const PipelineResult automatic = Calibrate(arm, ResidualModelKind::kAuto, SolverKind::kLinear);
+  const ResidualModelSelection& sel = automatic.residual_model_selection;
+  ASSERT_TRUE(sel.ran);
+  ASSERT_EQ(sel.candidates.size(), 2u);
+  EXPECT_EQ(sel.candidates[sel.chosen].label, "gp") << sel.reason;
+  EXPECT_LT(sel.candidates[1].cv_rms, 0.8 * sel.candidates[0].cv_rms);
+  EXPECT_TRUE(automatic.residual_layer.fitted);
+  EXPECT_LT(automatic.verification_after.norm.rms, 1.15 * floor);
+}
+
+TEST(ResidualLayerPipeline, PureNoiseResidualMakesAutoChooseNone) {
+  const Arm arm(0.0, 29);
+  const PipelineResult none = Calibrate(arm, ResidualModelKind::kNone, SolverKind::kLinear);
+  const PipelineResult automatic = Calibrate(arm, ResidualModelKind::kAuto, SolverKind::kLinear);
+  ASSERT_TRUE(automatic.result.converged());
+  const ResidualModelSelection& sel = automatic.residual_model_selection;
+  ASSERT_TRUE(sel.ran);
+  EXPECT_EQ(sel.candidates[sel.chosen].label, "none") << sel.reason;
+  EXPECT_FALSE(automatic.result.model.residual_layer);
+  EXPECT_LE(automatic.verification_after.norm.rms, 1.01 * none.verification_after.norm.rms);
+  // gp on noise: no worse than 1% either (its signal shrinks to nothing).
+  const PipelineResult gp = Calibrate(arm, ResidualModelKind::kGp, SolverKind::kLinear);
+  ASSERT_TRUE(gp.residual_layer.fitted);
+  EXPECT_LE(gp.verification_after.norm.rms, 1.01 * none.verification_after.norm.rms);
+}
+
+TEST(ResidualLayerPipeline, WithJointSpaceTermsThePredictionIsTheTermsPlusTheLayer) {
+  const Arm arm(1.0, 43);
+  PipelineOptions o;
+  o.joint_errors = {"compliance"};
+  o.residual_model = ResidualModelKind::kGp;
+  const PipelineResult gp =
+      RunCalibrationPipeline(arm.nominal, arm.identification, arm.verification, o);
+  ASSERT_TRUE(gp.residual_layer.fitted) << gp.residual_layer.message;
+  ASSERT_FALSE(gp.result.model.joint_errors.empty());
+  // The held-out figure is the calibrated model's own prediction: terms and layer together.
+  double sum = 0;
+  for (int r = 0; r < arm.verification.size(); ++r) {
+    sum += (arm.verification.position(r) -
+            PredictToolPosition(gp.result.model, arm.verification.q(r), arm.verification.target(r)))
+               .squaredNorm();
+  }
+  EXPECT_NEAR(std::sqrt(sum / arm.verification.size()), gp.verification_after.norm.rms, 1e-9);
+  EXPECT_LT(gp.verification_after.norm.rms, 0.8 * gp.residual_layer.verification_parametric.norm.rms);
+}
+
+TEST(ResidualLayerPipeline, KFoldIncludesTheFoldsOwnLayer) {
+  const Arm arm(1.0, 31);
+  PipelineOptions o;
+  o.kfold = 3;
+  const PipelineResult none = RunCalibrationPipeline(arm.nominal, arm.identification,
+                                                     arm.verification, o);
+  o.residual_model = ResidualModelKind::kGp;
+  const PipelineResult gp = RunCalibrationPipeline(arm.nominal, arm.identification,
+                                                   arm.verification, o);
+  ASSERT_EQ(gp.folds.size(), 3u);
+  EXPECT_LT(gp.folds_pooled.norm.rms, 0.8 * none.folds_pooled.norm.rms);
+}
+
+TEST(ResidualLayerIk, CompensationReachesTheTargetsTheLayeredModelPredicts) {
+  RobotModel model = TwoToolCobot();
+  // A layer with corrections of about 0.05 mm over the working range.
+  model.residual_layer = std::make_shared<const ResidualLayer>(FitOnDeflection(300, 0.005, 37, 128));
+  const InverseKinematics ik(model);
+  std::mt19937_64 rng(41);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 10; ++trial) {
+    double q_true[6], seed[6], q[6];
+    for (int j = 0; j < 6; ++j) {
+      q_true[j] = u(rng);
+      seed[j] = q_true[j] + 0.05 * u(rng);
+    }
+    const int tool = trial % 2;
+    IkTarget target;
+    target.tool = tool;
+    target.position = PredictToolPosition(model, q_true, tool);
+    const IkResult r = ik.Solve(target, seed, q);
+    ASSERT_NE(r.status, IkStatus::kUnreachable) << trial;
+    EXPECT_LT((PredictToolPosition(model, q, tool) - target.position).norm(), 1e-6) << trial;
+    EXPECT_LT(r.position_error, 1e-6);
+    // The layer mattered: the parametric model alone is off at these joints by its correction.
+    RobotModel parametric = model;
+    parametric.residual_layer = nullptr;
+    EXPECT_GT((PredictToolPosition(parametric, q, tool) - target.position).norm(), 1e-4) << trial;
+  }
+}
+
+}  // namespace
+}  // namespace lpoe
