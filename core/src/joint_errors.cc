@@ -3,9 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
-#ifdef __SSE2__
-#include <emmintrin.h>
-#endif
 
 #include <Eigen/SVD>
 #include <glog/logging.h>
@@ -127,33 +124,12 @@ void HarmonicsValues(const RobotModel& model, const double* q, double* out) {
   }
 }
 
-// Entries below kJointErrorRoundingCutoff of the largest |y| set to exact zeros.
-// Every row of a calibration passes here: with SSE2 two entries at a time. A maximum is exact in
-// any order, and maxpd(|y|, largest) keeps `largest` for a NaN |y| as std::max(largest, |y|) does;
-// the cut keeps y where |y| >= cutoff (a NaN is kept, as the scalar comparison keeps it).
+// Entries below kJointErrorRoundingCutoff of the largest |y| set to exact zeros (a NaN is kept).
 void ZeroRoundingNoiseImpl(double* y, int size) {
   double largest = 0;
-  int k = 0;
-#ifdef __SSE2__
-  const __m128d sign = _mm_set1_pd(-0.0);
-  __m128d lanes = _mm_setzero_pd();
-  for (; k + 2 <= size; k += 2) lanes = _mm_max_pd(_mm_andnot_pd(sign, _mm_loadu_pd(y + k)), lanes);
-  alignas(16) double two[2];
-  _mm_store_pd(two, lanes);
-  largest = std::max(two[0], two[1]);
-#endif
-  for (; k < size; ++k) largest = std::max(largest, std::abs(y[k]));
+  for (int k = 0; k < size; ++k) largest = std::max(largest, std::abs(y[k]));
   const double cutoff = kJointErrorRoundingCutoff * largest;
-  k = 0;
-#ifdef __SSE2__
-  const __m128d cut = _mm_set1_pd(cutoff);
-  for (; k + 2 <= size; k += 2) {
-    const __m128d v = _mm_loadu_pd(y + k);
-    const __m128d small = _mm_cmplt_pd(_mm_andnot_pd(sign, v), cut);
-    _mm_storeu_pd(y + k, _mm_andnot_pd(small, v));
-  }
-#endif
-  for (; k < size; ++k) {
+  for (int k = 0; k < size; ++k) {
     if (std::abs(y[k]) < cutoff) y[k] = 0.0;
   }
 }

@@ -1,79 +1,20 @@
 #include "lpoe/kinematics.h"
 
+#include "lpoe/kernels.h"
+
 #include <algorithm>
 #include <cmath>
 
 #include <glog/logging.h>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define LPOE_HAVE_AVX2_SINCOS 1
-#endif
 
 namespace lpoe {
 namespace {
 
-#if defined(__SSE2__)
-// The running product of the forward pass in SSE2 registers: each column of R (and t) as a pair
-// (rows 0, 1) plus a scalar (row 2), so that a 3x3 product takes 18 packed-or-scalar multiplications
-// instead of 27. SSE2 is part of x86-64; other targets use the scalar form below.
-struct Accumulator {
-  __m128d lo[4];  // rows 0 and 1 of columns 0..2 of R, then of t
-  __m128d hi[4];  // row 2 (low lane)
-
-  void Set(const SE3d& X) {
-    for (int k = 0; k < 3; ++k) {
-      lo[k] = _mm_loadu_pd(X.R.data() + 3 * k);
-      hi[k] = _mm_load_sd(X.R.data() + 3 * k + 2);
-    }
-    lo[3] = _mm_loadu_pd(X.t.data());
-    hi[3] = _mm_load_sd(X.t.data() + 2);
-  }
-  // (R, t) <- (R, t) * (M, m).
-  void RightMultiply(const SE3d& X) {
-    const double* M = X.R.data();  // column-major
-    __m128d nlo[3], nhi[3];
-    for (int c = 0; c < 3; ++c) {
-      const __m128d a = _mm_set1_pd(M[3 * c]);
-      const __m128d b = _mm_set1_pd(M[3 * c + 1]);
-      const __m128d d = _mm_set1_pd(M[3 * c + 2]);
-      nlo[c] = _mm_add_pd(_mm_add_pd(_mm_mul_pd(lo[0], a), _mm_mul_pd(lo[1], b)),
-                          _mm_mul_pd(lo[2], d));
-      nhi[c] = _mm_add_sd(_mm_add_sd(_mm_mul_sd(hi[0], a), _mm_mul_sd(hi[1], b)),
-                          _mm_mul_sd(hi[2], d));
-    }
-    const __m128d a = _mm_set1_pd(X.t(0));
-    const __m128d b = _mm_set1_pd(X.t(1));
-    const __m128d d = _mm_set1_pd(X.t(2));
-    lo[3] = _mm_add_pd(_mm_add_pd(_mm_mul_pd(lo[0], a), lo[3]),
-                       _mm_add_pd(_mm_mul_pd(lo[1], b), _mm_mul_pd(lo[2], d)));
-    hi[3] = _mm_add_sd(_mm_add_sd(_mm_mul_sd(hi[0], a), hi[3]),
-                       _mm_add_sd(_mm_mul_sd(hi[1], b), _mm_mul_sd(hi[2], d)));
-    for (int c = 0; c < 3; ++c) {
-      lo[c] = nlo[c];
-      hi[c] = nhi[c];
-    }
-  }
-  // R <- R Rz(q): columns 0 and 1 only.
-  void RotZ(double cq, double sq) {
-    const __m128d c = _mm_set1_pd(cq), ns = _mm_set1_pd(-sq);
-    internal::PlaneRotation(c, ns, &lo[0], &lo[1]);
-    internal::PlaneRotation(c, ns, &hi[0], &hi[1]);
-  }
-  void Store(Eigen::Matrix3d* R, Eigen::Vector3d* t) const {
-    for (int k = 0; k < 3; ++k) {
-      _mm_storeu_pd(R->data() + 3 * k, lo[k]);
-      _mm_store_sd(R->data() + 3 * k + 2, hi[k]);
-    }
-    _mm_storeu_pd(t->data(), lo[3]);
-    _mm_store_sd(t->data() + 2, hi[3]);
-  }
-};
-#else
-// The running product of the forward pass as 12 scalars (column-major R, then t).
+// The running product of the double forward pass as 12 scalars (column-major R, then t), the
+// products in a fixed order: new R column c = (R_0 a + R_1 b) + R_2 d, t <- (R_0 a + t) + (R_1 b +
+// R_2 d) (the order of the SSE2 register form it replaces, so the same values). Plain C++: the
+// compiler vectorizes it for the target it builds for.
 struct Accumulator {
   double r[9];
   double t[3];
@@ -88,10 +29,13 @@ struct Accumulator {
     double n[9];
     for (int c = 0; c < 3; ++c) {
       const double a = M[3 * c], b = M[3 * c + 1], d = M[3 * c + 2];
-      for (int row = 0; row < 3; ++row) n[3 * c + row] = r[row] * a + r[3 + row] * b + r[6 + row] * d;
+      for (int row = 0; row < 3; ++row) {
+        n[3 * c + row] = (r[row] * a + r[3 + row] * b) + r[6 + row] * d;
+      }
     }
+    const double a = X.t(0), b = X.t(1), d = X.t(2);
     for (int row = 0; row < 3; ++row) {
-      t[row] += r[row] * X.t(0) + r[3 + row] * X.t(1) + r[6 + row] * X.t(2);
+      t[row] = (r[row] * a + t[row]) + (r[3 + row] * b + r[6 + row] * d);
     }
     for (int k = 0; k < 9; ++k) r[k] = n[k];
   }
@@ -104,7 +48,6 @@ struct Accumulator {
     for (int k = 0; k < 3; ++k) (*tt)(k) = t[k];
   }
 };
-#endif
 
 // Joints whose sin/cos are computed ahead of the chain (longer chains compute them on the fly).
 // Every XMM register is caller-saved on x86-64, so a sincos call inside the chain would spill and
@@ -145,7 +88,7 @@ class SinCosUpFront {
   bool z_[kSinCosUpFront];
 };
 
-// The forward pass shared by every double path (ForwardChain with the SSE2 accumulator):
+// The forward pass shared by every double path (ForwardChain with the accumulator above):
 // X = prod_i T_{i-1,i}(0) exp(s_i^ q_i) * tail, with `is_z(i)` telling which joints take the
 // 2-column update. When `frames` is given, frames[i] receives G_i = T_0,i-1(q) T_{i-1,i}(0) (before
 // joint i moves).
@@ -391,88 +334,14 @@ SE3d ToolPoseJointJacobian(const RobotModel& model, const double* q, int tool,
 
 // ---- SinCosMany.
 
-#ifdef LPOE_HAVE_AVX2_SINCOS
-namespace {
-
-// Largest |x| the vector path reduces: k = round(x 2 / pi) then has at most 19 bits, so that k times
-// each 33-bit part of pi/2 is exact (fdlibm's medium-size reduction, __ieee754_rem_pio2).
-constexpr double kMaxVectorArgument = 524288.0;  // 2^19
-
-// sin and cos of x[0..3] into s, c; lanes beyond kMaxVectorArgument (or non-finite) are recomputed
-// with libm.
-__attribute__((target("avx2,fma"))) void SinCos4Avx2(const double* x, double* s, double* c) {
-  // pi/2 in three parts of 33 bits and the rest (fdlibm's pio2_1, pio2_2, pio2_3, pio2_3t).
-  const __m256d p1 = _mm256_set1_pd(1.57079632673412561417e+00);
-  const __m256d p2 = _mm256_set1_pd(6.07710050630396597660e-11);
-  const __m256d p3 = _mm256_set1_pd(2.02226624871116645580e-21);
-  const __m256d p3t = _mm256_set1_pd(8.47842766036889956997e-32);
-  const __m256d v = _mm256_loadu_pd(x);
-  const __m256d k = _mm256_round_pd(_mm256_mul_pd(v, _mm256_set1_pd(6.36619772367581382433e-01)),
-                                    _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-  // r = x - k pi/2: the first two products are exact and the first difference too (Sterbenz).
-  __m256d r = _mm256_fnmadd_pd(k, p1, v);
-  r = _mm256_fnmadd_pd(k, p2, r);
-  r = _mm256_fnmadd_pd(k, p3, r);
-  r = _mm256_fnmadd_pd(k, p3t, r);
-  // fdlibm's __kernel_sin and __kernel_cos (no tail) on r in [-pi/4, pi/4].
-  const __m256d z = _mm256_mul_pd(r, r);
-  __m256d ps = _mm256_set1_pd(1.58969099521155010221e-10);
-  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(-2.50507602534068634195e-08));
-  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(2.75573137070700676789e-06));
-  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(-1.98412698298579493134e-04));
-  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(8.33333333332248946124e-03));
-  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(-1.66666666666666324348e-01));
-  const __m256d sin_r = _mm256_fmadd_pd(_mm256_mul_pd(z, r), ps, r);
-  __m256d pc = _mm256_set1_pd(-1.13596475577881948265e-11);
-  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(2.08757232129817482790e-09));
-  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(-2.75573143513906633035e-07));
-  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(2.48015872894767294178e-05));
-  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(-1.38888888888741095749e-03));
-  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(4.16666666666666019037e-02));
-  const __m256d one = _mm256_set1_pd(1.0);
-  const __m256d hz = _mm256_mul_pd(_mm256_set1_pd(0.5), z);
-  const __m256d w = _mm256_sub_pd(one, hz);
-  // cos r = w + ((1 - w) - hz + z^2 pc), the rounding of 1 - hz recovered.
-  const __m256d cos_r = _mm256_add_pd(
-      w, _mm256_fmadd_pd(_mm256_mul_pd(z, z), pc, _mm256_sub_pd(_mm256_sub_pd(one, w), hz)));
-  // Quadrant n = k mod 4: (sin, cos) = (S, C), (C, -S), (-S, -C), (-C, S).
-  const __m256i n = _mm256_cvtepi32_epi64(_mm256_cvtpd_epi32(k));
-  const __m256d swap =
-      _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(n, _mm256_set1_epi64x(1)),
-                                             _mm256_set1_epi64x(1)));
-  const __m256i two = _mm256_set1_epi64x(2);
-  const __m256d sin_sign = _mm256_castsi256_pd(_mm256_slli_epi64(_mm256_and_si256(n, two), 62));
-  const __m256d cos_sign = _mm256_castsi256_pd(
-      _mm256_slli_epi64(_mm256_and_si256(_mm256_add_epi64(n, _mm256_set1_epi64x(1)), two), 62));
-  _mm256_storeu_pd(s, _mm256_xor_pd(_mm256_blendv_pd(sin_r, cos_r, swap), sin_sign));
-  _mm256_storeu_pd(c, _mm256_xor_pd(_mm256_blendv_pd(cos_r, sin_r, swap), cos_sign));
-  const __m256d abs_v = _mm256_andnot_pd(_mm256_set1_pd(-0.0), v);
-  const int in_range =
-      _mm256_movemask_pd(_mm256_cmp_pd(abs_v, _mm256_set1_pd(kMaxVectorArgument), _CMP_LE_OQ));
-  if (in_range != 0xF) {
-    for (int l = 0; l < 4; ++l) {
-      if (!(in_range & (1 << l))) SinCos(x[l], &s[l], &c[l]);
-    }
-  }
-}
-
-bool HaveAvx2Fma() {
-  static const bool have = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  return have;
-}
-
-}  // namespace
-#endif
-
 void SinCosMany(const double* x, int count, double* s, double* c) {
-#ifdef LPOE_HAVE_AVX2_SINCOS
-  if (HaveAvx2Fma()) {
+  if (kernels::Avx2Fma()) {
     int k = 0;
-    for (; k + 4 <= count; k += 4) SinCos4Avx2(x + k, s + k, c + k);
+    for (; k + 4 <= count; k += 4) kernels::SinCos4Avx2(x + k, s + k, c + k);
     if (k < count) {  // the last 1-3 values through the same path (padded)
       double xs[4] = {0, 0, 0, 0}, ss[4], cs[4];
       for (int l = 0; k + l < count; ++l) xs[l] = x[k + l];
-      SinCos4Avx2(xs, ss, cs);
+      kernels::SinCos4Avx2(xs, ss, cs);
       for (int l = 0; k + l < count; ++l) {
         s[k + l] = ss[l];
         c[k + l] = cs[l];
@@ -480,7 +349,6 @@ void SinCosMany(const double* x, int count, double* s, double* c) {
     }
     return;
   }
-#endif
   for (int k = 0; k < count; ++k) SinCos(x[k], &s[k], &c[k]);
 }
 
