@@ -23,37 +23,41 @@ struct ChainState {
   std::vector<Vector6d> twist;
 };
 
-// `origins`: the joint origins to use instead of the model's (nullptr: the model's).
+// `origins`: the joint origins to use instead of the model's (nullptr: the model's). The chain is
+// kinematics.h's ForwardChain (SE3Accumulator<double>): before joint i moves its frame gives the
+// twist Ad_{G_i} s_i, after it the link frame.
 void ComputeChainState(const RobotModel& model, const double* q, ChainState* state,
                        const std::vector<SE3d>* origins = nullptr) {
   const int n = model.num_joints();
   state->link.resize(n);
   state->twist.resize(n);
-  // sin and cos of every joint value at once (SinCosMany: within 2 ulp of libm's, the same value
-  // for the same q wherever it is computed).
-  double sin_q[kMaxGivenSinCosJoints], cos_q[kMaxGivenSinCosJoints];
-  const bool given = n <= kMaxGivenSinCosJoints;
-  if (given) SinCosMany(q, n, sin_q, cos_q);
-  SE3d X;
-  for (int i = 0; i < n; ++i) {
+  auto origin = [&](int i) -> const SE3d& {
+    return origins != nullptr ? (*origins)[i] : model.joints[i].origin;
+  };
+  auto is_z = [&](int i) { return IsRevoluteZ(model.joints[i]); };
+  auto twist = [&](int i, const SE3Accumulator<double>& G) {
+    const SE3d& X = G.X;
     const Joint& joint = model.joints[i];
-    X = X * (origins != nullptr ? (*origins)[i] : joint.origin);
-    if (given && IsRevoluteZ(joint)) {
-      // Without the general products: w = R e_z, v = t x w, and X Rz(q) turns R's first two
-      // columns (t unchanged).
+    if (is_z(i)) {  // w = R e_z, v = t x w
       const Eigen::Vector3d w = X.R.col(2);
       state->twist[i] << w, X.t.cross(w);
-      const double s = sin_q[i], c = cos_q[i];
-      const Eigen::Vector3d r0 = X.R.col(0), r1 = X.R.col(1);
-      X.R.col(0) = r0 * c + r1 * s;
-      X.R.col(1) = r0 * -s + r1 * c;
-      state->link[i] = X;
-      continue;
+      return;
     }
     const Eigen::Vector3d w = X.R * joint.twist.head<3>();
     state->twist[i] << w, X.R * joint.twist.tail<3>() + X.t.cross(w);  // Ad_X s (se3.h)
-    X = X * JointMotion(joint, q[i]);
-    state->link[i] = X;
+  };
+  auto link = [&](int i, const SE3Accumulator<double>& X) { state->link[i] = X.X; };
+  SE3Accumulator<double> X;
+  X.X = SE3d();
+  // sin and cos of every joint value at once (SinCosMany: within 2 ulp of libm's, the same value
+  // for the same q wherever it is computed).
+  if (n <= kMaxGivenSinCosJoints) {
+    double sin_q[kMaxGivenSinCosJoints], cos_q[kMaxGivenSinCosJoints];
+    SinCosMany(q, n, sin_q, cos_q);
+    ForwardChain(n, origin, MakeGivenSinCosMotions(model.joints.data(), q, is_z, sin_q, cos_q), &X,
+                 twist, link);
+  } else {
+    ForwardChain(n, origin, MakeOnTheFlyMotions(model.joints.data(), q, is_z), &X, twist, link);
   }
 }
 

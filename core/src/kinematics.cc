@@ -54,40 +54,6 @@ struct Accumulator {
 // reload the running product; computed first, the calls have nothing live around them.
 constexpr int kSinCosUpFront = kMaxGivenSinCosJoints;
 
-// The motion policy of the double forward pass (kinematics.h): the sin/cos of every revolute-z joint
-// computed before the chain, on the stack; the other joints as OnTheFlyMotions. With `sin_q` and
-// `cos_q` given, they are used instead (a caller that keeps them up to date).
-template <typename IsZ>
-class SinCosUpFront {
- public:
-  SinCosUpFront(const Joint* joints, const double* q, int n, IsZ is_z,
-                const double* sin_q = nullptr, const double* cos_q = nullptr)
-      : other_(joints, q, is_z), s_(sin_q), c_(cos_q) {
-    for (int i = 0; i < n; ++i) z_[i] = is_z(i);
-    if (s_ != nullptr) return;
-    for (int i = 0; i < n; ++i) {
-      if (z_[i]) SinCos(q[i], &own_s_[i], &own_c_[i]);
-    }
-    s_ = own_s_;
-    c_ = own_c_;
-  }
-  SinCosUpFront(const SinCosUpFront&) = delete;  // s_ may point into the object
-  void ApplyRight(int i, Accumulator* X) const {
-    if (z_[i]) {
-      X->RotZ(c_[i], s_[i]);
-    } else {
-      other_.ApplyRight(i, X);
-    }
-  }
-
- private:
-  OnTheFlyMotions<IsZ, double> other_;
-  const double* s_;
-  const double* c_;
-  double own_s_[kSinCosUpFront], own_c_[kSinCosUpFront];
-  bool z_[kSinCosUpFront];
-};
-
 // The forward pass shared by every double path (ForwardChain with the accumulator above):
 // X = prod_i T_{i-1,i}(0) exp(s_i^ q_i) * tail, with `is_z(i)` telling which joints take the
 // 2-column update. When `frames` is given, frames[i] receives G_i = T_0,i-1(q) T_{i-1,i}(0) (before
@@ -104,7 +70,16 @@ inline void ForwardPass(const RobotModel& model, const double* q, IsZ is_z, cons
     if (frames != nullptr) A.Store(&frames[i].R, &frames[i].t);
   };
   if (n <= kSinCosUpFront) {
-    ForwardChain(n, origin, SinCosUpFront<IsZ>(joints, q, n, is_z, sin_q, cos_q), &X, sink);
+    // The sin/cos of every revolute-z joint before the chain (unless given), on the stack.
+    double own_s[kSinCosUpFront], own_c[kSinCosUpFront];
+    if (sin_q == nullptr) {
+      for (int i = 0; i < n; ++i) {
+        if (is_z(i)) SinCos(q[i], &own_s[i], &own_c[i]);
+      }
+      sin_q = own_s;
+      cos_q = own_c;
+    }
+    ForwardChain(n, origin, MakeGivenSinCosMotions(joints, q, is_z, sin_q, cos_q), &X, sink);
   } else {
     CHECK(sin_q == nullptr) << "given sin/cos: at most " << kSinCosUpFront << " joints";
     ForwardChain(n, origin, MakeOnTheFlyMotions(joints, q, is_z), &X, sink);
@@ -125,28 +100,6 @@ inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q
       MakeOnTheFlyMotions(joints, q, is_z), tool_point);
 }
 
-// The motion policy of the backward pass with sin(q_i), cos(q_i) of the revolute-z joints given.
-template <typename IsZ>
-class GivenSinCos {
- public:
-  GivenSinCos(const Joint* joints, const double* q, IsZ is_z, const double* sin_q,
-              const double* cos_q)
-      : other_(joints, q, is_z), is_z_(is_z), s_(sin_q), c_(cos_q) {}
-  void ApplyLeft(int i, Eigen::Vector3d* p) const {
-    if (is_z_(i)) {
-      internal::PlaneRotation(c_[i], s_[i], &(*p)(0), &(*p)(1));
-    } else {
-      other_.ApplyLeft(i, p);
-    }
-  }
-
- private:
-  OnTheFlyMotions<IsZ, double> other_;
-  IsZ is_z_;
-  const double* s_;
-  const double* c_;
-};
-
 template <typename IsZ>
 inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q, IsZ is_z,
                                         const double* sin_q, const double* cos_q,
@@ -154,7 +107,7 @@ inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q
   const Joint* joints = model.joints.data();
   return BackwardChain<double>(
       model.num_joints(), [joints](int i) -> const SE3d& { return joints[i].origin; },
-      GivenSinCos<IsZ>(joints, q, is_z, sin_q, cos_q), tool_point);
+      MakeGivenSinCosMotions(joints, q, is_z, sin_q, cos_q), tool_point);
 }
 
 template <typename IsZ>
