@@ -3,9 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
-#ifdef __SSE2__
-#include <emmintrin.h>
-#endif
 
 #include <Eigen/SVD>
 #include <glog/logging.h>
@@ -28,37 +25,41 @@ struct ChainState {
   std::vector<Vector6d> twist;
 };
 
-// `origins`: the joint origins to use instead of the model's (nullptr: the model's).
+// `origins`: the joint origins to use instead of the model's (nullptr: the model's). The chain is
+// kinematics.h's ForwardChain (SE3Accumulator<double>): before joint i moves its frame gives the
+// twist Ad_{G_i} s_i, after it the link frame.
 void ComputeChainState(const RobotModel& model, const double* q, ChainState* state,
                        const std::vector<SE3d>* origins = nullptr) {
   const int n = model.num_joints();
   state->link.resize(n);
   state->twist.resize(n);
-  // sin and cos of every joint value at once (SinCosMany: within 2 ulp of libm's, the same value
-  // for the same q wherever it is computed).
-  double sin_q[kMaxGivenSinCosJoints], cos_q[kMaxGivenSinCosJoints];
-  const bool given = n <= kMaxGivenSinCosJoints;
-  if (given) SinCosMany(q, n, sin_q, cos_q);
-  SE3d X;
-  for (int i = 0; i < n; ++i) {
+  auto origin = [&](int i) -> const SE3d& {
+    return origins != nullptr ? (*origins)[i] : model.joints[i].origin;
+  };
+  auto is_z = [&](int i) { return IsRevoluteZ(model.joints[i]); };
+  auto twist = [&](int i, const SE3Accumulator<double>& G) {
+    const SE3d& X = G.X;
     const Joint& joint = model.joints[i];
-    X = X * (origins != nullptr ? (*origins)[i] : joint.origin);
-    if (given && IsRevoluteZ(joint)) {
-      // Without the general products: w = R e_z, v = t x w, and X Rz(q) turns R's first two
-      // columns (t unchanged).
+    if (is_z(i)) {  // w = R e_z, v = t x w
       const Eigen::Vector3d w = X.R.col(2);
       state->twist[i] << w, X.t.cross(w);
-      const double s = sin_q[i], c = cos_q[i];
-      const Eigen::Vector3d r0 = X.R.col(0), r1 = X.R.col(1);
-      X.R.col(0) = r0 * c + r1 * s;
-      X.R.col(1) = r0 * -s + r1 * c;
-      state->link[i] = X;
-      continue;
+      return;
     }
     const Eigen::Vector3d w = X.R * joint.twist.head<3>();
     state->twist[i] << w, X.R * joint.twist.tail<3>() + X.t.cross(w);  // Ad_X s (se3.h)
-    X = X * JointMotion(joint, q[i]);
-    state->link[i] = X;
+  };
+  auto link = [&](int i, const SE3Accumulator<double>& X) { state->link[i] = X.X; };
+  SE3Accumulator<double> X;
+  X.X = SE3d();
+  // sin and cos of every joint value at once (SinCosMany: within 2 ulp of libm's, the same value
+  // for the same q wherever it is computed).
+  if (n <= kMaxGivenSinCosJoints) {
+    double sin_q[kMaxGivenSinCosJoints], cos_q[kMaxGivenSinCosJoints];
+    SinCosMany(q, n, sin_q, cos_q);
+    ForwardChain(n, origin, MakeGivenSinCosMotions(model.joints.data(), q, is_z, sin_q, cos_q), &X,
+                 twist, link);
+  } else {
+    ForwardChain(n, origin, MakeOnTheFlyMotions(model.joints.data(), q, is_z), &X, twist, link);
   }
 }
 
@@ -129,33 +130,12 @@ void HarmonicsValues(const RobotModel& model, const double* q, double* out) {
   }
 }
 
-// Entries below kJointErrorRoundingCutoff of the largest |y| set to exact zeros.
-// Every row of a calibration passes here: with SSE2 two entries at a time. A maximum is exact in
-// any order, and maxpd(|y|, largest) keeps `largest` for a NaN |y| as std::max(largest, |y|) does;
-// the cut keeps y where |y| >= cutoff (a NaN is kept, as the scalar comparison keeps it).
+// Entries below kJointErrorRoundingCutoff of the largest |y| set to exact zeros (a NaN is kept).
 void ZeroRoundingNoiseImpl(double* y, int size) {
   double largest = 0;
-  int k = 0;
-#ifdef __SSE2__
-  const __m128d sign = _mm_set1_pd(-0.0);
-  __m128d lanes = _mm_setzero_pd();
-  for (; k + 2 <= size; k += 2) lanes = _mm_max_pd(_mm_andnot_pd(sign, _mm_loadu_pd(y + k)), lanes);
-  alignas(16) double two[2];
-  _mm_store_pd(two, lanes);
-  largest = std::max(two[0], two[1]);
-#endif
-  for (; k < size; ++k) largest = std::max(largest, std::abs(y[k]));
+  for (int k = 0; k < size; ++k) largest = std::max(largest, std::abs(y[k]));
   const double cutoff = kJointErrorRoundingCutoff * largest;
-  k = 0;
-#ifdef __SSE2__
-  const __m128d cut = _mm_set1_pd(cutoff);
-  for (; k + 2 <= size; k += 2) {
-    const __m128d v = _mm_loadu_pd(y + k);
-    const __m128d small = _mm_cmplt_pd(_mm_andnot_pd(sign, v), cut);
-    _mm_storeu_pd(y + k, _mm_andnot_pd(small, v));
-  }
-#endif
-  for (; k < size; ++k) {
+  for (int k = 0; k < size; ++k) {
     if (std::abs(y[k]) < cutoff) y[k] = 0.0;
   }
 }

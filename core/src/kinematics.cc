@@ -1,57 +1,48 @@
 #include "lpoe/kinematics.h"
 
+#include "lpoe/kernels.h"
+
 #include <algorithm>
 #include <cmath>
 
 #include <glog/logging.h>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define LPOE_HAVE_AVX2_SINCOS 1
-#endif
 
 namespace lpoe {
 namespace {
 
-#if defined(__SSE2__)
-// The running product of the forward pass in SSE2 registers: each column of R (and t) as a pair
-// (rows 0, 1) plus a scalar (row 2), so that a 3x3 product takes 18 packed-or-scalar multiplications
-// instead of 27. SSE2 is part of x86-64; other targets use the scalar form below.
+// The running product of the double forward pass on a lane type: each column of R (and t) as a
+// pair of rows 0 and 1 (GCC/Clang vector arithmetic, two doubles: SSE2 on x86-64, NEON elsewhere,
+// plain code where there is none) plus row 2 as a scalar, so that a 3x3 product takes 18 multiplications
+// on pairs or scalars instead of 27. The products in a fixed order: new column c =
+// (R_0 a + R_1 b) + R_2 d, t <- (R_0 a + t) + (R_1 b + R_2 d).
 struct Accumulator {
-  __m128d lo[4];  // rows 0 and 1 of columns 0..2 of R, then of t
-  __m128d hi[4];  // row 2 (low lane)
+  typedef double Pair __attribute__((vector_size(16)));
+  Pair lo[4];     // rows 0 and 1 of columns 0..2 of R, then of t
+  double hi[4];   // row 2
 
+  static Pair Splat(double v) { return Pair{v, v}; }
   void Set(const SE3d& X) {
     for (int k = 0; k < 3; ++k) {
-      lo[k] = _mm_loadu_pd(X.R.data() + 3 * k);
-      hi[k] = _mm_load_sd(X.R.data() + 3 * k + 2);
+      lo[k] = Pair{X.R(0, k), X.R(1, k)};
+      hi[k] = X.R(2, k);
     }
-    lo[3] = _mm_loadu_pd(X.t.data());
-    hi[3] = _mm_load_sd(X.t.data() + 2);
+    lo[3] = Pair{X.t(0), X.t(1)};
+    hi[3] = X.t(2);
   }
   // (R, t) <- (R, t) * (M, m).
   void RightMultiply(const SE3d& X) {
     const double* M = X.R.data();  // column-major
-    __m128d nlo[3], nhi[3];
+    Pair nlo[3];
+    double nhi[3];
     for (int c = 0; c < 3; ++c) {
-      const __m128d a = _mm_set1_pd(M[3 * c]);
-      const __m128d b = _mm_set1_pd(M[3 * c + 1]);
-      const __m128d d = _mm_set1_pd(M[3 * c + 2]);
-      nlo[c] = _mm_add_pd(_mm_add_pd(_mm_mul_pd(lo[0], a), _mm_mul_pd(lo[1], b)),
-                          _mm_mul_pd(lo[2], d));
-      nhi[c] = _mm_add_sd(_mm_add_sd(_mm_mul_sd(hi[0], a), _mm_mul_sd(hi[1], b)),
-                          _mm_mul_sd(hi[2], d));
+      const double a = M[3 * c], b = M[3 * c + 1], d = M[3 * c + 2];
+      nlo[c] = (lo[0] * Splat(a) + lo[1] * Splat(b)) + lo[2] * Splat(d);
+      nhi[c] = (hi[0] * a + hi[1] * b) + hi[2] * d;
     }
-    const __m128d a = _mm_set1_pd(X.t(0));
-    const __m128d b = _mm_set1_pd(X.t(1));
-    const __m128d d = _mm_set1_pd(X.t(2));
-    lo[3] = _mm_add_pd(_mm_add_pd(_mm_mul_pd(lo[0], a), lo[3]),
-                       _mm_add_pd(_mm_mul_pd(lo[1], b), _mm_mul_pd(lo[2], d)));
-    hi[3] = _mm_add_sd(_mm_add_sd(_mm_mul_sd(hi[0], a), hi[3]),
-                       _mm_add_sd(_mm_mul_sd(hi[1], b), _mm_mul_sd(hi[2], d)));
+    const double a = X.t(0), b = X.t(1), d = X.t(2);
+    lo[3] = (lo[0] * Splat(a) + lo[3]) + (lo[1] * Splat(b) + lo[2] * Splat(d));
+    hi[3] = (hi[0] * a + hi[3]) + (hi[1] * b + hi[2] * d);
     for (int c = 0; c < 3; ++c) {
       lo[c] = nlo[c];
       hi[c] = nhi[c];
@@ -59,93 +50,27 @@ struct Accumulator {
   }
   // R <- R Rz(q): columns 0 and 1 only.
   void RotZ(double cq, double sq) {
-    const __m128d c = _mm_set1_pd(cq), ns = _mm_set1_pd(-sq);
-    internal::PlaneRotation(c, ns, &lo[0], &lo[1]);
-    internal::PlaneRotation(c, ns, &hi[0], &hi[1]);
+    internal::PlaneRotation(Splat(cq), Splat(-sq), &lo[0], &lo[1]);
+    internal::PlaneRotation(cq, -sq, &hi[0], &hi[1]);
   }
   void Store(Eigen::Matrix3d* R, Eigen::Vector3d* t) const {
     for (int k = 0; k < 3; ++k) {
-      _mm_storeu_pd(R->data() + 3 * k, lo[k]);
-      _mm_store_sd(R->data() + 3 * k + 2, hi[k]);
+      (*R)(0, k) = lo[k][0];
+      (*R)(1, k) = lo[k][1];
+      (*R)(2, k) = hi[k];
     }
-    _mm_storeu_pd(t->data(), lo[3]);
-    _mm_store_sd(t->data() + 2, hi[3]);
+    (*t)(0) = lo[3][0];
+    (*t)(1) = lo[3][1];
+    (*t)(2) = hi[3];
   }
 };
-#else
-// The running product of the forward pass as 12 scalars (column-major R, then t).
-struct Accumulator {
-  double r[9];
-  double t[3];
-
-  void Set(const SE3d& X) {
-    for (int k = 0; k < 9; ++k) r[k] = X.R.data()[k];
-    for (int k = 0; k < 3; ++k) t[k] = X.t(k);
-  }
-  // (r, t) <- (r, t) * (M, m).
-  void RightMultiply(const SE3d& X) {
-    const double* M = X.R.data();  // column-major
-    double n[9];
-    for (int c = 0; c < 3; ++c) {
-      const double a = M[3 * c], b = M[3 * c + 1], d = M[3 * c + 2];
-      for (int row = 0; row < 3; ++row) n[3 * c + row] = r[row] * a + r[3 + row] * b + r[6 + row] * d;
-    }
-    for (int row = 0; row < 3; ++row) {
-      t[row] += r[row] * X.t(0) + r[3 + row] * X.t(1) + r[6 + row] * X.t(2);
-    }
-    for (int k = 0; k < 9; ++k) r[k] = n[k];
-  }
-  // r <- r Rz(q): columns 0 and 1 only.
-  void RotZ(double c, double s) {
-    for (int row = 0; row < 3; ++row) internal::PlaneRotation(c, -s, &r[row], &r[3 + row]);
-  }
-  void Store(Eigen::Matrix3d* R, Eigen::Vector3d* tt) const {
-    for (int k = 0; k < 9; ++k) R->data()[k] = r[k];
-    for (int k = 0; k < 3; ++k) (*tt)(k) = t[k];
-  }
-};
-#endif
 
 // Joints whose sin/cos are computed ahead of the chain (longer chains compute them on the fly).
 // Every XMM register is caller-saved on x86-64, so a sincos call inside the chain would spill and
 // reload the running product; computed first, the calls have nothing live around them.
 constexpr int kSinCosUpFront = kMaxGivenSinCosJoints;
 
-// The motion policy of the double forward pass (kinematics.h): the sin/cos of every revolute-z joint
-// computed before the chain, on the stack; the other joints as OnTheFlyMotions. With `sin_q` and
-// `cos_q` given, they are used instead (a caller that keeps them up to date).
-template <typename IsZ>
-class SinCosUpFront {
- public:
-  SinCosUpFront(const Joint* joints, const double* q, int n, IsZ is_z,
-                const double* sin_q = nullptr, const double* cos_q = nullptr)
-      : other_(joints, q, is_z), s_(sin_q), c_(cos_q) {
-    for (int i = 0; i < n; ++i) z_[i] = is_z(i);
-    if (s_ != nullptr) return;
-    for (int i = 0; i < n; ++i) {
-      if (z_[i]) SinCos(q[i], &own_s_[i], &own_c_[i]);
-    }
-    s_ = own_s_;
-    c_ = own_c_;
-  }
-  SinCosUpFront(const SinCosUpFront&) = delete;  // s_ may point into the object
-  void ApplyRight(int i, Accumulator* X) const {
-    if (z_[i]) {
-      X->RotZ(c_[i], s_[i]);
-    } else {
-      other_.ApplyRight(i, X);
-    }
-  }
-
- private:
-  OnTheFlyMotions<IsZ, double> other_;
-  const double* s_;
-  const double* c_;
-  double own_s_[kSinCosUpFront], own_c_[kSinCosUpFront];
-  bool z_[kSinCosUpFront];
-};
-
-// The forward pass shared by every double path (ForwardChain with the SSE2 accumulator):
+// The forward pass shared by every double path (ForwardChain with the accumulator above):
 // X = prod_i T_{i-1,i}(0) exp(s_i^ q_i) * tail, with `is_z(i)` telling which joints take the
 // 2-column update. When `frames` is given, frames[i] receives G_i = T_0,i-1(q) T_{i-1,i}(0) (before
 // joint i moves).
@@ -161,7 +86,16 @@ inline void ForwardPass(const RobotModel& model, const double* q, IsZ is_z, cons
     if (frames != nullptr) A.Store(&frames[i].R, &frames[i].t);
   };
   if (n <= kSinCosUpFront) {
-    ForwardChain(n, origin, SinCosUpFront<IsZ>(joints, q, n, is_z, sin_q, cos_q), &X, sink);
+    // The sin/cos of every revolute-z joint before the chain (unless given), on the stack.
+    double own_s[kSinCosUpFront], own_c[kSinCosUpFront];
+    if (sin_q == nullptr) {
+      for (int i = 0; i < n; ++i) {
+        if (is_z(i)) SinCos(q[i], &own_s[i], &own_c[i]);
+      }
+      sin_q = own_s;
+      cos_q = own_c;
+    }
+    ForwardChain(n, origin, MakeGivenSinCosMotions(joints, q, is_z, sin_q, cos_q), &X, sink);
   } else {
     CHECK(sin_q == nullptr) << "given sin/cos: at most " << kSinCosUpFront << " joints";
     ForwardChain(n, origin, MakeOnTheFlyMotions(joints, q, is_z), &X, sink);
@@ -182,28 +116,6 @@ inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q
       MakeOnTheFlyMotions(joints, q, is_z), tool_point);
 }
 
-// The motion policy of the backward pass with sin(q_i), cos(q_i) of the revolute-z joints given.
-template <typename IsZ>
-class GivenSinCos {
- public:
-  GivenSinCos(const Joint* joints, const double* q, IsZ is_z, const double* sin_q,
-              const double* cos_q)
-      : other_(joints, q, is_z), is_z_(is_z), s_(sin_q), c_(cos_q) {}
-  void ApplyLeft(int i, Eigen::Vector3d* p) const {
-    if (is_z_(i)) {
-      internal::PlaneRotation(c_[i], s_[i], &(*p)(0), &(*p)(1));
-    } else {
-      other_.ApplyLeft(i, p);
-    }
-  }
-
- private:
-  OnTheFlyMotions<IsZ, double> other_;
-  IsZ is_z_;
-  const double* s_;
-  const double* c_;
-};
-
 template <typename IsZ>
 inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q, IsZ is_z,
                                         const double* sin_q, const double* cos_q,
@@ -211,7 +123,7 @@ inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q
   const Joint* joints = model.joints.data();
   return BackwardChain<double>(
       model.num_joints(), [joints](int i) -> const SE3d& { return joints[i].origin; },
-      GivenSinCos<IsZ>(joints, q, is_z, sin_q, cos_q), tool_point);
+      MakeGivenSinCosMotions(joints, q, is_z, sin_q, cos_q), tool_point);
 }
 
 template <typename IsZ>
@@ -391,88 +303,14 @@ SE3d ToolPoseJointJacobian(const RobotModel& model, const double* q, int tool,
 
 // ---- SinCosMany.
 
-#ifdef LPOE_HAVE_AVX2_SINCOS
-namespace {
-
-// Largest |x| the vector path reduces: k = round(x 2 / pi) then has at most 19 bits, so that k times
-// each 33-bit part of pi/2 is exact (fdlibm's medium-size reduction, __ieee754_rem_pio2).
-constexpr double kMaxVectorArgument = 524288.0;  // 2^19
-
-// sin and cos of x[0..3] into s, c; lanes beyond kMaxVectorArgument (or non-finite) are recomputed
-// with libm.
-__attribute__((target("avx2,fma"))) void SinCos4Avx2(const double* x, double* s, double* c) {
-  // pi/2 in three parts of 33 bits and the rest (fdlibm's pio2_1, pio2_2, pio2_3, pio2_3t).
-  const __m256d p1 = _mm256_set1_pd(1.57079632673412561417e+00);
-  const __m256d p2 = _mm256_set1_pd(6.07710050630396597660e-11);
-  const __m256d p3 = _mm256_set1_pd(2.02226624871116645580e-21);
-  const __m256d p3t = _mm256_set1_pd(8.47842766036889956997e-32);
-  const __m256d v = _mm256_loadu_pd(x);
-  const __m256d k = _mm256_round_pd(_mm256_mul_pd(v, _mm256_set1_pd(6.36619772367581382433e-01)),
-                                    _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-  // r = x - k pi/2: the first two products are exact and the first difference too (Sterbenz).
-  __m256d r = _mm256_fnmadd_pd(k, p1, v);
-  r = _mm256_fnmadd_pd(k, p2, r);
-  r = _mm256_fnmadd_pd(k, p3, r);
-  r = _mm256_fnmadd_pd(k, p3t, r);
-  // fdlibm's __kernel_sin and __kernel_cos (no tail) on r in [-pi/4, pi/4].
-  const __m256d z = _mm256_mul_pd(r, r);
-  __m256d ps = _mm256_set1_pd(1.58969099521155010221e-10);
-  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(-2.50507602534068634195e-08));
-  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(2.75573137070700676789e-06));
-  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(-1.98412698298579493134e-04));
-  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(8.33333333332248946124e-03));
-  ps = _mm256_fmadd_pd(ps, z, _mm256_set1_pd(-1.66666666666666324348e-01));
-  const __m256d sin_r = _mm256_fmadd_pd(_mm256_mul_pd(z, r), ps, r);
-  __m256d pc = _mm256_set1_pd(-1.13596475577881948265e-11);
-  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(2.08757232129817482790e-09));
-  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(-2.75573143513906633035e-07));
-  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(2.48015872894767294178e-05));
-  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(-1.38888888888741095749e-03));
-  pc = _mm256_fmadd_pd(pc, z, _mm256_set1_pd(4.16666666666666019037e-02));
-  const __m256d one = _mm256_set1_pd(1.0);
-  const __m256d hz = _mm256_mul_pd(_mm256_set1_pd(0.5), z);
-  const __m256d w = _mm256_sub_pd(one, hz);
-  // cos r = w + ((1 - w) - hz + z^2 pc), the rounding of 1 - hz recovered.
-  const __m256d cos_r = _mm256_add_pd(
-      w, _mm256_fmadd_pd(_mm256_mul_pd(z, z), pc, _mm256_sub_pd(_mm256_sub_pd(one, w), hz)));
-  // Quadrant n = k mod 4: (sin, cos) = (S, C), (C, -S), (-S, -C), (-C, S).
-  const __m256i n = _mm256_cvtepi32_epi64(_mm256_cvtpd_epi32(k));
-  const __m256d swap =
-      _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(n, _mm256_set1_epi64x(1)),
-                                             _mm256_set1_epi64x(1)));
-  const __m256i two = _mm256_set1_epi64x(2);
-  const __m256d sin_sign = _mm256_castsi256_pd(_mm256_slli_epi64(_mm256_and_si256(n, two), 62));
-  const __m256d cos_sign = _mm256_castsi256_pd(
-      _mm256_slli_epi64(_mm256_and_si256(_mm256_add_epi64(n, _mm256_set1_epi64x(1)), two), 62));
-  _mm256_storeu_pd(s, _mm256_xor_pd(_mm256_blendv_pd(sin_r, cos_r, swap), sin_sign));
-  _mm256_storeu_pd(c, _mm256_xor_pd(_mm256_blendv_pd(cos_r, sin_r, swap), cos_sign));
-  const __m256d abs_v = _mm256_andnot_pd(_mm256_set1_pd(-0.0), v);
-  const int in_range =
-      _mm256_movemask_pd(_mm256_cmp_pd(abs_v, _mm256_set1_pd(kMaxVectorArgument), _CMP_LE_OQ));
-  if (in_range != 0xF) {
-    for (int l = 0; l < 4; ++l) {
-      if (!(in_range & (1 << l))) SinCos(x[l], &s[l], &c[l]);
-    }
-  }
-}
-
-bool HaveAvx2Fma() {
-  static const bool have = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  return have;
-}
-
-}  // namespace
-#endif
-
 void SinCosMany(const double* x, int count, double* s, double* c) {
-#ifdef LPOE_HAVE_AVX2_SINCOS
-  if (HaveAvx2Fma()) {
+  if (kernels::Avx2Fma()) {
     int k = 0;
-    for (; k + 4 <= count; k += 4) SinCos4Avx2(x + k, s + k, c + k);
+    for (; k + 4 <= count; k += 4) kernels::SinCos4Avx2(x + k, s + k, c + k);
     if (k < count) {  // the last 1-3 values through the same path (padded)
       double xs[4] = {0, 0, 0, 0}, ss[4], cs[4];
       for (int l = 0; k + l < count; ++l) xs[l] = x[k + l];
-      SinCos4Avx2(xs, ss, cs);
+      kernels::SinCos4Avx2(xs, ss, cs);
       for (int l = 0; k + l < count; ++l) {
         s[k + l] = ss[l];
         c[k + l] = cs[l];
@@ -480,7 +318,6 @@ void SinCosMany(const double* x, int count, double* s, double* c) {
     }
     return;
   }
-#endif
   for (int k = 0; k < count; ++k) SinCos(x[k], &s[k], &c[k]);
 }
 

@@ -36,11 +36,9 @@ namespace {
 // strict upper triangle is not read) into x[k..n): L x = e_k solved forward from row k, since the
 // column is zero above it. Plain loops over L's contiguous columns (the same operations as
 // x.tail() -= x(m) L.col(m).tail(), without an expression per column). x[0..k) is neither read nor
-// written. Compiled twice: for processors with AVX (four lanes instead of two; no fused
-// multiply-add, so the same roundings) and for any x86-64.
-__attribute__((always_inline)) inline void ForwardColumn(const double* L, Eigen::Index ld,
-                                                         Eigen::Index n, Eigen::Index k,
-                                                         double* x) {
+// written.
+inline void ForwardColumn(const double* L, Eigen::Index ld, Eigen::Index n, Eigen::Index k,
+                          double* x) {
   for (Eigen::Index i = k; i < n; ++i) x[i] = 0.0;
   x[k] = 1.0;
   for (Eigen::Index m = k; m < n; ++m) {
@@ -50,27 +48,9 @@ __attribute__((always_inline)) inline void ForwardColumn(const double* L, Eigen:
     for (Eigen::Index i = m + 1; i < n; ++i) x[i] -= xm * Lm[i];
   }
 }
-#if defined(__x86_64__) && defined(__GNUC__)
-__attribute__((target("avx"))) void ForwardColumnAvx(const double* L, Eigen::Index ld,
-                                                     Eigen::Index n, Eigen::Index k, double* x) {
-  ForwardColumn(L, ld, n, k, x);
-}
-#endif
 
-// Below this size the wider loop's setup outweighs its gain (a geometric calibration's 27 x 27).
-constexpr Eigen::Index kMinAvxRows = 32;
-
-// Column k of L^-1 (ForwardColumn) for L's size. Inlined into both callers (as a call the generic
-// loop costs about 5% more instructions).
-__attribute__((always_inline)) inline void InverseFactorColumn(const Eigen::MatrixXd& L,
-                                                               Eigen::Index k, double* x) {
-#if defined(__x86_64__) && defined(__GNUC__)
-  static const bool avx = __builtin_cpu_supports("avx");
-  if (avx && L.rows() >= kMinAvxRows) {
-    ForwardColumnAvx(L.data(), L.outerStride(), L.rows(), k, x);
-    return;
-  }
-#endif
+// Column k of L^-1 (ForwardColumn).
+inline void InverseFactorColumn(const Eigen::MatrixXd& L, Eigen::Index k, double* x) {
   ForwardColumn(L.data(), L.outerStride(), L.rows(), k, x);
 }
 

@@ -72,24 +72,59 @@ inline void PlaneRotation(const C& c, const C& s, A* x, A* y) {
 
 }  // namespace internal
 
-// exp(s^ q) for a joint of the given twist, for any scalar of the joint value (double, Jet): the
-// prismatic update t = v q, the revolute-z closed form, the general screw motion otherwise.
-template <typename S>
-SE3<S> JointMotion(const Joint& joint, const S& q) {
-  SE3<S> X;
-  if (joint.type == JointType::kPrismatic) {
-    X.t = joint.twist.tail<3>().template cast<S>() * q;
-    return X;
-  }
-  if (IsRevoluteZ(joint)) {
+// ---- Joint models (as Pinocchio's JointModel types): the three kinds of joint the chain knows. Each
+// gives its motion exp(s^ q) for any scalar of the joint value (double, Jet); the revolute-z model
+// also its updates from (sin q, cos q), the form every chain below applies it in.
+
+// Revolute about the joint frame's z axis, twist exactly (0, 0, 1, 0, 0, 0): Rz(q), no translation.
+struct JointModelRevoluteZ {
+  template <typename S>
+  static SE3<S> Motion(const S& q) {
     S sn, c;
     SinCos(q, &sn, &c);
+    SE3<S> X;
     X.R.setIdentity();
     internal::PlaneRotation(c, S(-sn), &X.R(0, 0), &X.R(0, 1));
     internal::PlaneRotation(c, S(-sn), &X.R(1, 0), &X.R(1, 1));
     return X;
   }
-  return ExpSE3(Vector6<S>(joint.twist.template cast<S>() * q));
+  // p <- Rz(q) p.
+  template <typename T, typename C>
+  static void ApplyLeft(const C& c, const C& s, Vector3<T>* p) {
+    internal::PlaneRotation(c, s, &(*p)(0), &(*p)(1));
+  }
+  // X <- X Rz(q) (the accumulator's two-column update).
+  template <typename Accumulator, typename C>
+  static void ApplyRight(const C& c, const C& s, Accumulator* X) {
+    X->RotZ(c, s);
+  }
+};
+
+// Revolute about any axis (a general screw of zero pitch, or with pitch): exp(s^ q).
+struct JointModelRevolute {
+  template <typename S>
+  static SE3<S> Motion(const Vector6d& twist, const S& q) {
+    return ExpSE3(Vector6<S>(twist.template cast<S>() * q));
+  }
+};
+
+// Prismatic along the twist's v: t = v q, no rotation.
+struct JointModelPrismatic {
+  template <typename S>
+  static SE3<S> Motion(const Vector6d& twist, const S& q) {
+    SE3<S> X;
+    X.t = twist.tail<3>().template cast<S>() * q;
+    return X;
+  }
+};
+
+// exp(s^ q) for a joint of the given twist, for any scalar of the joint value (double, Jet): the
+// joint's model's motion.
+template <typename S>
+SE3<S> JointMotion(const Joint& joint, const S& q) {
+  if (joint.type == JointType::kPrismatic) return JointModelPrismatic::Motion(joint.twist, q);
+  if (IsRevoluteZ(joint)) return JointModelRevoluteZ::Motion(q);
+  return JointModelRevolute::Motion(joint.twist, q);
 }
 
 // ---- One forward-kinematics template.
@@ -133,7 +168,7 @@ class JointMotions {
   void ApplyLeft(int i, Vector3<T>* p) const {
     const Motion& m = motions_[i];
     if (m.revolute_z) {
-      internal::PlaneRotation(m.c, m.s, &(*p)(0), &(*p)(1));
+      JointModelRevoluteZ::ApplyLeft(m.c, m.s, p);
     } else {
       *p = m.general.R.template cast<T>() * *p + m.general.t.template cast<T>();
     }
@@ -143,7 +178,7 @@ class JointMotions {
   void ApplyRight(int i, Accumulator* X) const {
     const Motion& m = motions_[i];
     if (m.revolute_z) {
-      X->RotZ(m.c, m.s);
+      JointModelRevoluteZ::ApplyRight(m.c, m.s, X);
     } else {
       X->RightMultiply(m.general);
     }
@@ -170,7 +205,7 @@ class OnTheFlyMotions {
     if (is_z_(i)) {
       S s, c;
       SinCos(q_[i], &s, &c);
-      internal::PlaneRotation(c, s, &(*p)(0), &(*p)(1));
+      JointModelRevoluteZ::ApplyLeft(c, s, p);
     } else {
       const SE3<S> M = JointMotion(joints_[i], q_[i]);
       *p = M.R.template cast<T>() * *p + M.t.template cast<T>();
@@ -181,7 +216,7 @@ class OnTheFlyMotions {
     if (is_z_(i)) {
       S s, c;
       SinCos(q_[i], &s, &c);
-      X->RotZ(c, s);
+      JointModelRevoluteZ::ApplyRight(c, s, X);
     } else {
       X->RightMultiply(JointMotion(joints_[i], q_[i]));
     }
@@ -196,6 +231,45 @@ class OnTheFlyMotions {
 template <typename S, typename IsZ>
 OnTheFlyMotions<IsZ, S> MakeOnTheFlyMotions(const Joint* joints, const S* q, IsZ is_z) {
   return OnTheFlyMotions<IsZ, S>(joints, q, is_z);
+}
+
+// The joint motions with sin(q_i) and cos(q_i) of the revolute-z joints given (computed for many
+// values at once by SinCosMany, or kept up to date by the caller); other joints as OnTheFlyMotions.
+template <typename IsZ>
+class GivenSinCosMotions {
+ public:
+  GivenSinCosMotions(const Joint* joints, const double* q, IsZ is_z, const double* sin_q,
+                     const double* cos_q)
+      : other_(joints, q, is_z), is_z_(is_z), s_(sin_q), c_(cos_q) {}
+
+  template <typename T>
+  void ApplyLeft(int i, Vector3<T>* p) const {
+    if (is_z_(i)) {
+      JointModelRevoluteZ::ApplyLeft(c_[i], s_[i], p);
+    } else {
+      other_.ApplyLeft(i, p);
+    }
+  }
+  template <typename Accumulator>
+  void ApplyRight(int i, Accumulator* X) const {
+    if (is_z_(i)) {
+      JointModelRevoluteZ::ApplyRight(c_[i], s_[i], X);
+    } else {
+      other_.ApplyRight(i, X);
+    }
+  }
+
+ private:
+  OnTheFlyMotions<IsZ, double> other_;
+  IsZ is_z_;
+  const double* s_;
+  const double* c_;
+};
+
+template <typename IsZ>
+GivenSinCosMotions<IsZ> MakeGivenSinCosMotions(const Joint* joints, const double* q, IsZ is_z,
+                                               const double* sin_q, const double* cos_q) {
+  return GivenSinCosMotions<IsZ>(joints, q, is_z, sin_q, cos_q);
 }
 
 // Scratch for one value per joint: on the stack for up to N joints, else on the heap (the autodiff
@@ -237,16 +311,25 @@ struct SE3Accumulator {
 };
 
 // X = O_0 M_0 O_1 M_1 ... O_n-1 M_n-1 (the chain up to the last joint); `frame(i, X)` sees X just
-// before joint i moves, G_i = T_0,i-1(q) T_{i-1,i}(0). The accumulator is set from origin(0).
-template <typename Accumulator, typename Origins, typename Motions, typename FrameSink>
+// before joint i moves, G_i = T_0,i-1(q) T_{i-1,i}(0), and `moved(i, X)` just after, the link frame
+// T_0,i(q). The accumulator is set from origin(0).
+template <typename Accumulator, typename Origins, typename Motions, typename FrameSink,
+          typename MovedSink>
 inline void ForwardChain(int num_joints, const Origins& origin, const Motions& motions,
-                         Accumulator* X, const FrameSink& frame) {
+                         Accumulator* X, const FrameSink& frame, const MovedSink& moved) {
   X->Set(origin(0));
   for (int i = 0; i < num_joints; ++i) {
     if (i > 0) X->RightMultiply(origin(i));
     frame(i, *X);
     motions.ApplyRight(i, X);
+    moved(i, *X);
   }
+}
+
+template <typename Accumulator, typename Origins, typename Motions, typename FrameSink>
+inline void ForwardChain(int num_joints, const Origins& origin, const Motions& motions,
+                         Accumulator* X, const FrameSink& frame) {
+  ForwardChain(num_joints, origin, motions, X, frame, [](int, const Accumulator&) {});
 }
 
 // P = O_0 M_0 ... O_n-1 M_n-1 p, from the tool back to the base: p <- O_i (M_i p).

@@ -101,13 +101,6 @@ struct IkOptions {
   // for prismatic joints), deterministic, and keep the reached solution closest to the seed.
   int restarts = 8;
   double restart_step = 0.05;
-  // The fast path for the common case (6 joints, all revolute about their local z, pose target):
-  // one fused forward sweep per iteration, an unrolled 6 x 6 LU and smallest-eigenvalue routine, no
-  // per-call set-up. It follows the general solver's iteration (the same formulas in the same
-  // order, damping included) and hands the target to it (from the start) when a step is cut at a
-  // joint limit, so results agree with the general path to round-off (tests compare them).
-  // false: always the general path.
-  bool fast_path = true;
 };
 
 struct IkResult {
@@ -159,10 +152,6 @@ class InverseKinematics {
   // One damped Newton run from `start`, drawn toward `seed` in the null space.
   template <int M, int N>
   IkResult Run(const IkTarget& target, const double* seed, const double* start, double* q) const;
-  // The fast path of Run (see IkOptions::fast_path); false when the run left the plain Newton
-  // course and the general Run must solve it.
-  bool RunFast(const IkTarget& target, const double* seed, const double* start, double* q,
-               IkResult* result) const;
 
   const RobotModel* model_;
   IkOptions options_;
@@ -171,7 +160,6 @@ class InverseKinematics {
   KinematicChain chain_;
   bool branch_defined_ = false;
   bool z_revolute_[kMaxJoints] = {};  // revolute about local z: sin/cos updated incrementally
-  bool fast_ = false;                 // 6 revolute-z joints and options_.fast_path
 };
 
 }  // namespace lpoe

@@ -1,3 +1,7 @@
+// The linearized problem accumulated as normal equations (normal_equations.h: NormalEquationsOf,
+// JointRegressorRows): rows one at a time (BasisJacobian), or four at a time through the kernels of
+// core/src/kernels/ (lpoe/kernels.h), and the joint-space blocks by their structure. The regressors
+// in slot form and the projections of joint blocks are in normal_equations_regressors.cc.
 #include "normal_equations.h"
 
 #include <algorithm>
@@ -6,12 +10,10 @@
 #include <vector>
 
 #include <glog/logging.h>
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#endif
 
 #include "gravity_tilt.h"
 #include "lpoe/joint_term.h"
+#include "lpoe/kernels.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/parallel.h"
 #include "lpoe/pose_measurement.h"
@@ -20,6 +22,8 @@
 namespace lpoe {
 namespace internal {
 namespace {
+
+using kernels::FourRowPlan;
 
 // Poses per block of stacked rows handed to one symmetric rank-k update (H += A^T A, a blocked
 // SYRK): large enough to amortize Eigen's packing, small enough to stay in L1/L2.
@@ -111,86 +115,17 @@ void EvaluateJointRegressor(const Parameterization& p, const double* q, Scratch*
   s->R = s->R_t.transpose();
 }
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#define LPOE_HAVE_AVX2_KERNEL 1
-// out(a, b) += sum_k X_a[k] w[k] Y_b[k] (w[k] = 1 unless kWeighted) for a < nx, b < ny, over k < len:
-// columns X_a = X + a ldx, Y_b = Y + b ldy contiguous, out column-major with leading dimension
-// ldo. `lower`: only the entries a >= b are formed and written (nx == ny). Tiles of 2 x 4 dot
-// products in 4-wide fused multiply-adds.
-template <bool kWeighted>
-__attribute__((target("avx2,fma"))) void DotProductsAvx2(const double* X, int ldx, int nx,
-                                                         const double* Y, int ldy, int ny,
-                                                         const double* w, int len, bool lower,
-                                                         double* out, int ldo) {
-  constexpr int kTi = 2, kTj = 4;
-  const int k4 = len & ~3;
-  for (int b0 = 0; b0 < ny; b0 += kTj) {
-    for (int a0 = lower ? b0 : 0; a0 < nx; a0 += kTi) {  // b0 is even
-      // Columns past the last are read again from the last one and their results dropped.
-      const double* a[kTi];
-      const double* b[kTj];
-      for (int t = 0; t < kTi; ++t) a[t] = X + static_cast<std::ptrdiff_t>(std::min(a0 + t, nx - 1)) * ldx;
-      for (int t = 0; t < kTj; ++t) b[t] = Y + static_cast<std::ptrdiff_t>(std::min(b0 + t, ny - 1)) * ldy;
-      __m256d acc[kTi][kTj];
-      for (auto& row : acc) {
-        for (__m256d& v : row) v = _mm256_setzero_pd();
-      }
-      for (int k = 0; k < k4; k += 4) {
-        __m256d bv[kTj];
-        for (int t = 0; t < kTj; ++t) bv[t] = _mm256_loadu_pd(b[t] + k);
-        __m256d wv = _mm256_set1_pd(1.0);
-        if constexpr (kWeighted) wv = _mm256_loadu_pd(w + k);
-        for (int s = 0; s < kTi; ++s) {
-          __m256d av = _mm256_loadu_pd(a[s] + k);
-          if constexpr (kWeighted) av = _mm256_mul_pd(av, wv);
-          for (int t = 0; t < kTj; ++t) acc[s][t] = _mm256_fmadd_pd(av, bv[t], acc[s][t]);
-        }
-      }
-      for (int s = 0; s < kTi; ++s) {
-        for (int t = 0; t < kTj; ++t) {
-          const int i = a0 + s, j = b0 + t;
-          if (i >= nx || j >= ny || (lower && i < j)) continue;
-          alignas(32) double lanes[4];
-          _mm256_store_pd(lanes, acc[s][t]);
-          double sum = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
-          for (int k = k4; k < len; ++k) sum += (kWeighted ? a[s][k] * w[k] : a[s][k]) * b[t][k];
-          out[static_cast<std::ptrdiff_t>(j) * ldo + i] += sum;
-        }
-      }
-    }
-  }
-}
-
-// H (lower triangle; column-major, leading dimension P) += A^T A for A (rows x P, column-major,
-// leading dimension ld): Eigen's blocked SYRK, or on processors with AVX2 and FMA (most x86-64 since
-// 2013) a kernel of 2 x 4 tiles of H, each a set of dot products of A's contiguous columns in
-// 4-wide fused multiply-adds, about twice as fast at P = 27. Either is deterministic; they differ
-// in the last bits (another summation order), as builds with other flags would. The kernel is the
-// unweighted lower-triangle case of DotProductsAvx2 with X = Y = A (flattened: the loop is
-// specialized for it, as fast as a kernel of its own).
-__attribute__((target("avx2,fma"), flatten)) void SyrkLowerAvx2(const double* A, int ld, int rows,
-                                                                int P, double* H) {
-  DotProductsAvx2<false>(A, ld, P, A, ld, P, nullptr, rows, true, H, P);
-}
-
-bool HaveAvx2() {
-  static const bool have = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  return have;
-}
-#endif
-
-void SyrkLower(const Eigen::MatrixXd& A, int rows, Eigen::MatrixXd* H) {
-#ifdef LPOE_HAVE_AVX2_KERNEL
-  if (HaveAvx2()) {
-    SyrkLowerAvx2(A.data(), static_cast<int>(A.rows()), rows, static_cast<int>(A.cols()),
-                  H->data());
+// H (lower triangle) += A^T A for the first `rows` rows and `cols` columns of A (J^T J written once:
+// the AVX2 kernel or Eigen's rank update, lpoe/kernels.h).
+void SyrkLower(const Eigen::MatrixXd& A, int rows, int cols, Eigen::MatrixXd* H) {
+  if (kernels::Avx2Fma()) {
+    kernels::SyrkLowerAvx2(A.data(), static_cast<int>(A.rows()), rows, cols, H->data(),
+                           static_cast<int>(H->rows()));
     return;
   }
-#endif
-  H->selfadjointView<Eigen::Lower>().rankUpdate(A.topRows(rows).transpose());
+  H->selfadjointView<Eigen::Lower>().rankUpdate(A.topLeftCorner(rows, cols).transpose());
 }
 
-#ifdef LPOE_HAVE_AVX2_KERNEL
 // ---- Position rows four at a time.
 //
 // The common case at scale (position data, no joint-space blocks, every joint revolute about z,
@@ -202,20 +137,10 @@ void SyrkLower(const Eigen::MatrixXd& A, int rows, Eigen::MatrixXd* H) {
 // gives J^T J and J^T y together. The sums are those of AccumulateRows up to round-off (another
 // order of the same products).
 
-// Which columns the four-row path writes: per frame, the canonical direction of each basis column.
-struct FourRowPlan {
-  bool ok = false;
-  struct Frame {
-    int offset = 0;
-    std::vector<int> select;
-  };
-  std::vector<Frame> frames;
-};
-
 FourRowPlan MakeFourRowPlan(const RobotModel& model, const Parameterization& p,
                             bool joint_blocks = false) {
   FourRowPlan plan;
-  if (!HaveAvx2() || model.num_joints() > kMaxGivenSinCosJoints ||
+  if (!kernels::Avx2Fma() || model.num_joints() > kMaxGivenSinCosJoints ||
       (p.num_joint_parameters() > 0 && !joint_blocks)) {
     return plan;
   }
@@ -244,134 +169,6 @@ FourRowPlan MakeFourRowPlan(const RobotModel& model, const Parameterization& p,
   return plan;
 }
 
-// X <- X M for 4-lane transforms (R column-major in X[0..8], t in X[9..11]).
-__attribute__((target("avx2,fma"))) inline void RightMultiply4(__m256d* X, const __m256d* M) {
-  __m256d R[9];
-  for (int c = 0; c < 3; ++c) {
-    for (int r = 0; r < 3; ++r) {
-      R[3 * c + r] = _mm256_fmadd_pd(
-          X[6 + r], M[3 * c + 2],
-          _mm256_fmadd_pd(X[3 + r], M[3 * c + 1], _mm256_mul_pd(X[r], M[3 * c])));
-    }
-  }
-  for (int r = 0; r < 3; ++r) {
-    X[9 + r] = _mm256_fmadd_pd(
-        X[6 + r], M[11],
-        _mm256_fmadd_pd(X[3 + r], M[10], _mm256_fmadd_pd(X[r], M[9], X[9 + r])));
-  }
-  for (int k = 0; k < 9; ++k) X[k] = R[k];
-}
-
-// The same transform in every lane.
-__attribute__((target("avx2,fma"))) inline void Broadcast4(const SE3d& O, __m256d* out) {
-  for (int k = 0; k < 9; ++k) out[k] = _mm256_set1_pd(O.R.data()[k]);
-  for (int k = 0; k < 3; ++k) out[9 + k] = _mm256_set1_pd(O.t(k));
-}
-
-// Four rows (lanes) of the position Jacobian into A (column c, component i of lane l at
-// A[c * ld + i * stride + l]; lanes from `valid` on get zeros) and their positions into P
-// (P[4 i + l]). sin_q, cos_q: n values per lane, lane after lane. With jq_column >= 0 the joint
-// Jacobian dP/dq too, in the same layout from column jq_column on: joint j's column is
-// z_j x (P - t_j) with z_j, t_j the axis and origin of the joint's frame G_j (the frame's rotation
-// column about z, w_j x P + v_j).
-__attribute__((target("avx2,fma"))) void PositionRows4(const RobotModel& model,
-                                                       const FourRowPlan& plan,
-                                                       const double* sin_q, const double* cos_q,
-                                                       const int* tool, int valid, double* A,
-                                                       int ld, int stride, double* P,
-                                                       int jq_column = -1) {
-  const int n = model.num_joints();
-  __m256d F[kMaxGivenSinCosJoints + 1][12];
-  __m256d X[12], M[12];
-  Broadcast4(model.joints[0].origin, X);
-  for (int i = 0; i < n; ++i) {
-    if (i > 0) {
-      Broadcast4(model.joints[i].origin, M);
-      RightMultiply4(X, M);
-    }
-    for (int k = 0; k < 12; ++k) F[i][k] = X[k];
-    // R <- R Rz(q_i): columns 0 and 1.
-    const __m256d c = _mm256_set_pd(cos_q[3 * n + i], cos_q[2 * n + i], cos_q[n + i], cos_q[i]);
-    const __m256d s = _mm256_set_pd(sin_q[3 * n + i], sin_q[2 * n + i], sin_q[n + i], sin_q[i]);
-    for (int r = 0; r < 3; ++r) {
-      const __m256d x0 = X[r], x1 = X[3 + r];
-      X[r] = _mm256_fmadd_pd(s, x1, _mm256_mul_pd(c, x0));
-      X[3 + r] = _mm256_fnmadd_pd(s, x0, _mm256_mul_pd(c, x1));
-    }
-  }
-  // The tool frame of each lane's target.
-  const SE3d* T[4];
-  for (int l = 0; l < 4; ++l) T[l] = &model.tools[tool[l]].origin;
-  for (int k = 0; k < 9; ++k) {
-    M[k] = _mm256_set_pd(T[3]->R.data()[k], T[2]->R.data()[k], T[1]->R.data()[k],
-                         T[0]->R.data()[k]);
-  }
-  for (int k = 0; k < 3; ++k) M[9 + k] = _mm256_set_pd(T[3]->t(k), T[2]->t(k), T[1]->t(k), T[0]->t(k));
-  RightMultiply4(X, M);
-  for (int k = 0; k < 12; ++k) F[n][k] = X[k];
-  for (int i = 0; i < 3; ++i) _mm256_storeu_pd(P + 4 * i, X[9 + i]);
-
-  const __m256d lane = _mm256_set_pd(3, 2, 1, 0);
-  const __m256d valid_mask = _mm256_cmp_pd(lane, _mm256_set1_pd(valid), _CMP_LT_OQ);
-  const __m256d* p = X + 9;
-  for (int f = 0; f < static_cast<int>(plan.frames.size()); ++f) {
-    const FourRowPlan::Frame& fr = plan.frames[f];
-    if (fr.select.empty()) continue;
-    const __m256d* G = F[f < n ? f : n];
-    __m256d mask = valid_mask;
-    if (f >= n) {  // a tool: only the lanes measuring it
-      const int t = f - n;
-      mask = _mm256_and_pd(
-          mask, _mm256_castsi256_pd(_mm256_set_epi64x(-(tool[3] == t), -(tool[2] == t),
-                                                      -(tool[1] == t), -(tool[0] == t))));
-    }
-    const __m256d d[3] = {_mm256_sub_pd(p[0], G[9]), _mm256_sub_pd(p[1], G[10]),
-                          _mm256_sub_pd(p[2], G[11])};
-    double* out = A + static_cast<std::ptrdiff_t>(fr.offset) * ld;
-    for (size_t c = 0; c < fr.select.size(); ++c) {
-      const int k = fr.select[c];
-      __m256d col[3];
-      if (k < 3) {  // R_k x (P - t)
-        const __m256d* Rk = G + 3 * k;
-        col[0] = _mm256_fmsub_pd(Rk[1], d[2], _mm256_mul_pd(Rk[2], d[1]));
-        col[1] = _mm256_fmsub_pd(Rk[2], d[0], _mm256_mul_pd(Rk[0], d[2]));
-        col[2] = _mm256_fmsub_pd(Rk[0], d[1], _mm256_mul_pd(Rk[1], d[0]));
-      } else {  // R_k
-        for (int i = 0; i < 3; ++i) col[i] = G[3 * (k - 3) + i];
-      }
-      double* o = out + static_cast<std::ptrdiff_t>(c) * ld;
-      for (int i = 0; i < 3; ++i) _mm256_storeu_pd(o + i * stride, _mm256_and_pd(col[i], mask));
-    }
-  }
-  if (jq_column >= 0) {
-    for (int j = 0; j < n; ++j) {
-      const __m256d* G = F[j];
-      const __m256d d[3] = {_mm256_sub_pd(p[0], G[9]), _mm256_sub_pd(p[1], G[10]),
-                            _mm256_sub_pd(p[2], G[11])};
-      const __m256d* z = G + 6;
-      __m256d col[3];
-      col[0] = _mm256_fmsub_pd(z[1], d[2], _mm256_mul_pd(z[2], d[1]));
-      col[1] = _mm256_fmsub_pd(z[2], d[0], _mm256_mul_pd(z[0], d[2]));
-      col[2] = _mm256_fmsub_pd(z[0], d[1], _mm256_mul_pd(z[1], d[0]));
-      double* o = A + static_cast<std::ptrdiff_t>(jq_column + j) * ld;
-      for (int i = 0; i < 3; ++i) {
-        _mm256_storeu_pd(o + i * stride, _mm256_and_pd(col[i], valid_mask));
-      }
-    }
-  }
-}
-#endif
-
-// The same on A's first `cols` columns (H: cols x cols).
-void SyrkLowerColumns(const Eigen::MatrixXd& A, int rows, int cols, Eigen::MatrixXd* H) {
-#ifdef LPOE_HAVE_AVX2_KERNEL
-  if (HaveAvx2()) {
-    SyrkLowerAvx2(A.data(), static_cast<int>(A.rows()), rows, cols, H->data());
-    return;
-  }
-#endif
-  H->selfadjointView<Eigen::Lower>().rankUpdate(A.topLeftCorner(rows, cols).transpose());
-}
 
 // Accumulates rows [begin, end) into `sums` (and into the stacked J and y when `stacked`).
 template <typename Kind>
@@ -442,7 +239,7 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
     }
     const int rows = m * count;
     const auto Ab = scratch->A.topRows(rows);
-    SyrkLower(scratch->A, rows, &sums->H);
+    SyrkLower(scratch->A, rows, static_cast<int>(scratch->A.cols()), &sums->H);
     sums->g.noalias() += Ab.transpose() * scratch->Y.head(rows);
     if (stacked != nullptr) {
       stacked->J.middleRows(static_cast<Eigen::Index>(m) * r0, rows) = Ab;
@@ -451,7 +248,6 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
   }
 }
 
-#ifdef LPOE_HAVE_AVX2_KERNEL
 // Rows [begin, end) four at a time (PositionRows4) into `sums`, whose H is (P + 1) square: J^T J,
 // then J^T y in row P.
 void AccumulatePositionRows4(const RobotModel& model, const FourRowPlan& plan,
@@ -471,7 +267,7 @@ void AccumulatePositionRows4(const RobotModel& model, const FourRowPlan& plan,
       int tool[4];
       for (int l = 0; l < 4; ++l) tool[l] = l < valid ? data.target(r0 + g + l) : 0;
       double Pm[12];
-      PositionRows4(model, plan, scratch->sin_q.data() + static_cast<std::ptrdiff_t>(g) * n,
+      kernels::PositionRows4(model, plan, scratch->sin_q.data() + static_cast<std::ptrdiff_t>(g) * n,
                     scratch->cos_q.data() + static_cast<std::ptrdiff_t>(g) * n, tool, valid,
                     A + g, ld, stride, Pm);
       for (int l = 0; l < 4; ++l) {
@@ -489,10 +285,9 @@ void AccumulatePositionRows4(const RobotModel& model, const FourRowPlan& plan,
       sums->max_error = std::max(sums->max_error, e);
       sums->sum_error += e;
     }
-    SyrkLowerAvx2(A, ld, 3 * stride, P1, sums->H.data());
+    SyrkLower(scratch->A, 3 * stride, P1, &sums->H);
   }
 }
-#endif
 
 template <typename Kind>
 NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const MeasurementSet& data,
@@ -516,13 +311,9 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
   }
   const BasisJacobian bj(model, p);
 
-#ifdef LPOE_HAVE_AVX2_KERNEL
   const FourRowPlan plan =
       m == 3 && K == 0 && !stack ? MakeFourRowPlan(model, p) : FourRowPlan();
   const bool four = plan.ok;
-#else
-  const bool four = false;
-#endif
   lin.four_rows = four;
   const RowChunks chunks = PartitionRows(N, kMinChunkPoses, kMaxChunks);
   std::vector<ChunkSums> sums(chunks.chunks);
@@ -550,13 +341,11 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
     ChunkSums& cs = sums[c];
     cs.H.setZero(four ? P + 1 : P, four ? P + 1 : P);
     cs.g.setZero(P);
-#ifdef LPOE_HAVE_AVX2_KERNEL
     if (four) {
       AccumulatePositionRows4(model, plan, data, chunks.begin(c), chunks.end(c), &scratch[thread],
                               &cs, c, errors);
       return;
     }
-#endif
     AccumulateRows(kind, bj, p, joint_state, data, chunks.begin(c), chunks.end(c), joint_rows,
                    &scratch[thread], &cs, stack ? &lin : nullptr, c, errors);
   });
@@ -713,12 +502,11 @@ void AccumulateSlots(const Kind& kind, const BasisJacobian& bj, const Parameteri
     // With the joint blocks one product gives H_ff, H_sf and W = sum of the slot columns' outer
     // products (the frames' kernel on F + S columns): W's pairs of joints j, i are
     // V_j diag((J_q^T J_q)_ji) V_i^T over the poses, formed here from the factor J_q instead.
-    SyrkLowerColumns(s->A, rows, blocks ? F + S : F, &sums->H);
+    SyrkLower(s->A, rows, blocks ? F + S : F, &sums->H);
     sums->g.noalias() += s->A.topLeftCorner(rows, F).transpose() * s->Y.head(rows);
   }
 }
 
-#ifdef LPOE_HAVE_AVX2_KERNEL
 // ---- Position rows four at a time with joint-space blocks.
 //
 // Where the four-row path applies (position data, revolute-z joints, canonical frame columns) the
@@ -748,42 +536,6 @@ struct SlotScratch4 {
   Eigen::MatrixXd VT;  // group x S: the slots' values transposed (columns over the poses)
   Eigen::MatrixXd term_Y;
 };
-
-// sum_c x[c * stride + lane] * b[c](lane) over the three components, four lanes.
-__attribute__((target("avx2,fma"))) inline __m256d Dot3Lanes(const double* x, int stride,
-                                                            const __m256d* b) {
-  return _mm256_fmadd_pd(_mm256_loadu_pd(x + 2 * stride), b[2],
-                         _mm256_fmadd_pd(_mm256_loadu_pd(x + stride), b[1],
-                                         _mm256_mul_pd(_mm256_loadu_pd(x), b[0])));
-}
-
-// The per-pose products of a block written by PositionRows4 with J_q from column F + 1 and y in
-// column F (lanes k in [0, stride), zero past the block's poses), into rows row + k of h, G and C
-// (leading dimension ldo); G and C only with `blocks`.
-__attribute__((target("avx2,fma"))) void PoseProducts4(const double* A, int ld, int stride, int F,
-                                                       int n, bool blocks, double* h, double* G,
-                                                       double* C, int ldo, int row) {
-  const double* Y = A + static_cast<std::ptrdiff_t>(F) * ld;
-  const double* JQ = A + static_cast<std::ptrdiff_t>(F + 1) * ld;
-  for (int k = 0; k < stride; k += 4) {
-    for (int j = 0; j < n; ++j) {
-      const double* jq = JQ + static_cast<std::ptrdiff_t>(j) * ld + k;
-      const __m256d a[3] = {_mm256_loadu_pd(jq), _mm256_loadu_pd(jq + stride),
-                            _mm256_loadu_pd(jq + 2 * stride)};
-      const std::ptrdiff_t out = row + k;
-      _mm256_storeu_pd(h + static_cast<std::ptrdiff_t>(j) * ldo + out, Dot3Lanes(Y + k, stride, a));
-      if (!blocks) continue;
-      for (int i = 0; i <= j; ++i) {
-        _mm256_storeu_pd(G + static_cast<std::ptrdiff_t>(j * (j + 1) / 2 + i) * ldo + out,
-                         Dot3Lanes(JQ + static_cast<std::ptrdiff_t>(i) * ld + k, stride, a));
-      }
-      for (int f = 0; f < F; ++f) {
-        _mm256_storeu_pd(C + static_cast<std::ptrdiff_t>(j * F + f) * ldo + out,
-                         Dot3Lanes(A + static_cast<std::ptrdiff_t>(f) * ld + k, stride, a));
-      }
-    }
-  }
-}
 
 // Rows [begin, end) four at a time into `sums` (Hfy, gs and with `blocks` the slots' rows of H).
 void AccumulateSlots4(const RobotModel& model, const FourRowPlan& plan, const Parameterization& p,
@@ -836,7 +588,7 @@ void AccumulateSlots4(const RobotModel& model, const FourRowPlan& plan, const Pa
         int tool[4];
         for (int l = 0; l < 4; ++l) tool[l] = l < valid ? data.target(r0 + g + l) : 0;
         double Pm[12];
-        PositionRows4(model, plan, s->sin_q.data() + static_cast<std::ptrdiff_t>(g) * n,
+        kernels::PositionRows4(model, plan, s->sin_q.data() + static_cast<std::ptrdiff_t>(g) * n,
                       s->cos_q.data() + static_cast<std::ptrdiff_t>(g) * n, tool, valid, A + g, ld,
                       stride, Pm, F + 1);
         for (int l = 0; l < 4; ++l) {
@@ -852,33 +604,50 @@ void AccumulateSlots4(const RobotModel& model, const FourRowPlan& plan, const Pa
         sums->max_error = std::max(sums->max_error, e);
         sums->sum_error += e;
       }
-      SyrkLowerAvx2(A, ld, 3 * stride, F + 1, sums->Hfy.data());
-      PoseProducts4(A, ld, stride, F, n, blocks, s->h.data(), s->G.data(), s->C.data(), ldo, k0);
+      SyrkLower(s->A, 3 * stride, F + 1, &sums->Hfy);
+      kernels::PoseProducts4(A, ld, stride, F, n, blocks, s->h.data(), s->G.data(), s->C.data(), ldo, k0);
     }
     // The group's products over its poses: dot products of contiguous columns over the poses
     // (the slots' values transposed once per group).
     if (blocks) s->VT.topRows(ns) = V.transpose();
-    const int ldh = static_cast<int>(sums->H.rows());
     for (int j = 0; j < n; ++j) {
       const int b = regs.slot_begin[j], c = regs.slot_begin[j + 1] - b;
       if (c == 0) continue;
       sums->gs.segment(b, c).noalias() += V.middleRows(b, c) * s->h.col(j).head(ns);
       if (!blocks) continue;
-      const double* Vj = s->VT.data() + static_cast<std::ptrdiff_t>(b) * ldo;
-      double* Hj = sums->H.data() + F + b;  // row F + b
-      DotProductsAvx2<false>(Vj, ldo, c, s->C.data() + static_cast<std::ptrdiff_t>(j) * F * ldo,
-                             ldo, F, nullptr, ns, false, Hj, ldh);
+      const auto Vj = s->VT.block(0, b, ns, c);
+      if (kernels::Avx2Fma()) {
+        const int ldh = static_cast<int>(sums->H.rows());
+        double* Hj = sums->H.data() + F + b;  // row F + b
+        kernels::DotProductsAvx2(Vj.data(), ldo, c,
+                                 s->C.data() + static_cast<std::ptrdiff_t>(j) * F * ldo, ldo, F,
+                                 nullptr, ns, false, Hj, ldh);
+        for (int i = 0; i <= j; ++i) {
+          const int bi = regs.slot_begin[i], ci = regs.slot_begin[i + 1] - bi;
+          if (ci == 0) continue;
+          kernels::DotProductsAvx2(
+              Vj.data(), ldo, c, s->VT.data() + static_cast<std::ptrdiff_t>(bi) * ldo, ldo, ci,
+              s->G.data() + static_cast<std::ptrdiff_t>(j * (j + 1) / 2 + i) * ldo, ns, i == j,
+              Hj + static_cast<std::ptrdiff_t>(F + bi) * ldh, ldh);
+        }
+        continue;
+      }
+      sums->H.block(F + b, 0, c, F).noalias() +=
+          Vj.transpose() * s->C.block(0, static_cast<Eigen::Index>(j) * F, ns, F);
       for (int i = 0; i <= j; ++i) {
         const int bi = regs.slot_begin[i], ci = regs.slot_begin[i + 1] - bi;
         if (ci == 0) continue;
-        DotProductsAvx2<true>(Vj, ldo, c, s->VT.data() + static_cast<std::ptrdiff_t>(bi) * ldo, ldo,
-                              ci, s->G.data() + static_cast<std::ptrdiff_t>(j * (j + 1) / 2 + i) * ldo,
-                              ns, i == j, Hj + static_cast<std::ptrdiff_t>(F + bi) * ldh, ldh);
+        const auto g = s->G.col(j * (j + 1) / 2 + i).head(ns);
+        const Eigen::MatrixXd W = Vj.transpose() * g.asDiagonal() * s->VT.block(0, bi, ns, ci);
+        if (i == j) {
+          sums->H.block(F + b, F + bi, c, ci).triangularView<Eigen::Lower>() += W;
+        } else {
+          sums->H.block(F + b, F + bi, c, ci) += W;
+        }
       }
     }
   }
 }
-#endif
 
 // Whether T only selects columns: every row zero but for at most one entry equal to 1. `column`:
 // that entry's column per row, -1 for a zero row (left empty when T does more than select).
@@ -929,7 +698,6 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
   const RowChunks chunks = PartitionRows(N, kMinChunkPoses, kMaxChunks);
   std::vector<SlotSums> sums(chunks.chunks);
   const int threads = N < kMinPosesForThreads ? 1 : ThreadsFor(chunks.chunks);
-#ifdef LPOE_HAVE_AVX2_KERNEL
   FourRowPlan plan;
   if (m == 3 && four_rows) plan = MakeFourRowPlan(model, p, true);
   const bool four = plan.ok;
@@ -949,9 +717,6 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
       s.VT.resize(s.group, S);
     }
   }
-#else
-  const bool four = false;
-#endif
   lin.four_rows = four;
   std::vector<SlotScratch> scratch(four ? 0 : threads);
   for (SlotScratch& s : scratch) {
@@ -968,14 +733,12 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
     cs.H.setZero(FS, FS);
     cs.g.setZero(F);
     cs.gs.setZero(S);
-#ifdef LPOE_HAVE_AVX2_KERNEL
     if (four) {
       cs.Hfy.setZero(F + 1, F + 1);
       AccumulateSlots4(model, plan, p, theta_slots, regs, blocks, data, chunks.begin(c),
                        chunks.end(c), &scratch4[thread], &cs);
       return;
     }
-#endif
     AccumulateSlots(kind, bj, p, theta_slots, regs, blocks, data, chunks.begin(c), chunks.end(c),
                     &scratch[thread], &cs);
   });
@@ -1119,214 +882,6 @@ Eigen::MatrixXd JointRegressorRows(const Parameterization& p, const MeasurementS
     rows.middleCols(static_cast<Eigen::Index>(r) * K, K) = s.R;
   }
   return rows;
-}
-
-bool SameFrameDirections(const Parameterization& a, const Parameterization& b) {
-  if (a.num_frame_parameters() != b.num_frame_parameters() || a.basis.size() != b.basis.size()) {
-    return false;
-  }
-  for (size_t f = 0; f < a.basis.size(); ++f) {
-    if (a.offset[f] != b.offset[f] || a.basis[f].cols() != b.basis[f].cols() ||
-        a.basis[f] != b.basis[f]) {
-      return false;
-    }
-  }
-  return true;
-}
-
-JointSpaceRegressors BuildJointSpaceRegressors(const Parameterization& p,
-                                               const MeasurementSet& data) {
-  const int n = data.num_joints();
-  const int N = data.size();
-  JointSpaceRegressors regs;
-  regs.num_joints = n;
-  regs.column_offset.push_back(0);
-  // Per joint: the unreduced columns that may move it (JointTerm::ParameterJoint).
-  std::vector<std::vector<int>> columns(n);
-  std::vector<int> joint_of;  // per unreduced column, -1: several joints
-  for (const JointBlock& block : p.joint_blocks) {
-    const JointTerm& term = *block.term;
-    CHECK_EQ(term.num_joints(), n) << term.name();
-    const int first = regs.column_offset.back();
-    regs.one_joint_each.push_back(1);
-    for (int k = 0; k < term.num_parameters(); ++k) {
-      const int j = term.ParameterJoint(k);
-      CHECK(j >= -1 && j < n) << term.name() << ": ParameterJoint(" << k << ") = " << j;
-      if (j < 0) regs.one_joint_each.back() = 0;
-      joint_of.push_back(j);
-      for (int i = 0; i < n; ++i) {
-        if (j < 0 || i == j) columns[i].push_back(first + k);
-      }
-    }
-    regs.column_offset.push_back(first + term.num_parameters());
-  }
-  auto set_slots = [&]() {
-    regs.slot_begin.assign(1, 0);
-    regs.slot_column.clear();
-    for (int j = 0; j < n; ++j) {
-      regs.slot_column.insert(regs.slot_column.end(), columns[j].begin(), columns[j].end());
-      regs.slot_begin.push_back(static_cast<int>(regs.slot_column.size()));
-    }
-  };
-  set_slots();
-  const int S = regs.num_slots();
-  const double bytes = 8.0 * S * static_cast<double>(N);
-  if (S > 0 && N > 0 && bytes <= kMaxJointRowsBytes) {
-    // Every row's regressors, checked against the declared pattern; slots that stay zero in every
-    // row are dropped. Slot t reads entry source[t] of its block's Y (column-major n x P_b).
-    std::vector<int> source(S), block_of(S);
-    for (int j = 0; j < n; ++j) {
-      for (int t = regs.slot_begin[j]; t < regs.slot_begin[j + 1]; ++t) {
-        const int c = regs.slot_column[t];
-        int b = 0;
-        while (c >= regs.column_offset[b + 1]) ++b;
-        block_of[t] = b;
-        source[t] = (c - regs.column_offset[b]) * n + j;
-      }
-    }
-    // A block whose every parameter moves one joint may give those entries alone
-    // (JointTerm::RegressorValues): slot t then reads entry slot_column[t] - column_offset[b].
-    const size_t B = p.joint_blocks.size();
-    std::vector<char> single_joint(B, 1), from_values(B, 0);
-    std::vector<Eigen::VectorXd> y(B);
-    for (size_t b = 0; b < B; ++b) {
-      for (int c = regs.column_offset[b]; c < regs.column_offset[b + 1]; ++c) {
-        if (joint_of[c] < 0) single_joint[b] = 0;
-      }
-      y[b].resize(p.joint_blocks[b].term->num_parameters());
-    }
-    std::vector<const double*> value_of(S);  // y's entry of each slot (y is not resized below)
-    for (int t = 0; t < S; ++t) {
-      const int b = block_of[t];
-      value_of[t] = y[b].data() + (regs.slot_column[t] - regs.column_offset[b]);
-    }
-    Eigen::MatrixXd values(S, N);
-    std::vector<Eigen::MatrixXd> Y(B);
-    std::vector<char> used(S, 0);
-    for (int r = 0; r < N; ++r) {
-      const double* q = data.q(r);
-      for (size_t b = 0; b < B; ++b) {
-        const JointTerm& term = *p.joint_blocks[b].term;
-        from_values[b] = single_joint[b] && term.RegressorValues(q, y[b].data());
-        if (from_values[b]) continue;
-        Y[b].resize(n, term.num_parameters());
-        term.Regressor(q, Y[b].data());
-        // A column that moves only its declared joint sums (exactly: the others add zeros) to that
-        // joint's entry.
-        const Eigen::RowVectorXd moved = Y[b].cwiseAbs().colwise().sum();
-        for (int k = 0; k < Y[b].cols(); ++k) {
-          const int j = joint_of[regs.column_offset[b] + k];
-          if (j >= 0 && moved(k) != std::abs(Y[b](j, k))) {
-            int i = 0;
-            while (i + 1 < n && (i == j || Y[b](i, k) == 0)) ++i;
-            LOG(FATAL) << "joint-space term " << term.name() << ": parameter "
-                       << term.ParameterName(k) << " moves joint " << i + 1
-                       << " but ParameterJoint() says joint " << j + 1;
-          }
-        }
-      }
-      double* v = values.col(r).data();
-      bool all_values = true;
-      for (size_t b = 0; b < B; ++b) all_values = all_values && from_values[b];
-      if (all_values) {  // every block gave its entries: slot t reads value_of[t]
-        for (int t = 0; t < S; ++t) {
-          v[t] = *value_of[t];
-          used[t] |= v[t] != 0;
-        }
-        continue;
-      }
-      for (int t = 0; t < S; ++t) {
-        const int b = block_of[t];
-        v[t] = from_values[b] ? y[b](regs.slot_column[t] - regs.column_offset[b])
-                              : Y[b].data()[source[t]];
-        used[t] |= v[t] != 0;
-      }
-    }
-    std::vector<int> kept;
-    for (int j = 0; j < n; ++j) {
-      std::vector<int> live;
-      for (int t = regs.slot_begin[j]; t < regs.slot_begin[j + 1]; ++t) {
-        if (used[t]) {
-          live.push_back(regs.slot_column[t]);
-          kept.push_back(t);
-        }
-      }
-      columns[j] = std::move(live);
-    }
-    set_slots();
-    if (static_cast<int>(kept.size()) == S) {
-      regs.values = std::move(values);
-    } else {
-      regs.values.resize(static_cast<Eigen::Index>(kept.size()), N);
-      for (int r = 0; r < N; ++r) {
-        for (size_t t = 0; t < kept.size(); ++t) regs.values(t, r) = values(kept[t], r);
-      }
-    }
-  }
-  SetSlotBasis(p, &regs);
-  return regs;
-}
-
-void SetSlotBasis(const Parameterization& p, JointSpaceRegressors* r) {
-  CHECK_EQ(r->column_offset.size(), p.joint_blocks.size() + 1);
-  const int F = p.num_frame_parameters();
-  r->slot_basis.setZero(r->num_slots(), p.num_joint_parameters());
-  for (int t = 0; t < r->num_slots(); ++t) {
-    const int c = r->slot_column[t];
-    size_t b = 0;
-    while (c >= r->column_offset[b + 1]) ++b;
-    const JointBlock& block = p.joint_blocks[b];
-    CHECK_EQ(block.basis.rows(), r->column_offset[b + 1] - r->column_offset[b])
-        << "regressors of other joint-space terms";
-    r->slot_basis.row(t).segment(block.offset - F, block.basis.cols()) =
-        block.basis.row(c - r->column_offset[b]);
-  }
-}
-
-NormalEquations ProjectJointBlocks(const NormalEquations& full, const Parameterization& reduced) {
-  const int F = reduced.num_frame_parameters();
-  const int K = reduced.num_joint_parameters();
-  int unreduced = 0;
-  for (const JointBlock& b : reduced.joint_blocks) unreduced += static_cast<int>(b.basis.rows());
-  CHECK_EQ(full.H.rows(), F + unreduced);
-  // T (unreduced x K) is block diagonal, one block per joint block (its basis): the products
-  // below go block by block.
-  struct Part {
-    int row, col;
-    const Eigen::MatrixXd* basis;
-  };
-  std::vector<Part> parts;
-  int row = 0;
-  for (const JointBlock& b : reduced.joint_blocks) {
-    parts.push_back({row, b.offset - F, &b.basis});
-    row += static_cast<int>(b.basis.rows());
-  }
-  NormalEquations out;
-  out.cost = full.cost;
-  out.max_error = full.max_error;
-  out.mean_error = full.mean_error;
-  out.joint_blocks = full.joint_blocks;
-  out.H.resize(F + K, F + K);
-  out.g.resize(F + K);
-  out.H.topLeftCorner(F, F) = full.H.topLeftCorner(F, F);
-  out.g.head(F) = full.g.head(F);
-  Eigen::MatrixXd HT(unreduced, K);  // H_joint T
-  for (const Part& b : parts) {
-    const Eigen::MatrixXd& B = *b.basis;
-    const Eigen::Index r = B.rows(), k = B.cols();
-    out.H.block(0, F + b.col, F, k).noalias() = full.H.block(0, F + b.row, F, r) * B;
-    HT.middleCols(b.col, k).noalias() = full.H.block(F, F + b.row, unreduced, r) * B;
-    out.g.segment(F + b.col, k).noalias() = B.transpose() * full.g.segment(F + b.row, r);
-  }
-  out.H.bottomLeftCorner(K, F) = out.H.topRightCorner(F, K).transpose();
-  Eigen::MatrixXd Hkk(K, K);
-  for (const Part& a : parts) {
-    const Eigen::MatrixXd& B = *a.basis;
-    Hkk.middleRows(a.col, B.cols()).noalias() = B.transpose() * HT.middleRows(a.row, B.rows());
-  }
-  out.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
-  out.finite = full.finite && AllFinite(out.H) && AllFinite(out.g);
-  return out;
 }
 
 }  // namespace internal
