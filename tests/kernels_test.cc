@@ -18,6 +18,7 @@
 #include "lpoe/kernels.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/parameterization.h"
+#include "lpoe/residual_layer.h"
 #include "lpoe/simulation.h"
 #include "normal_equations.h"
 
@@ -190,6 +191,71 @@ TEST(Kernels, JointSpaceNormalEquationsBothWays) {
     EXPECT_TRUE(vec.four_rows);
     EXPECT_FALSE(ref.four_rows);
     ExpectSame(vec, ref, 1e-9);
+  }
+}
+
+
+// ExpAvx2: within 4 ulp of std::exp (the reference path) over the kernel's arguments (-d^2/2 and a
+// log signal) and beyond, tails of 1-3, and 0 below -708 where std::exp gives at most a subnormal.
+TEST(Kernels, ExpBothWays) {
+  LPOE_REQUIRE_AVX2();
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> kernel(-60.0, 5.0), wide(-720.0, 709.0);
+  std::vector<double> x;
+  for (int k = 0; k < 20000; ++k) x.push_back(kernel(rng));
+  for (int k = 0; k < 5000; ++k) x.push_back(wide(rng));
+  for (double v : {0.0, -0.0, 1e-300, -1e-300, 1.0, -1.0, 0.5 * 0.6931471805599453, -707.9, 708.9,
+                   -709.0, -745.0, -1e300}) {
+    x.push_back(v);
+  }
+  if (x.size() % 4 == 0) x.push_back(-2.5);  // a padded tail
+  const int count = static_cast<int>(x.size());
+  std::vector<double> vec = x;
+  kernels::ExpAvx2(vec.data(), count);
+  for (int k = 0; k < count; ++k) {
+    const double ref = std::exp(x[k]);
+    if (x[k] < -708.0) {
+      ASSERT_EQ(vec[k], 0.0) << x[k];
+      ASSERT_LT(ref, 1e-307) << x[k];
+      continue;
+    }
+    const double ulp = std::nextafter(ref, HUGE_VAL) - ref;
+    ASSERT_LE(std::abs(vec[k] - ref), 4 * ulp) << "exp " << x[k];
+  }
+}
+
+// The residual layer's kernel vector, the kernel's caller, is the same both ways.
+TEST(Kernels, ResidualLayerKernelVectorBothWays) {
+  LPOE_REQUIRE_AVX2();
+  std::mt19937_64 rng(6);
+  std::uniform_real_distribution<double> joint(-3.0, 3.0);
+  ResidualLayer layer;
+  layer.num_joints = 6;
+  layer.num_tools = 2;
+  layer.length_scales = Eigen::VectorXd::Constant(6, 0.8);
+  layer.tool_correlation = 0.7;
+  layer.signal_std = 0.02;
+  layer.noise_std = 0.005;
+  const int m = 37;  // not a multiple of four
+  layer.inducing_q.resize(m, 6);
+  for (int i = 0; i < m; ++i) {
+    for (int j = 0; j < 6; ++j) layer.inducing_q(i, j) = joint(rng);
+    layer.inducing_tool.push_back(i % 2);
+  }
+  for (int trial = 0; trial < 200; ++trial) {
+    double q[6];
+    for (double& v : q) v = joint(rng);
+    Eigen::VectorXd k_ref, k_vec;
+    With(kernels::Path::kReference, [&] {
+      layer.KernelVector(q, trial % 2, &k_ref);
+      return 0;
+    });
+    With(kernels::Path::kAvx2Fma, [&] {
+      layer.KernelVector(q, trial % 2, &k_vec);
+      return 0;
+    });
+    ASSERT_EQ(k_ref.size(), m);
+    ASSERT_LE((k_vec - k_ref).cwiseAbs().maxCoeff(), 1e-15 * k_ref.cwiseAbs().maxCoeff() + 1e-300);
   }
 }
 

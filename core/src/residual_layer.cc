@@ -11,13 +11,10 @@
 #include <sstream>
 #include <utility>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
 #include <Eigen/Cholesky>
 #include <Eigen/Dense>
 
+#include "lpoe/kernels.h"
 #include "lpoe/parallel.h"
 
 namespace lpoe {
@@ -45,70 +42,13 @@ inline double ScaledSquaredDistance(const double* a, const double* b, const doub
 }
 
 // exp(v[i]) in place for the kernel vector: the prediction's hot spot (m exponentials a point).
-// Cody-Waite reduction x = n ln2 + r, |r| <= ln2 / 2, a degree-13 Taylor polynomial of exp(r)
-// (truncation below 1e-17 relative) and 2^n from the exponent bits, two lanes at a time with SSE2
-// (Eigen's double exponential on SSE2 builds its 2^n through a slow path; this one is 3-4 times
-// faster there). Arguments below -708 give 0 (the kernel of a far point), above 709 are clamped.
-// Within a few units in the last place of std::exp.
+// The AVX2 kernel where the processor has it (core/src/kernels/exp_avx2.cc), else std::exp.
 void ExpInPlace(double* v, int count) {
-  constexpr double kLog2e = 1.4426950408889634074;
-  constexpr double kLn2Hi = 6.93145751953125e-1, kLn2Lo = 1.42860682030941723212e-6;
-  constexpr double kMagic = 6755399441055744.0;  // 1.5 * 2^52: rounds to an integer in the low bits
-  constexpr double kLow = -708.0, kHigh = 709.0;
-  constexpr double kInvFactorial[14] = {1.0,
-                                        1.0,
-                                        1.0 / 2,
-                                        1.0 / 6,
-                                        1.0 / 24,
-                                        1.0 / 120,
-                                        1.0 / 720,
-                                        1.0 / 5040,
-                                        1.0 / 40320,
-                                        1.0 / 362880,
-                                        1.0 / 3628800,
-                                        1.0 / 39916800,
-                                        1.0 / 479001600,
-                                        1.0 / 6227020800.0};
-#if defined(__SSE2__)
-  const __m128d log2e = _mm_set1_pd(kLog2e), ln2_hi = _mm_set1_pd(kLn2Hi),
-                ln2_lo = _mm_set1_pd(kLn2Lo), magic = _mm_set1_pd(kMagic),
-                low = _mm_set1_pd(kLow), high = _mm_set1_pd(kHigh);
-  const __m128i magic_bits = _mm_set1_epi64x(0x4338000000000000LL), bias = _mm_set1_epi64x(1023);
-  auto two_lanes = [&](double* at) {
-    __m128d x = _mm_loadu_pd(at);
-    const __m128d under = _mm_cmplt_pd(x, low);
-    x = _mm_min_pd(_mm_max_pd(x, low), high);
-    const __m128d t = _mm_add_pd(_mm_mul_pd(x, log2e), magic);
-    const __m128d n = _mm_sub_pd(t, magic);
-    const __m128d r = _mm_sub_pd(_mm_sub_pd(x, _mm_mul_pd(n, ln2_hi)), _mm_mul_pd(n, ln2_lo));
-    __m128d p = _mm_set1_pd(kInvFactorial[13]);
-    for (int k = 12; k >= 0; --k) p = _mm_add_pd(_mm_mul_pd(p, r), _mm_set1_pd(kInvFactorial[k]));
-    const __m128i exponent =
-        _mm_slli_epi64(_mm_add_epi64(_mm_sub_epi64(_mm_castpd_si128(t), magic_bits), bias), 52);
-    p = _mm_mul_pd(p, _mm_castsi128_pd(exponent));
-    _mm_storeu_pd(at, _mm_andnot_pd(under, p));
-  };
-  int i = 0;
-  for (; i + 2 <= count; i += 2) two_lanes(v + i);
-  if (i < count) {  // the last odd one through the same lanes
-    double pad[2] = {v[i], 0.0};
-    two_lanes(pad);
-    v[i] = pad[0];
+  if (kernels::Avx2Fma()) {
+    kernels::ExpAvx2(v, count);
+    return;
   }
-#else
-  for (int i = 0; i < count; ++i) {
-    const double x = std::min(v[i], kHigh);
-    if (x < kLow) {
-      v[i] = 0;
-      continue;
-    }
-    const double n = std::nearbyint(x * kLog2e);
-    const double r = (x - n * kLn2Hi) - n * kLn2Lo;
-    double p = kInvFactorial[13];
-    for (int k = 12; k >= 0; --k) p = p * r + kInvFactorial[k];
-    v[i] = std::ldexp(p, static_cast<int>(n));
-  }
-#endif
+  for (int i = 0; i < count; ++i) v[i] = std::exp(v[i]);
 }
 
 struct Hyper {

@@ -42,6 +42,10 @@ Path SetForTesting(Path path);
 // magnitude and non-finite ones take libm's sincos. Used by SinCosMany (kinematics.h).
 void SinCos4Avx2(const double* x, double* s, double* c);
 
+// exp(v[i]) in place for i < count, within a few units in the last place of std::exp (the
+// reference path); arguments below -708 give 0. Used by the residual layer's kernel vector.
+void ExpAvx2(double* v, int count);
+
 // Which columns the four-row position path writes: per frame of the model, its parameter offset and
 // the canonical direction (0..5) of each basis column (every joint revolute about z, every basis
 // column a unit vector; built by the linear solver's MakeFourRowPlan).
