@@ -8,9 +8,9 @@
 #   scripts/benchmarks.sh              # everything (about 3-4 minutes on 2 cores)
 #   BUILD_DIR=/tmp/b scripts/benchmarks.sh
 #   NO_WRITE=1 scripts/benchmarks.sh   # print the table only (NO_README=1 is accepted too)
-#   BASELINE=v0.5.0 scripts/benchmarks.sh   # also: the end-to-end jobs before (that git ref, built
+#   BASELINE=v0.6.0 scripts/benchmarks.sh   # also: the end-to-end jobs before (that git ref, built
 #                                           # in a temporary worktree) and after (this tree), in turns
-#   BASELINE=v0.5.0 ONLY_BASELINE=1 scripts/benchmarks.sh   # the before/after table alone
+#   BASELINE=v0.6.0 ONLY_BASELINE=1 scripts/benchmarks.sh   # the before/after table alone
 #   BASELINE_BUILD_DIR=DIR: the baseline's build directory (kept; reused when its tools exist)
 #
 # KDL (liborocos-kdl-dev) is a benchmark-only dependency: installed here if missing (apt-get, via
