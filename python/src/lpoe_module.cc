@@ -250,9 +250,26 @@ PYBIND11_MODULE(_lpoe, m) {
       "lpoe/options.h)");
   m.def(
       "write_model",
-      [](const std::string& path, const RobotModel& model) { Check(WriteAnyRobotModel(path, model)); },
+      [](const std::string& path, const RobotModel& model) {
+        const bool urdf = path.size() >= 5 && path.compare(path.size() - 5, 5, ".urdf") == 0;
+        if (urdf && (model.residual_layer || !model.joint_errors.empty())) {
+          // What lpoe_calibrate warns for its --urdf_output: a URDF holds the geometry only.
+          const std::string what = std::string(model.residual_layer ? "the residual layer" : "") +
+                                   (model.residual_layer && !model.joint_errors.empty() ? " and " : "") +
+                                   (model.joint_errors.empty() ? "" : "the joint-space terms");
+          if (PyErr_WarnEx(PyExc_UserWarning,
+                           (path + ": a URDF carries the geometry only: " + what +
+                            " of this model are not written (write YAML to keep them)")
+                               .c_str(),
+                           1) != 0) {
+            throw py::error_already_set();
+          }
+        }
+        Check(WriteAnyRobotModel(path, model));
+      },
       py::arg("path"), py::arg("model"),
-      "writes a model atomically: URDF when the name ends in .urdf, else YAML");
+      "writes a model atomically: URDF when the name ends in .urdf (the geometry only: a model's "
+      "joint-space terms and residual layer are left out with a UserWarning), else YAML");
   m.def(
       "model_from_yaml",
       [](const std::string& text, const std::string& source) {

@@ -134,6 +134,21 @@ def test_residual_layer_is_carried_and_predicted(inputs):
         m.predict_std(v.q)
 
 
+def test_write_model_urdf_warns_what_it_leaves_out(inputs, tmp_path):
+    m, d, v = inputs
+    r = lpoe.calibrate(m, d, verify=v, residual_model="gp")
+    with pytest.warns(UserWarning, match="residual layer"):
+        lpoe.write_model(str(tmp_path / "layered.urdf"), r.model)
+    assert lpoe.read_model(str(tmp_path / "layered.urdf")).has_residual_layer is False
+    # YAML keeps it, without a warning; a geometric model's URDF warns of nothing.
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        lpoe.write_model(str(tmp_path / "layered.yaml"), r.model)
+        lpoe.write_model(str(tmp_path / "nominal.urdf"), m)
+    assert lpoe.read_model(str(tmp_path / "layered.yaml")).has_residual_layer
+
+
 def test_residual_model_auto_and_bad_value(inputs):
     m, d, v = inputs
     r = lpoe.calibrate(m, d, verify=v, residual_model="auto")

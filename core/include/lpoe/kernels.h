@@ -13,7 +13,7 @@
 
 namespace lpoe {
 
-struct RobotModel;
+class RobotModel;
 
 namespace kernels {
 
