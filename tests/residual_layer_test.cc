@@ -80,7 +80,7 @@ TEST(ResidualLayer, MarginalLikelihoodGradientMatchesFiniteDifferences) {
   }
   for (bool with_tool : {false, true}) {
     Eigen::VectorXd theta(n + (with_tool ? 1 : 0) + 2);
-    theta << std::log(0.7), std::log(1.3), std::log(0.4);
+    theta.head(n) << std::log(0.7), std::log(1.3), std::log(0.4);
     int k = n;
     if (with_tool) theta(k++) = std::log(0.8);
     theta(k++) = std::log(0.04);
