@@ -71,8 +71,8 @@ model.predict(Q)
 PY
   # job label | command (with @B@ for the build directory)
   local jobs=(
-    "calibrate 10^6 rows, linear|@B@/tools/lpoe_calibrate --measurements=$WORK/n1m.csv --output=$WORK/ba.yaml --plots_dir= --quiet"
-    "calibrate 10^6 rows, Ceres|@B@/tools/lpoe_calibrate --measurements=$WORK/n1m.csv --output=$WORK/ba.yaml --plots_dir= --solver=ceres --quiet"
+    "calibrate 10^6 rows, linear|@B@/tools/lpoe_calibrate --model=$ROOT/data/cobot6.yaml --measurements=$WORK/n1m.csv --output=$WORK/ba.yaml --plots_dir= --quiet"
+    "calibrate 10^6 rows, Ceres|@B@/tools/lpoe_calibrate --model=$ROOT/data/cobot6.yaml --measurements=$WORK/n1m.csv --output=$WORK/ba.yaml --plots_dir= --solver=ceres --quiet"
     "calibrate 1000 poses, --joint_errors=auto|@B@/tools/lpoe_calibrate --model=$WORK/auto_nominal.yaml --measurements=$WORK/auto1000.csv --joint_errors=auto --output=$WORK/ba.yaml --plots_dir= --quiet"
     "compensate 10^6 targets|@B@/tools/lpoe_compensate --model=$ROOT/data/cobot6.yaml --targets=$WORK/t1m.csv --output=$WORK/ba.csv"
     "plan 50 of 5,000 candidates|@B@/tools/lpoe_plan --model=$ROOT/data/cobot6.yaml --count=50 --candidate_count=5000 --output=$WORK/ba_plan.csv"
