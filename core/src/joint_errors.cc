@@ -37,16 +37,9 @@ void ComputeChainState(const RobotModel& model, const double* q, ChainState* sta
     return origins != nullptr ? (*origins)[i] : model.joints[i].origin;
   };
   auto is_z = [&](int i) { return IsRevoluteZ(model.joints[i]); };
-  auto twist = [&](int i, const SE3Accumulator<double>& G) {
-    const SE3d& X = G.X;
-    const Joint& joint = model.joints[i];
-    if (is_z(i)) {  // w = R e_z, v = t x w
-      const Eigen::Vector3d w = X.R.col(2);
-      state->twist[i] << w, X.t.cross(w);
-      return;
-    }
-    const Eigen::Vector3d w = X.R * joint.twist.head<3>();
-    state->twist[i] << w, X.R * joint.twist.tail<3>() + X.t.cross(w);  // Ad_X s (se3.h)
+  auto twist = [&](int i, const SE3Accumulator<double>& G) {  // Ad_G s_i
+    JointPoseColumn(G.X.R.data(), G.X.t.data(), model.joints[i].twist, is_z(i),
+                    state->twist[i].data());
   };
   auto link = [&](int i, const SE3Accumulator<double>& X) { state->link[i] = X.X; };
   SE3Accumulator<double> X;
@@ -411,19 +404,6 @@ void EffectiveJoints(const RobotModel& model, const double* q, double* q_eff) {
   for (int j = 0; j < n; ++j) q_eff[j] = q[j] + dq[j];
 }
 
-Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double* q, int tool,
-                                          Eigen::Matrix<double, 3, Eigen::Dynamic>* J_p_q) {
-  ChainState state;
-  ComputeChainState(model, q, &state);
-  const int n = model.num_joints();
-  const Eigen::Vector3d P = state.link[n - 1] * model.tools[tool].origin.t;
-  J_p_q->resize(3, n);
-  for (int j = 0; j < n; ++j) {
-    J_p_q->col(j) = state.twist[j].head<3>().cross(P) + state.twist[j].tail<3>();
-  }
-  return P;
-}
-
 Eigen::Vector3d PredictToolPosition(const RobotModel& model, const double* q, int tool) {
   Eigen::Vector3d p;
   if (model.joint_errors.empty()) {
@@ -504,7 +484,8 @@ Status ReduceJointErrorTerms(const RobotModel& reference, const Parameterization
   for (int r = 0; r < rows; ++r) {
     basis_jacobian.Position(data.q(r), data.target(r), A_geometric.data() + 3 * r, m,
                             scratch.data());
-    ToolPositionJointJacobian(reference, data.q(r), data.target(r), &J_q[r]);
+    J_q[r].resize(3, n);
+    basis_jacobian.PositionJointJacobian(scratch.data(), J_q[r].data(), 3);
   }
 
   // Orthonormal basis of what the geometry (and the terms before) already explain.

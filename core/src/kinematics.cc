@@ -11,59 +11,13 @@
 namespace lpoe {
 namespace {
 
-// The running product of the double forward pass on a lane type: each column of R (and t) as a
-// pair of rows 0 and 1 (GCC/Clang vector arithmetic, two doubles: SSE2 on x86-64, NEON elsewhere,
-// plain code where there is none) plus row 2 as a scalar, so that a 3x3 product takes 18 multiplications
-// on pairs or scalars instead of 27. The products in a fixed order: new column c =
-// (R_0 a + R_1 b) + R_2 d, t <- (R_0 a + t) + (R_1 b + R_2 d).
-struct Accumulator {
-  typedef double Pair __attribute__((vector_size(16)));
-  Pair lo[4];     // rows 0 and 1 of columns 0..2 of R, then of t
-  double hi[4];   // row 2
+using Accumulator = LaneAccumulator<double>;
 
-  static Pair Splat(double v) { return Pair{v, v}; }
-  void Set(const SE3d& X) {
-    for (int k = 0; k < 3; ++k) {
-      lo[k] = Pair{X.R(0, k), X.R(1, k)};
-      hi[k] = X.R(2, k);
-    }
-    lo[3] = Pair{X.t(0), X.t(1)};
-    hi[3] = X.t(2);
-  }
-  // (R, t) <- (R, t) * (M, m).
-  void RightMultiply(const SE3d& X) {
-    const double* M = X.R.data();  // column-major
-    Pair nlo[3];
-    double nhi[3];
-    for (int c = 0; c < 3; ++c) {
-      const double a = M[3 * c], b = M[3 * c + 1], d = M[3 * c + 2];
-      nlo[c] = (lo[0] * Splat(a) + lo[1] * Splat(b)) + lo[2] * Splat(d);
-      nhi[c] = (hi[0] * a + hi[1] * b) + hi[2] * d;
-    }
-    const double a = X.t(0), b = X.t(1), d = X.t(2);
-    lo[3] = (lo[0] * Splat(a) + lo[3]) + (lo[1] * Splat(b) + lo[2] * Splat(d));
-    hi[3] = (hi[0] * a + hi[3]) + (hi[1] * b + hi[2] * d);
-    for (int c = 0; c < 3; ++c) {
-      lo[c] = nlo[c];
-      hi[c] = nhi[c];
-    }
-  }
-  // R <- R Rz(q): columns 0 and 1 only.
-  void RotZ(double cq, double sq) {
-    internal::PlaneRotation(Splat(cq), Splat(-sq), &lo[0], &lo[1]);
-    internal::PlaneRotation(cq, -sq, &hi[0], &hi[1]);
-  }
-  void Store(Eigen::Matrix3d* R, Eigen::Vector3d* t) const {
-    for (int k = 0; k < 3; ++k) {
-      (*R)(0, k) = lo[k][0];
-      (*R)(1, k) = lo[k][1];
-      (*R)(2, k) = hi[k];
-    }
-    (*t)(0) = lo[3][0];
-    (*t)(1) = lo[3][1];
-    (*t)(2) = hi[3];
-  }
-};
+// Frame (R, t) <- the accumulator's transform.
+inline void Store(const Accumulator& X, Eigen::Matrix3d* R, Eigen::Vector3d* t) {
+  std::copy(X.R, X.R + 9, R->data());
+  std::copy(X.t, X.t + 3, t->data());
+}
 
 // Joints whose sin/cos are computed ahead of the chain (longer chains compute them on the fly).
 // Every XMM register is caller-saved on x86-64, so a sincos call inside the chain would spill and
@@ -83,7 +37,7 @@ inline void ForwardPass(const RobotModel& model, const double* q, IsZ is_z, cons
   Accumulator X;
   auto origin = [joints](int i) -> const SE3d& { return joints[i].origin; };
   auto sink = [frames](int i, const Accumulator& A) {
-    if (frames != nullptr) A.Store(&frames[i].R, &frames[i].t);
+    if (frames != nullptr) Store(A, &frames[i].R, &frames[i].t);
   };
   if (n <= kSinCosUpFront) {
     // The sin/cos of every revolute-z joint before the chain (unless given), on the stack.
@@ -101,7 +55,7 @@ inline void ForwardPass(const RobotModel& model, const double* q, IsZ is_z, cons
     ForwardChain(n, origin, MakeOnTheFlyMotions(joints, q, is_z), &X, sink);
   }
   if (tail != nullptr) X.RightMultiply(*tail);
-  X.Store(R, t);
+  Store(X, R, t);
 }
 
 // P = T_0,n(q) p, from the tool back to the base with vectors only (BackwardChain). Here the
@@ -151,66 +105,12 @@ inline auto WithFrames(const RobotModel& model, const double* q, int tool, const
   return use(frames.data());
 }
 
-// Column k of the 3 x 6 position block of frame (R, t) at tool position P (eq. (29) without Ad):
-// d/d omega_k = R_k x (P - t) (= -(P - t)^ R e_k), d/d v_k = R_k.
+// The columns of kinematics.h on a FrameRt.
 inline void PositionColumn(const FrameRt& G, const Eigen::Vector3d& d, int k, double* out) {
-  if (k < 3) {
-    const auto Rk = G.R.col(k);
-    out[0] = Rk(1) * d(2) - Rk(2) * d(1);
-    out[1] = Rk(2) * d(0) - Rk(0) * d(2);
-    out[2] = Rk(0) * d(1) - Rk(1) * d(0);
-  } else {
-    const auto Rk = G.R.col(k - 3);
-    out[0] = Rk(0);
-    out[1] = Rk(1);
-    out[2] = Rk(2);
-  }
+  lpoe::PositionColumn(G.R.data(), d.data(), k, out);
 }
-
-// Column k of Ad_G = [[R, 0], [t^ R, R]] (eq. (18)).
 inline void AdjointColumn(const FrameRt& G, int k, double* out) {
-  if (k < 3) {
-    const auto Rk = G.R.col(k);
-    const Eigen::Vector3d tr = G.t.cross(Eigen::Vector3d(Rk));
-    out[0] = Rk(0);
-    out[1] = Rk(1);
-    out[2] = Rk(2);
-    out[3] = tr(0);
-    out[4] = tr(1);
-    out[5] = tr(2);
-  } else {
-    const auto Rk = G.R.col(k - 3);
-    out[0] = out[1] = out[2] = 0.0;
-    out[3] = Rk(0);
-    out[4] = Rk(1);
-    out[5] = Rk(2);
-  }
-}
-
-// Column of joint i (twist s in its own frame, revolute about z when `z`) in the position Jacobian:
-// w x (P - t) + R v_s with w = R w_s, i.e. the twist's combination of the frame's PositionColumns.
-inline void JointPositionColumn(const FrameRt& G, const Eigen::Vector3d& d, const Vector6d& s,
-                                bool z, double* out) {
-  if (z) return PositionColumn(G, d, 2, out);
-  out[0] = out[1] = out[2] = 0.0;
-  double c[3];
-  for (int k = 0; k < 6; ++k) {
-    if (s(k) == 0.0) continue;
-    PositionColumn(G, d, k, c);
-    for (int r = 0; r < 3; ++r) out[r] += s(k) * c[r];
-  }
-}
-
-// Column of joint i in the pose Jacobian: Ad_{G_i} s.
-inline void JointPoseColumn(const FrameRt& G, const Vector6d& s, bool z, double* out) {
-  if (z) return AdjointColumn(G, 2, out);
-  for (int r = 0; r < 6; ++r) out[r] = 0.0;
-  double c[6];
-  for (int k = 0; k < 6; ++k) {
-    if (s(k) == 0.0) continue;
-    AdjointColumn(G, k, c);
-    for (int r = 0; r < 6; ++r) out[r] += s(k) * c[r];
-  }
+  lpoe::AdjointColumn(G.R.data(), G.t.data(), k, out);
 }
 
 // The 3 x n (6 x n) joint Jacobian at the frames G_0..G_n of one configuration, column-major with
@@ -219,13 +119,14 @@ void PositionJointColumns(const RobotModel& model, const FrameRt* G, double* J, 
   const int n = model.num_joints();
   for (int i = 0; i < n; ++i) {
     const Joint& j = model.joints[i];
-    JointPositionColumn(G[i], G[n].t - G[i].t, j.twist, IsRevoluteZ(j), J + i * ld);
+    const Eigen::Vector3d d = G[n].t - G[i].t;
+    JointPositionColumn(G[i].R.data(), d.data(), j.twist, IsRevoluteZ(j), J + i * ld);
   }
 }
 void PoseJointColumns(const RobotModel& model, const FrameRt* G, double* J, int ld) {
   for (int i = 0; i < model.num_joints(); ++i) {
     const Joint& j = model.joints[i];
-    JointPoseColumn(G[i], j.twist, IsRevoluteZ(j), J + i * ld);
+    JointPoseColumn(G[i].R.data(), G[i].t.data(), j.twist, IsRevoluteZ(j), J + i * ld);
   }
 }
 
@@ -281,14 +182,25 @@ SE3d ToolPoseJacobian(const RobotModel& model, const double* q, int tool,
 }
 
 // The joint columns are the position (pose) Jacobian's columns of the twist s_i at G_i.
-Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double* q, int tool,
-                                          Eigen::MatrixXd* J_p_q) {
+template <typename Matrix>
+Eigen::Vector3d PositionJointJacobianInto(const RobotModel& model, const double* q, int tool,
+                                          Matrix* J_p_q) {
   const int n = model.num_joints();
   return WithFrames(model, q, tool, [&](const FrameRt* G) {
     J_p_q->resize(3, n);
     PositionJointColumns(model, G, J_p_q->data(), 3);
     return Eigen::Vector3d(G[n].t);
   });
+}
+
+Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double* q, int tool,
+                                          Eigen::MatrixXd* J_p_q) {
+  return PositionJointJacobianInto(model, q, tool, J_p_q);
+}
+
+Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double* q, int tool,
+                                          Eigen::Matrix<double, 3, Eigen::Dynamic>* J_p_q) {
+  return PositionJointJacobianInto(model, q, tool, J_p_q);
 }
 
 SE3d ToolPoseJointJacobian(const RobotModel& model, const double* q, int tool,
@@ -385,7 +297,8 @@ void KinematicChain::ToolJointJacobian(const FrameRt* frames, double* J, int ld)
     const FrameRt& G = frames[i];
     double* col = J + static_cast<std::ptrdiff_t>(i) * ld;
     const bool z = z_revolute_[i] != 0;
-    JointPositionColumn(G, P - G.t, joint.twist, z, col);
+    const Eigen::Vector3d d = P - G.t;
+    JointPositionColumn(G.R.data(), d.data(), joint.twist, z, col);
     const Eigen::Vector3d w = z ? Eigen::Vector3d(G.R.col(2))
                                 : Eigen::Vector3d(G.R * joint.twist.head<3>());
     col[3] = w(0);

@@ -204,11 +204,6 @@ void ComplianceOffsets(const Eigen::MatrixXd Y_axes[3], const Vector3<T>& g, con
 
 // ---- Prediction with every term the model carries.
 
-// dP/dq (3 x num_joints) of the tool position at joint values q (the chain rule through the joints:
-// column j is w_j x P + v_j). Returns P.
-Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double* q, int tool,
-                                          Eigen::Matrix<double, 3, Eigen::Dynamic>* J_p_q);
-
 // FK(q_eff) * tool (mm, model frame).
 Eigen::Vector3d PredictToolPosition(const RobotModel& model, const double* q, int tool);
 

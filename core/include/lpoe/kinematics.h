@@ -136,8 +136,9 @@ SE3<S> JointMotion(const Joint& joint, const S& q) {
 //                  multiplications per revolute-z joint and no rotation products.
 // What differs between the fast double paths, the Jet paths of Ceres and the analytic Jacobians is
 // a policy:
-//   * the running transform (`Accumulator`): SE3Accumulator<T> for any scalar, the SSE2 register
-//     form of kinematics.cc for the double fast paths;
+//   * the running transform (`Accumulator`): SE3Accumulator<T> for any scalar (Jets), or
+//     LaneAccumulator<V> on twelve values of a scalar or lane type (the double fast paths, and the
+//     four-row kernel's four configurations at once);
 //   * the local frames (`origin(i)`): the model's own frames, or parameter blocks (SE3<T>, or
 //     QuaternionTransform<T> acting on a point straight from the quaternion);
 //   * the joint motions (`Motions`): precomputed once per configuration (JointMotions, the
@@ -272,6 +273,26 @@ GivenSinCosMotions<IsZ> MakeGivenSinCosMotions(const Joint* joints, const double
   return GivenSinCosMotions<IsZ>(joints, q, is_z, sin_q, cos_q);
 }
 
+// The joint motions of a chain whose joints are all revolute about z, with sin(q_i) and cos(q_i) given
+// as values of C (double, or a vector of lanes: one configuration per lane).
+template <typename C>
+class RevoluteZMotions {
+ public:
+  RevoluteZMotions(const C* sin_q, const C* cos_q) : s_(sin_q), c_(cos_q) {}
+  template <typename T>
+  void ApplyLeft(int i, Vector3<T>* p) const {
+    JointModelRevoluteZ::ApplyLeft(c_[i], s_[i], p);
+  }
+  template <typename Accumulator>
+  void ApplyRight(int i, Accumulator* X) const {
+    JointModelRevoluteZ::ApplyRight(c_[i], s_[i], X);
+  }
+
+ private:
+  const C* s_;
+  const C* c_;
+};
+
 // Scratch for one value per joint: on the stack for up to N joints, else on the heap (the autodiff
 // residuals build their frames in it on every evaluation).
 template <typename V, int N = 16>
@@ -307,6 +328,48 @@ struct SE3Accumulator {
   template <typename C>
   void RotZ(const C& c, const C& s) {
     for (int r = 0; r < 3; ++r) internal::PlaneRotation(c, C(-s), &X.R(r, 0), &X.R(r, 1));
+  }
+};
+
+// The running transform of ForwardChain as twelve values of an arithmetic type V (R column-major in
+// R[0..8], t in t[0..2]): V is double, or a vector of lanes (GCC/Clang vector arithmetic: several
+// configurations at once, one per lane, as the four-row kernel of core/src/kernels/ instantiates it).
+// Coefficients are doubles (the same frame in every lane) or V (a frame per lane). The products in a
+// fixed order: new column c = (R_0 a + R_1 b) + R_2 d, t <- (R_0 a + t) + (R_1 b + R_2 d).
+template <typename V>
+struct LaneAccumulator {
+  V R[9];
+  V t[3];
+
+  // X <- F (the same frame in every lane).
+  void Set(const SE3d& F) {
+    for (int k = 0; k < 9; ++k) R[k] = Splat(F.R.data()[k]);
+    for (int k = 0; k < 3; ++k) t[k] = Splat(F.t(k));
+  }
+  // X <- X F (the same frame in every lane).
+  void RightMultiply(const SE3d& F) { RightMultiplyBy(F.R.data(), F.t.data()); }
+  // X <- X (M, m): M column-major; C is double (one frame) or V (a frame per lane).
+  template <typename C>
+  void RightMultiplyBy(const C* M, const C* m) {
+    V N[9];
+    for (int c = 0; c < 3; ++c) {
+      for (int r = 0; r < 3; ++r) {
+        N[3 * c + r] = (R[r] * M[3 * c] + R[3 + r] * M[3 * c + 1]) + R[6 + r] * M[3 * c + 2];
+      }
+    }
+    for (int r = 0; r < 3; ++r) t[r] = (R[r] * m[0] + t[r]) + (R[3 + r] * m[1] + R[6 + r] * m[2]);
+    for (int k = 0; k < 9; ++k) R[k] = N[k];
+  }
+  // R <- R Rz(q): columns 0 and 1 only (12 multiplications instead of a 3x3 product).
+  template <typename C>
+  void RotZ(const C& c, const C& s) {
+    for (int r = 0; r < 3; ++r) internal::PlaneRotation(c, C(-s), &R[r], &R[3 + r]);
+  }
+
+ private:
+  static V Splat(double x) {
+    V v = {};
+    return v + x;  // a scalar converts to every lane
   }
 };
 
@@ -387,6 +450,77 @@ Vector3<T> ChainPosition(const JointMotions<S>& motions, int num_joints, const F
       num_joints, [&](int i) -> const Frame& { return joint_origins[i]; }, motions, tool_point);
 }
 
+// ---- Jacobian columns, written once for every scalar and lane type V (double, or the lanes of the
+// four-row kernel). A frame G = (R, t) is given by R column-major (R[3 k + r]) and t; d = P - t is the
+// tool point P seen from the frame's origin.
+
+// Column k of the 3 x 6 position Jacobian of a right perturbation (omega, v) of G (eq. (29) without
+// the adjoint): k < 3: d/d omega_k = R_k x d (= -(P - t)^ R e_k); k >= 3: d/d v_k = R_{k-3}. The
+// position column of a joint revolute about its frame's z is k = 2.
+template <typename V>
+inline void PositionColumn(const V* R, const V* d, int k, V* out) {
+  if (k < 3) {
+    const V* Rk = R + 3 * k;
+    out[0] = Rk[1] * d[2] - Rk[2] * d[1];
+    out[1] = Rk[2] * d[0] - Rk[0] * d[2];
+    out[2] = Rk[0] * d[1] - Rk[1] * d[0];
+  } else {
+    const V* Rk = R + 3 * (k - 3);
+    out[0] = Rk[0];
+    out[1] = Rk[1];
+    out[2] = Rk[2];
+  }
+}
+
+// Column k of Ad_G = [[R, 0], [t^ R, R]] (eq. (18)): k < 3: (R_k, t x R_k); k >= 3: (0, R_{k-3}).
+template <typename V>
+inline void AdjointColumn(const V* R, const V* t, int k, V* out) {
+  if (k < 3) {
+    const V* Rk = R + 3 * k;
+    out[0] = Rk[0];
+    out[1] = Rk[1];
+    out[2] = Rk[2];
+    out[3] = t[1] * Rk[2] - t[2] * Rk[1];
+    out[4] = t[2] * Rk[0] - t[0] * Rk[2];
+    out[5] = t[0] * Rk[1] - t[1] * Rk[0];
+  } else {
+    const V* Rk = R + 3 * (k - 3);
+    out[0] = out[1] = out[2] = V();
+    out[3] = Rk[0];
+    out[4] = Rk[1];
+    out[5] = Rk[2];
+  }
+}
+
+// The column of a joint whose twist in its own frame is s (revolute about z when `z`) at its frame
+// G = (R, t): Ad_G s (6 rows; the pose Jacobian, and the joint's twist in the base frame), the
+// twist's combination of the frame's AdjointColumns.
+inline void JointPoseColumn(const double* R, const double* t, const Vector6d& s, bool z,
+                            double* out) {
+  if (z) return AdjointColumn(R, t, 2, out);
+  for (int r = 0; r < 6; ++r) out[r] = 0.0;
+  double c[6];
+  for (int k = 0; k < 6; ++k) {
+    if (s(k) == 0.0) continue;
+    AdjointColumn(R, t, k, c);
+    for (int r = 0; r < 6; ++r) out[r] += s(k) * c[r];
+  }
+}
+
+// The same joint's column in the position Jacobian at the tool point (d = P - t): w x d + R v, the
+// twist's combination of the frame's PositionColumns.
+inline void JointPositionColumn(const double* R, const double* d, const Vector6d& s, bool z,
+                                double* out) {
+  if (z) return PositionColumn(R, d, 2, out);
+  out[0] = out[1] = out[2] = 0.0;
+  double c[3];
+  for (int k = 0; k < 6; ++k) {
+    if (s(k) == 0.0) continue;
+    PositionColumn(R, d, k, c);
+    for (int r = 0; r < 3; ++r) out[r] += s(k) * c[r];
+  }
+}
+
 // Convenience forms on the model's own frames (double).
 SE3d ToolPose(const RobotModel& model, const double* q, int tool = 0);
 Eigen::Vector3d ToolPosition(const RobotModel& model, const double* q, int tool = 0);
@@ -415,6 +549,8 @@ SE3d ToolPoseJacobian(const RobotModel& model, const double* q, int tool,
 // (T(q + dq e_i) = exp((Ad_{G_i} s_i dq)^) T(q)). `J_p_q` is resized to 3 x n. Returns P.
 Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double* q, int tool,
                                           Eigen::MatrixXd* J_p_q);
+Eigen::Vector3d ToolPositionJointJacobian(const RobotModel& model, const double* q, int tool,
+                                          Eigen::Matrix<double, 3, Eigen::Dynamic>* J_p_q);
 
 // The same for the pose, in the convention of ToolPoseJacobian (6 x n, column i = Ad_{G_i} s_i).
 // Returns T_0,tool(q).

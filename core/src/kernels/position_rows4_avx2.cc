@@ -4,6 +4,7 @@
 // algebra one row at a time (BasisJacobian::Position, then Eigen's rank update); tests/kernels_test.cc
 // compares the two.
 #include <cstddef>
+#include <cstring>
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
@@ -11,6 +12,10 @@
 #else
 #include <glog/logging.h>
 #endif
+
+// Lane4 values pass between the templates of kinematics.h inlined into the kernel below: no call
+// crosses an ABI boundary with them (GCC warns where such templates are instantiated).
+#pragma GCC diagnostic ignored "-Wpsabi"
 
 #include "lpoe/kernels.h"
 #include "lpoe/kinematics.h"
@@ -21,28 +26,21 @@ namespace kernels {
 #ifdef LPOE_KERNELS_X86
 namespace {
 
-// X <- X M for 4-lane transforms (R column-major in X[0..8], t in X[9..11]).
-__attribute__((target("avx2,fma"))) inline void RightMultiply4(__m256d* X, const __m256d* M) {
-  __m256d R[9];
-  for (int c = 0; c < 3; ++c) {
-    for (int r = 0; r < 3; ++r) {
-      R[3 * c + r] = _mm256_fmadd_pd(
-          X[6 + r], M[3 * c + 2],
-          _mm256_fmadd_pd(X[3 + r], M[3 * c + 1], _mm256_mul_pd(X[r], M[3 * c])));
-    }
-  }
-  for (int r = 0; r < 3; ++r) {
-    X[9 + r] = _mm256_fmadd_pd(
-        X[6 + r], M[11],
-        _mm256_fmadd_pd(X[3 + r], M[10], _mm256_fmadd_pd(X[r], M[9], X[9 + r])));
-  }
-  for (int k = 0; k < 9; ++k) X[k] = R[k];
-}
+// Four doubles, one configuration per lane (GCC/Clang vector arithmetic): the lane type the chain
+// and column templates of kinematics.h are instantiated on here. Inside the AVX2/FMA function below
+// (flatten: every template it calls is inlined into it) each operation is one AVX2 instruction and
+// a product followed by a sum is fused.
+typedef double Lane4 __attribute__((vector_size(32)));
+typedef long long Mask4 __attribute__((vector_size(32)));
 
-// The same transform in every lane.
-__attribute__((target("avx2,fma"))) inline void Broadcast4(const SE3d& O, __m256d* out) {
-  for (int k = 0; k < 9; ++k) out[k] = _mm256_set1_pd(O.R.data()[k]);
-  for (int k = 0; k < 3; ++k) out[9 + k] = _mm256_set1_pd(O.t(k));
+inline Lane4 Load(const double* p) {
+  Lane4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline void Store(double* p, const Lane4& v) { std::memcpy(p, &v, sizeof v); }
+inline Lane4 Masked(const Lane4& v, const Mask4& mask) {
+  return reinterpret_cast<Lane4>(reinterpret_cast<Mask4>(v) & mask);
 }
 
 }  // namespace
@@ -50,92 +48,68 @@ __attribute__((target("avx2,fma"))) inline void Broadcast4(const SE3d& O, __m256
 // Four rows (lanes) of the position Jacobian into A (column c, component i of lane l at
 // A[c * ld + i * stride + l]; lanes from `valid` on get zeros) and their positions into P
 // (P[4 i + l]). sin_q, cos_q: n values per lane, lane after lane. With jq_column >= 0 the joint
-// Jacobian dP/dq too, in the same layout from column jq_column on: joint j's column is
-// z_j x (P - t_j) with z_j, t_j the axis and origin of the joint's frame G_j (the frame's rotation
-// column about z, w_j x P + v_j).
-__attribute__((target("avx2,fma"))) void PositionRows4(const RobotModel& model,
-                                                       const FourRowPlan& plan,
-                                                       const double* sin_q, const double* cos_q,
-                                                       const int* tool, int valid, double* A,
-                                                       int ld, int stride, double* P,
-                                                       int jq_column) {
+// Jacobian dP/dq too, in the same layout from column jq_column on. The chain is kinematics.h's
+// ForwardChain on LaneAccumulator<Lane4>, the columns its PositionColumn: the reference path
+// (BasisJacobian::Position) instantiated on doubles.
+__attribute__((target("avx2,fma"), flatten)) void PositionRows4(
+    const RobotModel& model, const FourRowPlan& plan, const double* sin_q, const double* cos_q,
+    const int* tool, int valid, double* A, int ld, int stride, double* P, int jq_column) {
   const int n = model.num_joints();
-  __m256d F[kMaxGivenSinCosJoints + 1][12];
-  __m256d X[12], M[12];
-  Broadcast4(model.joints[0].origin, X);
+  Lane4 s[kMaxGivenSinCosJoints], c[kMaxGivenSinCosJoints];
   for (int i = 0; i < n; ++i) {
-    if (i > 0) {
-      Broadcast4(model.joints[i].origin, M);
-      RightMultiply4(X, M);
-    }
-    for (int k = 0; k < 12; ++k) F[i][k] = X[k];
-    // R <- R Rz(q_i): columns 0 and 1.
-    const __m256d c = _mm256_set_pd(cos_q[3 * n + i], cos_q[2 * n + i], cos_q[n + i], cos_q[i]);
-    const __m256d s = _mm256_set_pd(sin_q[3 * n + i], sin_q[2 * n + i], sin_q[n + i], sin_q[i]);
-    for (int r = 0; r < 3; ++r) {
-      const __m256d x0 = X[r], x1 = X[3 + r];
-      X[r] = _mm256_fmadd_pd(s, x1, _mm256_mul_pd(c, x0));
-      X[3 + r] = _mm256_fnmadd_pd(s, x0, _mm256_mul_pd(c, x1));
-    }
+    s[i] = Lane4{sin_q[i], sin_q[n + i], sin_q[2 * n + i], sin_q[3 * n + i]};
+    c[i] = Lane4{cos_q[i], cos_q[n + i], cos_q[2 * n + i], cos_q[3 * n + i]};
   }
-  // The tool frame of each lane's target.
+  // The frames G_0..G_n-1 (before each joint moves), then the tool frame of each lane's target.
+  LaneAccumulator<Lane4> F[kMaxGivenSinCosJoints + 1];
+  LaneAccumulator<Lane4> X;
+  const Joint* joints = model.joints.data();
+  ForwardChain(
+      n, [joints](int i) -> const SE3d& { return joints[i].origin; },
+      RevoluteZMotions<Lane4>(s, c), &X,
+      [&F](int i, const LaneAccumulator<Lane4>& G) { F[i] = G; });
+  Lane4 tool_R[9], tool_t[3];
   const SE3d* T[4];
   for (int l = 0; l < 4; ++l) T[l] = &model.tools[tool[l]].origin;
   for (int k = 0; k < 9; ++k) {
-    M[k] = _mm256_set_pd(T[3]->R.data()[k], T[2]->R.data()[k], T[1]->R.data()[k],
-                         T[0]->R.data()[k]);
+    tool_R[k] = Lane4{T[0]->R.data()[k], T[1]->R.data()[k], T[2]->R.data()[k], T[3]->R.data()[k]};
   }
-  for (int k = 0; k < 3; ++k) M[9 + k] = _mm256_set_pd(T[3]->t(k), T[2]->t(k), T[1]->t(k), T[0]->t(k));
-  RightMultiply4(X, M);
-  for (int k = 0; k < 12; ++k) F[n][k] = X[k];
-  for (int i = 0; i < 3; ++i) _mm256_storeu_pd(P + 4 * i, X[9 + i]);
+  for (int k = 0; k < 3; ++k) tool_t[k] = Lane4{T[0]->t(k), T[1]->t(k), T[2]->t(k), T[3]->t(k)};
+  X.RightMultiplyBy(tool_R, tool_t);
+  F[n] = X;
+  for (int i = 0; i < 3; ++i) Store(P + 4 * i, X.t[i]);
 
-  const __m256d lane = _mm256_set_pd(3, 2, 1, 0);
-  const __m256d valid_mask = _mm256_cmp_pd(lane, _mm256_set1_pd(valid), _CMP_LT_OQ);
-  const __m256d* p = X + 9;
+  const Mask4 lane = {0, 1, 2, 3};
+  const Mask4 valid_mask = lane < static_cast<long long>(valid);
+  const Lane4* p = X.t;
+  auto store_column = [&](const Lane4* col, const Mask4& mask, double* o) {
+    for (int i = 0; i < 3; ++i) Store(o + static_cast<std::ptrdiff_t>(i) * stride, Masked(col[i], mask));
+  };
   for (int f = 0; f < static_cast<int>(plan.frames.size()); ++f) {
     const FourRowPlan::Frame& fr = plan.frames[f];
     if (fr.select.empty()) continue;
-    const __m256d* G = F[f < n ? f : n];
-    __m256d mask = valid_mask;
+    const LaneAccumulator<Lane4>& G = F[f < n ? f : n];
+    Mask4 mask = valid_mask;
     if (f >= n) {  // a tool: only the lanes measuring it
-      const int t = f - n;
-      mask = _mm256_and_pd(
-          mask, _mm256_castsi256_pd(_mm256_set_epi64x(-(tool[3] == t), -(tool[2] == t),
-                                                      -(tool[1] == t), -(tool[0] == t))));
+      const long long t = f - n;
+      const Mask4 tools = {tool[0], tool[1], tool[2], tool[3]};
+      mask &= tools == t;
     }
-    const __m256d d[3] = {_mm256_sub_pd(p[0], G[9]), _mm256_sub_pd(p[1], G[10]),
-                          _mm256_sub_pd(p[2], G[11])};
+    const Lane4 d[3] = {p[0] - G.t[0], p[1] - G.t[1], p[2] - G.t[2]};
     double* out = A + static_cast<std::ptrdiff_t>(fr.offset) * ld;
-    for (size_t c = 0; c < fr.select.size(); ++c) {
-      const int k = fr.select[c];
-      __m256d col[3];
-      if (k < 3) {  // R_k x (P - t)
-        const __m256d* Rk = G + 3 * k;
-        col[0] = _mm256_fmsub_pd(Rk[1], d[2], _mm256_mul_pd(Rk[2], d[1]));
-        col[1] = _mm256_fmsub_pd(Rk[2], d[0], _mm256_mul_pd(Rk[0], d[2]));
-        col[2] = _mm256_fmsub_pd(Rk[0], d[1], _mm256_mul_pd(Rk[1], d[0]));
-      } else {  // R_k
-        for (int i = 0; i < 3; ++i) col[i] = G[3 * (k - 3) + i];
-      }
-      double* o = out + static_cast<std::ptrdiff_t>(c) * ld;
-      for (int i = 0; i < 3; ++i) _mm256_storeu_pd(o + i * stride, _mm256_and_pd(col[i], mask));
+    for (size_t k = 0; k < fr.select.size(); ++k) {
+      Lane4 col[3];
+      PositionColumn(G.R, d, fr.select[k], col);
+      store_column(col, mask, out + static_cast<std::ptrdiff_t>(k) * ld);
     }
   }
-  if (jq_column >= 0) {
+  if (jq_column >= 0) {  // joint j revolute about its frame's z: the position column k = 2
     for (int j = 0; j < n; ++j) {
-      const __m256d* G = F[j];
-      const __m256d d[3] = {_mm256_sub_pd(p[0], G[9]), _mm256_sub_pd(p[1], G[10]),
-                            _mm256_sub_pd(p[2], G[11])};
-      const __m256d* z = G + 6;
-      __m256d col[3];
-      col[0] = _mm256_fmsub_pd(z[1], d[2], _mm256_mul_pd(z[2], d[1]));
-      col[1] = _mm256_fmsub_pd(z[2], d[0], _mm256_mul_pd(z[0], d[2]));
-      col[2] = _mm256_fmsub_pd(z[0], d[1], _mm256_mul_pd(z[1], d[0]));
-      double* o = A + static_cast<std::ptrdiff_t>(jq_column + j) * ld;
-      for (int i = 0; i < 3; ++i) {
-        _mm256_storeu_pd(o + i * stride, _mm256_and_pd(col[i], valid_mask));
-      }
+      const LaneAccumulator<Lane4>& G = F[j];
+      const Lane4 d[3] = {p[0] - G.t[0], p[1] - G.t[1], p[2] - G.t[2]};
+      Lane4 col[3];
+      PositionColumn(G.R, d, 2, col);
+      store_column(col, valid_mask, A + static_cast<std::ptrdiff_t>(jq_column + j) * ld);
     }
   }
 }
