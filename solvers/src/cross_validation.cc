@@ -11,16 +11,16 @@
 namespace lpoe {
 namespace internal {
 
-CrossValidationFolds FoldsByConfiguration(const MeasurementSet& identification,
-                                          const PipelineOptions& options) {
-  CrossValidationFolds out;
+std::vector<std::vector<int>> FoldsByConfiguration(const MeasurementSet& identification,
+                                                   const PipelineOptions& options,
+                                                   CrossValidationChoice* choice) {
   std::vector<int> configuration_of_row;
   const int configurations = ConfigurationGroups(identification, &configuration_of_row);
-  out.folds = std::max(2, std::min(options.joint_error_folds, configurations));
-  out.seed = options.split_seed;
-  out.split = options.split;
-  out.rows = KFolds(identification, out.folds, out.seed, out.split);
-  return out;
+  choice->ran = true;
+  choice->folds = std::max(2, std::min(options.joint_error_folds, configurations));
+  choice->seed = options.split_seed;
+  choice->split = options.split;
+  return KFolds(identification, choice->folds, choice->seed, choice->split);
 }
 
 PipelineOptions SerializedProgress(const PipelineOptions& options, std::mutex* mutex) {
@@ -85,7 +85,9 @@ void ScoreFolds(const std::vector<FoldErrors>& folds, CrossValidatedCandidate* c
 }
 
 bool ChooseWithinOneStandardError(const std::vector<const CrossValidatedCandidate*>& candidates,
-                                  int* best, int* chosen, std::string* reason) {
+                                  CrossValidationChoice* choice) {
+  int* best = &choice->best;
+  int* chosen = &choice->chosen;
   *best = -1;
   for (size_t k = 0; k < candidates.size(); ++k) {
     const CrossValidatedCandidate& c = *candidates[k];
@@ -103,7 +105,7 @@ bool ChooseWithinOneStandardError(const std::vector<const CrossValidatedCandidat
   why << "one-standard-error rule: lowest CV mean squared error " << b.cv_mse << " mm^2 ("
       << b.label << ", standard error " << b.cv_mse_se << " mm^2); " << c.label
       << " is the simplest candidate within " << limit << " mm^2";
-  *reason = why.str();
+  choice->reason = why.str();
   return true;
 }
 

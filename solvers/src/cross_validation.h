@@ -19,15 +19,11 @@ namespace lpoe {
 namespace internal {
 
 // The folds of a selection: k = options.joint_error_folds clamped to [2, configurations], seed
-// options.split_seed, options.split; rows[f] are fold f's identification rows (k lists).
-struct CrossValidationFolds {
-  int folds = 0;
-  uint64_t seed = 0;
-  SplitKind split = SplitKind::kRandom;
-  std::vector<std::vector<int>> rows;
-};
-CrossValidationFolds FoldsByConfiguration(const MeasurementSet& identification,
-                                          const PipelineOptions& options);
+// options.split_seed, options.split (written to *choice, marked ran); returns fold f's
+// identification rows (k lists).
+std::vector<std::vector<int>> FoldsByConfiguration(const MeasurementSet& identification,
+                                                   const PipelineOptions& options,
+                                                   CrossValidationChoice* choice);
 
 // `options` for calibrations run side by side: its progress callbacks (on_iteration, on_stage),
 // when set, called one at a time under *mutex. joint_errors_auto off (a fold's calibration does not
@@ -61,19 +57,19 @@ struct FoldErrors {
 // held-out point, its RMS and standard error (fewer than 2 points fail). c->label is left as is.
 void ScoreFolds(const std::vector<FoldErrors>& folds, CrossValidatedCandidate* c);
 
-// The one-standard-error rule over candidates listed simplest first: *best is the lowest cv_mse
-// among the ok ones, *chosen the first ok one within one standard error of it, *reason says so.
-// Returns false (and leaves *chosen and *reason alone) when no candidate is ok.
+// The one-standard-error rule over candidates listed simplest first: choice->best is the lowest
+// cv_mse among the ok ones, choice->chosen the first ok one within one standard error of it,
+// choice->reason says so. Returns false (and leaves chosen and reason alone) when no candidate is
+// ok.
 bool ChooseWithinOneStandardError(const std::vector<const CrossValidatedCandidate*>& candidates,
-                                  int* best, int* chosen, std::string* reason);
+                                  CrossValidationChoice* choice);
 
-// The same over a selection's candidates (JointErrorCandidate, ResidualModelCandidate).
-template <typename Candidate>
-bool ChooseWithinOneStandardError(const std::vector<Candidate>& candidates, int* best, int* chosen,
-                                  std::string* reason) {
+// The same over a selection's candidates (JointErrorSelection, ResidualModelSelection).
+template <typename Selection>
+bool ChooseWithinOneStandardError(Selection* selection) {
   std::vector<const CrossValidatedCandidate*> list;
-  for (const Candidate& c : candidates) list.push_back(&c);
-  return ChooseWithinOneStandardError(list, best, chosen, reason);
+  for (const auto& c : selection->candidates) list.push_back(&c);
+  return ChooseWithinOneStandardError(list, selection);
 }
 
 }  // namespace internal

@@ -101,12 +101,8 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
                                       const MeasurementSet& identification,
                                       const PipelineOptions& options) {
   JointErrorSelection sel;
-  sel.ran = true;
-  const internal::CrossValidationFolds folds =
-      internal::FoldsByConfiguration(identification, options);
-  sel.folds = folds.folds;
-  sel.seed = folds.seed;
-  sel.split = folds.split;
+  const std::vector<std::vector<int>> folds =
+      internal::FoldsByConfiguration(identification, options, &sel);
   // Every subset of the registry (JointTermNames(), 2^T sets for T terms), each in registry order
   // (compliance first: it keeps the combinations both terms could explain, joint_errors.md), listed
   // by the binary count of registry bits: none, compliance, harmonics, compliance,harmonics, then
@@ -150,14 +146,13 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
       }
     }
   }
-  sel.candidates = CrossValidateAll(nominal, identification, folds.rows, options, sets);
+  sel.candidates = CrossValidateAll(nominal, identification, folds, options, sets);
   // Simplest first (fewest identified combinations; ties keep the listed order).
   std::stable_sort(sel.candidates.begin(), sel.candidates.end(),
                    [](const JointErrorCandidate& a, const JointErrorCandidate& b) {
                      return a.parameters < b.parameters;
                    });
-  if (!internal::ChooseWithinOneStandardError(sel.candidates, &sel.best, &sel.chosen,
-                                              &sel.reason)) {
+  if (!internal::ChooseWithinOneStandardError(&sel)) {
     // Nothing converged on every fold: the geometric model (the main run reports its failure).
     for (size_t k = 0; k < sel.candidates.size(); ++k) {
       if (sel.candidates[k].terms.empty()) sel.chosen = static_cast<int>(k);

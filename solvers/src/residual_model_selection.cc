@@ -65,12 +65,8 @@ ResidualModelSelection SelectResidualModel(const RobotModel& nominal,
                                            const MeasurementSet& identification,
                                            const PipelineOptions& options) {
   ResidualModelSelection sel;
-  sel.ran = true;
-  const internal::CrossValidationFolds folds =
-      internal::FoldsByConfiguration(identification, options);
-  sel.folds = folds.folds;
-  sel.seed = folds.seed;
-  sel.split = folds.split;
+  const std::vector<std::vector<int>> folds =
+      internal::FoldsByConfiguration(identification, options, &sel);
   std::mutex progress;
   PipelineOptions base = internal::SerializedProgress(options, &progress);
   base.residual_model = ResidualModelKind::kNone;
@@ -86,7 +82,7 @@ ResidualModelSelection SelectResidualModel(const RobotModel& nominal,
     internal::FoldErrors& none = outcomes[0][f];
     internal::FoldErrors& gp = outcomes[1][f];
     const internal::FoldCalibration c = internal::CalibrateFold(
-        nominal, identification, folds.rows[f], f + 1, base,
+        nominal, identification, folds[f], f + 1, base,
         "auto residual fold " + std::to_string(f + 1));
     if (!c.ok) {
       none.failure = gp.failure = c.failure;
@@ -112,8 +108,7 @@ ResidualModelSelection SelectResidualModel(const RobotModel& nominal,
     internal::ScoreFolds(outcomes[which], &c);
     sel.candidates.push_back(c);
   }
-  if (!internal::ChooseWithinOneStandardError(sel.candidates, &sel.best, &sel.chosen,
-                                              &sel.reason)) {
+  if (!internal::ChooseWithinOneStandardError(&sel)) {
     sel.chosen = 0;
     sel.reason = "cross-validation failed (" + sel.candidates[0].failure + "); no layer";
   }

@@ -108,15 +108,20 @@ struct JointErrorCandidate : CrossValidatedCandidate {
   int tilt_folds = 0;
 };
 
-struct JointErrorSelection {
+// How an automatic choice cross-validated (its folds) and what it chose: indices into its
+// selection's candidates.
+struct CrossValidationChoice {
   bool ran = false;
   int folds = 0;
   uint64_t seed = 0;
   SplitKind split = SplitKind::kRandom;
-  std::vector<JointErrorCandidate> candidates;  // in order of increasing parameters
   int best = -1;    // lowest cv_mse
   int chosen = -1;  // the simplest within one standard error of the best
   std::string reason;
+};
+
+struct JointErrorSelection : CrossValidationChoice {
+  std::vector<JointErrorCandidate> candidates;  // in order of increasing parameters
   // The gravity tilt joins the candidates that have compliance ("compliance,tilt",
   // "compliance,harmonics,tilt", ...) only when the identification rows determine it (the check of
   // PipelineOptions::joint_errors "tilt" at the compliance solution); else why not.
@@ -141,15 +146,8 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
 // error.
 struct ResidualModelCandidate : CrossValidatedCandidate {};
 
-struct ResidualModelSelection {
-  bool ran = false;
-  int folds = 0;
-  uint64_t seed = 0;
-  SplitKind split = SplitKind::kRandom;
+struct ResidualModelSelection : CrossValidationChoice {
   std::vector<ResidualModelCandidate> candidates;  // none, gp
-  int best = -1;    // lowest cv_mse
-  int chosen = -1;  // the simplest within one standard error of the best
-  std::string reason;
 };
 
 // Cross-validates the parametric model alone ("none") against it plus a layer fitted on each
