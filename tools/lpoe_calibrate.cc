@@ -221,7 +221,12 @@ void PrintIdentifiability(const IdentifiabilityReport& id, int num_frame_paramet
     const auto& s = id.singular_values;
     std::cout << "  singular values: largest " << s(0) << ", smallest " << s(s.size() - 1) << "\n";
   }
-  std::cout << "  not identifiable from this data kind (" << id.unidentifiable.size()
+  // The fixed tools' directions are held by the user, not unidentifiable: counted apart.
+  std::vector<std::string> held;
+  for (const Direction& d : id.unidentifiable) {
+    if (IsHeldFixedTool(d)) held.push_back(d.name);
+  }
+  std::cout << "  not identifiable from this data kind (" << id.unidentifiable.size() - held.size()
             << " directions, left out):\n";
   // One name: "name: reason". Several names with one reason: the reason, then the names wrapped
   // under it (the joint-space terms alone can leave out 60 combinations).
@@ -237,6 +242,7 @@ void PrintIdentifiability(const IdentifiabilityReport& id, int num_frame_paramet
     names.clear();
   };
   for (const Direction& d : id.unidentifiable) {
+    if (IsHeldFixedTool(d)) continue;
     if (d.reason != last_reason) {
       flush();
       last_reason = d.reason;
@@ -244,6 +250,11 @@ void PrintIdentifiability(const IdentifiabilityReport& id, int num_frame_paramet
     names.push_back(d.name);
   }
   flush();
+  if (!held.empty()) {
+    std::cout << "  held (fixed tools): " << held.size()
+              << " directions, as given, not calibrated:\n";
+    tools::PrintWrapped(std::cout, held, ", ", 6);
+  }
   if (id.standard_deviation.size() > 0) {
     // The least certain parameters, as a quick read; all of them are in the JSON report.
     const int n = static_cast<int>(id.standard_deviation.size());

@@ -544,9 +544,15 @@ Json BuildJson(const RunSummary& s) {
     j["registration"] = nullptr;
   }
   const IdentifiabilityReport& id = s.identifiability;
-  Json unident = Json::array();
+  // The fixed tools' directions are held by the user, not unidentifiable: listed apart.
+  Json unident = Json::array(), held = Json::array();
   for (const Direction& d : id.unidentifiable) {
-    unident.push_back({{"name", d.name}, {"reason", d.reason}, {"structural", IsStructurallyLost(d)}});
+    if (IsHeldFixedTool(d)) {
+      held.push_back(d.name);
+    } else {
+      unident.push_back(
+          {{"name", d.name}, {"reason", d.reason}, {"structural", IsStructurallyLost(d)}});
+    }
   }
   Json params = Json::array();
   for (size_t k = 0; k < id.parameter_names.size(); ++k) {
@@ -567,6 +573,7 @@ Json BuildJson(const RunSummary& s) {
                           {"condition_number", id.condition_number},
                           {"singular_values", sv},
                           {"unidentifiable", unident},
+                          {"held_fixed_tools", held},
                           {"identified", params},
                           {"most_correlated", pairs},
                           {"warnings", id.warnings}};
