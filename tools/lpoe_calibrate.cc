@@ -684,16 +684,8 @@ int Run() {
     staged = outputs.Stage(FLAGS_report, tools::RunSummaryToJson(summary));
   }
   std::vector<std::string> written;
-  std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
-  if (Status s = staged.ok() ? outputs.Commit(&written) : staged; !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
-  if (written.empty()) {
-    std::cout << "(use --output=FILE to save the calibrated model)\n";
-  } else {
-    for (const std::string& o : written) std::cout << "wrote " << o << "\n";
-  }
+  if (tools::CommitOutputs(staged, &outputs, false, &written) != kExitOk) return kExitOutput;
+  if (written.empty()) std::cout << "(use --output=FILE to save the calibrated model)\n";
   if (implausible) {  // --force: written, but a script must still tell the result failed
     std::cerr << "error: the calibration is not plausible (" << verdict.reason
               << "); outputs written because of --force\n";

@@ -254,7 +254,7 @@ int Run() {
   }
 
   const bool agree = position_difference <= FLAGS_tolerance_mm;
-  std::vector<std::string> written;
+  Status staged;
   if (!FLAGS_output.empty()) {  // the comparison as JSON, for a script
     nlohmann::json j = {{"tool", "lpoe_compare"},
                         {"model", model_path},
@@ -270,32 +270,19 @@ int Run() {
                        {"difference", r.difference}});
     }
     j["rows"] = table;
-    if (Status s = outputs.Stage(FLAGS_output, tools::JsonText(j)); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return tools::kExitOutput;
-    }
+    staged = outputs.Stage(FLAGS_output, tools::JsonText(j));
   }
-  if (!FLAGS_html_report.empty()) {
+  if (!FLAGS_html_report.empty() && staged.ok()) {
     const tools::ComparisonPage page{model_path, meas_path, in.verification_source,
                                      FLAGS_angle_unit, ParameterizationName(kind), &cer_run,
                                      &identification, &verification, rows,
                                      position_difference <= FLAGS_tolerance_mm};
     std::string html;
-    Status s = tools::ComparisonHtml(page, &html);
-    if (s.ok()) s = outputs.Stage(FLAGS_html_report, html);
-    if (!s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return tools::kExitOutput;
-    }
+    staged = tools::ComparisonHtml(page, &html);
+    if (staged.ok()) staged = outputs.Stage(FLAGS_html_report, html);
   }
-  if (!FLAGS_output.empty() || !FLAGS_html_report.empty()) {
-    if (Status s = outputs.Commit(&written); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return tools::kExitOutput;
-    }
-    if (!FLAGS_quiet) {
-      for (const std::string& w : written) std::cout << "wrote " << w << "\n";
-    }
+  if (tools::CommitOutputs(staged, &outputs, FLAGS_quiet) != tools::kExitOk) {
+    return tools::kExitOutput;
   }
   if (!(position_difference <= FLAGS_tolerance_mm)) {
     std::cout << "\nresult: DISAGREE: predicted positions differ by up to " << position_difference

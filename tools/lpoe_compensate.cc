@@ -518,10 +518,7 @@ int Run() {
   report["largest_orientation_residual_rad"] = total.max_orientation_residual;
   report["output"] = FLAGS_output;
   if (!FLAGS_report.empty()) staged = outputs.Stage(FLAGS_report, tools::JsonText(report));
-  if (Status s = staged.ok() ? outputs.Commit(nullptr) : staged; !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
+  if (tools::CommitOutputs(staged, &outputs, true) != kExitOk) return kExitOutput;
   if (FLAGS_strict && total.per_status[static_cast<int>(IkStatus::kOk)] != count) {
     return kExitNotAllOk;
   }

@@ -129,11 +129,7 @@ int RunProgramMode() {
   if (staged.ok() && !FLAGS_report.empty()) {
     staged = outputs.Stage(FLAGS_report, ProgramReportJson(program));
   }
-  std::vector<std::string> written;
-  if (Status s = staged.ok() ? outputs.Commit(&written) : staged; !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
+  if (CommitOutputs(staged, &outputs, true) != kExitOk) return kExitOutput;
   int counts[3] = {};
   for (const ProgramTarget& t : program.targets) {
     ++counts[static_cast<int>(t.status)];

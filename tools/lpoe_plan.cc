@@ -523,18 +523,9 @@ int Run() {
   for (int c : plan.selected) rows.push_back(pool.source[c]);
   report["candidate_rows"] = rows;
 
-  std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
   Status staged = outputs.Stage(FLAGS_output, csv);
   if (staged.ok()) staged = outputs.Stage(report_path, tools::JsonText(report));
-  std::vector<std::string> written;
-  if (Status s = staged.ok() ? outputs.Commit(&written) : staged; !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
-  if (!FLAGS_quiet) {
-    for (const std::string& path : written) std::cout << "wrote " << path << "\n";
-  }
-  return kExitOk;
+  return tools::CommitOutputs(staged, &outputs, FLAGS_quiet);
 }
 
 }  // namespace

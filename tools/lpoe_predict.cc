@@ -168,18 +168,14 @@ int Run() {
     }
     csv.swap(with_std);
   }
-  std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
-  Status staged = outputs.Stage(
+  const Status staged = outputs.Stage(
       FLAGS_output, "# lpoe_predict: positions in " + FLAGS_length_unit + " in the " +
                         std::string(FLAGS_frame == "base" ? "robot's base" : "measurement") +
                         " frame" + (FLAGS_predict_std ? "; std: the residual layer's predictive "
                                                         "standard deviation per axis, " + FLAGS_length_unit
                                                       : "") +
                         "\n" + csv);
-  if (Status s = staged.ok() ? outputs.Commit(nullptr) : staged; !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
+  if (tools::CommitOutputs(staged, &outputs, true) != kExitOk) return kExitOutput;
   if (!FLAGS_quiet) {
     std::cout << "wrote " << FLAGS_output << " (" << positions.size() << " positions)\n";
   }

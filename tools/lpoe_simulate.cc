@@ -343,21 +343,11 @@ int Run() {
       return tools::kExitNumerical;
     }
   }
+  Status staged;
   for (const Output& o : outputs) {
-    if (Status s = files.Stage(o.path, o.text); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitOutput;
-    }
+    if (staged.ok()) staged = files.Stage(o.path, o.text);
   }
-  std::vector<std::string> written;
-  if (Status s = files.Commit(&written); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
-  if (!FLAGS_quiet) {
-    for (const std::string& w : written) std::cout << "wrote " << w << "\n";
-  }
-  return kExitOk;
+  return tools::CommitOutputs(staged, &files, FLAGS_quiet);
 }
 
 }  // namespace

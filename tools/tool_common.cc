@@ -18,6 +18,7 @@
 #include "lpoe/csv_rules.h"
 #include "lpoe/options.h"
 #include "lpoe/version.h"
+#include "output_files.h"
 #include "parse_util.h"
 
 DECLARE_bool(help);
@@ -322,6 +323,21 @@ void PrintBeforeAfter(std::ostream& os, const std::string& title, const ErrorSta
                   c.p95_abs);
     os << line;
   }
+}
+
+int CommitOutputs(const Status& staged, OutputSet* outputs, bool quiet,
+                  std::vector<std::string>* written) {
+  std::cout << std::flush;
+  std::vector<std::string> paths;
+  if (Status s = staged.ok() ? outputs->Commit(&paths) : staged; !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitOutput;
+  }
+  if (!quiet) {
+    for (const std::string& path : paths) std::cout << "wrote " << path << "\n";
+  }
+  if (written != nullptr) *written = std::move(paths);
+  return kExitOk;
 }
 
 }  // namespace tools

@@ -136,6 +136,14 @@ void PrintIterationTable(std::ostream& os, const CalibrationResult& result);
 void PrintWrapped(std::ostream& os, const std::vector<std::string>& items,
                   const std::string& separator, int indent, int width = 100);
 
+class OutputSet;
+// The end of a tool's run: flushes stdout (the tool's text comes before an output written to
+// /dev/stdout), commits `outputs` unless `staged` (the first staging error, or Ok) failed, then
+// prints "wrote PATH" for each file written unless `quiet`. On failure prints "error: <message>" on
+// stderr and returns kExitOutput, else kExitOk. `written` (may be null) receives the paths.
+int CommitOutputs(const Status& staged, OutputSet* outputs, bool quiet,
+                  std::vector<std::string>* written = nullptr);
+
 // Prints before/after statistics per axis and norm.
 void PrintBeforeAfter(std::ostream& os, const std::string& title, const ErrorStatistics& before,
                       const ErrorStatistics& after);
