@@ -7,6 +7,7 @@
 
 #include <gflags/gflags.h>
 
+#include "common_flags.h"
 #include "lpoe/io.h"
 #include "lpoe/options.h"
 #include "lpoe/urdf.h"

@@ -31,6 +31,7 @@
 #include "plot.h"
 #include "progress.h"
 #include "report.h"
+#include "common_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(measurements, "",
@@ -136,12 +137,6 @@ DEFINE_string(fixed_tools, "",
               "are held too; the calibrated model records them.");
 DEFINE_double(max_condition, 1e8,
               "Refuse data whose column-scaled Jacobian has a larger condition number.");
-// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
-DECLARE_string(model);
-DECLARE_string(angle_unit);
-DECLARE_string(length_unit);
-DECLARE_bool(quiet);
-DECLARE_string(output);
 
 namespace lpoe {
 namespace {

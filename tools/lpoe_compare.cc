@@ -25,6 +25,7 @@
 #include "progress.h"
 #include "report.h"
 #include "json_text.h"
+#include "common_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(measurements, "",
@@ -52,12 +53,6 @@ DEFINE_double(noise_sigma, 0.03,
               "Expected tracker noise per axis (mm) for the plausibility verdict (see "
               "lpoe_calibrate).");
 DEFINE_bool(force, false, "Compare even when a calibration fails the plausibility verdict.");
-// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
-DECLARE_string(model);
-DECLARE_string(angle_unit);
-DECLARE_string(length_unit);
-DECLARE_bool(quiet);
-DECLARE_string(output);
 
 namespace lpoe {
 namespace {

@@ -38,6 +38,7 @@
 #include "output_files.h"
 #include "lpoe_compensate_program.h"
 #include "parse_util.h"
+#include "common_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(targets, "",
@@ -79,11 +80,6 @@ DEFINE_double(orientation_tolerance, LPOE_DEFAULT(orientation_tolerance),
 DEFINE_double(singular_threshold, LPOE_DEFAULT(singular_threshold), LPOE_HELP(singular_threshold));
 #undef LPOE_DEFAULT
 #undef LPOE_HELP
-DECLARE_string(model);
-DECLARE_string(output);
-DECLARE_string(angle_unit);
-DECLARE_string(length_unit);
-DECLARE_bool(quiet);
 
 namespace lpoe {
 namespace {

@@ -13,6 +13,7 @@
 #include "lpoe/io.h"
 #include "lpoe/program.h"
 #include "output_files.h"
+#include "common_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(program, "",
@@ -28,9 +29,7 @@ DEFINE_string(targets_only, "",
               "Compensate only the program targets whose whole name matches this regular "
               "expression (ECMAScript); the others (taught points) are left as they are.");
 
-DECLARE_string(model);
 DECLARE_string(nominal);
-DECLARE_string(output);
 DECLARE_string(report);
 DECLARE_string(targets);
 DECLARE_string(joints);

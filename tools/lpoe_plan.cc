@@ -30,6 +30,7 @@
 #include "json_text.h"
 #include "output_files.h"
 #include "parse_util.h"
+#include "common_flags.h"
 #include "tool_common.h"
 
 // Defaults, ranges and help of the numeric options from the option table (lpoe/options.h), shared
@@ -87,14 +88,8 @@ DEFINE_string(joint_errors, "none",
               "subsets. The tilt's information is proportional to the compliance values, so "
               "'tilt' needs a --model that carries them (a calibrated model's YAML); with a "
               "nominal model it is refused (docs/planning.md).");
-// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
 #undef LPOE_DEFAULT
 #undef LPOE_HELP
-DECLARE_string(model);
-DECLARE_string(angle_unit);
-DECLARE_string(length_unit);
-DECLARE_bool(quiet);
-DECLARE_string(output);
 
 namespace lpoe {
 namespace {

@@ -25,6 +25,7 @@
 #include "lpoe/residual_layer.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
+#include "common_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(joints, "",
@@ -39,12 +40,6 @@ DEFINE_bool(predict_std, false,
             "per axis) at each row (docs/residual_layer.md); the model must carry a layer.");
 DEFINE_string(tool, "0",
               "Tool measured by rows without a target column: its name or 0-based index.");
-// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
-DECLARE_string(model);
-DECLARE_string(angle_unit);
-DECLARE_string(length_unit);
-DECLARE_bool(quiet);
-DECLARE_string(output);
 
 namespace lpoe {
 namespace {

@@ -24,6 +24,7 @@
 #include "lpoe/urdf.h"
 #include "output_files.h"
 #include "parse_util.h"
+#include "common_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(robot, "cobot6",
@@ -83,12 +84,6 @@ DEFINE_string(out, "", "Old name of --output (every other tool says --output); a
 DEFINE_string(verify_out, "", "Verification CSV (the last --verify_count rows).");
 DEFINE_string(model_out, "", "Write the nominal model here (YAML).");
 DEFINE_string(actual_out, "", "Write the actual (erroneous) robot here (YAML).");
-// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
-DECLARE_string(model);
-DECLARE_string(angle_unit);
-DECLARE_string(length_unit);
-DECLARE_bool(quiet);
-DECLARE_string(output);
 
 namespace lpoe {
 namespace {
