@@ -292,20 +292,20 @@ Status CheckFlags() {
 }
 
 int Run() {
-  const tools::InputPaths paths =
-      tools::ResolveInputPaths(FLAGS_model, FLAGS_measurements, FLAGS_verify, FLAGS_holdout != 0.0);
+  tools::InputPaths paths;
+  tools::InputSettings settings;
+  const Status parsed = tools::ResolveInputs(
+      FLAGS_model, FLAGS_measurements,
+      {FLAGS_angle_unit, FLAGS_length_unit, FLAGS_parameterization, FLAGS_verify, FLAGS_holdout,
+       FLAGS_split},
+      &paths, &settings);
   const std::string& model_path = paths.model;
   const std::string& meas_path = paths.measurements;
   const std::string& verify_path = paths.verify;
 
   // ---- Flags.
-  tools::InputSettings settings;
-  if (Status s = tools::ParseInputFlags({FLAGS_angle_unit, FLAGS_length_unit,
-                                         FLAGS_parameterization, FLAGS_verify, FLAGS_holdout,
-                                         FLAGS_split},
-                                        &settings);
-      !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
+  if (!parsed.ok()) {
+    std::cerr << "error: " << parsed.message() << "\n";
     return kExitUsage;
   }
   const AngleUnit unit = settings.angle_unit;
@@ -363,9 +363,7 @@ int Run() {
   // Every output against every input and every other output (plots included), by identity.
   const auto& kPlotNames = tools::kPlotFileNames;
   tools::OutputSet outputs;
-  outputs.AddInput("--model", model_path);
-  outputs.AddInput("--measurements", meas_path);
-  outputs.AddInput("--verify", verify_path);
+  tools::AddInputs(paths, &outputs);
   outputs.AddOutput("--output", FLAGS_output);
   outputs.AddOutput("--urdf_output", FLAGS_urdf_output);
   outputs.AddOutput("--ur_kinematics_output", FLAGS_ur_kinematics_output);
@@ -423,13 +421,9 @@ int Run() {
   const RobotModel& nominal = in.nominal;
   const MeasurementSet& identification = in.identification;
   const MeasurementSet& verification = in.verification;
-  if (FLAGS_holdout > 0.0) {
-    if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, identification.size(),
-                                            verification.size());
-        !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitUsage;
-    }
+  if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, in); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
   }
   std::vector<int> configuration_of_row;
   const int identification_configurations =

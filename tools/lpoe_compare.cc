@@ -99,19 +99,19 @@ std::string Num(double v, const char* format = "%.6g") {
 }
 
 int Run() {
-  const tools::InputPaths paths =
-      tools::ResolveInputPaths(FLAGS_model, FLAGS_measurements, FLAGS_verify, FLAGS_holdout != 0.0);
+  tools::InputPaths paths;
+  tools::InputSettings settings;
+  const Status parsed = tools::ResolveInputs(
+      FLAGS_model, FLAGS_measurements,
+      {FLAGS_angle_unit, FLAGS_length_unit, FLAGS_parameterization, FLAGS_verify, FLAGS_holdout,
+       FLAGS_split},
+      &paths, &settings);
   const std::string& model_path = paths.model;
   const std::string& meas_path = paths.measurements;
   const std::string& verify_path = paths.verify;
 
-  tools::InputSettings settings;
-  if (Status s = tools::ParseInputFlags({FLAGS_angle_unit, FLAGS_length_unit,
-                                         FLAGS_parameterization, FLAGS_verify, FLAGS_holdout,
-                                         FLAGS_split},
-                                        &settings);
-      !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
+  if (!parsed.ok()) {
+    std::cerr << "error: " << parsed.message() << "\n";
     return kExitUsage;
   }
   const AngleUnit unit = settings.angle_unit;
@@ -120,9 +120,7 @@ int Run() {
   // --tolerance_mm and --noise_sigma: their ranges (lpoe/options.h) were checked by InitTool.
 
   tools::OutputSet outputs;
-  outputs.AddInput("--model", model_path);
-  outputs.AddInput("--measurements", meas_path);
-  outputs.AddInput("--verify", verify_path);
+  tools::AddInputs(paths, &outputs);
   outputs.AddOutput("--html_report", FLAGS_html_report);
   outputs.AddOutput("--output", FLAGS_output);
   if (Status s = outputs.Check(); !s.ok()) {
@@ -146,13 +144,9 @@ int Run() {
   const RobotModel& nominal = in.nominal;
   const MeasurementSet& identification = in.identification;
   const MeasurementSet& verification = in.verification;
-  if (FLAGS_holdout > 0.0) {
-    if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, identification.size(),
-                                            verification.size());
-        !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitUsage;
-    }
+  if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, in); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
   }
   // Without held-out data, the comparison is made on the identification rows.
   const bool held_out = !verification.empty();

@@ -340,5 +340,22 @@ int CommitOutputs(const Status& staged, OutputSet* outputs, bool quiet,
   return kExitOk;
 }
 
+Status ResolveInputs(const std::string& model_flag, const std::string& measurements_flag,
+                     const InputFlags& flags, InputPaths* paths, InputSettings* settings) {
+  *paths = ResolveInputPaths(model_flag, measurements_flag, flags.verify, flags.holdout != 0.0);
+  return ParseInputFlags(flags, settings);
+}
+
+void AddInputs(const InputPaths& paths, OutputSet* outputs) {
+  outputs->AddInput("--model", paths.model);
+  outputs->AddInput("--measurements", paths.measurements);
+  outputs->AddInput("--verify", paths.verify);
+}
+
+Status CheckHoldoutSplit(double holdout, const Inputs& in) {
+  if (!(holdout > 0.0)) return Status::Ok();
+  return CheckHoldoutSplit(holdout, in.identification.size(), in.verification.size());
+}
+
 }  // namespace tools
 }  // namespace lpoe

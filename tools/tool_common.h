@@ -35,6 +35,9 @@ Status CheckRange(const char* name, double value, double lo, double hi, bool lo_
 
 // A --holdout split that leaves the verification set empty or too few identification rows.
 Status CheckHoldoutSplit(double holdout, int identification_rows, int verification_rows);
+// The same for the rows of `in` when a hold-out was asked for (holdout > 0); Ok otherwise.
+struct Inputs;
+Status CheckHoldoutSplit(double holdout, const Inputs& in);
 
 // Parses flags; on --help / --helpfull prints the usage message and this tool's flags only (with
 // their ranges from lpoe/options.h and defaults as written) and exits 0. Checks every flag the
@@ -120,6 +123,15 @@ struct InputPaths {
 InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& measurements_flag,
                              const std::string& verify_flag, bool holdout);
 
+// The inputs of lpoe_calibrate and lpoe_compare from their flags: the files (ResolveInputPaths of
+// --model, --measurements and flags.verify) and the settings (ParseInputFlags; its error).
+Status ResolveInputs(const std::string& model_flag, const std::string& measurements_flag,
+                     const InputFlags& flags, InputPaths* paths, InputSettings* settings);
+
+class OutputSet;
+// Registers the files of `paths` as inputs of `outputs` (--model, --measurements, --verify).
+void AddInputs(const InputPaths& paths, OutputSet* outputs);
+
 // True when both paths name the same existing file (same device and inode), or are equal strings.
 bool SameFile(const std::string& a, const std::string& b);
 
@@ -136,7 +148,6 @@ void PrintIterationTable(std::ostream& os, const CalibrationResult& result);
 void PrintWrapped(std::ostream& os, const std::vector<std::string>& items,
                   const std::string& separator, int indent, int width = 100);
 
-class OutputSet;
 // The end of a tool's run: flushes stdout (the tool's text comes before an output written to
 // /dev/stdout), commits `outputs` unless `staged` (the first staging error, or Ok) failed, then
 // prints "wrote PATH" for each file written unless `quiet`. On failure prints "error: <message>" on
