@@ -26,6 +26,7 @@
 #include "report.h"
 #include "json_text.h"
 #include "common_flags.h"
+#include "input_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(measurements, "",
@@ -101,19 +102,11 @@ std::string Num(double v, const char* format = "%.6g") {
 int Run() {
   tools::InputPaths paths;
   tools::InputSettings settings;
-  const Status parsed = tools::ResolveInputs(
-      FLAGS_model, FLAGS_measurements,
-      {FLAGS_angle_unit, FLAGS_length_unit, FLAGS_parameterization, FLAGS_verify, FLAGS_holdout,
-       FLAGS_split},
-      &paths, &settings);
+  if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;
   const std::string& model_path = paths.model;
   const std::string& meas_path = paths.measurements;
   const std::string& verify_path = paths.verify;
 
-  if (!parsed.ok()) {
-    std::cerr << "error: " << parsed.message() << "\n";
-    return kExitUsage;
-  }
   const AngleUnit unit = settings.angle_unit;
   const CsvOptions& csv = settings.csv;
   const ParameterizationKind kind = settings.parameterization;
