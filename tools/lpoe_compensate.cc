@@ -282,11 +282,8 @@ int Run() {
   }
   AngleUnit unit;
   LengthUnit length_unit;
-  if (Status s = tools::ParseUnitFlags(&unit, &length_unit); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitUsage;
-  }
-  const double mm_per_unit = tools::MillimetresPer(length_unit);
+  double mm_per_unit = 1;
+  if (!tools::UnitsFromFlags(&unit, &length_unit, &mm_per_unit)) return kExitUsage;
   // The workflow's request (lpoe/compensation.h): the models are read below.
   CompensationRequest request;
   request.has_nominal = !FLAGS_nominal.empty();

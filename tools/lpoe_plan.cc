@@ -182,10 +182,7 @@ int Run() {
   request.noise_sigma = FLAGS_noise_sigma;
   AngleUnit unit;
   LengthUnit length_unit;
-  if (Status s = tools::ParseUnitFlags(&unit, &length_unit); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitUsage;
-  }
+  if (!tools::UnitsFromFlags(&unit, &length_unit, nullptr)) return kExitUsage;
   PlanOptions& options = request.options;
   if (!ParsePlanCriterion(FLAGS_criterion, &options.criterion)) {
     std::cerr << "error: --criterion must be one of D, A, E, I, O1, O3\n";
@@ -252,14 +249,7 @@ int Run() {
   }
 
   RobotModel& model = request.model;
-  if (Status s = tools::CheckUrdfFlagsHaveAUrdf({FLAGS_model}); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return tools::kExitUsage;
-  }
-  if (Status s = tools::ReadModelWithUrdfFlags(FLAGS_model, &model); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitInput;
-  }
+  if (const int code = tools::ReadModelFlag(&model); code != kExitOk) return code;
   if (!FLAGS_smr_facing.empty()) {
     std::stringstream ss(FLAGS_smr_facing);
     std::string item;

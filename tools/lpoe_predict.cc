@@ -64,11 +64,8 @@ int Run() {
   }
   AngleUnit unit;
   LengthUnit length_unit;
-  if (Status s = tools::ParseUnitFlags(&unit, &length_unit); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitUsage;
-  }
-  const double mm_per_unit = tools::MillimetresPer(length_unit);
+  double mm_per_unit = 1;
+  if (!tools::UnitsFromFlags(&unit, &length_unit, &mm_per_unit)) return kExitUsage;
   // The output against the inputs, and its directory writable, before any work
   // (tools/output_files.h).
   tools::OutputSet outputs;
@@ -84,14 +81,7 @@ int Run() {
     return kExitUsage;
   }
   RobotModel model;
-  if (Status s = tools::CheckUrdfFlagsHaveAUrdf({FLAGS_model}); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return tools::kExitUsage;
-  }
-  if (Status s = tools::ReadModelWithUrdfFlags(FLAGS_model, &model); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitInput;
-  }
+  if (const int code = tools::ReadModelFlag(&model); code != kExitOk) return code;
   if (FLAGS_predict_std && !model.residual_layer) {
     std::cerr << "error: --predict_std needs a model with a residual layer (lpoe_calibrate "
                  "--residual_model=gp or auto writes one); "

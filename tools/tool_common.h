@@ -47,6 +47,13 @@ void InitTool(const char* usage, int* argc, char*** argv);
 
 // The shared --angle_unit and --length_unit (common_flags.cc); the error names the flag.
 Status ParseUnitFlags(AngleUnit* angle, LengthUnit* length);
+// The same for a tool's run: on an error prints "error: <message>" on stderr and returns false (a
+// usage error, exit 1). `mm_per_unit` (may be null): MillimetresPer(*length).
+bool UnitsFromFlags(AngleUnit* angle, LengthUnit* length, double* mm_per_unit);
+// Reads the tool's --model with the URDF chain flags (CheckUrdfFlagsHaveAUrdf, then
+// ReadModelWithUrdfFlags); on an error prints it and returns kExitUsage (the URDF flags) or
+// kExitInput (the file), else kExitOk.
+int ReadModelFlag(RobotModel* model);
 // Millimetres per unit of --length_unit (1 or 1000).
 inline double MillimetresPer(LengthUnit unit) {
   return unit == LengthUnit::kMetres ? 1000.0 : 1.0;
