@@ -82,6 +82,17 @@ DEFINE_double(singular_threshold, LPOE_DEFAULT(singular_threshold), LPOE_HELP(si
 #undef LPOE_HELP
 
 namespace lpoe {
+
+IkOptions tools::IkOptionsFromFlags() {
+  IkOptions o;
+  o.max_iterations = FLAGS_max_iterations;
+  o.restarts = FLAGS_restarts;
+  o.position_tolerance = FLAGS_position_tolerance;
+  o.orientation_tolerance = FLAGS_orientation_tolerance;
+  o.singular_threshold = FLAGS_singular_threshold;
+  return o;
+}
+
 namespace {
 
 constexpr char kUsage[] =
@@ -295,11 +306,7 @@ int Run() {
   }
   request.tcp = FLAGS_tcp;
   request.tool = FLAGS_tool;
-  request.ik.max_iterations = FLAGS_max_iterations;
-  request.ik.restarts = FLAGS_restarts;
-  request.ik.position_tolerance = FLAGS_position_tolerance;
-  request.ik.orientation_tolerance = FLAGS_orientation_tolerance;
-  request.ik.singular_threshold = FLAGS_singular_threshold;
+  request.ik = tools::IkOptionsFromFlags();
   request.threads = FLAGS_threads;
   if (Status s = CheckCompensationRequest(request); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";

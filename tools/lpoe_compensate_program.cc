@@ -34,11 +34,6 @@ DECLARE_string(report);
 DECLARE_string(targets);
 DECLARE_string(joints);
 DECLARE_bool(strict);
-DECLARE_int32(max_iterations);
-DECLARE_int32(restarts);
-DECLARE_double(position_tolerance);
-DECLARE_double(orientation_tolerance);
-DECLARE_double(singular_threshold);
 
 namespace lpoe {
 namespace tools {
@@ -111,11 +106,7 @@ int RunProgramMode() {
   ProgramOptions options;
   options.flange = FLAGS_flange;
   options.targets_only = FLAGS_targets_only;
-  options.ik.max_iterations = FLAGS_max_iterations;
-  options.ik.restarts = FLAGS_restarts;
-  options.ik.position_tolerance = FLAGS_position_tolerance;
-  options.ik.orientation_tolerance = FLAGS_orientation_tolerance;
-  options.ik.singular_threshold = FLAGS_singular_threshold;
+  options.ik = IkOptionsFromFlags();
   ParsedProgram program;
   std::string out;
   if (Status s =
