@@ -464,6 +464,12 @@ TEST(FixedTools, YamlRoundTripAndStrictReader) {
 }
 
 #ifdef LPOE_CALIBRATE_PATH
+}  // namespace
+}  // namespace lpoe
+#include <nlohmann/json.hpp>
+namespace lpoe {
+namespace {
+
 struct ToolRun {
   int exit_code = -1;
   std::string out, err;
@@ -518,6 +524,73 @@ TEST(FixedTools, CalibrateTool) {
   ASSERT_TRUE(ReadRobotModel(out, &calibrated).ok());
   for (int t = 0; t < 4; ++t) EXPECT_EQ(calibrated.tools[t].fixed, t < 3);
   EXPECT_LT(FlangeErrorOf(calibrated, cell.actual).tcp_mm, kTcpBound);
+}
+
+// The fixed tools' directions are held by the user, not unidentifiable: the text summary, the JSON
+// report and the HTML page count them apart ("held (fixed tools)"), and the "not identifiable"
+// count is the library's left-out directions less those held.
+TEST(FixedTools, HeldDirectionsAreNotCountedAsUnidentifiable) {
+  TempDir dir;
+  const RobotModel nominal = Nominal();
+  const Cell cell = Simulate(nominal, 3, false);
+  const std::string model = dir.path() + "/nominal.yaml", csv = dir.path() + "/points.csv";
+  ASSERT_TRUE(WriteRobotModel(model, nominal).ok());
+  ASSERT_TRUE(WriteMeasurements(csv, nominal, cell.data).ok());
+  for (const bool fixed : {false, true}) {
+    SCOPED_TRACE(fixed ? "--fixed_tools=smr1,smr2" : "no fixed tools");
+    // The library's left-out directions of the same calibration, and those it holds.
+    const PipelineResult lib = Calibrate(
+        fixed ? WithFixed(nominal, {"smr1", "smr2"}) : nominal, cell.data, SolverKind::kLinear);
+    std::vector<std::string> held;
+    for (const Direction& d : lib.identifiability.unidentifiable) {
+      if (d.reason == kFixedToolReason) held.push_back(d.name);
+    }
+    // Position data: the translations of the two nests (their rotations are unobservable anyway).
+    EXPECT_EQ(held.size(), fixed ? 6u : 0u);
+    const size_t unidentifiable = lib.identifiability.unidentifiable.size() - held.size();
+    ASSERT_GT(unidentifiable, 0u);
+
+    std::vector<std::string> args = {"--model=" + model, "--measurements=" + csv,
+                                     "--output=" + dir.path() + "/out.yaml", "--plots_dir=",
+                                     "--report=" + dir.path() + "/report.json",
+                                     "--html_report=" + dir.path() + "/report.html", "--force"};
+    if (fixed) args.push_back("--fixed_tools=smr1,smr2");
+    const ToolRun r = RunCalibrate(args, dir.path());
+    ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
+    EXPECT_NE(r.out.find("not identifiable from this data kind (" +
+                         std::to_string(unidentifiable) + " directions, left out):"),
+              std::string::npos)
+        << r.out;
+    const size_t at = r.out.find("  held (fixed tools): ");
+    if (!fixed) {
+      EXPECT_EQ(at, std::string::npos) << r.out;
+    } else {
+      ASSERT_NE(at, std::string::npos) << r.out;
+      const std::string line = "  held (fixed tools): 6 directions, as given, not calibrated:\n";
+      EXPECT_EQ(r.out.compare(at, line.size(), line), 0) << r.out.substr(at, 80);
+      // The held names are listed under it, not among the unidentifiable ones.
+      const std::string after = r.out.substr(at);
+      for (const std::string& name : held) EXPECT_NE(after.find(name), std::string::npos) << name;
+      EXPECT_EQ(r.out.find(kFixedToolReason), std::string::npos) << r.out;
+    }
+
+    const nlohmann::json j = nlohmann::json::parse(ReadAll(dir.path() + "/report.json"));
+    const nlohmann::json& id = j["identifiability"];
+    EXPECT_EQ(id["unidentifiable"].size(), unidentifiable);
+    for (const nlohmann::json& d : id["unidentifiable"]) {
+      EXPECT_NE(d["reason"].get<std::string>(), kFixedToolReason) << d["name"];
+    }
+    ASSERT_TRUE(id.contains("held_fixed_tools"));
+    EXPECT_EQ(id["held_fixed_tools"].get<std::vector<std::string>>(), held);
+
+    const std::string html = ReadAll(dir.path() + "/report.html");
+    EXPECT_NE(html.find(std::to_string(unidentifiable) +
+                        " directions cannot be identified from this data kind"),
+              std::string::npos);
+    EXPECT_EQ(html.find("Held (fixed tools): 6 directions (smr1.tx, smr1.ty, smr1.tz, smr2.tx, "
+                        "smr2.ty, smr2.tz)") != std::string::npos,
+              fixed);
+  }
 }
 #endif
 

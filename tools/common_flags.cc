@@ -1,12 +1,14 @@
 // The options every tool shares, defined once (their help and defaults from lpoe/options.h, the
 // table the Python module uses too): the model and its URDF chain, the units of the CSV files,
 // --quiet and the main --output. Each tool reads them with the same meaning.
+#include <iostream>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include <gflags/gflags.h>
 
+#include "common_flags.h"
 #include "lpoe/io.h"
 #include "lpoe/options.h"
 #include "lpoe/urdf.h"
@@ -32,6 +34,27 @@ Status ParseUnitFlags(AngleUnit* angle, LengthUnit* length) {
     return Status::Error("--length_unit must be mm or m, got '" + FLAGS_length_unit + "'");
   }
   return Status::Ok();
+}
+
+bool UnitsFromFlags(AngleUnit* angle, LengthUnit* length, double* mm_per_unit) {
+  if (Status s = ParseUnitFlags(angle, length); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return false;
+  }
+  if (mm_per_unit != nullptr) *mm_per_unit = MillimetresPer(*length);
+  return true;
+}
+
+int ReadModelFlag(RobotModel* model) {
+  if (Status s = CheckUrdfFlagsHaveAUrdf({FLAGS_model}); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
+  }
+  if (Status s = ReadModelWithUrdfFlags(FLAGS_model, model); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitInput;
+  }
+  return kExitOk;
 }
 
 bool UrdfOptionsFromFlags(const std::string& model_path, UrdfOptions* options) {

@@ -419,10 +419,18 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
   }
   h += "</table>\n";
 
+  std::string held;  // the fixed tools' directions: held by the user, not unidentifiable
+  if (idj.contains("held_fixed_tools")) {
+    for (const Json& d : idj["held_fixed_tools"]) held += (held.empty() ? "" : ", ") + Str(d);
+  }
   h += "<h2>Identifiability</h2>\n<p>" + Str(idj["parameters"]) + " parameters, rank " +
        Str(idj["rank"]) + ", condition number of the column-scaled Jacobian " +
        Sci(idj["condition_number"]) + ". " + std::to_string(idj["unidentifiable"].size()) +
-       " directions cannot be identified from this data kind and were left out.</p>\n";
+       " directions cannot be identified from this data kind and were left out." +
+       (held.empty() ? std::string()
+                     : " Held (fixed tools): " + std::to_string(idj["held_fixed_tools"].size()) +
+                           " directions (" + Esc(held) + "), as given, not calibrated.") +
+       "</p>\n";
   if (!idj["correlated_above_0_9"].empty()) {
     h += "<p><span class=\"flag\">Correlations above 0.9</span> (these parameters are hard to "
          "separate; their individual values mean little):</p>\n<table>\n"

@@ -31,6 +31,8 @@
 #include "plot.h"
 #include "progress.h"
 #include "report.h"
+#include "common_flags.h"
+#include "input_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(measurements, "",
@@ -136,12 +138,6 @@ DEFINE_string(fixed_tools, "",
               "are held too; the calibrated model records them.");
 DEFINE_double(max_condition, 1e8,
               "Refuse data whose column-scaled Jacobian has a larger condition number.");
-// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
-DECLARE_string(model);
-DECLARE_string(angle_unit);
-DECLARE_string(length_unit);
-DECLARE_bool(quiet);
-DECLARE_string(output);
 
 namespace lpoe {
 namespace {
@@ -221,7 +217,12 @@ void PrintIdentifiability(const IdentifiabilityReport& id, int num_frame_paramet
     const auto& s = id.singular_values;
     std::cout << "  singular values: largest " << s(0) << ", smallest " << s(s.size() - 1) << "\n";
   }
-  std::cout << "  not identifiable from this data kind (" << id.unidentifiable.size()
+  // The fixed tools' directions are held by the user, not unidentifiable: counted apart.
+  std::vector<std::string> held;
+  for (const Direction& d : id.unidentifiable) {
+    if (IsHeldFixedTool(d)) held.push_back(d.name);
+  }
+  std::cout << "  not identifiable from this data kind (" << id.unidentifiable.size() - held.size()
             << " directions, left out):\n";
   // One name: "name: reason". Several names with one reason: the reason, then the names wrapped
   // under it (the joint-space terms alone can leave out 60 combinations).
@@ -237,6 +238,7 @@ void PrintIdentifiability(const IdentifiabilityReport& id, int num_frame_paramet
     names.clear();
   };
   for (const Direction& d : id.unidentifiable) {
+    if (IsHeldFixedTool(d)) continue;
     if (d.reason != last_reason) {
       flush();
       last_reason = d.reason;
@@ -244,6 +246,11 @@ void PrintIdentifiability(const IdentifiabilityReport& id, int num_frame_paramet
     names.push_back(d.name);
   }
   flush();
+  if (!held.empty()) {
+    std::cout << "  held (fixed tools): " << held.size()
+              << " directions, as given, not calibrated:\n";
+    tools::PrintWrapped(std::cout, held, ", ", 6);
+  }
   if (id.standard_deviation.size() > 0) {
     // The least certain parameters, as a quick read; all of them are in the JSON report.
     const int n = static_cast<int>(id.standard_deviation.size());
@@ -286,22 +293,14 @@ Status CheckFlags() {
 }
 
 int Run() {
-  const tools::InputPaths paths =
-      tools::ResolveInputPaths(FLAGS_model, FLAGS_measurements, FLAGS_verify, FLAGS_holdout != 0.0);
+  tools::InputPaths paths;
+  tools::InputSettings settings;
+  if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;
   const std::string& model_path = paths.model;
   const std::string& meas_path = paths.measurements;
   const std::string& verify_path = paths.verify;
 
   // ---- Flags.
-  tools::InputSettings settings;
-  if (Status s = tools::ParseInputFlags({FLAGS_angle_unit, FLAGS_length_unit,
-                                         FLAGS_parameterization, FLAGS_verify, FLAGS_holdout,
-                                         FLAGS_split},
-                                        &settings);
-      !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitUsage;
-  }
   const AngleUnit unit = settings.angle_unit;
   const CsvOptions& csv = settings.csv;
   const ParameterizationKind kind = settings.parameterization;
@@ -357,9 +356,7 @@ int Run() {
   // Every output against every input and every other output (plots included), by identity.
   const auto& kPlotNames = tools::kPlotFileNames;
   tools::OutputSet outputs;
-  outputs.AddInput("--model", model_path);
-  outputs.AddInput("--measurements", meas_path);
-  outputs.AddInput("--verify", verify_path);
+  tools::AddInputs(paths, &outputs);
   outputs.AddOutput("--output", FLAGS_output);
   outputs.AddOutput("--urdf_output", FLAGS_urdf_output);
   outputs.AddOutput("--ur_kinematics_output", FLAGS_ur_kinematics_output);
@@ -417,13 +414,9 @@ int Run() {
   const RobotModel& nominal = in.nominal;
   const MeasurementSet& identification = in.identification;
   const MeasurementSet& verification = in.verification;
-  if (FLAGS_holdout > 0.0) {
-    if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, identification.size(),
-                                            verification.size());
-        !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitUsage;
-    }
+  if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, in); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
   }
   std::vector<int> configuration_of_row;
   const int identification_configurations =
@@ -673,16 +666,8 @@ int Run() {
     staged = outputs.Stage(FLAGS_report, tools::RunSummaryToJson(summary));
   }
   std::vector<std::string> written;
-  std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
-  if (Status s = staged.ok() ? outputs.Commit(&written) : staged; !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
-  if (written.empty()) {
-    std::cout << "(use --output=FILE to save the calibrated model)\n";
-  } else {
-    for (const std::string& o : written) std::cout << "wrote " << o << "\n";
-  }
+  if (tools::CommitOutputs(staged, &outputs, false, &written) != kExitOk) return kExitOutput;
+  if (written.empty()) std::cout << "(use --output=FILE to save the calibrated model)\n";
   if (implausible) {  // --force: written, but a script must still tell the result failed
     std::cerr << "error: the calibration is not plausible (" << verdict.reason
               << "); outputs written because of --force\n";

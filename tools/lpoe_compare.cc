@@ -25,6 +25,8 @@
 #include "progress.h"
 #include "report.h"
 #include "json_text.h"
+#include "common_flags.h"
+#include "input_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(measurements, "",
@@ -52,12 +54,6 @@ DEFINE_double(noise_sigma, 0.03,
               "Expected tracker noise per axis (mm) for the plausibility verdict (see "
               "lpoe_calibrate).");
 DEFINE_bool(force, false, "Compare even when a calibration fails the plausibility verdict.");
-// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
-DECLARE_string(model);
-DECLARE_string(angle_unit);
-DECLARE_string(length_unit);
-DECLARE_bool(quiet);
-DECLARE_string(output);
 
 namespace lpoe {
 namespace {
@@ -104,30 +100,20 @@ std::string Num(double v, const char* format = "%.6g") {
 }
 
 int Run() {
-  const tools::InputPaths paths =
-      tools::ResolveInputPaths(FLAGS_model, FLAGS_measurements, FLAGS_verify, FLAGS_holdout != 0.0);
+  tools::InputPaths paths;
+  tools::InputSettings settings;
+  if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;
   const std::string& model_path = paths.model;
   const std::string& meas_path = paths.measurements;
   const std::string& verify_path = paths.verify;
 
-  tools::InputSettings settings;
-  if (Status s = tools::ParseInputFlags({FLAGS_angle_unit, FLAGS_length_unit,
-                                         FLAGS_parameterization, FLAGS_verify, FLAGS_holdout,
-                                         FLAGS_split},
-                                        &settings);
-      !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitUsage;
-  }
   const AngleUnit unit = settings.angle_unit;
   const CsvOptions& csv = settings.csv;
   const ParameterizationKind kind = settings.parameterization;
   // --tolerance_mm and --noise_sigma: their ranges (lpoe/options.h) were checked by InitTool.
 
   tools::OutputSet outputs;
-  outputs.AddInput("--model", model_path);
-  outputs.AddInput("--measurements", meas_path);
-  outputs.AddInput("--verify", verify_path);
+  tools::AddInputs(paths, &outputs);
   outputs.AddOutput("--html_report", FLAGS_html_report);
   outputs.AddOutput("--output", FLAGS_output);
   if (Status s = outputs.Check(); !s.ok()) {
@@ -151,13 +137,9 @@ int Run() {
   const RobotModel& nominal = in.nominal;
   const MeasurementSet& identification = in.identification;
   const MeasurementSet& verification = in.verification;
-  if (FLAGS_holdout > 0.0) {
-    if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, identification.size(),
-                                            verification.size());
-        !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitUsage;
-    }
+  if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, in); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
   }
   // Without held-out data, the comparison is made on the identification rows.
   const bool held_out = !verification.empty();
@@ -254,7 +236,7 @@ int Run() {
   }
 
   const bool agree = position_difference <= FLAGS_tolerance_mm;
-  std::vector<std::string> written;
+  Status staged;
   if (!FLAGS_output.empty()) {  // the comparison as JSON, for a script
     nlohmann::json j = {{"tool", "lpoe_compare"},
                         {"model", model_path},
@@ -270,32 +252,19 @@ int Run() {
                        {"difference", r.difference}});
     }
     j["rows"] = table;
-    if (Status s = outputs.Stage(FLAGS_output, tools::JsonText(j)); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return tools::kExitOutput;
-    }
+    staged = outputs.Stage(FLAGS_output, tools::JsonText(j));
   }
-  if (!FLAGS_html_report.empty()) {
+  if (!FLAGS_html_report.empty() && staged.ok()) {
     const tools::ComparisonPage page{model_path, meas_path, in.verification_source,
                                      FLAGS_angle_unit, ParameterizationName(kind), &cer_run,
                                      &identification, &verification, rows,
                                      position_difference <= FLAGS_tolerance_mm};
     std::string html;
-    Status s = tools::ComparisonHtml(page, &html);
-    if (s.ok()) s = outputs.Stage(FLAGS_html_report, html);
-    if (!s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return tools::kExitOutput;
-    }
+    staged = tools::ComparisonHtml(page, &html);
+    if (staged.ok()) staged = outputs.Stage(FLAGS_html_report, html);
   }
-  if (!FLAGS_output.empty() || !FLAGS_html_report.empty()) {
-    if (Status s = outputs.Commit(&written); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return tools::kExitOutput;
-    }
-    if (!FLAGS_quiet) {
-      for (const std::string& w : written) std::cout << "wrote " << w << "\n";
-    }
+  if (tools::CommitOutputs(staged, &outputs, FLAGS_quiet) != tools::kExitOk) {
+    return tools::kExitOutput;
   }
   if (!(position_difference <= FLAGS_tolerance_mm)) {
     std::cout << "\nresult: DISAGREE: predicted positions differ by up to " << position_difference

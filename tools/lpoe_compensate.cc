@@ -38,6 +38,7 @@
 #include "output_files.h"
 #include "lpoe_compensate_program.h"
 #include "parse_util.h"
+#include "common_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(targets, "",
@@ -79,13 +80,19 @@ DEFINE_double(orientation_tolerance, LPOE_DEFAULT(orientation_tolerance),
 DEFINE_double(singular_threshold, LPOE_DEFAULT(singular_threshold), LPOE_HELP(singular_threshold));
 #undef LPOE_DEFAULT
 #undef LPOE_HELP
-DECLARE_string(model);
-DECLARE_string(output);
-DECLARE_string(angle_unit);
-DECLARE_string(length_unit);
-DECLARE_bool(quiet);
 
 namespace lpoe {
+
+IkOptions tools::IkOptionsFromFlags() {
+  IkOptions o;
+  o.max_iterations = FLAGS_max_iterations;
+  o.restarts = FLAGS_restarts;
+  o.position_tolerance = FLAGS_position_tolerance;
+  o.orientation_tolerance = FLAGS_orientation_tolerance;
+  o.singular_threshold = FLAGS_singular_threshold;
+  return o;
+}
+
 namespace {
 
 constexpr char kUsage[] =
@@ -286,11 +293,8 @@ int Run() {
   }
   AngleUnit unit;
   LengthUnit length_unit;
-  if (Status s = tools::ParseUnitFlags(&unit, &length_unit); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitUsage;
-  }
-  const double mm_per_unit = tools::MillimetresPer(length_unit);
+  double mm_per_unit = 1;
+  if (!tools::UnitsFromFlags(&unit, &length_unit, &mm_per_unit)) return kExitUsage;
   // The workflow's request (lpoe/compensation.h): the models are read below.
   CompensationRequest request;
   request.has_nominal = !FLAGS_nominal.empty();
@@ -302,11 +306,7 @@ int Run() {
   }
   request.tcp = FLAGS_tcp;
   request.tool = FLAGS_tool;
-  request.ik.max_iterations = FLAGS_max_iterations;
-  request.ik.restarts = FLAGS_restarts;
-  request.ik.position_tolerance = FLAGS_position_tolerance;
-  request.ik.orientation_tolerance = FLAGS_orientation_tolerance;
-  request.ik.singular_threshold = FLAGS_singular_threshold;
+  request.ik = tools::IkOptionsFromFlags();
   request.threads = FLAGS_threads;
   if (Status s = CheckCompensationRequest(request); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
@@ -518,10 +518,7 @@ int Run() {
   report["largest_orientation_residual_rad"] = total.max_orientation_residual;
   report["output"] = FLAGS_output;
   if (!FLAGS_report.empty()) staged = outputs.Stage(FLAGS_report, tools::JsonText(report));
-  if (Status s = staged.ok() ? outputs.Commit(nullptr) : staged; !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
+  if (tools::CommitOutputs(staged, &outputs, true) != kExitOk) return kExitOutput;
   if (FLAGS_strict && total.per_status[static_cast<int>(IkStatus::kOk)] != count) {
     return kExitNotAllOk;
   }

@@ -13,6 +13,7 @@
 #include "lpoe/io.h"
 #include "lpoe/program.h"
 #include "output_files.h"
+#include "common_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(program, "",
@@ -28,18 +29,11 @@ DEFINE_string(targets_only, "",
               "Compensate only the program targets whose whole name matches this regular "
               "expression (ECMAScript); the others (taught points) are left as they are.");
 
-DECLARE_string(model);
 DECLARE_string(nominal);
-DECLARE_string(output);
 DECLARE_string(report);
 DECLARE_string(targets);
 DECLARE_string(joints);
 DECLARE_bool(strict);
-DECLARE_int32(max_iterations);
-DECLARE_int32(restarts);
-DECLARE_double(position_tolerance);
-DECLARE_double(orientation_tolerance);
-DECLARE_double(singular_threshold);
 
 namespace lpoe {
 namespace tools {
@@ -112,11 +106,7 @@ int RunProgramMode() {
   ProgramOptions options;
   options.flange = FLAGS_flange;
   options.targets_only = FLAGS_targets_only;
-  options.ik.max_iterations = FLAGS_max_iterations;
-  options.ik.restarts = FLAGS_restarts;
-  options.ik.position_tolerance = FLAGS_position_tolerance;
-  options.ik.orientation_tolerance = FLAGS_orientation_tolerance;
-  options.ik.singular_threshold = FLAGS_singular_threshold;
+  options.ik = IkOptionsFromFlags();
   ParsedProgram program;
   std::string out;
   if (Status s =
@@ -129,11 +119,7 @@ int RunProgramMode() {
   if (staged.ok() && !FLAGS_report.empty()) {
     staged = outputs.Stage(FLAGS_report, ProgramReportJson(program));
   }
-  std::vector<std::string> written;
-  if (Status s = staged.ok() ? outputs.Commit(&written) : staged; !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
+  if (CommitOutputs(staged, &outputs, true) != kExitOk) return kExitOutput;
   int counts[3] = {};
   for (const ProgramTarget& t : program.targets) {
     ++counts[static_cast<int>(t.status)];

@@ -3,8 +3,14 @@
 #ifndef LPOE_TOOLS_LPOE_COMPENSATE_PROGRAM_H_
 #define LPOE_TOOLS_LPOE_COMPENSATE_PROGRAM_H_
 
+#include "lpoe/inverse_kinematics.h"
+
 namespace lpoe {
 namespace tools {
+
+// The inverse kinematics options of both modes, from --max_iterations, --restarts,
+// --position_tolerance, --orientation_tolerance and --singular_threshold (lpoe_compensate.cc).
+IkOptions IkOptionsFromFlags();
 
 // --program was given.
 bool ProgramModeRequested();

@@ -30,6 +30,7 @@
 #include "json_text.h"
 #include "output_files.h"
 #include "parse_util.h"
+#include "common_flags.h"
 #include "tool_common.h"
 
 // Defaults, ranges and help of the numeric options from the option table (lpoe/options.h), shared
@@ -87,14 +88,8 @@ DEFINE_string(joint_errors, "none",
               "subsets. The tilt's information is proportional to the compliance values, so "
               "'tilt' needs a --model that carries them (a calibrated model's YAML); with a "
               "nominal model it is refused (docs/planning.md).");
-// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
 #undef LPOE_DEFAULT
 #undef LPOE_HELP
-DECLARE_string(model);
-DECLARE_string(angle_unit);
-DECLARE_string(length_unit);
-DECLARE_bool(quiet);
-DECLARE_string(output);
 
 namespace lpoe {
 namespace {
@@ -187,10 +182,7 @@ int Run() {
   request.noise_sigma = FLAGS_noise_sigma;
   AngleUnit unit;
   LengthUnit length_unit;
-  if (Status s = tools::ParseUnitFlags(&unit, &length_unit); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitUsage;
-  }
+  if (!tools::UnitsFromFlags(&unit, &length_unit, nullptr)) return kExitUsage;
   PlanOptions& options = request.options;
   if (!ParsePlanCriterion(FLAGS_criterion, &options.criterion)) {
     std::cerr << "error: --criterion must be one of D, A, E, I, O1, O3\n";
@@ -257,14 +249,7 @@ int Run() {
   }
 
   RobotModel& model = request.model;
-  if (Status s = tools::CheckUrdfFlagsHaveAUrdf({FLAGS_model}); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return tools::kExitUsage;
-  }
-  if (Status s = tools::ReadModelWithUrdfFlags(FLAGS_model, &model); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitInput;
-  }
+  if (const int code = tools::ReadModelFlag(&model); code != kExitOk) return code;
   if (!FLAGS_smr_facing.empty()) {
     std::stringstream ss(FLAGS_smr_facing);
     std::string item;
@@ -523,18 +508,9 @@ int Run() {
   for (int c : plan.selected) rows.push_back(pool.source[c]);
   report["candidate_rows"] = rows;
 
-  std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
   Status staged = outputs.Stage(FLAGS_output, csv);
   if (staged.ok()) staged = outputs.Stage(report_path, tools::JsonText(report));
-  std::vector<std::string> written;
-  if (Status s = staged.ok() ? outputs.Commit(&written) : staged; !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
-  if (!FLAGS_quiet) {
-    for (const std::string& path : written) std::cout << "wrote " << path << "\n";
-  }
-  return kExitOk;
+  return tools::CommitOutputs(staged, &outputs, FLAGS_quiet);
 }
 
 }  // namespace

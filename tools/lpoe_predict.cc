@@ -25,6 +25,7 @@
 #include "lpoe/residual_layer.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
+#include "common_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(joints, "",
@@ -39,12 +40,6 @@ DEFINE_bool(predict_std, false,
             "per axis) at each row (docs/residual_layer.md); the model must carry a layer.");
 DEFINE_string(tool, "0",
               "Tool measured by rows without a target column: its name or 0-based index.");
-// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
-DECLARE_string(model);
-DECLARE_string(angle_unit);
-DECLARE_string(length_unit);
-DECLARE_bool(quiet);
-DECLARE_string(output);
 
 namespace lpoe {
 namespace {
@@ -69,11 +64,8 @@ int Run() {
   }
   AngleUnit unit;
   LengthUnit length_unit;
-  if (Status s = tools::ParseUnitFlags(&unit, &length_unit); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitUsage;
-  }
-  const double mm_per_unit = tools::MillimetresPer(length_unit);
+  double mm_per_unit = 1;
+  if (!tools::UnitsFromFlags(&unit, &length_unit, &mm_per_unit)) return kExitUsage;
   // The output against the inputs, and its directory writable, before any work
   // (tools/output_files.h).
   tools::OutputSet outputs;
@@ -89,14 +81,7 @@ int Run() {
     return kExitUsage;
   }
   RobotModel model;
-  if (Status s = tools::CheckUrdfFlagsHaveAUrdf({FLAGS_model}); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return tools::kExitUsage;
-  }
-  if (Status s = tools::ReadModelWithUrdfFlags(FLAGS_model, &model); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitInput;
-  }
+  if (const int code = tools::ReadModelFlag(&model); code != kExitOk) return code;
   if (FLAGS_predict_std && !model.residual_layer) {
     std::cerr << "error: --predict_std needs a model with a residual layer (lpoe_calibrate "
                  "--residual_model=gp or auto writes one); "
@@ -168,18 +153,14 @@ int Run() {
     }
     csv.swap(with_std);
   }
-  std::cout << std::flush;  // the tool's text comes before an output written to /dev/stdout
-  Status staged = outputs.Stage(
+  const Status staged = outputs.Stage(
       FLAGS_output, "# lpoe_predict: positions in " + FLAGS_length_unit + " in the " +
                         std::string(FLAGS_frame == "base" ? "robot's base" : "measurement") +
                         " frame" + (FLAGS_predict_std ? "; std: the residual layer's predictive "
                                                         "standard deviation per axis, " + FLAGS_length_unit
                                                       : "") +
                         "\n" + csv);
-  if (Status s = staged.ok() ? outputs.Commit(nullptr) : staged; !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
+  if (tools::CommitOutputs(staged, &outputs, true) != kExitOk) return kExitOutput;
   if (!FLAGS_quiet) {
     std::cout << "wrote " << FLAGS_output << " (" << positions.size() << " positions)\n";
   }

@@ -24,6 +24,7 @@
 #include "lpoe/urdf.h"
 #include "output_files.h"
 #include "parse_util.h"
+#include "common_flags.h"
 #include "tool_common.h"
 
 DEFINE_string(robot, "cobot6",
@@ -83,12 +84,6 @@ DEFINE_string(out, "", "Old name of --output (every other tool says --output); a
 DEFINE_string(verify_out, "", "Verification CSV (the last --verify_count rows).");
 DEFINE_string(model_out, "", "Write the nominal model here (YAML).");
 DEFINE_string(actual_out, "", "Write the actual (erroneous) robot here (YAML).");
-// The options every tool shares (tools/common_flags.cc, lpoe/options.h).
-DECLARE_string(model);
-DECLARE_string(angle_unit);
-DECLARE_string(length_unit);
-DECLARE_bool(quiet);
-DECLARE_string(output);
 
 namespace lpoe {
 namespace {
@@ -163,11 +158,8 @@ int Run() {
   }
   AngleUnit unit;
   LengthUnit length_unit;
-  if (Status s = tools::ParseUnitFlags(&unit, &length_unit); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitUsage;
-  }
-  const double mm_per_unit = tools::MillimetresPer(length_unit);
+  double mm_per_unit = 1;
+  if (!tools::UnitsFromFlags(&unit, &length_unit, &mm_per_unit)) return kExitUsage;
 
   RobotModel nominal;
   UrdfOptions urdf_options;
@@ -343,21 +335,11 @@ int Run() {
       return tools::kExitNumerical;
     }
   }
+  Status staged;
   for (const Output& o : outputs) {
-    if (Status s = files.Stage(o.path, o.text); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitOutput;
-    }
+    if (staged.ok()) staged = files.Stage(o.path, o.text);
   }
-  std::vector<std::string> written;
-  if (Status s = files.Commit(&written); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitOutput;
-  }
-  if (!FLAGS_quiet) {
-    for (const std::string& w : written) std::cout << "wrote " << w << "\n";
-  }
-  return kExitOk;
+  return tools::CommitOutputs(staged, &files, FLAGS_quiet);
 }
 
 }  // namespace

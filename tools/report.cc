@@ -109,6 +109,37 @@ Json GravityTiltJson(const GravityTiltResult& t) {
           {"message", t.message}};
 }
 
+// One candidate of an automatic choice (--joint_errors=auto, --residual_model=auto): its label
+// and success under the keys its section names them by, the failure, `middle`'s keys, the
+// cross-validated score, then `tail`'s keys.
+Json CandidateJson(const CrossValidatedCandidate& c, const char* label_key, const char* ok_key,
+                   const Json& middle, const Json& tail) {
+  Json j = {{label_key, c.label}, {ok_key, c.ok}, {"failure", c.failure}};
+  for (const auto& item : middle.items()) j[item.key()] = item.value();
+  j["cv_rms"] = c.cv_rms;
+  j["cv_mse"] = c.cv_mse;
+  j["cv_mse_standard_error"] = c.cv_mse_se;
+  j["fold_rms"] = c.fold_rms;
+  for (const auto& item : tail.items()) j[item.key()] = item.value();
+  return j;
+}
+
+// The "selection" of an automatic choice: its folds, every candidate (written by `candidate`), the
+// best and the chosen one and why.
+template <typename Selection, typename CandidateWriter>
+Json SelectionJson(const Selection& sel, CandidateWriter candidate) {
+  const CrossValidationChoice& choice = sel;
+  Json candidates = Json::array();
+  for (const auto& c : sel.candidates) candidates.push_back(candidate(c));
+  return {{"folds", choice.folds},
+          {"split", SplitKindName(choice.split)},
+          {"seed", choice.seed},
+          {"candidates", candidates},
+          {"best", sel.candidates[choice.best < 0 ? choice.chosen : choice.best].label},
+          {"chosen", sel.candidates[choice.chosen].label},
+          {"reason", choice.reason}};
+}
+
 // The joint-error terms: what was asked, the auto choice, and each term's identifiable combinations.
 Json JointErrorsJson(const RunSummary& s) {
   Json terms = Json::array();
@@ -131,27 +162,13 @@ Json JointErrorsJson(const RunSummary& s) {
     j["selection"] = nullptr;
     return j;
   }
-  Json candidates = Json::array();
-  for (const JointErrorCandidate& c : sel.candidates) {
-    candidates.push_back({{"terms", c.label},
-                          {"converged", c.ok},
-                          {"failure", c.failure},
-                          {"identified_combinations", c.parameters},
-                          {"cv_rms", c.cv_rms},
-                          {"cv_mse", c.cv_mse},
-                          {"cv_mse_standard_error", c.cv_mse_se},
-                          {"fold_rms", c.fold_rms},
-                          {"tilt_identified_folds", c.tilt_folds}});
-  }
-  j["selection"] = {{"folds", sel.folds},
-                    {"split", SplitKindName(sel.split)},
-                    {"seed", sel.seed},
-                    {"candidates", candidates},
-                    {"best", sel.candidates[sel.best < 0 ? sel.chosen : sel.best].label},
-                    {"chosen", sel.candidates[sel.chosen].label},
-                    {"reason", sel.reason},
-                    {"tilt_candidates", sel.tilt_candidates},
-                    {"tilt_message", sel.tilt_message}};
+  j["selection"] = SelectionJson(sel, [](const JointErrorCandidate& c) {
+    return CandidateJson(c, "terms", "converged",
+                         Json::object({{"identified_combinations", c.parameters}}),
+                         Json::object({{"tilt_identified_folds", c.tilt_folds}}));
+  });
+  j["selection"]["tilt_candidates"] = sel.tilt_candidates;
+  j["selection"]["tilt_message"] = sel.tilt_message;
   return j;
 }
 
@@ -186,35 +203,26 @@ Json ResidualModelJson(const RunSummary& s) {
     j["selection"] = nullptr;
     return j;
   }
-  Json candidates = Json::array();
-  for (const ResidualModelCandidate& c : sel.candidates) {
-    candidates.push_back({{"model", c.label},
-                          {"ok", c.ok},
-                          {"failure", c.failure},
-                          {"cv_rms", c.cv_rms},
-                          {"cv_mse", c.cv_mse},
-                          {"cv_mse_standard_error", c.cv_mse_se},
-                          {"fold_rms", c.fold_rms}});
-  }
-  j["selection"] = {{"folds", sel.folds},
-                    {"split", SplitKindName(sel.split)},
-                    {"seed", sel.seed},
-                    {"candidates", candidates},
-                    {"best", sel.candidates[sel.best < 0 ? sel.chosen : sel.best].label},
-                    {"chosen", sel.candidates[sel.chosen].label},
-                    {"reason", sel.reason}};
+  j["selection"] = SelectionJson(sel, [](const ResidualModelCandidate& c) {
+    return CandidateJson(c, "model", "ok", Json::object(), Json::object());
+  });
   return j;
+}
+
+// "<k>-fold cross-validation<how> on the identification rows (<seed or contiguous folds>),
+// held-out position error\n": the first line of a selection's table.
+std::string FoldsHeading(const CrossValidationChoice& sel, const char* how) {
+  return std::to_string(sel.folds) + "-fold cross-validation" + how +
+         " on the identification rows (" +
+         (sel.split == SplitKind::kSequential ? std::string("contiguous folds")
+                                              : "seed " + std::to_string(sel.seed)) +
+         "), held-out position error\n";
 }
 
 }  // namespace
 
 std::string ResidualModelSelectionTable(const ResidualModelSelection& sel) {
-  std::string out = "residual model (auto): " + std::to_string(sel.folds) +
-                    "-fold cross-validation by configuration on the identification rows (" +
-                    (sel.split == SplitKind::kSequential
-                         ? std::string("contiguous folds")
-                         : "seed " + std::to_string(sel.seed)) +
-                    "), held-out position error\n";
+  std::string out = "residual model (auto): " + FoldsHeading(sel, " by configuration");
   out += "  model   CV rms (mm)   CV mse (mm^2)   std error\n";
   char line[512];
   for (size_t k = 0; k < sel.candidates.size(); ++k) {
@@ -314,12 +322,7 @@ void AddPipelineResult(const PipelineResult& run, RunSummary* s) {
 }
 
 std::string JointErrorSelectionTable(const JointErrorSelection& sel) {
-  std::string out = "joint errors (auto): " + std::to_string(sel.folds) +
-                    "-fold cross-validation on the identification rows (" +
-                    (sel.split == SplitKind::kSequential
-                         ? std::string("contiguous folds")
-                         : "seed " + std::to_string(sel.seed)) +
-                    "), held-out position error\n";
+  std::string out = "joint errors (auto): " + FoldsHeading(sel, "");
   // The terms column: 25 wide, wider when a label needs it (every registry subset is a candidate).
   int width = 25;
   for (const JointErrorCandidate& c : sel.candidates) {
@@ -544,9 +547,15 @@ Json BuildJson(const RunSummary& s) {
     j["registration"] = nullptr;
   }
   const IdentifiabilityReport& id = s.identifiability;
-  Json unident = Json::array();
+  // The fixed tools' directions are held by the user, not unidentifiable: listed apart.
+  Json unident = Json::array(), held = Json::array();
   for (const Direction& d : id.unidentifiable) {
-    unident.push_back({{"name", d.name}, {"reason", d.reason}, {"structural", IsStructurallyLost(d)}});
+    if (IsHeldFixedTool(d)) {
+      held.push_back(d.name);
+    } else {
+      unident.push_back(
+          {{"name", d.name}, {"reason", d.reason}, {"structural", IsStructurallyLost(d)}});
+    }
   }
   Json params = Json::array();
   for (size_t k = 0; k < id.parameter_names.size(); ++k) {
@@ -567,6 +576,7 @@ Json BuildJson(const RunSummary& s) {
                           {"condition_number", id.condition_number},
                           {"singular_values", sv},
                           {"unidentifiable", unident},
+                          {"held_fixed_tools", held},
                           {"identified", params},
                           {"most_correlated", pairs},
                           {"warnings", id.warnings}};

@@ -18,6 +18,7 @@
 #include "lpoe/csv_rules.h"
 #include "lpoe/options.h"
 #include "lpoe/version.h"
+#include "output_files.h"
 #include "parse_util.h"
 
 DECLARE_bool(help);
@@ -322,6 +323,38 @@ void PrintBeforeAfter(std::ostream& os, const std::string& title, const ErrorSta
                   c.p95_abs);
     os << line;
   }
+}
+
+int CommitOutputs(const Status& staged, OutputSet* outputs, bool quiet,
+                  std::vector<std::string>* written) {
+  std::cout << std::flush;
+  std::vector<std::string> paths;
+  if (Status s = staged.ok() ? outputs->Commit(&paths) : staged; !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitOutput;
+  }
+  if (!quiet) {
+    for (const std::string& path : paths) std::cout << "wrote " << path << "\n";
+  }
+  if (written != nullptr) *written = std::move(paths);
+  return kExitOk;
+}
+
+Status ResolveInputs(const std::string& model_flag, const std::string& measurements_flag,
+                     const InputFlags& flags, InputPaths* paths, InputSettings* settings) {
+  *paths = ResolveInputPaths(model_flag, measurements_flag, flags.verify, flags.holdout != 0.0);
+  return ParseInputFlags(flags, settings);
+}
+
+void AddInputs(const InputPaths& paths, OutputSet* outputs) {
+  outputs->AddInput("--model", paths.model);
+  outputs->AddInput("--measurements", paths.measurements);
+  outputs->AddInput("--verify", paths.verify);
+}
+
+Status CheckHoldoutSplit(double holdout, const Inputs& in) {
+  if (!(holdout > 0.0)) return Status::Ok();
+  return CheckHoldoutSplit(holdout, in.identification.size(), in.verification.size());
 }
 
 }  // namespace tools

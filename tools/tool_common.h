@@ -35,6 +35,9 @@ Status CheckRange(const char* name, double value, double lo, double hi, bool lo_
 
 // A --holdout split that leaves the verification set empty or too few identification rows.
 Status CheckHoldoutSplit(double holdout, int identification_rows, int verification_rows);
+// The same for the rows of `in` when a hold-out was asked for (holdout > 0); Ok otherwise.
+struct Inputs;
+Status CheckHoldoutSplit(double holdout, const Inputs& in);
 
 // Parses flags; on --help / --helpfull prints the usage message and this tool's flags only (with
 // their ranges from lpoe/options.h and defaults as written) and exits 0. Checks every flag the
@@ -44,6 +47,13 @@ void InitTool(const char* usage, int* argc, char*** argv);
 
 // The shared --angle_unit and --length_unit (common_flags.cc); the error names the flag.
 Status ParseUnitFlags(AngleUnit* angle, LengthUnit* length);
+// The same for a tool's run: on an error prints "error: <message>" on stderr and returns false (a
+// usage error, exit 1). `mm_per_unit` (may be null): MillimetresPer(*length).
+bool UnitsFromFlags(AngleUnit* angle, LengthUnit* length, double* mm_per_unit);
+// Reads the tool's --model with the URDF chain flags (CheckUrdfFlagsHaveAUrdf, then
+// ReadModelWithUrdfFlags); on an error prints it and returns kExitUsage (the URDF flags) or
+// kExitInput (the file), else kExitOk.
+int ReadModelFlag(RobotModel* model);
 // Millimetres per unit of --length_unit (1 or 1000).
 inline double MillimetresPer(LengthUnit unit) {
   return unit == LengthUnit::kMetres ? 1000.0 : 1.0;
@@ -120,6 +130,15 @@ struct InputPaths {
 InputPaths ResolveInputPaths(const std::string& model_flag, const std::string& measurements_flag,
                              const std::string& verify_flag, bool holdout);
 
+// The inputs of lpoe_calibrate and lpoe_compare from their flags: the files (ResolveInputPaths of
+// --model, --measurements and flags.verify) and the settings (ParseInputFlags; its error).
+Status ResolveInputs(const std::string& model_flag, const std::string& measurements_flag,
+                     const InputFlags& flags, InputPaths* paths, InputSettings* settings);
+
+class OutputSet;
+// Registers the files of `paths` as inputs of `outputs` (--model, --measurements, --verify).
+void AddInputs(const InputPaths& paths, OutputSet* outputs);
+
 // True when both paths name the same existing file (same device and inode), or are equal strings.
 bool SameFile(const std::string& a, const std::string& b);
 
@@ -135,6 +154,13 @@ void PrintIterationTable(std::ostream& os, const CalibrationResult& result);
 // joint-space combinations are common), which a person reads in a terminal.
 void PrintWrapped(std::ostream& os, const std::vector<std::string>& items,
                   const std::string& separator, int indent, int width = 100);
+
+// The end of a tool's run: flushes stdout (the tool's text comes before an output written to
+// /dev/stdout), commits `outputs` unless `staged` (the first staging error, or Ok) failed, then
+// prints "wrote PATH" for each file written unless `quiet`. On failure prints "error: <message>" on
+// stderr and returns kExitOutput, else kExitOk. `written` (may be null) receives the paths.
+int CommitOutputs(const Status& staged, OutputSet* outputs, bool quiet,
+                  std::vector<std::string>* written = nullptr);
 
 // Prints before/after statistics per axis and norm.
 void PrintBeforeAfter(std::ostream& os, const std::string& title, const ErrorStatistics& before,

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "lpoe/analysis.h"
 #include "lpoe/compensation.h"
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/options.h"
@@ -67,10 +68,15 @@ struct PyIdentifiability {
 };
 
 std::string Repr(const PyIdentifiability& r) {
+  // The fixed tools' directions are held by the user, not unidentifiable: counted apart.
+  size_t held = 0;
+  for (const Direction& d : r.a.unidentifiable) held += IsHeldFixedTool(d);
   std::ostringstream os;
   os << "<lpoe.Identifiability: rank " << r.a.rank << " of " << r.a.num_parameters
-     << ", condition " << r.a.condition_number << ", " << r.a.unidentifiable.size()
-     << " directions not identifiable" << (r.a.identifiable ? "" : "; NOT IDENTIFIABLE") << ">";
+     << ", condition " << r.a.condition_number << ", " << r.a.unidentifiable.size() - held
+     << " directions not identifiable"
+     << (held > 0 ? ", " + std::to_string(held) + " held (fixed tools)" : std::string())
+     << (r.a.identifiable ? "" : "; NOT IDENTIFIABLE") << ">";
   return os.str();
 }
 

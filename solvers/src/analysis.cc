@@ -13,6 +13,7 @@
 
 #include "lpoe/kinematics.h"
 #include "lpoe/measurement_model.h"
+#include "lpoe/parameterization.h"
 #include "lpoe/parallel.h"
 #include "lpoe/statistics.h"
 
@@ -161,6 +162,8 @@ std::vector<int> Complement(int n, const std::vector<int>& rows) {
   }
   return out;
 }
+
+bool IsHeldFixedTool(const Direction& d) { return d.reason == kFixedToolReason; }
 
 bool ParseSplitKind(const std::string& text, SplitKind* kind) {
   if (text == "random") {

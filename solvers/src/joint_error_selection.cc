@@ -1,12 +1,11 @@
 // --joint_errors=auto: the joint-error terms chosen by k-fold cross-validation on the
 // identification rows (docs/joint_errors.md, "Choosing the terms").
 #include <algorithm>
-#include <cmath>
 #include <mutex>
-#include <sstream>
 #include <string>
 #include <vector>
 
+#include "cross_validation.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/parallel.h"
@@ -22,44 +21,31 @@ std::string Label(const std::vector<std::string>& terms) {
   return s;
 }
 
-// One candidate's calibration on one fold's training rows and its errors on the held-out rows.
+// One candidate's errors on one fold's held-out rows, calibrated on the fold's training rows; and
+// whether the gravity tilt was identified and how many joint-space combinations were.
 struct FoldOutcome {
-  bool converged = false;
-  std::string failure;  // when not converged
-  int parameters = 0;   // identified joint-space combinations
-  bool tilt = false;    // the gravity tilt was identified
-  std::vector<double> squared;  // per held-out point: |e|^2
-  double rms = 0;
+  internal::FoldErrors errors;
+  int parameters = 0;  // identified joint-space combinations
+  bool tilt = false;   // the gravity tilt was identified
 };
 
 FoldOutcome SolveFold(const RobotModel& nominal, const MeasurementSet& identification,
                       const std::vector<int>& fold, int fold_number,
                       const PipelineOptions& options, const std::string& label) {
   FoldOutcome out;
-  const MeasurementSet train = identification.Subset(Complement(identification.size(), fold));
-  const MeasurementSet test = identification.Subset(fold);
-  const CalibrationResult r =
-      SolveCalibration(nominal, train, options,
-                       "auto " + label + " fold " + std::to_string(fold_number), nullptr, nullptr,
-                       nullptr);
-  if (!r.converged()) {
-    out.failure = "fold " + std::to_string(fold_number) + ": " + TerminationName(r.termination) +
-                  " (" + r.message + ")";
+  const internal::FoldCalibration f =
+      internal::CalibrateFold(nominal, identification, fold, fold_number, options,
+                              "auto " + label + " fold " + std::to_string(fold_number));
+  if (!f.ok) {
+    out.errors.failure = f.failure;
     return out;
   }
-  out.converged = true;
-  out.parameters = r.parameterization.num_joint_parameters();
-  out.tilt = r.gravity_tilt.identified;
-  RobotModel geometric = r.model;
-  geometric.joint_errors = JointErrorTerms();
-  const std::vector<Eigen::Vector3d> e =
-      PositionErrors(geometric, WithEffectiveJointValues(r.joint_terms, test));
-  double sum = 0;
-  for (const Eigen::Vector3d& v : e) {
-    out.squared.push_back(v.squaredNorm());
-    sum += v.squaredNorm();
+  out.errors.ok = true;
+  out.parameters = f.result.parameterization.num_joint_parameters();
+  out.tilt = f.result.gravity_tilt.identified;
+  for (const Eigen::Vector3d& v : ParametricResiduals(f.result, f.test)) {
+    out.errors.squared.push_back(v.squaredNorm());
   }
-  out.rms = e.empty() ? 0.0 : std::sqrt(sum / e.size());
   return out;
 }
 
@@ -69,32 +55,14 @@ JointErrorCandidate Combine(const std::vector<std::string>& terms,
   JointErrorCandidate c;
   c.terms = terms;
   c.label = Label(terms);
-  std::vector<double> squared;
+  std::vector<internal::FoldErrors> errors;
   for (const FoldOutcome& o : outcomes) {
-    if (!o.converged) {
-      c.failure = o.failure;
-      return c;
-    }
+    errors.push_back(o.errors);
+    if (!o.errors.ok) break;
     c.parameters = std::max(c.parameters, o.parameters);
     if (o.tilt) ++c.tilt_folds;
-    squared.insert(squared.end(), o.squared.begin(), o.squared.end());
-    c.fold_rms.push_back(o.rms);
   }
-  const double n = static_cast<double>(squared.size());
-  if (n < 2) {
-    c.failure = "fewer than 2 held-out points";
-    return c;
-  }
-  double mean = 0;
-  for (double s : squared) mean += s;
-  mean /= n;
-  double var = 0;
-  for (double s : squared) var += (s - mean) * (s - mean);
-  var /= n - 1;
-  c.ok = std::isfinite(mean);
-  c.cv_mse = mean;
-  c.cv_rms = std::sqrt(mean);
-  c.cv_mse_se = std::sqrt(var / n);
+  internal::ScoreFolds(errors, &c);
   return c;
 }
 
@@ -110,20 +78,7 @@ std::vector<JointErrorCandidate> CrossValidateAll(
   const int tasks = static_cast<int>(sets.size()) * num_folds;
   std::vector<FoldOutcome> outcomes(static_cast<size_t>(tasks));
   std::mutex progress;
-  PipelineOptions options = base;
-  options.joint_errors_auto = false;
-  if (base.on_iteration) {
-    options.on_iteration = [&progress, &base](const std::string& stage, const IterationRecord& r) {
-      std::lock_guard<std::mutex> lock(progress);
-      base.on_iteration(stage, r);
-    };
-  }
-  if (base.on_stage) {
-    options.on_stage = [&progress, &base](const std::string& stage) {
-      std::lock_guard<std::mutex> lock(progress);
-      base.on_stage(stage);
-    };
-  }
+  const PipelineOptions options = internal::SerializedProgress(base, &progress);
   ForEachTask(tasks, ThreadsFor(tasks), [&](int task, int /*thread*/) {
     const int k = task / num_folds, f = task % num_folds;
     PipelineOptions o = options;
@@ -146,13 +101,8 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
                                       const MeasurementSet& identification,
                                       const PipelineOptions& options) {
   JointErrorSelection sel;
-  sel.ran = true;
-  std::vector<int> configuration_of_row;
-  const int configurations = ConfigurationGroups(identification, &configuration_of_row);
-  sel.folds = std::max(2, std::min(options.joint_error_folds, configurations));
-  sel.seed = options.split_seed;
-  sel.split = options.split;
-  const auto folds = KFolds(identification, sel.folds, sel.seed, sel.split);
+  const std::vector<std::vector<int>> folds =
+      internal::FoldsByConfiguration(identification, options, &sel);
   // Every subset of the registry (JointTermNames(), 2^T sets for T terms), each in registry order
   // (compliance first: it keeps the combinations both terms could explain, joint_errors.md), listed
   // by the binary count of registry bits: none, compliance, harmonics, compliance,harmonics, then
@@ -202,32 +152,13 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
                    [](const JointErrorCandidate& a, const JointErrorCandidate& b) {
                      return a.parameters < b.parameters;
                    });
-  for (size_t k = 0; k < sel.candidates.size(); ++k) {
-    const JointErrorCandidate& c = sel.candidates[k];
-    if (c.ok && (sel.best < 0 || c.cv_mse < sel.candidates[sel.best].cv_mse)) {
-      sel.best = static_cast<int>(k);
-    }
-  }
-  std::ostringstream why;
-  if (sel.best < 0) {
+  if (!internal::ChooseWithinOneStandardError(&sel)) {
     // Nothing converged on every fold: the geometric model (the main run reports its failure).
     for (size_t k = 0; k < sel.candidates.size(); ++k) {
       if (sel.candidates[k].terms.empty()) sel.chosen = static_cast<int>(k);
     }
-    why << "no candidate converged on every fold; geometry alone";
-    sel.reason = why.str();
-    return sel;
+    sel.reason = "no candidate converged on every fold; geometry alone";
   }
-  const JointErrorCandidate& best = sel.candidates[sel.best];
-  const double limit = best.cv_mse + best.cv_mse_se;
-  for (size_t k = 0; k < sel.candidates.size() && sel.chosen < 0; ++k) {
-    if (sel.candidates[k].ok && sel.candidates[k].cv_mse <= limit) sel.chosen = static_cast<int>(k);
-  }
-  const JointErrorCandidate& chosen = sel.candidates[sel.chosen];
-  why << "one-standard-error rule: lowest CV mean squared error " << best.cv_mse << " mm^2 ("
-      << best.label << ", standard error " << best.cv_mse_se << " mm^2); " << chosen.label
-      << " is the simplest candidate within " << limit << " mm^2";
-  sel.reason = why.str();
   return sel;
 }
 

@@ -21,6 +21,7 @@
 #include <glog/logging.h>
 
 #include "identifiability.h"
+#include "planning_internal.h"
 #include "lpoe/analysis.h"
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/joint_errors.h"
@@ -28,27 +29,11 @@
 #include "lpoe/measurements.h"
 #include "lpoe/parallel.h"
 
-
 namespace lpoe {
+using planning_internal::kInf;
+using planning_internal::kRegularization;
+
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kInf = std::numeric_limits<double>::infinity();
-// O1/O3 scaling: expected magnitude of a parameter error (the paper's Table 2 has rotations of
-// 1-5 mrad and translations of 0.5-3 mm).
-constexpr double kRotationErrorScale = 1e-3;    // rad
-constexpr double kTranslationErrorScale = 1.0;  // mm
-// M = delta I + sum J^T J in pool-scaled coordinates, where one pose contributes a unit mean
-// diagonal: keeps M^-1 defined while the plan has fewer poses than it needs.
-constexpr double kRegularization = 1e-6;
-// A joint value may exceed its limit by this much (round-off of a written file).
-constexpr double kLimitTolerance = 1e-9;
-// O3 scaling of a joint-space combination: the value that moves the tools by this much (RMS, mm)
-// over the reference configurations (the simulator's small arm: compliance 0.5 mm, harmonics
-// 0.08 mm at the tool, docs/joint_errors.md).
-constexpr double kJointErrorEffectScale = 0.1;  // mm
-
-// The frame directions identifiable from positions, then the joint-space terms reduced as the
 
 // Log-determinant of a symmetric positive definite matrix; -inf when it is not.
 double LogDetSpd(const Eigen::MatrixXd& M) {

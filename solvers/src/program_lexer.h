@@ -63,6 +63,30 @@ class TokenView {
 
 std::string Lower(std::string_view s);
 
+// Where a motion instruction uses a target: the work object (feature) and tool (TCP) in effect,
+// the controller's seed (URScript qnear; empty: none), and the use's order and line.
+struct TargetUse {
+  SE3d frame, tcp;
+  std::string frame_name, tcp_name;
+  std::vector<double> qnear;
+  int order = 0, line = 0;
+};
+
+// The language's names for what a target is used with, and whether a joint target depends on the
+// frame it is used in (URScript features: yes; RAPID work objects: no).
+struct TargetUseRules {
+  const char* tcps;    // "tools", "TCPs"
+  const char* frames;  // "work objects", "features"
+  bool joint_targets_use_frame = false;
+};
+
+// The first of `uses` (non-empty) becomes t's use (used, order, frame, tcp, their names, qnear).
+// A later use in another frame (a Cartesian target, or any with rules.joint_targets_use_frame) or
+// with another TCP (a Cartesian target) makes a compensable t not compensable: "used with different
+// <frames or tcps> (lines a and b)".
+void ApplyTargetUses(const std::vector<TargetUse>& uses, const TargetUseRules& rules,
+                     ProgramTarget* t);
+
 }  // namespace program_internal
 
 // The parsers (one per language).

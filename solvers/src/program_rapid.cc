@@ -28,11 +28,7 @@ constexpr int kMmDecimals = 4;
 constexpr int kQuaternionDecimals = 9;
 constexpr int kDegreeDecimals = 6;
 
-struct Use {
-  SE3d frame, tcp;
-  std::string frame_name, tcp_name;
-  int order = 0, line = 0;
-};
+using Use = program_internal::TargetUse;
 
 struct Frame {
   SE3d pose;
@@ -513,25 +509,8 @@ class RapidParser {
       ProgramTarget& t = program_->targets[k];
       const std::vector<Use>& uses = uses_[k];
       if (uses.empty()) continue;
-      const Use& u = uses.front();
-      t.used = true;
-      t.order = u.order;
-      t.frame = u.frame;
-      t.tcp = u.tcp;
-      t.frame_name = u.frame_name;
-      t.tcp_name = u.tcp_name;
-      for (const Use& w : uses) {
-        const bool same_tcp =
-            (w.tcp.t - u.tcp.t).norm() < 1e-9 && (w.tcp.R - u.tcp.R).norm() < 1e-12;
-        const bool same_frame =
-            (w.frame.t - u.frame.t).norm() < 1e-9 && (w.frame.R - u.frame.R).norm() < 1e-12;
-        if (t.compensable && t.kind == ProgramTargetKind::kCartesian &&
-            (!same_tcp || !same_frame)) {
-          t.compensable = false;
-          t.reason = "used with different " + std::string(same_frame ? "tools" : "work objects") +
-                     " (lines " + std::to_string(u.line) + " and " + std::to_string(w.line) + ")";
-        }
-      }
+      // Another work object or tool matters for a Cartesian target only.
+      program_internal::ApplyTargetUses(uses, {"tools", "work objects", false}, &t);
     }
     std::stable_sort(program_->targets.begin(), program_->targets.end(),
                      [](const ProgramTarget& x, const ProgramTarget& y) {

@@ -62,6 +62,31 @@ std::string Lower(std::string_view s) {
   return out;
 }
 
+void ApplyTargetUses(const std::vector<TargetUse>& uses, const TargetUseRules& rules,
+                     ProgramTarget* t) {
+  const TargetUse& u = uses.front();
+  t->used = true;
+  t->order = u.order;
+  t->frame = u.frame;
+  t->tcp = u.tcp;
+  t->frame_name = u.frame_name;
+  t->tcp_name = u.tcp_name;
+  t->qnear = u.qnear;
+  const bool cartesian = t->kind == ProgramTargetKind::kCartesian;
+  for (const TargetUse& w : uses) {
+    const bool same_tcp =
+        (w.tcp.t - u.tcp.t).norm() < 1e-9 && (w.tcp.R - u.tcp.R).norm() < 1e-12;
+    const bool same_frame =
+        (w.frame.t - u.frame.t).norm() < 1e-9 && (w.frame.R - u.frame.R).norm() < 1e-12;
+    if (t->compensable && ((!same_frame && (cartesian || rules.joint_targets_use_frame)) ||
+                           (!same_tcp && cartesian))) {
+      t->compensable = false;
+      t->reason = "used with different " + std::string(same_frame ? rules.tcps : rules.frames) +
+                  " (lines " + std::to_string(u.line) + " and " + std::to_string(w.line) + ")";
+    }
+  }
+}
+
 Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<Token>* tokens) {
   tokens->clear();
   int line = 1;

@@ -21,12 +21,7 @@ using program_internal::TokenView;
 
 constexpr int kMetreDecimals = 10;  // 0.1 nm; radians alike
 
-struct Use {
-  SE3d frame, tcp;
-  std::string frame_name, tcp_name;
-  std::vector<double> qnear;
-  int order = 0, line = 0;
-};
+using Use = program_internal::TargetUse;
 
 struct Var {
   int record = -1;      // the literal's record
@@ -326,26 +321,8 @@ class UrParser {
       // Polyscope's companion variables (Waypoint_1_q of a movel waypoint). Left out.
       if (uses.empty() && !t.numbers.empty()) continue;
       if (!uses.empty()) {
-        const Use& u = uses.front();
-        t.used = true;
-        t.order = u.order;
-        t.frame = u.frame;
-        t.tcp = u.tcp;
-        t.frame_name = u.frame_name;
-        t.tcp_name = u.tcp_name;
-        t.qnear = u.qnear;
-        for (const Use& w : uses) {
-          const bool same_tcp =
-              (w.tcp.t - u.tcp.t).norm() < 1e-9 && (w.tcp.R - u.tcp.R).norm() < 1e-12;
-          const bool same_frame =
-              (w.frame.t - u.frame.t).norm() < 1e-9 && (w.frame.R - u.frame.R).norm() < 1e-12;
-          if (t.compensable &&
-              (!same_frame || (!same_tcp && t.kind == ProgramTargetKind::kCartesian))) {
-            t.compensable = false;
-            t.reason = "used with different " + std::string(same_frame ? "TCPs" : "features") +
-                       " (lines " + std::to_string(u.line) + " and " + std::to_string(w.line) + ")";
-          }
-        }
+        // Another feature matters for any target, another TCP for a Cartesian one.
+        program_internal::ApplyTargetUses(uses, {"TCPs", "features", true}, &t);
         if (t.compensable && frame_use_[k] > 0 && t.kind == ProgramTargetKind::kCartesian) {
           t.compensable = false;
           t.reason = "also used as a feature or TCP (line " + std::to_string(frame_use_[k]) + ")";

@@ -3,10 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <mutex>
-#include <sstream>
 #include <string>
 #include <vector>
 
+#include "cross_validation.h"
 #include "lpoe/parallel.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/residual_layer.h"
@@ -61,131 +61,57 @@ Status FitResidualLayerOn(const CalibrationResult& result, const MeasurementSet&
   return FitResidualLayer(q, tools, e, n, result.model.num_tools(), options, layer, fit);
 }
 
-namespace {
-
-struct FoldOutcome {
-  bool ok = false;
-  std::string failure;
-  std::vector<double> squared[2];  // none, gp: |e|^2 per held-out point
-};
-
-ResidualModelCandidate Combine(const std::string& label, int which,
-                               const std::vector<FoldOutcome>& outcomes) {
-  ResidualModelCandidate c;
-  c.label = label;
-  std::vector<double> squared;
-  for (const FoldOutcome& o : outcomes) {
-    if (!o.ok) {
-      c.failure = o.failure;
-      return c;
-    }
-    double sum = 0;
-    for (double s : o.squared[which]) sum += s;
-    c.fold_rms.push_back(o.squared[which].empty() ? 0.0
-                                                  : std::sqrt(sum / o.squared[which].size()));
-    squared.insert(squared.end(), o.squared[which].begin(), o.squared[which].end());
-  }
-  const double n = static_cast<double>(squared.size());
-  if (n < 2) {
-    c.failure = "fewer than 2 held-out points";
-    return c;
-  }
-  double mean = 0;
-  for (double s : squared) mean += s;
-  mean /= n;
-  double var = 0;
-  for (double s : squared) var += (s - mean) * (s - mean);
-  var /= n - 1;
-  c.ok = std::isfinite(mean);
-  c.cv_mse = mean;
-  c.cv_rms = std::sqrt(mean);
-  c.cv_mse_se = std::sqrt(var / n);
-  return c;
-}
-
-}  // namespace
-
 ResidualModelSelection SelectResidualModel(const RobotModel& nominal,
                                            const MeasurementSet& identification,
                                            const PipelineOptions& options) {
   ResidualModelSelection sel;
-  sel.ran = true;
-  std::vector<int> configuration_of_row;
-  const int configurations = ConfigurationGroups(identification, &configuration_of_row);
-  sel.folds = std::max(2, std::min(options.joint_error_folds, configurations));
-  sel.seed = options.split_seed;
-  sel.split = options.split;
-  const auto folds = KFolds(identification, sel.folds, sel.seed, sel.split);
-  PipelineOptions base = options;
-  base.joint_errors_auto = false;
-  base.residual_model = ResidualModelKind::kNone;
+  const std::vector<std::vector<int>> folds =
+      internal::FoldsByConfiguration(identification, options, &sel);
   std::mutex progress;
-  if (options.on_iteration) {
-    base.on_iteration = [&progress, &options](const std::string& stage, const IterationRecord& r) {
-      std::lock_guard<std::mutex> lock(progress);
-      options.on_iteration(stage, r);
-    };
-  }
-  if (options.on_stage) {
-    base.on_stage = [&progress, &options](const std::string& stage) {
-      std::lock_guard<std::mutex> lock(progress);
-      options.on_stage(stage);
-    };
-    options.on_stage("cross-validating the residual layer");
-  }
-  std::vector<FoldOutcome> outcomes(sel.folds);
+  PipelineOptions base = internal::SerializedProgress(options, &progress);
+  base.residual_model = ResidualModelKind::kNone;
+  if (options.on_stage) options.on_stage("cross-validating the residual layer");
+  // Per fold, the held-out errors without (none) and with (gp) the layer fitted on its training
+  // residuals.
+  std::vector<internal::FoldErrors> outcomes[2];
+  outcomes[0].resize(sel.folds);
+  outcomes[1].resize(sel.folds);
   // One task per fold (the calibration and the layer fit of a fold are independent of the others);
   // each writes only its outcome, combined in fold order.
   ForEachTask(sel.folds, ThreadsFor(sel.folds), [&](int f, int /*thread*/) {
-    FoldOutcome& o = outcomes[f];
-    const MeasurementSet train = identification.Subset(Complement(identification.size(), folds[f]));
-    const MeasurementSet test = identification.Subset(folds[f]);
-    const CalibrationResult r =
-        SolveCalibration(nominal, train, base, "auto residual fold " + std::to_string(f + 1),
-                         nullptr, nullptr, nullptr);
-    if (!r.converged()) {
-      o.failure = "fold " + std::to_string(f + 1) + ": " + TerminationName(r.termination) + " (" +
-                  r.message + ")";
+    internal::FoldErrors& none = outcomes[0][f];
+    internal::FoldErrors& gp = outcomes[1][f];
+    const internal::FoldCalibration c = internal::CalibrateFold(
+        nominal, identification, folds[f], f + 1, base,
+        "auto residual fold " + std::to_string(f + 1));
+    if (!c.ok) {
+      none.failure = gp.failure = c.failure;
       return;
     }
     ResidualLayer layer;
-    if (Status s = FitResidualLayerOn(r, train, options.residual_layer, &layer, nullptr); !s.ok()) {
-      o.failure = "fold " + std::to_string(f + 1) + ": " + s.message();
+    if (Status s = FitResidualLayerOn(c.result, c.train, options.residual_layer, &layer, nullptr);
+        !s.ok()) {
+      none.failure = gp.failure = "fold " + std::to_string(f + 1) + ": " + s.message();
       return;
     }
-    const std::vector<Eigen::Vector3d> e = ParametricResiduals(r, test);
-    for (int row = 0; row < test.size(); ++row) {
-      o.squared[0].push_back(e[row].squaredNorm());
-      o.squared[1].push_back(
-          (e[row] - layer.Mean(test.q(row), test.target(row))).squaredNorm());
+    const std::vector<Eigen::Vector3d> e = ParametricResiduals(c.result, c.test);
+    for (int row = 0; row < c.test.size(); ++row) {
+      none.squared.push_back(e[row].squaredNorm());
+      gp.squared.push_back((e[row] - layer.Mean(c.test.q(row), c.test.target(row))).squaredNorm());
     }
-    o.ok = true;
+    none.ok = gp.ok = true;
   });
-  sel.candidates.push_back(Combine("none", 0, outcomes));
-  sel.candidates.push_back(Combine("gp", 1, outcomes));
-  for (size_t k = 0; k < sel.candidates.size(); ++k) {
-    const ResidualModelCandidate& c = sel.candidates[k];
-    if (c.ok && (sel.best < 0 || c.cv_mse < sel.candidates[sel.best].cv_mse)) {
-      sel.best = static_cast<int>(k);
-    }
+  const char* const labels[2] = {"none", "gp"};
+  for (int which = 0; which < 2; ++which) {
+    ResidualModelCandidate c;
+    c.label = labels[which];
+    internal::ScoreFolds(outcomes[which], &c);
+    sel.candidates.push_back(c);
   }
-  std::ostringstream why;
-  if (sel.best < 0) {
+  if (!internal::ChooseWithinOneStandardError(&sel)) {
     sel.chosen = 0;
-    why << "cross-validation failed (" << sel.candidates[0].failure << "); no layer";
-    sel.reason = why.str();
-    return sel;
+    sel.reason = "cross-validation failed (" + sel.candidates[0].failure + "); no layer";
   }
-  const ResidualModelCandidate& best = sel.candidates[sel.best];
-  const double limit = best.cv_mse + best.cv_mse_se;
-  for (size_t k = 0; k < sel.candidates.size() && sel.chosen < 0; ++k) {
-    if (sel.candidates[k].ok && sel.candidates[k].cv_mse <= limit) sel.chosen = static_cast<int>(k);
-  }
-  const ResidualModelCandidate& chosen = sel.candidates[sel.chosen];
-  why << "one-standard-error rule: lowest CV mean squared error " << best.cv_mse << " mm^2 ("
-      << best.label << ", standard error " << best.cv_mse_se << " mm^2); " << chosen.label
-      << " is the simplest candidate within " << limit << " mm^2";
-  sel.reason = why.str();
   return sel;
 }
 

@@ -85,6 +85,9 @@ std::vector<std::vector<int>> KFolds(int n, int k, uint64_t seed,
 // given"), as opposed to the identifiable parameterization's own removals, a tool never measured
 // or a joint-space combination.
 bool IsStructurallyLost(const Direction& d);
+// A direction of a fixed tool (Tool::fixed, --fixed_tools; its reason kFixedToolReason): held as
+// given by the user, listed with the left-out directions but not counted as not identifiable.
+bool IsHeldFixedTool(const Direction& d);
 
 // The complement of `rows` in [0, n).
 std::vector<int> Complement(int n, const std::vector<int>& rows);

@@ -86,31 +86,42 @@ struct FoldSummary {
   ErrorStatistics verification_after;
 };
 
-// --joint_errors=auto: one candidate set of terms and its cross-validated held-out error.
-struct JointErrorCandidate {
+// A candidate of a k-fold cross-validation by configuration (--joint_errors=auto,
+// --residual_model=auto): its cross-validated held-out error.
+struct CrossValidatedCandidate {
+  std::string label;             // what is printed for it ("none", "compliance", "gp", ...)
+  bool ok = false;               // every fold's calibration (and layer fit) succeeded
+  std::string failure;           // why not (first failing fold)
+  double cv_rms = 0;             // pooled held-out RMS of the error norm, mm
+  double cv_mse = 0;             // its square (mean squared error norm), mm^2
+  double cv_mse_se = 0;          // standard error of cv_mse over the held-out points, mm^2
+  std::vector<double> fold_rms;  // held-out RMS per fold, mm (up to the first failing fold)
+};
+
+// --joint_errors=auto: one candidate set of terms and its cross-validated held-out error; label
+// "none", "compliance", "harmonics", "compliance,tilt", ...
+struct JointErrorCandidate : CrossValidatedCandidate {
   std::vector<std::string> terms;  // registry names; empty: the geometry alone
-  std::string label;               // "none", "compliance", "harmonics", "compliance,tilt", ...
-  bool ok = false;                 // every fold's calibration converged
-  std::string failure;             // why not (first failing fold)
   int parameters = 0;              // identified joint-error combinations (largest over the folds)
-  double cv_rms = 0;               // pooled held-out RMS of the error norm, mm
-  double cv_mse = 0;               // its square (mean squared error norm), mm^2
-  double cv_mse_se = 0;            // standard error of cv_mse over the held-out points, mm^2
-  std::vector<double> fold_rms;    // held-out RMS per fold, mm
   // With the gravity tilt among the terms: the folds whose calibration identified it (the others
   // kept the model's gravity, as a calibration with these terms does when the tilt check fails).
   int tilt_folds = 0;
 };
 
-struct JointErrorSelection {
+// How an automatic choice cross-validated (its folds) and what it chose: indices into its
+// selection's candidates.
+struct CrossValidationChoice {
   bool ran = false;
   int folds = 0;
   uint64_t seed = 0;
   SplitKind split = SplitKind::kRandom;
-  std::vector<JointErrorCandidate> candidates;  // in order of increasing parameters
   int best = -1;    // lowest cv_mse
   int chosen = -1;  // the simplest within one standard error of the best
   std::string reason;
+};
+
+struct JointErrorSelection : CrossValidationChoice {
+  std::vector<JointErrorCandidate> candidates;  // in order of increasing parameters
   // The gravity tilt joins the candidates that have compliance ("compliance,tilt",
   // "compliance,harmonics,tilt", ...) only when the identification rows determine it (the check of
   // PipelineOptions::joint_errors "tilt" at the compliance solution); else why not.
@@ -131,26 +142,12 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
                                       const MeasurementSet& identification,
                                       const PipelineOptions& options);
 
-// --residual_model=auto: one candidate (none or gp) and its cross-validated held-out error.
-struct ResidualModelCandidate {
-  std::string label;       // "none" | "gp"
-  bool ok = false;         // every fold's calibration (and layer fit) succeeded
-  std::string failure;     // why not (first failing fold)
-  double cv_rms = 0;       // pooled held-out RMS of the error norm, mm
-  double cv_mse = 0;       // its square, mm^2
-  double cv_mse_se = 0;    // standard error of cv_mse over the held-out points, mm^2
-  std::vector<double> fold_rms;  // held-out RMS per fold, mm
-};
+// --residual_model=auto: one candidate, label "none" or "gp", and its cross-validated held-out
+// error.
+struct ResidualModelCandidate : CrossValidatedCandidate {};
 
-struct ResidualModelSelection {
-  bool ran = false;
-  int folds = 0;
-  uint64_t seed = 0;
-  SplitKind split = SplitKind::kRandom;
+struct ResidualModelSelection : CrossValidationChoice {
   std::vector<ResidualModelCandidate> candidates;  // none, gp
-  int best = -1;    // lowest cv_mse
-  int chosen = -1;  // the simplest within one standard error of the best
-  std::string reason;
 };
 
 // Cross-validates the parametric model alone ("none") against it plus a layer fitted on each
