@@ -291,6 +291,37 @@ double SmallestEigenvalueOfGram(const double* J, int n) {
   return x;
 }
 
+// y <- A^-1 y for the M x M symmetric positive semi-definite A of a damped step (A's diagonal already
+// holds the damping and 1e-13 of its mean; `trace` is A's trace before them). M = 3 (position
+// tasks): Eigen's closed-form inverse of a fixed 3 x 3 matrix (cofactors; inlined, unlike the
+// factorization's loops), else Eigen's LLT. A rank-deficient A to round-off is regularized more (1e-9
+// of its mean diagonal); y = 0 if that fails too.
+template <int M>
+void SolveRegularized(Eigen::Matrix<double, M, M>* A, double trace, Eigen::Matrix<double, M, 1>* y) {
+  if constexpr (M == 3) {
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      const double det = A->determinant();
+      if (det > 0 && std::isfinite(det)) {
+        *y = A->inverse() * *y;
+        return;
+      }
+      A->diagonal().array() += 1e-9 * std::max(trace, 1e-30) / M;
+    }
+    y->setZero();
+  } else {
+    Eigen::LLT<Eigen::Matrix<double, M, M>> llt(*A);
+    if (llt.info() != Eigen::Success) {
+      A->diagonal().array() += 1e-9 * std::max(trace, 1e-30) / M;
+      llt.compute(*A);
+    }
+    if (llt.info() == Eigen::Success) {
+      llt.solveInPlace(*y);
+    } else {
+      y->setZero();
+    }
+  }
+}
+
 int Sign(double x) { return x > 0 ? 1 : (x < 0 ? -1 : 0); }
 
 // (D_arm, D_wrist) signs from the frames of one configuration (see the header): the joint Jacobian
@@ -535,10 +566,7 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
       it->J.template bottomRows<3>() *= L;
       it->e.template tail<3>() = L * RotationError(target.rotation, T.R);
     } else {
-      Eigen::Matrix<double, 6, N, 0, 6, kMaxN> J6;
-      J6.resize(6, n);
-      chain_.ToolJointJacobian(it->frames, J6.data(), 6);
-      it->J = J6.template topRows<3>();
+      chain_.ToolJointJacobian(it->frames, it->J.data(), 3, 3);
     }
     if (effective_ != nullptr) {
       if constexpr (M == 6 && N == 6) {
@@ -628,16 +656,7 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
         const double trace = A.trace();
         A.diagonal().array() += lambda2 + (trace > 0 ? 1e-13 * trace / M : 1e-30);
         VecM y = rhs - Ju * r;
-        Eigen::LLT<MatM> llt(A);
-        if (llt.info() != Eigen::Success) {  // round-off on a rank-deficient A: regularize more
-          A.diagonal().array() += 1e-9 * std::max(trace, 1e-30) / M;
-          llt.compute(A);
-        }
-        if (llt.info() == Eigen::Success) {
-          llt.solveInPlace(y);
-        } else {
-          y.setZero();
-        }
+        SolveRegularized(&A, trace, &y);
         *d = r + Ju.transpose() * y;
         for (int j = 0; j < n; ++j) {
           if (locked[j]) (*d)(j) = fixed(j);

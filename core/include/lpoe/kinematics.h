@@ -136,9 +136,10 @@ SE3<S> JointMotion(const Joint& joint, const S& q) {
 //                  multiplications per revolute-z joint and no rotation products.
 // What differs between the fast double paths, the Jet paths of Ceres and the analytic Jacobians is
 // a policy:
-//   * the running transform (`Accumulator`): SE3Accumulator<T> for any scalar (Jets), or
-//     LaneAccumulator<V> on twelve values of a scalar or lane type (the double fast paths, and the
-//     four-row kernel's four configurations at once);
+//   * the running transform (`Accumulator`): SE3Accumulator<T> for any scalar (Jets);
+//     LaneAccumulator<V> on twelve values of a lane type (the four-row kernel's four configurations
+//     at once); for the double fast paths the register-pair form of kinematics.cc (rows 0 and 1 of
+//     a column in one SSE2 register: 1.1-1.2x faster IK than LaneAccumulator<double>, measured);
 //   * the local frames (`origin(i)`): the model's own frames, or parameter blocks (SE3<T>, or
 //     QuaternionTransform<T> acting on a point straight from the quaternion);
 //   * the joint motions (`Motions`): precomputed once per configuration (JointMotions, the
@@ -332,8 +333,9 @@ struct SE3Accumulator {
 };
 
 // The running transform of ForwardChain as twelve values of an arithmetic type V (R column-major in
-// R[0..8], t in t[0..2]): V is double, or a vector of lanes (GCC/Clang vector arithmetic: several
-// configurations at once, one per lane, as the four-row kernel of core/src/kernels/ instantiates it).
+// R[0..8], t in t[0..2]): V is a vector of lanes (GCC/Clang vector arithmetic: several
+// configurations at once, one per lane, as the four-row kernel of core/src/kernels/ instantiates
+// it), or double.
 // Coefficients are doubles (the same frame in every lane) or V (a frame per lane). The products in a
 // fixed order: new column c = (R_0 a + R_1 b) + R_2 d, t <- (R_0 a + t) + (R_1 b + R_2 d).
 template <typename V>
@@ -595,7 +597,8 @@ class KinematicChain {
   // Ad_{G_i} s_i moved to the tool position P = frames[n].t: rows dP/dq_i = w_i x (P - t_i) + R_i v_i
   // (mm per rad or mm per mm), then w_i = R_i omega_i (the base-frame rotation rate), with
   // G_i = (R_i, t_i) and s_i = (omega_i, v_i).
-  void ToolJointJacobian(const FrameRt* frames, double* J, int ld) const;
+  // With rows = 3 only the position rows (ld >= 3).
+  void ToolJointJacobian(const FrameRt* frames, double* J, int ld, int rows = 6) const;
 
  private:
   const RobotModel* model_;
