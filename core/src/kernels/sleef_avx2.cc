@@ -11,7 +11,10 @@
 // shared with other files: the linker could keep this file's AVX2 copy for every caller.
 #include "lpoe/kernels.h"
 
-#if defined(__x86_64__) && defined(__AVX2__) && defined(__FMA__)
+#if defined(__x86_64__)
+#if !defined(__AVX2__) || !defined(__FMA__)
+#error "compile this file with -mavx2 -mfma (LPOE_SLEEF_ADAPTER_FLAGS in CMakeLists.txt)"
+#endif
 #include <immintrin.h>
 #include <sleef.h>
 
