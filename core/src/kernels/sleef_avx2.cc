@@ -6,7 +6,7 @@
 //             709.78, NaN for NaN. Arguments below -708 then give 0 here (the kernel of a far
 //             point: no subnormal operands in the products that follow).
 // The reference paths (libm's sincos, std::exp) stay with the callers; tests/kernels_test.cc runs
-// both. This file is compiled with -mavx2 -mfma (core/CMakeLists.txt: SLEEF declares its AVX2
+// both. This file is compiled with -mavx2 -mfma (LPOE_SLEEF_ADAPTER_FLAGS: SLEEF declares its AVX2
 // functions only where __AVX__ is defined), so it must not define any inline function or template
 // shared with other files: the linker could keep this file's AVX2 copy for every caller.
 #include "lpoe/kernels.h"
@@ -58,7 +58,7 @@ void ExpAvx2(double* v, int count) {
 namespace lpoe {
 namespace kernels {
 void SinCos4Avx2(const double*, double*, double*) { LOG(FATAL) << "no AVX2 kernels here"; }
-void ExpAvx2(double*, int) { LOG(FATAL) << "no AVX2 kernels on this target"; }
+void ExpAvx2(double*, int) { LOG(FATAL) << "no AVX2 kernels here"; }
 }  // namespace kernels
 }  // namespace lpoe
 #endif
