@@ -276,7 +276,7 @@ TEST(Kinematics, JetChainWithSixComponentsDifferentiatesOneFrame) {
 
 // SinCosMany (the solvers' passes over many rows) against libm, value by value: within 2 ulp over
 // joint ranges, near multiples of pi/2 (where the reduction cancels), for large and non-finite
-// values (libm's path), and independent of the block it is computed in.
+// values, and independent of the block it is computed in.
 TEST(Kinematics, SinCosManyIsWithinTwoUlpOfLibm) {
   constexpr int kRandomValues = 20000;
   constexpr double kMaxUlps = 2.0;

@@ -44,8 +44,8 @@ void ComputeChainState(const RobotModel& model, const double* q, ChainState* sta
   auto link = [&](int i, const SE3Accumulator<double>& X) { state->link[i] = X.X; };
   SE3Accumulator<double> X;
   X.X = SE3d();
-  // sin and cos of every joint value at once (SinCosMany: within 2 ulp of libm's, the same value
-  // for the same q wherever it is computed).
+  // sin and cos of every joint value at once (SinCosMany: within 1 ulp of the exact values, the
+  // same value for the same q wherever it is computed).
   if (n <= kMaxGivenSinCosJoints) {
     double sin_q[kMaxGivenSinCosJoints], cos_q[kMaxGivenSinCosJoints];
     SinCosMany(q, n, sin_q, cos_q);

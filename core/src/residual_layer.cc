@@ -42,7 +42,7 @@ inline double ScaledSquaredDistance(const double* a, const double* b, const doub
 }
 
 // exp(v[i]) in place for the kernel vector: the prediction's hot spot (m exponentials a point).
-// The AVX2 kernel where the processor has it (core/src/kernels/exp_avx2.cc), else std::exp.
+// SLEEF's AVX2 exp where the processor has it (kernels::ExpAvx2), else std::exp.
 void ExpInPlace(double* v, int count) {
   if (kernels::Avx2Fma()) {
     kernels::ExpAvx2(v, count);

@@ -56,7 +56,7 @@ inline void SinCosStep(double d, double* s, double* c) {
 }
 
 // sin and cos of x[j] for the `count` joints j in idx, into s[j] and c[j]: gathered into one
-// SinCosMany call (four values per polynomial evaluation where the processor has AVX2 and FMA; each
+// SinCosMany call (four values per SLEEF call where the processor has AVX2 and FMA; each
 // value's result depends on that value only, so both paths get the same bits).
 inline void SinCosOf(const double* x, const int* idx, int count, double* s, double* c) {
   if (count == 0) return;

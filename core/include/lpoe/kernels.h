@@ -1,4 +1,5 @@
-// The one switch for the hand-written (intrinsics) kernels of core/src/kernels/ and their callers.
+// The one switch for the vector kernels of core/src/kernels/ (hand-written intrinsics, and
+// adapters to SLEEF's vectorized sin/cos and exp) and their callers.
 //
 // Every kernel has a reference path, the plain C++ (templates, Eigen) that any processor runs, and
 // may have a vector path for a processor feature. Which one runs is decided here, once per process:
@@ -37,13 +38,16 @@ Path SetForTesting(Path path);
 // ---- The kernels that remain (each earns its place end to end: docs/performance.md). Call them only
 // when Avx2Fma() is true; the callers hold the reference path.
 
-// sin and cos of x[0..3] into s[0..3], c[0..3]: reduction by pi/2 in three exact parts and fdlibm's
-// kernels on [-pi/4, pi/4] in AVX2/FMA lanes, within 2 ulp of libm's values; values beyond 2^19 in
-// magnitude and non-finite ones take libm's sincos. Used by SinCosMany (kinematics.h).
+// sin and cos of x[0..3] into s[0..3], c[0..3]: SLEEF's Sleef_sincosd4_u10avx2 (Debian's
+// libsleef-dev), within 1.0 ulp of the exact values for every double (libm's are within 1 ulp too:
+// the two differ by at most 2 ulp, measured 1); NaN for NaN and +-inf, sin(-0.0) = -0.0. Used by
+// SinCosMany (kinematics.h).
 void SinCos4Avx2(const double* x, double* s, double* c);
 
-// exp(v[i]) in place for i < count, within a few units in the last place of std::exp (the
-// reference path); arguments below -708 give 0. Used by the residual layer's kernel vector.
+// exp(v[i]) in place for i < count: SLEEF's Sleef_expd4_u10avx2, within 1.0 ulp of the exact
+// value (std::exp, the reference path, too: the two differ by at most 2 ulp). Arguments below -708
+// give 0 (std::exp: at most 3.3e-308, subnormal below -708.4), NaN gives NaN, above about 709.78
+// +inf. Used by the residual layer's kernel vector.
 void ExpAvx2(double* v, int count);
 
 // Which columns the four-row position path writes: per frame of the model, its parameter offset and

@@ -30,10 +30,10 @@ inline void SinCos(double x, double* s, double* c) {
 
 // sin(x[k]) and cos(x[k]) for k in [0, count), into s[k] and c[k]: for the rows of a block at once
 // (the solvers' passes over many measurements). On processors with AVX2 and FMA four values go
-// through one polynomial evaluation (reduction by pi/2 in three exact parts, fdlibm's kernels on
-// [-pi/4, pi/4]): within 2 ulp of libm's values, about 5x cheaper than a sincos call per value.
-// Values beyond 2^19 in magnitude, non-finite ones and other processors take libm's sincos. The
-// result of each value depends on that value only (not on count or on its neighbours).
+// through one call of SLEEF's vectorized sincos (kernels::SinCos4Avx2: within 1.0 ulp of the
+// exact values for every double, several times cheaper than a sincos call per value); other
+// processors and LPOE_KERNELS=reference take libm's sincos. The result of each value depends on
+// that value only (not on count or on its neighbours).
 void SinCosMany(const double* x, int count, double* s, double* c);
 
 // The most joints for which the forward passes below take sin and cos given by the caller.
