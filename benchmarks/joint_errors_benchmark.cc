@@ -20,6 +20,13 @@
 namespace lpoe {
 namespace {
 
+// Position rows, with the given joint-block options.
+internal::NormalEquationsOptions PositionRows(const internal::JointColumnsOptions& joint = {}) {
+  internal::NormalEquationsOptions o;
+  o.joint = joint;
+  return o;
+}
+
 // The 1000 poses of the loaded cobot6 (tests/loaded_cobot6.h), 0.01 mm noise.
 const testing::LoadedCobot6& Poses1000() {
   static const testing::LoadedCobot6* data =
@@ -72,9 +79,12 @@ void BM_Pass(benchmark::State& state) {
   internal::NormalEquations analysed;
   internal::JointSpaceRegressors regs;
   Parameterization whole;
-  const Parameterization reduced = internal::SolverParameterization(
-      d.nominal, d.data, ParameterizationKind::kIdentifiable, false, 1.0, terms, 1e-4, nullptr,
-      &analysed, &regs, &whole);
+  internal::SolverParameterizationRequest request;
+  request.terms = terms;
+  request.analysed = &analysed;
+  request.regressors = &regs;
+  request.analysed_parameterization = &whole;
+  const Parameterization reduced = internal::SolverParameterization(d.nominal, d.data, request);
   internal::JointSpaceRegressors reduced_regs = regs;
   internal::SetSlotBasis(reduced, &reduced_regs);
   const Parameterization geometric = MakeParameterization(
@@ -93,12 +103,13 @@ void BM_Pass(benchmark::State& state) {
       case 1:
         structured.regressors = &regs;
         benchmark::DoNotOptimize(
-            internal::NormalEquationsOf(d.nominal, d.data, whole, none, false, 1, false, nullptr, nullptr,
-                                        structured).H.data());
+            internal::NormalEquationsOf(d.nominal, d.data, whole, none, PositionRows(structured))
+                .H.data());
         break;
       case 2:
-        benchmark::DoNotOptimize(internal::NormalEquationsOf(d.nominal, d.data, whole, none, false,
-                                                             1, false, nullptr, nullptr, dense).H.data());
+        benchmark::DoNotOptimize(
+            internal::NormalEquationsOf(d.nominal, d.data, whole, none, PositionRows(dense))
+                .H.data());
         break;
       case 3:
         benchmark::DoNotOptimize(internal::JointBlockBases(analysed.H, whole, 1e-4).data());
@@ -106,21 +117,23 @@ void BM_Pass(benchmark::State& state) {
       case 4:
         structured.regressors = &reduced_regs;
         benchmark::DoNotOptimize(
-            internal::NormalEquationsOf(d.nominal, d.data, reduced, none, false, 1, false, nullptr, nullptr,
-                                        structured).H.data());
+            internal::NormalEquationsOf(d.nominal, d.data, reduced, none, PositionRows(structured))
+                .H.data());
         break;
       case 5:
-        benchmark::DoNotOptimize(internal::NormalEquationsOf(d.nominal, d.data, reduced, none,
-                                                             false, 1, false, nullptr, nullptr, dense).H.data());
+        benchmark::DoNotOptimize(
+            internal::NormalEquationsOf(d.nominal, d.data, reduced, none, PositionRows(dense))
+                .H.data());
         break;
       case 6:
         benchmark::DoNotOptimize(
-            internal::NormalEquationsOf(d.nominal, d.data, reduced, none, false, 1, false, nullptr, nullptr,
-                                        gradient).H.data());
+            internal::NormalEquationsOf(d.nominal, d.data, reduced, none, PositionRows(gradient))
+                .H.data());
         break;
       default:
         benchmark::DoNotOptimize(
-            internal::NormalEquationsOf(d.nominal, d.data, geometric, none, false, 1, false).H.data());
+            internal::NormalEquationsOf(d.nominal, d.data, geometric, none, PositionRows())
+                .H.data());
     }
   }
   state.counters["columns"] = pass <= 3 ? whole.num_parameters

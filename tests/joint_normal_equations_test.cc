@@ -26,6 +26,21 @@
 namespace lpoe {
 namespace {
 
+// Position rows, with the given joint-block options.
+internal::NormalEquationsOptions PositionRows(const internal::JointColumnsOptions& joint = {}) {
+  internal::NormalEquationsOptions o;
+  o.joint = joint;
+  return o;
+}
+
+// Pose rows (rotation weighted 1000 mm per rad) when `pose`, else position rows.
+internal::NormalEquationsOptions Rows(bool pose, const internal::JointColumnsOptions& joint = {}) {
+  internal::NormalEquationsOptions o = PositionRows(joint);
+  o.use_orientation = pose;
+  o.orientation_weight = 1000.0;
+  return o;
+}
+
 constexpr double kRelative = 1e-9;
 
 // A test-only term whose parameters move several joints: dq_j = sum_k (1 + 0.1 j k) q_j
@@ -134,10 +149,10 @@ void ExpectStructuredEqualsDense(bool pose, bool reduce) {
     dense.dense = true;
     internal::JointColumnsOptions structured;
     structured.regressors = &regs;
-    const internal::NormalEquations a = internal::NormalEquationsOf(
-        d.model, d.data, p, state, pose, 1000.0, false, nullptr, nullptr, dense);
-    const internal::NormalEquations b = internal::NormalEquationsOf(
-        d.model, d.data, p, state, pose, 1000.0, false, nullptr, nullptr, structured);
+    const internal::NormalEquations a =
+        internal::NormalEquationsOf(d.model, d.data, p, state, Rows(pose, dense));
+    const internal::NormalEquations b =
+        internal::NormalEquationsOf(d.model, d.data, p, state, Rows(pose, structured));
     ASSERT_TRUE(a.finite && b.finite);
     EXPECT_LE(RelativeDifference(b.H, a.H), kRelative);
     // Every block on its own scale (the joint blocks are far smaller than the frames').
@@ -156,20 +171,20 @@ void ExpectStructuredEqualsDense(bool pose, bool reduce) {
     unstored.values.resize(0, 0);
     internal::JointColumnsOptions evaluated;
     evaluated.regressors = &unstored;
-    const internal::NormalEquations u = internal::NormalEquationsOf(
-        d.model, d.data, p, state, pose, 1000.0, false, nullptr, nullptr, evaluated);
+    const internal::NormalEquations u =
+        internal::NormalEquationsOf(d.model, d.data, p, state, Rows(pose, evaluated));
     EXPECT_LE(RelativeDifference(u.H, b.H), 1e-14);
     EXPECT_LE(RelativeDifference(u.g, b.g), 1e-14);
     // Without regressors given, the same (built for the call).
     const internal::NormalEquations c =
-        internal::NormalEquationsOf(d.model, d.data, p, state, pose, 1000.0, false);
+        internal::NormalEquationsOf(d.model, d.data, p, state, Rows(pose));
     EXPECT_EQ(c.H, b.H);
     EXPECT_EQ(c.g, b.g);
     // Gradient only: the same gradient, cost and frames' block; the joint blocks left out.
     internal::JointColumnsOptions gradient = structured;
     gradient.gradient_only = true;
-    const internal::NormalEquations e = internal::NormalEquationsOf(
-        d.model, d.data, p, state, pose, 1000.0, false, nullptr, nullptr, gradient);
+    const internal::NormalEquations e =
+        internal::NormalEquationsOf(d.model, d.data, p, state, Rows(pose, gradient));
     EXPECT_FALSE(e.joint_blocks);
     EXPECT_EQ(e.g, b.g);
     EXPECT_EQ(e.cost, b.cost);
@@ -200,9 +215,10 @@ TEST(JointNormalEquations, FourRowPathEqualsRowByRow) {
   for (const int count : {157, 2100}) {
     const Data d(false, count);
     Parameterization whole;
-    const Parameterization solver = internal::SolverParameterization(
-        d.nominal, d.data, ParameterizationKind::kIdentifiable, false, 1.0,
-        {d.terms[0], d.terms[1]}, 1e-4, nullptr, nullptr, nullptr, &whole);
+    internal::SolverParameterizationRequest request;
+    request.terms = {d.terms[0], d.terms[1]};
+    request.analysed_parameterization = &whole;
+    const Parameterization solver = internal::SolverParameterization(d.nominal, d.data, request);
     ASSERT_EQ(solver.joint_blocks.size(), 2u);
     // A linearization point away from nominal as the solver's iterations reach it (ApplyUpdate:
     // the frames move, the joints stay revolute about z; d.model's errors change the twists).
@@ -237,10 +253,10 @@ TEST(JointNormalEquations, FourRowPathEqualsRowByRow) {
           four.gradient_only = gradient_only;
           internal::JointColumnsOptions rows = four;
           rows.four_rows = false;
-          const internal::NormalEquations a = internal::NormalEquationsOf(
-              model, d.data, p, state, false, 1.0, false, nullptr, nullptr, rows);
-          const internal::NormalEquations b = internal::NormalEquationsOf(
-              model, d.data, p, state, false, 1.0, false, nullptr, nullptr, four);
+          const internal::NormalEquations a =
+              internal::NormalEquationsOf(model, d.data, p, state, PositionRows(rows));
+          const internal::NormalEquations b =
+              internal::NormalEquationsOf(model, d.data, p, state, PositionRows(four));
           ASSERT_TRUE(a.finite && b.finite);
           EXPECT_FALSE(a.four_rows);
           EXPECT_TRUE(b.four_rows) << "the four-row path no longer applies to cobot6";
@@ -265,8 +281,8 @@ TEST(JointNormalEquations, FourRowPathEqualsRowByRow) {
           if (!gradient_only) {  // and the dense rows
             internal::JointColumnsOptions dense;
             dense.dense = true;
-            const internal::NormalEquations e = internal::NormalEquationsOf(
-                model, d.data, p, state, false, 1.0, false, nullptr, nullptr, dense);
+            const internal::NormalEquations e =
+                internal::NormalEquationsOf(model, d.data, p, state, PositionRows(dense));
             EXPECT_LE(RelativeDifference(b.H.topRightCorner(F, K), e.H.topRightCorner(F, K)),
                       kRelative);
             EXPECT_LE(
@@ -277,8 +293,8 @@ TEST(JointNormalEquations, FourRowPathEqualsRowByRow) {
           // Regressors evaluated per group of poses instead of stored: the same numbers.
           internal::JointColumnsOptions evaluated = four;
           evaluated.regressors = &unstored;
-          const internal::NormalEquations u = internal::NormalEquationsOf(
-              model, d.data, p, state, false, 1.0, false, nullptr, nullptr, evaluated);
+          const internal::NormalEquations u =
+              internal::NormalEquationsOf(model, d.data, p, state, PositionRows(evaluated));
           EXPECT_TRUE(u.four_rows);
           EXPECT_LE(RelativeDifference(u.H, b.H), 1e-14);
           EXPECT_LE(RelativeDifference(u.g.tail(K), b.g.tail(K)), 1e-14);
@@ -294,11 +310,11 @@ TEST(JointNormalEquations, ProjectionOfWholeBlocksEqualsTheReducedBlocks) {
   const Parameterization whole = WithTerms(d, false, false);
   const Parameterization reduced = WithTerms(d, false, true);
   const internal::NormalEquations full =
-      internal::NormalEquationsOf(d.model, d.data, whole, Eigen::VectorXd(), false, 1.0, false);
+      internal::NormalEquationsOf(d.model, d.data, whole, Eigen::VectorXd(), PositionRows());
   internal::JointColumnsOptions dense;
   dense.dense = true;
-  const internal::NormalEquations direct = internal::NormalEquationsOf(
-      d.model, d.data, reduced, Eigen::VectorXd(), false, 1.0, false, nullptr, nullptr, dense);
+  const internal::NormalEquations direct =
+      internal::NormalEquationsOf(d.model, d.data, reduced, Eigen::VectorXd(), PositionRows(dense));
   const internal::NormalEquations projected = internal::ProjectJointBlocks(full, reduced);
   EXPECT_LE(RelativeDifference(projected.H, direct.H), kRelative);
   EXPECT_LE(RelativeDifference(projected.g, direct.g), kRelative);
@@ -321,9 +337,9 @@ TEST(JointNormalEquations, NonFiniteDataAreFlagged) {
   internal::JointColumnsOptions structured;
   structured.regressors = &regs;
   auto equations = [&](const Parameterization& p, bool with_regressors) {
-    return internal::NormalEquationsOf(d.model, d.data, p, Eigen::VectorXd(), false, 1.0, false,
-                                       nullptr, nullptr,
-                                       with_regressors ? structured : internal::JointColumnsOptions());
+    return internal::NormalEquationsOf(
+        d.model, d.data, p, Eigen::VectorXd(),
+        PositionRows(with_regressors ? structured : internal::JointColumnsOptions()));
   };
   EXPECT_TRUE(equations(whole, true).finite);
   EXPECT_TRUE(internal::ProjectJointBlocks(equations(whole, true), reduced).finite);
@@ -365,14 +381,16 @@ TEST(JointNormalEquations, ReductionChoosesTheSameCombinations) {
     const Data d(pose);
     internal::NormalEquations analysed;
     Parameterization pi;
-    const Parameterization p = internal::SolverParameterization(
-        d.nominal, d.data, ParameterizationKind::kIdentifiable, pose, 1000.0, d.terms, 1e-4,
-        nullptr, &analysed, nullptr, &pi);
+    internal::SolverParameterizationRequest request;
+    request.use_orientation = pose;
+    request.terms = d.terms;
+    request.analysed = &analysed;
+    request.analysed_parameterization = &pi;
+    const Parameterization p = internal::SolverParameterization(d.nominal, d.data, request);
     internal::JointColumnsOptions dense;
     dense.dense = true;
-    const Eigen::MatrixXd H = internal::NormalEquationsOf(d.nominal, d.data, pi, Eigen::VectorXd(),
-                                                          pose, 1000.0, false, nullptr, nullptr, dense)
-                                  .H;
+    const Eigen::MatrixXd H =
+        internal::NormalEquationsOf(d.nominal, d.data, pi, Eigen::VectorXd(), Rows(pose, dense)).H;
     EXPECT_LE(RelativeDifference(analysed.H, H), kRelative);
     const std::vector<Eigen::MatrixXd> bases = internal::JointBlockBases(H, pi, 1e-4);
     ASSERT_EQ(bases.size(), p.joint_blocks.size());
@@ -409,7 +427,7 @@ TEST(JointNormalEquations, LinearSolverConvergesToTheExactStationaryPoint) {
   internal::JointColumnsOptions dense;
   dense.dense = true;
   const internal::NormalEquations lin =
-      internal::NormalEquationsOf(r.model, d.data, p, x, false, 1.0, false, nullptr, nullptr, dense);
+      internal::NormalEquationsOf(r.model, d.data, p, x, PositionRows(dense));
   // Newton step of the exact normal equations from the solution, column scaled.
   const Eigen::VectorXd s = internal::ColumnScale(lin.H);
   const Eigen::VectorXd step =

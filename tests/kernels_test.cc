@@ -27,6 +27,13 @@
 namespace lpoe {
 namespace {
 
+// Position rows, with the given joint-block options.
+internal::NormalEquationsOptions PositionRows(const internal::JointColumnsOptions& joint = {}) {
+  internal::NormalEquationsOptions o;
+  o.joint = joint;
+  return o;
+}
+
 // Runs `f` with the kernel path forced to `path`, then restores the previous one.
 template <typename F>
 auto With(kernels::Path path, const F& f) {
@@ -243,7 +250,7 @@ TEST(Kernels, GeometricNormalEquationsBothWays) {
   const Parameterization p = MakeParameterization(d.nominal, ParameterizationKind::kIdentifiable,
                                                   DataKind::kPosition);
   auto run = [&] {
-    return internal::NormalEquationsOf(d.model, d.data, p, Eigen::VectorXd(), false, 1.0, false);
+    return internal::NormalEquationsOf(d.model, d.data, p, Eigen::VectorXd(), PositionRows());
   };
   const internal::NormalEquations vec = With(kernels::Path::kAvx2Fma, run);
   const internal::NormalEquations ref = With(kernels::Path::kReference, run);
@@ -274,8 +281,7 @@ TEST(Kernels, JointSpaceNormalEquationsBothWays) {
     internal::JointColumnsOptions options;
     options.gradient_only = gradient_only;
     auto run = [&] {
-      return internal::NormalEquationsOf(d.model, d.data, p, state, false, 1.0, false, nullptr,
-                                         nullptr, options);
+      return internal::NormalEquationsOf(d.model, d.data, p, state, PositionRows(options));
     };
     const internal::NormalEquations vec = With(kernels::Path::kAvx2Fma, run);
     const internal::NormalEquations ref = With(kernels::Path::kReference, run);

@@ -147,8 +147,10 @@ bool CheckGravityTilt(const RobotModel& start, const MeasurementSet& data,
   LeaveOutUnmeasuredTools(r0.model, data, &p);
   if (Status s = AddSolverGravityTilt(tilt, &p); !s.ok()) return refuse(s.message());
   Eigen::VectorXd state = InitialJointState(p, r0.joint_terms);
-  const NormalEquations lin =
-      NormalEquationsOf(r0.model, data, p, state, use_orientation, orientation_weight, false);
+  NormalEquationsOptions rows;
+  rows.use_orientation = use_orientation;
+  rows.orientation_weight = orientation_weight;
+  const NormalEquations lin = NormalEquationsOf(r0.model, data, p, state, rows);
   if (!lin.finite) return refuse("non-finite normal equations");
   const int P = p.num_parameters;
   const int o = P - 2;

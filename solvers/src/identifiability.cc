@@ -66,9 +66,10 @@ std::string WeakestDirections(const Parameterization& p, const Eigen::VectorXd& 
 Eigen::MatrixXd NormalMatrix(const RobotModel& model, const MeasurementSet& data,
                              const Parameterization& p, bool use_orientation,
                              double orientation_weight) {
-  return NormalEquationsOf(model, data, p, Eigen::VectorXd(), use_orientation, orientation_weight,
-                           false)
-      .H;
+  NormalEquationsOptions o;
+  o.use_orientation = use_orientation;
+  o.orientation_weight = orientation_weight;
+  return NormalEquationsOf(model, data, p, Eigen::VectorXd(), o).H;
 }
 
 std::vector<Eigen::MatrixXd> JointBlockBases(const Eigen::MatrixXd& H, const Parameterization& pi,
@@ -165,13 +166,16 @@ std::vector<Eigen::MatrixXd> JointBlockBases(const Eigen::MatrixXd& H, const Par
 }
 
 Parameterization SolverParameterization(const RobotModel& nominal, const MeasurementSet& data,
-                                        ParameterizationKind kind, bool use_orientation,
-                                        double orientation_weight,
-                                        const std::vector<std::shared_ptr<const JointTerm>>& terms,
-                                        double tolerance, const RobotModel* structure_reference,
-                                        NormalEquations* analysed,
-                                        JointSpaceRegressors* regressors,
-                                        Parameterization* analysed_parameterization) {
+                                        const SolverParameterizationRequest& request) {
+  const ParameterizationKind kind = request.kind;
+  const bool use_orientation = request.use_orientation;
+  const double orientation_weight = request.orientation_weight;
+  const std::vector<std::shared_ptr<const JointTerm>>& terms = request.terms;
+  const double tolerance = request.tolerance;
+  const RobotModel* structure_reference = request.structure_reference;
+  NormalEquations* analysed = request.analysed;
+  JointSpaceRegressors* regressors = request.regressors;
+  Parameterization* analysed_parameterization = request.analysed_parameterization;
   const DataKind data_kind = use_orientation ? DataKind::kPose : DataKind::kPosition;
   Parameterization p = MakeParameterization(nominal, kind, data_kind);
   // The structural check (a Jacobian at generic configurations and its Gram-Schmidt) once for both
@@ -200,12 +204,13 @@ Parameterization SolverParameterization(const RobotModel& nominal, const Measure
   JointSpaceRegressors local_regs;
   JointSpaceRegressors& regs = regressors ? *regressors : local_regs;
   regs = BuildJointSpaceRegressors(pi, data);
-  JointColumnsOptions jc;
-  jc.regressors = &regs;
+  NormalEquationsOptions o;
+  o.use_orientation = use_orientation;
+  o.orientation_weight = orientation_weight;
+  o.joint.regressors = &regs;
   NormalEquations local_ne;
   NormalEquations& ne = analysed ? *analysed : local_ne;
-  ne = NormalEquationsOf(nominal, data, pi, Eigen::VectorXd(), use_orientation, orientation_weight,
-                         false, nullptr, nullptr, jc);
+  ne = NormalEquationsOf(nominal, data, pi, Eigen::VectorXd(), o);
   const std::vector<Eigen::MatrixXd> bases = JointBlockBases(ne.H, pi, tolerance);
   for (const auto& term : terms) AddJointBlock(term, &p);
   for (size_t b = 0; b < bases.size(); ++b) {

@@ -46,25 +46,38 @@ Eigen::MatrixXd NormalMatrix(const RobotModel& model, const MeasurementSet& data
                              const Parameterization& p, bool use_orientation,
                              double orientation_weight);
 
-// The solved parameterization of both solvers: the frame blocks of `kind` for `data_kind`, then one
-// joint-space block per term, each reduced to the combinations of its parameters that `data`
+// What SolverParameterization builds, besides the nominal model and the data it is analysed at
+// (the defaults are the solvers' option defaults), and where its by-products go.
+struct SolverParameterizationRequest {
+  ParameterizationKind kind = ParameterizationKind::kIdentifiable;
+  // Pose rows (rotation rows times orientation_weight, mm per rad), else position rows.
+  bool use_orientation = false;
+  double orientation_weight = 1000.0;
+  // The joint-space terms, one block each, in this order.
+  std::vector<std::shared_ptr<const JointTerm>> terms;
+  // A block's combination is kept when its scaled singular value is at least this.
+  double tolerance = 1e-4;
+  // The model whose chain decides the structurally unidentifiable directions (null: nominal).
+  const RobotModel* structure_reference = nullptr;
+  // When `terms` is not empty, the analysis' by-products (each optional): `analysed` its normal
+  // equations at nominal (identifiable frames, every joint block whole:
+  // `analysed_parameterization`; frames and blocks as in the returned parameterization when `kind`
+  // is kIdentifiable), `regressors` the rows' joint-space regressors (slot_basis for the whole
+  // blocks).
+  NormalEquations* analysed = nullptr;
+  JointSpaceRegressors* regressors = nullptr;
+  Parameterization* analysed_parameterization = nullptr;
+};
+
+// The solved parameterization of both solvers: the frame blocks of `kind` for the data's kind, then
+// one joint-space block per term, each reduced to the combinations of its parameters that `data`
 // separate from the identifiable geometry and from the earlier terms at `nominal` (the Schur
 // complement of the block in the column-scaled normal matrix; a combination whose scaled singular
 // value is below `tolerance`, i.e. which keeps less than that fraction of its column's norm once
 // the geometry and the earlier blocks are projected out, is left out and listed in
 // p.unidentifiable). A block with nothing left keeps zero columns.
 Parameterization SolverParameterization(const RobotModel& nominal, const MeasurementSet& data,
-                                        ParameterizationKind kind, bool use_orientation,
-                                        double orientation_weight,
-                                        const std::vector<std::shared_ptr<const JointTerm>>& terms,
-                                        double tolerance, const RobotModel* structure_reference,
-                                        NormalEquations* analysed = nullptr,
-                                        JointSpaceRegressors* regressors = nullptr,
-                                        Parameterization* analysed_parameterization = nullptr);
-// When `terms` is not empty, the analysis' by-products (optional): `analysed` its normal equations
-// at `nominal` (identifiable frames, every joint block whole: `analysed_parameterization`; frames
-// and blocks as in the returned parameterization when `kind` is kIdentifiable), `regressors` the
-// rows' joint-space regressors (slot_basis for the whole blocks).
+                                        const SolverParameterizationRequest& request);
 
 // The analysis of SolverParameterization on the normal matrix H of `pi` (identifiable frames, then
 // every joint block whole): per block, the basis of the combinations kept.

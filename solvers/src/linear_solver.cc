@@ -76,14 +76,12 @@ void LeaveOutUnmeasuredTools(const RobotModel& model, const MeasurementSet& data
 
 namespace {
 
-Linearization Linearize(const RobotModel& model, const Eigen::VectorXd& joint_state,
-                        const MeasurementSet& data, const Parameterization& p,
-                        const LinearSolverOptions& options, bool stack,
-                        const Eigen::MatrixXd* joint_rows = nullptr,
-                        PositionErrorRows* errors = nullptr,
-                        const internal::JointColumnsOptions& joint = {}) {
-  return internal::NormalEquationsOf(model, data, p, joint_state, options.use_orientation,
-                                     options.orientation_weight, stack, joint_rows, errors, joint);
+// The normal equations' options of the solver's measurements (position or pose rows).
+internal::NormalEquationsOptions RowsOf(const LinearSolverOptions& options) {
+  internal::NormalEquationsOptions o;
+  o.use_orientation = options.use_orientation;
+  o.orientation_weight = options.orientation_weight;
+  return o;
 }
 
 // The identifiability check shared with the Ceres solver (identifiability.h).
@@ -193,13 +191,19 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   internal::NormalEquations analysed;
   internal::JointSpaceRegressors regressors;
   Parameterization analysed_p;
-  result.parameterization =
-      override_basis ? *options.parameterization_override
-                     : internal::SolverParameterization(
-                           nominal, data, options.parameterization, options.use_orientation,
-                           options.orientation_weight, options.joint_terms,
-                           options.joint_term_tolerance, options.structure_reference, &analysed,
-                           &regressors, &analysed_p);
+  internal::SolverParameterizationRequest request;
+  request.kind = options.parameterization;
+  request.use_orientation = options.use_orientation;
+  request.orientation_weight = options.orientation_weight;
+  request.terms = options.joint_terms;
+  request.tolerance = options.joint_term_tolerance;
+  request.structure_reference = options.structure_reference;
+  request.analysed = &analysed;
+  request.regressors = &regressors;
+  request.analysed_parameterization = &analysed_p;
+  result.parameterization = override_basis
+                                ? *options.parameterization_override
+                                : internal::SolverParameterization(nominal, data, request);
   if (!override_basis) internal::LeaveOutUnmeasuredTools(nominal, data, &result.parameterization);
   if (options.gravity_tilt) {
     CHECK(!override_basis) << "a gravity tilt with a parameterization override";
@@ -239,10 +243,17 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   const Eigen::MatrixXd joint_rows =
       structured ? Eigen::MatrixXd() : internal::JointRegressorRows(p, data);
   if (structured) internal::SetSlotBasis(p, &regressors);
-  internal::JointColumnsOptions exact_blocks;
-  exact_blocks.regressors = &regressors;
-  internal::JointColumnsOptions gradient_only = exact_blocks;
-  gradient_only.gradient_only = true;
+  // The solve's linearizations: with every block exact, without the rows' errors, or with the joint
+  // blocks left out (the structured iterations' frozen blocks).
+  internal::NormalEquationsOptions exact_rows = RowsOf(options);
+  exact_rows.stack = stack;
+  exact_rows.joint_rows = &joint_rows;
+  exact_rows.errors = errors;
+  exact_rows.joint.regressors = &regressors;
+  internal::NormalEquationsOptions exact_no_errors = exact_rows;
+  exact_no_errors.errors = nullptr;
+  internal::NormalEquationsOptions gradient_only = exact_rows;
+  gradient_only.joint.gradient_only = true;
   auto joint_values = [&]() {
     Eigen::VectorXd x = Eigen::VectorXd::Zero(p.num_parameters);
     x.tail(K) = joint_state;
@@ -251,8 +262,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   Linearization lin =
       structured && joint_state.isZero() && internal::SameFrameDirections(analysed_p, p)
           ? internal::ProjectJointBlocks(analysed, p)
-          : Linearize(model, joint_state, data, p, options, stack, &joint_rows, errors,
-                      exact_blocks);
+          : internal::NormalEquationsOf(model, data, p, joint_state, exact_rows);
   errors_current = errors != nullptr && !errors->empty();
   if (errors_current && options.errors->want_start_statistics && lin.finite) {
     options.errors->start_statistics = errors->Statistics();
@@ -276,7 +286,8 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
                                                  options.orientation_weight, &pi);
     CopyJointBlocks(p, &pi);
     internal::LeaveOutUnmeasuredTools(at, data, &pi);
-    return Analyze(Linearize(at, joint_state, data, pi, options, false).H, weakest);
+    return Analyze(internal::NormalEquationsOf(at, data, pi, joint_state, RowsOf(options)).H,
+                   weakest);
   };
   {
     // The eigenvalues decide; the weakest direction is computed only for the refusal's message.
@@ -316,8 +327,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     l->H.bottomLeftCorner(K, p.num_parameters - K) = frozen.topRows(p.num_parameters - K).transpose();
   };
   auto exact = [&]() {
-    Linearization l = Linearize(model, joint_state, data, p, options, stack, &joint_rows, nullptr,
-                                exact_blocks);
+    Linearization l = internal::NormalEquationsOf(model, data, p, joint_state, exact_no_errors);
     freeze(l);
     return l;
   };
@@ -354,8 +364,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     sub.max_iterations = std::max(1, options.max_iterations - 2);
     const CalibrationResult s = CalibrateLinear(first, subset, sub);
     if (!s.converged() || s.history.empty()) return -1;
-    Linearization at = Linearize(s.model, joint_state, data, p, options, stack, &joint_rows, errors,
-                                 exact_blocks);
+    Linearization at = internal::NormalEquationsOf(s.model, data, p, joint_state, exact_rows);
     errors_current = false;
     if (!at.finite || !(at.cost <= current->cost * (1 + kCostIncreaseTolerance) + 1e-300)) return -1;
     errors_current = errors != nullptr && !errors->empty();
@@ -475,9 +484,8 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       RobotModel candidate = model;
       ApplyUpdate(p, alpha * x, &candidate);
       const Eigen::VectorXd candidate_joints = joint_state + alpha * x.tail(K);
-      Linearization next =
-          Linearize(candidate, candidate_joints, data, p, options, stack, &joint_rows, errors,
-                    structured ? gradient_only : exact_blocks);
+      Linearization next = internal::NormalEquationsOf(candidate, data, p, candidate_joints,
+                                                       structured ? gradient_only : exact_rows);
       errors_current = false;
       if (structured) complete(&next);
       if (next.finite && next.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {

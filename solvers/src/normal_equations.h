@@ -67,12 +67,23 @@ struct JointColumnsOptions {
   // columns (the same numbers up to rounding; for tests).
   bool four_rows = true;
 };
+// How NormalEquationsOf linearizes, besides where (model, data, p, joint_state). The defaults:
+// position rows, the joint regressors evaluated, the joint blocks by their structure.
+struct NormalEquationsOptions {
+  // Pose data: the rotation rows too, times orientation_weight (mm per rad).
+  bool use_orientation = false;
+  double orientation_weight = 1.0;
+  // Keep the stacked rows (NormalEquations::J and y, data.size() * (3 or 6) rows).
+  bool stack = false;
+  // Every row's joint regressors, or null (above).
+  const Eigen::MatrixXd* joint_rows = nullptr;
+  // Receives the rows' position errors, or null (above).
+  PositionErrorRows* errors = nullptr;
+  JointColumnsOptions joint;
+};
 NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
                                   const Parameterization& p, const Eigen::VectorXd& joint_state,
-                                  bool use_orientation, double orientation_weight, bool stack,
-                                  const Eigen::MatrixXd* joint_rows = nullptr,
-                                  PositionErrorRows* errors = nullptr,
-                                  const JointColumnsOptions& joint = JointColumnsOptions());
+                                  const NormalEquationsOptions& options = NormalEquationsOptions());
 
 // Joint-space parameters with a per-row sparse d(dq)/d(theta), in "slots". The unreduced columns are
 // every joint block's own parameters side by side (block b from column_offset[b]); joint j's row of

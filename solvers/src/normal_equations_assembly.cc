@@ -840,9 +840,12 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
 
 NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet& data,
                                   const Parameterization& p, const Eigen::VectorXd& joint_state,
-                                  bool use_orientation, double orientation_weight, bool stack,
-                                  const Eigen::MatrixXd* joint_rows, PositionErrorRows* errors,
-                                  const JointColumnsOptions& joint) {
+                                  const NormalEquationsOptions& options) {
+  const bool use_orientation = options.use_orientation, stack = options.stack;
+  const double orientation_weight = options.orientation_weight;
+  const JointColumnsOptions& joint = options.joint;
+  const Eigen::MatrixXd* joint_rows = options.joint_rows;
+  PositionErrorRows* errors = options.errors;
   // A gravity tilt's columns are bilinear (gravity_tilt.h): its solve takes the dense rows.
   if (p.num_joint_parameters() > 0 && !stack && !joint.dense && !p.gravity_tilt) {
     JointSpaceRegressors local;

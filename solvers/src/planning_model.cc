@@ -54,11 +54,9 @@ Parameterization PlanningParameterization(
                Eigen::Vector3d::Zero(), t);
     }
   }
-  const LinearSolverOptions solver_defaults;
-  return internal::SolverParameterization(model, data, ParameterizationKind::kIdentifiable,
-                                          /*use_orientation=*/false,
-                                          solver_defaults.orientation_weight, terms,
-                                          solver_defaults.joint_term_tolerance, nullptr);
+  internal::SolverParameterizationRequest request;  // position rows, the solvers' defaults
+  request.terms = terms;
+  return internal::SolverParameterization(model, data, request);
 }
 
 

@@ -80,10 +80,17 @@ CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const Measurem
     regressors_ = std::make_shared<internal::JointSpaceRegressors>();
     analysed_ = std::make_shared<internal::NormalEquations>();
   }
-  parameterization_ = internal::SolverParameterization(
-      nominal, data, options.parameterization, options.use_orientation, options.orientation_weight,
-      options.joint_terms, options.joint_term_tolerance, options.structure_reference,
-      analysed_.get(), regressors_.get(), &analysed_parameterization_);
+  internal::SolverParameterizationRequest request;
+  request.kind = options.parameterization;
+  request.use_orientation = options.use_orientation;
+  request.orientation_weight = options.orientation_weight;
+  request.terms = options.joint_terms;
+  request.tolerance = options.joint_term_tolerance;
+  request.structure_reference = options.structure_reference;
+  request.analysed = analysed_.get();
+  request.regressors = regressors_.get();
+  request.analysed_parameterization = &analysed_parameterization_;
+  parameterization_ = internal::SolverParameterization(nominal, data, request);
   if (regressors_) internal::SetSlotBasis(parameterization_, regressors_.get());
   const int n = nominal.num_joints();
   const int F = nominal.num_frames();
@@ -175,6 +182,16 @@ const internal::JointSpaceRegressors* UsableSlots(const internal::JointSpaceRegr
                       slots->slot_basis.rows() == slots->num_slots() &&
                       slots->slot_basis.cols() == K;
   return usable ? slots : nullptr;
+}
+
+// The normal equations' options of the problem's measurements, with its joint regressors.
+internal::NormalEquationsOptions LinearizationOptions(const CalibrationProblemOptions& options,
+                                                      const internal::JointSpaceRegressors* regs) {
+  internal::NormalEquationsOptions o;
+  o.use_orientation = options.use_orientation;
+  o.orientation_weight = options.orientation_weight;
+  o.joint.regressors = regs;
+  return o;
 }
 
 }  // namespace
@@ -377,12 +394,9 @@ Parameterization CalibrationProblem::SolvedParameterization() const {
 ProblemNormalEquations CalibrationProblem::NormalEquations() const {
   ProblemNormalEquations out;
   out.parameterization = SolvedParameterization();
-  internal::JointColumnsOptions joint;
-  joint.regressors = regressors_.get();
   const internal::NormalEquations lin =
       internal::NormalEquationsOf(Model(), *data_, out.parameterization, JointState(),
-                                  options_.use_orientation, options_.orientation_weight, false,
-                                  nullptr, nullptr, joint);
+                                  LinearizationOptions(options_, regressors_.get()));
   const double w = 1.0 / (options_.sigma * options_.sigma);
   out.H = w * lin.H;
   out.g = w * lin.g;
@@ -466,10 +480,8 @@ ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
       internal::SameFrameDirections(analysed_parameterization_, all)) {
     H_all = internal::ProjectJointBlocks(*analysed_, all).H;
   } else {
-    internal::JointColumnsOptions joint;
-    joint.regressors = regressors_.get();
-    H_all = internal::NormalEquationsOf(model, data, all, JointState(), options_.use_orientation,
-                                        options_.orientation_weight, false, nullptr, nullptr, joint)
+    H_all = internal::NormalEquationsOf(model, data, all, JointState(),
+                                        LinearizationOptions(options_, regressors_.get()))
                 .H;
   }
   Eigen::MatrixXd& H = out.normal_matrix;

@@ -85,8 +85,11 @@ std::vector<Direction> StructurallyUnidentifiable(const RobotModel& model,
   const Parameterization p = MakeParameterization(model, ParameterizationKind::kIdentifiable, kind);
   const MeasurementSet g = GenericMeasurements(model, tools, use_orientation,
                                                std::max(kGenericConfigurations, p.num_parameters));
-  const NormalEquations lin =
-      NormalEquationsOf(model, g, p, Eigen::VectorXd(), use_orientation, orientation_weight, true);
+  NormalEquationsOptions o;
+  o.use_orientation = use_orientation;
+  o.orientation_weight = orientation_weight;
+  o.stack = true;
+  const NormalEquations lin = NormalEquationsOf(model, g, p, Eigen::VectorXd(), o);
   if (!lin.finite || !lin.J.allFinite()) return out;  // the solvers report non-finite models
 
   // Candidates in the order they are kept: measured tools, joint translations, joint rotations.

@@ -33,11 +33,6 @@ namespace {
 typedef double Lane4 __attribute__((vector_size(32)));
 typedef long long Mask4 __attribute__((vector_size(32)));
 
-inline Lane4 Load(const double* p) {
-  Lane4 v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
 inline void Store(double* p, const Lane4& v) { std::memcpy(p, &v, sizeof v); }
 inline Lane4 Masked(const Lane4& v, const Mask4& mask) {
   return reinterpret_cast<Lane4>(reinterpret_cast<Mask4>(v) & mask);
