@@ -69,6 +69,20 @@ struct SolverParameterizationRequest {
   Parameterization* analysed_parameterization = nullptr;
 };
 
+// The request of a solver's options (LinearSolverOptions, CalibrationProblemOptions: the same
+// field names), without by-products.
+template <typename SolverOptions>
+SolverParameterizationRequest ParameterizationRequestOf(const SolverOptions& options) {
+  SolverParameterizationRequest request;
+  request.kind = options.parameterization;
+  request.use_orientation = options.use_orientation;
+  request.orientation_weight = options.orientation_weight;
+  request.terms = options.joint_terms;
+  request.tolerance = options.joint_term_tolerance;
+  request.structure_reference = options.structure_reference;
+  return request;
+}
+
 // The solved parameterization of both solvers: the frame blocks of `kind` for the data's kind, then
 // one joint-space block per term, each reduced to the combinations of its parameters that `data`
 // separate from the identifiable geometry and from the earlier terms at `nominal` (the Schur

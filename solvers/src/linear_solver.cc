@@ -191,13 +191,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   internal::NormalEquations analysed;
   internal::JointSpaceRegressors regressors;
   Parameterization analysed_p;
-  internal::SolverParameterizationRequest request;
-  request.kind = options.parameterization;
-  request.use_orientation = options.use_orientation;
-  request.orientation_weight = options.orientation_weight;
-  request.terms = options.joint_terms;
-  request.tolerance = options.joint_term_tolerance;
-  request.structure_reference = options.structure_reference;
+  internal::SolverParameterizationRequest request = internal::ParameterizationRequestOf(options);
   request.analysed = &analysed;
   request.regressors = &regressors;
   request.analysed_parameterization = &analysed_p;

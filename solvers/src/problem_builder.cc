@@ -80,13 +80,7 @@ CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const Measurem
     regressors_ = std::make_shared<internal::JointSpaceRegressors>();
     analysed_ = std::make_shared<internal::NormalEquations>();
   }
-  internal::SolverParameterizationRequest request;
-  request.kind = options.parameterization;
-  request.use_orientation = options.use_orientation;
-  request.orientation_weight = options.orientation_weight;
-  request.terms = options.joint_terms;
-  request.tolerance = options.joint_term_tolerance;
-  request.structure_reference = options.structure_reference;
+  internal::SolverParameterizationRequest request = internal::ParameterizationRequestOf(options);
   request.analysed = analysed_.get();
   request.regressors = regressors_.get();
   request.analysed_parameterization = &analysed_parameterization_;
