@@ -1,7 +1,8 @@
 // The checks shared by the program parsers' libFuzzer targets (fuzz_urscript.cc, fuzz_rapid.cc):
 // no crash; errors are "line N: ..." messages; every number of every target record lies in the
 // text, no two overlap, and the text there reads back as the value; rewriting every record with
-// other values and parsing the result gives the same records with those values.
+// other values and parsing the result gives the same records with those values (to the decimals
+// each is rewritten with).
 #ifndef LPOE_FUZZ_FUZZ_PROGRAM_H_
 #define LPOE_FUZZ_FUZZ_PROGRAM_H_
 
@@ -100,8 +101,11 @@ inline void FuzzProgram(const uint8_t* data, size_t size, ProgramLanguage langua
         a.quadrants.size() != b.quadrants.size()) {
       Fail("a rewritten target differs", a.name + " / " + b.name);
     }
+    // A number reads back as its new value to the decimals it is rewritten with (a number the new
+    // value leaves the same to those decimals keeps its bytes: RewriteProgram).
     for (size_t i = 0; i < a.numbers.size(); ++i) {
-      if (b.numbers[i].value != a.new_values[i])
+      const double resolution = 0.5 * std::pow(10.0, -std::min(a.numbers[i].decimals, 20));
+      if (!(std::abs(b.numbers[i].value - a.new_values[i]) <= resolution))
         Fail("a rewritten number reads back otherwise", a.name);
     }
     for (size_t i = 0; i < a.quadrants.size(); ++i) {

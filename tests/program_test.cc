@@ -746,6 +746,35 @@ TEST(Program, UrScriptForms) {
   ExpectOnlyNumbersChanged(text, out, program);
 }
 
+// A number the new values leave the same to the decimals it is rewritten with (URScript: 10) keeps
+// its bytes, even when written with more; a changed one is rewritten. Both read back as their new
+// values to those decimals (the property the program fuzz targets check; a fuzzer finding).
+TEST(Program, RewriteKeepsTheBytesOfAnUnchangedNumber) {
+  const std::string text =
+      "def p():\n  servoj([0.4, -1.9999999999999993, 1.6, -1.9, -1.5, 0.41], t=0.002)\nend\n";
+  ParsedProgram program;
+  ASSERT_TRUE(ParseProgram(text, ProgramLanguage::kUrScript, &program).ok());
+  ASSERT_EQ(program.targets.size(), 1u);
+  ProgramTarget& t = program.targets[0];
+  ASSERT_EQ(t.numbers.size(), 6u);
+  EXPECT_EQ(t.numbers[1].value, -1.9999999999999993);
+  t.status = ProgramTargetStatus::kCompensated;
+  for (const ProgramNumber& n : t.numbers) t.new_values.push_back(n.value);
+  t.new_values[0] = 0.5;   // changed
+  t.new_values[1] = -2.0;  // the same to 10 decimals
+  const std::string out = RewriteProgram(text, program);
+  EXPECT_EQ(
+      out, "def p():\n  servoj([0.5, -1.9999999999999993, 1.6, -1.9, -1.5, 0.41], t=0.002)\nend\n");
+  ParsedProgram again;
+  ASSERT_TRUE(ParseProgram(out, ProgramLanguage::kUrScript, &again).ok());
+  ASSERT_EQ(again.targets.size(), 1u);
+  for (size_t k = 0; k < t.numbers.size(); ++k) {
+    EXPECT_LE(std::abs(again.targets[0].numbers[k].value - t.new_values[k]),
+              0.5 * std::pow(10.0, -t.numbers[k].decimals))
+        << k;
+  }
+}
+
 TEST(Program, RapidTargetUsedWithTwoToolsIsLeftAlone) {
   const Cell& c = TheCell();
   const std::string text =
