@@ -1,4 +1,4 @@
-# FindSleef: SLEEF, the vectorized libm (https://sleef.org), as Debian's libsleef-dev installs it
+# FindSleef: SLEEF, the vectorized libm, as Debian's libsleef-dev installs it
 # (sleef.h and libsleef.so, no CMake package of its own; the header lies in the multiarch include
 # directory, which find_path searches through CMAKE_LIBRARY_ARCHITECTURE).
 #
