@@ -300,9 +300,13 @@ template <int M>
 void SolveRegularized(Eigen::Matrix<double, M, M>* A, double trace, Eigen::Matrix<double, M, 1>* y) {
   if constexpr (M == 3) {
     for (int attempt = 0; attempt < 2; ++attempt) {
-      const double det = A->determinant();
+      // The determinant and the inverse from one set of cofactors.
+      Eigen::Matrix<double, M, M> inverse;
+      double det = 0;
+      bool invertible = false;
+      A->computeInverseAndDetWithCheck(inverse, det, invertible, 0.0);
       if (det > 0 && std::isfinite(det)) {
-        *y = A->inverse() * *y;
+        *y = inverse * *y;
         return;
       }
       A->diagonal().array() += 1e-9 * std::max(trace, 1e-30) / M;
