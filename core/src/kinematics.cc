@@ -65,9 +65,6 @@ struct Accumulator {
   }
 };
 
-// Frame (R, t) <- the accumulator's transform.
-inline void Store(const Accumulator& X, Eigen::Matrix3d* R, Eigen::Vector3d* t) { X.Store(R, t); }
-
 // Joints whose sin/cos are computed ahead of the chain (longer chains compute them on the fly).
 // Every XMM register is caller-saved on x86-64, so a sincos call inside the chain would spill and
 // reload the running product; computed first, the calls have nothing live around them.
@@ -86,7 +83,7 @@ inline void ForwardPass(const RobotModel& model, const double* q, IsZ is_z, cons
   Accumulator X;
   auto origin = [joints](int i) -> const SE3d& { return joints[i].origin; };
   auto sink = [frames](int i, const Accumulator& A) {
-    if (frames != nullptr) Store(A, &frames[i].R, &frames[i].t);
+    if (frames != nullptr) A.Store(&frames[i].R, &frames[i].t);
   };
   if (n <= kSinCosUpFront) {
     // The sin/cos of every revolute-z joint before the chain (unless given), on the stack.
@@ -104,7 +101,7 @@ inline void ForwardPass(const RobotModel& model, const double* q, IsZ is_z, cons
     ForwardChain(n, origin, MakeOnTheFlyMotions(joints, q, is_z), &X, sink);
   }
   if (tail != nullptr) X.RightMultiply(*tail);
-  Store(X, R, t);
+  X.Store(R, t);
 }
 
 // P = T_0,n(q) p, from the tool back to the base with vectors only (BackwardChain). Here the
