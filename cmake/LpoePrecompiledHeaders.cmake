@@ -1,13 +1,12 @@
-# Precompiled headers for the test programs in clean builds (LPOE_PRECOMPILED_HEADERS, used by the CI
+# Precompiled headers for the test program in clean builds (LPOE_PRECOMPILED_HEADERS, used by the CI
 # scripts).
 #
-# Every test program parses the same large headers (GoogleTest, Eigen, Ceres, our kinematics and
-# simulation): with the option on, the test programs that link our libraries reuse one header
-# precompiled for a small donor program with the tests' flags (tests/CMakeLists.txt). Measured under
-# clang -O1 with the sanitizers (the CI's slowest build), test files compile 13-22% faster; with gcc
-# -O3 about 5-7%. The library targets gain nothing measurable (their files share fewer headers and
-# spend their time in instantiation and optimization), so they do not use it. The option changes no
-# code, but a header missing from a test's own #include list would still compile with it: it is off
-# by default (developers' builds, usually cached by ccache, keep every file honest) and on in the
-# clean CI builds (scripts/test.sh, scripts/ci_sanitize.sh).
+# Every test file parses the same large headers (GoogleTest, Eigen, Ceres, our kinematics and
+# simulation): with the option on, the test program precompiles them once (tests/CMakeLists.txt).
+# Measured under clang -O1 with the sanitizers (the CI's slowest build), test files compiled 13-22%
+# faster one by one; with gcc -O3 about 5-7%. The library targets gain nothing measurable (their
+# files share fewer headers and spend their time in instantiation and optimization), so they do not
+# use it. The option changes no code, but a header missing from a test's own #include list would
+# still compile with it: it is off by default (developers' builds, usually cached by ccache, keep
+# every file honest) and on in the clean CI builds (scripts/test.sh, scripts/ci_sanitize.sh).
 option(LPOE_PRECOMPILED_HEADERS "Precompile the headers the test programs share (clean CI builds)" OFF)

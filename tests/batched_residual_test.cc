@@ -18,6 +18,7 @@
 
 namespace lpoe {
 namespace {
+namespace batched_residual_test {
 
 constexpr double kNoiseSigma = 0.03;  // mm per axis, docs/conventions.md
 // GradientChecker: the block's analytic Jacobian against numeric differentiation, relative.
@@ -165,5 +166,6 @@ TEST(BatchedPositionResidual, BuilderBatchesOnlyWithoutLossOrJointTerms) {
   EXPECT_EQ(builder.BatchedRows(), 1);
 }
 
+}  // namespace batched_residual_test
 }  // namespace
 }  // namespace lpoe

@@ -13,6 +13,7 @@
 #include "file_util.h"
 
 namespace {
+namespace calibrate_report_test {
 
 constexpr int kPlotWidth = 1000;
 constexpr int kConvergenceHeight = 600;
@@ -120,8 +121,6 @@ TEST_F(CalibrateReport, GravityTiltInEveryReport) {
   EXPECT_NE(yaml.find("gravity: ["), std::string::npos) << yaml;
 }
 
-}  // namespace
-
 // --split=sequential holds out the file's last rows (the section-4 file: 70 data rows on lines
 // 3-72, so a quarter is lines 55-72) and says so in the report; auto's folds are contiguous.
 TEST_F(CalibrateReport, SequentialHoldoutIsTheLastRows) {
@@ -140,3 +139,6 @@ TEST_F(CalibrateReport, SequentialHoldoutIsTheLastRows) {
   for (size_t i = 0; i < held.size(); ++i) EXPECT_EQ(held[i]["line"], 55 + static_cast<int>(i));
   for (const auto& p : j["points"]["identification"]) EXPECT_LT(p["line"].get<int>(), 55);
 }
+
+}  // namespace calibrate_report_test
+}  // namespace

@@ -29,6 +29,7 @@
 
 namespace lpoe {
 namespace {
+namespace calibrate_tool_test {
 
 namespace fs = std::filesystem;
 
@@ -343,5 +344,6 @@ TEST_F(CalibrateTool, OutputEqualToAnInputIsRefused) {
   EXPECT_EQ(ReadAll(RawPath("id.csv")), csv_before);
 }
 
+}  // namespace calibrate_tool_test
 }  // namespace
 }  // namespace lpoe

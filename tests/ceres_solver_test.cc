@@ -21,6 +21,7 @@
 
 namespace lpoe {
 namespace {
+namespace ceres_solver_test {
 
 // Section 4 of the paper: 100 configurations, 70 identify, 30 verify.
 constexpr int kRows = 100;
@@ -457,5 +458,6 @@ TEST(CeresSolver, ValidatesOptions) {
   EXPECT_FALSE(ValidateCeresSolverOptions(o).ok());
 }
 
+}  // namespace ceres_solver_test
 }  // namespace
 }  // namespace lpoe

@@ -31,6 +31,7 @@
 #include "file_util.h"
 
 namespace {
+namespace cli_bad_input_test {
 
 using ::lpoe::testing::Exists;
 using ::lpoe::testing::ListDir;
@@ -397,4 +398,5 @@ TEST(CliWarnings, PositionsInMetresAreFlaggedAndReadWithLengthUnit) {
   EXPECT_EQ(as_m.err.find("look like metres"), std::string::npos) << as_m;
 }
 
+}  // namespace cli_bad_input_test
 }  // namespace

@@ -29,6 +29,7 @@
 
 namespace lpoe {
 namespace {
+namespace compensate_tool_test {
 
 constexpr int kExitOk = 0;
 constexpr int kExitInput = 2;
@@ -428,5 +429,6 @@ TEST_F(CompensateTool, BadInputNamesFileAndLine) {
       << "--joints without --nominal is a usage error: " << out;
 }
 
+}  // namespace compensate_tool_test
 }  // namespace
 }  // namespace lpoe

@@ -21,6 +21,7 @@
 
 namespace lpoe {
 namespace {
+namespace convergence_test {
 
 constexpr int kPoses = 1500;
 constexpr double kNoiseMm = 0.4;
@@ -209,5 +210,6 @@ TEST(Convergence, StandardDeviationsOfADenseProblemEqualTheWholeInverses) {
   }
 }
 
+}  // namespace convergence_test
 }  // namespace
 }  // namespace lpoe

@@ -32,6 +32,7 @@
 
 namespace lpoe {
 namespace {
+namespace fixed_tools_test {
 using ::lpoe::testing::Exists;
 using ::lpoe::testing::ReadAll;
 using ::lpoe::testing::TempDir;
@@ -464,11 +465,13 @@ TEST(FixedTools, YamlRoundTripAndStrictReader) {
 }
 
 #ifdef LPOE_CALIBRATE_PATH
+}  // namespace fixed_tools_test
 }  // namespace
 }  // namespace lpoe
 #include <nlohmann/json.hpp>
 namespace lpoe {
 namespace {
+namespace fixed_tools_test {
 
 struct ToolRun {
   int exit_code = -1;
@@ -594,5 +597,6 @@ TEST(FixedTools, HeldDirectionsAreNotCountedAsUnidentifiable) {
 }
 #endif
 
+}  // namespace fixed_tools_test
 }  // namespace
 }  // namespace lpoe

@@ -22,6 +22,7 @@
 
 namespace lpoe {
 namespace {
+namespace gear_ratio_test {
 
 constexpr char kGearRatio[] = "gear_ratio";
 
@@ -278,5 +279,6 @@ TEST(GearRatio, AutoConsidersAndChoosesIt) {
   for (size_t j = 0; j < truth.size(); ++j) EXPECT_NEAR(found[j], truth[j], 1e-5) << j + 1;
 }
 
+}  // namespace gear_ratio_test
 }  // namespace
 }  // namespace lpoe

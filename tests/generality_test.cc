@@ -14,6 +14,7 @@
 
 namespace lpoe {
 namespace {
+namespace generality_test {
 
 constexpr int kPoses = 120;
 constexpr double kNoiseMm = 0.01;
@@ -250,5 +251,6 @@ TEST(Generality, PosesThatDoNotMoveAJointAreStillRefused) {
   EXPECT_NE(r.result.message.find("move every joint"), std::string::npos) << r.result.message;
 }
 
+}  // namespace generality_test
 }  // namespace
 }  // namespace lpoe

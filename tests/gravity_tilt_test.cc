@@ -26,6 +26,7 @@
 
 namespace lpoe {
 namespace {
+namespace gravity_tilt_test {
 
 constexpr double kDeg = M_PI / 180.0;
 
@@ -597,5 +598,6 @@ TEST(GravityTilt, RejectedWithoutCompliance) {
   EXPECT_EQ(r.result.message, kGravityTiltNeedsCompliance);
 }
 
+}  // namespace gravity_tilt_test
 }  // namespace
 }  // namespace lpoe

@@ -27,6 +27,7 @@
 
 namespace lpoe {
 namespace {
+namespace identifiability_at_estimate_test {
 
 constexpr int kPoses = 200;
 constexpr double kTcpHeight = 82.3;  // tool0 on joint 6's axis, mm from its frame
@@ -477,5 +478,6 @@ TEST(GeometryOnlyOutputs, RefitPredictsBetterThanTheGeometryIdentifiedWithTheTer
   EXPECT_FALSE(RunCalibrationPipeline(nominal, identification, verification, po).has_geometry_only);
 }
 
+}  // namespace identifiability_at_estimate_test
 }  // namespace
 }  // namespace lpoe

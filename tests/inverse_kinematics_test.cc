@@ -18,6 +18,7 @@
 
 namespace lpoe {
 namespace {
+namespace inverse_kinematics_test {
 
 using testing::kPi;
 using testing::TestRandom;
@@ -474,5 +475,6 @@ TEST(InverseKinematics, CompensationOnACalibratedRobot) {
   EXPECT_LT(worst_compensated, mean_uncompensated / 10);
 }
 
+}  // namespace inverse_kinematics_test
 }  // namespace
 }  // namespace lpoe

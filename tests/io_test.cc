@@ -30,6 +30,7 @@
 
 namespace lpoe {
 namespace {
+namespace io_test {
 
 namespace fs = std::filesystem;
 
@@ -976,6 +977,7 @@ TEST(Io, CsvNearUnitMeasuredQuaternionIsNormalized) {
                Eigen::Matrix3d::Identity()).norm(), 0.0, 1e-14);
 }
 
+}  // namespace io_test
 }  // namespace
 // yaml-cpp's LoadAll loops forever on this input (found by fuzz_yaml); the reader must return.
 TEST(Io, MalformedFlowAfterCommentDoesNotHang) {

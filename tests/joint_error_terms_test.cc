@@ -21,6 +21,7 @@
 
 namespace lpoe {
 namespace {
+namespace joint_error_terms_test {
 
 TEST(JointErrorTerms, RegisteredAndSized) {
   const RobotModel m = MakeCobot6();
@@ -410,5 +411,6 @@ TEST(JointErrorTerms, UnknownNameFails) {
   EXPECT_EQ(r.result.termination, Termination::kNotIdentifiable);
 }
 
+}  // namespace joint_error_terms_test
 }  // namespace
 }  // namespace lpoe

@@ -21,6 +21,7 @@
 
 namespace lpoe {
 namespace {
+namespace joint_errors_test {
 
 using testing::TestRandom;
 
@@ -516,5 +517,6 @@ TEST(JointErrors, PredictPositionsChecksItsInput) {
             std::string::npos);
 }
 
+}  // namespace joint_errors_test
 }  // namespace
 }  // namespace lpoe

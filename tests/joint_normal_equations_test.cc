@@ -25,6 +25,7 @@
 
 namespace lpoe {
 namespace {
+namespace joint_normal_equations_test {
 
 // Position rows, with the given joint-block options.
 internal::NormalEquationsOptions PositionRows(const internal::JointColumnsOptions& joint = {}) {
@@ -446,5 +447,6 @@ TEST(JointNormalEquations, LinearSolverConvergesToTheExactStationaryPoint) {
   EXPECT_LE(r.iterations, 6);
 }
 
+}  // namespace joint_normal_equations_test
 }  // namespace
 }  // namespace lpoe

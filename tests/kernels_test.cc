@@ -26,6 +26,7 @@
 
 namespace lpoe {
 namespace {
+namespace kernels_test {
 
 // Position rows, with the given joint-block options.
 internal::NormalEquationsOptions PositionRows(const internal::JointColumnsOptions& joint = {}) {
@@ -364,5 +365,6 @@ TEST(Kernels, ResidualLayerKernelVectorBothWays) {
   }
 }
 
+}  // namespace kernels_test
 }  // namespace
 }  // namespace lpoe

@@ -27,6 +27,7 @@ template Vector3<Jet6> ChainPosition<Jet6>(const RobotModel& model, const SE3<Je
                                            const Vector3<Jet6>& tool_point, const double* q);
 
 namespace {
+namespace kinematics_test {
 
 using testing::FrameOf;
 using testing::NamedRobot;
@@ -344,5 +345,6 @@ TEST(Kinematics, GivenSinCosGiveTheSamePositionsAndJacobians) {
   }
 }
 
+}  // namespace kinematics_test
 }  // namespace
 }  // namespace lpoe

@@ -23,6 +23,7 @@
 
 namespace lpoe {
 namespace {
+namespace linear_solver_test {
 
 constexpr int kRows = 100;
 constexpr int kIdentificationRows = 70;
@@ -568,5 +569,6 @@ TEST(LinearSolver, NoWarmStartBelowItsRowCount) {
   EXPECT_EQ(CalibrateLinear(MakeCobot6(), data, above).warm_start_rows, 1000);
 }
 
+}  // namespace linear_solver_test
 }  // namespace
 }  // namespace lpoe

@@ -7,13 +7,14 @@
 #include "file_util.h"
 
 namespace {
+namespace lpoe_compare_test {
 
 constexpr int kExitOk = 0;
 constexpr int kExitDisagree = 7;
 
 // Runs the tool, returns its exit status and captures stdout and stderr.
 int RunTool(const std::string& args, std::string* out) {
-  return ::lpoe::testing::RunCapture(std::string(LPOE_COMPARE_BINARY) + " " + args, out);
+  return ::lpoe::testing::RunCapture(std::string(LPOE_COMPARE_PATH) + " " + args, out);
 }
 
 TEST(LpoeCompare, DefaultDataAgree) {
@@ -34,4 +35,5 @@ TEST(LpoeCompare, BadFlagIsUsageError) {
   EXPECT_EQ(RunTool("--parameterization=bogus", &out), 1) << out;
 }
 
+}  // namespace lpoe_compare_test
 }  // namespace

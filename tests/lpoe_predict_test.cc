@@ -25,6 +25,7 @@
 
 namespace lpoe {
 namespace {
+namespace lpoe_predict_test {
 
 namespace fs = std::filesystem;
 
@@ -317,5 +318,6 @@ TEST_F(LpoePredict, UrdfChainFlagsSelectTheToolsAsInEveryTool) {
   EXPECT_NE(out.find("is not a URDF"), std::string::npos) << out;
 }
 
+}  // namespace lpoe_predict_test
 }  // namespace
 }  // namespace lpoe

@@ -21,6 +21,7 @@
 
 namespace lpoe {
 namespace {
+namespace measurement_model_test {
 
 constexpr int kConfigurations = 8;
 constexpr double kStep = 1e-6;                // rad or mm, central differences
@@ -279,5 +280,6 @@ TEST(MeasurementModel, UnknownJointTermIsRejectedWithItsName) {
   EXPECT_NE(s.message().find("no_such_term"), std::string::npos);
 }
 
+}  // namespace measurement_model_test
 }  // namespace
 }  // namespace lpoe

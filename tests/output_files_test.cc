@@ -26,6 +26,7 @@
 namespace lpoe {
 namespace tools {
 namespace {
+namespace output_files_test {
 
 using ::lpoe::testing::Exists;
 using ::lpoe::testing::ListDir;
@@ -226,6 +227,7 @@ TEST(TruncateUtf8, CutsAtACharacterBoundary) {
             TruncateUtf8(std::string(50, 'x') + "\xe2\x82\xac\xe2\x82\xac", 52));
 }
 
+}  // namespace output_files_test
 }  // namespace
 }  // namespace tools
 }  // namespace lpoe

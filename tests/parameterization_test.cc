@@ -22,6 +22,7 @@
 
 namespace lpoe {
 namespace {
+namespace parameterization_test {
 
 using testing::FrameOf;
 using testing::NamedRobot;
@@ -393,6 +394,7 @@ TEST(Parameterization, JointBlockNamesFollowTheirTermAndBasis) {
   ExpectJointBlockDirections(p);
 }
 
+}  // namespace parameterization_test
 }  // namespace
 // Two combinations of one joint block dominated by the same parameter (here two kept ones, and the
 // left-out ones beside them) get distinct names, so that the report's lists and correlation pairs

@@ -25,6 +25,7 @@
 #endif
 
 namespace {
+namespace plan_tool_test {
 
 namespace fs = std::filesystem;
 
@@ -416,4 +417,5 @@ TEST_F(PlanTool, TrackerPlanListsTheVisibleSmrsOfEachPose) {
   EXPECT_EQ(3 * listed, report["plan"]["rows"].get<int>());
 }
 
+}  // namespace plan_tool_test
 }  // namespace

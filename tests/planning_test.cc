@@ -24,6 +24,7 @@
 
 namespace lpoe {
 namespace {
+namespace planning_test {
 
 using testing::kPi;
 
@@ -871,5 +872,6 @@ TEST_F(PlanningWithJointErrors, SixtyPlannedOfSevenHundredStayCloseToAll) {
   EXPECT_LT(planned_to_all, std::sqrt(random_sq));
 }
 
+}  // namespace planning_test
 }  // namespace
 }  // namespace lpoe

@@ -23,6 +23,7 @@
 namespace lpoe {
 namespace tools {
 namespace {
+namespace plot_test {
 
 struct Image {
   int width = 0, height = 0;
@@ -394,6 +395,7 @@ TEST(PlotTest, WritesSamplesWhenAsked) {
       WriteFigurePng(d + "axis_errors_3000.png", AxisErrorFigure(many.before, many.after)).ok());
 }
 
+}  // namespace plot_test
 }  // namespace
 }  // namespace tools
 }  // namespace lpoe

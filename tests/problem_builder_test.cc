@@ -20,6 +20,7 @@
 
 namespace lpoe {
 namespace {
+namespace problem_builder_test {
 
 constexpr int kRows = 70;
 constexpr double kNoiseSigma = 0.03;  // mm per axis, docs/conventions.md
@@ -344,5 +345,6 @@ TEST(ProblemBuilder, AnalyzeNamesWhatTheDataCannotIdentify) {
   EXPECT_FALSE(ValidateCalibrationProblem(nominal, data, bad).ok());
 }
 
+}  // namespace problem_builder_test
 }  // namespace
 }  // namespace lpoe

@@ -26,6 +26,7 @@
 
 namespace lpoe {
 namespace {
+namespace program_test {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = 180.0 / kPi;
@@ -816,5 +817,6 @@ TEST(Program, LanguageFromPath) {
   EXPECT_FALSE(ProgramLanguageFromPath("x.src", &l));
 }
 
+}  // namespace program_test
 }  // namespace
 }  // namespace lpoe

@@ -12,6 +12,7 @@
 namespace lpoe {
 namespace tools {
 namespace {
+namespace progress_test {
 
 struct Fake {
   double now = 0;
@@ -127,6 +128,7 @@ TEST(Progress, ShortRunsShowNothing) {
   EXPECT_EQ(f.out.str(), "");
 }
 
+}  // namespace progress_test
 }  // namespace
 }  // namespace tools
 }  // namespace lpoe

@@ -16,6 +16,7 @@
 
 namespace lpoe {
 namespace {
+namespace registration_test {
 
 constexpr int kRows = 240;
 constexpr int kHeldOut = 60;
@@ -298,5 +299,6 @@ TEST(Analysis, SequentialSplitsAreContiguousBlocks) {
   EXPECT_FALSE(ParseSplitKind("time", &kind));
 }
 
+}  // namespace registration_test
 }  // namespace
 }  // namespace lpoe

@@ -25,6 +25,7 @@
 namespace lpoe {
 namespace tools {
 namespace {
+namespace report_html_test {
 
 constexpr size_t kMaxHtmlBytes = 5u << 20;  // 5 MB
 constexpr int kLargeRunPoints = 100000;
@@ -332,6 +333,7 @@ TEST_F(ReportHtml, ParametersNameTheUrdfElementTheyChange) {
       "urdf"));
 }
 
+}  // namespace report_html_test
 }  // namespace
 }  // namespace tools
 }  // namespace lpoe

@@ -25,6 +25,7 @@
 
 namespace lpoe {
 namespace {
+namespace residual_layer_test {
 
 // A smooth joint-dependent deflection (mm) no registry term models.
 Eigen::Vector3d Deflection(const double* q) {
@@ -394,5 +395,6 @@ TEST(ResidualLayerIk, CompensationReachesTheTargetsTheLayeredModelPredicts) {
   }
 }
 
+}  // namespace residual_layer_test
 }  // namespace
 }  // namespace lpoe

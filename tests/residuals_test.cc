@@ -15,6 +15,7 @@
 
 namespace lpoe {
 namespace {
+namespace residuals_test {
 
 constexpr int kNumConfigurations = 10;
 constexpr double kSigma = 0.05;               // mm
@@ -392,5 +393,6 @@ TEST(PoseResidual, ValueIsWeightedLogOfTheError) {
   EXPECT_LT((r - expected).norm(), 1e-9 * expected.norm());
 }
 
+}  // namespace residuals_test
 }  // namespace
 }  // namespace lpoe

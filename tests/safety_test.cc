@@ -21,6 +21,7 @@
 #include "file_util.h"
 
 namespace {
+namespace safety_test {
 
 using ::lpoe::testing::Exists;
 using ::lpoe::testing::ListDir;
@@ -338,4 +339,5 @@ TEST_F(Safety, ConcurrentRunsIntoOnePlotsDirectory) {
   }
 }
 
+}  // namespace safety_test
 }  // namespace

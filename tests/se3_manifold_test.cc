@@ -11,6 +11,7 @@
 
 namespace lpoe {
 namespace {
+namespace se3_manifold_test {
 
 using ceres::HasCorrectMinusJacobianAt;
 using ceres::HasCorrectPlusJacobianAt;
@@ -136,5 +137,6 @@ TEST(Se3ManifoldDeathTest, RejectsNonOrthonormalBasis) {
   EXPECT_DEATH(Se3Manifold manifold(B), "orthonormal");
 }
 
+}  // namespace se3_manifold_test
 }  // namespace
 }  // namespace lpoe

@@ -23,6 +23,7 @@ template Matrix3<Jet6> QuaternionToRotation(const Eigen::Matrix<Jet6, 4, 1>& q);
 template Matrix3<Jet6> RotationFromRpy(const Jet6& roll, const Jet6& pitch, const Jet6& yaw);
 
 namespace {
+namespace se3_test {
 
 using testing::kPi;
 using testing::RelativeMaxDifference;
@@ -412,5 +413,6 @@ TEST(Se3, JetLogDerivativeMatchesFiniteDifferences) {
   }
 }
 
+}  // namespace se3_test
 }  // namespace
 }  // namespace lpoe

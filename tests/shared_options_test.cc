@@ -22,6 +22,7 @@
 
 namespace lpoe {
 namespace {
+namespace shared_options_test {
 
 using testing::ReadAll;
 using testing::RunInDir;
@@ -245,5 +246,6 @@ TEST_F(SharedOptions, TableDefaultsAreTheFlagsDefaults) {
   EXPECT_GT(compared, 6 * 8);
 }
 
+}  // namespace shared_options_test
 }  // namespace
 }  // namespace lpoe

@@ -14,6 +14,7 @@
 
 namespace lpoe {
 namespace {
+namespace simulation_test {
 
 using testing::FrameOf;
 using testing::NamedRobot;
@@ -234,5 +235,6 @@ TEST(Simulation, PrismaticJointRangeIsInMillimetres) {
   EXPECT_GT(largest, 90.0) << "prismatic joint values should span [-100, 100] mm";
 }
 
+}  // namespace simulation_test
 }  // namespace
 }  // namespace lpoe

@@ -15,6 +15,7 @@
 
 namespace lpoe {
 namespace {
+namespace statistics_test {
 
 // Enough rows for several chunks on several threads (parallel.h: 20,000 rows and more).
 constexpr int kRows = 50000;
@@ -129,5 +130,6 @@ TEST(Statistics, SelectionIsNthElement) {
   }
 }
 
+}  // namespace statistics_test
 }  // namespace
 }  // namespace lpoe

@@ -24,6 +24,7 @@
 
 namespace lpoe {
 namespace {
+namespace tool_contract_test {
 
 using testing::Exists;
 using testing::ListDir;
@@ -397,5 +398,6 @@ TEST(ToolContract, CalibrationWithoutRedundancyIsRefused) {
   EXPECT_EQ((r.out + r.err).find("cannot check itself"), std::string::npos) << r.out << r.err;
 }
 
+}  // namespace tool_contract_test
 }  // namespace
 }  // namespace lpoe

@@ -32,6 +32,7 @@
 
 namespace lpoe {
 namespace {
+namespace urdf_overlay_test {
 
 namespace fs = std::filesystem;
 
@@ -408,5 +409,6 @@ TEST(UrdfOverlayComment, JointNameWithDashesReadsBack) {
   EXPECT_EQ(back.joints[0].name, model.joints[0].name);
 }
 
+}  // namespace urdf_overlay_test
 }  // namespace
 }  // namespace lpoe

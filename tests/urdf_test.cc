@@ -24,6 +24,7 @@
 
 namespace lpoe {
 namespace {
+namespace urdf_test {
 
 namespace fs = std::filesystem;
 
@@ -670,5 +671,6 @@ TEST(Urdf, GarbageInputNeverCrashes) {
   EXPECT_EQ(s.message().rfind("huge.urdf:2: ", 0), 0u) << s.message();
 }
 
+}  // namespace urdf_test
 }  // namespace
 }  // namespace lpoe

@@ -21,6 +21,7 @@
 
 namespace lpoe {
 namespace {
+namespace workflows_test {
 
 // A calibrated cobot6 registered into a tracker frame 2.4 m away, turned: what lpoe_calibrate
 // writes after registration.
@@ -334,5 +335,6 @@ TEST(PlanningWorkflow, NarrowJointRangesKeepsEveryCandidateInside) {
             std::string::npos);
 }
 
+}  // namespace workflows_test
 }  // namespace
 }  // namespace lpoe
