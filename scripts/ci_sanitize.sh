@@ -24,7 +24,7 @@ CC=clang CXX=clang++ cmake "${gen[@]}" -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWi
   -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld -DCMAKE_SHARED_LINKER_FLAGS=-fuse-ld=lld \
   -DCMAKE_MODULE_LINKER_FLAGS=-fuse-ld=lld \
   -DBUILD_TESTING=ON -DLPOE_BUILD_BENCHMARKS=ON -DLPOE_BUILD_TOOLS=ON -DLPOE_FUZZ=ON \
-  -DLPOE_BUILD_PYTHON=ON -DLPOE_PRECOMPILED_HEADERS=ON -DLPOE_UNITY_TESTS=ON >/dev/null
+  -DLPOE_BUILD_PYTHON=ON -DLPOE_PRECOMPILED_HEADERS=ON -DCMAKE_UNITY_BUILD=ON >/dev/null
 cmake --build "$build" -j2
 
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1}"

@@ -37,7 +37,6 @@ using ::lpoe::testing::Exists;
 using ::lpoe::testing::ReadAll;
 using ::lpoe::testing::TempDir;
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
 constexpr double kNoise = 0.02;  // mm per axis
 constexpr int kPoses = 150;

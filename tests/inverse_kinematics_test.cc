@@ -20,7 +20,6 @@ namespace lpoe {
 namespace {
 namespace inverse_kinematics_test {
 
-using testing::kPi;
 using testing::TestRandom;
 
 constexpr double kDeg = kPi / 180.0;

@@ -99,7 +99,7 @@ TEST(Kinematics, JointMotionIsTheExponentialOfTheTwist) {
   for (const NamedRobot& robot : Robots()) {
     for (const Joint& joint : robot.model.joints) {
       for (int trial = 0; trial < kConfigurations; ++trial) {
-        const double q = joint.type == JointType::kRevolute ? rng.Uniform(-testing::kPi, testing::kPi)
+        const double q = joint.type == JointType::kRevolute ? rng.Uniform(-kPi, kPi)
                                                             : rng.Uniform(-100, 100);
         const SE3d expected = ExpSE3(Vector6d(joint.twist * q));
         const SE3d actual = JointMotion(joint, q);
@@ -282,10 +282,10 @@ TEST(Kinematics, SinCosManyIsWithinTwoUlpOfLibm) {
   constexpr int kRandomValues = 20000;
   constexpr double kMaxUlps = 2.0;
   TestRandom rng(kSeed + 7);
-  std::vector<double> x = {0.0, -0.0, 1e-300, -1e-20, 1e-8, 0.5, testing::kPi / 4,
-                           testing::kPi / 2, testing::kPi, -testing::kPi, 3 * testing::kPi / 2,
-                           2 * testing::kPi, 524288.0, -524288.0, 524289.5, 1e6, -3e9, 1e300};
-  for (int k = -1000; k <= 1000; k += 7) x.push_back(k * (testing::kPi / 2));
+  std::vector<double> x = {0.0, -0.0, 1e-300, -1e-20, 1e-8, 0.5, kPi / 4,
+                           kPi / 2, kPi, -kPi, 3 * kPi / 2,
+                           2 * kPi, 524288.0, -524288.0, 524289.5, 1e6, -3e9, 1e300};
+  for (int k = -1000; k <= 1000; k += 7) x.push_back(k * (kPi / 2));
   for (int k = 0; k < kRandomValues; ++k) x.push_back(rng.Uniform(-20.0, 20.0));
   for (int k = 0; k < 100; ++k) x.push_back(rng.Uniform(-2e5, 2e5));
   const int n = static_cast<int>(x.size());

@@ -327,8 +327,8 @@ TEST(LinearSolver, PosesThatNeverMoveJoint6AreNotIdentifiable) {
   SimulationOptions sim;
   sim.count = kIdentificationRows;
   sim.seed = kDataSeed;
-  sim.lower.assign(6, -testing::kPi);
-  sim.upper.assign(6, testing::kPi);
+  sim.lower.assign(6, -kPi);
+  sim.upper.assign(6, kPi);
   sim.lower[5] = sim.upper[5] = 0.7;  // joint 6 held still
   const MeasurementSet data = SimulateMeasurements(actual, errors.joint_zero, sim);
   for (int r = 0; r < data.size(); ++r) ASSERT_EQ(data.q(r)[5], 0.7);

@@ -26,7 +26,6 @@ namespace lpoe {
 namespace {
 namespace planning_test {
 
-using testing::kPi;
 
 // cobot6 with three SMRs on the flange, all facing along the flange axis (+z of joint 6).
 RobotModel ThreeSmrCobot() {

@@ -28,7 +28,6 @@ namespace lpoe {
 namespace {
 namespace program_test {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = 180.0 / kPi;
 
 // Deterministic uniform numbers.

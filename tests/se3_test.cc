@@ -25,7 +25,6 @@ template Matrix3<Jet6> RotationFromRpy(const Jet6& roll, const Jet6& pitch, cons
 namespace {
 namespace se3_test {
 
-using testing::kPi;
 using testing::RelativeMaxDifference;
 using testing::TestRandom;
 

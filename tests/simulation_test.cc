@@ -123,8 +123,8 @@ TEST(Simulation, MeasurementsAreTheActualForwardKinematics) {
   for (int r = 0; r < data.size(); ++r) {
     std::vector<double> q(data.q(r), data.q(r) + 6);
     for (int i = 0; i < 6; ++i) {
-      EXPECT_GE(q[i], -testing::kPi);
-      EXPECT_LE(q[i], testing::kPi);
+      EXPECT_GE(q[i], -kPi);
+      EXPECT_LE(q[i], kPi);
       q[i] += e.joint_zero[i];  // eq. (34): measured at the commanded value plus the zero error
     }
     const SE3d T = ToolPose(actual, q.data());

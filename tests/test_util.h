@@ -19,7 +19,6 @@
 namespace lpoe {
 namespace testing {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // A seeded source of test values. Uses only the raw engine output so that the draws are the same
 // on every standard library.

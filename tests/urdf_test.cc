@@ -28,7 +28,6 @@ namespace urdf_test {
 
 namespace fs = std::filesystem;
 
-constexpr double kPi = 3.14159265358979323846;
 // Forward kinematics after a round trip (docs/file_formats.md asks this of written models).
 constexpr double kRoundTripToleranceMm = 1e-9;
 constexpr double kRotationTolerance = 1e-12;

@@ -1,7 +1,7 @@
 // The input flags lpoe_calibrate and lpoe_compare both define, each with its own help:
 // --measurements, --verify, --holdout, --split and --parameterization (with the shared --model and
-// units, common_flags.h). Only a tool that defines them may call InputsFromFlags (input_flags.cc is
-// linked into a tool only when it does).
+// units, common_flags.h). Only a tool that defines them may call InputsFromFlags (lpoe_tool_input_flags,
+// input_flags.cc, is linked into a tool only when it does).
 #ifndef LPOE_TOOLS_INPUT_FLAGS_H_
 #define LPOE_TOOLS_INPUT_FLAGS_H_
 

@@ -113,7 +113,6 @@ constexpr char kUsage[] =
     "no more rows than parameters, or the target accuracy is out of reach), 6 an output could\n"
     "not be written (then none is).";
 
-constexpr double kPi = 3.14159265358979323846;
 
 bool ParseVector3(const std::string& text, Eigen::Vector3d* v) {
   std::vector<double> x;

@@ -10,7 +10,6 @@
 namespace lpoe {
 namespace {
 
-constexpr double kDegreesToRadians = 3.14159265358979323846 / 180.0;
 
 using internal::SplitFields;
 using internal::Trim;

@@ -39,7 +39,6 @@ constexpr double kMeasuredQuaternionTolerance = 1e-3;
 // joint values (as written).
 constexpr double kMaxAbsPositionMm = 1e6;
 constexpr double kMaxAbsJointValue = 1e4;
-constexpr double kDegreesToRadians = 3.14159265358979323846 / 180.0;
 // A line longer than this is not a measurement row (a row of 20 joints with 25-character numbers
 // has about 600 bytes; a header with many extra columns a few kB).
 constexpr size_t kMaxLineBytes = size_t{1} << 20;
@@ -130,7 +129,7 @@ bool TargetNameRoundTrips(const RobotModel& model, int tool) {
 
 // The header: columns by name (case-insensitive for the standard names, exact for joint names);
 // columns with other names are ignored and listed.
-class CsvHeader {
+class MeasurementHeader {
  public:
   Status Parse(std::string_view line, int64_t line_number, const std::string& source,
                const RobotModel& model) {
@@ -638,7 +637,7 @@ class CsvReader {
 
   const std::string& source_;
   const RobotModel& model_;
-  CsvHeader header_;
+  MeasurementHeader header_;
   bool have_header_ = false;
   bool threads_ = false;
   int64_t header_line_ = 0;

@@ -11,7 +11,6 @@
 namespace lpoe {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kRotationTolerance = 1e-9;
 
 SE3d Translation(double x, double y, double z) {

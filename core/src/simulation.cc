@@ -12,7 +12,6 @@
 namespace lpoe {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // Portable random numbers: the standard distributions are implementation-defined, and data sets
 // generated from a seed must be the same everywhere.

@@ -11,7 +11,7 @@
 namespace lpoe {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kUnbounded = std::numeric_limits<double>::infinity();
 
 OptionSpec Text(const char* scope, const char* name, const char* default_text, const char* help) {
   OptionSpec s;
@@ -90,11 +90,11 @@ std::vector<OptionSpec> MakeOptions() {
       Number(kCompensate, "max_iterations", "100", 1, 10000, "Newton iterations per attempt."),
       Number(kCompensate, "restarts", "8", 0, 100,
              "Restarts from perturbed seeds when a solve stalls."),
-      Number(kCompensate, "position_tolerance", "1e-7", 0, kInf,
+      Number(kCompensate, "position_tolerance", "1e-7", 0, kUnbounded,
              "Target reached when the position error is below (mm).", true, true),
-      Number(kCompensate, "orientation_tolerance", "1e-10", 0, kInf,
+      Number(kCompensate, "orientation_tolerance", "1e-10", 0, kUnbounded,
              "... and the orientation error below (rad).", true, true),
-      Number(kCompensate, "singular_threshold", "0.001", 0, kInf,
+      Number(kCompensate, "singular_threshold", "0.001", 0, kUnbounded,
              "Smallest singular value (mm per rad; rotation rows weighted 100 mm/rad) below which "
              "a row is 'singular'.", false, true),
       // ---- lpoe_plan.
@@ -111,11 +111,11 @@ std::vector<OptionSpec> MakeOptions() {
              "Drop candidates whose singularity measure (smallest singular value of the "
              "length-normalized geometric Jacobian, docs/planning.md) is below this; 0: keep all.",
              false, true),
-      Number(kPlan, "max_range", "0", 0, kInf,
+      Number(kPlan, "max_range", "0", 0, kUnbounded,
              "Maximum tracker-to-SMR distance (mm); 0: unlimited.", false, true),
-      Number(kPlan, "target_accuracy", "0", 0, kInf,
+      Number(kPlan, "target_accuracy", "0", 0, kUnbounded,
              "--count=auto: predicted held-out RMS to reach (mm).", false, true),
-      Number(kPlan, "noise_sigma", "0", 0, kInf,
+      Number(kPlan, "noise_sigma", "0", 0, kUnbounded,
              "Measurement noise per axis (mm): scales the predicted accuracy into mm; required "
              "with --count=auto.", false, true),
   };

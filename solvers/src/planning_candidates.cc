@@ -29,7 +29,6 @@
 #include "parse_util.h"
 
 namespace lpoe {
-using planning_internal::kPi;
 using planning_internal::kLimitTolerance;
 
 std::vector<int> VisibleTools(const RobotModel& model, const TrackerConstraint& tracker,

@@ -8,7 +8,6 @@
 namespace lpoe {
 namespace planning_internal {
 
-inline constexpr double kPi = 3.14159265358979323846;
 inline constexpr double kInf = std::numeric_limits<double>::infinity();
 // O1/O3 scaling: expected magnitude of a parameter error (the paper's Table 2 has rotations of
 // 1-5 mrad and translations of 0.5-3 mm).

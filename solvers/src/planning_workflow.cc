@@ -17,7 +17,6 @@
 namespace lpoe {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr char kTool[] = "lpoe_plan";
 
 Status Fail(PlanFailure kind, PlanFailure* failure, const std::string& message) {

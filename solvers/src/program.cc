@@ -16,7 +16,6 @@ namespace lpoe {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = 180.0 / kPi;
 
 int Quadrant(double q) { return static_cast<int>(std::floor(q / (kPi / 2))); }

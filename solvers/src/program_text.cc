@@ -449,7 +449,6 @@ std::string RewriteProgram(std::string_view text, const ParsedProgram& program) 
 }
 
 std::string FlangeRotationNote(const ParsedProgram& program) {
-  constexpr double kPi = 3.14159265358979323846;
   char text[640];
   const double r = program.tcp_off_flange_axis_mm;
   if (program.flange_rotation_identified) {
@@ -473,7 +472,6 @@ std::string FlangeRotationNote(const ParsedProgram& program) {
 namespace {
 
 std::string FlangeRotationNoteJson(const ParsedProgram& program) {
-  constexpr double kPi = 3.14159265358979323846;
   char buf[160];
   std::snprintf(buf, sizeof(buf),
                 "  \"tcp_off_flange_axis_mm\": %.6g,\n  \"flange_rotation_identified\": %s,\n"

@@ -34,6 +34,10 @@ using Matrix6 = Eigen::Matrix<T, 6, 6>;
 using Vector6d = Vector6<double>;
 using Matrix6d = Matrix6<double>;
 
+// pi, and the factor from degrees (where users read angles) to radians (everything inside).
+inline constexpr double kPi = 3.14159265358979323846;
+inline constexpr double kDegreesToRadians = kPi / 180.0;
+
 namespace internal {
 // Below this squared angle the rotation log (LogSO3) replaces its closed form by a Taylor series,
 // accurate to better than 1e-20 relative there.
