@@ -18,7 +18,7 @@ PACKAGES=(
   chromium                 # report_html_test renders the HTML report headless
   pybind11-dev python3-pybind11 python3-dev python3-numpy python3-pytest  # the Python module lpoe (python/)
   clang libclang-rt-14-dev # scripts/fuzz.sh (libFuzzer) and scripts/ci_sanitize.sh (ASan + UBSan)
-  lld                      # the test builds link with lld: ~40 test programs each link static Ceres
+  lld                      # the test builds link with lld: the tools, benchmarks and test program each link static Ceres
   ninja-build              # the test builds: keeps both cores busy across targets (make waits per target)
 )
 

@@ -29,12 +29,6 @@ DEFINE_string(targets_only, "",
               "Compensate only the program targets whose whole name matches this regular "
               "expression (ECMAScript); the others (taught points) are left as they are.");
 
-DECLARE_string(nominal);
-DECLARE_string(report);
-DECLARE_string(targets);
-DECLARE_string(joints);
-DECLARE_bool(strict);
-
 namespace lpoe {
 namespace tools {
 

@@ -3,7 +3,17 @@
 #ifndef LPOE_TOOLS_LPOE_COMPENSATE_PROGRAM_H_
 #define LPOE_TOOLS_LPOE_COMPENSATE_PROGRAM_H_
 
+#include <gflags/gflags_declare.h>
+
 #include "lpoe/inverse_kinematics.h"
+
+// The CSV mode's flags the program mode reads too (defined in lpoe_compensate.cc, which includes
+// this header first).
+DECLARE_string(nominal);
+DECLARE_string(report);
+DECLARE_string(targets);
+DECLARE_string(joints);
+DECLARE_bool(strict);
 
 namespace lpoe {
 namespace tools {
