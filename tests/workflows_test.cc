@@ -56,7 +56,9 @@ TEST(Options, TableIsConsistentAndChecksRanges) {
   for (const OptionSpec& s : Options()) {
     ASSERT_NE(s.help, nullptr);
     // The shared options' help is the only one (tools/common_flags.cc).
-    if (s.scope[0] == '\0') EXPECT_GT(std::string(s.help).size(), 10u) << s.name;
+    if (s.scope[0] == '\0') {
+      EXPECT_GT(std::string(s.help).size(), 10u) << s.name;
+    }
     if (!s.has_range) continue;
     // Every default lies in its range.
     EXPECT_TRUE(CheckOption(s.scope, s.name, OptionDefault(s.scope, s.name)).ok()) << s.name;

@@ -301,7 +301,7 @@ void SolveRegularized(Eigen::Matrix<double, M, M>* A, double trace, Eigen::Matri
   if constexpr (M == 3) {
     for (int attempt = 0; attempt < 2; ++attempt) {
       // The determinant and the inverse from one set of cofactors.
-      Eigen::Matrix<double, M, M> inverse;
+      Eigen::Matrix<double, M, M> inverse = Eigen::Matrix<double, M, M>::Zero();  // set if invertible
       double det = 0;
       bool invertible = false;
       A->computeInverseAndDetWithCheck(inverse, det, invertible, 0.0);
