@@ -9,4 +9,4 @@
 # use it. The option changes no code, but a header missing from a test's own #include list would
 # still compile with it: it is off by default (developers' builds, usually cached by ccache, keep
 # every file honest) and on in the clean CI builds (scripts/test.sh, scripts/ci_sanitize.sh).
-option(LPOE_PRECOMPILED_HEADERS "Precompile the headers the test programs share (clean CI builds)" OFF)
+option(LPOE_PRECOMPILED_HEADERS "Precompile the headers the test files share (clean CI builds)" OFF)

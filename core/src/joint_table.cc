@@ -10,7 +10,6 @@
 namespace lpoe {
 namespace {
 
-
 using internal::SplitFields;
 using internal::Trim;
 

@@ -12,7 +12,6 @@
 namespace lpoe {
 namespace {
 
-
 // Portable random numbers: the standard distributions are implementation-defined, and data sets
 // generated from a seed must be the same everywhere.
 class Random {
