@@ -1,12 +1,16 @@
 // libFuzzer target: ParseRobotModelYaml on arbitrary bytes. Checks that nothing crashes or throws,
 // that errors are "<file>:<line>: ..." messages, that an accepted model validates, and that it
-// round-trips through RobotModelToYaml with the same structure.
+// round-trips through RobotModelToYaml with the same structure; and that an accepted model
+// predicts finite positions (every number of the file in its plausible range, issue 40).
 #include <cstddef>
 #include <cstdint>
+#include <cmath>
 #include <string>
+#include <vector>
 
 #include "fuzz_common.h"
 #include "lpoe/io.h"
+#include "lpoe/joint_errors.h"
 #include "lpoe/robot_model.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* bytes, size_t size) {
@@ -19,6 +23,24 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* bytes, size_t size) {
   }
   if (lpoe::Status v = model.Validate(); !v.ok()) {
     lpoe::fuzz::Fail("accepted a model that does not validate: " + v.message(), text);
+  }
+  // Every number in its plausible range (issue 40): an accepted model predicts finite positions,
+  // with its joint-space terms and residual layer, at configurations spread over its limits.
+  const int n = model.num_joints();
+  std::vector<double> q(n);
+  for (int k = 0; k < 5; ++k) {
+    for (int j = 0; j < n; ++j) {
+      const lpoe::Joint& joint = model.joints[j];
+      const double open = joint.type == lpoe::JointType::kRevolute ? lpoe::kPi : 1000.0;
+      const double lo = std::isfinite(joint.lower) ? joint.lower : -open;
+      const double hi = std::isfinite(joint.upper) ? joint.upper : open;
+      q[j] = lo + (hi - lo) * (0.25 * k);
+    }
+    for (int t = 0; t < model.num_tools(); ++t) {
+      if (!lpoe::PredictToolPosition(model, q.data(), t).allFinite()) {
+        lpoe::fuzz::Fail("accepted a model that predicts a non-finite position", text);
+      }
+    }
   }
   const std::string yaml = lpoe::RobotModelToYaml(model);
   lpoe::RobotModel again;

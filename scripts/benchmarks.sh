@@ -37,7 +37,7 @@ fi
 cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=ON \
   -DLPOE_BUILD_BENCHMARKS=ON >/dev/null
 cmake --build "$BUILD" -j2 --target kinematics_benchmark solver_benchmark ik_benchmark \
-  lpoe_calibrate lpoe_simulate lpoe_compensate >/dev/null
+  program_benchmark lpoe_calibrate lpoe_simulate lpoe_compensate >/dev/null
 
 # ---- Before and after: the end-to-end jobs users run, with BASELINE's tools and this tree's, in
 # turns (before, after, before, ...), best of REPEAT wall times each, so that both see the same
@@ -133,6 +133,10 @@ echo "benchmarks: solvers (70 to 10^6 poses)" >&2
 echo "benchmarks: inverse kinematics (10,000 TRAC-IK-style targets)" >&2
 "$BUILD/benchmarks/ik_benchmark" --benchmark_format=json \
   --benchmark_out="$WORK/ik.json" --benchmark_out_format=json >/dev/null
+
+echo "benchmarks: robot programs (URScript and RAPID, 10^4 to 10^5 targets)" >&2
+"$BUILD/benchmarks/program_benchmark" --benchmark_format=json \
+  --benchmark_out="$WORK/program.json" --benchmark_out_format=json >/dev/null
 
 # End to end: parse, register, calibrate, statistics, outputs.
 echo "benchmarks: lpoe_calibrate end to end" >&2
@@ -328,6 +332,19 @@ def time_field(label):
 comp_cpu = time_field("User time") + time_field("System time")
 print(f"| lpoe_compensate, 10^6 targets <= 10 s | {comp_s:.2f} s wall, {comp_cpu:.2f} s CPU "
       f"({counts}) | {verdict(comp_s <= 10)} |")
+# Robot programs: seconds per target at 10^4 and 10^5 targets; linear when the larger program
+# takes at most 1.5x the time per target of the smaller.
+prog = {b["name"]: b for b in json.load(open(f"{work}/program.json"))["benchmarks"]
+        if b.get("run_type") == "iteration"}
+for lang, bench in (("URScript", "BM_ParseUrScript"), ("RAPID", "BM_ParseRapid")):
+    small, big = prog.get(f"{bench}/10000"), prog.get(f"{bench}/100000")
+    if not small or not big:
+        continue
+    t_small, t_big = small["per_target"], big["per_target"]
+    total = big["real_time"] * {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}[big["time_unit"]]
+    print(f"| {lang} program, 10^5 targets parsed, time linear | {total:.3f} s; "
+          f"{fmt(t_small)} a target at 10^4, {fmt(t_big)} at 10^5 | "
+          f"{verdict(t_big <= 1.5 * t_small)} |")
 print()
 print("Per pose (cobot6):")
 print()

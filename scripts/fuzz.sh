@@ -2,7 +2,8 @@
 # Builds the libFuzzer targets (fuzz/) with clang in build-fuzz and runs them side by side for the given
 # number of seconds (default 60): fuzz_csv (measurements CSV), fuzz_yaml (robot model YAML), fuzz_urdf (robot
 # model URDF), fuzz_report_text (names and paths of any bytes through the report writers' text
-# functions), fuzz_urscript and fuzz_rapid (robot programs). Each run starts from a copy of the
+# functions), fuzz_urscript and fuzz_rapid (robot programs), fuzz_targets_only (the --targets_only
+# filter, RE2, on any pattern and name). Each run starts from a copy of the
 # committed seed corpus fuzz/corpus/<kind>/ in build-fuzz/corpus/ (the committed corpus is never
 # modified). Fails on any crash, sanitizer report, leak, timeout (> 10 s per input) or out-of-memory
 # (> 2048 MB); the reproducer is left in build-fuzz/artifacts/<target>/ and its log in
@@ -49,7 +50,7 @@ failed=()
 # The targets run at the same time (they share the machine's cores; with 2 cores each gets
 # about two fifths of one, so `seconds` of wall time is about 2/5 * seconds of fuzzing per target).
 declare -A pids
-for kind in csv yaml urdf report_text urscript rapid; do
+for kind in csv yaml urdf report_text urscript rapid targets_only; do
   target="fuzz_$kind"
   exe="$build/fuzz/$target"
   if [ ! -x "$exe" ]; then
@@ -68,7 +69,7 @@ for kind in csv yaml urdf report_text urscript rapid; do
     "$work" >"$log" 2>&1 &
   pids[$kind]=$!
 done
-for kind in csv yaml urdf report_text urscript rapid; do
+for kind in csv yaml urdf report_text urscript rapid targets_only; do
   [ -n "${pids[$kind]:-}" ] || continue
   target="fuzz_$kind"
   log="$build/logs/$target.log"

@@ -187,6 +187,58 @@ TEST_F(OutputFiles, StreamedOutputCommitsOrVanishes) {
   EXPECT_EQ(ReadAll(a), "x\ny\n");
 }
 
+// ---- All outputs committed together (issue 40).
+
+// A device that refuses the write (/dev/full: ENOSPC) staged after two files: Commit fails and
+// both files are as they were; nothing of the run is left in the directory.
+TEST_F(OutputFiles, FailingDeviceLeavesEveryFileAsItWas) {
+  if (!Exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  const std::string a = dir_ + "/keep.script", b = dir_ + "/new.json";
+  ASSERT_TRUE(::lpoe::testing::WriteAll(a, "old program\n"));
+  {
+    OutputSet out;
+    out.AddOutput("--output", a);
+    out.AddOutput("--html_report", b);
+    out.AddOutput("--report", "/dev/full");
+    ASSERT_TRUE(out.Check().ok());
+    ASSERT_TRUE(out.Stage(a, "new program\n").ok());
+    ASSERT_TRUE(out.Stage(b, "{}\n").ok());
+    ASSERT_TRUE(out.Stage("/dev/full", "{\"report\": 1}\n").ok());
+    std::vector<std::string> written;
+    const Status s = out.Commit(&written);
+    ASSERT_FALSE(s.ok());
+    EXPECT_NE(s.message().find("/dev/full"), std::string::npos) << s.message();
+    EXPECT_TRUE(written.empty());
+    EXPECT_EQ(ReadAll(a), "old program\n");
+    EXPECT_FALSE(Exists(b));
+  }  // the failed run ends: its temporaries go
+  EXPECT_EQ(ListDir(dir_), std::vector<std::string>{"keep.script"});
+}
+
+// A staging directory of a process that no longer exists (killed by SIGKILL before it could
+// clean up) is removed by the next run into that directory; one of a live process is not.
+TEST_F(OutputFiles, StaleStagingOfDeadProcessesIsRemoved) {
+  const pid_t child = ::fork();
+  if (child == 0) _exit(0);
+  ASSERT_GT(child, 0);
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);  // reaped: the pid names no process now
+  const std::string dead = dir_ + "/.lpoe-staging-" + std::to_string(child) + "-AbC123";
+  const std::string live = dir_ + "/.lpoe-staging-" + std::to_string(::getppid()) + "-XyZ789";
+  for (const std::string& d : {dead, live}) {
+    ASSERT_EQ(::mkdir(d.c_str(), 0700), 0);
+    ASSERT_TRUE(::lpoe::testing::WriteAll(d + "/out.yaml", "partial"));
+    ASSERT_TRUE(::lpoe::testing::WriteAll(d + "/out.yaml.tmp", "partial"));
+  }
+  OutputSet out;
+  out.AddOutput("--output", dir_ + "/out.yaml");
+  ASSERT_TRUE(out.Stage(dir_ + "/out.yaml", "model\n").ok());
+  ASSERT_TRUE(out.Commit(nullptr).ok());
+  EXPECT_FALSE(Exists(dead));
+  EXPECT_TRUE(Exists(live + "/out.yaml"));
+  EXPECT_EQ(ReadAll(dir_ + "/out.yaml"), "model\n");
+}
+
 // ---- Names of any bytes (issue 30).
 
 TEST(ValidUtf8, KeepsValidTextAndReplacesEachInvalidSubpart) {

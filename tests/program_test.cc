@@ -14,10 +14,12 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "lpoe/compensation.h"
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
@@ -404,7 +406,7 @@ Generated RapidProgram(const Cell& c, int points) {
   const SE3d object(ExpSO3(Eigen::Vector3d(0.02, 0, -0.3)), Eigen::Vector3d(40, 25, 10));
   std::string decl = "%%%\r\n  VERSION:1\r\n  LANGUAGE:ENGLISH\r\n%%%\r\n\r\nMODULE MainModule\r\n";
   decl += "  ! Generated for the compensation test\r\n";
-  decl += "  PERS tooldata tGripper:=[FALSE,[" + xyz(tool.t, 3) + "," + quat(tool.R) +
+  decl += "  PERS tooldata tGripper:=[TRUE,[" + xyz(tool.t, 3) + "," + quat(tool.R) +
           "],[2.5,[0,0,80],[1,0,0,0],0,0,0]];\r\n";
   decl += "  TASK PERS wobjdata wTable:=[FALSE,TRUE,\"\",[" + xyz(user.t, 3) + "," + quat(user.R) +
           "],[" + xyz(object.t, 3) + "," + quat(object.R) + "]];\r\n";
@@ -503,6 +505,146 @@ TEST(Program, RapidCompensatedOnTheTrueRobot) {
   ExpectCompensated(RunOnTrueRobot(c, program, out, ProgramLanguage::kRapid, g.planned), 70);
 }
 
+// RAPID's robhold as the RAPID reference manual defines it: in tooldata TRUE means the robot holds
+// the tool, FALSE a stationary tool; in wobjdata TRUE means the robot holds the work object (used
+// with a stationary tool). The usual module (tooldata TRUE, wobj0) is compensated; the inverted
+// reading would leave it alone.
+TEST(Program, RapidRobholdAsRapidDefinesIt) {
+  const Cell& c = TheCell();
+  const std::string target = "[[150,-450,350],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  auto module = [&](const std::string& tool_robhold, const std::string& wobj_robhold) {
+    return "MODULE M\n"
+           "  PERS tooldata tool1:=[" + tool_robhold +
+           ",[[0,15,140],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n"
+           "  PERS wobjdata wobj1:=[" + wobj_robhold +
+           ",TRUE,\"\",[[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n"
+           "  CONST robtarget p1:=" + target + ";\n"
+           "  PROC main()\n"
+           "    MoveL p1, v100, fine, tool1\\WObj:=wobj1;\n"
+           "  ENDPROC\n"
+           "ENDMODULE\n";
+  };
+  struct Case {
+    const char* tool;
+    const char* wobj;
+    bool compensated, stationary;
+    const char* reason;
+  };
+  const Case cases[] = {
+      {"TRUE", "FALSE", true, false, ""},  // the robot holds the tool: the common case
+      {"FALSE", "TRUE", true, true, ""},   // a stationary tool, the robot holds the work object
+      {"FALSE", "FALSE", false, false, "tool tool1 is a stationary tool (robhold FALSE)"},
+      {"TRUE", "TRUE", false, false, "work object wobj1 is held by the robot (robhold TRUE"},
+      {"held", "FALSE", false, false, "tool tool1: its robhold is not TRUE or FALSE"},
+  };
+  for (const Case& k : cases) {
+    const std::string text = module(k.tool, k.wobj);
+    ParsedProgram program;
+    std::string out;
+    ASSERT_TRUE(CompensateProgramText(text, ProgramLanguage::kRapid, c.calibrated, c.nominal,
+                                      ProgramOptions(), &out, &program)
+                    .ok())
+        << text;
+    ASSERT_EQ(program.targets.size(), 1u);
+    const ProgramTarget& t = program.targets[0];
+    EXPECT_EQ(t.status == ProgramTargetStatus::kCompensated, k.compensated)
+        << k.tool << " " << k.wobj << ": " << t.reason;
+    EXPECT_EQ(t.stationary_tool, k.stationary) << k.tool << " " << k.wobj;
+    EXPECT_NE(t.reason.find(k.reason), std::string::npos) << t.reason;
+    EXPECT_EQ(out != text, k.compensated);
+    if (k.compensated) {
+      EXPECT_GT(t.correction_mm, 1.0);
+      EXPECT_EQ(ProgramReportJson(program).find("\"stationary_tool\": true") != std::string::npos,
+                k.stationary);
+    }
+  }
+}
+
+// A stationary tool (tooldata robhold FALSE, its tframe in the world frame) and a work object the
+// robot holds (wobjdata robhold TRUE, its uframe on the flange): the robtarget is the tool's pose in
+// the work object. The controller puts the flange at tframe * target^-1 * (uframe oframe)^-1; on the
+// true robot the compensated targets are as accurate as a direct calibrated IK.
+TEST(Program, RapidStationaryToolCompensatedOnTheTrueRobot) {
+  const Cell& c = TheCell();
+  auto quat = [](const Eigen::Matrix3d& R) {
+    const Eigen::Vector4d q = RotationToQuaternion<double>(R);
+    return "[" + Num(q(3), 9) + "," + Num(q(0), 9) + "," + Num(q(1), 9) + "," + Num(q(2), 9) + "]";
+  };
+  auto xyz = [](const Eigen::Vector3d& t) {
+    return "[" + Num(t.x(), 4) + "," + Num(t.y(), 4) + "," + Num(t.z(), 4) + "]";
+  };
+  const SE3d fixed_tool(ExpSO3(Eigen::Vector3d(0.1, 2.9, 0.2)), Eigen::Vector3d(420, 180, 250));
+  const SE3d user(ExpSO3(Eigen::Vector3d(0.05, 0, 0.3)), Eigen::Vector3d(10, -20, 110));
+  const SE3d object(ExpSO3(Eigen::Vector3d(0, 0.1, 0)), Eigen::Vector3d(30, 0, 15));
+  std::string decl = "MODULE M\n  PERS tooldata tFixed:=[FALSE,[" + xyz(fixed_tool.t) + "," +
+                     quat(fixed_tool.R) + "],[1,[0,0,1],[1,0,0,0],0,0,0]];\n";
+  decl += "  PERS wobjdata wHeld:=[TRUE,TRUE,\"\",[" + xyz(user.t) + "," + quat(user.R) + "],[" +
+          xyz(object.t) + "," + quat(object.R) + "]];\n";
+  // The frames as the program states them (rounded), from the parser.
+  ParsedProgram probe;
+  ASSERT_TRUE(ParseProgram(decl + "PROC x()\nMoveL [[0,0,0],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,"
+                                  "9E9,9E9]], v10, fine, tFixed\\WObj:=wHeld;\nENDPROC\nENDMODULE\n",
+                           ProgramLanguage::kRapid, &probe)
+                  .ok());
+  ASSERT_TRUE(probe.targets.at(0).stationary_tool);
+  const SE3d tool_used = probe.targets[0].tcp, wobj_used = probe.targets[0].frame;
+  Random rng(3);
+  const double centre[6] = {0.6, -1.5, 1.4, -1.4, -1.6, 0.2};
+  std::string body = "  PROC main()\n";
+  std::vector<std::pair<std::string, std::vector<double>>> planned;
+  for (int k = 1; k <= 20; ++k) {
+    std::vector<double> q(6);
+    for (int j = 0; j < 6; ++j) q[j] = centre[j] + rng.Uniform(-0.3, 0.3);
+    // The tool's pose in the work object the robot holds at q (nominal model).
+    const SE3d X = (ToolPose(c.nominal, q.data(), c.flange) * wobj_used).Inverse() * tool_used;
+    auto cf = [&](int j) { return std::to_string(static_cast<int>(std::floor(q[j] / (kPi / 2)))); };
+    const std::string name = "s" + std::to_string(k);
+    decl += "  CONST robtarget " + name + ":=[" + xyz(X.t) + "," + quat(X.R) + ",[" + cf(0) + "," +
+            cf(3) + "," + cf(5) + ",0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];\n";
+    body += "    MoveL " + name + ", v100, fine, tFixed\\WObj:=wHeld;\n";
+    planned.push_back({name, q});
+  }
+  const std::string text = decl + body + "  ENDPROC\nENDMODULE\n";
+  ParsedProgram program;
+  std::string out;
+  ASSERT_TRUE(CompensateProgramText(text, ProgramLanguage::kRapid, c.calibrated, c.nominal,
+                                    ProgramOptions(), &out, &program)
+                  .ok());
+  ExpectOnlyNumbersChanged(text, out, program);
+  ParsedProgram after;
+  ASSERT_TRUE(ParseProgram(out, ProgramLanguage::kRapid, &after).ok());
+  ASSERT_EQ(after.targets.size(), program.targets.size());
+  auto pose = [](const ProgramTarget& t) {
+    const auto& v = t.numbers;
+    Eigen::Vector4d q(v[4].value, v[5].value, v[6].value, v[3].value);
+    return SE3d(QuaternionToRotation<double>(q / q.norm()),
+                Eigen::Vector3d(v[0].value, v[1].value, v[2].value));
+  };
+  // Where the true robot puts the fixed tool in the work object at commanded joints q.
+  auto achieved = [&](const std::vector<double>& q) {
+    return TrueTcp(c, q, wobj_used).Inverse() * tool_used;
+  };
+  Errors e;
+  for (size_t k = 0; k < program.targets.size(); ++k) {
+    const ProgramTarget& b = program.targets[k];
+    ASSERT_EQ(b.status, ProgramTargetStatus::kCompensated) << b.name << ": " << b.reason;
+    const SE3d wanted = pose(b), corrected = pose(after.targets[k]);
+    const std::vector<double>& seed = planned[k].second;
+    const SE3d identity;
+    std::vector<double> q_ctrl, q_orig;
+    ASSERT_TRUE(ControllerIk(c, tool_used * corrected.Inverse() * wobj_used.Inverse(), identity,
+                             seed, &q_ctrl));
+    ASSERT_TRUE(
+        ControllerIk(c, tool_used * wanted.Inverse() * wobj_used.Inverse(), identity, seed, &q_orig));
+    const std::vector<double> q_direct =
+        CalibratedIk(c, tool_used * wanted.Inverse() * wobj_used.Inverse(), identity, seed);
+    e.compensated.push_back((achieved(q_ctrl).t - wanted.t).norm());
+    e.direct.push_back((achieved(q_direct).t - wanted.t).norm());
+    e.uncompensated.push_back((achieved(q_orig).t - wanted.t).norm());
+  }
+  ExpectCompensated(e, 20);
+}
+
 TEST(Program, TargetsOnlyLeavesTaughtPointsAlone) {
   const Cell& c = TheCell();
   const Generated g = UrProgram(c, 20);
@@ -569,7 +711,7 @@ TEST(Program, MalformedProgramsNameTheLine) {
   ExpectError("def p():\n  # caf\xC3\xA9 ok\n  movel(p[0.1, 0.2, 0.3, 0, 0, 0]) # \xFF\xFE\nend\n",
               ProgramLanguage::kUrScript, "line 3", "UTF-8");
   const std::string head =
-      "MODULE M\r\n  PERS tooldata t1:=[FALSE,[[0,0,100],[1,0,0,0]],"
+      "MODULE M\r\n  PERS tooldata t1:=[TRUE,[[0,0,100],[1,0,0,0]],"
       "[1,[0,0,1],[1,0,0,0],0,0,0]];\r\n";
   ExpectError(head +
                   "  CONST robtarget p1:=[[1,2,3],[1,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];"
@@ -779,8 +921,8 @@ TEST(Program, RapidTargetUsedWithTwoToolsIsLeftAlone) {
   const Cell& c = TheCell();
   const std::string text =
       "MODULE M\n"
-      "  PERS tooldata t1:=[FALSE,[[0,0,100],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n"
-      "  PERS tooldata t2:=[FALSE,[[0,0,150],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n"
+      "  PERS tooldata t1:=[TRUE,[[0,0,100],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n"
+      "  PERS tooldata t2:=[TRUE,[[0,0,150],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n"
       "  VAR robtarget p1:=[[300,-200,400],[0,0,1,0],[0,-1,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
       "  VAR robtarget p2:=[[300,-200,450],[0,0,1,0],[0,-1,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
       "  PROC main()\n"
@@ -803,6 +945,75 @@ TEST(Program, RapidTargetUsedWithTwoToolsIsLeftAlone) {
   EXPECT_NE(program.targets[1].reason.find("assigned at run time on line 9"), std::string::npos)
       << program.targets[1].reason;
   EXPECT_EQ(out, text);
+}
+
+// A padded set_tcp argument (1 MB) before many targets: no record copies it (each target used to
+// hold the TCP's whole text, and 1.1 MB of URScript ran out of memory); the TCP is read all the same.
+TEST(Program, LargeSpansAreNotCopiedPerTarget) {
+  const std::string pad(1 << 20, ' ');
+  std::string text = "def p():\n  set_tcp(p[0.0, 0.0," + pad + "0.1, 0.0, 0.0, 0.0])\n";
+  for (int k = 0; k < 200; ++k) {
+    text += "  movel(p[0.3, -0.2, " + std::to_string(0.3 + 0.001 * k) + ", 0.0, 3.1, 0.0])\n";
+  }
+  text += "  movel(pose_add(get_actual_tcp_pose(), p[0.0," + pad + "0.0, 0.01, 0, 0, 0]))\nend\n";
+  ParsedProgram program;
+  ASSERT_TRUE(ParseProgram(text, ProgramLanguage::kUrScript, &program).ok());
+  ASSERT_EQ(program.targets.size(), 201u);
+  for (const ProgramTarget& t : program.targets) {
+    EXPECT_LE(t.tcp_name.size(), 83u);
+    EXPECT_LE(t.reason.size(), 140u);
+  }
+  EXPECT_NEAR(program.targets[0].tcp.t.z(), 100.0, 1e-9);
+  EXPECT_EQ(program.targets[0].tcp_name.substr(0, 11), "p[0.0, 0.0,");
+  EXPECT_EQ(program.targets[0].tcp_name.substr(program.targets[0].tcp_name.size() - 3), "...");
+  EXPECT_NE(program.targets[200].reason.find("computed at run time: pose_add("), std::string::npos);
+}
+
+// The last guard before a compensation is written or returned: a non-finite joint value or pose is
+// an error naming its line (or row), the others pass.
+TEST(Program, NonFiniteCompensationIsAnErrorNamingTheRow) {
+  CompensatedRows rows;
+  rows.q = {0.1, 0.2, 0.3, 0.4, std::nan(""), 0.6};
+  rows.results.resize(3);
+  const int lines[3] = {5, 7, 9};
+  Status s = CheckCompensatedFinite(rows, lines, 0, "t.csv");
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("t.csv: line 9: the compensation is not finite"), std::string::npos)
+      << s.message();
+  rows.q[4] = 0.5;
+  EXPECT_TRUE(CheckCompensatedFinite(rows, lines, 0, "t.csv").ok());
+  rows.corrected.resize(3);
+  rows.corrected[1].t.x() = std::numeric_limits<double>::infinity();
+  s = CheckCompensatedFinite(rows, nullptr, 100, "targets");
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("targets: row 101:"), std::string::npos) << s.message();
+}
+
+// A RAPID robtarget declared twice is an error naming both lines; a module whose text is URScript
+// (or the reverse) does not fit the language given.
+TEST(Program, RapidNameDeclaredTwiceAndTheWrongLanguage) {
+  ExpectError("MODULE M\n"
+              "  CONST robtarget p1:=[[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+              "  VAR robtarget P1:=[[1,2,4],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+              "ENDMODULE\n",
+              ProgramLanguage::kRapid, "line 3", "p1 is declared twice (first on line 2)");
+  const Cell& c = TheCell();
+  const std::string ur = "def p():\n  movej([0.4, -1.3, 1.6, -1.9, -1.5, 0.4])\nend\n";
+  ParsedProgram program;
+  std::string out;
+  const Status s = CompensateProgramText(ur, ProgramLanguage::kRapid, c.calibrated, c.nominal,
+                                         ProgramOptions(), &out, &program);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("reads as a urscript program (1 targets, the first on line 2)"),
+            std::string::npos)
+      << s.message();
+  EXPECT_TRUE(CompensateProgramText(ur, ProgramLanguage::kUrScript, c.calibrated, c.nominal,
+                                    ProgramOptions(), &out, &program)
+                  .ok());
+  // A program with no target in either language is not an error.
+  EXPECT_TRUE(CompensateProgramText("MODULE M\nENDMODULE\n", ProgramLanguage::kRapid, c.calibrated,
+                                    c.nominal, ProgramOptions(), &out, &program)
+                  .ok());
 }
 
 TEST(Program, LanguageFromPath) {

@@ -7,7 +7,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -16,6 +18,7 @@
 
 #include "file_util.h"
 #include "lpoe/io.h"
+#include "lpoe/residual_layer.h"
 #include "lpoe/robot_model.h"
 
 #ifndef LPOE_PLAN_PATH
@@ -396,6 +399,196 @@ TEST(ToolContract, CalibrationWithoutRedundancyIsRefused) {
   r = Calibrate(d, "--model=" + Q(kModel) + " --measurements=ten.csv --output=cal.yaml");
   EXPECT_NE(r.exit_code, kExitNotIdentifiable) << r.out << r.err;
   EXPECT_EQ((r.out + r.err).find("cannot check itself"), std::string::npos) << r.out << r.err;
+}
+
+// ---- Issue 40: crashes, lost outputs and silent wrong results.
+
+constexpr int kExitNumerical = 5;
+constexpr int kExitOutput = 6;
+
+// A joint program for cobot6 (its only tool is the flange of program mode).
+const char kUrJoints[] =
+    "def p():\n  movej([0.1, -1.2, 1.0, 0.3, 0.5, 0.2], a=1.2, v=0.25)\n"
+    "  movej([0.2, -1.1, 0.9, 0.2, 0.6, 0.1], a=1.2, v=0.25)\nend\n";
+const char kRapidJoints[] =
+    "MODULE M\n  CONST jointtarget j1:=[[10,-60,50,20,30,10],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+    "  PROC main()\n    MoveAbsJ j1, v100, fine, tool0;\n  ENDPROC\nENDMODULE\n";
+
+std::string Models() { return "--model=" + Q(kModel) + " --nominal=" + Q(kModel) + " "; }
+
+// cobot6 with a residual layer of one inducing input (as lpoe_calibrate --residual_model=gp writes
+// one, small).
+RobotModel WithResidualLayer() {
+  RobotModel m;
+  EXPECT_TRUE(ReadRobotModel(kModel, &m).ok());
+  auto layer = std::make_shared<ResidualLayer>();
+  layer->num_joints = m.num_joints();
+  layer->num_tools = m.num_tools();
+  layer->length_scales = Eigen::VectorXd::Constant(m.num_joints(), 1.0);
+  layer->signal_std = 0.02;
+  layer->noise_std = 0.01;
+  layer->inducing_q = Eigen::MatrixXd::Constant(1, m.num_joints(), 0.2);
+  layer->inducing_tool = {0};
+  layer->weights = Eigen::MatrixXd::Constant(1, 3, 10.0);
+  layer->variance = Eigen::MatrixXd::Constant(1, 1, 100.0);
+  layer->fitted_rows = 10;
+  EXPECT_TRUE(layer->Validate(m.num_joints(), m.num_tools()).ok());
+  m.residual_layer = layer;
+  return m;
+}
+
+// --output=keep.* --report=/dev/full: exit 6 and keep.* as it was (lpoe_compensate in program and
+// targets mode, lpoe_calibrate with its report and HTML page).
+TEST(ToolContract, AFailingOutputLeavesEveryOtherOutputAsItWas) {
+  if (!Exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  TempDir d;
+  ASSERT_TRUE(WriteAll(d / "in.script", kUrJoints));
+  ASSERT_TRUE(WriteAll(d / "keep.script", "keep\n"));
+  ToolOutput r = Compensate(d, Models() + "--program=in.script --output=keep.script "
+                                          "--report=/dev/full");
+  EXPECT_EQ(r.exit_code, kExitOutput) << r.err;
+  EXPECT_EQ(ReadAll(d / "keep.script"), "keep\n");
+  ASSERT_TRUE(WriteAll(d / "t.csv", TargetsCsv()));
+  ASSERT_TRUE(WriteAll(d / "keep.csv", "keep\n"));
+  r = Compensate(d, "--model=" + Q(kModel) + " --targets=t.csv --output=keep.csv "
+                    "--report=/dev/full");
+  EXPECT_EQ(r.exit_code, kExitOutput) << r.err;
+  EXPECT_EQ(ReadAll(d / "keep.csv"), "keep\n");
+  for (const char* flag : {"--report", "--html_report"}) {
+    ASSERT_TRUE(WriteAll(d / "keep.yaml", "keep\n"));
+    r = Calibrate(d, "--model=" + Q(kModel) + " --measurements=" + Q(kIdentification) +
+                         " --output=keep.yaml --plots_dir= " + flag + "=/dev/full");
+    EXPECT_EQ(r.exit_code, kExitOutput) << flag << "\n" << r.out << r.err;
+    EXPECT_EQ(ReadAll(d / "keep.yaml"), "keep\n") << flag;
+  }
+  EXPECT_TRUE(NoStagingLeft(d.path()));
+}
+
+// A model with a residual layer and a TCP given by its offset: refused with the reason (the layer
+// corrects the measured tools only), never an abort; a measured tool by name works.
+TEST(ToolContract, ResidualLayerWithAnOffsetTcpIsRefusedNotAborted) {
+  TempDir d;
+  ASSERT_TRUE(WriteRobotModel(d / "layer.yaml", WithResidualLayer()).ok());
+  ASSERT_TRUE(WriteAll(d / "t.csv", TargetsCsv()));
+  ToolOutput r = Compensate(d, "--model=layer.yaml --targets=t.csv --output=o.csv --tcp=0,0,100");
+  EXPECT_EQ(r.exit_code, kExitUsage) << r.err;
+  EXPECT_NE(r.err.find("residual layer corrects only the tools it was measured with (smr1)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(Exists(d / "o.csv"));
+  r = Compensate(d, "--model=layer.yaml --targets=t.csv --output=o.csv --tcp=smr1");
+  EXPECT_EQ(r.exit_code, kExitOk) << r.err;
+}
+
+// inducing_tools with 100,000 entries: an error at that key's line, before any allocation.
+TEST(ToolContract, HugeInducingCountIsRefusedAtItsLine) {
+  TempDir d;
+  ASSERT_TRUE(WriteRobotModel(d / "layer.yaml", WithResidualLayer()).ok());
+  std::string text = ReadAll(d / "layer.yaml");
+  const size_t at = text.find("  inducing_tools: [");
+  ASSERT_NE(at, std::string::npos) << text;
+  const size_t end = text.find('\n', at);
+  std::string many = "  inducing_tools: [0";
+  for (int k = 1; k < 100000; ++k) many += ", 0";
+  text.replace(at, end - at, many + "]");
+  const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + at, '\n'));
+  ASSERT_TRUE(WriteAll(d / "many.yaml", text));
+  ASSERT_TRUE(WriteAll(d / "j.csv", JointsCsv(2)));
+  const ToolOutput r = Predict(d, "--model=many.yaml --joints=j.csv --output=p.csv");
+  EXPECT_EQ(r.exit_code, kExitInput) << r.err;
+  EXPECT_NE(r.err.find("many.yaml:" + std::to_string(line) +
+                       ": 'inducing_tools' has 100000 entries"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(Exists(d / "p.csv"));
+}
+
+// Program mode refuses what targets mode refuses, and says which flag is wrong.
+TEST(ToolContract, ProgramModeRefusals) {
+  TempDir d;
+  ASSERT_TRUE(WriteAll(d / "in.script", kUrJoints));
+  ASSERT_TRUE(WriteAll(d / "in.mod", kRapidJoints));
+  // A nominal model of another robot (joint 2 prismatic): as --targets refuses it.
+  RobotModel other;
+  ASSERT_TRUE(ReadRobotModel(kModel, &other).ok());
+  other.joints[1].type = JointType::kPrismatic;
+  other.joints[1].twist = DefaultTwist(JointType::kPrismatic);
+  ASSERT_TRUE(WriteRobotModel(d / "prismatic.yaml", other).ok());
+  ToolOutput r = Compensate(d, "--model=" + Q(kModel) +
+                                   " --nominal=prismatic.yaml --program=in.script --output=o.script");
+  EXPECT_EQ(r.exit_code, kExitInput) << r.err;
+  EXPECT_NE(r.err.find("joint 2 is prismatic in the nominal model but revolute"), std::string::npos)
+      << r.err;
+  EXPECT_FALSE(Exists(d / "o.script"));
+  // --language that does not fit the text.
+  r = Compensate(d, Models() + "--program=in.script --language=rapid --strict --output=o.mod");
+  EXPECT_EQ(r.exit_code, kExitInput) << r.err;
+  EXPECT_NE(r.err.find("reads as a urscript program"), std::string::npos) << r.err;
+  r = Compensate(d, Models() + "--program=in.mod --language=urscript --output=o.script");
+  EXPECT_EQ(r.exit_code, kExitInput) << r.err;
+  EXPECT_NE(r.err.find("reads as a rapid program"), std::string::npos) << r.err;
+  EXPECT_FALSE(Exists(d / "o.mod") || Exists(d / "o.script"));
+  // A robtarget declared twice: an error naming both lines.
+  ASSERT_TRUE(WriteAll(d / "twice.mod",
+                       "MODULE M\n"
+                       "  CONST robtarget p1:=[[400,0,500],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+                       "  CONST robtarget p1:=[[400,0,600],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+                       "  PROC main()\n    MoveL p1, v100, fine, tool0;\n  ENDPROC\nENDMODULE\n"));
+  r = Compensate(d, Models() + "--program=twice.mod --output=o.mod");
+  EXPECT_EQ(r.exit_code, kExitInput) << r.err;
+  EXPECT_NE(r.err.find("line 3: robtarget p1 is declared twice (first on line 2)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(Exists(d / "o.mod"));
+  // --quiet: nothing on stderr or stdout in program mode.
+  r = Compensate(d, Models() + "--quiet --program=in.script --output=o.script");
+  EXPECT_EQ(r.exit_code, kExitOk) << r.err;
+  EXPECT_EQ(r.err, "");
+  EXPECT_EQ(r.out, "");
+  EXPECT_TRUE(Exists(d / "o.script"));
+}
+
+// A TCP or length unit that puts the targets out of reach is blamed on --tcp / --length_unit, not
+// on --frame.
+TEST(ToolContract, CompensateBlamesTheRightFlag) {
+  TempDir d;
+  ASSERT_TRUE(WriteAll(d / "t.csv", TargetsCsv()));
+  ToolOutput r = Compensate(d, "--model=" + Q(kModel) + " --targets=t.csv --output=o.csv "
+                                "--tcp=0,0,1e300");
+  EXPECT_EQ(r.exit_code, kExitUsage) << r.err;
+  EXPECT_NE(r.err.find("--tcp=0,0,1e300"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("--frame"), std::string::npos) << r.err;
+  r = Compensate(d, "--model=" + Q(kModel) + " --targets=t.csv --output=o.csv --length_unit=m");
+  EXPECT_EQ(r.exit_code, kExitInput) << r.err;
+  EXPECT_NE(r.err.find("--length_unit"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("--frame"), std::string::npos) << r.err;
+  EXPECT_FALSE(Exists(d / "o.csv"));
+}
+
+// --targets_only on a name of 100,000 characters (std::regex recursed per character and
+// crashed), and a pattern that backtracks exponentially in std::regex: RE2 is linear in both.
+TEST(ToolContract, TargetsOnlyOnLongNamesAndPathologicalPatterns) {
+  TempDir d;
+  const std::string name = "Waypoint_" + std::string(100000, 'a');
+  ASSERT_TRUE(WriteAll(d / "long.script",
+                       "def p():\n  global " + name + "=[0.1, -1.2, 1.0, 0.3, 0.5, 0.2]\n  movej(" +
+                           name + ")\nend\n"));
+  ToolOutput r = Compensate(d, Models() + "--program=long.script --output=o.script "
+                                          "--report=o.json --targets_only='Waypoint_.*'");
+  EXPECT_EQ(r.exit_code, kExitOk) << r.err.substr(0, 2000);
+  nlohmann::json report = nlohmann::json::parse(ReadAll(d / "o.json"), nullptr, false);
+  ASSERT_FALSE(report.is_discarded());
+  EXPECT_EQ(report["rows"][0]["status"], "compensated");
+  r = Compensate(d, Models() + "--program=long.script --output=o.script --report=o.json "
+                               "--targets_only='(a|a)*b'");
+  EXPECT_EQ(r.exit_code, kExitOk) << r.err.substr(0, 2000);
+  report = nlohmann::json::parse(ReadAll(d / "o.json"), nullptr, false);
+  EXPECT_EQ(report["rows"][0]["status"], "not_selected");
+  // What RE2 cannot run (a backreference) is refused as a bad flag, naming it.
+  r = Compensate(d, Models() + "--program=long.script --output=x.script --targets_only='(a)\\1'");
+  EXPECT_EQ(r.exit_code, kExitUsage) << r.err;
+  EXPECT_NE(r.err.find("--targets_only"), std::string::npos) << r.err;
+  EXPECT_FALSE(Exists(d / "x.script"));
 }
 
 }  // namespace tool_contract_test

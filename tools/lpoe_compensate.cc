@@ -429,6 +429,7 @@ int Run() {
   // ---- The output, streamed into its staged temporary (committed with the report at the end).
   CompensationSummary total;
   bool input_failed = false;  // a bad row (exit 2), not an unwritable output (exit 6)
+  bool numerical_failed = false;  // a row whose compensation is not finite (exit 5)
   Status staged = outputs.StageWith(FLAGS_output, [&](const std::string& temporary) -> Status {
     tools::StagedFile out;
     if (Status s = out.Create(temporary); !s.ok()) return s;
@@ -452,6 +453,10 @@ int Run() {
       const int chunk = static_cast<int>(targets.size());
       if (chunk == 0) break;
       compensator->Solve(seeds.data(), &targets, &solved);
+      if (Status s = CheckCompensatedFinite(solved, lines.data(), 0, in_path); !s.ok()) {
+        numerical_failed = true;
+        return s;
+      }
       texts.assign(compensator->Blocks(chunk), std::string());
       compensator->ForEachBlock(chunk, [&](int block, int begin, int end) {
         format_rows(targets, solved, begin, end, &texts[block]);
@@ -465,7 +470,7 @@ int Run() {
   });
   if (!staged.ok()) {
     std::cerr << "error: " << staged.message() << "\n";
-    return input_failed ? kExitInput : kExitOutput;
+    return numerical_failed ? tools::kExitNumerical : input_failed ? kExitInput : kExitOutput;
   }
   if (unit == AngleUnit::kRadians) {
     std::vector<double> max_abs = reader.max_abs();

@@ -6,7 +6,6 @@
 #include <gflags/gflags.h>
 
 #include <iostream>
-#include <regex>
 #include <string>
 #include <vector>
 
@@ -27,7 +26,8 @@ DEFINE_string(flange, "",
               "is relative to (default: the tool named 'flange', else the model's only tool).");
 DEFINE_string(targets_only, "",
               "Compensate only the program targets whose whole name matches this regular "
-              "expression (ECMAScript); the others (taught points) are left as they are.");
+              "expression (RE2 syntax, matched in linear time); the others (taught points) are "
+              "left as they are.");
 
 namespace lpoe {
 namespace tools {
@@ -59,10 +59,8 @@ int RunProgramMode() {
     return kExitUsage;
   }
   if (!FLAGS_targets_only.empty()) {
-    try {
-      std::regex check(FLAGS_targets_only, std::regex::ECMAScript);
-    } catch (const std::regex_error& e) {
-      std::cerr << "error: --targets_only is not a regular expression: " << e.what() << "\n";
+    if (Status s = CheckTargetsOnly(FLAGS_targets_only); !s.ok()) {
+      std::cerr << "error: --" << s.message() << "\n";
       return kExitUsage;
     }
   }
@@ -107,7 +105,10 @@ int RunProgramMode() {
           CompensateProgramText(text, language, calibrated, nominal, options, &out, &program);
       !s.ok()) {
     std::cerr << "error: " << FLAGS_program << ": " << s.message() << "\n";
-    return kExitInput;
+    // A compensation that is not finite is a numerical failure (exit 5), the rest bad input.
+    return s.message().find("the compensation is not finite") != std::string::npos
+               ? kExitNumerical
+               : kExitInput;
   }
   Status staged = outputs.Stage(FLAGS_output, out);
   if (staged.ok() && !FLAGS_report.empty()) {
@@ -117,16 +118,18 @@ int RunProgramMode() {
   int counts[3] = {};
   for (const ProgramTarget& t : program.targets) {
     ++counts[static_cast<int>(t.status)];
-    if (t.status == ProgramTargetStatus::kNotCompensated) {
+    if (t.status == ProgramTargetStatus::kNotCompensated && !FLAGS_quiet) {
       std::cerr << FLAGS_program << ":" << t.line << ": " << t.name
                 << ": not compensated: " << t.reason << "\n";
     }
   }
-  std::cerr << "lpoe_compensate: " << FlangeRotationNote(program) << "\n";
-  std::cerr << "lpoe_compensate: " << program.targets.size() << " targets in "
-            << ProgramLanguageName(language) << " program " << FLAGS_program << ": compensated "
-            << counts[0] << ", not_compensated " << counts[1] << ", not_selected " << counts[2]
-            << "\n";
+  if (!FLAGS_quiet) {  // --quiet: only errors (the report has all of it)
+    std::cerr << "lpoe_compensate: " << FlangeRotationNote(program) << "\n";
+    std::cerr << "lpoe_compensate: " << program.targets.size() << " targets in "
+              << ProgramLanguageName(language) << " program " << FLAGS_program << ": compensated "
+              << counts[0] << ", not_compensated " << counts[1] << ", not_selected " << counts[2]
+              << "\n";
+  }
   if (FLAGS_strict && counts[static_cast<int>(ProgramTargetStatus::kNotCompensated)] > 0) {
     return kExitNotAllCompensated;
   }

@@ -133,6 +133,20 @@ int Run() {
     for (Eigen::Vector3d& p : positions) p = base_from_measurement * p;
   }
   for (Eigen::Vector3d& p : positions) p /= mm_per_unit;  // --length_unit
+  // The last guard (issue 40): a prediction that is not finite is an error naming its row, never
+  // a row of nan written with exit 0.
+  for (size_t r = 0; r < positions.size(); ++r) {
+    const int t = targets.empty() ? tool : targets[r];
+    const bool finite =
+        positions[r].allFinite() &&
+        (!FLAGS_predict_std ||
+         std::isfinite(model.residual_layer->Std(q.data() + r * model.num_joints(), t)));
+    if (!finite) {
+      std::cerr << "error: " << FLAGS_joints << ": data row " << r + 1
+                << ": the model predicts a non-finite position there; nothing written\n";
+      return tools::kExitNumerical;
+    }
+  }
   std::string csv = PositionsToCsv(positions);
   if (FLAGS_predict_std) {
     // The layer's standard deviation per row, a fourth column (the same in every frame).

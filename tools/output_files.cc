@@ -5,8 +5,10 @@
 #include <cerrno>
 #include <climits>
 #include <csignal>
+#include <ctime>
 #include <cstdlib>
 #include <cstring>
+#include <dirent.h>
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -218,6 +220,54 @@ int DescriptorOf(const std::string& path) {
   return -1;
 }
 
+// Staging directories (".lpoe-staging-<pid>-XXXXXX") that a process killed by SIGKILL (or a
+// power loss) left in `dir`: removed when that process is gone (kill(pid, 0) says ESRCH) and the
+// directory is ours. Only what is not a directory directly inside is removed (a staging
+// directory holds nothing else). Directories of the old form without a pid
+// (".lpoe-staging-XXXXXX") are removed when older than a day.
+void RemoveStaleStaging(const std::string& dir) {
+  DIR* d = ::opendir(dir.c_str());
+  if (d == nullptr) return;
+  const std::string prefix = ".lpoe-staging-";
+  std::vector<std::string> stale;
+  while (const struct dirent* e = ::readdir(d)) {
+    const std::string name = e->d_name;
+    if (name.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::string rest = name.substr(prefix.size());
+    const std::string path = dir + "/" + name;
+    struct stat st;
+    if (::lstat(path.c_str(), &st) != 0 || !S_ISDIR(st.st_mode) || st.st_uid != ::geteuid()) {
+      continue;
+    }
+    const size_t dash = rest.find('-');
+    bool dead = false;
+    if (dash != std::string::npos && dash > 0 && rest.find_first_not_of("0123456789") == dash) {
+      const long pid = std::strtol(rest.substr(0, dash).c_str(), nullptr, 10);
+      dead = pid > 0 && pid != ::getpid() && ::kill(static_cast<pid_t>(pid), 0) != 0 &&
+             errno == ESRCH;
+    } else if (dash == std::string::npos) {
+      dead = ::time(nullptr) - st.st_mtime > 24 * 3600;
+    }
+    if (dead) stale.push_back(path);
+  }
+  ::closedir(d);
+  for (const std::string& path : stale) {
+    DIR* inner = ::opendir(path.c_str());
+    if (inner == nullptr) continue;
+    const int fd = ::dirfd(inner);
+    while (const struct dirent* e = ::readdir(inner)) {
+      const std::string name = e->d_name;
+      if (name == "." || name == "..") continue;
+      struct stat st;
+      if (::fstatat(fd, name.c_str(), &st, AT_SYMLINK_NOFOLLOW) == 0 && !S_ISDIR(st.st_mode)) {
+        ::unlinkat(fd, name.c_str(), 0);
+      }
+    }
+    ::closedir(inner);
+    ::rmdir(path.c_str());
+  }
+}
+
 }  // namespace
 
 Status EnsureDirectories(const std::string& dir) {
@@ -329,7 +379,8 @@ Status OutputSet::StagingPath(const std::string& path, std::string* resolved,
   }
   auto it = staging_dirs_.find(dir);
   if (it == staging_dirs_.end()) {
-    std::string tmpl = dir + "/.lpoe-staging-XXXXXX";
+    RemoveStaleStaging(dir);
+    std::string tmpl = dir + "/.lpoe-staging-" + std::to_string(::getpid()) + "-XXXXXX";
     if (::mkdtemp(&tmpl[0]) == nullptr) {
       return Status::Error(path + ": cannot create a temporary directory in " + dir + ": " +
                            std::strerror(errno));
@@ -401,37 +452,83 @@ Status OutputSet::StageWith(const std::string& path,
 Status OutputSet::Commit(std::vector<std::string>* written) {
   const mode_t mask = ::umask(0);
   ::umask(mask);
+  // Phase 1: every regular temporary complete, with its mode, and flushed; every target checked.
   for (const Staged& s : staged_) {
     struct stat target;
     const bool exists = ::stat(s.resolved.c_str(), &target) == 0;
     if (exists && S_ISDIR(target.st_mode)) {
       return Status::Error(s.path + ": is a directory; nothing written there");
     }
-    if (s.direct) {
-      // A device, FIFO, socket or descriptor (staged under $TMPDIR): write straight to it.
-      std::string contents;
-      if (Status r = ReadAll(s.temporary, &contents); !r.ok()) return r;
-      // A descriptor of this process is written through itself, at its own offset (opening
-      // /proc/self/fd/1 anew would start at 0 over what the tool printed before).
-      int fd = DescriptorOf(s.path);
-      const bool own = fd < 0;
-      if (own) fd = ::open(s.path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
-      if (fd < 0) return Status::Error(s.path + ": cannot open: " + std::strerror(errno));
-      Status w = WriteAll(fd, contents.data(), contents.size(), s.path);
-      if (own) ::close(fd);
-      if (!w.ok()) return w;
-    } else {
-      const mode_t mode = exists ? (target.st_mode & 07777) : (0666 & ~mask);
-      const int fd = ::open(s.temporary.c_str(), O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
-      if (fd < 0) return Status::Error(s.temporary + ": cannot open: " + std::strerror(errno));
-      const bool ok = ::fchmod(fd, mode) == 0 && ::fsync(fd) == 0;
-      ::close(fd);
-      if (!ok) return Status::Error(s.temporary + ": cannot flush: " + std::strerror(errno));
-      if (::rename(s.temporary.c_str(), s.resolved.c_str()) != 0) {
-        return Status::Error(s.path + ": cannot rename the temporary onto it: " +
-                             std::strerror(errno));
+    if (s.direct) continue;
+    const mode_t mode = exists ? (target.st_mode & 07777) : (0666 & ~mask);
+    const int fd = ::open(s.temporary.c_str(), O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
+    if (fd < 0) return Status::Error(s.temporary + ": cannot open: " + std::strerror(errno));
+    const bool ok = ::fchmod(fd, mode) == 0 && ::fsync(fd) == 0;
+    ::close(fd);
+    if (!ok) return Status::Error(s.temporary + ": cannot flush: " + std::strerror(errno));
+  }
+  // Phase 2: devices, FIFOs, sockets and descriptors (staged under $TMPDIR) written straight,
+  // before any file is replaced: a write that fails (/dev/full) leaves every file as it was.
+  for (const Staged& s : staged_) {
+    if (!s.direct) continue;
+    std::string contents;
+    if (Status r = ReadAll(s.temporary, &contents); !r.ok()) return r;
+    // A descriptor of this process is written through itself, at its own offset (opening
+    // /proc/self/fd/1 anew would start at 0 over what the tool printed before).
+    int fd = DescriptorOf(s.path);
+    const bool own = fd < 0;
+    if (own) fd = ::open(s.path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+    if (fd < 0) return Status::Error(s.path + ": cannot open: " + std::strerror(errno));
+    Status w = WriteAll(fd, contents.data(), contents.size(), s.path);
+    if (own && ::close(fd) != 0 && w.ok()) {
+      w = Status::Error(s.path + ": cannot close: " + std::strerror(errno));
+    }
+    if (!w.ok()) return w;
+  }
+  // Phase 3: the files renamed into place together. An existing target is first linked into the
+  // staging directory (same directory, same file system), so that a rename that fails puts back
+  // every file renamed before it.
+  struct Done {
+    const Staged* staged;
+    std::string backup;  // empty: the target did not exist (removed on rollback)
+  };
+  std::vector<Done> done;
+  auto rollback = [&]() {
+    for (auto it = done.rbegin(); it != done.rend(); ++it) {
+      if (!it->backup.empty()) {
+        ::rename(it->backup.c_str(), it->staged->resolved.c_str());
+      } else {
+        ::unlink(it->staged->resolved.c_str());
       }
     }
+  };
+  int backups = 0;
+  for (const Staged& s : staged_) {
+    if (s.direct) continue;
+    Done d{&s, ""};
+    struct stat target;
+    if (::lstat(s.resolved.c_str(), &target) == 0 && S_ISREG(target.st_mode)) {
+      const std::string backup =
+          DirName(s.temporary) + "/.backup-" + std::to_string(backups++);
+      RegisterCleanup(backup);
+      if (::link(s.resolved.c_str(), backup.c_str()) == 0) d.backup = backup;
+    }
+    if (::rename(s.temporary.c_str(), s.resolved.c_str()) != 0) {
+      const std::string why = std::strerror(errno);
+      if (!d.backup.empty()) ::unlink(d.backup.c_str());
+      rollback();
+      return Status::Error(s.path + ": cannot rename the temporary onto it: " + why +
+                           " (no output replaced)");
+    }
+    done.push_back(d);
+  }
+  for (const Done& d : done) {
+    if (!d.backup.empty()) {
+      ::unlink(d.backup.c_str());
+      UnregisterCleanup(d.backup);
+    }
+  }
+  for (const Staged& s : staged_) {
     if (written) written->push_back(s.path);
   }
   for (const auto& [dir, staging] : staging_dirs_) {

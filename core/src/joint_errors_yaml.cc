@@ -12,6 +12,7 @@
 
 #include <charconv>
 #include <cstdio>
+#include <algorithm>
 #include <cmath>
 #include <string_view>
 #include <utility>
@@ -19,6 +20,7 @@
 
 #include "joint_term_kind.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/model_limits.h"
 #include "parse_util.h"
 
 namespace lpoe {
@@ -48,6 +50,10 @@ Status JointErrorsYamlReader::Number(const YAML::Node& node, int line, const std
   if (ParseNumber(Trim(text), &v) != NumberParse::kOk) {
     return Error(node, line, what + " " + Quote(text) + " is not a finite number",
                  "a finite number");
+  }
+  if (!(std::abs(v) <= kMaxJointTermValue)) {
+    return Error(node, line, what + " " + Quote(text) + " is out of range",
+                 "a number within +-" + ShortNumber(kMaxJointTermValue));
   }
   *out = v;
   return Status::Ok();
@@ -129,7 +135,12 @@ class Reader : public JointErrorsYamlReader {
   using JointErrorsYamlReader::JointErrorsYamlReader;
 
   Status Gravity(const YAML::Node& node, int line, Eigen::Vector3d* g) const {
-    return Numbers(node, line, "'gravity'", 3, kGravityExpected, g->data());
+    Status s = Numbers(node, line, "'gravity'", 3, kGravityExpected, g->data());
+    if (s.ok() && !(g->norm() <= kMaxModelGravity)) {
+      return Error(node, line, "'gravity' has magnitude " + ShortNumber(g->norm()) + " m/s^2",
+                   "a gravity vector of at most " + ShortNumber(kMaxModelGravity) + " m/s^2");
+    }
+    return s;
   }
 
   Status ReadPayload(const YAML::Node& node, int line, Payload* payload) const {
@@ -141,13 +152,18 @@ class Reader : public JointErrorsYamlReader {
     if (mass == nullptr) return Error(node, line, "'payload' has no 'mass'", "mass: <kg>");
     s = Number(*mass, line, "'mass'", &payload->mass);
     if (!s.ok()) return s;
-    if (payload->mass < 0) {
-      return Error(*mass, line, "'mass' is negative", "a payload mass >= 0 in kg");
+    if (payload->mass < 0 || payload->mass > kMaxModelPayloadKg) {
+      return Error(*mass, line, "'mass' is out of range",
+                   "a payload mass in [0, " + ShortNumber(kMaxModelPayloadKg) + "] kg");
     }
     payload->com.setZero();
     if (com != nullptr) {
       s = Numbers(*com, line, "'com'", 3, "com: [x, y, z] in mm in the last joint's frame",
                   payload->com.data());
+      if (s.ok() && !(payload->com.cwiseAbs().maxCoeff() <= kMaxModelLengthMm)) {
+        return Error(*com, line, "'com' is out of range",
+                     "a centre of mass within +-" + ShortNumber(kMaxModelLengthMm) + " mm");
+      }
     }
     return s;
   }
@@ -231,6 +247,42 @@ bool AllZero(const double* v, int n) {
   return true;
 }
 
+// The joint offsets the model's joint-space terms add, at configurations spread over the joint
+// limits (+-pi or +-1000 mm where a side is open), must be finite and plausible: a joint-space
+// error is a small correction (arc seconds to tenths of a degree), never radians.
+Status CheckJointErrorOffsets(const std::string& source, int line, const RobotModel& model) {
+  const int n = model.num_joints();
+  if (model.joint_errors.empty() || n == 0) return Status::Ok();
+  std::vector<double> q(n), dq(n);
+  constexpr int kSamples = 64;
+  for (int k = 0; k <= kSamples; ++k) {
+    for (int j = 0; j < n; ++j) {
+      const Joint& joint = model.joints[j];
+      const double open = joint.type == JointType::kRevolute ? kPi : 1000.0;
+      const double lo = std::isfinite(joint.lower) ? joint.lower : -open;
+      const double hi = std::isfinite(joint.upper) ? joint.upper : open;
+      // Corners first (k = 0: all lower, 1: all upper), then a low-discrepancy spread.
+      const double u = k < 2 ? k : std::fmod(0.5 + (k * (j + 1)) * 0.6180339887498949, 1.0);
+      q[j] = lo + (hi - lo) * u;
+    }
+    std::fill(dq.begin(), dq.end(), 0.0);
+    JointErrorOffsets(model, q.data(), dq.data());
+    for (int j = 0; j < n; ++j) {
+      const bool revolute = model.joints[j].type == JointType::kRevolute;
+      const double bound = revolute ? kMaxJointTermOffset : kMaxJointTermOffsetMm;
+      if (!(std::abs(dq[j]) <= bound)) {
+        return LineError(source, line,
+                         "'joint_errors' move joint " + Quote(model.joints[j].name) + " by " +
+                             ShortNumber(dq[j]) + (revolute ? " rad" : " mm") +
+                             " within its range: not a plausible joint-space error",
+                         "terms that move every joint by at most " + ShortNumber(bound) +
+                             (revolute ? " rad" : " mm"));
+      }
+    }
+  }
+  return Status::Ok();
+}
+
 std::string YamlQuotedName(const std::string& name) { return internal::YamlDoubleQuoted(name); }
 
 Status ReadModelWithJointErrors(
@@ -272,6 +324,7 @@ Status ReadModelWithJointErrors(
   if (s.ok() && keys[1].line > 0) s = reader.ReadPayload(keys[1].value, keys[1].line, &out.payload);
   if (s.ok() && keys[2].line > 0) {
     s = reader.ReadJointErrors(keys[2].value, keys[2].line, &out.joint_errors);
+    if (s.ok()) s = CheckJointErrorOffsets(source, keys[2].line, out);
   }
   if (s.ok() && keys[3].line > 0) {
     s = ReadResidualLayerYaml(reader, keys[3].value, keys[3].line, &out.residual_layer);

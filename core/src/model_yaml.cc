@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "lpoe/io.h"
+#include "lpoe/model_limits.h"
 #include "lpoe/urdf.h"
 #include "joint_errors_yaml.h"
 #include "lpoe/refusals.h"
@@ -222,11 +223,18 @@ class ModelYamlReader {
     return Status::Ok();
   }
 
-  Status ReadNumber(const YAML::Node& node, int line, const std::string& what, double* out) const {
+  // A number within +-max_abs (kMaxModelLengthMm unless said: every length of the file).
+  Status ReadNumber(const YAML::Node& node, int line, const std::string& what, double* out,
+                    double max_abs = kMaxModelLengthMm) const {
     if (!node.IsScalar()) return Error(line, what + " is not a number", "a finite decimal number");
     const std::string_view text = Trim(node.Scalar());
     switch (ParseNumber(text, out)) {
       case NumberParse::kOk:
+        if (!(std::abs(*out) <= max_abs)) {
+          return Error(line, what + " " + Quote(text) + " is out of range",
+                       "a number within +-" + ShortNumber(max_abs) +
+                           " (mm or rad: a physically plausible robot model)");
+        }
         return Status::Ok();
       case NumberParse::kNonFinite:
       case NumberParse::kOutOfRange:
@@ -239,7 +247,8 @@ class ModelYamlReader {
   }
 
   // A flow or block list of exactly `n` numbers.
-  Status ReadNumbers(const MapEntry& entry, int n, const std::string& expected, double* out) const {
+  Status ReadNumbers(const MapEntry& entry, int n, const std::string& expected, double* out,
+                     double max_abs = kMaxModelLengthMm) const {
     const int line = LineOf(entry.value, entry.line);
     const std::string what = "'" + entry.key + "'";
     if (!entry.value.IsSequence() || static_cast<int>(entry.value.size()) != n) {
@@ -252,7 +261,8 @@ class ModelYamlReader {
     for (int i = 0; i < n; ++i) {
       const YAML::Node item = entry.value[i];
       Status s =
-          ReadNumber(item, LineOf(item, line), what + " entry " + std::to_string(i + 1), &out[i]);
+          ReadNumber(item, LineOf(item, line), what + " entry " + std::to_string(i + 1), &out[i],
+                     max_abs);
       if (!s.ok()) return s;
     }
     return Status::Ok();
@@ -279,12 +289,12 @@ class ModelYamlReader {
     out.t = Eigen::Vector3d(t[0], t[1], t[2]);
     if (rpy != nullptr) {
       double a[3];
-      s = ReadNumbers(*rpy, 3, "[roll, pitch, yaw] in rad", a);
+      s = ReadNumbers(*rpy, 3, "[roll, pitch, yaw] in rad", a, kMaxModelAngleRad);
       if (!s.ok()) return s;
       out.R = RotationFromRpy(a[0], a[1], a[2]);
     } else if (quat != nullptr) {
       Eigen::Vector4d q;
-      s = ReadNumbers(*quat, 4, "[x, y, z, w]", q.data());
+      s = ReadNumbers(*quat, 4, "[x, y, z, w]", q.data(), 2.0);
       if (!s.ok()) return s;
       const double norm = q.norm();
       if (!(std::abs(norm - 1.0) <= kQuaternionNormTolerance)) {

@@ -26,6 +26,7 @@
 
 #include "joint_errors_yaml.h"
 #include "joint_term_kind.h"
+#include "lpoe/model_limits.h"
 #include "lpoe/residual_layer.h"
 #include "parse_util.h"
 
@@ -78,28 +79,35 @@ Status ReadResidualLayerYaml(const JointErrorsYamlReader& reader, const YAML::No
     return s;
   }
   for (int j = 0; j < n; ++j) {
-    if (!(layer->length_scales(j) > 0)) {
+    if (!(layer->length_scales(j) >= kMinLayerLengthScale &&
+          layer->length_scales(j) <= kMaxLayerLengthScale)) {
       return reader.Error(*R::Find(keys, "length_scales"), at,
-                          "'length_scales' entry " + std::to_string(j + 1) + " is not positive",
-                          "positive length scales");
+                          "'length_scales' entry " + std::to_string(j + 1) + " (" +
+                              ShortNumber(layer->length_scales(j)) + ") is out of range",
+                          "length scales in [" + ShortNumber(kMinLayerLengthScale) + ", " +
+                              ShortNumber(kMaxLayerLengthScale) + "] (rad or mm)");
     }
   }
-  struct Positive {
+  struct Ranged {
     const char* key;
     double* value;
-    bool allow_zero;
-    double max;
-  } scalars[] = {{"tool_correlation", &layer->tool_correlation, true, 1.0},
-                 {"signal_std", &layer->signal_std, false, HUGE_VAL},
-                 {"noise_std", &layer->noise_std, false, HUGE_VAL}};
-  for (const Positive& p : scalars) {
+    double min, max;
+    const char* unit;
+  } scalars[] = {{"tool_correlation", &layer->tool_correlation, 0.0, 1.0, ""},
+                 {"signal_std", &layer->signal_std, kMinLayerStd, kMaxLayerStd, " mm"},
+                 {"noise_std", &layer->noise_std, kMinLayerStd, kMaxLayerStd, " mm"}};
+  for (const Ranged& p : scalars) {
     const YAML::Node& v = *R::Find(keys, p.key);
     if (Status s = reader.Number(v, at, std::string("'") + p.key + "'", p.value); !s.ok()) return s;
-    if (!(*p.value > 0 || (p.allow_zero && *p.value == 0)) || *p.value > p.max) {
-      return reader.Error(v, at, std::string("'") + p.key + "' is out of range",
-                          p.max == 1.0 ? "a number in [0, 1]" : "a positive number");
+    if (!(*p.value >= p.min && *p.value <= p.max)) {
+      return reader.Error(v, at,
+                          std::string("'") + p.key + "' (" + ShortNumber(*p.value) +
+                              ") is out of range",
+                          "a number in [" + ShortNumber(p.min) + ", " + ShortNumber(p.max) + "]" +
+                              p.unit);
     }
   }
+  const double sf2 = layer->signal_std * layer->signal_std;
   if (const YAML::Node* rows = R::Find(keys, "fitted_rows"); rows != nullptr) {
     double v = 0;
     if (Status s = reader.Number(*rows, at, "'fitted_rows'", &v); !s.ok()) return s;
@@ -112,6 +120,12 @@ Status ReadResidualLayerYaml(const JointErrorsYamlReader& reader, const YAML::No
   if (!tools.IsSequence() || tools.size() == 0) {
     return reader.Error(tools, at, "'inducing_tools' is not a non-empty list",
                         "one tool index per inducing input");
+  }
+  // The count first: the variance matrix is m^2 numbers, allocated below.
+  if (tools.size() > static_cast<size_t>(kMaxLayerInducing)) {
+    return reader.Error(tools, at,
+                        "'inducing_tools' has " + std::to_string(tools.size()) + " entries",
+                        "at most " + std::to_string(kMaxLayerInducing) + " inducing inputs");
   }
   const int m = static_cast<int>(tools.size());
   layer->inducing_tool.resize(m);
@@ -152,15 +166,43 @@ Status ReadResidualLayerYaml(const JointErrorsYamlReader& reader, const YAML::No
   layer->inducing_q.resize(m, n);
   layer->weights.resize(m, 3);
   layer->variance.resize(m, m);
+  // Every number of a row within +-limit, else the row's line.
+  auto within = [&](const char* key, int i, const std::vector<double>& r, double limit,
+                    const std::string& expected) -> Status {
+    for (size_t c = 0; c < r.size(); ++c) {
+      if (!(std::abs(r[c]) <= limit)) {
+        const YAML::Node& v = *R::Find(keys, key);
+        return reader.Error(v[i], R::LineOf(v, at),
+                            std::string("'") + key + "' row " + std::to_string(i + 1) +
+                                " entry " + std::to_string(c + 1) + " (" + ShortNumber(r[c]) +
+                                ") is out of range",
+                            expected);
+      }
+    }
+    return Status::Ok();
+  };
+  Status range = Status::Ok();
   Status s = rows(
       "inducing", "one joint value per joint", [&](int) { return n; },
       [&](int i, const std::vector<double>& r) {
+        if (range.ok()) {
+          range = within("inducing", i, r, kMaxLayerJointValue,
+                         "joint values within +-" + ShortNumber(kMaxLayerJointValue));
+        }
         for (int j = 0; j < n; ++j) layer->inducing_q(i, j) = r[j];
       });
+  // A weight moves the prediction by up to |w| s_f^2 (mm), a variance entry it by |W| s_f^4.
+  const double max_weight = kMaxLayerWeightMm / sf2;
+  const double max_variance = kMaxLayerVarianceMm2 / (sf2 * sf2);
   if (s.ok()) {
     s = rows(
         "weights", "[wx, wy, wz]", [](int) { return 3; },
         [&](int i, const std::vector<double>& r) {
+          if (range.ok()) {
+            range = within("weights", i, r, max_weight,
+                           "weights w with |w| signal_std^2 within " +
+                               ShortNumber(kMaxLayerWeightMm) + " mm");
+          }
           for (int c = 0; c < 3; ++c) layer->weights(i, c) = r[c];
         });
   }
@@ -168,10 +210,16 @@ Status ReadResidualLayerYaml(const JointErrorsYamlReader& reader, const YAML::No
     s = rows(
         "variance", "row i of the lower triangle: i numbers", [](int i) { return i + 1; },
         [&](int i, const std::vector<double>& r) {
+          if (range.ok()) {
+            range = within("variance", i, r, max_variance,
+                           "entries W with |W| signal_std^4 within " +
+                               ShortNumber(kMaxLayerVarianceMm2) + " mm^2");
+          }
           for (int j = 0; j <= i; ++j) layer->variance(i, j) = layer->variance(j, i) = r[j];
         });
   }
   if (!s.ok()) return s;
+  if (!range.ok()) return range;
   if (Status v = layer->Validate(n, model.num_tools()); !v.ok()) {
     return reader.Error(node, at, v.message(), "a residual layer as lpoe_calibrate writes it");
   }

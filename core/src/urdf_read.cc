@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "lpoe/io.h"
+#include "lpoe/model_limits.h"
 #include "lpoe/se3.h"
 #include "lpoe/urdf.h"
 #include "lpoe/version.h"
@@ -96,6 +97,12 @@ std::string ParseNumbers(std::string_view text, int count, double* out) {
     double v = 0;
     switch (internal::ParseNumber(token, &v)) {
       case internal::NumberParse::kOk:
+        // Metres and radians: every length of a robot model within kMaxModelLengthMm (100 m),
+        // every angle and limit within kMaxModelAngleRad (issue 40).
+        if (!(std::abs(v) <= kMaxModelLengthMm / 1000)) {
+          return "has the number " + Quote(token) +
+                 ", out of range (lengths within 100 m, angles within 100 rad)";
+        }
         break;
       case internal::NumberParse::kNotANumber:
         return "has the non-numeric value " + Quote(token);

@@ -184,7 +184,7 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
   const bool per_row_tool = !tool_obj.is_none() && !IsOneTool(tool_obj);
   if (!tool_obj.is_none() && !per_row_tool) {
     request.tool = py::isinstance<py::str>(tool_obj) ? tool_obj.cast<std::string>()
-                                                     : std::to_string(ToolIndexOf(model, py::int_(tool_obj)));
+                                                     : std::to_string(ToolIndexOf(model, tool_obj));
   }
   request.threads = threads;
   request.ik.max_iterations = max_iterations;
@@ -248,6 +248,7 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
   }
   // Targets in another frame: refused as lpoe_compensate refuses them.
   Check(summary.CheckFrame(request, "targets"));
+  Check(CheckCompensatedFinite(solved, nullptr, 0, joints_mode ? "joints" : "targets"));
   PyCompensation c;
   c.q = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
       solved.q.data(), m, n);

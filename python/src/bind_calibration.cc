@@ -140,6 +140,18 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
       (given_verify != nullptr && given_verify->num_joints() != nominal.num_joints())) {
     throw LpoeError("the measurements have a different number of joints than the model");
   }
+  // Every row's tool a tool of the model (data read with another model): refused here, never the
+  // solvers' internal check (an abort of the interpreter).
+  for (const MeasurementSet* set : {&given_data, given_verify}) {
+    if (set == nullptr) continue;
+    for (int r = 0; r < set->size(); ++r) {
+      if (set->target(r) < 0 || set->target(r) >= nominal.num_tools()) {
+        throw LpoeError(std::string(set == &given_data ? "data" : "verify") + ": row " +
+                        std::to_string(r) + " measures tool " + std::to_string(set->target(r)) +
+                        ", the model has " + std::to_string(nominal.num_tools()) + " tools");
+      }
+    }
+  }
   if (!(holdout >= 0 && holdout <= 0.95)) throw LpoeError("holdout: expected 0..0.95");
   SplitKind split = SplitKind::kRandom;
   if (!ParseSplitKind(split_name, &split)) {

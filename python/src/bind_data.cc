@@ -100,22 +100,44 @@ std::vector<std::string> JointErrorNames(const std::string& text, bool allow_til
   return names;
 }
 
-int ToolIndexOf(const RobotModel& model, const py::object& tool) {
-  if (!py::isinstance<py::str>(tool) && !PyIndex_Check(tool.ptr())) {
-    throw LpoeError("tool: an argument has the wrong type: expected a tool name or index, got " +
-                    py::str(tool.get_type().attr("__name__")).cast<std::string>());
+// A tool name (str) as it is, or an integer index as a Python int: an int, a numpy integer or a
+// 0-d integer array. A float (1.9, np.float64(1.0), np.array(1.9)) is refused, never truncated.
+py::object StrictToolIndex(const py::object& tool) {
+  if (py::isinstance<py::str>(tool)) return tool;
+  auto refuse = [&]() {
+    return LpoeError("tool: an argument has the wrong type: expected a tool name or an integer "
+                     "index, got " +
+                     py::repr(tool).cast<std::string>() + " (" +
+                     py::str(tool.get_type().attr("__name__")).cast<std::string>() + ")");
+  };
+  if (py::isinstance<py::array>(tool)) {
+    const py::array a = tool.cast<py::array>();
+    const char kind = a.dtype().kind();
+    if (a.ndim() != 0 || (kind != 'i' && kind != 'u')) throw refuse();
+    return a.attr("item")();
   }
+  if (py::isinstance<py::bool_>(tool) || !PyIndex_Check(tool.ptr())) throw refuse();
+  PyObject* index = PyNumber_Index(tool.ptr());
+  if (index == nullptr) {
+    PyErr_Clear();
+    throw refuse();
+  }
+  return py::reinterpret_steal<py::object>(index);
+}
+
+int ToolIndexOf(const RobotModel& model, const py::object& tool_in) {
+  const py::object tool = StrictToolIndex(tool_in);
   if (py::isinstance<py::str>(tool)) {
     const int t = model.FindTool(tool.cast<std::string>());
     if (t < 0) throw LpoeError("no tool named '" + tool.cast<std::string>() + "' in the model");
     return t;
   }
-  const int t = tool.cast<int>();
+  const long long t = tool.cast<long long>();
   if (t < 0 || t >= model.num_tools()) {
     throw LpoeError("tool index " + std::to_string(t) + " out of range [0, " +
                     std::to_string(model.num_tools()) + ")");
   }
-  return t;
+  return static_cast<int>(t);
 }
 
 bool IsOneTool(const py::object& tool) {
@@ -126,7 +148,7 @@ bool IsOneTool(const py::object& tool) {
 
 std::vector<int> ToolsPerRow(const RobotModel& model, const py::object& tool, long rows,
                              const std::string& what) {
-  if (IsOneTool(tool)) return std::vector<int>(rows, ToolIndexOf(model, py::isinstance<py::str>(tool) ? tool : py::object(py::int_(tool))));
+  if (IsOneTool(tool)) return std::vector<int>(rows, ToolIndexOf(model, tool));
   if (!py::isinstance<py::sequence>(tool) && !py::isinstance<py::array>(tool)) {
     throw LpoeError(what + ": an argument has the wrong type: expected a tool name or index, or "
                     "one per row, got " +
@@ -137,8 +159,7 @@ std::vector<int> ToolsPerRow(const RobotModel& model, const py::object& tool, lo
   for (const py::handle item : tool) {
     const py::object value = py::reinterpret_borrow<py::object>(item);
     try {
-      out.push_back(py::isinstance<py::str>(value) ? ToolIndexOf(model, value)
-                                                   : ToolIndexOf(model, py::int_(value)));
+      out.push_back(ToolIndexOf(model, value));
     } catch (const LpoeError& e) {
       throw LpoeError(what + ": row " + std::to_string(out.size()) + ": " + e.what());
     } catch (const py::error_already_set&) {

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "lpoe/io.h"
+#include "lpoe/model_limits.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/measurements.h"
@@ -44,11 +45,28 @@ Eigen::Matrix4d ToMatrix(const SE3d& T) {
   return M;
 }
 
-SE3d FromMatrix(const Eigen::Matrix4d& M) {
-  return SE3d(M.topLeftCorner<3, 3>(), M.topRightCorner<3, 1>());
+// A 4x4 homogeneous transform as a model holds it: finite, a rotation (orthonormal to 1e-6,
+// determinant +1), the last row [0, 0, 0, 1], a translation within a model file's range (mm).
+SE3d FromMatrix(const Eigen::Matrix4d& M, const char* what) {
+  const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
+  const Eigen::Vector3d t = M.topRightCorner<3, 1>();
+  if (!M.allFinite()) throw LpoeError(std::string(what) + ": the matrix has NaN or infinity");
+  if (!((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-6) ||
+      !(R.determinant() > 0) ||
+      !((M.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() < 1e-12)) {
+    throw LpoeError(std::string(what) +
+                    ": not a rigid transform (a rotation, orthonormal to 1e-6 with determinant "
+                    "+1, and the last row [0, 0, 0, 1])");
+  }
+  if (!(t.cwiseAbs().maxCoeff() <= kMaxModelLengthMm)) {
+    throw LpoeError(std::string(what) + ": the translation is beyond " +
+                    std::to_string(static_cast<long>(kMaxModelLengthMm)) + " mm");
+  }
+  return SE3d(R, t);
 }
 
 py::array_t<double> Predict(const RobotModel& model, const RowArray& q, const py::object& tool) {
+  Check(model.Validate());  // an empty lpoe.Model() or one edited into another: an error, no abort
   const int n = model.num_joints();
   const py::ssize_t m = Rows(q, n, "joint values");
   const std::vector<int> tools = ToolsPerRow(model, tool, m, "tool");
@@ -58,6 +76,13 @@ py::array_t<double> Predict(const RobotModel& model, const RowArray& q, const py
   {
     py::gil_scoped_release release;
     PredictPositionsInto(model, in, m, tools.data(), o);
+  }
+  // The last guard (issue 40): a prediction that is not finite is an error naming its row.
+  for (py::ssize_t k = 0; k < 3 * m; ++k) {
+    if (!std::isfinite(o[k])) {
+      throw LpoeError("predict: row " + std::to_string(k / 3) +
+                      ": the model predicts a non-finite position there");
+    }
   }
   return out;
 }
@@ -138,7 +163,7 @@ PYBIND11_MODULE(_lpoe, m) {
           py::arg("joint"), "4x4 local frame T_{i-1,i}(0) of joint i (0-based), mm")
       .def(
           "set_joint_origin",
-          [](RobotModel& r, int i, const Eigen::Matrix4d& M) { r.joints.at(i).origin = FromMatrix(M); },
+          [](RobotModel& r, int i, const Eigen::Matrix4d& M) { r.joints.at(i).origin = FromMatrix(M, "joint origin"); },
           py::arg("joint"), py::arg("matrix"))
       .def(
           "joint_twist", [](const RobotModel& r, int i) { return r.joints.at(i).twist; },
@@ -152,7 +177,7 @@ PYBIND11_MODULE(_lpoe, m) {
       .def_property(
           "measurement_base",
           [](const RobotModel& r) { return ToMatrix(r.T_measurement_base); },
-          [](RobotModel& r, const Eigen::Matrix4d& M) { r.T_measurement_base = FromMatrix(M); },
+          [](RobotModel& r, const Eigen::Matrix4d& M) { r.T_measurement_base = FromMatrix(M, "measurement_base"); },
           "4x4 pose of the robot base in the measurement (tracker) frame, as registration found "
           "it (identity when the data were in the base frame); compensate() uses it")
       .def_property_readonly(
@@ -188,7 +213,13 @@ PYBIND11_MODULE(_lpoe, m) {
             const int t = ToolIndex(r, tool);
             py::array_t<double> out(m);
             double* o = out.mutable_data();
-            for (py::ssize_t k = 0; k < m; ++k) o[k] = r.residual_layer->Std(q.data() + k * n, t);
+            for (py::ssize_t k = 0; k < m; ++k) {
+              o[k] = r.residual_layer->Std(q.data() + k * n, t);
+              if (!std::isfinite(o[k])) {
+                throw LpoeError("predict_std: row " + std::to_string(k) +
+                                ": the standard deviation is not finite there");
+              }
+            }
             return out;
           },
           py::arg("q"), py::arg("tool") = 0,
@@ -197,11 +228,14 @@ PYBIND11_MODULE(_lpoe, m) {
       .def(
           "pose",
           [](const RobotModel& r, const RowArray& q, const py::object& tool) {
+            Check(r.Validate());
             if (Rows(q, r.num_joints(), "joint values") != 1 || q.ndim() != 1) {
               throw LpoeError("pose: expected one configuration of " +
                               std::to_string(r.num_joints()) + " joint values");
             }
-            return ToMatrix(ToolPose(r, q.data(), ToolIndex(r, tool)));
+            const Eigen::Matrix4d M = ToMatrix(ToolPose(r, q.data(), ToolIndex(r, tool)));
+            if (!M.allFinite()) throw LpoeError("pose: the model's pose is not finite there");
+            return M;
           },
           py::arg("q"), py::arg("tool") = 0, "4x4 tool pose at one configuration (geometric model)")
       .def("copy", [](const RobotModel& r) { return RobotModel(r); })

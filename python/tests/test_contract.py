@@ -130,3 +130,102 @@ def test_compensate_and_plan_arrays_have_the_readers_range_limits(inputs):
     cand[4, 0] = 1e5
     with pytest.raises(lpoe.Error, match="candidates: value of magnitude above 1e4"):
         lpoe.plan(m, 12, candidates=cand, workspace_count=50, random_draws=2)
+
+
+# ---- Issue 40.
+
+LAYER = """residual_layer:
+  kernel: se_ard
+  frame: base
+  length_scales: [1, 1, 1, 1, 1, 1]
+  tool_correlation: 1
+  signal_std: {sf}
+  noise_std: 0.01
+  fitted_rows: 10
+  inducing_tools: [0]
+  inducing:
+    - [0.2, 0.2, 0.2, 0.2, 0.2, 0.2]
+  weights:
+    - [10, 10, 10]
+  variance:
+    - [100]
+"""
+
+
+def with_layer(m, sf="0.02"):
+    return lpoe.model_from_yaml(m.to_yaml() + LAYER.format(sf=sf))
+
+
+@pytest.mark.parametrize("tool", [[1.9, 1.9, 1.9], np.array(1.9), np.float64(1.0),
+                                  np.array([0.0, 0.0, 0.0]), True])
+def test_tool_indices_must_be_integers(inputs, tool):
+    m, d, _ = inputs
+    with pytest.raises(lpoe.Error, match="integer"):
+        m.predict(np.array(d.q[:3]), tool=tool)
+
+
+def test_integer_tool_indices_are_accepted(inputs):
+    m, d, _ = inputs
+    q = np.array(d.q[:3])
+    ref = m.predict(q, tool=0)
+    for tool in [np.array(0), np.int64(0), [0, 0, 0], np.zeros(3, dtype=np.int32), "smr1"]:
+        assert np.array_equal(m.predict(q, tool=tool), ref)
+
+
+def test_measurement_base_must_be_a_finite_rigid_transform(inputs):
+    m, d, _ = inputs
+    c = m.copy()
+    bad = np.eye(4)
+    bad[0, 3] = np.nan
+    with pytest.raises(lpoe.Error, match="NaN"):
+        c.measurement_base = bad
+    scaled = np.eye(4)
+    scaled[:3, :3] *= 2
+    with pytest.raises(lpoe.Error, match="rigid"):
+        c.measurement_base = scaled
+    assert np.array_equal(c.measurement_base, np.eye(4))  # unchanged by the refusals
+    ok = np.eye(4)
+    ok[:3, 3] = [100, -50, 20]
+    c.measurement_base = ok
+    assert np.allclose(c.measurement_base, ok)
+    # lpoe.compensate then returns finite joints.
+    r = lpoe.compensate(c, joints=np.array(d.q[:3]), nominal=m)
+    assert np.all(np.isfinite(r.q))
+
+
+def test_residual_layer_with_an_offset_tcp_is_an_error_not_an_abort(inputs):
+    m, d, _ = inputs
+    layered = with_layer(m)
+    with pytest.raises(lpoe.Error, match="residual layer corrects only the tools"):
+        lpoe.compensate(layered, targets=np.array(d.positions[:3]), seeds=np.array(d.q[:3]),
+                        tcp=[0, 0, 100])
+    # A measured tool is fine.
+    r = lpoe.compensate(layered, targets=np.array(d.positions[:3]), seeds=np.array(d.q[:3]))
+    assert np.all(np.isfinite(r.q))
+
+
+@pytest.mark.parametrize("sf", ["1e200", "nan", "0"])
+def test_model_numbers_out_of_range_name_the_line(inputs, sf):
+    m, _, _ = inputs
+    text = m.to_yaml() + LAYER.format(sf=sf)
+    expected_line = text.splitlines().index("  signal_std: " + sf) + 1
+    with pytest.raises(lpoe.Error, match=":%d: 'signal_std'" % expected_line):
+        lpoe.model_from_yaml(text)
+
+
+def test_program_language_must_fit_the_text(inputs):
+    m, d, _ = inputs
+    program = "def p():\n  movej([0.1, -1.2, 1.0, 0.3, 0.5, 0.2])\nend\n"
+    with pytest.raises(lpoe.Error, match="reads as a urscript program"):
+        lpoe.compensate_program(m, m, program, language="rapid")
+
+
+def test_targets_only_on_a_long_name(inputs):
+    m, _, _ = inputs
+    name = "Waypoint_" + "a" * 100000
+    program = ("def p():\n  global " + name + "=[0.1, -1.2, 1.0, 0.3, 0.5, 0.2]\n  movej(" + name +
+               ")\nend\n")
+    r = lpoe.compensate_program(m, m, program, language="urscript", targets_only="Waypoint_.*")
+    assert [t["status"] for t in r.targets] == ["compensated"]
+    r = lpoe.compensate_program(m, m, program, language="urscript", targets_only="(a|a)*b")
+    assert [t["status"] for t in r.targets] == ["not_selected"]

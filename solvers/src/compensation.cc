@@ -10,6 +10,8 @@
 #include <thread>
 #include <vector>
 
+#include "lpoe/io.h"
+#include "lpoe/model_limits.h"
 #include "lpoe/options.h"
 #include "lpoe/refusals.h"
 #include "parse_util.h"
@@ -69,6 +71,16 @@ Status CheckCompensationRequest(const CompensationRequest& r) {
       return Status::Error("--tcp=" + r.tcp +
                            ": expected x,y,z or x,y,z,roll,pitch,yaw (mm, rad), or a tool name");
     }
+    // A TCP is on the tool: lengths and angles in the range of a model file (lpoe/model_limits.h).
+    for (size_t k = 0; k < numbers.size(); ++k) {
+      const double limit = k < 3 ? kMaxModelLengthMm : kMaxModelAngleRad;
+      if (!(std::abs(numbers[k]) <= limit)) {
+        return Status::Error("--tcp=" + (r.tcp.empty() ? std::string("(offset)") : r.tcp) +
+                             ": " + (k < 3 ? "an offset" : "an angle") + " beyond " +
+                             internal::ShortNumber(limit) + (k < 3 ? " mm" : " rad") +
+                             " is not a tool centre point (mm, rad)");
+      }
+    }
   }
   return Status::Ok();
 }
@@ -108,6 +120,17 @@ Status Compensator::Create(const CompensationRequest& request, std::unique_ptr<C
   }
   std::vector<double> numbers = request.tcp_offset;
   if (!request.tcp_offset.empty() || TcpNumbers(request.tcp, &numbers)) {
+    // The residual layer corrects the positions of the tools it was fitted on (the measured
+    // SMRs): a TCP elsewhere on the flange has no correction of its own (issue 40).
+    if (c->model_.residual_layer) {
+      std::string names;
+      for (const Tool& t : c->model_.tools) names += (names.empty() ? "" : ", ") + t.name;
+      return Status::Error(
+          "--tcp=" + (request.tcp.empty() ? std::string("x,y,z") : request.tcp) +
+          ": the model's residual layer corrects only the tools it was measured with (" + names +
+          "); a TCP given by its offset has no correction of its own: give --tcp=<one of those "
+          "tools>, or compensate with a model calibrated with --residual_model=none");
+    }
     // A TCP given by its offset: one more tool of both models (the same place on the flange).
     const bool rpy = numbers.size() == 6;
     const Eigen::Matrix3d R = RotationFromRpy(rpy ? numbers[3] : 0.0, rpy ? numbers[4] : 0.0,
@@ -133,6 +156,8 @@ Status Compensator::Create(const CompensationRequest& request, std::unique_ptr<C
                            "an index below " + std::to_string(c->model_.num_tools()));
     }
   }
+  // The model with the TCP added, checked as the inverse kinematics requires (never an abort).
+  if (Status s = InverseKinematics::CheckModel(c->model_); !s.ok()) return s;
   c->ik_ = std::make_unique<InverseKinematics>(c->model_, request.ik);  // with its joint terms
   c->nominal_chain_ = std::make_unique<KinematicChain>(c->nominal());
   *out = std::move(c);
@@ -177,6 +202,26 @@ void Compensator::Solve(const double* seeds, std::vector<IkTarget>* targets,
   });
 }
 
+Status CheckCompensatedFinite(const CompensatedRows& out, const int* lines, int64_t first_row,
+                              const std::string& source) {
+  const size_t n = out.size() > 0 ? out.q.size() / out.size() : 0;
+  for (int k = 0; k < out.size(); ++k) {
+    bool finite = true;
+    for (size_t j = 0; j < n; ++j) finite = finite && std::isfinite(out.q[k * n + j]);
+    if (!out.corrected.empty()) {
+      finite = finite && out.corrected[k].t.allFinite() && out.corrected[k].R.allFinite();
+    }
+    if (!finite) {
+      const int64_t line = lines != nullptr ? lines[k] : first_row + k;
+      return Status::Error(source + ": " + (lines != nullptr ? "line " : "row ") +
+                           std::to_string(line) +
+                           ": the compensation is not finite (the model predicts NaN or infinity "
+                           "there); nothing written");
+    }
+  }
+  return Status::Ok();
+}
+
 void CompensationSummary::Add(const CompensatedRows& out, const int* lines) {
   for (int k = 0; k < out.size(); ++k) {
     const IkResult& r = out.results[k];
@@ -205,6 +250,19 @@ Status CompensationSummary::CheckFrame(const CompensationRequest& request,
   const bool base = request.frame == TargetFrame::kBase;
   char residual[32];
   std::snprintf(residual, sizeof(residual), "%g", max_residual);
+  // Another frame moves targets by the distance between the frames (metres at most); a length
+  // unit a thousand times off moves them by hundreds of reaches: blame the unit, not the frame.
+  const double reach = ModelReach(request.model);
+  if (reach > 0 && max_residual > 50 * reach) {
+    char times[32];
+    std::snprintf(times, sizeof(times), "%.3g", max_residual / reach);
+    return Status::Error(
+        source + ": " + std::to_string(far_rows) + " of " + std::to_string(rows) +
+        " targets are far from any pose the calibrated robot reaches (line " +
+        std::to_string(max_residual_line) + ": " + residual + " mm, " + times +
+        " times its reach): their lengths are in another unit than the one they were read in "
+        "(--length_unit: mm or m); no output written");
+  }
   char limit[32];
   std::snprintf(limit, sizeof(limit), "%g", kWrongFrameMm);
   return Status::Error(

@@ -344,6 +344,16 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   if (result.termination == Termination::kNotIdentifiable) return out;
 
   if (options.on_stage) options.on_stage("analysing");
+  // A fixed tool the data never measure identified nothing: the calibrated model does not record
+  // it as fixed (it would claim the flange identified, docs/programs.md); said in the warning below.
+  for (int t = 0; t < out.result.model.num_tools(); ++t) {
+    if (!out.result.model.tools[t].fixed) continue;
+    bool measured = false;
+    for (int r = 0; r < identification.size() && !measured; ++r) {
+      measured = identification.target(r) == t;
+    }
+    if (!measured) out.result.model.tools[t].fixed = false;
+  }
   out.geometric = Geometric(result.model);
   // Without joint terms the effective joint values are the measured ones: no copy (72 B a row).
   MeasurementSet with_joint_terms;
@@ -366,7 +376,9 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
     }
     if (!unmeasured.empty()) {
       out.identifiability.warnings.push_back(
-          "fixed tool(s) " + unmeasured + " not measured in these data: held as given, they " +
+          "fixed tool(s) " + unmeasured +
+          " not measured in these data (recorded as not fixed in the calibrated model): held as "
+          "given, they " +
           (any_measured ? "add nothing to the calibration"
                         : "identify nothing, and the last joint's zero and its translation along "
                           "the axis stay a convention traded against the other tools' offsets"));

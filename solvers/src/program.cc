@@ -5,12 +5,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <regex>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "lpoe/kinematics.h"
+#include "lpoe/refusals.h"
 
 namespace lpoe {
 
@@ -112,20 +112,18 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
   for (const RobotModel* m : {&calibrated, &nominal}) {
     if (Status s = InverseKinematics::CheckModel(*m); !s.ok()) return s;
   }
+  // The same check as lpoe_compensate --targets (lpoe/refusals.h): the nominal model describes the
+  // calibrated arm.
+  if (Status s = CheckNominalMatches(calibrated, nominal); !s.ok()) {
+    return Status::Error("nominal: " + s.message());
+  }
   std::string message;
   const int flange_cal = ResolveFlangeTool(calibrated, options.flange, &message);
   if (flange_cal < 0) return Status::Error(message);
   const int flange_nom = ResolveFlangeTool(nominal, calibrated.tools[flange_cal].name, &message);
   if (flange_nom < 0) return Status::Error(message);
-  std::regex selected;
-  if (!options.targets_only.empty()) {
-    try {
-      selected = std::regex(options.targets_only, std::regex::ECMAScript);
-    } catch (const std::regex_error& e) {
-      return Status::Error("targets_only '" + options.targets_only +
-                           "' is not a regular expression: " + e.what());
-    }
-  }
+  TargetNameFilter selected;
+  if (Status s = selected.Compile(options.targets_only); !s.ok()) return s;
   const int n = calibrated.num_joints();
   std::vector<double> prev(n, 0.0);
   if (!options.home.empty()) {
@@ -174,6 +172,8 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
   const bool last_revolute = last.type == JointType::kRevolute;
   const Eigen::Vector3d axis_w = last.twist.head<3>().normalized();
   const Eigen::Vector3d axis_point = axis_w.cross(last.twist.tail<3>());
+  // `tcp`: the working point on the flange (the TCP, or for a stationary tool the target on the
+  // work object the robot holds).
   auto note_tcp = [&](const SE3d& tcp) {
     if (!last_revolute) return;
     const Eigen::Vector3d r = (calibrated.tools[flange_cal].origin * tcp).t - axis_point;
@@ -183,7 +183,7 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
   std::vector<double> seed(n), q_nom(n), q_cal(n);
   for (const int k : order) {
     ProgramTarget& t = program->targets[k];
-    const bool wanted = options.targets_only.empty() || std::regex_match(t.name, selected);
+    const bool wanted = options.targets_only.empty() || selected.Matches(t.name);
     if (t.kind == ProgramTargetKind::kJoint) {
       if (static_cast<int>(t.numbers.size()) != n) {
         t.compensable = false;
@@ -222,13 +222,15 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
           max_dq = std::max(max_dq, std::abs(q_cal[j] - q_nom[j]) * kDeg);
         }
       }
-      const SE3d a = nom_chain.Pose(q_nom.data(), flange_nom) * t.tcp;
-      const SE3d b = nom_chain.Pose(q_cal.data(), flange_nom) * t.tcp;
+      // The point that moves: the TCP, or the work object the robot holds past a stationary tool.
+      const SE3d& moving = t.stationary_tool ? t.frame : t.tcp;
+      const SE3d a = nom_chain.Pose(q_nom.data(), flange_nom) * moving;
+      const SE3d b = nom_chain.Pose(q_cal.data(), flange_nom) * moving;
       t.correction_mm = (b.t - a.t).norm();
       t.correction_deg = max_dq;
       t.status = ProgramTargetStatus::kCompensated;
       t.reason.clear();
-      note_tcp(t.tcp);
+      note_tcp(moving);
       continue;
     }
     SE3d pose;
@@ -249,7 +251,11 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
         seed[qd.joint] = (qd.number.value + 0.5) * kPi / 2;
       }
     }
-    const SE3d flange_base = t.frame * pose * t.tcp.Inverse();
+    // Robot-held tool: the TCP (flange * tcp) at the target in the work object (frame * pose).
+    // Stationary tool: the work object the robot holds (flange * frame) has the fixed tool (tcp,
+    // in the base frame) at the target: flange * frame * pose = tcp.
+    const SE3d flange_base = t.stationary_tool ? t.tcp * pose.Inverse() * t.frame.Inverse()
+                                               : t.frame * pose * t.tcp.Inverse();
     IkTarget target;
     target.tool = flange_nom;
     target.position = flange_base.t;
@@ -276,7 +282,9 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
       t.reason = std::string("the calibrated robot reaches this target ") + IkReason(rc.status);
       continue;
     }
-    const SE3d corrected = t.frame.Inverse() * nom_chain.Pose(q_cal.data(), flange_nom) * t.tcp;
+    const SE3d flange_cal_q = nom_chain.Pose(q_cal.data(), flange_nom);
+    const SE3d corrected = t.stationary_tool ? (flange_cal_q * t.frame).Inverse() * t.tcp
+                                             : t.frame.Inverse() * flange_cal_q * t.tcp;
     t.new_values = EncodePose(t, corrected);
     for (const ProgramTarget::Quadrant& qd : t.quadrants) {
       t.new_quadrants.push_back(qd.joint < n ? Quadrant(q_cal[qd.joint]) : qd.number.value);
@@ -285,7 +293,20 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
     t.correction_deg = Angle(pose.R.transpose() * corrected.R) * kDeg;
     t.status = ProgramTargetStatus::kCompensated;
     t.reason.clear();
-    note_tcp(t.tcp);
+    note_tcp(t.stationary_tool ? t.frame * pose : t.tcp);
+  }
+  // The last guard (issue 40): a compensated number that is not finite is an error naming its
+  // line, never written.
+  for (const ProgramTarget& t : program->targets) {
+    if (t.status != ProgramTargetStatus::kCompensated) continue;
+    bool finite = std::isfinite(t.correction_mm) && std::isfinite(t.correction_deg);
+    for (double v : t.new_values) finite = finite && std::isfinite(v);
+    for (double v : t.new_quadrants) finite = finite && std::isfinite(v);
+    if (!finite) {
+      return Status::Error("line " + std::to_string(t.line) + ": target " + t.name +
+                           ": the compensation is not finite (the models predict NaN or "
+                           "infinity there); nothing written");
+    }
   }
   return Status::Ok();
 }
@@ -295,6 +316,20 @@ Status CompensateProgramText(std::string_view text, ProgramLanguage language,
                              const ProgramOptions& options, std::string* output,
                              ParsedProgram* program) {
   if (Status s = ParseProgram(text, language, program); !s.ok()) return s;
+  // A text with no target in the language given that reads as the other language's program is
+  // the wrong --language (issue 40), not a program with nothing to compensate.
+  if (program->targets.empty()) {
+    const ProgramLanguage other =
+        language == ProgramLanguage::kRapid ? ProgramLanguage::kUrScript : ProgramLanguage::kRapid;
+    ParsedProgram probe;
+    if (ParseProgram(text, other, &probe).ok() && !probe.targets.empty()) {
+      return Status::Error(std::string("the text has no ") + ProgramLanguageName(language) +
+                           " motion target but reads as a " + ProgramLanguageName(other) +
+                           " program (" + std::to_string(probe.targets.size()) +
+                           " targets, the first on line " + std::to_string(probe.targets[0].line) +
+                           "): the language given does not fit the text");
+    }
+  }
   if (Status s = CompensateProgram(calibrated, nominal, options, program); !s.ok()) return s;
   *output = RewriteProgram(text, *program);
   return Status::Ok();

@@ -44,6 +44,16 @@ class TokenView {
     if (a >= b) return std::string_view();
     return text_.substr(t_[a].begin, t_[b - 1].end - t_[a].begin);
   }
+  // Span(a, b) for a name or message: at most kExcerptBytes bytes (cut at a UTF-8 character
+  // boundary, then "..."), so that a record never copies a large span of the text (issue 40).
+  static constexpr size_t kExcerptBytes = 80;
+  std::string Excerpt(int a, int b) const {
+    std::string_view s = Span(a, b);
+    if (s.size() <= kExcerptBytes) return std::string(s);
+    size_t cut = kExcerptBytes;
+    while (cut > 0 && (static_cast<unsigned char>(s[cut]) & 0xC0) == 0x80) --cut;
+    return std::string(s.substr(0, cut)) + "...";
+  }
   bool Is(int i, std::string_view s) const { return i < size() && Text(i) == s; }
   // Case-insensitive (RAPID keywords and names).
   bool IsNoCase(int i, std::string_view s) const;
@@ -67,6 +77,7 @@ std::string Lower(std::string_view s);
 // the controller's seed (URScript qnear; empty: none), and the use's order and line.
 struct TargetUse {
   SE3d frame, tcp;
+  bool stationary = false;  // ProgramTarget::stationary_tool
   std::string frame_name, tcp_name;
   std::vector<double> qnear;
   int order = 0, line = 0;

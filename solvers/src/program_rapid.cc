@@ -33,6 +33,12 @@ using Use = program_internal::TargetUse;
 struct Frame {
   SE3d pose;
   std::string runtime;  // non-empty: cannot be used (why)
+  // RAPID's robhold (Technical reference manual - RAPID Instructions, Functions and Data types):
+  // tooldata TRUE = the robot holds the tool, FALSE = a stationary tool; wobjdata TRUE = the robot
+  // holds the work object (used with a stationary tool), FALSE = the work object is fixed.
+  // `stationary` is true for a stationary tool (tooldata robhold FALSE) and for a work object held
+  // by the robot (wobjdata robhold TRUE): such a tool and work object go together.
+  bool stationary = false;
 };
 
 struct Motion {
@@ -293,7 +299,15 @@ class RapidParser {
     const int va = k + 2, ve = e;
     const bool is_var = v_.IsNoCase(s, "VAR");
     if (t == "robtarget" || t == "jointtarget") {
+      // A name declared twice: which value a motion uses is not known (routine scopes are not
+      // distinguished), so it is an error naming both lines.
+      if (const auto first = named_.find(key); first != named_.end()) {
+        return Error(v_[name_at].line, t + " " + name + " is declared twice (first on line " +
+                                           std::to_string(first->second.line) +
+                                           "); give each target its own name");
+      }
       Named n;
+      n.line = v_[name_at].line;
       if (array) {
         n.runtime = "an array element";
       } else if (!init) {
@@ -306,7 +320,7 @@ class RapidParser {
           return st;
         }
         if (record < 0) {
-          n.runtime = "its value is computed at run time: " + std::string(v_.Span(va, ve));
+          n.runtime = "its value is computed at run time: " + v_.Excerpt(va, ve);
         }
         n.record = record;
       }
@@ -322,7 +336,11 @@ class RapidParser {
       } else {
         const auto items = v_.Items(va);
         const std::string what = t + " " + name;
-        const bool robhold = !items.empty() && v_.IsNoCase(items[0].first, "TRUE");
+        // robhold: a literal TRUE or FALSE (a bool variable is a run-time value).
+        const bool robhold_literal =
+            !items.empty() && items[0].second == items[0].first + 1 &&
+            (v_.IsNoCase(items[0].first, "TRUE") || v_.IsNoCase(items[0].first, "FALSE"));
+        const bool robhold = robhold_literal && v_.IsNoCase(items[0].first, "TRUE");
         if (t == "tooldata") {
           if (items.size() != 3) {
             return Error(v_[va].line, what +
@@ -335,7 +353,10 @@ class RapidParser {
             return st;
           }
           if (!literal) f.runtime = "its tframe is not a literal";
-          if (robhold) f.runtime = "a stationary tool (robhold TRUE) is not supported";
+          // tooldata robhold TRUE: the robot holds the tool (tframe on the flange); FALSE: a
+          // stationary tool (tframe in the world frame, used with a work object the robot holds).
+          f.stationary = !robhold;
+          if (!robhold_literal) f.runtime = "its robhold is not TRUE or FALSE";
         } else {
           if (items.size() != 5) {
             return Error(v_[va].line, what +
@@ -357,8 +378,10 @@ class RapidParser {
           if (v_.IsNoCase(items[1].first, "FALSE")) {
             f.runtime = "a moving user frame (ufprog FALSE, coordinated motion) is not supported";
           }
-          if (robhold)
-            f.runtime = "a work object held by the robot (robhold TRUE) is not supported";
+          // wobjdata robhold TRUE: the robot holds the work object (uframe on the flange), for
+          // a stationary tool; FALSE: the work object is fixed (uframe in the world frame).
+          f.stationary = robhold;
+          if (!robhold_literal) f.runtime = "its robhold is not TRUE or FALSE";
         }
       }
       (t == "tooldata" ? tools_ : wobjs_)[key] = f;
@@ -419,8 +442,11 @@ class RapidParser {
       if (assigned_.count(tool)) context_runtime = label + assigned_[tool];
     } else {
       context_runtime =
-          "its tool is computed at run time: " + std::string(v_.Span(ta.first, ta.second));
+          "its tool is computed at run time: " + v_.Excerpt(ta.first, ta.second);
     }
+    const auto tool_it = tools_.find(use.tcp_name.empty() ? std::string() : Lower(use.tcp_name));
+    const bool stationary_tool = tool_it != tools_.end() && tool_it->second.stationary;
+    bool held_wobj = false;
     // Work object: \WObj:=name anywhere in the statement.
     use.frame_name = "wobj0";
     for (int i = s; i + 4 < e; ++i) {
@@ -437,10 +463,25 @@ class RapidParser {
         }
         use.frame = it->second.pose;
         use.frame_name = std::string(v_.Text(i + 4));
+        held_wobj = it->second.stationary;
         const std::string label = "work object " + use.frame_name + ": ";
         if (!it->second.runtime.empty()) context_runtime = label + it->second.runtime;
         if (assigned_.count(w)) context_runtime = label + assigned_[w];
       }
+    }
+    // A stationary tool is used with a work object the robot holds, and only then (RAPID's
+    // definition of robhold in tooldata and wobjdata).
+    use.stationary = stationary_tool && held_wobj;
+    if (context_runtime.empty() && stationary_tool != held_wobj) {
+      context_runtime =
+          stationary_tool
+              ? "tool " + use.tcp_name + " is a stationary tool (robhold FALSE) but work object " +
+                    use.frame_name +
+                    " is not held by the robot (robhold FALSE): a stationary tool needs a work "
+                    "object the robot holds"
+              : "work object " + use.frame_name +
+                    " is held by the robot (robhold TRUE, for a stationary tool) but tool " +
+                    use.tcp_name + " is held by the robot too (robhold TRUE)";
     }
     for (size_t k = 0; k < m.targets.size(); ++k) {
       const auto& arg = args[m.targets[k]];
@@ -455,7 +496,7 @@ class RapidParser {
         }
         if (record < 0) {
           Runtime(inline_name, line,
-                  "computed at run time: " + std::string(v_.Span(arg.first, arg.second)));
+                  "computed at run time: " + v_.Excerpt(arg.first, arg.second));
           continue;
         }
       } else if (arg.second == arg.first + 1 && v_.IsIdent(arg.first)) {
@@ -477,7 +518,7 @@ class RapidParser {
         record = it->second.record;
       } else {
         Runtime(inline_name, line,
-                "computed at run time: " + std::string(v_.Span(arg.first, arg.second)));
+                "computed at run time: " + v_.Excerpt(arg.first, arg.second));
         continue;
       }
       ProgramTarget& r = program_->targets[record];
@@ -523,6 +564,7 @@ class RapidParser {
   }
 
   struct Named {
+    int line = 0;  // of its declaration
     int record = -1;
     bool joint = false;
     std::string runtime;

@@ -11,6 +11,8 @@
 #include <vector>
 
 #include "lpoe/program.h"
+
+#include "re2/re2.h"
 #include "program_lexer.h"
 
 namespace lpoe {
@@ -69,13 +71,14 @@ void ApplyTargetUses(const std::vector<TargetUse>& uses, const TargetUseRules& r
   t->order = u.order;
   t->frame = u.frame;
   t->tcp = u.tcp;
+  t->stationary_tool = u.stationary;
   t->frame_name = u.frame_name;
   t->tcp_name = u.tcp_name;
   t->qnear = u.qnear;
   const bool cartesian = t->kind == ProgramTargetKind::kCartesian;
   for (const TargetUse& w : uses) {
-    const bool same_tcp =
-        (w.tcp.t - u.tcp.t).norm() < 1e-9 && (w.tcp.R - u.tcp.R).norm() < 1e-12;
+    const bool same_tcp = w.stationary == u.stationary && (w.tcp.t - u.tcp.t).norm() < 1e-9 &&
+                          (w.tcp.R - u.tcp.R).norm() < 1e-12;
     const bool same_frame =
         (w.frame.t - u.frame.t).norm() < 1e-9 && (w.frame.R - u.frame.R).norm() < 1e-12;
     if (t->compensable && ((!same_frame && (cartesian || rules.joint_targets_use_frame)) ||
@@ -489,6 +492,27 @@ std::string FlangeRotationNoteJson(const ParsedProgram& program) {
 
 }  // namespace
 
+Status TargetNameFilter::Compile(const std::string& pattern) {
+  re_.reset();
+  if (pattern.empty()) return Status::Ok();
+  RE2::Options options;
+  options.set_log_errors(false);
+  auto re = std::make_shared<const RE2>(pattern, options);
+  if (!re->ok()) {
+    return Status::Error("targets_only '" + pattern +
+                         "' is not a regular expression (RE2 syntax): " + re->error());
+  }
+  re_ = std::move(re);
+  return Status::Ok();
+}
+
+bool TargetNameFilter::Matches(std::string_view name) const {
+  return re_ == nullptr ||
+         RE2::FullMatch(re2::StringPiece(name.data(), name.size()), *re_);
+}
+
+Status CheckTargetsOnly(const std::string& pattern) { return TargetNameFilter().Compile(pattern); }
+
 std::string ProgramReportJson(const ParsedProgram& program) {
   int counts[3] = {};
   for (const ProgramTarget& t : program.targets) ++counts[static_cast<int>(t.status)];
@@ -517,6 +541,7 @@ std::string ProgramReportJson(const ParsedProgram& program) {
     JsonString(t.frame_name, &out);
     out += ", \"tcp\": ";
     JsonString(t.tcp_name, &out);
+    if (t.stationary_tool) out += ", \"stationary_tool\": true";
     out += ", \"reason\": ";
     JsonString(t.reason, &out);
     char buf[96];

@@ -6,6 +6,7 @@
 // qnear=joints); set_tcp(pose) for the motions that follow. Anything else in a target position is
 // computed at run time: reported, not compensated. The text is read in order, as the controller
 // would run a straight-line program; a variable reassigned later is a new value from then on.
+#include <algorithm>
 #include <map>
 #include <string>
 #include <vector>
@@ -53,9 +54,15 @@ class UrParser {
       if (member) continue;
       // Assignment at statement level: [global|local] NAME = value
       if (depth[i] == 0 && v_.Is(i + 1, "=") && !v_.Is(i + 2, "=") && i + 2 < n) {
-        const int e = v_.ExpressionEnd(i + 2, n);
+        // The value ends at the end of its line (URScript statements are lines), or before a
+        // separator at its depth. The line is found first, so that each assignment reads only its
+        // own tokens (parsing stays linear in the text; issue 40).
+        int line_end = i + 2;
+        while (line_end < n && v_[line_end].line == v_[i + 2].line) {
+          line_end = v_[line_end].match > line_end ? v_[line_end].match + 1 : line_end + 1;
+        }
+        const int e = v_.ExpressionEnd(i + 2, std::min(line_end, n));
         int end = i + 2;
-        // The value ends at the end of its line (URScript statements are lines).
         while (end < e && v_[end].line == v_[i + 2].line) {
           end = v_[end].match > end ? v_[end].match + 1 : end + 1;
         }
@@ -72,7 +79,7 @@ class UrParser {
         std::string why;
         if (FramePose(items[0].first, items[0].second, &pose, &why)) {
           tcp_ = pose;
-          tcp_name_ = std::string(v_.Span(items[0].first, items[0].second));
+          tcp_name_ = v_.Excerpt(items[0].first, items[0].second);
           tcp_runtime_.clear();
         } else {
           tcp_runtime_ = "the TCP (set_tcp on line " + std::to_string(v_[i].line) + ") " + why;
@@ -171,7 +178,7 @@ class UrParser {
       *pose = PoseOf(r.numbers);
       return true;
     }
-    *why = "is computed at run time: " + std::string(v_.Span(a, e));
+    *why = "is computed at run time: " + v_.Excerpt(a, e);
     return false;
   }
 
@@ -270,7 +277,7 @@ class UrParser {
       if (!FramePose(items[0].first, items[0].second, &use.frame, &why)) {
         return Runtime(inline_name, use.line, "its feature frame " + why);
       }
-      use.frame_name = std::string(v_.Span(items[0].first, items[0].second));
+      use.frame_name = v_.Excerpt(items[0].first, items[0].second);
       x = items[1].first;
       xe = items[1].second;
     }
@@ -294,7 +301,7 @@ class UrParser {
       }
       record = it->second.record;
     } else {
-      return Runtime(inline_name, use.line, "computed at run time: " + std::string(v_.Span(x, xe)));
+      return Runtime(inline_name, use.line, "computed at run time: " + v_.Excerpt(x, xe));
     }
     if (program_->targets[record].kind == ProgramTargetKind::kCartesian && !tcp_runtime_.empty()) {
       program_->targets[record].compensable = false;

@@ -17,6 +17,7 @@
 #define LPOE_PROGRAM_H_
 
 #include <cstddef>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -25,6 +26,10 @@
 #include "lpoe/robot_model.h"
 #include "lpoe/se3.h"
 #include "lpoe/status.h"
+
+namespace re2 {
+class RE2;
+}  // namespace re2
 
 namespace lpoe {
 
@@ -78,6 +83,10 @@ struct ProgramTarget {
   int order = 0;      // program order of the first use (seeds are chained in this order)
   SE3d frame;         // the work object / feature the target is expressed in, robot base (mm)
   SE3d tcp;           // the TCP in the flange frame (mm)
+  // A stationary tool (RAPID tooldata robhold FALSE, with a wobjdata robhold TRUE): `tcp` is the
+  // fixed tool's frame in the robot base frame, `frame` the work object on the flange, and the
+  // numbers are the tool's pose in the work object: flange = tcp * target^-1 * frame^-1.
+  bool stationary_tool = false;
   std::string frame_name, tcp_name;
   std::vector<double> qnear;  // rad: the controller's seed (URScript qnear); empty: none
   // Quadrants of joints (RAPID confdata cf1, cf4, cf6): used for the seed, rewritten from the
@@ -123,14 +132,32 @@ struct ProgramOptions {
   // Tool of both models that is the controller's flange (tool0); empty: a tool named "flange",
   // else the model's only tool.
   std::string flange;
-  // ECMAScript regular expression: only targets whose whole name matches are compensated (the
-  // rest are taught points, kNotSelected). Empty: every target.
+  // Regular expression (RE2 syntax: ECMAScript's without backreferences and lookaround; matched
+  // in time linear in the name, names of any length): only targets whose whole name matches are
+  // compensated (the rest are taught points, kNotSelected). Empty: every target.
   std::string targets_only;
   // Joints (rad) the first target's inverse kinematics starts from when the program gives no
   // seed; empty: the middle of each joint's limits (0 for unlimited joints).
   std::vector<double> home;
   IkOptions ik;
 };
+
+// The targets_only filter: an RE2 regular expression on the whole target name, matched in time
+// linear in the name (no recursion, no backtracking; names of any length). An empty pattern
+// selects every name.
+class TargetNameFilter {
+ public:
+  // An error saying why RE2 refuses the pattern ("targets_only '...' is not a regular expression
+  // (RE2 syntax): ...").
+  Status Compile(const std::string& pattern);
+  bool Matches(std::string_view name) const;
+
+ private:
+  std::shared_ptr<const re2::RE2> re_;
+};
+
+// Checks a ProgramOptions::targets_only pattern (TargetNameFilter::Compile).
+Status CheckTargetsOnly(const std::string& pattern);
 
 // Resolves the flange tool of `model` (see ProgramOptions::flange), -1 with a message.
 int ResolveFlangeTool(const RobotModel& model, const std::string& flange, std::string* message);
