@@ -470,7 +470,17 @@ TEST(JointErrors, YamlErrorsNameLineAndReason) {
   } cases[] = {
       {"gravity: [0, 0]\n", "m.yaml:7: 'gravity' is a list of 2"},
       {"gravity: [0, 0, .nan]\n", "m.yaml:7: 'gravity' entry 3 '.nan' is not a finite number"},
-      {"payload: {mass: -1}\n", "m.yaml:7: 'mass' is negative"},
+      {"payload: {mass: -1}\n", "m.yaml:7: 'mass' is out of range"},
+      {"payload: {mass: 1, com: [0, 0, 1e9]}\n", "m.yaml:7: 'com' is out of range"},
+      {"gravity: [0, 0, 1e5]\n", "m.yaml:7: 'gravity' has magnitude 100000 m/s^2"},
+      // Issue 40: a gear-ratio error of 1e308 (NaN joints downstream), or one that moves joint b
+      // by radians within its range, is not a joint-space error.
+      {"joint_errors:\n  gear_ratio:\n    - {joint: b, s: 1e308}\n",
+       "m.yaml:9: 's' '1e308' is out of range"},
+      {"joint_errors:\n  gear_ratio:\n    - {joint: b, s: 0.3}\n",
+       "m.yaml:7: 'joint_errors' move joint 'b' by"},
+      {"joint_errors:\n  harmonics:\n    - {joint: a, coefficients: [0.5, 0, 0, 0]}\n",
+       "m.yaml:7: 'joint_errors' move joint 'a' by"},
       {"payload: {com: [0, 0, 1]}\n", "m.yaml:7: 'payload' has no 'mass'"},
       {"joint_errors:\n  harmonics:\n    - {joint: c, coefficients: [0, 0, 0, 0]}\n",
        "m.yaml:9: 'joint' 'c' is not a joint of the model"},

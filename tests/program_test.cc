@@ -996,7 +996,7 @@ TEST(Program, RapidNameDeclaredTwiceAndTheWrongLanguage) {
               "  CONST robtarget p1:=[[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
               "  VAR robtarget P1:=[[1,2,4],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
               "ENDMODULE\n",
-              ProgramLanguage::kRapid, "line 3", "p1 is declared twice (first on line 2)");
+              ProgramLanguage::kRapid, "line 3", "P1 is declared twice (first on line 2)");
   const Cell& c = TheCell();
   const std::string ur = "def p():\n  movej([0.4, -1.3, 1.6, -1.9, -1.5, 0.4])\nend\n";
   ParsedProgram program;

@@ -565,6 +565,39 @@ TEST(ToolContract, CompensateBlamesTheRightFlag) {
   EXPECT_FALSE(Exists(d / "o.csv"));
 }
 
+// `fixed: true` on a tool the data never measure identifies nothing: the calibrated model does not
+// record it as fixed, and program mode does not report the flange's rotation as identified.
+TEST(ToolContract, UnmeasuredFixedToolIsNotReportedAsIdentifyingTheFlange) {
+  TempDir d;
+  RobotModel nominal;
+  ASSERT_TRUE(ReadRobotModel(kModel, &nominal).ok());
+  Tool nest;
+  nest.name = "nest2";
+  nest.origin.t = Eigen::Vector3d(-40, 0, 60);
+  nest.fixed = true;
+  nominal.tools.push_back(nest);
+  ASSERT_TRUE(WriteRobotModel(d / "nominal.yaml", nominal).ok());
+  ToolOutput r = RunInDir(d.path(), std::string(LPOE_CALIBRATE_PATH) +
+                                        " --model=nominal.yaml --measurements=" +
+                                        Q(kIdentification) + " --output=cal.yaml --plots_dir=");
+  ASSERT_EQ(r.exit_code, kExitOk) << r.out << r.err;
+  EXPECT_NE((r.out + r.err).find("nest2 not measured in these data (recorded as not fixed"),
+            std::string::npos)
+      << r.out << r.err;
+  RobotModel cal;
+  ASSERT_TRUE(ReadRobotModel(d / "cal.yaml", &cal).ok());
+  ASSERT_EQ(cal.num_tools(), 2);
+  EXPECT_FALSE(cal.tools[1].fixed);
+  EXPECT_FALSE(cal.HasFixedTool());
+  ASSERT_TRUE(WriteAll(d / "in.script", kUrJoints));
+  r = Compensate(d, "--model=cal.yaml --nominal=nominal.yaml --flange=smr1 --program=in.script "
+                    "--output=o.script --report=o.json");
+  ASSERT_EQ(r.exit_code, kExitOk) << r.err;
+  nlohmann::json report = nlohmann::json::parse(ReadAll(d / "o.json"), nullptr, false);
+  ASSERT_FALSE(report.is_discarded());
+  EXPECT_EQ(report["flange_rotation_identified"], false);
+}
+
 // --targets_only on a name of 100,000 characters (std::regex recursed per character and
 // crashed), and a pattern that backtracks exponentially in std::regex: RE2 is linear in both.
 TEST(ToolContract, TargetsOnlyOnLongNamesAndPathologicalPatterns) {

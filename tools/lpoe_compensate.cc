@@ -102,7 +102,8 @@ constexpr char kUsage[] =
     "      --output=joints.csv --report=summary.json\n\n"
     "Exit codes: 0 file processed (rows may carry a status other than ok), 1 bad flags or outputs "
     "(one names an input or the other output, or its directory is missing or not writable: "
-    "checked before any row is read), 2 bad input file, 6 output not written (then neither is), "
+    "checked before any row is read), 2 bad input file, 5 a compensation that is not finite "
+    "(nothing written), 6 output not written (then neither is), "
     "8 --strict and some row not ok.";
 
 constexpr int kExitNotAllOk = 8;
@@ -210,9 +211,15 @@ class RowReader {
         for (int k = 0; k < 3; ++k) {
           double v;
           if (!ParseFinite(f[xyz[k]], &v) || std::abs(v * mm_per_unit_) > kMaxAbsCsvPositionMm) {
+            // A finite value read in metres beyond the limit is most likely millimetres: say
+            // which flag read it so (issue 40).
+            const bool metres = mm_per_unit_ != 1.0 && ParseFinite(f[xyz[k]], &v);
             return Error(std::string("xyz").substr(k, 1) + " " + internal::Quote(f[xyz[k]]) +
                          " is not a position; expected a finite number of magnitude at most "
-                         "1e6 mm");
+                         "1e6 mm" +
+                         (metres ? std::string(" (read in metres, --length_unit=m; millimetres "
+                                               "are --length_unit=mm)")
+                                 : std::string()));
           }
           target.position(k) = v * mm_per_unit_;
         }

@@ -8,7 +8,8 @@
 // row, which then overrides --tool); other columns are ignored. OUT.csv has the header x,y,z and one
 // row per input row, in mm in the model's frame (the measurement frame of a registered calibration).
 // Exit codes: 0 written, 1 bad flags or output (an input's file, or a missing or unwritable
-// directory: checked before any work), 2 bad input file, 6 output not written.
+// directory: checked before any work), 2 bad input file, 5 a prediction that is not finite, 6
+// output not written.
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -51,7 +52,8 @@ constexpr char kUsage[] =
     "  lpoe_predict --model=robot.urdf --tip_link=flange --tool_links=smr1,smr2 \\\n"
     "      --joints=poses.csv --angle_unit=deg --tool=smr2 --output=predicted.csv\n\n"
     "Exit codes: 0 written, 1 bad flags or output (an input's file, or a missing or unwritable "
-    "directory), 2 bad input file, 6 output not written.";
+    "directory), 2 bad input file, 5 a prediction that is not finite (nothing written), 6 "
+    "output not written.";
 
 int Run() {
   using tools::kExitInput;

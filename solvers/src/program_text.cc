@@ -495,9 +495,9 @@ std::string FlangeRotationNoteJson(const ParsedProgram& program) {
 Status TargetNameFilter::Compile(const std::string& pattern) {
   re_.reset();
   if (pattern.empty()) return Status::Ok();
-  RE2::Options options;
+  re2::RE2::Options options;
   options.set_log_errors(false);
-  auto re = std::make_shared<const RE2>(pattern, options);
+  auto re = std::make_shared<const re2::RE2>(pattern, options);
   if (!re->ok()) {
     return Status::Error("targets_only '" + pattern +
                          "' is not a regular expression (RE2 syntax): " + re->error());
@@ -508,7 +508,7 @@ Status TargetNameFilter::Compile(const std::string& pattern) {
 
 bool TargetNameFilter::Matches(std::string_view name) const {
   return re_ == nullptr ||
-         RE2::FullMatch(re2::StringPiece(name.data(), name.size()), *re_);
+         re2::RE2::FullMatch(re2::StringPiece(name.data(), name.size()), *re_);
 }
 
 Status CheckTargetsOnly(const std::string& pattern) { return TargetNameFilter().Compile(pattern); }
