@@ -558,8 +558,19 @@ TEST(ToolContract, CompensateBlamesTheRightFlag) {
   EXPECT_EQ(r.exit_code, kExitUsage) << r.err;
   EXPECT_NE(r.err.find("--tcp=0,0,1e300"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("--frame"), std::string::npos) << r.err;
+  // Millimetres read as metres: beyond the reader's 1e6 mm (z of 1061 mm) ...
   r = Compensate(d, "--model=" + Q(kModel) + " --targets=t.csv --output=o.csv --length_unit=m");
   EXPECT_EQ(r.exit_code, kExitInput) << r.err;
+  EXPECT_NE(r.err.find("--length_unit"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("--frame"), std::string::npos) << r.err;
+  // ... and within it (targets of 300-400 mm read as 300-400 m): hundreds of reaches away.
+  ASSERT_TRUE(WriteAll(d / "mm.csv", "q1,q2,q3,q4,q5,q6,x,y,z\n0.1,0.2,0.3,0.4,0.5,0.6,400,100,300\n"
+                                     "0.2,0.3,0.4,0.5,0.6,0.7,380,120,320\n"
+                                     "0.3,0.4,0.5,0.6,0.7,0.8,360,140,340\n"));
+  r = Compensate(d, "--model=" + Q(kModel) + " --targets=mm.csv --output=o.csv --length_unit=m");
+  EXPECT_EQ(r.exit_code, kExitInput) << r.err;
+  EXPECT_NE(r.err.find("times its reach): their lengths are in another unit"), std::string::npos)
+      << r.err;
   EXPECT_NE(r.err.find("--length_unit"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("--frame"), std::string::npos) << r.err;
   EXPECT_FALSE(Exists(d / "o.csv"));

@@ -150,8 +150,8 @@ std::vector<int> ToolsPerRow(const RobotModel& model, const py::object& tool, lo
                              const std::string& what) {
   if (IsOneTool(tool)) return std::vector<int>(rows, ToolIndexOf(model, tool));
   if (!py::isinstance<py::sequence>(tool) && !py::isinstance<py::array>(tool)) {
-    throw LpoeError(what + ": an argument has the wrong type: expected a tool name or index, or "
-                    "one per row, got " +
+    throw LpoeError(what + ": an argument has the wrong type: expected a tool name or an integer "
+                    "index, or one per row, got " +
                     py::str(tool.get_type().attr("__name__")).cast<std::string>());
   }
   std::vector<int> out;
