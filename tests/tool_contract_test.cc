@@ -403,7 +403,6 @@ TEST(ToolContract, CalibrationWithoutRedundancyIsRefused) {
 
 // ---- Issue 40: crashes, lost outputs and silent wrong results.
 
-constexpr int kExitNumerical = 5;
 constexpr int kExitOutput = 6;
 
 // A joint program for cobot6 (its only tool is the flange of program mode).
