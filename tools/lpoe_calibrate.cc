@@ -593,8 +593,11 @@ int Run() {
   // The geometry-only outputs: with joint-space terms, the geometry-only re-fit of the same data
   // (the geometry identified with the terms predicts worse without them).
   const bool geometry_outputs = !FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty();
-  const RobotModel& geometry_model =
-      run.has_geometry_only ? run.geometry_only.model : result.model;
+  RobotModel geometry_model = run.has_geometry_only ? run.geometry_only.model : result.model;
+  // With the registration the YAML records: the URDF's base frame is the YAML's (one model).
+  if (overlay.in_measurement_frame) {
+    geometry_model.T_measurement_base = run.registration.T_measurement_base;
+  }
   if (geometry_outputs && staged.ok() && !result.model.joint_errors.empty()) {
     const auto rms = [](const ErrorStatistics& e) { return e.norm.rms; };
     std::cerr << "warning: URDF and UR kinematics cannot hold the identified joint-error terms ("

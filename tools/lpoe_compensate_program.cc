@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "lpoe/compensation.h"
 #include "lpoe/io.h"
 #include "lpoe/program.h"
 #include "output_files.h"
@@ -23,8 +24,9 @@ DEFINE_string(program, "",
 DEFINE_string(language, "",
               "Language of --program: urscript | rapid (default: from its extension).");
 DEFINE_string(flange, "",
-              "Tool of the models that is the controller's flange (tool0), which the program's TCP "
-              "is relative to (default: the tool named 'flange', else the model's only tool).");
+              "The controller's flange, which a TCP is relative to (--tcp, a program's set_tcp or "
+              "tooldata): a tool or a flange frame of the models (a URDF link fixed to the last "
+              "link) [tool0, else flange, else the last joint's frame].");
 DEFINE_string(targets_only, "",
               "Compensate only the program targets whose whole name matches this regular "
               "expression (ECMAScript); the others (taught points) are left as they are.");
@@ -87,10 +89,11 @@ int RunProgramMode() {
       return kExitInput;
     }
   }
-  std::string message;
-  if (ResolveFlangeTool(calibrated, FLAGS_flange, &message) < 0) {
-    std::cerr << "error: " << FLAGS_model << ": " << message << "\n";
-    return kExitUsage;
+  if (SE3d flange; !FLAGS_flange.empty()) {
+    if (Status s = FindFlange(calibrated, FLAGS_flange, &flange); !s.ok()) {
+      std::cerr << "error: --flange: " << FLAGS_model << ": " << s.message() << "\n";
+      return kExitUsage;
+    }
   }
   std::string text;
   if (Status s = ReadFile(FLAGS_program, &text); !s.ok()) {
@@ -99,6 +102,8 @@ int RunProgramMode() {
   }
   ProgramOptions options;
   options.flange = FLAGS_flange;
+  // --frame as given; by default the language's (URScript with ur_description: link:base).
+  if (!gflags::GetCommandLineFlagInfoOrDie("frame").is_default) options.frame = FLAGS_frame;
   options.targets_only = FLAGS_targets_only;
   options.ik = IkOptionsFromFlags();
   ParsedProgram program;
@@ -122,6 +127,8 @@ int RunProgramMode() {
                 << ": not compensated: " << t.reason << "\n";
     }
   }
+  std::cerr << "lpoe_compensate: " << FLAGS_program << ": poses read in the frame "
+            << program.frame << ", TCPs relative to " << program.flange << "\n";
   std::cerr << "lpoe_compensate: " << FlangeRotationNote(program) << "\n";
   std::cerr << "lpoe_compensate: " << program.targets.size() << " targets in "
             << ProgramLanguageName(language) << " program " << FLAGS_program << ": compensated "
