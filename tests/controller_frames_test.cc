@@ -472,6 +472,40 @@ TEST(ControllerFramesTest, ControllerBaseAsTheBaseLink) {
   EXPECT_NE(bad.message().find("base_link"), std::string::npos) << bad.message();
 }
 
+// --ur_kinematics_output from the classic layout: converted so that the current ur_description
+// (shoulder_pan_joint on `base`, every joint about z, tool0 = wrist_3_link) puts tool0 where the
+// calibrated URDF does.
+TEST(ControllerFramesTest, UrKinematicsFromTheClassicLayout) {
+  const Cell& c = TheCell();
+  UrdfOverlayOptions overlay;
+  overlay.in_measurement_frame = true;
+  std::string yaml;
+  ASSERT_TRUE(UrKinematicsYaml(c.source, c.calibrated, overlay, &yaml).ok());
+  // Read the six origins back.
+  std::vector<double> v;
+  std::istringstream in(yaml);
+  for (std::string line; std::getline(in, line);) {
+    const size_t colon = line.find(": ");
+    const std::string key = line.substr(0, colon);
+    if (colon == std::string::npos || key.find_first_not_of(' ') != 4) continue;
+    v.push_back(std::stod(line.substr(colon + 2)));
+  }
+  ASSERT_EQ(v.size(), 36u) << yaml;
+  for (const auto& q : c.path) {
+    SE3d T = c.F_base;  // UR's Base: base_link_inertia in the current layout
+    for (int i = 0; i < 6; ++i) {
+      const double* o = &v[6 * i];
+      T = T * SE3d(RotationFromRpy(o[3], o[4], o[5]), Eigen::Vector3d(o[0], o[1], o[2]) * 1000.0) *
+          SE3d(RotationFromRpy(0.0, 0.0, q[i]), Eigen::Vector3d::Zero());
+    }
+    const SE3d want = ToolPose(c.urdf_calibrated, q.data(), 0) *
+                      c.urdf_calibrated.tools[0].origin.Inverse() *
+                      FlangeFrame(c.urdf_calibrated, "tool0");
+    EXPECT_LT((T.t - want.t).norm(), 1e-6);
+    EXPECT_LT((T.R - want.R).norm(), 1e-9);
+  }
+}
+
 }  // namespace controller_frames_test
 }  // namespace
 }  // namespace lpoe

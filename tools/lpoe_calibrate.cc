@@ -622,6 +622,34 @@ int Run() {
                  "(docs/residual_layer.md): they predict without its correction. Predict or "
                  "compensate with the YAML model (--output), which keeps it\n";
   }
+  // Each model written, with what it predicts on its own (the reports' output_models).
+  {
+    const bool v = run.has_verification;
+    const auto rms = [](const ErrorStatistics& e) { return e.norm.rms; };
+    const double full = v ? rms(run.verification_after) : rms(run.identification_after);
+    const char* set = v ? "verification" : "identification";
+    double geometry = full;
+    std::string lacks;
+    if (!result.model.joint_errors.empty()) {
+      geometry = run.has_geometry_only ? (v ? rms(run.geometry_only_verification)
+                                            : rms(run.geometry_only_identification))
+                                       : -1;
+      lacks = "the joint-error terms (" + tools::JointErrorTermNames(result.model) +
+              "): a geometry-only re-fit";
+    }
+    if (result.model.residual_layer) {
+      lacks += std::string(lacks.empty() ? "" : "; ") + "the residual layer";
+    }
+    if (!FLAGS_output.empty()) summary.output_models.push_back({"--output", FLAGS_output, full, set});
+    for (const auto& [flag, path] : {std::pair<std::string, std::string>{"--urdf_output", FLAGS_urdf_output},
+                                     {"--ur_kinematics_output", FLAGS_ur_kinematics_output}}) {
+      if (path.empty()) continue;
+      summary.output_models.push_back(
+          {flag, path, geometry >= 0 ? geometry : full, set, !lacks.empty(),
+           lacks.empty() ? "" : "it cannot carry " + lacks + "; predict and compensate with the "
+                                "YAML model"});
+    }
+  }
   if (!FLAGS_urdf_output.empty() && staged.ok()) {
     std::string xml;
     if (from_urdf) {
