@@ -171,13 +171,18 @@ def check_frame_meanings(root, readme, tools):
         path = os.path.join(root, "python", "src", source)
         text = " ".join(re.findall(r'"((?:[^"\\]|\\.)*)"', open(path, encoding="utf-8").read()))
         for flag in flags:
-            i = text.find(f"{flag}:") if flag != "frame" else text.find("`frame`")
-            if i < 0:
-                i = text.find(f"{flag}:")
-            if i < 0:
-                fail(f"python/src/{source}: the docstring does not describe {flag}")
-            else:
-                has_all(text[i:i + 500], f"python/src/{source} docstring", flag)
+            # Some occurrence of `flag:` (or `frame`) describes it in full (error messages name
+            # the keyword too); none says what it must not.
+            starts = [m.start() for m in re.finditer(re.escape(f"{flag}:") + "|`" + flag + "`",
+                                                     text)]
+            wanted, banned = FRAME_MEANINGS[flag]
+            if not any(all(w in text[i:i + 500] for w in wanted) for i in starts):
+                fail(f"python/src/{source}: no docstring describes {flag} with "
+                     f"{', '.join(repr(w) for w in wanted)}")
+            for i in starts:
+                for b in banned:
+                    if b in text[i:i + 500]:
+                        fail(f"python/src/{source}: {flag} is described as '{b}'")
     # docs/conventions.md: one table of frames, each frame in one row.
     conv = open(os.path.join(root, "docs", "conventions.md"), encoding="utf-8").read()
     m = re.search(r"\n## Frames\n(.*?)\n## ", conv, re.S)

@@ -193,24 +193,30 @@ Eigen::Vector3d RpyNearest(const Eigen::Matrix3d& R, const Eigen::Vector3d& old)
   const Eigen::Vector3d a = RpyFromRotation(R);
   Eigen::Vector3d best = a;
   double best_distance = std::numeric_limits<double>::infinity();
-  for (int branch = 0; branch < 2; ++branch) {
-    Eigen::Vector3d c = branch == 0 ? a : Eigen::Vector3d(a(0) + kPi, kPi - a(1), a(2) + kPi);
-    for (int k = 0; k < 3; ++k) c(k) = WrapNear(c(k), old(k));
-    if (std::abs(std::cos(c(1))) < 1e-7) {
-      // Gimbal lock: R depends on r - s y only (s = sin(pitch)); keep that, share the rest.
-      const double s = std::sin(c(1)) > 0 ? 1.0 : -1.0;
-      const double d = (c(0) - s * c(2)) - (old(0) - s * old(2));
-      c(0) = old(0) + d / 2;
-      c(2) = old(2) - s * d / 2;
-    }
+  auto consider = [&](const Eigen::Vector3d& c, double tolerance) {
+    if ((RotationFromRpy(c(0), c(1), c(2)) - R).norm() > tolerance) return;
     const double distance = (c - old).norm();
     if (distance < best_distance) {
       best_distance = distance;
       best = c;
     }
+  };
+  for (int branch = 0; branch < 2; ++branch) {
+    Eigen::Vector3d c = branch == 0 ? a : Eigen::Vector3d(a(0) + kPi, kPi - a(1), a(2) + kPi);
+    for (int k = 0; k < 3; ++k) c(k) = WrapNear(c(k), old(k));
+    consider(c, 1e-12);  // exact: both branches reproduce R
+    if (std::abs(std::cos(c(1))) < 1e-7) {
+      // Gimbal lock: R depends on r - s y only (s = sin(pitch)); keep that, share the change
+      // between roll and yaw. Accepted when it reproduces R to 1e-10 (near, not at, the lock the
+      // two are still tied by cos(pitch)).
+      const double s = std::sin(c(1)) > 0 ? 1.0 : -1.0;
+      const double d = (c(0) - s * c(2)) - (old(0) - s * old(2));
+      Eigen::Vector3d g = c;
+      g(0) = old(0) + d / 2;
+      g(2) = old(2) - s * d / 2;
+      consider(g, 1e-10);
+    }
   }
-  // The candidates are exact in theory; keep the nearest only when it reproduces R to rounding.
-  if ((RotationFromRpy(best(0), best(1), best(2)) - R).norm() > 1e-12) return a;
   return best;
 }
 

@@ -109,7 +109,7 @@ def test_compensate_targets_in_the_base_frame_by_default_like_the_tool(inputs):
     # Base-frame targets read as measurement-frame ones are metres off: refused, naming the frame.
     with pytest.raises(lpoe.Error, match=r"measurement frame \(--frame=measurement\).*--frame=base"):
         lpoe.compensate(c, base_targets, seeds=Q, frame="measurement")
-    with pytest.raises(lpoe.Error, match="frame: expected 'base' or 'measurement'"):
+    with pytest.raises(lpoe.Error, match="frame: expected 'base', 'measurement' or 'link:NAME'"):
         lpoe.compensate(c, base_targets, seeds=Q, frame="tracker")
 
 
