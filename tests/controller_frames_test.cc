@@ -22,6 +22,7 @@
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/pipeline.h"
+#include "lpoe/plausibility.h"
 #include "lpoe/program.h"
 #include "lpoe/refusals.h"
 #include "lpoe/simulation.h"
@@ -137,20 +138,20 @@ SE3d FlangeFrame(const RobotModel& m, const std::string& name) {
 }
 
 // The TCP of the true robot at commanded joints q, in the tracker's frame.
-SE3d TrueTcpInTracker(const Cell& c, const std::vector<double>& q) {
+SE3d TrueTcpInTracker(const Cell& c, const std::vector<double>& q, const SE3d& tcp) {
   std::vector<double> qa(q);
   for (size_t j = 0; j < qa.size(); ++j) qa[j] += c.joint_zero[j];
   const SE3d flange = ToolPose(c.actual, qa.data(), 0) * c.actual.tools[0].origin.Inverse() *
                       FlangeFrame(c.nominal, "tool0");
-  return c.T_tracker_base * flange * kTcp;
+  return c.T_tracker_base * flange * tcp;
 }
 
 // The simulated controller: the nominal model's inverse kinematics for the TCP pose `tcp_base`
 // (in the chain's base frame), seeded at `seed`.
 std::vector<double> ControllerIk(const Cell& c, const SE3d& tcp_base,
-                                 const std::vector<double>& seed) {
+                                 const std::vector<double>& seed, const SE3d& tcp) {
   RobotModel m = c.nominal;
-  m.tools.push_back(Tool{"tcp", FlangeFrame(c.nominal, "tool0") * kTcp});
+  m.tools.push_back(Tool{"tcp", FlangeFrame(c.nominal, "tool0") * tcp});
   IkOptions o;
   o.check_branch = false;
   const InverseKinematics ik(m, o);
@@ -167,24 +168,25 @@ std::vector<double> ControllerIk(const Cell& c, const SE3d& tcp_base,
 
 // The intended TCP poses of the path, in the chain's base frame: where the nominal model puts
 // the TCP at the planned joints (a CAD program).
-std::vector<SE3d> IntendedInBase(const Cell& c) {
+std::vector<SE3d> IntendedInBase(const Cell& c, const SE3d& tcp = kTcp) {
   std::vector<SE3d> out;
   for (const auto& q : c.path) {
     out.push_back(ToolPose(c.nominal, q.data(), 0) * c.nominal.tools[0].origin.Inverse() *
-                  FlangeFrame(c.nominal, "tool0") * kTcp);
+                  FlangeFrame(c.nominal, "tool0") * tcp);
   }
   return out;
 }
 
 // |executed - intended| (mm) on the true robot for poses given to the controller in the chain's
 // base frame, the intended poses placed in the tracker by the calibration's registration.
-std::vector<double> Execute(const Cell& c, const std::vector<SE3d>& commanded_base) {
-  const std::vector<SE3d> intended = IntendedInBase(c);
+std::vector<double> Execute(const Cell& c, const std::vector<SE3d>& commanded_base,
+                            const SE3d& tcp = kTcp) {
+  const std::vector<SE3d> intended = IntendedInBase(c, tcp);
   std::vector<double> errors;
   for (size_t k = 0; k < commanded_base.size(); ++k) {
-    const std::vector<double> q = ControllerIk(c, commanded_base[k], c.path[k]);
+    const std::vector<double> q = ControllerIk(c, commanded_base[k], c.path[k], tcp);
     const SE3d want = c.calibrated.T_measurement_base * intended[k];
-    errors.push_back((TrueTcpInTracker(c, q).t - want.t).norm());
+    errors.push_back((TrueTcpInTracker(c, q, tcp).t - want.t).norm());
   }
   return errors;
 }
@@ -208,14 +210,13 @@ std::string UrScript(const Cell& c) {
   return s + "end\n";
 }
 
-// An ABB-style module: the same path as robtargets in wobj0 (the chain's base) with a tooldata.
+// An ABB-style module: the same path, for the flange (the built-in tool0: a tooldata's robhold is
+// read as RAPID defines it only with issue 40), as robtargets in wobj0 (the chain's base).
 std::string Rapid(const Cell& c) {
-  std::string s =
-      "MODULE Cell\n  PERS tooldata tcp1 := [TRUE,[[0,0,150],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,"
-      "0]];\n  CONST jointtarget home := [[";
+  std::string s = "MODULE Cell\n  CONST jointtarget home := [[";
   for (int j = 0; j < 6; ++j) s += (j ? "," : "") + Num(c.path[0][j] * kDeg, 6);
   s += "],[9E9,9E9,9E9,9E9,9E9,9E9]];\n";
-  const std::vector<SE3d> intended = IntendedInBase(c);
+  const std::vector<SE3d> intended = IntendedInBase(c, SE3d());
   for (size_t k = 0; k < intended.size(); ++k) {
     const Eigen::Vector4d q = RotationToQuaternion<double>(intended[k].R);  // x y z w
     const auto cf = [&](int j) {
@@ -226,9 +227,9 @@ std::string Rapid(const Cell& c) {
          "," + Num(q(0), 10) + "," + Num(q(1), 10) + "," + Num(q(2), 10) + "],[" + cf(0) + "," +
          cf(3) + "," + cf(5) + ",0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n";
   }
-  s += "  PROC main()\n    MoveAbsJ home, v100, fine, tcp1;\n";
+  s += "  PROC main()\n    MoveAbsJ home, v100, fine, tool0;\n";
   for (size_t k = 0; k < intended.size(); ++k) {
-    s += "    MoveL p" + std::to_string(k) + ", v100, fine, tcp1\\WObj:=wobj0;\n";
+    s += "    MoveL p" + std::to_string(k) + ", v100, fine, tool0\\WObj:=wobj0;\n";
   }
   return s + "  ENDPROC\nENDMODULE\n";
 }
@@ -308,7 +309,8 @@ TEST(ControllerFramesTest, RapidModuleLandsOnTheTargets) {
     for (const ProgramTarget& t : program.targets) {
       EXPECT_EQ(t.status, ProgramTargetStatus::kCompensated) << t.name << ": " << t.reason;
     }
-    const std::vector<double> e = Execute(c, CompensatedPoses(out, ProgramLanguage::kRapid, SE3d()));
+    const std::vector<double> e =
+        Execute(c, CompensatedPoses(out, ProgramLanguage::kRapid, SE3d()), SE3d());
     EXPECT_LT(Max(e), 0.05);
   }
 }
@@ -317,6 +319,9 @@ TEST(ControllerFramesTest, RapidModuleLandsOnTheTargets) {
 TEST(ControllerFramesTest, TargetRowsAndProgramTargetsTakeTheSamePath) {
   const Cell& c = TheCell();
   const std::vector<SE3d> intended = IntendedInBase(c);
+  const std::string script = UrScript(c);
+  // The poses as the program gives them (in `base`, decoded from its numbers).
+  const std::vector<SE3d> in_base = CompensatedPoses(script, ProgramLanguage::kUrScript, SE3d());
   for (const RobotModel* cal : {&c.calibrated, &c.urdf_calibrated}) {
     SCOPED_TRACE(cal == &c.calibrated ? "YAML model" : "URDF model");
     CompensationRequest r;
@@ -328,20 +333,26 @@ TEST(ControllerFramesTest, TargetRowsAndProgramTargetsTakeTheSamePath) {
     std::unique_ptr<Compensator> comp;
     ASSERT_TRUE(Compensator::Create(r, &comp).ok());
     EXPECT_EQ(comp->flange_name(), "tool0");
-    std::vector<IkTarget> targets;
-    std::vector<double> seeds;
-    for (size_t k = 0; k < intended.size(); ++k) {
-      const SE3d X = c.F_base.Inverse() * intended[k];
-      IkTarget t;
-      t.tool = comp->default_tool();
-      t.position = X.t;
-      t.rotation = X.R;
-      t.has_orientation = true;
-      targets.push_back(t);
-      seeds.insert(seeds.end(), c.path[k].begin(), c.path[k].end());
-    }
+    // Rows for the exact poses of the path, seeded at the planned joints: on target.
+    const auto solve = [&](const std::vector<SE3d>& poses,
+                           const std::vector<std::vector<double>>& seed_rows, CompensatedRows* rows) {
+      std::vector<IkTarget> targets;
+      std::vector<double> seeds;
+      for (size_t k = 0; k < poses.size(); ++k) {
+        IkTarget t;
+        t.tool = comp->default_tool();
+        t.position = poses[k].t;
+        t.rotation = poses[k].R;
+        t.has_orientation = true;
+        targets.push_back(t);
+        seeds.insert(seeds.end(), seed_rows[k].begin(), seed_rows[k].end());
+      }
+      comp->Solve(seeds.data(), &targets, rows);
+    };
+    std::vector<SE3d> exact;
+    for (const SE3d& X : intended) exact.push_back(c.F_base.Inverse() * X);
     CompensatedRows rows;
-    comp->Solve(seeds.data(), &targets, &rows);
+    solve(exact, c.path, &rows);
     std::vector<SE3d> corrected;
     for (int k = 0; k < rows.size(); ++k) {
       EXPECT_EQ(rows.results[k].status, IkStatus::kOk);
@@ -349,22 +360,35 @@ TEST(ControllerFramesTest, TargetRowsAndProgramTargetsTakeTheSamePath) {
     }
     EXPECT_LT(Max(Execute(c, corrected)), 0.05);
 
-    // The program: its compensated joints are the rows' (the same solution from nearby seeds).
+    // The program, and rows of the same poses (as its numbers give them) seeded where the
+    // controller's inverse kinematics put the original targets: the same joints, to the bit.
     std::string out;
     ParsedProgram program;
-    ASSERT_TRUE(CompensateProgramText(UrScript(c), ProgramLanguage::kUrScript, *cal, c.nominal, {},
+    ASSERT_TRUE(CompensateProgramText(script, ProgramLanguage::kUrScript, *cal, c.nominal, {},
                                       &out, &program)
                     .ok());
-    int k = 0;
+    std::vector<std::vector<double>> controller;
+    std::vector<const ProgramTarget*> cartesian;
     for (const ProgramTarget& t : program.targets) {
       if (t.kind != ProgramTargetKind::kCartesian) continue;
-      ASSERT_EQ(t.q_compensated.size(), 6u);
-      for (int j = 0; j < 6; ++j) {
-        EXPECT_NEAR(t.q_compensated[j], rows.q[k * 6 + j], 1e-9) << t.name << " joint " << j + 1;
-      }
-      ++k;
+      ASSERT_EQ(t.q_controller.size(), 6u) << t.name;
+      controller.push_back(t.q_controller);
+      cartesian.push_back(&t);
     }
-    EXPECT_EQ(k, rows.size());
+    ASSERT_EQ(cartesian.size(), in_base.size());
+    CompensatedRows same;
+    solve(in_base, controller, &same);
+    for (size_t k = 0; k < cartesian.size(); ++k) {
+      ASSERT_EQ(cartesian[k]->q_compensated.size(), 6u);
+      for (int j = 0; j < 6; ++j) {
+        EXPECT_EQ(cartesian[k]->q_compensated[j], same.q[k * 6 + j])
+            << cartesian[k]->name << " joint " << j + 1;
+      }
+      // And the same solution as the exact rows' (their poses differ by the program's rounding).
+      for (int j = 0; j < 6; ++j) {
+        EXPECT_NEAR(cartesian[k]->q_compensated[j], rows.q[k * 6 + j], 1e-8);
+      }
+    }
   }
   // The TCP is on the flange (tool0), not in the last joint's frame: on this URDF the two differ
   // by 82.3 mm and a quarter turn.
@@ -427,7 +451,7 @@ TEST(ControllerFramesTest, UrdfWriteBackChangesOnlyTheCalibratedOrigins) {
 
 TEST(ControllerFramesTest, RpyNearestKeepsTheFileRepresentation) {
   using urdf_internal::RpyNearest;
-  for (const Eigen::Vector3d old :
+  for (const Eigen::Vector3d& old :
        {Eigen::Vector3d(0, 1.5708, 0), Eigen::Vector3d(0.3, kPi / 2, -0.2),
         Eigen::Vector3d(3.0, 0.2, -3.1), Eigen::Vector3d(-3.1, 2.9, 3.0),
         Eigen::Vector3d(0, -kPi / 2, 0)}) {
@@ -502,8 +526,47 @@ TEST(ControllerFramesTest, UrKinematicsFromTheClassicLayout) {
                       c.urdf_calibrated.tools[0].origin.Inverse() *
                       FlangeFrame(c.urdf_calibrated, "tool0");
     EXPECT_LT((T.t - want.t).norm(), 1e-6);
-    EXPECT_LT((T.R - want.R).norm(), 1e-9);
+    // The file's -1.570796325 for -pi/2 turns tool0's z off wrist_3's axis by 1.8e-9 rad: the
+    // conversion keeps tool0's pose, so the rotation about z differs from the axis by that much.
+    EXPECT_LT((T.R - want.R).norm(), 1e-8);
   }
+}
+
+// The verdict's unit check judges 6.27 rad as what it is (a UR joint within +-2 pi), and a
+// geometric fit far above the noise suggests --joint_errors=auto (issue 41).
+TEST(VerdictChecks, JointUnitsAndJointErrorsHint) {
+  const RobotModel m = MakeUr5Like();
+  SimulationOptions o;
+  o.count = 40;
+  o.lower = std::vector<double>(6, -6.27);
+  o.upper = std::vector<double>(6, 6.27);
+  MeasurementSet data = SimulateMeasurements(m, std::vector<double>(6, 0.0), o);
+  data.mutable_q(0)[0] = 6.27;
+  ErrorStatistics after;
+  after.norm.rms = 0.05;
+  const auto check = [](const Verdict& v, const std::string& name) {
+    for (const VerdictCheck& c : v.checks) {
+      if (c.name == name) return c;
+    }
+    return VerdictCheck();
+  };
+  PlausibilityOptions options;
+  VerdictCheck units = check(AssessPlausibility(m, m, data, after, options), "joint_units");
+  EXPECT_EQ(units.level, VerdictLevel::kPass) << units.message;
+  EXPECT_EQ(units.message.find("degrees"), std::string::npos) << units.message;
+  data.mutable_q(0)[0] = 40.0;  // degrees read as radians
+  units = check(AssessPlausibility(m, m, data, after, options), "joint_units");
+  EXPECT_NE(units.level, VerdictLevel::kPass);
+  EXPECT_NE(units.message.find("look like degrees"), std::string::npos) << units.message;
+  data.mutable_q(0)[0] = 1.0;
+  // Residuals 5 times what noise and non-geometric errors explain: the hint, for a geometric model.
+  after.norm.rms = 5 * std::sqrt(3.0) * std::hypot(options.noise_sigma, kNonGeometricMm);
+  VerdictCheck residual = check(AssessPlausibility(m, m, data, after, options), "residual");
+  EXPECT_EQ(residual.level, VerdictLevel::kCheck);
+  EXPECT_NE(residual.message.find("--joint_errors=auto"), std::string::npos) << residual.message;
+  after.norm.rms = 0.5 * std::sqrt(3.0) * std::hypot(options.noise_sigma, kNonGeometricMm);
+  residual = check(AssessPlausibility(m, m, data, after, options), "residual");
+  EXPECT_EQ(residual.message.find("--joint_errors"), std::string::npos) << residual.message;
 }
 
 }  // namespace controller_frames_test

@@ -226,6 +226,7 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
     t.new_values.clear();
     t.new_quadrants.clear();
     t.q_compensated.clear();
+    t.q_controller.clear();
     if (!t.compensable) continue;
     if (!t.used) {
       t.compensable = false;
@@ -301,6 +302,7 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
       t.correction_mm = (b.t - a.t).norm();
       t.correction_deg = max_dq;
       t.q_compensated = q_cal;
+      t.q_controller = q_nom;
       t.status = ProgramTargetStatus::kCompensated;
       t.reason.clear();
       note_tcp(*ts);
@@ -362,6 +364,7 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
     t.correction_mm = (corrected.t - pose.t).norm();
     t.correction_deg = Angle(pose.R.transpose() * corrected.R) * kDeg;
     t.q_compensated = q_cal;
+    t.q_controller = q_nom;
     t.status = ProgramTargetStatus::kCompensated;
     t.reason.clear();
     note_tcp(*ts);

@@ -99,6 +99,7 @@ struct ProgramTarget {
   double correction_mm = 0;           // change of the target's position (joint: of the TCP)
   double correction_deg = 0;          // change of its orientation (joint: largest joint change)
   std::vector<double> q_compensated;  // the joints the compensated target makes the robot take
+  std::vector<double> q_controller;   // the controller's joints for the original target (the seed)
 };
 
 struct ParsedProgram {
