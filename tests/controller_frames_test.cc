@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iostream>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -278,11 +279,14 @@ TEST(ControllerFramesTest, UrScriptPosesAreReadInUrBaseAndLandOnTheTargets) {
     EXPECT_EQ(compensated, 17);  // the home and 16 poses
     const std::vector<double> e =
         Execute(c, CompensatedPoses(out, ProgramLanguage::kUrScript, c.F_base));
+    std::cout << (cal == &c.calibrated ? "YAML" : "URDF") << " model: URScript TCPs within "
+              << Max(e) << " mm of their targets\n";
     EXPECT_LT(Max(e), 0.05);
   }
   // Uncompensated, the same program misses by millimetres: the test can fail.
   const std::vector<double> e0 =
       Execute(c, CompensatedPoses(text, ProgramLanguage::kUrScript, c.F_base));
+  std::cout << "uncompensated: " << Max(e0) << " mm\n";
   EXPECT_GT(Max(e0), 1.0);
   // Read in the chain's base instead (--frame=base), the poses are mirrored: nothing near.
   ProgramOptions in_chain_base;
@@ -311,6 +315,7 @@ TEST(ControllerFramesTest, RapidModuleLandsOnTheTargets) {
     }
     const std::vector<double> e =
         Execute(c, CompensatedPoses(out, ProgramLanguage::kRapid, SE3d()), SE3d());
+    std::cout << "RAPID flange poses within " << Max(e) << " mm\n";
     EXPECT_LT(Max(e), 0.05);
   }
 }
@@ -358,6 +363,7 @@ TEST(ControllerFramesTest, TargetRowsAndProgramTargetsTakeTheSamePath) {
       EXPECT_EQ(rows.results[k].status, IkStatus::kOk);
       corrected.push_back(rows.corrected[k]);
     }
+    std::cout << "target rows: TCPs within " << Max(Execute(c, corrected)) << " mm\n";
     EXPECT_LT(Max(Execute(c, corrected)), 0.05);
 
     // The program, and rows of the same poses (as its numbers give them) seeded where the
@@ -408,6 +414,7 @@ TEST(ControllerFramesTest, YamlAndUrdfAreOneModel) {
       worst = std::max(worst, (yaml - urdf).norm());
     }
   }
+  std::cout << "YAML and URDF predictions differ by " << worst << " mm at most\n";
   EXPECT_LT(worst, 1e-6);
   // The measurement frame hangs below the base: FK from it is the YAML model's.
   const NamedFrame* m = c.urdf_calibrated.FindFrame("measurement_frame", false);

@@ -257,7 +257,7 @@ TEST(OutputModels, ReducedOutputIsWarnedInTheVerdictBox) {
   s.result.history = {{0, 10.0, 60.0, 30.0, 1.0}, {1, 0.1, 0.15, 0.05, 1e-12}};
   s.verdict.level = VerdictLevel::kPass;
   s.verdict.reason = "every check passed";
-  s.output_models.push_back({"--output", "cal.yaml", 0.037, "verification"});
+  s.output_models.push_back({"--output", "cal.yaml", 0.037, "verification", false, ""});
   s.output_models.push_back({"--urdf_output", "cal.urdf", 0.394, "verification", true,
                              "it cannot carry the joint-error terms (compliance)"});
   const nlohmann::json j = nlohmann::json::parse(RunSummaryToJson(s));

@@ -640,7 +640,7 @@ int Run() {
     if (result.model.residual_layer) {
       lacks += std::string(lacks.empty() ? "" : "; ") + "the residual layer";
     }
-    if (!FLAGS_output.empty()) summary.output_models.push_back({"--output", FLAGS_output, full, set});
+    if (!FLAGS_output.empty()) summary.output_models.push_back({"--output", FLAGS_output, full, set, false, ""});
     for (const auto& [flag, path] : {std::pair<std::string, std::string>{"--urdf_output", FLAGS_urdf_output},
                                      {"--ur_kinematics_output", FLAGS_ur_kinematics_output}}) {
       if (path.empty()) continue;

@@ -103,7 +103,23 @@ int RunProgramMode() {
   ProgramOptions options;
   options.flange = FLAGS_flange;
   // --frame as given; by default the language's (URScript with ur_description: link:base).
-  if (!gflags::GetCommandLineFlagInfoOrDie("frame").is_default) options.frame = FLAGS_frame;
+  if (!gflags::GetCommandLineFlagInfoOrDie("frame").is_default) {
+    options.frame = FLAGS_frame;
+    TargetFrame kind;
+    std::string link;
+    SE3d pose;
+    if (!ParseTargetFrame(FLAGS_frame, &kind, &link) || kind == TargetFrame::kMeasurement) {
+      std::cerr << "error: --frame=" << FLAGS_frame << " with --program: a program's poses are "
+                << "in the base frame (base) or a controller base (link:NAME)\n";
+      return kExitUsage;
+    }
+    if (Status s = kind == TargetFrame::kLink ? FindBaseFrame(nominal, link, &pose) : Status::Ok();
+        !s.ok()) {
+      std::cerr << "error: --frame=" << FLAGS_frame << ": " << FLAGS_nominal << ": " << s.message()
+                << "\n";
+      return kExitUsage;
+    }
+  }
   options.targets_only = FLAGS_targets_only;
   options.ik = IkOptionsFromFlags();
   ParsedProgram program;

@@ -519,6 +519,18 @@ Status urdf_internal::SelectChain(const UrdfTree& tree, const UrdfOptions& optio
     chain->base_up = chain->base_up * tree.joints[pj].origin.Inverse();
     from = tree.joints[pj].parent;
   }
+  // Beside the arm's base only: a link fixed to a moving link (a camera on the forearm) is no base.
+  bool fixed_to_root = true;
+  for (int ji : chain->up.empty() ? std::vector<int>() : PathBetween(tree, tree.root, from)) {
+    fixed_to_root = fixed_to_root && tree.joints[ji].kind == Kind::kFixed;
+  }
+  if (!fixed_to_root) {
+    return LineError(tree.source, tree.links[chain->tip].line,
+                     "the tip link " + Quote(tree.links[chain->tip].name) +
+                         " is not below the base link " + Quote(tree.links[chain->base].name),
+                     "a tip link reached from the base link through joints (or from a link "
+                     "the base link is fixed to)");
+  }
   chain->path = PathBetween(tree, from, chain->tip);
   for (int ji : chain->path) {
     if (tree.joints[ji].kind != Kind::kFixed) chain->moving.push_back(ji);

@@ -91,21 +91,6 @@ const char* IkReason(IkStatus s) {
 
 }  // namespace
 
-int ResolveFlangeTool(const RobotModel& model, const std::string& flange, std::string* message) {
-  if (!flange.empty()) {
-    const int t = model.FindTool(flange);
-    if (t < 0) *message = "the model " + model.name + " has no tool '" + flange + "'";
-    return t;
-  }
-  const int t = model.FindTool("flange");
-  if (t >= 0) return t;
-  if (model.num_tools() == 1) return 0;
-  *message = "the model " + model.name +
-             " has no tool named 'flange' and several tools; say which one is the controller's "
-             "flange (tool0) with --flange";
-  return -1;
-}
-
 std::string ProgramFrame(const RobotModel& nominal, ProgramLanguage language,
                          const std::string& frame) {
   if (!frame.empty()) return frame;
@@ -153,8 +138,11 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
   program->frame = ProgramFrame(nominal, program->language, options.frame);
   TargetFrame frame_kind;
   std::string frame_link;
-  if (!ParseTargetFrame(program->frame, &frame_kind, &frame_link)) {
-    return Status::Error("frame '" + program->frame + "': expected base, measurement or link:NAME");
+  if (!ParseTargetFrame(program->frame, &frame_kind, &frame_link) ||
+      frame_kind == TargetFrame::kMeasurement) {
+    return Status::Error("frame '" + program->frame +
+                         "': a program's poses are in the base frame (base) or a controller base "
+                         "of the models (link:NAME), which its controller knows");
   }
   std::regex selected;
   if (!options.targets_only.empty()) {

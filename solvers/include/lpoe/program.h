@@ -143,9 +143,6 @@ struct ProgramOptions {
   IkOptions ik;
 };
 
-// The tool named `flange`, else a tool named "flange", else the only tool; -1 with a message.
-// (Programs resolve their flange with FindFlange, lpoe/compensation.h.)
-int ResolveFlangeTool(const RobotModel& model, const std::string& flange, std::string* message);
 // The frame a program's poses are read in when ProgramOptions::frame is empty: URScript with a
 // model that has a base frame named `base` (ur_description: the UR controller's Base, base_link
 // turned by pi about z) reads them in "link:base"; otherwise "base" (RAPID's wobj0 is the robot's
