@@ -539,6 +539,24 @@ TEST(ControllerFramesTest, UrKinematicsFromTheClassicLayout) {
   }
 }
 
+// Without UR's `base` frame the classic layout cannot be converted: the refusal names the layout.
+TEST(ControllerFramesTest, UrKinematicsRefusalSaysWhichLayout) {
+  std::string xml = ReadText(CellPath());
+  const size_t a = xml.find("  <joint name=\"base_link-base_fixed_joint\"");
+  const size_t b = xml.find("<link name=\"base\"/>");
+  ASSERT_NE(a, std::string::npos);
+  ASSERT_NE(b, std::string::npos);
+  xml.erase(a, b + std::string("<link name=\"base\"/>").size() - a);
+  RobotModel model;
+  UrdfSource source;
+  ASSERT_TRUE(ParseRobotModelUrdf(xml, "no_base.urdf", &model, CellOptions(), &source).ok());
+  std::string yaml;
+  const Status s = UrKinematicsYaml(source, model, {}, &yaml);
+  EXPECT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("current ur_description layout"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("a link `base`"), std::string::npos) << s.message();
+}
+
 // The verdict's unit check judges 6.27 rad as what it is (a UR joint within +-2 pi), and a
 // geometric fit far above the noise suggests --joint_errors=auto (issue 41).
 TEST(VerdictChecks, JointUnitsAndJointErrorsHint) {
