@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -537,6 +538,32 @@ TEST(ControllerFramesTest, UrKinematicsFromTheClassicLayout) {
     // conversion keeps tool0's pose, so the rotation about z differs from the axis by that much.
     EXPECT_LT((T.R - want.R).norm(), 1e-8);
   }
+}
+
+// The named frames go through the YAML model (the calibration's output) unchanged, and a bad
+// `on:` names its line.
+TEST(ControllerFramesTest, NamedFramesRoundTripThroughYaml) {
+  const Cell& c = TheCell();
+  const std::string yaml = RobotModelToYaml(c.calibrated);
+  EXPECT_NE(yaml.find("frames:"), std::string::npos);
+  RobotModel back;
+  ASSERT_TRUE(ParseRobotModelYaml(yaml, "cal.yaml", &back).ok());
+  ASSERT_EQ(back.frames.size(), c.calibrated.frames.size());
+  for (size_t k = 0; k < back.frames.size(); ++k) {
+    EXPECT_EQ(back.frames[k].name, c.calibrated.frames[k].name);
+    EXPECT_EQ(back.frames[k].on_flange, c.calibrated.frames[k].on_flange);
+    EXPECT_LT((back.frames[k].pose.t - c.calibrated.frames[k].pose.t).norm(), 1e-9);
+    EXPECT_LT((back.frames[k].pose.R - c.calibrated.frames[k].pose.R).norm(), 1e-12);
+  }
+  std::string bad = yaml;
+  const size_t on = bad.find("    on: flange");
+  ASSERT_NE(on, std::string::npos);
+  bad.replace(on, std::string("    on: flange").size(), "    on: wrist");
+  const int line = 1 + static_cast<int>(std::count(bad.begin(), bad.begin() + on, '\n'));
+  const Status s = ParseRobotModelYaml(bad, "bad.yaml", &back);
+  EXPECT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("bad.yaml:" + std::to_string(line) + ":"), std::string::npos)
+      << s.message();
 }
 
 // Without UR's `base` frame the classic layout cannot be converted: the refusal names the layout.
