@@ -601,9 +601,9 @@ Status urdf_internal::BuildModel(const UrdfTree& tree, const UrdfChain& chain, R
   for (int l : chain.tool_links) {
     out.tools.push_back(Tool{tree.links[l].name, PoseInFlange(tree, chain, l)});
   }
-  // Named frames: the links fixed to the base link (either way: `world` above it, ur_description's
-  // `base` beside it) and the links fixed below the last moving link (`tool0`, `flange`), tools
-  // excepted; a program's or a target's frame and a TCP's flange are chosen among them by name.
+  // Named frames: the base link itself and the links fixed to it (either way: `world` above it,
+  // ur_description's `base` beside it), and the last moving link and the links fixed below it
+  // (`tool0`, `flange`), tools excepted; a program's or a target's frame and a TCP's flange are chosen among them by name.
   std::set<int> tool_set(chain.tool_links.begin(), chain.tool_links.end());
   for (const bool on_flange : {false, true}) {
     const int start = on_flange ? chain.flange : chain.base;
@@ -612,7 +612,7 @@ Status urdf_internal::BuildModel(const UrdfTree& tree, const UrdfChain& chain, R
     while (!todo.empty()) {
       const auto [l, pose] = todo.back();
       todo.pop_back();
-      if (l != chain.base && tool_set.count(l) == 0) {
+      if (tool_set.count(l) == 0) {
         out.frames.push_back(NamedFrame{tree.links[l].name, on_flange, pose});
       }
       std::vector<std::pair<int, SE3d>> next;
