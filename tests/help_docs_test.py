@@ -8,7 +8,11 @@ Runs every tool's --helpxml and --help and checks them against README.md and doc
     tool's defaults, compared as numbers where both are numbers;
   - the ranges the README gives for a flag (2..100, [1, 10000]) are the ranges --help prints;
   - --help prints defaults as written (no 0.029999999999999999);
-  - every tool's --help lists its exit codes, and each is one the README's exit code list explains.
+  - every tool's --help lists its exit codes, and each is one the README's exit code list explains;
+  - the frames (issue 41): what --tcp, --frame and --flange mean is said the same way in --help, the
+    README's row, docs/compensation.md and the Python docstrings (python/src): a TCP is relative to
+    the flange (never "in the last joint's frame"), --frame takes base, measurement and link:NAME,
+    the flange defaults to tool0; docs/conventions.md defines each frame once.
 
 Usage: help_docs_test.py <README.md> <docs/guide.md> <tool>...
 """
@@ -104,6 +108,95 @@ def exit_codes(usage):
     return set(int(c) for c in re.findall(r"(?<![\w.^/-])([0-9])(?= [a-z-])", m.group(1)))
 
 
+# Frame meanings (issue 41): flag -> phrases every description of it must contain, and phrases
+# none may contain.
+FRAME_MEANINGS = {
+    "tcp": (["relative to the flange"], ["in the last joint's frame"]),
+    "frame": (["base", "measurement", "link:NAME"], []),
+    "flange": (["tool0", "flange frame"], []),
+}
+
+
+def help_entry(help_text, flag):
+    """The --help paragraph of --flag (its description lines up to the type line)."""
+    m = re.search(r"\n  --" + flag + r" \((.*?)\)\s+type:", help_text, re.S)
+    return " ".join(m.group(1).split()) if m else None
+
+
+def check_frame_meanings(root, readme, tools):
+    def has_all(text, where, flag):
+        wanted, banned = FRAME_MEANINGS[flag]
+        for w in wanted:
+            if w not in text:
+                fail(f"{where}: --{flag} does not say '{w}'")
+        for b in banned:
+            if b in text:
+                fail(f"{where}: --{flag} says '{b}'")
+
+    for tool in tools:
+        name = os.path.basename(tool)
+        if name not in ("lpoe_compensate", "lpoe_predict"):
+            continue
+        text = subprocess.run([tool, "--help"], capture_output=True, text=True).stdout
+        for flag in FRAME_MEANINGS:
+            entry = help_entry(text, flag)
+            if entry is not None:
+                has_all(entry, f"{name} --help", flag)
+    rows = readme_sections(readme)
+    for name in ("lpoe_compensate",):
+        for row_flags, description in rows.get(name, []):
+            for flag in row_flags:
+                if flag in FRAME_MEANINGS:
+                    has_all(description, f"README {name} table", flag)
+    # lpoe_predict's --frame is described in a paragraph.
+    m = re.search(r"### lpoe_predict\n(.*?)\n### ", readme, re.S)
+    if m:
+        para = " ".join(m.group(1).split())
+        i = para.find("`--frame`")
+        if i < 0:
+            fail("README lpoe_predict: --frame not described")
+        else:
+            has_all(para[i:i + 400], "README lpoe_predict", "frame")
+    comp = open(os.path.join(root, "docs", "compensation.md"), encoding="utf-8").read()
+    comp_flat = " ".join(comp.split())
+    for flag in FRAME_MEANINGS:
+        i = comp_flat.find(f"`--{flag}")
+        if i < 0:
+            fail(f"docs/compensation.md: --{flag} is not described")
+        else:
+            has_all(comp_flat[i:i + 600], "docs/compensation.md", flag)
+    # The Python docstrings of lpoe.compensate and lpoe.compensate_program (in the C++ source).
+    for source, flags in (("bind_analysis.cc", ("tcp", "frame", "flange")),
+                          ("bind_program.cc", ("frame", "flange"))):
+        path = os.path.join(root, "python", "src", source)
+        text = " ".join(re.findall(r'"((?:[^"\\]|\\.)*)"', open(path, encoding="utf-8").read()))
+        for flag in flags:
+            # Some occurrence of `flag:` (or `frame`) describes it in full (error messages name
+            # the keyword too); none says what it must not.
+            starts = [m.start() for m in re.finditer(re.escape(f"{flag}:") + "|`" + flag + "`",
+                                                     text)]
+            wanted, banned = FRAME_MEANINGS[flag]
+            if not any(all(w in text[i:i + 500] for w in wanted) for i in starts):
+                fail(f"python/src/{source}: no docstring describes {flag} with "
+                     f"{', '.join(repr(w) for w in wanted)}")
+            for i in starts:
+                for b in banned:
+                    if b in text[i:i + 500]:
+                        fail(f"python/src/{source}: {flag} is described as '{b}'")
+    # docs/conventions.md: one table of frames, each frame in one row.
+    conv = open(os.path.join(root, "docs", "conventions.md"), encoding="utf-8").read()
+    m = re.search(r"\n## Frames\n(.*?)\n## ", conv, re.S)
+    if not m:
+        fail("docs/conventions.md: no '## Frames' section")
+    else:
+        names = re.findall(r"^\| \*\*([^*]+)\*\*", m.group(1), re.M)
+        for frame in ("measurement frame", "base frame", "controller base", "last joint's frame",
+                      "flange", "TCP"):
+            count = names.count(frame)
+            if count != 1:
+                fail(f"docs/conventions.md: the frame '{frame}' is defined {count} times")
+
+
 def main():
     readme_path, guide_path, tools = sys.argv[1], sys.argv[2], sys.argv[3:]
     readme = open(readme_path, encoding="utf-8").read()
@@ -171,6 +264,7 @@ def main():
         for flag in sorted(set(re.findall(r"`--([a-z0-9_]+)", text))):
             if flag not in every_flag:
                 fail(f"{source}: `--{flag}` is not a flag of any tool")
+    check_frame_meanings(os.path.dirname(os.path.abspath(readme_path)), readme, tools)
     for f in failures:
         print(f)
     return 1 if failures else 0

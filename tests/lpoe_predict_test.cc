@@ -276,7 +276,7 @@ TEST_F(LpoePredict, FrameBaseUndoesTheRecordedRegistration) {
   const Eigen::Vector3d pm(measurement[0][0], measurement[0][1], measurement[0][2]);
   EXPECT_LT((model.T_measurement_base * pb - pm).norm(), 1e-6);
   EXPECT_GT((pb - pm).norm(), 1000.0);  // not vacuous
-  EXPECT_NE(testing::ReadAll(Path("base.csv")).find("robot's base frame"), std::string::npos);
+  EXPECT_NE(testing::ReadAll(Path("base.csv")).find("model's base frame"), std::string::npos);
   EXPECT_EQ(Predict("--model=" + Path("registered.yaml") + " --joints=" + Path("q.csv") +
                         " --frame=tracker --output=" + Path("x.csv"),
                     &out),

@@ -244,6 +244,42 @@ TEST_F(ReportHtml, HundredThousandPointsStayBelowFiveMegabytes) {
   EXPECT_NE(html.find(Mm(s.verification_after.norm.rms)), std::string::npos);
 }
 
+// Each output's own RMS is in the JSON report, and an output that carries less than the
+// calibration (a URDF after joint-space terms) is a warning in the page's verdict box (issue 41).
+TEST(OutputModels, ReducedOutputIsWarnedInTheVerdictBox) {
+  RobotModel nominal;
+  ASSERT_TRUE(ReadRobotModel(LPOE_DATA_DIR "/cobot6.yaml", &nominal).ok());
+  RunSummary s;
+  s.model_path = "cobot6.yaml";
+  s.measurements_path = "points.csv";
+  s.result.model = nominal;
+  s.result.termination = Termination::kConverged;
+  s.result.history = {{0, 10.0, 60.0, 30.0, 1.0}, {1, 0.1, 0.15, 0.05, 1e-12}};
+  s.verdict.level = VerdictLevel::kPass;
+  s.verdict.reason = "every check passed";
+  s.output_models.push_back({"--output", "cal.yaml", 0.037, "verification", false, ""});
+  s.output_models.push_back({"--urdf_output", "cal.urdf", 0.394, "verification", true,
+                             "it cannot carry the joint-error terms (compliance)"});
+  const nlohmann::json j = nlohmann::json::parse(RunSummaryToJson(s));
+  ASSERT_EQ(j["output_models"].size(), 2u);
+  EXPECT_DOUBLE_EQ(j["output_models"][1]["rms_mm"].get<double>(), 0.394);
+  EXPECT_TRUE(j["output_models"][1]["carries_less"].get<bool>());
+  EXPECT_FALSE(j["output_models"][0]["carries_less"].get<bool>());
+  std::string html;
+  ASSERT_TRUE(RunSummaryToHtml(s, &html).ok());
+  const size_t box = html.find("<div class=\"verdict pass\">");
+  ASSERT_NE(box, std::string::npos);
+  const std::string verdict = html.substr(box, html.find("</div>", box) - box);
+  EXPECT_NE(verdict.find("Warning: --urdf_output <code>cal.urdf</code> predicts with RMS 0.394 mm "
+                         "against 0.037 mm for the YAML model"),
+            std::string::npos)
+      << verdict;
+  // Nothing reduced: no warning.
+  s.output_models.pop_back();
+  ASSERT_TRUE(RunSummaryToHtml(s, &html).ok());
+  EXPECT_EQ(html.find("Warning: --urdf_output"), std::string::npos);
+}
+
 // The auto table says when a tilt candidate could not identify the tilt in its folds (then it is the
 // model without the tilt, and its row repeats that model's figures).
 TEST(JointErrorSelectionTable, SaysWhenTheTiltWasNotIdentifiedInTheFolds) {

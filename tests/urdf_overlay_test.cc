@@ -4,8 +4,8 @@
 // with --tip_link=tool0, and the written file is checked by urdfdom, not by our reader:
 //   - every link and joint of the source is there with its name, type, parents, limits, mimic,
 //     meshes and inertials; joints off the calibrated chain keep their origins;
-//   - `measurement_frame` is a separate fixed link on the base link, and the cell placement
-//     (world -> base_link) is unchanged;
+//   - `measurement_frame` is a separate fixed link on the base link at the YAML's registration,
+//     and the cell placement (world -> base_link) is unchanged;
 //   - forward kinematics composed from urdfdom's joint origins and axes, from measurement_frame to
 //     tool0, equals the calibrated model's (our YAML output) to 1e-6 mm;
 //   - check_urdf accepts the file; the UR kinematics YAML holds the written joint origins.
@@ -211,11 +211,22 @@ TEST_F(UrdfOverlay, MeasurementFrameIsSeparateAndTheBaseStays) {
   EXPECT_GT(ToIsometry(m->parent_joint->parent_to_joint_origin_transform).translation().norm(),
             2.0);
   EXPECT_EQ(written_->getRoot()->name, "world");
-  const Eigen::Isometry3d a =
-      ToIsometry(source_->getJoint("shoulder_pan_joint")->parent_to_joint_origin_transform);
-  const Eigen::Isometry3d b =
-      ToIsometry(written_->getJoint("shoulder_pan_joint")->parent_to_joint_origin_transform);
-  EXPECT_LT((a.matrix() - b.matrix()).norm(), 1e-12);
+  // One model (issue 41): the measurement frame is the YAML's recorded registration
+  // (T_base_measurement = T_measurement_base^-1) and joint 1 takes T_measurement_base^-1 C_1, so
+  // that the URDF predicts in its base frame what the YAML predicts there.
+  RobotModel calibrated;
+  ASSERT_TRUE(ReadRobotModel(Path("cal.yaml"), &calibrated).ok());
+  const SE3d base_from_measurement = calibrated.T_measurement_base.Inverse();
+  EXPECT_LT((ToIsometry(m->parent_joint->parent_to_joint_origin_transform).translation() * 1000.0 -
+             base_from_measurement.t)
+                .norm(),
+            1e-6);
+  std::map<std::string, double> zero;
+  for (const char* j : kChain) zero[j] = 0.0;
+  const Eigen::Isometry3d shoulder = RootPose(*written_, "shoulder_link", zero);
+  const SE3d expected = base_from_measurement * calibrated.joints[0].origin;
+  EXPECT_LT((shoulder.translation() * 1000.0 - expected.t).norm(), 1e-6);
+  EXPECT_LT((shoulder.linear() - expected.R).norm(), 1e-9);
   // The other chain joints did change: the calibration moved them.
   const Eigen::Isometry3d e0 =
       ToIsometry(source_->getJoint("elbow_joint")->parent_to_joint_origin_transform);

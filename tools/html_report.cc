@@ -160,8 +160,30 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
        " &middot; " + Esc(Str(j["solver"]["name"])) + " solver, " + Esc(Str(j["solver"]["data"])) +
        " data &middot; model " + Esc(Str(j["inputs"]["model"])) + " &middot; measurements " +
        Esc(Str(j["inputs"]["measurements"])) + "</p>\n";
+  // An output that carries less than the calibration (a URDF after joint-space terms) is said
+  // in the verdict box, with its own RMS against the calibration's.
+  std::string reduced;
+  if (j.contains("output_models")) {
+    double full = -1;
+    for (const Json& o : j["output_models"]) {
+      if (!o.value("carries_less", false)) full = o.value("rms_mm", -1.0);
+    }
+    for (const Json& o : j["output_models"]) {
+      if (!o.value("carries_less", false)) continue;
+      char buf[160];
+      std::snprintf(buf, sizeof(buf), " predicts with RMS %.3g mm", o.value("rms_mm", 0.0));
+      std::string line = "<br>Warning: " + Esc(Str(o["flag"])) + " <code>" + Esc(Str(o["path"])) +
+                         "</code>" + buf;
+      if (full >= 0) {
+        std::snprintf(buf, sizeof(buf), " against %.3g mm for the YAML model", full);
+        line += buf;
+      }
+      line += " (" + Esc(Str(o["set"])) + " set): " + Esc(Str(o["note"]));
+      reduced += line;
+    }
+  }
   h += "<div class=\"verdict " + Esc(level) + "\"><b>" + Esc(level) + "</b>" +
-       Esc(Str(verdict["reason"])) + "</div>\n";
+       Esc(Str(verdict["reason"])) + reduced + "</div>\n";
   if (verdict.contains("checks") && !verdict["checks"].empty()) {
     h += "<details><summary>Plausibility checks</summary><table>\n<tr><th>check</th><th>level"
          "</th><th>value</th><th>limit</th><th>message</th></tr>\n";

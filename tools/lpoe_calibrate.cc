@@ -593,8 +593,11 @@ int Run() {
   // The geometry-only outputs: with joint-space terms, the geometry-only re-fit of the same data
   // (the geometry identified with the terms predicts worse without them).
   const bool geometry_outputs = !FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty();
-  const RobotModel& geometry_model =
-      run.has_geometry_only ? run.geometry_only.model : result.model;
+  RobotModel geometry_model = run.has_geometry_only ? run.geometry_only.model : result.model;
+  // With the registration the YAML records: the URDF's base frame is the YAML's (one model).
+  if (overlay.in_measurement_frame) {
+    geometry_model.T_measurement_base = run.registration.T_measurement_base;
+  }
   if (geometry_outputs && staged.ok() && !result.model.joint_errors.empty()) {
     const auto rms = [](const ErrorStatistics& e) { return e.norm.rms; };
     std::cerr << "warning: URDF and UR kinematics cannot hold the identified joint-error terms ("
@@ -618,6 +621,34 @@ int Run() {
     std::cerr << "warning: URDF and UR kinematics cannot carry the residual layer "
                  "(docs/residual_layer.md): they predict without its correction. Predict or "
                  "compensate with the YAML model (--output), which keeps it\n";
+  }
+  // Each model written, with what it predicts on its own (the reports' output_models).
+  {
+    const bool v = run.has_verification;
+    const auto rms = [](const ErrorStatistics& e) { return e.norm.rms; };
+    const double full = v ? rms(run.verification_after) : rms(run.identification_after);
+    const char* set = v ? "verification" : "identification";
+    double geometry = full;
+    std::string lacks;
+    if (!result.model.joint_errors.empty()) {
+      geometry = run.has_geometry_only ? (v ? rms(run.geometry_only_verification)
+                                            : rms(run.geometry_only_identification))
+                                       : -1;
+      lacks = "the joint-error terms (" + tools::JointErrorTermNames(result.model) +
+              "): a geometry-only re-fit";
+    }
+    if (result.model.residual_layer) {
+      lacks += std::string(lacks.empty() ? "" : "; ") + "the residual layer";
+    }
+    if (!FLAGS_output.empty()) summary.output_models.push_back({"--output", FLAGS_output, full, set, false, ""});
+    for (const auto& [flag, path] : {std::pair<std::string, std::string>{"--urdf_output", FLAGS_urdf_output},
+                                     {"--ur_kinematics_output", FLAGS_ur_kinematics_output}}) {
+      if (path.empty()) continue;
+      summary.output_models.push_back(
+          {flag, path, geometry >= 0 ? geometry : full, set, !lacks.empty(),
+           lacks.empty() ? "" : "it cannot carry " + lacks + "; predict and compensate with the "
+                                "YAML model"});
+    }
   }
   if (!FLAGS_urdf_output.empty() && staged.ok()) {
     std::string xml;

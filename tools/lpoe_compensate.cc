@@ -55,14 +55,16 @@ DEFINE_string(nominal, "",
               "Nominal model (YAML or URDF): adds the nominal tool pose at the compensated joints "
               "(the target to send to a controller using nominal kinematics).");
 DEFINE_string(frame, "base",
-              "Frame of the --targets positions and orientations: base (the robot's base frame, "
-              "what programs use; carried into the calibrated model's frame by its recorded "
-              "registration) | measurement (the frame the calibration's measurements were in, "
-              "e.g. the tracker's). The same for a model calibrated in the base frame.");
+              "Frame of the --targets poses and of a --program's poses: base (the model's base "
+              "frame, the chain's base link; carried into the calibrated model's frame by its "
+              "recorded registration) | measurement (the frame of the calibration's measurements, "
+              "e.g. the tracker's) | link:NAME (a base frame of the models, e.g. link:base, "
+              "ur_description's UR controller Base). --program default: link:base for URScript "
+              "when the models have it, else base.");
 DEFINE_string(tcp, "",
               "The TCP the targets are for, when it was not measured: a tool of the models, or "
-              "x,y,z[,roll,pitch,yaw] (mm, rad; in the last joint's frame, where the models' tools "
-              "are) added to both models. Rows without a target column use it.");
+              "x,y,z[,roll,pitch,yaw] (mm, rad) relative to the flange (--flange), as a "
+              "controller's TCP is; added to both models. Rows without a target column use it.");
 DEFINE_string(tool, "", "Tool name or index for rows without a target column (default: tool 0).");
 DEFINE_string(report, "", "JSON summary to write (counts per status, largest correction/residual).");
 DEFINE_bool(strict, false, "Exit 8 when any row is not 'ok' (the output is written anyway).");
@@ -307,11 +309,13 @@ int Run() {
   request.has_nominal = !FLAGS_nominal.empty();
   request.joints_mode = joints_mode;
   request.joints_target_pose = FLAGS_joints_target == "pose";
-  if (!ParseTargetFrame(FLAGS_frame, &request.frame)) {
-    std::cerr << "error: --frame must be base or measurement, got '" << FLAGS_frame << "'\n";
+  if (!ParseTargetFrame(FLAGS_frame, &request.frame, &request.frame_link)) {
+    std::cerr << "error: --frame must be base, measurement or link:NAME, got '" << FLAGS_frame
+              << "'\n";
     return kExitUsage;
   }
   request.tcp = FLAGS_tcp;
+  request.flange = FLAGS_flange;
   request.tool = FLAGS_tool;
   request.ik = tools::IkOptionsFromFlags();
   request.threads = FLAGS_threads;

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "lpoe/compensation.h"
 #include "lpoe/io.h"
 #include "lpoe/program.h"
 #include "output_files.h"
@@ -22,8 +23,9 @@ DEFINE_string(program, "",
 DEFINE_string(language, "",
               "Language of --program: urscript | rapid (default: from its extension).");
 DEFINE_string(flange, "",
-              "Tool of the models that is the controller's flange (tool0), which the program's TCP "
-              "is relative to (default: the tool named 'flange', else the model's only tool).");
+              "The controller's flange, which a TCP is relative to (--tcp, a program's set_tcp or "
+              "tooldata): a tool or a flange frame of the models (a URDF link fixed to the last "
+              "link) [tool0, else flange, else the last joint's frame].");
 DEFINE_string(targets_only, "",
               "Compensate only the program targets whose whole name matches this regular "
               "expression (RE2 syntax, matched in linear time); the others (taught points) are "
@@ -85,10 +87,11 @@ int RunProgramMode() {
       return kExitInput;
     }
   }
-  std::string message;
-  if (ResolveFlangeTool(calibrated, FLAGS_flange, &message) < 0) {
-    std::cerr << "error: " << FLAGS_model << ": " << message << "\n";
-    return kExitUsage;
+  if (SE3d flange; !FLAGS_flange.empty()) {
+    if (Status s = FindFlange(calibrated, FLAGS_flange, &flange); !s.ok()) {
+      std::cerr << "error: --flange: " << FLAGS_model << ": " << s.message() << "\n";
+      return kExitUsage;
+    }
   }
   std::string text;
   if (Status s = ReadFile(FLAGS_program, &text); !s.ok()) {
@@ -97,6 +100,24 @@ int RunProgramMode() {
   }
   ProgramOptions options;
   options.flange = FLAGS_flange;
+  // --frame as given; by default the language's (URScript with ur_description: link:base).
+  if (!gflags::GetCommandLineFlagInfoOrDie("frame").is_default) {
+    options.frame = FLAGS_frame;
+    TargetFrame kind;
+    std::string link;
+    SE3d pose;
+    if (!ParseTargetFrame(FLAGS_frame, &kind, &link) || kind == TargetFrame::kMeasurement) {
+      std::cerr << "error: --frame=" << FLAGS_frame << " with --program: a program's poses are "
+                << "in the base frame (base) or a controller base (link:NAME)\n";
+      return kExitUsage;
+    }
+    if (Status s = kind == TargetFrame::kLink ? FindBaseFrame(nominal, link, &pose) : Status::Ok();
+        !s.ok()) {
+      std::cerr << "error: --frame=" << FLAGS_frame << ": " << FLAGS_nominal << ": " << s.message()
+                << "\n";
+      return kExitUsage;
+    }
+  }
   options.targets_only = FLAGS_targets_only;
   options.ik = IkOptionsFromFlags();
   ParsedProgram program;
@@ -124,6 +145,8 @@ int RunProgramMode() {
     }
   }
   if (!FLAGS_quiet) {  // --quiet: only errors (the report has all of it)
+    std::cerr << "lpoe_compensate: " << FLAGS_program << ": poses read in the frame "
+              << program.frame << ", TCPs relative to " << program.flange << "\n";
     std::cerr << "lpoe_compensate: " << FlangeRotationNote(program) << "\n";
     std::cerr << "lpoe_compensate: " << program.targets.size() << " targets in "
               << ProgramLanguageName(language) << " program " << FLAGS_program << ": compensated "

@@ -13,6 +13,8 @@ DECLARE_string(nominal);
 DECLARE_string(report);
 DECLARE_string(targets);
 DECLARE_string(joints);
+DECLARE_string(frame);
+DECLARE_string(flange);
 DECLARE_bool(strict);
 
 namespace lpoe {

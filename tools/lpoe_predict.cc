@@ -23,6 +23,7 @@
 #include "lpoe/csv_rules.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/compensation.h"
 #include "lpoe/residual_layer.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
@@ -32,10 +33,12 @@
 DEFINE_string(joints, "",
               "CSV of joint values: header with q1..qN, optional target column (required).");
 DEFINE_string(frame, "base",
-              "Frame of the written positions: base (the robot's base frame, where programs live; "
-              "from the calibrated model's recorded registration) | measurement (the frame the "
-              "calibration's measurements were in, e.g. the tracker's). The same for a model "
-              "calibrated in the base frame.");
+              "Frame of the written positions: base (the model's base frame, the chain's base "
+              "link, where the nominal model lives; from the calibrated model's recorded "
+              "registration) | measurement (the frame the calibration's measurements were in, "
+              "e.g. the tracker's) | link:NAME (a base frame of the model, e.g. link:base, "
+              "ur_description's UR controller Base). The same for a model calibrated in the base "
+              "frame.");
 DEFINE_bool(predict_std, false,
             "Also write the column std: the residual layer's predictive standard deviation (mm, "
             "per axis) at each row (docs/residual_layer.md); the model must carry a layer.");
@@ -78,12 +81,23 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  if (FLAGS_frame != "base" && FLAGS_frame != "measurement") {
-    std::cerr << "error: --frame must be base or measurement, got '" << FLAGS_frame << "'\n";
+  TargetFrame frame_kind;
+  std::string frame_link;
+  if (!ParseTargetFrame(FLAGS_frame, &frame_kind, &frame_link)) {
+    std::cerr << "error: --frame must be base, measurement or link:NAME, got '" << FLAGS_frame
+              << "'\n";
     return kExitUsage;
   }
   RobotModel model;
   if (const int code = tools::ReadModelFlag(&model); code != kExitOk) return code;
+  SE3d frame_pose;  // link:NAME in the base frame
+  if (frame_kind == TargetFrame::kLink) {
+    if (Status s = FindBaseFrame(model, frame_link, &frame_pose); !s.ok()) {
+      std::cerr << "error: --frame=" << FLAGS_frame << ": " << FLAGS_model << ": " << s.message()
+                << "\n";
+      return kExitUsage;
+    }
+  }
   if (FLAGS_predict_std && !model.residual_layer) {
     std::cerr << "error: --predict_std needs a model with a residual layer (lpoe_calibrate "
                  "--residual_model=gp or auto writes one); "
@@ -130,9 +144,9 @@ int Run() {
   }
   // The model's frame is the measurement frame of its calibration; the base frame is that of the
   // nominal model it was registered from (T_measurement_base).
-  if (FLAGS_frame == "base") {
-    const SE3d base_from_measurement = model.T_measurement_base.Inverse();
-    for (Eigen::Vector3d& p : positions) p = base_from_measurement * p;
+  if (frame_kind != TargetFrame::kMeasurement) {
+    const SE3d frame_from_measurement = (model.T_measurement_base * frame_pose).Inverse();
+    for (Eigen::Vector3d& p : positions) p = frame_from_measurement * p;
   }
   for (Eigen::Vector3d& p : positions) p /= mm_per_unit;  // --length_unit
   // The last guard (issue 40): a prediction that is not finite is an error naming its row, never
@@ -171,7 +185,9 @@ int Run() {
   }
   const Status staged = outputs.Stage(
       FLAGS_output, "# lpoe_predict: positions in " + FLAGS_length_unit + " in the " +
-                        std::string(FLAGS_frame == "base" ? "robot's base" : "measurement") +
+                        std::string(frame_kind == TargetFrame::kBase          ? "model's base"
+                                    : frame_kind == TargetFrame::kMeasurement ? "measurement"
+                                                                              : FLAGS_frame) +
                         " frame" + (FLAGS_predict_std ? "; std: the residual layer's predictive "
                                                         "standard deviation per axis, " + FLAGS_length_unit
                                                       : "") +

@@ -612,6 +612,12 @@ Json BuildJson(const RunSummary& s) {
   }
   j["calibrated_frames"] = frames;
   j["outputs"] = s.outputs;
+  Json models = Json::array();
+  for (const RunSummary::OutputModel& o : s.output_models) {
+    models.push_back({{"flag", o.flag}, {"path", o.path}, {"rms_mm", o.rms_mm}, {"set", o.set},
+                      {"carries_less", o.reduced}, {"note", o.note}});
+  }
+  j["output_models"] = models;
   j["forced"] = s.forced;
 
   // Per SMR (tool): before/after on each set.

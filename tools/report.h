@@ -41,6 +41,17 @@ struct RunSummary : PipelineResult {
   // --residual_model: none | gp | auto (the choice is the pipeline's residual_model_selection).
   std::string residual_model_requested = "none";
   std::vector<std::string> outputs;  // files written
+  // Each model written and what it predicts on its own (issue 41): the YAML carries every term,
+  // a URDF or UR kinematics file the geometry only (a geometry-only re-fit after joint-space
+  // terms, no residual layer). `reduced`: it carries less than the calibration.
+  struct OutputModel {
+    std::string flag, path;
+    double rms_mm = 0;   // RMS error of its own predictions on `set`
+    std::string set;     // verification | identification
+    bool reduced = false;
+    std::string note;    // what it lacks, for the reports
+  };
+  std::vector<OutputModel> output_models;
   // A model read from a URDF: for each frame (joints, then tools) the URDF element its parameters
   // change (UrdfFrameElements); empty otherwise.
   std::vector<std::string> urdf_frames;

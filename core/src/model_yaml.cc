@@ -38,7 +38,7 @@ using internal::Trim;
 // ---------------------------------------------------------------------------------------------------
 // YAML robot model.
 
-const char* const kModelKeys = "name, joints, tools, registration";
+const char* const kModelKeys = "name, joints, tools, registration, frames";
 const char* const kJointKeys = "name, type, origin, twist, limits";
 const char* const kToolKeys = "name, origin, fixed";
 const char* const kOriginKeys = "xyz and one of rpy or quaternion";
@@ -65,7 +65,7 @@ class ModelYamlReader {
                    "a mapping with keys name, joints and tools (docs/file_formats.md)");
     }
     std::vector<MapEntry> top;
-    Status s = ReadMap(root, 1, "the robot model", {"name", "joints", "tools", "registration"},
+    Status s = ReadMap(root, 1, "the robot model", {"name", "joints", "tools", "registration", "frames"},
                        kModelKeys, &top);
     if (!s.ok()) return s;
     const int root_line = LineOf(root, 1);
@@ -135,6 +135,43 @@ class ModelYamlReader {
     if (const MapEntry* reg = Find(top, "registration"); reg != nullptr) {
       s = ReadOrigin(*reg, &out.T_measurement_base);
       if (!s.ok()) return s;
+    }
+
+    // frames: named base and flange frames (robot_model.h, NamedFrame).
+    if (const MapEntry* frames = Find(top, "frames"); frames != nullptr) {
+      s = ReadList(*frames, "frame", "frames {name, on: base or flange, origin}");
+      if (!s.ok()) return s;
+      for (const YAML::Node& item : frames->value) {
+        const int line = LineOf(item, frames->line);
+        std::vector<MapEntry> keys;
+        s = ReadMap(item, line, "a frame", {"name", "on", "origin"}, "name, on, origin", &keys);
+        if (!s.ok()) return s;
+        const MapEntry* fname = Find(keys, "name");
+        const MapEntry* on = Find(keys, "on");
+        const MapEntry* origin = Find(keys, "origin");
+        if (fname == nullptr || on == nullptr || origin == nullptr) {
+          return Error(line, "a frame needs name, on and origin",
+                       "{name: base, on: base, origin: {xyz: [x, y, z], rpy: [r, p, y]}}");
+        }
+        NamedFrame f;
+        s = ReadString(*fname, /*allow_empty=*/false, &f.name);
+        if (!s.ok()) return s;
+        std::string where;
+        s = ReadString(*on, /*allow_empty=*/false, &where);
+        if (!s.ok()) return s;
+        if (where != "base" && where != "flange") {
+          return Error(LineOf(on->value, on->line), "frame " + Quote(f.name) + ": on is " + Quote(where),
+                       "on: base (fixed to the robot's base) or on: flange (fixed to the last link)");
+        }
+        f.on_flange = where == "flange";
+        if (out.FindFrame(f.name, f.on_flange) != nullptr) {
+          return Error(line, "duplicate frame " + Quote(f.name) + " on the " + where,
+                       "unique frame names");
+        }
+        s = ReadOrigin(*origin, &f.pose);
+        if (!s.ok()) return s;
+        out.frames.push_back(std::move(f));
+      }
     }
 
     // Whole-model checks; the per-joint ones (twists, limits) were made above with their lines.
@@ -595,6 +632,15 @@ std::string RobotModelToYaml(const RobotModel& model) {
     AppendOrigin(model.T_measurement_base, &origin);
     out += "# registration = T_measurement_base: the measurement frame from the nominal base frame.\n";
     out += "registration: " + origin.substr(origin.find('{'));
+  }
+  if (!model.frames.empty()) {
+    out += "# frames: named base frames (in the nominal base frame) and flange frames (in the last "
+           "joint's frame)\nframes:\n";
+    for (const NamedFrame& f : model.frames) {
+      out += "  - name: " + YamlName(f.name) + "\n    on: " + (f.on_flange ? "flange" : "base") +
+             "\n    ";
+      AppendOrigin(f.pose, &out);
+    }
   }
   out += internal::JointErrorsToYaml(model);
   out += internal::ResidualLayerToYaml(model);

@@ -88,6 +88,13 @@ Status ValidateLimits(double lower, double upper) {
   return Status::Ok();
 }
 
+const NamedFrame* RobotModel::FindFrame(const std::string& frame_name, bool on_flange) const {
+  for (const NamedFrame& f : frames) {
+    if (f.name == frame_name && f.on_flange == on_flange) return &f;
+  }
+  return nullptr;
+}
+
 int RobotModel::FindTool(const std::string& tool_name) const {
   for (int k = 0; k < num_tools(); ++k) {
     if (tools[k].name == tool_name) return k;

@@ -493,23 +493,52 @@ Status urdf_internal::SelectChain(const UrdfTree& tree, const UrdfOptions& optio
       return s;
     }
   }
+  // A base link fixed beside the arm (ur_description's `base`, base_link turned by pi): the chain
+  // climbs from it through fixed joints to the link above the arm.
+  int top = chain->base;
+  for (int pj = tree.links[top].parent_joint;
+       pj >= 0 && tree.joints[pj].kind == Kind::kFixed; pj = tree.links[top].parent_joint) {
+    top = tree.joints[pj].parent;
+  }
   std::string tip_name = options.tip_link;
   if (tip_name.empty()) {
     // An ambiguous tree with named tools: the first tool link ends the chain.
-    const Status s = FindTip(tree, chain->base, &chain->tip);
+    const Status s = FindTip(tree, top, &chain->tip);
     if (!s.ok() && options.tool_links.empty()) return s;
     if (!s.ok()) tip_name = options.tool_links[0];
   }
   if (!tip_name.empty()) {
     if (Status s = LinkByName(tree, tip_name, "tip link", &chain->tip); !s.ok()) return s;
-    if (!IsAncestorOrSelf(tree, chain->base, chain->tip)) {
+    if (!IsAncestorOrSelf(tree, top, chain->tip)) {
       return LineError(tree.source, tree.links[chain->tip].line,
                        "the tip link " + Quote(tip_name) + " is not below the base link " +
                            Quote(tree.links[chain->base].name),
-                       "a tip link reached from the base link through joints");
+                       "a tip link reached from the base link through joints (or from a link "
+                       "the base link is fixed to)");
     }
   }
-  chain->path = PathBetween(tree, chain->base, chain->tip);
+  int from = chain->base;
+  chain->up.clear();
+  chain->base_up = SE3d();
+  while (!IsAncestorOrSelf(tree, from, chain->tip)) {
+    const int pj = tree.links[from].parent_joint;  // fixed: `top` is above the tip
+    chain->up.push_back(pj);
+    chain->base_up = chain->base_up * tree.joints[pj].origin.Inverse();
+    from = tree.joints[pj].parent;
+  }
+  // Beside the arm's base only: a link fixed to a moving link (a camera on the forearm) is no base.
+  bool fixed_to_root = true;
+  for (int ji : chain->up.empty() ? std::vector<int>() : PathBetween(tree, tree.root, from)) {
+    fixed_to_root = fixed_to_root && tree.joints[ji].kind == Kind::kFixed;
+  }
+  if (!fixed_to_root) {
+    return LineError(tree.source, tree.links[chain->tip].line,
+                     "the tip link " + Quote(tree.links[chain->tip].name) +
+                         " is not below the base link " + Quote(tree.links[chain->base].name),
+                     "a tip link reached from the base link through joints (or from a link "
+                     "the base link is fixed to)");
+  }
+  chain->path = PathBetween(tree, from, chain->tip);
   for (int ji : chain->path) {
     if (tree.joints[ji].kind != Kind::kFixed) chain->moving.push_back(ji);
   }
@@ -559,7 +588,7 @@ Status urdf_internal::BuildModel(const UrdfTree& tree, const UrdfChain& chain, R
   RobotModel out;
   const char* robot_name = tree.robot->Attribute("name");
   out.name = robot_name != nullptr && robot_name[0] != '\0' ? robot_name : "robot";
-  SE3d folded;
+  SE3d folded = chain.base_up;
   for (int ji : chain.path) {
     const UrdfJoint& j = tree.joints[ji];
     folded = folded * j.origin;
@@ -578,6 +607,35 @@ Status urdf_internal::BuildModel(const UrdfTree& tree, const UrdfChain& chain, R
   }
   for (int l : chain.tool_links) {
     out.tools.push_back(Tool{tree.links[l].name, PoseInFlange(tree, chain, l)});
+  }
+  // Named frames: the base link itself and the links fixed to it (either way: `world` above it,
+  // ur_description's `base` beside it), and the last moving link and the links fixed below it
+  // (`tool0`, `flange`), tools excepted; a program's or a target's frame and a TCP's flange are chosen among them by name.
+  std::set<int> tool_set(chain.tool_links.begin(), chain.tool_links.end());
+  for (const bool on_flange : {false, true}) {
+    const int start = on_flange ? chain.flange : chain.base;
+    std::vector<std::pair<int, SE3d>> todo = {{start, SE3d()}};
+    std::set<int> seen = {start};
+    while (!todo.empty()) {
+      const auto [l, pose] = todo.back();
+      todo.pop_back();
+      if (tool_set.count(l) == 0) {
+        out.frames.push_back(NamedFrame{tree.links[l].name, on_flange, pose});
+      }
+      std::vector<std::pair<int, SE3d>> next;
+      for (int cj : tree.links[l].child_joints) {
+        if (tree.joints[cj].kind == Kind::kFixed) {
+          next.push_back({tree.joints[cj].child, pose * tree.joints[cj].origin});
+        }
+      }
+      const int pj = tree.links[l].parent_joint;
+      if (!on_flange && pj >= 0 && tree.joints[pj].kind == Kind::kFixed) {
+        next.push_back({tree.joints[pj].parent, pose * tree.joints[pj].origin.Inverse()});
+      }
+      for (auto it = next.rbegin(); it != next.rend(); ++it) {
+        if (seen.insert(it->first).second) todo.push_back(*it);
+      }
+    }
   }
   const Status valid = out.Validate();
   if (!valid.ok()) {

@@ -8,6 +8,7 @@
 
 #include <tinyxml2.h>
 
+#include <array>
 #include <limits>
 #include <map>
 #include <set>
@@ -81,6 +82,11 @@ struct UrdfTree {
 // The serial chain chosen from the tree, and the tools on it.
 struct UrdfChain {
   int base = -1;                // link: the model's base frame
+  // A base link fixed to the arm's root rather than above the arm (ur_description's `base`):
+  // the fixed joints climbed from it to the first link above the tip, and the pose of that link
+  // in the base link's frame (their inverses composed). Empty and the identity otherwise.
+  std::vector<int> up;
+  SE3d base_up;
   int tip = -1;                 // link: the end of the chain
   std::vector<int> path;        // joints from base to tip, in order
   std::vector<int> moving;      // the moving joints of `path`, in order
@@ -111,7 +117,11 @@ struct OverlayJoint {
   std::string name;
   SE3d origin;
   Eigen::Vector3d axis;
+  std::array<std::string, 6> text;  // x y z (m) roll pitch yaw (rad) as written in the URDF
 };
+// The roll, pitch, yaw of R nearest `old` (the file's): the branch and whole turns closest to it,
+// the gimbal-lock case shared between roll and yaw; reproduces R.
+Eigen::Vector3d RpyNearest(const Eigen::Matrix3d& R, const Eigen::Vector3d& old);
 // The source document with the calibrated origins written into it (`xml`), and the moved joints
 // (`moved`, may be null).
 Status OverlayImpl(const UrdfSource& src, const RobotModel& cal, const UrdfOverlayOptions& options,

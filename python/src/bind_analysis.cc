@@ -150,7 +150,8 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
                           const py::object& seeds_obj, const py::object& orientations_obj,
                           const py::object& joints_obj, const py::object& nominal_obj,
                           const std::string& joints_target, const py::object& tool_obj,
-                          const std::string& frame, const py::object& tcp_obj, int threads,
+                          const std::string& frame, const py::object& tcp_obj,
+                          const std::string& flange, int threads,
                           int max_iterations, int restarts, double position_tolerance,
                           double orientation_tolerance, double singular_threshold) {
   // The workflow of lpoe_compensate (lpoe/compensation.h): the same request, checks and solve.
@@ -164,9 +165,10 @@ PyCompensation Compensate(const RobotModel& model, const py::object& targets_obj
     throw LpoeError("joints_target: expected 'pose' or 'position', got '" + joints_target + "'");
   }
   request.joints_target_pose = joints_target == "pose";
-  if (!ParseTargetFrame(frame, &request.frame)) {
-    throw LpoeError("frame: expected 'base' or 'measurement', got '" + frame + "'");
+  if (!ParseTargetFrame(frame, &request.frame, &request.frame_link)) {
+    throw LpoeError("frame: expected 'base', 'measurement' or 'link:NAME', got '" + frame + "'");
   }
+  request.flange = flange;
   if (!nominal_obj.is_none()) {
     request.has_nominal = true;
     request.nominal = nominal_obj.cast<const RobotModel&>();
@@ -620,7 +622,7 @@ void BindAnalysis(py::module_& m) {
         py::kw_only(), py::arg("seeds") = py::none(), py::arg("orientations") = py::none(),
         py::arg("joints") = py::none(), py::arg("nominal") = py::none(),
         py::arg("joints_target") = "pose", py::arg("tool") = py::none(),
-        py::arg("frame") = "base", py::arg("tcp") = py::none(),
+        py::arg("frame") = "base", py::arg("tcp") = py::none(), py::arg("flange") = "",
         py::arg("threads") = static_cast<int>(OptionDefault(kCompensate, "threads")),
         py::arg("max_iterations") = static_cast<int>(OptionDefault(kCompensate, "max_iterations")),
         py::arg("restarts") = static_cast<int>(OptionDefault(kCompensate, "restarts")),
@@ -629,15 +631,18 @@ void BindAnalysis(py::module_& m) {
         py::arg("singular_threshold") = OptionDefault(kCompensate, "singular_threshold"),
         "the joints that make the calibrated `model` reach its targets (as lpoe_compensate, "
         "through the same library workflow, lpoe/compensation.h):\n"
-        "  targets mode: targets (M, 3) mm in `frame` ('base': the robot's base frame, carried "
+        "  targets mode: targets (M, 3) mm in `frame` ('base': the model's base frame, carried "
         "into the calibrated model's frame by its recorded registration, as the tool's default; "
-        "'measurement': the tracker's frame), seeds (M, N) the program's joints, optional "
+        "'measurement': the tracker's frame; 'link:NAME': a base frame of the model such as "
+        "ur_description's 'base'), seeds (M, N) the program's joints, optional "
         "orientations (M, 4) [x, y, z, w] for pose targets;\n"
         "  joints mode: joints (M, N) a program planned with `nominal`: reach the nominal tool "
         "pose (joints_target='pose') or position there.\n"
         "tool: a tool name or index for every row, or one per row (a list or array of names or "
         "indices); tcp: a TCP that was not measured, a tool name or [x, y, z(, roll, pitch, yaw)] "
-        "in mm and rad in the last joint's frame (as --tcp), for rows without a tool of their own.\n"
+        "in mm and rad relative to the flange (as --tcp), for rows without a tool of their own; "
+        "flange: the flange a tcp offset is relative to, a tool or flange frame of the models "
+        "(as --flange; default tool0, else flange, else the last joint's frame).\n"
         "The IK options' defaults and ranges are lpoe_compensate's (lpoe/options.h).\n"
         "With nominal=, also the corrected targets for a controller using nominal kinematics. "
         "Targets mostly metres from anything the robot reaches raise lpoe.Error naming the frame "

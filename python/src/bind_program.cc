@@ -25,7 +25,7 @@ struct PyProgramCompensation {
 
 PyProgramCompensation CompensateProgramPy(const RobotModel& model, const RobotModel& nominal,
                                           const std::string& program, const std::string& language,
-                                          const std::string& flange,
+                                          const std::string& flange, const std::string& frame,
                                           const std::string& targets_only, int max_iterations,
                                           int restarts) {
   ProgramLanguage lang;
@@ -38,6 +38,7 @@ PyProgramCompensation CompensateProgramPy(const RobotModel& model, const RobotMo
   }
   ProgramOptions options;
   options.flange = flange;
+  options.frame = frame;
   options.targets_only = targets_only;
   options.ik.max_iterations = max_iterations;
   options.ik.restarts = restarts;
@@ -88,9 +89,14 @@ void BindProgram(py::module_& m) {
                     "correction_deg");
   m.def("compensate_program", &CompensateProgramPy, py::arg("model"), py::arg("nominal"),
         py::arg("program"), py::kw_only(), py::arg("language"), py::arg("flange") = "",
-        py::arg("targets_only") = "", py::arg("max_iterations") = 100, py::arg("restarts") = 8,
+        py::arg("frame") = "", py::arg("targets_only") = "", py::arg("max_iterations") = 100,
+        py::arg("restarts") = 8,
         "a robot program (URScript or RAPID text) compensated with the calibrated `model` for a "
-        "controller running `nominal` (as lpoe_compensate --program; docs/programs.md)");
+        "controller running `nominal` (as lpoe_compensate --program; docs/programs.md). flange: "
+        "the controller's flange its TCPs are relative to (a tool or flange frame; default tool0, "
+        "else flange, else the last joint's frame); frame: the frame of its poses, 'base', "
+        "'measurement' or 'link:NAME' (default: 'link:base' for URScript when the model has that "
+        "frame, as ur_description's UR Base, else 'base')");
 }
 
 }  // namespace python

@@ -109,7 +109,7 @@ def test_compensate_targets_in_the_base_frame_by_default_like_the_tool(inputs):
     # Base-frame targets read as measurement-frame ones are metres off: refused, naming the frame.
     with pytest.raises(lpoe.Error, match=r"measurement frame \(--frame=measurement\).*--frame=base"):
         lpoe.compensate(c, base_targets, seeds=Q, frame="measurement")
-    with pytest.raises(lpoe.Error, match="frame: expected 'base' or 'measurement'"):
+    with pytest.raises(lpoe.Error, match="frame: expected 'base', 'measurement' or 'link:NAME'"):
         lpoe.compensate(c, base_targets, seeds=Q, frame="tracker")
 
 
@@ -152,3 +152,29 @@ def test_plan_keeps_every_pose_in_the_cell(inputs):
         lpoe.plan(m, 16, joint_ranges=np.zeros((5, 2)))
     with pytest.raises(lpoe.Error, match="box"):
         lpoe.plan(m, 16, box=[0, 0, 0, -1, 1, 1])
+
+
+UR5_CELL = os.path.join(os.path.dirname(__file__), "..", "..", "tests", "data", "urdf",
+                        "ur5_classic_cell.urdf")
+
+
+def test_compensate_in_the_controller_base_for_a_tcp_on_tool0():
+    # Issue 41: targets in ur_description's `base` (base_link turned by pi), a TCP relative to the
+    # flange tool0 (82.3 mm out of wrist_3_link and turned), as a UR controller gives them.
+    smrs = ["smr1", "smr2", "smr3"]
+    m = lpoe.read_model(UR5_CELL, tool_links=smrs)                          # base frame: world
+    t0 = lpoe.read_model(UR5_CELL, base_link="base", tool_links=["tool0"])  # tool0 in `base`
+    Q = np.array([[0.4, -1.3, 1.5, -1.9, -1.4, 0.3], [1.0, -0.8, 1.1, -1.2, 0.4, 2.0]])
+    targets = np.array([(t0.pose(q) @ [0.0, 0.0, 150.0, 1.0])[:3] for q in Q])
+    r = lpoe.compensate(m, targets, seeds=Q + 0.02, frame="link:base", tcp=[0.0, 0.0, 150.0])
+    assert all(s == "ok" for s in r.status)
+    reached = np.array([(t0.pose(q) @ [0.0, 0.0, 150.0, 1.0])[:3] for q in r.q])
+    np.testing.assert_allclose(reached, targets, atol=1e-6)
+    # In the last joint's frame (flange= a flange frame of its own) the same numbers are another
+    # point: the meaning is the flange's.
+    w = lpoe.compensate(m, targets, seeds=Q + 0.02, frame="link:base", tcp=[0.0, 0.0, 150.0],
+                        flange="wrist_3_link")
+    moved = np.array([(t0.pose(q) @ [0.0, 0.0, 150.0, 1.0])[:3] for q in w.q])
+    assert np.linalg.norm(moved - targets, axis=1).min() > 10.0
+    with pytest.raises(lpoe.Error, match="no base frame 'nowhere'"):
+        lpoe.compensate(m, targets, seeds=Q, frame="link:nowhere", tcp=[0.0, 0.0, 150.0])

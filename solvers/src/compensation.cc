@@ -19,18 +19,84 @@
 namespace lpoe {
 
 const char* TargetFrameName(TargetFrame frame) {
-  return frame == TargetFrame::kBase ? "base" : "measurement";
+  switch (frame) {
+    case TargetFrame::kBase:
+      return "base";
+    case TargetFrame::kMeasurement:
+      return "measurement";
+    case TargetFrame::kLink:
+      return "link";
+  }
+  return "?";
 }
 
-bool ParseTargetFrame(const std::string& text, TargetFrame* frame) {
+bool ParseTargetFrame(const std::string& text, TargetFrame* frame, std::string* link) {
   if (text == "base") {
     *frame = TargetFrame::kBase;
   } else if (text == "measurement") {
     *frame = TargetFrame::kMeasurement;
+  } else if (text.rfind("link:", 0) == 0 && text.size() > 5) {
+    *frame = TargetFrame::kLink;
+    if (link != nullptr) *link = text.substr(5);
   } else {
     return false;
   }
   return true;
+}
+
+namespace {
+
+std::string FrameNames(const RobotModel& model, bool on_flange) {
+  std::string names;
+  for (const NamedFrame& f : model.frames) {
+    if (f.on_flange == on_flange) names += (names.empty() ? "" : ", ") + f.name;
+  }
+  return names.empty() ? std::string("none") : names;
+}
+
+}  // namespace
+
+Status FindBaseFrame(const RobotModel& model, const std::string& name, SE3d* pose) {
+  const NamedFrame* f = model.FindFrame(name, /*on_flange=*/false);
+  if (f == nullptr) {
+    return Status::Error("the model " + model.name + " has no base frame '" + name +
+                         "' (its base frames: " + FrameNames(model, false) +
+                         "; a URDF's links fixed to the base link are)");
+  }
+  *pose = f->pose;
+  return Status::Ok();
+}
+
+Status FindFlange(const RobotModel& model, const std::string& name, SE3d* pose,
+                  std::string* resolved) {
+  const auto lookup = [&](const std::string& n) {
+    if (const int t = model.FindTool(n); t >= 0) {
+      *pose = model.tools[t].origin;
+      return true;
+    }
+    if (const NamedFrame* f = model.FindFrame(n, /*on_flange=*/true)) {
+      *pose = f->pose;
+      return true;
+    }
+    return false;
+  };
+  if (!name.empty()) {
+    if (lookup(name)) {
+      if (resolved != nullptr) *resolved = name;
+      return Status::Ok();
+    }
+    return Status::Error("the model " + model.name + " has no tool nor flange frame '" + name +
+                         "' (its flange frames: " + FrameNames(model, true) + ")");
+  }
+  for (const char* n : {"tool0", "flange"}) {
+    if (lookup(n)) {
+      if (resolved != nullptr) *resolved = n;
+      return Status::Ok();
+    }
+  }
+  *pose = SE3d();
+  if (resolved != nullptr) *resolved = "";
+  return Status::Ok();
 }
 
 namespace {
@@ -118,6 +184,12 @@ Status Compensator::Create(const CompensationRequest& request, std::unique_ptr<C
       return Status::Error("nominal: " + s.message());
     }
   }
+  if (request.frame == TargetFrame::kLink) {
+    // The named base frame, from the nominal model (the calibrated one carries the same).
+    if (Status s = FindBaseFrame(c->nominal(), request.frame_link, &c->frame_pose_); !s.ok()) {
+      return Status::Error("--frame=link:" + request.frame_link + ": " + s.message());
+    }
+  }
   std::vector<double> numbers = request.tcp_offset;
   if (!request.tcp_offset.empty() || TcpNumbers(request.tcp, &numbers)) {
     // The residual layer corrects the positions of the tools it was fitted on (the measured
@@ -131,13 +203,24 @@ Status Compensator::Create(const CompensationRequest& request, std::unique_ptr<C
           "); a TCP given by its offset has no correction of its own: give --tcp=<one of those "
           "tools>, or compensate with a model calibrated with --residual_model=none");
     }
-    // A TCP given by its offset: one more tool of both models (the same place on the flange).
+    // A TCP given by its offset on the flange: one more tool of both models, each model's flange
+    // times the offset (a calibrated flange tool moves the TCP with it).
     const bool rpy = numbers.size() == 6;
     const Eigen::Matrix3d R = RotationFromRpy(rpy ? numbers[3] : 0.0, rpy ? numbers[4] : 0.0,
                                               rpy ? numbers[5] : 0.0);
-    const Tool tcp{"tcp", SE3d(R, Eigen::Vector3d(numbers[0], numbers[1], numbers[2]))};
-    c->model_.tools.push_back(tcp);
-    if (request.has_nominal) c->nominal_.tools.push_back(tcp);
+    const SE3d offset(R, Eigen::Vector3d(numbers[0], numbers[1], numbers[2]));
+    SE3d flange_cal, flange_nom;
+    if (Status s = FindFlange(c->model_, request.flange, &flange_cal, &c->flange_name_);
+        !s.ok()) {
+      return Status::Error("--flange: " + s.message());
+    }
+    if (request.has_nominal) {
+      if (Status s = FindFlange(c->nominal_, c->flange_name_, &flange_nom); !s.ok()) {
+        return Status::Error("--flange: nominal: " + s.message());
+      }
+      c->nominal_.tools.push_back(Tool{"tcp", flange_nom * offset});
+    }
+    c->model_.tools.push_back(Tool{"tcp", flange_cal * offset});
     c->default_tool_ = c->model_.num_tools() - 1;
   } else if (!request.tcp.empty()) {
     c->default_tool_ = c->model_.FindTool(request.tcp);
@@ -175,7 +258,6 @@ void Compensator::Solve(const double* seeds, std::vector<IkTarget>* targets,
                         CompensatedRows* out) const {
   const int rows = static_cast<int>(targets->size());
   const int n = model_.num_joints();
-  const SE3d& T_mb = model_.T_measurement_base;
   out->q.resize(static_cast<size_t>(rows) * n);
   out->results.resize(rows);
   out->corrected.resize(request_.has_nominal ? rows : 0);
@@ -184,18 +266,8 @@ void Compensator::Solve(const double* seeds, std::vector<IkTarget>* targets,
     for (int k = begin; k < end; ++k) {
       IkTarget& t = (*targets)[k];
       const double* seed = seeds + static_cast<size_t>(k) * n;
-      if (request_.joints_mode) {
-        // The nominal tool pose at the program's joints, in the calibrated model's frame.
-        const SE3d T = T_mb * nominal_chain_->Pose(seed, t.tool);
-        t.position = T.t;
-        t.rotation = T.R;
-        t.has_orientation = request_.joints_target_pose;
-      } else if (request_.frame == TargetFrame::kBase) {
-        t.position = T_mb * t.position;
-        t.rotation = T_mb.R * t.rotation;
-      }
       double* q = &out->q[static_cast<size_t>(k) * n];
-      out->results[k] = ik_->Solve(t, seed, q);
+      out->results[k] = SolveRow(&t, seed, q);
       if (request_.has_nominal) out->corrected[k] = nominal_chain_->Pose(q, t.tool);
       if (model_.residual_layer) out->layer_distance[k] = model_.residual_layer->KernelDistance(q);
     }
@@ -220,6 +292,24 @@ Status CheckCompensatedFinite(const CompensatedRows& out, const int* lines, int6
     }
   }
   return Status::Ok();
+}
+
+IkResult Compensator::SolveRow(IkTarget* target, const double* seed, double* q) const {
+  IkTarget& t = *target;
+  const SE3d& T_mb = model_.T_measurement_base;
+  if (request_.joints_mode) {
+    // The nominal tool pose at the program's joints, in the calibrated model's frame.
+    const SE3d T = T_mb * nominal_chain_->Pose(seed, t.tool);
+    t.position = T.t;
+    t.rotation = T.R;
+    t.has_orientation = request_.joints_target_pose;
+  } else if (request_.frame != TargetFrame::kMeasurement) {
+    // base: T_measurement_base; link:NAME: that frame's pose in the base frame first.
+    const SE3d T = T_mb * frame_pose_;
+    t.position = T * t.position;
+    t.rotation = T.R * t.rotation;
+  }
+  return ik_->Solve(t, seed, q);
 }
 
 void CompensationSummary::Add(const CompensatedRows& out, const int* lines) {
@@ -247,7 +337,10 @@ void CompensationSummary::Add(const CompensatedRows& out, const int* lines) {
 Status CompensationSummary::CheckFrame(const CompensationRequest& request,
                                        const std::string& source) const {
   if (request.joints_mode || rows == 0 || 2 * far_rows <= rows) return Status::Ok();
-  const bool base = request.frame == TargetFrame::kBase;
+  const bool base = request.frame != TargetFrame::kMeasurement;
+  const std::string frame_flag =
+      request.frame == TargetFrame::kLink ? "link:" + request.frame_link
+                                          : std::string(TargetFrameName(request.frame));
   char residual[32];
   std::snprintf(residual, sizeof(residual), "%g", max_residual);
   // Another frame moves targets by the distance between the frames (metres at most); a length
@@ -269,7 +362,7 @@ Status CompensationSummary::CheckFrame(const CompensationRequest& request,
       source + ": " + std::to_string(far_rows) + " of " + std::to_string(rows) +
       " targets are more than " + limit + " mm from any pose the calibrated robot reaches (line " +
       std::to_string(max_residual_line) + ": " + residual + " mm): the targets were read in the " +
-      (base ? "robot's base" : "measurement") + " frame (--frame=" + TargetFrameName(request.frame) +
+      (base ? "robot's base" : "measurement") + " frame (--frame=" + frame_flag +
       "); if they are in the " + (base ? "measurement (tracker)" : "robot's base") +
       " frame, use --frame=" + (base ? "measurement" : "base") + "; no output written");
 }

@@ -5,10 +5,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "lpoe/compensation.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/refusals.h"
 
@@ -88,20 +91,30 @@ const char* IkReason(IkStatus s) {
 
 }  // namespace
 
-int ResolveFlangeTool(const RobotModel& model, const std::string& flange, std::string* message) {
-  if (!flange.empty()) {
-    const int t = model.FindTool(flange);
-    if (t < 0) *message = "the model " + model.name + " has no tool '" + flange + "'";
-    return t;
+std::string ProgramFrame(const RobotModel& nominal, ProgramLanguage language,
+                         const std::string& frame) {
+  if (!frame.empty()) return frame;
+  // A UR controller's poses are in its Base frame, which ur_description calls `base` (base_link
+  // turned by pi about z): the URScript default when the model has that frame.
+  if (language == ProgramLanguage::kUrScript && nominal.FindFrame("base", false) != nullptr) {
+    return "link:base";
   }
-  const int t = model.FindTool("flange");
-  if (t >= 0) return t;
-  if (model.num_tools() == 1) return 0;
-  *message = "the model " + model.name +
-             " has no tool named 'flange' and several tools; say which one is the controller's "
-             "flange (tool0) with --flange";
-  return -1;
+  return "base";
 }
+
+namespace {
+
+// The compensation of the targets of one TCP: the request of lpoe_compensate's targets mode (and
+// of its joints mode, for joint targets) with that TCP on the flange, and the controller's
+// (nominal) inverse kinematics on the same TCP tool.
+struct TcpSolvers {
+  std::unique_ptr<Compensator> targets, joints;
+  std::unique_ptr<InverseKinematics> controller;
+  std::unique_ptr<KinematicChain> nominal_chain;
+  int tool = 0;
+};
+
+}  // namespace
 
 Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal,
                          const ProgramOptions& options, ParsedProgram* program) {
@@ -117,11 +130,25 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
   if (Status s = CheckNominalMatches(calibrated, nominal); !s.ok()) {
     return Status::Error("nominal: " + s.message());
   }
-  std::string message;
-  const int flange_cal = ResolveFlangeTool(calibrated, options.flange, &message);
-  if (flange_cal < 0) return Status::Error(message);
-  const int flange_nom = ResolveFlangeTool(nominal, calibrated.tools[flange_cal].name, &message);
-  if (flange_nom < 0) return Status::Error(message);
+  SE3d flange_pose;
+  std::string flange_name;
+  if (Status s = FindFlange(calibrated, options.flange, &flange_pose, &flange_name); !s.ok()) {
+    return s;
+  }
+  if (SE3d unused; !FindFlange(nominal, flange_name, &unused).ok()) {
+    return Status::Error("the nominal model " + nominal.name + " has no flange '" + flange_name +
+                         "' (the calibrated model's)");
+  }
+  program->flange = flange_name.empty() ? "the last joint's frame" : flange_name;
+  program->frame = ProgramFrame(nominal, program->language, options.frame);
+  TargetFrame frame_kind;
+  std::string frame_link;
+  if (!ParseTargetFrame(program->frame, &frame_kind, &frame_link) ||
+      frame_kind == TargetFrame::kMeasurement) {
+    return Status::Error("frame '" + program->frame +
+                         "': a program's poses are in the base frame (base) or a controller base "
+                         "of the models (link:NAME), which its controller knows");
+  }
   TargetNameFilter selected;
   if (Status s = selected.Compile(options.targets_only); !s.ok()) return s;
   const int n = calibrated.num_joints();
@@ -140,9 +167,43 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
   }
   IkOptions nominal_options = options.ik;
   nominal_options.check_branch = false;
-  const InverseKinematics ik_cal(calibrated, options.ik);
-  const InverseKinematics ik_nom(nominal, nominal_options);
-  const KinematicChain nom_chain(nominal);
+
+  // One set of solvers per distinct TCP, made when first needed.
+  std::map<std::vector<double>, TcpSolvers> solvers;
+  Status failed = Status::Ok();
+  auto solvers_for = [&](const SE3d& tcp) -> TcpSolvers* {
+    std::vector<double> key(tcp.R.data(), tcp.R.data() + 9);
+    key.insert(key.end(), tcp.t.data(), tcp.t.data() + 3);
+    auto it = solvers.find(key);
+    if (it != solvers.end()) return &it->second;
+    CompensationRequest r;
+    r.model = calibrated;
+    r.has_nominal = true;
+    r.nominal = nominal;
+    r.frame = frame_kind;
+    r.frame_link = frame_link;
+    const Eigen::Vector3d rpy = RpyFromRotation(tcp.R);
+    r.tcp_offset = {tcp.t.x(), tcp.t.y(), tcp.t.z(), rpy.x(), rpy.y(), rpy.z()};
+    r.flange = flange_name;
+    r.ik = options.ik;
+    r.threads = 1;
+    TcpSolvers ts;
+    if (Status s = Compensator::Create(r, &ts.targets); !s.ok()) {
+      failed = s;
+      return nullptr;
+    }
+    r.joints_mode = true;
+    r.joints_target_pose = true;
+    r.frame = TargetFrame::kBase;
+    if (Status s = Compensator::Create(r, &ts.joints); !s.ok()) {
+      failed = s;
+      return nullptr;
+    }
+    ts.tool = ts.targets->default_tool();
+    ts.controller = std::make_unique<InverseKinematics>(ts.targets->nominal(), nominal_options);
+    ts.nominal_chain = std::make_unique<KinematicChain>(ts.targets->nominal());
+    return &solvers.emplace(key, std::move(ts)).first->second;
+  };
 
   std::vector<int> order;
   for (int k = 0; k < static_cast<int>(program->targets.size()); ++k) {
@@ -150,6 +211,8 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
     t.status = ProgramTargetStatus::kNotCompensated;
     t.new_values.clear();
     t.new_quadrants.clear();
+    t.q_compensated.clear();
+    t.q_controller.clear();
     if (!t.compensable) continue;
     if (!t.used) {
       t.compensable = false;
@@ -172,11 +235,9 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
   const bool last_revolute = last.type == JointType::kRevolute;
   const Eigen::Vector3d axis_w = last.twist.head<3>().normalized();
   const Eigen::Vector3d axis_point = axis_w.cross(last.twist.tail<3>());
-  // `tcp`: the working point on the flange (the TCP, or for a stationary tool the target on the
-  // work object the robot holds).
-  auto note_tcp = [&](const SE3d& tcp) {
+  auto note_tcp = [&](const TcpSolvers& ts) {
     if (!last_revolute) return;
-    const Eigen::Vector3d r = (calibrated.tools[flange_cal].origin * tcp).t - axis_point;
+    const Eigen::Vector3d r = ts.targets->model().tools[ts.tool].origin.t - axis_point;
     program->tcp_off_flange_axis_mm =
         std::max(program->tcp_off_flange_axis_mm, (r - axis_w * axis_w.dot(r)).norm());
   };
@@ -184,6 +245,10 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
   for (const int k : order) {
     ProgramTarget& t = program->targets[k];
     const bool wanted = options.targets_only.empty() || selected.Matches(t.name);
+    // The point on the flange that moves: the TCP, or for a stationary tool the work object the
+    // robot holds.
+    TcpSolvers* ts = solvers_for(t.stationary_tool ? t.frame : t.tcp);
+    if (ts == nullptr) return failed;
     if (t.kind == ProgramTargetKind::kJoint) {
       if (static_cast<int>(t.numbers.size()) != n) {
         t.compensable = false;
@@ -202,13 +267,11 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
         t.reason = "name does not match targets_only (taught point)";
         continue;
       }
-      const SE3d X = calibrated.T_measurement_base * nom_chain.Pose(q_nom.data(), flange_nom);
+      // lpoe_compensate --joints: the nominal TCP pose at the program's joints, reached by the
+      // calibrated robot.
       IkTarget target;
-      target.tool = flange_cal;
-      target.position = X.t;
-      target.rotation = X.R;
-      target.has_orientation = true;
-      const IkResult r = ik_cal.Solve(target, q_nom.data(), q_cal.data());
+      target.tool = ts->tool;
+      const IkResult r = ts->joints->SolveRow(&target, q_nom.data(), q_cal.data());
       if (r.status != IkStatus::kOk) {
         t.reason = std::string("the calibrated robot reaches this pose ") + IkReason(r.status);
         continue;
@@ -222,15 +285,15 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
           max_dq = std::max(max_dq, std::abs(q_cal[j] - q_nom[j]) * kDeg);
         }
       }
-      // The point that moves: the TCP, or the work object the robot holds past a stationary tool.
-      const SE3d& moving = t.stationary_tool ? t.frame : t.tcp;
-      const SE3d a = nom_chain.Pose(q_nom.data(), flange_nom) * moving;
-      const SE3d b = nom_chain.Pose(q_cal.data(), flange_nom) * moving;
+      const SE3d a = ts->nominal_chain->Pose(q_nom.data(), ts->tool);
+      const SE3d b = ts->nominal_chain->Pose(q_cal.data(), ts->tool);
       t.correction_mm = (b.t - a.t).norm();
       t.correction_deg = max_dq;
+      t.q_compensated = q_cal;
+      t.q_controller = q_nom;
       t.status = ProgramTargetStatus::kCompensated;
       t.reason.clear();
-      note_tcp(moving);
+      note_tcp(*ts);
       continue;
     }
     SE3d pose;
@@ -251,17 +314,18 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
         seed[qd.joint] = (qd.number.value + 0.5) * kPi / 2;
       }
     }
+    // The target in the program's frame, and in the models' base frame for the controller.
     // Robot-held tool: the TCP (flange * tcp) at the target in the work object (frame * pose).
-    // Stationary tool: the work object the robot holds (flange * frame) has the fixed tool (tcp,
-    // in the base frame) at the target: flange * frame * pose = tcp.
-    const SE3d flange_base = t.stationary_tool ? t.tcp * pose.Inverse() * t.frame.Inverse()
-                                               : t.frame * pose * t.tcp.Inverse();
+    // Stationary tool (tcp fixed in the program's frame): the work object the robot holds
+    // (flange * frame) where flange * frame * pose = tcp.
+    const SE3d in_frame = t.stationary_tool ? t.tcp * pose.Inverse() : t.frame * pose;
+    const SE3d in_base = ts->targets->frame_pose() * in_frame;
     IkTarget target;
-    target.tool = flange_nom;
-    target.position = flange_base.t;
-    target.rotation = flange_base.R;
+    target.tool = ts->tool;
+    target.position = in_base.t;
+    target.rotation = in_base.R;
     target.has_orientation = true;
-    const IkResult rn = ik_nom.Solve(target, seed.data(), q_nom.data());
+    const IkResult rn = ts->controller->Solve(target, seed.data(), q_nom.data());
     if (rn.status != IkStatus::kOk && rn.status != IkStatus::kBranch) {
       t.reason = std::string("the nominal model reaches this target ") + IkReason(rn.status) +
                  " (the controller would not run it)";
@@ -273,27 +337,29 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
       t.reason = "name does not match targets_only (taught point)";
       continue;
     }
-    const SE3d measured = calibrated.T_measurement_base * flange_base;
-    target.tool = flange_cal;
-    target.position = measured.t;
-    target.rotation = measured.R;
-    const IkResult rc = ik_cal.Solve(target, q_nom.data(), q_cal.data());
+    // Exactly a --targets row: this pose in the program's frame, this TCP, seeded at q_nom.
+    target.position = in_frame.t;
+    target.rotation = in_frame.R;
+    const IkResult rc = ts->targets->SolveRow(&target, q_nom.data(), q_cal.data());
     if (rc.status != IkStatus::kOk) {
       t.reason = std::string("the calibrated robot reaches this target ") + IkReason(rc.status);
       continue;
     }
-    const SE3d flange_cal_q = nom_chain.Pose(q_cal.data(), flange_nom);
-    const SE3d corrected = t.stationary_tool ? (flange_cal_q * t.frame).Inverse() * t.tcp
-                                             : t.frame.Inverse() * flange_cal_q * t.tcp;
+    const SE3d moved = ts->nominal_chain->Pose(q_cal.data(), ts->tool);
+    const SE3d corrected = t.stationary_tool
+                               ? moved.Inverse() * ts->targets->frame_pose() * t.tcp
+                               : (ts->targets->frame_pose() * t.frame).Inverse() * moved;
     t.new_values = EncodePose(t, corrected);
     for (const ProgramTarget::Quadrant& qd : t.quadrants) {
       t.new_quadrants.push_back(qd.joint < n ? Quadrant(q_cal[qd.joint]) : qd.number.value);
     }
     t.correction_mm = (corrected.t - pose.t).norm();
     t.correction_deg = Angle(pose.R.transpose() * corrected.R) * kDeg;
+    t.q_compensated = q_cal;
+    t.q_controller = q_nom;
     t.status = ProgramTargetStatus::kCompensated;
     t.reason.clear();
-    note_tcp(t.stationary_tool ? t.frame * pose : t.tcp);
+    note_tcp(*ts);
   }
   // The last guard (issue 40): a compensated number that is not finite is an error naming its
   // line, never written.

@@ -486,6 +486,10 @@ std::string FlangeRotationNoteJson(const ParsedProgram& program) {
                     : program.tcp_off_flange_axis_mm * 0.1 * kPi / 180.0);
   std::string out = buf;
   JsonString(FlangeRotationNote(program), &out);
+  out += ",\n  \"frame\": ";
+  JsonString(program.frame, &out);
+  out += ",\n  \"flange\": ";
+  JsonString(program.flange, &out);
   out += ",\n";
   return out;
 }

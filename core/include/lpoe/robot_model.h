@@ -99,6 +99,18 @@ constexpr double kStandardGravity = 9.80665;
 // Tolerances used by Validate() on twists.
 constexpr double kTwistTolerance = 1e-6;
 
+// A named frame of the robot that is neither a joint nor a tool (docs/conventions.md, "Frames"):
+// fixed to the base (ur_description's `base`, the controller's base frame; `world`) or to the last
+// link (`tool0`, the controller's flange; `flange`). Targets, programs and predictions may be given
+// in a base frame; a TCP is relative to a flange frame. A URDF's links fixed to the chain's base
+// link or to its last moving link become such frames; YAML `frames:`. Calibration leaves them as
+// they are (a flange frame moves with the last link's calibrated frame, as an unmeasured tool).
+struct NamedFrame {
+  std::string name;
+  bool on_flange = false;  // in the last joint's frame; else in the model's (nominal) base frame
+  SE3d pose;
+};
+
 class RobotModel {
  public:
   std::string name;
@@ -108,6 +120,9 @@ class RobotModel {
   // e.g. a laser tracker's) from the nominal model's base frame. Identity when the data were in the
   // base frame. Compensation uses it to carry nominal poses into this model's frame.
   SE3d T_measurement_base;
+  // Named base and flange frames (see NamedFrame): base frames are in the nominal base frame (the
+  // one T_measurement_base starts from), flange frames in the last joint's frame.
+  std::vector<NamedFrame> frames;
   // Gravity in the model's base frame (m/s^2): the parent frame of joint 1's local frame, i.e. the
   // measurement frame of a registered model.
   Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -kStandardGravity);
@@ -126,6 +141,8 @@ class RobotModel {
 
   // Index of the tool called `name`, or -1.
   int FindTool(const std::string& tool_name) const;
+  // The named frame called `name` on the base (on_flange false) or on the flange, or null.
+  const NamedFrame* FindFrame(const std::string& frame_name, bool on_flange) const;
   // Some tool is fixed (Tool::fixed).
   bool HasFixedTool() const;
 

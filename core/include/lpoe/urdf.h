@@ -32,8 +32,9 @@
 // XML element (or of the XML syntax error). Nothing throws or aborts on any input.
 //
 // Overlay (CalibratedUrdfOverlay). A model read from a URDF is written back into that same
-// document: every link, joint, limit, mesh, inertial, transmission and extension tag is kept, and
-// only these change (numbers: the shortest text that reads back as the same double):
+// document's text, edited in place: every byte is kept but the numbers that change (unchanged
+// numbers keep their text; changed ones are the shortest text that reads back as the same double;
+// rpy the representation nearest the file's) and one block of additions before </robot>:
 //   - each moving joint of the chain gets origin = F_i^-1 T_{i-1,i}(0), F_i the fixed joints folded
 //     before it (which stay unchanged), and its axis when the calibrated one differs;
 //   - its <limit> lower/upper where the model's limits differ from the file's;
@@ -42,9 +43,11 @@
 //     tip (named after the tool, or <tool>_smr when that name is taken);
 //   - a link `measurement_frame` on a fixed joint from the base link. With in_measurement_frame
 //     (the calibration ran in the tracker's frame, so joint 1's calibrated frame holds
-//     T_measurement_base), joint 1 keeps its URDF origin and the measurement frame's joint takes
-//     T_base_measurement = N_1 C_1^-1 (N nominal, C calibrated: the two are not separable), so the
-//     robot's base stays where the cell description has it; otherwise its origin is the identity.
+//     T_measurement_base), the calibrated model's recorded T_measurement_base places the
+//     measurement frame (T_base_measurement = T_measurement_base^-1) and joint 1 takes
+//     T_measurement_base^-1 C_1, so that the URDF predicts in its base frame what the YAML does;
+//     without a recorded one joint 1 keeps its URDF origin and the measurement frame takes
+//     N_1 C_1^-1 (N nominal, C calibrated); otherwise its origin is the identity.
 // Forward kinematics from `measurement_frame` to a tool's link then equals the calibrated model's.
 // A calibrated revolute axis that does not pass through its frame origin (v != 0) cannot be written
 // and is an error.
@@ -52,7 +55,9 @@
 // UR kinematics (UrKinematicsYaml): for a model whose joints are shoulder_pan_joint ..
 // wrist_3_joint (any common prefix), the calibrated origins of those six joints in the format of
 // ROS-Industrial's ur_description (kinematics: {shoulder, upper_arm, forearm, wrist_1, wrist_2,
-// wrist_3}: {x, y, z, roll, pitch, yaw}, hash); every axis must be the joint's z axis.
+// wrist_3}: {x, y, z, roll, pitch, yaw}, hash): the overlay's text when every axis is the joint's
+// z axis, else converted from the classic layout (axes along y, a link `base` and tool0 on
+// wrist_3's axis; docs/urdf.md), else an error naming the layout needed.
 //
 // Export (RobotModelToUrdf, a model without a source URDF). Links are named base_link, link1..linkN
 // and after the tools; joints keep their names and tools are attached with fixed joints. Numbers
@@ -78,7 +83,8 @@
 namespace lpoe {
 
 struct UrdfOptions {
-  // The link whose frame is the model's base frame; empty: the root link.
+  // The link whose frame is the model's base frame; empty: the root link. A link fixed beside the
+  // arm (ur_description's `base`) is reached by climbing its fixed joints.
   std::string base_link;
   // The end of the chain; empty: chosen as described above (an error when ambiguous).
   std::string tip_link;

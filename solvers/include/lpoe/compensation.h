@@ -26,14 +26,25 @@
 
 namespace lpoe {
 
-// The frame the targets are given in.
+// The frame the targets are given in (docs/conventions.md, "Frames").
 enum class TargetFrame {
-  kBase,         // the robot's own base frame (what programs use): carried into the calibrated
-                 // model's frame by its recorded registration T_measurement_base
+  kBase,         // the model's base frame (the chain's base): carried into the calibrated model's
+                 // frame by its recorded registration T_measurement_base
   kMeasurement,  // the frame the calibration's measurements were in (the tracker's)
+  kLink,         // a named base frame of the model (RobotModel::frames, e.g. ur_description's
+                 // `base`, the UR controller's base): "link:NAME"
 };
-const char* TargetFrameName(TargetFrame frame);  // "base" | "measurement"
-bool ParseTargetFrame(const std::string& text, TargetFrame* frame);
+const char* TargetFrameName(TargetFrame frame);  // "base" | "measurement" | "link"
+// "base", "measurement" or "link:NAME" (`link` receives NAME; may be null when not kLink).
+bool ParseTargetFrame(const std::string& text, TargetFrame* frame, std::string* link = nullptr);
+// A base frame of `model` by name: its pose in the model's nominal base frame; an error naming
+// the frames the model has.
+Status FindBaseFrame(const RobotModel& model, const std::string& name, SE3d* pose);
+// The controller's flange of `model` (docs/conventions.md): `name` when given (a tool or a
+// flange frame), else a tool or flange frame named tool0, else one named flange, else the last
+// joint's frame (identity, `*found` false). Its pose in the last joint's frame.
+Status FindFlange(const RobotModel& model, const std::string& name, SE3d* pose,
+                  std::string* resolved = nullptr);
 
 // Targets this far (mm) from anything the robot reaches are in another frame.
 constexpr double kWrongFrameMm = 1000.0;
@@ -53,12 +64,17 @@ struct CompensationRequest {
   bool joints_mode = false;
   bool joints_target_pose = true;  // joints mode: the nominal tool pose, or only its position
   TargetFrame frame = TargetFrame::kBase;
+  std::string frame_link;  // kLink: the name of the base frame
   // The TCP the targets are for when it was not measured: empty, a tool of the models (at the same
-  // index in both), or "x,y,z[,roll,pitch,yaw]" (mm, rad; in the last joint's frame, where the
-  // models' tools are), added to both models as a tool named "tcp". Rows without a tool of their
-  // own use it. `tcp_offset` instead of the text: the same offset given as numbers (3 or 6).
+  // index in both), or "x,y,z[,roll,pitch,yaw]" (mm, rad) relative to the flange (as a controller's
+  // TCP is: URScript set_tcp, RAPID tframe), added to both models as a tool named "tcp" (each
+  // model's own flange times the offset). Rows without a tool of their own use it. `tcp_offset`
+  // instead of the text: the same offset given as numbers (3 or 6).
   std::string tcp;
   std::vector<double> tcp_offset;
+  // The flange the TCP offset is relative to: a tool or a flange frame of the models; empty: see
+  // FindFlange (tool0, flange, else the last joint's frame).
+  std::string flange;
   // The tool of rows without their own: a tool name or index (empty: tool 0). Not with a TCP.
   std::string tool;
   IkOptions ik;
@@ -110,6 +126,13 @@ class Compensator {
   // at the seed). Runs on request().threads threads in fixed contiguous blocks: the output does not
   // depend on the thread count.
   void Solve(const double* seeds, std::vector<IkTarget>* targets, CompensatedRows* out) const;
+  // One row of Solve: `target` (in the request's frame; carried into the calibrated model's frame
+  // in place) solved from `seed` into `q`. Program targets are compensated by this same call.
+  IkResult SolveRow(IkTarget* target, const double* seed, double* q) const;
+  // The pose of the request's frame in the nominal base frame (identity for base and measurement).
+  const SE3d& frame_pose() const { return frame_pose_; }
+  // The flange's name and its pose in the last joint's frame of the calibrated / nominal model.
+  const std::string& flange_name() const { return flange_name_; }
 
   // The blocks Solve cuts `rows` rows into (one per thread, at least 256 rows each), and
   // fn(block, begin, end) run for each on as many threads (lpoe/parallel.h), for a front end's
@@ -129,6 +152,8 @@ class Compensator {
   CompensationRequest request_;
   RobotModel model_, nominal_;
   int default_tool_ = 0;
+  SE3d frame_pose_;
+  std::string flange_name_;
   std::unique_ptr<InverseKinematics> ik_;
   std::unique_ptr<KinematicChain> nominal_chain_;
 };

@@ -107,6 +107,8 @@ struct ProgramTarget {
   std::vector<double> new_quadrants;  // one per quadrant
   double correction_mm = 0;           // change of the target's position (joint: of the TCP)
   double correction_deg = 0;          // change of its orientation (joint: largest joint change)
+  std::vector<double> q_compensated;  // the joints the compensated target makes the robot take
+  std::vector<double> q_controller;   // the controller's joints for the original target (the seed)
 };
 
 struct ParsedProgram {
@@ -123,15 +125,24 @@ struct ParsedProgram {
   // calibration, traded against the SMR offsets, and not identified.
   bool flange_rotation_identified = false;
   std::string fixed_tools;  // their names, comma-separated
+  // Set by CompensateProgram: the frame the program's poses were read in ("base" the models' base
+  // frame, "link:NAME" a named base frame, see ProgramOptions::frame) and the flange its TCPs are
+  // relative to.
+  std::string frame, flange;
 };
 
 // Parses `text`; errors name the line ("line 12: ..."). Checks UTF-8, balanced brackets, the size.
 Status ParseProgram(std::string_view text, ProgramLanguage language, ParsedProgram* program);
 
 struct ProgramOptions {
-  // Tool of both models that is the controller's flange (tool0); empty: a tool named "flange",
-  // else the model's only tool.
+  // The controller's flange the program's TCPs are relative to: a tool or a flange frame of both
+  // models (lpoe/compensation.h, FindFlange); empty: tool0, else flange, else the last joint's
+  // frame.
   std::string flange;
+  // The frame of the program's poses (below its work objects / features), as lpoe_compensate's
+  // --frame: "base" (the models' base frame), "link:NAME" (a named base frame of the models) or
+  // "measurement". Empty: ProgramFrame's default.
+  std::string frame;
   // Regular expression (RE2 syntax: ECMAScript's without backreferences and lookaround; matched
   // in time linear in the name, names of any length): only targets whose whole name matches are
   // compensated (the rest are taught points, kNotSelected). Empty: every target.
@@ -159,8 +170,8 @@ class TargetNameFilter {
 // Checks a ProgramOptions::targets_only pattern (TargetNameFilter::Compile).
 Status CheckTargetsOnly(const std::string& pattern);
 
-// Resolves the flange tool of `model` (see ProgramOptions::flange), -1 with a message.
-int ResolveFlangeTool(const RobotModel& model, const std::string& flange, std::string* message);
+// The tool named `flange`, else a tool named "flange", else the only tool; -1 with a message.
+// (Programs resolve their flange with FindFlange, lpoe/compensation.h.)
 
 // For each compensable record, in program order: the nominal model's inverse kinematics on the
 // original target (seeded by qnear, the quadrants, or the previous target's joints) gives the
