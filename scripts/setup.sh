@@ -9,6 +9,7 @@ PACKAGES=(
   libyaml-cpp-dev          # robot model files (YAML with line numbers in errors)
   libtinyxml2-dev          # URDF robot models
   libsleef-dev             # vectorized sin/cos and exp (SLEEF) behind the AVX2 kernel switch
+  liblbfgspp-dev           # the residual layer's hyperparameters: bounded L-BFGS-B (header-only LBFGSpp, docs/residual_layer.md)
   liburdfdom-dev           # urdf_overlay_test: reads the written URDF independently of our reader
   liburdfdom-tools         # urdf_overlay_test: check_urdf validates the written URDF
   nlohmann-json3-dev       # the JSON calibration report (header-only)
