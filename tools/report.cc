@@ -266,6 +266,10 @@ std::string ResidualLayerLengthScalesText(const ResidualLayer& layer, const Resi
   std::snprintf(buf, sizeof(buf), "; tool correlation %.3g; configuration error %.3g mm\n",
                 layer.tool_correlation, fit.configuration_std);
   out += buf;
+  if (fit.chosen_start == 2) {
+    return out + "  the fit's leave-one-configuration-out check found no signal it can predict: "
+                 "the layer's corrections are nil (docs/residual_layer.md)\n";
+  }
   for (int j : JointsBelowSpacing(layer.length_scales, fit.spacing)) {
     const std::string name =
         j < model.num_joints() ? model.joints[j].name : "joint" + std::to_string(j + 1);

@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <limits>
 #include <numeric>
@@ -27,10 +30,13 @@ constexpr double kTwoPi = 6.283185307179586476925286766559;
 constexpr double kExactJitter = 1e-8;
 constexpr double kInducingJitter = 1e-6;
 
-// Bounds of the hyperparameters (log space): length scales 1e-3..1e6 (rad or mm), the tool's
-// 0.1..10 (rho from e^-100 to 0.99), s_f and s_n 1e-6..1e3 mm.
+// Bounds of the hyperparameters (log space): length scales 1e-3..1e6 (rad or mm); the tool's
+// 1.2011..10, i.e. rho = exp(-1 / l_tool^2) from 0.5 to 0.99: the signal is at least half shared
+// by the SMRs of a configuration. A free rho down to 0 lets the likelihood give each SMR a signal
+// of its own, which with short length scales is the rows' noise again (the data fragmented by
+// tool, a flat ridge the optimizer wanders along); s_f, s_n and s_c 1e-6..1e3 mm.
 constexpr double kLogLengthMin = -6.907755278982137, kLogLengthMax = 13.815510557964274;
-constexpr double kLogToolMin = -2.302585092994046, kLogToolMax = 2.302585092994046;
+constexpr double kLogToolMin = 0.1832564602908322, kLogToolMax = 2.302585092994046;
 constexpr double kLogStdMin = -13.815510557964274, kLogStdMax = 6.907755278982137;
 
 // Squared distance in length-scale units between rows a of A and b of B (n joints).
@@ -112,10 +118,10 @@ int MinimizeBounded(const F& f, const Eigen::VectorXd& lower, const Eigen::Vecto
   LBFGSpp::LBFGSBParam<double> param;
   param.m = 7;
   param.max_iterations = std::max(1, max_iterations);
-  param.epsilon = 1e-7;      // projected gradient (the objective is per hyperparameter row)
+  param.epsilon = 1e-5;      // projected gradient (the objective is per hyperparameter row)
   param.epsilon_rel = 0;
-  param.past = 1;
-  param.delta = 1e-12;       // relative decrease of the objective over one iteration
+  param.past = 3;
+  param.delta = 1e-7;        // relative decrease of the objective over three iterations
   param.max_linesearch = 40;
   param.max_step = 4.0;      // log space: a factor e^4 per iteration at most
   LBFGSpp::LBFGSBSolver<double> solver(param);
@@ -347,6 +353,34 @@ double GpLeaveOneConfigurationOut(const Eigen::VectorXd& theta, bool with_tool,
   return sum / N;
 }
 
+double GpValidationError(const Eigen::VectorXd& theta, bool with_tool, const Eigen::MatrixXd& X,
+                         const std::vector<int>& tools, const Eigen::MatrixXd& Y,
+                         const std::vector<int>* configuration, const Eigen::MatrixXd& Xv,
+                         const std::vector<int>& validation_tools, const Eigen::MatrixXd& Yv) {
+  const int N = static_cast<int>(X.rows()), n = static_cast<int>(X.cols());
+  const Hyper h = Unpack(theta, n, with_tool, configuration != nullptr);
+  Eigen::MatrixXd Kse, K;
+  ExactKernel(h, X, tools, configuration, &Kse, &K);
+  Eigen::LLT<Eigen::MatrixXd> llt(K);
+  if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+  const Eigen::MatrixXd alpha = llt.solve(Y);
+  const Eigen::VectorXd inv_l = h.l.cwiseInverse();
+  double sum = 0;
+  Eigen::RowVectorXd k(N);
+  for (int v = 0; v < Xv.rows(); ++v) {
+    for (int i = 0; i < N; ++i) {
+      double d2 = 0;
+      for (int j = 0; j < n; ++j) {
+        const double d = (Xv(v, j) - X(i, j)) * inv_l(j);
+        d2 += d * d;
+      }
+      k(i) = h.sf2 * std::exp(-0.5 * d2) * (validation_tools[v] == tools[i] ? 1.0 : h.rho);
+    }
+    sum += (Yv.row(v) - k * alpha).squaredNorm();
+  }
+  return Xv.rows() > 0 ? sum / Xv.rows() : 0.0;
+}
+
 }  // namespace internal
 
 // ---- Fit.
@@ -449,7 +483,11 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
 
   // The hyperparameter rows: whole configurations, all of them or a seeded sample, so that the
   // likelihood sees the rows of a configuration together (what they share is not a signal).
-  std::vector<int> sub;
+  // The validation rows: the next configurations of the same order, as many rows at most, that
+  // choose between the candidates below when there are at least kMinValidation configurations.
+  constexpr int kMinValidation = 30;
+  std::vector<int> sub, validation;
+  int validation_configurations = 0;
   {
     std::vector<int> order(C);
     std::iota(order.begin(), order.end(), 0);
@@ -460,14 +498,25 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
         std::swap(order[i], order[pick(rng)]);
       }
     }
-    for (int c : order) {
+    size_t next = 0;
+    for (; next < order.size(); ++next) {
+      const int c = order[next];
       if (!sub.empty() && static_cast<int>(sub.size() + members[c].size()) >
                               std::max(3, options.max_hyperparameter_rows)) {
         break;
       }
       sub.insert(sub.end(), members[c].begin(), members[c].end());
     }
+    for (; next < order.size(); ++next) {
+      const int c = order[next];
+      if (static_cast<int>(validation.size() + members[c].size()) > static_cast<int>(sub.size())) {
+        break;
+      }
+      validation.insert(validation.end(), members[c].begin(), members[c].end());
+      ++validation_configurations;
+    }
     std::sort(sub.begin(), sub.end());
+    if (validation_configurations < kMinValidation) validation.clear();
   }
   const int N = static_cast<int>(sub.size());
   Eigen::MatrixXd X(N, n), Y(N, 3);
@@ -483,6 +532,14 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
   }
   bool with_tool = false;
   for (int i = 1; i < N; ++i) with_tool = with_tool || sub_tools[i] != sub_tools[0];
+  const int V = static_cast<int>(validation.size());
+  Eigen::MatrixXd Xv(V, n), Yv(V, 3);
+  std::vector<int> validation_tools(V);
+  for (int i = 0; i < V; ++i) {
+    for (int j = 0; j < n; ++j) Xv(i, j) = qrow(validation[i])[j];
+    Yv.row(i) = residuals[validation[i]].transpose();
+    validation_tools[i] = tools[validation[i]];
+  }
   const std::vector<int>* groups = shared ? &sub_configuration : nullptr;
 
   // Bounds and weak log-normal priors (a factor e^2 wide): each length scale centred on the
@@ -535,6 +592,14 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
   // and each joint's spread. The one whose exact GP predicts left-out configurations best is kept:
   // the likelihood alone can prefer length scales so short that the layer reproduces its rows and
   // predicts nothing between them.
+  // The held-out error of the exact GP at theta: on the validation rows (predicted from the
+  // hyperparameter rows), else leave-one-configuration-out on the hyperparameter rows (which
+  // favours what was fitted to them).
+  auto held_out_error = [&](const Eigen::VectorXd& t) {
+    if (V == 0) return internal::GpLeaveOneConfigurationOut(t, with_tool, X, sub_tools, Y, groups);
+    return internal::GpValidationError(t, with_tool, X, sub_tools, Y, groups, Xv,
+                                       validation_tools, Yv);
+  };
   const double start_factor[2] = {3.0, 1.0};
   const double start_noise[2] = {0.5, 1.0 / 3};
   Eigen::VectorXd theta;
@@ -550,15 +615,40 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
     t(noise_index) = std::log(start_noise[start] * y_sd);
     if (shared) t(configuration_index) = std::log(start_noise[start] * y_sd);
     t = t.cwiseMax(lower).cwiseMin(upper);
+    const auto t0 = std::chrono::steady_clock::now();
     const int it = MinimizeBounded(objective, lower, upper, options.max_iterations, &t);
-    const double loo =
-        internal::GpLeaveOneConfigurationOut(t, with_tool, X, sub_tools, Y, groups);
+    const double loo = held_out_error(t);
+    if (std::getenv("LPOE_DEBUG_FIT")) {
+      std::fprintf(stderr, "start %d: N %d, %d iterations, %.2f s, loo %.5f, theta", start, N, it,
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+                   std::sqrt(loo));
+      for (int i = 0; i < p; ++i) std::fprintf(stderr, " %.3g", std::exp(t(i)));
+      std::fprintf(stderr, "\n");
+    }
     start_loo.push_back(std::sqrt(loo));
     if (start == 0 || loo < best_loo) {
       best_loo = loo;
       theta = t;
       iterations = it;
       chosen_start = start;
+    }
+  }
+  // And no signal at all: the chosen optimum with its signal variance moved to the noise. When it
+  // predicts the left-out configurations at least as well, the rows hold nothing a layer can
+  // predict (the likelihood of hundreds of rows of noise can still prefer a small signal of short
+  // length scales: ten hyperparameters fitted to noise), and the layer is that of no signal.
+  {
+    Eigen::VectorXd t = theta;
+    t(noise_index) = 0.5 * std::log(std::exp(2 * theta(noise_index)) +
+                                    std::exp(2 * theta(signal_index)));
+    t(signal_index) = kLogStdMin;
+    const double loo = held_out_error(t);
+    start_loo.push_back(std::sqrt(loo));
+    if (loo <= best_loo) {
+      best_loo = loo;
+      theta = t;
+      iterations = 0;
+      chosen_start = 2;
     }
   }
   const Hyper h = Unpack(theta, n, with_tool, shared);
@@ -699,6 +789,7 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
     fit->chosen_start = chosen_start;
     fit->configuration_std = std::sqrt(h.sc2);
     fit->configurations = C;
+    fit->validation_rows = V;
     fit->spacing = ResidualLayerSpacing(q, n, h.l);
     fit->inducing_coverage = std::sqrt(std::max(0.0, far));
     double before = 0, after = 0;

@@ -81,8 +81,8 @@ struct ResidualLayerOptions {
   double inducing_radius = 0.5;
   // Rows of the exact marginal likelihood the hyperparameters maximize: whole configurations (every
   // tool measured there), a seeded sample of them when there are more.
-  int max_hyperparameter_rows = 600;
-  int max_iterations = 100;  // L-BFGS-B iterations per start (LBFGSpp)
+  int max_hyperparameter_rows = 360;
+  int max_iterations = 60;  // L-BFGS-B iterations per start (LBFGSpp)
   uint64_t seed = 1;
 };
 
@@ -90,9 +90,11 @@ struct ResidualLayerFit {
   double log_marginal_likelihood = 0;  // at the chosen optimum, on the hyperparameter rows
   int hyperparameter_rows = 0;
   int iterations = 0;              // of the chosen start
-  // The starts of the hyperparameter search (long length scales, the joints' spread) and, for
-  // each, the leave-one-configuration-out RMS of the exact GP on the hyperparameter rows (mm,
-  // |residual| norm) that chose between them; `chosen_start` indexes them.
+  // The candidates of the hyperparameter search: its two starts (long length scales, the joints'
+  // spread) and no signal (2: the layer predicts nothing), each with the held-out RMS (mm,
+  // |residual| norm) of the exact GP that chose between them: on validation configurations (as many
+  // rows as the hyperparameter rows, of configurations not among them) when there are at least 30,
+  // else leave-one-configuration-out on the hyperparameter rows; `chosen_start` indexes them.
   std::vector<double> start_loo_rms;
   int chosen_start = 0;
   // The standard deviation (mm per axis) of an error shared by the tools of one configuration and
@@ -101,6 +103,7 @@ struct ResidualLayerFit {
   // than one row.
   double configuration_std = 0;
   int configurations = 0;          // distinct configurations among the rows
+  int validation_rows = 0;         // rows of the choice's validation configurations (0: LOO)
   // Per joint, the spacing of the data: the median over configurations of |q_j - q'_j| to the
   // nearest other configuration in the layer's length-scale units (ResidualLayerSpacing). A length
   // scale below it correlates no measured configuration with its neighbours through that joint: the
@@ -153,6 +156,14 @@ double GpLeaveOneConfigurationOut(const Eigen::VectorXd& theta, bool with_tool,
                                   const Eigen::MatrixXd& X, const std::vector<int>& tools,
                                   const Eigen::MatrixXd& Y,
                                   const std::vector<int>* configuration);
+
+// The exact GP's prediction errors at validation rows Xv (tools `validation_tools`, values Yv) from
+// the rows X (same arguments as above): mean over the validation rows of |y - prediction|^2 (mm^2).
+// The validation rows are other configurations: their shared error does not reach them.
+double GpValidationError(const Eigen::VectorXd& theta, bool with_tool, const Eigen::MatrixXd& X,
+                         const std::vector<int>& tools, const Eigen::MatrixXd& Y,
+                         const std::vector<int>* configuration, const Eigen::MatrixXd& Xv,
+                         const std::vector<int>& validation_tools, const Eigen::MatrixXd& Yv);
 
 }  // namespace internal
 }  // namespace lpoe
