@@ -4,9 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <chrono>
-#include <cstdio>
-#include <cstdlib>
 #include <map>
 #include <limits>
 #include <numeric>
@@ -615,16 +612,8 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
     t(noise_index) = std::log(start_noise[start] * y_sd);
     if (shared) t(configuration_index) = std::log(start_noise[start] * y_sd);
     t = t.cwiseMax(lower).cwiseMin(upper);
-    const auto t0 = std::chrono::steady_clock::now();
     const int it = MinimizeBounded(objective, lower, upper, options.max_iterations, &t);
     const double loo = held_out_error(t);
-    if (std::getenv("LPOE_DEBUG_FIT")) {
-      std::fprintf(stderr, "start %d: N %d, %d iterations, %.2f s, loo %.5f, theta", start, N, it,
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
-                   std::sqrt(loo));
-      for (int i = 0; i < p; ++i) std::fprintf(stderr, " %.3g", std::exp(t(i)));
-      std::fprintf(stderr, "\n");
-    }
     start_loo.push_back(std::sqrt(loo));
     if (start == 0 || loo < best_loo) {
       best_loo = loo;
