@@ -10,6 +10,7 @@ PACKAGES=(
   libtinyxml2-dev          # URDF robot models
   libsleef-dev             # vectorized sin/cos and exp (SLEEF) behind the AVX2 kernel switch
   libre2-dev               # --targets_only name filters: RE2 matches in linear time, no recursion
+  liblbfgspp-dev           # the residual layer's hyperparameters: bounded L-BFGS-B (header-only LBFGSpp, docs/residual_layer.md)
   liburdfdom-dev           # urdf_overlay_test: reads the written URDF independently of our reader
   liburdfdom-tools         # urdf_overlay_test: check_urdf validates the written URDF
   nlohmann-json3-dev       # the JSON calibration report (header-only)

@@ -18,6 +18,7 @@
 
 #include "file_util.h"
 #include "lpoe/io.h"
+#include "lpoe/residual_layer.h"
 #include "lpoe/simulation.h"
 #include "lpoe/urdf.h"
 #include "report.h"
@@ -180,7 +181,50 @@ TEST_F(ReportHtml, ResidualLayerSectionAndPicture) {
   EXPECT_NE(gp.find(Mm(j["verification"]["after"]["norm"]["rms"].get<double>()) + " mm"),
             std::string::npos);
   // The tool's own lines: the layer's summary on stdout.
-  EXPECT_NE(ReadAll(dir_ + "/b.txt").find("residual layer: Gaussian process"), std::string::npos);
+  const std::string text = ReadAll(dir_ + "/b.txt");
+  EXPECT_NE(text.find("residual layer: Gaussian process"), std::string::npos);
+  // The length scales per joint with the data's spacing, in the JSON, the text and the page; a
+  // warning in both for each joint whose length scale is below it.
+  const nlohmann::json& layer = rm["layer"];
+  ASSERT_EQ(layer["length_scales"].size(), 6u);
+  ASSERT_EQ(layer["spacing"].size(), 6u);
+  EXPECT_NE(text.find("length scales (rad"), std::string::npos) << text;
+  EXPECT_NE(gp.find("<th>spacing of the data</th>"), std::string::npos);
+  for (int joint = 0; joint < 6; ++joint) {
+    const bool below = layer["length_scales"][joint].get<double>() <
+                       layer["spacing"][joint].get<double>();
+    EXPECT_EQ(text.find("warning: the length scale of joint" + std::to_string(joint + 1)) !=
+                  std::string::npos,
+              below)
+        << joint;
+  }
+  EXPECT_EQ(gp.find("below the spacing of the data") != std::string::npos,
+            !layer["length_scales_below_spacing"].empty());
+}
+
+// A layer whose length scale of a joint is below the data's spacing there: the text warns for that
+// joint and no other.
+TEST(ResidualLayerText, WarnsForTheJointsWhoseLengthScaleIsBelowTheSpacing) {
+  const RobotModel model = MakeCobot6();
+  ResidualLayer layer;
+  layer.num_joints = 6;
+  layer.length_scales.resize(6);
+  layer.length_scales << 40, 12, 0.9, 0.041, 1.3, 0.028;
+  ResidualLayerFit fit;
+  fit.spacing.resize(6);
+  fit.spacing << 2.1, 1.9, 0.4, 0.17, 0.3, 0.2;
+  const std::string text = ResidualLayerLengthScalesText(layer, fit, model);
+  EXPECT_NE(text.find(model.joints[3].name + " 0.041"), std::string::npos) << text;
+  EXPECT_NE(text.find("warning: the length scale of " + model.joints[3].name + " is 0.041 below "
+                      "the data's spacing 0.17"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("warning: the length scale of " + model.joints[5].name), std::string::npos);
+  for (int j : {0, 1, 2, 4}) {
+    EXPECT_EQ(text.find("warning: the length scale of " + model.joints[j].name + " "),
+              std::string::npos)
+        << text;
+  }
 }
 
 TEST_F(ReportHtml, ComparePageIsWellFormed) {

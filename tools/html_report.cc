@@ -535,6 +535,31 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
              " mm with it (fitted on the identification rows only)";
       }
       h += ". URDF and UR kinematics outputs cannot carry it.</p>\n";
+      // Its length scales per joint, and the joints whose length scale is below the data's
+      // spacing (docs/residual_layer.md).
+      if (l.contains("length_scales") && l.contains("spacing")) {
+        h += "<table>\n<tr><th>joint</th><th>length scale</th><th>spacing of the data</th></tr>\n";
+        const Json& scales = l["length_scales"];
+        const Json& spacing = l["spacing"];
+        for (size_t k = 0; k < scales.size(); ++k) {
+          const double ls = scales[k].get<double>();
+          const double sp = k < spacing.size() ? spacing[k].get<double>() : 0.0;
+          h += "<tr><td>" + std::to_string(k + 1) + "</td><td>" + Fmt("%.3g", ls) + "</td><td>" +
+               Fmt("%.3g", sp) + (ls < sp ? " <b>(length scale below it)</b>" : "") +
+               "</td></tr>\n";
+        }
+        h += "</table>\n";
+        if (l.contains("length_scales_below_spacing") &&
+            !l["length_scales_below_spacing"].empty()) {
+          std::string joints;
+          for (const Json& jn : l["length_scales_below_spacing"]) {
+            joints += (joints.empty() ? "" : ", ") + Str(jn);
+          }
+          h += "<p class=\"flag\">warning: the length scale of joint " + joints +
+               " is below the spacing of the data: the layer reproduces its identification rows "
+               "there and predicts little between them. Trust held-out figures only.</p>\n";
+        }
+      }
     } else {
       h += "<p>No layer: " + Esc(Str(rm["message"])) + ".</p>\n";
     }

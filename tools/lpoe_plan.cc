@@ -77,6 +77,8 @@ DEFINE_string(joint_ranges, "",
 DEFINE_double(target_accuracy, LPOE_DEFAULT(target_accuracy), LPOE_HELP(target_accuracy));
 DEFINE_double(noise_sigma, LPOE_DEFAULT(noise_sigma), LPOE_HELP(noise_sigma));
 DEFINE_int32(random_draws, static_cast<int>(LPOE_DEFAULT(random_draws)), LPOE_HELP(random_draws));
+DEFINE_double(unmodelled_error, LPOE_DEFAULT(unmodelled_error), LPOE_HELP(unmodelled_error));
+DEFINE_double(unmodelled_length, LPOE_DEFAULT(unmodelled_length), LPOE_HELP(unmodelled_length));
 DEFINE_string(joint_errors, "none",
               "Joint-space error terms the calibration will identify: none | a comma-separated "
               "list of the registry's terms (compliance, harmonics, ...: docs/joint_errors.md) | "
@@ -163,6 +165,64 @@ nlohmann::json JointErrorsJson(const PlanningModel& pm) {
   return j;
 }
 
+// The unmodelled error planned for and the predicted error with it (docs/planning.md,
+// "Unmodelled error"), as text and as JSON.
+std::string UnmodelledText(const PlanningResult& p, int draws) {
+  const UnmodelledErrorModel& u = p.unmodelled;
+  char line[512];
+  std::string text;
+  if (u.std > 0) {
+    std::string lengths;
+    for (int j = 0; j < u.length_scales.size(); ++j) {
+      char buf[32];
+      std::snprintf(buf, sizeof(buf), "%s%.3g", j ? " " : "", u.length_scales(j));
+      lengths += buf;
+    }
+    std::snprintf(line, sizeof(line),
+                  "unmodelled error (%s): %.4g mm per axis, length scales %s; the plan is the "
+                  "%s improved by %d swaps on the predicted error\n",
+                  p.unmodelled_source.c_str(), u.std, lengths.c_str(),
+                  p.unmodelled_start == "criterion" ? "criterion's plan"
+                                                    : p.unmodelled_start.c_str(),
+                  p.unmodelled_swaps);
+    text += line;
+  } else {
+    text += "unmodelled error: none (--unmodelled_error=0)\n";
+  }
+  std::snprintf(line, sizeof(line),
+                "predicted held-out error (calibrated minus true tool positions over the "
+                "workspace, noise %.4g mm%s, with the unmodelled error): plan %.4f mm (noise "
+                "%.4f, unmodelled %.4f); %d random plans: RMS %.4f mm, best %.4f mm\n",
+                p.prediction_sigma, p.prediction_sigma == kPlanDefaultNoiseSigma ? " assumed" : "",
+                p.prediction.total_rms, p.prediction.noise_rms, p.prediction.unmodelled_rms, draws,
+                p.random_total_rms_mean,
+                p.random_total_rms.empty() ? 0.0 : p.random_total_rms.front());
+  text += line;
+  return text;
+}
+
+nlohmann::json UnmodelledJson(const PlanningResult& p) {
+  auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+  nlohmann::json lengths = nlohmann::json::array();
+  for (int j = 0; j < p.unmodelled.length_scales.size(); ++j) {
+    lengths.push_back(number(p.unmodelled.length_scales(j)));
+  }
+  return {{"source", p.unmodelled_source},
+          {"std_mm", p.unmodelled.std},
+          {"length_scales", lengths},
+          {"tool_correlation", p.unmodelled.tool_correlation},
+          {"noise_sigma_mm", p.prediction_sigma},
+          {"start", p.unmodelled_start},
+          {"swaps", p.unmodelled_swaps},
+          {"plan", {{"total_rms_mm", number(p.prediction.total_rms)},
+                    {"noise_rms_mm", number(p.prediction.noise_rms)},
+                    {"unmodelled_rms_mm", number(p.prediction.unmodelled_rms)}}},
+          {"random_plans", {{"rms_of_total_rms_mm", number(p.random_total_rms_mean)},
+                            {"best_total_rms_mm", number(p.random_total_rms.empty()
+                                                             ? std::numeric_limits<double>::infinity()
+                                                             : p.random_total_rms.front())}}}};
+}
+
 int Run() {
   if (FLAGS_model.empty() || FLAGS_count.empty() || FLAGS_output.empty()) {
     std::cerr << "error: --model, --count and --output are required (see --help)\n";
@@ -190,6 +250,10 @@ int Run() {
   request.candidate_count = FLAGS_candidate_count;
   request.workspace_count = FLAGS_workspace_count;
   request.random_draws = FLAGS_random_draws;
+  request.unmodelled_error = FLAGS_unmodelled_error;
+  request.unmodelled_length = FLAGS_unmodelled_length;
+  request.unmodelled_given = !gflags::GetCommandLineFlagInfoOrDie("unmodelled_error").is_default ||
+                             !gflags::GetCommandLineFlagInfoOrDie("unmodelled_length").is_default;
   request.seed = FLAGS_seed;
   request.joint_errors = FLAGS_joint_errors;
   PlanConstraints& constraints = request.constraints;
@@ -400,6 +464,7 @@ int Run() {
                     FLAGS_noise_sigma * random_quality.predicted_rms);
       std::cout << line;
     }
+    std::cout << UnmodelledText(planned, FLAGS_random_draws);
   }
 
   // The gravity tilt's predicted standard deviations with the plan (at the model's compliance
@@ -501,6 +566,7 @@ int Run() {
                                                   ? nlohmann::json(random_rms.front())
                                                   : nlohmann::json(nullptr)}}}};
   if (FLAGS_noise_sigma > 0) report["noise_sigma_mm"] = FLAGS_noise_sigma;
+  report["unmodelled_error"] = UnmodelledJson(planned);
   if (automatic) report["target_accuracy_mm"] = FLAGS_target_accuracy;
   report["gravity_tilt"] = tilt_json;
   nlohmann::json rows = nlohmann::json::array();

@@ -191,7 +191,19 @@ Json ResidualModelJson(const RunSummary& s) {
                   {"noise_std", layer->noise_std},
                   {"hyperparameter_rows", l.fit.hyperparameter_rows},
                   {"iterations", l.fit.iterations},
-                  {"log_marginal_likelihood", l.fit.log_marginal_likelihood}};
+                  {"log_marginal_likelihood", l.fit.log_marginal_likelihood},
+                  {"configurations", l.fit.configurations},
+                  {"configuration_std", l.fit.configuration_std},
+                  {"start_loo_rms", l.fit.start_loo_rms},
+                  {"chosen_start", l.fit.chosen_start},
+                  {"inducing_coverage", l.fit.inducing_coverage}};
+    std::vector<double> spacing(l.fit.spacing.data(), l.fit.spacing.data() + l.fit.spacing.size());
+    j["layer"]["spacing"] = spacing;
+    std::vector<int> short_joints;
+    for (int joint : JointsBelowSpacing(layer->length_scales, l.fit.spacing)) {
+      short_joints.push_back(joint + 1);
+    }
+    j["layer"]["length_scales_below_spacing"] = short_joints;
     j["identification_with_layer"] = StatsJson(l.identification_with_layer);
     j["verification_without_layer"] =
         s.has_verification ? StatsJson(l.verification_parametric) : Json(nullptr);
@@ -241,6 +253,35 @@ std::string ResidualModelSelectionTable(const ResidualModelSelection& sel) {
   return out;
 }
 
+std::string ResidualLayerLengthScalesText(const ResidualLayer& layer, const ResidualLayerFit& fit,
+                                          const RobotModel& model) {
+  std::string out = "  length scales (rad; mm for prismatic joints):";
+  char buf[96];
+  for (int j = 0; j < layer.length_scales.size(); ++j) {
+    const std::string name =
+        j < model.num_joints() ? model.joints[j].name : "joint" + std::to_string(j + 1);
+    std::snprintf(buf, sizeof(buf), " %s %.3g", name.c_str(), layer.length_scales(j));
+    out += buf;
+  }
+  std::snprintf(buf, sizeof(buf), "; tool correlation %.3g; configuration error %.3g mm\n",
+                layer.tool_correlation, fit.configuration_std);
+  out += buf;
+  if (fit.chosen_start == 2) {
+    return out + "  the fit's leave-one-configuration-out check found no signal it can predict: "
+                 "the layer's corrections are nil (docs/residual_layer.md)\n";
+  }
+  for (int j : JointsBelowSpacing(layer.length_scales, fit.spacing)) {
+    const std::string name =
+        j < model.num_joints() ? model.joints[j].name : "joint" + std::to_string(j + 1);
+    std::snprintf(buf, sizeof(buf), "%.3g below the data's spacing %.3g", layer.length_scales(j),
+                  fit.spacing(j));
+    out += "  warning: the length scale of " + name + " is " + buf +
+           ": the layer reproduces its identification rows there and predicts little between "
+           "them (docs/residual_layer.md); trust held-out figures only\n";
+  }
+  return out;
+}
+
 std::string ResidualLayerSummaryText(const PipelineResult& run) {
   const ResidualLayerSummary& l = run.residual_layer;
   if (!l.requested) return "";
@@ -253,6 +294,8 @@ std::string ResidualLayerSummaryText(const PipelineResult& run) {
                 run.result.model.residual_layer->noise_std, run.identification_after.norm.rms,
                 l.identification_with_layer.norm.rms);
   std::string out = line;
+  out += ResidualLayerLengthScalesText(*run.result.model.residual_layer, l.fit,
+                                       run.result.model);
   if (run.has_verification) {
     std::snprintf(line, sizeof(line),
                   "  verification RMS %.5f mm without the layer, %.5f mm with it (fitted on the "

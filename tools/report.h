@@ -107,6 +107,10 @@ std::string JointErrorSelectionTable(const JointErrorSelection& selection);
 std::string ResidualModelSelectionTable(const ResidualModelSelection& selection);
 // The fitted layer in a line or two (or why there is none); "" when none was asked for.
 std::string ResidualLayerSummaryText(const PipelineResult& run);
+// The layer's length scales per joint, its tool correlation and configuration error, and a
+// warning per joint whose length scale is below the data's spacing (ResidualLayerFit::spacing).
+std::string ResidualLayerLengthScalesText(const ResidualLayer& layer, const ResidualLayerFit& fit,
+                                          const RobotModel& model);
 // "compliance, harmonics": the joint-error terms a model carries ("" when none).
 std::string JointErrorTermNames(const RobotModel& model);
 // The gravity tilt in degrees with its standard deviations, or why it was not identified (one

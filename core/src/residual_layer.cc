@@ -4,7 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <deque>
+#include <map>
 #include <limits>
 #include <numeric>
 #include <random>
@@ -13,6 +13,8 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Dense>
+
+#include <LBFGSB.h>
 
 #include "lpoe/kernels.h"
 #include "lpoe/parallel.h"
@@ -25,10 +27,13 @@ constexpr double kTwoPi = 6.283185307179586476925286766559;
 constexpr double kExactJitter = 1e-8;
 constexpr double kInducingJitter = 1e-6;
 
-// Bounds of the hyperparameters (log space): length scales 1e-3..1e6 (rad or mm), the tool's
-// 0.1..10 (rho from e^-100 to 0.99), s_f and s_n 1e-6..1e3 mm.
+// Bounds of the hyperparameters (log space): length scales 1e-3..1e6 (rad or mm); the tool's
+// 1.2011..10, i.e. rho = exp(-1 / l_tool^2) from 0.5 to 0.99: the signal is at least half shared
+// by the SMRs of a configuration. A free rho down to 0 lets the likelihood give each SMR a signal
+// of its own, which with short length scales is the rows' noise again (the data fragmented by
+// tool, a flat ridge the optimizer wanders along); s_f, s_n and s_c 1e-6..1e3 mm.
 constexpr double kLogLengthMin = -6.907755278982137, kLogLengthMax = 13.815510557964274;
-constexpr double kLogToolMin = -2.302585092994046, kLogToolMax = 2.302585092994046;
+constexpr double kLogToolMin = 0.1832564602908322, kLogToolMax = 2.302585092994046;
 constexpr double kLogStdMin = -13.815510557964274, kLogStdMax = 6.907755278982137;
 
 // Squared distance in length-scale units between rows a of A and b of B (n joints).
@@ -56,9 +61,10 @@ struct Hyper {
   double rho = 1;         // tool correlation
   double lt = 0;          // tool length scale (with_tool)
   double sf2 = 0, sn2 = 0;
+  double sc2 = 0;         // configuration variance (with a configuration list)
 };
 
-Hyper Unpack(const Eigen::VectorXd& theta, int n, bool with_tool) {
+Hyper Unpack(const Eigen::VectorXd& theta, int n, bool with_tool, bool with_configuration) {
   Hyper h;
   h.l = theta.head(n).array().exp();
   int k = n;
@@ -67,81 +73,81 @@ Hyper Unpack(const Eigen::VectorXd& theta, int n, bool with_tool) {
     h.rho = std::exp(-1.0 / (h.lt * h.lt));
   }
   h.sf2 = std::exp(2 * theta(k++));
-  h.sn2 = std::exp(2 * theta(k));
+  h.sn2 = std::exp(2 * theta(k++));
+  if (with_configuration) h.sc2 = std::exp(2 * theta(k));
   return h;
 }
 
-// Small L-BFGS with projection on box bounds and backtracking (Armijo) line search; minimizes f.
-template <typename F>
-int MinimizeLbfgs(const F& f, const Eigen::VectorXd& lower, const Eigen::VectorXd& upper,
-                  int max_iterations, Eigen::VectorXd* x) {
-  constexpr int kHistory = 7;
-  constexpr double kMaxStep = 2.0;  // per coordinate, log space
-  Eigen::VectorXd g, g_new, x_new;
-  double fx = f(*x, &g);
-  if (!std::isfinite(fx)) return 0;
-  std::deque<std::pair<Eigen::VectorXd, Eigen::VectorXd>> history;  // (s, y)
-  int it = 0;
-  for (; it < max_iterations; ++it) {
-    // Two-loop recursion.
-    Eigen::VectorXd d = -g;
-    std::vector<double> a(history.size());
-    for (int i = static_cast<int>(history.size()) - 1; i >= 0; --i) {
-      const auto& [s, y] = history[i];
-      a[i] = s.dot(d) / y.dot(s);
-      d -= a[i] * y;
-    }
-    if (!history.empty()) {
-      const auto& [s, y] = history.back();
-      d *= s.dot(y) / y.dot(y);
-    }
-    for (size_t i = 0; i < history.size(); ++i) {
-      const auto& [s, y] = history[i];
-      const double b = y.dot(d) / y.dot(s);
-      d += (a[i] - b) * s;
-    }
-    if (!(g.dot(d) < 0)) {
-      history.clear();
-      d = -g;
-    }
-    const double largest = d.cwiseAbs().maxCoeff();
-    if (!(largest > 0)) break;
-    double t = std::min(1.0, kMaxStep / largest);
-    if (history.empty()) t = std::min(t, 1.0 / std::max(1.0, g.norm()));
-    bool accepted = false;
-    double f_new = 0;
-    for (int ls = 0; ls < 40; ++ls) {
-      x_new = (*x + t * d).cwiseMax(lower).cwiseMin(upper);
-      f_new = f(x_new, &g_new);
-      if (std::isfinite(f_new) && f_new <= fx + 1e-4 * g.dot(x_new - *x)) {
-        accepted = true;
-        break;
-      }
-      t *= 0.5;
-    }
-    if (!accepted) break;
-    Eigen::VectorXd s = x_new - *x, y = g_new - g;
-    const double change = fx - f_new;
-    *x = x_new;
-    g = g_new;
-    fx = f_new;
-    if (s.dot(y) > 1e-12 * s.norm() * y.norm()) {
-      history.emplace_back(std::move(s), std::move(y));
-      if (static_cast<int>(history.size()) > kHistory) history.pop_front();
-    }
-    // Projected gradient: components pushing against an active bound do not count.
-    double pg = 0;
-    for (int i = 0; i < x->size(); ++i) {
-      const bool at_lower = (*x)(i) <= lower(i) && g(i) > 0;
-      const bool at_upper = (*x)(i) >= upper(i) && g(i) < 0;
-      if (!at_lower && !at_upper) pg = std::max(pg, std::abs(g(i)));
-    }
-    if (pg < 1e-7 || change < 1e-12 * (1 + std::abs(fx))) {
-      ++it;
-      break;
+// The exact kernel matrix of the hyperparameter rows: K_se (signal part) and K = K_se + s_c^2 on
+// rows of one configuration + (s_n^2 + jitter) on the diagonal.
+void ExactKernel(const Hyper& h, const Eigen::MatrixXd& X, const std::vector<int>& tools,
+                 const std::vector<int>* configuration, Eigen::MatrixXd* Kse, Eigen::MatrixXd* K) {
+  const int N = static_cast<int>(X.rows());
+  const Eigen::MatrixXd Xs = X * h.l.cwiseInverse().asDiagonal();  // scaled inputs
+  Kse->resize(N, N);
+  for (int b = 0; b < N; ++b) {
+    for (int a = b; a < N; ++a) {
+      const double d2 = (Xs.row(a) - Xs.row(b)).squaredNorm();
+      double k = h.sf2 * std::exp(-0.5 * d2);
+      if (tools[a] != tools[b]) k *= h.rho;
+      (*Kse)(a, b) = (*Kse)(b, a) = k;
     }
   }
-  return it;
+  *K = *Kse;
+  if (configuration != nullptr) {
+    for (int b = 0; b < N; ++b) {
+      for (int a = 0; a < N; ++a) {
+        if ((*configuration)[a] == (*configuration)[b]) (*K)(a, b) += h.sc2;
+      }
+    }
+  }
+  K->diagonal().array() += h.sn2 + kExactJitter * h.sf2;
+}
+
+// Minimizes f(x, &gradient) within [lower, upper] by LBFGSpp's L-BFGS-B (Debian's
+// liblbfgspp-dev); returns the iterations. LBFGSpp throws when its line search cannot make
+// progress (at a minimum to the precision of the objective, or where the objective is not
+// finite); then, as always, the best point evaluated is the result, and the count returned is
+// that of the objective's evaluations.
+template <typename F>
+int MinimizeBounded(const F& f, const Eigen::VectorXd& lower, const Eigen::VectorXd& upper,
+                    int max_iterations, Eigen::VectorXd* x) {
+  LBFGSpp::LBFGSBParam<double> param;
+  param.m = 7;
+  param.max_iterations = std::max(1, max_iterations);
+  param.epsilon = 1e-5;      // projected gradient (the objective is per hyperparameter row)
+  param.epsilon_rel = 0;
+  param.past = 3;
+  param.delta = 1e-7;        // relative decrease of the objective over three iterations
+  param.max_linesearch = 40;
+  param.max_step = 4.0;      // log space: a factor e^4 per iteration at most
+  LBFGSpp::LBFGSBSolver<double> solver(param);
+  double best = std::numeric_limits<double>::infinity();
+  Eigen::VectorXd best_x = *x;
+  int evaluations = 0;
+  auto objective = [&](const Eigen::VectorXd& t, Eigen::VectorXd& g) {
+    ++evaluations;
+    const double v = f(t, &g);
+    if (!std::isfinite(v) || !g.allFinite()) {
+      g.setZero(t.size());
+      return std::numeric_limits<double>::max();
+    }
+    if (v < best) {
+      best = v;
+      best_x = t;
+    }
+    return v;
+  };
+  int iterations = 0;
+  try {
+    double fx = 0;
+    Eigen::VectorXd start = *x;
+    iterations = solver.minimize(objective, start, fx, lower, upper);
+  } catch (const std::exception&) {
+    iterations = evaluations;  // the line search gave up: the evaluations made
+  }
+  *x = best_x;
+  return iterations;
 }
 
 }  // namespace
@@ -259,23 +265,12 @@ namespace internal {
 
 double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
                                const Eigen::MatrixXd& X, const std::vector<int>& tools,
-                               const Eigen::MatrixXd& Y, Eigen::VectorXd* gradient) {
+                               const Eigen::MatrixXd& Y, Eigen::VectorXd* gradient,
+                               const std::vector<int>* configuration) {
   const int N = static_cast<int>(X.rows()), n = static_cast<int>(X.cols());
-  const Hyper h = Unpack(theta, n, with_tool);
-  const Eigen::VectorXd inv_l = h.l.cwiseInverse();
-  const Eigen::MatrixXd Xs = X * inv_l.asDiagonal();  // scaled inputs
-  Eigen::MatrixXd Kse(N, N);
-  for (int b = 0; b < N; ++b) {
-    for (int a = b; a < N; ++a) {
-      double d2 = (Xs.row(a) - Xs.row(b)).squaredNorm();
-      double k = h.sf2 * std::exp(-0.5 * d2);
-      if (tools[a] != tools[b]) k *= h.rho;
-      Kse(a, b) = Kse(b, a) = k;
-    }
-  }
-  const double diag = h.sn2 + kExactJitter * h.sf2;
-  Eigen::MatrixXd K = Kse;
-  K.diagonal().array() += diag;
+  const Hyper h = Unpack(theta, n, with_tool, configuration != nullptr);
+  Eigen::MatrixXd Kse, K;
+  ExactKernel(h, X, tools, configuration, &Kse, &K);
   Eigen::LLT<Eigen::MatrixXd> llt(K);
   if (llt.info() != Eigen::Success) return -std::numeric_limits<double>::infinity();
   const Eigen::MatrixXd A = llt.solve(Y);  // N x 3
@@ -290,6 +285,7 @@ double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
   M.noalias() -= outputs * llt.solve(Eigen::MatrixXd::Identity(N, N));
   const int p = static_cast<int>(theta.size());
   gradient->setZero(p);
+  const Eigen::MatrixXd Xs = X * h.l.cwiseInverse().asDiagonal();
   Eigen::MatrixXd MK = M.cwiseProduct(Kse);
   for (int j = 0; j < n; ++j) {
     double s = 0;
@@ -313,13 +309,132 @@ double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
   }
   const double trace_M = M.trace();
   (*gradient)(k++) = 0.5 * (2 * MK.sum() + trace_M * 2 * kExactJitter * h.sf2);
-  (*gradient)(k) = 0.5 * trace_M * 2 * h.sn2;
+  (*gradient)(k++) = 0.5 * trace_M * 2 * h.sn2;
+  if (configuration != nullptr) {
+    double s = 0;
+    for (int b = 0; b < N; ++b) {
+      for (int a = 0; a < N; ++a) {
+        if ((*configuration)[a] == (*configuration)[b]) s += M(a, b);
+      }
+    }
+    (*gradient)(k) = 0.5 * s * 2 * h.sc2;
+  }
   return L;
+}
+
+double GpLeaveOneConfigurationOut(const Eigen::VectorXd& theta, bool with_tool,
+                                  const Eigen::MatrixXd& X, const std::vector<int>& tools,
+                                  const Eigen::MatrixXd& Y,
+                                  const std::vector<int>* configuration) {
+  const int N = static_cast<int>(X.rows()), n = static_cast<int>(X.cols());
+  const Hyper h = Unpack(theta, n, with_tool, configuration != nullptr);
+  Eigen::MatrixXd Kse, K;
+  ExactKernel(h, X, tools, configuration, &Kse, &K);
+  Eigen::LLT<Eigen::MatrixXd> llt(K);
+  if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+  const Eigen::MatrixXd Kinv = llt.solve(Eigen::MatrixXd::Identity(N, N));
+  const Eigen::MatrixXd A = Kinv * Y;
+  // The groups: rows of one configuration (each row alone without a list).
+  std::map<int, std::vector<int>> groups;
+  for (int i = 0; i < N; ++i) groups[configuration ? (*configuration)[i] : i].push_back(i);
+  double sum = 0;
+  for (const auto& [id, rows] : groups) {
+    const int b = static_cast<int>(rows.size());
+    Eigen::MatrixXd Kgg(b, b), Ag(b, Y.cols());
+    for (int u = 0; u < b; ++u) {
+      for (int v = 0; v < b; ++v) Kgg(u, v) = Kinv(rows[u], rows[v]);
+      Ag.row(u) = A.row(rows[u]);
+    }
+    sum += Kgg.ldlt().solve(Ag).squaredNorm();
+  }
+  return sum / N;
+}
+
+double GpValidationError(const Eigen::VectorXd& theta, bool with_tool, const Eigen::MatrixXd& X,
+                         const std::vector<int>& tools, const Eigen::MatrixXd& Y,
+                         const std::vector<int>* configuration, const Eigen::MatrixXd& Xv,
+                         const std::vector<int>& validation_tools, const Eigen::MatrixXd& Yv) {
+  const int N = static_cast<int>(X.rows()), n = static_cast<int>(X.cols());
+  const Hyper h = Unpack(theta, n, with_tool, configuration != nullptr);
+  Eigen::MatrixXd Kse, K;
+  ExactKernel(h, X, tools, configuration, &Kse, &K);
+  Eigen::LLT<Eigen::MatrixXd> llt(K);
+  if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+  const Eigen::MatrixXd alpha = llt.solve(Y);
+  const Eigen::VectorXd inv_l = h.l.cwiseInverse();
+  double sum = 0;
+  Eigen::RowVectorXd k(N);
+  for (int v = 0; v < Xv.rows(); ++v) {
+    for (int i = 0; i < N; ++i) {
+      double d2 = 0;
+      for (int j = 0; j < n; ++j) {
+        const double d = (Xv(v, j) - X(i, j)) * inv_l(j);
+        d2 += d * d;
+      }
+      k(i) = h.sf2 * std::exp(-0.5 * d2) * (validation_tools[v] == tools[i] ? 1.0 : h.rho);
+    }
+    sum += (Yv.row(v) - k * alpha).squaredNorm();
+  }
+  return Xv.rows() > 0 ? sum / Xv.rows() : 0.0;
 }
 
 }  // namespace internal
 
 // ---- Fit.
+
+std::vector<int> JointsBelowSpacing(const Eigen::VectorXd& length_scales,
+                                    const Eigen::VectorXd& spacing) {
+  std::vector<int> out;
+  for (int j = 0; j < std::min(length_scales.size(), spacing.size()); ++j) {
+    if (length_scales(j) < spacing(j)) out.push_back(j);
+  }
+  return out;
+}
+
+Eigen::VectorXd ResidualLayerSpacing(const std::vector<double>& q, int n,
+                                     const Eigen::VectorXd& l) {
+  Eigen::VectorXd spacing = Eigen::VectorXd::Zero(n);
+  if (n < 1 || l.size() != n) return spacing;
+  // The distinct configurations.
+  std::map<std::vector<double>, int> seen;
+  std::vector<const double*> configs;
+  for (size_t r = 0; r + n <= q.size(); r += n) {
+    if (seen.emplace(std::vector<double>(q.begin() + r, q.begin() + r + n), 0).second) {
+      configs.push_back(q.data() + r);
+    }
+  }
+  const int C = static_cast<int>(configs.size());
+  if (C < 2) return spacing;
+  std::vector<int> queries(C);
+  std::iota(queries.begin(), queries.end(), 0);
+  constexpr int kMaxQueries = 1000;
+  if (C > kMaxQueries) {
+    std::mt19937_64 rng(7);
+    std::shuffle(queries.begin(), queries.end(), rng);
+    queries.resize(kMaxQueries);
+  }
+  const Eigen::VectorXd inv_l = l.cwiseInverse();
+  std::vector<std::vector<double>> gaps(n);
+  for (int a : queries) {
+    double best = std::numeric_limits<double>::infinity();
+    int nearest = -1;
+    for (int b = 0; b < C; ++b) {
+      if (b == a) continue;
+      const double d = ScaledSquaredDistance(configs[a], configs[b], inv_l.data(), n);
+      if (d < best) {
+        best = d;
+        nearest = b;
+      }
+    }
+    for (int j = 0; j < n; ++j) gaps[j].push_back(std::abs(configs[a][j] - configs[nearest][j]));
+  }
+  for (int j = 0; j < n; ++j) {
+    std::vector<double>& g = gaps[j];
+    std::nth_element(g.begin(), g.begin() + g.size() / 2, g.end());
+    spacing(j) = g[g.size() / 2];
+  }
+  return spacing;
+}
 
 Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& tools,
                         const std::vector<Eigen::Vector3d>& residuals, int num_joints,
@@ -348,71 +463,184 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
   const double* Q = q.data();
   auto qrow = [&](int r) { return Q + static_cast<size_t>(r) * n; };
 
-  // The hyperparameter rows: all, or a seeded subsample.
-  std::vector<int> sub(rows);
-  std::iota(sub.begin(), sub.end(), 0);
-  if (rows > options.max_hyperparameter_rows) {
-    std::mt19937_64 rng(options.seed);
-    for (int i = 0; i < options.max_hyperparameter_rows; ++i) {
-      std::uniform_int_distribution<int> pick(i, rows - 1);
-      std::swap(sub[i], sub[pick(rng)]);
+  // The configurations: rows with the same joint values (the tools measured at one stop).
+  std::vector<int> configuration(rows);
+  std::vector<std::vector<int>> members;
+  {
+    std::map<std::vector<double>, int> ids;
+    for (int r = 0; r < rows; ++r) {
+      const auto [it, added] =
+          ids.emplace(std::vector<double>(qrow(r), qrow(r) + n), static_cast<int>(members.size()));
+      if (added) members.emplace_back();
+      configuration[r] = it->second;
+      members[it->second].push_back(r);
     }
-    sub.resize(options.max_hyperparameter_rows);
+  }
+  const int C = static_cast<int>(members.size());
+
+  // The hyperparameter rows: whole configurations, all of them or a seeded sample, so that the
+  // likelihood sees the rows of a configuration together (what they share is not a signal).
+  // The validation rows: the next configurations of the same order, as many rows at most, that
+  // choose between the candidates below when there are at least kMinValidation configurations.
+  constexpr int kMinValidation = 30;
+  std::vector<int> sub, validation;
+  int validation_configurations = 0;
+  {
+    std::vector<int> order(C);
+    std::iota(order.begin(), order.end(), 0);
+    if (rows > options.max_hyperparameter_rows) {
+      std::mt19937_64 rng(options.seed);
+      for (int i = 0; i + 1 < C; ++i) {
+        std::uniform_int_distribution<int> pick(i, C - 1);
+        std::swap(order[i], order[pick(rng)]);
+      }
+    }
+    size_t next = 0;
+    for (; next < order.size(); ++next) {
+      const int c = order[next];
+      if (!sub.empty() && static_cast<int>(sub.size() + members[c].size()) >
+                              std::max(3, options.max_hyperparameter_rows)) {
+        break;
+      }
+      sub.insert(sub.end(), members[c].begin(), members[c].end());
+    }
+    for (; next < order.size(); ++next) {
+      const int c = order[next];
+      if (static_cast<int>(validation.size() + members[c].size()) > static_cast<int>(sub.size())) {
+        break;
+      }
+      validation.insert(validation.end(), members[c].begin(), members[c].end());
+      ++validation_configurations;
+    }
     std::sort(sub.begin(), sub.end());
+    if (validation_configurations < kMinValidation) validation.clear();
   }
   const int N = static_cast<int>(sub.size());
   Eigen::MatrixXd X(N, n), Y(N, 3);
-  std::vector<int> sub_tools(N);
+  std::vector<int> sub_tools(N), sub_configuration(N);
+  bool shared = false;  // some configuration has more than one row
   for (int i = 0; i < N; ++i) {
     for (int j = 0; j < n; ++j) X(i, j) = qrow(sub[i])[j];
     Y.row(i) = residuals[sub[i]].transpose();
     sub_tools[i] = tools[sub[i]];
+    sub_configuration[i] = configuration[sub[i]];
+    shared = shared || (i > 0 && sub_configuration[i] == sub_configuration[i - 1]) ||
+             members[configuration[sub[i]]].size() > 1;
   }
   bool with_tool = false;
   for (int i = 1; i < N; ++i) with_tool = with_tool || sub_tools[i] != sub_tools[0];
+  const int V = static_cast<int>(validation.size());
+  Eigen::MatrixXd Xv(V, n), Yv(V, 3);
+  std::vector<int> validation_tools(V);
+  for (int i = 0; i < V; ++i) {
+    for (int j = 0; j < n; ++j) Xv(i, j) = qrow(validation[i])[j];
+    Yv.row(i) = residuals[validation[i]].transpose();
+    validation_tools[i] = tools[validation[i]];
+  }
+  const std::vector<int>* groups = shared ? &sub_configuration : nullptr;
 
-  // Start: length scales the spread of each joint, s_f the residuals' spread, s_n a third of it.
-  const int p = n + (with_tool ? 1 : 0) + 2;
-  Eigen::VectorXd theta(p), lower(p), upper(p);
+  // Bounds and weak log-normal priors (a factor e^2 wide): each length scale centred on the
+  // spread of its joint, the signal, the noise and the configuration's error on the residuals'
+  // spread. They decide only where the likelihood cannot (a joint that does not matter, a signal
+  // that cannot be told from noise); with hundreds of rows of real structure the likelihood
+  // outweighs them.
+  const int p = n + (with_tool ? 1 : 0) + 2 + (shared ? 1 : 0);
+  Eigen::VectorXd lower(p), upper(p), centre(p);
+  Eigen::VectorXd spread(n);
   for (int j = 0; j < n; ++j) {
     const double mean = X.col(j).mean();
     const double sd = std::sqrt((X.col(j).array() - mean).square().mean());
-    theta(j) = std::log(sd > 1e-9 ? sd : 1e3);
+    spread(j) = sd > 1e-9 ? sd : 1e3;
     lower(j) = kLogLengthMin;
     upper(j) = kLogLengthMax;
+    centre(j) = std::log(spread(j));
   }
   int k = n;
+  const int tool_index = with_tool ? k++ : -1;
   if (with_tool) {
-    theta(k) = 0;
-    lower(k) = kLogToolMin;
-    upper(k++) = kLogToolMax;
+    lower(tool_index) = kLogToolMin;
+    upper(tool_index) = kLogToolMax;
   }
+  const int signal_index = k++, noise_index = k++, configuration_index = shared ? k : -1;
   const double y_sd = std::max(1e-5, std::sqrt(Y.array().square().mean()));
-  theta(k) = std::log(y_sd);
-  lower(k) = kLogStdMin;
-  upper(k++) = kLogStdMax;
-  theta(k) = std::log(y_sd / 3);
-  lower(k) = kLogStdMin;
-  upper(k) = kLogStdMax;
-  theta = theta.cwiseMax(lower).cwiseMin(upper);
-
-  // A weak log-normal prior on the noise (centred on the residuals' spread, a factor
-  // e^2 wide): where the likelihood cannot tell signal from noise (inputs so far apart in
-  // length-scale units that the kernel matrix is diagonal: "signal" uncorrelated between rows is
-  // noise) it keeps the noise, instead of a layer that interpolates the noise of its rows. With
-  // real structure the likelihood of hundreds of rows outweighs it.
-  const int noise_index = p - 1;
-  const double noise_centre = std::log(y_sd), noise_width = 2.0;
+  for (int i : {signal_index, noise_index, configuration_index}) {
+    if (i < 0) continue;
+    lower(i) = kLogStdMin;
+    upper(i) = kLogStdMax;
+    centre(i) = std::log(y_sd);
+  }
+  constexpr double kPriorWidth = 2.0;
+  auto prior = [&](int i) { return i != tool_index; };
   auto objective = [&](const Eigen::VectorXd& t, Eigen::VectorXd* g) {
-    const double L = internal::GpLogMarginalLikelihood(t, with_tool, X, sub_tools, Y, g);
+    const double L = internal::GpLogMarginalLikelihood(t, with_tool, X, sub_tools, Y, g, groups);
     if (!std::isfinite(L)) return std::numeric_limits<double>::infinity();
-    const double z = (t(noise_index) - noise_centre) / noise_width;
+    double penalty = 0;
     *g *= -1.0 / N;
-    (*g)(noise_index) += z / noise_width / N;
-    return (-L + 0.5 * z * z) / N;
+    for (int i = 0; i < p; ++i) {
+      if (!prior(i)) continue;
+      const double z = (t(i) - centre(i)) / kPriorWidth;
+      penalty += 0.5 * z * z;
+      (*g)(i) += z / kPriorWidth / N;
+    }
+    return (-L + penalty) / N;
   };
-  const int iterations = MinimizeLbfgs(objective, lower, upper, options.max_iterations, &theta);
-  const Hyper h = Unpack(theta, n, with_tool);
+
+  // Two starts: long length scales (three times each joint's spread: nearly linear over the data)
+  // and each joint's spread. The one whose exact GP predicts left-out configurations best is kept:
+  // the likelihood alone can prefer length scales so short that the layer reproduces its rows and
+  // predicts nothing between them.
+  // The held-out error of the exact GP at theta: on the validation rows (predicted from the
+  // hyperparameter rows), else leave-one-configuration-out on the hyperparameter rows (which
+  // favours what was fitted to them).
+  auto held_out_error = [&](const Eigen::VectorXd& t) {
+    if (V == 0) return internal::GpLeaveOneConfigurationOut(t, with_tool, X, sub_tools, Y, groups);
+    return internal::GpValidationError(t, with_tool, X, sub_tools, Y, groups, Xv,
+                                       validation_tools, Yv);
+  };
+  const double start_factor[2] = {3.0, 1.0};
+  const double start_noise[2] = {0.5, 1.0 / 3};
+  Eigen::VectorXd theta;
+  int iterations = 0;
+  double best_loo = std::numeric_limits<double>::infinity();
+  std::vector<double> start_loo;
+  int chosen_start = 0;
+  for (int start = 0; start < 2; ++start) {
+    Eigen::VectorXd t(p);
+    for (int j = 0; j < n; ++j) t(j) = std::log(start_factor[start] * spread(j));
+    if (with_tool) t(tool_index) = std::log(3.0);  // rho = 0.89
+    t(signal_index) = std::log(y_sd);
+    t(noise_index) = std::log(start_noise[start] * y_sd);
+    if (shared) t(configuration_index) = std::log(start_noise[start] * y_sd);
+    t = t.cwiseMax(lower).cwiseMin(upper);
+    const int it = MinimizeBounded(objective, lower, upper, options.max_iterations, &t);
+    const double loo = held_out_error(t);
+    start_loo.push_back(std::sqrt(loo));
+    if (start == 0 || loo < best_loo) {
+      best_loo = loo;
+      theta = t;
+      iterations = it;
+      chosen_start = start;
+    }
+  }
+  // And no signal at all: the chosen optimum with its signal variance moved to the noise. When it
+  // predicts the left-out configurations at least as well, the rows hold nothing a layer can
+  // predict (the likelihood of hundreds of rows of noise can still prefer a small signal of short
+  // length scales: ten hyperparameters fitted to noise), and the layer is that of no signal.
+  {
+    Eigen::VectorXd t = theta;
+    t(noise_index) = 0.5 * std::log(std::exp(2 * theta(noise_index)) +
+                                    std::exp(2 * theta(signal_index)));
+    t(signal_index) = kLogStdMin;
+    const double loo = held_out_error(t);
+    start_loo.push_back(std::sqrt(loo));
+    if (loo <= best_loo) {
+      best_loo = loo;
+      theta = t;
+      iterations = 0;
+      chosen_start = 2;
+    }
+  }
+  const Hyper h = Unpack(theta, n, with_tool, shared);
 
   ResidualLayer out;
   out.num_joints = n;
@@ -424,18 +652,21 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
   out.fitted_rows = rows;
 
   // Inducing inputs: farthest-point sampling in length-scale units (the tool's one-hot distance
-  // -2 log rho between different tools), from row 0.
+  // -2 log rho between different tools), from row 0, until every row is within
+  // options.inducing_radius of one or there are options.max_inducing.
   const Eigen::VectorXd inv_l = h.l.cwiseInverse();
   const double tool_d2 = with_tool ? 2.0 / (h.lt * h.lt) : 0.0;
+  const double radius2 = options.inducing_radius * options.inducing_radius;
   std::vector<double> nearest(rows, std::numeric_limits<double>::infinity());
   std::vector<int> chosen;
   int next = 0;
+  double far = 0;
   const int max_m = std::max(1, std::min(options.max_inducing, rows));
   while (static_cast<int>(chosen.size()) < max_m) {
     chosen.push_back(next);
     const double* z = qrow(next);
     const int zt = tools[next];
-    double far = -1;
+    far = -1;
     int far_row = -1;
     for (int r = 0; r < rows; ++r) {
       double d = ScaledSquaredDistance(qrow(r), z, inv_l.data(), n);
@@ -446,7 +677,8 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
         far_row = r;
       }
     }
-    if (!(far > 1e-12)) break;  // every row is (numerically) an inducing input already
+    // Every row is (numerically) an inducing input already, or near enough to one.
+    if (!(far > 1e-12) || far <= radius2) break;
     next = far_row;
   }
   const int m = static_cast<int>(chosen.size());
@@ -457,7 +689,10 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
     out.inducing_tool[i] = tools[chosen[i]];
   }
 
-  // The DTC posterior: Lm = chol(K_mm), V = Lm^-1 K_mn, B = I + V V^T / s_n^2.
+  // The DTC posterior with the noise of the rows, Lambda: s_n^2 I plus s_c^2 between the rows of a
+  // configuration (block g: Lambda_g^-1 = s_n^-2 (I - gamma_g 1 1^T),
+  // gamma_g = s_c^2 / (s_n^2 + b_g s_c^2)). Lm = chol(K_mm), V = Lm^-1 K_mn,
+  // B = I + V Lambda^-1 V^T, alpha = Lm^-T B^-1 V Lambda^-1 Y.
   out.weights = Eigen::MatrixXd::Zero(m, 3);
   out.variance = Eigen::MatrixXd::Zero(m, m);
   Eigen::MatrixXd Kmm(m, m);
@@ -475,21 +710,40 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
     return Status::Error("the residual layer's inducing kernel matrix is not positive definite");
   }
   const Eigen::MatrixXd Lm = lm.matrixL();
-  const RowChunks chunks = PartitionRows(rows, 2048, 64);
+  // Fixed chunks of configurations (the result does not depend on the number of threads).
+  const RowChunks chunks = PartitionRows(C, 512, 64);
   std::vector<Eigen::MatrixXd> VVt(chunks.chunks), VY(chunks.chunks);
   ForEachTask(chunks.chunks, ThreadsFor(chunks.chunks), [&](int c, int /*thread*/) {
-    const int begin = chunks.begin(c), end = chunks.end(c);
-    Eigen::MatrixXd Kmn(m, end - begin), Yc(end - begin, 3);
+    int count = 0;
+    for (int g = chunks.begin(c); g < chunks.end(c); ++g) count += members[g].size();
+    Eigen::MatrixXd Kmn(m, count), Yc(count, 3);
     Eigen::VectorXd k_col;
-    for (int r = begin; r < end; ++r) {
-      out.KernelVector(qrow(r), tools[r], &k_col);
-      Kmn.col(r - begin) = k_col;
-      Yc.row(r - begin) = residuals[r].transpose();
+    int col = 0;
+    for (int g = chunks.begin(c); g < chunks.end(c); ++g) {
+      for (int r : members[g]) {
+        out.KernelVector(qrow(r), tools[r], &k_col);
+        Kmn.col(col) = k_col;
+        Yc.row(col++) = residuals[r].transpose();
+      }
     }
     Lm.triangularView<Eigen::Lower>().solveInPlace(Kmn);  // V
     VVt[c] = Eigen::MatrixXd::Zero(m, m);
     VVt[c].selfadjointView<Eigen::Lower>().rankUpdate(Kmn);
     VY[c] = Kmn * Yc;
+    if (h.sc2 > 0) {
+      col = 0;
+      for (int g = chunks.begin(c); g < chunks.end(c); ++g) {
+        const int b = static_cast<int>(members[g].size());
+        if (b > 1) {
+          const double gamma = h.sc2 / (h.sn2 + b * h.sc2);
+          const Eigen::VectorXd sv = Kmn.middleCols(col, b).rowwise().sum();
+          const Eigen::RowVector3d sy = Yc.middleRows(col, b).colwise().sum();
+          VVt[c].selfadjointView<Eigen::Lower>().rankUpdate(sv, -gamma);
+          VY[c].noalias() -= gamma * sv * sy;
+        }
+        col += b;
+      }
+    }
   });
   Eigen::MatrixXd B = Eigen::MatrixXd::Zero(m, m), VYs = Eigen::MatrixXd::Zero(m, 3);
   for (int c = 0; c < chunks.chunks; ++c) {
@@ -519,7 +773,14 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
     fit->hyperparameter_rows = N;
     fit->iterations = iterations;
     fit->log_marginal_likelihood =
-        internal::GpLogMarginalLikelihood(theta, with_tool, X, sub_tools, Y, nullptr);
+        internal::GpLogMarginalLikelihood(theta, with_tool, X, sub_tools, Y, nullptr, groups);
+    fit->start_loo_rms = start_loo;
+    fit->chosen_start = chosen_start;
+    fit->configuration_std = std::sqrt(h.sc2);
+    fit->configurations = C;
+    fit->validation_rows = V;
+    fit->spacing = ResidualLayerSpacing(q, n, h.l);
+    fit->inducing_coverage = std::sqrt(std::max(0.0, far));
     double before = 0, after = 0;
     for (int r = 0; r < rows; ++r) {
       before += residuals[r].squaredNorm();

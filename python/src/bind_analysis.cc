@@ -289,6 +289,9 @@ struct PyPlan {
   std::string criterion;
   PlanQuality quality;
   double random_predicted_rms = 0;  // RMS over the random plans of the same size
+  // With the unmodelled error (docs/planning.md): the predicted error in mm, plan and random plans.
+  double predicted_error = 0;
+  double random_predicted_error = 0;
   int offered = 0, feasible = 0, outside_limits = 0, near_singular = 0, nothing_visible = 0;
   int outside_cell = 0;
   std::vector<std::vector<std::string>> visible;  // the tools counted at each planned pose
@@ -442,6 +445,8 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
     out.visible.push_back(names);
   }
   out.random_predicted_rms = planned.random_rms_mean;
+  out.predicted_error = planned.prediction.total_rms;
+  out.random_predicted_error = planned.random_total_rms_mean;
   out.candidates = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
       planned.candidates.data(), out.offered, n);
   out.criterion = PlanCriterionName(request.options.criterion);
@@ -664,6 +669,12 @@ void BindAnalysis(py::module_& m) {
                     "ones with tracker=, else every tool")
       .def_property_readonly("quality", [](const PyPlan& p) { return QualityDict(p.quality); },
                              "rank, condition number, predicted RMS per mm of noise, criteria")
+      .def_readonly("predicted_error", &PyPlan::predicted_error,
+                    "predicted RMS error (mm) of the calibrated tool positions over the workspace "
+                    "with the noise and the unmodelled error (lpoe_plan --unmodelled_error's "
+                    "default, or the model's residual layer; docs/planning.md)")
+      .def_readonly("random_predicted_error", &PyPlan::random_predicted_error,
+                    "the same, RMS over the random plans of the same size (mm)")
       .def_readonly("random_predicted_rms", &PyPlan::random_predicted_rms,
                     "predicted RMS of random plans of the same size (RMS over the draws)")
       .def_property_readonly(

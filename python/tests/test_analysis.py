@@ -136,6 +136,9 @@ def test_plan_beats_random_plans(inputs):
     np.testing.assert_array_equal(plan.candidates[plan.candidate_rows], plan.q)
     assert plan.quality["rank"] == plan.num_parameters == 27
     assert plan.quality["predicted_rms"] < plan.random_predicted_rms
+    # With the default unmodelled error (docs/planning.md): the plan's predicted error is below the
+    # random plans'.
+    assert 0 < plan.predicted_error <= plan.random_predicted_error
     assert plan.pool["offered"] == 600 and plan.pool["feasible"] <= 600
     cand = np.random.default_rng(3).uniform(-np.pi, np.pi, size=(300, 6))
     p2 = lpoe.plan(m, 25, candidates=cand, criterion="A", random_draws=3)

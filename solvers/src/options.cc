@@ -115,6 +115,15 @@ std::vector<OptionSpec> MakeOptions() {
              "Maximum tracker-to-SMR distance (mm); 0: unlimited.", false, true),
       Number(kPlan, "target_accuracy", "0", 0, kUnbounded,
              "--count=auto: predicted held-out RMS to reach (mm).", false, true),
+      Number(kPlan, "unmodelled_error", "0.03", 0, 1e3,
+             "What the calibrated model will not explain (mm per axis): its bias on the "
+             "calibration enters the plan's predicted error and the exchange (docs/planning.md); "
+             "from an earlier calibration, its verification RMS / sqrt(3) less the noise in "
+             "quadrature; 0: none. A --model carrying a residual layer gives its own (signal and "
+             "length scales) unless this is given."),
+      Number(kPlan, "unmodelled_length", "1", 0, kUnbounded,
+             "Length scale (rad; mm for prismatic joints) over which the unmodelled error varies "
+             "with each joint.", true, true),
       Number(kPlan, "noise_sigma", "0", 0, kUnbounded,
              "Measurement noise per axis (mm): scales the predicted accuracy into mm; required "
              "with --count=auto.", false, true),

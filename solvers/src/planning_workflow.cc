@@ -12,6 +12,7 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/options.h"
+#include "lpoe/residual_layer.h"
 #include "lpoe/refusals.h"
 
 namespace lpoe {
@@ -244,24 +245,72 @@ Status RunPlanning(const PlanRequest& request, PlanningResult* result, PlanFailu
     return Fail(PlanFailure::kNoPlan, failure, s.message());
   }
 
-  // Random plans of the same size, for comparison.
-  for (int k = 0; k < request.random_draws; ++k) {
-    const PlanQuality r =
-        EvaluatePlan(pm, pool, RandomPlan(pool.size(), count, request.seed + 1000 + k), L);
-    if (k == 0) out.random_quality = r;
-    out.random_rms.push_back(r.predicted_rms);
+  // The unmodelled error (docs/planning.md, "Unmodelled error"): the residual layer's, given, or
+  // the default.
+  UnmodelledErrorModel& u = out.unmodelled;
+  if (model.residual_layer && !request.unmodelled_given) {
+    u.std = model.residual_layer->signal_std;
+    u.length_scales = model.residual_layer->length_scales;
+    u.tool_correlation = model.residual_layer->tool_correlation;
+    out.unmodelled_source = "residual layer";
+  } else {
+    u.std = request.unmodelled_error;
+    u.length_scales = Eigen::VectorXd::Constant(n, request.unmodelled_length);
+    out.unmodelled_source = request.unmodelled_given ? "given" : "default";
   }
-  std::sort(out.random_rms.begin(), out.random_rms.end());
-  double mean_sq = 0;
-  int finite = 0;
-  for (double v : out.random_rms) {
-    if (std::isfinite(v)) {
-      mean_sq += v * v;
-      ++finite;
+  out.prediction_sigma = request.noise_sigma > 0 ? request.noise_sigma : kPlanDefaultNoiseSigma;
+  const UnmodelledPlanning unmodelled(pm, pool, workspace, L, u, out.prediction_sigma);
+
+  // Random plans of the same size, for comparison.
+  std::vector<std::vector<int>> random_plans;
+  for (int k = 0; k < request.random_draws; ++k) {
+    random_plans.push_back(RandomPlan(pool.size(), count, request.seed + 1000 + k));
+  }
+  // With an unmodelled error: the plan is the best, by the predicted error, of the criterion's
+  // plan and the random plans, improved by swaps while the predicted error decreases.
+  // --count=auto keeps the smallest plan whose noise part reaches the target: the exchange, which
+  // trades noise for bias, would undo that; its prediction is still reported.
+  out.unmodelled_start = "criterion";
+  if (u.std > 0 && !request.count_auto) {
+    std::vector<int> start = out.plan.selected;
+    double best = unmodelled.Predict(start).total_rms;
+    for (size_t k = 0; k < random_plans.size(); ++k) {
+      const double t = unmodelled.Predict(random_plans[k]).total_rms;
+      if (t < best) {
+        best = t;
+        start = random_plans[k];
+        out.unmodelled_start = "random draw " + std::to_string(k + 1);
+      }
+    }
+    out.unmodelled_swaps = unmodelled.Exchange(&start, request.options.max_exchange_passes,
+                                               32, request.seed + 2);
+    out.plan.selected = start;
+    out.quality = EvaluatePlan(pm, pool, out.plan.selected, L);
+    if (Status s = PlanRefusal(out.quality, P, count); !s.ok()) {
+      return Fail(PlanFailure::kNoPlan, failure, s.message());
     }
   }
-  out.random_rms_mean =
-      finite > 0 ? std::sqrt(mean_sq / finite) : std::numeric_limits<double>::infinity();
+  out.prediction = unmodelled.Predict(out.plan.selected);
+  for (size_t k = 0; k < random_plans.size(); ++k) {
+    const PlanQuality r = EvaluatePlan(pm, pool, random_plans[k], L);
+    if (k == 0) out.random_quality = r;
+    out.random_rms.push_back(r.predicted_rms);
+    out.random_total_rms.push_back(unmodelled.Predict(random_plans[k]).total_rms);
+  }
+  auto rms_of_finite = [](std::vector<double>* values) {
+    std::sort(values->begin(), values->end());
+    double mean_sq = 0;
+    int finite = 0;
+    for (double v : *values) {
+      if (std::isfinite(v)) {
+        mean_sq += v * v;
+        ++finite;
+      }
+    }
+    return finite > 0 ? std::sqrt(mean_sq / finite) : std::numeric_limits<double>::infinity();
+  };
+  out.random_rms_mean = rms_of_finite(&out.random_rms);
+  out.random_total_rms_mean = rms_of_finite(&out.random_total_rms);
 
   // The gravity tilt's predicted standard deviations with the plan (the last two parameters of
   // M^-1, at the model's compliance values): what the calibration's a-posteriori ones will be.

@@ -73,29 +73,64 @@ class ResidualLayer {
 };
 
 struct ResidualLayerOptions {
-  // Inducing inputs (farthest-point among the identification rows in length-scale units); the
-  // stored layer and the prediction cost grow with it (docs/residual_layer.md).
-  int max_inducing = 256;
-  // Rows of the exact marginal likelihood the hyperparameters maximize (a seeded subsample when
-  // there are more).
-  int max_hyperparameter_rows = 600;
-  int max_iterations = 150;  // L-BFGS iterations on the hyperparameters
+  // Inducing inputs: farthest-point among the identification rows in length-scale units, until
+  // every row is within `inducing_radius` of one (kernel correlation exp(-r^2 / 2)) or there are
+  // `max_inducing`; the stored layer (the variance triangle, m^2 / 2 numbers) and the prediction
+  // cost grow with it (docs/residual_layer.md).
+  int max_inducing = 1024;
+  double inducing_radius = 0.5;
+  // Rows of the exact marginal likelihood the hyperparameters maximize: whole configurations (every
+  // tool measured there), a seeded sample of them when there are more.
+  int max_hyperparameter_rows = 360;
+  int max_iterations = 60;  // L-BFGS-B iterations per start (LBFGSpp)
   uint64_t seed = 1;
 };
 
 struct ResidualLayerFit {
-  double log_marginal_likelihood = 0;  // at the optimum, on the hyperparameter rows
+  double log_marginal_likelihood = 0;  // at the chosen optimum, on the hyperparameter rows
   int hyperparameter_rows = 0;
-  int iterations = 0;
+  int iterations = 0;              // of the chosen start
+  // The candidates of the hyperparameter search: its two starts (long length scales, the joints'
+  // spread) and no signal (2: the layer predicts nothing), each with the held-out RMS (mm,
+  // |residual| norm) of the exact GP that chose between them: on validation configurations (as many
+  // rows as the hyperparameter rows, of configurations not among them) when there are at least 30,
+  // else leave-one-configuration-out on the hyperparameter rows; `chosen_start` indexes them.
+  std::vector<double> start_loo_rms;
+  int chosen_start = 0;
+  // The standard deviation (mm per axis) of an error shared by the tools of one configuration and
+  // independent between configurations (the arm's repeatability, a tracker drift between stops):
+  // a hyperparameter like the noise, not part of the correction. 0 when no configuration has more
+  // than one row.
+  double configuration_std = 0;
+  int configurations = 0;          // distinct configurations among the rows
+  int validation_rows = 0;         // rows of the choice's validation configurations (0: LOO)
+  // Per joint, the spacing of the data: the median over configurations of |q_j - q'_j| to the
+  // nearest other configuration in the layer's length-scale units (ResidualLayerSpacing). A length
+  // scale below it correlates no measured configuration with its neighbours through that joint: the
+  // layer then interpolates its own rows and predicts nothing between them.
+  Eigen::VectorXd spacing;
+  double inducing_coverage = 0;    // largest distance of a row to its nearest inducing input
   double residual_rms_before = 0;  // RMS of |residual| on the fitting rows, mm
   double residual_rms_after = 0;   // after subtracting the layer's mean, mm
 };
 
+// The joints (0-based) whose length scale is below the data's spacing (ResidualLayerFit::spacing).
+std::vector<int> JointsBelowSpacing(const Eigen::VectorXd& length_scales,
+                                    const Eigen::VectorXd& spacing);
+
+// The spacing of configurations `q` (rows x num_joints, row-major; repeated configurations count
+// once) for the length scales `l`: per joint, the median over (at most 1000 seeded) configurations
+// of |q_j - q'_j| for q' the nearest other configuration in length-scale units.
+Eigen::VectorXd ResidualLayerSpacing(const std::vector<double>& q, int num_joints,
+                                     const Eigen::VectorXd& l);
+
 // Fits the layer on `rows` residuals (measured - parametric prediction, mm, base frame) at the
-// joint values q (rows x num_joints, row-major) of tools `tools` (rows indices). Hyperparameters by
-// the exact marginal likelihood on at most options.max_hyperparameter_rows rows (L-BFGS, analytic
-// gradient), then the sparse (DTC) posterior on every row. Fails on wrong sizes, fewer than 3 rows
-// or non-finite values.
+// joint values q (rows x num_joints, row-major) of tools `tools` (rows indices). Rows with the
+// same joint values are one configuration. Hyperparameters by the exact marginal likelihood with
+// weak log-normal priors on at most options.max_hyperparameter_rows rows (LBFGSpp's L-BFGS-B,
+// analytic gradient) from two starts, the one that predicts held-out configurations best
+// (leave-one-configuration-out) kept; then the sparse (DTC) posterior on every row. Fails on wrong
+// sizes, fewer than 3 rows or non-finite values.
 Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& tools,
                         const std::vector<Eigen::Vector3d>& residuals, int num_joints,
                         int num_tools, const ResidualLayerOptions& options, ResidualLayer* layer,
@@ -104,12 +139,31 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
 namespace internal {
 
 // The hyperparameter vector of the fit: log l_1..log l_n, log l_tool (only when `with_tool`),
-// log s_f, log s_n.
+// log s_f, log s_n, and log s_c (only with `configuration`: the standard deviation of an error
+// shared by the rows of one configuration).
 // Log marginal likelihood of the three outputs Y (rows x 3) at inputs X (rows x n) and tools under
-// the kernel above (exact GP), and its gradient with respect to theta.
+// the kernel above (exact GP) plus s_c^2 between rows of the same configuration
+// (configuration[a] == configuration[b]), and its gradient with respect to theta.
 double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
                                const Eigen::MatrixXd& X, const std::vector<int>& tools,
-                               const Eigen::MatrixXd& Y, Eigen::VectorXd* gradient);
+                               const Eigen::MatrixXd& Y, Eigen::VectorXd* gradient,
+                               const std::vector<int>* configuration = nullptr);
+
+// The exact GP's leave-one-configuration-out prediction errors at theta (same arguments; the rows
+// of a configuration left out together): the mean over rows of |y - prediction from the other
+// configurations|^2 (mm^2). Closed form: e_g = (K^-1)_gg^-1 (K^-1 Y)_g.
+double GpLeaveOneConfigurationOut(const Eigen::VectorXd& theta, bool with_tool,
+                                  const Eigen::MatrixXd& X, const std::vector<int>& tools,
+                                  const Eigen::MatrixXd& Y,
+                                  const std::vector<int>* configuration);
+
+// The exact GP's prediction errors at validation rows Xv (tools `validation_tools`, values Yv) from
+// the rows X (same arguments as above): mean over the validation rows of |y - prediction|^2 (mm^2).
+// The validation rows are other configurations: their shared error does not reach them.
+double GpValidationError(const Eigen::VectorXd& theta, bool with_tool, const Eigen::MatrixXd& X,
+                         const std::vector<int>& tools, const Eigen::MatrixXd& Y,
+                         const std::vector<int>* configuration, const Eigen::MatrixXd& Xv,
+                         const std::vector<int>& validation_tools, const Eigen::MatrixXd& Yv);
 
 }  // namespace internal
 }  // namespace lpoe

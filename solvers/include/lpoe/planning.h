@@ -269,6 +269,70 @@ Status SelectPlan(const PlanningModel& pm, const CandidatePool& pool, int count,
 // `count` distinct candidates drawn at random (seeded): the baseline a plan is compared against.
 std::vector<int> RandomPlan(int pool_size, int count, uint64_t seed);
 
+// ---- What the model cannot explain (docs/planning.md, "Unmodelled error").
+//
+// The measured error of a real arm has a part no parameter of the calibration describes. It is
+// modelled as a random field u(q, tool) (mm per axis) with variance s^2 and correlation
+// exp(-1/2 sum_j ((q_j - q'_j) / l_j)^2) (same tool ? 1 : rho) between poses: the residual layer's
+// kernel. A least-squares calibration of the plan S fits it where it measured: with
+// A = M^-1 and the plan's rows J_S, x_hat - x = A J_S^T (u_S + noise), and the tools' positions
+// over the workspace W are off by J_w (x_hat - x) - u_w. The expected mean square over the
+// workspace and the tools is
+//
+//   sigma^2 trace(L A) + s^2 (trace(L A H A) - 2 trace(A G) + 3),
+//   H = J_S^T C_SS J_S,  G = J_S^T R_S,  R_c = mean over (w, t) of C_{c,wt} J_wt
+//
+// (C the correlations of u between rows): the noise's part, the unmodelled error's bias on the
+// calibration and what it leaves at the workspace. With s = 0 it is the I criterion's figure.
+struct UnmodelledErrorModel {
+  double std = 0;                 // s, mm per axis; 0: none
+  Eigen::VectorXd length_scales;  // l_j per joint (rad / mm)
+  double tool_correlation = 1;    // rho
+};
+
+// A plan's predicted RMS error of the calibrated tool positions over the workspace (mm; calibrated
+// minus true, the true including the unmodelled error; the held-out measurement's own noise not
+// counted).
+struct PlanErrorPrediction {
+  double noise_rms = std::numeric_limits<double>::infinity();       // sigma sqrt(trace(L A))
+  double unmodelled_rms = std::numeric_limits<double>::infinity();  // the s^2 part's root
+  double total_rms = std::numeric_limits<double>::infinity();       // root of the sum of squares
+};
+
+// The prediction above for plans from one pool, and an exchange that lowers it.
+class UnmodelledPlanning {
+ public:
+  // `workspace` row-major (its first `max_workspace` configurations enter R), `L` the workspace
+  // moment of the same planning model, `sigma` the noise (mm per axis).
+  UnmodelledPlanning(const PlanningModel& pm, const CandidatePool& pool,
+                     const std::vector<double>& workspace, const Eigen::MatrixXd& L,
+                     const UnmodelledErrorModel& unmodelled, double sigma,
+                     int max_workspace = 500);
+
+  PlanErrorPrediction Predict(const std::vector<int>& selected) const;
+
+  // One-for-one swaps of plan members for candidates (per member a seeded shortlist of
+  // `shortlist` candidates outside the plan) while the predicted total decreases; at most
+  // `max_passes` passes over the plan. Returns the number of swaps made.
+  int Exchange(std::vector<int>* selected, int max_passes, int shortlist, uint64_t seed) const;
+
+ private:
+  // Correlation of u between candidates a and b (pose part; tools by `tool_factor`).
+  double PoseCorrelation(const double* qa, const double* qb) const;
+  // C_{a,b} J_b for candidate rows a (tools of a) and b: (rows_a x P).
+  Eigen::MatrixXd CorrelatedRows(int a, int b) const;
+  double Total(const Eigen::MatrixXd& M, const Eigen::MatrixXd& H, const Eigen::MatrixXd& G,
+               PlanErrorPrediction* out) const;
+
+  const PlanningModel& pm_;
+  const CandidatePool& pool_;
+  Eigen::MatrixXd L_;
+  UnmodelledErrorModel u_;
+  double sigma2_ = 0, s2_ = 0;
+  Eigen::VectorXd inv_l_;
+  Eigen::MatrixXd R_;  // pool rows x P (like pool.J)
+};
+
 }  // namespace lpoe
 
 #endif  // LPOE_PLANNING_H_

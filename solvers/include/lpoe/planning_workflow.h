@@ -44,7 +44,16 @@ struct PlanRequest {
   // none | a comma-separated list of the registry's terms (with ",tilt" after compliance) | auto.
   std::string joint_errors = "none";
   int random_draws = 30;
+  // What the calibrated model will not explain (docs/planning.md, "Unmodelled error"): from the
+  // model's residual layer when it carries one and unmodelled_given is false, else
+  // unmodelled_error (mm per axis; 0: none) varying over unmodelled_length (rad / mm) per joint.
+  bool unmodelled_given = false;
+  double unmodelled_error = 0.03;
+  double unmodelled_length = 1.0;
 };
+
+// The noise (mm per axis) the predicted error assumes when the request gives none.
+constexpr double kPlanDefaultNoiseSigma = 0.01;
 
 // What kind of failure RunPlanning met: the front ends map it (lpoe_plan: exit 1, 2, 3).
 enum class PlanFailure { kNone, kUsage, kInput, kNoPlan };
@@ -67,6 +76,19 @@ struct PlanningResult {
   PlanQuality random_quality;
   std::vector<double> random_rms;
   double random_rms_mean = 0;
+  // The unmodelled error planned for, where it came from ("residual layer", "given", "default"),
+  // the noise assumed (request's, else kPlanDefaultNoiseSigma), the predicted error of the plan and
+  // of each random plan (total, sorted) and their RMS, and the swaps the exchange on the predicted
+  // error made (starting from the best of the criterion's plan and the random plans; `start` says
+  // which: "criterion" or "random draw k").
+  UnmodelledErrorModel unmodelled;
+  std::string unmodelled_source;
+  double prediction_sigma = 0;
+  PlanErrorPrediction prediction;
+  std::vector<double> random_total_rms;
+  double random_total_rms_mean = 0;
+  std::string unmodelled_start;
+  int unmodelled_swaps = 0;
   // With the tilt: its two angles' predicted standard deviations, degrees per mm of noise.
   double tilt_sd_deg_per_unit[2] = {0, 0};
   // The planned terms as written in reports ("none", "compliance,harmonics,tilt").
