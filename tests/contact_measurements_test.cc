@@ -1,0 +1,425 @@
+// Ballbar distances and touch-probe plane contacts (issue 44): the kinds' readers, their analytic
+// rows against finite differences, and calibrations of a simulated 6R arm from (a) ballbar
+// distances, (b) probe contacts on a cube, (c) both, against a plain least-squares reference.
+#include <cmath>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+#include "lpoe/contact_calibration.h"
+#include "lpoe/contact_measurements.h"
+#include "lpoe/distance_measurement.h"
+#include "lpoe/kinematics.h"
+#include "lpoe/measurement_kinds.h"
+#include "lpoe/plane_measurement.h"
+#include "lpoe/simulation.h"
+
+namespace lpoe {
+namespace {
+namespace contact_measurements_test {
+
+// ---------------------------------------------------------------------------------------------
+// Readers.
+
+TEST(ContactCsv, DetectsTheKindFromTheColumns) {
+  EXPECT_EQ(DetectMeasurementKind({"q1", "distance", "pivot"})->id, MeasurementKindId::kDistance);
+  EXPECT_EQ(DetectMeasurementKind({"q1", "PLANE", "offset"})->id, MeasurementKindId::kPlane);
+  EXPECT_EQ(DetectMeasurementKind({"q1", "x", "y", "z"})->id, MeasurementKindId::kPosition);
+  EXPECT_EQ(DetectMeasurementKind({"q1", "x", "y", "z", "quat_x", "quat_y", "quat_z", "quat_w"})->id,
+            MeasurementKindId::kPose);
+  std::string why;
+  EXPECT_EQ(DetectMeasurementKind({"q1", "x", "y", "z", "distance"}, &why), nullptr);
+  EXPECT_NE(why.find("one kind per file"), std::string::npos) << why;
+  EXPECT_EQ(DetectMeasurementKind({"q1", "time"}), nullptr);
+  EXPECT_EQ(FindMeasurementKind("ballbar")->id, MeasurementKindId::kDistance);
+  EXPECT_EQ(FindMeasurementKind("plane")->id, MeasurementKindId::kPlane);
+  EXPECT_EQ(FindMeasurementKind("laser"), nullptr);
+}
+
+TEST(ContactCsv, ReadsDistancesAndPlanes) {
+  const RobotModel model = MakeCobot6();
+  ContactCsvOptions o;
+  o.sigma = 0.002;
+  ContactMeasurementSet d;
+  ASSERT_TRUE(ParseContactMeasurementsCsv(
+                  "# ballbar\nq1,q2,q3,q4,q5,q6,distance,pivot,temp\n"
+                  "0.1,0.2,0.3,0.4,0.5,0.6,150.001,A,21.5\n"
+                  "0.1,0.2,0.3,0.4,0.5,0.7,149.5,B,21.5\r\n",
+                  "bar.csv", model, o, &d)
+                  .ok());
+  ASSERT_EQ(d.size(), 2);
+  EXPECT_EQ(d.rows[0].kind, MeasurementKindId::kDistance);
+  EXPECT_DOUBLE_EQ(d.rows[0].value, 150.001);
+  EXPECT_DOUBLE_EQ(d.rows[1].sigma, 0.002);
+  EXPECT_EQ(d.pivots, (std::vector<std::string>{"A", "B"}));
+  EXPECT_EQ(d.rows[1].feature, 1);
+  EXPECT_EQ(d.rows[1].line, 4);
+  EXPECT_DOUBLE_EQ(d.joints(1)[5], 0.7);
+
+  ContactMeasurementSet p;
+  o.sigma = 0;  // a sigma column instead
+  ASSERT_TRUE(ParseContactMeasurementsCsv("q1,q2,q3,q4,q5,q6,plane,offset,sigma,target\n"
+                                          "0,0,0,0,0,0,top,3,0.003,0\n",
+                                          "probe.csv", model, o, &p)
+                  .ok());
+  EXPECT_EQ(p.rows[0].kind, MeasurementKindId::kPlane);
+  EXPECT_DOUBLE_EQ(p.rows[0].value, 3.0);
+  EXPECT_DOUBLE_EQ(p.rows[0].sigma, 0.003);
+  EXPECT_EQ(p.planes, (std::vector<std::string>{"top"}));
+
+  // Written and read back.
+  ContactMeasurementSet back;
+  ASSERT_TRUE(ParseContactMeasurementsCsv(ContactMeasurementsCsv(model, d, MeasurementKindId::kDistance),
+                                          "w.csv", model, o, &back)
+                  .ok());
+  ASSERT_EQ(back.size(), 2);
+  EXPECT_EQ(back.rows[1].value, d.rows[1].value);
+  EXPECT_EQ(back.pivots, d.pivots);
+}
+
+TEST(ContactCsv, RefusesBadInputNamingFileAndLine) {
+  const RobotModel model = MakeCobot6();
+  ContactCsvOptions o;
+  o.sigma = 0.002;
+  const std::string head = "q1,q2,q3,q4,q5,q6,distance\n";
+  struct Case {
+    std::string text;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {head + "0,0,0,0,0,0,-1\n", "f.csv:2: column 'distance'"},
+      {head + "0,0,0,0,0,0,nan\n", "f.csv:2: column 'distance': 'nan' is not finite"},
+      {head + "0,0,0,0,0,0\n", "f.csv:2: the row has 6 fields"},
+      {head + "0,0,0,0,0,1e5,150\n", "f.csv:2: column 'q6'"},
+      {"q1,q2,q3,q4,q5,q6,distance,target\n0,0,0,0,0,0,150,smr9\n", "f.csv:2: column 'target': unknown tool"},
+      {"q1,q2,q3,q4,q5,q6,distance,pivot\n0,0,0,0,0,0,150,\n", "f.csv:2: column 'pivot'"},
+      {"q1,q2,q3,q4,q5,q6,distance,x,y,z\n", "f.csv:1: the header has the columns of"},
+      {"q1,q2,q3,q4,q5,distance\n", "f.csv:1: no column for joint 6"},
+      {head, "f.csv:1: no data rows"},
+      {"# nothing\n", "f.csv:1: no header"},
+      {"q1,q2,q3,q4,q5,q6,x,y,z\n", "f.csv:1: no 'distance' or 'plane' column (a position file)"},
+      {"q1,q2,q3,q4,q5,q6,plane,sigma\n0,0,0,0,0,0,top,0\n", "f.csv:2: column 'sigma'"},
+  };
+  for (const Case& c : cases) {
+    ContactMeasurementSet out;
+    const Status s = ParseContactMeasurementsCsv(c.text, "f.csv", model, o, &out);
+    ASSERT_FALSE(s.ok()) << c.text;
+    EXPECT_NE(s.message().find(c.message), std::string::npos) << s.message();
+  }
+  ContactCsvOptions no_sigma;
+  ContactMeasurementSet out;
+  const Status s = ParseContactMeasurementsCsv(head + "0,0,0,0,0,0,150\n", "f.csv", model, no_sigma, &out);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("f.csv:1: no 'sigma' column and no noise given"), std::string::npos)
+      << s.message();
+  // --data_kind=plane on a distance file.
+  ContactCsvOptions plane = o;
+  plane.kind = FindMeasurementKind("plane");
+  const Status k = ParseContactMeasurementsCsv(head + "0,0,0,0,0,0,150\n", "f.csv", model, plane, &out);
+  ASSERT_FALSE(k.ok());
+  EXPECT_NE(k.message().find("f.csv:1: --data_kind=plane but the columns are a distance file's"),
+            std::string::npos)
+      << k.message();
+}
+
+// ---------------------------------------------------------------------------------------------
+// A simulated arm.
+
+struct Truth {
+  RobotModel nominal;
+  RobotModel truth;  // the actual robot with its joint zeros folded in
+};
+
+Truth MakeTruth() {
+  Truth t;
+  t.nominal = MakeCobot6();
+  // Frame errors of about 1 mm and 3 mrad, joint zeros 0.01 rad.
+  const KinematicErrors e = RandomErrors(t.nominal, 0.003, 1.0, 0.0, 0.01, 44);
+  t.truth = FoldJointZeros(ApplyErrors(t.nominal, e), e.joint_zero);
+  return t;
+}
+
+ContactMeasurementSet Ballbar(const RobotModel& truth, int count, uint64_t seed) {
+  BallbarSimulationOptions o;
+  o.count = count;
+  o.bar_length = 150;
+  o.noise = 0.002;
+  o.num_pivots = 3;
+  o.seed = seed;
+  ContactMeasurementSet out;
+  EXPECT_TRUE(SimulateBallbar(truth, o, &out, nullptr).ok());
+  return out;
+}
+
+ContactMeasurementSet Cube(const RobotModel& truth, int count, uint64_t seed) {
+  PlaneSimulationOptions o;
+  o.count = count;
+  o.probe_radius = 3;
+  o.noise = 0.003;
+  o.seed = seed;
+  ContactMeasurementSet out;
+  EXPECT_TRUE(SimulatePlaneContacts(truth, o, &out, nullptr).ok());
+  return out;
+}
+
+TEST(ContactSimulation, RowsSitWhereTheyMust) {
+  const Truth t = MakeTruth();
+  std::vector<Eigen::Vector3d> pivots;
+  BallbarSimulationOptions o;
+  o.count = 30;
+  o.noise = 0;
+  ContactMeasurementSet bar;
+  ASSERT_TRUE(SimulateBallbar(t.truth, o, &bar, &pivots).ok());
+  ASSERT_EQ(pivots.size(), 3u);
+  for (int r = 0; r < bar.size(); ++r) {
+    const Eigen::Vector3d P = ToolPosition(t.truth, bar.joints(r));
+    EXPECT_NEAR((P - pivots[bar.rows[r].feature]).norm(), bar.rows[r].value, 1e-8);
+    EXPECT_NEAR(bar.rows[r].value, 150.0, 1.0 + 1e-9);
+  }
+  std::vector<Eigen::Vector4d> planes;
+  PlaneSimulationOptions po;
+  po.count = 30;
+  po.noise = 0;
+  ContactMeasurementSet cube;
+  ASSERT_TRUE(SimulatePlaneContacts(t.truth, po, &cube, &planes).ok());
+  for (int r = 0; r < cube.size(); ++r) {
+    const Eigen::Vector3d P = ToolPosition(t.truth, cube.joints(r));
+    EXPECT_NEAR(PlaneMeasurement::Simulate(P, planes[cube.rows[r].feature]), 3.0, 1e-8);
+  }
+}
+
+// The analytic rows (ContactLinearize) against central differences of the residuals through the
+// same steps (ApplyUpdate, ApplyFeatureStep).
+TEST(ContactLinearize, MatchesFiniteDifferences) {
+  const Truth t = MakeTruth();
+  ContactMeasurementSet data = Ballbar(t.truth, 24, 3);
+  data.Append(Cube(t.truth, 24, 4));
+  ContactFeatures f;
+  ASSERT_TRUE(InitialContactFeatures(t.nominal, data, &f).ok());
+  ContactCalibrationOptions o;
+  o.hold_scale = ScaleHold::kOn;
+  ContactParameterization p;
+  ASSERT_TRUE(MakeContactParameterization(t.nominal, f, data, o, &p).ok());
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+  ContactLinearize(t.nominal, f, p, t.nominal, data, o, &r, &J);
+  ASSERT_EQ(J.cols(), p.num_parameters);
+  const double h = 1e-6;
+  for (int c = 0; c < p.num_parameters; ++c) {
+    Eigen::VectorXd rp, rm;
+    for (int sgn : {1, -1}) {
+      Eigen::VectorXd x = Eigen::VectorXd::Zero(p.num_parameters);
+      x(c) = sgn * h;
+      RobotModel m = t.nominal;
+      ApplyUpdate(p.frames, x.head(p.frames.num_parameters), &m);
+      ContactFeatures g = f;
+      ApplyFeatureStep(p, x, &g);
+      ContactLinearize(m, g, p, t.nominal, data, o, sgn > 0 ? &rp : &rm, nullptr);
+    }
+    const Eigen::VectorXd fd = (rp - rm) / (2 * h);
+    EXPECT_LT((fd - J.col(c)).norm(), 1e-5 * std::max(1.0, fd.norm())) << "column " << c;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The plain least-squares reference: every frame's six right perturbations, the pivots and the
+// planes (n unnormalized, d), Gauss-Newton with a pseudo-inverse (no decisions: the null
+// directions are simply not moved).
+
+struct Reference {
+  RobotModel model;
+  std::vector<Eigen::Vector3d> pivots;
+  std::vector<Eigen::Vector4d> planes;
+};
+
+void ReferenceRows(const Reference& ref, const ContactMeasurementSet& data, Eigen::VectorXd* r,
+                   Eigen::MatrixXd* J) {
+  const int F = ref.model.num_frames();
+  const int cols = 6 * F + 3 * static_cast<int>(ref.pivots.size()) + 4 * static_cast<int>(ref.planes.size());
+  r->resize(data.size());
+  J->setZero(data.size(), cols);
+  Eigen::MatrixXd Jf;
+  for (int i = 0; i < data.size(); ++i) {
+    const ContactRow& row = data.rows[i];
+    const Eigen::Vector3d P = ToolPositionJacobian(ref.model, data.joints(i), row.target, &Jf);
+    Eigen::RowVectorXd a;
+    if (row.kind == MeasurementKindId::kDistance) {
+      const Eigen::Vector3d c = ref.pivots[row.feature];
+      const Eigen::Vector3d u = (P - c).normalized();
+      (*r)(i) = ((P - c).norm() - row.value) / row.sigma;
+      J->row(i).head(6 * F) = u.transpose() * Jf / row.sigma;
+      J->block(i, 6 * F + 3 * row.feature, 1, 3) = -u.transpose() / row.sigma;
+    } else {
+      const Eigen::Vector4d& pl = ref.planes[row.feature];
+      const double norm = pl.head<3>().norm();
+      const Eigen::Vector3d n = pl.head<3>() / norm;
+      (*r)(i) = (n.dot(P) - pl(3) - row.value) / row.sigma;
+      J->row(i).head(6 * F) = n.transpose() * Jf / row.sigma;
+      const int at = 6 * F + 3 * static_cast<int>(ref.pivots.size()) + 4 * row.feature;
+      // d(n.P)/d(raw normal) = (I - n n^T) P / |raw|.
+      J->block(i, at, 1, 3) = ((Eigen::Matrix3d::Identity() - n * n.transpose()) * P).transpose() /
+                              (norm * row.sigma);
+      (*J)(i, at + 3) = -1.0 / row.sigma;
+    }
+  }
+}
+
+Reference PlainLeastSquares(const RobotModel& nominal, const ContactFeatures& start,
+                            const ContactMeasurementSet& data, Eigen::MatrixXd* J_start) {
+  Reference ref{nominal, start.pivots, start.planes};
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+  ReferenceRows(ref, data, &r, &J);
+  *J_start = J;
+  for (int it = 0; it < 30; ++it) {
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(J, Eigen::ComputeThinU | Eigen::ComputeThinV);
+    svd.setThreshold(1e-9);
+    const Eigen::VectorXd x = -svd.solve(r);
+    const int F = nominal.num_frames();
+    const int n = nominal.num_joints();
+    for (int f = 0; f < F; ++f) {
+      SE3d& T = f < n ? ref.model.joints[f].origin : ref.model.tools[f - n].origin;
+      T = T * ExpSE3(Vector6d(x.segment<6>(6 * f)));
+    }
+    int at = 6 * F;
+    for (Eigen::Vector3d& c : ref.pivots) {
+      c += x.segment<3>(at);
+      at += 3;
+    }
+    for (Eigen::Vector4d& pl : ref.planes) {
+      pl += x.segment<4>(at);
+      at += 4;
+      pl /= pl.head<3>().norm();  // the same plane, unit normal
+    }
+    ReferenceRows(ref, data, &r, &J);
+    if (x.norm() < 1e-11) break;
+  }
+  return ref;
+}
+
+// RMS distance (mm) of predicted from true tool positions after the best rigid (or similarity)
+// alignment; the similarity's scale goes to `scale`.
+double AlignedRms(const std::vector<Eigen::Vector3d>& predicted,
+                  const std::vector<Eigen::Vector3d>& truth, bool similarity, double* scale) {
+  const int m = static_cast<int>(predicted.size());
+  Eigen::Matrix3Xd A(3, m), B(3, m);
+  for (int i = 0; i < m; ++i) {
+    A.col(i) = predicted[i];
+    B.col(i) = truth[i];
+  }
+  const Eigen::Matrix4d T = Eigen::umeyama(A, B, similarity);
+  if (scale != nullptr) *scale = T.topLeftCorner<3, 3>().determinant() > 0
+                                     ? std::cbrt(T.topLeftCorner<3, 3>().determinant())
+                                     : 0;
+  const Eigen::Matrix3Xd moved = (T.topLeftCorner<3, 3>() * A).colwise() + T.topRightCorner<3, 1>();
+  return std::sqrt((moved - B).colwise().squaredNorm().mean());
+}
+
+std::vector<Eigen::Vector3d> Positions(const RobotModel& m, const ContactMeasurementSet& at) {
+  std::vector<Eigen::Vector3d> out;
+  for (int r = 0; r < at.size(); ++r) out.push_back(ToolPosition(m, at.joints(r)));
+  return out;
+}
+
+int NullDimension(const Eigen::MatrixXd& J, double tolerance) {
+  Eigen::MatrixXd Js = J;
+  for (int c = 0; c < Js.cols(); ++c) {
+    const double norm = Js.col(c).norm();
+    if (norm > 0) Js.col(c) /= norm;
+  }
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(Js);
+  const Eigen::VectorXd& s = svd.singularValues();
+  int rank = 0;
+  while (rank < s.size() && s(rank) > tolerance * s(0)) ++rank;
+  return static_cast<int>(Js.cols()) - rank;
+}
+
+void CalibrateAndCompare(const ContactMeasurementSet& data, bool planes_only,
+                         int expected_left_out) {
+  const Truth t = MakeTruth();
+  // Held-out configurations of the same kinds, never used by the calibrations.
+  ContactMeasurementSet held = Ballbar(t.truth, 60, 901);
+  held.Append(Cube(t.truth, 60, 902));
+  const std::vector<Eigen::Vector3d> truth = Positions(t.truth, held);
+
+  ContactCalibrationOptions o;  // defaults
+  const ContactCalibrationResult linear = CalibrateContactsLinear(t.nominal, data, o);
+  ASSERT_TRUE(linear.ok) << linear.message;
+  const ContactCalibrationResult ceres = CalibrateContactsCeres(t.nominal, data, o);
+  ASSERT_TRUE(ceres.ok) << ceres.message;
+
+  // The reference from the same start.
+  ContactFeatures start;
+  ASSERT_TRUE(InitialContactFeatures(t.nominal, data, &start).ok());
+  Eigen::MatrixXd J_reference;
+  const Reference ref = PlainLeastSquares(t.nominal, start, data, &J_reference);
+
+  double s_lin = 1, s_ref = 1, s_nom = 1;
+  const double e_nominal = AlignedRms(Positions(t.nominal, held), truth, planes_only, &s_nom);
+  const double e_linear = AlignedRms(Positions(linear.model, held), truth, planes_only, &s_lin);
+  const double e_ceres = AlignedRms(Positions(ceres.model, held), truth, planes_only, nullptr);
+  const double e_ref = AlignedRms(Positions(ref.model, held), truth, planes_only, &s_ref);
+  ::testing::Test::RecordProperty("held_out_rms_linear_um", static_cast<int>(1000 * e_linear));
+  EXPECT_LE(e_linear, 1.3 * e_ref) << "linear " << e_linear << " reference " << e_ref;
+  EXPECT_LE(e_ceres, 1.3 * e_ref) << "ceres " << e_ceres << " reference " << e_ref;
+  // A calibration, not a copy of the nominal model: the errors of about 1 mm are gone.
+  EXPECT_LT(e_linear, 0.02 * e_nominal) << "nominal " << e_nominal;
+  if (planes_only) {
+    EXPECT_TRUE(linear.parameterization.scale_held);
+    EXPECT_NEAR(s_lin, 1.0, 0.03);
+    EXPECT_NEAR(linear.scale, 1.0, 1e-5);  // held at the nominal's
+  } else {
+    EXPECT_FALSE(linear.parameterization.scale_held);
+  }
+  // Both solvers agree.
+  double largest = 0;
+  const std::vector<Eigen::Vector3d> a = Positions(linear.model, held), b = Positions(ceres.model, held);
+  for (size_t i = 0; i < a.size(); ++i) largest = std::max(largest, (a[i] - b[i]).norm());
+  EXPECT_LT(largest, 1e-4) << "mm between the two solvers' predictions";
+  EXPECT_NEAR(linear.cost, ceres.cost, 1e-6 * std::max(1.0, linear.cost));
+
+  // The directions left out are those the reference finds unobservable: the reference's
+  // Jacobian (every frame's six directions) at the start and ours have the same rank, and ours
+  // has no null direction but the scale when it is held.
+  const ContactParameterization& p = linear.parameterization;
+  EXPECT_EQ(p.num_base_directions, expected_left_out);
+  ContactCalibrationOptions no_hold = o;
+  ContactParameterization free_scale = p;
+  free_scale.scale_held = false;
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+  ContactLinearize(t.nominal, start, free_scale, t.nominal, data, no_hold, &r, &J);
+  const int reference_rank = static_cast<int>(J_reference.cols()) - NullDimension(J_reference, 1e-8);
+  const int our_rank = static_cast<int>(J.cols()) - NullDimension(J, 1e-8);
+  EXPECT_EQ(our_rank, reference_rank);
+  EXPECT_EQ(NullDimension(J, 1e-8), planes_only ? 1 : 0);
+  for (const Direction& d : p.frames.unidentifiable) {
+    if (d.frame < t.nominal.num_joints()) {
+      EXPECT_NE(d.reason.find("do not see the robot's base"), std::string::npos) << d.name;
+    }
+  }
+}
+
+TEST(ContactCalibration, BallbarThreePivots) {
+  const Truth t = MakeTruth();
+  CalibrateAndCompare(Ballbar(t.truth, 300, 1), false, 6);
+}
+
+TEST(ContactCalibration, ProbeOnThreeFacesOfACube) {
+  const Truth t = MakeTruth();
+  CalibrateAndCompare(Cube(t.truth, 300, 2), true, 6);
+}
+
+TEST(ContactCalibration, BallbarAndProbeTogether) {
+  const Truth t = MakeTruth();
+  ContactMeasurementSet data = Ballbar(t.truth, 300, 1);
+  data.Append(Cube(t.truth, 300, 2));
+  CalibrateAndCompare(data, false, 6);
+}
+
+}  // namespace contact_measurements_test
+}  // namespace
+}  // namespace lpoe
