@@ -33,6 +33,7 @@
 #include "report.h"
 #include "common_flags.h"
 #include "input_flags.h"
+#include "lpoe_calibrate_contact.h"
 #include "tool_common.h"
 
 DEFINE_string(measurements, "",
@@ -293,6 +294,9 @@ Status CheckFlags() {
 }
 
 int Run() {
+  // Ballbar distances and probe contacts (several files, or a distance or plane file): their own
+  // run (lpoe_calibrate_contact.cc, docs/measurements.md).
+  if (tools::ContactCalibrationRequested()) return tools::RunContactCalibration();
   tools::InputPaths paths;
   tools::InputSettings settings;
   if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;
