@@ -28,12 +28,6 @@ namespace {
 constexpr size_t kMaxContactFileBytes = size_t{256} << 20;
 constexpr double kPiContact = 3.14159265358979323846;
 
-std::string LowerCopy(std::string_view s) {
-  std::string out(s);
-  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return out;
-}
-
 bool CommentOrBlank(std::string_view line) {
   for (char c : line) {
     if (c == ' ' || c == '\t' || c == '\r') continue;
