@@ -7,7 +7,7 @@ import pytest
 
 import lpoe
 
-from conftest import DATA
+DATA = os.environ.get("LPOE_DATA_DIR", os.path.join(os.path.dirname(__file__), "..", "..", "data"))
 
 
 @pytest.fixture(scope="module")
