@@ -72,14 +72,26 @@ bool ParseScaleHold(const std::string& text, ScaleHold* hold) {
   return true;
 }
 
-double ScaleOf(const RobotModel& model, const RobotModel& nominal) {
-  double num = 0, den = 0;
-  for (int f = 0; f < nominal.num_frames(); ++f) {
-    const Eigen::Vector3d& t0 = ContactFrame(nominal, f).t;
-    num += t0.dot(ContactFrame(model, f).t);
-    den += t0.squaredNorm();
+Eigen::Matrix3Xd ScaleWeights(const RobotModel& nominal, const ContactMeasurementSet& data) {
+  Eigen::Matrix3Xd W(3, data.size());
+  for (int i = 0; i < data.size(); ++i) {
+    W.col(i) = ToolPosition(nominal, data.joints(i), data.rows[i].target);
   }
-  return den > 0 ? num / den : 1.0;
+  if (data.size() == 0) return W;
+  const Eigen::Vector3d mean = W.rowwise().mean();
+  W.colwise() -= mean;
+  const double den = W.squaredNorm();
+  return den > 0 ? Eigen::Matrix3Xd(W / den) : W;
+}
+
+double ScaleOf(const RobotModel& model, const RobotModel& nominal,
+               const ContactMeasurementSet& data) {
+  const Eigen::Matrix3Xd W = ScaleWeights(nominal, data);
+  double S = 0;
+  for (int i = 0; i < data.size(); ++i) {
+    S += W.col(i).dot(ToolPosition(model, data.joints(i), data.rows[i].target));
+  }
+  return S;
 }
 
 Status InitialContactFeatures(const RobotModel& model, const ContactMeasurementSet& data,
@@ -166,7 +178,8 @@ void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
                       Eigen::VectorXd* r, Eigen::MatrixXd* J) {
   int rows = 0;
   for (const ContactRow& row : data.rows) rows += MeasurementKind(row.kind).residuals;
-  const int total = rows + (p.scale_held ? 1 : 0);
+  const int gauge = p.num_gauge_rows();
+  const int total = rows + gauge + (p.scale_held ? 1 : 0);
   r->resize(total);
   if (J != nullptr) J->setZero(total, p.num_parameters);
   const int P = p.frames.num_parameters;
@@ -176,9 +189,15 @@ void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
   Eigen::RowVectorXd frame_row(std::max(P, 1));
   double feature_row[3];
   int at = 0;
+  double S = 0;
+  Eigen::RowVectorXd dS = Eigen::RowVectorXd::Zero(std::max(P, 1));
   for (int i = 0; i < data.size(); ++i) {
     const ContactRow& row = data.rows[i];
     const Eigen::Vector3d X = bj.Position(data.joints(i), row.target, Jp.data(), 3, scratch.data());
+    if (p.scale_held) {
+      S += p.scale_weights.col(i).dot(X);
+      if (J != nullptr) dS.head(P) += p.scale_weights.col(i).transpose() * Jp.leftCols(P);
+    }
     const double w = 1.0 / row.sigma;
     switch (row.kind) {
       case MeasurementKindId::kDistance: {
@@ -214,21 +233,28 @@ void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
       }
     }
   }
-  if (p.scale_held) {
-    // The prior on S: (S(model) - 1) / scale_sigma; dS/dx_f = t_f(nominal)^T R_f B_f^(v) / sum.
-    double den = 0;
-    for (int f = 0; f < nominal.num_frames(); ++f) den += ContactFrame(nominal, f).t.squaredNorm();
-    (*r)(at) = (ScaleOf(model, nominal) - 1.0) / options.scale_sigma;
+  if (gauge > 0) {
+    (*r).segment(at, gauge) = (p.gauge_rows * FeatureVector(features) - p.gauge_values) / p.gauge_sigma;
     if (J != nullptr) {
-      for (int f = 0; f < model.num_frames(); ++f) {
-        const Eigen::MatrixXd& B = p.frames.basis[f];
-        if (B.cols() == 0) continue;
-        const Eigen::RowVectorXd d = ContactFrame(nominal, f).t.transpose() *
-                                     ContactFrame(model, f).R * B.bottomRows(3) /
-                                     (den * options.scale_sigma);
-        J->row(at).segment(p.frames.offset[f], B.cols()) = d;
+      // Ambient columns from the local coordinates: pivots as they are, a plane's (a1, a2, dd) as
+      // (B(n) a, dd).
+      for (int k = 0; k < p.num_pivots; ++k) {
+        J->block(at, p.pivot_offset + 3 * k, gauge, 3) = p.gauge_rows.middleCols(3 * k, 3) / p.gauge_sigma;
+      }
+      for (int k = 0; k < p.num_planes; ++k) {
+        const int a = 3 * p.num_pivots + 4 * k;
+        const Eigen::Matrix<double, 3, 2> B =
+            PlaneTangentBasis(features.planes[k].head<3>());
+        J->block(at, p.plane_offset + 3 * k, gauge, 2) = p.gauge_rows.middleCols(a, 3) * B / p.gauge_sigma;
+        J->col(p.plane_offset + 3 * k + 2).segment(at, gauge) = p.gauge_rows.col(a + 3) / p.gauge_sigma;
       }
     }
+    at += gauge;
+  }
+  if (p.scale_held) {
+    // The prior on S (ScaleOf): (S(model) - 1) / scale_sigma, dS/dx = sum_j w_j^T dP_j/dx.
+    (*r)(at) = (S - 1.0) / options.scale_sigma;
+    if (J != nullptr) J->row(at).head(P) = dS.head(P) / options.scale_sigma;
   }
 }
 
@@ -250,6 +276,20 @@ std::vector<double> ContactErrors(const RobotModel& model, const ContactFeatures
     }
   }
   return out;
+}
+
+Eigen::VectorXd FeatureVector(const ContactFeatures& features) {
+  Eigen::VectorXd f(3 * features.pivots.size() + 4 * features.planes.size());
+  int at = 0;
+  for (const Eigen::Vector3d& c : features.pivots) {
+    f.segment<3>(at) = c;
+    at += 3;
+  }
+  for (const Eigen::Vector4d& pl : features.planes) {
+    f.segment<4>(at) = pl;
+    at += 4;
+  }
+  return f;
 }
 
 void ApplyFeatureStep(const ContactParameterization& p, const Eigen::VectorXd& x,
@@ -290,6 +330,7 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
   p.scale_held = options.hold_scale == ScaleHold::kOn ||
                  (options.hold_scale == ScaleHold::kAuto && !length);
   if (p.scale_held) {
+    p.scale_weights = ScaleWeights(model, data);
     p.scale_reason =
         length ? "the robot's scale is held at the nominal model's (asked for)"
                : "no row measures a length (planes alone): scaling the robot and the planes "
@@ -343,6 +384,33 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
   for (int f = 0; f < model.num_frames() && N.cols() > 0; ++f) {
     const int k = static_cast<int>(p.frames.basis[f].cols());
     if (k == 0) continue;
+    if (f > 0 && N.cols() > 0) {
+      // Past the base frame: hold what is left on the features when they see all of it (a frame
+      // block's reduced basis would depend on the path the solver takes through the later
+      // frames, a function of the features does not).
+      const int feature_cols = p.num_parameters - p.pivot_offset;
+      Eigen::MatrixXd M(3 * p.num_pivots + 4 * p.num_planes, N.cols());  // ambient
+      for (int j = 0; j < N.cols(); ++j) {
+        for (int q = 0; q < p.num_pivots; ++q) {
+          M.block<3, 1>(3 * q, j) = N.block<3, 1>(p.pivot_offset + 3 * q, j);
+        }
+        for (int q = 0; q < p.num_planes; ++q) {
+          const Eigen::Matrix<double, 3, 2> B = PlaneTangentBasis(features.planes[q].head<3>());
+          const int a = 3 * p.num_pivots + 4 * q;
+          M.block<3, 1>(a, j) = B * N.block<2, 1>(p.plane_offset + 3 * q, j);
+          M(a + 3, j) = N(p.plane_offset + 3 * q + 2, j);
+        }
+      }
+      Eigen::JacobiSVD<Eigen::MatrixXd> m(M, Eigen::ComputeThinU);
+      if (feature_cols > 0 && M.rows() > 0 &&
+          m.singularValues()(m.singularValues().size() - 1) > 1e-3 * m.singularValues()(0)) {
+        p.gauge_rows = m.matrixU().leftCols(N.cols()).transpose();
+        p.gauge_values = p.gauge_rows * FeatureVector(features);
+        p.num_base_directions += static_cast<int>(N.cols());
+        N.resize(N.rows(), 0);
+        break;
+      }
+    }
     const Eigen::MatrixXd A = N.middleRows(p.frames.offset[f], k);
     Eigen::JacobiSVD<Eigen::MatrixXd> a(A, Eigen::ComputeFullU | Eigen::ComputeFullV);
     int moved = 0;
@@ -367,6 +435,13 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
                          "(a pivot or plane with too few or degenerate rows)");
   }
   p.base_reason = p.num_base_directions > 0 ? reason : "";
+  if (p.num_gauge_rows() > 0) {
+    p.base_reason += "; " + std::to_string(p.num_base_directions - p.num_gauge_rows()) +
+                     " directions of the first frame are left out and " +
+                     std::to_string(p.num_gauge_rows()) +
+                     " (the first joint's zero and position along its axis, relative to the " +
+                     "features) are held on the pivots and planes";
+  }
   RenumberContactFrames(model, &p.frames);
   layout();
   *out = std::move(p);
@@ -398,16 +473,31 @@ ContactCalibrationResult CalibrateContactsLinear(const RobotModel& nominal,
   bool converged = false;
   for (int it = 0; it < options.max_iterations && !converged; ++it) {
     result.iterations = it + 1;
-    const Eigen::MatrixXd H = J.transpose() * J;
-    const Eigen::VectorXd g = -J.transpose() * r;
-    Eigen::VectorXd d = H.diagonal().cwiseSqrt();
-    for (int c = 0; c < d.size(); ++c) d(c) = d(c) > 0 ? 1.0 / d(c) : 1.0;
-    const Eigen::MatrixXd Hs = d.asDiagonal() * H * d.asDiagonal();
+    // The step from the column-scaled Jacobian by QR (not the normal equations: the scale hold's
+    // row is stiff, and squaring the condition number would cost its digits).
+    Eigen::VectorXd d(J.cols());
+    for (int c = 0; c < J.cols(); ++c) {
+      const double norm = J.col(c).norm();
+      d(c) = norm > 0 ? 1.0 / norm : 1.0;
+    }
+    const Eigen::MatrixXd Js = J * d.asDiagonal();
+    // Converged when the Gauss-Newton step itself promises less than function_tolerance of the
+    // cost (a damped step's small decrease after rejected steps is short, not final).
+    {
+      const Eigen::VectorXd z = Js.colPivHouseholderQr().solve(-r);
+      const double predicted = cost - 0.5 * (r + Js * z).squaredNorm();
+      if (!(predicted > options.function_tolerance * cost)) {
+        converged = true;
+        break;
+      }
+    }
     bool accepted = false;
     for (int attempt = 0; attempt < 20; ++attempt) {
-      Eigen::MatrixXd A = Hs;
-      A.diagonal().array() += lambda;
-      const Eigen::VectorXd x = d.asDiagonal() * A.llt().solve(d.asDiagonal() * g);
+      Eigen::MatrixXd A(Js.rows() + Js.cols(), Js.cols());
+      A << Js, std::sqrt(lambda) * Eigen::MatrixXd::Identity(Js.cols(), Js.cols());
+      Eigen::VectorXd b = Eigen::VectorXd::Zero(A.rows());
+      b.head(r.size()) = -r;
+      const Eigen::VectorXd x = d.asDiagonal() * A.householderQr().solve(b);
       if (!x.allFinite()) {
         lambda *= 10;
         continue;
@@ -420,12 +510,11 @@ ContactCalibrationResult CalibrateContactsLinear(const RobotModel& nominal,
       ContactLinearize(model, features, p, nominal, data, options, &r2, nullptr);
       const double cost2 = 0.5 * r2.squaredNorm();
       if (cost2 <= cost) {
-        const double decrease = cost - cost2;
         result.model = std::move(model);
         result.features = std::move(features);
-        converged = decrease <= options.function_tolerance * cost || cost2 == 0;
+        converged = cost2 == 0;
         cost = cost2;
-        lambda = std::max(lambda / 10, 1e-12);
+        lambda = std::max(lambda / 10, 1e-15);
         accepted = true;
         break;
       }
@@ -439,7 +528,7 @@ ContactCalibrationResult CalibrateContactsLinear(const RobotModel& nominal,
   }
   result.cost = cost;
   result.errors = ContactErrors(result.model, result.features, data);
-  result.scale = ScaleOf(result.model, nominal);
+  result.scale = ScaleOf(result.model, nominal, data);
   result.ok = converged;
   result.message = converged ? "converged" : "not converged (iteration limit)";
   return result;

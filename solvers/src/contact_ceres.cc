@@ -39,43 +39,104 @@ class ContactRowFunctor {
   typename Kind::Observation observation_;
 };
 
-// The scale hold (contact_calibration.h): (S(model) - 1) / sigma over every frame block; S is
-// linear in the translations [4..6] of the blocks.
+// The scale hold (contact_calibration.h): (S(model) - 1) / sigma with S = sum_j w_j . P_j over the
+// rows' predicted points, a function of every frame block. Its Jacobian is computed in the frames'
+// tangent coordinates (BasisJacobian, as the linear solver's) and given to Ceres in the ambient
+// coordinates through each manifold's MinusJacobian (MinusJacobian * PlusJacobian = I).
 class ScaleHoldCost : public ceres::CostFunction {
  public:
-  ScaleHoldCost(const RobotModel& nominal, double sigma) : sigma_(sigma) {
-    const int n = nominal.num_joints();
-    double den = 0;
-    for (int f = 0; f < nominal.num_frames(); ++f) {
-      const Eigen::Vector3d t = f < n ? nominal.joints[f].origin.t : nominal.tools[f - n].origin.t;
-      t0_.push_back(t);
-      den += t.squaredNorm();
+  ScaleHoldCost(const RobotModel& start, const ContactParameterization& p,
+                const ContactMeasurementSet& data, double sigma)
+      : model_(start), p_(p), data_(data), sigma_(sigma) {
+    for (int f = 0; f < start.num_frames(); ++f) {
       mutable_parameter_block_sizes()->push_back(kSe3AmbientSize);
+      manifolds_.emplace_back(p.frames.basis[f].cols() > 0 ? new Se3Manifold(p.frames.basis[f])
+                                                           : nullptr);
     }
-    den_ = den;
     set_num_residuals(1);
   }
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    double num = 0;
-    for (size_t f = 0; f < t0_.size(); ++f) {
-      for (int k = 0; k < 3; ++k) num += t0_[f](k) * parameters[f][4 + k];
+    RobotModel m = model_;
+    const int n = m.num_joints();
+    for (int f = 0; f < m.num_frames(); ++f) {
+      (f < n ? m.joints[f].origin : m.tools[f - n].origin) = Se3FromArray(parameters[f]);
     }
-    residuals[0] = (num / den_ - 1.0) / sigma_;
+    const int P = p_.frames.num_parameters;
+    BasisJacobian bj(m, p_.frames);
+    std::vector<FrameRt> scratch(n + 1);
+    Eigen::Matrix<double, 3, Eigen::Dynamic> Jp(3, std::max(P, 1));
+    Eigen::RowVectorXd g = Eigen::RowVectorXd::Zero(std::max(P, 1));
+    double S = 0;
+    for (int i = 0; i < data_.size(); ++i) {
+      const Eigen::Vector3d X =
+          bj.Position(data_.joints(i), data_.rows[i].target, Jp.data(), 3, scratch.data());
+      S += p_.scale_weights.col(i).dot(X);
+      if (jacobians != nullptr) g.head(P) += p_.scale_weights.col(i).transpose() * Jp.leftCols(P);
+    }
+    residuals[0] = (S - 1.0) / sigma_;
     if (jacobians != nullptr) {
-      for (size_t f = 0; f < t0_.size(); ++f) {
+      for (int f = 0; f < m.num_frames(); ++f) {
         if (jacobians[f] == nullptr) continue;
-        for (int k = 0; k < 4; ++k) jacobians[f][k] = 0;
-        for (int k = 0; k < 3; ++k) jacobians[f][4 + k] = t0_[f](k) / (den_ * sigma_);
+        Eigen::Map<Eigen::Matrix<double, 1, kSe3AmbientSize>> out(jacobians[f]);
+        out.setZero();
+        const int k = static_cast<int>(p_.frames.basis[f].cols());
+        if (k == 0) continue;
+        Eigen::Matrix<double, Eigen::Dynamic, kSe3AmbientSize, Eigen::RowMajor> minus(k, kSe3AmbientSize);
+        manifolds_[f]->MinusJacobian(parameters[f], minus.data());
+        out = g.segment(p_.frames.offset[f], k) * minus / sigma_;
       }
     }
     return true;
   }
 
  private:
-  std::vector<Eigen::Vector3d> t0_;
-  double den_ = 1;
-  double sigma_ = 1;
+  RobotModel model_;
+  const ContactParameterization& p_;
+  const ContactMeasurementSet& data_;
+  double sigma_;
+  std::vector<std::unique_ptr<Se3Manifold>> manifolds_;
+};
+
+// The gauge rows on the features (ContactParameterization::gauge_rows): linear in the blocks'
+// ambient values, pivots (3) then planes (4).
+class GaugeHoldCost : public ceres::CostFunction {
+ public:
+  GaugeHoldCost(const ContactParameterization& p) : rows_(p.gauge_rows), values_(p.gauge_values),
+                                                    sigma_(p.gauge_sigma) {
+    for (int k = 0; k < p.num_pivots; ++k) mutable_parameter_block_sizes()->push_back(3);
+    for (int k = 0; k < p.num_planes; ++k) mutable_parameter_block_sizes()->push_back(4);
+    set_num_residuals(static_cast<int>(rows_.rows()));
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const int blocks = static_cast<int>(parameter_block_sizes().size());
+    Eigen::VectorXd f(rows_.cols());
+    int at = 0;
+    for (int b = 0; b < blocks; ++b) {
+      const int size = parameter_block_sizes()[b];
+      for (int k = 0; k < size; ++k) f(at + k) = parameters[b][k];
+      at += size;
+    }
+    Eigen::Map<Eigen::VectorXd>(residuals, rows_.rows()) = (rows_ * f - values_) / sigma_;
+    if (jacobians != nullptr) {
+      at = 0;
+      for (int b = 0; b < blocks; ++b) {
+        const int size = parameter_block_sizes()[b];
+        if (jacobians[b] != nullptr) {
+          Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+              jacobians[b], rows_.rows(), size) = rows_.middleCols(at, size) / sigma_;
+        }
+        at += size;
+      }
+    }
+    return true;
+  }
+
+ private:
+  Eigen::MatrixXd rows_;
+  Eigen::VectorXd values_;
+  double sigma_;
 };
 
 template <typename Kind>
@@ -156,10 +217,16 @@ ContactCalibrationResult CalibrateContactsCeres(const RobotModel& nominal,
     }
     problem.AddResidualBlock(cost, nullptr, b);
   }
+  if (p.num_gauge_rows() > 0) {
+    std::vector<double*> b;
+    for (int k = 0; k < p.num_pivots; ++k) b.push_back(pivots.data() + 3 * k);
+    for (int k = 0; k < p.num_planes; ++k) b.push_back(planes.data() + 4 * k);
+    problem.AddResidualBlock(new GaugeHoldCost(p), nullptr, b);
+  }
   if (p.scale_held) {
     std::vector<double*> b;
     for (int f = 0; f < frames; ++f) b.push_back(frame_block(f));
-    problem.AddResidualBlock(new ScaleHoldCost(nominal, options.scale_sigma), nullptr, b);
+    problem.AddResidualBlock(new ScaleHoldCost(nominal, p, data, options.scale_sigma), nullptr, b);
   }
   for (int f = 0; f < frames; ++f) {
     const Eigen::MatrixXd& B = p.frames.basis[f];
@@ -194,7 +261,7 @@ ContactCalibrationResult CalibrateContactsCeres(const RobotModel& nominal,
   result.initial_cost = summary.initial_cost;
   result.cost = summary.final_cost;
   result.errors = ContactErrors(result.model, result.features, data);
-  result.scale = ScaleOf(result.model, nominal);
+  result.scale = ScaleOf(result.model, nominal, data);
   result.ok = summary.IsSolutionUsable() && summary.termination_type == ceres::CONVERGENCE;
   result.message = result.ok ? "converged" : summary.message;
   return result;

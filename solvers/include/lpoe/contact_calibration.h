@@ -43,8 +43,9 @@ bool ParseScaleHold(const std::string& text, ScaleHold* hold);
 
 struct ContactCalibrationOptions {
   int max_iterations = 100;
-  // Stop when the cost decreases by less than this fraction in an iteration.
-  double function_tolerance = 1e-14;
+  // Stop when a Gauss-Newton step promises (linear solver) or makes (Ceres) a decrease of less
+  // than this fraction of the cost.
+  double function_tolerance = 1e-12;
   // kAuto: hold the scale when no row measures a length (planes alone).
   ScaleHold hold_scale = ScaleHold::kAuto;
   // The hold as a prior: standard deviation of the scale functional S (relative; 1e-6 holds it to
@@ -65,9 +66,19 @@ struct ContactParameterization {
   int plane_offset = 0;
   int num_parameters = 0;
   bool scale_held = false;
+  Eigen::Matrix3Xd scale_weights;  // ScaleWeights of the nominal model and the data, when held
   std::string scale_reason;  // why the scale is held or seen
-  int num_base_directions = 0;  // directions left out because the base is not seen
+  int num_base_directions = 0;  // directions left out or held because the base is not seen
   std::string base_reason;
+  // The base's directions that frame blocks cannot leave out path-independently (the first joint's
+  // zero and height, which the identifiable parameterization carries in the second frame) are held
+  // on the features instead: linear functions of the features' ambient values (pivots' xyz,
+  // planes' [n d], in that order), gauge_rows * f = gauge_values, as rows of weight
+  // 1 / gauge_sigma (mm) -- a prior of the same form as the scale hold's.
+  Eigen::MatrixXd gauge_rows;   // k x (3 pivots + 4 planes)
+  Eigen::VectorXd gauge_values;
+  double gauge_sigma = 1e-6;
+  int num_gauge_rows() const { return static_cast<int>(gauge_rows.rows()); }
 };
 
 struct ContactCalibrationResult {
@@ -81,7 +92,7 @@ struct ContactCalibrationResult {
   double initial_cost = 0;
   double cost = 0;
   std::vector<double> errors;  // per row: mm (distance, plane: signed; position: |e|)
-  double scale = 1;            // ScaleOf(model, nominal)
+  double scale = 1;            // ScaleOf(model, nominal, data)
 };
 
 // The features fitted to the start model's predictions: a sphere per pivot (its rows' distances),
@@ -91,9 +102,17 @@ struct ContactCalibrationResult {
 Status InitialContactFeatures(const RobotModel& model, const ContactMeasurementSet& data,
                               ContactFeatures* features);
 
-// The scale functional S(model) = sum_f t_f(nominal) . t_f(model) / sum_f |t_f(nominal)|^2 over
-// every local frame: 1 for the nominal model, s for the nominal scaled by s.
-double ScaleOf(const RobotModel& model, const RobotModel& nominal);
+// The scale functional: the size of the robot as seen at the rows' configurations, relative to
+// the nominal model's,
+//   S(model) = sum_j (Pn_j - mean Pn) . P_j / sum_j |Pn_j - mean Pn|^2
+// with P_j, Pn_j the rows' predicted tool points on `model` and `nominal`: 1 for the nominal
+// model, s for the nominal scaled by s. A function of the predictions (not of how the frames
+// represent them), so the hold is the same constraint for every solver whatever path it takes
+// through the frames' equivalent representations.
+double ScaleOf(const RobotModel& model, const RobotModel& nominal,
+               const ContactMeasurementSet& data);
+// The weights (Pn_j - mean Pn) / sum_j |Pn_j - mean Pn|^2 of S, one column per row.
+Eigen::Matrix3Xd ScaleWeights(const RobotModel& nominal, const ContactMeasurementSet& data);
 
 // Decides the parameterization from the data (see the file comment).
 Status MakeContactParameterization(const RobotModel& model, const ContactFeatures& features,
@@ -102,7 +121,7 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
                                    ContactParameterization* p);
 
 // The whitened residuals (rows in order: 1 per distance or plane row, 3 per position row; then the
-// scale hold's row when held) and, when J is not null, their Jacobian in p's coordinates.
+// gauge rows on the features; then the scale hold's row when held) and, when J is not null, their Jacobian in p's coordinates.
 void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
                       const ContactParameterization& p, const RobotModel& nominal,
                       const ContactMeasurementSet& data, const ContactCalibrationOptions& options,
@@ -111,6 +130,9 @@ void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
 // Per row, mm (see ContactCalibrationResult::errors).
 std::vector<double> ContactErrors(const RobotModel& model, const ContactFeatures& features,
                                   const ContactMeasurementSet& data);
+
+// The features' ambient values in the order of ContactParameterization::gauge_rows.
+Eigen::VectorXd FeatureVector(const ContactFeatures& features);
 
 // The features after a step of p's feature coordinates (x has p.num_parameters entries).
 void ApplyFeatureStep(const ContactParameterization& p, const Eigen::VectorXd& x,
