@@ -227,7 +227,8 @@ TEST(ContactLinearize, MatchesFiniteDifferences) {
 // ---------------------------------------------------------------------------------------------
 // The plain least-squares reference: every frame's six right perturbations, the pivots and the
 // planes (n unnormalized, d), Gauss-Newton with a pseudo-inverse (no decisions: the null
-// directions are simply not moved).
+// directions are simply not moved). Without a scale row it fails on planes alone (it shrinks
+// the robot: ReferenceWithoutScaleShrinksOnPlanes).
 
 struct Reference {
   RobotModel model;
@@ -267,34 +268,75 @@ void ReferenceRows(const Reference& ref, const ContactMeasurementSet& data, Eige
   }
 }
 
+// With `hold_scale` (planes alone, whose least squares would otherwise shrink the robot) one more
+// row holds the size of the predicted points, sum_j (Pn_j - mean Pn) . P_j / sum_j |Pn_j - mean
+// Pn|^2 = 1 (a sum over the frames' translations would not do: the directions along the joint
+// axes are free and move it without moving a point).
+void AddReferenceScaleRow(const RobotModel& nominal, const Reference& ref,
+                          const ContactMeasurementSet& data, Eigen::VectorXd* r,
+                          Eigen::MatrixXd* J) {
+  Eigen::Matrix3Xd W(3, data.size());
+  for (int i = 0; i < data.size(); ++i) W.col(i) = ToolPosition(nominal, data.joints(i), data.rows[i].target);
+  W.colwise() -= Eigen::Vector3d(W.rowwise().mean());
+  const double den = W.squaredNorm();
+  double S = 0;
+  Eigen::RowVectorXd a = Eigen::RowVectorXd::Zero(J->cols());
+  Eigen::MatrixXd Jf;
+  for (int i = 0; i < data.size(); ++i) {
+    const Eigen::Vector3d P = ToolPositionJacobian(ref.model, data.joints(i), data.rows[i].target, &Jf);
+    S += W.col(i).dot(P) / den;
+    a.head(Jf.cols()) += W.col(i).transpose() * Jf / den;
+  }
+  const double sigma = 1e-3;  // enough to hold it (moving it by 1e-3 costs what the data do)
+  r->conservativeResize(r->size() + 1);
+  (*r)(r->size() - 1) = (S - 1) / sigma;
+  J->conservativeResize(J->rows() + 1, Eigen::NoChange);
+  J->row(J->rows() - 1) = a / sigma;
+}
+
 Reference PlainLeastSquares(const RobotModel& nominal, const ContactFeatures& start,
-                            const ContactMeasurementSet& data, Eigen::MatrixXd* J_start) {
+                            const ContactMeasurementSet& data, bool hold_scale,
+                            Eigen::MatrixXd* J_start) {
   Reference ref{nominal, start.pivots, start.planes};
   Eigen::VectorXd r;
   Eigen::MatrixXd J;
   ReferenceRows(ref, data, &r, &J);
   *J_start = J;
-  for (int it = 0; it < 30; ++it) {
+  if (hold_scale) AddReferenceScaleRow(nominal, ref, data, &r, &J);
+  for (int it = 0; it < 50; ++it) {
     Eigen::JacobiSVD<Eigen::MatrixXd> svd(J, Eigen::ComputeThinU | Eigen::ComputeThinV);
     svd.setThreshold(1e-9);
-    const Eigen::VectorXd x = -svd.solve(r);
-    const int F = nominal.num_frames();
-    const int n = nominal.num_joints();
-    for (int f = 0; f < F; ++f) {
-      SE3d& T = f < n ? ref.model.joints[f].origin : ref.model.tools[f - n].origin;
-      T = T * ExpSE3(Vector6d(x.segment<6>(6 * f)));
+    Eigen::VectorXd x = -svd.solve(r);
+    // The step, halved while it raises the cost (plain Gauss-Newton otherwise).
+    for (int halving = 0; halving < 30; ++halving, x *= 0.5) {
+      Reference next = ref;
+      const int F = nominal.num_frames();
+      const int n = nominal.num_joints();
+      for (int f = 0; f < F; ++f) {
+        SE3d& T = f < n ? next.model.joints[f].origin : next.model.tools[f - n].origin;
+        T = T * ExpSE3(Vector6d(x.segment<6>(6 * f)));
+      }
+      int at = 6 * F;
+      for (Eigen::Vector3d& c : next.pivots) {
+        c += x.segment<3>(at);
+        at += 3;
+      }
+      for (Eigen::Vector4d& pl : next.planes) {
+        pl += x.segment<4>(at);
+        at += 4;
+        pl /= pl.head<3>().norm();  // the same plane, unit normal
+      }
+      Eigen::VectorXd r2;
+      Eigen::MatrixXd J2;
+      ReferenceRows(next, data, &r2, &J2);
+      if (hold_scale) AddReferenceScaleRow(nominal, next, data, &r2, &J2);
+      if (r2.squaredNorm() <= r.squaredNorm()) {
+        ref = std::move(next);
+        r = std::move(r2);
+        J = std::move(J2);
+        break;
+      }
     }
-    int at = 6 * F;
-    for (Eigen::Vector3d& c : ref.pivots) {
-      c += x.segment<3>(at);
-      at += 3;
-    }
-    for (Eigen::Vector4d& pl : ref.planes) {
-      pl += x.segment<4>(at);
-      at += 4;
-      pl /= pl.head<3>().norm();  // the same plane, unit normal
-    }
-    ReferenceRows(ref, data, &r, &J);
     if (x.norm() < 1e-11) break;
   }
   return ref;
@@ -355,7 +397,7 @@ void CalibrateAndCompare(const ContactMeasurementSet& data, bool planes_only,
   ContactFeatures start;
   ASSERT_TRUE(InitialContactFeatures(t.nominal, data, &start).ok());
   Eigen::MatrixXd J_reference;
-  const Reference ref = PlainLeastSquares(t.nominal, start, data, &J_reference);
+  const Reference ref = PlainLeastSquares(t.nominal, start, data, planes_only, &J_reference);
 
   double s_lin = 1, s_ref = 1, s_nom = 1;
   const double e_nominal = AlignedRms(Positions(t.nominal, held), truth, planes_only, &s_nom);
@@ -434,6 +476,22 @@ void CalibrateAndCompare(const ContactMeasurementSet& data, bool planes_only,
     for (size_t k = 0; k < start.planes.size(); ++k) v(planes_at + 4 * k + 3) = start.planes[k](3) + 3.0;
     EXPECT_LT((J_ref * v - r_ref).norm(), 1e-6 * r_ref.norm());
   }
+}
+
+// The warning, shown: plain least squares on planes alone, with nothing holding the
+// scale, shrinks the robot (the residuals shrink with it), however small the noise.
+TEST(ContactCalibration, ReferenceWithoutScaleShrinksOnPlanes) {
+  const Truth t = MakeTruth();
+  const ContactMeasurementSet data = Cube(t.truth, 300, 2);
+  ContactFeatures start;
+  ASSERT_TRUE(InitialContactFeatures(t.nominal, data, &start).ok());
+  Eigen::MatrixXd J;
+  const Reference free = PlainLeastSquares(t.nominal, start, data, false, &J);
+  const Reference held = PlainLeastSquares(t.nominal, start, data, true, &J);
+  // The size of the predicted points relative to the nominal's (contact_calibration.h, ScaleOf).
+  auto size = [&](const RobotModel& m) { return ScaleOf(m, t.nominal, data); };
+  EXPECT_LT(size(free.model), 0.9);
+  EXPECT_NEAR(size(held.model), 1.0, 0.01);
 }
 
 TEST(ContactCalibration, BallbarThreePivots) {
