@@ -303,12 +303,24 @@ Reference PlainLeastSquares(const RobotModel& nominal, const ContactFeatures& st
   ReferenceRows(ref, data, &r, &J);
   *J_start = J;
   if (hold_scale) AddReferenceScaleRow(nominal, ref, data, &r, &J);
-  for (int it = 0; it < 50; ++it) {
-    Eigen::JacobiSVD<Eigen::MatrixXd> svd(J, Eigen::ComputeThinU | Eigen::ComputeThinV);
-    svd.setThreshold(1e-9);
-    Eigen::VectorXd x = -svd.solve(r);
-    // The step, halved while it raises the cost (plain Gauss-Newton otherwise).
-    for (int halving = 0; halving < 30; ++halving, x *= 0.5) {
+  double mu = 1e-6;
+  for (int it = 0; it < 100; ++it) {
+    // Levenberg-Marquardt damping on the column-scaled normal equations, a pseudo-inverse for
+    // the null directions.
+    Eigen::VectorXd D(J.cols());
+    for (int c = 0; c < J.cols(); ++c) D(c) = J.col(c).norm() > 0 ? 1.0 / J.col(c).norm() : 1.0;
+    const Eigen::MatrixXd Js = J * D.asDiagonal();
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(Js, Eigen::ComputeThinU | Eigen::ComputeThinV);
+    const Eigen::VectorXd& sv = svd.singularValues();
+    Eigen::VectorXd z = Eigen::VectorXd::Zero(Js.cols());
+    const Eigen::VectorXd ur = svd.matrixU().transpose() * r;
+    for (int k = 0; k < sv.size(); ++k) {
+      if (sv(k) > 1e-9 * sv(0)) z -= svd.matrixV().col(k) * (sv(k) * ur(k) / (sv(k) * sv(k) + mu));
+    }
+    Eigen::VectorXd x = D.asDiagonal() * z;
+    // The step, halved while it raises the cost (and damped more at the next iteration).
+    bool lowered = false;
+    for (int halving = 0; halving < 30 && !lowered; ++halving, x *= 0.5) {
       Reference next = ref;
       const int F = nominal.num_frames();
       const int n = nominal.num_joints();
@@ -324,20 +336,23 @@ Reference PlainLeastSquares(const RobotModel& nominal, const ContactFeatures& st
       for (Eigen::Vector4d& pl : next.planes) {
         pl += x.segment<4>(at);
         at += 4;
-        pl /= pl.head<3>().norm();  // the same plane, unit normal
+        pl.head<3>().normalize();  // the same plane, unit normal
       }
       Eigen::VectorXd r2;
       Eigen::MatrixXd J2;
       ReferenceRows(next, data, &r2, &J2);
       if (hold_scale) AddReferenceScaleRow(nominal, next, data, &r2, &J2);
       if (r2.squaredNorm() <= r.squaredNorm()) {
+        mu = std::max(mu / 10, 1e-12);
         ref = std::move(next);
         r = std::move(r2);
         J = std::move(J2);
-        break;
+        lowered = true;
       }
     }
-    if (x.norm() < 1e-11) break;
+    if (!lowered) mu *= 100;
+    if (lowered && x.norm() < 1e-11) break;
+    if (mu > 1e6) break;
   }
   return ref;
 }
