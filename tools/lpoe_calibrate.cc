@@ -37,7 +37,9 @@
 #include "tool_common.h"
 
 DEFINE_string(measurements, "",
-              "Identification measurements (CSV: q1..qN,x,y,z[,target][,quat_x..quat_w]). "
+              "Identification measurements (CSV: q1..qN,x,y,z[,target][,quat_x..quat_w]); or "
+              "ballbar (q1..qN,distance[,pivot]) and touch-probe (q1..qN,plane[,offset]) files, "
+              "several comma-separated (docs/measurements.md). "
               "Default: data/section4/identification.csv.");
 DEFINE_string(verify, "",
               "Verification measurements (CSV), never used for identification. Default with the "
@@ -109,7 +111,8 @@ DEFINE_string(parameterization, "identifiable",
               "data); full: 6 per local frame, solved as a minimum-norm pseudo-inverse (the "
               "paper's 42).");
 DEFINE_string(data_kind, "auto",
-              "position | pose | auto: pose-based calibration (paper eqs. 17-24) uses the measured "
+              "position | pose | distance | plane | auto (distance: ballbar, plane: touch probe; "
+              "docs/measurements.md): pose-based calibration (paper eqs. 17-24) uses the measured "
               "orientations; auto picks pose when the CSV has quat_* columns.");
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first when the measurements are not in "
