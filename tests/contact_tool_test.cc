@@ -159,6 +159,19 @@ TEST_F(ContactTool, BallbarAndPlanesEachWithItsNoise) {
   EXPECT_EQ(r["scale"]["held"], false);
 }
 
+#ifdef LPOE_COMPARE_PATH
+// lpoe_compare: the two solvers agree on ballbar and probe data together.
+TEST_F(ContactTool, CompareAgrees) {
+  Simulate("ballbar", 0.002, "bar.csv");
+  Simulate("plane", 0.003, "cube.csv");
+  const ToolOutput o = Run(LPOE_COMPARE_PATH, "--model=" + P("nominal.yaml") + " --measurements=" +
+                                                  P("bar.csv") + "," + P("cube.csv") +
+                                                  " --tolerance_mm=1e-4");
+  EXPECT_EQ(o.exit_code, 0) << o.err << o.out;
+  EXPECT_NE(o.out.find("largest difference of the predicted tool points"), std::string::npos) << o.out;
+}
+#endif
+
 TEST_F(ContactTool, BadRowsNameFileAndLine) {
   Simulate("ballbar", 0.002, "bar.csv");
   std::ofstream(dir_ / "broken.csv") << "q1,q2,q3,q4,q5,q6,distance,sigma\n0,0,0,0,0,0,150,0.002\n"
