@@ -1,6 +1,7 @@
 // lpoe_compare on ballbar distances and probe contacts (docs/measurements.md): both contact
 // solvers on the same files, their predictions compared at the rows' configurations.
 #include <gflags/gflags.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -29,6 +30,9 @@ namespace tools {
 bool ContactCompareRequested() {
   if (FLAGS_measurements.find(',') != std::string::npos) return true;
   if (FLAGS_measurements.empty()) return false;
+  // Only a regular file is looked at first (a pipe read for its header would be consumed).
+  struct stat st;
+  if (::stat(FLAGS_measurements.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return false;
   const MeasurementKindInfo* kind = nullptr;
   if (!DetectMeasurementFileKind(FLAGS_measurements, &kind).ok() || kind == nullptr) return false;
   return kind->id == MeasurementKindId::kDistance || kind->id == MeasurementKindId::kPlane;
