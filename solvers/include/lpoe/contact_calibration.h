@@ -11,12 +11,13 @@
 //                            frames, SphereManifold x Euclidean on a plane)
 //
 // What the data cannot determine is decided from the data (MakeContactParameterization): the null
-// space of the column-scaled Jacobian at the start, with the scale hold's row when the scale is
-// held, is left out frame by frame from the base (a rigid motion of the base with every pivot and
-// plane is invisible: six directions); with no row that measures a length (planes alone) the
-// robot's scale is held at the nominal model's (ScaleRow: a Gaussian prior of standard deviation
-// `scale_sigma` on the scale functional S below, which the general prior on parameters can carry
-// once it exists).
+// space of the column-scaled Jacobian at the start (with the scale hold's row when the scale is
+// held) is left out from the base: the first joint frame's directions it moves, then what is left
+// (the first joint's zero and height) held on the features by linear rows (gauge_rows), so that
+// both solvers minimise the same constrained cost whatever path they take. With no row that
+// measures a length (planes alone) the robot's scale is held at the start model's (a Gaussian
+// prior of standard deviation `scale_sigma` on ScaleOf, the predicted points' size, which the
+// general prior on parameters can carry once it exists; docs/identifiability.md, "Scale").
 #ifndef LPOE_CONTACT_CALIBRATION_H_
 #define LPOE_CONTACT_CALIBRATION_H_
 
