@@ -122,7 +122,8 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
                                    ContactParameterization* p);
 
 // The whitened residuals (rows in order: 1 per distance or plane row, 3 per position row; then the
-// gauge rows on the features; then the scale hold's row when held) and, when J is not null, their Jacobian in p's coordinates.
+// gauge rows on the features; then the scale hold's row when held) and, when J is not null, their
+// Jacobian in p's coordinates. (`nominal` is not used: the scale hold's weights are in p.)
 void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
                       const ContactParameterization& p, const RobotModel& nominal,
                       const ContactMeasurementSet& data, const ContactCalibrationOptions& options,
