@@ -497,7 +497,7 @@ void CalibrateAndCompare(const ContactMeasurementSet& data, bool planes_only,
 // scale, shrinks the robot (the residuals shrink with it), however small the noise.
 TEST(ContactCalibration, ReferenceWithoutScaleShrinksOnPlanes) {
   const Truth t = MakeTruth();
-  const ContactMeasurementSet data = Cube(t.truth, 300, 2);
+  const ContactMeasurementSet data = Cube(t.truth, 120, 2);  // fewer rows: only the trend matters here
   ContactFeatures start;
   ASSERT_TRUE(InitialContactFeatures(t.nominal, data, &start).ok());
   Eigen::MatrixXd J;
