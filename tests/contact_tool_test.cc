@@ -159,6 +159,24 @@ TEST_F(ContactTool, BallbarAndPlanesEachWithItsNoise) {
   EXPECT_EQ(r["scale"]["held"], false);
 }
 
+// Tracker positions and ballbar distances together: the tracker sees the base, so nothing is left
+// out, and the pivots are estimated in the tracker's frame.
+TEST_F(ContactTool, TrackerAndBallbar) {
+  Simulate("ballbar", 0.002, "bar.csv");
+  Simulate("position", 0.03, "track.csv");
+  const ToolOutput o = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") + " --measurements=" +
+                                                    P("track.csv") + "," + P("bar.csv") +
+                                                    " --sigmas=0.03,0.002 --output=" + P("cal.yaml") +
+                                                    " --report=" + P("report.json"));
+  ASSERT_EQ(o.exit_code, 0) << o.err << o.out;
+  double scale = 0;
+  EXPECT_LT(HeldOutRms("cal.yaml", false, &scale), 0.01);
+  const nlohmann::json r = Report();
+  EXPECT_EQ(r["base"]["directions_left_out"], 0);
+  EXPECT_EQ(r["measurement_kinds"].size(), 2u);
+  EXPECT_EQ(r["measurement_kinds"][0]["kind"], "position");
+}
+
 #ifdef LPOE_COMPARE_PATH
 // lpoe_compare: the two solvers agree on ballbar and probe data together.
 TEST_F(ContactTool, CompareAgrees) {
