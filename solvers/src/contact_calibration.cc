@@ -19,11 +19,6 @@
 namespace lpoe {
 namespace {
 
-const SE3d& ContactFrame(const RobotModel& m, int f) {
-  const int n = m.num_joints();
-  return f < n ? m.joints[f].origin : m.tools[f - n].origin;
-}
-
 std::string ContactFrameName(const RobotModel& m, int f) {
   const int n = m.num_joints();
   return f < n ? m.joints[f].name : m.tools[f - n].name;
