@@ -50,7 +50,7 @@ failed=()
 # The targets run at the same time (they share the machine's cores; with 2 cores each gets
 # about two fifths of one, so `seconds` of wall time is about 2/5 * seconds of fuzzing per target).
 declare -A pids
-for kind in csv yaml urdf report_text urscript rapid targets_only; do
+for kind in csv contact_csv yaml urdf report_text urscript rapid targets_only; do
   target="fuzz_$kind"
   exe="$build/fuzz/$target"
   if [ ! -x "$exe" ]; then
@@ -69,7 +69,7 @@ for kind in csv yaml urdf report_text urscript rapid targets_only; do
     "$work" >"$log" 2>&1 &
   pids[$kind]=$!
 done
-for kind in csv yaml urdf report_text urscript rapid targets_only; do
+for kind in csv contact_csv yaml urdf report_text urscript rapid targets_only; do
   [ -n "${pids[$kind]:-}" ] || continue
   target="fuzz_$kind"
   log="$build/logs/$target.log"

@@ -33,10 +33,13 @@
 #include "report.h"
 #include "common_flags.h"
 #include "input_flags.h"
+#include "lpoe_calibrate_contact.h"
 #include "tool_common.h"
 
 DEFINE_string(measurements, "",
-              "Identification measurements (CSV: q1..qN,x,y,z[,target][,quat_x..quat_w]). "
+              "Identification measurements (CSV: q1..qN,x,y,z[,target][,quat_x..quat_w]); or "
+              "ballbar (q1..qN,distance[,pivot]) and touch-probe (q1..qN,plane[,offset]) files, "
+              "several comma-separated (docs/measurements.md). "
               "Default: data/section4/identification.csv.");
 DEFINE_string(verify, "",
               "Verification measurements (CSV), never used for identification. Default with the "
@@ -108,7 +111,8 @@ DEFINE_string(parameterization, "identifiable",
               "data); full: 6 per local frame, solved as a minimum-norm pseudo-inverse (the "
               "paper's 42).");
 DEFINE_string(data_kind, "auto",
-              "position | pose | auto: pose-based calibration (paper eqs. 17-24) uses the measured "
+              "position | pose | distance | plane | auto (distance: ballbar, plane: touch probe; "
+              "docs/measurements.md): pose-based calibration (paper eqs. 17-24) uses the measured "
               "orientations; auto picks pose when the CSV has quat_* columns.");
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first when the measurements are not in "
@@ -293,6 +297,9 @@ Status CheckFlags() {
 }
 
 int Run() {
+  // Ballbar distances and probe contacts (several files, or a distance or plane file): their own
+  // run (lpoe_calibrate_contact.cc, docs/measurements.md).
+  if (tools::ContactCalibrationRequested()) return tools::RunContactCalibration();
   tools::InputPaths paths;
   tools::InputSettings settings;
   if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;

@@ -56,6 +56,13 @@ DEFINE_double(noise_sigma, 0.03,
 DEFINE_bool(force, false, "Compare even when a calibration fails the plausibility verdict.");
 
 namespace lpoe {
+namespace tools {
+bool ContactCompareRequested();  // lpoe_compare_contact.cc
+int RunContactCompare();
+}  // namespace tools
+}  // namespace lpoe
+
+namespace lpoe {
 namespace {
 
 using tools::kExitDisagree;
@@ -100,6 +107,8 @@ std::string Num(double v, const char* format = "%.6g") {
 }
 
 int Run() {
+  // Ballbar distances and probe contacts: both contact solvers (lpoe_compare_contact.cc).
+  if (tools::ContactCompareRequested()) return tools::RunContactCompare();
   tools::InputPaths paths;
   tools::InputSettings settings;
   if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;

@@ -14,6 +14,7 @@
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 
+#include "lpoe/contact_measurements.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
@@ -84,6 +85,16 @@ DEFINE_string(out, "", "Old name of --output (every other tool says --output); a
 DEFINE_string(verify_out, "", "Verification CSV (the last --verify_count rows).");
 DEFINE_string(model_out, "", "Write the nominal model here (YAML).");
 DEFINE_string(actual_out, "", "Write the actual (erroneous) robot here (YAML).");
+// Ballbar distances and probe contacts (issue 44, docs/measurements.md).
+DEFINE_string(measurement, "position",
+              "position (a tracker: x,y,z) | ballbar (distances to pivots: q1..qN,distance,pivot) | "
+              "plane (probe contacts on three faces of a cube: q1..qN,plane,offset). --noise_sigma "
+              "is the noise of a distance or of a contact along the normal.");
+DEFINE_double(bar_length, 150.0, "ballbar: the bar's length (mm).");
+DEFINE_double(stroke, 1.0, "ballbar: the length varies by up to this around --bar_length (mm).");
+DEFINE_int32(pivots, 3, "ballbar: number of pivots, placed in front of the robot.");
+DEFINE_double(probe_radius, 3.0, "plane: the probe tip's radius (mm), the rows' offset.");
+DEFINE_double(cube_size, 100.0, "plane: the cube's edge (mm); its +x, +y, +z faces are touched.");
 
 namespace lpoe {
 namespace {
@@ -266,6 +277,84 @@ int Run() {
   }
   ApplyJointErrorPhysics(SmallArmJointErrors(nominal, small_arm), InRegistryOrder(joint_error_kinds),
                          &actual);
+
+  if (FLAGS_measurement != "position") {
+    // Distances or contacts, measured on the actual robot with its joint zeros folded in.
+    if (FLAGS_measurement != "ballbar" && FLAGS_measurement != "plane") {
+      std::cerr << "error: --measurement must be position, ballbar or plane, got '"
+                << FLAGS_measurement << "'\n";
+      return kExitUsage;
+    }
+    if (!FLAGS_joints.empty() || FLAGS_verify_count > 0 || FLAGS_pose || FLAGS_all_tools ||
+        !joint_error_kinds.empty() || unit != AngleUnit::kRadians ||
+        length_unit != LengthUnit::kMillimetres) {
+      std::cerr << "error: --measurement=" << FLAGS_measurement
+                << " writes radians and millimetres for a geometric robot: --joints, "
+                   "--verify_count, --pose, --all_tools, --joint_errors and the unit flags are "
+                   "not available with it\n";
+      return kExitUsage;
+    }
+    if (FLAGS_count > 100000 || FLAGS_pivots < 1 || FLAGS_pivots > 20 ||
+        !(FLAGS_bar_length > 0 && FLAGS_bar_length <= 2000) ||
+        !(FLAGS_stroke >= 0 && FLAGS_stroke < FLAGS_bar_length) ||
+        !(FLAGS_probe_radius >= 0 && FLAGS_probe_radius <= 100) ||
+        !(FLAGS_cube_size > 0 && FLAGS_cube_size <= 2000)) {
+      std::cerr << "error: need --count <= 100000, 1 <= --pivots <= 20, 0 < --bar_length <= 2000, "
+                   "0 <= --stroke < --bar_length, 0 <= --probe_radius <= 100, 0 < --cube_size "
+                   "<= 2000\n";
+      return kExitUsage;
+    }
+    const RobotModel truth = FoldJointZeros(actual, errors.joint_zero);
+    ContactMeasurementSet contacts;
+    Status s;
+    std::ostringstream what;
+    if (FLAGS_measurement == "ballbar") {
+      BallbarSimulationOptions o;
+      o.count = FLAGS_count;
+      o.bar_length = FLAGS_bar_length;
+      o.stroke = FLAGS_stroke;
+      o.noise = FLAGS_noise_sigma;
+      o.num_pivots = FLAGS_pivots;
+      o.seed = FLAGS_seed;
+      std::vector<Eigen::Vector3d> pivots;
+      s = SimulateBallbar(truth, o, &contacts, &pivots);
+      what << "# ballbar: bar " << FLAGS_bar_length << " mm +- " << FLAGS_stroke << " mm; pivots";
+      for (const Eigen::Vector3d& c : pivots) what << " (" << c.transpose() << ")";
+    } else {
+      PlaneSimulationOptions o;
+      o.count = FLAGS_count;
+      o.probe_radius = FLAGS_probe_radius;
+      o.noise = FLAGS_noise_sigma;
+      o.cube_size = FLAGS_cube_size;
+      o.seed = FLAGS_seed;
+      std::vector<Eigen::Vector4d> planes;
+      s = SimulatePlaneContacts(truth, o, &contacts, &planes);
+      what << "# touch probe: radius " << FLAGS_probe_radius << " mm, cube " << FLAGS_cube_size
+           << " mm; planes n.x = d:";
+      for (const Eigen::Vector4d& p : planes) what << " (" << p.transpose() << ")";
+    }
+    if (!s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return tools::kExitNumerical;
+    }
+    RobotModel actual_model = truth;
+    actual_model.name = nominal.name + "_actual";
+    std::string text = "# lpoe_simulate: robot " + nominal.name + ", errors " + FLAGS_errors +
+                       ", noise sigma " + std::to_string(FLAGS_noise_sigma) + " mm, seed " +
+                       std::to_string(FLAGS_seed) + "\n" + what.str() + "\n" +
+                       ContactMeasurementsCsv(nominal, contacts,
+                                              FLAGS_measurement == "ballbar"
+                                                  ? MeasurementKindId::kDistance
+                                                  : MeasurementKindId::kPlane);
+    Status staged = files.Stage(FLAGS_output, text);
+    if (staged.ok() && !FLAGS_model_out.empty()) {
+      staged = files.Stage(FLAGS_model_out, RobotModelToYaml(nominal));
+    }
+    if (staged.ok() && !FLAGS_actual_out.empty()) {
+      staged = files.Stage(FLAGS_actual_out, RobotModelToYaml(actual_model));
+    }
+    return tools::CommitOutputs(staged, &files, FLAGS_quiet);
+  }
 
   SimulationOptions options;
   options.count = FLAGS_count;

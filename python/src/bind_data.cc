@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "lpoe/contact_measurements.h"
 #include "lpoe/csv_rules.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
@@ -221,6 +222,9 @@ void BindMeasurements(py::module_& m) {
            })
       .def_property_readonly("num_joints", &MeasurementSet::num_joints)
       .def_property_readonly("has_orientation", &MeasurementSet::has_orientation)
+      .def_property_readonly(
+          "kind", [](const MeasurementSet& d) { return d.has_orientation() ? "pose" : "position"; },
+          "the measurement kind: 'position' or 'pose' (docs/measurements.md)")
       .def_property_readonly("q",
                              [](const MeasurementSet& d) {
                                py::array_t<double> a({static_cast<py::ssize_t>(d.size()),
@@ -276,23 +280,97 @@ void BindMeasurements(py::module_& m) {
       "the joint-space terms a calibration can identify, in registry order (the names "
       "joint_errors= accepts, docs/joint_errors.md)");
 
+  // Ballbar distances and probe contacts (docs/measurements.md).
+  py::class_<ContactMeasurementSet>(
+      m, "ContactMeasurements",
+      "Ballbar distances or touch-probe contacts on planes: joint values, the measured distance "
+      "(mm) or the contact's offset from its plane (the tip radius, mm), the pivot or plane of each "
+      "row and its noise (mm).")
+      .def("__len__", &ContactMeasurementSet::size)
+      .def("__repr__",
+           [](const ContactMeasurementSet& d) {
+             return "<lpoe.ContactMeasurements: " + std::to_string(d.size()) + " rows, " +
+                    std::to_string(d.pivots.size()) + " pivots, " +
+                    std::to_string(d.planes.size()) + " planes>";
+           })
+      .def_property_readonly(
+          "kind",
+          [](const ContactMeasurementSet& d) {
+            return d.size() > 0 && d.Count(d.rows[0].kind) == d.size()
+                       ? std::string(MeasurementKind(d.rows[0].kind).name)
+                       : std::string("mixed");
+          },
+          "'distance' (ballbar) or 'plane' (touch probe)")
+      .def_property_readonly("q",
+                             [](const ContactMeasurementSet& d) {
+                               py::array_t<double> a({static_cast<py::ssize_t>(d.size()),
+                                                      static_cast<py::ssize_t>(d.num_joints)});
+                               std::copy(d.q.begin(), d.q.end(), a.mutable_data());
+                               return a;
+                             },
+                             "(M, N) joint values, rad / mm")
+      .def_property_readonly("values",
+                             [](const ContactMeasurementSet& d) {
+                               std::vector<double> v;
+                               for (const ContactRow& r : d.rows) v.push_back(r.value);
+                               return py::array_t<double>(v.size(), v.data());
+                             },
+                             "(M,) distance (mm) or offset from the plane (mm) of each row")
+      .def_property_readonly("sigmas",
+                             [](const ContactMeasurementSet& d) {
+                               std::vector<double> v;
+                               for (const ContactRow& r : d.rows) v.push_back(r.sigma);
+                               return py::array_t<double>(v.size(), v.data());
+                             },
+                             "(M,) noise of each row (mm)")
+      .def_property_readonly("features",
+                             [](const ContactMeasurementSet& d) {
+                               std::vector<int> v;
+                               for (const ContactRow& r : d.rows) v.push_back(r.feature);
+                               return py::array_t<int>(v.size(), v.data());
+                             },
+                             "(M,) index of each row's pivot (pivots) or plane (planes)")
+      .def_property_readonly("targets",
+                             [](const ContactMeasurementSet& d) {
+                               std::vector<int> v;
+                               for (const ContactRow& r : d.rows) v.push_back(r.target);
+                               return py::array_t<int>(v.size(), v.data());
+                             },
+                             "(M,) index of the tool (ball or probe tip) of each row")
+      .def_readonly("pivots", &ContactMeasurementSet::pivots, "names of the pivots")
+      .def_readonly("planes", &ContactMeasurementSet::planes, "names of the planes");
+
   m.def(
       "read_measurements",
       [](const std::string& path, const RobotModel& model, const std::string& angle_unit,
-         const std::string& length_unit) {
+         const std::string& length_unit, double sigma) -> py::object {
         CsvOptions options;
         options.angle_unit = ParseUnit(angle_unit);
         if (!ParseLengthUnit(length_unit, &options.length_unit)) {
           throw LpoeError("length_unit: expected 'mm' or 'm', got '" + length_unit + "'");
         }
+        const MeasurementKindInfo* kind = nullptr;
+        if (DetectMeasurementFileKind(path, &kind).ok() && kind != nullptr &&
+            (kind->id == MeasurementKindId::kDistance || kind->id == MeasurementKindId::kPlane)) {
+          ContactCsvOptions o;
+          o.units = options;
+          o.kind = kind;
+          o.sigma = sigma;
+          ContactMeasurementSet data;
+          Check(ReadContactMeasurements(path, model, o, &data));
+          return py::cast(std::move(data));
+        }
         MeasurementSet data;
         Check(ReadMeasurements(path, model, options, &data, nullptr));
-        return data;
+        return py::cast(std::move(data));
       },
       py::arg("path"), py::arg("model"), py::arg("angle_unit") = "rad",
-      py::arg("length_unit") = "mm",
+      py::arg("length_unit") = "mm", py::arg("sigma") = 0.0,
       "reads a measurement CSV for `model` (as lpoe_calibrate's --angle_unit and --length_unit "
-      "read it); lost-beam rows are skipped");
+      "read it); lost-beam rows are skipped. The kind comes from the columns: tracker files give "
+      "lpoe.Measurements (kind 'position' or 'pose'), ballbar and probe files "
+      "lpoe.ContactMeasurements (kind 'distance' or 'plane'; `sigma` is their noise in mm when "
+      "they have no sigma column)");
 
   m.def(
       "measurements",

@@ -1,0 +1,270 @@
+// Ballbar and plane calibration with Ceres (lpoe/contact_calibration.h): the same frames, features
+// and cost as CalibrateContactsLinear, the residuals of the kinds' templates differentiated by
+// Ceres's autodiff.
+#include <memory>
+#include <vector>
+
+#include <ceres/ceres.h>
+#include <ceres/product_manifold.h>
+#include <ceres/sphere_manifold.h>
+
+#include "lpoe/contact_calibration.h"
+#include "lpoe/distance_measurement.h"
+#include "lpoe/kinematics.h"
+#include "lpoe/plane_measurement.h"
+#include "lpoe/position_measurement.h"
+#include "lpoe/se3_manifold.h"
+
+namespace lpoe {
+namespace {
+
+// One row's residual: the kind's templated Residual on the n joint frames, the tool's frame and
+// (distance, plane) the feature's block.
+template <typename Kind>
+class ContactRowFunctor {
+ public:
+  ContactRowFunctor(std::shared_ptr<const RobotModel> model, const Kind& kind, const double* q,
+                    const typename Kind::Observation& observation)
+      : model_(std::move(model)), kind_(kind), motions_(*model_, q), observation_(observation) {}
+  template <typename T>
+  bool operator()(T const* const* parameters, T* residuals) const {
+    kind_.Residual(model_->num_joints(), parameters, motions_, observation_, residuals);
+    return true;
+  }
+
+ private:
+  std::shared_ptr<const RobotModel> model_;
+  Kind kind_;
+  JointMotions<double> motions_;
+  typename Kind::Observation observation_;
+};
+
+// The scale hold (contact_calibration.h): (S(model) - 1) / sigma with S = sum_j w_j . P_j over the
+// rows' predicted points, a function of every frame block. Its Jacobian is computed in the frames'
+// tangent coordinates (BasisJacobian, as the linear solver's) and given to Ceres in the ambient
+// coordinates through each manifold's MinusJacobian (MinusJacobian * PlusJacobian = I).
+class ScaleHoldCost : public ceres::CostFunction {
+ public:
+  ScaleHoldCost(const RobotModel& start, const ContactParameterization& p,
+                const ContactMeasurementSet& data, double sigma)
+      : model_(start), p_(p), data_(data), sigma_(sigma) {
+    for (int f = 0; f < start.num_frames(); ++f) {
+      mutable_parameter_block_sizes()->push_back(kSe3AmbientSize);
+      manifolds_.emplace_back(p.frames.basis[f].cols() > 0 ? new Se3Manifold(p.frames.basis[f])
+                                                           : nullptr);
+    }
+    set_num_residuals(1);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    RobotModel m = model_;
+    const int n = m.num_joints();
+    for (int f = 0; f < m.num_frames(); ++f) {
+      (f < n ? m.joints[f].origin : m.tools[f - n].origin) = Se3FromArray(parameters[f]);
+    }
+    const int P = p_.frames.num_parameters;
+    BasisJacobian bj(m, p_.frames);
+    std::vector<FrameRt> scratch(n + 1);
+    Eigen::Matrix<double, 3, Eigen::Dynamic> Jp(3, std::max(P, 1));
+    Eigen::RowVectorXd g = Eigen::RowVectorXd::Zero(std::max(P, 1));
+    double S = 0;
+    for (int i = 0; i < data_.size(); ++i) {
+      const Eigen::Vector3d X =
+          bj.Position(data_.joints(i), data_.rows[i].target, Jp.data(), 3, scratch.data());
+      S += p_.scale_weights.col(i).dot(X);
+      if (jacobians != nullptr) g.head(P) += p_.scale_weights.col(i).transpose() * Jp.leftCols(P);
+    }
+    residuals[0] = (S - 1.0) / sigma_;
+    if (jacobians != nullptr) {
+      for (int f = 0; f < m.num_frames(); ++f) {
+        if (jacobians[f] == nullptr) continue;
+        Eigen::Map<Eigen::Matrix<double, 1, kSe3AmbientSize>> out(jacobians[f]);
+        out.setZero();
+        const int k = static_cast<int>(p_.frames.basis[f].cols());
+        if (k == 0) continue;
+        Eigen::Matrix<double, Eigen::Dynamic, kSe3AmbientSize, Eigen::RowMajor> minus(k, kSe3AmbientSize);
+        manifolds_[f]->MinusJacobian(parameters[f], minus.data());
+        out = g.segment(p_.frames.offset[f], k) * minus / sigma_;
+      }
+    }
+    return true;
+  }
+
+ private:
+  RobotModel model_;
+  const ContactParameterization& p_;
+  const ContactMeasurementSet& data_;
+  double sigma_;
+  std::vector<std::unique_ptr<Se3Manifold>> manifolds_;
+};
+
+// The gauge rows on the features (ContactParameterization::gauge_rows): linear in the blocks'
+// ambient values, pivots (3) then planes (4).
+class GaugeHoldCost : public ceres::CostFunction {
+ public:
+  GaugeHoldCost(const ContactParameterization& p) : rows_(p.gauge_rows), values_(p.gauge_values),
+                                                    sigma_(p.gauge_sigma) {
+    for (int k = 0; k < p.num_pivots; ++k) mutable_parameter_block_sizes()->push_back(3);
+    for (int k = 0; k < p.num_planes; ++k) mutable_parameter_block_sizes()->push_back(4);
+    set_num_residuals(static_cast<int>(rows_.rows()));
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const int blocks = static_cast<int>(parameter_block_sizes().size());
+    Eigen::VectorXd f(rows_.cols());
+    int at = 0;
+    for (int b = 0; b < blocks; ++b) {
+      const int size = parameter_block_sizes()[b];
+      for (int k = 0; k < size; ++k) f(at + k) = parameters[b][k];
+      at += size;
+    }
+    Eigen::Map<Eigen::VectorXd>(residuals, rows_.rows()) = (rows_ * f - values_) / sigma_;
+    if (jacobians != nullptr) {
+      at = 0;
+      for (int b = 0; b < blocks; ++b) {
+        const int size = parameter_block_sizes()[b];
+        if (jacobians[b] != nullptr) {
+          Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+              jacobians[b], rows_.rows(), size) = rows_.middleCols(at, size) / sigma_;
+        }
+        at += size;
+      }
+    }
+    return true;
+  }
+
+ private:
+  Eigen::MatrixXd rows_;
+  Eigen::VectorXd values_;
+  double sigma_;
+};
+
+template <typename Kind>
+ceres::CostFunction* MakeRowCost(std::shared_ptr<const RobotModel> model, const Kind& kind,
+                                 const double* q, const typename Kind::Observation& observation,
+                                 int feature_size) {
+  using Cost = ceres::DynamicAutoDiffCostFunction<ContactRowFunctor<Kind>, 4>;
+  auto* cost = new Cost(new ContactRowFunctor<Kind>(model, kind, q, observation));
+  for (int i = 0; i <= model->num_joints(); ++i) cost->AddParameterBlock(kSe3AmbientSize);
+  if (feature_size > 0) cost->AddParameterBlock(feature_size);
+  cost->SetNumResiduals(Kind::kResiduals);
+  return cost;
+}
+
+}  // namespace
+
+ContactCalibrationResult CalibrateContactsCeres(const RobotModel& nominal,
+                                                const ContactMeasurementSet& data,
+                                                const ContactCalibrationOptions& options) {
+  ContactCalibrationResult result;
+  result.solver = "ceres";
+  result.model = nominal;
+  Status s = InitialContactFeatures(nominal, data, &result.features);
+  if (s.ok()) {
+    s = MakeContactParameterization(nominal, result.features, data, options,
+                                    &result.parameterization);
+  }
+  if (!s.ok()) {
+    result.message = s.message();
+    return result;
+  }
+  const ContactParameterization& p = result.parameterization;
+  const int n = nominal.num_joints();
+  const int frames = nominal.num_frames();
+  std::vector<double> blocks(static_cast<size_t>(kSe3AmbientSize) * frames);
+  for (int f = 0; f < frames; ++f) {
+    Se3ToArray(f < n ? nominal.joints[f].origin : nominal.tools[f - n].origin,
+               blocks.data() + kSe3AmbientSize * f);
+  }
+  std::vector<double> pivots(3 * p.num_pivots), planes(4 * p.num_planes);
+  for (int k = 0; k < p.num_pivots; ++k) {
+    for (int a = 0; a < 3; ++a) pivots[3 * k + a] = result.features.pivots[k](a);
+  }
+  for (int k = 0; k < p.num_planes; ++k) {
+    for (int a = 0; a < 4; ++a) planes[4 * k + a] = result.features.planes[k](a);
+  }
+  auto model_ptr = std::make_shared<const RobotModel>(nominal);
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  auto frame_block = [&](int f) { return blocks.data() + kSe3AmbientSize * f; };
+  for (int f = 0; f < frames; ++f) problem.AddParameterBlock(frame_block(f), kSe3AmbientSize);
+  for (int k = 0; k < p.num_pivots; ++k) problem.AddParameterBlock(pivots.data() + 3 * k, 3);
+  for (int k = 0; k < p.num_planes; ++k) {
+    problem.AddParameterBlock(
+        planes.data() + 4 * k, 4,
+        new ceres::ProductManifold<ceres::SphereManifold<3>, ceres::EuclideanManifold<1>>());
+  }
+  for (int i = 0; i < data.size(); ++i) {
+    const ContactRow& row = data.rows[i];
+    std::vector<double*> b;
+    for (int f = 0; f < n; ++f) b.push_back(frame_block(f));
+    b.push_back(frame_block(n + row.target));
+    const double w = 1.0 / row.sigma;
+    ceres::CostFunction* cost = nullptr;
+    switch (row.kind) {
+      case MeasurementKindId::kDistance:
+        cost = MakeRowCost(model_ptr, DistanceMeasurement{w}, data.joints(i), row.value, 3);
+        b.push_back(pivots.data() + 3 * row.feature);
+        break;
+      case MeasurementKindId::kPlane:
+        cost = MakeRowCost(model_ptr, PlaneMeasurement{w}, data.joints(i), row.value, 4);
+        b.push_back(planes.data() + 4 * row.feature);
+        break;
+      default:
+        cost = MakeRowCost(model_ptr, PositionMeasurement{w}, data.joints(i),
+                           Eigen::Vector3d(row.position), 0);
+    }
+    problem.AddResidualBlock(cost, nullptr, b);
+  }
+  if (p.num_gauge_rows() > 0) {
+    std::vector<double*> b;
+    for (int k = 0; k < p.num_pivots; ++k) b.push_back(pivots.data() + 3 * k);
+    for (int k = 0; k < p.num_planes; ++k) b.push_back(planes.data() + 4 * k);
+    problem.AddResidualBlock(new GaugeHoldCost(p), nullptr, b);
+  }
+  if (p.scale_held) {
+    std::vector<double*> b;
+    for (int f = 0; f < frames; ++f) b.push_back(frame_block(f));
+    problem.AddResidualBlock(new ScaleHoldCost(nominal, p, data, options.scale_sigma), nullptr, b);
+  }
+  for (int f = 0; f < frames; ++f) {
+    const Eigen::MatrixXd& B = p.frames.basis[f];
+    if (B.cols() == 0) {
+      problem.SetParameterBlockConstant(frame_block(f));
+    } else {
+      problem.SetManifold(frame_block(f), new Se3Manifold(B));
+    }
+  }
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::DENSE_QR;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = 1e-16;
+  solver_options.parameter_tolerance = 1e-14;
+  solver_options.logging_type = ceres::SILENT;
+  solver_options.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+  for (int f = 0; f < frames; ++f) {
+    SE3d& T = f < n ? result.model.joints[f].origin : result.model.tools[f - n].origin;
+    T = Se3FromArray(frame_block(f));
+  }
+  for (int k = 0; k < p.num_pivots; ++k) {
+    result.features.pivots[k] = Eigen::Vector3d(pivots[3 * k], pivots[3 * k + 1], pivots[3 * k + 2]);
+  }
+  for (int k = 0; k < p.num_planes; ++k) {
+    result.features.planes[k] =
+        Eigen::Vector4d(planes[4 * k], planes[4 * k + 1], planes[4 * k + 2], planes[4 * k + 3]);
+  }
+  result.iterations = static_cast<int>(summary.iterations.size());
+  result.initial_cost = summary.initial_cost;
+  result.cost = summary.final_cost;
+  result.errors = ContactErrors(result.model, result.features, data);
+  result.scale = ScaleOf(result.model, nominal, data);
+  result.ok = summary.IsSolutionUsable() && summary.termination_type == ceres::CONVERGENCE;
+  result.message = result.ok ? "converged" : summary.message;
+  return result;
+}
+
+}  // namespace lpoe

@@ -1,0 +1,214 @@
+// lpoe_simulate --measurement=ballbar|plane and lpoe_calibrate on their files (issue 44): default
+// flags, exit 0, a model that predicts the simulated robot's tool positions to micrometres after the
+// rigid (ballbar) or similarity (planes alone) alignment, the report's table per kind, and bad
+// input refused with the file and line and nothing written.
+#include <cmath>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "file_util.h"
+#include "lpoe/io.h"
+#include "lpoe/kinematics.h"
+
+#ifndef LPOE_CALIBRATE_PATH
+#error "LPOE_CALIBRATE_PATH must name the lpoe_calibrate binary"
+#endif
+#ifndef LPOE_SIMULATE_PATH
+#error "LPOE_SIMULATE_PATH must name the lpoe_simulate binary"
+#endif
+
+namespace lpoe {
+namespace {
+namespace contact_tool_test {
+
+using testing::RunInDir;
+using testing::ShellQuote;
+using testing::ToolOutput;
+
+// The errors of the issue's test: frames about 1 mm and 3 mrad, joint zeros 0.01 rad.
+const char kErrors[] =
+    " --errors=random --error_rotation=0.003 --error_translation=1 --error_tilt=0 --error_zero=0.01"
+    " --error_seed=5";
+
+class ContactTool : public ::testing::Test {
+ protected:
+  ToolOutput Run(const std::string& binary, const std::string& args) {
+    return RunInDir(dir_.path(), ShellQuote(binary) + " " + args);
+  }
+  std::string P(const std::string& name) const { return ShellQuote(dir_ / name); }
+  void Simulate(const std::string& kind, double noise, const std::string& out) {
+    const ToolOutput o = Run(LPOE_SIMULATE_PATH, "--measurement=" + kind + kErrors +
+                                                     " --count=300 --seed=3 --noise_sigma=" +
+                                                     std::to_string(noise) + " --output=" + P(out) +
+                                                     " --model_out=" + P("nominal.yaml") +
+                                                     " --actual_out=" + P("actual.yaml"));
+    ASSERT_EQ(o.exit_code, 0) << o.err;
+  }
+  // RMS (mm) of the calibrated model's tool positions from the actual robot's at random
+  // configurations, after the best rigid (or similarity) alignment; the similarity's scale too.
+  double HeldOutRms(const std::string& calibrated, bool similarity, double* scale) {
+    RobotModel cal, actual;
+    EXPECT_TRUE(ReadRobotModel(dir_ / calibrated, &cal).ok());
+    EXPECT_TRUE(ReadRobotModel(dir_ / "actual.yaml", &actual).ok());
+    const int m = 200;
+    Eigen::Matrix3Xd A(3, m), B(3, m);
+    std::vector<double> q(6);
+    for (int i = 0; i < m; ++i) {
+      // Configurations spread over the part of the workspace the simulations measure in.
+      for (int j = 0; j < 6; ++j) q[j] = std::sin(1.7 * i + 2.3 * j) * (j < 3 ? 0.6 : 1.2);
+      q[1] += -0.4;
+      q[2] += 1.0;
+      q[4] += 0.8;
+      A.col(i) = ToolPosition(cal, q.data());
+      B.col(i) = ToolPosition(actual, q.data());
+    }
+    const Eigen::Matrix4d T = Eigen::umeyama(A, B, similarity);
+    *scale = std::cbrt(T.topLeftCorner<3, 3>().determinant());
+    const Eigen::Matrix3Xd moved = (T.topLeftCorner<3, 3>() * A).colwise() + T.topRightCorner<3, 1>();
+    return std::sqrt((moved - B).colwise().squaredNorm().mean());
+  }
+  nlohmann::json Report() {
+    std::ifstream in(dir_ / "report.json");
+    return nlohmann::json::parse(in);
+  }
+
+  testing::TempDir dir_{"lpoe_contact_tool"};
+};
+
+TEST_F(ContactTool, BallbarWithDefaultFlags) {
+  Simulate("ballbar", 0.002, "bar.csv");
+  const ToolOutput o = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") +
+                                                    " --measurements=" + P("bar.csv") +
+                                                    " --output=" + P("cal.yaml") +
+                                                    " --report=" + P("report.json"));
+  ASSERT_EQ(o.exit_code, 0) << o.err << o.out;
+  EXPECT_NE(o.out.find("do not see the robot's base relative to the pivots"), std::string::npos)
+      << o.out;
+  double scale = 0;
+  double nominal_scale = 0;
+  const double e = HeldOutRms("cal.yaml", false, &scale);
+  const double e0 = HeldOutRms("nominal.yaml", false, &nominal_scale);
+  EXPECT_LT(e, 0.01) << "mm; the nominal model: " << e0;
+  EXPECT_GT(e0, 0.5);
+  const nlohmann::json r = Report();
+  ASSERT_EQ(r["measurement_kinds"].size(), 1u);
+  EXPECT_EQ(r["measurement_kinds"][0]["kind"], "distance");
+  EXPECT_EQ(r["measurement_kinds"][0]["verdict"], "pass");
+  EXPECT_EQ(r["base"]["directions_left_out"], 6);
+  EXPECT_EQ(r["scale"]["held"], false);
+  EXPECT_EQ(r["features"]["pivots"].size(), 3u);
+}
+
+TEST_F(ContactTool, PlanesAloneHoldTheScale) {
+  Simulate("plane", 0.003, "cube.csv");
+  const ToolOutput o = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") +
+                                                    " --measurements=" + P("cube.csv") +
+                                                    " --solver=ceres --output=" + P("cal.yaml") +
+                                                    " --report=" + P("report.json"));
+  ASSERT_EQ(o.exit_code, 0) << o.err << o.out;
+  EXPECT_NE(o.out.find("no row measures a length"), std::string::npos) << o.out;
+  double scale = 0;
+  const double e = HeldOutRms("cal.yaml", true, &scale);
+  EXPECT_LT(e, 0.02);
+  EXPECT_NEAR(scale, 1.0, 0.03);
+  const nlohmann::json r = Report();
+  EXPECT_EQ(r["scale"]["held"], true);
+  EXPECT_EQ(r["measurement_kinds"][0]["kind"], "plane");
+  EXPECT_EQ(r["features"]["planes"].size(), 3u);
+}
+
+TEST_F(ContactTool, BallbarAndPlanesEachWithItsNoise) {
+  Simulate("ballbar", 0.002, "bar.csv");
+  Simulate("plane", 0.003, "cube.csv");
+  // The files' sigma columns dropped: the noise per file from --sigmas.
+  for (const char* name : {"bar.csv", "cube.csv"}) {
+    std::ifstream in(dir_ / name);
+    std::string text, line;
+    while (std::getline(in, line)) {
+      if (!line.empty() && line[0] != '#') line = line.substr(0, line.rfind(','));
+      text += line + "\n";
+    }
+    std::ofstream(dir_ / (std::string("plain_") + name)) << text;
+  }
+  const ToolOutput bad = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") +
+                                                      " --measurements=" + P("plain_bar.csv") + "," +
+                                                      P("plain_cube.csv") + " --output=" + P("cal.yaml"));
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("plain_bar.csv:3: no 'sigma' column and no noise given"), std::string::npos)
+      << bad.err;
+  EXPECT_FALSE(std::ifstream(dir_ / "cal.yaml").good());
+  const ToolOutput o = Run(LPOE_CALIBRATE_PATH,
+                           "--model=" + P("nominal.yaml") + " --measurements=" + P("plain_bar.csv") +
+                               "," + P("plain_cube.csv") + " --sigmas=0.002,0.003 --output=" +
+                               P("cal.yaml") + " --report=" + P("report.json") + " --holdout=0.2");
+  ASSERT_EQ(o.exit_code, 0) << o.err << o.out;
+  double scale = 0;
+  EXPECT_LT(HeldOutRms("cal.yaml", false, &scale), 0.01);
+  const nlohmann::json r = Report();
+  ASSERT_EQ(r["measurement_kinds"].size(), 2u);
+  for (const nlohmann::json& k : r["measurement_kinds"]) {
+    EXPECT_EQ(k["verdict"], "pass") << k.dump();
+    EXPECT_GT(k["held_out_rows"].get<int>(), 0);
+    EXPECT_LT(k["held_out_rms_mm"].get<double>(), 3 * k["expected_noise_mm"].get<double>());
+  }
+  EXPECT_EQ(r["scale"]["held"], false);
+}
+
+// Tracker positions and ballbar distances together: the tracker sees the base, so nothing is left
+// out, and the pivots are estimated in the tracker's frame.
+TEST_F(ContactTool, TrackerAndBallbar) {
+  Simulate("ballbar", 0.002, "bar.csv");
+  Simulate("position", 0.03, "track.csv");
+  const ToolOutput o = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") + " --measurements=" +
+                                                    P("track.csv") + "," + P("bar.csv") +
+                                                    " --sigmas=0.03,0.002 --output=" + P("cal.yaml") +
+                                                    " --report=" + P("report.json"));
+  ASSERT_EQ(o.exit_code, 0) << o.err << o.out;
+  double scale = 0;
+  EXPECT_LT(HeldOutRms("cal.yaml", false, &scale), 0.01);
+  const nlohmann::json r = Report();
+  EXPECT_EQ(r["base"]["directions_left_out"], 0);
+  EXPECT_EQ(r["measurement_kinds"].size(), 2u);
+  EXPECT_EQ(r["measurement_kinds"][0]["kind"], "position");
+}
+
+#ifdef LPOE_COMPARE_PATH
+// lpoe_compare: the two solvers agree on ballbar and probe data together.
+TEST_F(ContactTool, CompareAgrees) {
+  Simulate("ballbar", 0.002, "bar.csv");
+  Simulate("plane", 0.003, "cube.csv");
+  const ToolOutput o = Run(LPOE_COMPARE_PATH, "--model=" + P("nominal.yaml") + " --measurements=" +
+                                                  P("bar.csv") + "," + P("cube.csv") +
+                                                  " --tolerance_mm=1e-4");
+  EXPECT_EQ(o.exit_code, 0) << o.err << o.out;
+  EXPECT_NE(o.out.find("largest difference of the predicted tool points"), std::string::npos) << o.out;
+}
+#endif
+
+TEST_F(ContactTool, BadRowsNameFileAndLine) {
+  Simulate("ballbar", 0.002, "bar.csv");
+  std::ofstream(dir_ / "broken.csv") << "q1,q2,q3,q4,q5,q6,distance,sigma\n0,0,0,0,0,0,150,0.002\n"
+                                        "0,0,0,0,0,0,-3,0.002\n";
+  const ToolOutput o = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") +
+                                                    " --measurements=" + P("broken.csv") +
+                                                    " --output=" + P("cal.yaml"));
+  EXPECT_EQ(o.exit_code, 2);
+  EXPECT_NE(o.err.find("broken.csv:3: column 'distance'"), std::string::npos) << o.err;
+  EXPECT_FALSE(std::ifstream(dir_ / "cal.yaml").good());
+  const ToolOutput u = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") +
+                                                    " --measurements=" + P("bar.csv") +
+                                                    " --joint_errors=compliance --output=" + P("cal.yaml"));
+  EXPECT_EQ(u.exit_code, 1);
+  EXPECT_NE(u.err.find("--joint_errors is not available with distance or plane data"),
+            std::string::npos)
+      << u.err;
+}
+
+}  // namespace contact_tool_test
+}  // namespace
+}  // namespace lpoe

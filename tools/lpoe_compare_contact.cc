@@ -1,0 +1,118 @@
+// lpoe_compare on ballbar distances and probe contacts (docs/measurements.md): both contact
+// solvers on the same files, their predictions compared at the rows' configurations.
+#include <gflags/gflags.h>
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "common_flags.h"
+#include "lpoe/contact_calibration.h"
+#include "lpoe/contact_measurements.h"
+#include "lpoe/kinematics.h"
+#include "lpoe/measurement_kinds.h"
+#include "tool_common.h"
+
+DECLARE_string(measurements);
+DECLARE_double(tolerance_mm);
+DEFINE_string(sigmas, "",
+              "Ballbar and probe files without a sigma column: one noise (mm) per --measurements "
+              "file, comma-separated (as lpoe_calibrate's).");
+
+namespace lpoe {
+namespace tools {
+
+// Whether --measurements names distance or plane files (one, or several comma-separated).
+bool ContactCompareRequested() {
+  if (FLAGS_measurements.find(',') != std::string::npos) return true;
+  if (FLAGS_measurements.empty()) return false;
+  // Only a regular file is looked at first (a pipe read for its header would be consumed).
+  struct stat st;
+  if (::stat(FLAGS_measurements.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return false;
+  const MeasurementKindInfo* kind = nullptr;
+  if (!DetectMeasurementFileKind(FLAGS_measurements, &kind).ok() || kind == nullptr) return false;
+  return kind->id == MeasurementKindId::kDistance || kind->id == MeasurementKindId::kPlane;
+}
+
+int RunContactCompare() {
+  std::vector<std::string> files, sigma_items;
+  {
+    std::stringstream ss(FLAGS_measurements);
+    for (std::string f; std::getline(ss, f, ',');) files.push_back(f);
+    std::stringstream st(FLAGS_sigmas);
+    for (std::string f; std::getline(st, f, ',');) sigma_items.push_back(f);
+  }
+  if (!sigma_items.empty() && sigma_items.size() != files.size()) {
+    std::cerr << "error: --sigmas has " << sigma_items.size() << " values for " << files.size()
+              << " --measurements files\n";
+    return kExitUsage;
+  }
+  AngleUnit angle;
+  LengthUnit length;
+  if (!UnitsFromFlags(&angle, &length, nullptr)) return kExitUsage;
+  if (FLAGS_model.empty()) {
+    std::cerr << "error: --model is required with distance or plane data\n";
+    return kExitUsage;
+  }
+  RobotModel nominal;
+  if (int code = ReadModelFlag(&nominal); code != kExitOk) return code;
+  ContactMeasurementSet data;
+  data.num_joints = nominal.num_joints();
+  for (size_t i = 0; i < files.size(); ++i) {
+    const MeasurementKindInfo* kind = nullptr;
+    if (Status s = DetectMeasurementFileKind(files[i], &kind); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitInput;
+    }
+    if (kind->id != MeasurementKindId::kDistance && kind->id != MeasurementKindId::kPlane) {
+      std::cerr << "error: " << files[i] << ": lpoe_compare combines distance and plane files only\n";
+      return kExitUsage;
+    }
+    ContactCsvOptions o;
+    o.units.angle_unit = angle;
+    o.units.length_unit = length;
+    o.kind = kind;
+    if (!sigma_items.empty()) {
+      char* end = nullptr;
+      o.sigma = std::strtod(sigma_items[i].c_str(), &end);
+      if (end == sigma_items[i].c_str() || *end != '\0' || !(o.sigma > 0 && o.sigma <= 1e3)) {
+        std::cerr << "error: --sigmas: '" << sigma_items[i] << "' is not a noise in (0, 1000] mm\n";
+        return kExitUsage;
+      }
+    }
+    ContactMeasurementSet part;
+    if (Status s = ReadContactMeasurements(files[i], nominal, o, &part); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitInput;
+    }
+    data.Append(part);
+  }
+  const ContactCalibrationOptions options;
+  const ContactCalibrationResult linear = CalibrateContactsLinear(nominal, data, options);
+  const ContactCalibrationResult ceres = CalibrateContactsCeres(nominal, data, options);
+  for (const ContactCalibrationResult* r : {&linear, &ceres}) {
+    if (!r->ok) {
+      std::cerr << "error: " << r->solver << ": " << r->message << "\n";
+      return r->iterations == 0 ? kExitNotIdentifiable : kExitNotConverged;
+    }
+  }
+  double largest = 0;
+  for (int i = 0; i < data.size(); ++i) {
+    const Eigen::Vector3d a = ToolPosition(linear.model, data.joints(i), data.rows[i].target);
+    const Eigen::Vector3d b = ToolPosition(ceres.model, data.joints(i), data.rows[i].target);
+    largest = std::max(largest, (a - b).norm());
+  }
+  std::cout << "lpoe_compare: " << data.size() << " rows of distance and plane data\n"
+            << "  linear: cost " << linear.cost << ", " << linear.iterations << " iterations\n"
+            << "  ceres:  cost " << ceres.cost << ", " << ceres.iterations << " iterations\n"
+            << "  largest difference of the predicted tool points: " << largest << " mm (tolerance "
+            << FLAGS_tolerance_mm << " mm)\n";
+  return largest <= FLAGS_tolerance_mm ? kExitOk : kExitDisagree;
+}
+
+}  // namespace tools
+}  // namespace lpoe
