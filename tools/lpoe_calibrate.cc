@@ -6,6 +6,7 @@
 // report and plots. With no arguments it calibrates the shipped section-4 data set.
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <cstdio>
 #include <iostream>
 #include <sstream>
@@ -127,6 +128,20 @@ DEFINE_double(sd_fraction, 1e-2,
 DEFINE_double(noise_sigma, 0.03,
               "Expected tracker noise per axis (mm) for the plausibility verdict: residuals far "
               "above it (plus the ~0.3 mm a geometric model leaves on a real robot) fail.");
+DEFINE_double(prior_scale, 1.0,
+              "The prior on weakly determined directions (docs/identifiability.md): every standard "
+              "deviation below multiplied by this (larger: looser); 0: no prior, plain least "
+              "squares.");
+DEFINE_double(prior_translation, 5.0,
+              "Prior standard deviation of the joint frames' translations (mm).");
+DEFINE_double(prior_rotation, 20.0,
+              "Prior standard deviation of the joint frames' rotations, joint zeros included "
+              "(mrad).");
+DEFINE_double(prior_tool_translation, 20.0,
+              "Prior standard deviation of the tool points (SMRs) about their fitted start (mm).");
+DEFINE_double(prior_joint_terms, 5.0,
+              "Prior standard deviation of each joint-space term parameter, as its RMS effect on "
+              "the joint values over the data (mrad).");
 DEFINE_bool(force, false,
             "Write the outputs even when the plausibility verdict fails; the exit code is still 8, "
             "so that a script can tell a forced result.");
@@ -189,6 +204,17 @@ PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_ori
   o.split_seed = FLAGS_split_seed;
   ParseSplitKind(FLAGS_split, &o.split);  // checked by ParseInputFlags
   o.outlier_threshold = FLAGS_outlier_threshold;
+  if (FLAGS_prior_scale > 0) {
+    auto prior = std::make_shared<ParameterPrior>();
+    prior->scale = FLAGS_prior_scale;
+    prior->scales.frame_translation_mm = FLAGS_prior_translation;
+    prior->scales.frame_rotation_mrad = FLAGS_prior_rotation;
+    prior->scales.tool_translation_mm = FLAGS_prior_tool_translation;
+    prior->scales.joint_term_mrad = FLAGS_prior_joint_terms;
+    o.prior = prior;
+  } else {
+    o.prior = nullptr;
+  }
   o.plausibility.noise_sigma = FLAGS_noise_sigma;
   o.plausibility.joint_values_in_degrees = unit == AngleUnit::kDegrees;
   o.linear.max_iterations = FLAGS_max_iterations;
@@ -278,6 +304,28 @@ void PrintIdentifiability(const IdentifiabilityReport& id, int num_frame_paramet
     }
     std::cout << "  most correlated pairs:\n";
     tools::PrintWrapped(std::cout, items, "; ", 6);
+  }
+  if (id.data_share.size() == static_cast<Eigen::Index>(id.parameter_names.size()) &&
+      id.data_share.size() > 0) {
+    // The prior (docs/identifiability.md, "The prior"): what it held.
+    std::cout << "  prior: weighed against " << id.prior_data_sigma
+              << " mm per axis (the residuals'); ";
+    if (id.weakly_determined.empty()) {
+      std::cout << "every direction determined by the data (data share >= "
+                << 100 * kWeaklyDeterminedShare << " %)\n";
+    } else {
+      std::cout << id.weakly_determined.size()
+                << " weakly determined, held near the start model by the prior (data share):\n";
+      std::vector<std::string> items;
+      for (size_t k = 0; k < id.parameter_names.size(); ++k) {
+        if (!(id.data_share(k) < kWeaklyDeterminedShare)) continue;
+        std::ostringstream item;
+        item << id.parameter_names[k] << " " << std::setprecision(2) << 100 * id.data_share(k)
+             << " %";
+        items.push_back(item.str());
+      }
+      tools::PrintWrapped(std::cout, items, ", ", 6);
+    }
   }
   for (const std::string& w : id.warnings) std::cout << "  warning: " << w << "\n";
 }
