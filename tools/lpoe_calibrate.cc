@@ -24,6 +24,7 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/pipeline.h"
+#include "lpoe/recalibration.h"
 #include "lpoe/refusals.h"
 #include "lpoe/registration.h"
 #include "lpoe/statistics.h"
@@ -128,6 +129,11 @@ DEFINE_double(sd_fraction, 1e-2,
 DEFINE_double(noise_sigma, 0.03,
               "Expected tracker noise per axis (mm) for the plausibility verdict: residuals far "
               "above it (plus the ~0.3 mm a geometric model leaves on a real robot) fail.");
+DEFINE_string(prior, "",
+              "Recalibration (docs/recalibration.md): a calibrated model with its covariance block "
+              "(lpoe_calibrate --output, or lpoe_prior's fleet prior) as the prior; the start "
+              "model unless --model is given. Groups the new data show changed (a joint's zero, a "
+              "joint's frame, a tool) are freed and named.");
 DEFINE_double(prior_scale, 1.0,
               "The prior on weakly determined directions (docs/identifiability.md): every standard "
               "deviation below multiplied by this (larger: looser); 0: no prior, plain least "
@@ -309,7 +315,7 @@ void PrintIdentifiability(const IdentifiabilityReport& id, int num_frame_paramet
       id.data_share.size() > 0) {
     // The prior (docs/identifiability.md, "The prior"): what it held.
     std::cout << "  prior: weighed against " << id.prior_data_sigma
-              << " mm per axis (the residuals'); ";
+              << " mm per axis (the residuals');\n    ";
     if (id.weakly_determined.empty()) {
       std::cout << "every direction determined by the data (data share >= "
                 << 100 * kWeaklyDeterminedShare << " %)\n";
@@ -344,6 +350,14 @@ int Run() {
   tools::InputPaths paths;
   tools::InputSettings settings;
   if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;
+  // --prior without --model: the prior's model is the start.
+  if (!FLAGS_prior.empty() && gflags::GetCommandLineFlagInfoOrDie("model").is_default) {
+    paths.model = FLAGS_prior;
+  }
+  if (!FLAGS_prior.empty() && !(FLAGS_prior_scale > 0)) {
+    std::cerr << "error: --prior needs --prior_scale > 0\n";
+    return kExitUsage;
+  }
   const std::string& model_path = paths.model;
   const std::string& meas_path = paths.measurements;
   const std::string& verify_path = paths.verify;
@@ -405,6 +419,7 @@ int Run() {
   const auto& kPlotNames = tools::kPlotFileNames;
   tools::OutputSet outputs;
   tools::AddInputs(paths, &outputs);
+  if (!FLAGS_prior.empty()) outputs.AddInput("--prior", FLAGS_prior);
   outputs.AddOutput("--output", FLAGS_output);
   outputs.AddOutput("--urdf_output", FLAGS_urdf_output);
   outputs.AddOutput("--ur_kinematics_output", FLAGS_ur_kinematics_output);
@@ -509,8 +524,44 @@ int Run() {
     progress.Iteration(stage, r);
   };
   options.on_stage = [&progress](const std::string& stage) { progress.Stage(stage); };
-  const PipelineResult run =
-      RunCalibrationPipeline(nominal, identification, verification, options);
+  RecalibrationResult recalibration;
+  if (!FLAGS_prior.empty()) {
+    RobotModel prior_model;
+    ParameterPrior prior;
+    if (Status s = ReadPrior(FLAGS_prior, options.prior ? options.prior->scales : PriorScales(),
+                             &prior_model, &prior);
+        !s.ok()) {
+      std::cerr << "error: --prior: " << s.message() << "\n";
+      return kExitInput;
+    }
+    if (prior_model.num_frames() != nominal.num_frames() ||
+        prior_model.num_joints() != nominal.num_joints()) {
+      std::cerr << "error: --prior=" << FLAGS_prior << ": its chain (" << prior_model.num_joints()
+                << " joints, " << prior_model.num_tools() << " tools) is not the model's\n";
+      return kExitInput;
+    }
+    prior.scale = FLAGS_prior_scale;
+    options.prior = std::make_shared<const ParameterPrior>(prior);
+    std::cout << "prior:          " << FLAGS_prior << " (informative";
+    if (FLAGS_prior_scale != 1) std::cout << ", standard deviations x " << FLAGS_prior_scale;
+    std::cout << ")\n";
+  }
+  if (!FLAGS_prior.empty()) {
+    recalibration = Recalibrate(nominal, identification, verification, options);
+  } else {
+    recalibration.run = RunCalibrationPipeline(nominal, identification, verification, options);
+  }
+  const PipelineResult& run = recalibration.run;
+  if (!recalibration.changed.empty()) {
+    std::cout << "recalibration: the new data show " << recalibration.changed.size()
+              << " group(s) changed against the prior, freed (held by the tolerances only):\n";
+    for (const ChangedGroup& g : recalibration.changed) {
+      std::cout << "  " << g.name << ": prior discrepancy chi^2 " << g.chi2 << " for " << g.dof
+                << " degrees of freedom\n";
+    }
+  } else if (!FLAGS_prior.empty()) {
+    std::cout << "recalibration: no group changed against the prior\n";
+  }
   const CalibrationResult& result = run.result;
   tools::AddPipelineResult(run, &summary);
   summary.joint_errors_requested = FLAGS_joint_errors;
@@ -634,7 +685,13 @@ int Run() {
       std::cerr << "error: --output=" << FLAGS_output << ": " << s.message() << "\n";
       return tools::kExitNumerical;
     }
-    staged = outputs.Stage(FLAGS_output, RobotModelToYaml(calibrated));
+    // The estimate's covariance goes with it (the prior of a later recalibration, --prior).
+    std::string yaml = RobotModelToYaml(calibrated);
+    if (result.covariance.rows() == result.parameterization.num_parameters &&
+        result.covariance.rows() > 0) {
+      yaml += ModelCovarianceYaml(calibrated, CovarianceOf(result));
+    }
+    staged = outputs.Stage(FLAGS_output, yaml);
   }
   UrdfOverlayOptions overlay;
   overlay.in_measurement_frame = run.registered && run.registration.moved;

@@ -37,7 +37,7 @@ using internal::Trim;
 // ---------------------------------------------------------------------------------------------------
 // YAML robot model.
 
-const char* const kModelKeys = "name, joints, tools, registration";
+const char* const kModelKeys = "name, joints, tools, registration, covariance";
 const char* const kJointKeys = "name, type, origin, twist, limits";
 const char* const kToolKeys = "name, origin, fixed";
 const char* const kOriginKeys = "xyz and one of rpy or quaternion";
@@ -64,7 +64,7 @@ class ModelYamlReader {
                    "a mapping with keys name, joints and tools (docs/file_formats.md)");
     }
     std::vector<MapEntry> top;
-    Status s = ReadMap(root, 1, "the robot model", {"name", "joints", "tools", "registration"},
+    Status s = ReadMap(root, 1, "the robot model", {"name", "joints", "tools", "registration", "covariance"},
                        kModelKeys, &top);
     if (!s.ok()) return s;
     const int root_line = LineOf(root, 1);

@@ -431,7 +431,7 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   builder.AddTo(&problem);
   // The prior's residual blocks on the same parameter blocks, weighted with s / sigma: s from the
   // start's residuals, then (below) from the solution's until it settles.
-  const long prior_dof = std::max<long>(1, watch.dof);
+  const long prior_dof = watch.dof;
   double prior_weight = 0;
   double s2 = 0;
   const Parameterization& solved = result.parameterization;

@@ -289,7 +289,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   // The prior's rows at the current point and the data variance s2 they are weighted with (that of
   // the current point's residuals unless the prior fixes it): the step solves the data's normal
   // equations plus s2 A^T A, the cost compared is the data's plus s2 times the prior's.
-  const long dof_all = std::max<long>(1, equations - identifiable);
+  const long dof_all = equations - identifiable;
   auto prior_at = [&](const RobotModel& m, const Eigen::VectorXd& js) {
     return use_prior ? internal::LinearizePrior(prior, p, m, js) : internal::PriorRows();
   };

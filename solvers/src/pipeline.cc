@@ -200,7 +200,19 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
   std::shared_ptr<const ParameterPrior> prior;
   if (options.prior && options.parameterization == ParameterizationKind::kIdentifiable) {
     if (options.prior->reference) {
-      prior = options.prior;
+      // A prior of its own (a previous calibration, a fleet): its base frame is this data's
+      // registration (the tracker stood elsewhere), held by the tolerances only.
+      auto anchored = std::make_shared<ParameterPrior>(*options.prior);
+      auto reference = std::make_shared<RobotModel>(*options.prior->reference);
+      if (reference->num_frames() == start.num_frames() && start.num_joints() > 0) {
+        reference->joints[0].origin = start.joints[0].origin;
+        if (!anchored->frame_information.empty()) {
+          anchored->frame_information[0] = DefaultFrameInformation(start, 0, anchored->scales, 1.0) *
+                                           anchored->scale * anchored->scale;
+        }
+      }
+      anchored->reference = reference;
+      prior = anchored;
     } else {
       auto anchored = std::make_shared<ParameterPrior>(*options.prior);
       anchored->reference = std::make_shared<const RobotModel>(start);
@@ -318,7 +330,8 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
     const int64_t rows = int64_t{data.size()} *
                          (options.use_orientation && data.has_orientation() ? 6 : 3);
     const int parameters = result.parameterization.num_parameters;
-    if (rows <= parameters) {
+    // An informative prior (a previous calibration, a fleet) checks what the rows alone cannot.
+    if (rows <= parameters && !(prior && prior->informative)) {
       result.termination = Termination::kNotIdentifiable;
       result.message = CheckRedundancy(static_cast<int>(rows), parameters,
                                        "the data set of " + std::to_string(data.size()) + " points")

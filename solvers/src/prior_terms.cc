@@ -125,6 +125,9 @@ void AddPrior(const PriorRows& rows, double s2, Eigen::MatrixXd* H, Eigen::Vecto
 
 double PriorDataVariance(const ResolvedPrior& prior, double data_cost, long dof) {
   if (prior.data_sigma > 0) return prior.data_sigma * prior.data_sigma;
+  // No redundancy (dof <= 0): the rows fit exactly whatever the prior and estimate no s; the prior
+  // is then weighed with nothing (the pipeline refuses such data unless the prior is informative,
+  // which then carries its own s).
   const double s2 = dof > 0 ? 2.0 * data_cost / static_cast<double>(dof) : 0.0;
   return std::max(s2, 1e-24);
 }

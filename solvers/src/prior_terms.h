@@ -50,7 +50,7 @@ PriorRows LinearizePrior(const ResolvedPrior& prior, const Parameterization& p,
 void AddPrior(const PriorRows& rows, double s2, Eigen::MatrixXd* H, Eigen::VectorXd* g);
 
 // The data's variance per axis the prior is weighted with: data_sigma^2 when given, else
-// 2 cost / dof (at least a tiny positive number).
+// 2 cost / dof (at least a tiny positive number; that number when dof <= 0).
 double PriorDataVariance(const ResolvedPrior& prior, double data_cost, long dof);
 
 // The data variance to weigh the prior with for a Gauss-Newton step from a linearization (J^T J
