@@ -44,7 +44,7 @@ Eigen::MatrixXd EstimatedDirections(const RobotModel& model, int f, const Eigen:
   return Eigen::MatrixXd::Identity(6, 6);
 }
 
-const std::string& FrameName(const RobotModel& m, int f) {
+const std::string& RecalibrationFrameName(const RobotModel& m, int f) {
   const int n = m.num_joints();
   return f < n ? m.joints[f].name : m.tools[f - n].name;
 }
@@ -174,7 +174,7 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
       g.chi2 = chi2;
       g.dof = dof;
       const int n = reference.num_joints();
-      g.name = FrameName(reference, f) + (f < n ? " frame" : "");
+      g.name = RecalibrationFrameName(reference, f) + (f < n ? " frame" : "");
       if (f < n && f >= 1) {
         // A zero shift of the joint before: the rotation about its axis, pushed into this frame
         // (Ad of this frame's inverse applied to that joint's twist).
