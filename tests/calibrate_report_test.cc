@@ -77,10 +77,13 @@ TEST_F(CalibrateReport, DefaultRunWritesPlotsAndJson) {
 
 TEST_F(CalibrateReport, UrdfOutputReadsBack) {
   const std::string cmd = "cd " + dir_ + " && " LPOE_CALIBRATE_PATH
-                          " --plots_dir= --output=cal.yaml --urdf_output=cal.urdf > out.txt 2>&1"
+                          " --plots_dir= --output=cal.yaml --urdf_output=cal.urdf --prior_scale=0"
+                          " > out.txt 2>&1"
                           " && " LPOE_CALIBRATE_PATH " --plots_dir= --model=cal.urdf --noregister"
-                          " --max_iterations=3 > again.txt 2>&1";
-  // Calibrating again from the calibrated URDF starts at the optimum: converged at once.
+                          " --max_iterations=3 --prior_scale=0 > again.txt 2>&1";
+  // Calibrating again from the calibrated URDF starts at the optimum: converged at once. (Both
+  // without the prior: with it, the second run's prior is centred on the first run's result and
+  // releases part of the first prior's pull, a step of 1e-4 mm, docs/identifiability.md.)
   ASSERT_EQ(std::system(cmd.c_str()), 0) << ReadAll(dir_ + "/out.txt") << ReadAll(dir_ + "/again.txt");
   const std::string again = ReadAll(dir_ + "/again.txt");
   EXPECT_NE(again.find("converged after 0 iteration"), std::string::npos) << again;

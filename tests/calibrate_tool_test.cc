@@ -18,6 +18,7 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"
+#include "lpoe/pipeline.h"
 #include "lpoe/statistics.h"
 
 #ifndef LPOE_CALIBRATE_PATH
@@ -157,8 +158,10 @@ TEST_F(CalibrateTool, OutputReadsBackAndPredictsLikeTheLibrary) {
   ASSERT_EQ(identification.size(), 70);
   ASSERT_EQ(verification.size(), 30);
 
-  // The same calibration in process converges to the same predictions.
-  const CalibrationResult result = CalibrateLinear(nominal, identification);
+  // The same calibration in process (the pipeline the tool runs, its prior included) converges to
+  // the same predictions.
+  const CalibrationResult result =
+      RunCalibrationPipeline(nominal, identification, verification, PipelineOptions()).result;
   ASSERT_TRUE(result.converged()) << result.message;
   double worst_same = 0;
   for (const MeasurementSet* set : {&identification, &verification}) {

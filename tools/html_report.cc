@@ -453,6 +453,17 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
                      : " Held (fixed tools): " + std::to_string(idj["held_fixed_tools"].size()) +
                            " directions (" + Esc(held) + "), as given, not calibrated.") +
        "</p>\n";
+  // The prior (docs/identifiability.md): what it held.
+  if (j.contains("prior") && j["prior"].is_object()) {
+    std::string weak;
+    for (const Json& d : j["prior"]["weakly_determined"]) weak += (weak.empty() ? "" : ", ") + Str(d);
+    h += "<p>Prior: the start model's tolerances, weighed against " +
+         Sci(j["prior"]["data_sigma"]) + " mm per axis. " +
+         (weak.empty() ? std::string("Every direction is determined by the data.")
+                       : "Weakly determined (held near the start model by the prior): " +
+                             Esc(weak) + ".") +
+         "</p>\n";
+  }
   if (!idj["correlated_above_0_9"].empty()) {
     h += "<p><span class=\"flag\">Correlations above 0.9</span> (these parameters are hard to "
          "separate; their individual values mean little):</p>\n<table>\n"

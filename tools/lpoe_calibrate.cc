@@ -6,6 +6,7 @@
 // report and plots. With no arguments it calibrates the shipped section-4 data set.
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <cstdio>
 #include <iostream>
 #include <sstream>
@@ -23,6 +24,7 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/pipeline.h"
+#include "lpoe/recalibration.h"
 #include "lpoe/refusals.h"
 #include "lpoe/registration.h"
 #include "lpoe/statistics.h"
@@ -131,6 +133,25 @@ DEFINE_double(sd_fraction, 1e-2,
 DEFINE_double(noise_sigma, 0.03,
               "Expected tracker noise per axis (mm) for the plausibility verdict: residuals far "
               "above it (plus the ~0.3 mm a geometric model leaves on a real robot) fail.");
+DEFINE_string(prior, "",
+              "Recalibration (docs/recalibration.md): a calibrated model with its covariance block "
+              "(lpoe_calibrate --output, or lpoe_prior's fleet prior) as the prior; the start "
+              "model unless --model is given. Groups the new data show changed (a joint's zero, a "
+              "joint's frame, a tool) are freed and named.");
+DEFINE_double(prior_scale, 1.0,
+              "The prior on weakly determined directions (docs/identifiability.md): every standard "
+              "deviation below multiplied by this (larger: looser); 0: no prior, plain least "
+              "squares.");
+DEFINE_double(prior_translation, 5.0,
+              "Prior standard deviation of the joint frames' translations (mm).");
+DEFINE_double(prior_rotation, 20.0,
+              "Prior standard deviation of the joint frames' rotations, joint zeros included "
+              "(mrad).");
+DEFINE_double(prior_tool_translation, 20.0,
+              "Prior standard deviation of the tool points (SMRs) about their fitted start (mm).");
+DEFINE_double(prior_joint_terms, 5.0,
+              "Prior standard deviation of each joint-space term parameter, as its RMS effect on "
+              "the joint values over the data (mrad).");
 DEFINE_bool(force, false,
             "Write the outputs even when the plausibility verdict fails; the exit code is still 8, "
             "so that a script can tell a forced result.");
@@ -193,6 +214,17 @@ PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_ori
   o.split_seed = FLAGS_split_seed;
   ParseSplitKind(FLAGS_split, &o.split);  // checked by ParseInputFlags
   o.outlier_threshold = FLAGS_outlier_threshold;
+  if (FLAGS_prior_scale > 0) {
+    auto prior = std::make_shared<ParameterPrior>();
+    prior->scale = FLAGS_prior_scale;
+    prior->scales.frame_translation_mm = FLAGS_prior_translation;
+    prior->scales.frame_rotation_mrad = FLAGS_prior_rotation;
+    prior->scales.tool_translation_mm = FLAGS_prior_tool_translation;
+    prior->scales.joint_term_mrad = FLAGS_prior_joint_terms;
+    o.prior = prior;
+  } else {
+    o.prior = nullptr;
+  }
   o.plausibility.noise_sigma = FLAGS_noise_sigma;
   o.plausibility.joint_values_in_degrees = unit == AngleUnit::kDegrees;
   o.linear.max_iterations = FLAGS_max_iterations;
@@ -283,6 +315,28 @@ void PrintIdentifiability(const IdentifiabilityReport& id, int num_frame_paramet
     std::cout << "  most correlated pairs:\n";
     tools::PrintWrapped(std::cout, items, "; ", 6);
   }
+  if (id.data_share.size() == static_cast<Eigen::Index>(id.parameter_names.size()) &&
+      id.data_share.size() > 0) {
+    // The prior (docs/identifiability.md, "The prior"): what it held.
+    std::cout << "  prior: weighed against " << id.prior_data_sigma
+              << " mm per axis (the residuals');\n    ";
+    if (id.weakly_determined.empty()) {
+      std::cout << "every direction determined by the data (data share >= "
+                << 100 * kWeaklyDeterminedShare << " %)\n";
+    } else {
+      std::cout << id.weakly_determined.size()
+                << " weakly determined, held near the start model by the prior (data share):\n";
+      std::vector<std::string> items;
+      for (size_t k = 0; k < id.parameter_names.size(); ++k) {
+        if (!(id.data_share(k) < kWeaklyDeterminedShare)) continue;
+        std::ostringstream item;
+        item << id.parameter_names[k] << " " << std::setprecision(2) << 100 * id.data_share(k)
+             << " %";
+        items.push_back(item.str());
+      }
+      tools::PrintWrapped(std::cout, items, ", ", 6);
+    }
+  }
   for (const std::string& w : id.warnings) std::cout << "  warning: " << w << "\n";
 }
 
@@ -303,6 +357,14 @@ int Run() {
   tools::InputPaths paths;
   tools::InputSettings settings;
   if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;
+  // --prior without --model: the prior's model is the start.
+  if (!FLAGS_prior.empty() && gflags::GetCommandLineFlagInfoOrDie("model").is_default) {
+    paths.model = FLAGS_prior;
+  }
+  if (!FLAGS_prior.empty() && !(FLAGS_prior_scale > 0)) {
+    std::cerr << "error: --prior needs --prior_scale > 0\n";
+    return kExitUsage;
+  }
   const std::string& model_path = paths.model;
   const std::string& meas_path = paths.measurements;
   const std::string& verify_path = paths.verify;
@@ -364,6 +426,7 @@ int Run() {
   const auto& kPlotNames = tools::kPlotFileNames;
   tools::OutputSet outputs;
   tools::AddInputs(paths, &outputs);
+  if (!FLAGS_prior.empty()) outputs.AddInput("--prior", FLAGS_prior);
   outputs.AddOutput("--output", FLAGS_output);
   outputs.AddOutput("--urdf_output", FLAGS_urdf_output);
   outputs.AddOutput("--ur_kinematics_output", FLAGS_ur_kinematics_output);
@@ -468,8 +531,44 @@ int Run() {
     progress.Iteration(stage, r);
   };
   options.on_stage = [&progress](const std::string& stage) { progress.Stage(stage); };
-  const PipelineResult run =
-      RunCalibrationPipeline(nominal, identification, verification, options);
+  RecalibrationResult recalibration;
+  if (!FLAGS_prior.empty()) {
+    RobotModel prior_model;
+    ParameterPrior prior;
+    if (Status s = ReadPrior(FLAGS_prior, options.prior ? options.prior->scales : PriorScales(),
+                             &prior_model, &prior);
+        !s.ok()) {
+      std::cerr << "error: --prior: " << s.message() << "\n";
+      return kExitInput;
+    }
+    if (prior_model.num_frames() != nominal.num_frames() ||
+        prior_model.num_joints() != nominal.num_joints()) {
+      std::cerr << "error: --prior=" << FLAGS_prior << ": its chain (" << prior_model.num_joints()
+                << " joints, " << prior_model.num_tools() << " tools) is not the model's\n";
+      return kExitInput;
+    }
+    prior.scale = FLAGS_prior_scale;
+    options.prior = std::make_shared<const ParameterPrior>(prior);
+    std::cout << "prior:          " << FLAGS_prior << " (informative";
+    if (FLAGS_prior_scale != 1) std::cout << ", standard deviations x " << FLAGS_prior_scale;
+    std::cout << ")\n";
+  }
+  if (!FLAGS_prior.empty()) {
+    recalibration = Recalibrate(nominal, identification, verification, options);
+  } else {
+    recalibration.run = RunCalibrationPipeline(nominal, identification, verification, options);
+  }
+  const PipelineResult& run = recalibration.run;
+  if (!recalibration.changed.empty()) {
+    std::cout << "recalibration: the new data show " << recalibration.changed.size()
+              << " group(s) changed against the prior, freed (held by the tolerances only):\n";
+    for (const ChangedGroup& g : recalibration.changed) {
+      std::cout << "  " << g.name << ": prior discrepancy chi^2 " << g.chi2 << " for " << g.dof
+                << " degrees of freedom\n";
+    }
+  } else if (!FLAGS_prior.empty()) {
+    std::cout << "recalibration: no group changed against the prior\n";
+  }
   const CalibrationResult& result = run.result;
   tools::AddPipelineResult(run, &summary);
   summary.joint_errors_requested = FLAGS_joint_errors;
@@ -593,7 +692,13 @@ int Run() {
       std::cerr << "error: --output=" << FLAGS_output << ": " << s.message() << "\n";
       return tools::kExitNumerical;
     }
-    staged = outputs.Stage(FLAGS_output, RobotModelToYaml(calibrated));
+    // The estimate's covariance goes with it (the prior of a later recalibration, --prior).
+    std::string yaml = RobotModelToYaml(calibrated);
+    if (result.covariance.rows() == result.parameterization.num_parameters &&
+        result.covariance.rows() > 0) {
+      yaml += ModelCovarianceYaml(calibrated, CovarianceOf(result));
+    }
+    staged = outputs.Stage(FLAGS_output, yaml);
   }
   UrdfOverlayOptions overlay;
   overlay.in_measurement_frame = run.registered && run.registration.moved;

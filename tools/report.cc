@@ -606,6 +606,12 @@ Json BuildJson(const RunSummary& s) {
     p["std_dev"] = id.standard_deviation.size() > static_cast<Eigen::Index>(k)
                        ? Json(id.standard_deviation(k))
                        : Json(nullptr);
+    // The prior's standard deviation (null: none on this direction) and the data's share.
+    const bool prior = id.data_share.size() > static_cast<Eigen::Index>(k);
+    p["prior_std_dev"] = prior && std::isfinite(id.prior_standard_deviation(k))
+                             ? Json(id.prior_standard_deviation(k))
+                             : Json(nullptr);
+    p["data_share"] = prior ? Json(id.data_share(k)) : Json(nullptr);
     params.push_back(p);
   }
   Json pairs = Json::array();
@@ -623,6 +629,14 @@ Json BuildJson(const RunSummary& s) {
                           {"identified", params},
                           {"most_correlated", pairs},
                           {"warnings", id.warnings}};
+  // The prior (docs/identifiability.md): null without one.
+  if (id.data_share.size() > 0) {
+    j["prior"] = {{"data_sigma", id.prior_data_sigma},
+                  {"weakly_determined", id.weakly_determined},
+                  {"weak_share", kWeaklyDeterminedShare}};
+  } else {
+    j["prior"] = nullptr;
+  }
   j["identification"] = {{"before", StatsJson(s.identification_before)},
                          {"after", StatsJson(s.identification_after)}};
   if (s.has_verification) {

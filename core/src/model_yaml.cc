@@ -38,7 +38,7 @@ using internal::Trim;
 // ---------------------------------------------------------------------------------------------------
 // YAML robot model.
 
-const char* const kModelKeys = "name, joints, tools, registration, frames";
+const char* const kModelKeys = "name, joints, tools, registration, frames, covariance";
 const char* const kJointKeys = "name, type, origin, twist, limits";
 const char* const kToolKeys = "name, origin, fixed";
 const char* const kOriginKeys = "xyz and one of rpy or quaternion";
@@ -65,7 +65,8 @@ class ModelYamlReader {
                    "a mapping with keys name, joints and tools (docs/file_formats.md)");
     }
     std::vector<MapEntry> top;
-    Status s = ReadMap(root, 1, "the robot model", {"name", "joints", "tools", "registration", "frames"},
+    Status s = ReadMap(root, 1, "the robot model",
+                       {"name", "joints", "tools", "registration", "frames", "covariance"},
                        kModelKeys, &top);
     if (!s.ok()) return s;
     const int root_line = LineOf(root, 1);

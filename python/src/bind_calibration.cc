@@ -101,6 +101,12 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   const std::string angle_unit = k.Get<std::string>("angle_unit", "rad");
   // Known SMR nests: a list of tool names (or one comma-separated string, as --fixed_tools).
   const py::object fixed_tools = k.Get<py::object>("fixed_tools", py::none());
+  // The default prior (docs/identifiability.md "The prior"), as lpoe_calibrate's --prior_* flags.
+  const double prior_scale = k.Get<double>("prior_scale", 1.0);
+  const double prior_translation = k.Get<double>("prior_translation", 5.0);
+  const double prior_rotation = k.Get<double>("prior_rotation", 20.0);
+  const double prior_tool_translation = k.Get<double>("prior_tool_translation", 20.0);
+  const double prior_joint_terms = k.Get<double>("prior_joint_terms", 5.0);
   k.Finish("calibrate");
   // The ranges lpoe_calibrate's flags have (lpoe/options.h), with the same messages.
   for (const auto& [name, value] :
@@ -112,7 +118,12 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
                                                    {"sigma", sigma},
                                                    {"loss_scale", loss_scale},
                                                    {"threads", threads},
-                                                   {"noise_sigma", noise_sigma}}) {
+                                                   {"noise_sigma", noise_sigma},
+                                                   {"prior_scale", prior_scale},
+                                                   {"prior_translation", prior_translation},
+                                                   {"prior_rotation", prior_rotation},
+                                                   {"prior_tool_translation", prior_tool_translation},
+                                                   {"prior_joint_terms", prior_joint_terms}}) {
     if (Status s = CheckOption("lpoe_calibrate", name, value); !s.ok()) throw LpoeError(s.message());
   }
 
@@ -217,6 +228,17 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   o.outlier_threshold = outlier_threshold;
   o.plausibility.noise_sigma = noise_sigma;
   o.plausibility.joint_values_in_degrees = angle_unit == "deg";
+  if (prior_scale > 0) {
+    auto prior = std::make_shared<ParameterPrior>();
+    prior->scale = prior_scale;
+    prior->scales.frame_translation_mm = prior_translation;
+    prior->scales.frame_rotation_mrad = prior_rotation;
+    prior->scales.tool_translation_mm = prior_tool_translation;
+    prior->scales.joint_term_mrad = prior_joint_terms;
+    o.prior = prior;
+  } else {
+    o.prior = nullptr;
+  }
   o.linear.max_iterations = max_iterations;
   o.linear.step_tolerance = step_tolerance;
   o.linear.max_condition_number = max_condition;
@@ -310,7 +332,8 @@ void BindCalibration(py::module_& m) {
          double outlier_threshold, int max_iterations, double step_tolerance, double sd_fraction,
          double max_condition, double noise_sigma, const std::string& loss, double loss_scale,
          const py::object& sigma, int threads, const std::string& angle_unit,
-         const py::object& fixed_tools) {
+         const py::object& fixed_tools, double prior_scale, double prior_translation,
+         double prior_rotation, double prior_tool_translation, double prior_joint_terms) {
         const MeasurementSet* v = verify.is_none() ? nullptr : verify.cast<const MeasurementSet*>();
         py::kwargs k;
         k["solver"] = solver;
@@ -335,6 +358,11 @@ void BindCalibration(py::module_& m) {
         k["threads"] = threads;
         k["angle_unit"] = angle_unit;
         k["fixed_tools"] = fixed_tools;
+        k["prior_scale"] = prior_scale;
+        k["prior_translation"] = prior_translation;
+        k["prior_rotation"] = prior_rotation;
+        k["prior_tool_translation"] = prior_tool_translation;
+        k["prior_joint_terms"] = prior_joint_terms;
         return Calibrate(model, data, v, k);
       },
       py::arg("model"), py::arg("data"), py::arg("verify") = py::none(), py::kw_only(),
@@ -353,6 +381,11 @@ void BindCalibration(py::module_& m) {
       py::arg("sigma") = py::none(),
       py::arg("threads") = static_cast<int>(OptionDefault("lpoe_calibrate", "threads")),
       py::arg("angle_unit") = "rad", py::arg("fixed_tools") = py::none(),
+      py::arg("prior_scale") = OptionDefault("lpoe_calibrate", "prior_scale"),
+      py::arg("prior_translation") = OptionDefault("lpoe_calibrate", "prior_translation"),
+      py::arg("prior_rotation") = OptionDefault("lpoe_calibrate", "prior_rotation"),
+      py::arg("prior_tool_translation") = OptionDefault("lpoe_calibrate", "prior_tool_translation"),
+      py::arg("prior_joint_terms") = OptionDefault("lpoe_calibrate", "prior_joint_terms"),
       "Calibrates `model` from `data` (and verifies on `verify`) as lpoe_calibrate does, through "
       "the same pipeline (registration, solver, analysis, cross-validation, verdict). The keyword "
       "arguments are named as its flags, with the same defaults and ranges (lpoe/options.h):\n"
@@ -373,7 +406,10 @@ void BindCalibration(py::module_& m) {
       "unit in the report and enables the degrees hint of the verdict);\n"
       "  fixed_tools=None: tool names held as given (a list, or one comma-separated string): "
       "known SMR nests, so that the flange frame is identified in full; the model's fixed: true "
-      "tools are held too.\n"
+      "tools are held too;\n"
+      "  prior_scale=1 (0: no prior, plain least squares), prior_translation (mm), prior_rotation "
+      "(mrad), prior_tool_translation (mm), prior_joint_terms (mrad): the prior that holds weakly "
+      "determined directions near the start model (docs/identifiability.md).\n"
       "An unknown keyword raises lpoe.Error naming it.");
 }
 

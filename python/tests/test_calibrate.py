@@ -49,7 +49,11 @@ def test_same_model_bytes_as_the_tool(inputs, tmp_path, flags, options):
     py_yaml = tmp_path / "py.yaml"
     verify = None if "holdout" in options else v
     lpoe.write_model(str(py_yaml), lpoe.calibrate(m, d, verify=verify, **options).model)
-    assert py_yaml.read_bytes() == cli_yaml.read_bytes()
+    # The tool appends the estimate's covariance block (docs/file_formats.md); the model is the same.
+    cli = cli_yaml.read_bytes()
+    cut = cli.find(b"# covariance of the estimate")
+    assert cut > 0
+    assert py_yaml.read_bytes() == cli[:cut]
 
 
 def test_solvers_agree(inputs):

@@ -96,6 +96,22 @@ IdentifiabilityReport AnalyzeIdentifiability(const RobotModel& nominal, const Me
       r.warnings.push_back(os.str());
     }
   }
+  if (result.has_prior() && result.data_share.size() == p.num_parameters) {
+    r.prior_standard_deviation = result.prior_standard_deviation;
+    r.data_share = result.data_share;
+    r.prior_data_sigma = result.prior_data_sigma;
+    for (int k = 0; k < p.num_parameters; ++k) {
+      if (result.data_share(k) < kWeaklyDeterminedShare) r.weakly_determined.push_back(p.parameters[k].name);
+    }
+    // What was done about a joint that barely moves (or any weak direction): the prior held them.
+    if (!r.weakly_determined.empty()) {
+      for (std::string& w : r.warnings) {
+        if (w.find("barely moves") == std::string::npos) continue;
+        w += "; the prior held the " + std::to_string(r.weakly_determined.size()) +
+             " weakly determined directions at the start model (see 'weakly determined')";
+      }
+    }
+  }
   if (r.condition_number > kWarnConditionNumber) {
     std::ostringstream os;
     os << "the column-scaled Jacobian is poorly conditioned (condition number "

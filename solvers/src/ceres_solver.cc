@@ -18,6 +18,8 @@
 
 #include "gravity_tilt.h"
 #include "identifiability.h"
+#include "lpoe/eigen_decompositions.h"
+#include "prior_terms.h"
 #include "lpoe/problem_builder.h"
 #include "lpoe/statistics.h"
 
@@ -240,6 +242,53 @@ void FullParameterizationWatch(const CalibrationProblem& builder, double sigma, 
   }
 }
 
+// The prior's residual of one frame (prior_terms.h): weight * L log(T_ref^-1 T) on the frame's
+// 7-number block; `weight` = s / sigma (the data's standard deviation over the residuals'), read at
+// every evaluation so that the solve can be repeated with another s.
+struct FramePriorResidual {
+  FramePriorResidual(const SE3d& reference, const Matrix6d& L, const double* weight)
+      : reference_inverse(reference.Inverse()), L(L), weight(weight) {}
+  template <typename T>
+  bool operator()(const T* x, T* residual) const {
+    const SE3<T> D = reference_inverse.cast<T>() * Se3FromArray(x);
+    const Vector6<T> xi = LogSE3(D);
+    for (int i = 0; i < 6; ++i) {
+      T sum = T(0);
+      for (int j = 0; j < 6; ++j) sum += T(L(i, j)) * xi(j);
+      residual[i] = T(*weight) * sum;
+    }
+    return true;
+  }
+  SE3d reference_inverse;
+  Matrix6d L;
+  const double* weight;
+};
+
+// The prior's residual of one joint block: weight * (M x - c), M = L_b basis_b, c = L_b theta_ref.
+class JointPriorResidual : public ceres::CostFunction {
+ public:
+  JointPriorResidual(Eigen::MatrixXd M, Eigen::VectorXd c, const double* weight)
+      : M_(std::move(M)), c_(std::move(c)), weight_(weight) {
+    set_num_residuals(static_cast<int>(M_.rows()));
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(M_.cols()));
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const Eigen::Map<const Eigen::VectorXd> x(parameters[0], M_.cols());
+    Eigen::Map<Eigen::VectorXd>(residuals, M_.rows()) = *weight_ * (M_ * x - c_);
+    if (jacobians != nullptr && jacobians[0] != nullptr) {
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+          jacobians[0], M_.rows(), M_.cols()) = *weight_ * M_;
+    }
+    return true;
+  }
+
+ private:
+  Eigen::MatrixXd M_;
+  Eigen::VectorXd c_;
+  const double* weight_;
+};
+
 Termination MapTermination(ceres::TerminationType t) {
   switch (t) {
     case ceres::CONVERGENCE:
@@ -346,14 +395,22 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   // ---- The identifiability check of the linear solver (same thresholds, same messages), on the
   // identifiable directions of the frames that are solved (unmeasured tools are not).
   const ProblemAnalysis analysis = builder.Analyze(options.max_condition_number);
-  if (analysis.num_equations < analysis.num_parameters) {
+  // The prior (lpoe/prior.h): identifiable parameterization only; an informative one lets rows
+  // that cannot identify the model alone calibrate.
+  internal::ResolvedPrior prior;
+  if (options.prior && !full) prior = internal::ResolvePrior(*options.prior, nominal, data, all);
+  const bool use_prior = prior.active;
+  const bool informative = use_prior && prior.informative;
+  if (analysis.num_equations < analysis.num_parameters && !informative) {
     return finish(Termination::kNotIdentifiable, analysis.message);
   }
   if (!analysis.finite) return finish(Termination::kNumericalFailure, analysis.message);
   result.rank = analysis.rank;
   result.condition_number = analysis.condition_number;
   result.singular_values = analysis.singular_values;
-  if (!analysis.identifiable) return finish(Termination::kNotIdentifiable, analysis.message);
+  if (!analysis.identifiable && !(informative && analysis.finite)) {
+    return finish(Termination::kNotIdentifiable, analysis.message);
+  }
   const int identifiable = analysis.num_parameters;
 
   ConvergenceWatch watch;
@@ -372,6 +429,42 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
 
   ceres::Problem problem;
   builder.AddTo(&problem);
+  // The prior's residual blocks on the same parameter blocks, weighted with s / sigma: s from the
+  // start's residuals, then (below) from the solution's until it settles.
+  const long prior_dof = watch.dof;
+  double prior_weight = 0;
+  double s2 = 0;
+  const Parameterization& solved = result.parameterization;
+  if (use_prior) {
+    // s for the first solve: what the first Gauss-Newton step is expected to leave (prior_terms.h).
+    const ProblemNormalEquations ne = builder.NormalEquations();
+    const double c2 = options.sigma * options.sigma;
+    s2 = internal::PriorStepDataVariance(
+        prior, c2 * ne.H, c2 * ne.g, c2 * ne.cost,
+        internal::LinearizePrior(prior, solved, nominal, builder.JointState()), prior_dof);
+    prior_weight = std::sqrt(s2) / options.sigma;
+    const int n = nominal.num_joints();
+    for (int f = 0; f < nominal.num_frames(); ++f) {
+      double* block = builder.frame_block(f);
+      if (block == nullptr || all.basis[f].cols() == 0) continue;
+      const SE3d& ref = f < n ? prior.reference.joints[f].origin : prior.reference.tools[f - n].origin;
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<FramePriorResidual, 6, 7>(
+                                   new FramePriorResidual(ref, prior.frame_sqrt[f], &prior_weight)),
+                               nullptr, block);
+    }
+    for (size_t b = 0; b < all.joint_blocks.size(); ++b) {
+      double* block = builder.joint_block(static_cast<int>(b));
+      if (block == nullptr || all.joint_blocks[b].basis.cols() == 0) continue;
+      problem.AddResidualBlock(
+          new JointPriorResidual(prior.term_sqrt[b] * all.joint_blocks[b].basis,
+                                 prior.term_sqrt[b] * prior.term_reference[b], &prior_weight),
+          nullptr, block);
+    }
+    if (!full && watch.H.rows() == solved.num_parameters) {
+      internal::AddPrior(internal::LinearizePrior(prior, solved, nominal, builder.JointState()), s2,
+                         &watch.H, nullptr);
+    }
+  }
 
   // ---- Solve.
   ceres::Solver::Options solver_options;
@@ -395,11 +488,33 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
   if (options.verbose) LOG(INFO) << summary.FullReport();
+  // The prior's data variance at the solution: solved again (from the solution) until it settles,
+  // the fixed point the linear solver's iterations reach (prior.h).
+  double prior_cost = 0;
+  auto prior_cost_now = [&]() {
+    return internal::LinearizePrior(prior, solved, builder.Model(), builder.JointState()).cost();
+  };
+  if (use_prior) {
+    constexpr int kPriorRounds = 8;
+    for (int round = 0; round < kPriorRounds; ++round) {
+      prior_cost = prior_cost_now();
+      const double data_cost = summary.final_cost * cost_scale - s2 * prior_cost;
+      const double s2_new = internal::PriorDataVariance(prior, data_cost, prior_dof);
+      if (MapTermination(summary.termination_type) != Termination::kConverged ||
+          std::abs(s2_new / s2 - 1) <= 1e-4) {
+        break;
+      }
+      s2 = s2_new;
+      prior_weight = std::sqrt(s2) / options.sigma;
+      ceres::Solve(solver_options, &problem, &summary);
+    }
+    prior_cost = prior_cost_now();
+  }
 
   result.model = builder.Model();
   result.joint_terms = builder.JointTerms();
   result.iterations = summary.num_successful_steps + summary.num_unsuccessful_steps;
-  result.final_cost = summary.final_cost * cost_scale;
+  result.final_cost = summary.final_cost * cost_scale - s2 * prior_cost;
   const Termination termination = MapTermination(summary.termination_type);
   std::string message = "ceres: " + summary.message;
   if (summary.termination_type == ceres::USER_SUCCESS && watch.decision.converged()) {
@@ -429,15 +544,38 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
       for (int s : sizes) tangent += s;
       null_space_rank = std::max(0, tangent - analysis.rank);
     }
-    const Status s =
-        normal_equations
-            ? builder.NormalEquationsCovariance(&result.covariance, null_space_rank)
-            : builder.Covariance(&problem, options.num_threads, &result.covariance, null_space_rank);
+    Status s = Status::Ok();
+    if (use_prior) {
+      // The posterior: the data's J^T J and s2 times the prior's, in the solved numbering.
+      const ProblemNormalEquations ne = builder.NormalEquations();
+      const Eigen::MatrixXd H_data = cost_scale * ne.H;
+      const internal::PriorRows rows =
+          internal::LinearizePrior(prior, solved, builder.Model(), builder.JointState());
+      Eigen::MatrixXd H = H_data;
+      internal::AddPrior(rows, s2, &H, nullptr);
+      const Eigen::VectorXd d = internal::ColumnScale(H);
+      const Eigen::LLT<Eigen::MatrixXd> llt(d.asDiagonal() * H * d.asDiagonal());
+      if (llt.info() != Eigen::Success) {
+        s = Status::Error("the posterior's normal matrix is not positive definite");
+      } else {
+        result.covariance = cost_scale * (d.asDiagonal() * InverseFromCholeskyFactor(llt.matrixLLT()) *
+                                          d.asDiagonal());
+      }
+      result.prior_data_sigma = std::sqrt(s2);
+      result.prior_cost = s2 * prior_cost;
+      internal::PriorContribution(rows, H_data, s2, &result.prior_standard_deviation,
+                                  &result.data_share);
+    } else {
+      s = normal_equations
+              ? builder.NormalEquationsCovariance(&result.covariance, null_space_rank)
+              : builder.Covariance(&problem, options.num_threads, &result.covariance,
+                                   null_space_rank);
+    }
     if (!s.ok()) {
       message += "; " + s.message();
     } else if (options.a_posteriori_covariance) {
       const long dof = static_cast<long>(per_row) * data.size() - identifiable;
-      if (dof > 0) result.covariance *= 2.0 * summary.final_cost / static_cast<double>(dof);
+      if (dof > 0) result.covariance *= 2.0 * result.final_cost / cost_scale / static_cast<double>(dof);
     }
   }
   internal::FillGravityTiltResult(all, builder.JointState(), result.covariance,

@@ -14,6 +14,7 @@
 
 #include "gravity_tilt.h"
 #include "identifiability.h"
+#include "prior_terms.h"
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
 #include "structural_identifiability.h"
@@ -217,7 +218,22 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   const int identifiable = p.num_parameters - gauge;
   const int per_row = options.use_orientation ? 6 : 3;
   const long equations = static_cast<long>(per_row) * data.size();
-  if (equations < identifiable) {
+  // The prior (lpoe/prior.h): identifiable parameterization only. Its reference is fixed here (the
+  // start model unless given), so that the warm start's sub-solve keeps it.
+  std::shared_ptr<const ParameterPrior> anchored;
+  internal::ResolvedPrior prior;
+  if (options.prior && !full) {
+    if (options.prior->reference) {
+      anchored = options.prior;
+    } else {
+      auto copy = std::make_shared<ParameterPrior>(*options.prior);
+      copy->reference = std::make_shared<const RobotModel>(nominal);
+      anchored = copy;
+    }
+    prior = internal::ResolvePrior(*anchored, nominal, data, p);
+  }
+  const bool use_prior = prior.active;
+  if (equations < identifiable && !(use_prior && prior.informative)) {
     return finish(Termination::kNotIdentifiable,
                   internal::TooFewEquationsMessage(data.size(), equations, identifiable, per_row));
   }
@@ -270,6 +286,28 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
 
   result.joint_terms = joint_values();  // zero until solved
 
+  // The prior's rows at the current point and the data variance s2 they are weighted with (that of
+  // the current point's residuals unless the prior fixes it): the step solves the data's normal
+  // equations plus s2 A^T A, the cost compared is the data's plus s2 times the prior's.
+  const long dof_all = equations - identifiable;
+  auto prior_at = [&](const RobotModel& m, const Eigen::VectorXd& js) {
+    return use_prior ? internal::LinearizePrior(prior, p, m, js) : internal::PriorRows();
+  };
+  internal::PriorRows prior_rows = prior_at(model, joint_state);
+  double s2 = use_prior ? internal::PriorDataVariance(prior, lin.cost, dof_all) : 0.0;
+  auto with_prior = [&](const Linearization& l, const internal::PriorRows& pr) {
+    Linearization c;
+    c.H = l.H;
+    c.g = l.g;
+    c.cost = l.cost;
+    c.finite = l.finite;
+    internal::AddPrior(pr, s2, &c.H, &c.g);
+    return c;
+  };
+  auto total = [&](const Linearization& l, const internal::PriorRows& pr) {
+    return l.cost + s2 * pr.cost();
+  };
+
   // Identifiability in the calibrated directions, at the nominal model. For the full
   // parameterization this is analyzed in the identifiable basis (the full J^T J is singular by
   // construction).
@@ -285,12 +323,15 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   };
   {
     // The eigenvalues decide; the weakest direction is computed only for the refusal's message.
-    Identifiability id = analyze(model, lin, false);
+    Identifiability id = use_prior && prior.informative
+                             ? analyze(model, with_prior(lin, prior_rows), false)
+                             : analyze(model, lin, false);
     result.rank = id.rank;
     result.condition_number = id.condition;
     result.singular_values = id.singular_values;
     if (id.rank < identifiable || !(id.condition <= options.max_condition_number)) {
-      id = analyze(model, lin, true);
+      id = use_prior && prior.informative ? analyze(model, with_prior(lin, prior_rows), true)
+                                          : analyze(model, lin, true);
       Parameterization pi = p;
       if (full) {
         pi = MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind);
@@ -356,11 +397,18 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     sub.on_iteration = nullptr;
     sub.errors = nullptr;
     sub.max_iterations = std::max(1, options.max_iterations - 2);
+    sub.prior = anchored;
     const CalibrationResult s = CalibrateLinear(first, subset, sub);
     if (!s.converged() || s.history.empty()) return -1;
     Linearization at = internal::NormalEquationsOf(s.model, data, p, joint_state, exact_rows);
     errors_current = false;
-    if (!at.finite || !(at.cost <= current->cost * (1 + kCostIncreaseTolerance) + 1e-300)) return -1;
+    const internal::PriorRows at_prior = prior_at(s.model, joint_state);
+    if (!at.finite || !(total(at, at_prior) <= total(*current, prior_rows) *
+                                                   (1 + kCostIncreaseTolerance) +
+                                               1e-300)) {
+      return -1;
+    }
+    prior_rows = at_prior;
     errors_current = errors != nullptr && !errors->empty();
     result.history.back().step_norm = x.norm();
     // The subsample's records but its last (the point linearized on all rows now).
@@ -389,12 +437,20 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     // The step's factorization also gives the stopping rule's standard deviations.
     Eigen::LLT<Eigen::MatrixXd> factor;
     Eigen::VectorXd scale;
-    Eigen::VectorXd x = SolveStep(lin, full, identifiable, options, &factor, &scale);
+    if (use_prior) {
+      s2 = internal::PriorStepDataVariance(prior, lin.H, lin.g, lin.cost, prior_rows, dof_all);
+    }
+    Eigen::VectorXd x = use_prior
+                            ? SolveStep(with_prior(lin, prior_rows), full, identifiable, options,
+                                        &factor, &scale)
+                            : SolveStep(lin, full, identifiable, options, &factor, &scale);
     if (structured && !lin.joint_blocks &&
         (!x.allFinite() || (previous_step >= 0 && x.norm() > kFrozenContraction * previous_step))) {
       lin = exact();
       scale.resize(0);
-      x = SolveStep(lin, full, identifiable, options, &factor, &scale);
+      x = use_prior ? SolveStep(with_prior(lin, prior_rows), full, identifiable, options, &factor,
+                                &scale)
+                    : SolveStep(lin, full, identifiable, options, &factor, &scale);
     }
     previous_step = x.norm();
     if (!x.allFinite()) {
@@ -413,10 +469,11 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       state.standard_deviation =
           scale.size() == lin.H.rows()
               ? StandardDeviationsFromFactor(factor.matrixLLT(), scale, lin.cost, dof)
-              : StandardDeviations(lin.H, lin.cost, dof);
+              : StandardDeviations(use_prior ? with_prior(lin, prior_rows).H : lin.H, lin.cost,
+                                   dof);
     }
     state.parameter_scale = ParameterScale(model);
-    state.cost = lin.cost;
+    state.cost = use_prior ? total(lin, prior_rows) : lin.cost;
     state.previous_cost = previous_cost;
     const ConvergenceDecision decision = TestConvergence(stop, state);
     if (decision.converged()) {
@@ -432,8 +489,11 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
         model = std::move(candidate);
         joint_state = candidate_joints;
         Linearization last = exact();
-        if (last.finite && last.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
+        const internal::PriorRows last_prior = prior_at(model, joint_state);
+        if (last.finite && total(last, last_prior) <=
+                               total(lin, prior_rows) * (1 + kCostIncreaseTolerance) + 1e-300) {
           lin = std::move(last);
+          prior_rows = last_prior;
         } else {
           model = kept_model;
           joint_state = kept_joints;
@@ -445,15 +505,24 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
       result.joint_terms = joint_values();
       result.iterations = it - 1;
       result.final_cost = lin.cost;
+      if (use_prior) {
+        // What the prior contributed (at the solution's residuals) and the posterior covariance.
+        s2 = internal::PriorDataVariance(prior, lin.cost, dof_all);
+        result.prior_data_sigma = std::sqrt(s2);
+        result.prior_cost = s2 * prior_rows.cost();
+        internal::PriorContribution(prior_rows, lin.H, s2, &result.prior_standard_deviation,
+                                    &result.data_share);
+      }
       if (options.compute_covariance && !full) {
         if (dof > 0) {
-          const double s2 = 2.0 * lin.cost / static_cast<double>(dof);
-          const Eigen::VectorXd d = ColumnScale(lin.H);
-          const Eigen::MatrixXd Hs = d.asDiagonal() * lin.H * d.asDiagonal();
+          const double s2_post = 2.0 * lin.cost / static_cast<double>(dof);
+          const Eigen::MatrixXd Hc = use_prior ? with_prior(lin, prior_rows).H : lin.H;
+          const Eigen::VectorXd d = ColumnScale(Hc);
+          const Eigen::MatrixXd Hs = d.asDiagonal() * Hc * d.asDiagonal();
           const Eigen::LLT<Eigen::MatrixXd> llt(Hs);
           if (llt.info() == Eigen::Success) {
             const Eigen::MatrixXd inv = InverseFromCholeskyFactor(llt.matrixLLT());
-            result.covariance = s2 * (d.asDiagonal() * inv * d.asDiagonal());
+            result.covariance = s2_post * (d.asDiagonal() * inv * d.asDiagonal());
           }
         }
       }
@@ -482,12 +551,15 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
                                                        structured ? gradient_only : exact_rows);
       errors_current = false;
       if (structured) complete(&next);
-      if (next.finite && next.cost <= lin.cost * (1 + kCostIncreaseTolerance) + 1e-300) {
+      const internal::PriorRows next_prior = prior_at(candidate, candidate_joints);
+      if (next.finite && total(next, next_prior) <=
+                             total(lin, prior_rows) * (1 + kCostIncreaseTolerance) + 1e-300) {
         errors_current = errors != nullptr && !errors->empty();
         model = std::move(candidate);
         joint_state = candidate_joints;
-        previous_cost = lin.cost;
+        previous_cost = total(lin, prior_rows);
         lin = std::move(next);
+        prior_rows = next_prior;
         accepted = true;
       }
     }

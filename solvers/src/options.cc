@@ -74,6 +74,13 @@ std::vector<OptionSpec> MakeOptions() {
       Number(kCalibrate, "loss_scale", "1", 1e-6, 1e4, ""),
       Number(kCalibrate, "threads", "0", 0, 256, ""),
       Number(kCalibrate, "noise_sigma", "0.03", 1e-6, 100, ""),
+      // The default prior (lpoe/prior.h, docs/identifiability.md "The prior"): its standard
+      // deviations, and one factor on all of them (0: no prior, plain least squares).
+      Number(kCalibrate, "prior_scale", "1", 0, 1e6, ""),
+      Number(kCalibrate, "prior_translation", "5", 1e-3, 1e4, ""),
+      Number(kCalibrate, "prior_rotation", "20", 1e-3, 1e4, ""),
+      Number(kCalibrate, "prior_tool_translation", "20", 1e-3, 1e4, ""),
+      Number(kCalibrate, "prior_joint_terms", "5", 1e-3, 1e4, ""),
       // ---- lpoe_compare.
       Number(kCompare, "tolerance_mm", "1e-6", 0, 1000, ""),
       Number(kCompare, "noise_sigma", "0.03", 1e-6, 100, ""),

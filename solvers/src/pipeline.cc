@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <utility>
 
+#include <Eigen/Cholesky>
 #include <glog/logging.h>
 
 #include "gravity_tilt.h"
@@ -57,6 +58,37 @@ bool SameGeometry(const RobotModel& a, const RobotModel& b) {
     if (!same(a.tools[t].origin, b.tools[t].origin)) return false;
   }
   return true;
+}
+
+// The verdict's measure of how far the data determine each frame's change (plausibility.h): the
+// Mahalanobis norm of the change of the frame's identified parameters under the posterior
+// covariance, and under the prior's standard deviations (a diagonal approximation of the prior).
+void FrameChangeSigmas(const CalibrationResult& r, const RobotModel& start,
+                       const RobotModel& calibrated, PlausibilityOptions* o) {
+  const Parameterization& p = r.parameterization;
+  if (r.covariance.rows() != p.num_parameters || p.basis.size() != start.tools.size() + start.joints.size()) {
+    return;
+  }
+  const Eigen::VectorXd dx = ParameterDifference(p, start, calibrated);
+  o->frame_change_sigmas.assign(p.basis.size(), 0.0);
+  o->frame_prior_sigmas.assign(p.basis.size(), INFINITY);
+  for (size_t f = 0; f < p.basis.size(); ++f) {
+    const int k = static_cast<int>(p.basis[f].cols());
+    if (k == 0) continue;
+    const Eigen::VectorXd d = dx.segment(p.offset[f], k);
+    const Eigen::MatrixXd C = r.covariance.block(p.offset[f], p.offset[f], k, k);
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(C);
+    const double z2 = d.dot(ldlt.solve(d));
+    o->frame_change_sigmas[f] = std::isfinite(z2) && z2 >= 0 ? std::sqrt(z2) : INFINITY;
+    if (r.has_prior()) {
+      double zp2 = 0;
+      for (int c = 0; c < k; ++c) {
+        const double sd = r.prior_standard_deviation(p.offset[f] + c);
+        if (std::isfinite(sd) && sd > 0) zp2 += (d(c) / sd) * (d(c) / sd);
+      }
+      o->frame_prior_sigmas[f] = std::sqrt(zp2);
+    }
+  }
 }
 
 // What the analysis would otherwise compute with passes of its own over the identification rows
@@ -164,6 +196,29 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
     start_tools_from(reference);
   }
   if (start_out) *start_out = start;
+  // The prior's reference: this start (registered, tool points fitted), for every solve below.
+  std::shared_ptr<const ParameterPrior> prior;
+  if (options.prior && options.parameterization == ParameterizationKind::kIdentifiable) {
+    if (options.prior->reference) {
+      // A prior of its own (a previous calibration, a fleet): its base frame is this data's
+      // registration (the tracker stood elsewhere), held by the tolerances only.
+      auto anchored = std::make_shared<ParameterPrior>(*options.prior);
+      auto reference = std::make_shared<RobotModel>(*options.prior->reference);
+      if (reference->num_frames() == start.num_frames() && start.num_joints() > 0) {
+        reference->joints[0].origin = start.joints[0].origin;
+        if (!anchored->frame_information.empty()) {
+          anchored->frame_information[0] = DefaultFrameInformation(start, 0, anchored->scales, 1.0) *
+                                           anchored->scale * anchored->scale;
+        }
+      }
+      anchored->reference = reference;
+      prior = anchored;
+    } else {
+      auto anchored = std::make_shared<ParameterPrior>(*options.prior);
+      anchored->reference = std::make_shared<const RobotModel>(start);
+      prior = anchored;
+    }
+  }
   std::vector<std::shared_ptr<const JointTerm>> terms;
   const bool tilt = std::find(options.joint_errors.begin(), options.joint_errors.end(),
                               std::string(kGravityTiltName)) != options.joint_errors.end();
@@ -207,6 +262,7 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
       o.structure_reference = &reference;
       o.gravity_tilt = tilt_model;
       o.initial_joint_terms = initial;
+      o.prior = prior;
       if (tilt_model) o.convergence.sd_fraction *= kTiltSdFraction;
     };
     if (options.solver == SolverKind::kCeres) {
@@ -274,7 +330,8 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
     const int64_t rows = int64_t{data.size()} *
                          (options.use_orientation && data.has_orientation() ? 6 : 3);
     const int parameters = result.parameterization.num_parameters;
-    if (rows <= parameters) {
+    // An informative prior (a previous calibration, a fleet) checks what the rows alone cannot.
+    if (rows <= parameters && !(prior && prior->informative)) {
       result.termination = Termination::kNotIdentifiable;
       result.message = CheckRedundancy(static_cast<int>(rows), parameters,
                                        "the data set of " + std::to_string(data.size()) + " points")
@@ -467,6 +524,7 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
 
   PlausibilityOptions plausibility = options.plausibility;
   plausibility.use_orientation = options.use_orientation;
+  FrameChangeSigmas(out.result, out.start, out.geometric, &plausibility);
   out.verdict = AssessPlausibility(out.start, out.geometric, identification_eff,
                                    out.identification_after, plausibility);
   // A fit much worse than the noise after directions were left out: name them as the likely cause

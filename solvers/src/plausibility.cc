@@ -188,6 +188,7 @@ Verdict AssessPlausibility(const RobotModel& start, const RobotModel& calibrated
   {
     const RobotModel aligned = AlignGauge(start, calibrated);
     double worst_len = 0, worst_tool = 0, worst_rot = 0;
+    int len_f = -1, tool_f = -1, rot_f = -1;
     std::string len_name, tool_name, rot_name;
     const int n = start.num_joints();
     // Errors of the links before a joint add up along the chain (a tilt of 0.03 rad over 400 mm
@@ -202,30 +203,56 @@ Verdict AssessPlausibility(const RobotModel& start, const RobotModel& calibrated
       const SE3d& b = f < n ? aligned.joints[f].origin : aligned.tools[f - n].origin;
       const std::string name = f < n ? start.joints[f].name : start.tools[f - n].name;
       const double rot = LogSO3(Eigen::Matrix3d(a.R.transpose() * b.R)).norm();
-      if (rot > worst_rot && (f < n || options.use_orientation)) worst_rot = rot, rot_name = name;
+      if (rot > worst_rot && (f < n || options.use_orientation)) {
+        worst_rot = rot, rot_name = name, rot_f = f;
+      }
       if (f < n) {
         const double rel = std::abs(b.t.norm() - a.t.norm()) / std::max(a.t.norm(), floor_mm);
-        if (rel > worst_len) worst_len = rel, len_name = name;
+        if (rel > worst_len) worst_len = rel, len_name = name, len_f = f;
       } else {
         const double d = (b.t - a.t).norm();
-        if (d > worst_tool) worst_tool = d, tool_name = name;
+        if (d > worst_tool) worst_tool = d, tool_name = name, tool_f = f;
       }
     }
+    // Whether the data determine a check's change (frame f): a change within kDeterminedSigmas of
+    // its own standard deviations, or of the prior's, is at most `check`.
+    auto determined = [&](VerdictCheck c, int f) {
+      if (c.level == VerdictLevel::kPass || f < 0 ||
+          f >= static_cast<int>(options.frame_change_sigmas.size())) {
+        return c;
+      }
+      const double z = options.frame_change_sigmas[f];
+      const double zp = f < static_cast<int>(options.frame_prior_sigmas.size())
+                            ? options.frame_prior_sigmas[f]
+                            : INFINITY;
+      if (z <= kDeterminedSigmas || zp <= kDeterminedSigmas) {
+        if (c.level == VerdictLevel::kFail) c.level = VerdictLevel::kCheck;
+        c.message += Format("; not determined by the data: %.3g of its standard deviations", z);
+        if (std::isfinite(zp)) c.message += Format(", %.3g of the prior's", zp);
+      } else {
+        c.message += Format("; determined by the data: %.3g of its standard deviations", z);
+        if (std::isfinite(zp)) c.message += Format(", %.3g of the prior's", zp);
+      }
+      return c;
+    };
     if (n > 1) {
       v.checks.push_back(Make("link_lengths", worst_len, 0.03, 0.10,
                               Format("largest link length change %.3g %%", 100 * worst_len) +
                                   (len_name.empty() ? "" : " (" + len_name + ")") +
                                   (worst_len > 0.03 ? ": more than a calibration corrects" : "")));
+      v.checks.back() = determined(v.checks.back(), len_f);
     }
     v.checks.push_back(Make("tool_offsets", worst_tool, 10.0, 50.0,
                             Format("largest tool offset change %.4g mm", worst_tool) +
                                 (tool_name.empty() ? "" : " (" + tool_name + ")")));
+    v.checks.back() = determined(v.checks.back(), tool_f);
     v.checks.push_back(Make("rotations", worst_rot / kDegree, 6.0, 15.0,
                             Format("largest frame rotation change %.3g deg", worst_rot / kDegree) +
                                 (rot_name.empty() ? "" : " (" + rot_name + ")") +
                                 (worst_rot > 6 * kDegree ? ": more than a joint offset or axis "
                                                            "error a calibration corrects"
                                                          : "")));
+    v.checks.back() = determined(v.checks.back(), rot_f);
   }
   for (const VerdictCheck& c : v.checks) {
     if (c.level > v.level) {

@@ -33,7 +33,19 @@ struct IdentifiabilityReport {
                                               // when no covariance was computed
   std::vector<CorrelatedPair> most_correlated;  // largest |correlation| first
   std::vector<std::string> warnings;          // poorly exciting data, e.g. a joint that barely moves
+  // The prior (lpoe/prior.h) when the calibration used one (empty otherwise): per identified
+  // direction the prior's standard deviation and the data's share of the information (1: the
+  // data alone), the directions the prior held (share below kWeaklyDeterminedShare, "weakly
+  // determined": they stay near the start model) and the data's standard deviation per axis the
+  // prior was weighed against (mm).
+  Eigen::VectorXd prior_standard_deviation;
+  Eigen::VectorXd data_share;
+  std::vector<std::string> weakly_determined;
+  double prior_data_sigma = 0;
 };
+
+// A direction whose information comes less than half from the data is weakly determined.
+constexpr double kWeaklyDeterminedShare = 0.5;
 
 // Revolute joints moving less than this over the data set are flagged (rad); prismatic: mm.
 constexpr double kMinRevoluteExcursion = 0.35;  // 20 degrees

@@ -8,6 +8,7 @@
 #ifndef LPOE_CALIBRATION_H_
 #define LPOE_CALIBRATION_H_
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -97,6 +98,16 @@ struct CalibrationResult {
   Eigen::MatrixXd covariance;
   double wall_time_seconds = 0;
   GravityTiltResult gravity_tilt;
+
+  // The prior (lpoe/prior.h, docs/identifiability.md) when the solve used one; empty otherwise.
+  // Per parameter: the prior's standard deviation (x units; infinity without one) and the data's
+  // share of the information, 1 - posterior variance / prior variance (1: the data alone; near 0:
+  // the prior holds the direction, "weakly determined"). `covariance` is the posterior's.
+  Eigen::VectorXd prior_standard_deviation;
+  Eigen::VectorXd data_share;
+  double prior_data_sigma = 0;  // s (mm per axis) the prior was weighted with
+  double prior_cost = 0;        // 0.5 s^2 |L xi|^2 at the solution (mm^2); not in final_cost
+  bool has_prior() const { return data_share.size() > 0; }
 
   bool converged() const { return termination == Termination::kConverged; }
 };

@@ -28,6 +28,7 @@
 #include "lpoe/calibration.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/convergence.h"
+#include "lpoe/prior.h"
 #include "lpoe/status.h"
 
 namespace lpoe {
@@ -106,6 +107,10 @@ struct CeresSolverOptions {
   // Called after every accepted iteration (e.g. for a progress line).
   std::function<void(const IterationRecord&)> on_iteration;
   bool verbose = false;
+  // A Gaussian prior on the parameters' deviation from a reference model (lpoe/prior.h), as in
+  // LinearSolverOptions: one prior residual block per solved frame and joint block, weighted so
+  // that both solvers minimise the same cost. Identifiable parameterization only.
+  std::shared_ptr<const ParameterPrior> prior;
 };
 
 // Checks the string options and ranges (user input): linear_solver and loss names, sigma > 0,

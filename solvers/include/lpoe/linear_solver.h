@@ -22,6 +22,7 @@
 #include "lpoe/calibration.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/convergence.h"
+#include "lpoe/prior.h"
 #include "lpoe/statistics.h"
 
 namespace lpoe {
@@ -100,6 +101,10 @@ struct LinearSolverOptions {
   // are in the history with their row count (IterationRecord::rows). The solution is that of the
   // solve without it to within the convergence tolerance. warm_start_rows = 0: never.
   int warm_start_min_rows = 100000;
+  // A Gaussian prior on the parameters' deviation from a reference model (lpoe/prior.h): the
+  // solve is then a maximum-a-posteriori estimate. Null: plain least squares. Identifiable
+  // parameterization only (the full one stays the paper's pseudo-inverse: CHECKed).
+  std::shared_ptr<const ParameterPrior> prior;
   int warm_start_rows = 20000;
 };
 

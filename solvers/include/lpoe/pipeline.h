@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,12 @@ struct PipelineOptions {
   CeresSolverOptions ceres;
   ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
   bool use_orientation = false;
+  // The prior both solvers use (lpoe/prior.h, docs/identifiability.md "The prior"): by default the
+  // nominal model's tolerances about the registered start model, which holds the directions the
+  // data determine only weakly and moves nothing the data determine. Null: plain least squares.
+  // With a null reference, the reference is the start model (registered, tool points fitted).
+  // Identifiable parameterization only (the full one is the paper's pseudo-inverse).
+  std::shared_ptr<const ParameterPrior> prior = std::make_shared<const ParameterPrior>();
   // Stages 1-2 of registration.h first (skipped when the data are in the base frame already).
   bool register_frames = true;
   // Joint-space error terms to identify with the geometry, by registry name (joint_term.h,

@@ -58,7 +58,18 @@ struct PlausibilityOptions {
   // Pose data: the tools' rotations are judged too (with position data they change no prediction;
   // the full parameterization moves them freely). RunCalibrationPipeline sets it.
   bool use_orientation = false;
+  // How far the data determine each local frame's change (joints, then tools; empty: unknown), in
+  // standard deviations: the Mahalanobis norm of the change of the frame's identified parameters
+  // under the estimate's (posterior) covariance, and under the prior's (infinity without a prior).
+  // A parameter-change check above its limit whose change is within kDeterminedSigmas of either is
+  // at most `check` (a change the data do not determine, or one the prior allows, is not
+  // implausible); every such check's message says which. RunCalibrationPipeline fills them.
+  std::vector<double> frame_change_sigmas;
+  std::vector<double> frame_prior_sigmas;
 };
+
+// A change within this many of its standard deviations (or of the prior's) is not judged absurd.
+constexpr double kDeterminedSigmas = 3.0;
 
 // `calibrated` moved, along each joint's centralizer (rotation about and translation along its own
 // axis; parameterization.h), as close to `start` as it goes, each move compensated in the next frame
