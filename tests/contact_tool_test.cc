@@ -256,7 +256,7 @@ TEST_F(ContactTool, UrdfOutputIsTheCalibratedModel) {
   ASSERT_EQ(o.exit_code, 0) << o.err << o.out;
   RobotModel yaml, urdf, nominal;
   ASSERT_TRUE(ReadRobotModel(dir_ / "cal.yaml", &yaml).ok());
-  ASSERT_TRUE(ReadRobotModel(dir_ / "cal.urdf", &urdf).ok());
+  ASSERT_TRUE(ReadRobotModelFile(dir_ / "cal.urdf", &urdf).ok());
   ASSERT_TRUE(ReadRobotModel(dir_ / "nominal.yaml", &nominal).ok());
   double worst = 0, moved = 0;
   for (int i = 0; i < 20; ++i) {

@@ -389,16 +389,15 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
                       " is not available with distance or plane data yet (docs/measurements.md)");
     }
   }
-  if (k.Get<int>("kfold", 0) != 0) {
-    throw LpoeError("kfold is not available with distance or plane data yet (docs/measurements.md)");
+  const int kfold = k.Get<int>("kfold", 0);
+  if (kfold != 0 && !(kfold >= 2 && kfold <= 100)) {
+    throw LpoeError("kfold: expected 0 (off) or 2..100, got " + std::to_string(kfold));
   }
   if (!k.Get<py::object>("fixed_tools", py::none()).is_none()) {
     throw LpoeError(
         "fixed_tools is not available with distance or plane data yet (docs/measurements.md)");
   }
-  if (k.Get<py::object>("verify", py::none()).is_none() == false) {
-    throw LpoeError("verify is not available with distance or plane data yet (docs/measurements.md)");
-  }
+  const py::object verify = k.Get<py::object>("verify", py::none());
   // Accepted and without effect here, as lpoe_calibrate's run for these kinds ignores them.
   for (const char* name : {"register", "split", "outlier_threshold", "step_tolerance",
                            "sd_fraction", "max_condition", "noise_sigma", "loss_scale", "threads",
@@ -436,8 +435,43 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
       throw LpoeError("registration to the tracker data: " + s.message());
     }
   }
+  // verify: distance and plane sets of the calibration's pivots and planes (as --verify).
+  ContactMeasurementSet verification;
+  if (!verify.is_none()) {
+    if (holdout > 0) throw LpoeError("give either verify= or holdout=, not both");
+    std::vector<py::object> parts;
+    if (py::isinstance<py::list>(verify) || py::isinstance<py::tuple>(verify)) {
+      for (const py::handle& h : verify) parts.push_back(py::reinterpret_borrow<py::object>(h));
+    } else {
+      parts.push_back(verify);
+    }
+    ContactMeasurementSet combined = data;
+    for (const py::object& part : parts) {
+      if (!py::isinstance<ContactMeasurementSet>(part)) {
+        throw LpoeError("verify: with distance or plane data, expected lpoe.ContactMeasurements "
+                        "(tracker rows: use holdout=), got " +
+                        py::str(part.get_type().attr("__name__")).cast<std::string>());
+      }
+      const ContactMeasurementSet& c = part.cast<const ContactMeasurementSet&>();
+      if (c.num_joints != nominal.num_joints()) {
+        throw LpoeError("verify: a different number of joints than the model");
+      }
+      combined.Append(c);
+    }
+    if (combined.pivots.size() != data.pivots.size() ||
+        combined.planes.size() != data.planes.size()) {
+      throw LpoeError(
+          "verify names a pivot or plane that data does not (its position is estimated from the "
+          "calibration's rows): " +
+          (combined.pivots.size() != data.pivots.size() ? combined.pivots[data.pivots.size()]
+                                                        : combined.planes[data.planes.size()]));
+    }
+    std::vector<int> rows;
+    for (int r = data.size(); r < combined.size(); ++r) rows.push_back(r);
+    verification = combined.Subset(rows);
+  }
   // The hold-out rows, drawn as lpoe_calibrate draws them.
-  ContactMeasurementSet identification = data, held;
+  ContactMeasurementSet identification = data, held = verification;
   if (holdout > 0) {
     std::mt19937_64 rng(split_seed);
     std::vector<int> order(data.size());
@@ -471,6 +505,40 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
   if (Status s = CheckModelFinite(result.model); !s.ok()) throw LpoeError(s.message());
   std::vector<double> held_errors;
   if (held.size() > 0) held_errors = ContactErrors(result.model, result.features, held);
+  // kfold: as lpoe_calibrate --kfold (rows shuffled by split_seed + 1 into k folds).
+  std::vector<double> fold_errors;
+  if (kfold > 0) {
+    if (kfold > identification.size()) {
+      throw LpoeError("kfold=" + std::to_string(kfold) + " is larger than the " +
+                      std::to_string(identification.size()) + " identification rows");
+    }
+    std::mt19937_64 rng(split_seed + 1);
+    std::vector<int> order(identification.size());
+    for (int i = 0; i < identification.size(); ++i) order[i] = i;
+    std::shuffle(order.begin(), order.end(), rng);
+    fold_errors.assign(identification.size(), 0.0);
+    for (int fold = 0; fold < kfold; ++fold) {
+      std::vector<int> train, test;
+      for (int i = 0; i < identification.size(); ++i) {
+        (i % kfold == fold ? test : train).push_back(order[i]);
+      }
+      std::sort(train.begin(), train.end());
+      std::sort(test.begin(), test.end());
+      const ContactMeasurementSet fold_data = identification.Subset(train);
+      ContactCalibrationResult f;
+      {
+        py::gil_scoped_release release;
+        f = solver == "ceres" ? CalibrateContactsCeres(start, fold_data, options)
+                              : CalibrateContactsLinear(start, fold_data, options);
+      }
+      if (!f.ok) {
+        throw LpoeError("kfold: fold " + std::to_string(fold + 1) + " of " +
+                        std::to_string(kfold) + ": " + f.message);
+      }
+      const std::vector<double> e = ContactErrors(f.model, f.features, identification.Subset(test));
+      for (size_t i = 0; i < test.size(); ++i) fold_errors[test[i]] = e[i];
+    }
+  }
 
   // The report: lpoe_calibrate's table per kind (tools/lpoe_calibrate_contact.cc), as JSON.
   py::list kinds;
@@ -494,7 +562,24 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
       if (h.rows > 0) {
         d["held_out_rows"] = h.rows;
         d["held_out_rms_mm"] = h.rms;
+        py::dict v;
+        v["source"] = verify.is_none() ? "holdout" : "verify";
+        v["rows"] = h.rows;
+        v["rms_mm"] = h.rms;
+        v["max_abs_mm"] = h.max_abs;
+        v["expected_noise_mm"] = h.sigma;
+        v["verdict"] = ContactKindVerdict(h);
+        d["verification"] = v;
       }
+    }
+    if (kfold > 0) {
+      const ContactKindFigures cv = ContactFigures(identification, fold_errors, kind.id);
+      py::dict f;
+      f["folds"] = kfold;
+      f["rows"] = cv.rows;
+      f["rms_mm"] = cv.rms;
+      f["max_abs_mm"] = cv.max_abs;
+      d["kfold"] = f;
     }
     kinds.append(d);
   }
@@ -677,8 +762,9 @@ void BindCalibration(py::module_& m) {
       "rows need sigma=, their noise per axis in mm), calibrated as lpoe_calibrate "
       "--measurements=a.csv,b.csv does: solver, holdout, split_seed, max_iterations and "
       "hold_scale='auto' | 'on' | 'off' (auto holds the robot's scale when no row measures a "
-      "length) apply; verify, kfold, joint_errors, residual_model, loss, fixed_tools and "
-      "parameterization='full' are refused.\n"
+      "length), verify (distance or plane sets of the same pivots and planes) and kfold "
+      "apply; joint_errors, residual_model, loss, fixed_tools and parameterization='full' are "
+      "refused.\n"
       "An unknown keyword raises lpoe.Error naming it.");
 }
 

@@ -124,8 +124,12 @@ def test_holdout_and_same_model_bytes_as_the_tool(sim):
 
 def test_refusals(sim):
     nominal, _, bar, cube, _ = sim
-    with pytest.raises(lpoe.Error, match="kfold is not available with distance or plane data"):
-        lpoe.calibrate(nominal, bar, kfold=5)
+    with pytest.raises(lpoe.Error, match="kfold: expected 0 .off. or 2..100, got 1"):
+        lpoe.calibrate(nominal, bar, kfold=1)
+    with pytest.raises(lpoe.Error, match="give either verify= or holdout=, not both"):
+        lpoe.calibrate(nominal, bar, verify=bar, holdout=0.2)
+    with pytest.raises(lpoe.Error, match="verify names a pivot or plane that data does not"):
+        lpoe.calibrate(nominal, bar, verify=cube)
     with pytest.raises(lpoe.Error, match="joint_errors is not available"):
         lpoe.calibrate(nominal, bar, joint_errors="harmonics")
     with pytest.raises(lpoe.Error, match="hold_scale: expected 'auto', 'on' or 'off'"):
@@ -139,3 +143,33 @@ def test_refusals(sim):
     with pytest.raises(lpoe.Error, match=r"data\[1\]: expected lpoe.Measurements or "
                                          r"lpoe.ContactMeasurements, got int"):
         lpoe.calibrate(nominal, [bar, 3])
+
+
+def test_verify_and_kfold_as_the_tool(sim):
+    """verify= (ballbar rows of the same pivots, another seed) and kfold= give the tool's
+    verification and cross-validation tables per kind, with the same figures."""
+    nominal, _, bar, cube, d = sim
+    model = os.path.join(DATA, "cobot6.yaml")
+    check = d / "check.csv"
+    subprocess.run([SIMULATE, f"--model={model}", "--measurement=ballbar", "--count=80",
+                    "--noise_sigma=0.002", "--seed=8", f"--output={check}", "--quiet"] + ERRORS,
+                   check=True)
+    v = lpoe.read_measurements(str(check), nominal)
+    r = lpoe.calibrate(nominal, [bar, cube], verify=v, kfold=4)
+    kinds = {k["kind"]: k for k in r.report["measurement_kinds"]}
+    ver = kinds["distance"]["verification"]
+    assert ver["source"] == "verify" and ver["rows"] == 80 and ver["verdict"] == "pass"
+    assert ver["rms_mm"] < 1.5 * 0.002  # new distances predicted to their noise
+    assert "verification" not in kinds["plane"]
+    for k in kinds.values():
+        assert k["kfold"]["folds"] == 4 and k["kfold"]["rows"] == k["rows"]
+        assert 0.5 * k["expected_noise_mm"] < k["kfold"]["rms_mm"] < 1.5 * k["expected_noise_mm"]
+    report = d / "cli.json"
+    subprocess.run([CLI, f"--model={model}", f"--measurements={d / 'bar.csv'},{d / 'cube.csv'}",
+                    f"--verify={check}", "--kfold=4", f"--report={report}", "--quiet"],
+                   check=True, stdout=subprocess.DEVNULL)
+    import json
+    cli = {k["kind"]: k for k in json.loads(report.read_text())["measurement_kinds"]}
+    for name, k in kinds.items():
+        assert cli[name]["kfold"]["rms_mm"] == pytest.approx(k["kfold"]["rms_mm"], rel=1e-12)
+    assert cli["distance"]["verification"]["rms_mm"] == pytest.approx(ver["rms_mm"], rel=1e-12)
