@@ -504,7 +504,6 @@ int RunContactCalibration() {
       k["held_out_rows"] = f.held_rows;
       k["held_out_rms_mm"] = f.held_rms;
       // The verification table (--verify or --holdout): the kind's figures on rows not fitted.
-      h.held_rows = 0;
       k["verification"] = {{"source", FLAGS_verify.empty() ? "holdout" : "verify"},
                            {"rows", h.rows},
                            {"rms_mm", h.rms},
