@@ -2,6 +2,7 @@
 // flags, exit 0, a model that predicts the simulated robot's tool positions to micrometres after the
 // rigid (ballbar) or similarity (planes alone) alignment, the report's table per kind, and bad
 // input refused with the file and line and nothing written.
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <string>
@@ -187,6 +188,98 @@ TEST_F(ContactTool, CompareAgrees) {
                                                   " --tolerance_mm=1e-4");
   EXPECT_EQ(o.exit_code, 0) << o.err << o.out;
   EXPECT_NE(o.out.find("largest difference of the predicted tool points"), std::string::npos) << o.out;
+}
+#endif
+
+// --verify with a ballbar file of the same pivots (another seed, the same robot): its table per
+// kind in the report, fitting to the noise; --kfold's cross-validated RMS per kind; a pivot the
+// calibration does not estimate refused, naming it, nothing written.
+TEST_F(ContactTool, VerifyAndKfold) {
+  Simulate("ballbar", 0.002, "bar.csv");
+  Simulate("plane", 0.003, "cube.csv");
+  ToolOutput o = Run(LPOE_SIMULATE_PATH, std::string("--measurement=ballbar") + kErrors +
+                                             " --count=100 --seed=9 --noise_sigma=0.002 --output=" +
+                                             P("verify.csv"));
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  o = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") + " --measurements=" + P("bar.csv") +
+                                   "," + P("cube.csv") + " --verify=" + P("verify.csv") +
+                                   " --kfold=4 --output=" + P("cal.yaml") + " --report=" +
+                                   P("report.json"));
+  ASSERT_EQ(o.exit_code, 0) << o.err << o.out;
+  EXPECT_NE(o.out.find("verify RMS"), std::string::npos) << o.out;
+  const nlohmann::json r = Report();
+  ASSERT_EQ(r["measurement_kinds"].size(), 2u);
+  const nlohmann::json& bar = r["measurement_kinds"][0];
+  const nlohmann::json& cube = r["measurement_kinds"][1];
+  ASSERT_EQ(bar["kind"], "distance");
+  ASSERT_TRUE(bar.contains("verification")) << bar.dump();
+  EXPECT_EQ(bar["verification"]["source"], "verify");
+  EXPECT_EQ(bar["verification"]["rows"], 100);
+  EXPECT_EQ(bar["verification"]["verdict"], "pass");
+  // The calibrated robot predicts new distances to their noise (the nominal one: to millimetres).
+  EXPECT_LT(bar["verification"]["rms_mm"].get<double>(), 1.5 * 0.002);
+  EXPECT_FALSE(cube.contains("verification"));  // no plane rows verified
+  for (const nlohmann::json* k : {&bar, &cube}) {
+    ASSERT_TRUE(k->contains("kfold")) << k->dump();
+    EXPECT_EQ((*k)["kfold"]["folds"], 4);
+    EXPECT_EQ((*k)["kfold"]["rows"], (*k)["rows"]);
+    // Each fold's rows predicted by the others' calibration: near the noise, not below half of it.
+    const double cv = (*k)["kfold"]["rms_mm"].get<double>();
+    const double sigma = (*k)["expected_noise_mm"].get<double>();
+    EXPECT_LT(cv, 1.5 * sigma) << k->dump();
+    EXPECT_GT(cv, 0.5 * sigma) << k->dump();
+  }
+  // A pivot the calibration does not estimate.
+  std::ofstream(dir_ / "other.csv") << "q1,q2,q3,q4,q5,q6,distance,pivot,sigma\n"
+                                       "0,0,0,0,0,0,150,elsewhere,0.002\n";
+  o = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") + " --measurements=" + P("bar.csv") +
+                                   " --verify=" + P("other.csv") + " --output=" + P("cal2.yaml"));
+  EXPECT_EQ(o.exit_code, 2);
+  EXPECT_NE(o.err.find("--verify names a pivot or plane that --measurements does not"),
+            std::string::npos)
+      << o.err;
+  EXPECT_NE(o.err.find("elsewhere"), std::string::npos) << o.err;
+  EXPECT_FALSE(std::ifstream(dir_ / "cal2.yaml").good());
+  o = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") + " --measurements=" + P("bar.csv") +
+                                   " --verify=" + P("verify.csv") + " --holdout=0.2");
+  EXPECT_EQ(o.exit_code, 1);
+  EXPECT_NE(o.err.find("either --verify or --holdout"), std::string::npos) << o.err;
+}
+
+// The URDF output of a ballbar calibration predicts what the calibrated YAML does.
+TEST_F(ContactTool, UrdfOutputIsTheCalibratedModel) {
+  Simulate("ballbar", 0.002, "bar.csv");
+  const ToolOutput o = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") +
+                                                    " --measurements=" + P("bar.csv") +
+                                                    " --output=" + P("cal.yaml") +
+                                                    " --urdf_output=" + P("cal.urdf"));
+  ASSERT_EQ(o.exit_code, 0) << o.err << o.out;
+  RobotModel yaml, urdf, nominal;
+  ASSERT_TRUE(ReadRobotModel(dir_ / "cal.yaml", &yaml).ok());
+  ASSERT_TRUE(ReadRobotModelFile(dir_ / "cal.urdf", &urdf).ok());
+  ASSERT_TRUE(ReadRobotModel(dir_ / "nominal.yaml", &nominal).ok());
+  double worst = 0, moved = 0;
+  for (int i = 0; i < 20; ++i) {
+    std::vector<double> q(6);
+    for (int j = 0; j < 6; ++j) q[j] = std::sin(0.9 * i + 1.3 * j);
+    worst = std::max(worst, (ToolPosition(yaml, q.data()) - ToolPosition(urdf, q.data())).norm());
+    moved = std::max(moved, (ToolPosition(yaml, q.data()) - ToolPosition(nominal, q.data())).norm());
+  }
+  EXPECT_LT(worst, 1e-6);  // mm
+  EXPECT_GT(moved, 0.1);   // the calibration changed the model
+}
+
+#ifdef LPOE_PLAN_PATH
+// Planning ballbar or probe poses is not there yet: refused with its reason, nothing written.
+TEST_F(ContactTool, PlanRefusesBallbarWithItsReason) {
+  Simulate("ballbar", 0.002, "bar.csv");
+  const ToolOutput o = Run(LPOE_PLAN_PATH, "--model=" + P("nominal.yaml") +
+                                               " --measurement=ballbar --count=20 --output=" +
+                                               P("plan.csv"));
+  EXPECT_EQ(o.exit_code, 1);
+  EXPECT_NE(o.err.find("planning ballbar or probe poses is not available yet"), std::string::npos)
+      << o.err;
+  EXPECT_FALSE(std::ifstream(dir_ / "plan.csv").good());
 }
 #endif
 

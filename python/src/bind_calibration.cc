@@ -6,10 +6,16 @@
 #include <pybind11/stl.h>
 
 #include <algorithm>
+#include <cmath>
+#include <random>
 #include <string>
 #include <vector>
 
 #include "lpoe/analysis.h"
+#include "lpoe/contact_calibration.h"
+#include "lpoe/contact_measurements.h"
+#include "lpoe/measurement_kinds.h"
+#include "lpoe/registration.h"
 #include "lpoe/io.h"
 #include "lpoe/options.h"
 #include "lpoe/pipeline.h"
@@ -293,6 +299,365 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   return c;
 }
 
+
+// ---- Ballbar distances and probe contacts (docs/measurements.md), as lpoe_calibrate runs them
+// (tools/lpoe_calibrate_contact.cc): the same options, hold-out split and report table.
+
+struct ContactKindFigures {
+  int rows = 0;
+  double rms = 0, max_abs = 0, sigma = 0;
+};
+
+ContactKindFigures ContactFigures(const ContactMeasurementSet& data,
+                                  const std::vector<double>& errors, MeasurementKindId kind) {
+  ContactKindFigures f;
+  std::vector<double> sigmas;
+  double sum = 0;
+  for (int r = 0; r < data.size(); ++r) {
+    if (data.rows[r].kind != kind) continue;
+    ++f.rows;
+    const double e = errors[r];
+    sum += kind == MeasurementKindId::kPosition ? e * e / 3 : e * e;
+    f.max_abs = std::max(f.max_abs, std::abs(e));
+    sigmas.push_back(data.rows[r].sigma);
+  }
+  f.rms = f.rows > 0 ? std::sqrt(sum / f.rows) : 0;
+  if (!sigmas.empty()) {
+    std::sort(sigmas.begin(), sigmas.end());
+    f.sigma = sigmas[sigmas.size() / 2];
+  }
+  return f;
+}
+
+const char* ContactKindVerdict(const ContactKindFigures& f) {
+  if (f.rows == 0) return "none";
+  const double ratio = f.sigma > 0 ? f.rms / f.sigma : 0;
+  return ratio <= 2 ? "pass" : ratio <= 5 ? "check" : "fail";
+}
+
+// The parts of `data` (one data set, or a list of them) as one contact set; tracker rows (an
+// lpoe.Measurements) with noise `sigma` per axis, collected in `tracker` too. False when no part
+// is a distance or plane set (the ordinary calibration then applies).
+bool GatherContactData(const RobotModel& nominal, const py::object& data, double sigma,
+                       bool sigma_given, ContactMeasurementSet* out, MeasurementSet* tracker) {
+  std::vector<py::object> parts;
+  if (py::isinstance<py::list>(data) || py::isinstance<py::tuple>(data)) {
+    for (const py::handle& h : data) parts.push_back(py::reinterpret_borrow<py::object>(h));
+  } else {
+    parts.push_back(data);
+  }
+  bool any_contact = false;
+  for (const py::object& part : parts) {
+    if (py::isinstance<ContactMeasurementSet>(part)) any_contact = true;
+  }
+  if (!any_contact) return false;
+  out->num_joints = nominal.num_joints();
+  *tracker = MeasurementSet(nominal.num_joints());
+  for (size_t i = 0; i < parts.size(); ++i) {
+    const py::object& part = parts[i];
+    if (py::isinstance<ContactMeasurementSet>(part)) {
+      const ContactMeasurementSet& c = part.cast<const ContactMeasurementSet&>();
+      if (c.num_joints != nominal.num_joints()) {
+        throw LpoeError("data[" + std::to_string(i) + "]: " + std::to_string(c.num_joints) +
+                        " joints, the model has " + std::to_string(nominal.num_joints()));
+      }
+      out->Append(c);
+    } else if (py::isinstance<MeasurementSet>(part)) {
+      const MeasurementSet& m = part.cast<const MeasurementSet&>();
+      if (m.num_joints() != nominal.num_joints()) {
+        throw LpoeError("data[" + std::to_string(i) + "]: " + std::to_string(m.num_joints()) +
+                        " joints, the model has " + std::to_string(nominal.num_joints()));
+      }
+      if (!sigma_given) {
+        throw LpoeError("data[" + std::to_string(i) +
+                        "]: tracker rows with distances or planes need their noise: sigma= (mm "
+                        "per axis), as lpoe_calibrate --sigma");
+      }
+      tracker->Append(m);
+      out->Append(ContactSetFromPositions(m, sigma, "data[" + std::to_string(i) + "]"));
+    } else {
+      throw LpoeError("data[" + std::to_string(i) + "]: expected lpoe.Measurements or "
+                      "lpoe.ContactMeasurements, got " +
+                      py::str(part.get_type().attr("__name__")).cast<std::string>());
+    }
+  }
+  for (int r = 0; r < out->size(); ++r) {
+    if (out->rows[r].target < 0 || out->rows[r].target >= nominal.num_tools()) {
+      throw LpoeError("data: row " + std::to_string(r) + " measures tool " +
+                      std::to_string(out->rows[r].target) + ", the model has " +
+                      std::to_string(nominal.num_tools()) + " tools");
+    }
+  }
+  return true;
+}
+
+Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasurementSet& data,
+                              const MeasurementSet& tracker, const py::kwargs& kwargs) {
+  KeywordOptions k(kwargs);
+  const std::string solver = k.Get<std::string>("solver", "linear");
+  const std::string hold_scale = k.Get<std::string>("hold_scale", "auto");
+  const double holdout = k.Get<double>("holdout", 0.0);
+  const uint64_t split_seed = k.Get<uint64_t>("split_seed", 1);
+  const int max_iterations = k.Get<int>("max_iterations", 30);
+  const std::string data_kind = k.Get<std::string>("data_kind", "auto");
+  k.Get<double>("sigma", 1.0);  // the tracker rows' noise (GatherContactData)
+  // What lpoe_calibrate refuses with these kinds (docs/measurements.md), refused here too.
+  const std::vector<std::pair<const char*, std::string>> defaults = {
+      {"parameterization", "identifiable"}, {"joint_errors", "none"}, {"residual_model", "none"},
+      {"loss", "none"}};
+  for (const auto& [name, fallback] : defaults) {
+    if (k.Get<std::string>(name, fallback) != fallback) {
+      throw LpoeError(std::string(name) +
+                      " is not available with distance or plane data yet (docs/measurements.md)");
+    }
+  }
+  const int kfold = k.Get<int>("kfold", 0);
+  if (kfold != 0 && !(kfold >= 2 && kfold <= 100)) {
+    throw LpoeError("kfold: expected 0 (off) or 2..100, got " + std::to_string(kfold));
+  }
+  if (!k.Get<py::object>("fixed_tools", py::none()).is_none()) {
+    throw LpoeError(
+        "fixed_tools is not available with distance or plane data yet (docs/measurements.md)");
+  }
+  const py::object verify = k.Get<py::object>("verify", py::none());
+  // Accepted and without effect here, as lpoe_calibrate's run for these kinds ignores them.
+  for (const char* name : {"register", "split", "outlier_threshold", "step_tolerance",
+                           "sd_fraction", "max_condition", "noise_sigma", "loss_scale", "threads",
+                           "angle_unit", "prior_scale", "prior_translation", "prior_rotation",
+                           "prior_tool_translation", "prior_joint_terms"}) {
+    k.Get<py::object>(name, py::none());
+  }
+  k.Finish("calibrate");
+  if (solver != "linear" && solver != "ceres") {
+    throw LpoeError("solver: expected 'linear' or 'ceres', got '" + solver + "'");
+  }
+  ContactCalibrationOptions options;
+  if (!ParseScaleHold(hold_scale, &options.hold_scale)) {
+    throw LpoeError("hold_scale: expected 'auto', 'on' or 'off', got '" + hold_scale + "'");
+  }
+  if (!(max_iterations >= 1 && max_iterations <= 10000)) {
+    throw LpoeError("max_iterations: expected 1..10000");
+  }
+  options.max_iterations = std::max(max_iterations, 30);
+  if (!(holdout >= 0 && holdout < 1)) throw LpoeError("holdout: expected 0 <= holdout < 1");
+  if (data_kind != "auto") {
+    const MeasurementKindInfo* kind = FindMeasurementKind(data_kind);
+    if (kind == nullptr || data.Count(kind->id) != data.size()) {
+      throw LpoeError("data_kind: '" + data_kind + "' is not the kind of every row");
+    }
+  }
+  if (data.Count(MeasurementKindId::kDistance) + data.Count(MeasurementKindId::kPlane) == 0) {
+    throw LpoeError("data: no distance or plane rows");
+  }
+  if (Status s = nominal.Validate(); !s.ok()) throw LpoeError(s.message());
+
+  RobotModel start = nominal;
+  if (tracker.size() > 0) {
+    RegistrationReport report;
+    if (Status s = RegisterToMeasurements(nominal, tracker, &start, &report); !s.ok()) {
+      throw LpoeError("registration to the tracker data: " + s.message());
+    }
+  }
+  // verify: distance and plane sets of the calibration's pivots and planes (as --verify).
+  ContactMeasurementSet verification;
+  if (!verify.is_none()) {
+    if (holdout > 0) throw LpoeError("give either verify= or holdout=, not both");
+    std::vector<py::object> parts;
+    if (py::isinstance<py::list>(verify) || py::isinstance<py::tuple>(verify)) {
+      for (const py::handle& h : verify) parts.push_back(py::reinterpret_borrow<py::object>(h));
+    } else {
+      parts.push_back(verify);
+    }
+    ContactMeasurementSet combined = data;
+    for (const py::object& part : parts) {
+      if (!py::isinstance<ContactMeasurementSet>(part)) {
+        throw LpoeError("verify: with distance or plane data, expected lpoe.ContactMeasurements "
+                        "(tracker rows: use holdout=), got " +
+                        py::str(part.get_type().attr("__name__")).cast<std::string>());
+      }
+      const ContactMeasurementSet& c = part.cast<const ContactMeasurementSet&>();
+      if (c.num_joints != nominal.num_joints()) {
+        throw LpoeError("verify: a different number of joints than the model");
+      }
+      combined.Append(c);
+    }
+    if (combined.pivots.size() != data.pivots.size() ||
+        combined.planes.size() != data.planes.size()) {
+      throw LpoeError(
+          "verify names a pivot or plane that data does not (its position is estimated from the "
+          "calibration's rows): " +
+          (combined.pivots.size() != data.pivots.size() ? combined.pivots[data.pivots.size()]
+                                                        : combined.planes[data.planes.size()]));
+    }
+    std::vector<int> rows;
+    for (int r = data.size(); r < combined.size(); ++r) rows.push_back(r);
+    verification = combined.Subset(rows);
+  }
+  // The hold-out rows, drawn as lpoe_calibrate draws them.
+  ContactMeasurementSet identification = data, held = verification;
+  if (holdout > 0) {
+    std::mt19937_64 rng(split_seed);
+    std::vector<int> order(data.size());
+    for (int i = 0; i < data.size(); ++i) order[i] = i;
+    std::shuffle(order.begin(), order.end(), rng);
+    const int count = static_cast<int>(std::floor(holdout * data.size()));
+    std::vector<int> train(order.begin() + count, order.end()),
+        test(order.begin(), order.begin() + count);
+    std::sort(train.begin(), train.end());
+    std::sort(test.begin(), test.end());
+    identification = data.Subset(train);
+    held = data.Subset(test);
+  }
+  ContactCalibrationResult result;
+  {
+    py::gil_scoped_release release;
+    result = solver == "ceres" ? CalibrateContactsCeres(start, identification, options)
+                               : CalibrateContactsLinear(start, identification, options);
+  }
+  Calibration c;
+  c.converged = result.ok;
+  c.iterations = result.iterations;
+  c.final_cost = result.cost;
+  c.message = result.message;
+  c.model = result.model;
+  if (!result.ok) {
+    c.termination = result.iterations == 0 ? "not_identifiable" : "failed";
+    return c;
+  }
+  c.termination = "converged";
+  if (Status s = CheckModelFinite(result.model); !s.ok()) throw LpoeError(s.message());
+  std::vector<double> held_errors;
+  if (held.size() > 0) held_errors = ContactErrors(result.model, result.features, held);
+  // kfold: as lpoe_calibrate --kfold (rows shuffled by split_seed + 1 into k folds).
+  std::vector<double> fold_errors;
+  if (kfold > 0) {
+    if (kfold > identification.size()) {
+      throw LpoeError("kfold=" + std::to_string(kfold) + " is larger than the " +
+                      std::to_string(identification.size()) + " identification rows");
+    }
+    std::mt19937_64 rng(split_seed + 1);
+    std::vector<int> order(identification.size());
+    for (int i = 0; i < identification.size(); ++i) order[i] = i;
+    std::shuffle(order.begin(), order.end(), rng);
+    fold_errors.assign(identification.size(), 0.0);
+    for (int fold = 0; fold < kfold; ++fold) {
+      std::vector<int> train, test;
+      for (int i = 0; i < identification.size(); ++i) {
+        (i % kfold == fold ? test : train).push_back(order[i]);
+      }
+      std::sort(train.begin(), train.end());
+      std::sort(test.begin(), test.end());
+      const ContactMeasurementSet fold_data = identification.Subset(train);
+      ContactCalibrationResult f;
+      {
+        py::gil_scoped_release release;
+        f = solver == "ceres" ? CalibrateContactsCeres(start, fold_data, options)
+                              : CalibrateContactsLinear(start, fold_data, options);
+      }
+      if (!f.ok) {
+        throw LpoeError("kfold: fold " + std::to_string(fold + 1) + " of " +
+                        std::to_string(kfold) + ": " + f.message);
+      }
+      const std::vector<double> e = ContactErrors(f.model, f.features, identification.Subset(test));
+      for (size_t i = 0; i < test.size(); ++i) fold_errors[test[i]] = e[i];
+    }
+  }
+
+  // The report: lpoe_calibrate's table per kind (tools/lpoe_calibrate_contact.cc), as JSON.
+  py::list kinds;
+  std::string worst = "pass";
+  for (const MeasurementKindInfo& kind : MeasurementKinds()) {
+    if (kind.id == MeasurementKindId::kPose) continue;
+    const ContactKindFigures f = ContactFigures(identification, result.errors, kind.id);
+    if (f.rows == 0) continue;
+    py::dict d;
+    d["kind"] = kind.name;
+    d["table"] = kind.report_table;
+    d["rows"] = f.rows;
+    d["rms_mm"] = f.rms;
+    d["max_abs_mm"] = f.max_abs;
+    d["expected_noise_mm"] = f.sigma;
+    const std::string v = ContactKindVerdict(f);
+    d["verdict"] = v;
+    if (v == "fail" || (v == "check" && worst == "pass")) worst = v;
+    if (held.size() > 0) {
+      const ContactKindFigures h = ContactFigures(held, held_errors, kind.id);
+      if (h.rows > 0) {
+        d["held_out_rows"] = h.rows;
+        d["held_out_rms_mm"] = h.rms;
+        py::dict v;
+        v["source"] = verify.is_none() ? "holdout" : "verify";
+        v["rows"] = h.rows;
+        v["rms_mm"] = h.rms;
+        v["max_abs_mm"] = h.max_abs;
+        v["expected_noise_mm"] = h.sigma;
+        v["verdict"] = ContactKindVerdict(h);
+        d["verification"] = v;
+      }
+    }
+    if (kfold > 0) {
+      const ContactKindFigures cv = ContactFigures(identification, fold_errors, kind.id);
+      py::dict f;
+      f["folds"] = kfold;
+      f["rows"] = cv.rows;
+      f["rms_mm"] = cv.rms;
+      f["max_abs_mm"] = cv.max_abs;
+      d["kfold"] = f;
+    }
+    kinds.append(d);
+  }
+  const ContactParameterization& p = result.parameterization;
+  py::list pivots, planes, left_out;
+  for (size_t i = 0; i < result.features.pivots.size(); ++i) {
+    const Eigen::Vector3d& x = result.features.pivots[i];
+    py::dict d;
+    d["name"] = identification.pivots[i];
+    d["xyz_mm"] = std::vector<double>{x(0), x(1), x(2)};
+    pivots.append(d);
+  }
+  for (size_t i = 0; i < result.features.planes.size(); ++i) {
+    const Eigen::Vector4d& x = result.features.planes[i];
+    py::dict d;
+    d["name"] = identification.planes[i];
+    d["normal"] = std::vector<double>{x(0), x(1), x(2)};
+    d["offset_mm"] = x(3);
+    planes.append(d);
+  }
+  for (const Direction& d : p.frames.unidentifiable) {
+    py::dict e;
+    e["name"] = d.name;
+    e["reason"] = d.reason;
+    left_out.append(e);
+  }
+  py::dict report;
+  report["tool"] = "lpoe (Python)";
+  report["solver"] = result.solver;
+  report["iterations"] = result.iterations;
+  report["cost_before"] = result.initial_cost;
+  report["cost_after"] = result.cost;
+  report["measurement_kinds"] = kinds;
+  py::dict features;
+  features["pivots"] = pivots;
+  features["planes"] = planes;
+  report["features"] = features;
+  report["parameters"] = p.frames.num_parameters + 3 * p.num_pivots + 3 * p.num_planes;
+  py::dict base, scale;
+  base["directions_left_out"] = p.num_base_directions;
+  base["reason"] = p.base_reason;
+  report["base"] = base;
+  scale["held"] = p.scale_held;
+  scale["reason"] = p.scale_reason;
+  scale["value"] = result.scale;
+  report["scale"] = scale;
+  report["left_out"] = left_out;
+  c.verdict = worst;
+  c.verdict_reason = "the worst of the kinds' verdicts (RMS within 2x the expected noise: pass, "
+                     "5x: check)";
+  c.report_json = py::module_::import("json").attr("dumps")(report, py::arg("indent") = 2)
+                      .cast<std::string>();
+  return c;
+}
+
 }  // namespace
 
 void BindCalibration(py::module_& m) {
@@ -324,7 +689,7 @@ void BindCalibration(py::module_& m) {
   // lpoe_calibrate's flags with the same defaults; passed on as the options KeywordOptions reads.
   m.def(
       "calibrate",
-      [](const RobotModel& model, const MeasurementSet& data, const py::object& verify,
+      [](const RobotModel& model, const py::object& data, const py::object& verify,
          const std::string& solver, const std::string& parameterization,
          const std::string& data_kind, const std::string& joint_errors,
          const std::string& residual_model, bool register_frames,
@@ -333,8 +698,8 @@ void BindCalibration(py::module_& m) {
          double max_condition, double noise_sigma, const std::string& loss, double loss_scale,
          const py::object& sigma, int threads, const std::string& angle_unit,
          const py::object& fixed_tools, double prior_scale, double prior_translation,
-         double prior_rotation, double prior_tool_translation, double prior_joint_terms) {
-        const MeasurementSet* v = verify.is_none() ? nullptr : verify.cast<const MeasurementSet*>();
+         double prior_rotation, double prior_tool_translation, double prior_joint_terms,
+         const std::string& hold_scale) {
         py::kwargs k;
         k["solver"] = solver;
         k["parameterization"] = parameterization;
@@ -363,7 +728,26 @@ void BindCalibration(py::module_& m) {
         k["prior_rotation"] = prior_rotation;
         k["prior_tool_translation"] = prior_tool_translation;
         k["prior_joint_terms"] = prior_joint_terms;
-        return Calibrate(model, data, v, k);
+        // Ballbar distances and probe contacts: one lpoe.ContactMeasurements or a list of data
+        // sets (docs/measurements.md).
+        ContactMeasurementSet contacts;
+        MeasurementSet tracker(model.num_joints());
+        if (GatherContactData(model, data, sigma.is_none() ? 0.0 : sigma.cast<double>(),
+                              !sigma.is_none(), &contacts, &tracker)) {
+          k["hold_scale"] = hold_scale;
+          k["verify"] = verify;
+          return CalibrateContacts(model, contacts, tracker, k);
+        }
+        if (hold_scale != "auto") {
+          throw LpoeError("hold_scale applies to distance and plane data only");
+        }
+        if (!py::isinstance<MeasurementSet>(data)) {
+          throw LpoeError("data: expected lpoe.Measurements, lpoe.ContactMeasurements or a list "
+                          "of them, got " +
+                          py::str(data.get_type().attr("__name__")).cast<std::string>());
+        }
+        const MeasurementSet* v = verify.is_none() ? nullptr : verify.cast<const MeasurementSet*>();
+        return Calibrate(model, data.cast<const MeasurementSet&>(), v, k);
       },
       py::arg("model"), py::arg("data"), py::arg("verify") = py::none(), py::kw_only(),
       py::arg("solver") = "linear", py::arg("parameterization") = "identifiable",
@@ -386,6 +770,7 @@ void BindCalibration(py::module_& m) {
       py::arg("prior_rotation") = OptionDefault("lpoe_calibrate", "prior_rotation"),
       py::arg("prior_tool_translation") = OptionDefault("lpoe_calibrate", "prior_tool_translation"),
       py::arg("prior_joint_terms") = OptionDefault("lpoe_calibrate", "prior_joint_terms"),
+      py::arg("hold_scale") = "auto",
       "Calibrates `model` from `data` (and verifies on `verify`) as lpoe_calibrate does, through "
       "the same pipeline (registration, solver, analysis, cross-validation, verdict). The keyword "
       "arguments are named as its flags, with the same defaults and ranges (lpoe/options.h):\n"
@@ -410,6 +795,14 @@ void BindCalibration(py::module_& m) {
       "  prior_scale=1 (0: no prior, plain least squares), prior_translation (mm), prior_rotation "
       "(mrad), prior_tool_translation (mm), prior_joint_terms (mrad): the prior that holds weakly "
       "determined directions near the start model (docs/identifiability.md).\n"
+      "Ballbar distances and probe contacts (docs/measurements.md): `data` is an "
+      "lpoe.ContactMeasurements or a list of data sets (distance, plane and tracker sets; tracker "
+      "rows need sigma=, their noise per axis in mm), calibrated as lpoe_calibrate "
+      "--measurements=a.csv,b.csv does: solver, holdout, split_seed, max_iterations and "
+      "hold_scale='auto' | 'on' | 'off' (auto holds the robot's scale when no row measures a "
+      "length), verify (distance or plane sets of the same pivots and planes) and kfold "
+      "apply; joint_errors, residual_model, loss, fixed_tools and parameterization='full' are "
+      "refused.\n"
       "An unknown keyword raises lpoe.Error naming it.");
 }
 
