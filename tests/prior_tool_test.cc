@@ -152,6 +152,12 @@ TEST(PriorTool, RefusesModelsOfAnotherChainOrOtherTools) {
   const testing::ToolOutput missing = Prior(dir, {a, dir / "none.yaml"}, dir / "fleet.yaml");
   EXPECT_EQ(missing.exit_code, 2);
   EXPECT_NE(missing.err.find(dir / "none.yaml"), std::string::npos) << missing.err;
+  // --model is not its input (a user who meant --models is told).
+  const testing::ToolOutput model = testing::RunInDir(
+      dir.path(), ShellQuote(LPOE_PRIOR_PATH) + " --model=" + ShellQuote(a) + " --models=" +
+                      ShellQuote(a + "," + b) + " --output=" + ShellQuote(dir / "fleet.yaml"));
+  EXPECT_EQ(model.exit_code, 1);
+  EXPECT_NE(model.err.find("not --model"), std::string::npos) << model.err;
   const testing::ToolOutput onto = Prior(dir, {a, b}, b);
   EXPECT_EQ(onto.exit_code, 1);
   EXPECT_FALSE(testing::Exists(dir / "fleet.yaml"));
