@@ -9,7 +9,7 @@ echo "quickstart: [1/4] system packages (scripts/setup.sh)"
 bash scripts/setup.sh
 echo "quickstart: [2/4] configuring build/ (Release, no tests or benchmarks)"
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF -DLPOE_BUILD_BENCHMARKS=OFF >/dev/null
-targets=(lpoe_calibrate lpoe_compare lpoe_simulate lpoe_plan lpoe_predict lpoe_compensate)
+targets=(lpoe_calibrate lpoe_compare lpoe_simulate lpoe_plan lpoe_predict lpoe_compensate lpoe_prior)
 # The Python module, when pybind11 was found (python/CMakeLists.txt): `_lpoe`.
 if cmake --build build --target help 2>/dev/null | grep -q '_lpoe'; then targets+=(_lpoe); fi
 echo "quickstart: [3/4] building ${targets[*]} (10-20 minutes on two cores the first time)"
