@@ -124,10 +124,15 @@ TEST_F(CompensateTool, ResidualLayerTargetsAndTheFarWarning) {
   layered.residual_layer = layer;
   ASSERT_TRUE(WriteRobotModel(Path("layered.yaml"), layered).ok());
   // Targets in the measurement frame: what the layered model predicts at two configurations, one
-  // inside the region, one far outside it (every joint beyond 2 rad).
+  // inside the region, one far outside it: every joint two of the layer's length scales beyond
+  // the data, which span +-0.4 rad about the centre (the fit chooses the length scales, so "far"
+  // is measured in them, as the warning is).
   std::vector<std::vector<double>> at(2, std::vector<double>(centre, centre + 6));
   at[0][1] += 0.1;
-  for (int j = 0; j < 6; ++j) at[1][j] += j % 2 ? -2.5 : 2.5;
+  for (int j = 0; j < 6; ++j) {
+    const double beyond = 0.4 + 2.0 * layer->length_scales(j);
+    at[1][j] += j % 2 ? -beyond : beyond;
+  }
   ASSERT_LT(layer->KernelDistance(at[0].data()), 3.0);
   ASSERT_GT(layer->KernelDistance(at[1].data()), 3.0);
   std::string csv = "q1,q2,q3,q4,q5,q6,x,y,z\n";
