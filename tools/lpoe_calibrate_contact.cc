@@ -18,6 +18,7 @@
 #include "common_flags.h"
 #include "lpoe/contact_calibration.h"
 #include "lpoe/contact_measurements.h"
+#include "lpoe/contact_pipeline.h"
 #include "lpoe/io.h"
 #include "lpoe/measurement_kinds.h"
 #include "lpoe/refusals.h"
@@ -69,47 +70,6 @@ std::vector<std::string> SplitList(const std::string& text) {
 bool SigmaGiven() {
   gflags::CommandLineFlagInfo info;
   return gflags::GetCommandLineFlagInfo("sigma", &info) && !info.is_default;
-}
-
-struct KindFigures {
-  int rows = 0;
-  double rms = 0;       // mm
-  double max_abs = 0;   // mm
-  double sigma = 0;     // median of the rows' noise (mm)
-  int held_rows = 0;
-  double held_rms = 0;  // mm
-};
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
-KindFigures Figures(const ContactMeasurementSet& data, const std::vector<double>& errors,
-                    MeasurementKindId kind) {
-  KindFigures f;
-  std::vector<double> sigmas;
-  double sum = 0;
-  for (int r = 0; r < data.size(); ++r) {
-    if (data.rows[r].kind != kind) continue;
-    ++f.rows;
-    // Position rows: |e| over three axes; the RMS per axis.
-    const double e = errors[r];
-    sum += kind == MeasurementKindId::kPosition ? e * e / 3 : e * e;
-    f.max_abs = std::max(f.max_abs, std::abs(e));
-    sigmas.push_back(data.rows[r].sigma);
-  }
-  f.rms = f.rows > 0 ? std::sqrt(sum / f.rows) : 0;
-  f.sigma = Median(sigmas);
-  return f;
-}
-
-// pass: within twice the expected noise; check: within five times; fail beyond.
-const char* KindVerdict(const KindFigures& f) {
-  if (f.rows == 0) return "none";
-  const double ratio = f.sigma > 0 ? f.rms / f.sigma : 0;
-  return ratio <= 2 ? "pass" : ratio <= 5 ? "check" : "fail";
 }
 
 std::string HtmlEscape(const std::string& text) {
@@ -290,50 +250,19 @@ int RunContactCalibration() {
   CsvOptions csv;
   csv.angle_unit = angle;
   csv.length_unit = length;
-  ContactMeasurementSet data;
-  data.num_joints = nominal.num_joints();
-  MeasurementSet tracker(nominal.num_joints());
-  std::vector<std::string> kinds_of_files;
-  for (size_t i = 0; i < files.size(); ++i) {
-    const MeasurementKindInfo* kind = nullptr;
-    if (Status s = DetectMeasurementFileKind(files[i], &kind); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitInput;
-    }
-    if (forced != nullptr && forced != kind) {
-      std::cerr << "error: " << files[i] << ": --data_kind=" << forced->name
-                << " but its columns are a " << kind->name << " file's (" << kind->columns
-                << ")\n";
-      return kExitInput;
-    }
-    kinds_of_files.push_back(kind->name);
-    ContactMeasurementSet part;
-    if (kind->id == MeasurementKindId::kDistance || kind->id == MeasurementKindId::kPlane) {
-      ContactCsvOptions o;
-      o.units = csv;
-      o.kind = kind;
-      o.sigma = sigmas[i];
-      if (Status s = ReadContactMeasurements(files[i], nominal, o, &part); !s.ok()) {
-        std::cerr << "error: " << s.message() << "\n";
-        return kExitInput;
-      }
-    } else {
-      if (!(sigmas[i] > 0)) {
-        std::cerr << "error: " << files[i]
-                  << ": a tracker file has no sigma column; give its noise with --sigmas (one "
-                     "value per file) or --sigma\n";
-        return kExitUsage;
-      }
-      MeasurementSet positions;
-      if (Status s = ReadMeasurements(files[i], nominal, csv, &positions, nullptr); !s.ok()) {
-        std::cerr << "error: " << s.message() << "\n";
-        return kExitInput;
-      }
-      tracker.Append(positions);
-      part = ContactSetFromPositions(positions, sigmas[i], files[i]);
-    }
-    data.Append(part);
+  ContactInputOptions input_options;
+  input_options.units = csv;
+  input_options.forced_kind = forced;
+  input_options.sigmas = sigmas;
+  ContactInputs inputs;
+  bool usage_error = false;
+  if (Status s = ReadContactInputs(files, nominal, input_options, &inputs, &usage_error); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return usage_error ? kExitUsage : kExitInput;
   }
+  const ContactMeasurementSet& data = inputs.data;
+  const MeasurementSet& tracker = inputs.tracker;
+  const std::vector<std::string>& kinds_of_files = inputs.kinds;
   if (data.Count(MeasurementKindId::kDistance) + data.Count(MeasurementKindId::kPlane) == 0) {
     std::cerr << "error: no distance or plane file among --measurements (tracker data alone: "
                  "give one file, as always)\n";
@@ -343,7 +272,7 @@ int RunContactCalibration() {
   // the features it estimates.
   ContactMeasurementSet verification;
   if (!verify_files.empty()) {
-    ContactMeasurementSet combined = data;
+    std::vector<ContactMeasurementSet> parts;
     for (const std::string& f : verify_files) {
       const MeasurementKindInfo* kind = nullptr;
       if (Status s = DetectMeasurementFileKind(f, &kind); !s.ok()) {
@@ -365,21 +294,14 @@ int RunContactCalibration() {
         std::cerr << "error: " << s.message() << "\n";
         return kExitInput;
       }
-      combined.Append(part);
+      parts.push_back(std::move(part));
     }
-    if (combined.pivots.size() != data.pivots.size() ||
-        combined.planes.size() != data.planes.size()) {
+    if (Status s = ContactVerificationSet(data, parts, &verification); !s.ok()) {
       std::cerr << "error: --verify names a pivot or plane that --measurements does not (its "
                    "position is estimated from the calibration's rows): "
-                << (combined.pivots.size() != data.pivots.size()
-                        ? combined.pivots[data.pivots.size()]
-                        : combined.planes[data.planes.size()])
-                << "\n";
+                << s.message() << "\n";
       return kExitInput;
     }
-    std::vector<int> rows;
-    for (int r = data.size(); r < combined.size(); ++r) rows.push_back(r);
-    verification = combined.Subset(rows);
   }
   RobotModel start = nominal;
   if (tracker.size() > 0) {
@@ -396,66 +318,31 @@ int RunContactCalibration() {
       return kExitNumerical;
     }
   }
-  // ---- Hold-out rows.
-  ContactMeasurementSet identification = data, held = verification;
-  if (FLAGS_holdout > 0) {
-    std::mt19937_64 rng(FLAGS_split_seed);
-    std::vector<int> order(data.size());
-    for (int i = 0; i < data.size(); ++i) order[i] = i;
-    std::shuffle(order.begin(), order.end(), rng);
-    const int count = static_cast<int>(std::floor(FLAGS_holdout * data.size()));
-    std::vector<int> train(order.begin() + count, order.end()), test(order.begin(), order.begin() + count);
-    std::sort(train.begin(), train.end());
-    std::sort(test.begin(), test.end());
-    identification = data.Subset(train);
-    held = data.Subset(test);
-  }
-
-  // ---- Calibration.
-  const ContactCalibrationResult result =
-      FLAGS_solver == "ceres" ? CalibrateContactsCeres(start, identification, options)
-                              : CalibrateContactsLinear(start, identification, options);
+  // ---- The run: hold-out rows (or --verify's), calibration, --kfold (the identification rows
+  // in k folds, shuffled by --split_seed + 1; each fold's rows predicted by the calibration of the
+  // others, with the same options), the figures per kind (lpoe/contact_pipeline.h).
+  ContactPipelineOptions run_options;
+  run_options.solver = FLAGS_solver;
+  run_options.calibration = options;
+  run_options.holdout = FLAGS_holdout;
+  run_options.split_seed = FLAGS_split_seed;
+  run_options.kfold = FLAGS_kfold;
+  const ContactPipelineResult run = RunContactPipeline(start, data, verification, run_options);
+  const ContactCalibrationResult& result = run.calibration;
+  const ContactMeasurementSet& identification = run.identification;
   if (!result.ok) {
     std::cerr << "error: " << (result.iterations == 0 ? "not identifiable: " : "") << result.message
               << "\n";
     return ExitFor(result);
   }
-  std::vector<double> held_errors;
-  if (held.size() > 0) held_errors = ContactErrors(result.model, result.features, held);
-  // ---- --kfold: the identification rows in k folds (shuffled by --split_seed); each fold's rows
-  // predicted by the calibration of the others, with the same options.
-  std::vector<double> fold_errors;
-  if (FLAGS_kfold > 0) {
-    if (FLAGS_kfold > identification.size()) {
-      std::cerr << "error: --kfold=" << FLAGS_kfold << " is larger than the "
-                << identification.size() << " identification rows\n";
-      return kExitUsage;
-    }
-    std::mt19937_64 rng(FLAGS_split_seed + 1);
-    std::vector<int> order(identification.size());
-    for (int i = 0; i < identification.size(); ++i) order[i] = i;
-    std::shuffle(order.begin(), order.end(), rng);
-    fold_errors.assign(identification.size(), 0.0);
-    for (int fold = 0; fold < FLAGS_kfold; ++fold) {
-      std::vector<int> train, test;
-      for (int i = 0; i < identification.size(); ++i) {
-        (i % FLAGS_kfold == fold ? test : train).push_back(order[i]);
-      }
-      std::sort(train.begin(), train.end());
-      std::sort(test.begin(), test.end());
-      const ContactMeasurementSet fold_data = identification.Subset(train);
-      const ContactCalibrationResult f =
-          FLAGS_solver == "ceres" ? CalibrateContactsCeres(start, fold_data, options)
-                                  : CalibrateContactsLinear(start, fold_data, options);
-      if (!f.ok) {
-        std::cerr << "error: --kfold: fold " << fold + 1 << " of " << FLAGS_kfold << ": "
-                  << f.message << "\n";
-        return ExitFor(f);
-      }
-      const std::vector<double> e =
-          ContactErrors(f.model, f.features, identification.Subset(test));
-      for (size_t i = 0; i < test.size(); ++i) fold_errors[test[i]] = e[i];
-    }
+  if (run.kfold_too_large) {
+    std::cerr << "error: --kfold=" << FLAGS_kfold << " " << run.message << "\n";
+    return kExitUsage;
+  }
+  if (run.failed_fold >= 0) {
+    std::cerr << "error: --kfold: fold " << run.failed_fold + 1 << " of " << FLAGS_kfold << ": "
+              << run.message << "\n";
+    return ExitFor(run.fold_failure);
   }
   const char* verify_label = FLAGS_verify.empty() ? "held-out RMS" : "verify RMS";
   if (Status s = CheckModelFinite(result.model); !s.ok()) {
@@ -478,38 +365,31 @@ int RunContactCalibration() {
       << std::setw(14) << "RMS (mm)" << std::setw(14) << "max (mm)" << std::setw(16)
       << "expected (mm)" << std::setw(9) << "verdict" << std::setw(16) << verify_label
       << (FLAGS_kfold > 0 ? "     k-fold RMS" : "") << "\n";
-  for (const MeasurementKindInfo& kind : MeasurementKinds()) {
-    if (kind.id == MeasurementKindId::kPose) continue;  // tracker rows are position rows here
-    KindFigures f = Figures(identification, result.errors, kind.id);
-    if (f.rows == 0) continue;
-    KindFigures h;
-    if (held.size() > 0) {
-      h = Figures(held, held_errors, kind.id);
-      f.held_rows = h.rows;
-      f.held_rms = h.rms;
-    }
-    KindFigures cv;
-    if (FLAGS_kfold > 0) cv = Figures(identification, fold_errors, kind.id);
+  for (const ContactKindSummary& summary : run.kinds) {
+    const MeasurementKindInfo& kind = *summary.kind;
+    const ContactKindFigures& f = summary.fit;
+    const ContactKindFigures& h = summary.held;
+    const ContactKindFigures& cv = summary.kfold;
     out << std::left << std::setw(10) << kind.name << std::right << std::setw(7) << f.rows
         << std::setw(14) << f.rms << std::setw(14) << f.max_abs << std::setw(16) << f.sigma
-        << std::setw(9) << KindVerdict(f) << std::setw(16)
-        << (f.held_rows > 0 ? std::to_string(f.held_rms) : std::string("-"));
+        << std::setw(9) << ContactKindVerdict(f) << std::setw(16)
+        << (h.rows > 0 ? std::to_string(h.rms) : std::string("-"));
     if (FLAGS_kfold > 0) out << std::setw(15) << cv.rms;
     out << "\n";
     nlohmann::json k = {{"kind", kind.name},          {"table", kind.report_table},
                         {"rows", f.rows},             {"rms_mm", f.rms},
                         {"max_abs_mm", f.max_abs},    {"expected_noise_mm", f.sigma},
-                        {"verdict", KindVerdict(f)}};
-    if (f.held_rows > 0) {
-      k["held_out_rows"] = f.held_rows;
-      k["held_out_rms_mm"] = f.held_rms;
+                        {"verdict", ContactKindVerdict(f)}};
+    if (h.rows > 0) {
+      k["held_out_rows"] = h.rows;
+      k["held_out_rms_mm"] = h.rms;
       // The verification table (--verify or --holdout): the kind's figures on rows not fitted.
       k["verification"] = {{"source", FLAGS_verify.empty() ? "holdout" : "verify"},
                            {"rows", h.rows},
                            {"rms_mm", h.rms},
                            {"max_abs_mm", h.max_abs},
                            {"expected_noise_mm", h.sigma},
-                           {"verdict", KindVerdict(h)}};
+                           {"verdict", ContactKindVerdict(h)}};
     }
     if (FLAGS_kfold > 0) {
       k["kfold"] = {{"folds", FLAGS_kfold}, {"rows", cv.rows}, {"rms_mm", cv.rms},
@@ -518,8 +398,9 @@ int RunContactCalibration() {
     kinds_json.push_back(k);
     std::ostringstream row;
     row << "<tr><td>" << kind.report_table << "</td><td>" << f.rows << "</td><td>" << f.rms
-        << "</td><td>" << f.max_abs << "</td><td>" << f.sigma << "</td><td>" << KindVerdict(f)
-        << "</td><td>" << (f.held_rows > 0 ? std::to_string(f.held_rms) : "-") << "</td></tr>\n";
+        << "</td><td>" << f.max_abs << "</td><td>" << f.sigma << "</td><td>"
+        << ContactKindVerdict(f) << "</td><td>" << (h.rows > 0 ? std::to_string(h.rms) : "-")
+        << "</td></tr>\n";
     html_rows += row.str();
   }
   nlohmann::json pivots = nlohmann::json::array(), planes = nlohmann::json::array();

@@ -13,6 +13,7 @@
 #include "common_flags.h"
 #include "lpoe/contact_calibration.h"
 #include "lpoe/contact_measurements.h"
+#include "lpoe/contact_pipeline.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/measurement_kinds.h"
 #include "tool_common.h"
@@ -60,40 +61,36 @@ int RunContactCompare() {
   }
   RobotModel nominal;
   if (int code = ReadModelFlag(&nominal); code != kExitOk) return code;
-  ContactMeasurementSet data;
-  data.num_joints = nominal.num_joints();
-  for (size_t i = 0; i < files.size(); ++i) {
-    const MeasurementKindInfo* kind = nullptr;
-    if (Status s = DetectMeasurementFileKind(files[i], &kind); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitInput;
-    }
-    if (kind->id != MeasurementKindId::kDistance && kind->id != MeasurementKindId::kPlane) {
-      std::cerr << "error: " << files[i] << ": lpoe_compare combines distance and plane files only\n";
+  ContactInputOptions input_options;
+  input_options.units.angle_unit = angle;
+  input_options.units.length_unit = length;
+  input_options.tracker_refusal = "lpoe_compare combines distance and plane files only";
+  for (const std::string& item : sigma_items) {
+    char* end = nullptr;
+    const double sigma = std::strtod(item.c_str(), &end);
+    if (end == item.c_str() || *end != '\0' || !(sigma > 0 && sigma <= 1e3)) {
+      std::cerr << "error: --sigmas: '" << item << "' is not a noise in (0, 1000] mm\n";
       return kExitUsage;
     }
-    ContactCsvOptions o;
-    o.units.angle_unit = angle;
-    o.units.length_unit = length;
-    o.kind = kind;
-    if (!sigma_items.empty()) {
-      char* end = nullptr;
-      o.sigma = std::strtod(sigma_items[i].c_str(), &end);
-      if (end == sigma_items[i].c_str() || *end != '\0' || !(o.sigma > 0 && o.sigma <= 1e3)) {
-        std::cerr << "error: --sigmas: '" << sigma_items[i] << "' is not a noise in (0, 1000] mm\n";
-        return kExitUsage;
-      }
-    }
-    ContactMeasurementSet part;
-    if (Status s = ReadContactMeasurements(files[i], nominal, o, &part); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitInput;
-    }
-    data.Append(part);
+    input_options.sigmas.push_back(sigma);
   }
-  const ContactCalibrationOptions options;
-  const ContactCalibrationResult linear = CalibrateContactsLinear(nominal, data, options);
-  const ContactCalibrationResult ceres = CalibrateContactsCeres(nominal, data, options);
+  ContactInputs inputs;
+  bool usage_error = false;
+  if (Status s = ReadContactInputs(files, nominal, input_options, &inputs, &usage_error); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return usage_error ? kExitUsage : kExitInput;
+  }
+  const ContactMeasurementSet& data = inputs.data;
+  // Both solvers as lpoe_calibrate runs them (no rows held out).
+  ContactPipelineOptions run_options;
+  run_options.solver = "linear";
+  const ContactPipelineResult linear_run =
+      RunContactPipeline(nominal, data, ContactMeasurementSet(), run_options);
+  run_options.solver = "ceres";
+  const ContactPipelineResult ceres_run =
+      RunContactPipeline(nominal, data, ContactMeasurementSet(), run_options);
+  const ContactCalibrationResult& linear = linear_run.calibration;
+  const ContactCalibrationResult& ceres = ceres_run.calibration;
   for (const ContactCalibrationResult* r : {&linear, &ceres}) {
     if (!r->ok) {
       std::cerr << "error: " << r->solver << ": " << r->message << "\n";

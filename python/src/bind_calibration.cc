@@ -14,6 +14,7 @@
 #include "lpoe/analysis.h"
 #include "lpoe/contact_calibration.h"
 #include "lpoe/contact_measurements.h"
+#include "lpoe/contact_pipeline.h"
 #include "lpoe/measurement_kinds.h"
 #include "lpoe/registration.h"
 #include "lpoe/io.h"
@@ -303,38 +304,6 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
 // ---- Ballbar distances and probe contacts (docs/measurements.md), as lpoe_calibrate runs them
 // (tools/lpoe_calibrate_contact.cc): the same options, hold-out split and report table.
 
-struct ContactKindFigures {
-  int rows = 0;
-  double rms = 0, max_abs = 0, sigma = 0;
-};
-
-ContactKindFigures ContactFigures(const ContactMeasurementSet& data,
-                                  const std::vector<double>& errors, MeasurementKindId kind) {
-  ContactKindFigures f;
-  std::vector<double> sigmas;
-  double sum = 0;
-  for (int r = 0; r < data.size(); ++r) {
-    if (data.rows[r].kind != kind) continue;
-    ++f.rows;
-    const double e = errors[r];
-    sum += kind == MeasurementKindId::kPosition ? e * e / 3 : e * e;
-    f.max_abs = std::max(f.max_abs, std::abs(e));
-    sigmas.push_back(data.rows[r].sigma);
-  }
-  f.rms = f.rows > 0 ? std::sqrt(sum / f.rows) : 0;
-  if (!sigmas.empty()) {
-    std::sort(sigmas.begin(), sigmas.end());
-    f.sigma = sigmas[sigmas.size() / 2];
-  }
-  return f;
-}
-
-const char* ContactKindVerdict(const ContactKindFigures& f) {
-  if (f.rows == 0) return "none";
-  const double ratio = f.sigma > 0 ? f.rms / f.sigma : 0;
-  return ratio <= 2 ? "pass" : ratio <= 5 ? "check" : "fail";
-}
-
 // The parts of `data` (one data set, or a list of them) as one contact set; tracker rows (an
 // lpoe.Measurements) with noise `sigma` per axis, collected in `tracker` too. False when no part
 // is a distance or plane set (the ordinary calibration then applies).
@@ -468,7 +437,7 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
     } else {
       parts.push_back(verify);
     }
-    ContactMeasurementSet combined = data;
+    std::vector<ContactMeasurementSet> sets;
     for (const py::object& part : parts) {
       if (!py::isinstance<ContactMeasurementSet>(part)) {
         throw LpoeError("verify: with distance or plane data, expected lpoe.ContactMeasurements "
@@ -479,41 +448,30 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
       if (c.num_joints != nominal.num_joints()) {
         throw LpoeError("verify: a different number of joints than the model");
       }
-      combined.Append(c);
+      sets.push_back(c);
     }
-    if (combined.pivots.size() != data.pivots.size() ||
-        combined.planes.size() != data.planes.size()) {
+    if (Status s = ContactVerificationSet(data, sets, &verification); !s.ok()) {
       throw LpoeError(
           "verify names a pivot or plane that data does not (its position is estimated from the "
           "calibration's rows): " +
-          (combined.pivots.size() != data.pivots.size() ? combined.pivots[data.pivots.size()]
-                                                        : combined.planes[data.planes.size()]));
+          s.message());
     }
-    std::vector<int> rows;
-    for (int r = data.size(); r < combined.size(); ++r) rows.push_back(r);
-    verification = combined.Subset(rows);
   }
-  // The hold-out rows, drawn as lpoe_calibrate draws them.
-  ContactMeasurementSet identification = data, held = verification;
-  if (holdout > 0) {
-    std::mt19937_64 rng(split_seed);
-    std::vector<int> order(data.size());
-    for (int i = 0; i < data.size(); ++i) order[i] = i;
-    std::shuffle(order.begin(), order.end(), rng);
-    const int count = static_cast<int>(std::floor(holdout * data.size()));
-    std::vector<int> train(order.begin() + count, order.end()),
-        test(order.begin(), order.begin() + count);
-    std::sort(train.begin(), train.end());
-    std::sort(test.begin(), test.end());
-    identification = data.Subset(train);
-    held = data.Subset(test);
-  }
-  ContactCalibrationResult result;
+  // The run as lpoe_calibrate's (lpoe/contact_pipeline.h): the same hold-out draw, k-fold and
+  // figures per kind.
+  ContactPipelineOptions run_options;
+  run_options.solver = solver;
+  run_options.calibration = options;
+  run_options.holdout = holdout;
+  run_options.split_seed = split_seed;
+  run_options.kfold = kfold;
+  ContactPipelineResult run;
   {
     py::gil_scoped_release release;
-    result = solver == "ceres" ? CalibrateContactsCeres(start, identification, options)
-                               : CalibrateContactsLinear(start, identification, options);
+    run = RunContactPipeline(start, data, verification, run_options);
   }
+  const ContactCalibrationResult& result = run.calibration;
+  const ContactMeasurementSet& identification = run.identification;
   Calibration c;
   c.converged = result.ok;
   c.iterations = result.iterations;
@@ -526,50 +484,18 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
   }
   c.termination = "converged";
   if (Status s = CheckModelFinite(result.model); !s.ok()) throw LpoeError(s.message());
-  std::vector<double> held_errors;
-  if (held.size() > 0) held_errors = ContactErrors(result.model, result.features, held);
-  // kfold: as lpoe_calibrate --kfold (rows shuffled by split_seed + 1 into k folds).
-  std::vector<double> fold_errors;
-  if (kfold > 0) {
-    if (kfold > identification.size()) {
-      throw LpoeError("kfold=" + std::to_string(kfold) + " is larger than the " +
-                      std::to_string(identification.size()) + " identification rows");
-    }
-    std::mt19937_64 rng(split_seed + 1);
-    std::vector<int> order(identification.size());
-    for (int i = 0; i < identification.size(); ++i) order[i] = i;
-    std::shuffle(order.begin(), order.end(), rng);
-    fold_errors.assign(identification.size(), 0.0);
-    for (int fold = 0; fold < kfold; ++fold) {
-      std::vector<int> train, test;
-      for (int i = 0; i < identification.size(); ++i) {
-        (i % kfold == fold ? test : train).push_back(order[i]);
-      }
-      std::sort(train.begin(), train.end());
-      std::sort(test.begin(), test.end());
-      const ContactMeasurementSet fold_data = identification.Subset(train);
-      ContactCalibrationResult f;
-      {
-        py::gil_scoped_release release;
-        f = solver == "ceres" ? CalibrateContactsCeres(start, fold_data, options)
-                              : CalibrateContactsLinear(start, fold_data, options);
-      }
-      if (!f.ok) {
-        throw LpoeError("kfold: fold " + std::to_string(fold + 1) + " of " +
-                        std::to_string(kfold) + ": " + f.message);
-      }
-      const std::vector<double> e = ContactErrors(f.model, f.features, identification.Subset(test));
-      for (size_t i = 0; i < test.size(); ++i) fold_errors[test[i]] = e[i];
-    }
+  if (run.kfold_too_large) {
+    throw LpoeError("kfold=" + std::to_string(kfold) + " " + run.message);
   }
-
+  if (run.failed_fold >= 0) {
+    throw LpoeError("kfold: fold " + std::to_string(run.failed_fold + 1) + " of " +
+                    std::to_string(kfold) + ": " + run.message);
+  }
   // The report: lpoe_calibrate's table per kind (tools/lpoe_calibrate_contact.cc), as JSON.
   py::list kinds;
-  std::string worst = "pass";
-  for (const MeasurementKindInfo& kind : MeasurementKinds()) {
-    if (kind.id == MeasurementKindId::kPose) continue;
-    const ContactKindFigures f = ContactFigures(identification, result.errors, kind.id);
-    if (f.rows == 0) continue;
+  for (const ContactKindSummary& summary : run.kinds) {
+    const MeasurementKindInfo& kind = *summary.kind;
+    const ContactKindFigures& f = summary.fit;
     py::dict d;
     d["kind"] = kind.name;
     d["table"] = kind.report_table;
@@ -577,32 +503,28 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
     d["rms_mm"] = f.rms;
     d["max_abs_mm"] = f.max_abs;
     d["expected_noise_mm"] = f.sigma;
-    const std::string v = ContactKindVerdict(f);
-    d["verdict"] = v;
-    if (v == "fail" || (v == "check" && worst == "pass")) worst = v;
-    if (held.size() > 0) {
-      const ContactKindFigures h = ContactFigures(held, held_errors, kind.id);
-      if (h.rows > 0) {
-        d["held_out_rows"] = h.rows;
-        d["held_out_rms_mm"] = h.rms;
-        py::dict v;
-        v["source"] = verify.is_none() ? "holdout" : "verify";
-        v["rows"] = h.rows;
-        v["rms_mm"] = h.rms;
-        v["max_abs_mm"] = h.max_abs;
-        v["expected_noise_mm"] = h.sigma;
-        v["verdict"] = ContactKindVerdict(h);
-        d["verification"] = v;
-      }
+    d["verdict"] = ContactKindVerdict(f);
+    const ContactKindFigures& h = summary.held;
+    if (h.rows > 0) {
+      d["held_out_rows"] = h.rows;
+      d["held_out_rms_mm"] = h.rms;
+      py::dict v;
+      v["source"] = verify.is_none() ? "holdout" : "verify";
+      v["rows"] = h.rows;
+      v["rms_mm"] = h.rms;
+      v["max_abs_mm"] = h.max_abs;
+      v["expected_noise_mm"] = h.sigma;
+      v["verdict"] = ContactKindVerdict(h);
+      d["verification"] = v;
     }
     if (kfold > 0) {
-      const ContactKindFigures cv = ContactFigures(identification, fold_errors, kind.id);
-      py::dict f;
-      f["folds"] = kfold;
-      f["rows"] = cv.rows;
-      f["rms_mm"] = cv.rms;
-      f["max_abs_mm"] = cv.max_abs;
-      d["kfold"] = f;
+      const ContactKindFigures& cv = summary.kfold;
+      py::dict k;
+      k["folds"] = kfold;
+      k["rows"] = cv.rows;
+      k["rms_mm"] = cv.rms;
+      k["max_abs_mm"] = cv.max_abs;
+      d["kfold"] = k;
     }
     kinds.append(d);
   }
@@ -650,7 +572,7 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
   scale["value"] = result.scale;
   report["scale"] = scale;
   report["left_out"] = left_out;
-  c.verdict = worst;
+  c.verdict = run.verdict;
   c.verdict_reason = "the worst of the kinds' verdicts (RMS within 2x the expected noise: pass, "
                      "5x: check)";
   c.report_json = py::module_::import("json").attr("dumps")(report, py::arg("indent") = 2)

@@ -360,6 +360,13 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
   const Eigen::VectorXd& s = svd.singularValues();
   int rank = 0;
   while (rank < s.size() && s(rank) > options.null_tolerance * s(0)) ++rank;
+  // Fewer residuals than unknowns leaves directions undetermined that are not the base's (at most
+  // six): refused with the counts, before the null space is split among frames and features.
+  if (J.rows() < J.cols() && J.cols() - rank > 6) {
+    return Status::Error(std::to_string(data.size()) + " rows (" + std::to_string(J.rows()) +
+                         " residuals) cannot determine the " + std::to_string(J.cols()) +
+                         " unknowns of the robot's frames, pivots and planes: give more rows");
+  }
   // Null vectors in the unscaled coordinates, orthonormalized.
   Eigen::MatrixXd N = scale.asDiagonal() * svd.matrixV().rightCols(J.cols() - rank);
   if (N.cols() > 0) N = Eigen::HouseholderQR<Eigen::MatrixXd>(N).householderQ() *
@@ -397,7 +404,7 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
         }
       }
       Eigen::JacobiSVD<Eigen::MatrixXd> m(M, Eigen::ComputeThinU);
-      if (feature_cols > 0 && M.rows() > 0 &&
+      if (feature_cols > 0 && M.rows() >= N.cols() &&
           m.singularValues()(m.singularValues().size() - 1) > 1e-3 * m.singularValues()(0)) {
         p.gauge_rows = m.matrixU().leftCols(N.cols()).transpose();
         p.gauge_values = p.gauge_rows * FeatureVector(features);

@@ -1,0 +1,117 @@
+// The calibration run for ballbar distances and probe contacts (docs/measurements.md), as
+// lpoe_calibrate, lpoe_compare and Python's lpoe.calibrate all run it: the hold-out split (or the
+// rows of a verification set), the calibration by the chosen solver, the held-out errors, the
+// k-fold cross-validation, and the figures per kind and per pivot / plane that the reports print.
+// The callers read their inputs and write their outputs; the figures are computed once, here.
+#ifndef LPOE_CONTACT_PIPELINE_H_
+#define LPOE_CONTACT_PIPELINE_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "lpoe/contact_calibration.h"
+#include "lpoe/contact_measurements.h"
+#include "lpoe/measurement_kinds.h"
+#include "lpoe/measurements.h"
+#include "lpoe/robot_model.h"
+#include "lpoe/status.h"
+
+namespace lpoe {
+
+// Error figures of one kind's rows (or one feature's rows).
+struct ContactKindFigures {
+  int rows = 0;
+  double rms = 0;      // mm (position rows: per axis)
+  double max_abs = 0;  // mm (position rows: |e|)
+  double sigma = 0;    // median of the rows' noise (mm)
+};
+
+// The figures of the rows of `kind` (and, when feature >= 0, of that pivot / plane only);
+// `errors` as ContactErrors gives them, one per row of `data`.
+ContactKindFigures ContactFigures(const ContactMeasurementSet& data,
+                                  const std::vector<double>& errors, MeasurementKindId kind,
+                                  int feature = -1);
+// pass: RMS within twice the expected noise; check: within five times; fail beyond; none: no rows.
+const char* ContactKindVerdict(const ContactKindFigures& f);
+
+// One pivot's (distance) or plane's (plane) figures.
+struct ContactFeatureSummary {
+  std::string name;
+  ContactKindFigures fit, held, kfold;  // held.rows, kfold.rows 0 when not computed
+};
+
+struct ContactKindSummary {
+  const MeasurementKindInfo* kind = nullptr;
+  ContactKindFigures fit;    // on the identification rows
+  ContactKindFigures held;   // on the held-out or verification rows (rows 0 when none)
+  ContactKindFigures kfold;  // cross-validated, on the identification rows (when k-fold ran)
+  std::vector<ContactFeatureSummary> features;  // distance: per pivot; plane: per plane
+};
+
+struct ContactPipelineOptions {
+  std::string solver = "linear";  // "linear" | "ceres"
+  ContactCalibrationOptions calibration;
+  double holdout = 0;       // fraction of the rows held out, [0, 1)
+  uint64_t split_seed = 0;  // the hold-out draw; the k-fold draw uses split_seed + 1
+  int kfold = 0;            // 0: off, else the number of folds (>= 2)
+};
+
+struct ContactPipelineResult {
+  // ok false: `message` says why; failed_fold >= 0 when a k-fold fit failed (its result in
+  // fold_failure), kfold_too_large when there are fewer identification rows than folds.
+  bool ok = false;
+  std::string message;
+  ContactCalibrationResult calibration;
+  int failed_fold = -1;
+  ContactCalibrationResult fold_failure;
+  bool kfold_too_large = false;
+  ContactMeasurementSet identification, held;
+  bool held_from_verification = false;
+  std::vector<double> held_errors;  // per row of `held`
+  std::vector<double> fold_errors;  // per row of `identification` (k-fold)
+  // The kinds with identification rows, in MeasurementKinds() order (pose is not a contact kind).
+  std::vector<ContactKindSummary> kinds;
+  // The worst of the kinds' verdicts on the identification rows ("pass" when every kind passes).
+  std::string verdict;
+};
+
+// The rows of the verification sets `parts` (distance or plane rows of the pivots and planes that
+// `data` names) as one set; an error naming the first pivot or plane `data` does not have.
+Status ContactVerificationSet(const ContactMeasurementSet& data,
+                              const std::vector<ContactMeasurementSet>& parts,
+                              ContactMeasurementSet* verification);
+
+// The solver `options.solver` on `data` from `start`. The held-out rows: `verification`'s when it
+// has rows (then options.holdout must be 0), else a fraction options.holdout of `data` drawn with
+// options.split_seed. With options.kfold > 0 the identification rows are shuffled (split_seed + 1)
+// into k folds and each fold's rows are predicted by the calibration of the others.
+ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactMeasurementSet& data,
+                                         const ContactMeasurementSet& verification,
+                                         const ContactPipelineOptions& options);
+
+// The input files of a contact calibration: distance and plane CSVs (and, when allowed, tracker
+// position files), each detected from its columns, read with its noise sigmas[i] (0: the file's
+// sigma column), combined into one set.
+struct ContactInputOptions {
+  CsvOptions units;
+  const MeasurementKindInfo* forced_kind = nullptr;  // --data_kind (null: auto)
+  // Non-empty: tracker files are refused with "<file>: " and this text.
+  std::string tracker_refusal;
+  // Each file's noise (mm); empty or 0: its sigma column (a tracker file needs one here).
+  std::vector<double> sigmas;
+};
+struct ContactInputs {
+  ContactMeasurementSet data;
+  MeasurementSet tracker;          // the tracker files' rows (for registration)
+  std::vector<std::string> kinds;  // each file's kind name
+};
+// usage_error (may be null) is set when the refusal is the caller's (a tracker file without a
+// noise, a tracker file where none is allowed), cleared when the file is at fault.
+Status ReadContactInputs(const std::vector<std::string>& files, const RobotModel& nominal,
+                         const ContactInputOptions& options, ContactInputs* out,
+                         bool* usage_error);
+
+}  // namespace lpoe
+
+#endif  // LPOE_CONTACT_PIPELINE_H_

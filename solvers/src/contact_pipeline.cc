@@ -1,0 +1,216 @@
+// The calibration run for ballbar distances and probe contacts (lpoe/contact_pipeline.h).
+#include "lpoe/contact_pipeline.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+namespace lpoe {
+
+ContactKindFigures ContactFigures(const ContactMeasurementSet& data,
+                                  const std::vector<double>& errors, MeasurementKindId kind,
+                                  int feature) {
+  ContactKindFigures f;
+  std::vector<double> sigmas;
+  double sum = 0;
+  for (int r = 0; r < data.size(); ++r) {
+    if (data.rows[r].kind != kind) continue;
+    if (feature >= 0 && data.rows[r].feature != feature) continue;
+    ++f.rows;
+    // Position rows: |e| over three axes; the RMS per axis.
+    const double e = errors[r];
+    sum += kind == MeasurementKindId::kPosition ? e * e / 3 : e * e;
+    f.max_abs = std::max(f.max_abs, std::abs(e));
+    sigmas.push_back(data.rows[r].sigma);
+  }
+  f.rms = f.rows > 0 ? std::sqrt(sum / f.rows) : 0;
+  if (!sigmas.empty()) {
+    std::sort(sigmas.begin(), sigmas.end());
+    f.sigma = sigmas[sigmas.size() / 2];
+  }
+  return f;
+}
+
+const char* ContactKindVerdict(const ContactKindFigures& f) {
+  if (f.rows == 0) return "none";
+  const double ratio = f.sigma > 0 ? f.rms / f.sigma : 0;
+  return ratio <= 2 ? "pass" : ratio <= 5 ? "check" : "fail";
+}
+
+Status ContactVerificationSet(const ContactMeasurementSet& data,
+                              const std::vector<ContactMeasurementSet>& parts,
+                              ContactMeasurementSet* verification) {
+  ContactMeasurementSet combined = data;
+  for (const ContactMeasurementSet& part : parts) combined.Append(part);
+  if (combined.pivots.size() != data.pivots.size() ||
+      combined.planes.size() != data.planes.size()) {
+    return Status::Error(combined.pivots.size() != data.pivots.size()
+                             ? combined.pivots[data.pivots.size()]
+                             : combined.planes[data.planes.size()]);
+  }
+  std::vector<int> rows;
+  for (int r = data.size(); r < combined.size(); ++r) rows.push_back(r);
+  *verification = combined.Subset(rows);
+  return Status::Ok();
+}
+
+namespace {
+
+ContactCalibrationResult CalibrateContactsWith(const std::string& solver, const RobotModel& start,
+                                               const ContactMeasurementSet& data,
+                                               const ContactCalibrationOptions& options) {
+  return solver == "ceres" ? CalibrateContactsCeres(start, data, options)
+                           : CalibrateContactsLinear(start, data, options);
+}
+
+}  // namespace
+
+ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactMeasurementSet& data,
+                                         const ContactMeasurementSet& verification,
+                                         const ContactPipelineOptions& options) {
+  ContactPipelineResult out;
+  // ---- Hold-out rows.
+  out.identification = data;
+  out.held = verification;
+  out.held_from_verification = verification.size() > 0;
+  if (options.holdout > 0 && !out.held_from_verification) {
+    std::mt19937_64 rng(options.split_seed);
+    std::vector<int> order(data.size());
+    for (int i = 0; i < data.size(); ++i) order[i] = i;
+    std::shuffle(order.begin(), order.end(), rng);
+    const int count = static_cast<int>(std::floor(options.holdout * data.size()));
+    std::vector<int> train(order.begin() + count, order.end()),
+        test(order.begin(), order.begin() + count);
+    std::sort(train.begin(), train.end());
+    std::sort(test.begin(), test.end());
+    out.identification = data.Subset(train);
+    out.held = data.Subset(test);
+  }
+  const ContactMeasurementSet& identification = out.identification;
+
+  // ---- Calibration.
+  out.calibration =
+      CalibrateContactsWith(options.solver, start, identification, options.calibration);
+  if (!out.calibration.ok) {
+    out.message = out.calibration.message;
+    return out;
+  }
+  if (out.held.size() > 0) {
+    out.held_errors = ContactErrors(out.calibration.model, out.calibration.features, out.held);
+  }
+  // ---- k-fold: each fold's rows predicted by the calibration of the others, same options.
+  if (options.kfold > 0) {
+    if (options.kfold > identification.size()) {
+      out.kfold_too_large = true;
+      out.message = "is larger than the " + std::to_string(identification.size()) +
+                    " identification rows";
+      return out;
+    }
+    std::mt19937_64 rng(options.split_seed + 1);
+    std::vector<int> order(identification.size());
+    for (int i = 0; i < identification.size(); ++i) order[i] = i;
+    std::shuffle(order.begin(), order.end(), rng);
+    out.fold_errors.assign(identification.size(), 0.0);
+    for (int fold = 0; fold < options.kfold; ++fold) {
+      std::vector<int> train, test;
+      for (int i = 0; i < identification.size(); ++i) {
+        (i % options.kfold == fold ? test : train).push_back(order[i]);
+      }
+      std::sort(train.begin(), train.end());
+      std::sort(test.begin(), test.end());
+      ContactCalibrationResult f = CalibrateContactsWith(
+          options.solver, start, identification.Subset(train), options.calibration);
+      if (!f.ok) {
+        out.failed_fold = fold;
+        out.message = f.message;
+        out.fold_failure = std::move(f);
+        return out;
+      }
+      const std::vector<double> e = ContactErrors(f.model, f.features, identification.Subset(test));
+      for (size_t i = 0; i < test.size(); ++i) out.fold_errors[test[i]] = e[i];
+    }
+  }
+
+  // ---- Figures per kind and per feature.
+  out.verdict = "pass";
+  for (const MeasurementKindInfo& kind : MeasurementKinds()) {
+    if (kind.id == MeasurementKindId::kPose) continue;  // tracker rows are position rows here
+    ContactKindSummary k;
+    k.kind = &kind;
+    k.fit = ContactFigures(identification, out.calibration.errors, kind.id);
+    if (k.fit.rows == 0) continue;
+    if (out.held.size() > 0) k.held = ContactFigures(out.held, out.held_errors, kind.id);
+    if (options.kfold > 0) k.kfold = ContactFigures(identification, out.fold_errors, kind.id);
+    const std::vector<std::string>* names =
+        kind.id == MeasurementKindId::kDistance ? &identification.pivots
+        : kind.id == MeasurementKindId::kPlane  ? &identification.planes
+                                                : nullptr;
+    for (int i = 0; names != nullptr && i < static_cast<int>(names->size()); ++i) {
+      ContactFeatureSummary s;
+      s.name = (*names)[i];
+      s.fit = ContactFigures(identification, out.calibration.errors, kind.id, i);
+      if (s.fit.rows == 0) continue;
+      if (out.held.size() > 0) s.held = ContactFigures(out.held, out.held_errors, kind.id, i);
+      if (options.kfold > 0) s.kfold = ContactFigures(identification, out.fold_errors, kind.id, i);
+      k.features.push_back(s);
+    }
+    const std::string v = ContactKindVerdict(k.fit);
+    if (v == "fail" || (v == "check" && out.verdict == "pass")) out.verdict = v;
+    out.kinds.push_back(std::move(k));
+  }
+  out.ok = true;
+  return out;
+}
+
+Status ReadContactInputs(const std::vector<std::string>& files, const RobotModel& nominal,
+                         const ContactInputOptions& options, ContactInputs* out,
+                         bool* usage_error) {
+  bool usage_dummy = false;
+  bool* usage = usage_error != nullptr ? usage_error : &usage_dummy;
+  *usage = false;
+  out->data = ContactMeasurementSet();
+  out->data.num_joints = nominal.num_joints();
+  out->tracker = MeasurementSet(nominal.num_joints());
+  out->kinds.clear();
+  for (size_t i = 0; i < files.size(); ++i) {
+    const double sigma = i < options.sigmas.size() ? options.sigmas[i] : 0.0;
+    const MeasurementKindInfo* kind = nullptr;
+    if (Status s = DetectMeasurementFileKind(files[i], &kind); !s.ok()) return s;
+    if (options.forced_kind != nullptr && options.forced_kind != kind) {
+      return Status::Error(files[i] + ": --data_kind=" + options.forced_kind->name +
+                           " but its columns are a " + kind->name + " file's (" + kind->columns +
+                           ")");
+    }
+    out->kinds.push_back(kind->name);
+    ContactMeasurementSet part;
+    if (kind->id == MeasurementKindId::kDistance || kind->id == MeasurementKindId::kPlane) {
+      ContactCsvOptions o;
+      o.units = options.units;
+      o.kind = kind;
+      o.sigma = sigma;
+      if (Status s = ReadContactMeasurements(files[i], nominal, o, &part); !s.ok()) return s;
+    } else {
+      if (!options.tracker_refusal.empty()) {
+        *usage = true;
+        return Status::Error(files[i] + ": " + options.tracker_refusal);
+      }
+      if (!(sigma > 0)) {
+        *usage = true;
+        return Status::Error(files[i] +
+                             ": a tracker file has no sigma column; give its noise with --sigmas "
+                             "(one value per file) or --sigma");
+      }
+      MeasurementSet positions;
+      if (Status s = ReadMeasurements(files[i], nominal, options.units, &positions, nullptr);
+          !s.ok()) {
+        return s;
+      }
+      out->tracker.Append(positions);
+      part = ContactSetFromPositions(positions, sigma, files[i]);
+    }
+    out->data.Append(part);
+  }
+  return Status::Ok();
+}
+
+}  // namespace lpoe
