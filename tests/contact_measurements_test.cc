@@ -526,6 +526,22 @@ TEST(ContactCalibration, BallbarAndProbeTogether) {
   CalibrateAndCompare(data, false, 6);
 }
 
+// Fewer rows than unknowns: refused before solving, with the counts and what to do (it was an
+// Eigen assertion when the null space was split among the frames and features).
+TEST(ContactCalibration, FewerRowsThanUnknownsRefusedWithTheCounts) {
+  const Truth t = MakeTruth();
+  const ContactMeasurementSet data = Ballbar(t.truth, 20, 5);
+  for (const ContactCalibrationResult& r :
+       {CalibrateContactsLinear(t.nominal, data, ContactCalibrationOptions()),
+        CalibrateContactsCeres(t.nominal, data, ContactCalibrationOptions())}) {
+    EXPECT_FALSE(r.ok);
+    EXPECT_EQ(r.iterations, 0);
+    EXPECT_NE(r.message.find("20 rows (20 residuals) cannot determine the"), std::string::npos)
+        << r.message;
+    EXPECT_NE(r.message.find("give more rows"), std::string::npos) << r.message;
+  }
+}
+
 }  // namespace contact_measurements_test
 }  // namespace
 }  // namespace lpoe

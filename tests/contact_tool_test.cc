@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <map>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -300,6 +302,85 @@ TEST_F(ContactTool, BadRowsNameFileAndLine) {
   EXPECT_NE(u.err.find("--joint_errors is not available with distance or plane data"),
             std::string::npos)
       << u.err;
+}
+
+
+// The report's error table per pivot and per plane and its plot: one pivot's rows disturbed by
+// +-0.02 mm (ten times the bar's noise) stand out in its own figures while the other pivots and the
+// planes stay at their noise; the figures per feature add up to the kind's; the HTML carries the
+// table and the picture.
+TEST_F(ContactTool, ReportTablesPerPivotAndPlane) {
+  Simulate("ballbar", 0.002, "bar.csv");
+  Simulate("plane", 0.003, "cube.csv");
+  {
+    std::ifstream in(dir_ / "bar.csv");
+    std::string text, line;
+    int disturbed = 0;
+    while (std::getline(in, line)) {
+      // q1..q6,distance,pivot,target,sigma: pivot2's distances moved by +-0.02 mm in turn.
+      std::vector<std::string> cells;
+      std::stringstream ss(line);
+      for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
+      if (line[0] != '#' && cells.size() == 10 && cells[7] == "pivot2") {
+        cells[6] = std::to_string(std::stod(cells[6]) + (disturbed++ % 2 ? 0.02 : -0.02));
+        line.clear();
+        for (size_t i = 0; i < cells.size(); ++i) line += (i ? "," : "") + cells[i];
+      }
+      text += line + "\n";
+    }
+    ASSERT_GT(disturbed, 50);
+    std::ofstream(dir_ / "bar.csv") << text;
+  }
+  const ToolOutput o = Run(LPOE_CALIBRATE_PATH,
+                           "--model=" + P("nominal.yaml") + " --measurements=" + P("bar.csv") +
+                               "," + P("cube.csv") + " --holdout=0.2 --kfold=3 --output=" +
+                               P("cal.yaml") + " --report=" + P("report.json") +
+                               " --html_report=" + P("report.html"));
+  ASSERT_EQ(o.exit_code, 0) << o.err << o.out;
+  const nlohmann::json r = Report();
+  ASSERT_EQ(r["measurement_kinds"].size(), 2u);
+  std::map<std::string, double> rms;
+  for (const nlohmann::json& k : r["measurement_kinds"]) {
+    ASSERT_TRUE(k.contains("features")) << k.dump();
+    const nlohmann::json& features = k["features"];
+    ASSERT_EQ(features.size(), 3u) << k.dump();  // three pivots, three faces of the cube
+    int rows = 0, held = 0;
+    double sum = 0, held_sum = 0, max_abs = 0;
+    for (const nlohmann::json& f : features) {
+      rows += f["rows"].get<int>();
+      sum += f["rows"].get<int>() * std::pow(f["rms_mm"].get<double>(), 2);
+      max_abs = std::max(max_abs, f["max_abs_mm"].get<double>());
+      ASSERT_TRUE(f.contains("held_out_rms_mm")) << f.dump();
+      ASSERT_TRUE(f.contains("kfold_rms_mm")) << f.dump();
+      held += f["held_out_rows"].get<int>();
+      held_sum += f["held_out_rows"].get<int>() * std::pow(f["held_out_rms_mm"].get<double>(), 2);
+      rms[f["name"].get<std::string>()] = f["rms_mm"].get<double>();
+    }
+    // The features' rows are the kind's rows, their RMS combine to the kind's.
+    EXPECT_EQ(rows, k["rows"].get<int>());
+    EXPECT_NEAR(std::sqrt(sum / rows), k["rms_mm"].get<double>(), 1e-9);
+    EXPECT_DOUBLE_EQ(max_abs, k["max_abs_mm"].get<double>());
+    EXPECT_EQ(held, k["held_out_rows"].get<int>());
+    EXPECT_NEAR(std::sqrt(held_sum / held), k["held_out_rms_mm"].get<double>(), 1e-6);
+  }
+  // The disturbed pivot is the one that stands out (its rows cannot be fitted below their +-0.02).
+  EXPECT_GT(rms["pivot2"], 0.01);
+  for (const char* name : {"pivot1", "pivot3", "face_x", "face_y", "face_z"}) {
+    EXPECT_LT(rms[name], 0.4 * rms["pivot2"]) << name;
+  }
+  const std::string html = testing::ReadAll(dir_ / "report.html");
+  EXPECT_NE(html.find("Errors per pivot and plane"), std::string::npos);
+  for (const char* name : {"pivot1", "pivot2", "pivot3", "face_x", "face_y", "face_z"}) {
+    EXPECT_NE(html.find("</td><td>" + std::string(name) + "</td>"), std::string::npos) << name;
+  }
+  const size_t svg = html.find("<svg");
+  ASSERT_NE(svg, std::string::npos);
+  EXPECT_NE(html.find("</svg>", svg), std::string::npos);
+  // A panel per kind, a series per pivot and plane and the held-out rows, named in the picture.
+  for (const char* text : {"distance errors (ballbar)", "plane contact errors (touch probe)",
+                           "pivot pivot2", "plane face_z", "held out"}) {
+    EXPECT_NE(html.find(text, svg), std::string::npos) << text;
+  }
 }
 
 }  // namespace contact_tool_test

@@ -25,6 +25,7 @@
 #include "lpoe/registration.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
+#include "plot.h"
 #include "text_safety.h"
 #include "tool_common.h"
 
@@ -84,6 +85,101 @@ std::string HtmlEscape(const std::string& text) {
     }
   }
   return out;
+}
+
+// The figures of one pivot or plane as JSON (the kind's table per feature).
+nlohmann::json FeatureJson(const ContactFeatureSummary& s, bool kfold) {
+  nlohmann::json j = {{"name", ValidUtf8(s.name)},       {"rows", s.fit.rows},
+                      {"rms_mm", s.fit.rms},             {"max_abs_mm", s.fit.max_abs},
+                      {"expected_noise_mm", s.fit.sigma}, {"verdict", ContactKindVerdict(s.fit)}};
+  if (s.held.rows > 0) {
+    j["held_out_rows"] = s.held.rows;
+    j["held_out_rms_mm"] = s.held.rms;
+  }
+  if (kfold) j["kfold_rms_mm"] = s.kfold.rms;
+  return j;
+}
+
+// Okabe-Ito colours for the pivots' and planes' series (after the held-out grey).
+const uint32_t kContactFeatureColors[] = {0x0072B2, 0xD55E00, 0x009E73, 0xCC79A7,
+                                          0xE69F00, 0x56B4E9, 0x000000};
+
+// One panel per kind: each row's error (distance, plane: signed; tracker: |e|) against its index
+// among the kind's rows, a series per pivot or plane, the held-out or verification rows after
+// them in grey.
+Figure ContactErrorFigure(const ContactPipelineResult& run, const std::string& held_label) {
+  Figure figure;
+  for (const ContactKindSummary& summary : run.kinds) {
+    const MeasurementKindId id = summary.kind->id;
+    Panel panel;
+    panel.title = summary.kind->report_table;
+    panel.x_label = "row";
+    panel.y_label = id == MeasurementKindId::kPosition ? "|error| [mm]" : "error [mm]";
+    panel.zero_line = id != MeasurementKindId::kPosition;
+    panel.integer_x = true;
+    const int num_features = id == MeasurementKindId::kPosition
+                                 ? 1
+                                 : static_cast<int>(summary.features.size());
+    std::vector<Series> series(num_features);
+    Series held;
+    held.label = held_label;
+    held.rgb = 0x999999;
+    const auto add = [&](const ContactMeasurementSet& set, const std::vector<double>& errors,
+                         bool is_held, int* index) {
+      for (int r = 0; r < set.size(); ++r) {
+        if (set.rows[r].kind != id) continue;
+        ++*index;
+        Series* target = &held;
+        if (!is_held) {
+          // The feature's series (features with identification rows, in the summary's order).
+          int k = 0;
+          if (id != MeasurementKindId::kPosition) {
+            const std::vector<std::string>& names =
+                id == MeasurementKindId::kDistance ? set.pivots : set.planes;
+            while (k < num_features && summary.features[k].name != names[set.rows[r].feature]) ++k;
+            if (k == num_features) continue;
+          }
+          target = &series[k];
+        }
+        target->x.push_back(*index);
+        target->y.push_back(errors[r]);
+      }
+    };
+    int index = 0;
+    add(run.identification, run.calibration.errors, false, &index);
+    if (!run.held_errors.empty()) add(run.held, run.held_errors, true, &index);
+    for (int k = 0; k < num_features; ++k) {
+      series[k].label = id == MeasurementKindId::kPosition
+                            ? std::string("tracker")
+                            : std::string(summary.kind->feature_noun) + " " +
+                                  ValidUtf8(summary.features[k].name);
+      series[k].rgb = kContactFeatureColors[k % (sizeof(kContactFeatureColors) /
+                                                  sizeof(kContactFeatureColors[0]))];
+    }
+    if (!held.y.empty()) series.push_back(held);
+    for (Series& one : series) {
+      one.markers = true;
+      one.lines = false;
+      // Large sets: the per-bucket extremes (the same picture, fewer points).
+      const std::vector<int> keep = DecimatedIndices(one.y, 2000);
+      if (keep.size() < one.y.size()) {
+        Series d = one;
+        d.x.clear();
+        d.y.clear();
+        for (int i : keep) {
+          d.x.push_back(one.x[i]);
+          d.y.push_back(one.y[i]);
+        }
+        one = d;
+      }
+      if (!one.y.empty()) panel.series.push_back(one);
+    }
+    figure.panels.push_back(panel);
+  }
+  figure.columns = 1;
+  figure.width = 900;
+  figure.height = std::max(300, 280 * static_cast<int>(figure.panels.size()));
+  return figure;
 }
 
 int ExitFor(const ContactCalibrationResult& r) {
@@ -360,7 +456,7 @@ int RunContactCalibration() {
   out << "), solver " << result.solver << ", " << result.iterations << " iterations, cost "
       << result.initial_cost << " -> " << result.cost << "\n";
   nlohmann::json kinds_json = nlohmann::json::array();
-  std::string html_rows;
+  std::string html_rows, html_feature_rows;
   out << std::left << std::setw(10) << "kind" << std::right << std::setw(7) << "rows"
       << std::setw(14) << "RMS (mm)" << std::setw(14) << "max (mm)" << std::setw(16)
       << "expected (mm)" << std::setw(9) << "verdict" << std::setw(16) << verify_label
@@ -394,6 +490,21 @@ int RunContactCalibration() {
     if (FLAGS_kfold > 0) {
       k["kfold"] = {{"folds", FLAGS_kfold}, {"rows", cv.rows}, {"rms_mm", cv.rms},
                     {"max_abs_mm", cv.max_abs}};
+    }
+    if (!summary.features.empty()) {
+      nlohmann::json features = nlohmann::json::array();
+      for (const ContactFeatureSummary& fs : summary.features) {
+        features.push_back(FeatureJson(fs, FLAGS_kfold > 0));
+        std::ostringstream frow;
+        frow << "<tr><td>" << kind.feature_noun << "</td><td>" << HtmlEscape(fs.name)
+             << "</td><td>" << fs.fit.rows << "</td><td>" << fs.fit.rms << "</td><td>"
+             << fs.fit.max_abs << "</td><td>" << fs.fit.sigma << "</td><td>"
+             << ContactKindVerdict(fs.fit) << "</td><td>"
+             << (fs.held.rows > 0 ? std::to_string(fs.held.rms) : "-") << "</td></tr>\n";
+        html_feature_rows += frow.str();
+      }
+      // The kind's table per pivot (distance) or per plane (plane).
+      k["features"] = features;
     }
     kinds_json.push_back(k);
     std::ostringstream row;
@@ -469,14 +580,30 @@ int RunContactCalibration() {
     };
     staged = outputs.Stage(FLAGS_report, j.dump(2) + "\n");
   }
+  std::string errors_html;
   if (staged.ok() && !FLAGS_html_report.empty()) {
-    std::string html =
+    // The errors per pivot and plane, and their plot.
+    if (!html_feature_rows.empty()) {
+      errors_html = "<h2>Errors per pivot and plane</h2>\n<table border=\"1\">\n<tr><th>feature</th>"
+                    "<th>name</th><th>rows</th><th>RMS (mm)</th><th>max (mm)</th><th>expected "
+                    "noise (mm)</th><th>verdict</th><th>" + std::string(verify_label) +
+                    " (mm)</th></tr>\n" + html_feature_rows + "</table>\n";
+    }
+    std::string svg;
+    staged = RenderFigure(ContactErrorFigure(run, FLAGS_verify.empty() ? "held out" : "verify"),
+                          ImageFormat::kSvg, &svg);
+    if (staged.ok()) {
+      errors_html += "<h2>Plots</h2>\n<figure>" + svg + "</figure>\n";
+    }
+  }
+  if (staged.ok() && !FLAGS_html_report.empty()) {
+    const std::string html =
         "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>lpoe_calibrate</title></head>"
         "<body>\n<h1>Calibration from distances and planes</h1>\n<table border=\"1\">\n"
         "<tr><th>table</th><th>rows</th><th>RMS (mm)</th><th>max (mm)</th><th>expected noise "
         "(mm)</th><th>verdict</th><th>" + std::string(verify_label) + " (mm)</th></tr>\n" +
         html_rows + "</table>\n<p>" + HtmlEscape(p.base_reason) + "</p>\n<p>Scale: " +
-        HtmlEscape(p.scale_reason) + "</p>\n</body></html>\n";
+        HtmlEscape(p.scale_reason) + "</p>\n" + errors_html + "</body></html>\n";
     staged = outputs.Stage(FLAGS_html_report, html);
   }
   return CommitOutputs(staged, &outputs, FLAGS_quiet);

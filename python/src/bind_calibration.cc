@@ -526,6 +526,26 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
       k["max_abs_mm"] = cv.max_abs;
       d["kfold"] = k;
     }
+    if (!summary.features.empty()) {
+      // The kind's figures per pivot (distance) or per plane (plane), as the tool's report.
+      py::list features;
+      for (const ContactFeatureSummary& fs : summary.features) {
+        py::dict e;
+        e["name"] = fs.name;
+        e["rows"] = fs.fit.rows;
+        e["rms_mm"] = fs.fit.rms;
+        e["max_abs_mm"] = fs.fit.max_abs;
+        e["expected_noise_mm"] = fs.fit.sigma;
+        e["verdict"] = ContactKindVerdict(fs.fit);
+        if (fs.held.rows > 0) {
+          e["held_out_rows"] = fs.held.rows;
+          e["held_out_rms_mm"] = fs.held.rms;
+        }
+        if (kfold > 0) e["kfold_rms_mm"] = fs.kfold.rms;
+        features.append(e);
+      }
+      d["features"] = features;
+    }
     kinds.append(d);
   }
   const ContactParameterization& p = result.parameterization;

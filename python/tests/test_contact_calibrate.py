@@ -173,3 +173,9 @@ def test_verify_and_kfold_as_the_tool(sim):
     for name, k in kinds.items():
         assert cli[name]["kfold"]["rms_mm"] == pytest.approx(k["kfold"]["rms_mm"], rel=1e-12)
     assert cli["distance"]["verification"]["rms_mm"] == pytest.approx(ver["rms_mm"], rel=1e-12)
+    # The figures per pivot and per plane (one computation, lpoe/contact_pipeline.h): three of
+    # each, the same as the tool's, their rows the kind's.
+    for name, k in kinds.items():
+        assert len(k["features"]) == 3
+        assert sum(f["rows"] for f in k["features"]) == k["rows"]
+        assert k["features"] == cli[name]["features"]
