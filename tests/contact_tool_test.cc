@@ -272,16 +272,89 @@ TEST_F(ContactTool, UrdfOutputIsTheCalibratedModel) {
 }
 
 #ifdef LPOE_PLAN_PATH
-// Planning ballbar or probe poses is not there yet: refused with its reason, nothing written.
-TEST_F(ContactTool, PlanRefusesBallbarWithItsReason) {
+// lpoe_plan --measurement=ballbar: 40 poses on the pivots' spheres within the stroke; the distances
+// measured there (on the simulated robot, noise 0.002 mm) calibrate it with lpoe_calibrate to
+// micrometres. Refusals with their reasons, nothing written.
+TEST_F(ContactTool, PlanBallbarThenCalibrate) {
   Simulate("ballbar", 0.002, "bar.csv");
-  const ToolOutput o = Run(LPOE_PLAN_PATH, "--model=" + P("nominal.yaml") +
-                                               " --measurement=ballbar --count=20 --output=" +
-                                               P("plan.csv"));
+  // The simulation's pivots, from its comment line: "... pivots (x y z) (x y z) (x y z)".
+  std::vector<Eigen::Vector3d> pivots;
+  {
+    std::ifstream in(dir_ / "bar.csv");
+    for (std::string line; std::getline(in, line);) {
+      const size_t at = line.find("pivots (");
+      if (at == std::string::npos) continue;
+      std::stringstream ss(line.substr(at + 7));
+      char open, close;
+      Eigen::Vector3d c;
+      while (ss >> open >> c(0) >> c(1) >> c(2) >> close) pivots.push_back(c);
+    }
+  }
+  ASSERT_EQ(pivots.size(), 3u);
+  std::string flag;
+  for (const Eigen::Vector3d& c : pivots) {
+    // As set up: a couple of millimetres off.
+    flag += (flag.empty() ? "" : ";") + std::to_string(c(0) + 2) + "," + std::to_string(c(1) - 1) +
+            "," + std::to_string(c(2) + 1.5);
+  }
+  ToolOutput o = Run(LPOE_PLAN_PATH, "--model=" + P("nominal.yaml") +
+                                         " --measurement=ballbar --pivots='" + flag +
+                                         "' --count=40 --output=" + P("plan.csv"));
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  RobotModel nominal, actual;
+  ASSERT_TRUE(ReadRobotModel(dir_ / "nominal.yaml", &nominal).ok());
+  ASSERT_TRUE(ReadRobotModel(dir_ / "actual.yaml", &actual).ok());
+  std::ifstream plan(dir_ / "plan.csv");
+  std::ofstream measured(dir_ / "measured.csv");
+  measured << "q1,q2,q3,q4,q5,q6,pivot,distance,sigma\n";
+  int rows = 0;
+  for (std::string line; std::getline(plan, line);) {
+    if (line.empty() || line[0] == '#' || line[0] == 'q') continue;
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
+    ASSERT_EQ(cells.size(), 7u) << line;
+    std::vector<double> q(6);
+    for (int j = 0; j < 6; ++j) q[j] = std::stod(cells[j]);
+    const int k = cells[6].back() - '1';
+    ASSERT_TRUE(k >= 0 && k < 3) << cells[6];
+    // On the nominal robot the ball sits on the sphere around the pivot given, within the stroke.
+    const Eigen::Vector3d given = pivots[k] + Eigen::Vector3d(2, -1, 1.5);
+    EXPECT_LE(std::abs((ToolPosition(nominal, q.data()) - given).norm() - 150), 1.0) << line;
+    // What the bar reads on the robot as it is: +-0.002 mm in turn for the noise.
+    const double d = (ToolPosition(actual, q.data()) - pivots[k]).norm() + (rows % 2 ? 0.002 : -0.002);
+    char text[64];
+    std::snprintf(text, sizeof(text), "%.6f", d);
+    measured << line << "," << text << ",0.002\n";
+    ++rows;
+  }
+  measured.close();
+  EXPECT_EQ(rows, 40);
+  o = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") + " --measurements=" +
+                                   P("measured.csv") + " --output=" + P("cal.yaml"));
+  ASSERT_EQ(o.exit_code, 0) << o.err << o.out;
+  double scale = 0;
+  const double e = HeldOutRms("cal.yaml", false, &scale);
+  const double e0 = HeldOutRms("nominal.yaml", false, &scale);
+  EXPECT_LT(e, 0.01) << "mm; the nominal model: " << e0;
+  EXPECT_GT(e0, 0.5);
+  RecordProperty("held_out_rms_um", std::to_string(1000 * e));
+
+  // Refusals: no pivots (exit 1), fewer poses than parameters (exit 3); nothing written.
+  o = Run(LPOE_PLAN_PATH, "--model=" + P("nominal.yaml") + " --measurement=ballbar --count=40 " +
+                              "--output=" + P("plan2.csv"));
   EXPECT_EQ(o.exit_code, 1);
-  EXPECT_NE(o.err.find("planning ballbar or probe poses is not available yet"), std::string::npos)
-      << o.err;
-  EXPECT_FALSE(std::ifstream(dir_ / "plan.csv").good());
+  EXPECT_NE(o.err.find("--measurement=ballbar needs --pivots"), std::string::npos) << o.err;
+  o = Run(LPOE_PLAN_PATH, "--model=" + P("nominal.yaml") + " --measurement=ballbar --pivots='" +
+                              flag + "' --count=10 --output=" + P("plan2.csv"));
+  EXPECT_EQ(o.exit_code, 3);
+  EXPECT_NE(o.err.find("plan more poses than parameters"), std::string::npos) << o.err;
+  o = Run(LPOE_PLAN_PATH, "--model=" + P("nominal.yaml") + " --measurement=ballbar --pivots='" +
+                              flag + "' --count=40 --criterion=A --output=" + P("plan2.csv"));
+  EXPECT_EQ(o.exit_code, 1);
+  EXPECT_NE(o.err.find("--criterion is for tracker plans"), std::string::npos) << o.err;
+  EXPECT_FALSE(std::ifstream(dir_ / "plan2.csv").good());
+  EXPECT_FALSE(std::ifstream(dir_ / "plan2.json").good());
 }
 #endif
 

@@ -31,6 +31,7 @@
 #include "output_files.h"
 #include "parse_util.h"
 #include "common_flags.h"
+#include "lpoe_plan_contact.h"
 #include "tool_common.h"
 
 // Defaults, ranges and help of the numeric options from the option table (lpoe/options.h), shared
@@ -90,11 +91,9 @@ DEFINE_string(joint_errors, "none",
               "subsets. The tilt's information is proportional to the compliance values, so "
               "'tilt' needs a --model that carries them (a calibrated model's YAML); with a "
               "nominal model it is refused (docs/planning.md).");
-// Ballbar and probe planning (issue 44) is not there yet: the flag names the kind so that asking
-// for it is refused with its reason rather than as an unknown flag.
 DEFINE_string(measurement, "position",
-              "position (a tracker) | ballbar | plane. Only position plans are made yet; ballbar "
-              "and plane are refused (docs/measurements.md).");
+              "position (a tracker) | ballbar (poses on the --pivots' spheres within the bar's "
+              "stroke) | plane (probe contacts on the --planes' faces); docs/measurements.md.");
 #undef LPOE_DEFAULT
 #undef LPOE_HELP
 
@@ -229,12 +228,8 @@ nlohmann::json UnmodelledJson(const PlanningResult& p) {
 }
 
 int Run() {
-  if (FLAGS_measurement != "position") {
-    std::cerr << "error: --measurement=" << FLAGS_measurement
-              << ": lpoe_plan plans tracker (position) measurements only; planning ballbar or "
-                 "probe poses is not available yet (docs/measurements.md)\n";
-    return kExitUsage;
-  }
+  // Ballbar and probe poses (tools/lpoe_plan_contact.cc).
+  if (FLAGS_measurement != "position") return tools::RunContactPlan();
   if (FLAGS_model.empty() || FLAGS_count.empty() || FLAGS_output.empty()) {
     std::cerr << "error: --model, --count and --output are required (see --help)\n";
     return kExitUsage;
