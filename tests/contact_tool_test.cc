@@ -372,9 +372,25 @@ TEST_F(ContactTool, BadRowsNameFileAndLine) {
                                                     " --measurements=" + P("bar.csv") +
                                                     " --joint_errors=compliance --output=" + P("cal.yaml"));
   EXPECT_EQ(u.exit_code, 1);
-  EXPECT_NE(u.err.find("--joint_errors is not available with distance or plane data"),
+  EXPECT_NE(u.err.find("--joint_errors is not available with distance or plane data: the "
+                       "contact solvers estimate the frames, pivots and planes only"),
             std::string::npos)
       << u.err;
+  // Every refused flag says why.
+  for (const char* flag : {"--residual_model=gp", "--loss=huber", "--fixed_tools=tool0",
+                           "--parameterization=full"}) {
+    const ToolOutput v = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") +
+                                                      " --measurements=" + P("bar.csv") + " " +
+                                                      flag + " --output=" + P("cal.yaml"));
+    EXPECT_EQ(v.exit_code, 1) << flag;
+    const std::string name = std::string(flag).substr(0, std::string(flag).find('='));
+    EXPECT_NE(v.err.find(name + " is not available with distance or plane data: "),
+              std::string::npos)
+        << v.err;
+    // The reason: more than the reference to the docs.
+    EXPECT_GT(v.err.size(), name.size() + 120) << v.err;
+    EXPECT_FALSE(std::ifstream(dir_ / "cal.yaml").good());
+  }
 }
 
 

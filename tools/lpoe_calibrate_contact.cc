@@ -213,14 +213,14 @@ int RunContactCalibration() {
     const char* flag;
   };
   for (const Unsupported& u :
-       {Unsupported{FLAGS_joint_errors != "none", "--joint_errors"},
-        Unsupported{FLAGS_residual_model != "none", "--residual_model"},
-        Unsupported{FLAGS_loss != "none", "--loss"},
-        Unsupported{!FLAGS_fixed_tools.empty(), "--fixed_tools"},
-        Unsupported{FLAGS_parameterization != "identifiable", "--parameterization"}}) {
+       {Unsupported{FLAGS_joint_errors != "none", "joint_errors"},
+        Unsupported{FLAGS_residual_model != "none", "residual_model"},
+        Unsupported{FLAGS_loss != "none", "loss"},
+        Unsupported{!FLAGS_fixed_tools.empty(), "fixed_tools"},
+        Unsupported{FLAGS_parameterization != "identifiable", "parameterization"}}) {
     if (u.set) {
-      std::cerr << "error: " << u.flag
-                << " is not available with distance or plane data yet (docs/measurements.md)\n";
+      std::cerr << "error: --" << u.flag << " is not available with distance or plane data: "
+                << ContactRefusalReason(u.flag) << " (docs/measurements.md)\n";
       return kExitUsage;
     }
   }
@@ -403,7 +403,8 @@ int RunContactCalibration() {
   if (tracker.size() > 0) {
     if (!FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty()) {
       std::cerr << "error: --urdf_output and --ur_kinematics_output are not available with "
-                   "tracker files among distance or plane files yet (docs/measurements.md)\n";
+                   "tracker files among distance or plane files: "
+                << ContactRefusalReason("urdf_with_tracker") << " (docs/measurements.md)\n";
       return kExitUsage;
     }
     // The tracker's frame: the model is registered to it first, so that the pivots and planes are

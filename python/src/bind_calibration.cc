@@ -376,8 +376,8 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
       {"loss", "none"}};
   for (const auto& [name, fallback] : defaults) {
     if (k.Get<std::string>(name, fallback) != fallback) {
-      throw LpoeError(std::string(name) +
-                      " is not available with distance or plane data yet (docs/measurements.md)");
+      throw LpoeError(std::string(name) + " is not available with distance or plane data: " +
+                      ContactRefusalReason(name) + " (docs/measurements.md)");
     }
   }
   const int kfold = k.Get<int>("kfold", 0);
@@ -385,8 +385,8 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
     throw LpoeError("kfold: expected 0 (off) or 2..100, got " + std::to_string(kfold));
   }
   if (!k.Get<py::object>("fixed_tools", py::none()).is_none()) {
-    throw LpoeError(
-        "fixed_tools is not available with distance or plane data yet (docs/measurements.md)");
+    throw LpoeError("fixed_tools is not available with distance or plane data: " +
+                    ContactRefusalReason("fixed_tools") + " (docs/measurements.md)");
   }
   const py::object verify = k.Get<py::object>("verify", py::none());
   // Accepted and without effect here, as lpoe_calibrate's run for these kinds ignores them.

@@ -162,6 +162,39 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
   return out;
 }
 
+std::string ContactRefusalReason(const std::string& option) {
+  if (option == "joint_errors") {
+    return "the contact solvers estimate the frames, pivots and planes only: a joint-space term's "
+           "columns are not reduced against the pivots and planes (which can absorb some of "
+           "them) nor carried by the Ceres side's residuals yet; identify the terms from tracker "
+           "data, or the geometry alone from these";
+  }
+  if (option == "residual_model") {
+    return "the residual layer learns each pose's 3D position residual in the tracker's frame; "
+           "a distance or plane row gives one number along a direction that changes from row "
+           "to row, not such a residual";
+  }
+  if (option == "loss") {
+    return "both contact solvers minimise the plain whitened least-squares cost (the cost "
+           "lpoe_compare checks they agree on); no robust loss is built for these rows";
+  }
+  if (option == "fixed_tools") {
+    return "the contact parameterization decides every frame's directions from the data (the "
+           "base's and the gauge's left out); holding a tool at given values is not part of it";
+  }
+  if (option == "parameterization") {
+    return "distances and planes do not see the base relative to the pivots and planes: the full "
+           "parameterization would carry those null directions, so the identifiable one, decided "
+           "from the data, is always used";
+  }
+  if (option == "urdf_with_tracker") {
+    return "with a tracker file the model is registered into the tracker's frame first, and that "
+           "registration is not recorded to be taken back out: the URDF's first joint would "
+           "carry the tracker's pose";
+  }
+  return "";
+}
+
 Status ReadContactInputs(const std::vector<std::string>& files, const RobotModel& nominal,
                          const ContactInputOptions& options, ContactInputs* out,
                          bool* usage_error) {

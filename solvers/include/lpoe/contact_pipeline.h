@@ -90,6 +90,12 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
                                          const ContactMeasurementSet& verification,
                                          const ContactPipelineOptions& options);
 
+// Why an option of the position calibration is refused with distance or plane data (one text for
+// lpoe_calibrate and Python): "joint_errors", "residual_model", "loss", "fixed_tools",
+// "parameterization" (full), "urdf_with_tracker" (--urdf_output / --ur_kinematics_output with a
+// tracker file among the files). Empty for any other name.
+std::string ContactRefusalReason(const std::string& option);
+
 // The input files of a contact calibration: distance and plane CSVs (and, when allowed, tracker
 // position files), each detected from its columns, read with its noise sigmas[i] (0: the file's
 // sigma column), combined into one set.
