@@ -4,6 +4,7 @@
 // best rigid alignment, than random sets of N candidates (and has the larger log det than each).
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <string>
 #include <vector>

@@ -4,6 +4,7 @@
 // input refused with the file and line and nothing written.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <sstream>
