@@ -180,6 +180,18 @@ TEST(ContactPlanning, ProbeCandidatesTouchTheFaces) {
     Eigen::Vector3d in_face = p - (pl.head<3>().dot(p) - pl(3)) * pl.head<3>();
     EXPECT_LE((in_face - o.plane_centres[row.feature]).norm(), o.face_radius + 1e-6);
   }
+  // A plan of 40 contacts: every face touched, more information than random sets of as many (the
+  // scale held, as the calibration holds it for planes alone).
+  ContactPlanResult probe_plan;
+  ASSERT_TRUE(PlanContacts(t.nominal, c, 40, 4, &probe_plan).ok());
+  std::vector<int> per_face(3, 0);
+  for (int i : probe_plan.selected) ++per_face[c.set.rows[i].feature];
+  for (int k = 0; k < 3; ++k) EXPECT_GE(per_face[k], 3) << "face " << k;
+  Eigen::MatrixXd rows;
+  ASSERT_TRUE(ContactInformationRows(t.nominal, c, &rows).ok());
+  for (uint64_t seed = 1; seed <= 5; ++seed) {
+    EXPECT_GT(probe_plan.log_det, ContactPlanLogDet(rows, RandomPlan(c.set.size(), 40, seed)));
+  }
   // Refusals name their reason.
   ContactPlanResult plan;
   const Status few = PlanContacts(t.nominal, c, 5, 2, &plan);

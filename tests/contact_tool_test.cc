@@ -357,6 +357,72 @@ TEST_F(ContactTool, PlanBallbarThenCalibrate) {
   EXPECT_FALSE(std::ifstream(dir_ / "plan2.csv").good());
   EXPECT_FALSE(std::ifstream(dir_ / "plan2.json").good());
 }
+
+// lpoe_plan --measurement=plane: 40 probe contacts on the simulated cube's three faces (the
+// planes as lpoe_simulate placed them), every tip one probe radius off its face and within the
+// face's circle, every face touched, more information than random plans of as many.
+TEST_F(ContactTool, PlanProbeOnTheCubeFaces) {
+  Simulate("plane", 0.003, "cube.csv");
+  // "... planes n.x = d: (nx ny nz d) (nx ny nz d) (nx ny nz d)".
+  std::vector<Eigen::Vector4d> planes;
+  {
+    std::ifstream in(dir_ / "cube.csv");
+    for (std::string line; std::getline(in, line);) {
+      const size_t at = line.find("n.x = d: (");
+      if (at == std::string::npos) continue;
+      std::stringstream ss(line.substr(at + 9));
+      char open, close;
+      Eigen::Vector4d pl;
+      while (ss >> open >> pl(0) >> pl(1) >> pl(2) >> pl(3) >> close) planes.push_back(pl);
+    }
+  }
+  ASSERT_EQ(planes.size(), 3u);
+  // The cube of 100 mm behind its +x, +y, +z faces: each face's centre.
+  const Eigen::Vector3d corner(planes[0](3), planes[1](3), planes[2](3));
+  std::string plane_flag, centre_flag;
+  std::vector<Eigen::Vector3d> centres;
+  for (int k = 0; k < 3; ++k) {
+    Eigen::Vector3d c = corner - Eigen::Vector3d(50, 50, 50);
+    c(k) = corner(k);
+    centres.push_back(c);
+    plane_flag += (k ? ";" : "") + std::to_string(planes[k](0)) + "," +
+                  std::to_string(planes[k](1)) + "," + std::to_string(planes[k](2)) + "," +
+                  std::to_string(planes[k](3));
+    centre_flag += (k ? ";" : "") + std::to_string(c(0)) + "," + std::to_string(c(1)) + "," +
+                   std::to_string(c(2));
+  }
+  const ToolOutput o = Run(LPOE_PLAN_PATH, "--model=" + P("nominal.yaml") +
+                                               " --measurement=plane --planes='" + plane_flag +
+                                               "' --face_centres='" + centre_flag +
+                                               "' --count=40 --output=" + P("probe.csv"));
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  RobotModel nominal;
+  ASSERT_TRUE(ReadRobotModel(dir_ / "nominal.yaml", &nominal).ok());
+  std::ifstream plan(dir_ / "probe.csv");
+  int rows = 0;
+  for (std::string line; std::getline(plan, line);) {
+    if (line.empty() || line[0] == '#' || line[0] == 'q') continue;
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
+    ASSERT_EQ(cells.size(), 8u) << line;
+    std::vector<double> q(6);
+    for (int j = 0; j < 6; ++j) q[j] = std::stod(cells[j]);
+    const int k = cells[6] == "face_x" ? 0 : cells[6] == "face_y" ? 1 : cells[6] == "face_z" ? 2 : -1;
+    ASSERT_GE(k, 0) << cells[6];
+    EXPECT_EQ(std::stod(cells[7]), 3.0);
+    const Eigen::Vector3d p = ToolPosition(nominal, q.data());
+    EXPECT_NEAR(planes[k].head<3>().dot(p) - planes[k](3), 3.0, 1e-4) << line;
+    const Eigen::Vector3d on_face = p - 3.0 * planes[k].head<3>();
+    EXPECT_LE((on_face - centres[k]).norm(), 40.0 + 1e-4) << line;
+    ++rows;
+  }
+  EXPECT_EQ(rows, 40);
+  std::ifstream in(dir_ / "probe.json");
+  const nlohmann::json r = nlohmann::json::parse(in);
+  EXPECT_EQ(r["poses_per_feature"].size(), 3u) << r.dump();
+  EXPECT_GT(r["plan"]["D_log_det"].get<double>(), r["random_plans"]["best_D_log_det"].get<double>());
+}
 #endif
 
 TEST_F(ContactTool, BadRowsNameFileAndLine) {
