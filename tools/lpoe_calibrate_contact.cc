@@ -8,7 +8,6 @@
 #include <cmath>
 #include <iomanip>
 #include <iostream>
-#include <random>
 #include <sstream>
 #include <string>
 #include <vector>

@@ -81,7 +81,7 @@ struct ContactPlanResult {
 };
 
 // The candidates' information rows (whitened, reduced to the directions not fixed by the gauge and
-// scale rows) and the column scale: row c of *rows is candidate c's.
+// scale rows): row c of *rows is candidate c's.
 Status ContactInformationRows(const RobotModel& model, const ContactCandidates& candidates,
                               Eigen::MatrixXd* rows);
 
