@@ -24,7 +24,7 @@
 #include "lpoe/registration.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
-#include "text_safety.h"
+#include "report/text_safety.h"
 #include "tool_common.h"
 
 DECLARE_string(measurements);

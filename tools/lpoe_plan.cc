@@ -27,9 +27,9 @@
 #include "lpoe/planning.h"
 #include "lpoe/planning_workflow.h"
 #include "lpoe/refusals.h"
-#include "json_text.h"
+#include "report/json_text.h"
 #include "output_files.h"
-#include "parse_util.h"
+#include "io/parse_util.h"
 #include "common_flags.h"
 #include "tool_common.h"
 
