@@ -9,13 +9,13 @@
 
 #include <benchmark/benchmark.h>
 
-#include "identifiability.h"
+#include "identifiability/identifiability.h"
 #include "loaded_cobot6.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/simulation.h"
-#include "normal_equations.h"
+#include "calibration/normal_equations.h"
 
 namespace lpoe {
 namespace {

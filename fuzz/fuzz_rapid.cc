@@ -1,4 +1,4 @@
-// libFuzzer target: the RAPID program parser (solvers/src/program_rapid.cc) and the rewriter on
+// libFuzzer target: the RAPID program parser (solvers/src/programs/program_rapid.cc) and the rewriter on
 // arbitrary bytes; the properties are fuzz_program.h's.
 #include <cstddef>
 #include <cstdint>

@@ -12,8 +12,8 @@
 #include <nlohmann/json.hpp>
 
 #include "fuzz_common.h"
-#include "json_text.h"
-#include "text_safety.h"
+#include "report/json_text.h"
+#include "report/text_safety.h"
 
 namespace {
 

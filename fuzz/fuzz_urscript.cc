@@ -1,4 +1,4 @@
-// libFuzzer target: the URScript program parser (solvers/src/program_urscript.cc) and the rewriter
+// libFuzzer target: the URScript program parser (solvers/src/programs/program_urscript.cc) and the rewriter
 // on arbitrary bytes; the properties are fuzz_program.h's.
 #include <cstddef>
 #include <cstdint>

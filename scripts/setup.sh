@@ -16,7 +16,7 @@ PACKAGES=(
   nlohmann-json3-dev       # the JSON calibration report (header-only)
   libgtest-dev libbenchmark-dev
   libpng-dev               # plot_test reads the written PNG images back
-  libplplot-dev plplot-driver-cairo pkg-config  # report plots (tools/plot.cc): PLplot, PNG via cairo
+  libplplot-dev plplot-driver-cairo pkg-config  # report plots (tools/report/plot.cc): PLplot, PNG via cairo
   chromium                 # report_html_test renders the HTML report headless
   pybind11-dev python3-pybind11 python3-dev python3-numpy python3-pytest  # the Python module lpoe (python/)
   clang libclang-rt-14-dev # scripts/fuzz.sh (libFuzzer) and scripts/ci_sanitize.sh (ASan + UBSan)

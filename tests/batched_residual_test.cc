@@ -1,7 +1,7 @@
-// The batched position residual block (solvers/src/batched_residual.h): its Jacobian against
+// The batched position residual block (solvers/src/calibration/batched_residual.h): its Jacobian against
 // numeric differentiation (ceres::GradientChecker, through the manifolds), and calibrations with
 // batched blocks against one block per row.
-#include "batched_residual.h"
+#include "calibration/batched_residual.h"
 
 #include <memory>
 #include <random>

@@ -29,7 +29,7 @@
 #include "lpoe/refusals.h"
 #include "lpoe/simulation.h"
 #include "lpoe/urdf.h"
-#include "urdf_tree.h"
+#include "urdf/urdf_tree.h"
 
 namespace lpoe {
 namespace {

@@ -13,7 +13,7 @@
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
 
-#include "gravity_tilt.h"
+#include "calibration/gravity_tilt.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
@@ -22,7 +22,7 @@
 #include "lpoe/problem_builder.h"
 #include "lpoe/simulation.h"
 #include "lpoe/statistics.h"
-#include "normal_equations.h"
+#include "calibration/normal_equations.h"
 
 namespace lpoe {
 namespace {

@@ -24,7 +24,7 @@
 #include "lpoe/registration.h"
 #include "lpoe/simulation.h"
 #include "lpoe/statistics.h"
-#include "structural_identifiability.h"
+#include "identifiability/structural_identifiability.h"
 
 namespace lpoe {
 namespace {

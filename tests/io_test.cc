@@ -26,7 +26,7 @@
 #include "lpoe/measurements.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/se3.h"
-#include "parse_util.h"
+#include "io/parse_util.h"
 
 namespace lpoe {
 namespace {

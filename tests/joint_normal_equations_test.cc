@@ -1,5 +1,5 @@
 // Issue 11 (cost): the normal equations of joint-space terms formed by their structure (per row
-// J_q^T J_q, J_frames^T J_q and the regressors' non-zero entries, solvers/src/normal_equations.h)
+// J_q^T J_q, J_frames^T J_q and the regressors' non-zero entries, solvers/src/calibration/normal_equations.h)
 // equal the dense ones (rows with every column), for every term kind: compliance and harmonics
 // (one joint per parameter), a term whose parameters move several joints, reduced bases, joint
 // state away from zero, position and pose data. And the reduction of the terms chooses the same
@@ -14,14 +14,14 @@
 #include <Eigen/QR>
 #include <gtest/gtest.h>
 
-#include "identifiability.h"
+#include "identifiability/identifiability.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/simulation.h"
-#include "normal_equations.h"
+#include "calibration/normal_equations.h"
 
 namespace lpoe {
 namespace {

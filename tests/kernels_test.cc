@@ -22,7 +22,7 @@
 #include "lpoe/parameterization.h"
 #include "lpoe/residual_layer.h"
 #include "lpoe/simulation.h"
-#include "normal_equations.h"
+#include "calibration/normal_equations.h"
 
 namespace lpoe {
 namespace {

@@ -20,7 +20,7 @@
 #include <gtest/gtest.h>
 
 #include "file_util.h"
-#include "json_text.h"
+#include "report/json_text.h"
 #include "tool_common.h"
 
 namespace lpoe {

@@ -1,8 +1,8 @@
 // Plots for the calibration report (PLplot): each figure renders to a PNG that reads back with the
 // right size, real content and the series colors, and to well-formed SVG; the bytes are the same on
 // every run; failures leave nothing behind.
-#include "plot.h"
-#include "text_safety.h"
+#include "report/plot.h"
+#include "report/text_safety.h"
 
 #include <gtest/gtest.h>
 #include <png.h>

@@ -21,7 +21,7 @@
 #include "lpoe/residual_layer.h"
 #include "lpoe/simulation.h"
 #include "lpoe/urdf.h"
-#include "report.h"
+#include "report/report.h"
 
 namespace lpoe {
 namespace tools {

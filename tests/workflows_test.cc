@@ -17,7 +17,7 @@
 #include "lpoe/planning_workflow.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/simulation.h"
-#include "parse_util.h"
+#include "io/parse_util.h"
 
 namespace lpoe {
 namespace {

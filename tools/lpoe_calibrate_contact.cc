@@ -24,8 +24,8 @@
 #include "lpoe/registration.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
-#include "plot.h"
-#include "text_safety.h"
+#include "report/plot.h"
+#include "report/text_safety.h"
 #include "tool_common.h"
 
 DECLARE_string(measurements);

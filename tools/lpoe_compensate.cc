@@ -34,10 +34,10 @@
 #include "lpoe/kinematics.h"
 #include "lpoe/refusals.h"
 #include "lpoe/se3.h"
-#include "json_text.h"
+#include "report/json_text.h"
 #include "output_files.h"
 #include "lpoe_compensate_program.h"
-#include "parse_util.h"
+#include "io/parse_util.h"
 #include "common_flags.h"
 #include "tool_common.h"
 

@@ -13,12 +13,12 @@
 #include <nlohmann/json.hpp>
 
 #include "common_flags.h"
-#include "json_text.h"
+#include "report/json_text.h"
 #include "lpoe/contact_planning.h"
 #include "lpoe/planning.h"
 #include "output_files.h"
-#include "parse_util.h"
-#include "text_safety.h"
+#include "io/parse_util.h"
+#include "report/text_safety.h"
 #include "tool_common.h"
 
 DECLARE_string(measurement);

@@ -24,7 +24,7 @@
 #include "lpoe/simulation.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
-#include "parse_util.h"
+#include "io/parse_util.h"
 #include "common_flags.h"
 #include "tool_common.h"
 

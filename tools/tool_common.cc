@@ -19,7 +19,7 @@
 #include "lpoe/options.h"
 #include "lpoe/version.h"
 #include "output_files.h"
-#include "parse_util.h"
+#include "io/parse_util.h"
 
 DECLARE_bool(help);
 DECLARE_bool(helpfull);

@@ -12,7 +12,7 @@
 #include "lpoe/io.h"
 #include "lpoe/statistics.h"
 #include "lpoe/urdf.h"
-#include "text_safety.h"
+#include "report/text_safety.h"
 
 namespace lpoe {
 namespace tools {

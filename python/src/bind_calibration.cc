@@ -22,7 +22,7 @@
 #include "lpoe/pipeline.h"
 #include "lpoe/refusals.h"
 #include "python_api.h"
-#include "report.h"
+#include "report/report.h"
 #include "tool_common.h"
 
 namespace py = pybind11;

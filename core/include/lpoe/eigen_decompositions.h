@@ -4,7 +4,7 @@
 // heavy templates: every translation unit that uses one spends 10-40 s compiling it (several times
 // that under the sanitizers). Including this header instead of <Eigen/SVD>, <Eigen/Eigenvalues> or
 // <Eigen/QR> declares them `extern template`, so they are compiled once, in
-// core/src/eigen_decompositions.cc, and linked from lpoe_core. Fixed-size decompositions
+// core/src/kinematics/eigen_decompositions.cc, and linked from lpoe_core. Fixed-size decompositions
 // (Matrix3d, 6x6) are cheap and stay implicit.
 #pragma once
 

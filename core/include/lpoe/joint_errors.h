@@ -1,7 +1,7 @@
 // Non-geometric joint-space error terms (docs/joint_errors.md): the mathematics of the compliance
 // under gravity and of the joint harmonics, prediction with every term a model carries, and the
 // identifiability analysis. The terms themselves are entries of the one registry (lpoe/joint_term.h,
-// core/src/joint_term_registry.inc); this header never lists them. Every term is linear in its
+// core/src/terms/joint_term_registry.inc); this header never lists them. Every term is linear in its
 // parameters,
 //
 //   dq = Y(q) theta,        q_eff = q + sum over terms of Y_term(q) theta_term,

@@ -12,7 +12,7 @@
 // position Jacobian with respect to the joint values (kinematics.h ToolPositionJointJacobian).
 //
 // A new term is one source file that defines a JointTerm and its factory, plus one line in
-// core/src/joint_term_registry.inc. Which combinations of theta the data can separate from the
+// core/src/terms/joint_term_registry.inc. Which combinations of theta the data can separate from the
 // geometry and from the other terms is decided by the solvers (Parameterization::joint_blocks).
 #ifndef LPOE_JOINT_TERM_H_
 #define LPOE_JOINT_TERM_H_
@@ -47,7 +47,7 @@ class JointTerm {
   virtual void Regressor(const double* q, double* Y) const = 0;
   // The one joint that parameter k can move (row of Y's column k that may be non-zero; every other
   // row is zero at every q), or -1 when it may move several joints. The solvers use it to form the
-  // normal equations from Y's sparsity (solvers/src/normal_equations.h) and check it on every
+  // normal equations from Y's sparsity (solvers/src/calibration/normal_equations.h) and check it on every
   // regressor they evaluate. The default, -1 for every parameter, is always correct.
   virtual int ParameterJoint(int k) const {
     (void)k;
@@ -81,8 +81,8 @@ MeasurementSet WithEffectiveJointValues(const std::vector<JointTermValues>& term
 
 // ---- Registry: the terms a user can ask for by name.
 //
-// One registry (core/src/joint_term_registry.inc) lists every joint-space term. Its entry
-// (core/src/joint_term_kind.h) owns the term's name, parameter layout and names, regressor, the
+// One registry (core/src/terms/joint_term_registry.inc) lists every joint-space term. Its entry
+// (core/src/terms/joint_term_kind.h) owns the term's name, parameter layout and names, regressor, the
 // offsets a model carrying the term predicts with, its YAML block under `joint_errors` and its
 // simulated truth values. Everything else (both solvers, prediction, IK, planning, simulation, the
 // tools and the Python module) goes through the functions below and never names a term.

@@ -51,7 +51,7 @@ struct Direction {
 // A joint-space term's parameter block: theta = basis * x_block, where basis (P x k, orthonormal
 // columns) spans the combinations of the term's parameters the data separate from the geometry and
 // from the earlier blocks (found by the solvers from the stacked Jacobian, see
-// solvers/src/identifiability.h). Until that analysis ran, basis = I.
+// solvers/src/identifiability/identifiability.h). Until that analysis ran, basis = I.
 struct JointBlock {
   std::shared_ptr<const JointTerm> term;
   Eigen::MatrixXd basis;

@@ -68,7 +68,7 @@ struct JointTermEntry {
 // Non-geometric joint-space error terms (lpoe/joint_term.h, docs/joint_errors.md). The robot moves
 // to the effective joint values q + sum over terms of Y_term(q) theta_term, where the regressors Y
 // are evaluated on the model that carries the terms (with `regressor_origins` as its joint origins
-// when given). Every term is an entry of the one registry (core/src/joint_term_registry.inc); each
+// when given). Every term is an entry of the one registry (core/src/terms/joint_term_registry.inc); each
 // name at most once (Validate checks both).
 struct JointErrorTerms {
   // The terms, each name once; their order does not matter (prediction and YAML follow the

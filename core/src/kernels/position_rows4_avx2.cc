@@ -1,6 +1,6 @@
 // The four-row position kernels (lpoe/kernels.h): the forward pass of four configurations at once,
 // one per AVX2 lane, and the per-pose products of the joint-space slots, for the linear solver's
-// normal equations (solvers/src/normal_equations_assembly.cc). The reference path is the same
+// normal equations (solvers/src/calibration/normal_equations_assembly.cc). The reference path is the same
 // algebra one row at a time (BasisJacobian::Position, then Eigen's rank update); tests/kernels_test.cc
 // compares the two.
 #include <cstddef>

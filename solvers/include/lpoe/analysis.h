@@ -93,7 +93,7 @@ void HoldoutSplit(int n, double fraction, uint64_t seed, std::vector<int>* ident
 std::vector<std::vector<int>> KFolds(int n, int k, uint64_t seed,
                                      SplitKind kind = SplitKind::kRandom);
 // A frame direction left out because no configuration of this chain, with the measured tools
-// where the data put them, can determine it (solvers/src/structural_identifiability.h; "kept as
+// where the data put them, can determine it (solvers/src/identifiability/structural_identifiability.h; "kept as
 // given"), as opposed to the identifiable parameterization's own removals, a tool never measured
 // or a joint-space combination.
 bool IsStructurallyLost(const Direction& d);

@@ -40,7 +40,7 @@ struct CeresSolverOptions {
   // 1 rad of orientation error counts as this many mm (pose data), as in LinearSolverOptions.
   double orientation_weight = 1000.0;
   // The chain whose structurally unidentifiable directions are left out
-  // (solvers/src/structural_identifiability.h); null: the model solved. The pipeline passes the
+  // (solvers/src/identifiability/structural_identifiability.h); null: the model solved. The pipeline passes the
   // nominal model: registration moves the tools by the noise, so that a tool on the last axis would
   // look slightly off it, and the axis' tilt weakly "identified" from noise. Not owned.
   const RobotModel* structure_reference = nullptr;

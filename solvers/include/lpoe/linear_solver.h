@@ -66,7 +66,7 @@ struct LinearSolverOptions {
   // registration, see registration.h). Not owned; must outlive the call.
   const Parameterization* parameterization_override = nullptr;
   // The chain whose structurally unidentifiable directions are left out
-  // (solvers/src/structural_identifiability.h); null: the model solved. The pipeline passes the
+  // (solvers/src/identifiability/structural_identifiability.h); null: the model solved. The pipeline passes the
   // nominal model: registration moves the tools by the noise, so that a tool on the last axis would
   // look slightly off it, and the axis' tilt weakly "identified" from noise. Not owned.
   const RobotModel* structure_reference = nullptr;

@@ -44,7 +44,7 @@
 namespace lpoe {
 
 namespace internal {
-struct JointSpaceRegressors;  // solvers/src/normal_equations.h
+struct JointSpaceRegressors;  // solvers/src/calibration/normal_equations.h
 struct NormalEquations;
 }  // namespace internal
 
@@ -227,7 +227,7 @@ class CalibrationProblem {
   std::vector<std::vector<double>> joint_blocks_;
   std::array<double, 2> tilt_ = {0.0, 0.0};
   Status tilt_status_;
-  // With joint-space terms, the reduction's by-products (solvers/src/normal_equations.h): the rows'
+  // With joint-space terms, the reduction's by-products (solvers/src/calibration/normal_equations.h): the rows'
   // regressors (slot basis of parameterization_'s blocks) and the normal equations at the nominal
   // values with every term whole, in analysed_parameterization_.
   std::shared_ptr<internal::JointSpaceRegressors> regressors_;

@@ -1,0 +1,191 @@
+#include "lpoe/options.h"
+
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include <glog/logging.h>
+
+#include "io/parse_util.h"
+
+namespace lpoe {
+namespace {
+
+constexpr double kUnbounded = std::numeric_limits<double>::infinity();
+
+OptionSpec Text(const char* scope, const char* name, const char* default_text, const char* help) {
+  OptionSpec s;
+  s.scope = scope;
+  s.name = name;
+  s.default_text = default_text;
+  s.help = help;
+  return s;
+}
+
+OptionSpec Number(const char* scope, const char* name, const char* default_text, double lo,
+                  double hi, const char* help, bool lo_open = false, bool hi_open = false) {
+  OptionSpec s = Text(scope, name, default_text, help);
+  s.has_range = true;
+  s.lo = lo;
+  s.hi = hi;
+  s.lo_open = lo_open;
+  s.hi_open = hi_open;
+  return s;
+}
+
+std::vector<OptionSpec> MakeOptions() {
+  const char* kCompensate = "lpoe_compensate";
+  const char* kPlan = "lpoe_plan";
+  const char* kCalibrate = "lpoe_calibrate";
+  const char* kCompare = "lpoe_compare";
+  const char* kSimulate = "lpoe_simulate";
+  return {
+      // ---- Every tool: the model, its chain, the units of the files, quiet, the main output.
+      Text("", "model", "",
+           "Robot model: YAML, or URDF when the name ends in .urdf (metres converted to mm, fixed "
+           "joints folded in; --base_link, --tip_link and --tool_links select the chain). Which "
+           "model (nominal or calibrated) and its default: see the usage above."),
+      Text("", "base_link", "",
+           "URDF --model: the link whose frame is the model's base frame. Default: the root link."),
+      Text("", "tip_link", "",
+           "URDF --model: the link that ends the chain (e.g. tool0). Needed when moving joints "
+           "lead to several leaf links (the error lists them). Default: the one candidate tip."),
+      Text("", "tool_links", "",
+           "URDF --model: comma-separated links fixed to the last moving link that are the "
+           "measured tools (CSV target names). Default: the tip link."),
+      Text("", "angle_unit", "rad",
+           "Unit of revolute joint values in every CSV file the tool reads or writes: rad | deg."),
+      Text("", "length_unit", "mm",
+           "Unit of positions (x, y, z columns) and prismatic joint values in every CSV file the "
+           "tool reads or writes: mm | m. Flags that are lengths stay in mm."),
+      Text("", "quiet", "false",
+           "No progress display and no informational messages; results, warnings and errors "
+           "still print."),
+      Text("", "output", "",
+           "The tool's main output file (what it holds: see the usage above). Checked before any "
+           "work, written atomically, never over an input."),
+      // ---- lpoe_calibrate (and lpoe.calibrate): the ranges; the help is the flags'.
+      Number(kCalibrate, "max_iterations", "30", 1, 10000, "Iteration limit."),
+      Number(kCalibrate, "step_tolerance", "1e-10", 1e-300, 1e-3, "", true),
+      Number(kCalibrate, "sd_fraction", "0.01", 0, 0.5, ""),
+      Number(kCalibrate, "max_condition", "1e8", 10, 1e16, ""),
+      Number(kCalibrate, "outlier_threshold", "5", 1, 1e6, ""),
+      Number(kCalibrate, "sigma", "1", 1e-6, 1e3, ""),
+      Number(kCalibrate, "loss_scale", "1", 1e-6, 1e4, ""),
+      Number(kCalibrate, "threads", "0", 0, 256, ""),
+      Number(kCalibrate, "noise_sigma", "0.03", 1e-6, 100, ""),
+      // The default prior (lpoe/prior.h, docs/identifiability.md "The prior"): its standard
+      // deviations, and one factor on all of them (0: no prior, plain least squares).
+      Number(kCalibrate, "prior_scale", "1", 0, 1e6, ""),
+      Number(kCalibrate, "prior_translation", "5", 1e-3, 1e4, ""),
+      Number(kCalibrate, "prior_rotation", "20", 1e-3, 1e4, ""),
+      Number(kCalibrate, "prior_tool_translation", "20", 1e-3, 1e4, ""),
+      Number(kCalibrate, "prior_joint_terms", "5", 1e-3, 1e4, ""),
+      // ---- lpoe_compare.
+      Number(kCompare, "tolerance_mm", "1e-6", 0, 1000, ""),
+      Number(kCompare, "noise_sigma", "0.03", 1e-6, 100, ""),
+      // ---- lpoe_simulate.
+      Number(kSimulate, "noise_sigma", "0", 0, 1e4, ""),
+      Number(kSimulate, "orientation_noise_sigma", "0", 0, 1, ""),
+      Number(kSimulate, "error_rotation", "0.005", 0, 1, ""),
+      Number(kSimulate, "error_translation", "3", 0, 1e3, ""),
+      Number(kSimulate, "error_tilt", "0.03", 0, 1, ""),
+      Number(kSimulate, "error_zero", "0.03", 0, 1e3, ""),
+      // ---- lpoe_compensate.
+      Number(kCompensate, "threads", "0", 0, 256,
+             "Worker threads (0: all cores; the output order is the input's)."),
+      Number(kCompensate, "max_iterations", "100", 1, 10000, "Newton iterations per attempt."),
+      Number(kCompensate, "restarts", "8", 0, 100,
+             "Restarts from perturbed seeds when a solve stalls."),
+      Number(kCompensate, "position_tolerance", "1e-7", 0, kUnbounded,
+             "Target reached when the position error is below (mm).", true, true),
+      Number(kCompensate, "orientation_tolerance", "1e-10", 0, kUnbounded,
+             "... and the orientation error below (rad).", true, true),
+      Number(kCompensate, "singular_threshold", "0.001", 0, kUnbounded,
+             "Smallest singular value (mm per rad; rotation rows weighted 100 mm/rad) below which "
+             "a row is 'singular'.", false, true),
+      // ---- lpoe_plan.
+      Number(kPlan, "candidate_count", "5000", 1, 1000000,
+             "Configurations sampled when no --candidates file is given."),
+      Number(kPlan, "workspace_count", "1000", 1, 1000000,
+             "Configurations sampled when no --workspace file is given."),
+      Number(kPlan, "random_draws", "30", 1, 10000,
+             "Random plans of the same size evaluated for comparison."),
+      Number(kPlan, "acceptance_angle", "30", 0, 90,
+             "Half-angle (degrees) of the cone around an SMR's facing direction within which the "
+             "tracker must lie.", true),
+      Number(kPlan, "min_singularity", "0.01", 0, 1,
+             "Drop candidates whose singularity measure (smallest singular value of the "
+             "length-normalized geometric Jacobian, docs/planning.md) is below this; 0: keep all.",
+             false, true),
+      Number(kPlan, "max_range", "0", 0, kUnbounded,
+             "Maximum tracker-to-SMR distance (mm); 0: unlimited.", false, true),
+      Number(kPlan, "target_accuracy", "0", 0, kUnbounded,
+             "--count=auto: predicted held-out RMS to reach (mm).", false, true),
+      Number(kPlan, "unmodelled_error", "0.03", 0, 1e3,
+             "What the calibrated model will not explain (mm per axis): its bias on the "
+             "calibration enters the plan's predicted error and the exchange (docs/planning.md); "
+             "from an earlier calibration, its verification RMS / sqrt(3) less the noise in "
+             "quadrature; 0: none. A --model carrying a residual layer gives its own (signal and "
+             "length scales) unless this is given."),
+      Number(kPlan, "unmodelled_length", "1", 0, kUnbounded,
+             "Length scale (rad; mm for prismatic joints) over which the unmodelled error varies "
+             "with each joint.", true, true),
+      Number(kPlan, "noise_sigma", "0", 0, kUnbounded,
+             "Measurement noise per axis (mm): scales the predicted accuracy into mm; required "
+             "with --count=auto.", false, true),
+  };
+}
+
+}  // namespace
+
+const std::vector<OptionSpec>& Options() {
+  static const std::vector<OptionSpec> options = MakeOptions();
+  return options;
+}
+
+const OptionSpec* FindOption(const std::string& tool, const std::string& name) {
+  const OptionSpec* shared = nullptr;
+  for (const OptionSpec& s : Options()) {
+    if (name != s.name) continue;
+    if (tool == s.scope) return &s;
+    if (s.scope[0] == '\0') shared = &s;
+  }
+  return shared;
+}
+
+const char* OptionHelp(const std::string& tool, const std::string& name) {
+  const OptionSpec* s = FindOption(tool, name);
+  CHECK(s != nullptr) << "no option " << name << " of " << tool;
+  return s->help;
+}
+
+double OptionDefault(const std::string& tool, const std::string& name) {
+  const OptionSpec* s = FindOption(tool, name);
+  CHECK(s != nullptr) << "no option " << name << " of " << tool;
+  double v = 0;
+  CHECK(internal::ParseNumber(s->default_text, &v) == internal::NumberParse::kOk) << name;
+  return v;
+}
+
+std::string OptionRangeText(const OptionSpec& s) {
+  if (!s.has_range) return "";
+  auto number = [](double v) {
+    return std::isinf(v) ? std::string(v > 0 ? "inf" : "-inf") : internal::FormatNumber(v);
+  };
+  return std::string(s.lo_open ? "(" : "[") + number(s.lo) + ", " + number(s.hi) +
+         (s.hi_open ? ")" : "]");
+}
+
+Status CheckOption(const std::string& tool, const std::string& name, double value) {
+  const OptionSpec* s = FindOption(tool, name);
+  if (s == nullptr || !s->has_range) return Status::Ok();
+  const bool ok = (s->lo_open ? value > s->lo : value >= s->lo) &&
+                  (s->hi_open ? value < s->hi : value <= s->hi);
+  if (ok) return Status::Ok();
+  std::ostringstream os;
+  os << "--" << name << " must be in " << OptionRangeText(*s) << ", got " << value;
+  return Status::Error(os.str());
+}
+
+}  // namespace lpoe

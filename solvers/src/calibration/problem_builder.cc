@@ -1,0 +1,593 @@
+#include "lpoe/problem_builder.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <ceres/ceres.h>
+#include <glog/logging.h>
+
+#include "calibration/batched_residual.h"
+#include "calibration/gravity_tilt.h"
+#include "identifiability/identifiability.h"
+#include "identifiability/structural_identifiability.h"
+#include "lpoe/eigen_decompositions.h"
+#include "lpoe/measurement_residual.h"
+#include "calibration/normal_equations.h"
+
+namespace lpoe {
+
+Status ValidateCalibrationProblemOptions(const CalibrationProblemOptions& options) {
+  if (options.loss != "none" && options.loss != "huber" && options.loss != "cauchy") {
+    return Status::Error("loss must be none, huber or cauchy, got '" + options.loss + "'");
+  }
+  if (!(options.sigma > 0) || !std::isfinite(options.sigma)) {
+    return Status::Error("sigma must be a positive number of mm");
+  }
+  if (options.rows_per_block < 1) return Status::Error("rows_per_block must be >= 1");
+  if (!(options.loss_scale > 0) || !std::isfinite(options.loss_scale)) {
+    return Status::Error("loss_scale must be a positive number of mm");
+  }
+  if (!(options.orientation_weight > 0) || !std::isfinite(options.orientation_weight)) {
+    return Status::Error("orientation_weight must be positive");
+  }
+  if (!(options.joint_term_tolerance > 0 && options.joint_term_tolerance < 1)) {
+    return Status::Error("joint_term_tolerance must be in (0, 1)");
+  }
+  bool compliance = false;
+  for (const auto& term : options.joint_terms) {
+    if (term == nullptr) return Status::Error("a joint-space term is null");
+    compliance = compliance || term->name() == "compliance";
+  }
+  if (options.gravity_tilt && !compliance) {
+    return Status::Error("the gravity tilt is identified with the compliance term (joint errors "
+                         "compliance,tilt)");
+  }
+  return Status::Ok();
+}
+
+Status ValidateCalibrationProblem(const RobotModel& nominal, const MeasurementSet& data,
+                                  const CalibrationProblemOptions& options) {
+  if (Status s = ValidateCalibrationProblemOptions(options); !s.ok()) return s;
+  if (data.num_joints() != nominal.num_joints()) {
+    return Status::Error("the measurements have " + std::to_string(data.num_joints()) +
+                         " joint values per row, the model " +
+                         std::to_string(nominal.num_joints()) + " joints");
+  }
+  for (int r = 0; r < data.size(); ++r) {
+    if (data.target(r) < 0 || data.target(r) >= nominal.num_tools()) {
+      return Status::Error("row " + std::to_string(r) + ": tool index " +
+                           std::to_string(data.target(r)) + " not in the model");
+    }
+  }
+  if (options.use_orientation && !data.has_orientation()) {
+    return Status::Error(
+        "pose-based calibration needs measured orientations (quat_x..quat_w columns)");
+  }
+  return Status::Ok();
+}
+
+CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const MeasurementSet& data,
+                                       const CalibrationProblemOptions& options)
+    : nominal_(nominal), data_(&data), options_(options) {
+  {
+    const Status s = ValidateCalibrationProblem(nominal, data, options);
+    CHECK(s.ok()) << s.message();
+  }
+  if (!options.joint_terms.empty()) {
+    regressors_ = std::make_shared<internal::JointSpaceRegressors>();
+    analysed_ = std::make_shared<internal::NormalEquations>();
+  }
+  internal::SolverParameterizationRequest request = internal::ParameterizationRequestOf(options);
+  request.analysed = analysed_.get();
+  request.regressors = regressors_.get();
+  request.analysed_parameterization = &analysed_parameterization_;
+  parameterization_ = internal::SolverParameterization(nominal, data, request);
+  if (regressors_) internal::SetSlotBasis(parameterization_, regressors_.get());
+  const int n = nominal.num_joints();
+  const int F = nominal.num_frames();
+  frames_.resize(F);
+  solved_.assign(F, false);
+  for (int f = 0; f < F; ++f) {
+    Se3ToArray(f < n ? nominal.joints[f].origin : nominal.tools[f - n].origin, frames_[f].data());
+  }
+  initial_frames_ = frames_;
+  for (int i = 0; i < n; ++i) solved_[i] = true;
+  for (int r = 0; r < data.size(); ++r) solved_[n + data.target(r)] = true;
+  if (options.gravity_tilt) {
+    tilt_status_ = internal::AddSolverGravityTilt(options.gravity_tilt, &parameterization_);
+  }
+  const Parameterization& p = parameterization_;
+  const Eigen::VectorXd initial = internal::InitialJointState(p, options.initial_joint_terms);
+  joint_blocks_.resize(p.joint_blocks.size());
+  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
+    const JointBlock& block = p.joint_blocks[b];
+    const int first = block.offset - p.num_frame_parameters();
+    joint_blocks_[b].resize(block.basis.cols());
+    for (int c = 0; c < block.basis.cols(); ++c) joint_blocks_[b][c] = initial(first + c);
+  }
+}
+
+double* CalibrationProblem::tilt_block() {
+  return parameterization_.gravity_tilt ? tilt_.data() : nullptr;
+}
+
+double* CalibrationProblem::frame_block(int f) {
+  CHECK(f >= 0 && f < static_cast<int>(frames_.size()));
+  return solved_[f] ? frames_[f].data() : nullptr;
+}
+
+double* CalibrationProblem::joint_block(int b) {
+  CHECK(b >= 0 && b < static_cast<int>(joint_blocks_.size()));
+  return joint_blocks_[b].empty() ? nullptr : joint_blocks_[b].data();
+}
+
+std::vector<double*> CalibrationProblem::parameter_blocks() {
+  std::vector<double*> out;
+  for (size_t f = 0; f < frames_.size(); ++f) {
+    if (solved_[f]) out.push_back(frames_[f].data());
+  }
+  for (std::vector<double>& b : joint_blocks_) {
+    if (!b.empty()) out.push_back(b.data());
+  }
+  if (parameterization_.gravity_tilt) out.push_back(tilt_.data());
+  return out;
+}
+
+std::vector<int> CalibrationProblem::tangent_sizes() const {
+  const Parameterization& p = parameterization_;
+  std::vector<int> out;
+  for (size_t f = 0; f < frames_.size(); ++f) {
+    if (solved_[f]) out.push_back(static_cast<int>(p.basis[f].cols()));
+  }
+  for (const std::vector<double>& b : joint_blocks_) {
+    if (!b.empty()) out.push_back(static_cast<int>(b.size()));
+  }
+  if (p.gravity_tilt) out.push_back(2);
+  return out;
+}
+
+std::vector<int> CalibrationProblem::tangent_offsets() const {
+  const Parameterization& p = parameterization_;
+  std::vector<int> out;
+  for (size_t f = 0; f < frames_.size(); ++f) {
+    if (solved_[f]) out.push_back(p.offset[f]);
+  }
+  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
+    if (!joint_blocks_[b].empty()) out.push_back(p.joint_blocks[b].offset);
+  }
+  if (p.gravity_tilt) out.push_back(p.tilt_offset);
+  return out;
+}
+
+namespace {
+
+// The reduction's slots (the non-zero entries of d(dq)/d(theta) per row, slot_basis mapping the
+// joint state's K parameters to the slots' ones) when they were stored for these rows and can serve
+// the joint state: not with the gravity tilt, whose rows are not linear in it. Else nullptr.
+const internal::JointSpaceRegressors* UsableSlots(const internal::JointSpaceRegressors* slots,
+                                                  const Parameterization& p, int n, int rows,
+                                                  Eigen::Index K) {
+  const bool usable = K > 0 && !p.gravity_tilt && slots != nullptr && slots->num_joints == n &&
+                      slots->values.cols() == rows &&
+                      slots->values.rows() == slots->num_slots() &&
+                      slots->slot_basis.rows() == slots->num_slots() &&
+                      slots->slot_basis.cols() == K;
+  return usable ? slots : nullptr;
+}
+
+// The normal equations' options of the problem's measurements, with its joint regressors.
+internal::NormalEquationsOptions LinearizationOptions(const CalibrationProblemOptions& options,
+                                                      const internal::JointSpaceRegressors* regs) {
+  internal::NormalEquationsOptions o;
+  o.use_orientation = options.use_orientation;
+  o.orientation_weight = options.orientation_weight;
+  o.joint.regressors = regs;
+  return o;
+}
+
+}  // namespace
+
+std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* problem) {
+  const Parameterization& p = parameterization_;
+  const MeasurementSet& data = *data_;
+  const int n = nominal_.num_joints();
+  ceres::LossFunction* loss = nullptr;  // shared by all residual blocks; owned by the problem
+  const double whitened_scale = options_.loss_scale / options_.sigma;
+  if (options_.loss == "huber") loss = new ceres::HuberLoss(whitened_scale);
+  if (options_.loss == "cauchy") loss = new ceres::CauchyLoss(whitened_scale);
+
+  const auto shared_model = std::make_shared<const RobotModel>(nominal_);
+  std::vector<double*> parameters(n + 1);
+  for (int i = 0; i < n; ++i) parameters[i] = frames_[i].data();
+  std::vector<int> solved_joint_blocks, block_sizes;
+  int K = 0;
+  int tilt_block = -1;  // the compliance block among the solved ones
+  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
+    if (joint_blocks_[b].empty()) continue;
+    if (p.gravity_tilt && static_cast<int>(b) == p.tilt_block) {
+      tilt_block = static_cast<int>(solved_joint_blocks.size());
+    }
+    solved_joint_blocks.push_back(static_cast<int>(b));
+    parameters.push_back(joint_blocks_[b].data());
+    block_sizes.push_back(static_cast<int>(joint_blocks_[b].size()));
+    K += block_sizes.back();
+  }
+  if (p.gravity_tilt) {
+    CHECK_GE(tilt_block, 0);
+    parameters.push_back(tilt_.data());
+  }
+  std::vector<ceres::ResidualBlockId> ids;
+  const int batch = BatchedRows();
+  if (batch > 1) {
+    // Every solved frame in each block: the joints, then the measured tools.
+    std::vector<int> frames;
+    std::vector<double*> blocks;
+    for (int f = 0; f < static_cast<int>(frames_.size()); ++f) {
+      if (!solved_[f]) continue;
+      frames.push_back(f);
+      blocks.push_back(frames_[f].data());
+    }
+    for (int begin = 0; begin < data.size(); begin += batch) {
+      const int end = std::min(data.size(), begin + batch);
+      ids.push_back(problem->AddResidualBlock(
+          new internal::BatchedPositionResidual(shared_model, parameterization_, frames, data,
+                                                begin, end, 1.0 / options_.sigma),
+          nullptr, blocks));
+    }
+  }
+  PositionMeasurement position_kind;
+  position_kind.inverse_sigma = 1.0 / options_.sigma;
+  PoseMeasurement pose_kind;
+  pose_kind.inverse_sigma = 1.0 / options_.sigma;
+  pose_kind.orientation_weight = options_.orientation_weight;
+  Eigen::MatrixXd term_Y;
+  // The rows' regressors from the reduction's slots when it stored them (regressors_: the non-zero
+  // entries of d(dq)/d(theta) per row, slot_basis mapping x to the slots' parameters): joint j's
+  // row of R is sum_{s in j} values(s, r) slot_basis row s, about 89 x K multiply-adds per row on
+  // cobot6 instead of each term's n x P regressor and its product with the basis.
+  const internal::JointSpaceRegressors* slots =
+      UsableSlots(regressors_.get(), p, n, data.size(), K);
+  const bool from_slots = slots != nullptr;
+  // slot_basis transposed (K x slots): slot s's row contiguous.
+  const Eigen::MatrixXd slot_basis_t =
+      from_slots ? Eigen::MatrixXd(slots->slot_basis.transpose()) : Eigen::MatrixXd();
+  if (batch == 1) ids.reserve(data.size());
+  for (int r = 0; batch == 1 && r < data.size(); ++r) {
+    parameters[n] = frames_[n + data.target(r)].data();
+    // This row's joint regressor [Y_b(q) basis_b] (data: evaluated once).
+    Eigen::MatrixXd R(n, K);
+    if (from_slots) {
+      Eigen::MatrixXd R_t = Eigen::MatrixXd::Zero(K, n);  // R transposed: joint j's row contiguous
+      for (int j = 0; j < n; ++j) {
+        for (int s = slots->slot_begin[j]; s < slots->slot_begin[j + 1]; ++s) {
+          const double v = slots->values(s, r);
+          if (v != 0) R_t.col(j) += v * slot_basis_t.col(s);
+        }
+      }
+      R = R_t.transpose();
+    } else {
+      int column = 0;
+      for (int b : solved_joint_blocks) {
+        const JointBlock& block = p.joint_blocks[b];
+        term_Y.resize(n, block.term->num_parameters());
+        block.term->Regressor(data.q(r), term_Y.data());
+        R.middleCols(column, block.basis.cols()) = term_Y * block.basis;
+        column += static_cast<int>(block.basis.cols());
+      }
+    }
+    std::shared_ptr<GravityTiltRow> tilt;
+    if (p.gravity_tilt) {
+      tilt = std::make_shared<GravityTiltRow>();
+      tilt->block = tilt_block;
+      tilt->gravity = p.gravity_tilt->gravity();
+      tilt->axes = p.gravity_tilt->axes();
+      internal::GravityTiltRowRegressors(p, data.q(r), tilt->Z);
+    }
+    ceres::CostFunction* cost =
+        options_.use_orientation
+            ? PoseResidual::Create(shared_model, pose_kind, data.q(r), data.pose(r), R,
+                                   block_sizes, tilt)
+            : PositionResidual::Create(shared_model, position_kind, data.q(r), data.position(r),
+                                       R, block_sizes, tilt);
+    ids.push_back(problem->AddResidualBlock(cost, loss, parameters));
+  }
+  for (size_t f = 0; f < frames_.size(); ++f) {
+    if (!solved_[f]) continue;
+    // A solved frame no row reaches (cannot happen for joints with data) is added explicitly.
+    problem->AddParameterBlock(frames_[f].data(), kSe3AmbientSize);
+    if (p.basis[f].cols() == 0) {  // every direction left out (structurally unidentifiable)
+      problem->SetParameterBlockConstant(frames_[f].data());
+      continue;
+    }
+    problem->SetManifold(frames_[f].data(), new Se3Manifold(p.basis[f]));
+  }
+  return ids;
+}
+
+int CalibrationProblem::BatchedRows() const {
+  bool joint_blocks = false;
+  for (const std::vector<double>& b : joint_blocks_) joint_blocks = joint_blocks || !b.empty();
+  const bool batchable = !options_.use_orientation && options_.loss == "none" && !joint_blocks;
+  return batchable ? std::max(1, options_.rows_per_block) : 1;
+}
+
+RobotModel CalibrationProblem::Model() const {
+  RobotModel model = nominal_;
+  const int n = model.num_joints();
+  for (int f = 0; f < model.num_frames(); ++f) {
+    // An unchanged block keeps the nominal frame bit for bit (no quaternion round trip).
+    if (!solved_[f] || frames_[f] == initial_frames_[f]) continue;
+    SE3d& T = f < n ? model.joints[f].origin : model.tools[f - n].origin;
+    T = Se3FromArray(frames_[f].data());
+  }
+  return model;
+}
+
+Eigen::VectorXd CalibrationProblem::JointState() const {
+  Eigen::VectorXd x(parameterization_.num_joint_parameters());
+  int k = 0;
+  for (const std::vector<double>& b : joint_blocks_) {
+    for (double v : b) x(k++) = v;
+  }
+  if (parameterization_.gravity_tilt) {
+    x(k++) = tilt_[0];
+    x(k++) = tilt_[1];
+  }
+  return x;
+}
+
+std::vector<double> CalibrationProblem::EffectiveJointValues() const {
+  const MeasurementSet& data = *data_;
+  const int n = data.num_joints();
+  const Parameterization& p = parameterization_;
+  if (data.size() == 0) return {};
+  std::vector<double> q(data.q(0), data.q(0) + static_cast<size_t>(data.size()) * n);
+  if (p.joint_blocks.empty()) return q;
+  const Eigen::VectorXd x = JointState();
+  const internal::JointSpaceRegressors* slots =
+      UsableSlots(regressors_.get(), p, n, data.size(), x.size());
+  if (slots == nullptr) {
+    const MeasurementSet shifted = WithEffectiveJointValues(JointTerms(), data);
+    std::copy(shifted.q(0), shifted.q(0) + q.size(), q.begin());
+    return q;
+  }
+  // The slots' parameter values theta(slot) = slot_basis x, then per row and joint
+  // dq_j = sum_{s in j} values(s, r) theta(s).
+  const Eigen::VectorXd theta = slots->slot_basis * x;
+  for (int r = 0; r < data.size(); ++r) {
+    const double* v = slots->values.col(r).data();
+    for (int j = 0; j < n; ++j) {
+      double dq = 0;
+      for (int s = slots->slot_begin[j]; s < slots->slot_begin[j + 1]; ++s) dq += v[s] * theta(s);
+      q[static_cast<size_t>(r) * n + j] += dq;
+    }
+  }
+  return q;
+}
+
+std::vector<JointTermValues> CalibrationProblem::JointTerms() const {
+  const Parameterization& p = parameterization_;
+  Eigen::VectorXd all = Eigen::VectorXd::Zero(p.num_parameters);
+  for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
+    const JointBlock& block = p.joint_blocks[b];
+    for (int c = 0; c < block.basis.cols(); ++c) all(block.offset + c) = joint_blocks_[b][c];
+  }
+  if (p.gravity_tilt) all.segment<2>(p.tilt_offset) << tilt_[0], tilt_[1];
+  return JointValuesOf(p, all);
+}
+
+Parameterization CalibrationProblem::SolvedParameterization() const {
+  Parameterization p = parameterization_;
+  internal::LeaveOutUnmeasuredTools(nominal_, *data_, &p);
+  return p;
+}
+
+ProblemNormalEquations CalibrationProblem::NormalEquations() const {
+  ProblemNormalEquations out;
+  out.parameterization = SolvedParameterization();
+  const internal::NormalEquations lin =
+      internal::NormalEquationsOf(Model(), *data_, out.parameterization, JointState(),
+                                  LinearizationOptions(options_, regressors_.get()));
+  const double w = 1.0 / (options_.sigma * options_.sigma);
+  out.H = w * lin.H;
+  out.g = w * lin.g;
+  out.cost = w * lin.cost;
+  out.finite = lin.finite;
+  for (const Direction& d : out.parameterization.parameters) out.names.push_back(d.name);
+  return out;
+}
+
+void CalibrationProblem::Update(const Eigen::VectorXd& x) {
+  const Parameterization solved = SolvedParameterization();
+  CHECK_EQ(x.size(), solved.num_parameters) << "step of the wrong size";
+  RobotModel model = Model();
+  ApplyUpdate(solved, x, &model);
+  const int n = model.num_joints();
+  for (size_t f = 0; f < frames_.size(); ++f) {
+    if (!solved_[f]) continue;
+    const int fi = static_cast<int>(f);
+    Se3ToArray(fi < n ? model.joints[fi].origin : model.tools[fi - n].origin, frames_[f].data());
+  }
+  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
+    const int offset = solved.joint_blocks[b].offset;
+    for (size_t c = 0; c < joint_blocks_[b].size(); ++c) joint_blocks_[b][c] += x(offset + c);
+  }
+  if (solved.gravity_tilt) {
+    tilt_[0] += x(solved.tilt_offset);
+    tilt_[1] += x(solved.tilt_offset + 1);
+  }
+}
+
+ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
+  const Parameterization& p = parameterization_;
+  const MeasurementSet& data = *data_;
+  const bool full = options_.parameterization == ParameterizationKind::kFull;
+  const DataKind kind = options_.use_orientation ? DataKind::kPose : DataKind::kPosition;
+  const int per_row = options_.use_orientation ? 6 : 3;
+  const RobotModel model = Model();
+  ProblemAnalysis out;
+  // The identifiable directions of the solved frames (for the full parameterization, its
+  // identifiable basis: the full J^T J is singular by construction), then the joint blocks.
+  Parameterization all = p;
+  if (full) {
+    all = MakeParameterization(model, ParameterizationKind::kIdentifiable, kind);
+    internal::LeaveOutStructurallyUnidentifiable(
+        options_.structure_reference ? *options_.structure_reference : nominal_, *data_,
+        options_.use_orientation, options_.orientation_weight, &all);
+    CopyJointBlocks(p, &all);
+  }
+  Parameterization analysed;
+  std::vector<int> columns;
+  for (int f = 0; f < model.num_frames(); ++f) {
+    if (!solved_[f]) continue;
+    for (int c = 0; c < all.basis[f].cols(); ++c) {
+      columns.push_back(all.offset[f] + c);
+      analysed.parameters.push_back(all.parameters[all.offset[f] + c]);
+    }
+  }
+  for (int k = all.num_frame_parameters(); k < all.num_parameters; ++k) {
+    columns.push_back(k);
+    analysed.parameters.push_back(all.parameters[k]);
+  }
+  analysed.num_parameters = static_cast<int>(columns.size());
+  out.num_parameters = analysed.num_parameters;
+  for (const Direction& d : analysed.parameters) out.parameter_names.push_back(d.name);
+  Parameterization left_out = all;
+  internal::LeaveOutUnmeasuredTools(model, data, &left_out);
+  out.unidentifiable = left_out.unidentifiable;
+  out.num_equations = static_cast<long>(per_row) * data.size();
+  if (out.num_equations < out.num_parameters) {
+    out.message = internal::TooFewEquationsMessage(data.size(), out.num_equations,
+                                                   out.num_parameters, per_row);
+    return out;
+  }
+  // At the start values the reduction's normal equations give H by projection (no pass).
+  bool at_start = analysed_ != nullptr && frames_ == initial_frames_;
+  for (const std::vector<double>& b : joint_blocks_) {
+    for (double v : b) at_start = at_start && v == 0;
+  }
+  Eigen::MatrixXd H_all;
+  if (at_start && !all.gravity_tilt &&
+      internal::SameFrameDirections(analysed_parameterization_, all)) {
+    H_all = internal::ProjectJointBlocks(*analysed_, all).H;
+  } else {
+    H_all = internal::NormalEquationsOf(model, data, all, JointState(),
+                                        LinearizationOptions(options_, regressors_.get()))
+                .H;
+  }
+  Eigen::MatrixXd& H = out.normal_matrix;
+  H.resize(out.num_parameters, out.num_parameters);
+  for (int a = 0; a < out.num_parameters; ++a) {
+    for (int b = 0; b < out.num_parameters; ++b) H(a, b) = H_all(columns[a], columns[b]);
+  }
+  if (!H.allFinite()) {
+    out.finite = false;
+    out.message = "non-finite residuals or Jacobian at the nominal model (check the input values)";
+    return out;
+  }
+  const internal::Identifiability id = internal::Analyze(H);
+  out.rank = id.rank;
+  out.condition_number = id.condition;
+  out.singular_values = id.singular_values;
+  out.weakest = internal::WeakestDirections(analysed, id.weakest);
+  out.identifiable = id.rank == out.num_parameters && id.condition <= max_condition_number;
+  if (!out.identifiable) {
+    out.message = internal::NotIdentifiableMessage(id, out.num_parameters, max_condition_number,
+                                                   analysed);
+  }
+  return out;
+}
+
+Status CalibrationProblem::Covariance(ceres::Problem* problem, int num_threads,
+                                      Eigen::MatrixXd* covariance, int null_space_rank) {
+  ceres::Covariance::Options cov_options;
+  cov_options.algorithm_type = ceres::DENSE_SVD;
+  cov_options.num_threads = std::max(1, num_threads);
+  // Full parameterization: the gauge directions are a known null space; take the pseudo-inverse
+  // (singular values below min_reciprocal_condition_number are dropped).
+  cov_options.null_space_rank =
+      options_.parameterization == ParameterizationKind::kFull ? null_space_rank : 0;
+  ceres::Covariance cov(cov_options);
+  const std::vector<double*> blocks = parameter_blocks();
+  const std::vector<int> sizes = tangent_sizes();  // in the order of parameter_blocks()
+  // A frame with no columns (a fixed tool, or every direction left out) is a constant block: Ceres
+  // would give it its ambient size, so it is not asked for (its rows of C are empty anyway).
+  std::vector<const double*> const_blocks;
+  for (size_t k = 0; k < blocks.size(); ++k) {
+    if (sizes[k] > 0) const_blocks.push_back(blocks[k]);
+  }
+  int tangent = 0;
+  for (int s : sizes) tangent += s;
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> C(tangent, tangent);
+  if (!cov.Compute(const_blocks, problem) ||
+      !cov.GetCovarianceMatrixInTangentSpace(const_blocks, C.data())) {
+    return Status::Error("covariance not computed (rank-deficient Jacobian at the solution)");
+  }
+  *covariance = ScatterCovariance(C);
+  return Status::Ok();
+}
+
+Eigen::MatrixXd CalibrationProblem::ScatterCovariance(const Eigen::MatrixXd& C) const {
+  // Rows of C follow parameter_blocks(); scatter them to p's offsets.
+  const Parameterization& p = parameterization_;
+  const std::vector<int> sizes = tangent_sizes();
+  const std::vector<int> offsets = tangent_offsets();
+  Eigen::MatrixXd covariance = Eigen::MatrixXd::Zero(p.num_parameters, p.num_parameters);
+  std::vector<int> c_offset(sizes.size());
+  for (size_t a = 1; a < sizes.size(); ++a) c_offset[a] = c_offset[a - 1] + sizes[a - 1];
+  for (size_t a = 0; a < sizes.size(); ++a) {
+    for (size_t b = 0; b < sizes.size(); ++b) {
+      covariance.block(offsets[a], offsets[b], sizes[a], sizes[b]) =
+          C.block(c_offset[a], c_offset[b], sizes[a], sizes[b]);
+    }
+  }
+  return covariance;
+}
+
+Status CalibrationProblem::NormalEquationsCovariance(Eigen::MatrixXd* covariance,
+                                                     int null_space_rank) const {
+  // H's columns are the solved parameters in parameter_blocks() order, as Covariance()'s C.
+  const ProblemNormalEquations ne = NormalEquations();
+  if (!ne.finite) return Status::Error("covariance not computed (non-finite normal equations)");
+  Eigen::MatrixXd C;
+  if (options_.parameterization == ParameterizationKind::kFull) {
+    // The pseudo-inverse with Ceres's rule (DENSE_SVD, null_space_rank -1): eigenvalues below
+    // min_reciprocal_condition_number times the largest are dropped.
+    const double min_ratio = ceres::Covariance::Options().min_reciprocal_condition_number;
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(ne.H);
+    const Eigen::VectorXd& l = eig.eigenvalues();
+    const double largest = l.maxCoeff();
+    Eigen::VectorXd inv_l = Eigen::VectorXd::Zero(l.size());
+    for (int k = std::max(0, null_space_rank); k < l.size(); ++k) {  // ascending
+      if (null_space_rank >= 0 || l(k) > min_ratio * largest) inv_l(k) = 1.0 / l(k);
+    }
+    if (null_space_rank >= 0 && null_space_rank < l.size() &&
+        !(l(null_space_rank) > min_ratio * largest)) {
+      return Status::Error("covariance not computed (rank-deficient Jacobian at the solution)");
+    }
+    C = eig.eigenvectors() * inv_l.asDiagonal() * eig.eigenvectors().transpose();
+  } else {
+    // Column-scaled for accuracy, as the linear solver's covariance.
+    const Eigen::VectorXd d = internal::ColumnScale(ne.H);
+    const Eigen::MatrixXd Hs = d.asDiagonal() * ne.H * d.asDiagonal();
+    Eigen::LLT<Eigen::MatrixXd> llt(Hs);
+    // Compute()'s test (DENSE_SVD): the reciprocal condition number of the Jacobian, here the
+    // column-scaled one, i.e. the square root of the eigenvalue ratio of Hs.
+    const double min_ratio = ceres::Covariance::Options().min_reciprocal_condition_number;
+    const Eigen::VectorXd l =
+        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Hs, Eigen::EigenvaluesOnly).eigenvalues();
+    if (llt.info() != Eigen::Success || l.size() == 0 ||
+        !(std::sqrt(std::max(0.0, l(0)) / l(l.size() - 1)) >= min_ratio)) {
+      return Status::Error("covariance not computed (rank-deficient Jacobian at the solution)");
+    }
+    C = d.asDiagonal() * llt.solve(Eigen::MatrixXd::Identity(Hs.rows(), Hs.cols())) *
+        d.asDiagonal();
+  }
+  *covariance = ScatterCovariance(C);
+  return Status::Ok();
+}
+
+}  // namespace lpoe

@@ -1,0 +1,180 @@
+// Measurement planning, the model (lpoe/planning.h): the parameters a plan identifies and the rows
+// one pose contributes (PlanningModel), and whether the gravity tilt can be planned for.
+#include "lpoe/planning.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <random>
+#include <sstream>
+#include <string>
+#include <utility>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <Eigen/SVD>
+#include <glog/logging.h>
+
+#include "identifiability/identifiability.h"
+#include "planning/planning_internal.h"
+#include "lpoe/analysis.h"
+#include "lpoe/eigen_decompositions.h"
+#include "lpoe/joint_errors.h"
+#include "lpoe/linear_solver.h"
+#include "lpoe/measurements.h"
+
+namespace lpoe {
+using planning_internal::kRotationErrorScale;
+using planning_internal::kTranslationErrorScale;
+using planning_internal::kJointErrorEffectScale;
+
+namespace {
+
+// The frame directions identifiable from positions, then the joint-space terms reduced as the
+// solvers reduce them on the data `reference` (every tool at every configuration).
+Parameterization PlanningParameterization(
+    const RobotModel& model, const std::vector<std::shared_ptr<const JointTerm>>& terms,
+    const std::vector<double>& reference) {
+  // The frames lose what the calibration of such data would leave out (structural_identifiability.h),
+  // decided at the model planned for, so that a plan never counts a direction the calibration then
+  // finds undetermined (a tool point on the last axis: that axis' tilt).
+  const int n = model.num_joints();
+  CHECK_EQ(reference.size() % std::max(n, 1), 0u);
+  const int count = std::max(1, static_cast<int>(reference.size() / std::max(n, 1)));
+  const std::vector<double> zero(n, 0.0);
+  MeasurementSet data(n);
+  data.Reserve(count * model.num_tools());
+  for (int r = 0; r < count; ++r) {
+    for (int t = 0; t < model.num_tools(); ++t) {
+      data.Add(reference.empty() ? zero.data() : reference.data() + static_cast<size_t>(r) * n,
+               Eigen::Vector3d::Zero(), t);
+    }
+  }
+  internal::SolverParameterizationRequest request;  // position rows, the solvers' defaults
+  request.terms = terms;
+  return internal::SolverParameterization(model, data, request);
+}
+
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------------
+
+PlanningModel::PlanningModel(const RobotModel& model)
+    : model_(model),
+      parameterization_(PlanningParameterization(model_, {}, {})),
+      basis_(model_, parameterization_) {}
+
+Status PlanningGravityTiltStatus(const RobotModel& model,
+                                 const std::vector<std::shared_ptr<const JointTerm>>& terms) {
+  bool compliance = false;
+  for (const auto& term : terms) compliance = compliance || term->name() == "compliance";
+  if (!compliance) return Status::Error(kGravityTiltNeedsCompliance);
+  const std::vector<double>& c = model.joint_errors.Values("compliance");
+  if (std::all_of(c.begin(), c.end(), [](double v) { return v == 0; })) {
+    return Status::Error(
+        "the gravity tilt cannot be planned for with a model that carries no compliance values: "
+        "the tilt is seen only through the gravity torques' compliance offsets, so its "
+        "information is proportional to the compliance products, which a calibration identifies "
+        "(at zero compliance the tilt's columns vanish). Plan with compliance (poses that load "
+        "the joints differently serve the tilt too) and calibrate with compliance,tilt, which "
+        "checks at the compliance solution whether the data determine the tilt; or plan a "
+        "recalibration from a calibrated model whose YAML carries joint_errors: compliance");
+  }
+  if (Status s = model.Validate(); !s.ok()) return s;
+  return Status::Ok();
+}
+
+PlanningModel::PlanningModel(const RobotModel& model,
+                             const std::vector<std::shared_ptr<const JointTerm>>& terms,
+                             const std::vector<double>& reference, bool gravity_tilt)
+    : model_(model),
+      parameterization_(PlanningParameterization(model_, terms, reference)),
+      basis_(model_, parameterization_),
+      gravity_tilt_(gravity_tilt) {
+  if (gravity_tilt_) {
+    const Status s = PlanningGravityTiltStatus(model_, terms);
+    CHECK(s.ok()) << s.message();
+    const std::vector<double>& c = model_.joint_errors.Values("compliance");
+    compliance_ = Eigen::Map<const Eigen::VectorXd>(c.data(), static_cast<Eigen::Index>(c.size()));
+    const double zero[2] = {0.0, 0.0};
+    gravity_tilt_jacobian_ =
+        TiltedGravityJacobian(model_.gravity, GravityTiltAxes(model_.gravity), zero);
+  }
+  // O3's scale of the joint-space combinations: RMS tool effect of each column over the reference.
+  const int frames = parameterization_.num_frame_parameters();
+  const int k = num_joint_parameters();
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(k);
+  const int n = model_.num_joints();
+  const int count = n > 0 ? static_cast<int>(reference.size() / n) : 0;
+  std::vector<int> all(model_.num_tools());
+  std::iota(all.begin(), all.end(), 0);
+  Eigen::MatrixXd J;
+  for (int r = 0; r < count && k > 0; ++r) {
+    Rows(reference.data() + static_cast<size_t>(r) * n, all, &J);
+    sum += J.rightCols(k).colwise().squaredNorm().transpose();
+  }
+  joint_error_scale_.resize(k);
+  const double rows = std::max(1, count * model_.num_tools());
+  for (int j = 0; j < k; ++j) {
+    const double rms = std::sqrt(sum(j) / rows);
+    joint_error_scale_(j) = rms > 0 ? kJointErrorEffectScale / rms : 1.0;
+  }
+  CHECK_EQ(frames + k, num_parameters());
+}
+
+void PlanningModel::Rows(const double* q, const std::vector<int>& tools, Eigen::MatrixXd* J) const {
+  const int rows = 3 * static_cast<int>(tools.size());
+  J->resize(rows, num_parameters());
+  const int n = model_.num_joints();
+  std::vector<FrameRt> frames(n + 1);
+  const std::vector<JointBlock>& blocks = parameterization_.joint_blocks;
+  // Y(q) basis per block (num_joints x k_b): the same for every tool.
+  std::vector<Eigen::MatrixXd> Yb(blocks.size());
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    Eigen::MatrixXd Y(n, blocks[b].term->num_parameters());
+    blocks[b].term->Regressor(q, Y.data());
+    Yb[b] = Y * blocks[b].basis;
+  }
+  // The gravity tilt's joint-space columns at zero tilt and the model's compliance values:
+  // d(dq)/dt = sum_a (dg/dt)_a Y_a(q) theta (n x 2), as the solvers' (gravity_tilt.h) at their
+  // linearisation point.
+  Eigen::MatrixXd D;
+  if (gravity_tilt_) {
+    Eigen::MatrixXd Ya[3];
+    ComplianceRegressorGravityAxes(model_, q, Ya);
+    Eigen::MatrixXd offsets(n, 3);
+    for (int a = 0; a < 3; ++a) offsets.col(a) = Ya[a] * compliance_;
+    D = offsets * gravity_tilt_jacobian_;
+  }
+  const int tilt_offset = parameterization_.num_parameters;
+  Eigen::Matrix<double, 3, Eigen::Dynamic> J_q(3, n);
+  for (size_t k = 0; k < tools.size(); ++k) {
+    basis_.Position(q, tools[k], J->data() + 3 * k, rows, frames.data());
+    if (blocks.empty() && !gravity_tilt_) continue;
+    basis_.PositionJointJacobian(frames.data(), J_q.data(), 3);
+    for (size_t b = 0; b < blocks.size(); ++b) {
+      J->block(3 * k, blocks[b].offset, 3, Yb[b].cols()).noalias() = J_q * Yb[b];
+    }
+    if (gravity_tilt_) J->block(3 * k, tilt_offset, 3, 2).noalias() = J_q * D;
+  }
+}
+
+Eigen::VectorXd PlanningModel::ErrorScale() const {
+  Eigen::VectorXd e(num_parameters());
+  const int frames = parameterization_.num_frame_parameters();
+  e.tail(num_joint_parameters()) = joint_error_scale_;
+  for (int j = 0; j < frames; ++j) {
+    const auto& v = parameterization_.parameters[j].vector;
+    e(j) = std::hypot(kRotationErrorScale * v.head<3>().norm(),
+                      kTranslationErrorScale * v.tail<3>().norm());
+  }
+  return e;
+}
+
+
+}  // namespace lpoe
