@@ -120,13 +120,64 @@ Status Svg(const Figure& f, int* figures, std::string* html) {
   return Status::Ok();
 }
 
-}  // namespace
+// The page of one run, written section by section: each method appends its section to html_.
+class HtmlPage {
+ public:
+  explicit HtmlPage(const RunSummary& summary)
+      : summary_(summary), j_(Json::parse(RunSummaryToJson(summary))), model_(summary.result.model) {
+    html_.reserve(1 << 20);
+  }
+  Status Write(std::string* out) {
+    Head();
+    VerdictAndKeyFigures();
+    Statistics();
+    Comparison();
+    if (Status s = Plots(); !s.ok()) return s;
+    Parameters();
+    JointErrors();
+    ResidualModel();
+    Outliers();
+    NextSteps();
+    Inputs();
+    *out = std::move(html_);
+    return Status::Ok();
+  }
 
-Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
-  const Json j = Json::parse(RunSummaryToJson(summary));
-  const RobotModel& model = summary.result.model;
-  std::string h;
-  h.reserve(1 << 20);
+ private:
+  // The rows the scatter plots draw and the frame they are drawn in.
+  struct Scatters {
+    PlotInput in;
+    std::vector<int> rows_id, rows_ver;
+    SE3d T_base_measurement;
+  };
+  void Head();
+  void VerdictAndKeyFigures();
+  void Statistics();
+  void Comparison();
+  Status Plots();
+  Status ErrorAgainstJointsFigure(const Scatters& sc);
+  Status WorkspaceFigure(const Scatters& sc);
+  Status ResidualLayerFigure(const Scatters& sc);
+  void Parameters();
+  void JointErrors();
+  void ResidualModel();
+  void Outliers();
+  void NextSteps();
+  void Inputs();
+  // The set the key figures and the axis plot show: verification when there is one.
+  bool HasVerification() const { return !j_["verification"].is_null(); }
+  std::string SetName() const { return HasVerification() ? "verification" : "identification"; }
+
+  const RunSummary& summary_;
+  const Json j_;
+  const RobotModel& model_;
+  std::string html_;
+  int figures_ = 0;  // figures on the page so far (their SVG ids must differ)
+};
+
+void HtmlPage::Head() {
+  std::string& h = html_;
+  const RobotModel& model = model_;
   const std::string name = model.name.empty() ? std::string("robot") : model.name;
   h += "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\"/>\n"
        "<title>Calibration report: " +
@@ -152,6 +203,12 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
        "code{background:#f3f3f3;padding:0 3px}\n"
        "</style>\n</head>\n<body>\n";
 
+}
+
+void HtmlPage::VerdictAndKeyFigures() {
+  std::string& h = html_;
+  const Json& j = j_;
+  const std::string name = model_.name.empty() ? std::string("robot") : model_.name;
   // ---- Verdict and key figures.
   const Json& verdict = j["verdict"];
   const std::string level = Str(verdict["level"]);
@@ -208,6 +265,13 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
        Str(j["solver"]["iterations"]) + " iterations</div>\n";
   h += "</div>\n";
 
+}
+
+void HtmlPage::Statistics() {
+  std::string& h = html_;
+  const Json& j = j_;
+  const RunSummary& summary = summary_;
+  const bool has_ver = HasVerification();
   // ---- Statistics.
   h += "<h2>Position error before and after calibration [mm]</h2>\n<table>\n";
   h += kStatsHead;
@@ -224,6 +288,11 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
   }
   h += "</table>\n";
 
+}
+
+void HtmlPage::Comparison() {
+  std::string& h = html_;
+  const Json& j = j_;
   // ---- lpoe_compare: the two solvers.
   if (j.contains("comparison")) {
     const Json& c = j["comparison"];
@@ -240,8 +309,17 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
     h += "</table>\n";
   }
 
+}
+
+Status HtmlPage::Plots() {
+  std::string& h = html_;
+  const Json& j = j_;
+  const RunSummary& summary = summary_;
+  int& figures = figures_;
+  const std::string set_name = SetName();
   // ---- Plots.
-  PlotInput in;
+  Scatters sc;
+  PlotInput& in = sc.in;
   for (const auto* set : {&summary.identification_points, &summary.verification_points}) {
     for (const PointResidual& p : *set) {
       in.points.push_back(&p);
@@ -250,7 +328,6 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
     }
   }
   h += "<h2>Plots</h2>\n";
-  int figures = 0;
   {
     std::vector<int> it;
     std::vector<double> mx, mn;
@@ -280,141 +357,178 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
     f.height = 380;
     if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
   }
-  const std::vector<int> rows_id = Rows(in, false), rows_ver = Rows(in, true);
+  sc.rows_id = Rows(in, false);
+  sc.rows_ver = Rows(in, true);
   h += "<p class=\"note\">Below: the error after calibration against each joint value, the reach "
        "and the position in the workspace. A trend here is an error the geometric model does not "
        "describe (compliance, gear errors, thermal drift). Scatter plots show at most " +
        std::to_string(kMaxScatterPoints) +
        " points each (per set, the smallest and largest error of consecutive groups).</p>\n";
   // Positions in the robot's base frame (the measurement frame when there was no registration).
-  const SE3d T_base_measurement = summary.registered && summary.registration.moved
+  sc.T_base_measurement = summary.registered && summary.registration.moved
                                       ? summary.registration.T_measurement_base.Inverse()
                                       : SE3d();
-  {
-    // The error after calibration against each joint value and against the reach.
-    Figure f;
-    f.columns = 3;
-    f.width = 1000;
-    const int nj = model.num_joints();
-    f.height = 290 * ((nj + 3) / 3);
-    for (int q = 0; q <= nj; ++q) {
-      const bool reach = q == nj;
-      const bool revolute = !reach && model.joints[q].type == JointType::kRevolute;
-      Panel p;
-      p.title = reach ? std::string("error after calibration vs reach")
-                      : "error after calibration vs " + model.joints[q].name;
-      p.x_label = reach ? std::string("distance from the base origin [mm]")
-                        : model.joints[q].name + (revolute ? " [deg]" : " [mm]");
-      p.y_label = "error [mm]";
-      Series a = Scatter(q == 0 ? "identification" : "", kColorAfter);
-      Series b = Scatter(q == 0 ? "verification" : "", kColorBefore);
-      for (auto [rows, s] : {std::pair{&rows_id, &a}, std::pair{&rows_ver, &b}}) {
-        for (int r : *rows) {
-          const PointResidual& pt = *in.points[r];
-          s->x.push_back(reach      ? (T_base_measurement * pt.measured).norm()
-                         : revolute ? pt.q[q] * 180.0 / M_PI
-                                    : pt.q[q]);
-          s->y.push_back(in.after_norm[r]);
-        }
-      }
-      p.series = {a, b};
-      f.panels.push_back(p);
-    }
-    if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
-  }
-  {
-    // The workspace from the top and from the side, points colored by the error.
-    Figure f;
-    f.columns = 2;
-    f.width = 1000;
-    f.height = 460;
-    double lo = 1e300, hi = -1e300;
-    for (double e : in.after_norm) {
-      lo = std::min(lo, e);
-      hi = std::max(hi, e);
-    }
-    Panel top, side;
-    top.title = "workspace from the top";
-    top.x_label = "x [mm]";
-    top.y_label = "y [mm]";
-    side.title = "workspace from the side";
-    side.x_label = "x [mm]";
-    side.y_label = "z [mm]";
-    top.equal_axes = side.equal_axes = true;
-    top.color_label = "error after calibration [mm]";  // one bar: both views share the scale
-    Series ct = Scatter("", 0), cs = Scatter("", 0);
-    for (const std::vector<int>* rows : {&rows_id, &rows_ver}) {
-      for (int r : *rows) {
-        const Eigen::Vector3d pb = T_base_measurement * in.points[r]->measured;
-        ct.x.push_back(pb.x());
-        ct.y.push_back(pb.y());
-        cs.x.push_back(pb.x());
-        cs.y.push_back(pb.z());
-        ct.color_value.push_back(in.after_norm[r]);
-        cs.color_value.push_back(in.after_norm[r]);
-      }
-    }
-    for (Series* s : {&ct, &cs}) {
-      s->color_min = lo;
-      s->color_max = hi;
-    }
-    top.series = {ct};
-    side.series = {cs};
-    f.panels = {top, side};
-    if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
-    h += "<p class=\"note\">Measured positions in the robot's base frame, identification and "
-         "verification points, colored by the error after calibration (one color scale for both "
-         "views).</p>\n";
-  }
-  if (const ResidualLayer* layer = model.residual_layer.get(); layer != nullptr) {
-    // The residual layer's predicted accuracy over the workspace: its predictive standard
-    // deviation at each measured configuration (docs/residual_layer.md).
-    Figure f;
-    f.columns = 2;
-    f.width = 1000;
-    f.height = 460;
-    Panel top, side;
-    top.title = "residual layer: predicted accuracy, top";
-    side.title = "residual layer: predicted accuracy, side";
-    top.x_label = side.x_label = "x [mm]";
-    top.y_label = "y [mm]";
-    side.y_label = "z [mm]";
-    top.equal_axes = side.equal_axes = true;
-    top.color_label = "layer's predictive std. dev. per axis [mm]";
-    Series ct = Scatter("", 0), cs = Scatter("", 0);
-    double lo = 1e300, hi = -1e300;
-    for (const std::vector<int>* rows : {&rows_id, &rows_ver}) {
+  if (Status s = ErrorAgainstJointsFigure(sc); !s.ok()) return s;
+  if (Status s = WorkspaceFigure(sc); !s.ok()) return s;
+  if (Status s = ResidualLayerFigure(sc); !s.ok()) return s;
+  return Status::Ok();
+}
+
+Status HtmlPage::ErrorAgainstJointsFigure(const Scatters& sc) {
+  std::string& h = html_;
+  const RobotModel& model = model_;
+  int& figures = figures_;
+  const PlotInput& in = sc.in;
+  const std::vector<int>& rows_id = sc.rows_id;
+  const std::vector<int>& rows_ver = sc.rows_ver;
+  const SE3d& T_base_measurement = sc.T_base_measurement;
+  // The error after calibration against each joint value and against the reach.
+  Figure f;
+  f.columns = 3;
+  f.width = 1000;
+  const int nj = model.num_joints();
+  f.height = 290 * ((nj + 3) / 3);
+  for (int q = 0; q <= nj; ++q) {
+    const bool reach = q == nj;
+    const bool revolute = !reach && model.joints[q].type == JointType::kRevolute;
+    Panel p;
+    p.title = reach ? std::string("error after calibration vs reach")
+                    : "error after calibration vs " + model.joints[q].name;
+    p.x_label = reach ? std::string("distance from the base origin [mm]")
+                      : model.joints[q].name + (revolute ? " [deg]" : " [mm]");
+    p.y_label = "error [mm]";
+    Series a = Scatter(q == 0 ? "identification" : "", kColorAfter);
+    Series b = Scatter(q == 0 ? "verification" : "", kColorBefore);
+    for (auto [rows, s] : {std::pair{&rows_id, &a}, std::pair{&rows_ver, &b}}) {
       for (int r : *rows) {
         const PointResidual& pt = *in.points[r];
-        const Eigen::Vector3d pb = T_base_measurement * pt.measured;
-        const double sd = layer->Std(pt.q.data(), pt.target);
-        lo = std::min(lo, sd);
-        hi = std::max(hi, sd);
-        ct.x.push_back(pb.x());
-        ct.y.push_back(pb.y());
-        cs.x.push_back(pb.x());
-        cs.y.push_back(pb.z());
-        ct.color_value.push_back(sd);
-        cs.color_value.push_back(sd);
+        s->x.push_back(reach      ? (T_base_measurement * pt.measured).norm()
+                       : revolute ? pt.q[q] * 180.0 / M_PI
+                                  : pt.q[q]);
+        s->y.push_back(in.after_norm[r]);
       }
     }
-    if (!(hi > lo)) hi = lo + 1e-9;
-    for (Series* sr : {&ct, &cs}) {
-      sr->color_min = lo;
-      sr->color_max = hi;
-    }
-    top.series = {ct};
-    side.series = {cs};
-    f.panels = {top, side};
-    if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
-    h += "<p class=\"note\">The learned residual layer's predictive standard deviation (per axis, "
-         "mm) at the measured configurations: small where the identification data are dense, up "
-         "to " +
-         Fmt("%.4f", layer->signal_std) +
-         " mm (the layer's prior) far from them, where the correction fades and the parametric "
-         "model's accuracy applies.</p>\n";
+    p.series = {a, b};
+    f.panels.push_back(p);
   }
+  if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
+  return Status::Ok();
+}
 
+Status HtmlPage::WorkspaceFigure(const Scatters& sc) {
+  std::string& h = html_;
+  int& figures = figures_;
+  const PlotInput& in = sc.in;
+  const std::vector<int>& rows_id = sc.rows_id;
+  const std::vector<int>& rows_ver = sc.rows_ver;
+  const SE3d& T_base_measurement = sc.T_base_measurement;
+  // The workspace from the top and from the side, points colored by the error.
+  Figure f;
+  f.columns = 2;
+  f.width = 1000;
+  f.height = 460;
+  double lo = 1e300, hi = -1e300;
+  for (double e : in.after_norm) {
+    lo = std::min(lo, e);
+    hi = std::max(hi, e);
+  }
+  Panel top, side;
+  top.title = "workspace from the top";
+  top.x_label = "x [mm]";
+  top.y_label = "y [mm]";
+  side.title = "workspace from the side";
+  side.x_label = "x [mm]";
+  side.y_label = "z [mm]";
+  top.equal_axes = side.equal_axes = true;
+  top.color_label = "error after calibration [mm]";  // one bar: both views share the scale
+  Series ct = Scatter("", 0), cs = Scatter("", 0);
+  for (const std::vector<int>* rows : {&rows_id, &rows_ver}) {
+    for (int r : *rows) {
+      const Eigen::Vector3d pb = T_base_measurement * in.points[r]->measured;
+      ct.x.push_back(pb.x());
+      ct.y.push_back(pb.y());
+      cs.x.push_back(pb.x());
+      cs.y.push_back(pb.z());
+      ct.color_value.push_back(in.after_norm[r]);
+      cs.color_value.push_back(in.after_norm[r]);
+    }
+  }
+  for (Series* s : {&ct, &cs}) {
+    s->color_min = lo;
+    s->color_max = hi;
+  }
+  top.series = {ct};
+  side.series = {cs};
+  f.panels = {top, side};
+  if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
+  h += "<p class=\"note\">Measured positions in the robot's base frame, identification and "
+       "verification points, colored by the error after calibration (one color scale for both "
+       "views).</p>\n";
+  return Status::Ok();
+}
+
+Status HtmlPage::ResidualLayerFigure(const Scatters& sc) {
+  std::string& h = html_;
+  const RobotModel& model = model_;
+  int& figures = figures_;
+  const PlotInput& in = sc.in;
+  const std::vector<int>& rows_id = sc.rows_id;
+  const std::vector<int>& rows_ver = sc.rows_ver;
+  const SE3d& T_base_measurement = sc.T_base_measurement;
+  const ResidualLayer* layer = model.residual_layer.get();
+  if (layer == nullptr) return Status::Ok();
+  // The residual layer's predicted accuracy over the workspace: its predictive standard
+  // deviation at each measured configuration (docs/residual_layer.md).
+  Figure f;
+  f.columns = 2;
+  f.width = 1000;
+  f.height = 460;
+  Panel top, side;
+  top.title = "residual layer: predicted accuracy, top";
+  side.title = "residual layer: predicted accuracy, side";
+  top.x_label = side.x_label = "x [mm]";
+  top.y_label = "y [mm]";
+  side.y_label = "z [mm]";
+  top.equal_axes = side.equal_axes = true;
+  top.color_label = "layer's predictive std. dev. per axis [mm]";
+  Series ct = Scatter("", 0), cs = Scatter("", 0);
+  double lo = 1e300, hi = -1e300;
+  for (const std::vector<int>* rows : {&rows_id, &rows_ver}) {
+    for (int r : *rows) {
+      const PointResidual& pt = *in.points[r];
+      const Eigen::Vector3d pb = T_base_measurement * pt.measured;
+      const double sd = layer->Std(pt.q.data(), pt.target);
+      lo = std::min(lo, sd);
+      hi = std::max(hi, sd);
+      ct.x.push_back(pb.x());
+      ct.y.push_back(pb.y());
+      cs.x.push_back(pb.x());
+      cs.y.push_back(pb.z());
+      ct.color_value.push_back(sd);
+      cs.color_value.push_back(sd);
+    }
+  }
+  if (!(hi > lo)) hi = lo + 1e-9;
+  for (Series* sr : {&ct, &cs}) {
+    sr->color_min = lo;
+    sr->color_max = hi;
+  }
+  top.series = {ct};
+  side.series = {cs};
+  f.panels = {top, side};
+  if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
+  h += "<p class=\"note\">The learned residual layer's predictive standard deviation (per axis, "
+       "mm) at the measured configurations: small where the identification data are dense, up "
+       "to " +
+       Fmt("%.4f", layer->signal_std) +
+       " mm (the layer's prior) far from them, where the correction fades and the parametric "
+       "model's accuracy applies.</p>\n";
+  return Status::Ok();
+}
+
+void HtmlPage::Parameters() {
+  std::string& h = html_;
+  const Json& j = j_;
   // ---- Parameters.
   const Json& idj = j["identifiability"];
   h += "<h2>Parameter changes against the model before calibration</h2>\n";
@@ -486,6 +600,11 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
   }
   for (const Json& w : idj["warnings"]) h += "<p class=\"flag\">warning: " + Esc(Str(w)) + "</p>\n";
 
+}
+
+void HtmlPage::JointErrors() {
+  std::string& h = html_;
+  const Json& j = j_;
   // ---- Joint-space error terms (docs/joint_errors.md): identified combinations, auto's choice.
   const Json& je = j["joint_errors"];
   if (!je["terms"].empty() || !je["selection"].is_null()) {
@@ -529,6 +648,11 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
     }
   }
 
+}
+
+void HtmlPage::ResidualModel() {
+  std::string& h = html_;
+  const Json& j = j_;
   // ---- The residual layer (docs/residual_layer.md): auto's choice and the fitted layer.
   const Json& rm = j["residual_model"];
   if (rm["requested"].get<std::string>() != "none") {
@@ -591,6 +715,11 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
     }
   }
 
+}
+
+void HtmlPage::Outliers() {
+  std::string& h = html_;
+  const Json& j = j_;
   // ---- Outliers.
   const Json& outl = j["outliers"];
   h += "<h2>Outliers</h2>\n";
@@ -607,6 +736,13 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
     h += "</table>\n";
   }
 
+}
+
+void HtmlPage::NextSteps() {
+  std::string& h = html_;
+  const Json& j = j_;
+  const std::string level = Str(j["verdict"]["level"]);
+  const Json& idj = j["identifiability"];
   // ---- What was written and what to do next, by verdict.
   h += "<h2>Outputs and next steps</h2>\n";
   if (j.contains("outputs") && !j["outputs"].empty()) {
@@ -651,6 +787,11 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
   }
   h += "</ul>\n";
 
+}
+
+void HtmlPage::Inputs() {
+  std::string& h = html_;
+  const Json& j = j_;
   // ---- Inputs and version.
   const Json& inp = j["inputs"];
   const Json& sol = j["solver"];
@@ -670,8 +811,12 @@ Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
   h += "</table>\n<p class=\"note\">Generated by lpoe-calib. The JSON report "
        "(<code>--report</code>) "
        "holds every figure of this page and the per-point residuals.</p>\n</body>\n</html>\n";
-  *out = std::move(h);
-  return Status::Ok();
+}
+
+}  // namespace
+
+Status RunSummaryToHtml(const RunSummary& summary, std::string* out) {
+  return HtmlPage(summary).Write(out);
 }
 
 }  // namespace tools
