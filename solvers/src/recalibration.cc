@@ -40,7 +40,11 @@ Eigen::MatrixXd InformationOf(const Eigen::MatrixXd& C, const Eigen::MatrixXd& f
 // The directions of frame f a calibration estimates (see InformationOf).
 Eigen::MatrixXd EstimatedDirections(const RobotModel& model, int f, const Eigen::MatrixXd& C) {
   if (f < model.num_joints()) return IdentifiableJointBasis(model.joints[f].twist);
-  if (C.topLeftCorner<3, 3>().isZero(0)) return Eigen::MatrixXd::Identity(6, 6).rightCols(3);
+  // Position data leave a tool's rotation unestimated: a block without rotation (to round-off).
+  const double largest = C.cwiseAbs().maxCoeff();
+  if (!(C.topLeftCorner<3, 3>().cwiseAbs().maxCoeff() > 1e-12 * largest)) {
+    return Eigen::MatrixXd::Identity(6, 6).rightCols(3);
+  }
   return Eigen::MatrixXd::Identity(6, 6);
 }
 
@@ -77,6 +81,17 @@ Status SameChain(const RobotModel& a, const RobotModel& b, const std::string& wh
 }
 
 }  // namespace
+
+int EstimatedDimension(const RobotModel& model, int f, const Eigen::MatrixXd& covariance) {
+  if (covariance.rows() != 6) return 6;
+  return static_cast<int>(EstimatedDirections(model, f, covariance).cols());
+}
+
+double FleetPredictiveFactor(int robots, int p) {
+  const double N = robots;
+  if (robots > p + 2) return (N + 1) * (N - 1) / (N * (N - p - 2));
+  return (N + 1) / N;
+}
 
 ModelCovariance CovarianceOf(const CalibrationResult& result) {
   ModelCovariance out;
@@ -151,6 +166,9 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
   if (!options.prior || !options.prior->reference) return out;
   auto prior = std::make_shared<ParameterPrior>(*options.prior);
   const RobotModel& reference = *prior->reference;
+  // The discrepancies are judged under the prior the pipeline solved with (the base's
+  // registration directions free).
+  FreeRegistrationDirections(reference, prior.get());
   constexpr int kRounds = 6;
   for (int round = 0; round < kRounds && out.run.result.converged(); ++round) {
     const Parameterization& p = out.run.result.parameterization;
@@ -236,7 +254,10 @@ Status FleetPrior(const std::vector<RobotModel>& models, RobotModel* mean,
       const Vector6d d = FrameDeviation(m, r, f);
       S += d * d.transpose();
     }
-    c.frames.push_back(S / (count - 1));
+    // The covariance of a new robot's deviation (the posterior predictive, see the header).
+    const Eigen::MatrixXd sample = S / (count - 1);
+    c.frames.push_back(sample *
+                       FleetPredictiveFactor(c.models, EstimatedDimension(m, f, sample)));
   }
   // Joint terms every model carries: the mean and sample covariance of their values.
   for (const JointTermEntry& e : first.joint_errors.terms) {
@@ -259,7 +280,7 @@ Status FleetPrior(const std::vector<RobotModel>& models, RobotModel* mean,
     std::vector<double>& values = *m.joint_errors.MutableValues(e.name);
     values.assign(mu.data(), mu.data() + P);
     c.term_names.push_back(e.name);
-    c.terms.push_back(S / (count - 1));
+    c.terms.push_back(S / (count - 1) * FleetPredictiveFactor(c.models, P));
   }
   *mean = std::move(m);
   *covariance = std::move(c);
