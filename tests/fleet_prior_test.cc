@@ -63,6 +63,7 @@ Robot Member(const RobotModel& type, uint64_t seed) {
   const KinematicErrors e = RandomErrors(type, 0.0003, 0.2, 0.0002, 0.0005, seed);
   Robot r{ApplyErrors(type, e), e.joint_zero};
   JointErrorPhysics physics;
+  physics.stiffness.assign(r.actual.num_joints(), 0.0);  // rigid: the harmonics only
   std::mt19937_64 rng(seed + 7);
   std::normal_distribution<double> h(0.0, 3e-5);
   for (int j = 0; j < r.actual.num_joints(); ++j) {
