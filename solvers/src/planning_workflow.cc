@@ -8,6 +8,7 @@
 #include <vector>
 
 #include <Eigen/Cholesky>
+#include <Eigen/QR>
 
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
@@ -182,8 +183,41 @@ Status RunPlanning(const PlanRequest& request, PlanningResult* result, PlanFailu
   const PlanningModel& pm = *out.planning;
   const CandidatePool& pool = out.pool;
   out.workspace_moment = WorkspaceMoment(pm, workspace);
-  const Eigen::MatrixXd& L = out.workspace_moment;
   const int P = pm.num_parameters();
+  if (request.prior) {
+    // A recalibration's data are registered anew (the tracker stands elsewhere): the rigid motions
+    // of the whole arm (the base frame's directions, and those of joint 1's centralizer that the
+    // parameterization leaves to joint 2's frame) are the registration's, not errors of the
+    // calibrated model. The predicted error over the workspace leaves them out, as a held-out
+    // check after a rigid fit does.
+    const Parameterization& par = pm.parameterization();
+    const RobotModel& m = pm.model();
+    std::vector<Eigen::VectorXd> rigid;
+    if (m.num_joints() >= 1 && !par.basis.empty()) {
+      for (int c = 0; c < par.basis[0].cols(); ++c) {
+        rigid.push_back(Eigen::VectorXd::Unit(P, par.offset[0] + c));
+      }
+    }
+    if (m.num_joints() >= 2 && par.basis.size() > 1 && par.basis[1].cols() > 0) {
+      const Eigen::MatrixXd U =
+          Adjoint(m.joints[1].origin.Inverse()) * TwistCentralizer(m.joints[0].twist);
+      for (int c = 0; c < U.cols(); ++c) {
+        Eigen::VectorXd v = Eigen::VectorXd::Zero(P);
+        v.segment(par.offset[1], par.basis[1].cols()) = par.basis[1].transpose() * U.col(c);
+        rigid.push_back(v);
+      }
+    }
+    if (!rigid.empty()) {
+      Eigen::MatrixXd R(P, static_cast<Eigen::Index>(rigid.size()));
+      for (size_t k = 0; k < rigid.size(); ++k) R.col(static_cast<Eigen::Index>(k)) = rigid[k];
+      const Eigen::HouseholderQR<Eigen::MatrixXd> qr(R);
+      const Eigen::MatrixXd Q =
+          (qr.householderQ() * Eigen::MatrixXd::Identity(P, P)).leftCols(R.cols());
+      const Eigen::MatrixXd N = Eigen::MatrixXd::Identity(P, P) - Q * Q.transpose();
+      out.workspace_moment = N * out.workspace_moment * N;
+    }
+  }
+  const Eigen::MatrixXd& L = out.workspace_moment;
   // A prior (lpoe_plan --prior): the plan's information is added to its own (the posterior).
   PlanOptions options = request.options;
   if (request.prior) {
