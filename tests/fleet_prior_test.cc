@@ -136,41 +136,58 @@ TEST(FleetPrior, NewRobotOfAKnownTypeFromTwentyPosesInItsCell) {
   RobotModel mean;
   ModelCovariance covariance;
   ASSERT_TRUE(FleetPrior(calibrated, &mean, &covariance).ok());
-  const Robot ninth = Member(type, 108);
-  const MeasurementSet twenty =
-      Measure(ninth, 20, 401, Tracker(400), kNoise, kCellLower, kCellUpper);
-  const RecalibrationResult fleet = Recalibrate(
-      mean, twenty, MeasurementSet(6),
-      [&] {
-        PipelineOptions o;
-        o.prior = std::make_shared<const ParameterPrior>(
-            PriorFromCovariance(mean, covariance, PriorScales()));
-        return o;
-      }());
-  ASSERT_TRUE(fleet.run.result.converged()) << fleet.run.result.message;
-  const PipelineResult ls = RunCalibrationPipeline(drawing, twenty, MeasurementSet(6), LeastSquares());
-  ASSERT_TRUE(ls.result.converged()) << ls.result.message;
-  const PipelineResult tolerances =
-      RunCalibrationPipeline(drawing, twenty, MeasurementSet(6), PipelineOptions());
-  ASSERT_TRUE(tolerances.result.converged()) << tolerances.result.message;
-  const double e_fleet = HeldOut(ninth, fleet.run.result.model);
-  const double e_ls = HeldOut(ninth, ls.result.model);
-  const double e_tol = HeldOut(ninth, tolerances.result.model);
-  const double e_mean = HeldOut(ninth, mean);
-  const double e_drawing = HeldOut(ninth, drawing);
-  // What the fleet contributed: the parameters whose information is mostly the prior's.
-  const Eigen::VectorXd& share = fleet.run.result.data_share;
-  int from_prior = 0;
-  for (int k = 0; k < share.size(); ++k) from_prior += share(k) < 0.5 ? 1 : 0;
-  std::cout << "held out over the workspace: fleet prior + 20 poses " << e_fleet
-            << " mm, least squares of the 20 poses " << e_ls << " mm, the 20 poses with the "
-            << "default tolerances " << e_tol << " mm, the fleet mean alone " << e_mean
-            << " mm, the drawing " << e_drawing << " mm; " << from_prior << " of " << share.size()
-            << " parameters mostly from the fleet; " << fleet.changed.size() << " groups changed\n";
-  EXPECT_LT(2 * e_fleet, e_ls);
-  EXPECT_LT(e_fleet, e_tol);
-  EXPECT_LT(e_fleet, e_mean);
-  EXPECT_GT(from_prior, 0);
+  const ParameterPrior prior = PriorFromCovariance(mean, covariance, PriorScales());
+  // Six ninth robots, each measured in its cell (20 poses, every SMR) from another tracker stand.
+  double fleet2 = 0, ls2 = 0;
+  int better = 0;
+  constexpr int kRobots = 6;
+  for (int k = 0; k < kRobots; ++k) {
+    const Robot ninth = Member(type, 108 + k);
+    const MeasurementSet twenty =
+        Measure(ninth, 20, 408 + k, Tracker(400 + k), kNoise, kCellLower, kCellUpper);
+    PipelineOptions o;
+    o.prior = std::make_shared<const ParameterPrior>(prior);
+    const RecalibrationResult fleet = Recalibrate(mean, twenty, MeasurementSet(6), o);
+    ASSERT_TRUE(fleet.run.result.converged()) << fleet.run.result.message;
+    const PipelineResult ls =
+        RunCalibrationPipeline(drawing, twenty, MeasurementSet(6), LeastSquares());
+    ASSERT_TRUE(ls.result.converged()) << ls.result.message;
+    const double e_fleet = HeldOut(ninth, fleet.run.result.model);
+    const double e_ls = HeldOut(ninth, ls.result.model);
+    const double e_mean = HeldOut(ninth, mean);
+    // What the fleet contributed: the parameters whose information is mostly the prior's.
+    const Eigen::VectorXd& share = fleet.run.result.data_share;
+    int from_prior = 0;
+    std::string names;
+    for (int c = 0; c < share.size(); ++c) {
+      if (!(share(c) < 0.5)) continue;
+      ++from_prior;
+      names += " " + fleet.run.identifiability.parameter_names[c];
+    }
+    std::cout << "robot " << k + 9 << ": held out over the workspace: fleet prior + 20 poses "
+              << e_fleet << " mm, least squares of the 20 poses " << e_ls
+              << " mm, the fleet mean alone " << e_mean << " mm; " << from_prior << " of "
+              << share.size() << " parameters mostly from the fleet:" << names << "\n";
+    EXPECT_LT(e_fleet, e_mean);
+    EXPECT_GT(from_prior, 0);
+    fleet2 += e_fleet * e_fleet / kRobots;
+    ls2 += e_ls * e_ls / kRobots;
+    better += e_fleet < e_ls ? 1 : 0;
+  }
+  const double floor_rms = HeldOut(
+      Member(type, 108),
+      RunCalibrationPipeline(drawing,
+                             Measure(Member(type, 108), 300, 77, Tracker(78), kNoise,
+                                     kWorkspaceLower, kWorkspaceUpper),
+                             MeasurementSet(6), LeastSquares())
+          .result.model);
+  std::cout << "RMS over the " << kRobots << " robots: fleet prior + 20 poses " << std::sqrt(fleet2)
+            << " mm, least squares " << std::sqrt(ls2) << " mm (ratio "
+            << std::sqrt(fleet2 / ls2) << "); the fleet better for " << better
+            << "; 300 poses over the workspace (robot 9) " << floor_rms << " mm\n";
+  // Better on average, not by a large factor (docs/recalibration.md, "A new robot of a known type").
+  EXPECT_LT(std::sqrt(fleet2), 0.9 * std::sqrt(ls2));
+  EXPECT_GE(better, kRobots / 2 + 1);
 }
 
 }  // namespace fleet_prior_test
