@@ -6,7 +6,10 @@
 #include <memory>
 #include <sstream>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <Eigen/QR>
 
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/io.h"
@@ -170,12 +173,16 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
   // registration directions free).
   FreeRegistrationDirections(reference, prior.get());
   constexpr int kRounds = 6;
+  // Per frame: 0 held by the prior, 1 only the previous joint's zero freed, 2 freed.
+  std::vector<int> state(reference.num_frames(), 0);
+  std::vector<Vector6d> zero_direction(reference.num_frames(), Vector6d::Zero());
   for (int round = 0; round < kRounds && out.run.result.converged(); ++round) {
     const Parameterization& p = out.run.result.parameterization;
     std::vector<ChangedGroup> changed;
     // Frame 0 is the base: registration decides it (its prior is the tolerances, not tested).
     for (int f = 1; f < reference.num_frames() && f < static_cast<int>(p.basis.size()); ++f) {
-      if (p.basis[f].cols() == 0 || f >= static_cast<int>(prior->frame_information.size())) {
+      if (p.basis[f].cols() == 0 || f >= static_cast<int>(prior->frame_information.size()) ||
+          state[f] == 2) {
         continue;
       }
       const Matrix6d info = FrameInformation(*prior, reference, f);
@@ -193,15 +200,20 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
       g.dof = dof;
       const int n = reference.num_joints();
       g.name = RecalibrationFrameName(reference, f) + (f < n ? " frame" : "");
-      if (f < n && f >= 1) {
+      if (f < n && f >= 1 && state[f] == 0) {
         // A zero shift of the joint before: the rotation about its axis, pushed into this frame
-        // (Ad of this frame's inverse applied to that joint's twist).
+        // (Ad of this frame's inverse applied to that joint's twist). When it carries most of the
+        // discrepancy, that zero alone is the group (freed first; the frame follows in a later
+        // round if the rest of its discrepancy stays).
         const Vector6d u = Adjoint(reference.joints[f].origin.Inverse()) * reference.joints[f - 1].twist;
         const Eigen::VectorXd uz = B.transpose() * u;
         const double uIu = uz.dot(I * uz);
         if (uIu > 0) {
           const double along = std::pow(uz.dot(I * z), 2) / uIu;
-          if (along > 0.5 * chi2) g.name += ": mostly " + reference.joints[f - 1].name + "'s zero";
+          if (along > 0.5 * chi2) {
+            g.name = reference.joints[f - 1].name + " zero";
+            zero_direction[f] = u;
+          }
         }
       }
       changed.push_back(g);
@@ -213,9 +225,30 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
         changed.begin(), changed.end(), [](const ChangedGroup& a, const ChangedGroup& b) {
           return a.chi2 / std::max(1, a.dof) < b.chi2 / std::max(1, b.dof);
         });
-    prior->frame_information[worst.frame] =
-        DefaultFrameInformation(reference, worst.frame, prior->scales, 1.0) * prior->scale *
-        prior->scale;
+    const double k2 = prior->scale * prior->scale;
+    const Matrix6d tolerances =
+        DefaultFrameInformation(reference, worst.frame, prior->scales, 1.0) * k2;
+    if (state[worst.frame] == 0 && worst.name.size() > 5 &&
+        worst.name.compare(worst.name.size() - 5, 5, " zero") == 0) {
+      // The zero's direction gets the tolerances; the frame's other directions keep their
+      // marginal information.
+      const Eigen::Matrix<double, 6, 1> q = zero_direction[worst.frame].normalized();
+      const Eigen::MatrixXd qm = q;
+      const Eigen::HouseholderQR<Eigen::MatrixXd> qr(qm);
+      const Eigen::MatrixXd full = qr.householderQ() * Eigen::MatrixXd::Identity(6, 6);
+      const Eigen::MatrixXd Bo = full.rightCols(5);
+      const Matrix6d& info = prior->frame_information[worst.frame];
+      const Eigen::LDLT<Matrix6d> ldlt(info);
+      const Eigen::MatrixXd C = ldlt.solve(Matrix6d::Identity());
+      const Eigen::MatrixXd qq = q * q.transpose();
+      Matrix6d next = Bo * (Bo.transpose() * C * Bo).inverse() * Bo.transpose() +
+                      qq * tolerances * qq;
+      prior->frame_information[worst.frame] = 0.5 * (next + next.transpose());
+      state[worst.frame] = 1;
+    } else {
+      prior->frame_information[worst.frame] = tolerances;
+      state[worst.frame] = 2;
+    }
     out.changed.push_back(worst);
     o.prior = prior;
     out.run = RunCalibrationPipeline(nominal, identification, verification, o);
