@@ -83,6 +83,21 @@ Status SameChain(const RobotModel& a, const RobotModel& b, const std::string& wh
   return Status::Ok();
 }
 
+// The pseudo-inverse of a symmetric positive semi-definite matrix (eigenvalues below 1e-12 of the
+// largest left out).
+Eigen::MatrixXd PseudoInverse(const Eigen::MatrixXd& M) {
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (M + M.transpose()));
+  const double largest = eig.eigenvalues().cwiseAbs().maxCoeff();
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(M.rows(), M.cols());
+  for (int k = 0; k < eig.eigenvalues().size(); ++k) {
+    const double l = eig.eigenvalues()(k);
+    if (largest > 0 && l > 1e-12 * largest) {
+      out += eig.eigenvectors().col(k) * eig.eigenvectors().col(k).transpose() / l;
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 int EstimatedDimension(const RobotModel& model, int f, const Eigen::MatrixXd& covariance) {
@@ -218,6 +233,48 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
       }
       changed.push_back(g);
     }
+    // Joint-space terms (--joint_errors) with a prior of their own: per joint, the marginal
+    // discrepancy of that joint's parameters under the term's prior (parameters that may move
+    // several joints form one group of the whole term).
+    for (const JointBlock& b : p.joint_blocks) {
+      if (b.basis.cols() == 0) continue;
+      const std::string& name = b.term->name();
+      const int P = static_cast<int>(b.basis.rows());
+      const JointTermPrior* t = nullptr;
+      for (const JointTermPrior& given : prior->joint_terms) {
+        if (given.name == name && given.information.rows() == P) t = &given;
+      }
+      const std::vector<double>& v = out.run.result.model.joint_errors.Values(name);
+      if (t == nullptr || static_cast<int>(v.size()) != P) continue;
+      Eigen::VectorXd d = Eigen::Map<const Eigen::VectorXd>(v.data(), P);
+      if (t->reference.size() == P) d -= t->reference;
+      const Eigen::MatrixXd C =
+          PseudoInverse(t->information / (prior->scale * prior->scale));
+      for (int j = -1; j < b.term->num_joints(); ++j) {
+        std::vector<int> K;
+        for (int k = 0; k < P; ++k) {
+          if (b.term->ParameterJoint(k) == j) K.push_back(k);
+        }
+        if (K.empty()) continue;
+        Eigen::VectorXd dk(K.size());
+        Eigen::MatrixXd Ck(K.size(), K.size());
+        for (size_t r = 0; r < K.size(); ++r) {
+          dk(r) = d(K[r]);
+          for (size_t c = 0; c < K.size(); ++c) Ck(r, c) = C(K[r], K[c]);
+        }
+        const double chi2 = dk.dot(PseudoInverse(Ck) * dk);
+        const int dof = static_cast<int>(K.size());
+        if (!(chi2 > dof + 5 * std::sqrt(2.0 * dof) + 10)) continue;
+        ChangedGroup g;
+        g.frame = -1;
+        g.term = name;
+        g.joint = j;
+        g.name = (j >= 0 ? reference.joints[j].name + " " : std::string()) + name;
+        g.chi2 = chi2;
+        g.dof = dof;
+        changed.push_back(g);
+      }
+    }
     if (changed.empty()) break;
     // The worst group only: a large change spreads its misfit over the neighbouring frames at the
     // MAP estimate, which are consistent again once it is freed.
@@ -225,6 +282,42 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
         changed.begin(), changed.end(), [](const ChangedGroup& a, const ChangedGroup& b) {
           return a.chi2 / std::max(1, a.dof) < b.chi2 / std::max(1, b.dof);
         });
+    out.changed.push_back(worst);
+    if (worst.frame < 0) {
+      // A joint-space term's group: its parameters get the default joint-term tolerance (a
+      // standard deviation of joint_term_mrad per parameter), the term's others keep their
+      // marginal information.
+      for (JointTermPrior& t : prior->joint_terms) {
+        if (t.name != worst.term) continue;
+        std::shared_ptr<const JointTerm> term;
+        for (const JointBlock& b : p.joint_blocks) {
+          if (b.term->name() == worst.term) term = b.term;
+        }
+        if (!term) break;
+        const int P = static_cast<int>(t.information.rows());
+        const Eigen::MatrixXd C = PseudoInverse(t.information);
+        std::vector<int> keep, freed;
+        for (int k = 0; k < P; ++k) (term->ParameterJoint(k) == worst.joint ? freed : keep).push_back(k);
+        Eigen::MatrixXd next = Eigen::MatrixXd::Zero(P, P);
+        if (!keep.empty()) {
+          Eigen::MatrixXd Ck(keep.size(), keep.size());
+          for (size_t r = 0; r < keep.size(); ++r) {
+            for (size_t c = 0; c < keep.size(); ++c) Ck(r, c) = C(keep[r], keep[c]);
+          }
+          const Eigen::MatrixXd Ik = PseudoInverse(Ck);
+          for (size_t r = 0; r < keep.size(); ++r) {
+            for (size_t c = 0; c < keep.size(); ++c) next(keep[r], keep[c]) = Ik(r, c);
+          }
+        }
+        const double sigma = 1e-3 * prior->scales.joint_term_mrad;
+        for (int k : freed) next(k, k) = 1.0 / (sigma * sigma);
+        t.information = next;
+      }
+      o.prior = prior;
+      out.run = RunCalibrationPipeline(nominal, identification, verification, o);
+      ++out.solves;
+      continue;
+    }
     const double k2 = prior->scale * prior->scale;
     const Matrix6d tolerances =
         DefaultFrameInformation(reference, worst.frame, prior->scales, 1.0) * k2;
@@ -249,7 +342,6 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
       prior->frame_information[worst.frame] = tolerances;
       state[worst.frame] = 2;
     }
-    out.changed.push_back(worst);
     o.prior = prior;
     out.run = RunCalibrationPipeline(nominal, identification, verification, o);
     ++out.solves;

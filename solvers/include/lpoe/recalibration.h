@@ -48,6 +48,10 @@ struct ChangedGroup {
   std::string name;       // "joint3 zero", "joint5 frame", "smr1"
   double chi2 = 0;        // the frame's prior discrepancy at the MAP estimate
   int dof = 0;            // its degrees of freedom
+  // A joint-space term's group (frame -1): the term, and the joint whose parameters it is (-1:
+  // the whole term), e.g. "joint3 harmonics".
+  std::string term;
+  int joint = -1;
 };
 
 struct RecalibrationResult {
@@ -59,7 +63,9 @@ struct RecalibrationResult {
 // The pipeline with options.prior (informative, with its reference), then, while the MAP estimate
 // shows groups whose prior discrepancy chi^2 exceeds dof + 5 sqrt(2 dof) + 10 (far beyond a
 // consistent prior), the worst of them (per degree of freedom) freed (held by the tolerances
-// only) and solved again (at most six rounds).
+// only) and solved again (at most six rounds). Groups: a joint's zero (when a frame's discrepancy
+// lies mostly along it), a frame, and per joint-space term with a prior the parameters of each
+// joint (their marginal discrepancy; freed to the default joint-term tolerance).
 RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet& identification,
                                 const MeasurementSet& verification, const PipelineOptions& options);
 
