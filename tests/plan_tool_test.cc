@@ -348,6 +348,48 @@ Eigen::Vector3d JointOrigin(const lpoe::RobotModel& model, const std::vector<dou
   return lpoe::ToolPosition(cut, q.data(), 0);
 }
 
+// --prior (docs/recalibration.md): a calibrated model with its covariance block; the plan starts
+// from its information, so 2 poses (18 rows for 33 parameters) plan where the model alone is
+// refused; --prior_free names frames of the prior's model; the report records the prior.
+TEST_F(PlanTool, PriorPlansWhatItLeavesOpen) {
+  std::string block = "covariance:\n  models: 1\n  data_sigma: 0.02\n  frames:\n";
+  for (const char* frame : {"joint2", "joint3", "joint4", "joint5", "joint6", "smr1", "smr2",
+                            "smr3"}) {
+    // 0.05 mrad and 0.01 mm (standard deviations) in every direction.
+    std::string m;
+    for (int i = 0; i < 6; ++i) {
+      for (int j = 0; j < 6; ++j) {
+        m += (m.empty() ? "" : ", ") + std::string(i != j ? "0" : i < 3 ? "2.5e-9" : "1e-4");
+      }
+    }
+    block += std::string("    - {name: ") + frame + ", matrix: [" + m + "]}\n";
+  }
+  std::ofstream(dir_ / "prior.yaml") << kModel << block;
+  Output o = Run(LPOE_PLAN_PATH, "--prior=prior.yaml --count=2 --output=p.csv "
+                                 "--candidate_count=400 --workspace_count=100 --prior_free=joint5");
+  ASSERT_EQ(o.exit_code, kExitOk) << o.err;
+  EXPECT_NE(o.out.find("prior: prior.yaml"), std::string::npos) << o.out;
+  EXPECT_NE(o.out.find("freed: joint5"), std::string::npos) << o.out;
+  EXPECT_EQ(DataLines(ReadAll((dir_ / "p.csv").string())).size(), 3u);  // header and 2 poses
+  const nlohmann::json report = nlohmann::json::parse(ReadAll((dir_ / "p.json").string()));
+  EXPECT_EQ(report["prior"]["file"], "prior.yaml");
+  EXPECT_EQ(report["prior"]["freed"][0], "joint5");
+  // Without the prior the same 2 poses cannot identify the model: refused.
+  o = Plan("--count=2 --output=q.csv --candidate_count=400 --workspace_count=100");
+  EXPECT_EQ(o.exit_code, kExitNoPlan) << o.err;
+  // A frame the prior's model does not have, and --prior_free without --prior: usage errors.
+  o = Run(LPOE_PLAN_PATH, "--prior=prior.yaml --count=2 --output=r.csv --prior_free=joint9");
+  EXPECT_EQ(o.exit_code, kExitUsage) << o.err;
+  EXPECT_NE(o.err.find("'joint9' is no joint or tool"), std::string::npos) << o.err;
+  o = Plan("--count=2 --output=r.csv --prior_free=joint5");
+  EXPECT_EQ(o.exit_code, kExitUsage) << o.err;
+  EXPECT_FALSE(fs::exists(dir_ / "r.csv"));
+  // A model file without the block is not a prior: an input error naming it.
+  o = Run(LPOE_PLAN_PATH, "--prior=m.yaml --count=2 --output=r.csv");
+  EXPECT_EQ(o.exit_code, kExitInput) << o.err;
+  EXPECT_NE(o.err.find("no covariance block"), std::string::npos) << o.err;
+}
+
 TEST_F(PlanTool, CellConstraintsKeepEveryPlannedPoseInTheCell) {
   std::ofstream(dir_ / "keep_out.csv") << "# the controller cabinet\n"
                                        << "300, -800, -200, 1200, -300, 900\n";

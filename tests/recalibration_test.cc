@@ -229,6 +229,62 @@ TEST(Recalibration, NoChangeKeepsThePrior) {
   }
 }
 
+// Joint-space terms (--joint_errors=harmonics) in the changed-group test: a previous calibration
+// with the harmonics as prior; 15 new poses of the unchanged robot find no group changed and stay
+// at the prior model's accuracy; after a gearbox swap on joint 3 (its harmonics new) the term is
+// found changed and the recalibration beats the previous model used as is.
+TEST(Recalibration, JointSpaceTermsInTheGroupTest) {
+  const RobotModel type = Nominal();
+  Robot robot = RandomRobot(type, 27);
+  JointErrorPhysics physics;
+  physics.stiffness.assign(6, 0.0);
+  std::mt19937_64 rng(28);
+  std::normal_distribution<double> h(0.0, 1e-4);  // 0.1 mrad per coefficient
+  for (int j = 0; j < 6; ++j) physics.harmonics.push_back(Eigen::Vector4d(h(rng), h(rng), h(rng), h(rng)));
+  ApplyJointErrorPhysics(physics, {"harmonics"}, &robot.with_errors);
+  PipelineOptions with_terms;
+  with_terms.joint_errors = {"harmonics"};
+  const PipelineResult previous = RunCalibrationPipeline(
+      type, Measure(robot, 150, 29, Tracker(29), kNoise), MeasurementSet(6), with_terms);
+  ASSERT_TRUE(previous.result.converged()) << previous.result.message;
+  const ModelCovariance covariance = CovarianceOf(previous.result);
+  ASSERT_EQ(covariance.term_names.size(), 1u);
+  PipelineOptions o = with_terms;
+  o.prior = std::make_shared<const ParameterPrior>(
+      PriorFromCovariance(previous.result.model, covariance, PriorScales()));
+  const SE3d T = Tracker(30);
+  const double e_prior = HeldOut(robot, previous.result.model, T);
+  const RecalibrationResult same =
+      Recalibrate(previous.result.model, Measure(robot, 15, 31, T, kNoise), MeasurementSet(6), o);
+  ASSERT_TRUE(same.run.result.converged()) << same.run.result.message;
+  const double e_same = HeldOut(robot, same.run.result.model, T);
+  // The gearbox swap: joint 3's harmonics drawn anew.
+  Robot swapped = robot;
+  std::vector<double>& values = *swapped.with_errors.joint_errors.MutableValues("harmonics");
+  const std::vector<double> before = values;
+  JointErrorPhysics other = physics;
+  other.harmonics[2] = Eigen::Vector4d(h(rng), h(rng), h(rng), h(rng));
+  RobotModel redrawn = robot.with_errors;
+  ApplyJointErrorPhysics(other, {"harmonics"}, &redrawn);
+  values = redrawn.joint_errors.Values("harmonics");
+  ASSERT_NE(values, before);
+  const RecalibrationResult map =
+      Recalibrate(previous.result.model, Measure(swapped, 15, 32, T, kNoise), MeasurementSet(6), o);
+  ASSERT_TRUE(map.run.result.converged()) << map.run.result.message;
+  std::string names;
+  for (const ChangedGroup& g : map.changed) names += g.name + "; ";
+  const double e_map = HeldOut(swapped, map.run.result.model, T);
+  const double e_previous = HeldOut(swapped, previous.result.model, T);
+  std::cout << "harmonics: unchanged robot, 15 poses " << e_same << " mm against the prior model's "
+            << e_prior << " mm, " << same.changed.size() << " groups changed; joint 3's gearbox "
+            << "swapped: " << e_map << " mm against the previous model's " << e_previous
+            << " mm; changed: " << names << "\n";
+  EXPECT_TRUE(same.changed.empty());
+  EXPECT_LE(e_same, 1.1 * e_prior);
+  EXPECT_NE(names.find("harmonics"), std::string::npos) << names;
+  EXPECT_LT(2 * e_map, e_previous);
+}
+
 // Fleet: a prior from 8 calibrated robots of one type (their mean and per-frame sample covariance),
 // and 20 poses of a ninth (one SMR each): the data move the fleet's mean to the ninth robot.
 // (Against the 20 poses alone, in this simulation without unmodelled errors, the fleet prior is not

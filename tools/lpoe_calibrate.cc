@@ -573,6 +573,8 @@ int Run() {
   tools::AddPipelineResult(run, &summary);
   summary.joint_errors_requested = FLAGS_joint_errors;
   summary.residual_model_requested = FLAGS_residual_model;
+  summary.prior_path = FLAGS_prior;
+  summary.changed_groups = recalibration.changed;
   if (run.joint_error_selection.ran) {
     std::cerr << tools::JointErrorSelectionTable(run.joint_error_selection);
   }

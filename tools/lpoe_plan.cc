@@ -26,6 +26,7 @@
 #include "lpoe/options.h"
 #include "lpoe/planning.h"
 #include "lpoe/planning_workflow.h"
+#include "lpoe/recalibration.h"
 #include "lpoe/refusals.h"
 #include "report/json_text.h"
 #include "output_files.h"
@@ -79,6 +80,15 @@ DEFINE_double(target_accuracy, LPOE_DEFAULT(target_accuracy), LPOE_HELP(target_a
 DEFINE_double(noise_sigma, LPOE_DEFAULT(noise_sigma), LPOE_HELP(noise_sigma));
 DEFINE_int32(random_draws, static_cast<int>(LPOE_DEFAULT(random_draws)), LPOE_HELP(random_draws));
 DEFINE_double(unmodelled_error, LPOE_DEFAULT(unmodelled_error), LPOE_HELP(unmodelled_error));
+DEFINE_string(prior, "",
+              "Plan a recalibration (docs/recalibration.md): a calibrated model with its covariance "
+              "block (lpoe_calibrate --output) or a fleet prior (lpoe_prior). The plan starts from "
+              "its information (posterior = prior + J^T J / sigma^2, sigma --noise_sigma, else the "
+              "prior's), so the poses go where it is weak; its model is the model unless --model "
+              "is given.");
+DEFINE_string(prior_free, "",
+              "With --prior: frames whose prior is replaced by the nominal tolerances (what "
+              "maintenance changed), comma-separated joint or tool names, e.g. joint5,joint3.");
 DEFINE_double(unmodelled_length, LPOE_DEFAULT(unmodelled_length), LPOE_HELP(unmodelled_length));
 DEFINE_string(joint_errors, "none",
               "Joint-space error terms the calibration will identify: none | a comma-separated "
@@ -175,7 +185,10 @@ std::string UnmodelledText(const PlanningResult& p, int draws) {
   const UnmodelledErrorModel& u = p.unmodelled;
   char line[512];
   std::string text;
-  if (u.std > 0) {
+  if (p.prior_sigma > 0) {
+    text += "unmodelled error: not planned for with --prior (its prediction is that of a "
+            "least-squares calibration); the predicted error is the posterior's noise part\n";
+  } else if (u.std > 0) {
     std::string lengths;
     for (int j = 0; j < u.length_scales.size(); ++j) {
       char buf[32];
@@ -229,7 +242,21 @@ nlohmann::json UnmodelledJson(const PlanningResult& p) {
 
 int Run() {
   // Ballbar and probe poses (tools/lpoe_plan_contact.cc).
-  if (FLAGS_measurement != "position") return tools::RunContactPlan();
+  if (FLAGS_measurement != "position") {
+    if (!FLAGS_prior.empty() || !FLAGS_prior_free.empty()) {
+      std::cerr << "error: --prior and --prior_free plan a recalibration from tracker (position) "
+                   "measurements; a --measurement=" << FLAGS_measurement << " plan takes no prior
+";
+      return kExitUsage;
+    }
+    return tools::RunContactPlan();
+  }
+  if (!FLAGS_prior.empty() && FLAGS_model.empty()) FLAGS_model = FLAGS_prior;  // the prior's model
+  if (!FLAGS_prior_free.empty() && FLAGS_prior.empty()) {
+    std::cerr << "error: --prior_free needs --prior
+";
+    return kExitUsage;
+  }
   if (FLAGS_model.empty() || FLAGS_count.empty() || FLAGS_output.empty()) {
     std::cerr << "error: --model, --count and --output are required (see --help)\n";
     return kExitUsage;
@@ -306,6 +333,7 @@ int Run() {
   }
   tools::OutputSet outputs;
   outputs.AddInput("--model", FLAGS_model);
+  if (!FLAGS_prior.empty()) outputs.AddInput("--prior", FLAGS_prior);
   outputs.AddInput("--candidates", FLAGS_candidates);
   outputs.AddInput("--workspace", FLAGS_workspace);
   outputs.AddInput("--keep_out", FLAGS_keep_out);
@@ -319,6 +347,37 @@ int Run() {
 
   RobotModel& model = request.model;
   if (const int code = tools::ReadModelFlag(&model); code != kExitOk) return code;
+  std::string freed;
+  if (!FLAGS_prior.empty()) {
+    RobotModel prior_model;
+    auto prior = std::make_shared<ParameterPrior>();
+    if (Status s = ReadPrior(FLAGS_prior, PriorScales(), &prior_model, prior.get()); !s.ok()) {
+      std::cerr << "error: --prior: " << s.message() << "\n";
+      return kExitInput;
+    }
+    if (prior_model.num_joints() != model.num_joints() ||
+        prior_model.num_tools() != model.num_tools()) {
+      std::cerr << "error: --prior=" << FLAGS_prior << ": its chain (" << prior_model.num_joints()
+                << " joints, " << prior_model.num_tools() << " tools) is not the model's\n";
+      return kExitInput;
+    }
+    std::stringstream names(FLAGS_prior_free);
+    for (std::string name; std::getline(names, name, ',');) {
+      int frame = -1;
+      for (int f = 0; f < prior_model.num_frames(); ++f) {
+        const int n = prior_model.num_joints();
+        if ((f < n ? prior_model.joints[f].name : prior_model.tools[f - n].name) == name) frame = f;
+      }
+      if (frame < 0) {
+        std::cerr << "error: --prior_free: '" << name << "' is no joint or tool of "
+                  << FLAGS_prior << "\n";
+        return kExitUsage;
+      }
+      prior->frame_information[frame] = DefaultFrameInformation(prior_model, frame, prior->scales, 1.0);
+      freed += (freed.empty() ? "" : ", ") + name;
+    }
+    request.prior = prior;
+  }
   if (!FLAGS_smr_facing.empty()) {
     std::stringstream ss(FLAGS_smr_facing);
     std::string item;
@@ -450,6 +509,12 @@ int Run() {
     if (pm.num_tilt_parameters() > 0) std::cout << ", gravity tilt 2";
     std::cout << ")\n";
     if (!tilt_note.empty()) std::cout << "auto: gravity tilt not planned for: " << tilt_note << "\n";
+    if (request.prior) {
+      std::cout << "prior: " << FLAGS_prior << " (weighed against " << planned.prior_sigma
+                << " mm noise per axis" << (freed.empty() ? "" : "; freed: " + freed)
+                << "): the plan resolves what it leaves open; every figure below is the "
+                   "posterior's\n";
+    }
   }
 
   char line[256];
@@ -573,6 +638,13 @@ int Run() {
                                                   : nlohmann::json(nullptr)}}}};
   if (FLAGS_noise_sigma > 0) report["noise_sigma_mm"] = FLAGS_noise_sigma;
   report["unmodelled_error"] = UnmodelledJson(planned);
+  if (request.prior) {
+    std::vector<std::string> freed_list;
+    std::stringstream names(FLAGS_prior_free);
+    for (std::string name; std::getline(names, name, ',');) freed_list.push_back(name);
+    report["prior"] = {{"file", FLAGS_prior}, {"noise_sigma_mm", planned.prior_sigma},
+                       {"freed", freed_list}};
+  }
   if (automatic) report["target_accuracy_mm"] = FLAGS_target_accuracy;
   report["gravity_tilt"] = tilt_json;
   nlohmann::json rows = nlohmann::json::array();

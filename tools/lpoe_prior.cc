@@ -19,6 +19,7 @@
 #include "lpoe/model_covariance.h"
 #include "lpoe/recalibration.h"
 #include "common_flags.h"
+#include "fleet_prior_text.h"
 #include "output_files.h"
 #include "tool_common.h"
 
@@ -104,38 +105,14 @@ int Run() {
   RobotModel mean;
   ModelCovariance covariance;
   if (Status s = FleetPrior(models, &mean, &covariance); !s.ok()) {
-    // FleetPrior numbers the models from 1 in the order given: name the files.
-    std::string message = s.message();
-    for (size_t k = paths.size(); k-- > 1;) {
-      const std::string key = "model " + std::to_string(k + 1);
-      const size_t at = message.find(key);
-      if (at != std::string::npos) {
-        message.replace(at, key.size(), paths[k]);
-        break;
-      }
-    }
-    std::cerr << "error: " << message << " (first model: " << paths[0] << ")\n";
+    std::cerr << "error: " << tools::FleetPriorRefusal(s, paths) << "\n";
     return kExitInput;
   }
   const int robots = static_cast<int>(models.size());
-  if (robots < kRobotsForFullCovariance) {
-    std::cerr << "warning: " << robots << " robots: a frame's 6x6 sample covariance has rank at "
-              << "most " << robots - 1 << " and needs " << kRobotsForFullCovariance
-              << " robots for full rank; the directions the fleet does not span get the nominal "
-              << "tolerances (--prior_translation, ...) when the file is used as --prior\n";
+  for (const std::string& w : tools::FleetPriorWarnings(robots, mean, covariance)) {
+    std::cerr << "warning: " << w << "\n";
   }
-  for (size_t b = 0; b < covariance.terms.size(); ++b) {
-    const int P = static_cast<int>(covariance.terms[b].rows());
-    if (robots < P + 1) {
-      std::cerr << "warning: joint term " << covariance.term_names[b] << ": " << P
-                << " parameters need " << P + 1 << " robots for a full covariance, got " << robots
-                << "; the directions the fleet does not span get the default tolerance\n";
-    }
-  }
-  std::string text = "# lpoe_prior: fleet prior of " + std::to_string(robots) +
-                     " calibrated models (their mean; the covariance block: the spread of each "
-                     "frame's parameters from robot to robot)\n";
-  text += RobotModelToYaml(mean) + ModelCovarianceYaml(mean, covariance);
+  const std::string text = tools::FleetPriorFileText(robots, mean, covariance);
   const Status staged = outputs.Stage(FLAGS_output, text);
   if (tools::CommitOutputs(staged, &outputs, true) != kExitOk) return kExitOutput;
   if (!FLAGS_quiet) {

@@ -2,12 +2,16 @@
 // cross-validate, verdict), with keyword options named as lpoe_calibrate's flags and the same
 // defaults, so that a script and the tool produce the same calibrated model (same YAML bytes) and
 // the same JSON report.
+#include <pybind11/eigen.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <memory>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -20,7 +24,9 @@
 #include "lpoe/io.h"
 #include "lpoe/options.h"
 #include "lpoe/pipeline.h"
+#include "lpoe/recalibration.h"
 #include "lpoe/refusals.h"
+#include "fleet_prior_text.h"
 #include "python_api.h"
 #include "report/report.h"
 #include "tool_common.h"
@@ -38,6 +44,20 @@ struct Calibration {
   double final_cost = 0;
   RobotModel model;        // as lpoe_calibrate --output writes it (registration recorded)
   std::string report_json;  // as lpoe_calibrate --report writes it
+  std::string yaml;         // as lpoe_calibrate --output writes it (the model, its covariance block)
+  // The prior's part (docs/recalibration.md): per identified parameter the data's share of its
+  // information (empty without a prior), and with prior= the groups the new data showed changed.
+  std::vector<std::string> parameter_names;
+  Eigen::VectorXd data_share;
+  std::vector<ChangedGroup> changed;
+};
+
+// A prior read from a file or built by lpoe.fleet_prior: a model and its covariance block.
+struct Prior {
+  RobotModel model;
+  ModelCovariance covariance;
+  std::string source;  // the file, or "fleet prior of N models"
+  std::string yaml;    // the file's text (lpoe_prior's for a fleet)
 };
 
 namespace {
@@ -81,8 +101,29 @@ class KeywordOptions {
   std::vector<std::string> known_;
 };
 
+// prior=: a file (a calibrated model with its covariance block, or lpoe_prior's fleet prior) or an
+// lpoe.Prior; null when not given.
+std::shared_ptr<Prior> PriorArgument(const py::object& prior) {
+  if (prior.is_none()) return nullptr;
+  if (py::isinstance<Prior>(prior)) return std::make_shared<Prior>(prior.cast<Prior>());
+  const py::object os_path = py::module_::import("os").attr("fspath");
+  std::string path;
+  try {
+    path = os_path(prior).cast<std::string>();
+  } catch (const py::error_already_set&) {
+    throw LpoeError("prior: expected a file name or an lpoe.Prior, got " +
+                    py::str(prior.get_type().attr("__name__")).cast<std::string>());
+  }
+  auto out = std::make_shared<Prior>();
+  out->source = path;
+  Check(ReadRobotModel(path, &out->model));
+  Check(ReadModelCovariance(path, out->model, &out->covariance));
+  return out;
+}
+
 Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_data,
-                      const MeasurementSet* given_verify, const py::kwargs& kwargs) {
+                      const MeasurementSet* given_verify, const py::kwargs& kwargs,
+                      const Prior* prior_file = nullptr) {
   KeywordOptions k(kwargs);
   const std::string solver = k.Get<std::string>("solver", "linear");
   const std::string parameterization = k.Get<std::string>("parameterization", "identifiable");
@@ -263,11 +304,32 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
 
   const MeasurementSet empty(nominal.num_joints());
   const MeasurementSet& verification = verify != nullptr ? *verify : empty;
-  PipelineResult run;
+    RecalibrationResult recalibration;
+  if (prior_file != nullptr) {
+    // lpoe_calibrate --prior: the file's model and covariance, the --prior_* tolerances on the
+    // directions it does not cover, every standard deviation times prior_scale; the groups the new
+    // data show changed are freed (Recalibrate).
+    if (!(prior_scale > 0)) throw LpoeError("prior needs prior_scale > 0");
+    if (prior_file->model.num_frames() != nominal.num_frames() ||
+        prior_file->model.num_joints() != nominal.num_joints()) {
+      throw LpoeError("prior=" + prior_file->source + ": its chain (" +
+                      std::to_string(prior_file->model.num_joints()) + " joints, " +
+                      std::to_string(prior_file->model.num_tools()) + " tools) is not the model's");
+    }
+    ParameterPrior prior = PriorFromCovariance(prior_file->model, prior_file->covariance,
+                                               o.prior ? o.prior->scales : PriorScales());
+    prior.scale = prior_scale;
+    o.prior = std::make_shared<const ParameterPrior>(prior);
+  }
   {
     py::gil_scoped_release release;
-    run = RunCalibrationPipeline(with_fixed, data, verification, o);
+    if (prior_file != nullptr) {
+      recalibration = Recalibrate(with_fixed, data, verification, o);
+    } else {
+      recalibration.run = RunCalibrationPipeline(with_fixed, data, verification, o);
+    }
   }
+  PipelineResult& run = recalibration.run;
   const CalibrationResult& result = run.result;
 
   Calibration c;
@@ -283,6 +345,14 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   if (result.termination == Termination::kNotIdentifiable) return c;
   c.verdict = VerdictLevelName(run.verdict.level);
   c.verdict_reason = run.verdict.reason;
+  c.changed = recalibration.changed;
+  c.parameter_names = run.identifiability.parameter_names;
+  c.data_share = run.identifiability.data_share;
+  c.yaml = RobotModelToYaml(c.model);
+  if (result.covariance.rows() == result.parameterization.num_parameters &&
+      result.covariance.rows() > 0) {
+    c.yaml += ModelCovarianceYaml(c.model, CovarianceOf(result));
+  }
 
   // The JSON report, filled as lpoe_calibrate fills it.
   tools::RunSummary summary;
@@ -296,6 +366,10 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   summary.joint_errors_requested = joint_errors;
   summary.residual_model_requested = residual_model;
   summary.tool_name = "lpoe (Python)";
+  if (prior_file != nullptr) {
+    summary.prior_path = prior_file->source;
+    summary.changed_groups = recalibration.changed;
+  }
   c.report_json = tools::RunSummaryToJson(summary);
   return c;
 }
@@ -600,9 +674,129 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
   return c;
 }
 
+// lpoe.fleet_prior: lpoe_prior's fleet prior of calibrated models (files or lpoe.Model), with its
+// refusals and warnings.
+Prior FleetPriorOf(const py::sequence& models, const py::object& output) {
+  std::vector<RobotModel> read;
+  std::vector<std::string> names, paths;
+  const py::object fspath = py::module_::import("os").attr("fspath");
+  for (size_t k = 0; k < models.size(); ++k) {
+    const py::object item = models[k];
+    if (py::isinstance<RobotModel>(item)) {
+      read.push_back(item.cast<RobotModel>());
+      names.push_back("model " + std::to_string(k + 1));
+      continue;
+    }
+    std::string path;
+    try {
+      path = fspath(item).cast<std::string>();
+    } catch (const py::error_already_set&) {
+      throw LpoeError("models: item " + std::to_string(k + 1) +
+                      ": expected a file name or an lpoe.Model, got " +
+                      py::str(item.get_type().attr("__name__")).cast<std::string>());
+    }
+    for (const std::string& p : paths) {
+      if (tools::SameFile(p, path)) {
+        throw LpoeError("models: " + path + " is listed twice: one robot would count twice");
+      }
+    }
+    paths.push_back(path);
+    RobotModel model;
+    Check(ReadRobotModel(path, &model));
+    read.push_back(std::move(model));
+    names.push_back(path);
+  }
+  if (read.size() < 2) {
+    throw LpoeError("models: a fleet prior needs at least 2 calibrated models (got " +
+                    std::to_string(read.size()) + "); a frame's full 6x6 covariance needs " +
+                    std::to_string(kRobotsForFullCovariance));
+  }
+  Prior out;
+  if (Status s = FleetPrior(read, &out.model, &out.covariance); !s.ok()) {
+    throw LpoeError(tools::FleetPriorRefusal(s, names));
+  }
+  const int robots = static_cast<int>(read.size());
+  for (const std::string& w : tools::FleetPriorWarnings(robots, out.model, out.covariance)) {
+    if (PyErr_WarnEx(PyExc_UserWarning, w.c_str(), 1) != 0) throw py::error_already_set();
+  }
+  out.yaml = tools::FleetPriorFileText(robots, out.model, out.covariance);
+  out.source = "fleet prior of " + std::to_string(robots) + " models";
+  if (!output.is_none()) {
+    const std::string path = fspath(output).cast<std::string>();
+    for (const std::string& p : paths) {
+      if (tools::SameFile(p, path)) throw LpoeError("output: " + path + " is one of the models");
+    }
+    Check(WriteFileAtomically(path, out.yaml));
+    out.source = path;
+  }
+  return out;
+}
+
 }  // namespace
 
 void BindCalibration(py::module_& m) {
+  py::class_<Prior>(m, "Prior",
+                    "A prior for calibrate(prior=...): a model and its covariance block "
+                    "(lpoe.fleet_prior, lpoe.read_prior; docs/recalibration.md).")
+      .def_readonly("model", &Prior::model, "the prior's model (a fleet's mean)")
+      .def_readonly("source", &Prior::source)
+      .def_readonly("yaml", &Prior::yaml, "the file's text (for a fleet: what lpoe_prior writes)")
+      .def_property_readonly("robots", [](const Prior& p) { return p.covariance.models; },
+                             "how many robots the covariance was estimated from (1: one "
+                             "calibration's own estimate)")
+      .def_property_readonly(
+          "covariance",
+          [](const Prior& p) {
+            py::dict d;
+            const int n = p.model.num_joints();
+            for (size_t f = 0; f < p.covariance.frames.size(); ++f) {
+              if (p.covariance.frames[f].size() == 0) continue;
+              const int i = static_cast<int>(f);
+              d[py::str(i < n ? p.model.joints[i].name : p.model.tools[i - n].name)] =
+                  Eigen::MatrixXd(p.covariance.frames[f]);
+            }
+            for (size_t b = 0; b < p.covariance.terms.size(); ++b) {
+              d[py::str(p.covariance.term_names[b])] = Eigen::MatrixXd(p.covariance.terms[b]);
+            }
+            return d;
+          },
+          "{frame or joint term: covariance} (6x6 of xi = (omega rad, v mm) per frame, P x P per "
+          "term), as the file's covariance block")
+      .def(
+          "write",
+          [](const Prior& p, const py::object& path) {
+            Check(WriteFileAtomically(
+                py::module_::import("os").attr("fspath")(path).cast<std::string>(), p.yaml));
+          },
+          py::arg("path"), "writes the prior's file atomically")
+      .def("__repr__", [](const Prior& p) {
+        return "<lpoe.Prior: " + p.source + ", " + std::to_string(p.model.num_joints()) +
+               " joints, " + std::to_string(p.model.num_tools()) + " tools>";
+      });
+  m.def(
+      "read_prior",
+      [](const py::object& path) {
+        const std::shared_ptr<Prior> p = PriorArgument(path);
+        if (!p) throw LpoeError("read_prior: a file name is needed");
+        Prior out = *p;
+        std::ifstream in(out.source);
+        std::ostringstream ss;
+        ss << in.rdbuf();
+        out.yaml = ss.str();
+        return out;
+      },
+      py::arg("path"),
+      "reads a prior file (a calibrated model with its covariance block, lpoe_calibrate --output, "
+      "or lpoe_prior's fleet prior)");
+  m.def("fleet_prior", &FleetPriorOf, py::arg("models"), py::kw_only(),
+        py::arg("output") = py::none(),
+        "The fleet prior of calibrated robots of one type (lpoe_prior --models=... --output=...): "
+        "`models` a list of calibrated model files (YAML) or lpoe.Model; returns an lpoe.Prior "
+        "(their mean model and per-frame sample covariance) usable as calibrate(prior=...), and "
+        "writes lpoe_prior's file to `output` when given. Refuses fewer than 2 models, a file "
+        "listed twice and models of different chains or tools (lpoe_prior's message); warns "
+        "(UserWarning) below 7 robots, where a frame's covariance cannot have full rank.");
+
   py::class_<Calibration>(m, "Calibration", "The result of lpoe.calibrate.")
       .def_readonly("converged", &Calibration::converged)
       .def_readonly("termination", &Calibration::termination)
@@ -620,6 +814,47 @@ void BindCalibration(py::module_& m) {
           },
           "the JSON report as a dict (None when the data could not identify the model)")
       .def_readonly("report_json", &Calibration::report_json)
+      .def_readonly("yaml", &Calibration::yaml,
+                    "the calibrated model with its covariance block, as lpoe_calibrate --output "
+                    "writes it (a later calibration's prior=)")
+      .def(
+          "write",
+          [](const Calibration& c, const py::object& path) {
+            if (c.yaml.empty()) throw LpoeError("write: the calibration has no model");
+            Check(WriteFileAtomically(py::module_::import("os").attr("fspath")(path).cast<std::string>(),
+                                      c.yaml));
+          },
+          py::arg("path"),
+          "writes `yaml` atomically (as lpoe_calibrate --output): usable as prior= and by "
+          "lpoe.fleet_prior")
+      .def_property_readonly(
+          "data_share",
+          [](const Calibration& c) {
+            py::dict d;
+            for (size_t k = 0; k < c.parameter_names.size(); ++k) {
+              if (static_cast<Eigen::Index>(k) < c.data_share.size()) {
+                d[py::str(c.parameter_names[k])] = c.data_share(static_cast<Eigen::Index>(k));
+              }
+            }
+            return d;
+          },
+          "{parameter: the data's share of its information} (1: the data alone, 0: the prior "
+          "alone; empty without a prior), as the report's identified[].data_share")
+      .def_property_readonly(
+          "changed",
+          [](const Calibration& c) {
+            py::list out;
+            for (const ChangedGroup& g : c.changed) {
+              py::dict d;
+              d["name"] = g.name;
+              d["chi2"] = g.chi2;
+              d["dof"] = g.dof;
+              out.append(d);
+            }
+            return out;
+          },
+          "with prior=: the groups the new data showed changed against the prior, freed (each "
+          "{name, chi2, dof}, in the order found), as lpoe_calibrate --prior reports them")
       .def("__repr__", [](const Calibration& c) {
         std::string s = "<lpoe.Calibration: " + c.termination + " after " +
                         std::to_string(c.iterations) + " iterations";
@@ -631,7 +866,7 @@ void BindCalibration(py::module_& m) {
   // lpoe_calibrate's flags with the same defaults; passed on as the options KeywordOptions reads.
   m.def(
       "calibrate",
-      [](const RobotModel& model, const py::object& data, const py::object& verify,
+      [](const py::object& model_arg, const py::object& data, const py::object& verify,
          const std::string& solver, const std::string& parameterization,
          const std::string& data_kind, const std::string& joint_errors,
          const std::string& residual_model, bool register_frames,
@@ -641,7 +876,15 @@ void BindCalibration(py::module_& m) {
          const py::object& sigma, int threads, const std::string& angle_unit,
          const py::object& fixed_tools, double prior_scale, double prior_translation,
          double prior_rotation, double prior_tool_translation, double prior_joint_terms,
-         const std::string& hold_scale) {
+         const std::string& hold_scale, const py::object& prior_arg) {
+        // prior=: the prior's model is the start unless a model is given (lpoe_calibrate --prior).
+        const std::shared_ptr<Prior> prior = PriorArgument(prior_arg);
+        if (model_arg.is_none() && !prior) {
+          throw LpoeError("model: a model is needed (None only with prior=, whose model is then "
+                          "the start)");
+        }
+        const RobotModel model =
+            model_arg.is_none() ? prior->model : model_arg.cast<RobotModel>();
         py::kwargs k;
         k["solver"] = solver;
         k["parameterization"] = parameterization;
@@ -678,6 +921,10 @@ void BindCalibration(py::module_& m) {
                               !sigma.is_none(), &contacts, &tracker)) {
           k["hold_scale"] = hold_scale;
           k["verify"] = verify;
+          if (prior) {
+            throw LpoeError("prior applies to tracker data (lpoe_calibrate --prior), not to "
+                            "distance and plane data");
+          }
           return CalibrateContacts(model, contacts, tracker, k);
         }
         if (hold_scale != "auto") {
@@ -689,7 +936,7 @@ void BindCalibration(py::module_& m) {
                           py::str(data.get_type().attr("__name__")).cast<std::string>());
         }
         const MeasurementSet* v = verify.is_none() ? nullptr : verify.cast<const MeasurementSet*>();
-        return Calibrate(model, data.cast<const MeasurementSet&>(), v, k);
+        return Calibrate(model, data.cast<const MeasurementSet&>(), v, k, prior.get());
       },
       py::arg("model"), py::arg("data"), py::arg("verify") = py::none(), py::kw_only(),
       py::arg("solver") = "linear", py::arg("parameterization") = "identifiable",
@@ -712,7 +959,7 @@ void BindCalibration(py::module_& m) {
       py::arg("prior_rotation") = OptionDefault("lpoe_calibrate", "prior_rotation"),
       py::arg("prior_tool_translation") = OptionDefault("lpoe_calibrate", "prior_tool_translation"),
       py::arg("prior_joint_terms") = OptionDefault("lpoe_calibrate", "prior_joint_terms"),
-      py::arg("hold_scale") = "auto",
+      py::arg("hold_scale") = "auto", py::arg("prior") = py::none(),
       "Calibrates `model` from `data` (and verifies on `verify`) as lpoe_calibrate does, through "
       "the same pipeline (registration, solver, analysis, cross-validation, verdict). The keyword "
       "arguments are named as its flags, with the same defaults and ranges (lpoe/options.h):\n"
@@ -736,7 +983,13 @@ void BindCalibration(py::module_& m) {
       "tools are held too;\n"
       "  prior_scale=1 (0: no prior, plain least squares), prior_translation (mm), prior_rotation "
       "(mrad), prior_tool_translation (mm), prior_joint_terms (mrad): the prior that holds weakly "
-      "determined directions near the start model (docs/identifiability.md).\n"
+      "determined directions near the start model (docs/identifiability.md);\n"
+      "  prior=None: a recalibration (docs/recalibration.md, lpoe_calibrate --prior): a file "
+      "written by Calibration.write or lpoe_calibrate --output (a model with its covariance "
+      "block), lpoe_prior's fleet prior, or an lpoe.Prior (lpoe.fleet_prior); its model is the "
+      "start when `model` is None; the groups the new data show changed are freed "
+      "(Calibration.changed), Calibration.data_share says per parameter how much came from the "
+      "data; prior_scale multiplies its standard deviations.\n"
       "Ballbar distances and probe contacts (docs/measurements.md): `data` is an "
       "lpoe.ContactMeasurements or a list of data sets (distance, plane and tracker sets; tracker "
       "rows need sigma=, their noise per axis in mm), calibrated as lpoe_calibrate "

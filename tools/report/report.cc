@@ -637,6 +637,13 @@ Json BuildJson(const RunSummary& s) {
   } else {
     j["prior"] = nullptr;
   }
+  if (!s.prior_path.empty()) {
+    Json changed = Json::array();
+    for (const ChangedGroup& g : s.changed_groups) {
+      changed.push_back({{"name", g.name}, {"chi2", g.chi2}, {"dof", g.dof}});
+    }
+    j["recalibration"] = {{"prior", s.prior_path}, {"changed", changed}};
+  }
   j["identification"] = {{"before", StatsJson(s.identification_before)},
                          {"after", StatsJson(s.identification_after)}};
   if (s.has_verification) {

@@ -12,6 +12,7 @@
 #include "lpoe/pipeline.h"
 #include "lpoe/urdf.h"
 #include "lpoe/plausibility.h"
+#include "lpoe/recalibration.h"
 #include "lpoe/registration.h"
 #include "lpoe/statistics.h"
 
@@ -56,6 +57,10 @@ struct RunSummary : PipelineResult {
   // change (UrdfFrameElements); empty otherwise.
   std::vector<std::string> urdf_frames;
   bool forced = false;  // written although the verdict failed (--force)
+  // --prior (docs/recalibration.md): the prior's file and the groups the new data showed changed
+  // (the report's "recalibration", present only with a prior).
+  std::string prior_path;
+  std::vector<ChangedGroup> changed_groups;
 
   // Per-point data (AddPointResiduals) and the model the "before" errors refer to (the nominal
   // model, after the rigid registration when there was one).

@@ -74,6 +74,15 @@ Matrix6d DefaultFrameInformation(const RobotModel& model, int f, const PriorScal
 // else the default.
 Matrix6d FrameInformation(const ParameterPrior& prior, const RobotModel& model, int f);
 
+// A prior with a reference of its own (a previous calibration, a fleet) used on data of another
+// session: the base frame (joint 1's) is that data's registration (the tracker stood elsewhere),
+// held by the tolerances only. The directions of the base the parameterization leaves to the next
+// frame (those commuting with joint 1's motion: the rotation about and the translation along its
+// axis, docs/conventions.md) are registration too: in frame 2's prior (joint 2's frame) they get
+// the tolerances, and its other directions keep their marginal information (not the conditional:
+// what the earlier calibration knew of them with joint 1's zero unknown). Idempotent.
+void FreeRegistrationDirections(const RobotModel& model, ParameterPrior* prior);
+
 // xi_f of `model` against `reference` (both with the same frames).
 Vector6d FrameDeviation(const RobotModel& reference, const RobotModel& model, int f);
 

@@ -39,6 +39,7 @@
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/parameterization.h"
+#include "lpoe/prior.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/status.h"
 
@@ -230,8 +231,18 @@ struct PlanQuality {
 // The information matrix of the listed candidates.
 Eigen::MatrixXd Information(const CandidatePool& pool, const std::vector<int>& selected);
 
+// With `prior_information` (PlanOptions::prior_information, not empty) the figures are the
+// posterior's: M is the plan's information plus the prior's.
 PlanQuality EvaluatePlan(const PlanningModel& pm, const CandidatePool& pool,
-                         const std::vector<int>& selected, const Eigen::MatrixXd& workspace_moment);
+                         const std::vector<int>& selected, const Eigen::MatrixXd& workspace_moment,
+                         const Eigen::MatrixXd& prior_information = Eigen::MatrixXd());
+
+// A prior's information on `pm`'s parameters in the units of J^T J (sigma^2 times it, sigma the
+// noise per axis of the data planned for): per frame B_f^T Lambda_f B_f (B_f the frame's
+// identifiable directions), the base's registration directions free (FreeRegistrationDirections:
+// the new data's tracker stands elsewhere); no information on joint-space combinations.
+Eigen::MatrixXd PlanningPriorInformation(const PlanningModel& pm, const ParameterPrior& prior,
+                                         double sigma);
 
 // The refusals of a plan, shared by lpoe_plan and lpoe.plan (lpoe/refusals.h): a plan of `count`
 // poses must identify every parameter (rank) and have more rows than parameters (redundancy: with
@@ -252,6 +263,11 @@ struct PlanOptions {
   // Threads for the per-candidate updates (0: one per hardware thread). The plan does not depend
   // on it: every candidate's terms are computed alone, in fixed chunks.
   int num_threads = 0;
+  // A prior's information on the planning parameters (docs/recalibration.md, lpoe_plan --prior),
+  // in the units of J^T J: sigma^2 times the prior's information, sigma the new data's noise per
+  // axis (PlanningPriorInformation). The plan maximizes the criterion of M + this (the posterior),
+  // so its poses go where the prior is weak. Empty: none.
+  Eigen::MatrixXd prior_information;
 };
 
 struct PlanResult {

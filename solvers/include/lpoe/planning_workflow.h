@@ -50,6 +50,12 @@ struct PlanRequest {
   bool unmodelled_given = false;
   double unmodelled_error = 0.03;
   double unmodelled_length = 1.0;
+  // lpoe_plan --prior (docs/recalibration.md): a prior (a previous calibration, a fleet), whose
+  // information the plan starts from: the poses go where it is weak. Its information is weighed
+  // against noise_sigma, else the prior's data_sigma_mm, else kPlanDefaultNoiseSigma. With a prior
+  // the plan needs full rank with it, not more rows than parameters, and the unmodelled-error
+  // exchange is not run (its prediction is that of a least-squares calibration). Null: none.
+  std::shared_ptr<const ParameterPrior> prior;
 };
 
 // The noise (mm per axis) the predicted error assumes when the request gives none.
@@ -89,6 +95,8 @@ struct PlanningResult {
   double random_total_rms_mean = 0;
   std::string unmodelled_start;
   int unmodelled_swaps = 0;
+  // With a prior (PlanRequest::prior): the noise its information was weighed against (mm).
+  double prior_sigma = 0;
   // With the tilt: its two angles' predicted standard deviations, degrees per mm of noise.
   double tilt_sd_deg_per_unit[2] = {0, 0};
   // The planned terms as written in reports ("none", "compliance,harmonics,tilt").

@@ -48,6 +48,10 @@ struct ChangedGroup {
   std::string name;       // "joint3 zero", "joint5 frame", "smr1"
   double chi2 = 0;        // the frame's prior discrepancy at the MAP estimate
   int dof = 0;            // its degrees of freedom
+  // A joint-space term's group (frame -1): the term, and the joint whose parameters it is (-1:
+  // the whole term), e.g. "joint3 harmonics".
+  std::string term;
+  int joint = -1;
 };
 
 struct RecalibrationResult {
@@ -59,17 +63,32 @@ struct RecalibrationResult {
 // The pipeline with options.prior (informative, with its reference), then, while the MAP estimate
 // shows groups whose prior discrepancy chi^2 exceeds dof + 5 sqrt(2 dof) + 10 (far beyond a
 // consistent prior), the worst of them (per degree of freedom) freed (held by the tolerances
-// only) and solved again (at most six rounds).
+// only) and solved again (at most six rounds). Groups: a joint's zero (when a frame's discrepancy
+// lies mostly along it), a frame, and per joint-space term with a prior the parameters of each
+// joint (their marginal discrepancy; freed to the default joint-term tolerance).
 RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet& identification,
                                 const MeasurementSet& verification, const PipelineOptions& options);
 
 // The fleet prior of calibrated models of one type: the mean model (each frame's mean deviation
-// from the first model, on SE(3)) and each frame's 6x6 sample covariance (joint terms: mean and
-// covariance of their values). Refuses models of different chains (joint count and types, names,
-// tools) with a message naming the first difference, and fewer than two models. A 6x6 sample
-// covariance has full rank from kRobotsForFullCovariance robots on; with fewer, the directions it
-// leaves out get the default tolerances when it is used as a prior (PriorFromCovariance).
+// from the first model, on SE(3)) and per frame the covariance of a NEW robot's deviation from that
+// mean (joint terms: mean and the same covariance of their values). Refuses models of different
+// chains (joint count and types, names, tools) with a message naming the first difference, and
+// fewer than two models.
+//
+// The covariance is the posterior predictive of the next robot given the fleet's N robots (their
+// deviations Gaussian with unknown mean and covariance, the non-informative prior): a multivariate
+// t with N - p degrees of freedom whose covariance is the sample covariance S times
+//     (N + 1)(N - 1) / (N (N - p - 2))           (FleetPredictiveFactor),
+// p the block's estimated directions (EstimatedDimension: a joint frame 4, a tool 3 with position
+// data, 6 with pose data; a joint term its P values). It exists for N > p + 2: a block of p
+// directions needs p + 3 robots (a joint frame 7: kRobotsForFullCovariance). With fewer the factor
+// is (N + 1) / N (the mean's uncertainty only) and the tools warn; below p + 1 robots S has not even
+// full rank, and the directions it leaves out get the default tolerances when it is used as a prior
+// (PriorFromCovariance). The sample covariance underestimates a new robot's spread by that factor
+// (3.9 for a joint frame of 8 robots): used as is, the prior is too confident.
 constexpr int kRobotsForFullCovariance = 7;
+int EstimatedDimension(const RobotModel& model, int f, const Eigen::MatrixXd& covariance);
+double FleetPredictiveFactor(int robots, int p);
 Status FleetPrior(const std::vector<RobotModel>& models, RobotModel* mean,
                   ModelCovariance* covariance);
 

@@ -206,10 +206,7 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
       auto reference = std::make_shared<RobotModel>(*options.prior->reference);
       if (reference->num_frames() == start.num_frames() && start.num_joints() > 0) {
         reference->joints[0].origin = start.joints[0].origin;
-        if (!anchored->frame_information.empty()) {
-          anchored->frame_information[0] = DefaultFrameInformation(start, 0, anchored->scales, 1.0) *
-                                           anchored->scale * anchored->scale;
-        }
+        FreeRegistrationDirections(*reference, anchored.get());
       }
       anchored->reference = reference;
       prior = anchored;

@@ -6,7 +6,10 @@
 #include <memory>
 #include <sstream>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <Eigen/QR>
 
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/io.h"
@@ -40,7 +43,11 @@ Eigen::MatrixXd InformationOf(const Eigen::MatrixXd& C, const Eigen::MatrixXd& f
 // The directions of frame f a calibration estimates (see InformationOf).
 Eigen::MatrixXd EstimatedDirections(const RobotModel& model, int f, const Eigen::MatrixXd& C) {
   if (f < model.num_joints()) return IdentifiableJointBasis(model.joints[f].twist);
-  if (C.topLeftCorner<3, 3>().isZero(0)) return Eigen::MatrixXd::Identity(6, 6).rightCols(3);
+  // Position data leave a tool's rotation unestimated: a block without rotation (to round-off).
+  const double largest = C.cwiseAbs().maxCoeff();
+  if (!(C.topLeftCorner<3, 3>().cwiseAbs().maxCoeff() > 1e-12 * largest)) {
+    return Eigen::MatrixXd::Identity(6, 6).rightCols(3);
+  }
   return Eigen::MatrixXd::Identity(6, 6);
 }
 
@@ -76,7 +83,33 @@ Status SameChain(const RobotModel& a, const RobotModel& b, const std::string& wh
   return Status::Ok();
 }
 
+// The pseudo-inverse of a symmetric positive semi-definite matrix (eigenvalues below 1e-12 of the
+// largest left out).
+Eigen::MatrixXd PseudoInverse(const Eigen::MatrixXd& M) {
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (M + M.transpose()));
+  const double largest = eig.eigenvalues().cwiseAbs().maxCoeff();
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(M.rows(), M.cols());
+  for (int k = 0; k < eig.eigenvalues().size(); ++k) {
+    const double l = eig.eigenvalues()(k);
+    if (largest > 0 && l > 1e-12 * largest) {
+      out += eig.eigenvectors().col(k) * eig.eigenvectors().col(k).transpose() / l;
+    }
+  }
+  return out;
+}
+
 }  // namespace
+
+int EstimatedDimension(const RobotModel& model, int f, const Eigen::MatrixXd& covariance) {
+  if (covariance.rows() != 6) return 6;
+  return static_cast<int>(EstimatedDirections(model, f, covariance).cols());
+}
+
+double FleetPredictiveFactor(int robots, int p) {
+  const double N = robots;
+  if (robots > p + 2) return (N + 1) * (N - 1) / (N * (N - p - 2));
+  return (N + 1) / N;
+}
 
 ModelCovariance CovarianceOf(const CalibrationResult& result) {
   ModelCovariance out;
@@ -151,13 +184,20 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
   if (!options.prior || !options.prior->reference) return out;
   auto prior = std::make_shared<ParameterPrior>(*options.prior);
   const RobotModel& reference = *prior->reference;
+  // The discrepancies are judged under the prior the pipeline solved with (the base's
+  // registration directions free).
+  FreeRegistrationDirections(reference, prior.get());
   constexpr int kRounds = 6;
+  // Per frame: 0 held by the prior, 1 only the previous joint's zero freed, 2 freed.
+  std::vector<int> state(reference.num_frames(), 0);
+  std::vector<Vector6d> zero_direction(reference.num_frames(), Vector6d::Zero());
   for (int round = 0; round < kRounds && out.run.result.converged(); ++round) {
     const Parameterization& p = out.run.result.parameterization;
     std::vector<ChangedGroup> changed;
     // Frame 0 is the base: registration decides it (its prior is the tolerances, not tested).
     for (int f = 1; f < reference.num_frames() && f < static_cast<int>(p.basis.size()); ++f) {
-      if (p.basis[f].cols() == 0 || f >= static_cast<int>(prior->frame_information.size())) {
+      if (p.basis[f].cols() == 0 || f >= static_cast<int>(prior->frame_information.size()) ||
+          state[f] == 2) {
         continue;
       }
       const Matrix6d info = FrameInformation(*prior, reference, f);
@@ -175,18 +215,65 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
       g.dof = dof;
       const int n = reference.num_joints();
       g.name = RecalibrationFrameName(reference, f) + (f < n ? " frame" : "");
-      if (f < n && f >= 1) {
+      if (f < n && f >= 1 && state[f] == 0) {
         // A zero shift of the joint before: the rotation about its axis, pushed into this frame
-        // (Ad of this frame's inverse applied to that joint's twist).
+        // (Ad of this frame's inverse applied to that joint's twist). When it carries most of the
+        // discrepancy, that zero alone is the group (freed first; the frame follows in a later
+        // round if the rest of its discrepancy stays).
         const Vector6d u = Adjoint(reference.joints[f].origin.Inverse()) * reference.joints[f - 1].twist;
         const Eigen::VectorXd uz = B.transpose() * u;
         const double uIu = uz.dot(I * uz);
         if (uIu > 0) {
           const double along = std::pow(uz.dot(I * z), 2) / uIu;
-          if (along > 0.5 * chi2) g.name += ": mostly " + reference.joints[f - 1].name + "'s zero";
+          if (along > 0.5 * chi2) {
+            g.name = reference.joints[f - 1].name + " zero";
+            zero_direction[f] = u;
+          }
         }
       }
       changed.push_back(g);
+    }
+    // Joint-space terms (--joint_errors) with a prior of their own: per joint, the marginal
+    // discrepancy of that joint's parameters under the term's prior (parameters that may move
+    // several joints form one group of the whole term).
+    for (const JointBlock& b : p.joint_blocks) {
+      if (b.basis.cols() == 0) continue;
+      const std::string& name = b.term->name();
+      const int P = static_cast<int>(b.basis.rows());
+      const JointTermPrior* t = nullptr;
+      for (const JointTermPrior& given : prior->joint_terms) {
+        if (given.name == name && given.information.rows() == P) t = &given;
+      }
+      const std::vector<double>& v = out.run.result.model.joint_errors.Values(name);
+      if (t == nullptr || static_cast<int>(v.size()) != P) continue;
+      Eigen::VectorXd d = Eigen::Map<const Eigen::VectorXd>(v.data(), P);
+      if (t->reference.size() == P) d -= t->reference;
+      const Eigen::MatrixXd C =
+          PseudoInverse(t->information / (prior->scale * prior->scale));
+      for (int j = -1; j < b.term->num_joints(); ++j) {
+        std::vector<int> K;
+        for (int k = 0; k < P; ++k) {
+          if (b.term->ParameterJoint(k) == j) K.push_back(k);
+        }
+        if (K.empty()) continue;
+        Eigen::VectorXd dk(K.size());
+        Eigen::MatrixXd Ck(K.size(), K.size());
+        for (size_t r = 0; r < K.size(); ++r) {
+          dk(r) = d(K[r]);
+          for (size_t c = 0; c < K.size(); ++c) Ck(r, c) = C(K[r], K[c]);
+        }
+        const double chi2 = dk.dot(PseudoInverse(Ck) * dk);
+        const int dof = static_cast<int>(K.size());
+        if (!(chi2 > dof + 5 * std::sqrt(2.0 * dof) + 10)) continue;
+        ChangedGroup g;
+        g.frame = -1;
+        g.term = name;
+        g.joint = j;
+        g.name = (j >= 0 ? reference.joints[j].name + " " : std::string()) + name;
+        g.chi2 = chi2;
+        g.dof = dof;
+        changed.push_back(g);
+      }
     }
     if (changed.empty()) break;
     // The worst group only: a large change spreads its misfit over the neighbouring frames at the
@@ -195,10 +282,66 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
         changed.begin(), changed.end(), [](const ChangedGroup& a, const ChangedGroup& b) {
           return a.chi2 / std::max(1, a.dof) < b.chi2 / std::max(1, b.dof);
         });
-    prior->frame_information[worst.frame] =
-        DefaultFrameInformation(reference, worst.frame, prior->scales, 1.0) * prior->scale *
-        prior->scale;
     out.changed.push_back(worst);
+    if (worst.frame < 0) {
+      // A joint-space term's group: its parameters get the default joint-term tolerance (a
+      // standard deviation of joint_term_mrad per parameter), the term's others keep their
+      // marginal information.
+      for (JointTermPrior& t : prior->joint_terms) {
+        if (t.name != worst.term) continue;
+        std::shared_ptr<const JointTerm> term;
+        for (const JointBlock& b : p.joint_blocks) {
+          if (b.term->name() == worst.term) term = b.term;
+        }
+        if (!term) break;
+        const int P = static_cast<int>(t.information.rows());
+        const Eigen::MatrixXd C = PseudoInverse(t.information);
+        std::vector<int> keep, freed;
+        for (int k = 0; k < P; ++k) (term->ParameterJoint(k) == worst.joint ? freed : keep).push_back(k);
+        Eigen::MatrixXd next = Eigen::MatrixXd::Zero(P, P);
+        if (!keep.empty()) {
+          Eigen::MatrixXd Ck(keep.size(), keep.size());
+          for (size_t r = 0; r < keep.size(); ++r) {
+            for (size_t c = 0; c < keep.size(); ++c) Ck(r, c) = C(keep[r], keep[c]);
+          }
+          const Eigen::MatrixXd Ik = PseudoInverse(Ck);
+          for (size_t r = 0; r < keep.size(); ++r) {
+            for (size_t c = 0; c < keep.size(); ++c) next(keep[r], keep[c]) = Ik(r, c);
+          }
+        }
+        const double sigma = 1e-3 * prior->scales.joint_term_mrad;
+        for (int k : freed) next(k, k) = 1.0 / (sigma * sigma);
+        t.information = next;
+      }
+      o.prior = prior;
+      out.run = RunCalibrationPipeline(nominal, identification, verification, o);
+      ++out.solves;
+      continue;
+    }
+    const double k2 = prior->scale * prior->scale;
+    const Matrix6d tolerances =
+        DefaultFrameInformation(reference, worst.frame, prior->scales, 1.0) * k2;
+    if (state[worst.frame] == 0 && worst.name.size() > 5 &&
+        worst.name.compare(worst.name.size() - 5, 5, " zero") == 0) {
+      // The zero's direction gets the tolerances; the frame's other directions keep their
+      // marginal information.
+      const Eigen::Matrix<double, 6, 1> q = zero_direction[worst.frame].normalized();
+      const Eigen::MatrixXd qm = q;
+      const Eigen::HouseholderQR<Eigen::MatrixXd> qr(qm);
+      const Eigen::MatrixXd full = qr.householderQ() * Eigen::MatrixXd::Identity(6, 6);
+      const Eigen::MatrixXd Bo = full.rightCols(5);
+      const Matrix6d& info = prior->frame_information[worst.frame];
+      const Eigen::LDLT<Matrix6d> ldlt(info);
+      const Eigen::MatrixXd C = ldlt.solve(Matrix6d::Identity());
+      const Eigen::MatrixXd qq = q * q.transpose();
+      Matrix6d next = Bo * (Bo.transpose() * C * Bo).inverse() * Bo.transpose() +
+                      qq * tolerances * qq;
+      prior->frame_information[worst.frame] = 0.5 * (next + next.transpose());
+      state[worst.frame] = 1;
+    } else {
+      prior->frame_information[worst.frame] = tolerances;
+      state[worst.frame] = 2;
+    }
     o.prior = prior;
     out.run = RunCalibrationPipeline(nominal, identification, verification, o);
     ++out.solves;
@@ -236,7 +379,10 @@ Status FleetPrior(const std::vector<RobotModel>& models, RobotModel* mean,
       const Vector6d d = FrameDeviation(m, r, f);
       S += d * d.transpose();
     }
-    c.frames.push_back(S / (count - 1));
+    // The covariance of a new robot's deviation (the posterior predictive, see the header).
+    const Eigen::MatrixXd sample = S / (count - 1);
+    c.frames.push_back(sample *
+                       FleetPredictiveFactor(c.models, EstimatedDimension(m, f, sample)));
   }
   // Joint terms every model carries: the mean and sample covariance of their values.
   for (const JointTermEntry& e : first.joint_errors.terms) {
@@ -259,7 +405,7 @@ Status FleetPrior(const std::vector<RobotModel>& models, RobotModel* mean,
     std::vector<double>& values = *m.joint_errors.MutableValues(e.name);
     values.assign(mu.data(), mu.data() + P);
     c.term_names.push_back(e.name);
-    c.terms.push_back(S / (count - 1));
+    c.terms.push_back(S / (count - 1) * FleetPredictiveFactor(c.models, P));
   }
   *mean = std::move(m);
   *covariance = std::move(c);

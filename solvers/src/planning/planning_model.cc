@@ -178,3 +178,26 @@ Eigen::VectorXd PlanningModel::ErrorScale() const {
 
 
 }  // namespace lpoe
+
+namespace lpoe {
+
+Eigen::MatrixXd PlanningPriorInformation(const PlanningModel& pm, const ParameterPrior& prior,
+                                         double sigma) {
+  const int P = pm.num_parameters();
+  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(P, P);
+  const RobotModel& model = prior.reference ? *prior.reference : pm.model();
+  if (model.num_frames() != pm.model().num_frames()) return M;
+  ParameterPrior free = prior;
+  FreeRegistrationDirections(model, &free);
+  const Parameterization& p = pm.parameterization();
+  for (int f = 0; f < static_cast<int>(p.basis.size()); ++f) {
+    const Eigen::MatrixXd& B = p.basis[f];
+    if (B.cols() == 0) continue;
+    const Eigen::Index k = B.cols();
+    M.block(p.offset[f], p.offset[f], k, k) =
+        sigma * sigma * B.transpose() * FrameInformation(free, model, f) * B;
+  }
+  return M;
+}
+
+}  // namespace lpoe

@@ -118,7 +118,7 @@ void ForEachChunk(int n, int max_threads, const Fn& fn) {
 class Selector {
  public:
   Selector(const CandidatePool& pool, const Eigen::VectorXd& scale, Objective objective,
-           const Eigen::MatrixXd& weight, int num_threads)
+           const Eigen::MatrixXd& weight, int num_threads, const Eigen::MatrixXd& prior)
       : pool_(pool), objective_(objective), P_(pool.num_parameters), num_threads_(num_threads) {
     Js_ = pool.J * scale.asDiagonal();
     if (objective_ == Objective::kTrace) {
@@ -129,6 +129,10 @@ class Selector {
     for (int c = 0; c < pool.size(); ++c) max_rows_ = std::max(max_rows_, pool.rows(c));
     M_ = kRegularization * Eigen::MatrixXd::Identity(P_, P_);
     A_ = Eigen::MatrixXd::Identity(P_, P_) / kRegularization;
+    if (prior.rows() == P_) {  // the posterior: the plan's information added to the prior's
+      M_ += scale.asDiagonal() * prior * scale.asDiagonal();
+      A_ = M_.llt().solve(Eigen::MatrixXd::Identity(P_, P_));
+    }
     in_plan_.assign(pool.size(), 0);
   }
 
@@ -383,12 +387,14 @@ Eigen::MatrixXd Information(const CandidatePool& pool, const std::vector<int>& s
 }
 
 PlanQuality EvaluatePlan(const PlanningModel& pm, const CandidatePool& pool,
-                         const std::vector<int>& selected, const Eigen::MatrixXd& workspace_moment) {
+                         const std::vector<int>& selected, const Eigen::MatrixXd& workspace_moment,
+                         const Eigen::MatrixXd& prior_information) {
   PlanQuality out;
   const int P = pool.num_parameters;
   out.num_poses = static_cast<int>(selected.size());
   for (int c : selected) out.num_rows += pool.rows(c);
-  const Eigen::MatrixXd M = Information(pool, selected);
+  Eigen::MatrixXd M = Information(pool, selected);
+  if (prior_information.rows() == P) M += prior_information;
   const internal::Identifiability id = internal::Analyze(M);
   out.rank = id.rank;
   out.condition_number = id.condition;
@@ -464,7 +470,7 @@ Status SelectPlan(const PlanningModel& pm, const CandidatePool& pool, int count,
   // rank). (Lazy evaluation does not pay here: the gains of a random pool drop together.)
   auto local_owner = std::make_unique<Selector>(
       pool, scale, objective == Objective::kMinEigen ? Objective::kLogDet : objective, weight,
-      options.num_threads);
+      options.num_threads, options.prior_information);
   local_owner->Resync();
   result->selected.clear();
   std::vector<double> gains;
@@ -485,7 +491,8 @@ Status SelectPlan(const PlanningModel& pm, const CandidatePool& pool, int count,
 
   // Exchange: swap each plan member for the best of the shortlist while the criterion improves.
   if (objective == Objective::kMinEigen) {
-    local_owner = std::make_unique<Selector>(pool, scale, objective, weight, options.num_threads);
+    local_owner = std::make_unique<Selector>(pool, scale, objective, weight, options.num_threads,
+                                             options.prior_information);
     for (int c : result->selected) local_owner->AddOnly(c);
   }
   Selector& local = *local_owner;

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include <Eigen/Cholesky>
+#include <Eigen/QR>
 
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
@@ -182,13 +183,62 @@ Status RunPlanning(const PlanRequest& request, PlanningResult* result, PlanFailu
   const PlanningModel& pm = *out.planning;
   const CandidatePool& pool = out.pool;
   out.workspace_moment = WorkspaceMoment(pm, workspace);
-  const Eigen::MatrixXd& L = out.workspace_moment;
   const int P = pm.num_parameters();
+  if (request.prior) {
+    // A recalibration's data are registered anew (the tracker stands elsewhere): the rigid motions
+    // of the whole arm (the base frame's directions, and those of joint 1's centralizer that the
+    // parameterization leaves to joint 2's frame) are the registration's, not errors of the
+    // calibrated model. The predicted error over the workspace leaves them out, as a held-out
+    // check after a rigid fit does.
+    const Parameterization& par = pm.parameterization();
+    const RobotModel& m = pm.model();
+    std::vector<Eigen::VectorXd> rigid;
+    if (m.num_joints() >= 1 && !par.basis.empty()) {
+      for (int c = 0; c < par.basis[0].cols(); ++c) {
+        rigid.push_back(Eigen::VectorXd::Unit(P, par.offset[0] + c));
+      }
+    }
+    if (m.num_joints() >= 2 && par.basis.size() > 1 && par.basis[1].cols() > 0) {
+      const Eigen::MatrixXd U =
+          Adjoint(m.joints[1].origin.Inverse()) * TwistCentralizer(m.joints[0].twist);
+      for (int c = 0; c < U.cols(); ++c) {
+        Eigen::VectorXd v = Eigen::VectorXd::Zero(P);
+        v.segment(par.offset[1], par.basis[1].cols()) = par.basis[1].transpose() * U.col(c);
+        rigid.push_back(v);
+      }
+    }
+    if (!rigid.empty()) {
+      Eigen::MatrixXd R(P, static_cast<Eigen::Index>(rigid.size()));
+      for (size_t k = 0; k < rigid.size(); ++k) R.col(static_cast<Eigen::Index>(k)) = rigid[k];
+      const Eigen::HouseholderQR<Eigen::MatrixXd> qr(R);
+      const Eigen::MatrixXd Q =
+          (qr.householderQ() * Eigen::MatrixXd::Identity(P, P)).leftCols(R.cols());
+      const Eigen::MatrixXd N = Eigen::MatrixXd::Identity(P, P) - Q * Q.transpose();
+      out.workspace_moment = N * out.workspace_moment * N;
+    }
+  }
+  const Eigen::MatrixXd& L = out.workspace_moment;
+  // A prior (lpoe_plan --prior): the plan's information is added to its own (the posterior).
+  PlanOptions options = request.options;
+  if (request.prior) {
+    out.prior_sigma = request.noise_sigma > 0             ? request.noise_sigma
+                      : request.prior->data_sigma_mm > 0 ? request.prior->data_sigma_mm
+                                                         : kPlanDefaultNoiseSigma;
+    options.prior_information = PlanningPriorInformation(pm, *request.prior, out.prior_sigma);
+  }
+  const Eigen::MatrixXd& M0 = options.prior_information;
+  // The refusals: full rank (with the prior's information), and without a prior more rows than
+  // parameters (lpoe/refusals.h).
+  auto refusal = [&](const PlanQuality& quality, int count) {
+    if (!request.prior) return PlanRefusal(quality, P, count);
+    return CheckFullRank(quality.rank, P, "the plan of " + std::to_string(count) +
+                                              " poses with the prior");
+  };
 
   // The plan, or for count_auto the smallest plan predicted to reach the target.
   auto plan_of = [&](int count) -> Status {
-    if (Status s = SelectPlan(pm, pool, count, L, request.options, &out.plan); !s.ok()) return s;
-    out.quality = EvaluatePlan(pm, pool, out.plan.selected, L);
+    if (Status s = SelectPlan(pm, pool, count, L, options, &out.plan); !s.ok()) return s;
+    out.quality = EvaluatePlan(pm, pool, out.plan.selected, L, M0);
     return Status::Ok();
   };
   int count = request.count;
@@ -196,7 +246,7 @@ Status RunPlanning(const PlanRequest& request, PlanningResult* result, PlanFailu
     const double sigma = request.noise_sigma, target = request.target_accuracy;
     std::vector<int> all(pool.size());
     for (int c = 0; c < pool.size(); ++c) all[c] = c;
-    const double best = sigma * EvaluatePlan(pm, pool, all, L).predicted_rms;
+    const double best = sigma * EvaluatePlan(pm, pool, all, L, M0).predicted_rms;
     if (pool.size() == 0 || !(best <= target)) {
       char text[200];
       std::snprintf(text, sizeof(text),
@@ -206,20 +256,21 @@ Status RunPlanning(const PlanRequest& request, PlanningResult* result, PlanFailu
       return Fail(PlanFailure::kNoPlan, failure, text);
     }
     auto reaches = [&](int k) {
-      return plan_of(k).ok() && PlanRefusal(out.quality, P, k).ok() &&
+      return plan_of(k).ok() && refusal(out.quality, k).ok() &&
              sigma * out.quality.predicted_rms <= target;
     };
     int max_rows = 3;
     for (int c = 0; c < pool.size(); ++c) max_rows = std::max(max_rows, pool.rows(c));
-    int lo = std::max(1, (P + max_rows - 1) / max_rows) - 1;  // fails
+    // Without a prior fewer than P rows fail; with one a single pose may do.
+    int lo = request.prior ? 0 : std::max(1, (P + max_rows - 1) / max_rows) - 1;  // fails
     int hi = std::min(pool.size(), std::max(lo + 1, 2 * lo));
     while (!reaches(hi)) {
       if (hi >= pool.size()) {  // even every feasible candidate: refused, never a loop
-        const Status refusal = plan_of(hi).ok() ? PlanRefusal(out.quality, P, hi)
+        const Status refused = plan_of(hi).ok() ? refusal(out.quality, hi)
                                                 : Status::Error("no plan of all candidates");
         return Fail(PlanFailure::kNoPlan, failure,
                     "all " + std::to_string(pool.size()) + " feasible candidates: " +
-                        (refusal.ok() ? "the target accuracy is out of reach" : refusal.message()) +
+                        (refused.ok() ? "the target accuracy is out of reach" : refused.message()) +
                         ": offer more candidates");
       }
       lo = hi;
@@ -240,8 +291,7 @@ Status RunPlanning(const PlanRequest& request, PlanningResult* result, PlanFailu
                     " with no SMR visible)");
   }
   out.count = count;
-  // The refusals: full rank, and more rows than parameters (lpoe/refusals.h).
-  if (Status s = PlanRefusal(out.quality, P, count); !s.ok()) {
+  if (Status s = refusal(out.quality, count); !s.ok()) {
     return Fail(PlanFailure::kNoPlan, failure, s.message());
   }
 
@@ -271,7 +321,7 @@ Status RunPlanning(const PlanRequest& request, PlanningResult* result, PlanFailu
   // --count=auto keeps the smallest plan whose noise part reaches the target: the exchange, which
   // trades noise for bias, would undo that; its prediction is still reported.
   out.unmodelled_start = "criterion";
-  if (u.std > 0 && !request.count_auto) {
+  if (u.std > 0 && !request.count_auto && !request.prior) {
     std::vector<int> start = out.plan.selected;
     double best = unmodelled.Predict(start).total_rms;
     for (size_t k = 0; k < random_plans.size(); ++k) {
@@ -285,17 +335,27 @@ Status RunPlanning(const PlanRequest& request, PlanningResult* result, PlanFailu
     out.unmodelled_swaps = unmodelled.Exchange(&start, request.options.max_exchange_passes,
                                                32, request.seed + 2);
     out.plan.selected = start;
-    out.quality = EvaluatePlan(pm, pool, out.plan.selected, L);
-    if (Status s = PlanRefusal(out.quality, P, count); !s.ok()) {
+    out.quality = EvaluatePlan(pm, pool, out.plan.selected, L, M0);
+    if (Status s = refusal(out.quality, count); !s.ok()) {
       return Fail(PlanFailure::kNoPlan, failure, s.message());
     }
   }
-  out.prediction = unmodelled.Predict(out.plan.selected);
+  // With a prior the predicted error is the posterior's noise part (the unmodelled error's
+  // prediction is that of a least-squares calibration): the same figure for the random plans.
+  auto predict = [&](const std::vector<int>& plan, const PlanQuality& quality) {
+    if (!request.prior) return unmodelled.Predict(plan);
+    PlanErrorPrediction e;
+    e.noise_rms = e.total_rms = out.prediction_sigma * quality.predicted_rms;
+    e.unmodelled_rms = 0;
+    return e;
+  };
+  if (request.prior) out.prediction_sigma = out.prior_sigma;
+  out.prediction = predict(out.plan.selected, out.quality);
   for (size_t k = 0; k < random_plans.size(); ++k) {
-    const PlanQuality r = EvaluatePlan(pm, pool, random_plans[k], L);
+    const PlanQuality r = EvaluatePlan(pm, pool, random_plans[k], L, M0);
     if (k == 0) out.random_quality = r;
     out.random_rms.push_back(r.predicted_rms);
-    out.random_total_rms.push_back(unmodelled.Predict(random_plans[k]).total_rms);
+    out.random_total_rms.push_back(predict(random_plans[k], r).total_rms);
   }
   auto rms_of_finite = [](std::vector<double>* values) {
     std::sort(values->begin(), values->end());
@@ -315,7 +375,8 @@ Status RunPlanning(const PlanRequest& request, PlanningResult* result, PlanFailu
   // The gravity tilt's predicted standard deviations with the plan (the last two parameters of
   // M^-1, at the model's compliance values): what the calibration's a-posteriori ones will be.
   if (pm.num_tilt_parameters() > 0) {
-    const Eigen::MatrixXd M = Information(pool, out.plan.selected);
+    Eigen::MatrixXd M = Information(pool, out.plan.selected);
+    if (M0.rows() == P) M += M0;
     const Eigen::VectorXd d = M.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
     const Eigen::MatrixXd Ms = d.asDiagonal() * M * d.asDiagonal();
     const Eigen::MatrixXd Cs = Ms.ldlt().solve(Eigen::MatrixXd::Identity(P, P));
