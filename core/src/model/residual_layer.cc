@@ -120,8 +120,8 @@ GpWorkspace& ThreadGpWorkspace() {
 // The lower triangle of K^-1 in *Kinv (its strict upper triangle is not set) from the Cholesky
 // factor L of K (the lower triangle of `llt`), by column blocks that skip the zeros: block J of
 // L^-1 is zero above its diagonal block (only L[j0:, j0:] enters its solve), and the lower part of
-// block J of K^-1 = L^-T L^-1 needs only the rows of L^-1 from j0 on. About N^3 / 3 multiply-adds
-// where solving K X = I takes 2 N^3.
+// block J of K^-1 = L^-T L^-1 needs only the rows of L^-1 from j0 on (a triangular product). About
+// N^3 / 3 multiply-adds where solving K X = I takes N^3.
 void LowerInverseFromCholesky(const Eigen::MatrixXd& llt, Eigen::MatrixXd* Linv,
                               Eigen::MatrixXd* Kinv) {
   const Eigen::Index N = llt.rows();
@@ -137,7 +137,8 @@ void LowerInverseFromCholesky(const Eigen::MatrixXd& llt, Eigen::MatrixXd* Linv,
   for (Eigen::Index j0 = 0; j0 < N; j0 += kBlock) {
     const Eigen::Index b = std::min(kBlock, N - j0);
     Kinv->block(j0, j0, N - j0, b).noalias() =
-        Linv->block(j0, j0, N - j0, N - j0).transpose() * Linv->block(j0, j0, N - j0, b);
+        Linv->block(j0, j0, N - j0, N - j0).transpose().triangularView<Eigen::Upper>() *
+        Linv->block(j0, j0, N - j0, b);
   }
 }
 
