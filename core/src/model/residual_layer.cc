@@ -82,12 +82,16 @@ Hyper Unpack(const Eigen::VectorXd& theta, int n, bool with_tool, bool with_conf
 // rows of one configuration + (s_n^2 + jitter) on the diagonal.
 void ExactKernel(const Hyper& h, const Eigen::MatrixXd& X, const std::vector<int>& tools,
                  const std::vector<int>* configuration, Eigen::MatrixXd* Kse, Eigen::MatrixXd* K) {
-  const int N = static_cast<int>(X.rows());
-  const Eigen::MatrixXd Xs = X * h.l.cwiseInverse().asDiagonal();  // scaled inputs
+  const int N = static_cast<int>(X.rows()), n = static_cast<int>(X.cols());
+  // The scaled inputs, a column per row (contiguous).
+  const Eigen::MatrixXd Xst = (X * h.l.cwiseInverse().asDiagonal()).transpose();
   Kse->resize(N, N);
   for (int b = 0; b < N; ++b) {
+    const double* xb = Xst.col(b).data();
     for (int a = b; a < N; ++a) {
-      const double d2 = (Xs.row(a) - Xs.row(b)).squaredNorm();
+      const double* xa = Xst.col(a).data();
+      double d2 = 0;
+      for (int j = 0; j < n; ++j) d2 += (xa[j] - xb[j]) * (xa[j] - xb[j]);
       double k = h.sf2 * std::exp(-0.5 * d2);
       if (tools[a] != tools[b]) k *= h.rho;
       (*Kse)(a, b) = (*Kse)(b, a) = k;
