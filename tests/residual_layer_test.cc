@@ -374,11 +374,17 @@ TEST(ResidualLayerPipeline, GpReachesTheNoiseFloorHeldOutAndAutoChoosesIt) {
                  .squaredNorm();
     }
     EXPECT_NEAR(std::sqrt(sum / arm.verification.size()), gp.verification_after.norm.rms, 1e-9);
+    std::printf("deflection, %s: held-out %.6f mm with the layer, %.6f without (floor %.6f)\n",
+                solver == SolverKind::kLinear ? "linear" : "ceres", gp.verification_after.norm.rms,
+                gp.residual_layer.verification_parametric.norm.rms, floor);
   }
   const PipelineResult automatic = Calibrate(arm, ResidualModelKind::kAuto, SolverKind::kLinear);
   const ResidualModelSelection& sel = automatic.residual_model_selection;
   ASSERT_TRUE(sel.ran);
   ASSERT_EQ(sel.candidates.size(), 2u);
+  std::printf("deflection, auto: cv RMS none %.6f gp %.6f mm, chose %d; held-out %.6f mm\n",
+              sel.candidates[0].cv_rms, sel.candidates[1].cv_rms, sel.chosen,
+              automatic.verification_after.norm.rms);
   EXPECT_EQ(sel.candidates[sel.chosen].label, "gp") << sel.reason;
   EXPECT_LT(sel.candidates[1].cv_rms, 0.8 * sel.candidates[0].cv_rms);
   EXPECT_TRUE(automatic.residual_layer.fitted);
@@ -398,6 +404,10 @@ TEST(ResidualLayerPipeline, PureNoiseResidualMakesAutoChooseNone) {
   // gp on noise: no worse than 1% either (its signal shrinks to nothing).
   const PipelineResult gp = Calibrate(arm, ResidualModelKind::kGp, SolverKind::kLinear);
   ASSERT_TRUE(gp.residual_layer.fitted);
+  std::printf("noise: cv RMS none %.6f gp %.6f mm, chose %d; held-out none %.6f auto %.6f gp %.6f mm\n",
+              sel.candidates[0].cv_rms, sel.candidates[1].cv_rms, sel.chosen,
+              none.verification_after.norm.rms, automatic.verification_after.norm.rms,
+              gp.verification_after.norm.rms);
   EXPECT_LE(gp.verification_after.norm.rms, 1.01 * none.verification_after.norm.rms);
 }
 
@@ -418,6 +428,8 @@ TEST(ResidualLayerPipeline, WithJointSpaceTermsThePredictionIsTheTermsPlusTheLay
                .squaredNorm();
   }
   EXPECT_NEAR(std::sqrt(sum / arm.verification.size()), gp.verification_after.norm.rms, 1e-9);
+  std::printf("terms and layer: held-out %.6f mm, without the layer %.6f mm\n",
+              gp.verification_after.norm.rms, gp.residual_layer.verification_parametric.norm.rms);
   EXPECT_LT(gp.verification_after.norm.rms, 0.8 * gp.residual_layer.verification_parametric.norm.rms);
 }
 
@@ -431,6 +443,8 @@ TEST(ResidualLayerPipeline, KFoldIncludesTheFoldsOwnLayer) {
   const PipelineResult gp = RunCalibrationPipeline(arm.nominal, arm.identification,
                                                    arm.verification, o);
   ASSERT_EQ(gp.folds.size(), 3u);
+  std::printf("k-fold pooled: %.6f mm with the layer, %.6f mm without\n", gp.folds_pooled.norm.rms,
+              none.folds_pooled.norm.rms);
   EXPECT_LT(gp.folds_pooled.norm.rms, 0.8 * none.folds_pooled.norm.rms);
 }
 

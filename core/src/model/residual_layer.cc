@@ -82,12 +82,16 @@ Hyper Unpack(const Eigen::VectorXd& theta, int n, bool with_tool, bool with_conf
 // rows of one configuration + (s_n^2 + jitter) on the diagonal.
 void ExactKernel(const Hyper& h, const Eigen::MatrixXd& X, const std::vector<int>& tools,
                  const std::vector<int>* configuration, Eigen::MatrixXd* Kse, Eigen::MatrixXd* K) {
-  const int N = static_cast<int>(X.rows());
-  const Eigen::MatrixXd Xs = X * h.l.cwiseInverse().asDiagonal();  // scaled inputs
+  const int N = static_cast<int>(X.rows()), n = static_cast<int>(X.cols());
+  // The scaled inputs, a column per row (contiguous).
+  const Eigen::MatrixXd Xst = (X * h.l.cwiseInverse().asDiagonal()).transpose();
   Kse->resize(N, N);
   for (int b = 0; b < N; ++b) {
+    const double* xb = Xst.col(b).data();
     for (int a = b; a < N; ++a) {
-      const double d2 = (Xs.row(a) - Xs.row(b)).squaredNorm();
+      const double* xa = Xst.col(a).data();
+      double d2 = 0;
+      for (int j = 0; j < n; ++j) d2 += (xa[j] - xb[j]) * (xa[j] - xb[j]);
       double k = h.sf2 * std::exp(-0.5 * d2);
       if (tools[a] != tools[b]) k *= h.rho;
       (*Kse)(a, b) = (*Kse)(b, a) = k;
@@ -102,6 +106,44 @@ void ExactKernel(const Hyper& h, const Eigen::MatrixXd& X, const std::vector<int
     }
   }
   K->diagonal().array() += h.sn2 + kExactJitter * h.sf2;
+}
+
+// The N x N matrices of the exact GP's likelihood, kept per thread between evaluations: the fit
+// evaluates the likelihood hundreds of times at one size, and allocating megabytes afresh each
+// time costs a page fault per page (about a third of the fit's time in the dev build).
+struct GpWorkspace {
+  Eigen::MatrixXd Kse, K, Linv, Kinv;
+  Eigen::LLT<Eigen::MatrixXd> llt;
+};
+
+GpWorkspace& ThreadGpWorkspace() {
+  thread_local GpWorkspace workspace;
+  return workspace;
+}
+
+// The lower triangle of K^-1 in *Kinv (its strict upper triangle is not set) from the Cholesky
+// factor L of K (the lower triangle of `llt`), by column blocks that skip the zeros: block J of
+// L^-1 is zero above its diagonal block (only L[j0:, j0:] enters its solve), and the lower part of
+// block J of K^-1 = L^-T L^-1 needs only the rows of L^-1 from j0 on (a triangular product). About
+// N^3 / 3 multiply-adds where solving K X = I takes N^3.
+void LowerInverseFromCholesky(const Eigen::MatrixXd& llt, Eigen::MatrixXd* Linv,
+                              Eigen::MatrixXd* Kinv) {
+  const Eigen::Index N = llt.rows();
+  constexpr Eigen::Index kBlock = 48;
+  Linv->setZero(N, N);
+  for (Eigen::Index j0 = 0; j0 < N; j0 += kBlock) {
+    const Eigen::Index b = std::min(kBlock, N - j0);
+    auto block = Linv->block(j0, j0, N - j0, b);
+    block.topRows(b).setIdentity();
+    llt.block(j0, j0, N - j0, N - j0).triangularView<Eigen::Lower>().solveInPlace(block);
+  }
+  Kinv->resize(N, N);
+  for (Eigen::Index j0 = 0; j0 < N; j0 += kBlock) {
+    const Eigen::Index b = std::min(kBlock, N - j0);
+    Kinv->block(j0, j0, N - j0, b).noalias() =
+        Linv->block(j0, j0, N - j0, N - j0).transpose().triangularView<Eigen::Upper>() *
+        Linv->block(j0, j0, N - j0, b);
+  }
 }
 
 // Minimizes f(x, &gradient) within [lower, upper] by LBFGSpp's L-BFGS-B (Debian's
@@ -269,56 +311,56 @@ double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
                                const std::vector<int>* configuration) {
   const int N = static_cast<int>(X.rows()), n = static_cast<int>(X.cols());
   const Hyper h = Unpack(theta, n, with_tool, configuration != nullptr);
-  Eigen::MatrixXd Kse, K;
-  ExactKernel(h, X, tools, configuration, &Kse, &K);
-  Eigen::LLT<Eigen::MatrixXd> llt(K);
-  if (llt.info() != Eigen::Success) return -std::numeric_limits<double>::infinity();
-  const Eigen::MatrixXd A = llt.solve(Y);  // N x 3
+  GpWorkspace& w = ThreadGpWorkspace();
+  ExactKernel(h, X, tools, configuration, &w.Kse, &w.K);
+  w.llt.compute(w.K);
+  if (w.llt.info() != Eigen::Success) return -std::numeric_limits<double>::infinity();
+  const Eigen::MatrixXd A = w.llt.solve(Y);  // N x 3
   const int outputs = static_cast<int>(Y.cols());
   double log_det = 0;
-  for (int i = 0; i < N; ++i) log_det += 2 * std::log(llt.matrixL()(i, i));
+  for (int i = 0; i < N; ++i) log_det += 2 * std::log(w.llt.matrixLLT()(i, i));
   const double L = -0.5 * (Y.array() * A.array()).sum() - 0.5 * outputs * log_det -
                    0.5 * outputs * N * std::log(kTwoPi);
   if (gradient == nullptr) return L;
-  // dL/dtheta = 1/2 tr(M dK/dtheta), M = A A^T - outputs K^-1.
-  Eigen::MatrixXd M = A * A.transpose();
-  M.noalias() -= outputs * llt.solve(Eigen::MatrixXd::Identity(N, N));
+  // dL/dtheta = 1/2 tr(M dK/dtheta), M = A A^T - outputs K^-1: M and dK/dtheta are symmetric, so
+  // one pass over the lower triangle, the terms off the diagonal counted twice.
+  LowerInverseFromCholesky(w.llt.matrixLLT(), &w.Linv, &w.Kinv);
+  const Eigen::MatrixXd At = A.transpose();                                     // 3 x N
+  const Eigen::MatrixXd Xst = (X * h.l.cwiseInverse().asDiagonal()).transpose();  // n x N
   const int p = static_cast<int>(theta.size());
-  gradient->setZero(p);
-  const Eigen::MatrixXd Xs = X * h.l.cwiseInverse().asDiagonal();
-  Eigen::MatrixXd MK = M.cwiseProduct(Kse);
-  for (int j = 0; j < n; ++j) {
-    double s = 0;
-    for (int b = 0; b < N; ++b) {
-      for (int a = 0; a < N; ++a) {
-        const double d = Xs(a, j) - Xs(b, j);
-        s += MK(a, b) * d * d;
+  Eigen::VectorXd length_sums = Eigen::VectorXd::Zero(n);
+  double tool_sum = 0, mk_sum = 0, configuration_sum = 0, trace_M = 0;
+  for (int b = 0; b < N; ++b) {
+    const double* xb = Xst.col(b).data();
+    const double* ab = At.col(b).data();
+    for (int a = b; a < N; ++a) {
+      const double* xa = Xst.col(a).data();
+      const double* aa = At.col(a).data();
+      double m = -outputs * w.Kinv(a, b);
+      for (int o = 0; o < outputs; ++o) m += aa[o] * ab[o];
+      if (a == b) trace_M += m;
+      const double weight = a == b ? 1.0 : 2.0;
+      const double mk = weight * m * w.Kse(a, b);
+      for (int j = 0; j < n; ++j) {
+        const double d = xa[j] - xb[j];
+        length_sums(j) += mk * d * d;
+      }
+      if (with_tool && tools[a] != tools[b]) tool_sum += mk;
+      mk_sum += mk;
+      if (configuration != nullptr && (*configuration)[a] == (*configuration)[b]) {
+        configuration_sum += weight * m;
       }
     }
-    (*gradient)(j) = 0.5 * s;  // dK/dlog l_j = K .* d^2 / l^2
   }
+  gradient->setZero(p);
+  for (int j = 0; j < n; ++j) (*gradient)(j) = 0.5 * length_sums(j);  // dK/dlog l_j = K .* d^2 / l^2
   int k = n;
   if (with_tool) {
-    double s = 0;
-    for (int b = 0; b < N; ++b) {
-      for (int a = 0; a < N; ++a) {
-        if (tools[a] != tools[b]) s += MK(a, b);
-      }
-    }
-    (*gradient)(k++) = 0.5 * s * 2.0 / (h.lt * h.lt);  // d rho/d log l_t = rho 2 / l_t^2
+    (*gradient)(k++) = 0.5 * tool_sum * 2.0 / (h.lt * h.lt);  // d rho/d log l_t = rho 2 / l_t^2
   }
-  const double trace_M = M.trace();
-  (*gradient)(k++) = 0.5 * (2 * MK.sum() + trace_M * 2 * kExactJitter * h.sf2);
+  (*gradient)(k++) = 0.5 * (2 * mk_sum + trace_M * 2 * kExactJitter * h.sf2);
   (*gradient)(k++) = 0.5 * trace_M * 2 * h.sn2;
-  if (configuration != nullptr) {
-    double s = 0;
-    for (int b = 0; b < N; ++b) {
-      for (int a = 0; a < N; ++a) {
-        if ((*configuration)[a] == (*configuration)[b]) s += M(a, b);
-      }
-    }
-    (*gradient)(k) = 0.5 * s * 2 * h.sc2;
-  }
+  if (configuration != nullptr) (*gradient)(k) = 0.5 * configuration_sum * 2 * h.sc2;
   return L;
 }
 

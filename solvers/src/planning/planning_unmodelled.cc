@@ -127,12 +127,16 @@ double UnmodelledPlanning::Total(const Eigen::MatrixXd& M, const Eigen::MatrixXd
 PlanErrorPrediction UnmodelledPlanning::Predict(const std::vector<int>& selected) const {
   const int P = pool_.num_parameters;
   Eigen::MatrixXd M = Eigen::MatrixXd::Zero(P, P), H = M, G = M;
+  Eigen::MatrixXd Ya;
   for (int a : selected) {
     const auto Ja = pool_.J.middleRows(pool_.row_offset[a], pool_.rows(a));
     M.noalias() += Ja.transpose() * Ja;
     if (s2_ > 0) {
       G.noalias() += Ja.transpose() * R_.middleRows(pool_.row_offset[a], pool_.rows(a));
-      for (int b : selected) H.noalias() += Ja.transpose() * CorrelatedRows(a, b);
+      // H = sum over a of J_a^T Y_a, Y_a = sum over b of C_{a,b} J_b: one product per pose.
+      Ya.setZero(pool_.rows(a), P);
+      for (int b : selected) Ya += CorrelatedRows(a, b);
+      H.noalias() += Ja.transpose() * Ya;
     }
   }
   PlanErrorPrediction out;
