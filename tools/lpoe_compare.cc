@@ -106,62 +106,50 @@ std::string Num(double v, const char* format = "%.6g") {
   return buf;
 }
 
-int Run() {
-  // Ballbar distances and probe contacts: both contact solvers (lpoe_compare_contact.cc).
-  if (tools::ContactCompareRequested()) return tools::RunContactCompare();
-  tools::InputPaths paths;
-  tools::InputSettings settings;
-  if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;
-  const std::string& model_path = paths.model;
-  const std::string& meas_path = paths.measurements;
-  const std::string& verify_path = paths.verify;
-
-  const AngleUnit unit = settings.angle_unit;
-  const CsvOptions& csv = settings.csv;
-  const ParameterizationKind kind = settings.parameterization;
+// The inputs (model, identification and held-out rows), the outputs checked against them.
+int LoadCompareInputs(const tools::InputPaths& paths, const tools::InputSettings& settings,
+                      tools::OutputSet* outputs, tools::Inputs* in) {
   // --tolerance_mm and --noise_sigma: their ranges (lpoe/options.h) were checked by InitTool.
-
-  tools::OutputSet outputs;
-  tools::AddInputs(paths, &outputs);
-  outputs.AddOutput("--html_report", FLAGS_html_report);
-  outputs.AddOutput("--output", FLAGS_output);
-  if (Status s = outputs.Check(); !s.ok()) {
+  tools::AddInputs(paths, outputs);
+  outputs->AddOutput("--html_report", FLAGS_html_report);
+  outputs->AddOutput("--output", FLAGS_output);
+  if (Status s = outputs->Check(); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-
-  // ---- Inputs.
-  tools::Inputs in;
   UrdfOptions urdf_options;
-  if (!tools::UrdfOptionsFromFlags(model_path, &urdf_options)) {
+  if (!tools::UrdfOptionsFromFlags(paths.model, &urdf_options)) {
     std::cerr << "error: --base_link, --tip_link and --tool_links need a URDF --model\n";
     return kExitUsage;
   }
-  if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
-                                   FLAGS_split_seed, &in, urdf_options, settings.split);
+  if (Status s = tools::LoadInputs(paths.model, paths.measurements, paths.verify, settings.csv,
+                                   FLAGS_holdout, FLAGS_split_seed, in, urdf_options,
+                                   settings.split);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
-  const RobotModel& nominal = in.nominal;
-  const MeasurementSet& identification = in.identification;
-  const MeasurementSet& verification = in.verification;
-  if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, in); !s.ok()) {
+  if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, *in); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  // Without held-out data, the comparison is made on the identification rows.
-  const bool held_out = !verification.empty();
-  const MeasurementSet& check = held_out ? verification : identification;
-  const bool use_orientation = identification.has_orientation();
+  return kExitOk;
+}
 
-  // ---- Both solvers through the calibration pipeline: same registration, same start, same data.
+// Both solvers through the calibration pipeline: same registration, same start, same data.
+struct SolverRuns {
+  PipelineResult linear;
+  PipelineResult ceres;
+};
+
+SolverRuns RunBothSolvers(const tools::InputSettings& settings, const tools::Inputs& in,
+                          bool use_orientation) {
   PipelineOptions options;
-  options.parameterization = kind;
+  options.parameterization = settings.parameterization;
   options.use_orientation = use_orientation;
   options.register_frames = FLAGS_register;
   options.plausibility.noise_sigma = FLAGS_noise_sigma;
-  options.plausibility.joint_values_in_degrees = unit == AngleUnit::kDegrees;
+  options.plausibility.joint_values_in_degrees = settings.angle_unit == AngleUnit::kDegrees;
   // Tight stopping rules: the comparison is of the two solvers' minima, not of their stopping.
   options.linear.convergence.sd_fraction = 0;
   options.ceres.convergence.sd_fraction = 0;
@@ -174,53 +162,61 @@ int Run() {
   ceres_options.on_iteration = [&progress](const std::string&, const IterationRecord& r) {
     progress.Iteration("ceres", r);
   };
-  const PipelineResult lin_run =
-      RunCalibrationPipeline(nominal, identification, verification, options);
-  const PipelineResult cer_run =
-      RunCalibrationPipeline(nominal, identification, verification, ceres_options);
-  const CalibrationResult& lin = lin_run.result;
-  const CalibrationResult& cer = cer_run.result;
-  const RobotModel& start = lin_run.start;
+  SolverRuns runs;
+  runs.linear = RunCalibrationPipeline(in.nominal, in.identification, in.verification, options);
+  runs.ceres =
+      RunCalibrationPipeline(in.nominal, in.identification, in.verification, ceres_options);
+  return runs;
+}
 
-  std::cout << "model:          " << model_path << "\n"
-            << "identification: " << meas_path << " (" << identification.size() << " rows)\n"
-            << "held out:       "
-            << (held_out ? (verify_path.empty() ? std::string("--holdout split") : verify_path)
-                         : std::string("none: predictions compared on the identification rows"))
-            << " (" << check.size() << " rows)\n"
-            << "parameters:     " << lin.parameterization.num_parameters << " ("
-            << ParameterizationName(kind) << "), " << (use_orientation ? "pose" : "position")
-            << " data\n\n";
-  for (const CalibrationResult* r : {&lin, &cer}) {
-    if (!r->converged()) {
-      std::cerr << "error: " << (r == &lin ? "linear" : "ceres") << " solver: " << r->message
-                << "\n";
-      return tools::ExitCodeFor(r->termination);
+// Both converged and (unless --force) plausible; else the exit code.
+int CheckBothSolved(const SolverRuns& runs) {
+  for (const PipelineResult* r : {&runs.linear, &runs.ceres}) {
+    if (!r->result.converged()) {
+      std::cerr << "error: " << (r == &runs.linear ? "linear" : "ceres")
+                << " solver: " << r->result.message << "\n";
+      return tools::ExitCodeFor(r->result.termination);
     }
   }
-  for (const PipelineResult* r : {&lin_run, &cer_run}) {
+  for (const PipelineResult* r : {&runs.linear, &runs.ceres}) {
     if (r->verdict.level == VerdictLevel::kFail && !FLAGS_force) {
-      std::cerr << "error: " << (r == &lin_run ? "linear" : "ceres")
+      std::cerr << "error: " << (r == &runs.linear ? "linear" : "ceres")
                 << " solver: the calibration is not plausible (" << r->verdict.reason
                 << "); --force compares anyway\n";
       return tools::kExitImplausible;
     }
   }
+  return kExitOk;
+}
 
+// The two calibrated models compared on the held-out (or identification) rows.
+struct Comparison {
+  std::vector<tools::RunSummary::ComparisonRow> rows;
+  double position_difference = 0;
+  double parameter_difference = 0;
+  std::string worst_parameter;  // empty: no parameter compared
+};
+
+Comparison CompareModels(const SolverRuns& runs, const MeasurementSet& check,
+                         bool use_orientation) {
+  const CalibrationResult& lin = runs.linear.result;
+  const CalibrationResult& cer = runs.ceres.result;
+  Comparison c;
   const ErrorStatistics ls = PositionErrorStatistics(lin.model, check);
   const ErrorStatistics cs = PositionErrorStatistics(cer.model, check);
-  const double position_difference = MaxPredictionDifference(lin.model, cer.model, check);
+  c.position_difference = MaxPredictionDifference(lin.model, cer.model, check);
   // Parameters in the identifiable directions (with the full parameterization the frames also
   // differ along the gauge directions, which no data see; those are not compared).
   const Parameterization pi = MakeParameterization(
-      start, ParameterizationKind::kIdentifiable,
+      runs.linear.start, ParameterizationKind::kIdentifiable,
       use_orientation ? DataKind::kPose : DataKind::kPosition);
   const Eigen::VectorXd dx = ParameterDifference(pi, lin.model, cer.model);
   Eigen::Index worst = 0;
-  const double parameter_difference = dx.size() ? dx.cwiseAbs().maxCoeff(&worst) : 0.0;
+  c.parameter_difference = dx.size() ? dx.cwiseAbs().maxCoeff(&worst) : 0.0;
+  if (dx.size()) c.worst_parameter = pi.parameters[worst].name;
 
   const char* mm = "%.6f";
-  const std::vector<tools::RunSummary::ComparisonRow> rows = {
+  c.rows = {
       {"iterations", Num(lin.iterations, "%.0f"), Num(cer.iterations, "%.0f"), ""},
       {"final cost (mm^2)", Num(lin.final_cost), Num(cer.final_cost),
        Num(std::abs(lin.final_cost - cer.final_cost), "%.3g")},
@@ -230,57 +226,101 @@ int Run() {
        Num(std::abs(ls.norm.mean_abs - cs.norm.mean_abs), "%.3g")},
       {"held-out RMS error (mm)", Num(ls.norm.rms, mm), Num(cs.norm.rms, mm),
        Num(std::abs(ls.norm.rms - cs.norm.rms), "%.3g")},
-      {"predicted positions (mm)", "", "", Num(position_difference, "%.3g")},
-      {"parameters (rad or mm)", "", "", Num(parameter_difference, "%.3g")},
+      {"predicted positions (mm)", "", "", Num(c.position_difference, "%.3g")},
+      {"parameters (rad or mm)", "", "", Num(c.parameter_difference, "%.3g")},
   };  // (no wall time: the HTML report must be the same for the same input)
+  return c;
+}
+
+// The table printed (with the wall times) and the largest parameter difference.
+void PrintComparison(const SolverRuns& runs, const Comparison& c) {
   Row("", "linear", "ceres", "|difference|");
-  for (const auto& r : rows) Row(r.quantity.c_str(), r.linear, r.ceres, r.difference);
-  Row("wall time (ms)", Num(lin.wall_time_seconds * 1e3, "%.3f"),
-      Num(cer.wall_time_seconds * 1e3, "%.3f"), "");
-  if (dx.size()) {
-    std::cout << "\nlargest parameter difference: " << pi.parameters[worst].name
+  for (const auto& r : c.rows) Row(r.quantity.c_str(), r.linear, r.ceres, r.difference);
+  Row("wall time (ms)", Num(runs.linear.result.wall_time_seconds * 1e3, "%.3f"),
+      Num(runs.ceres.result.wall_time_seconds * 1e3, "%.3f"), "");
+  if (!c.worst_parameter.empty()) {
+    std::cout << "\nlargest parameter difference: " << c.worst_parameter
               << " (frames are compared direction by direction; a shift along an unidentifiable\n"
                  "direction of one frame absorbed by the next moves these coordinates at second\n"
                  "order without changing any prediction)\n";
   }
+}
 
-  const bool agree = position_difference <= FLAGS_tolerance_mm;
+// --output (the comparison as JSON, for a script) and --html_report, staged.
+Status StageCompareOutputs(const tools::InputPaths& paths, const tools::InputSettings& settings,
+                           const tools::Inputs& in, const SolverRuns& runs, const Comparison& c,
+                           tools::OutputSet* outputs) {
+  const bool held_out = !in.verification.empty();
+  const bool agree = c.position_difference <= FLAGS_tolerance_mm;
   Status staged;
-  if (!FLAGS_output.empty()) {  // the comparison as JSON, for a script
+  if (!FLAGS_output.empty()) {
     nlohmann::json j = {{"tool", "lpoe_compare"},
-                        {"model", model_path},
-                        {"measurements", meas_path},
+                        {"model", paths.model},
+                        {"measurements", paths.measurements},
                         {"held_out", held_out ? in.verification_source : std::string()},
                         {"tolerance_mm", FLAGS_tolerance_mm},
-                        {"position_difference_mm", position_difference},
-                        {"parameter_difference", parameter_difference},
+                        {"position_difference_mm", c.position_difference},
+                        {"parameter_difference", c.parameter_difference},
                         {"agree", agree}};
     nlohmann::json table = nlohmann::json::array();
-    for (const auto& r : rows) {
+    for (const auto& r : c.rows) {
       table.push_back({{"quantity", r.quantity}, {"linear", r.linear}, {"ceres", r.ceres},
                        {"difference", r.difference}});
     }
     j["rows"] = table;
-    staged = outputs.Stage(FLAGS_output, tools::JsonText(j));
+    staged = outputs->Stage(FLAGS_output, tools::JsonText(j));
   }
   if (!FLAGS_html_report.empty() && staged.ok()) {
-    const tools::ComparisonPage page{model_path, meas_path, in.verification_source,
-                                     FLAGS_angle_unit, ParameterizationName(kind), &cer_run,
-                                     &identification, &verification, rows,
-                                     position_difference <= FLAGS_tolerance_mm};
+    const tools::ComparisonPage page{paths.model, paths.measurements, in.verification_source,
+                                     FLAGS_angle_unit, ParameterizationName(settings.parameterization),
+                                     &runs.ceres, &in.identification, &in.verification, c.rows,
+                                     agree};
     std::string html;
     staged = tools::ComparisonHtml(page, &html);
-    if (staged.ok()) staged = outputs.Stage(FLAGS_html_report, html);
+    if (staged.ok()) staged = outputs->Stage(FLAGS_html_report, html);
   }
+  return staged;
+}
+
+int Run() {
+  // Ballbar distances and probe contacts: both contact solvers (lpoe_compare_contact.cc).
+  if (tools::ContactCompareRequested()) return tools::RunContactCompare();
+  tools::InputPaths paths;
+  tools::InputSettings settings;
+  if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;
+  tools::OutputSet outputs;
+  tools::Inputs in;
+  if (int rc = LoadCompareInputs(paths, settings, &outputs, &in); rc != kExitOk) return rc;
+  // Without held-out data, the comparison is made on the identification rows.
+  const bool held_out = !in.verification.empty();
+  const MeasurementSet& check = held_out ? in.verification : in.identification;
+  const bool use_orientation = in.identification.has_orientation();
+
+  const SolverRuns runs = RunBothSolvers(settings, in, use_orientation);
+  std::cout << "model:          " << paths.model << "\n"
+            << "identification: " << paths.measurements << " (" << in.identification.size()
+            << " rows)\n"
+            << "held out:       "
+            << (held_out ? (paths.verify.empty() ? std::string("--holdout split") : paths.verify)
+                         : std::string("none: predictions compared on the identification rows"))
+            << " (" << check.size() << " rows)\n"
+            << "parameters:     " << runs.linear.result.parameterization.num_parameters << " ("
+            << ParameterizationName(settings.parameterization) << "), "
+            << (use_orientation ? "pose" : "position") << " data\n\n";
+  if (int rc = CheckBothSolved(runs); rc != kExitOk) return rc;
+
+  const Comparison c = CompareModels(runs, check, use_orientation);
+  PrintComparison(runs, c);
+  const Status staged = StageCompareOutputs(paths, settings, in, runs, c, &outputs);
   if (tools::CommitOutputs(staged, &outputs, FLAGS_quiet) != tools::kExitOk) {
     return tools::kExitOutput;
   }
-  if (!(position_difference <= FLAGS_tolerance_mm)) {
-    std::cout << "\nresult: DISAGREE: predicted positions differ by up to " << position_difference
-              << " mm (tolerance " << FLAGS_tolerance_mm << " mm)\n";
+  if (!(c.position_difference <= FLAGS_tolerance_mm)) {
+    std::cout << "\nresult: DISAGREE: predicted positions differ by up to "
+              << c.position_difference << " mm (tolerance " << FLAGS_tolerance_mm << " mm)\n";
     return kExitDisagree;
   }
-  std::cout << "\nresult: agree: predicted positions within " << position_difference
+  std::cout << "\nresult: agree: predicted positions within " << c.position_difference
             << " mm (tolerance " << FLAGS_tolerance_mm << " mm)\n";
   return kExitOk;
 }
