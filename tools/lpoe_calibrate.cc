@@ -724,24 +724,15 @@ int JudgeVerdict(const Verdict& verdict) {
 // --output: the calibrated model with its registration and covariance, staged. Exit 5 when it
 // is not finite (nothing is committed).
 int StageModelYaml(const PipelineResult& run, tools::OutputSet* outputs, Status* staged) {
-  const CalibrationResult& result = run.result;
   // The registration goes with the model: compensation carries nominal poses into its frame.
-  RobotModel calibrated = result.model;
-  if (run.registered && run.registration.moved) {
-    calibrated.T_measurement_base = run.registration.T_measurement_base;
-  }
+  const RobotModel calibrated = CalibratedModel(run);
   // Non-finite values are written nowhere (lpoe/refusals.h): exit 5, nothing committed.
   if (Status s = CheckModelFinite(calibrated); !s.ok()) {
     std::cerr << "error: --output=" << FLAGS_output << ": " << s.message() << "\n";
     return tools::kExitNumerical;
   }
   // The estimate's covariance goes with it (the prior of a later recalibration, --prior).
-  std::string yaml = RobotModelToYaml(calibrated);
-  if (result.covariance.rows() == result.parameterization.num_parameters &&
-      result.covariance.rows() > 0) {
-    yaml += ModelCovarianceYaml(calibrated, CovarianceOf(result));
-  }
-  *staged = outputs->Stage(FLAGS_output, yaml);
+  *staged = outputs->Stage(FLAGS_output, CalibratedModelYaml(calibrated, run.result));
   return kExitOk;
 }
 

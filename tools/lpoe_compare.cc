@@ -271,10 +271,10 @@ Status StageCompareOutputs(const tools::InputPaths& paths, const tools::InputSet
     staged = outputs->Stage(FLAGS_output, tools::JsonText(j));
   }
   if (!FLAGS_html_report.empty() && staged.ok()) {
+    const std::string parameterization = ParameterizationName(settings.parameterization);
     const tools::ComparisonPage page{paths.model, paths.measurements, in.verification_source,
-                                     FLAGS_angle_unit, ParameterizationName(settings.parameterization),
-                                     &runs.ceres, &in.identification, &in.verification, c.rows,
-                                     agree};
+                                     FLAGS_angle_unit, parameterization, &runs.ceres,
+                                     &in.identification, &in.verification, c.rows, agree};
     std::string html;
     staged = tools::ComparisonHtml(page, &html);
     if (staged.ok()) staged = outputs->Stage(FLAGS_html_report, html);

@@ -559,8 +559,8 @@ void PrintPlanQuality(const PlanJob& job) {
                 planned.random_rms_mean, planned.random_rms.front(), quality.condition_number);
   std::cout << line;
   if (FLAGS_noise_sigma > 0) {
-    std::snprintf(line, sizeof(line), "with noise sigma %.4g mm: plan %.4f mm, random plan %.4f mm\n",
-                  FLAGS_noise_sigma, FLAGS_noise_sigma * quality.predicted_rms,
+    std::snprintf(line, sizeof(line),
+                  "with noise sigma %.4g mm: plan %.4f mm, random plan %.4f mm\n", FLAGS_noise_sigma, FLAGS_noise_sigma * quality.predicted_rms,
                   FLAGS_noise_sigma * random_quality.predicted_rms);
     std::cout << line;
   }
@@ -706,7 +706,8 @@ int Run() {
   if (FLAGS_measurement != "position") {
     if (!FLAGS_prior.empty() || !FLAGS_prior_free.empty()) {
       std::cerr << "error: --prior and --prior_free plan a recalibration from tracker (position) "
-                   "measurements; a --measurement=" << FLAGS_measurement << " plan takes no prior\n";
+                   "measurements; a --measurement="
+                << FLAGS_measurement << " plan takes no prior\n";
       return kExitUsage;
     }
     return tools::RunContactPlan();

@@ -545,7 +545,9 @@ Json VerdictJson(const Verdict& verdict) {
                       {"limit", c.limit},
                       {"message", c.message}});
   }
-  return {{"level", VerdictLevelName(verdict.level)}, {"reason", verdict.reason}, {"checks", checks}};
+  return {{"level", VerdictLevelName(verdict.level)},
+          {"reason", verdict.reason},
+          {"checks", checks}};
 }
 
 Json InputsJson(const RunSummary& s) {
