@@ -20,6 +20,7 @@
 #include "lpoe/linear_solver.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/registration.h"
+#include "lpoe/solver_comparison.h"
 #include "lpoe/statistics.h"
 #include "output_files.h"
 #include "progress.h"
@@ -82,16 +83,6 @@ constexpr char kUsage[] =
     "2 bad input file, 3 data cannot identify the model, 4 iteration limit, 5 numerical\n"
     "failure, 6 output not written, 7 the solvers disagree, 8 a calibration is not plausible (see lpoe_calibrate).";
 
-double MaxPredictionDifference(const RobotModel& a, const RobotModel& b, const MeasurementSet& data) {
-  double worst = 0;
-  for (int r = 0; r < data.size(); ++r) {
-    worst = std::max(worst, (ToolPosition(a, data.q(r), data.target(r)) -
-                             ToolPosition(b, data.q(r), data.target(r)))
-                                .norm());
-  }
-  return worst;
-}
-
 void Row(const char* name, const std::string& linear, const std::string& ceres,
          const std::string& difference) {
   char line[200];
@@ -136,14 +127,10 @@ int LoadCompareInputs(const tools::InputPaths& paths, const tools::InputSettings
   return kExitOk;
 }
 
-// Both solvers through the calibration pipeline: same registration, same start, same data.
-struct SolverRuns {
-  PipelineResult linear;
-  PipelineResult ceres;
-};
-
-SolverRuns RunBothSolvers(const tools::InputSettings& settings, const tools::Inputs& in,
-                          bool use_orientation) {
+// Both solvers through the calibration pipeline (same registration, same start, same data) and
+// their models compared: the one library call.
+SolverComparison CompareBothSolvers(const tools::InputSettings& settings, const tools::Inputs& in,
+                                    bool use_orientation) {
   PipelineOptions options;
   options.parameterization = settings.parameterization;
   options.use_orientation = use_orientation;
@@ -162,15 +149,11 @@ SolverRuns RunBothSolvers(const tools::InputSettings& settings, const tools::Inp
   ceres_options.on_iteration = [&progress](const std::string&, const IterationRecord& r) {
     progress.Iteration("ceres", r);
   };
-  SolverRuns runs;
-  runs.linear = RunCalibrationPipeline(in.nominal, in.identification, in.verification, options);
-  runs.ceres =
-      RunCalibrationPipeline(in.nominal, in.identification, in.verification, ceres_options);
-  return runs;
+  return CompareSolvers(in.nominal, in.identification, in.verification, options, ceres_options);
 }
 
 // Both converged and (unless --force) plausible; else the exit code.
-int CheckBothSolved(const SolverRuns& runs) {
+int CheckBothSolved(const SolverComparison& runs) {
   for (const PipelineResult* r : {&runs.linear, &runs.ceres}) {
     if (!r->result.converged()) {
       std::cerr << "error: " << (r == &runs.linear ? "linear" : "ceres")
@@ -189,34 +172,15 @@ int CheckBothSolved(const SolverRuns& runs) {
   return kExitOk;
 }
 
-// The two calibrated models compared on the held-out (or identification) rows.
-struct Comparison {
-  std::vector<tools::RunSummary::ComparisonRow> rows;
-  double position_difference = 0;
-  double parameter_difference = 0;
-  std::string worst_parameter;  // empty: no parameter compared
-};
-
-Comparison CompareModels(const SolverRuns& runs, const MeasurementSet& check,
-                         bool use_orientation) {
-  const CalibrationResult& lin = runs.linear.result;
-  const CalibrationResult& cer = runs.ceres.result;
-  Comparison c;
-  const ErrorStatistics ls = PositionErrorStatistics(lin.model, check);
-  const ErrorStatistics cs = PositionErrorStatistics(cer.model, check);
-  c.position_difference = MaxPredictionDifference(lin.model, cer.model, check);
-  // Parameters in the identifiable directions (with the full parameterization the frames also
-  // differ along the gauge directions, which no data see; those are not compared).
-  const Parameterization pi = MakeParameterization(
-      runs.linear.start, ParameterizationKind::kIdentifiable,
-      use_orientation ? DataKind::kPose : DataKind::kPosition);
-  const Eigen::VectorXd dx = ParameterDifference(pi, lin.model, cer.model);
-  Eigen::Index worst = 0;
-  c.parameter_difference = dx.size() ? dx.cwiseAbs().maxCoeff(&worst) : 0.0;
-  if (dx.size()) c.worst_parameter = pi.parameters[worst].name;
-
+// The comparison's rows, as printed and written (no wall time: the HTML report must be the same
+// for the same input).
+std::vector<tools::RunSummary::ComparisonRow> ComparisonRows(const SolverComparison& c) {
+  const CalibrationResult& lin = c.linear.result;
+  const CalibrationResult& cer = c.ceres.result;
+  const ErrorStatistics& ls = c.linear_errors;
+  const ErrorStatistics& cs = c.ceres_errors;
   const char* mm = "%.6f";
-  c.rows = {
+  return {
       {"iterations", Num(lin.iterations, "%.0f"), Num(cer.iterations, "%.0f"), ""},
       {"final cost (mm^2)", Num(lin.final_cost), Num(cer.final_cost),
        Num(std::abs(lin.final_cost - cer.final_cost), "%.3g")},
@@ -228,16 +192,16 @@ Comparison CompareModels(const SolverRuns& runs, const MeasurementSet& check,
        Num(std::abs(ls.norm.rms - cs.norm.rms), "%.3g")},
       {"predicted positions (mm)", "", "", Num(c.position_difference, "%.3g")},
       {"parameters (rad or mm)", "", "", Num(c.parameter_difference, "%.3g")},
-  };  // (no wall time: the HTML report must be the same for the same input)
-  return c;
+  };
 }
 
 // The table printed (with the wall times) and the largest parameter difference.
-void PrintComparison(const SolverRuns& runs, const Comparison& c) {
+void PrintComparison(const SolverComparison& c,
+                     const std::vector<tools::RunSummary::ComparisonRow>& rows) {
   Row("", "linear", "ceres", "|difference|");
-  for (const auto& r : c.rows) Row(r.quantity.c_str(), r.linear, r.ceres, r.difference);
-  Row("wall time (ms)", Num(runs.linear.result.wall_time_seconds * 1e3, "%.3f"),
-      Num(runs.ceres.result.wall_time_seconds * 1e3, "%.3f"), "");
+  for (const auto& r : rows) Row(r.quantity.c_str(), r.linear, r.ceres, r.difference);
+  Row("wall time (ms)", Num(c.linear.result.wall_time_seconds * 1e3, "%.3f"),
+      Num(c.ceres.result.wall_time_seconds * 1e3, "%.3f"), "");
   if (!c.worst_parameter.empty()) {
     std::cout << "\nlargest parameter difference: " << c.worst_parameter
               << " (frames are compared direction by direction; a shift along an unidentifiable\n"
@@ -248,7 +212,8 @@ void PrintComparison(const SolverRuns& runs, const Comparison& c) {
 
 // --output (the comparison as JSON, for a script) and --html_report, staged.
 Status StageCompareOutputs(const tools::InputPaths& paths, const tools::InputSettings& settings,
-                           const tools::Inputs& in, const SolverRuns& runs, const Comparison& c,
+                           const tools::Inputs& in, const SolverComparison& c,
+                           const std::vector<tools::RunSummary::ComparisonRow>& rows,
                            tools::OutputSet* outputs) {
   const bool held_out = !in.verification.empty();
   const bool agree = c.position_difference <= FLAGS_tolerance_mm;
@@ -263,7 +228,7 @@ Status StageCompareOutputs(const tools::InputPaths& paths, const tools::InputSet
                         {"parameter_difference", c.parameter_difference},
                         {"agree", agree}};
     nlohmann::json table = nlohmann::json::array();
-    for (const auto& r : c.rows) {
+    for (const auto& r : rows) {
       table.push_back({{"quantity", r.quantity}, {"linear", r.linear}, {"ceres", r.ceres},
                        {"difference", r.difference}});
     }
@@ -273,8 +238,8 @@ Status StageCompareOutputs(const tools::InputPaths& paths, const tools::InputSet
   if (!FLAGS_html_report.empty() && staged.ok()) {
     const std::string parameterization = ParameterizationName(settings.parameterization);
     const tools::ComparisonPage page{paths.model, paths.measurements, in.verification_source,
-                                     FLAGS_angle_unit, parameterization, &runs.ceres,
-                                     &in.identification, &in.verification, c.rows, agree};
+                                     FLAGS_angle_unit, parameterization, &c.ceres,
+                                     &in.identification, &in.verification, rows, agree};
     std::string html;
     staged = tools::ComparisonHtml(page, &html);
     if (staged.ok()) staged = outputs->Stage(FLAGS_html_report, html);
@@ -296,7 +261,7 @@ int Run() {
   const MeasurementSet& check = held_out ? in.verification : in.identification;
   const bool use_orientation = in.identification.has_orientation();
 
-  const SolverRuns runs = RunBothSolvers(settings, in, use_orientation);
+  const SolverComparison c = CompareBothSolvers(settings, in, use_orientation);
   std::cout << "model:          " << paths.model << "\n"
             << "identification: " << paths.measurements << " (" << in.identification.size()
             << " rows)\n"
@@ -304,14 +269,14 @@ int Run() {
             << (held_out ? (paths.verify.empty() ? std::string("--holdout split") : paths.verify)
                          : std::string("none: predictions compared on the identification rows"))
             << " (" << check.size() << " rows)\n"
-            << "parameters:     " << runs.linear.result.parameterization.num_parameters << " ("
+            << "parameters:     " << c.linear.result.parameterization.num_parameters << " ("
             << ParameterizationName(settings.parameterization) << "), "
             << (use_orientation ? "pose" : "position") << " data\n\n";
-  if (int rc = CheckBothSolved(runs); rc != kExitOk) return rc;
+  if (int rc = CheckBothSolved(c); rc != kExitOk) return rc;
 
-  const Comparison c = CompareModels(runs, check, use_orientation);
-  PrintComparison(runs, c);
-  const Status staged = StageCompareOutputs(paths, settings, in, runs, c, &outputs);
+  const std::vector<tools::RunSummary::ComparisonRow> rows = ComparisonRows(c);
+  PrintComparison(c, rows);
+  const Status staged = StageCompareOutputs(paths, settings, in, c, rows, &outputs);
   if (tools::CommitOutputs(staged, &outputs, FLAGS_quiet) != tools::kExitOk) {
     return tools::kExitOutput;
   }
