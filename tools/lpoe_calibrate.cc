@@ -350,29 +350,30 @@ Status CheckFlags() {
   return Status::Ok();
 }
 
-int Run() {
-  // Ballbar distances and probe contacts (several files, or a distance or plane file): their own
-  // run (lpoe_calibrate_contact.cc, docs/measurements.md).
-  if (tools::ContactCalibrationRequested()) return tools::RunContactCalibration();
+// What the steps of a calibration run share: the inputs, the outputs and the result.
+struct CalibrationRun {
   tools::InputPaths paths;
   tools::InputSettings settings;
-  if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;
+  std::vector<std::string> fixed_tools;
+  UrdfOptions urdf_options;
+  tools::OutputSet outputs;
+  std::string plot_dir;  // with its '/'; empty: no plots
+  tools::Inputs in;
+  bool use_orientation = false;
+  tools::RunSummary summary;
+  RecalibrationResult recalibration;
+};
+
+// The flags, each alone and in combination: exit 1 with a message naming the flag.
+int CheckCalibrateFlags(CalibrationRun* r) {
   // --prior without --model: the prior's model is the start.
   if (!FLAGS_prior.empty() && gflags::GetCommandLineFlagInfoOrDie("model").is_default) {
-    paths.model = FLAGS_prior;
+    r->paths.model = FLAGS_prior;
   }
   if (!FLAGS_prior.empty() && !(FLAGS_prior_scale > 0)) {
     std::cerr << "error: --prior needs --prior_scale > 0\n";
     return kExitUsage;
   }
-  const std::string& model_path = paths.model;
-  const std::string& meas_path = paths.measurements;
-  const std::string& verify_path = paths.verify;
-
-  // ---- Flags.
-  const AngleUnit unit = settings.angle_unit;
-  const CsvOptions& csv = settings.csv;
-  const ParameterizationKind kind = settings.parameterization;
   if (FLAGS_solver != "linear" && FLAGS_solver != "ceres") {
     std::cerr << "error: --solver must be linear or ceres, got '" << FLAGS_solver << "'\n";
     return kExitUsage;
@@ -381,7 +382,9 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  if (Status s = ValidateCeresSolverOptions(PipelineOptionsFromFlags(kind, false, unit).ceres);
+  if (Status s = ValidateCeresSolverOptions(
+          PipelineOptionsFromFlags(r->settings.parameterization, false, r->settings.angle_unit)
+              .ceres);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
@@ -401,8 +404,7 @@ int Run() {
               << "'\n";
     return kExitUsage;
   }
-  std::vector<std::string> fixed_tools;
-  if (Status s = ParseNameList(FLAGS_fixed_tools, &fixed_tools); !s.ok()) {
+  if (Status s = ParseNameList(FLAGS_fixed_tools, &r->fixed_tools); !s.ok()) {
     std::cerr << "error: --fixed_tools: " << s.message() << "\n";
     return kExitUsage;
   }
@@ -415,32 +417,36 @@ int Run() {
               << "'\n";
     return kExitUsage;
   }
-  UrdfOptions urdf_options;
-  if (!tools::UrdfOptionsFromFlags(model_path, &urdf_options) ||
-      (!FLAGS_ur_kinematics_output.empty() && !IsUrdfPath(model_path))) {
+  if (!tools::UrdfOptionsFromFlags(r->paths.model, &r->urdf_options) ||
+      (!FLAGS_ur_kinematics_output.empty() && !IsUrdfPath(r->paths.model))) {
     std::cerr << "error: --base_link, --tip_link, --tool_links and --ur_kinematics_output need a "
                  "URDF --model (a name ending in .urdf)\n";
     return kExitUsage;
   }
-  // Every output against every input and every other output (plots included), by identity.
-  const auto& kPlotNames = tools::kPlotFileNames;
-  tools::OutputSet outputs;
-  tools::AddInputs(paths, &outputs);
+  return kExitOk;
+}
+
+// Every output against every input and every other output (plots included), by identity.
+int CheckOutputs(CalibrationRun* r) {
+  tools::OutputSet& outputs = r->outputs;
+  tools::AddInputs(r->paths, &outputs);
   if (!FLAGS_prior.empty()) outputs.AddInput("--prior", FLAGS_prior);
   outputs.AddOutput("--output", FLAGS_output);
   outputs.AddOutput("--urdf_output", FLAGS_urdf_output);
   outputs.AddOutput("--ur_kinematics_output", FLAGS_ur_kinematics_output);
   outputs.AddOutput("--report", FLAGS_report);
   outputs.AddOutput("--html_report", FLAGS_html_report);
-  const std::string plot_dir = FLAGS_plots_dir.empty() ? "" : FLAGS_plots_dir + "/";
-  if (!plot_dir.empty()) {
+  r->plot_dir = FLAGS_plots_dir.empty() ? "" : FLAGS_plots_dir + "/";
+  if (!r->plot_dir.empty()) {
     struct stat st;
     if (::stat(FLAGS_plots_dir.c_str(), &st) == 0 && !S_ISDIR(st.st_mode)) {
       std::cerr << "error: --plots_dir=" << FLAGS_plots_dir << " is not a directory\n";
       return kExitUsage;
     }
     // Created (with its parents) only when the plots are written.
-    for (const char* name : kPlotNames) outputs.AddOutput("--plots_dir", plot_dir + name, true);
+    for (const char* name : tools::kPlotFileNames) {
+      outputs.AddOutput("--plots_dir", r->plot_dir + name, true);
+    }
   }
   if (Status s = outputs.Check(); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
@@ -451,68 +457,73 @@ int Run() {
     std::cerr << "error: --html_report names the same file as --report or --output\n";
     return kExitUsage;
   }
+  return kExitOk;
+}
 
-  // ---- Inputs.
-  tools::Progress progress(FLAGS_quiet, FLAGS_max_iterations);
-  tools::RunSummary summary;
-  tools::Inputs in;
-  if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
-                                   FLAGS_split_seed, &in, urdf_options, settings.split);
+// The model and the measurements read, split and checked against the flags.
+int LoadCalibrationInputs(CalibrationRun* r, tools::Progress* progress) {
+  const tools::InputPaths& paths = r->paths;
+  tools::Inputs& in = r->in;
+  if (Status s = tools::LoadInputs(paths.model, paths.measurements, paths.verify,
+                                   r->settings.csv, FLAGS_holdout, FLAGS_split_seed, &in,
+                                   r->urdf_options, r->settings.split);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
-  if (Status s = SetFixedTools(fixed_tools, &in.nominal); !s.ok()) {
-    std::cerr << "error: --fixed_tools: " << model_path << ": " << s.message() << "\n";
+  if (Status s = SetFixedTools(r->fixed_tools, &in.nominal); !s.ok()) {
+    std::cerr << "error: --fixed_tools: " << paths.model << ": " << s.message() << "\n";
     return kExitUsage;
   }
-  progress.Rows(meas_path, in.identification.size() + in.verification.size());
+  progress->Rows(paths.measurements, in.identification.size() + in.verification.size());
+  tools::RunSummary& summary = r->summary;
   summary.skipped = std::move(in.skipped);
   summary.verification_source = in.verification_source;
-  summary.split = SplitKindName(settings.split);
-  const bool from_urdf = in.from_urdf;
-  const UrdfSource& urdf_source = in.urdf;  // the URDF --model, for the overlay write-back
-  if (from_urdf) summary.urdf_frames = tools::UrdfFrameElements(urdf_source, in.nominal);
+  summary.split = SplitKindName(r->settings.split);
+  if (in.from_urdf) summary.urdf_frames = tools::UrdfFrameElements(in.urdf, in.nominal);
   // The UR file needs a UR arm with z axes: checked on the nominal model before solving.
   if (!FLAGS_ur_kinematics_output.empty()) {
     std::string ur_yaml;
-    if (Status s = UrKinematicsYaml(urdf_source, in.nominal, {}, &ur_yaml); !s.ok()) {
+    if (Status s = UrKinematicsYaml(in.urdf, in.nominal, {}, &ur_yaml); !s.ok()) {
       std::cerr << "error: --ur_kinematics_output: " << s.message() << "\n";
       return kExitUsage;
     }
   }
-  const RobotModel& nominal = in.nominal;
-  const MeasurementSet& identification = in.identification;
-  const MeasurementSet& verification = in.verification;
   if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, in); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
   std::vector<int> configuration_of_row;
   const int identification_configurations =
-      FLAGS_kfold > 0 ? ConfigurationGroups(identification, &configuration_of_row) : 0;
+      FLAGS_kfold > 0 ? ConfigurationGroups(in.identification, &configuration_of_row) : 0;
   if (FLAGS_kfold > identification_configurations) {
     std::cerr << "error: --kfold=" << FLAGS_kfold << " is larger than the "
               << identification_configurations
               << " identification configurations: every fold needs held-out configurations\n";
     return kExitUsage;
   }
-
-  bool use_orientation = identification.has_orientation();
-  if (FLAGS_data_kind == "position") use_orientation = false;
-  if (FLAGS_data_kind == "pose" && !identification.has_orientation()) {
+  r->use_orientation = in.identification.has_orientation();
+  if (FLAGS_data_kind == "position") r->use_orientation = false;
+  if (FLAGS_data_kind == "pose" && !in.identification.has_orientation()) {
     std::cerr << "error: --data_kind=pose needs quat_x,quat_y,quat_z,quat_w columns in "
-              << meas_path << "\n";
+              << paths.measurements << "\n";
     return kExitUsage;
   }
+  return kExitOk;
+}
 
-  std::cout << "model:          " << model_path << " (" << nominal.num_joints() << " joints, "
+// What is calibrated from what, printed before solving.
+void PrintRunHeader(const CalibrationRun& r) {
+  const RobotModel& nominal = r.in.nominal;
+  std::cout << "model:          " << r.paths.model << " (" << nominal.num_joints() << " joints, "
             << nominal.num_tools() << " tool" << (nominal.num_tools() > 1 ? "s" : "") << ")\n"
-            << "identification: " << meas_path << " (" << identification.size() << " rows)\n";
-  if (!verification.empty()) {
+            << "identification: " << r.paths.measurements << " (" << r.in.identification.size()
+            << " rows)\n";
+  if (!r.in.verification.empty()) {
     std::cout << "verification:   "
-              << (verify_path.empty() ? "held out from the identification file" : verify_path)
-              << " (" << verification.size() << " rows)\n";
+              << (r.paths.verify.empty() ? "held out from the identification file"
+                                         : r.paths.verify)
+              << " (" << r.in.verification.size() << " rows)\n";
   }
   if (nominal.HasFixedTool()) {
     std::string names;
@@ -522,43 +533,55 @@ int Run() {
     std::cout << "fixed tools:    " << names
               << " (held as given: the flange frame is identified in full)\n";
   }
-  std::cout << "solver:         " << FLAGS_solver << ", " << ParameterizationName(kind)
-            << " parameterization, " << (use_orientation ? "pose" : "position") << " data\n";
+  std::cout << "solver:         " << FLAGS_solver << ", "
+            << ParameterizationName(r.settings.parameterization) << " parameterization, "
+            << (r.use_orientation ? "pose" : "position") << " data\n";
+}
 
-  // ---- Register, solve, analyse, cross-validate, judge (nothing is written yet).
-  PipelineOptions options = PipelineOptionsFromFlags(kind, use_orientation, unit);
-  options.on_iteration = [&progress](const std::string& stage, const IterationRecord& r) {
-    progress.Iteration(stage, r);
+// --prior: the calibrated model's covariance as the pipeline's prior (its chain checked).
+int ReadPriorFlag(const RobotModel& nominal, PipelineOptions* options) {
+  RobotModel prior_model;
+  ParameterPrior prior;
+  if (Status s = ReadPrior(FLAGS_prior, options->prior ? options->prior->scales : PriorScales(),
+                           &prior_model, &prior);
+      !s.ok()) {
+    std::cerr << "error: --prior: " << s.message() << "\n";
+    return kExitInput;
+  }
+  if (prior_model.num_frames() != nominal.num_frames() ||
+      prior_model.num_joints() != nominal.num_joints()) {
+    std::cerr << "error: --prior=" << FLAGS_prior << ": its chain (" << prior_model.num_joints()
+              << " joints, " << prior_model.num_tools() << " tools) is not the model's\n";
+    return kExitInput;
+  }
+  prior.scale = FLAGS_prior_scale;
+  options->prior = std::make_shared<const ParameterPrior>(prior);
+  std::cout << "prior:          " << FLAGS_prior << " (informative";
+  if (FLAGS_prior_scale != 1) std::cout << ", standard deviations x " << FLAGS_prior_scale;
+  std::cout << ")\n";
+  return kExitOk;
+}
+
+// The one library call: register, solve, analyse, cross-validate, judge (nothing is written
+// yet); a recalibration against --prior names the groups that changed.
+int SolveCalibration(CalibrationRun* r, tools::Progress* progress) {
+  const tools::Inputs& in = r->in;
+  PipelineOptions options = PipelineOptionsFromFlags(r->settings.parameterization,
+                                                     r->use_orientation, r->settings.angle_unit);
+  options.on_iteration = [progress](const std::string& stage, const IterationRecord& rec) {
+    progress->Iteration(stage, rec);
   };
-  options.on_stage = [&progress](const std::string& stage) { progress.Stage(stage); };
-  RecalibrationResult recalibration;
+  options.on_stage = [progress](const std::string& stage) { progress->Stage(stage); };
   if (!FLAGS_prior.empty()) {
-    RobotModel prior_model;
-    ParameterPrior prior;
-    if (Status s = ReadPrior(FLAGS_prior, options.prior ? options.prior->scales : PriorScales(),
-                             &prior_model, &prior);
-        !s.ok()) {
-      std::cerr << "error: --prior: " << s.message() << "\n";
-      return kExitInput;
-    }
-    if (prior_model.num_frames() != nominal.num_frames() ||
-        prior_model.num_joints() != nominal.num_joints()) {
-      std::cerr << "error: --prior=" << FLAGS_prior << ": its chain (" << prior_model.num_joints()
-                << " joints, " << prior_model.num_tools() << " tools) is not the model's\n";
-      return kExitInput;
-    }
-    prior.scale = FLAGS_prior_scale;
-    options.prior = std::make_shared<const ParameterPrior>(prior);
-    std::cout << "prior:          " << FLAGS_prior << " (informative";
-    if (FLAGS_prior_scale != 1) std::cout << ", standard deviations x " << FLAGS_prior_scale;
-    std::cout << ")\n";
+    if (int rc = ReadPriorFlag(in.nominal, &options); rc != kExitOk) return rc;
   }
+  RecalibrationResult& recalibration = r->recalibration;
   if (!FLAGS_prior.empty()) {
-    recalibration = Recalibrate(nominal, identification, verification, options);
+    recalibration = Recalibrate(in.nominal, in.identification, in.verification, options);
   } else {
-    recalibration.run = RunCalibrationPipeline(nominal, identification, verification, options);
+    recalibration.run =
+        RunCalibrationPipeline(in.nominal, in.identification, in.verification, options);
   }
-  const PipelineResult& run = recalibration.run;
   if (!recalibration.changed.empty()) {
     std::cout << "recalibration: the new data show " << recalibration.changed.size()
               << " group(s) changed against the prior, freed (held by the tolerances only):\n";
@@ -569,12 +592,69 @@ int Run() {
   } else if (!FLAGS_prior.empty()) {
     std::cout << "recalibration: no group changed against the prior\n";
   }
+  return kExitOk;
+}
+
+void PrintRegistration(const PipelineResult& run) {
+  const RegistrationReport& reg = run.registration;
+  if (reg.moved) {
+    std::cout << reg.message << "\n"
+              << "(the measurements are not in the model's base frame: 'before calibration' "
+                 "below is the nominal model after the rigid fit)\n";
+  } else {
+    std::cout << "registration: not needed, the data are in the model's base frame (a rigid fit "
+                 "would move the base by only "
+              << reg.T_measurement_base.t.norm() << " mm and "
+              << LogSO3(reg.T_measurement_base.R).norm() << " rad)\n";
+  }
+}
+
+// Points that do not fit.
+void PrintOutliers(const tools::RunSummary& summary, const std::string& meas_path) {
+  if (summary.outliers.empty()) return;
+  std::cout << "\n" << summary.outliers.size() << " point(s) fit worse than "
+            << FLAGS_outlier_threshold << " robust sigmas (" << summary.robust_sigma
+            << " mm per axis); they were used, check them:\n";
+  for (size_t k = 0; k < std::min<size_t>(summary.outliers.size(), 20); ++k) {
+    const Outlier& o = summary.outliers[k];
+    std::cout << "  " << meas_path << ":" << o.line << ": error " << o.error << " mm ("
+              << o.sigmas << " sigma)\n";
+  }
+}
+
+// k-fold cross-validation: each fold's held-out errors and the pooled row.
+void PrintFolds(const PipelineResult& run, int identification_rows) {
+  if (run.folds.empty()) return;
+  std::cout << "\n" << FLAGS_kfold
+            << "-fold cross-validation by configuration (held-out position error, mm)\n"
+            << "  fold  rows   termination        max      mean       rms       p95\n";
+  char line[200];
+  for (const FoldSummary& f : run.folds) {
+    std::snprintf(line, sizeof(line), "  %4d %5d   %-16s %8.4f %9.4f %9.4f %9.4f\n", f.fold,
+                  f.identification_rows,
+                  f.termination == Termination::kConverged ? "converged" : "FAILED",
+                  f.verification_after.norm.max_abs, f.verification_after.norm.mean_abs,
+                  f.verification_after.norm.rms, f.verification_after.norm.p95_abs);
+    std::cout << line;
+  }
+  const ErrorStatistics& all = run.folds_pooled;
+  std::snprintf(line, sizeof(line), "   all %5d   %-16s %8.4f %9.4f %9.4f %9.4f\n",
+                identification_rows, "", all.norm.max_abs, all.norm.mean_abs, all.norm.rms,
+                all.norm.p95_abs);
+  std::cout << line;
+}
+
+// The result into the summary and printed: identifiability, iterations, errors before and
+// after, outliers, folds. Exit code when the solve did not converge, else kExitOk.
+int ReportResult(CalibrationRun* r) {
+  const PipelineResult& run = r->recalibration.run;
   const CalibrationResult& result = run.result;
+  tools::RunSummary& summary = r->summary;
   tools::AddPipelineResult(run, &summary);
   summary.joint_errors_requested = FLAGS_joint_errors;
   summary.residual_model_requested = FLAGS_residual_model;
   summary.prior_path = FLAGS_prior;
-  summary.changed_groups = recalibration.changed;
+  summary.changed_groups = r->recalibration.changed;
   if (run.joint_error_selection.ran) {
     std::cerr << tools::JointErrorSelectionTable(run.joint_error_selection);
   }
@@ -582,22 +662,12 @@ int Run() {
     std::cerr << tools::ResidualModelSelectionTable(run.residual_model_selection);
   }
   if (run.registered && result.termination != Termination::kNotIdentifiable) {
-    const RegistrationReport& reg = run.registration;
-    if (reg.moved) {
-      std::cout << reg.message << "\n"
-                << "(the measurements are not in the model's base frame: 'before calibration' "
-                   "below is the nominal model after the rigid fit)\n";
-    } else {
-      std::cout << "registration: not needed, the data are in the model's base frame (a rigid fit "
-                   "would move the base by only "
-                << reg.T_measurement_base.t.norm() << " mm and "
-                << LogSO3(reg.T_measurement_base.R).norm() << " rad)\n";
-    }
+    PrintRegistration(run);
   }
   std::cout << "\n";
+  const std::string& hint = r->in.angle_unit_hint;
   if (result.termination == Termination::kNotIdentifiable) {
-    std::cerr << "error: " << result.message
-              << (in.angle_unit_hint.empty() ? "" : " (" + in.angle_unit_hint + ")") << "\n";
+    std::cerr << "error: " << result.message << (hint.empty() ? "" : " (" + hint + ")") << "\n";
     return tools::ExitCodeFor(result.termination);
   }
   PrintIdentifiability(summary.identifiability, result.parameterization.num_frame_parameters());
@@ -616,56 +686,26 @@ int Run() {
   if (const std::string layer = tools::ResidualLayerSummaryText(run); !layer.empty()) {
     std::cout << "\n" << layer;
   }
-
   // Per-point residuals (about 170 bytes a row) only for the outputs that show them.
   if (!FLAGS_report.empty() || !FLAGS_html_report.empty() || !FLAGS_plots_dir.empty()) {
-    tools::AddPointResiduals(run.before, result.model, identification, verification, &summary);
+    tools::AddPointResiduals(run.before, result.model, r->in.identification, r->in.verification,
+                             &summary);
   }
-
-  // ---- Points that do not fit.
-  if (!summary.outliers.empty()) {
-    std::cout << "\n" << summary.outliers.size() << " point(s) fit worse than "
-              << FLAGS_outlier_threshold << " robust sigmas (" << summary.robust_sigma
-              << " mm per axis); they were used, check them:\n";
-    for (size_t k = 0; k < std::min<size_t>(summary.outliers.size(), 20); ++k) {
-      const Outlier& o = summary.outliers[k];
-      std::cout << "  " << meas_path << ":" << o.line << ": error " << o.error << " mm ("
-                << o.sigmas << " sigma)\n";
-    }
-  }
-
-  // ---- k-fold cross-validation.
-  if (!run.folds.empty()) {
-    std::cout << "\n" << FLAGS_kfold
-              << "-fold cross-validation by configuration (held-out position error, mm)\n"
-              << "  fold  rows   termination        max      mean       rms       p95\n";
-    char line[200];
-    for (const FoldSummary& f : run.folds) {
-      std::snprintf(line, sizeof(line), "  %4d %5d   %-16s %8.4f %9.4f %9.4f %9.4f\n", f.fold,
-                    f.identification_rows,
-                    f.termination == Termination::kConverged ? "converged" : "FAILED",
-                    f.verification_after.norm.max_abs, f.verification_after.norm.mean_abs,
-                    f.verification_after.norm.rms, f.verification_after.norm.p95_abs);
-      std::cout << line;
-    }
-    const ErrorStatistics& all = run.folds_pooled;
-    std::snprintf(line, sizeof(line), "   all %5d   %-16s %8.4f %9.4f %9.4f %9.4f\n",
-                  identification.size(), "", all.norm.max_abs, all.norm.mean_abs, all.norm.rms,
-                  all.norm.p95_abs);
-    std::cout << line;
-  }
-
+  PrintOutliers(summary, r->paths.measurements);
+  PrintFolds(run, r->in.identification.size());
   std::cout << "\nresult: " << TerminationName(result.termination) << " after "
             << result.iterations << " iteration(s), " << result.wall_time_seconds * 1e3 << " ms ("
             << result.message << ")\n";
   if (!result.converged()) {
     std::cerr << "error: " << result.message << "; no output written"
-              << (in.angle_unit_hint.empty() ? "" : " (" + in.angle_unit_hint + ")") << "\n";
+              << (hint.empty() ? "" : " (" + hint + ")") << "\n";
     return tools::ExitCodeFor(result.termination);
   }
+  return kExitOk;
+}
 
-  // ---- Plausibility verdict.
-  const Verdict& verdict = run.verdict;
+// The plausibility verdict printed; exit 8 when it fails without --force.
+int JudgeVerdict(const Verdict& verdict) {
   std::cout << "verdict: " << VerdictLevelName(verdict.level) << ": " << verdict.reason << "\n";
   for (const VerdictCheck& c : verdict.checks) {
     if (c.level != VerdictLevel::kPass) {
@@ -673,46 +713,33 @@ int Run() {
                 << c.message << "\n";
     }
   }
-  const bool implausible = verdict.level == VerdictLevel::kFail;
-  if (implausible && !FLAGS_force) {
+  if (verdict.level == VerdictLevel::kFail && !FLAGS_force) {
     std::cerr << "error: the calibration is not plausible (" << verdict.reason
               << "); no output written (--force writes it anyway)\n";
     return tools::kExitImplausible;
   }
+  return kExitOk;
+}
 
-  // ---- Outputs: all staged first, then moved into place together; the report last so that it
-  // lists everything written.
-  Status staged = Status::Ok();
-  if (!FLAGS_output.empty() && staged.ok()) {
-    // The registration goes with the model: compensation carries nominal poses into its frame.
-    RobotModel calibrated = result.model;
-    if (run.registered && run.registration.moved) {
-      calibrated.T_measurement_base = run.registration.T_measurement_base;
-    }
-    // Non-finite values are written nowhere (lpoe/refusals.h): exit 5, nothing committed.
-    if (Status s = CheckModelFinite(calibrated); !s.ok()) {
-      std::cerr << "error: --output=" << FLAGS_output << ": " << s.message() << "\n";
-      return tools::kExitNumerical;
-    }
-    // The estimate's covariance goes with it (the prior of a later recalibration, --prior).
-    std::string yaml = RobotModelToYaml(calibrated);
-    if (result.covariance.rows() == result.parameterization.num_parameters &&
-        result.covariance.rows() > 0) {
-      yaml += ModelCovarianceYaml(calibrated, CovarianceOf(result));
-    }
-    staged = outputs.Stage(FLAGS_output, yaml);
+// --output: the calibrated model with its registration and covariance, staged. Exit 5 when it
+// is not finite (nothing is committed).
+int StageModelYaml(const PipelineResult& run, tools::OutputSet* outputs, Status* staged) {
+  // The registration goes with the model: compensation carries nominal poses into its frame.
+  const RobotModel calibrated = CalibratedModel(run);
+  // Non-finite values are written nowhere (lpoe/refusals.h): exit 5, nothing committed.
+  if (Status s = CheckModelFinite(calibrated); !s.ok()) {
+    std::cerr << "error: --output=" << FLAGS_output << ": " << s.message() << "\n";
+    return tools::kExitNumerical;
   }
-  UrdfOverlayOptions overlay;
-  overlay.in_measurement_frame = run.registered && run.registration.moved;
-  // The geometry-only outputs: with joint-space terms, the geometry-only re-fit of the same data
-  // (the geometry identified with the terms predicts worse without them).
-  const bool geometry_outputs = !FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty();
-  RobotModel geometry_model = run.has_geometry_only ? run.geometry_only.model : result.model;
-  // With the registration the YAML records: the URDF's base frame is the YAML's (one model).
-  if (overlay.in_measurement_frame) {
-    geometry_model.T_measurement_base = run.registration.T_measurement_base;
-  }
-  if (geometry_outputs && staged.ok() && !result.model.joint_errors.empty()) {
+  // The estimate's covariance goes with it (the prior of a later recalibration, --prior).
+  *staged = outputs->Stage(FLAGS_output, CalibratedModelYaml(calibrated, run.result));
+  return kExitOk;
+}
+
+// URDF and UR kinematics carry geometry only: what they lack, said on stderr.
+void WarnGeometryOutputs(const PipelineResult& run) {
+  const CalibrationResult& result = run.result;
+  if (!result.model.joint_errors.empty()) {
     const auto rms = [](const ErrorStatistics& e) { return e.norm.rms; };
     std::cerr << "warning: URDF and UR kinematics cannot hold the identified joint-error terms ("
               << tools::JointErrorTermNames(result.model) << ")";
@@ -731,94 +758,152 @@ int Run() {
     std::cerr << ". Predict or compensate with the YAML model (--output; lpoe_predict, "
                  "lpoe_compensate), which keeps the terms\n";
   }
-  if (geometry_outputs && staged.ok() && result.model.residual_layer) {
+  if (result.model.residual_layer) {
     std::cerr << "warning: URDF and UR kinematics cannot carry the residual layer "
                  "(docs/residual_layer.md): they predict without its correction. Predict or "
                  "compensate with the YAML model (--output), which keeps it\n";
   }
-  // Each model written, with what it predicts on its own (the reports' output_models).
-  {
-    const bool v = run.has_verification;
-    const auto rms = [](const ErrorStatistics& e) { return e.norm.rms; };
-    const double full = v ? rms(run.verification_after) : rms(run.identification_after);
-    const char* set = v ? "verification" : "identification";
-    double geometry = full;
-    std::string lacks;
-    if (!result.model.joint_errors.empty()) {
-      geometry = run.has_geometry_only ? (v ? rms(run.geometry_only_verification)
-                                            : rms(run.geometry_only_identification))
-                                       : -1;
-      lacks = "the joint-error terms (" + tools::JointErrorTermNames(result.model) +
-              "): a geometry-only re-fit";
-    }
-    if (result.model.residual_layer) {
-      lacks += std::string(lacks.empty() ? "" : "; ") + "the residual layer";
-    }
-    if (!FLAGS_output.empty()) summary.output_models.push_back({"--output", FLAGS_output, full, set, false, ""});
-    for (const auto& [flag, path] : {std::pair<std::string, std::string>{"--urdf_output", FLAGS_urdf_output},
-                                     {"--ur_kinematics_output", FLAGS_ur_kinematics_output}}) {
-      if (path.empty()) continue;
-      summary.output_models.push_back(
-          {flag, path, geometry >= 0 ? geometry : full, set, !lacks.empty(),
-           lacks.empty() ? "" : "it cannot carry " + lacks + "; predict and compensate with the "
-                                "YAML model"});
-    }
+}
+
+// Each model written, with what it predicts on its own (the reports' output_models).
+void AddOutputModels(const PipelineResult& run, tools::RunSummary* summary) {
+  const CalibrationResult& result = run.result;
+  const bool v = run.has_verification;
+  const auto rms = [](const ErrorStatistics& e) { return e.norm.rms; };
+  const double full = v ? rms(run.verification_after) : rms(run.identification_after);
+  const char* set = v ? "verification" : "identification";
+  double geometry = full;
+  std::string lacks;
+  if (!result.model.joint_errors.empty()) {
+    geometry = run.has_geometry_only ? (v ? rms(run.geometry_only_verification)
+                                          : rms(run.geometry_only_identification))
+                                     : -1;
+    lacks = "the joint-error terms (" + tools::JointErrorTermNames(result.model) +
+            "): a geometry-only re-fit";
+  }
+  if (result.model.residual_layer) {
+    lacks += std::string(lacks.empty() ? "" : "; ") + "the residual layer";
+  }
+  if (!FLAGS_output.empty()) {
+    summary->output_models.push_back({"--output", FLAGS_output, full, set, false, ""});
+  }
+  for (const auto& [flag, path] :
+       {std::pair<std::string, std::string>{"--urdf_output", FLAGS_urdf_output},
+        {"--ur_kinematics_output", FLAGS_ur_kinematics_output}}) {
+    if (path.empty()) continue;
+    summary->output_models.push_back(
+        {flag, path, geometry >= 0 ? geometry : full, set, !lacks.empty(),
+         lacks.empty() ? "" : "it cannot carry " + lacks + "; predict and compensate with the "
+                              "YAML model"});
+  }
+}
+
+// --urdf_output and --ur_kinematics_output: the geometry (with joint-space terms, the
+// geometry-only re-fit of the same data) in the YAML's base frame, staged.
+Status StageGeometryOutputs(CalibrationRun* r, Status staged) {
+  const PipelineResult& run = r->recalibration.run;
+  UrdfOverlayOptions overlay;
+  overlay.in_measurement_frame = run.registered && run.registration.moved;
+  RobotModel geometry_model = run.has_geometry_only ? run.geometry_only.model : run.result.model;
+  // With the registration the YAML records: the URDF's base frame is the YAML's (one model).
+  if (overlay.in_measurement_frame) {
+    geometry_model.T_measurement_base = run.registration.T_measurement_base;
   }
   if (!FLAGS_urdf_output.empty() && staged.ok()) {
     std::string xml;
-    if (from_urdf) {
-      staged = CalibratedUrdfOverlay(urdf_source, geometry_model, overlay, &xml);
+    if (r->in.from_urdf) {
+      staged = CalibratedUrdfOverlay(r->in.urdf, geometry_model, overlay, &xml);
     } else {
       xml = RobotModelToUrdf(geometry_model);
     }
-    if (staged.ok()) staged = outputs.Stage(FLAGS_urdf_output, xml);
+    if (staged.ok()) staged = r->outputs.Stage(FLAGS_urdf_output, xml);
   }
   if (!FLAGS_ur_kinematics_output.empty() && staged.ok()) {
     std::string ur_yaml;
-    staged = UrKinematicsYaml(urdf_source, geometry_model, overlay, &ur_yaml);
-    if (staged.ok()) staged = outputs.Stage(FLAGS_ur_kinematics_output, ur_yaml);
+    staged = UrKinematicsYaml(r->in.urdf, geometry_model, overlay, &ur_yaml);
+    if (staged.ok()) staged = r->outputs.Stage(FLAGS_ur_kinematics_output, ur_yaml);
   }
-  summary.model_path = model_path;
-  summary.measurements_path = meas_path;
+  return staged;
+}
+
+// The plots, the HTML page and the JSON report, staged; the report last so that it lists
+// everything written (the page lists the models and plots, the report every file, itself and
+// the page included).
+Status StageReports(CalibrationRun* r, bool implausible, Status staged) {
+  tools::RunSummary& summary = r->summary;
+  summary.model_path = r->paths.model;
+  summary.measurements_path = r->paths.measurements;
   summary.solver = FLAGS_solver;
-  summary.parameterization = ParameterizationName(kind);
-  summary.data_kind = use_orientation ? "pose" : "position";
+  summary.parameterization = ParameterizationName(r->settings.parameterization);
+  summary.data_kind = r->use_orientation ? "pose" : "position";
   summary.angle_unit = FLAGS_angle_unit;
+  const std::string& plot_dir = r->plot_dir;
   if (!plot_dir.empty() && staged.ok()) {
     std::vector<std::pair<std::string, std::string>> plots;
     staged = tools::RenderPlotFiles(summary, &plots);
     for (size_t k = 0; k < plots.size() && staged.ok(); ++k) {
-      staged = outputs.Stage(plot_dir + plots[k].first, plots[k].second);
+      staged = r->outputs.Stage(plot_dir + plots[k].first, plots[k].second);
     }
   }
-  // The outputs of the run: the HTML page lists the models and plots (with the next steps), the
-  // JSON report every file, itself and the page included.
   for (const std::string& o : {FLAGS_output, FLAGS_urdf_output, FLAGS_ur_kinematics_output}) {
     if (!o.empty()) summary.outputs.push_back(o);
   }
   if (!plot_dir.empty()) {
-    for (const char* name : kPlotNames) summary.outputs.push_back(plot_dir + name);
+    for (const char* name : tools::kPlotFileNames) summary.outputs.push_back(plot_dir + name);
   }
   summary.forced = implausible;
   if (!FLAGS_html_report.empty() && staged.ok()) {
     std::string html;
     staged = tools::RunSummaryToHtml(summary, &html);
-    if (staged.ok()) staged = outputs.Stage(FLAGS_html_report, html);
+    if (staged.ok()) staged = r->outputs.Stage(FLAGS_html_report, html);
   }
   if (!FLAGS_html_report.empty()) summary.outputs.push_back(FLAGS_html_report);
   if (!FLAGS_report.empty()) summary.outputs.push_back(FLAGS_report);
   if (!FLAGS_report.empty() && staged.ok()) {
-    staged = outputs.Stage(FLAGS_report, tools::RunSummaryToJson(summary));
+    staged = r->outputs.Stage(FLAGS_report, tools::RunSummaryToJson(summary));
   }
+  return staged;
+}
+
+// The outputs: all staged first, then moved into place together.
+int WriteOutputs(CalibrationRun* r) {
+  const PipelineResult& run = r->recalibration.run;
+  const bool implausible = run.verdict.level == VerdictLevel::kFail;
+  Status staged = Status::Ok();
+  if (!FLAGS_output.empty()) {
+    if (int rc = StageModelYaml(run, &r->outputs, &staged); rc != kExitOk) return rc;
+  }
+  const bool geometry_outputs = !FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty();
+  if (geometry_outputs && staged.ok()) WarnGeometryOutputs(run);
+  AddOutputModels(run, &r->summary);
+  staged = StageGeometryOutputs(r, staged);
+  staged = StageReports(r, implausible, staged);
   std::vector<std::string> written;
-  if (tools::CommitOutputs(staged, &outputs, false, &written) != kExitOk) return kExitOutput;
+  if (tools::CommitOutputs(staged, &r->outputs, false, &written) != kExitOk) return kExitOutput;
   if (written.empty()) std::cout << "(use --output=FILE to save the calibrated model)\n";
   if (implausible) {  // --force: written, but a script must still tell the result failed
-    std::cerr << "error: the calibration is not plausible (" << verdict.reason
+    std::cerr << "error: the calibration is not plausible (" << run.verdict.reason
               << "); outputs written because of --force\n";
     return tools::kExitImplausible;
   }
   return kExitOk;
+}
+
+int Run() {
+  // Ballbar distances and probe contacts (several files, or a distance or plane file): their own
+  // run (lpoe_calibrate_contact.cc, docs/measurements.md).
+  if (tools::ContactCalibrationRequested()) return tools::RunContactCalibration();
+  CalibrationRun r;
+  if (!tools::InputsFromFlags(&r.paths, &r.settings)) return kExitUsage;
+  if (int rc = CheckCalibrateFlags(&r); rc != kExitOk) return rc;
+  if (int rc = CheckOutputs(&r); rc != kExitOk) return rc;
+  tools::Progress progress(FLAGS_quiet, FLAGS_max_iterations);
+  if (int rc = LoadCalibrationInputs(&r, &progress); rc != kExitOk) return rc;
+  PrintRunHeader(r);
+  if (int rc = SolveCalibration(&r, &progress); rc != kExitOk) return rc;
+  if (int rc = ReportResult(&r); rc != kExitOk) return rc;
+  if (int rc = JudgeVerdict(r.recalibration.run.verdict); rc != kExitOk) return rc;
+  return WriteOutputs(&r);
 }
 
 }  // namespace

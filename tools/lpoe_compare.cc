@@ -20,6 +20,7 @@
 #include "lpoe/linear_solver.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/registration.h"
+#include "lpoe/solver_comparison.h"
 #include "lpoe/statistics.h"
 #include "output_files.h"
 #include "progress.h"
@@ -82,16 +83,6 @@ constexpr char kUsage[] =
     "2 bad input file, 3 data cannot identify the model, 4 iteration limit, 5 numerical\n"
     "failure, 6 output not written, 7 the solvers disagree, 8 a calibration is not plausible (see lpoe_calibrate).";
 
-double MaxPredictionDifference(const RobotModel& a, const RobotModel& b, const MeasurementSet& data) {
-  double worst = 0;
-  for (int r = 0; r < data.size(); ++r) {
-    worst = std::max(worst, (ToolPosition(a, data.q(r), data.target(r)) -
-                             ToolPosition(b, data.q(r), data.target(r)))
-                                .norm());
-  }
-  return worst;
-}
-
 void Row(const char* name, const std::string& linear, const std::string& ceres,
          const std::string& difference) {
   char line[200];
@@ -106,62 +97,46 @@ std::string Num(double v, const char* format = "%.6g") {
   return buf;
 }
 
-int Run() {
-  // Ballbar distances and probe contacts: both contact solvers (lpoe_compare_contact.cc).
-  if (tools::ContactCompareRequested()) return tools::RunContactCompare();
-  tools::InputPaths paths;
-  tools::InputSettings settings;
-  if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;
-  const std::string& model_path = paths.model;
-  const std::string& meas_path = paths.measurements;
-  const std::string& verify_path = paths.verify;
-
-  const AngleUnit unit = settings.angle_unit;
-  const CsvOptions& csv = settings.csv;
-  const ParameterizationKind kind = settings.parameterization;
+// The inputs (model, identification and held-out rows), the outputs checked against them.
+int LoadCompareInputs(const tools::InputPaths& paths, const tools::InputSettings& settings,
+                      tools::OutputSet* outputs, tools::Inputs* in) {
   // --tolerance_mm and --noise_sigma: their ranges (lpoe/options.h) were checked by InitTool.
-
-  tools::OutputSet outputs;
-  tools::AddInputs(paths, &outputs);
-  outputs.AddOutput("--html_report", FLAGS_html_report);
-  outputs.AddOutput("--output", FLAGS_output);
-  if (Status s = outputs.Check(); !s.ok()) {
+  tools::AddInputs(paths, outputs);
+  outputs->AddOutput("--html_report", FLAGS_html_report);
+  outputs->AddOutput("--output", FLAGS_output);
+  if (Status s = outputs->Check(); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-
-  // ---- Inputs.
-  tools::Inputs in;
   UrdfOptions urdf_options;
-  if (!tools::UrdfOptionsFromFlags(model_path, &urdf_options)) {
+  if (!tools::UrdfOptionsFromFlags(paths.model, &urdf_options)) {
     std::cerr << "error: --base_link, --tip_link and --tool_links need a URDF --model\n";
     return kExitUsage;
   }
-  if (Status s = tools::LoadInputs(model_path, meas_path, verify_path, csv, FLAGS_holdout,
-                                   FLAGS_split_seed, &in, urdf_options, settings.split);
+  if (Status s = tools::LoadInputs(paths.model, paths.measurements, paths.verify, settings.csv,
+                                   FLAGS_holdout, FLAGS_split_seed, in, urdf_options,
+                                   settings.split);
       !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
-  const RobotModel& nominal = in.nominal;
-  const MeasurementSet& identification = in.identification;
-  const MeasurementSet& verification = in.verification;
-  if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, in); !s.ok()) {
+  if (Status s = tools::CheckHoldoutSplit(FLAGS_holdout, *in); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  // Without held-out data, the comparison is made on the identification rows.
-  const bool held_out = !verification.empty();
-  const MeasurementSet& check = held_out ? verification : identification;
-  const bool use_orientation = identification.has_orientation();
+  return kExitOk;
+}
 
-  // ---- Both solvers through the calibration pipeline: same registration, same start, same data.
+// Both solvers through the calibration pipeline (same registration, same start, same data) and
+// their models compared: the one library call.
+SolverComparison CompareBothSolvers(const tools::InputSettings& settings, const tools::Inputs& in,
+                                    bool use_orientation) {
   PipelineOptions options;
-  options.parameterization = kind;
+  options.parameterization = settings.parameterization;
   options.use_orientation = use_orientation;
   options.register_frames = FLAGS_register;
   options.plausibility.noise_sigma = FLAGS_noise_sigma;
-  options.plausibility.joint_values_in_degrees = unit == AngleUnit::kDegrees;
+  options.plausibility.joint_values_in_degrees = settings.angle_unit == AngleUnit::kDegrees;
   // Tight stopping rules: the comparison is of the two solvers' minima, not of their stopping.
   options.linear.convergence.sd_fraction = 0;
   options.ceres.convergence.sd_fraction = 0;
@@ -174,53 +149,38 @@ int Run() {
   ceres_options.on_iteration = [&progress](const std::string&, const IterationRecord& r) {
     progress.Iteration("ceres", r);
   };
-  const PipelineResult lin_run =
-      RunCalibrationPipeline(nominal, identification, verification, options);
-  const PipelineResult cer_run =
-      RunCalibrationPipeline(nominal, identification, verification, ceres_options);
-  const CalibrationResult& lin = lin_run.result;
-  const CalibrationResult& cer = cer_run.result;
-  const RobotModel& start = lin_run.start;
+  return CompareSolvers(in.nominal, in.identification, in.verification, options, ceres_options);
+}
 
-  std::cout << "model:          " << model_path << "\n"
-            << "identification: " << meas_path << " (" << identification.size() << " rows)\n"
-            << "held out:       "
-            << (held_out ? (verify_path.empty() ? std::string("--holdout split") : verify_path)
-                         : std::string("none: predictions compared on the identification rows"))
-            << " (" << check.size() << " rows)\n"
-            << "parameters:     " << lin.parameterization.num_parameters << " ("
-            << ParameterizationName(kind) << "), " << (use_orientation ? "pose" : "position")
-            << " data\n\n";
-  for (const CalibrationResult* r : {&lin, &cer}) {
-    if (!r->converged()) {
-      std::cerr << "error: " << (r == &lin ? "linear" : "ceres") << " solver: " << r->message
-                << "\n";
-      return tools::ExitCodeFor(r->termination);
+// Both converged and (unless --force) plausible; else the exit code.
+int CheckBothSolved(const SolverComparison& runs) {
+  for (const PipelineResult* r : {&runs.linear, &runs.ceres}) {
+    if (!r->result.converged()) {
+      std::cerr << "error: " << (r == &runs.linear ? "linear" : "ceres")
+                << " solver: " << r->result.message << "\n";
+      return tools::ExitCodeFor(r->result.termination);
     }
   }
-  for (const PipelineResult* r : {&lin_run, &cer_run}) {
+  for (const PipelineResult* r : {&runs.linear, &runs.ceres}) {
     if (r->verdict.level == VerdictLevel::kFail && !FLAGS_force) {
-      std::cerr << "error: " << (r == &lin_run ? "linear" : "ceres")
+      std::cerr << "error: " << (r == &runs.linear ? "linear" : "ceres")
                 << " solver: the calibration is not plausible (" << r->verdict.reason
                 << "); --force compares anyway\n";
       return tools::kExitImplausible;
     }
   }
+  return kExitOk;
+}
 
-  const ErrorStatistics ls = PositionErrorStatistics(lin.model, check);
-  const ErrorStatistics cs = PositionErrorStatistics(cer.model, check);
-  const double position_difference = MaxPredictionDifference(lin.model, cer.model, check);
-  // Parameters in the identifiable directions (with the full parameterization the frames also
-  // differ along the gauge directions, which no data see; those are not compared).
-  const Parameterization pi = MakeParameterization(
-      start, ParameterizationKind::kIdentifiable,
-      use_orientation ? DataKind::kPose : DataKind::kPosition);
-  const Eigen::VectorXd dx = ParameterDifference(pi, lin.model, cer.model);
-  Eigen::Index worst = 0;
-  const double parameter_difference = dx.size() ? dx.cwiseAbs().maxCoeff(&worst) : 0.0;
-
+// The comparison's rows, as printed and written (no wall time: the HTML report must be the same
+// for the same input).
+std::vector<tools::RunSummary::ComparisonRow> ComparisonRows(const SolverComparison& c) {
+  const CalibrationResult& lin = c.linear.result;
+  const CalibrationResult& cer = c.ceres.result;
+  const ErrorStatistics& ls = c.linear_errors;
+  const ErrorStatistics& cs = c.ceres_errors;
   const char* mm = "%.6f";
-  const std::vector<tools::RunSummary::ComparisonRow> rows = {
+  return {
       {"iterations", Num(lin.iterations, "%.0f"), Num(cer.iterations, "%.0f"), ""},
       {"final cost (mm^2)", Num(lin.final_cost), Num(cer.final_cost),
        Num(std::abs(lin.final_cost - cer.final_cost), "%.3g")},
@@ -230,30 +190,42 @@ int Run() {
        Num(std::abs(ls.norm.mean_abs - cs.norm.mean_abs), "%.3g")},
       {"held-out RMS error (mm)", Num(ls.norm.rms, mm), Num(cs.norm.rms, mm),
        Num(std::abs(ls.norm.rms - cs.norm.rms), "%.3g")},
-      {"predicted positions (mm)", "", "", Num(position_difference, "%.3g")},
-      {"parameters (rad or mm)", "", "", Num(parameter_difference, "%.3g")},
-  };  // (no wall time: the HTML report must be the same for the same input)
+      {"predicted positions (mm)", "", "", Num(c.position_difference, "%.3g")},
+      {"parameters (rad or mm)", "", "", Num(c.parameter_difference, "%.3g")},
+  };
+}
+
+// The table printed (with the wall times) and the largest parameter difference.
+void PrintComparison(const SolverComparison& c,
+                     const std::vector<tools::RunSummary::ComparisonRow>& rows) {
   Row("", "linear", "ceres", "|difference|");
   for (const auto& r : rows) Row(r.quantity.c_str(), r.linear, r.ceres, r.difference);
-  Row("wall time (ms)", Num(lin.wall_time_seconds * 1e3, "%.3f"),
-      Num(cer.wall_time_seconds * 1e3, "%.3f"), "");
-  if (dx.size()) {
-    std::cout << "\nlargest parameter difference: " << pi.parameters[worst].name
+  Row("wall time (ms)", Num(c.linear.result.wall_time_seconds * 1e3, "%.3f"),
+      Num(c.ceres.result.wall_time_seconds * 1e3, "%.3f"), "");
+  if (!c.worst_parameter.empty()) {
+    std::cout << "\nlargest parameter difference: " << c.worst_parameter
               << " (frames are compared direction by direction; a shift along an unidentifiable\n"
                  "direction of one frame absorbed by the next moves these coordinates at second\n"
                  "order without changing any prediction)\n";
   }
+}
 
-  const bool agree = position_difference <= FLAGS_tolerance_mm;
+// --output (the comparison as JSON, for a script) and --html_report, staged.
+Status StageCompareOutputs(const tools::InputPaths& paths, const tools::InputSettings& settings,
+                           const tools::Inputs& in, const SolverComparison& c,
+                           const std::vector<tools::RunSummary::ComparisonRow>& rows,
+                           tools::OutputSet* outputs) {
+  const bool held_out = !in.verification.empty();
+  const bool agree = c.position_difference <= FLAGS_tolerance_mm;
   Status staged;
-  if (!FLAGS_output.empty()) {  // the comparison as JSON, for a script
+  if (!FLAGS_output.empty()) {
     nlohmann::json j = {{"tool", "lpoe_compare"},
-                        {"model", model_path},
-                        {"measurements", meas_path},
+                        {"model", paths.model},
+                        {"measurements", paths.measurements},
                         {"held_out", held_out ? in.verification_source : std::string()},
                         {"tolerance_mm", FLAGS_tolerance_mm},
-                        {"position_difference_mm", position_difference},
-                        {"parameter_difference", parameter_difference},
+                        {"position_difference_mm", c.position_difference},
+                        {"parameter_difference", c.parameter_difference},
                         {"agree", agree}};
     nlohmann::json table = nlohmann::json::array();
     for (const auto& r : rows) {
@@ -261,26 +233,59 @@ int Run() {
                        {"difference", r.difference}});
     }
     j["rows"] = table;
-    staged = outputs.Stage(FLAGS_output, tools::JsonText(j));
+    staged = outputs->Stage(FLAGS_output, tools::JsonText(j));
   }
   if (!FLAGS_html_report.empty() && staged.ok()) {
-    const tools::ComparisonPage page{model_path, meas_path, in.verification_source,
-                                     FLAGS_angle_unit, ParameterizationName(kind), &cer_run,
-                                     &identification, &verification, rows,
-                                     position_difference <= FLAGS_tolerance_mm};
+    const std::string parameterization = ParameterizationName(settings.parameterization);
+    const tools::ComparisonPage page{paths.model, paths.measurements, in.verification_source,
+                                     FLAGS_angle_unit, parameterization, &c.ceres,
+                                     &in.identification, &in.verification, rows, agree};
     std::string html;
     staged = tools::ComparisonHtml(page, &html);
-    if (staged.ok()) staged = outputs.Stage(FLAGS_html_report, html);
+    if (staged.ok()) staged = outputs->Stage(FLAGS_html_report, html);
   }
+  return staged;
+}
+
+int Run() {
+  // Ballbar distances and probe contacts: both contact solvers (lpoe_compare_contact.cc).
+  if (tools::ContactCompareRequested()) return tools::RunContactCompare();
+  tools::InputPaths paths;
+  tools::InputSettings settings;
+  if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;
+  tools::OutputSet outputs;
+  tools::Inputs in;
+  if (int rc = LoadCompareInputs(paths, settings, &outputs, &in); rc != kExitOk) return rc;
+  // Without held-out data, the comparison is made on the identification rows.
+  const bool held_out = !in.verification.empty();
+  const MeasurementSet& check = held_out ? in.verification : in.identification;
+  const bool use_orientation = in.identification.has_orientation();
+
+  const SolverComparison c = CompareBothSolvers(settings, in, use_orientation);
+  std::cout << "model:          " << paths.model << "\n"
+            << "identification: " << paths.measurements << " (" << in.identification.size()
+            << " rows)\n"
+            << "held out:       "
+            << (held_out ? (paths.verify.empty() ? std::string("--holdout split") : paths.verify)
+                         : std::string("none: predictions compared on the identification rows"))
+            << " (" << check.size() << " rows)\n"
+            << "parameters:     " << c.linear.result.parameterization.num_parameters << " ("
+            << ParameterizationName(settings.parameterization) << "), "
+            << (use_orientation ? "pose" : "position") << " data\n\n";
+  if (int rc = CheckBothSolved(c); rc != kExitOk) return rc;
+
+  const std::vector<tools::RunSummary::ComparisonRow> rows = ComparisonRows(c);
+  PrintComparison(c, rows);
+  const Status staged = StageCompareOutputs(paths, settings, in, c, rows, &outputs);
   if (tools::CommitOutputs(staged, &outputs, FLAGS_quiet) != tools::kExitOk) {
     return tools::kExitOutput;
   }
-  if (!(position_difference <= FLAGS_tolerance_mm)) {
-    std::cout << "\nresult: DISAGREE: predicted positions differ by up to " << position_difference
-              << " mm (tolerance " << FLAGS_tolerance_mm << " mm)\n";
+  if (!(c.position_difference <= FLAGS_tolerance_mm)) {
+    std::cout << "\nresult: DISAGREE: predicted positions differ by up to "
+              << c.position_difference << " mm (tolerance " << FLAGS_tolerance_mm << " mm)\n";
     return kExitDisagree;
   }
-  std::cout << "\nresult: agree: predicted positions within " << position_difference
+  std::cout << "\nresult: agree: predicted positions within " << c.position_difference
             << " mm (tolerance " << FLAGS_tolerance_mm << " mm)\n";
   return kExitOk;
 }

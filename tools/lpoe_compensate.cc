@@ -285,14 +285,29 @@ class RowReader {
   int col_x_ = -1, col_y_ = -1, col_z_ = -1, col_target_ = -1, col_quat_[4] = {-1, -1, -1, -1};
 };
 
-int Run() {
-  using tools::kExitInput;
-  using tools::kExitOk;
-  using tools::kExitOutput;
-  using tools::kExitUsage;
-  // ---- Flags.
-  const bool joints_mode = !FLAGS_joints.empty();
-  if (FLAGS_model.empty() || FLAGS_output.empty() || joints_mode == !FLAGS_targets.empty()) {
+using tools::kExitInput;
+using tools::kExitOk;
+using tools::kExitOutput;
+using tools::kExitUsage;
+
+// What the steps of a compensation share: the request, the units, the files and the solver.
+struct Compensation {
+  bool joints_mode = false;
+  AngleUnit unit;
+  LengthUnit length_unit;
+  double mm_per_unit = 1;
+  CompensationRequest request;
+  tools::OutputSet outputs;
+  std::unique_ptr<Compensator> compensator;
+  std::string in_path;  // --joints or --targets
+  bool orientation_columns = false;
+};
+
+// The workflow's request (lpoe/compensation.h) from the flags, the models not read yet; the
+// outputs checked against the inputs.
+int RequestFromFlags(Compensation* c) {
+  c->joints_mode = !FLAGS_joints.empty();
+  if (FLAGS_model.empty() || FLAGS_output.empty() || c->joints_mode == !FLAGS_targets.empty()) {
     std::cerr << "error: need --model, --output and one of --targets or --joints (see --help)\n";
     return kExitUsage;
   }
@@ -300,14 +315,10 @@ int Run() {
     std::cerr << "error: --joints_target must be pose or position\n";
     return kExitUsage;
   }
-  AngleUnit unit;
-  LengthUnit length_unit;
-  double mm_per_unit = 1;
-  if (!tools::UnitsFromFlags(&unit, &length_unit, &mm_per_unit)) return kExitUsage;
-  // The workflow's request (lpoe/compensation.h): the models are read below.
-  CompensationRequest request;
+  if (!tools::UnitsFromFlags(&c->unit, &c->length_unit, &c->mm_per_unit)) return kExitUsage;
+  CompensationRequest& request = c->request;
   request.has_nominal = !FLAGS_nominal.empty();
-  request.joints_mode = joints_mode;
+  request.joints_mode = c->joints_mode;
   request.joints_target_pose = FLAGS_joints_target == "pose";
   if (!ParseTargetFrame(FLAGS_frame, &request.frame, &request.frame_link)) {
     std::cerr << "error: --frame must be base, measurement or link:NAME, got '" << FLAGS_frame
@@ -325,7 +336,7 @@ int Run() {
   }
   // Every output against every input and the other output, and its directory writable, before
   // any work (tools/output_files.h); both are committed together at the end or neither.
-  tools::OutputSet outputs;
+  tools::OutputSet& outputs = c->outputs;
   outputs.AddInput("--model", FLAGS_model);
   outputs.AddInput("--targets", FLAGS_targets);
   outputs.AddInput("--joints", FLAGS_joints);
@@ -336,8 +347,12 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
+  return kExitOk;
+}
 
-  // ---- Inputs.
+// The models read and the compensator made from them.
+int MakeCompensator(Compensation* c) {
+  CompensationRequest& request = c->request;
   if (Status s = tools::CheckUrdfFlagsHaveAUrdf({FLAGS_model, FLAGS_nominal}); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
@@ -355,9 +370,8 @@ int Run() {
       return kExitInput;
     }
   }
-  std::unique_ptr<Compensator> compensator;
   bool input_error = false;
-  if (Status s = Compensator::Create(request, &compensator, &input_error); !s.ok()) {
+  if (Status s = Compensator::Create(request, &c->compensator, &input_error); !s.ok()) {
     std::cerr << "error: "
               << (input_error ? (s.message().rfind("nominal: ", 0) == 0
                                      ? FLAGS_nominal + ": " + s.message().substr(9)
@@ -366,146 +380,155 @@ int Run() {
               << "\n";
     return input_error ? kExitInput : kExitUsage;
   }
-  const RobotModel& model = compensator->model();
-  const bool with_nominal = request.has_nominal;
-  const std::string& in_path = joints_mode ? FLAGS_joints : FLAGS_targets;
-  RowReader reader(in_path, *compensator, unit, length_unit, !joints_mode);
-  if (Status s = reader.Open(); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitInput;
-  }
-  const int n = model.num_joints();
-  const bool orientation_columns =
-      joints_mode ? request.joints_target_pose : reader.has_quaternion();
+  return kExitOk;
+}
 
+// The output CSV's comment and header lines.
+std::string OutputHeader(const Compensation& c) {
+  const bool joints_mode = c.joints_mode;
+  const bool with_nominal = c.request.has_nominal;
   std::string header = "# lpoe_compensate: model " + tools::CommentText(FLAGS_model) + ", " +
-                       (joints_mode ? "joints " : "targets ") + tools::CommentText(in_path) +
+                       (joints_mode ? "joints " : "targets ") + tools::CommentText(c.in_path) +
                        (joints_mode ? std::string()
                                     : ", targets in the " +
-                                          std::string(request.frame == TargetFrame::kBase
+                                          std::string(c.request.frame == TargetFrame::kBase
                                                           ? "robot's base"
                                                           : "measurement") +
                                           " frame") +
                        ", angles in " + FLAGS_angle_unit +
-                       (length_unit == LengthUnit::kMillimetres ? "" : ", lengths in m") +
+                       (c.length_unit == LengthUnit::kMillimetres ? "" : ", lengths in m") +
                        (with_nominal ? "; corrected_* in the nominal model's base frame" : "") +
                        "\n";
+  const int n = c.compensator->model().num_joints();
   for (int j = 0; j < n; ++j) header += "q" + std::to_string(j + 1) + ",";
   header += "status,residual,sigma_min";
   if (with_nominal) {
     header += ",corrected_x,corrected_y,corrected_z";
-    if (orientation_columns) {
+    if (c.orientation_columns) {
       header += ",corrected_quat_x,corrected_quat_y,corrected_quat_z,corrected_quat_w";
     }
   }
   header += "\n";
+  return header;
+}
 
-  // Formats rows [begin, end) of a solved chunk into `text`.
-  auto format_rows = [&](const std::vector<IkTarget>& targets, const CompensatedRows& solved,
-                         int begin, int end, std::string* text) {
-    std::string& out = *text;
-    for (int k = begin; k < end; ++k) {
-      const double* q = &solved.q[size_t(k) * n];
-      const IkResult& r = solved.results[k];
-      for (int j = 0; j < n; ++j) {
-        const bool revolute = model.joints[j].type == JointType::kRevolute;
-        AppendNumber(revolute ? (unit == AngleUnit::kDegrees ? q[j] * kDegreesPerRadian : q[j])
-                              : q[j] / mm_per_unit,
-                     &out);
+// Formats rows [begin, end) of a solved chunk into `text`.
+void FormatRows(const Compensation& c, const std::vector<IkTarget>& targets,
+                const CompensatedRows& solved, int begin, int end, std::string* text) {
+  const RobotModel& model = c.compensator->model();
+  const int n = model.num_joints();
+  std::string& out = *text;
+  for (int k = begin; k < end; ++k) {
+    const double* q = &solved.q[size_t(k) * n];
+    const IkResult& r = solved.results[k];
+    for (int j = 0; j < n; ++j) {
+      const bool revolute = model.joints[j].type == JointType::kRevolute;
+      AppendNumber(revolute ? (c.unit == AngleUnit::kDegrees ? q[j] * kDegreesPerRadian : q[j])
+                            : q[j] / c.mm_per_unit,
+                   &out);
+      out += ',';
+    }
+    out += IkStatusName(r.status);
+    out += ',';
+    AppendNumber(r.position_error / c.mm_per_unit, &out);
+    out += ',';
+    AppendNumber(r.sigma_min, &out);
+    if (c.request.has_nominal) {
+      const SE3d& T = solved.corrected[k];
+      for (int col = 0; col < 3; ++col) {
         out += ',';
+        AppendNumber(T.t(col) / c.mm_per_unit, &out);
       }
-      out += IkStatusName(r.status);
-      out += ',';
-      AppendNumber(r.position_error / mm_per_unit, &out);
-      out += ',';
-      AppendNumber(r.sigma_min, &out);
-      if (with_nominal) {
-        const SE3d& T = solved.corrected[k];
-        for (int c = 0; c < 3; ++c) {
+      if (c.orientation_columns) {
+        const Eigen::Vector4d qv = RotationToQuaternion<double>(T.R);
+        for (int col = 0; col < 4; ++col) {
           out += ',';
-          AppendNumber(T.t(c) / mm_per_unit, &out);
-        }
-        if (orientation_columns) {
-          const Eigen::Vector4d qv = RotationToQuaternion<double>(T.R);
-          for (int c = 0; c < 4; ++c) {
-            out += ',';
-            if (targets[k].has_orientation) AppendNumber(qv(c), &out);
-          }
+          if (targets[k].has_orientation) AppendNumber(qv(col), &out);
         }
       }
-      out += '\n';
     }
-  };
-
-  // ---- The output, streamed into its staged temporary (committed with the report at the end).
-  CompensationSummary total;
-  bool input_failed = false;  // a bad row (exit 2), not an unwritable output (exit 6)
-  bool numerical_failed = false;  // a row whose compensation is not finite (exit 5)
-  Status staged = outputs.StageWith(FLAGS_output, [&](const std::string& temporary) -> Status {
-    tools::StagedFile out;
-    if (Status s = out.Create(temporary); !s.ok()) return s;
-    if (Status s = out.Append(header); !s.ok()) return s;
-    // ---- Stream: read a chunk, solve it on all threads (each a contiguous block, so the output
-    // keeps the input's order), format it the same way, write it.
-    constexpr int kChunkRows = 1 << 15;
-    std::vector<double> seeds;
-    std::vector<IkTarget> targets;
-    std::vector<int> lines;
-    CompensatedRows solved;
-    std::vector<std::string> texts;
-    while (true) {
-      seeds.clear();
-      targets.clear();
-      lines.clear();
-      if (Status s = reader.Read(kChunkRows, &seeds, &targets, &lines); !s.ok()) {
-        input_failed = true;
-        return s;
-      }
-      const int chunk = static_cast<int>(targets.size());
-      if (chunk == 0) break;
-      compensator->Solve(seeds.data(), &targets, &solved);
-      if (Status s = CheckCompensatedFinite(solved, lines.data(), 0, in_path); !s.ok()) {
-        numerical_failed = true;
-        return s;
-      }
-      texts.assign(compensator->Blocks(chunk), std::string());
-      compensator->ForEachBlock(chunk, [&](int block, int begin, int end) {
-        format_rows(targets, solved, begin, end, &texts[block]);
-      });
-      for (const std::string& text : texts) {
-        if (Status s = out.Append(text); !s.ok()) return s;
-      }
-      total.Add(solved, lines.data());
-    }
-    return out.Close();
-  });
-  if (!staged.ok()) {
-    std::cerr << "error: " << staged.message() << "\n";
-    return numerical_failed ? tools::kExitNumerical : input_failed ? kExitInput : kExitOutput;
+    out += '\n';
   }
-  if (unit == AngleUnit::kRadians) {
+}
+
+// How streaming the rows failed: a bad row (exit 2), a compensation that is not finite (exit 5),
+// else an unwritable output (exit 6).
+struct StreamFailure {
+  bool input = false;
+  bool numerical = false;
+};
+
+// Streams the rows into the staged output at `temporary`: read a chunk, solve it on all threads
+// (each a contiguous block, so the output keeps the input's order), format it the same way,
+// write it.
+Status StreamRows(const Compensation& c, RowReader* reader, const std::string& temporary,
+                  CompensationSummary* total, StreamFailure* failure) {
+  tools::StagedFile out;
+  if (Status s = out.Create(temporary); !s.ok()) return s;
+  if (Status s = out.Append(OutputHeader(c)); !s.ok()) return s;
+  constexpr int kChunkRows = 1 << 15;
+  Compensator& compensator = *c.compensator;
+  std::vector<double> seeds;
+  std::vector<IkTarget> targets;
+  std::vector<int> lines;
+  CompensatedRows solved;
+  std::vector<std::string> texts;
+  while (true) {
+    seeds.clear();
+    targets.clear();
+    lines.clear();
+    if (Status s = reader->Read(kChunkRows, &seeds, &targets, &lines); !s.ok()) {
+      failure->input = true;
+      return s;
+    }
+    const int chunk = static_cast<int>(targets.size());
+    if (chunk == 0) break;
+    compensator.Solve(seeds.data(), &targets, &solved);
+    if (Status s = CheckCompensatedFinite(solved, lines.data(), 0, c.in_path); !s.ok()) {
+      failure->numerical = true;
+      return s;
+    }
+    texts.assign(compensator.Blocks(chunk), std::string());
+    compensator.ForEachBlock(chunk, [&](int block, int begin, int end) {
+      FormatRows(c, targets, solved, begin, end, &texts[block]);
+    });
+    for (const std::string& text : texts) {
+      if (Status s = out.Append(text); !s.ok()) return s;
+    }
+    total->Add(solved, lines.data());
+  }
+  return out.Close();
+}
+
+// Warnings on the rows read: joint values that look like degrees, rows far from the layer's data.
+void WarnAboutRows(const Compensation& c, const RowReader& reader,
+                   const CompensationSummary& total) {
+  const RobotModel& model = c.compensator->model();
+  if (c.unit == AngleUnit::kRadians) {
     std::vector<double> max_abs = reader.max_abs();
-    max_abs.resize(n);
+    max_abs.resize(model.num_joints());
     const std::string hint = JointUnitHint(model, max_abs);
-    if (!hint.empty()) std::cerr << "warning: " << in_path << ": " << hint << "\n";
+    if (!hint.empty()) std::cerr << "warning: " << c.in_path << ": " << hint << "\n";
   }
-  const int count = total.rows;
-
   if (total.layer_far_rows > 0) {
-    std::cerr << "warning: " << in_path << ": " << total.layer_far_rows << " of " << count
+    std::cerr << "warning: " << c.in_path << ": " << total.layer_far_rows << " of " << total.rows
               << " row(s) are far from every configuration the residual layer was identified on "
                  "(kernel distance above "
               << kLayerFarDistance << " length scales; first on line " << total.layer_far_line
               << "): there its correction fades and the parametric model's accuracy applies "
                  "(docs/residual_layer.md)\n";
   }
-  // ---- Summary.
-  nlohmann::json report;
-  report["model"] = FLAGS_model;
-  report["input"] = in_path;
-  report["mode"] = joints_mode ? "joints" : "targets";
-  report["rows"] = count;
-  report["residual_layer_far_rows"] = total.layer_far_rows;
+}
+
+// The summary: printed (unless --quiet), checked against the frame, and as the JSON report.
+int Summarize(const Compensation& c, const CompensationSummary& total, nlohmann::json* report) {
+  const int count = total.rows;
+  nlohmann::json& r = *report;
+  r["model"] = FLAGS_model;
+  r["input"] = c.in_path;
+  r["mode"] = c.joints_mode ? "joints" : "targets";
+  r["rows"] = count;
+  r["residual_layer_far_rows"] = total.layer_far_rows;
   nlohmann::json counts;
   std::ostringstream summary;
   summary << "lpoe_compensate: " << count << " rows:";
@@ -521,21 +544,47 @@ int Run() {
   if (!FLAGS_quiet) std::cerr << summary.str();
   // Most targets metres from anything the robot reaches are in another frame: an error that
   // says which frame was assumed; nothing is written.
-  if (Status s = total.CheckFrame(request, in_path); !s.ok()) {
+  if (Status s = total.CheckFrame(c.request, c.in_path); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
-  report["frame"] = joints_mode ? "nominal program" : FLAGS_frame;
-  report["status_counts"] = counts;
-  report["largest_correction"] = {{"value", total.max_correction},
-                                  {"line", total.max_correction_line}};
-  report["largest_residual_mm"] = {{"value", total.max_residual},
-                                   {"line", total.max_residual_line}};
-  report["largest_orientation_residual_rad"] = total.max_orientation_residual;
-  report["output"] = FLAGS_output;
-  if (!FLAGS_report.empty()) staged = outputs.Stage(FLAGS_report, tools::JsonText(report));
-  if (tools::CommitOutputs(staged, &outputs, true) != kExitOk) return kExitOutput;
-  if (FLAGS_strict && total.per_status[static_cast<int>(IkStatus::kOk)] != count) {
+  r["frame"] = c.joints_mode ? "nominal program" : FLAGS_frame;
+  r["status_counts"] = counts;
+  r["largest_correction"] = {{"value", total.max_correction},
+                             {"line", total.max_correction_line}};
+  r["largest_residual_mm"] = {{"value", total.max_residual}, {"line", total.max_residual_line}};
+  r["largest_orientation_residual_rad"] = total.max_orientation_residual;
+  r["output"] = FLAGS_output;
+  return kExitOk;
+}
+
+int Run() {
+  Compensation c;
+  if (int rc = RequestFromFlags(&c); rc != kExitOk) return rc;
+  if (int rc = MakeCompensator(&c); rc != kExitOk) return rc;
+  c.in_path = c.joints_mode ? FLAGS_joints : FLAGS_targets;
+  RowReader reader(c.in_path, *c.compensator, c.unit, c.length_unit, !c.joints_mode);
+  if (Status s = reader.Open(); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitInput;
+  }
+  c.orientation_columns = c.joints_mode ? c.request.joints_target_pose : reader.has_quaternion();
+  // The output, streamed into its staged temporary (committed with the report at the end).
+  CompensationSummary total;
+  StreamFailure failure;
+  Status staged = c.outputs.StageWith(FLAGS_output, [&](const std::string& temporary) {
+    return StreamRows(c, &reader, temporary, &total, &failure);
+  });
+  if (!staged.ok()) {
+    std::cerr << "error: " << staged.message() << "\n";
+    return failure.numerical ? tools::kExitNumerical : failure.input ? kExitInput : kExitOutput;
+  }
+  WarnAboutRows(c, reader, total);
+  nlohmann::json report;
+  if (int rc = Summarize(c, total, &report); rc != kExitOk) return rc;
+  if (!FLAGS_report.empty()) staged = c.outputs.Stage(FLAGS_report, tools::JsonText(report));
+  if (tools::CommitOutputs(staged, &c.outputs, true) != kExitOk) return kExitOutput;
+  if (FLAGS_strict && total.per_status[static_cast<int>(IkStatus::kOk)] != total.rows) {
     return kExitNotAllOk;
   }
   return kExitOk;

@@ -240,16 +240,21 @@ nlohmann::json UnmodelledJson(const PlanningResult& p) {
                                                              : p.random_total_rms.front())}}}};
 }
 
-int Run() {
-  // Ballbar and probe poses (tools/lpoe_plan_contact.cc).
-  if (FLAGS_measurement != "position") {
-    if (!FLAGS_prior.empty() || !FLAGS_prior_free.empty()) {
-      std::cerr << "error: --prior and --prior_free plan a recalibration from tracker (position) "
-                   "measurements; a --measurement=" << FLAGS_measurement << " plan takes no prior\n";
-      return kExitUsage;
-    }
-    return tools::RunContactPlan();
-  }
+// What the steps of a plan share: the workflow's request, the units, the files and the result.
+struct PlanJob {
+  PlanRequest request;
+  AngleUnit unit;
+  LengthUnit length_unit;
+  std::string report_path;
+  tools::OutputSet outputs;
+  std::string freed;  // --prior_free's frames, as printed
+  JointTable table;   // --candidates as read (the plan CSV repeats its lines)
+  PlanningResult planned;
+};
+
+// The workflow's request (lpoe/planning_workflow.h) from the flags, checked before any file is
+// read.
+int PlanRequestFromFlags(PlanJob* job) {
   if (!FLAGS_prior.empty() && FLAGS_model.empty()) FLAGS_model = FLAGS_prior;  // the prior's model
   if (!FLAGS_prior_free.empty() && FLAGS_prior.empty()) {
     std::cerr << "error: --prior_free needs --prior\n";
@@ -259,8 +264,7 @@ int Run() {
     std::cerr << "error: --model, --count and --output are required (see --help)\n";
     return kExitUsage;
   }
-  // The workflow's request (lpoe/planning_workflow.h), checked before any file is read.
-  PlanRequest request;
+  PlanRequest& request = job->request;
   request.model_source = FLAGS_model;
   request.count_auto = FLAGS_count == "auto";
   if (!request.count_auto) {
@@ -270,11 +274,8 @@ int Run() {
   }
   request.target_accuracy = FLAGS_target_accuracy;
   request.noise_sigma = FLAGS_noise_sigma;
-  AngleUnit unit;
-  LengthUnit length_unit;
-  if (!tools::UnitsFromFlags(&unit, &length_unit, nullptr)) return kExitUsage;
-  PlanOptions& options = request.options;
-  if (!ParsePlanCriterion(FLAGS_criterion, &options.criterion)) {
+  if (!tools::UnitsFromFlags(&job->unit, &job->length_unit, nullptr)) return kExitUsage;
+  if (!ParsePlanCriterion(FLAGS_criterion, &request.options.criterion)) {
     std::cerr << "error: --criterion must be one of D, A, E, I, O1, O3\n";
     return kExitUsage;
   }
@@ -317,10 +318,14 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
+  return kExitOk;
+}
 
-  // Every output against every input and the other output, and its directory writable, before
-  // any work (tools/output_files.h); both are committed together at the end or neither.
-  std::string report_path = FLAGS_report;
+// Every output against every input and the other output, and its directory writable, before
+// any work (tools/output_files.h); both are committed together at the end or neither.
+int CheckPlanOutputs(PlanJob* job) {
+  std::string& report_path = job->report_path;
+  report_path = FLAGS_report;
   if (report_path.empty()) {
     const size_t slash = FLAGS_output.find_last_of('/');
     const size_t dot = FLAGS_output.find_last_of('.');
@@ -329,7 +334,7 @@ int Run() {
                        : FLAGS_output) +
                   ".json";
   }
-  tools::OutputSet outputs;
+  tools::OutputSet& outputs = job->outputs;
   outputs.AddInput("--model", FLAGS_model);
   if (!FLAGS_prior.empty()) outputs.AddInput("--prior", FLAGS_prior);
   outputs.AddInput("--candidates", FLAGS_candidates);
@@ -342,113 +347,125 @@ int Run() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
+  return kExitOk;
+}
 
-  RobotModel& model = request.model;
-  if (const int code = tools::ReadModelFlag(&model); code != kExitOk) return code;
-  std::string freed;
-  if (!FLAGS_prior.empty()) {
-    RobotModel prior_model;
-    auto prior = std::make_shared<ParameterPrior>();
-    if (Status s = ReadPrior(FLAGS_prior, PriorScales(), &prior_model, prior.get()); !s.ok()) {
-      std::cerr << "error: --prior: " << s.message() << "\n";
-      return kExitInput;
-    }
-    if (prior_model.num_joints() != model.num_joints() ||
-        prior_model.num_tools() != model.num_tools()) {
-      std::cerr << "error: --prior=" << FLAGS_prior << ": its chain (" << prior_model.num_joints()
-                << " joints, " << prior_model.num_tools() << " tools) is not the model's\n";
-      return kExitInput;
-    }
-    std::stringstream names(FLAGS_prior_free);
-    for (std::string name; std::getline(names, name, ',');) {
-      int frame = -1;
-      for (int f = 0; f < prior_model.num_frames(); ++f) {
-        const int n = prior_model.num_joints();
-        if ((f < n ? prior_model.joints[f].name : prior_model.tools[f - n].name) == name) frame = f;
-      }
-      if (frame < 0) {
-        std::cerr << "error: --prior_free: '" << name << "' is no joint or tool of "
-                  << FLAGS_prior << "\n";
-        return kExitUsage;
-      }
-      prior->frame_information[frame] = DefaultFrameInformation(prior_model, frame, prior->scales, 1.0);
-      freed += (freed.empty() ? "" : ", ") + name;
-    }
-    request.prior = prior;
+// --prior and --prior_free: the prior's information, the freed frames at the nominal tolerances.
+int PriorFromFlags(PlanJob* job) {
+  const RobotModel& model = job->request.model;
+  RobotModel prior_model;
+  auto prior = std::make_shared<ParameterPrior>();
+  if (Status s = ReadPrior(FLAGS_prior, PriorScales(), &prior_model, prior.get()); !s.ok()) {
+    std::cerr << "error: --prior: " << s.message() << "\n";
+    return kExitInput;
   }
-  if (!FLAGS_smr_facing.empty()) {
-    std::stringstream ss(FLAGS_smr_facing);
-    std::string item;
-    while (std::getline(ss, item, ';')) {
-      Eigen::Vector3d v;
-      if (!ParseVector3(item, &v) || v.norm() == 0) {
-        std::cerr << "error: --smr_facing: '" << item << "' is not a non-zero x,y,z direction\n";
-        return kExitUsage;
-      }
-      tracker.facing.push_back(v.normalized());
+  if (prior_model.num_joints() != model.num_joints() ||
+      prior_model.num_tools() != model.num_tools()) {
+    std::cerr << "error: --prior=" << FLAGS_prior << ": its chain (" << prior_model.num_joints()
+              << " joints, " << prior_model.num_tools() << " tools) is not the model's\n";
+    return kExitInput;
+  }
+  std::stringstream names(FLAGS_prior_free);
+  for (std::string name; std::getline(names, name, ',');) {
+    int frame = -1;
+    for (int f = 0; f < prior_model.num_frames(); ++f) {
+      const int n = prior_model.num_joints();
+      if ((f < n ? prior_model.joints[f].name : prior_model.tools[f - n].name) == name) frame = f;
     }
-    if (tracker.facing.size() == 1) tracker.facing.resize(model.num_tools(), tracker.facing[0]);
-    if (static_cast<int>(tracker.facing.size()) != model.num_tools()) {
-      std::cerr << "error: --smr_facing gives " << tracker.facing.size()
-                << " directions; the model has " << model.num_tools() << " tools\n";
+    if (frame < 0) {
+      std::cerr << "error: --prior_free: '" << name << "' is no joint or tool of " << FLAGS_prior
+                << "\n";
       return kExitUsage;
     }
+    prior->frame_information[frame] =
+        DefaultFrameInformation(prior_model, frame, prior->scales, 1.0);
+    job->freed += (job->freed.empty() ? "" : ", ") + name;
   }
+  job->request.prior = prior;
+  return kExitOk;
+}
 
-  // The cell: keep-out boxes, narrower joint ranges.
-  if (!FLAGS_keep_out.empty()) {
-    std::string text;
-    if (Status s = ReadFile(FLAGS_keep_out, &text); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return kExitInput;
-    }
-    std::stringstream lines(text);
-    std::string line;
-    for (int number = 1; std::getline(lines, line); ++number) {
-      if (!line.empty() && line.back() == '\r') line.pop_back();
-      const size_t first = line.find_first_not_of(" \t");
-      if (first == std::string::npos || line[first] == '#') continue;
-      Eigen::AlignedBox3d b;
-      if (Status s = ParseBox(line.substr(first), &b); !s.ok()) {
-        std::cerr << "error: " << FLAGS_keep_out << ":" << number << ": " << s.message() << "\n";
-        return kExitInput;
-      }
-      constraints.cell.keep_out.push_back(b);
-    }
-  }
-  if (!FLAGS_joint_ranges.empty()) {
-    // lo:hi per joint (--angle_unit for revolute joints, --length_unit for prismatic ones); an
-    // empty item (or ':') keeps the joint's limits.
-    std::vector<std::string> items;
-    std::stringstream ss(FLAGS_joint_ranges);
-    for (std::string item; std::getline(ss, item, ',');) items.push_back(item);
-    if (FLAGS_joint_ranges.back() == ',') items.push_back("");
-    std::vector<std::pair<double, double>> ranges(items.size(), {NAN, NAN});
-    for (size_t j = 0; static_cast<int>(items.size()) == model.num_joints() && j < items.size();
-         ++j) {
-      const std::string& item = items[j];
-      if (item.find_first_not_of(" :") == std::string::npos) continue;  // "" or ":": the limits
-      std::vector<double> v;
-      if (!internal::ParseNumberList(item, ':', &v) || v.size() != 2 || !(v[0] < v[1])) {
-        std::cerr << "error: --joint_ranges: '" << item << "' for " << model.joints[j].name
-                  << " is not lo:hi with lo < hi\n";
-        return kExitUsage;
-      }
-      const double scale = model.joints[j].type == JointType::kRevolute
-                               ? (unit == AngleUnit::kDegrees ? kPi / 180.0 : 1.0)
-                               : tools::MillimetresPer(length_unit);
-      ranges[j] = {v[0] * scale, v[1] * scale};
-    }
-    if (Status s = NarrowJointRanges(ranges, &model); !s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
+// --smr_facing: one direction for every SMR, or one per tool.
+int SmrFacingFromFlags(const RobotModel& model, TrackerConstraint* tracker) {
+  std::stringstream ss(FLAGS_smr_facing);
+  std::string item;
+  while (std::getline(ss, item, ';')) {
+    Eigen::Vector3d v;
+    if (!ParseVector3(item, &v) || v.norm() == 0) {
+      std::cerr << "error: --smr_facing: '" << item << "' is not a non-zero x,y,z direction\n";
       return kExitUsage;
     }
+    tracker->facing.push_back(v.normalized());
   }
+  if (tracker->facing.size() == 1) tracker->facing.resize(model.num_tools(), tracker->facing[0]);
+  if (static_cast<int>(tracker->facing.size()) != model.num_tools()) {
+    std::cerr << "error: --smr_facing gives " << tracker->facing.size()
+              << " directions; the model has " << model.num_tools() << " tools\n";
+    return kExitUsage;
+  }
+  return kExitOk;
+}
 
-  // Candidates and workspace: files in the tool's units, else sampled by the workflow.
-  JointTable table;
+// --keep_out: a file of boxes, one a line.
+int KeepOutFromFlags(CellConstraint* cell) {
+  std::string text;
+  if (Status s = ReadFile(FLAGS_keep_out, &text); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitInput;
+  }
+  std::stringstream lines(text);
+  std::string line;
+  for (int number = 1; std::getline(lines, line); ++number) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const size_t first = line.find_first_not_of(" \t");
+    if (first == std::string::npos || line[first] == '#') continue;
+    Eigen::AlignedBox3d b;
+    if (Status s = ParseBox(line.substr(first), &b); !s.ok()) {
+      std::cerr << "error: " << FLAGS_keep_out << ":" << number << ": " << s.message() << "\n";
+      return kExitInput;
+    }
+    cell->keep_out.push_back(b);
+  }
+  return kExitOk;
+}
+
+// --joint_ranges: lo:hi per joint (--angle_unit for revolute joints, --length_unit for
+// prismatic ones); an empty item (or ':') keeps the joint's limits.
+int JointRangesFromFlags(const PlanJob& job, RobotModel* model) {
+  std::vector<std::string> items;
+  std::stringstream ss(FLAGS_joint_ranges);
+  for (std::string item; std::getline(ss, item, ',');) items.push_back(item);
+  if (FLAGS_joint_ranges.back() == ',') items.push_back("");
+  std::vector<std::pair<double, double>> ranges(items.size(), {NAN, NAN});
+  for (size_t j = 0; static_cast<int>(items.size()) == model->num_joints() && j < items.size();
+       ++j) {
+    const std::string& item = items[j];
+    if (item.find_first_not_of(" :") == std::string::npos) continue;  // "" or ":": the limits
+    std::vector<double> v;
+    if (!internal::ParseNumberList(item, ':', &v) || v.size() != 2 || !(v[0] < v[1])) {
+      std::cerr << "error: --joint_ranges: '" << item << "' for " << model->joints[j].name
+                << " is not lo:hi with lo < hi\n";
+      return kExitUsage;
+    }
+    const double scale = model->joints[j].type == JointType::kRevolute
+                             ? (job.unit == AngleUnit::kDegrees ? kPi / 180.0 : 1.0)
+                             : tools::MillimetresPer(job.length_unit);
+    ranges[j] = {v[0] * scale, v[1] * scale};
+  }
+  if (Status s = NarrowJointRanges(ranges, model); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return kExitUsage;
+  }
+  return kExitOk;
+}
+
+// Candidates and workspace: files in the tool's units, else sampled by the workflow.
+int ReadCandidatesAndWorkspace(PlanJob* job) {
+  PlanRequest& request = job->request;
+  const RobotModel& model = request.model;
   if (!FLAGS_candidates.empty()) {
-    if (Status s = ReadJointTable(FLAGS_candidates, model, unit, &table); !s.ok()) {
+    JointTable& table = job->table;
+    if (Status s = ReadJointTable(FLAGS_candidates, model, job->unit, &table); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
@@ -461,85 +478,102 @@ int Run() {
     }
     request.has_candidates = true;
     request.candidates = table.q;
-    tools::ScalePrismaticJoints(model, length_unit, &request.candidates);
+    tools::ScalePrismaticJoints(model, job->length_unit, &request.candidates);
   }
   if (!FLAGS_workspace.empty()) {
     JointTable w;
-    if (Status s = ReadJointTable(FLAGS_workspace, model, unit, &w); !s.ok()) {
+    if (Status s = ReadJointTable(FLAGS_workspace, model, job->unit, &w); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
     request.has_workspace = true;
     request.workspace = w.q;
-    tools::ScalePrismaticJoints(model, length_unit, &request.workspace);
+    tools::ScalePrismaticJoints(model, job->length_unit, &request.workspace);
   }
+  return kExitOk;
+}
 
-  PlanningResult planned;
-  PlanFailure failure = PlanFailure::kNone;
-  if (Status s = RunPlanning(request, &planned, &failure); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return failure == PlanFailure::kUsage   ? kExitUsage
-           : failure == PlanFailure::kInput ? kExitInput
-                                            : kExitNotIdentifiable;
+// The model read and the request completed from the files and flags that need it.
+int ReadPlanInputs(PlanJob* job) {
+  PlanRequest& request = job->request;
+  RobotModel& model = request.model;
+  if (const int code = tools::ReadModelFlag(&model); code != kExitOk) return code;
+  if (!FLAGS_prior.empty()) {
+    if (int rc = PriorFromFlags(job); rc != kExitOk) return rc;
   }
+  if (!FLAGS_smr_facing.empty()) {
+    if (int rc = SmrFacingFromFlags(model, &request.constraints.tracker); rc != kExitOk) return rc;
+  }
+  // The cell: keep-out boxes, narrower joint ranges.
+  if (!FLAGS_keep_out.empty()) {
+    if (int rc = KeepOutFromFlags(&request.constraints.cell); rc != kExitOk) return rc;
+  }
+  if (!FLAGS_joint_ranges.empty()) {
+    if (int rc = JointRangesFromFlags(*job, &model); rc != kExitOk) return rc;
+  }
+  return ReadCandidatesAndWorkspace(job);
+}
+
+// The candidates, the parameters and the prior, printed (unless --quiet).
+void PrintPlanInputs(const PlanJob& job) {
+  const PlanningResult& planned = job.planned;
   const PlanningModel& pm = *planned.planning;
   const CandidatePool& pool = planned.pool;
-  const PlanResult& plan = planned.plan;
+  const RobotModel& model = job.request.model;
+  std::cout << "candidates: " << planned.offered << " offered, " << pool.size() << " feasible ("
+            << pool.outside_limits << " outside the joint limits, " << pool.outside_cell
+            << " outside the cell, " << pool.near_singular << " near a singularity, "
+            << pool.nothing_visible << " with no SMR visible)\n";
+  std::cout << "parameters: " << pm.num_parameters() << " identifiable (" << model.num_joints()
+            << " joints, " << model.num_tools() << " tools";
+  for (const JointBlock& block : pm.parameterization().joint_blocks) {
+    std::cout << ", " << block.term->name() << " " << block.basis.cols() << " of "
+              << block.term->num_parameters();
+  }
+  if (pm.num_tilt_parameters() > 0) std::cout << ", gravity tilt 2";
+  std::cout << ")\n";
+  if (!planned.tilt_note.empty()) {
+    std::cout << "auto: gravity tilt not planned for: " << planned.tilt_note << "\n";
+  }
+  if (job.request.prior) {
+    std::cout << "prior: " << FLAGS_prior << " (weighed against " << planned.prior_sigma
+              << " mm noise per axis" << (job.freed.empty() ? "" : "; freed: " + job.freed)
+              << "): the plan resolves what it leaves open; every figure below is the "
+                 "posterior's\n";
+  }
+}
+
+// The plan's quality against random plans, printed (unless --quiet).
+void PrintPlanQuality(const PlanJob& job) {
+  const PlanningResult& planned = job.planned;
   const PlanQuality& quality = planned.quality;
   const PlanQuality& random_quality = planned.random_quality;
-  const std::vector<double>& random_rms = planned.random_rms;
-  const double random_rms_mean = planned.random_rms_mean;
-  const std::string& tilt_note = planned.tilt_note;
-  const int count = planned.count;
-  const int offered = planned.offered;
-  const bool automatic = request.count_auto;
-  if (!FLAGS_quiet) {
-    std::cout << "candidates: " << offered << " offered, " << pool.size() << " feasible ("
-              << pool.outside_limits << " outside the joint limits, " << pool.outside_cell
-              << " outside the cell, " << pool.near_singular << " near a singularity, "
-              << pool.nothing_visible << " with no SMR visible)\n";
-    std::cout << "parameters: " << pm.num_parameters() << " identifiable (" << model.num_joints()
-              << " joints, " << model.num_tools() << " tools";
-    for (const JointBlock& block : pm.parameterization().joint_blocks) {
-      std::cout << ", " << block.term->name() << " " << block.basis.cols() << " of "
-                << block.term->num_parameters();
-    }
-    if (pm.num_tilt_parameters() > 0) std::cout << ", gravity tilt 2";
-    std::cout << ")\n";
-    if (!tilt_note.empty()) std::cout << "auto: gravity tilt not planned for: " << tilt_note << "\n";
-    if (request.prior) {
-      std::cout << "prior: " << FLAGS_prior << " (weighed against " << planned.prior_sigma
-                << " mm noise per axis" << (freed.empty() ? "" : "; freed: " + freed)
-                << "): the plan resolves what it leaves open; every figure below is the "
-                   "posterior's\n";
-    }
-  }
-
   char line[256];
-  if (!FLAGS_quiet) {
-    std::printf("criterion %s: %d poses (%d rows), %d exchanges in %d passes\n",
-                PlanCriterionName(options.criterion), count, quality.num_rows, plan.exchanges,
-                plan.passes);
+  std::printf("criterion %s: %d poses (%d rows), %d exchanges in %d passes\n",
+              PlanCriterionName(job.request.options.criterion), planned.count, quality.num_rows,
+              planned.plan.exchanges, planned.plan.passes);
+  std::snprintf(line, sizeof(line),
+                "predicted held-out RMS per unit noise: plan %.4f, random plan %.4f (RMS of %d "
+                "random plans %.4f, best %.4f); scaled condition number %.1f\n",
+                quality.predicted_rms, random_quality.predicted_rms, FLAGS_random_draws,
+                planned.random_rms_mean, planned.random_rms.front(), quality.condition_number);
+  std::cout << line;
+  if (FLAGS_noise_sigma > 0) {
     std::snprintf(line, sizeof(line),
-                  "predicted held-out RMS per unit noise: plan %.4f, random plan %.4f (RMS of %d "
-                  "random plans %.4f, best %.4f); scaled condition number %.1f\n",
-                  quality.predicted_rms, random_quality.predicted_rms, FLAGS_random_draws,
-                  random_rms_mean, random_rms.front(), quality.condition_number);
+                  "with noise sigma %.4g mm: plan %.4f mm, random plan %.4f mm\n", FLAGS_noise_sigma, FLAGS_noise_sigma * quality.predicted_rms,
+                  FLAGS_noise_sigma * random_quality.predicted_rms);
     std::cout << line;
-    if (FLAGS_noise_sigma > 0) {
-      std::snprintf(line, sizeof(line),
-                    "with noise sigma %.4g mm: plan %.4f mm, random plan %.4f mm\n",
-                    FLAGS_noise_sigma, FLAGS_noise_sigma * quality.predicted_rms,
-                    FLAGS_noise_sigma * random_quality.predicted_rms);
-      std::cout << line;
-    }
-    std::cout << UnmodelledText(planned, FLAGS_random_draws);
   }
+  std::cout << UnmodelledText(planned, FLAGS_random_draws);
+}
 
-  // The gravity tilt's predicted standard deviations with the plan (at the model's compliance
-  // values): what the calibration's a-posteriori ones will be at that noise.
+// The gravity tilt's predicted standard deviations with the plan (at the model's compliance
+// values): what the calibration's a-posteriori ones will be at that noise. Printed (unless
+// --quiet) and returned for the report.
+nlohmann::json PlannedTiltJson(const PlanningResult& planned) {
+  const PlanningModel& pm = *planned.planning;
   nlohmann::json tilt_json = {{"planned", pm.num_tilt_parameters() > 0}};
-  if (!tilt_note.empty()) tilt_json["note"] = tilt_note;
+  if (!planned.tilt_note.empty()) tilt_json["note"] = planned.tilt_note;
   if (pm.num_tilt_parameters() > 0) {
     nlohmann::json per_unit = nlohmann::json::array();
     nlohmann::json at_noise = nlohmann::json::array();
@@ -561,61 +595,77 @@ int Run() {
                 << " (at the model's compliance values)\n";
     }
   }
+  return tilt_json;
+}
 
-  // The plan CSV.
-  const std::string planned_terms = planned.PlannedTerms();
+// The plan CSV: the candidates file's lines with their rows, else the sampled configurations in
+// the tool's units; with a tracker, the SMRs it sees at each pose.
+std::string PlanCsv(const PlanJob& job) {
+  const PlanningResult& planned = job.planned;
+  const CandidatePool& pool = planned.pool;
+  const RobotModel& model = job.request.model;
+  const bool tracked = job.request.constraints.tracker.enabled;
   std::string csv;
-  csv += "# lpoe_plan: model " + tools::CommentText(model.name) + ", criterion " + PlanCriterionName(options.criterion) +
-         ", " + std::to_string(count) + " of " + std::to_string(pool.size()) +
-         " feasible candidates, joint errors " + planned_terms + ", seed " +
-         std::to_string(FLAGS_seed) + "; joint values in " +
-         FLAGS_angle_unit + (length_unit == LengthUnit::kMetres ? " and m" : "") + "\n";
-  csv += std::string(tracker.enabled ? "# measure the SMRs of the visible column (names separated "
-                                       "by ';') at each pose"
-                                     : "# measure every SMR at every pose") +
-         "; predicted held-out RMS per unit noise " + FormatNumber(quality.predicted_rms) + "\n";
+  csv += "# lpoe_plan: model " + tools::CommentText(model.name) + ", criterion " +
+         PlanCriterionName(job.request.options.criterion) + ", " + std::to_string(planned.count) +
+         " of " + std::to_string(pool.size()) + " feasible candidates, joint errors " +
+         planned.PlannedTerms() + ", seed " + std::to_string(FLAGS_seed) +
+         "; joint values in " + FLAGS_angle_unit +
+         (job.length_unit == LengthUnit::kMetres ? " and m" : "") + "\n";
+  csv += std::string(tracked ? "# measure the SMRs of the visible column (names separated "
+                               "by ';') at each pose"
+                             : "# measure every SMR at every pose") +
+         "; predicted held-out RMS per unit noise " + FormatNumber(planned.quality.predicted_rms) +
+         "\n";
   const int n = model.num_joints();
-  // With a tracker: the SMRs it sees at each planned pose.
   auto visible = [&](int c) {
     std::string names;
     for (int t : pool.visible[c]) names += (names.empty() ? "" : ";") + model.tools[t].name;
     return names;
   };
   if (!FLAGS_candidates.empty()) {
-    csv += table.header + ",candidate_row" + (tracker.enabled ? ",visible" : "") + "\n";
-    for (int c : plan.selected) {
+    csv += job.table.header + ",candidate_row" + (tracked ? ",visible" : "") + "\n";
+    for (int c : planned.plan.selected) {
       const int row = pool.source[c];
-      csv += table.lines[row] + "," + std::to_string(row) +
-             (tracker.enabled ? "," + visible(c) : "") + "\n";
+      csv += job.table.lines[row] + "," + std::to_string(row) +
+             (tracked ? "," + visible(c) : "") + "\n";
     }
   } else {
     for (int j = 0; j < n; ++j) csv += (j ? ",q" : "q") + std::to_string(j + 1);
-    csv += tracker.enabled ? ",visible\n" : "\n";
-    for (int c : plan.selected) {
+    csv += tracked ? ",visible\n" : "\n";
+    for (int c : planned.plan.selected) {
       for (int j = 0; j < n; ++j) {
         double v = pool.q[static_cast<size_t>(c) * n + j];
         if (model.joints[j].type == JointType::kRevolute) {
-          if (unit == AngleUnit::kDegrees) v *= 180.0 / kPi;
+          if (job.unit == AngleUnit::kDegrees) v *= 180.0 / kPi;
         } else {
-          v /= tools::MillimetresPer(length_unit);
+          v /= tools::MillimetresPer(job.length_unit);
         }
         csv += (j ? "," : "") + FormatNumber(v);
       }
-      csv += (tracker.enabled ? "," + visible(c) : "") + "\n";
+      csv += (tracked ? "," + visible(c) : "") + "\n";
     }
   }
+  return csv;
+}
 
+// The JSON report (docs/planning.md).
+nlohmann::json PlanReport(const PlanJob& job, const nlohmann::json& tilt_json) {
+  const PlanningResult& planned = job.planned;
+  const CandidatePool& pool = planned.pool;
+  const std::vector<double>& random_rms = planned.random_rms;
+  const double random_rms_mean = planned.random_rms_mean;
   nlohmann::json report = {
       {"tool", "lpoe_plan"},
-      {"model", model.name},
-      {"criterion", PlanCriterionName(options.criterion)},
-      {"count", count},
-      {"count_auto", automatic},
+      {"model", job.request.model.name},
+      {"criterion", PlanCriterionName(job.request.options.criterion)},
+      {"count", planned.count},
+      {"count_auto", job.request.count_auto},
       {"seed", FLAGS_seed},
-      {"parameters", pm.num_parameters()},
-      {"joint_errors", JointErrorsJson(pm)},
+      {"parameters", planned.planning->num_parameters()},
+      {"joint_errors", JointErrorsJson(*planned.planning)},
       {"candidates",
-       {{"offered", offered},
+       {{"offered", planned.offered},
         {"feasible", pool.size()},
         {"outside_limits", pool.outside_limits},
         {"near_singular", pool.near_singular},
@@ -623,9 +673,9 @@ int Run() {
         {"outside_cell", pool.outside_cell},
         {"source", FLAGS_candidates.empty() ? "sampled" : FLAGS_candidates}}},
       {"workspace_configurations", planned.workspace_configurations},
-      {"exchanges", plan.exchanges},
-      {"plan", QualityJson(quality, FLAGS_noise_sigma)},
-      {"random_plan", QualityJson(random_quality, FLAGS_noise_sigma)},
+      {"exchanges", planned.plan.exchanges},
+      {"plan", QualityJson(planned.quality, FLAGS_noise_sigma)},
+      {"random_plan", QualityJson(planned.random_quality, FLAGS_noise_sigma)},
       {"random_plans",
        {{"draws", FLAGS_random_draws},
         {"rms_of_predicted_rms_per_unit_noise", std::isfinite(random_rms_mean)
@@ -636,22 +686,53 @@ int Run() {
                                                   : nlohmann::json(nullptr)}}}};
   if (FLAGS_noise_sigma > 0) report["noise_sigma_mm"] = FLAGS_noise_sigma;
   report["unmodelled_error"] = UnmodelledJson(planned);
-  if (request.prior) {
+  if (job.request.prior) {
     std::vector<std::string> freed_list;
     std::stringstream names(FLAGS_prior_free);
     for (std::string name; std::getline(names, name, ',');) freed_list.push_back(name);
     report["prior"] = {{"file", FLAGS_prior}, {"noise_sigma_mm", planned.prior_sigma},
                        {"freed", freed_list}};
   }
-  if (automatic) report["target_accuracy_mm"] = FLAGS_target_accuracy;
+  if (job.request.count_auto) report["target_accuracy_mm"] = FLAGS_target_accuracy;
   report["gravity_tilt"] = tilt_json;
   nlohmann::json rows = nlohmann::json::array();
-  for (int c : plan.selected) rows.push_back(pool.source[c]);
+  for (int c : planned.plan.selected) rows.push_back(pool.source[c]);
   report["candidate_rows"] = rows;
+  return report;
+}
 
-  Status staged = outputs.Stage(FLAGS_output, csv);
-  if (staged.ok()) staged = outputs.Stage(report_path, tools::JsonText(report));
-  return tools::CommitOutputs(staged, &outputs, FLAGS_quiet);
+int Run() {
+  // Ballbar and probe poses (tools/lpoe_plan_contact.cc).
+  if (FLAGS_measurement != "position") {
+    if (!FLAGS_prior.empty() || !FLAGS_prior_free.empty()) {
+      std::cerr << "error: --prior and --prior_free plan a recalibration from tracker (position) "
+                   "measurements; a --measurement="
+                << FLAGS_measurement << " plan takes no prior\n";
+      return kExitUsage;
+    }
+    return tools::RunContactPlan();
+  }
+  PlanJob job;
+  if (int rc = PlanRequestFromFlags(&job); rc != kExitOk) return rc;
+  if (int rc = CheckPlanOutputs(&job); rc != kExitOk) return rc;
+  if (int rc = ReadPlanInputs(&job); rc != kExitOk) return rc;
+  PlanFailure failure = PlanFailure::kNone;
+  if (Status s = RunPlanning(job.request, &job.planned, &failure); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return failure == PlanFailure::kUsage   ? kExitUsage
+           : failure == PlanFailure::kInput ? kExitInput
+                                            : kExitNotIdentifiable;
+  }
+  if (!FLAGS_quiet) {
+    PrintPlanInputs(job);
+    PrintPlanQuality(job);
+  }
+  const nlohmann::json tilt_json = PlannedTiltJson(job.planned);
+  Status staged = job.outputs.Stage(FLAGS_output, PlanCsv(job));
+  if (staged.ok()) {
+    staged = job.outputs.Stage(job.report_path, tools::JsonText(PlanReport(job, tilt_json)));
+  }
+  return tools::CommitOutputs(staged, &job.outputs, FLAGS_quiet);
 }
 
 }  // namespace

@@ -122,11 +122,28 @@ bool ParseNumberList(const std::string& text, std::vector<double>* out) {
   return internal::ParseNumberList(text, ',', out);
 }
 
-int Run() {
-  using tools::kExitInput;
-  using tools::kExitOk;
-  using tools::kExitOutput;
-  using tools::kExitUsage;
+using tools::kExitInput;
+using tools::kExitOk;
+using tools::kExitOutput;
+using tools::kExitUsage;
+
+// What the steps of a simulation share: the robots, the errors and the files to write.
+struct Simulation {
+  AngleUnit unit;
+  LengthUnit length_unit;
+  double mm_per_unit = 1;
+  RobotModel nominal;
+  KinematicErrors errors;
+  std::vector<std::string> joint_error_kinds;
+  SmallArmOptions small_arm;
+  std::vector<double> com;
+  std::vector<double> tilt_deg;
+  RobotModel actual;
+  tools::OutputSet files;
+};
+
+// --output (or its old name), --count and --verify_count; then the outputs against the inputs.
+int CheckCountsAndOutputs(tools::OutputSet* files) {
   // 10^7 rows are about 2 GB of CSV text held before writing; more is not a test set.
   constexpr int kMaxCount = 10000000;
   if (!FLAGS_out.empty()) {
@@ -156,23 +173,21 @@ int Run() {
   }
   // The error and noise bounds: their ranges (lpoe/options.h) were checked by InitTool.
   // No output may overwrite the model or another output (by file identity).
-  tools::OutputSet files;
-  files.AddInput("--model", FLAGS_model);
-  files.AddInput("--joints", FLAGS_joints);
-  files.AddOutput("--output", FLAGS_output);
-  if (FLAGS_verify_count > 0) files.AddOutput("--verify_out", FLAGS_verify_out);
-  files.AddOutput("--model_out", FLAGS_model_out);
-  files.AddOutput("--actual_out", FLAGS_actual_out);
-  if (Status s = files.Check(); !s.ok()) {
+  files->AddInput("--model", FLAGS_model);
+  files->AddInput("--joints", FLAGS_joints);
+  files->AddOutput("--output", FLAGS_output);
+  if (FLAGS_verify_count > 0) files->AddOutput("--verify_out", FLAGS_verify_out);
+  files->AddOutput("--model_out", FLAGS_model_out);
+  files->AddOutput("--actual_out", FLAGS_actual_out);
+  if (Status s = files->Check(); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  AngleUnit unit;
-  LengthUnit length_unit;
-  double mm_per_unit = 1;
-  if (!tools::UnitsFromFlags(&unit, &length_unit, &mm_per_unit)) return kExitUsage;
+  return kExitOk;
+}
 
-  RobotModel nominal;
+// The nominal robot: --model (YAML or URDF) or the built-in --robot.
+int NominalFromFlags(RobotModel* nominal) {
   UrdfOptions urdf_options;
   if (!tools::UrdfOptionsFromFlags(FLAGS_model, &urdf_options)) {
     std::cerr << "error: --base_link, --tip_link and --tool_links need a URDF --model\n";
@@ -181,58 +196,65 @@ int Run() {
   if (!FLAGS_model.empty()) {
     const Status s =
         IsUrdfPath(FLAGS_model)
-            ? ReadRobotModelUrdf(FLAGS_model, &nominal, urdf_options)
-            : ReadRobotModel(FLAGS_model, &nominal);
+            ? ReadRobotModelUrdf(FLAGS_model, nominal, urdf_options)
+            : ReadRobotModel(FLAGS_model, nominal);
     if (!s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
   } else if (FLAGS_robot == "cobot6") {
-    nominal = MakeCobot6();
+    *nominal = MakeCobot6();
   } else if (FLAGS_robot == "ur5") {
-    nominal = MakeUr5Like();
+    *nominal = MakeUr5Like();
   } else if (FLAGS_robot == "arm7") {
-    nominal = MakeSevenJointArm();
+    *nominal = MakeSevenJointArm();
   } else if (FLAGS_robot == "prismatic") {
-    nominal = MakeArmWithPrismatic();
+    *nominal = MakeArmWithPrismatic();
   } else {
     std::cerr << "error: unknown --robot '" << FLAGS_robot << "'\n";
     return kExitUsage;
   }
+  return kExitOk;
+}
 
-  KinematicErrors errors;
+// The kinematic errors of --errors.
+int ErrorsFromFlags(const RobotModel& nominal, KinematicErrors* errors) {
   if (FLAGS_errors == "table2") {
     if (nominal.num_joints() != 6 || nominal.num_tools() != 1) {
       std::cerr << "error: --errors=table2 is defined for a 6-joint robot with one tool\n";
       return kExitUsage;
     }
-    errors = PaperTable2Errors();
+    *errors = PaperTable2Errors();
   } else if (FLAGS_errors == "random") {
-    errors = RandomErrors(nominal, FLAGS_error_rotation, FLAGS_error_translation, FLAGS_error_tilt,
-                          FLAGS_error_zero, FLAGS_error_seed);
+    *errors = RandomErrors(nominal, FLAGS_error_rotation, FLAGS_error_translation,
+                           FLAGS_error_tilt, FLAGS_error_zero, FLAGS_error_seed);
   } else if (FLAGS_errors == "none") {
-    errors = RandomErrors(nominal, 0, 0, 0, 0, 0);
+    *errors = RandomErrors(nominal, 0, 0, 0, 0, 0);
   } else {
     std::cerr << "error: --errors must be table2, random or none\n";
     return kExitUsage;
   }
-  std::vector<std::string> joint_error_kinds;
-  if (std::string why; !ParseJointTermList(FLAGS_joint_errors, &joint_error_kinds, &why)) {
+  return kExitOk;
+}
+
+// The joint-space physics of the actual robot: terms, stiffness, masses, payload, gravity tilt.
+int JointPhysicsFromFlags(Simulation* sim) {
+  if (std::string why; !ParseJointTermList(FLAGS_joint_errors, &sim->joint_error_kinds, &why)) {
     std::cerr << "error: --joint_errors must be none or a comma-separated list of "
               << JointTermNameList() << ": " << why << "\n";
     return kExitUsage;
   }
-  SmallArmOptions small_arm;
+  SmallArmOptions& small_arm = sim->small_arm;
   small_arm.seed = FLAGS_joint_error_seed;
   small_arm.mass_scale = FLAGS_mass_scale;
   small_arm.harmonics_min = FLAGS_harmonics_min_arcsec * kRadiansPerArcsec;
   small_arm.harmonics_max = FLAGS_harmonics_max_arcsec * kRadiansPerArcsec;
   if (!FLAGS_stiffness.empty()) {
     bool ok = ParseNumberList(FLAGS_stiffness, &small_arm.stiffness) &&
-              static_cast<int>(small_arm.stiffness.size()) == nominal.num_joints();
+              static_cast<int>(small_arm.stiffness.size()) == sim->nominal.num_joints();
     for (double k : small_arm.stiffness) ok = ok && k >= 0;
     if (!ok) {
-      std::cerr << "error: --stiffness needs " << nominal.num_joints()
+      std::cerr << "error: --stiffness needs " << sim->nominal.num_joints()
                 << " comma-separated numbers >= 0\n";
       return kExitUsage;
     }
@@ -243,8 +265,8 @@ int Run() {
                  "--harmonics_max_arcsec\n";
     return kExitUsage;
   }
-  std::vector<double> com;
-  if (!(FLAGS_payload_mass >= 0) || !ParseNumberList(FLAGS_payload_com, &com) || com.size() != 3) {
+  if (!(FLAGS_payload_mass >= 0) || !ParseNumberList(FLAGS_payload_com, &sim->com) ||
+      sim->com.size() != 3) {
     std::cerr << "error: need --payload_mass >= 0 and --payload_com=x,y,z\n";
     return kExitUsage;
   }
@@ -252,7 +274,7 @@ int Run() {
     std::cerr << "error: --gravity_tilt must be within [-0.1, 0.1] rad\n";
     return kExitUsage;
   }
-  std::vector<double> tilt_deg;
+  std::vector<double>& tilt_deg = sim->tilt_deg;
   if (!FLAGS_gravity_tilt_deg.empty()) {
     if (!ParseNumberList(FLAGS_gravity_tilt_deg, &tilt_deg) || tilt_deg.size() != 2 ||
         !(std::abs(tilt_deg[0]) <= 5.0 && std::abs(tilt_deg[1]) <= 5.0)) {
@@ -266,159 +288,199 @@ int Run() {
       return kExitUsage;
     }
   }
-  nominal.payload.mass = FLAGS_payload_mass;
-  nominal.payload.com = Eigen::Vector3d(com[0], com[1], com[2]);
+  return kExitOk;
+}
 
-  RobotModel actual = ApplyErrors(nominal, errors);
+// The actual robot: the nominal with the payload, the errors, the tilted gravity and the joint
+// physics.
+void MakeActualRobot(Simulation* sim) {
+  RobotModel& nominal = sim->nominal;
+  nominal.payload.mass = FLAGS_payload_mass;
+  nominal.payload.com = Eigen::Vector3d(sim->com[0], sim->com[1], sim->com[2]);
+  RobotModel& actual = sim->actual;
+  actual = ApplyErrors(nominal, sim->errors);
   actual.gravity = ExpSO3(Eigen::Vector3d(FLAGS_gravity_tilt, 0, 0)) * nominal.gravity;
-  if (!tilt_deg.empty()) {
-    const double t[2] = {tilt_deg[0] * M_PI / 180.0, tilt_deg[1] * M_PI / 180.0};
+  if (!sim->tilt_deg.empty()) {
+    const double t[2] = {sim->tilt_deg[0] * M_PI / 180.0, sim->tilt_deg[1] * M_PI / 180.0};
     actual.gravity = TiltedGravity<double>(nominal.gravity, t);
   }
-  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, small_arm), InRegistryOrder(joint_error_kinds),
-                         &actual);
+  ApplyJointErrorPhysics(SmallArmJointErrors(nominal, sim->small_arm),
+                         InRegistryOrder(sim->joint_error_kinds), &actual);
+}
 
-  if (FLAGS_measurement != "position") {
-    // Distances or contacts, measured on the actual robot with its joint zeros folded in.
-    if (FLAGS_measurement != "ballbar" && FLAGS_measurement != "plane") {
-      std::cerr << "error: --measurement must be position, ballbar or plane, got '"
-                << FLAGS_measurement << "'\n";
-      return kExitUsage;
-    }
-    if (!FLAGS_joints.empty() || FLAGS_verify_count > 0 || FLAGS_pose || FLAGS_all_tools ||
-        !joint_error_kinds.empty() || unit != AngleUnit::kRadians ||
-        length_unit != LengthUnit::kMillimetres) {
-      std::cerr << "error: --measurement=" << FLAGS_measurement
-                << " writes radians and millimetres for a geometric robot: --joints, "
-                   "--verify_count, --pose, --all_tools, --joint_errors and the unit flags are "
-                   "not available with it\n";
-      return kExitUsage;
-    }
-    if (FLAGS_count > 100000 || FLAGS_pivots < 1 || FLAGS_pivots > 20 ||
-        !(FLAGS_bar_length > 0 && FLAGS_bar_length <= 2000) ||
-        !(FLAGS_stroke >= 0 && FLAGS_stroke < FLAGS_bar_length) ||
-        !(FLAGS_probe_radius >= 0 && FLAGS_probe_radius <= 100) ||
-        !(FLAGS_cube_size > 0 && FLAGS_cube_size <= 2000)) {
-      std::cerr << "error: need --count <= 100000, 1 <= --pivots <= 20, 0 < --bar_length <= 2000, "
-                   "0 <= --stroke < --bar_length, 0 <= --probe_radius <= 100, 0 < --cube_size "
-                   "<= 2000\n";
-      return kExitUsage;
-    }
-    const RobotModel truth = FoldJointZeros(actual, errors.joint_zero);
-    ContactMeasurementSet contacts;
-    Status s;
-    std::ostringstream what;
-    if (FLAGS_measurement == "ballbar") {
-      BallbarSimulationOptions o;
-      o.count = FLAGS_count;
-      o.bar_length = FLAGS_bar_length;
-      o.stroke = FLAGS_stroke;
-      o.noise = FLAGS_noise_sigma;
-      o.num_pivots = FLAGS_pivots;
-      o.seed = FLAGS_seed;
-      std::vector<Eigen::Vector3d> pivots;
-      s = SimulateBallbar(truth, o, &contacts, &pivots);
-      what << "# ballbar: bar " << FLAGS_bar_length << " mm +- " << FLAGS_stroke << " mm; pivots";
-      for (const Eigen::Vector3d& c : pivots) what << " (" << c.transpose() << ")";
-    } else {
-      PlaneSimulationOptions o;
-      o.count = FLAGS_count;
-      o.probe_radius = FLAGS_probe_radius;
-      o.noise = FLAGS_noise_sigma;
-      o.cube_size = FLAGS_cube_size;
-      o.seed = FLAGS_seed;
-      std::vector<Eigen::Vector4d> planes;
-      s = SimulatePlaneContacts(truth, o, &contacts, &planes);
-      what << "# touch probe: radius " << FLAGS_probe_radius << " mm, cube " << FLAGS_cube_size
-           << " mm; planes n.x = d:";
-      for (const Eigen::Vector4d& p : planes) what << " (" << p.transpose() << ")";
-    }
-    if (!s.ok()) {
-      std::cerr << "error: " << s.message() << "\n";
-      return tools::kExitNumerical;
-    }
-    RobotModel actual_model = truth;
-    actual_model.name = nominal.name + "_actual";
-    std::string text = "# lpoe_simulate: robot " + nominal.name + ", errors " + FLAGS_errors +
-                       ", noise sigma " + std::to_string(FLAGS_noise_sigma) + " mm, seed " +
-                       std::to_string(FLAGS_seed) + "\n" + what.str() + "\n" +
-                       ContactMeasurementsCsv(nominal, contacts,
-                                              FLAGS_measurement == "ballbar"
-                                                  ? MeasurementKindId::kDistance
-                                                  : MeasurementKindId::kPlane);
-    Status staged = files.Stage(FLAGS_output, text);
-    if (staged.ok() && !FLAGS_model_out.empty()) {
-      staged = files.Stage(FLAGS_model_out, RobotModelToYaml(nominal));
-    }
-    if (staged.ok() && !FLAGS_actual_out.empty()) {
-      staged = files.Stage(FLAGS_actual_out, RobotModelToYaml(actual_model));
-    }
-    return tools::CommitOutputs(staged, &files, FLAGS_quiet);
+// --measurement=ballbar or plane: the flags these kinds allow.
+int CheckContactFlags(const Simulation& sim) {
+  if (FLAGS_measurement != "ballbar" && FLAGS_measurement != "plane") {
+    std::cerr << "error: --measurement must be position, ballbar or plane, got '"
+              << FLAGS_measurement << "'\n";
+    return kExitUsage;
   }
+  if (!FLAGS_joints.empty() || FLAGS_verify_count > 0 || FLAGS_pose || FLAGS_all_tools ||
+      !sim.joint_error_kinds.empty() || sim.unit != AngleUnit::kRadians ||
+      sim.length_unit != LengthUnit::kMillimetres) {
+    std::cerr << "error: --measurement=" << FLAGS_measurement
+              << " writes radians and millimetres for a geometric robot: --joints, "
+                 "--verify_count, --pose, --all_tools, --joint_errors and the unit flags are "
+                 "not available with it\n";
+    return kExitUsage;
+  }
+  if (FLAGS_count > 100000 || FLAGS_pivots < 1 || FLAGS_pivots > 20 ||
+      !(FLAGS_bar_length > 0 && FLAGS_bar_length <= 2000) ||
+      !(FLAGS_stroke >= 0 && FLAGS_stroke < FLAGS_bar_length) ||
+      !(FLAGS_probe_radius >= 0 && FLAGS_probe_radius <= 100) ||
+      !(FLAGS_cube_size > 0 && FLAGS_cube_size <= 2000)) {
+    std::cerr << "error: need --count <= 100000, 1 <= --pivots <= 20, 0 < --bar_length <= 2000, "
+                 "0 <= --stroke < --bar_length, 0 <= --probe_radius <= 100, 0 < --cube_size "
+                 "<= 2000\n";
+    return kExitUsage;
+  }
+  return kExitOk;
+}
 
-  SimulationOptions options;
-  options.count = FLAGS_count;
+// Distances or contacts, measured on the actual robot with its joint zeros folded in; written.
+int SimulateContacts(Simulation* sim) {
+  if (int rc = CheckContactFlags(*sim); rc != kExitOk) return rc;
+  const RobotModel& nominal = sim->nominal;
+  const RobotModel truth = FoldJointZeros(sim->actual, sim->errors.joint_zero);
+  ContactMeasurementSet contacts;
+  Status s;
+  std::ostringstream what;
+  if (FLAGS_measurement == "ballbar") {
+    BallbarSimulationOptions o;
+    o.count = FLAGS_count;
+    o.bar_length = FLAGS_bar_length;
+    o.stroke = FLAGS_stroke;
+    o.noise = FLAGS_noise_sigma;
+    o.num_pivots = FLAGS_pivots;
+    o.seed = FLAGS_seed;
+    std::vector<Eigen::Vector3d> pivots;
+    s = SimulateBallbar(truth, o, &contacts, &pivots);
+    what << "# ballbar: bar " << FLAGS_bar_length << " mm +- " << FLAGS_stroke << " mm; pivots";
+    for (const Eigen::Vector3d& c : pivots) what << " (" << c.transpose() << ")";
+  } else {
+    PlaneSimulationOptions o;
+    o.count = FLAGS_count;
+    o.probe_radius = FLAGS_probe_radius;
+    o.noise = FLAGS_noise_sigma;
+    o.cube_size = FLAGS_cube_size;
+    o.seed = FLAGS_seed;
+    std::vector<Eigen::Vector4d> planes;
+    s = SimulatePlaneContacts(truth, o, &contacts, &planes);
+    what << "# touch probe: radius " << FLAGS_probe_radius << " mm, cube " << FLAGS_cube_size
+         << " mm; planes n.x = d:";
+    for (const Eigen::Vector4d& p : planes) what << " (" << p.transpose() << ")";
+  }
+  if (!s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
+    return tools::kExitNumerical;
+  }
+  RobotModel actual_model = truth;
+  actual_model.name = nominal.name + "_actual";
+  std::string text = "# lpoe_simulate: robot " + nominal.name + ", errors " + FLAGS_errors +
+                     ", noise sigma " + std::to_string(FLAGS_noise_sigma) + " mm, seed " +
+                     std::to_string(FLAGS_seed) + "\n" + what.str() + "\n" +
+                     ContactMeasurementsCsv(nominal, contacts,
+                                            FLAGS_measurement == "ballbar"
+                                                ? MeasurementKindId::kDistance
+                                                : MeasurementKindId::kPlane);
+  tools::OutputSet& files = sim->files;
+  Status staged = files.Stage(FLAGS_output, text);
+  if (staged.ok() && !FLAGS_model_out.empty()) {
+    staged = files.Stage(FLAGS_model_out, RobotModelToYaml(nominal));
+  }
+  if (staged.ok() && !FLAGS_actual_out.empty()) {
+    staged = files.Stage(FLAGS_actual_out, RobotModelToYaml(actual_model));
+  }
+  return tools::CommitOutputs(staged, &files, FLAGS_quiet);
+}
+
+// The simulation options of a position (or pose) run; --joints read and checked.
+int PositionOptionsFromFlags(const Simulation& sim, SimulationOptions* options) {
+  options->count = FLAGS_count;
   if (!FLAGS_joints.empty()) {
     JointTable table;
-    if (Status s = ReadJointTable(FLAGS_joints, nominal, unit, &table); !s.ok()) {
+    if (Status s = ReadJointTable(FLAGS_joints, sim.nominal, sim.unit, &table); !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
-    options.configurations = table.q;
-    tools::ScalePrismaticJoints(nominal, length_unit, &options.configurations);
-    const int rows = table.rows() * (FLAGS_all_tools ? nominal.num_tools() : 1);
+    options->configurations = table.q;
+    tools::ScalePrismaticJoints(sim.nominal, sim.length_unit, &options->configurations);
+    const int rows = table.rows() * (FLAGS_all_tools ? sim.nominal.num_tools() : 1);
     if (FLAGS_verify_count >= rows) {
       std::cerr << "error: --verify_count must be below the " << rows << " rows of --joints\n";
       return kExitUsage;
     }
   }
-  options.noise_sigma = FLAGS_noise_sigma;
-  options.pose = FLAGS_pose;
-  options.orientation_noise_sigma = FLAGS_orientation_noise_sigma;
-  options.seed = FLAGS_seed;
-  options.all_tools = FLAGS_all_tools;
-  MeasurementSet data = SimulateMeasurements(actual, errors.joint_zero, options);
-  if (length_unit != LengthUnit::kMillimetres) {  // --length_unit: positions and prismatic joints
-    for (int r = 0; r < data.size(); ++r) {
-      data.mutable_position(r) /= mm_per_unit;
+  options->noise_sigma = FLAGS_noise_sigma;
+  options->pose = FLAGS_pose;
+  options->orientation_noise_sigma = FLAGS_orientation_noise_sigma;
+  options->seed = FLAGS_seed;
+  options->all_tools = FLAGS_all_tools;
+  return kExitOk;
+}
+
+// The simulated rows in the units of the flags (--length_unit, --angle_unit).
+void ToFileUnits(const Simulation& sim, MeasurementSet* data) {
+  const RobotModel& nominal = sim.nominal;
+  if (sim.length_unit != LengthUnit::kMillimetres) {  // positions and prismatic joints
+    for (int r = 0; r < data->size(); ++r) {
+      data->mutable_position(r) /= sim.mm_per_unit;
       for (int i = 0; i < nominal.num_joints(); ++i) {
-        if (nominal.joints[i].type == JointType::kPrismatic) data.mutable_q(r)[i] /= mm_per_unit;
+        if (nominal.joints[i].type == JointType::kPrismatic) {
+          data->mutable_q(r)[i] /= sim.mm_per_unit;
+        }
       }
     }
   }
-  if (unit == AngleUnit::kDegrees) {
-    for (int r = 0; r < data.size(); ++r) {
+  if (sim.unit == AngleUnit::kDegrees) {
+    for (int r = 0; r < data->size(); ++r) {
       for (int i = 0; i < nominal.num_joints(); ++i) {
-        if (nominal.joints[i].type == JointType::kRevolute) data.mutable_q(r)[i] *= kDegreesPerRadian;
+        if (nominal.joints[i].type == JointType::kRevolute) {
+          data->mutable_q(r)[i] *= kDegreesPerRadian;
+        }
       }
     }
   }
+}
+
+// Positions (and orientations) measured on the actual robot; the CSVs and models written.
+int SimulatePositions(Simulation* sim) {
+  const RobotModel& nominal = sim->nominal;
+  SimulationOptions options;
+  if (int rc = PositionOptionsFromFlags(*sim, &options); rc != kExitOk) return rc;
+  MeasurementSet data = SimulateMeasurements(sim->actual, sim->errors.joint_zero, options);
+  ToFileUnits(*sim, &data);
 
   std::ostringstream comment;
   comment << "lpoe_simulate: robot " << nominal.name << ", errors " << FLAGS_errors
-          << ", joint errors " << FLAGS_joint_errors << ", noise sigma " << FLAGS_noise_sigma << " mm, seed " << FLAGS_seed << ", joint values in "
-          << FLAGS_angle_unit
-          << (length_unit == LengthUnit::kMillimetres ? "" : ", lengths in " + FLAGS_length_unit);
+          << ", joint errors " << FLAGS_joint_errors << ", noise sigma " << FLAGS_noise_sigma
+          << " mm, seed " << FLAGS_seed << ", joint values in " << FLAGS_angle_unit
+          << (sim->length_unit == LengthUnit::kMillimetres ? ""
+                                                           : ", lengths in " + FLAGS_length_unit);
   MeasurementSet identification, verification;
   data.SplitAt(data.size() - FLAGS_verify_count, &identification, &verification);
 
   // The actual robot with the joint-zero errors folded in: T_i(0) <- T_i(0) exp(s_i dq_i).
-  RobotModel actual_out = FoldJointZeros(actual, errors.joint_zero);
+  RobotModel actual_out = FoldJointZeros(sim->actual, sim->errors.joint_zero);
   actual_out.name = nominal.name + "_actual";
 
   struct Output {
     std::string path;
     std::string text;
   };
-  std::vector<Output> outputs = {{FLAGS_output, MeasurementsToCsv(nominal, identification, comment.str())}};
+  std::vector<Output> outputs = {
+      {FLAGS_output, MeasurementsToCsv(nominal, identification, comment.str())}};
   if (FLAGS_verify_count > 0) {
     outputs.push_back({FLAGS_verify_out, MeasurementsToCsv(nominal, verification, comment.str())});
   }
   if (!FLAGS_model_out.empty()) outputs.push_back({FLAGS_model_out, RobotModelToYaml(nominal)});
-  if (!FLAGS_actual_out.empty()) outputs.push_back({FLAGS_actual_out, RobotModelToYaml(actual_out)});
+  if (!FLAGS_actual_out.empty()) {
+    outputs.push_back({FLAGS_actual_out, RobotModelToYaml(actual_out)});
+  }
   // Non-finite values are written nowhere (lpoe/refusals.h).
-  for (const auto& [path, m] : {std::pair<const std::string*, const RobotModel*>{&FLAGS_model_out, &nominal},
-                                {&FLAGS_actual_out, &actual_out}}) {
+  for (const auto& [path, m] :
+       {std::pair<const std::string*, const RobotModel*>{&FLAGS_model_out, &nominal},
+        {&FLAGS_actual_out, &actual_out}}) {
     if (Status s = CheckModelFinite(*m); !path->empty() && !s.ok()) {
       std::cerr << "error: " << *path << ": " << s.message() << "\n";
       return tools::kExitNumerical;
@@ -426,9 +488,20 @@ int Run() {
   }
   Status staged;
   for (const Output& o : outputs) {
-    if (staged.ok()) staged = files.Stage(o.path, o.text);
+    if (staged.ok()) staged = sim->files.Stage(o.path, o.text);
   }
-  return tools::CommitOutputs(staged, &files, FLAGS_quiet);
+  return tools::CommitOutputs(staged, &sim->files, FLAGS_quiet);
+}
+
+int Run() {
+  Simulation sim;
+  if (int rc = CheckCountsAndOutputs(&sim.files); rc != kExitOk) return rc;
+  if (!tools::UnitsFromFlags(&sim.unit, &sim.length_unit, &sim.mm_per_unit)) return kExitUsage;
+  if (int rc = NominalFromFlags(&sim.nominal); rc != kExitOk) return rc;
+  if (int rc = ErrorsFromFlags(sim.nominal, &sim.errors); rc != kExitOk) return rc;
+  if (int rc = JointPhysicsFromFlags(&sim); rc != kExitOk) return rc;
+  MakeActualRobot(&sim);
+  return FLAGS_measurement != "position" ? SimulateContacts(&sim) : SimulatePositions(&sim);
 }
 
 }  // namespace

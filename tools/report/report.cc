@@ -536,41 +536,46 @@ Status WriteHtmlReport(const std::string& path, RunSummary* s) {
 
 namespace {
 
-Json BuildJson(const RunSummary& s) {
-  Json j;
-  j["schema"] = "lpoe-calib/report/2";
-  j["tool"] = {{"name", s.tool_name}, {"version", kLpoeVersion}};
+Json VerdictJson(const Verdict& verdict) {
   Json checks = Json::array();
-  for (const VerdictCheck& c : s.verdict.checks) {
+  for (const VerdictCheck& c : verdict.checks) {
     checks.push_back({{"name", c.name},
                       {"level", VerdictLevelName(c.level)},
                       {"value", c.value},
                       {"limit", c.limit},
                       {"message", c.message}});
   }
-  j["verdict"] = {{"level", VerdictLevelName(s.verdict.level)},
-                  {"reason", s.verdict.reason},
-                  {"checks", checks}};
-  j["inputs"] = {{"model", s.model_path},
-                 {"measurements", s.measurements_path},
-                 {"verification", s.verification_source},
-                 {"split", s.split},
-                 {"split_by", "configuration"},
-                 {"angle_unit", s.angle_unit},
-                 {"skipped_rows", s.skipped.skipped_zero_rows},
-                 {"skipped_lines", s.skipped.skipped_lines}};
-  j["solver"] = {{"name", s.solver},
-                 {"parameterization", s.parameterization},
-                 {"data", s.data_kind},
-                 {"termination", TerminationName(s.result.termination)},
-                 {"converged", s.result.converged()},
-                 {"message", s.result.message},
-                 {"stop_rule", StopRuleName(s.result.stop_rule)},
-                 {"iterations", s.result.iterations},
-                 {"final_cost", s.result.final_cost}};
-  // (No wall time: the same input must give a byte-identical report.)
+  return {{"level", VerdictLevelName(verdict.level)},
+          {"reason", verdict.reason},
+          {"checks", checks}};
+}
+
+Json InputsJson(const RunSummary& s) {
+  return {{"model", s.model_path},
+          {"measurements", s.measurements_path},
+          {"verification", s.verification_source},
+          {"split", s.split},
+          {"split_by", "configuration"},
+          {"angle_unit", s.angle_unit},
+          {"skipped_rows", s.skipped.skipped_zero_rows},
+          {"skipped_lines", s.skipped.skipped_lines}};
+}
+
+Json SolverJson(const RunSummary& s) {
+  return {{"name", s.solver},
+          {"parameterization", s.parameterization},
+          {"data", s.data_kind},
+          {"termination", TerminationName(s.result.termination)},
+          {"converged", s.result.converged()},
+          {"message", s.result.message},
+          {"stop_rule", StopRuleName(s.result.stop_rule)},
+          {"iterations", s.result.iterations},
+          {"final_cost", s.result.final_cost}};
+}
+
+Json HistoryJson(const std::vector<IterationRecord>& records) {
   Json history = Json::array();
-  for (const IterationRecord& r : s.result.history) {
+  for (const IterationRecord& r : records) {
     history.push_back({{"iteration", r.iteration},
                        {"max_error", r.max_error},
                        {"mean_error", r.mean_error},
@@ -579,16 +584,39 @@ Json BuildJson(const RunSummary& s) {
     // A record of the linear solver's warm start (linear_solver.h): the rows of its subsample.
     if (r.rows > 0) history.back()["rows"] = r.rows;
   }
-  j["history"] = history;
-  if (s.registered) {
-    j["registration"] = {{"applied", s.registration.moved},
-                         {"T_measurement_base", PoseJson(s.registration.T_measurement_base)},
-                         {"rms_nominal", s.registration.rms_nominal},
-                         {"rms_rigid", s.registration.rms_rigid},
-                         {"rms_base_tools", s.registration.rms_base_tools}};
-  } else {
-    j["registration"] = nullptr;
+  return history;
+}
+
+Json RegistrationJson(const RunSummary& s) {
+  if (!s.registered) return nullptr;
+  return {{"applied", s.registration.moved},
+          {"T_measurement_base", PoseJson(s.registration.T_measurement_base)},
+          {"rms_nominal", s.registration.rms_nominal},
+          {"rms_rigid", s.registration.rms_rigid},
+          {"rms_base_tools", s.registration.rms_base_tools}};
+}
+
+// All correlations above 0.9 (from the covariance, when there is one).
+Json CorrelatedAbove09Json(const CalibrationResult& result) {
+  Json high = Json::array();
+  const Parameterization& par = result.parameterization;
+  const Eigen::MatrixXd& C = result.covariance;
+  for (Eigen::Index a = 0; a < C.rows(); ++a) {
+    for (Eigen::Index b = a + 1; b < C.cols(); ++b) {
+      const double denom = std::sqrt(C(a, a) * C(b, b));
+      if (!(denom > 0)) continue;
+      const double r = C(a, b) / denom;
+      if (std::abs(r) > 0.9 && static_cast<size_t>(b) < par.parameters.size()) {
+        high.push_back({{"a", par.parameters[a].name},
+                        {"b", par.parameters[b].name},
+                        {"correlation", r}});
+      }
+    }
   }
+  return high;
+}
+
+Json IdentifiabilityJson(const RunSummary& s) {
   const IdentifiabilityReport& id = s.identifiability;
   // The fixed tools' directions are held by the user, not unidentifiable: listed apart.
   Json unident = Json::array(), held = Json::array();
@@ -620,71 +648,67 @@ Json BuildJson(const RunSummary& s) {
   }
   std::vector<double> sv(id.singular_values.data(),
                          id.singular_values.data() + id.singular_values.size());
-  j["identifiability"] = {{"parameters", id.num_parameters},
-                          {"rank", id.rank},
-                          {"condition_number", id.condition_number},
-                          {"singular_values", sv},
-                          {"unidentifiable", unident},
-                          {"held_fixed_tools", held},
-                          {"identified", params},
-                          {"most_correlated", pairs},
-                          {"warnings", id.warnings}};
-  // The prior (docs/identifiability.md): null without one.
-  if (id.data_share.size() > 0) {
-    j["prior"] = {{"data_sigma", id.prior_data_sigma},
-                  {"weakly_determined", id.weakly_determined},
-                  {"weak_share", kWeaklyDeterminedShare}};
-  } else {
-    j["prior"] = nullptr;
-  }
-  if (!s.prior_path.empty()) {
-    Json changed = Json::array();
-    for (const ChangedGroup& g : s.changed_groups) {
-      changed.push_back({{"name", g.name}, {"chi2", g.chi2}, {"dof", g.dof}});
-    }
-    j["recalibration"] = {{"prior", s.prior_path}, {"changed", changed}};
-  }
-  j["identification"] = {{"before", StatsJson(s.identification_before)},
-                         {"after", StatsJson(s.identification_after)}};
-  if (s.has_verification) {
-    j["verification"] = {{"before", StatsJson(s.verification_before)},
-                         {"after", StatsJson(s.verification_after)}};
-  } else {
-    j["verification"] = nullptr;
-  }
+  return {{"parameters", id.num_parameters},
+          {"rank", id.rank},
+          {"condition_number", id.condition_number},
+          {"singular_values", sv},
+          {"unidentifiable", unident},
+          {"held_fixed_tools", held},
+          {"identified", params},
+          {"most_correlated", pairs},
+          {"warnings", id.warnings},
+          {"correlated_above_0_9", CorrelatedAbove09Json(s.result)}};
+}
+
+// The prior (docs/identifiability.md): null without one.
+Json PriorJson(const IdentifiabilityReport& id) {
+  if (id.data_share.size() == 0) return nullptr;
+  return {{"data_sigma", id.prior_data_sigma},
+          {"weakly_determined", id.weakly_determined},
+          {"weak_share", kWeaklyDeterminedShare}};
+}
+
+Json OutliersJson(const RunSummary& s) {
   Json outliers = Json::array();
   for (const Outlier& o : s.outliers) {
     outliers.push_back({{"line", o.line}, {"error", o.error}, {"sigmas", o.sigmas}});
   }
-  j["outliers"] = {{"robust_sigma", s.robust_sigma}, {"points", outliers}};
+  return {{"robust_sigma", s.robust_sigma}, {"points", outliers}};
+}
+
+Json FoldsJson(const std::vector<FoldSummary>& fold_summaries) {
   Json folds = Json::array();
-  for (const FoldSummary& f : s.folds) {
+  for (const FoldSummary& f : fold_summaries) {
     folds.push_back({{"fold", f.fold},
                      {"identification_rows", f.identification_rows},
                      {"termination", TerminationName(f.termination)},
                      {"verification_after", StatsJson(f.verification_after)}});
   }
-  j["cross_validation"] = folds;
-  j["joint_errors"] = JointErrorsJson(s);
-  j["residual_model"] = ResidualModelJson(s);
+  return folds;
+}
+
+Json CalibratedFramesJson(const RobotModel& model) {
   Json frames = Json::array();
-  for (const Joint& jt : s.result.model.joints) {
+  for (const Joint& jt : model.joints) {
     frames.push_back({{"name", jt.name}, {"origin", PoseJson(jt.origin)}});
   }
-  for (const Tool& t : s.result.model.tools) {
+  for (const Tool& t : model.tools) {
     frames.push_back({{"name", t.name}, {"origin", PoseJson(t.origin)}});
   }
-  j["calibrated_frames"] = frames;
-  j["outputs"] = s.outputs;
+  return frames;
+}
+
+Json OutputModelsJson(const std::vector<RunSummary::OutputModel>& output_models) {
   Json models = Json::array();
-  for (const RunSummary::OutputModel& o : s.output_models) {
+  for (const RunSummary::OutputModel& o : output_models) {
     models.push_back({{"flag", o.flag}, {"path", o.path}, {"rms_mm", o.rms_mm}, {"set", o.set},
                       {"carries_less", o.reduced}, {"note", o.note}});
   }
-  j["output_models"] = models;
-  j["forced"] = s.forced;
+  return models;
+}
 
-  // Per SMR (tool): before/after on each set.
+// Per SMR (tool): before/after on each set.
+Json PerSmrJson(const RunSummary& s) {
   const RobotModel& model = s.result.model;
   Json per_smr = Json::array();
   for (int t = 0; t < model.num_tools(); ++t) {
@@ -699,10 +723,14 @@ Json BuildJson(const RunSummary& s) {
     }
     per_smr.push_back(e);
   }
-  j["per_smr"] = per_smr;
+  return per_smr;
+}
 
-  // Parameter changes: each identified direction's component of log(T_before^-1 T_after), the
-  // right perturbation of the local frame (paper eq. (19)), against the model before calibration.
+// Parameter changes: each identified direction's component of log(T_before^-1 T_after), the
+// right perturbation of the local frame (paper eq. (19)), against the model before calibration.
+Json ParameterChangesJson(const RunSummary& s) {
+  const RobotModel& model = s.result.model;
+  const IdentifiabilityReport& id = s.identifiability;
   Json changes = Json::array();
   const Parameterization& par = s.result.parameterization;
   const int num_frames = s.before_model.num_joints() + s.before_model.num_tools();
@@ -726,37 +754,61 @@ Json BuildJson(const RunSummary& s) {
                        : Json(nullptr);
     changes.push_back(c);
   }
-  j["parameter_changes"] = changes;
+  return changes;
+}
 
-  // All correlations above 0.9 (from the covariance, when there is one).
-  Json high = Json::array();
-  const Eigen::MatrixXd& C = s.result.covariance;
-  for (Eigen::Index a = 0; a < C.rows(); ++a) {
-    for (Eigen::Index b = a + 1; b < C.cols(); ++b) {
-      const double denom = std::sqrt(C(a, a) * C(b, b));
-      if (!(denom > 0)) continue;
-      const double r = C(a, b) / denom;
-      if (std::abs(r) > 0.9 && static_cast<size_t>(b) < par.parameters.size()) {
-        high.push_back({{"a", par.parameters[a].name},
-                        {"b", par.parameters[b].name},
-                        {"correlation", r}});
-      }
-    }
+Json ComparisonJson(const RunSummary& s) {
+  Json rows = Json::array();
+  for (const RunSummary::ComparisonRow& r : s.comparison) {
+    rows.push_back({{"quantity", r.quantity},
+                    {"linear", r.linear},
+                    {"ceres", r.ceres},
+                    {"difference", r.difference}});
   }
-  j["identifiability"]["correlated_above_0_9"] = high;
+  return {{"agree", s.solvers_agree}, {"rows", rows}};
+}
 
-  if (!s.comparison.empty()) {
-    Json rows = Json::array();
-    for (const RunSummary::ComparisonRow& r : s.comparison) {
-      rows.push_back({{"quantity", r.quantity},
-                      {"linear", r.linear},
-                      {"ceres", r.ceres},
-                      {"difference", r.difference}});
+// The report, section by section, in the order of docs/report.md.
+Json BuildJson(const RunSummary& s) {
+  Json j;
+  j["schema"] = "lpoe-calib/report/2";
+  j["tool"] = {{"name", s.tool_name}, {"version", kLpoeVersion}};
+  j["verdict"] = VerdictJson(s.verdict);
+  j["inputs"] = InputsJson(s);
+  j["solver"] = SolverJson(s);
+  // (No wall time: the same input must give a byte-identical report.)
+  j["history"] = HistoryJson(s.result.history);
+  j["registration"] = RegistrationJson(s);
+  j["identifiability"] = IdentifiabilityJson(s);
+  j["prior"] = PriorJson(s.identifiability);
+  if (!s.prior_path.empty()) {
+    Json changed = Json::array();
+    for (const ChangedGroup& g : s.changed_groups) {
+      changed.push_back({{"name", g.name}, {"chi2", g.chi2}, {"dof", g.dof}});
     }
-    j["comparison"] = {{"agree", s.solvers_agree}, {"rows", rows}};
+    j["recalibration"] = {{"prior", s.prior_path}, {"changed", changed}};
   }
-  j["points"] = {{"identification", PointsJson(model, s.identification_points)},
-                 {"verification", PointsJson(model, s.verification_points)}};
+  j["identification"] = {{"before", StatsJson(s.identification_before)},
+                         {"after", StatsJson(s.identification_after)}};
+  if (s.has_verification) {
+    j["verification"] = {{"before", StatsJson(s.verification_before)},
+                         {"after", StatsJson(s.verification_after)}};
+  } else {
+    j["verification"] = nullptr;
+  }
+  j["outliers"] = OutliersJson(s);
+  j["cross_validation"] = FoldsJson(s.folds);
+  j["joint_errors"] = JointErrorsJson(s);
+  j["residual_model"] = ResidualModelJson(s);
+  j["calibrated_frames"] = CalibratedFramesJson(s.result.model);
+  j["outputs"] = s.outputs;
+  j["output_models"] = OutputModelsJson(s.output_models);
+  j["forced"] = s.forced;
+  j["per_smr"] = PerSmrJson(s);
+  j["parameter_changes"] = ParameterChangesJson(s);
+  if (!s.comparison.empty()) j["comparison"] = ComparisonJson(s);
+  j["points"] = {{"identification", PointsJson(s.result.model, s.identification_points)},
+                 {"verification", PointsJson(s.result.model, s.verification_points)}};
   return j;
 }
 

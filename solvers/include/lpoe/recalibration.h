@@ -32,6 +32,14 @@ namespace lpoe {
 // parameterization does not solve, and a result without a covariance, give empty blocks).
 ModelCovariance CovarianceOf(const CalibrationResult& result);
 
+// The calibrated model as written (lpoe_calibrate --output): the result's model with the
+// registration it was identified in, so that compensation carries nominal poses into that frame.
+RobotModel CalibratedModel(const PipelineResult& run);
+
+// Its YAML, with the estimate's covariance block when the result has one (the prior of a later
+// recalibration, ReadPrior).
+std::string CalibratedModelYaml(const RobotModel& calibrated, const CalibrationResult& result);
+
 
 // The prior of a model and its covariance: reference = model, informative. Directions a block does
 // not cover (and frames without a block) get `scales`' tolerances.

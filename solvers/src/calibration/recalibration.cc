@@ -111,6 +111,23 @@ double FleetPredictiveFactor(int robots, int p) {
   return (N + 1) / N;
 }
 
+RobotModel CalibratedModel(const PipelineResult& run) {
+  RobotModel calibrated = run.result.model;
+  if (run.registered && run.registration.moved) {
+    calibrated.T_measurement_base = run.registration.T_measurement_base;
+  }
+  return calibrated;
+}
+
+std::string CalibratedModelYaml(const RobotModel& calibrated, const CalibrationResult& result) {
+  std::string yaml = RobotModelToYaml(calibrated);
+  if (result.covariance.rows() == result.parameterization.num_parameters &&
+      result.covariance.rows() > 0) {
+    yaml += ModelCovarianceYaml(calibrated, CovarianceOf(result));
+  }
+  return yaml;
+}
+
 ModelCovariance CovarianceOf(const CalibrationResult& result) {
   ModelCovariance out;
   const Parameterization& p = result.parameterization;
