@@ -245,16 +245,14 @@ int Run() {
   if (FLAGS_measurement != "position") {
     if (!FLAGS_prior.empty() || !FLAGS_prior_free.empty()) {
       std::cerr << "error: --prior and --prior_free plan a recalibration from tracker (position) "
-                   "measurements; a --measurement=" << FLAGS_measurement << " plan takes no prior
-";
+                   "measurements; a --measurement=" << FLAGS_measurement << " plan takes no prior\n";
       return kExitUsage;
     }
     return tools::RunContactPlan();
   }
   if (!FLAGS_prior.empty() && FLAGS_model.empty()) FLAGS_model = FLAGS_prior;  // the prior's model
   if (!FLAGS_prior_free.empty() && FLAGS_prior.empty()) {
-    std::cerr << "error: --prior_free needs --prior
-";
+    std::cerr << "error: --prior_free needs --prior\n";
     return kExitUsage;
   }
   if (FLAGS_model.empty() || FLAGS_count.empty() || FLAGS_output.empty()) {
