@@ -339,6 +339,33 @@ TEST(ContactJointErrors, UnseparableCombinationsLeftOutWithTheirReason) {
   EXPECT_NEAR(linear.cost, ceres.cost, 1e-6 * std::max(1.0, linear.cost));
 }
 
+// Two terms (compliance, then harmonics: registry order), the second reduced against the first as
+// well: both solvers converge to the same cost and predictions.
+TEST(ContactJointErrors, TwoTermsBothSolversAgree) {
+  const Arm a = MakeArm(true);
+  const ContactMeasurementSet data = Ballbar(a.truth, 300, 1, 0.002);
+  ContactCalibrationOptions o;
+  o.joint_terms = {Term("compliance", a.nominal), Term("harmonics", a.nominal)};
+  const ContactCalibrationResult linear = CalibrateContactsLinear(a.nominal, data, o);
+  ASSERT_TRUE(linear.ok) << linear.message;
+  const ContactCalibrationResult ceres = CalibrateContactsCeres(a.nominal, data, o);
+  ASSERT_TRUE(ceres.ok) << ceres.message;
+  EXPECT_LT(linear.iterations, o.max_iterations);
+  ASSERT_EQ(linear.joint_terms.size(), 2u);
+  EXPECT_EQ(linear.joint_terms[0].term->name(), "compliance");
+  EXPECT_EQ(linear.joint_terms[1].term->name(), "harmonics");
+  EXPECT_NEAR(linear.cost, ceres.cost, 1e-6 * std::max(1.0, linear.cost));
+  const ContactMeasurementSet held = Ballbar(a.truth, 60, 901, 0.0);
+  const std::vector<Eigen::Vector3d> pa = Positions(linear.model, held), pb = Positions(ceres.model, held);
+  double largest = 0;
+  for (size_t i = 0; i < pa.size(); ++i) largest = std::max(largest, (pa[i] - pb[i]).norm());
+  EXPECT_LT(largest, 1e-4) << "mm between the two solvers' predictions";
+  // With both terms modelled the held-out error is at the noise's scale.
+  const double e = AlignedRms(pa, Positions(a.truth, held));
+  ::testing::Test::RecordProperty("held_out_rms_nm", static_cast<int>(1e6 * e));
+  EXPECT_LT(e, 0.01) << "mm";
+}
+
 }  // namespace contact_joint_errors_test
 }  // namespace
 }  // namespace lpoe

@@ -642,7 +642,10 @@ ContactCalibrationResult CalibrateContactsLinear(const RobotModel& nominal,
       if (cost2 <= cost) {
         result.model = std::move(model);
         result.features = std::move(features);
-        converged = cost2 == 0;
+        // A step that leaves the cost exactly as it was: at the minimum to round-off (the
+        // Gauss-Newton step's promise is then round-off too, e.g. with joint-space terms, whose
+        // kept combinations can be conditioned to 1e4 in the scaled columns).
+        converged = cost2 == 0 || cost2 == cost;
         cost = cost2;
         lambda = std::max(lambda / 10, 1e-15);
         accepted = true;
