@@ -224,9 +224,8 @@ TEST_F(ContactTool, BallbarWithJointErrors) {
   EXPECT_EQ(u.exit_code, 1) << u.err;
   EXPECT_NE(u.err.find("cannot hold the joint-space terms"), std::string::npos) << u.err;
 #ifdef LPOE_COMPARE_PATH
-  // Both terms: the linear solver stops at the minimum to round-off, where its Gauss-Newton
-  // step's promise is round-off too (on lpoe_simulate's ballbar rows with the default error seed
-  // it ran to its iteration limit before: exit 4).
+  // Both terms: both solvers converge and agree (the linear solver stops at the minimum to
+  // round-off, where its Gauss-Newton step's promise can be round-off too).
   const ToolOutput c = Run(LPOE_COMPARE_PATH,
                            "--model=" + P("nominal.yaml") + " --measurements=" + P("bar.csv") +
                                " --joint_errors=compliance,harmonics --tolerance_mm=1e-4");
