@@ -350,6 +350,8 @@ TEST(ContactJointErrors, UnseparableCombinationsLeftOutWithTheirReason) {
               std::string::npos)
         << d.reason;
   }
+  ::testing::Test::RecordProperty("kept", kept);
+  ::testing::Test::RecordProperty("left_out", left_out);
   EXPECT_GT(left_out, 0);
   EXPECT_GT(kept, 0);
   EXPECT_EQ(kept + left_out, P);
