@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <sstream>
 #include <string>
@@ -203,8 +204,13 @@ TEST_F(ContactTool, BallbarWithJointErrors) {
   const ToolOutput o = Run(LPOE_CALIBRATE_PATH,
                            "--model=" + P("nominal.yaml") + " --measurements=" + P("bar.csv") +
                                " --joint_errors=harmonics --output=" + P("cal.yaml") +
-                               " --report=" + P("report.json"));
+                               " --report=" + P("report.json") + " --html_report=" + P("r.html"));
   ASSERT_EQ(o.exit_code, 0) << o.err << o.out;
+  {
+    std::ifstream html(dir_ / "r.html");
+    const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
+    EXPECT_NE(page.find("Joint-space term harmonics: joint1.sin1 = "), std::string::npos);
+  }
   EXPECT_NE(o.out.find("joint-space term harmonics: "), std::string::npos) << o.out;
   RobotModel cal;
   ASSERT_TRUE(ReadRobotModel(dir_ / "cal.yaml", &cal).ok());

@@ -630,6 +630,17 @@ int RunContactCalibration() {
       errors_html += "<h2>Plots</h2>\n<figure>" + svg + "</figure>\n";
     }
   }
+  // The joint-space terms' values (the YAML's joint_errors).
+  std::string joint_html;
+  for (const JointTermValues& t : result.joint_terms) {
+    std::ostringstream h;
+    h << "<p>Joint-space term " << HtmlEscape(t.term->name()) << ":";
+    for (int k = 0; k < t.theta.size(); ++k) {
+      h << " " << HtmlEscape(t.term->ParameterName(k)) << " = " << t.theta(k);
+    }
+    h << "</p>\n";
+    joint_html += h.str();
+  }
   if (staged.ok() && !FLAGS_html_report.empty()) {
     const std::string html =
         "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>lpoe_calibrate</title></head>"
@@ -637,7 +648,7 @@ int RunContactCalibration() {
         "<tr><th>table</th><th>rows</th><th>RMS (mm)</th><th>max (mm)</th><th>expected noise "
         "(mm)</th><th>verdict</th><th>" + std::string(verify_label) + " (mm)</th></tr>\n" +
         html_rows + "</table>\n<p>" + HtmlEscape(p.base_reason) + "</p>\n<p>Scale: " +
-        HtmlEscape(p.scale_reason) + "</p>\n" + errors_html + "</body></html>\n";
+        HtmlEscape(p.scale_reason) + "</p>\n" + joint_html + errors_html + "</body></html>\n";
     staged = outputs.Stage(FLAGS_html_report, html);
   }
   return CommitOutputs(staged, &outputs, FLAGS_quiet);
