@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <sstream>
 #include <string>
@@ -17,6 +18,7 @@
 
 #include "file_util.h"
 #include "lpoe/io.h"
+#include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
 
 #ifndef LPOE_CALIBRATE_PATH
@@ -193,6 +195,49 @@ TEST_F(ContactTool, CompareAgrees) {
   EXPECT_NE(o.out.find("largest difference of the predicted tool points"), std::string::npos) << o.out;
 }
 #endif
+
+// --joint_errors=harmonics with ballbar data: the calibrated YAML carries the term (its
+// joint_errors section), the report names its values and the combinations left out, lpoe_compare
+// with the same term finds both solvers agreeing.
+TEST_F(ContactTool, BallbarWithJointErrors) {
+  Simulate("ballbar", 0.002, "bar.csv");
+  const ToolOutput o = Run(LPOE_CALIBRATE_PATH,
+                           "--model=" + P("nominal.yaml") + " --measurements=" + P("bar.csv") +
+                               " --joint_errors=harmonics --output=" + P("cal.yaml") +
+                               " --report=" + P("report.json") + " --html_report=" + P("r.html"));
+  ASSERT_EQ(o.exit_code, 0) << o.err << o.out;
+  {
+    std::ifstream html(dir_ / "r.html");
+    const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
+    EXPECT_NE(page.find("Joint-space term harmonics: joint1.sin1 = "), std::string::npos);
+  }
+  EXPECT_NE(o.out.find("joint-space term harmonics: "), std::string::npos) << o.out;
+  RobotModel cal;
+  ASSERT_TRUE(ReadRobotModel(dir_ / "cal.yaml", &cal).ok());
+  EXPECT_EQ(cal.joint_errors.Values("harmonics").size(),
+            static_cast<size_t>(NumHarmonicsParameters(6)));
+  std::ifstream in(dir_ / "report.json");
+  const nlohmann::json r = nlohmann::json::parse(in);
+  ASSERT_EQ(r["joint_errors"].size(), 1u) << r.dump();
+  EXPECT_EQ(r["joint_errors"][0]["term"], "harmonics");
+  EXPECT_EQ(r["joint_errors"][0]["values"].size(), static_cast<size_t>(NumHarmonicsParameters(6)));
+  // The distances are fitted to their noise (the verdict per kind).
+  EXPECT_EQ(r["measurement_kinds"][0]["verdict"], "pass") << r.dump();
+  const ToolOutput u = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") +
+                                                    " --measurements=" + P("bar.csv") +
+                                                    " --joint_errors=harmonics --urdf_output=" +
+                                                    P("cal.urdf"));
+  EXPECT_EQ(u.exit_code, 1) << u.err;
+  EXPECT_NE(u.err.find("cannot hold the joint-space terms"), std::string::npos) << u.err;
+#ifdef LPOE_COMPARE_PATH
+  // Both terms: both solvers converge and agree (the linear solver stops at the minimum to
+  // round-off, where its Gauss-Newton step's promise can be round-off too).
+  const ToolOutput c = Run(LPOE_COMPARE_PATH,
+                           "--model=" + P("nominal.yaml") + " --measurements=" + P("bar.csv") +
+                               " --joint_errors=compliance,harmonics --tolerance_mm=1e-4");
+  EXPECT_EQ(c.exit_code, 0) << c.err << c.out;
+#endif
+}
 
 // --verify with a ballbar file of the same pivots (another seed, the same robot): its table per
 // kind in the report, fitting to the noise; --kfold's cross-validated RMS per kind; a pivot the
@@ -435,14 +480,17 @@ TEST_F(ContactTool, BadRowsNameFileAndLine) {
   EXPECT_EQ(o.exit_code, 2);
   EXPECT_NE(o.err.find("broken.csv:3: column 'distance'"), std::string::npos) << o.err;
   EXPECT_FALSE(std::ifstream(dir_ / "cal.yaml").good());
-  const ToolOutput u = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") +
-                                                    " --measurements=" + P("bar.csv") +
-                                                    " --joint_errors=compliance --output=" + P("cal.yaml"));
-  EXPECT_EQ(u.exit_code, 1);
-  EXPECT_NE(u.err.find("--joint_errors is not available with distance or plane data: the "
-                       "contact solvers estimate the frames, pivots and planes only"),
-            std::string::npos)
-      << u.err;
+  // --joint_errors=auto and the gravity tilt: refused with their reasons, nothing written.
+  for (const char* flag : {"--joint_errors=auto", "--joint_errors=compliance,tilt"}) {
+    const ToolOutput u = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") +
+                                                      " --measurements=" + P("bar.csv") + " " +
+                                                      flag + " --output=" + P("cal.yaml"));
+    EXPECT_EQ(u.exit_code, 1) << flag;
+    EXPECT_NE(u.err.find("not available with distance or plane data: "), std::string::npos)
+        << u.err;
+    EXPECT_GT(u.err.size(), 150u) << u.err;
+    EXPECT_FALSE(std::ifstream(dir_ / "cal.yaml").good());
+  }
   // Every refused flag says why.
   for (const char* flag : {"--residual_model=gp", "--loss=huber", "--fixed_tools=tool0",
                            "--parameterization=full"}) {

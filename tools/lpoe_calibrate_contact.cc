@@ -212,8 +212,7 @@ int RunContactCalibration() {
     const char* flag;
   };
   for (const Unsupported& u :
-       {Unsupported{FLAGS_joint_errors != "none", "joint_errors"},
-        Unsupported{FLAGS_residual_model != "none", "residual_model"},
+       {Unsupported{FLAGS_residual_model != "none", "residual_model"},
         Unsupported{FLAGS_loss != "none", "loss"},
         Unsupported{!FLAGS_fixed_tools.empty(), "fixed_tools"},
         Unsupported{FLAGS_parameterization != "identifiable", "parameterization"}}) {
@@ -399,6 +398,14 @@ int RunContactCalibration() {
     }
   }
   RobotModel start = nominal;
+  if (!FLAGS_joint_errors.empty() && FLAGS_joint_errors != "none" &&
+      (!FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty())) {
+    std::cerr << "error: --urdf_output and --ur_kinematics_output are not available with "
+                 "--joint_errors and distance or plane data: URDF and UR kinematics cannot hold "
+                 "the joint-space terms, and no geometry-only re-fit is made for these rows; "
+                 "calibrate the geometry alone for them (docs/measurements.md)\n";
+    return kExitUsage;
+  }
   if (tracker.size() > 0) {
     if (!FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty()) {
       std::cerr << "error: --urdf_output and --ur_kinematics_output are not available with "
@@ -417,6 +424,11 @@ int RunContactCalibration() {
   // ---- The run: hold-out rows (or --verify's), calibration, --kfold (the identification rows
   // in k folds, shuffled by --split_seed + 1; each fold's rows predicted by the calibration of the
   // others, with the same options), the figures per kind (lpoe/contact_pipeline.h).
+  // --joint_errors: the registry's terms, built on the start model (their regressors' geometry).
+  if (Status s = ContactJointTerms(FLAGS_joint_errors, start, &options.joint_terms); !s.ok()) {
+    std::cerr << "error: --joint_errors=" << s.message() << " (docs/measurements.md)\n";
+    return kExitUsage;
+  }
   ContactPipelineOptions run_options;
   run_options.solver = FLAGS_solver;
   run_options.calibration = options;
@@ -528,8 +540,29 @@ int RunContactCalibration() {
                       {"normal", {pl(0), pl(1), pl(2)}},
                       {"offset_mm", pl(3)}});
   }
-  out << "parameters: " << p.frames.num_parameters << " of the robot, " << 3 * p.num_pivots
-      << " of pivots, " << 3 * p.num_planes << " of planes\n";
+  const int joint_parameters = p.frames.num_joint_parameters();
+  out << "parameters: " << p.frames.num_parameters - joint_parameters << " of the robot, "
+      << 3 * p.num_pivots << " of pivots, " << 3 * p.num_planes << " of planes";
+  if (!p.frames.joint_blocks.empty()) out << ", " << joint_parameters << " of joint-space terms";
+  out << "\n";
+  // The joint-space terms' values (what the YAML's joint_errors carries).
+  nlohmann::json joint_json = nlohmann::json::array();
+  for (size_t b = 0; b < result.joint_terms.size(); ++b) {
+    const JointTermValues& t = result.joint_terms[b];
+    const int kept = static_cast<int>(p.frames.joint_blocks[b].basis.cols());
+    out << "joint-space term " << t.term->name() << ": " << kept << " of "
+        << t.term->num_parameters() << " combinations identified; values:";
+    nlohmann::json values = nlohmann::json::object();
+    for (int k = 0; k < t.theta.size(); ++k) {
+      out << " " << t.term->ParameterName(k) << "=" << t.theta(k);
+      values[t.term->ParameterName(k)] = t.theta(k);
+    }
+    out << "\n";
+    joint_json.push_back({{"term", t.term->name()},
+                          {"parameters", t.term->num_parameters()},
+                          {"identified_combinations", kept},
+                          {"values", values}});
+  }
   if (p.num_base_directions > 0) {
     out << "not identified (" << p.num_base_directions << " directions of the base): "
         << p.base_reason << "\n";
@@ -577,6 +610,7 @@ int RunContactCalibration() {
         {"base", {{"directions_left_out", p.num_base_directions}, {"reason", p.base_reason}}},
         {"scale", {{"held", p.scale_held}, {"reason", p.scale_reason}, {"value", result.scale}}},
         {"left_out", left_out},
+        {"joint_errors", joint_json},
     };
     staged = outputs.Stage(FLAGS_report, j.dump(2) + "\n");
   }
@@ -596,6 +630,17 @@ int RunContactCalibration() {
       errors_html += "<h2>Plots</h2>\n<figure>" + svg + "</figure>\n";
     }
   }
+  // The joint-space terms' values (the YAML's joint_errors).
+  std::string joint_html;
+  for (const JointTermValues& t : result.joint_terms) {
+    std::ostringstream h;
+    h << "<p>Joint-space term " << HtmlEscape(t.term->name()) << ":";
+    for (int k = 0; k < t.theta.size(); ++k) {
+      h << " " << HtmlEscape(t.term->ParameterName(k)) << " = " << t.theta(k);
+    }
+    h << "</p>\n";
+    joint_html += h.str();
+  }
   if (staged.ok() && !FLAGS_html_report.empty()) {
     const std::string html =
         "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>lpoe_calibrate</title></head>"
@@ -603,7 +648,7 @@ int RunContactCalibration() {
         "<tr><th>table</th><th>rows</th><th>RMS (mm)</th><th>max (mm)</th><th>expected noise "
         "(mm)</th><th>verdict</th><th>" + std::string(verify_label) + " (mm)</th></tr>\n" +
         html_rows + "</table>\n<p>" + HtmlEscape(p.base_reason) + "</p>\n<p>Scale: " +
-        HtmlEscape(p.scale_reason) + "</p>\n" + errors_html + "</body></html>\n";
+        HtmlEscape(p.scale_reason) + "</p>\n" + joint_html + errors_html + "</body></html>\n";
     staged = outputs.Stage(FLAGS_html_report, html);
   }
   return CommitOutputs(staged, &outputs, FLAGS_quiet);

@@ -41,6 +41,7 @@ DEFINE_string(split, "random",
               "How --holdout splits the rows: random (seeded by --split_seed) | sequential (the "
               "last rows of the file are held out).");
 DEFINE_uint64(split_seed, 1, "Seed of the --holdout split.");
+DECLARE_string(joint_errors);  // lpoe_compare_contact.cc
 DEFINE_string(parameterization, "identifiable", "identifiable | full (see lpoe_calibrate).");
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first (as lpoe_calibrate); both solvers "
@@ -250,6 +251,11 @@ Status StageCompareOutputs(const tools::InputPaths& paths, const tools::InputSet
 int Run() {
   // Ballbar distances and probe contacts: both contact solvers (lpoe_compare_contact.cc).
   if (tools::ContactCompareRequested()) return tools::RunContactCompare();
+  if (FLAGS_joint_errors != "none") {
+    std::cerr << "error: --joint_errors is for distance or plane data only (tracker data: "
+                 "compare with lpoe_calibrate --joint_errors and each --solver)\n";
+    return kExitUsage;
+  }
   tools::InputPaths paths;
   tools::InputSettings settings;
   if (!tools::InputsFromFlags(&paths, &settings)) return kExitUsage;

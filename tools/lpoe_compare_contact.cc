@@ -14,6 +14,7 @@
 #include "lpoe/contact_calibration.h"
 #include "lpoe/contact_measurements.h"
 #include "lpoe/contact_pipeline.h"
+#include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/measurement_kinds.h"
 #include "tool_common.h"
@@ -24,8 +25,24 @@ DEFINE_string(sigmas, "",
               "Ballbar and probe files without a sigma column: one noise (mm) per --measurements "
               "file, comma-separated (as lpoe_calibrate's).");
 
+DEFINE_string(joint_errors, "none",
+              "Distance or plane data: joint-space terms identified with the geometry by both "
+              "solvers, none or a comma-separated list of the registry's terms (as "
+              "lpoe_calibrate's; compliance, harmonics, ...).");
+
 namespace lpoe {
 namespace tools {
+namespace {
+
+// The tool point at q_eff when the model carries joint-space terms.
+Eigen::Vector3d PredictContactPoint(const RobotModel& m, const double* q, int tool) {
+  if (m.joint_errors.empty()) return ToolPosition(m, q, tool);
+  std::vector<double> q_eff(m.num_joints());
+  EffectiveJoints(m, q, q_eff.data());
+  return ToolPosition(m, q_eff.data(), tool);
+}
+
+}  // namespace
 
 // Whether --measurements names distance or plane files (one, or several comma-separated).
 bool ContactCompareRequested() {
@@ -83,6 +100,11 @@ int RunContactCompare() {
   const ContactMeasurementSet& data = inputs.data;
   // Both solvers as lpoe_calibrate runs them (no rows held out).
   ContactPipelineOptions run_options;
+  if (Status s = ContactJointTerms(FLAGS_joint_errors, nominal, &run_options.calibration.joint_terms);
+      !s.ok()) {
+    std::cerr << "error: --joint_errors=" << s.message() << "\n";
+    return kExitUsage;
+  }
   run_options.solver = "linear";
   const ContactPipelineResult linear_run =
       RunContactPipeline(nominal, data, ContactMeasurementSet(), run_options);
@@ -99,8 +121,8 @@ int RunContactCompare() {
   }
   double largest = 0;
   for (int i = 0; i < data.size(); ++i) {
-    const Eigen::Vector3d a = ToolPosition(linear.model, data.joints(i), data.rows[i].target);
-    const Eigen::Vector3d b = ToolPosition(ceres.model, data.joints(i), data.rows[i].target);
+    const Eigen::Vector3d a = PredictContactPoint(linear.model, data.joints(i), data.rows[i].target);
+    const Eigen::Vector3d b = PredictContactPoint(ceres.model, data.joints(i), data.rows[i].target);
     largest = std::max(largest, (a - b).norm());
   }
   std::cout << "lpoe_compare: " << data.size() << " rows of distance and plane data\n"

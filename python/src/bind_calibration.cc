@@ -446,8 +446,8 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
   k.Get<double>("sigma", 1.0);  // the tracker rows' noise (GatherContactData)
   // What lpoe_calibrate refuses with these kinds (docs/measurements.md), refused here too.
   const std::vector<std::pair<const char*, std::string>> defaults = {
-      {"parameterization", "identifiable"}, {"joint_errors", "none"}, {"residual_model", "none"},
-      {"loss", "none"}};
+      {"parameterization", "identifiable"}, {"residual_model", "none"}, {"loss", "none"}};
+  const std::string joint_errors = k.Get<std::string>("joint_errors", "none");
   for (const auto& [name, fallback] : defaults) {
     if (k.Get<std::string>(name, fallback) != fallback) {
       throw LpoeError(std::string(name) + " is not available with distance or plane data: " +
@@ -500,6 +500,10 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
     if (Status s = RegisterToMeasurements(nominal, tracker, &start, &report); !s.ok()) {
       throw LpoeError("registration to the tracker data: " + s.message());
     }
+  }
+  // joint_errors: the registry's terms on the start model, as lpoe_calibrate --joint_errors.
+  if (Status s = ContactJointTerms(joint_errors, start, &options.joint_terms); !s.ok()) {
+    throw LpoeError("joint_errors: " + s.message() + " (docs/measurements.md)");
   }
   // verify: distance and plane sets of the calibration's pivots and planes (as --verify).
   ContactMeasurementSet verification;
@@ -666,6 +670,18 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
   scale["value"] = result.scale;
   report["scale"] = scale;
   report["left_out"] = left_out;
+  py::list joint_terms;
+  for (size_t b = 0; b < result.joint_terms.size(); ++b) {
+    const JointTermValues& t = result.joint_terms[b];
+    py::dict e, values;
+    e["term"] = t.term->name();
+    e["parameters"] = t.term->num_parameters();
+    e["identified_combinations"] = static_cast<int>(p.frames.joint_blocks[b].basis.cols());
+    for (int i = 0; i < t.theta.size(); ++i) values[py::str(t.term->ParameterName(i))] = t.theta(i);
+    e["values"] = values;
+    joint_terms.append(e);
+  }
+  report["joint_errors"] = joint_terms;
   c.verdict = run.verdict;
   c.verdict_reason = "the worst of the kinds' verdicts (RMS within 2x the expected noise: pass, "
                      "5x: check)";
@@ -996,8 +1012,8 @@ void BindCalibration(py::module_& m) {
       "--measurements=a.csv,b.csv does: solver, holdout, split_seed, max_iterations and "
       "hold_scale='auto' | 'on' | 'off' (auto holds the robot's scale when no row measures a "
       "length), verify (distance or plane sets of the same pivots and planes) and kfold "
-      "apply; joint_errors, residual_model, loss, fixed_tools and parameterization='full' are "
-      "refused.\n"
+      "apply, and joint_errors (a list of the registry's terms; 'auto' and the gravity tilt are "
+      "refused); residual_model, loss, fixed_tools and parameterization='full' are refused.\n"
       "An unknown keyword raises lpoe.Error naming it.");
 }
 

@@ -130,8 +130,10 @@ def test_refusals(sim):
         lpoe.calibrate(nominal, bar, verify=bar, holdout=0.2)
     with pytest.raises(lpoe.Error, match="verify names a pivot or plane that data does not"):
         lpoe.calibrate(nominal, bar, verify=cube)
-    with pytest.raises(lpoe.Error, match="joint_errors is not available"):
-        lpoe.calibrate(nominal, bar, joint_errors="harmonics")
+    with pytest.raises(lpoe.Error, match="joint_errors: 'auto' is not available with distance"):
+        lpoe.calibrate(nominal, bar, joint_errors="auto")
+    with pytest.raises(lpoe.Error, match="gravity tilt is not available with distance"):
+        lpoe.calibrate(nominal, bar, joint_errors="compliance,tilt")
     with pytest.raises(lpoe.Error, match="hold_scale: expected 'auto', 'on' or 'off'"):
         lpoe.calibrate(nominal, cube, hold_scale="sometimes")
     with pytest.raises(lpoe.Error, match="hold_scale applies to distance and plane data only"):
@@ -143,6 +145,23 @@ def test_refusals(sim):
     with pytest.raises(lpoe.Error, match=r"data\[1\]: expected lpoe.Measurements or "
                                          r"lpoe.ContactMeasurements, got int"):
         lpoe.calibrate(nominal, [bar, 3])
+
+
+def test_joint_errors_as_the_tool(sim):
+    """joint_errors='harmonics' with ballbar rows: the model carries the term, the report names
+    its values, and the model bytes are lpoe_calibrate --joint_errors=harmonics's."""
+    nominal, _, bar, _, d = sim
+    r = lpoe.calibrate(nominal, bar, joint_errors="harmonics")
+    assert r.converged, r.message
+    terms = r.report["joint_errors"]
+    assert [t["term"] for t in terms] == ["harmonics"]
+    assert len(terms[0]["values"]) == terms[0]["parameters"] == 24
+    assert "joint_errors" in r.model.to_yaml() and "harmonics" in r.model.to_yaml()
+    out = d / "cli_harmonics.yaml"
+    subprocess.run([CLI, f"--model={os.path.join(DATA, 'cobot6.yaml')}",
+                    f"--measurements={d / 'bar.csv'}", "--joint_errors=harmonics",
+                    f"--output={out}", "--quiet"], check=True, stdout=subprocess.DEVNULL)
+    assert out.read_text() == r.model.to_yaml()
 
 
 def test_verify_and_kfold_as_the_tool(sim):

@@ -21,12 +21,14 @@
 #ifndef LPOE_CONTACT_CALIBRATION_H_
 #define LPOE_CONTACT_CALIBRATION_H_
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "lpoe/contact_measurements.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/status.h"
@@ -36,6 +38,10 @@ namespace lpoe {
 struct ContactFeatures {
   std::vector<Eigen::Vector3d> pivots;  // mm, the model's base frame
   std::vector<Eigen::Vector4d> planes;  // [nx ny nz d], n.x = d, |n| = 1
+  // The joint-space terms' values theta (ambient, term->num_parameters() each), one per
+  // ContactParameterization::frames.joint_blocks; missing or empty: zero. Not features of the
+  // workcell, but state the solvers carry with them (the predictions use q_eff, joint_term.h).
+  std::vector<Eigen::VectorXd> joint_theta;
 };
 
 enum class ScaleHold { kAuto, kOn, kOff };
@@ -55,10 +61,18 @@ struct ContactCalibrationOptions {
   // A singular value of the column-scaled Jacobian below this fraction of the largest is a null
   // direction (the rigid motions are exactly null: their singular values are round-off).
   double null_tolerance = 1e-8;
+  // Joint-space terms (joint_term.h, MakeJointTerm on the nominal model), one block each after the
+  // frame blocks. Each is reduced to the combinations the data separate from the frames, the
+  // pivots and planes and the earlier terms (as the tracker solvers do: the Schur complement in the
+  // column-scaled normal matrix at the start, kept when its scaled singular value is at least
+  // joint_term_tolerance); the rest is listed in frames.unidentifiable with the reason.
+  std::vector<std::shared_ptr<const JointTerm>> joint_terms;
+  double joint_term_tolerance = 1e-4;
 };
 
-// The calibration's unknowns: the frame blocks (with the directions left out and why), then the
-// pivots (3 each), then the planes (3 local coordinates each).
+// The calibration's unknowns: the frame blocks (with the directions left out and why) and the
+// joint-space blocks (frames.joint_blocks, after the frame columns), then the pivots (3 each),
+// then the planes (3 local coordinates each).
 struct ContactParameterization {
   Parameterization frames;
   int num_pivots = 0;
@@ -93,6 +107,9 @@ struct ContactCalibrationResult {
   double initial_cost = 0;
   double cost = 0;
   std::vector<double> errors;  // per row: mm (distance, plane: signed; position: |e|)
+  // The joint-space terms' identified values (also in model.joint_errors, with the nominal
+  // model's joint origins as regressor_origins: predicting with `model` reproduces the residuals).
+  std::vector<JointTermValues> joint_terms;
   double scale = 1;            // ScaleOf(model, nominal, data)
 };
 
@@ -129,16 +146,22 @@ void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
                       const ContactMeasurementSet& data, const ContactCalibrationOptions& options,
                       Eigen::VectorXd* r, Eigen::MatrixXd* J);
 
-// Per row, mm (see ContactCalibrationResult::errors).
+// Per row, mm (see ContactCalibrationResult::errors); at q_eff when `model` carries joint errors.
 std::vector<double> ContactErrors(const RobotModel& model, const ContactFeatures& features,
                                   const ContactMeasurementSet& data);
 
 // The features' ambient values in the order of ContactParameterization::gauge_rows.
 Eigen::VectorXd FeatureVector(const ContactFeatures& features);
 
-// The features after a step of p's feature coordinates (x has p.num_parameters entries).
+// The features after a step of p's feature coordinates and joint-space blocks (x has
+// p.num_parameters entries).
 void ApplyFeatureStep(const ContactParameterization& p, const Eigen::VectorXd& x,
                       ContactFeatures* features);
+
+// The result's joint_terms from features.joint_theta, stored in result->model.joint_errors with
+// `nominal`'s joint origins (the geometry the terms' regressors were evaluated on).
+void StoreContactJointTerms(const ContactParameterization& p, const ContactFeatures& features,
+                            const RobotModel& nominal, ContactCalibrationResult* result);
 
 ContactCalibrationResult CalibrateContactsLinear(const RobotModel& nominal,
                                                  const ContactMeasurementSet& data,

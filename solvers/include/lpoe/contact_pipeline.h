@@ -7,6 +7,7 @@
 #define LPOE_CONTACT_PIPELINE_H_
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -90,8 +91,14 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
                                          const ContactMeasurementSet& verification,
                                          const ContactPipelineOptions& options);
 
+// The joint-space terms of a --joint_errors text (Python's joint_errors=) for distance or plane
+// data, built on `reference` (the start model): "none" (no terms) or a list of the registry's
+// terms, in registry order. "auto" and the gravity tilt are refused with their reasons.
+Status ContactJointTerms(const std::string& text, const RobotModel& reference,
+                         std::vector<std::shared_ptr<const JointTerm>>* terms);
+
 // Why an option of the position calibration is refused with distance or plane data (one text for
-// lpoe_calibrate and Python): "joint_errors", "residual_model", "loss", "fixed_tools",
+// lpoe_calibrate and Python): "joint_errors_auto", "joint_errors_tilt", "residual_model", "loss", "fixed_tools",
 // "parameterization" (full), "urdf_with_tracker" (--urdf_output / --ur_kinematics_output with a
 // tracker file among the files). Empty for any other name.
 std::string ContactRefusalReason(const std::string& option);

@@ -11,7 +11,9 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
+#include "identifiability/identifiability.h"
 #include "lpoe/distance_measurement.h"
+#include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/plane_measurement.h"
 #include "lpoe/position_measurement.h"
@@ -177,21 +179,69 @@ void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
   const int total = rows + gauge + (p.scale_held ? 1 : 0);
   r->resize(total);
   if (J != nullptr) J->setZero(total, p.num_parameters);
+  // Columns of the robot: the frames' (BasisJacobian on the frame blocks alone), then the
+  // joint-space blocks' J_q(q_eff) Y(q) basis_b (joint_term.h).
   const int P = p.frames.num_parameters;
-  BasisJacobian bj(model, p.frames);
-  std::vector<FrameRt> scratch(model.num_joints() + 1);
-  Eigen::Matrix<double, 3, Eigen::Dynamic> Jp(3, std::max(P, 1));
+  const int Pf = p.frames.num_frame_parameters();
+  const int n = model.num_joints();
+  const std::vector<JointBlock>& blocks = p.frames.joint_blocks;
+  Parameterization frames_only;
+  const Parameterization* pf = &p.frames;
+  if (!blocks.empty()) {
+    frames_only = p.frames;
+    frames_only.joint_blocks.clear();
+    frames_only.parameters.resize(Pf);
+    frames_only.num_parameters = Pf;
+    pf = &frames_only;
+  }
+  BasisJacobian bj(model, *pf);
+  std::vector<FrameRt> scratch(n + 1);
+  Eigen::Matrix<double, 3, Eigen::Dynamic> Jp =
+      Eigen::Matrix<double, 3, Eigen::Dynamic>::Zero(3, std::max(P, 1));
+  Eigen::Matrix<double, 3, Eigen::Dynamic> Jraw(3, std::max(Pf, 1));
+  Eigen::Matrix<double, 3, Eigen::Dynamic> Jq(3, std::max(n, 1));
   Eigen::RowVectorXd frame_row(std::max(P, 1));
   double feature_row[3];
   int at = 0;
   double S = 0;
   Eigen::RowVectorXd dS = Eigen::RowVectorXd::Zero(std::max(P, 1));
+  std::vector<Eigen::MatrixXd> Y(blocks.size());
+  Eigen::VectorXd q_eff(n);
   for (int i = 0; i < data.size(); ++i) {
     const ContactRow& row = data.rows[i];
-    const Eigen::Vector3d X = bj.Position(data.joints(i), row.target, Jp.data(), 3, scratch.data());
-    if (p.scale_held) {
-      S += p.scale_weights.col(i).dot(X);
-      if (J != nullptr) dS.head(P) += p.scale_weights.col(i).transpose() * Jp.leftCols(P);
+    const double* q = data.joints(i);
+    Eigen::Vector3d X;
+    if (blocks.empty()) {
+      X = bj.Position(q, row.target, Jp.data(), 3, scratch.data());
+      if (p.scale_held) {
+        S += p.scale_weights.col(i).dot(X);
+        if (J != nullptr) dS.head(P) += p.scale_weights.col(i).transpose() * Jp.leftCols(P);
+      }
+    } else {
+      // The scale hold is on the frames' predictions at the joint values read (ScaleOf).
+      if (p.scale_held) {
+        const Eigen::Vector3d Xs = bj.Position(q, row.target, Jraw.data(), 3, scratch.data());
+        S += p.scale_weights.col(i).dot(Xs);
+        if (J != nullptr) dS.head(Pf) += p.scale_weights.col(i).transpose() * Jraw.leftCols(Pf);
+      }
+      q_eff = Eigen::Map<const Eigen::VectorXd>(q, n);
+      for (size_t b = 0; b < blocks.size(); ++b) {
+        const JointTerm& term = *blocks[b].term;
+        Y[b].resize(n, term.num_parameters());
+        term.Regressor(q, Y[b].data());
+        if (b < features.joint_theta.size() && features.joint_theta[b].size() > 0) {
+          q_eff += Y[b] * features.joint_theta[b];
+        }
+      }
+      X = bj.Position(q_eff.data(), row.target, Jp.data(), 3, scratch.data());
+      if (J != nullptr) {
+        bj.PositionJointJacobian(scratch.data(), Jq.data(), 3);
+        for (size_t b = 0; b < blocks.size(); ++b) {
+          const int k = static_cast<int>(blocks[b].basis.cols());
+          if (k == 0) continue;
+          Jp.middleCols(blocks[b].offset, k) = Jq.leftCols(n) * (Y[b] * blocks[b].basis);
+        }
+      }
     }
     const double w = 1.0 / row.sigma;
     switch (row.kind) {
@@ -256,9 +306,16 @@ void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
 std::vector<double> ContactErrors(const RobotModel& model, const ContactFeatures& features,
                                   const ContactMeasurementSet& data) {
   std::vector<double> out(data.size());
+  const bool joint_errors = !model.joint_errors.empty();
+  std::vector<double> q_eff(model.num_joints());
   for (int i = 0; i < data.size(); ++i) {
     const ContactRow& row = data.rows[i];
-    const Eigen::Vector3d X = ToolPosition(model, data.joints(i), row.target);
+    const double* q = data.joints(i);
+    if (joint_errors) {
+      EffectiveJoints(model, q, q_eff.data());
+      q = q_eff.data();
+    }
+    const Eigen::Vector3d X = ToolPosition(model, q, row.target);
     switch (row.kind) {
       case MeasurementKindId::kDistance:
         out[i] = DistanceMeasurement::Error<double>(X, features.pivots[row.feature].data(), row.value);
@@ -294,6 +351,39 @@ void ApplyFeatureStep(const ContactParameterization& p, const Eigen::VectorXd& x
     Eigen::Vector4d next;
     PlaneMeasurement::Plus(features->planes[k].data(), x.data() + p.plane_offset + 3 * k, next.data());
     features->planes[k] = next;
+  }
+  const std::vector<JointBlock>& blocks = p.frames.joint_blocks;
+  if (features->joint_theta.size() < blocks.size()) features->joint_theta.resize(blocks.size());
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    const int P = blocks[b].term->num_parameters();
+    Eigen::VectorXd& theta = features->joint_theta[b];
+    if (theta.size() != P) theta = Eigen::VectorXd::Zero(P);
+    if (blocks[b].basis.cols() > 0) {
+      theta += blocks[b].basis * x.segment(blocks[b].offset, blocks[b].basis.cols());
+    }
+  }
+}
+
+void StoreContactJointTerms(const ContactParameterization& p, const ContactFeatures& features,
+                            const RobotModel& nominal, ContactCalibrationResult* result) {
+  result->joint_terms.clear();
+  const std::vector<JointBlock>& blocks = p.frames.joint_blocks;
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    JointTermValues v;
+    v.term = blocks[b].term;
+    v.theta = b < features.joint_theta.size() && features.joint_theta[b].size() > 0
+                  ? features.joint_theta[b]
+                  : Eigen::VectorXd::Zero(blocks[b].term->num_parameters());
+    // Every term is a registry entry (MakeJointTerm): its name is the model's key.
+    *result->model.joint_errors.MutableValues(v.term->name()) =
+        std::vector<double>(v.theta.data(), v.theta.data() + v.theta.size());
+    result->joint_terms.push_back(std::move(v));
+  }
+  if (!blocks.empty()) {
+    result->model.joint_errors.regressor_origins.clear();
+    for (const Joint& j : nominal.joints) {
+      result->model.joint_errors.regressor_origins.push_back(j.origin);
+    }
   }
 }
 
@@ -446,6 +536,41 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
   }
   RenumberContactFrames(model, &p.frames);
   layout();
+  if (!options.joint_terms.empty()) {
+    // The joint-space blocks, whole, after the frames; then each reduced to the combinations the
+    // data separate from the frames, the features (pivots, planes: with the gauge and scale rows,
+    // every direction of theirs is determined) and the earlier blocks (JointBlockBases of the
+    // tracker solvers, on the normal matrix reordered as [frames, features, joint blocks]).
+    for (const auto& term : options.joint_terms) {
+      if (term->num_joints() != model.num_joints()) {
+        return Status::Error("joint-space term '" + term->name() + "' was built for " +
+                             std::to_string(term->num_joints()) + " joints, the model has " +
+                             std::to_string(model.num_joints()));
+      }
+      AddJointBlock(term, &p.frames);
+    }
+    layout();
+    ContactLinearize(model, features, p, model, data, options, &r, &J);
+    const int Pf = p.frames.num_frame_parameters();
+    const int Pj = p.frames.num_parameters - Pf;
+    const int Fc = p.num_parameters - p.pivot_offset;
+    Eigen::MatrixXd Jr(J.rows(), J.cols());
+    Jr << J.leftCols(Pf), J.rightCols(Fc), J.middleCols(Pf, Pj);
+    Parameterization pa;
+    pa.num_parameters = p.num_parameters;
+    pa.joint_blocks = p.frames.joint_blocks;
+    for (JointBlock& b : pa.joint_blocks) b.offset += Fc;
+    const Eigen::MatrixXd H = Jr.transpose() * Jr;
+    const std::vector<Eigen::MatrixXd> bases =
+        internal::JointBlockBases(H, pa, options.joint_term_tolerance);
+    for (size_t b = 0; b < bases.size(); ++b) {
+      SetJointBlockBasis(static_cast<int>(b), bases[b],
+                         "not separable from the geometry, the pivots and planes or the earlier "
+                         "joint-space terms with these data",
+                         &p.frames);
+    }
+    layout();
+  }
   *out = std::move(p);
   return Status::Ok();
 }
@@ -466,6 +591,9 @@ ContactCalibrationResult CalibrateContactsLinear(const RobotModel& nominal,
     return result;
   }
   const ContactParameterization& p = result.parameterization;
+  for (const JointBlock& b : p.frames.joint_blocks) {
+    result.features.joint_theta.push_back(Eigen::VectorXd::Zero(b.term->num_parameters()));
+  }
   Eigen::VectorXd r;
   Eigen::MatrixXd J;
   ContactLinearize(result.model, result.features, p, nominal, data, options, &r, &J);
@@ -514,7 +642,10 @@ ContactCalibrationResult CalibrateContactsLinear(const RobotModel& nominal,
       if (cost2 <= cost) {
         result.model = std::move(model);
         result.features = std::move(features);
-        converged = cost2 == 0;
+        // A step that leaves the cost exactly as it was: at the minimum to round-off (the
+        // Gauss-Newton step's promise is then round-off too, e.g. with joint-space terms, whose
+        // kept combinations can be conditioned to 1e4 in the scaled columns).
+        converged = cost2 == 0 || cost2 == cost;
         cost = cost2;
         lambda = std::max(lambda / 10, 1e-15);
         accepted = true;
@@ -529,6 +660,7 @@ ContactCalibrationResult CalibrateContactsLinear(const RobotModel& nominal,
     ContactLinearize(result.model, result.features, p, nominal, data, options, &r, &J);
   }
   result.cost = cost;
+  StoreContactJointTerms(p, result.features, nominal, &result);
   result.errors = ContactErrors(result.model, result.features, data);
   result.scale = ScaleOf(result.model, nominal, data);
   result.ok = converged;

@@ -47,7 +47,11 @@ class ScaleHoldCost : public ceres::CostFunction {
  public:
   ScaleHoldCost(const RobotModel& start, const ContactParameterization& p,
                 const ContactMeasurementSet& data, double sigma)
-      : model_(start), p_(p), data_(data), sigma_(sigma) {
+      : model_(start), p_(p), frames_(p.frames), data_(data), sigma_(sigma) {
+    // The frame blocks alone (the hold is on the frames' predictions at the joint values read).
+    frames_.joint_blocks.clear();
+    frames_.num_parameters = p.frames.num_frame_parameters();
+    frames_.parameters.resize(frames_.num_parameters);
     for (int f = 0; f < start.num_frames(); ++f) {
       mutable_parameter_block_sizes()->push_back(kSe3AmbientSize);
       manifolds_.emplace_back(p.frames.basis[f].cols() > 0 ? new Se3Manifold(p.frames.basis[f])
@@ -62,8 +66,8 @@ class ScaleHoldCost : public ceres::CostFunction {
     for (int f = 0; f < m.num_frames(); ++f) {
       (f < n ? m.joints[f].origin : m.tools[f - n].origin) = Se3FromArray(parameters[f]);
     }
-    const int P = p_.frames.num_parameters;
-    BasisJacobian bj(m, p_.frames);
+    const int P = frames_.num_parameters;
+    BasisJacobian bj(m, frames_);
     std::vector<FrameRt> scratch(n + 1);
     Eigen::Matrix<double, 3, Eigen::Dynamic> Jp(3, std::max(P, 1));
     Eigen::RowVectorXd g = Eigen::RowVectorXd::Zero(std::max(P, 1));
@@ -93,6 +97,7 @@ class ScaleHoldCost : public ceres::CostFunction {
  private:
   RobotModel model_;
   const ContactParameterization& p_;
+  Parameterization frames_;
   const ContactMeasurementSet& data_;
   double sigma_;
   std::vector<std::unique_ptr<Se3Manifold>> manifolds_;
@@ -138,6 +143,66 @@ class GaugeHoldCost : public ceres::CostFunction {
   Eigen::VectorXd values_;
   double sigma_;
 };
+
+// The same row with joint-space blocks (one Euclidean block x_b of k_b numbers per term, after the
+// frames and the feature): the chain evaluated at q_eff = q + sum_b R_b x_b with R_b = Y_b(q)
+// basis_b (fixed data of the row), Jet joint values through the chain.
+template <typename Kind>
+class ContactJointRowFunctor {
+ public:
+  ContactJointRowFunctor(std::shared_ptr<const RobotModel> model, const Kind& kind, const double* q,
+                         const typename Kind::Observation& observation, Eigen::MatrixXd R,
+                         std::vector<int> block_sizes, int first_joint_block)
+      : model_(std::move(model)),
+        kind_(kind),
+        q_(q, q + model_->num_joints()),
+        observation_(observation),
+        R_(std::move(R)),
+        block_sizes_(std::move(block_sizes)),
+        first_joint_block_(first_joint_block) {}
+  template <typename T>
+  bool operator()(T const* const* parameters, T* residuals) const {
+    const int n = model_->num_joints();
+    std::vector<T> q_eff(n);
+    for (int j = 0; j < n; ++j) q_eff[j] = T(q_[j]);
+    int column = 0;
+    for (size_t b = 0; b < block_sizes_.size(); ++b) {
+      const T* x = parameters[first_joint_block_ + b];
+      for (int c = 0; c < block_sizes_[b]; ++c, ++column) {
+        for (int j = 0; j < n; ++j) q_eff[j] += R_(j, column) * x[c];
+      }
+    }
+    const JointMotions<T> motions(*model_, q_eff.data());
+    kind_.Residual(n, parameters, motions, observation_, residuals);
+    return true;
+  }
+
+ private:
+  std::shared_ptr<const RobotModel> model_;
+  Kind kind_;
+  std::vector<double> q_;
+  typename Kind::Observation observation_;
+  Eigen::MatrixXd R_;  // n x sum(block_sizes)
+  std::vector<int> block_sizes_;
+  int first_joint_block_;
+};
+
+template <typename Kind>
+ceres::CostFunction* MakeJointRowCost(std::shared_ptr<const RobotModel> model, const Kind& kind,
+                                      const double* q,
+                                      const typename Kind::Observation& observation,
+                                      int feature_size, Eigen::MatrixXd R,
+                                      std::vector<int> block_sizes) {
+  using Cost = ceres::DynamicAutoDiffCostFunction<ContactJointRowFunctor<Kind>, 4>;
+  const int first = model->num_joints() + 1 + (feature_size > 0 ? 1 : 0);
+  auto* cost = new Cost(new ContactJointRowFunctor<Kind>(model, kind, q, observation, std::move(R),
+                                                         block_sizes, first));
+  for (int i = 0; i <= model->num_joints(); ++i) cost->AddParameterBlock(kSe3AmbientSize);
+  if (feature_size > 0) cost->AddParameterBlock(feature_size);
+  for (int k : block_sizes) cost->AddParameterBlock(k);
+  cost->SetNumResiduals(Kind::kResiduals);
+  return cost;
+}
 
 template <typename Kind>
 ceres::CostFunction* MakeRowCost(std::shared_ptr<const RobotModel> model, const Kind& kind,
@@ -195,6 +260,18 @@ ContactCalibrationResult CalibrateContactsCeres(const RobotModel& nominal,
         planes.data() + 4 * k, 4,
         new ceres::ProductManifold<ceres::SphereManifold<3>, ceres::EuclideanManifold<1>>());
   }
+  // The joint-space blocks (joint_term.h): x_b, theta_b = basis_b x_b, from zero; a block with
+  // nothing left has no columns and no parameter block.
+  const std::vector<JointBlock>& joint_blocks = p.frames.joint_blocks;
+  std::vector<std::vector<double>> joint_x(joint_blocks.size());
+  std::vector<int> joint_sizes;
+  for (size_t b = 0; b < joint_blocks.size(); ++b) {
+    const int k = static_cast<int>(joint_blocks[b].basis.cols());
+    joint_x[b].assign(k, 0.0);
+    if (k == 0) continue;
+    problem.AddParameterBlock(joint_x[b].data(), k);
+    joint_sizes.push_back(k);
+  }
   for (int i = 0; i < data.size(); ++i) {
     const ContactRow& row = data.rows[i];
     std::vector<double*> b;
@@ -202,6 +279,41 @@ ContactCalibrationResult CalibrateContactsCeres(const RobotModel& nominal,
     b.push_back(frame_block(n + row.target));
     const double w = 1.0 / row.sigma;
     ceres::CostFunction* cost = nullptr;
+    if (!joint_sizes.empty()) {
+      // R = [Y_b(q) basis_b] over the blocks with columns.
+      int K = 0;
+      for (int k : joint_sizes) K += k;
+      Eigen::MatrixXd R(n, K), Y;
+      int column = 0;
+      for (const JointBlock& block : joint_blocks) {
+        const int k = static_cast<int>(block.basis.cols());
+        if (k == 0) continue;
+        Y.resize(n, block.term->num_parameters());
+        block.term->Regressor(data.joints(i), Y.data());
+        R.middleCols(column, k) = Y * block.basis;
+        column += k;
+      }
+      switch (row.kind) {
+        case MeasurementKindId::kDistance:
+          cost = MakeJointRowCost(model_ptr, DistanceMeasurement{w}, data.joints(i), row.value, 3,
+                                  R, joint_sizes);
+          b.push_back(pivots.data() + 3 * row.feature);
+          break;
+        case MeasurementKindId::kPlane:
+          cost = MakeJointRowCost(model_ptr, PlaneMeasurement{w}, data.joints(i), row.value, 4, R,
+                                  joint_sizes);
+          b.push_back(planes.data() + 4 * row.feature);
+          break;
+        default:
+          cost = MakeJointRowCost(model_ptr, PositionMeasurement{w}, data.joints(i),
+                                  Eigen::Vector3d(row.position), 0, R, joint_sizes);
+      }
+      for (size_t k = 0; k < joint_blocks.size(); ++k) {
+        if (!joint_x[k].empty()) b.push_back(joint_x[k].data());
+      }
+      problem.AddResidualBlock(cost, nullptr, b);
+      continue;
+    }
     switch (row.kind) {
       case MeasurementKindId::kDistance:
         cost = MakeRowCost(model_ptr, DistanceMeasurement{w}, data.joints(i), row.value, 3);
@@ -257,6 +369,15 @@ ContactCalibrationResult CalibrateContactsCeres(const RobotModel& nominal,
     result.features.planes[k] =
         Eigen::Vector4d(planes[4 * k], planes[4 * k + 1], planes[4 * k + 2], planes[4 * k + 3]);
   }
+  result.features.joint_theta.clear();
+  for (size_t b = 0; b < joint_blocks.size(); ++b) {
+    const int k = static_cast<int>(joint_x[b].size());
+    result.features.joint_theta.push_back(
+        k > 0 ? Eigen::VectorXd(joint_blocks[b].basis *
+                                Eigen::Map<const Eigen::VectorXd>(joint_x[b].data(), k))
+              : Eigen::VectorXd::Zero(joint_blocks[b].term->num_parameters()));
+  }
+  StoreContactJointTerms(p, result.features, nominal, &result);
   result.iterations = static_cast<int>(summary.iterations.size());
   result.initial_cost = summary.initial_cost;
   result.cost = summary.final_cost;

@@ -1,6 +1,9 @@
 // The calibration run for ballbar distances and probe contacts (lpoe/contact_pipeline.h).
 #include "lpoe/contact_pipeline.h"
 
+#include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
+
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -163,11 +166,15 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
 }
 
 std::string ContactRefusalReason(const std::string& option) {
-  if (option == "joint_errors") {
-    return "the contact solvers estimate the frames, pivots and planes only: a joint-space term's "
-           "columns are not reduced against the pivots and planes (which can absorb some of "
-           "them) nor carried by the Ceres side's residuals yet; identify the terms from tracker "
-           "data, or the geometry alone from these";
+  if (option == "joint_errors_auto") {
+    return "the automatic choice of joint-space terms cross-validates candidate terms on tracker "
+           "positions (lpoe/pipeline.h); it is not built for distance or plane rows: name the "
+           "terms, e.g. --joint_errors=harmonics, and compare the held-out or k-fold figures";
+  }
+  if (option == "joint_errors_tilt") {
+    return "the gravity tilt is bilinear with the compliance term's parameters and is identified "
+           "by the tracker solvers only; the contact solvers take the registry's linear terms "
+           "(compliance, harmonics, ...) with gravity as the model gives it";
   }
   if (option == "residual_model") {
     return "the residual layer learns each pose's 3D position residual in the tracker's frame; "
@@ -193,6 +200,33 @@ std::string ContactRefusalReason(const std::string& option) {
            "carry the tracker's pose";
   }
   return "";
+}
+
+Status ContactJointTerms(const std::string& text, const RobotModel& reference,
+                         std::vector<std::shared_ptr<const JointTerm>>* terms) {
+  terms->clear();
+  if (text == "none" || text.empty()) return Status::Ok();
+  if (text == "auto") {
+    return Status::Error("'auto' is not available with distance or plane data: " +
+                         ContactRefusalReason("joint_errors_auto"));
+  }
+  std::vector<std::string> names;
+  bool tilt = false;
+  std::string error;
+  if (!ParseJointErrorList(text, &names, &tilt, &error)) {
+    return Status::Error("'" + text + "': " + error + " (expected none or a comma-separated list "
+                         "of " + JointTermNameList() + ")");
+  }
+  if (tilt) {
+    return Status::Error("'" + text + "': the gravity tilt is not available with distance or "
+                         "plane data: " + ContactRefusalReason("joint_errors_tilt"));
+  }
+  for (const std::string& name : InRegistryOrder(names)) {
+    std::shared_ptr<const JointTerm> term;
+    if (Status s = MakeJointTerm(name, reference, &term); !s.ok()) return s;
+    terms->push_back(std::move(term));
+  }
+  return Status::Ok();
 }
 
 Status ReadContactInputs(const std::vector<std::string>& files, const RobotModel& nominal,
