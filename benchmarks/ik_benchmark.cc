@@ -1,4 +1,4 @@
-// Inverse kinematics on cobot6 (issue 12), in the style of TRAC-IK's published benchmark: random
+// Inverse kinematics on cobot6, in the style of TRAC-IK's published benchmark: random
 // reachable targets within the joint limits, seeds perturbed by up to 5 degrees from a solution.
 // One pool of kPool (target, seed) pairs is built once; every benchmark cycles through it, so lpoe's
 // solver and KDL's ChainIkSolverPos_LMA (when KDL is available) see the same targets and seeds.

@@ -1,4 +1,4 @@
-// Robot programs (issue 40): parsing is linear in the text. A Polyscope-style URScript program of N
+// Robot programs: parsing is linear in the text. A Polyscope-style URScript program of N
 // waypoints (`global Waypoint_k_p=p[...]` and a movel of it, the form that grew quadratically:
 // 10,000 lines 1.6 s, 40,000 lines over 2 minutes) and a RAPID module of N robtargets with a MoveL
 // each, parsed into their target records; N = 10^4, 4 x 10^4 and 10^5. Google Benchmark's fitted

@@ -1,5 +1,5 @@
 // libFuzzer target: names and paths of arbitrary bytes fed to what every report writer uses for
-// them (issue 30): tools::JsonText (all JSON reports: lpoe_calibrate --report, lpoe_plan's report,
+// them: tools::JsonText (all JSON reports: lpoe_calibrate --report, lpoe_plan's report,
 // lpoe_compensate --report, the Python report_json), tools::ValidUtf8 (the HTML report),
 // tools::PlotLabel (every PLplot label) and tools::CommentText (CSV comment lines). Checks that
 // nothing throws or crashes, that the JSON text parses back with every string equal to

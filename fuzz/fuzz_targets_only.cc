@@ -1,4 +1,4 @@
-// libFuzzer target: the --targets_only filter (TargetNameFilter, RE2; issue 40) on an arbitrary
+// libFuzzer target: the --targets_only filter (TargetNameFilter, RE2) on an arbitrary
 // pattern and name (the input split at its first NUL byte). Checks: no crash, no recursion on long
 // names and no exponential time (libFuzzer's timeout); a refused pattern says so with the pattern;
 // a pattern of plain letters and digits matches exactly the name equal to it; a filter matches the

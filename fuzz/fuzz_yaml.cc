@@ -1,7 +1,7 @@
 // libFuzzer target: ParseRobotModelYaml on arbitrary bytes. Checks that nothing crashes or throws,
 // that errors are "<file>:<line>: ..." messages, that an accepted model validates, and that it
 // round-trips through RobotModelToYaml with the same structure; and that an accepted model
-// predicts finite positions (every number of the file in its plausible range, issue 40).
+// predicts finite positions (every number of the file in its plausible range).
 #include <cstddef>
 #include <cstdint>
 #include <cmath>
@@ -24,7 +24,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* bytes, size_t size) {
   if (lpoe::Status v = model.Validate(); !v.ok()) {
     lpoe::fuzz::Fail("accepted a model that does not validate: " + v.message(), text);
   }
-  // Every number in its plausible range (issue 40): an accepted model predicts finite positions,
+  // Every number in its plausible range: an accepted model predicts finite positions,
   // with its joint-space terms and residual layer, at configurations spread over its limits.
   const int n = model.num_joints();
   std::vector<double> q(n);

@@ -1,4 +1,4 @@
-// The default lpoe_calibrate run produces the report a user reads (issue 4): plots as PNG images of
+// The default lpoe_calibrate run produces the report a user reads: plots as PNG images of
 // the expected size with content, and a JSON report following the schema of docs/report.md.
 #include <cmath>
 #include <cstdio>

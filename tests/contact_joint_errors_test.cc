@@ -1,4 +1,4 @@
-// Joint-space terms with ballbar distances (issue 44, --joint_errors with contact data): the
+// Joint-space terms with ballbar distances (--joint_errors with contact data): the
 // contact solvers' joint-space columns against finite differences, a calibration of a simulated 6R
 // arm whose joints carry harmonics against a plain least-squares reference with the same term, the
 // two solvers' agreement, and a request the data cannot separate left out with its reason.

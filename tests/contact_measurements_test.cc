@@ -1,4 +1,4 @@
-// Ballbar distances and touch-probe plane contacts (issue 44): the kinds' readers, their analytic
+// Ballbar distances and touch-probe plane contacts: the kinds' readers, their analytic
 // rows against finite differences, and calibrations of a simulated 6R arm from (a) ballbar
 // distances, (b) probe contacts on a cube, (c) both, against a plain least-squares reference.
 #include <cmath>

@@ -1,4 +1,4 @@
-// lpoe_simulate --measurement=ballbar|plane and lpoe_calibrate on their files (issue 44): default
+// lpoe_simulate --measurement=ballbar|plane and lpoe_calibrate on their files: default
 // flags, exit 0, a model that predicts the simulated robot's tool positions to micrometres after the
 // rigid (ballbar) or similarity (planes alone) alignment, the report's table per kind, and bad
 // input refused with the file and line and nothing written.

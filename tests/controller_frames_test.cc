@@ -1,4 +1,4 @@
-// The frames a controller uses (issue 41), on a stand-in for a UR5 described by ur_description:
+// The frames a controller uses, on a stand-in for a UR5 described by ur_description:
 // tests/data/urdf/ur5_classic_cell.urdf (world -> base_link -> ... -> wrist_3_link, tool0 fixed to
 // it 82.3 mm out and turned by -pi/2, the controller's `base` frame base_link turned by pi about z),
 // three SMR nests at known positions on tool0, a true robot with frame errors and joint-zero errors,
@@ -213,7 +213,7 @@ std::string UrScript(const Cell& c) {
 }
 
 // An ABB-style module: the same path, for the flange (the built-in tool0: a tooldata's robhold is
-// read as RAPID defines it only with issue 40), as robtargets in wobj0 (the chain's base).
+// read as RAPID defines it), as robtargets in wobj0 (the chain's base).
 std::string Rapid(const Cell& c) {
   std::string s = "MODULE Cell\n  CONST jointtarget home := [[";
   for (int j = 0; j < 6; ++j) s += (j ? "," : "") + Num(c.path[0][j] * kDeg, 6);
@@ -585,7 +585,7 @@ TEST(ControllerFramesTest, UrKinematicsRefusalSaysWhichLayout) {
 }
 
 // The verdict's unit check judges 6.27 rad as what it is (a UR joint within +-2 pi), and a
-// geometric fit far above the noise suggests --joint_errors=auto (issue 41).
+// geometric fit far above the noise suggests --joint_errors=auto.
 TEST(VerdictChecks, JointUnitsAndJointErrorsHint) {
   const RobotModel m = MakeUr5Like();
   SimulationOptions o;

@@ -1,4 +1,4 @@
-// Property test (issue 40): every tool run on random valid models writes only finite numbers. The
+// Property test: every tool run on random valid models writes only finite numbers. The
 // models are the test robots with tilted, offset joint axes (test_util.h); each is simulated with
 // random kinematic errors, calibrated, and then predicted, compensated (targets, joints and a
 // program), planned and compared; every number of every file written (CSV, JSON, YAML, HTML,

@@ -1,4 +1,4 @@
-// The `gear_ratio` joint-space term (issue 29): a registry entry used end to end without any other
+// The `gear_ratio` joint-space term: a registry entry used end to end without any other
 // source file naming it. Registry and regressor, YAML, simulation, and recovery of simulated ratios
 // by both solvers, alone and with compliance, and as a candidate of --joint_errors=auto.
 #include <algorithm>

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Help text, README and behaviour agree (issue 31).
+"""Help text, README and behaviour agree.
 
 Runs every tool's --helpxml and --help and checks them against README.md and docs/guide.md:
   - every flag of a tool (its own file or tools/common_flags.cc) is documented in the README as
@@ -9,7 +9,7 @@ Runs every tool's --helpxml and --help and checks them against README.md and doc
   - the ranges the README gives for a flag (2..100, [1, 10000]) are the ranges --help prints;
   - --help prints defaults as written (no 0.029999999999999999);
   - every tool's --help lists its exit codes, and each is one the README's exit code list explains;
-  - the frames (issue 41): what --tcp, --frame and --flange mean is said the same way in --help, the
+  - the frames: what --tcp, --frame and --flange mean is said the same way in --help, the
     README's row, docs/compensation.md and the Python docstrings (python/src): a TCP is relative to
     the flange (never "in the last joint's frame"), --frame takes base, measurement and link:NAME,
     the flange defaults to tool0; docs/conventions.md defines each frame once.
@@ -108,7 +108,7 @@ def exit_codes(usage):
     return set(int(c) for c in re.findall(r"(?<![\w.^/-])([0-9])(?= [a-z-])", m.group(1)))
 
 
-# Frame meanings (issue 41): flag -> phrases every description of it must contain, and phrases
+# Frame meanings: flag -> phrases every description of it must contain, and phrases
 # none may contain.
 FRAME_MEANINGS = {
     "tcp": (["relative to the flange"], ["in the last joint's frame"]),

@@ -988,7 +988,7 @@ TEST(Io, MalformedFlowAfterCommentDoesNotHang) {
   EXPECT_NE(s.message().find("hang.yaml:"), std::string::npos) << s.message();
 }
 
-// The rules every CSV reader shares (lpoe/csv_rules.h, issue 30).
+// The rules every CSV reader shares (lpoe/csv_rules.h).
 TEST(CsvRules, HeaderAndRowFieldCounts) {
   CsvHeader header;
   EXPECT_TRUE(ParseCsvHeader({"q1", "q2", "x"}, "f.csv", 1, &header).ok());

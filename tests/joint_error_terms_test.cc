@@ -230,7 +230,7 @@ Eigen::Vector3d Deflection(const RobotModel& model, const double* q, int tool) {
   return PredictToolPosition(model, q, tool) - ToolPosition(model, q, tool);
 }
 
-// Acceptance of issue 11: with compliance and harmonics in the actual robot (sigma 0.01 mm, 300
+// Acceptance of with compliance and harmonics in the actual robot (sigma 0.01 mm, 300
 // poses), auto reaches within 1.5x the held-out RMS of the same data without such terms, and the
 // identified deflection matches the true one within 5% RMS.
 TEST(JointErrorAuto, ChoosesTheTermsAndRecoversTheDeflection) {

@@ -283,7 +283,7 @@ TEST_F(LpoePredict, FrameBaseUndoesTheRecordedRegistration) {
             kExitUsage);
 }
 
-// The same chain-selection flags as lpoe_calibrate (issue 31): a URDF's SMR links as tools.
+// The same chain-selection flags as lpoe_calibrate: a URDF's SMR links as tools.
 TEST_F(LpoePredict, UrdfChainFlagsSelectTheToolsAsInEveryTool) {
   const std::string urdf = std::string(LPOE_TEST_DATA_DIR) + "/urdf/ur_like.urdf";
   std::ofstream(Path("q.csv")) << "q1,q2,q3,q4,q5,q6\n0.1,-0.5,0.7,0.2,1.1,-0.4\n";

@@ -187,7 +187,7 @@ TEST_F(OutputFiles, StreamedOutputCommitsOrVanishes) {
   EXPECT_EQ(ReadAll(a), "x\ny\n");
 }
 
-// ---- All outputs committed together (issue 40).
+// ---- All outputs committed together.
 
 // A device that refuses the write (/dev/full: ENOSPC) staged after two files: Commit fails and
 // both files are as they were; nothing of the run is left in the directory.
@@ -239,7 +239,7 @@ TEST_F(OutputFiles, StaleStagingOfDeadProcessesIsRemoved) {
   EXPECT_EQ(ReadAll(dir_ + "/out.yaml"), "model\n");
 }
 
-// ---- Names of any bytes (issue 30).
+// ---- Names of any bytes.
 
 TEST(ValidUtf8, KeepsValidTextAndReplacesEachInvalidSubpart) {
   const std::string valid = "joint \xc3\xa9\xe2\x82\xac\xf0\x9f\x98\x80 ok";

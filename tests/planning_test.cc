@@ -348,7 +348,7 @@ TEST(Planning, PoolDropsConfigurationsOutsideLimits) {
 // On a pool small enough to enumerate, greedy + exchange finds the best plan or one within a
 // small fraction of it, for each criterion.
 // A plan counts what the calibration of its poses will solve: with tool0 on joint 6's axis (a
-// URDF tip), the two tilts of that axis are left out by both (issue 28: lpoe_plan counted them, then
+// URDF tip), the two tilts of that axis are left out by both (lpoe_plan once counted them, then
 // refused its own plan, "the 60 planned poses identify only 31 of 33 parameters").
 TEST(Planning, CountsWhatTheCalibrationOfThePlannedPosesSolves) {
   RobotModel model = MakeUr5Like();
@@ -877,7 +877,7 @@ TEST_F(PlanningWithJointErrors, SixtyPlannedOfSevenHundredStayCloseToAll) {
   EXPECT_LT(planned_to_all, std::sqrt(random_sq));
 }
 
-// ---- The stand-in for a real arm (tests/unmodelled_arm.h, issue 43): 1000 configurations measured
+// ---- The stand-in for a real arm (tests/unmodelled_arm.h): 1000 configurations measured
 // with three SMRs (noise and repeatability 0.01 mm per axis) on an arm with frame errors and, in
 // one case, an unmodelled error of 0.08 mm per axis (0.14 mm RMS norm) varying over 0.6-1 rad of
 // the wrist joints. As with the issue's real arm, lpoe_plan chooses 60 of 700 measured

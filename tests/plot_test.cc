@@ -184,7 +184,7 @@ TEST(PlotTest, ConvergenceFigure) {
   ExpectGoodFigure(f, {kColorMax, kColorMean}, "convergence");
 }
 
-// Names of any length and bytes (issue 30): a 2,000-character joint name in a title or axis label
+// Names of any length and bytes: a 2,000-character joint name in a title or axis label
 // crashed PLplot (fixed-size text buffers); invalid UTF-8 made the SVG unparsable. Every label is
 // cut, made valid UTF-8 and has PLplot's escape '#' doubled before PLplot sees it.
 TEST(PlotTest, LongAndInvalidLabelsRender) {

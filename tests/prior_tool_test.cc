@@ -1,4 +1,4 @@
-// lpoe_prior (issue 45, docs/recalibration.md): the fleet prior of calibrated models of one type,
+// lpoe_prior (docs/recalibration.md): the fleet prior of calibrated models of one type,
 // run as a tool on model files written by the test: what it writes is the library's FleetPrior of
 // the files, is read back as a prior, lies nearer the type than the robots do; models of another
 // chain or other tools, too few models, a missing file and an output that is an input are refused

@@ -1,4 +1,4 @@
-// Robot programs compensated in place (issue 32): a UR5 URScript program and an ABB-style RAPID
+// Robot programs compensated in place: a UR5 URScript program and an ABB-style RAPID
 // module, generated on the nominal model; a true robot with errors; a calibration from simulated
 // tracker data; the compensated programs run by a simulated controller (the nominal model's
 // inverse kinematics) on the true robot.

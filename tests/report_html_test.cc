@@ -1,4 +1,4 @@
-// The HTML report a person reads (issue 15): the default job's page renders in a real browser
+// The HTML report a person reads: the default job's page renders in a real browser
 // (headless chromium) to a non-blank image, carries the JSON report's figures, is well-formed
 // (a strict parser), is the same bytes on every run, and stays below 5 MB with 10^5 points.
 #include <gtest/gtest.h>
@@ -289,7 +289,7 @@ TEST_F(ReportHtml, HundredThousandPointsStayBelowFiveMegabytes) {
 }
 
 // Each output's own RMS is in the JSON report, and an output that carries less than the
-// calibration (a URDF after joint-space terms) is a warning in the page's verdict box (issue 41).
+// calibration (a URDF after joint-space terms) is a warning in the page's verdict box.
 TEST(OutputModels, ReducedOutputIsWarnedInTheVerdictBox) {
   RobotModel nominal;
   ASSERT_TRUE(ReadRobotModel(LPOE_DATA_DIR "/cobot6.yaml", &nominal).ok());

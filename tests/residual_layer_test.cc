@@ -476,7 +476,7 @@ TEST(ResidualLayerIk, CompensationReachesTheTargetsTheLayeredModelPredicts) {
   }
 }
 
-// ---- The stand-in for a real arm (tests/unmodelled_arm.h, issue 43): cobot6 with three SMRs,
+// ---- The stand-in for a real arm (tests/unmodelled_arm.h): cobot6 with three SMRs,
 // frame errors, tracker noise 0.01 mm and repeatability 0.01 mm per axis, and an unmodelled error of
 // 0.08 mm per axis (0.14 mm RMS norm) drawn from a GP with length scales 0.6, 0.8 and 1.0 rad on
 // joints 4-6, every joint within [-1.6, 1.6] rad. Identification and verification by configuration
@@ -514,7 +514,7 @@ PipelineResult CalibrateStandIn(const StandIn& s, ResidualModelKind kind) {
   return RunCalibrationPipeline(s.arm.nominal, s.identification, s.verification, o);
 }
 
-// Done when (issue 43): the layer's length scales within a factor 2 of the truth's, the held-out
+// Done when: the layer's length scales within a factor 2 of the truth's, the held-out
 // error reduced by at least half the unmodelled part, and auto choosing the layer.
 TEST(ResidualLayerStandIn, AutoChoosesALayerWithTheTruthsLengthScalesThatHalvesTheUnmodelledError) {
   const int configurations = StandInConfigurations();

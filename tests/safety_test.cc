@@ -1,4 +1,4 @@
-// End-to-end regression tests of issue 13 on the built tools (paths from CMake): implausible
+// End-to-end regression tests on the built tools (paths from CMake): implausible
 // results are refused (exit 8) unless --force, flags outside their ranges exit 1 naming the flag,
 // and outputs are safe (symlinks resolved, devices written straight, collisions by identity,
 // nested plot directories, concurrent runs into one plots directory).

@@ -1,4 +1,4 @@
-// The contract every tool keeps (issue 30), checked on the tools that came after lpoe_calibrate:
+// The contract every tool keeps, checked on the tools that came after lpoe_calibrate:
 // outputs checked before any work (collisions with inputs and each other through links and
 // spellings, missing directories), committed together or not at all, symlinked outputs written
 // through; names and paths of any bytes never abort a report writer; long joint names never crash

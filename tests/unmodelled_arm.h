@@ -1,4 +1,4 @@
-// The stand-in for a real arm whose error the model cannot fully explain (issue 43), shared by
+// The stand-in for a real arm whose error the model cannot fully explain, shared by
 // tests/residual_layer_test.cc and tests/planning_test.cc: cobot6 with three SMRs on the flange,
 // random frame errors and joint zeros, tracker noise per row, the arm's repeatability (an error
 // shared by the SMRs of one configuration, independent between configurations) and an unmodelled

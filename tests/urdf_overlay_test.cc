@@ -1,4 +1,4 @@
-// The calibrated URDF write-back (issue 14's acceptance): a cell URDF with meshes, limits,
+// The calibrated URDF write-back: a cell URDF with meshes, limits,
 // inertials, a fixed base link, tool0 on an adapter, a side branch (camera) and a gripper with a
 // mimic joint is calibrated by the tools from tracker data (in a frame metres away from the base)
 // with --tip_link=tool0, and the written file is checked by urdfdom, not by our reader:
@@ -211,7 +211,7 @@ TEST_F(UrdfOverlay, MeasurementFrameIsSeparateAndTheBaseStays) {
   EXPECT_GT(ToIsometry(m->parent_joint->parent_to_joint_origin_transform).translation().norm(),
             2.0);
   EXPECT_EQ(written_->getRoot()->name, "world");
-  // One model (issue 41): the measurement frame is the YAML's recorded registration
+  // One model: the measurement frame is the YAML's recorded registration
   // (T_base_measurement = T_measurement_base^-1) and joint 1 takes T_measurement_base^-1 C_1, so
   // that the URDF predicts in its base frame what the YAML predicts there.
   RobotModel calibrated;

@@ -612,7 +612,7 @@ TEST(Urdf, BadFilesAreRejectedWithFileAndLine) {
       {"bad_branching.urdf", 4, "'hub' branches"},
       {"bad_nan.urdf", 8, "non-finite number 'nan'"},
       {"bad_inf.urdf", 8, "non-finite number '-inf'"},
-      {"bad_out_of_range.urdf", 8, "the number '1e9', out of range"},  // 10^6 km (issue 40)
+      {"bad_out_of_range.urdf", 8, "the number '1e9', out of range"},  // 10^6 km
       {"bad_non_numeric.urdf", 8, "non-numeric value '1.57rad'"},
       {"bad_floating.urdf", 5, "more than one degree of freedom"},
       {"bad_missing_child.urdf", 5, "no <child> element"},

@@ -1,4 +1,4 @@
-// Weakly determined directions (issue 39, docs/identifiability.md "The prior"): the two simulated
+// Weakly determined directions (docs/identifiability.md "The prior"): the two simulated
 // stand-ins of real tracker data on which the default solver used to fail where plain least squares
 // succeeds. Each is calibrated with the default options (the default prior) and compared with a
 // plain least-squares reference of the same data (a rigid fit, then Gauss-Newton on every

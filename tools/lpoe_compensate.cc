@@ -1,4 +1,4 @@
-// lpoe_compensate: the joints that make the calibrated robot reach its targets (issue 12).
+// lpoe_compensate: the joints that make the calibrated robot reach its targets.
 //
 //   lpoe_compensate --model=CAL.yaml --targets=T.csv --output=OUT.csv [--nominal=NOM.yaml]
 //   lpoe_compensate --model=CAL.yaml --joints=PROGRAM.csv --nominal=NOM.yaml --output=OUT.csv
@@ -214,7 +214,7 @@ class RowReader {
           double v;
           if (!ParseFinite(f[xyz[k]], &v) || std::abs(v * mm_per_unit_) > kMaxAbsCsvPositionMm) {
             // A finite value read in metres beyond the limit is most likely millimetres: say
-            // which flag read it so (issue 40).
+            // which flag read it so.
             const bool metres = mm_per_unit_ != 1.0 && ParseFinite(f[xyz[k]], &v);
             return Error(std::string("xyz").substr(k, 1) + " " + internal::Quote(f[xyz[k]]) +
                          " is not a position; expected a finite number of magnitude at most "
@@ -595,6 +595,6 @@ int Run() {
 
 int main(int argc, char** argv) {
   lpoe::tools::InitTool(lpoe::kUsage, &argc, &argv);
-  if (lpoe::tools::ProgramModeRequested()) return lpoe::tools::RunProgramMode();  // issue 32
+  if (lpoe::tools::ProgramModeRequested()) return lpoe::tools::RunProgramMode();
   return lpoe::Run();
 }

@@ -1,4 +1,4 @@
-// lpoe_compensate --program=IN --output=OUT (issue 32): see lpoe_compensate_program.h and
+// lpoe_compensate --program=IN --output=OUT: see lpoe_compensate_program.h and
 // docs/programs.md. The flags shared with the CSV modes are defined in lpoe_compensate.cc. (The
 // file name contains the tool's: tool_common's --help lists the flags of such files.)
 #include "lpoe_compensate_program.h"

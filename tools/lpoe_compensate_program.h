@@ -1,4 +1,4 @@
-// lpoe_compensate --program: a robot program (URScript, RAPID) compensated in place (issue 32).
+// lpoe_compensate --program: a robot program (URScript, RAPID) compensated in place.
 // The library side is solvers/include/lpoe/program.h; this is the tool's flags and files.
 #ifndef LPOE_TOOLS_LPOE_COMPENSATE_PROGRAM_H_
 #define LPOE_TOOLS_LPOE_COMPENSATE_PROGRAM_H_

@@ -149,7 +149,7 @@ int Run() {
     for (Eigen::Vector3d& p : positions) p = frame_from_measurement * p;
   }
   for (Eigen::Vector3d& p : positions) p /= mm_per_unit;  // --length_unit
-  // The last guard (issue 40): a prediction that is not finite is an error naming its row, never
+  // The last guard: a prediction that is not finite is an error naming its row, never
   // a row of nan written with exit 0.
   for (size_t r = 0; r < positions.size(); ++r) {
     const int t = targets.empty() ? tool : targets[r];

@@ -1,4 +1,4 @@
-// lpoe_prior: the fleet prior of calibrated robots of one type (issue 45, docs/recalibration.md):
+// lpoe_prior: the fleet prior of calibrated robots of one type (docs/recalibration.md):
 // the mean of their models and the per-frame covariance of their parameters, written as a model
 // with a covariance block that `lpoe_calibrate --prior=` reads.
 //

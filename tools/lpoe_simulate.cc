@@ -85,7 +85,7 @@ DEFINE_string(out, "", "Old name of --output (every other tool says --output); a
 DEFINE_string(verify_out, "", "Verification CSV (the last --verify_count rows).");
 DEFINE_string(model_out, "", "Write the nominal model here (YAML).");
 DEFINE_string(actual_out, "", "Write the actual (erroneous) robot here (YAML).");
-// Ballbar distances and probe contacts (issue 44, docs/measurements.md).
+// Ballbar distances and probe contacts (docs/measurements.md).
 DEFINE_string(measurement, "position",
               "position (a tracker: x,y,z) | ballbar (distances to pivots: q1..qN,distance,pivot) | "
               "plane (probe contacts on three faces of a cube: q1..qN,plane,offset). --noise_sigma "

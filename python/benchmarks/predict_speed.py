@@ -1,7 +1,7 @@
 """Wall time of Model.predict on 10^6 configurations given as one numpy array (one core).
 
 Usage: PYTHONPATH=build/python taskset -c 0 /usr/bin/python3 python/benchmarks/predict_speed.py
-Prints the best of 5 runs (acceptance figure of issue 16: at most 0.2 s). Not a test: a timing.
+Prints the best of 5 runs (acceptance figure of at most 0.2 s). Not a test: a timing.
 """
 import os
 import time

@@ -338,21 +338,14 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   c.message = result.message;
   c.iterations = result.iterations;
   c.final_cost = result.final_cost;
-  c.model = result.model;
-  if (run.registered && run.registration.moved) {
-    c.model.T_measurement_base = run.registration.T_measurement_base;
-  }
+  c.model = CalibratedModel(run);
   if (result.termination == Termination::kNotIdentifiable) return c;
   c.verdict = VerdictLevelName(run.verdict.level);
   c.verdict_reason = run.verdict.reason;
   c.changed = recalibration.changed;
   c.parameter_names = run.identifiability.parameter_names;
   c.data_share = run.identifiability.data_share;
-  c.yaml = RobotModelToYaml(c.model);
-  if (result.covariance.rows() == result.parameterization.num_parameters &&
-      result.covariance.rows() > 0) {
-    c.yaml += ModelCovarianceYaml(c.model, CovarianceOf(result));
-  }
+  c.yaml = CalibratedModelYaml(c.model, result);
 
   // The JSON report, filled as lpoe_calibrate fills it.
   tools::RunSummary summary;

@@ -1,4 +1,4 @@
-// Python bindings: robot programs compensated in place (issue 32, lpoe/program.h), as
+// Python bindings: robot programs compensated in place (lpoe/program.h), as
 // lpoe_compensate --program does it.
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>

@@ -77,7 +77,7 @@ py::array_t<double> Predict(const RobotModel& model, const RowArray& q, const py
     py::gil_scoped_release release;
     PredictPositionsInto(model, in, m, tools.data(), o);
   }
-  // The last guard (issue 40): a prediction that is not finite is an error naming its row.
+  // The last guard: a prediction that is not finite is an error naming its row.
   for (py::ssize_t k = 0; k < 3 * m; ++k) {
     if (!std::isfinite(o[k])) {
       throw LpoeError("predict: row " + std::to_string(k / 3) +
@@ -94,7 +94,7 @@ void BindMeasurements(py::module_& m);
 void BindCalibration(py::module_& m);
 void BindJacobians(py::module_& m);
 void BindAnalysis(py::module_& m);
-void BindProgram(py::module_& m);  // bind_program.cc (issue 32)
+void BindProgram(py::module_& m);  // bind_program.cc
 
 }  // namespace python
 }  // namespace lpoe

@@ -1,4 +1,4 @@
-"""The contract the Python module shares with the tools (issue 30): the same refusals as the CLI,
+"""The contract the Python module shares with the tools: the same refusals as the CLI,
 lpoe.Error for arguments of the wrong type, range limits on arrays, no non-finite model written."""
 import os
 

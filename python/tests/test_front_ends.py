@@ -1,4 +1,4 @@
-"""The Python front end keeps the tools' contract (issue 31): explicit signatures, every error an
+"""The Python front end keeps the tools' contract: explicit signatures, every error an
 lpoe.Error (wrong types and unknown keywords named), per-row tools in predict, compensate's frame
 and TCP, the plan's cell, and read_model's chain options as the flags."""
 import inspect

@@ -42,7 +42,7 @@ struct RunSummary : PipelineResult {
   // --residual_model: none | gp | auto (the choice is the pipeline's residual_model_selection).
   std::string residual_model_requested = "none";
   std::vector<std::string> outputs;  // files written
-  // Each model written and what it predicts on its own (issue 41): the YAML carries every term,
+  // Each model written and what it predicts on its own: the YAML carries every term,
   // a URDF or UR kinematics file the geometry only (a geometry-only re-fit after joint-space
   // terms, no residual layer). `reduced`: it carries less than the calibration.
   struct OutputModel {

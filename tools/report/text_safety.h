@@ -1,4 +1,4 @@
-// Text that reaches a report writer (issue 30): names and paths may hold any bytes, of any length.
+// Text that reaches a report writer: names and paths may hold any bytes, of any length.
 // Everything a tool writes into JSON, HTML, a CSV comment or a plot label goes through one of these
 // (JSON through JsonText, tools/report/json_text.h), so no writer aborts on invalid UTF-8 and no label
 // reaches a fixed-size buffer. Free of other dependencies, so that fuzz/fuzz_report_text.cc

@@ -1,5 +1,5 @@
 // The rules every CSV reader of the library and the tools applies to its header and rows, written
-// once (issue 30): the measurement reader (measurements_csv.cc) and the joint readers
+// once: the measurement reader (measurements_csv.cc) and the joint readers
 // (ParseJointTable for lpoe_plan and lpoe_simulate, ParseJointsCsv for lpoe_predict, the streamed
 // targets / program reader of lpoe_compensate) all refuse
 //   - a column named twice (names compared case-insensitively: "q1,Q1" is one column twice), and

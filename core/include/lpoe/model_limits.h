@@ -1,4 +1,4 @@
-// The plausible range of every number of a model file (issue 40): the readers (YAML, URDF, the
+// The plausible range of every number of a model file: the readers (YAML, URDF, the
 // joint-space terms, the residual layer) refuse a value outside it with the file and line, so that
 // a model read is one whose predictions are finite (docs/file_formats.md, "Ranges").
 #ifndef LPOE_MODEL_LIMITS_H_

@@ -1,4 +1,4 @@
-// Refusals shared by the command-line tools and the Python module, written once (issue 30), so that
+// Refusals shared by the command-line tools and the Python module, written once, so that
 // a case the CLI refuses is refused by the binding with the same message (lpoe.Error there).
 #ifndef LPOE_REFUSALS_H_
 #define LPOE_REFUSALS_H_

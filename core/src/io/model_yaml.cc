@@ -132,7 +132,7 @@ class ModelYamlReader {
     }
 
     // Optional model sections (gravity, payload, joint errors) are read here, one call each.
-    // registration: T_measurement_base of a registered calibration (compensation, issue 12).
+    // registration: T_measurement_base of a registered calibration (compensation).
     if (const MapEntry* reg = Find(top, "registration"); reg != nullptr) {
       s = ReadOrigin(*reg, &out.T_measurement_base);
       if (!s.ok()) return s;

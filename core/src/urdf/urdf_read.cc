@@ -98,7 +98,7 @@ std::string ParseNumbers(std::string_view text, int count, double* out) {
     switch (internal::ParseNumber(token, &v)) {
       case internal::NumberParse::kOk:
         // Metres and radians: every length of a robot model within kMaxModelLengthMm (100 m),
-        // every angle and limit within kMaxModelAngleRad (issue 40).
+        // every angle and limit within kMaxModelAngleRad.
         if (!(std::abs(v) <= kMaxModelLengthMm / 1000)) {
           return "has the number " + Quote(token) +
                  ", out of range (lengths within 100 m, angles within 100 rad)";

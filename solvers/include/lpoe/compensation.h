@@ -98,7 +98,7 @@ struct CompensatedRows {
   int size() const { return static_cast<int>(results.size()); }
 };
 
-// The last guard before rows are written or returned (issue 40): every joint value and corrected
+// The last guard before rows are written or returned: every joint value and corrected
 // pose of `out` finite, else an error naming the first bad row (`lines[k]`, or the 0-based row
 // `first_row + k` when null) of `source`.
 Status CheckCompensatedFinite(const CompensatedRows& out, const int* lines, int64_t first_row,

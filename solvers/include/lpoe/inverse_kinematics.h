@@ -20,7 +20,7 @@
 // there for the rest of the step (active set, recomputed every iteration), so no iterate leaves the
 // limits.
 //
-// Joint-space error terms (issue 11: q_eff = q + dq(q), prediction = FK(q_eff)) enter through an
+// Joint-space error terms (q_eff = q + dq(q), prediction = FK(q_eff)) enter through an
 // EffectiveJointMap object: the chain is evaluated at q_eff = g(q) and the Jacobian is J(q_eff) dg/dq.
 // By default that is the model's own joint-error terms (RobotModel::joint_errors: compliance,
 // harmonics), so a calibrated model is inverted with everything it predicts with.

@@ -1,4 +1,4 @@
-// Robot programs compensated in place (issue 32): a program's motion targets are read by a parser
+// Robot programs compensated in place: a program's motion targets are read by a parser
 // per language, compensated with the calibrated model, and written back into a copy of the text in
 // which only the bytes of the targets' numbers change (docs/programs.md).
 //

@@ -1,4 +1,4 @@
-// Recalibration and fleet priors (issue 45, docs/recalibration.md): the prior of lpoe/prior.h built
+// Recalibration and fleet priors (docs/recalibration.md): the prior of lpoe/prior.h built
 // from calibrated models, written with them and read back.
 //
 //   * A calibrated model's YAML carries the estimate's covariance (`covariance:`, docs/file_formats.md):

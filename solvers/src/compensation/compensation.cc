@@ -193,7 +193,7 @@ Status Compensator::Create(const CompensationRequest& request, std::unique_ptr<C
   std::vector<double> numbers = request.tcp_offset;
   if (!request.tcp_offset.empty() || TcpNumbers(request.tcp, &numbers)) {
     // The residual layer corrects the positions of the tools it was fitted on (the measured
-    // SMRs): a TCP elsewhere on the flange has no correction of its own (issue 40).
+    // SMRs): a TCP elsewhere on the flange has no correction of its own.
     if (c->model_.residual_layer) {
       std::string names;
       for (const Tool& t : c->model_.tools) names += (names.empty() ? "" : ", ") + t.name;

@@ -361,7 +361,7 @@ Status CompensateProgram(const RobotModel& calibrated, const RobotModel& nominal
     t.reason.clear();
     note_tcp(*ts);
   }
-  // The last guard (issue 40): a compensated number that is not finite is an error naming its
+  // The last guard: a compensated number that is not finite is an error naming its
   // line, never written.
   for (const ProgramTarget& t : program->targets) {
     if (t.status != ProgramTargetStatus::kCompensated) continue;
@@ -383,7 +383,7 @@ Status CompensateProgramText(std::string_view text, ProgramLanguage language,
                              ParsedProgram* program) {
   if (Status s = ParseProgram(text, language, program); !s.ok()) return s;
   // A text with no target in the language given that reads as the other language's program is
-  // the wrong --language (issue 40), not a program with nothing to compensate.
+  // the wrong --language, not a program with nothing to compensate.
   if (program->targets.empty()) {
     const ProgramLanguage other =
         language == ProgramLanguage::kRapid ? ProgramLanguage::kUrScript : ProgramLanguage::kRapid;

@@ -45,7 +45,7 @@ class TokenView {
     return text_.substr(t_[a].begin, t_[b - 1].end - t_[a].begin);
   }
   // Span(a, b) for a name or message: at most kExcerptBytes bytes (cut at a UTF-8 character
-  // boundary, then "..."), so that a record never copies a large span of the text (issue 40).
+  // boundary, then "..."), so that a record never copies a large span of the text.
   static constexpr size_t kExcerptBytes = 80;
   std::string Excerpt(int a, int b) const {
     std::string_view s = Span(a, b);

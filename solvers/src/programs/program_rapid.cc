@@ -1,4 +1,4 @@
-// ABB RAPID parser (issue 32): robtarget / jointtarget declarations and inline targets of the
+// ABB RAPID parser: robtarget / jointtarget declarations and inline targets of the
 // motion instructions, with the tooldata and wobjdata they are used with.
 //
 // robtarget [[x, y, z], [q1, q2, q3, q4], [cf1, cf4, cf6, cfx], [eax_a .. eax_f]]: mm, quaternion

@@ -1,4 +1,4 @@
-// Robot programs, the textual parts (issue 32): tokens, the parsers' dispatch, the rewriter and
+// Robot programs, the textual parts: tokens, the parsers' dispatch, the rewriter and
 // the report. No inverse kinematics here (the fuzz targets link this without the solvers); the
 // compensation step is program.cc, the parsers program_urscript.cc and program_rapid.cc.
 #include <algorithm>

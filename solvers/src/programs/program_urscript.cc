@@ -1,4 +1,4 @@
-// URScript parser (issue 32): motion targets of movej / movel / movep / movec / servoj.
+// URScript parser: motion targets of movej / movel / movep / movec / servoj.
 //
 // Understood: literal poses p[x, y, z, rx, ry, rz] (m, rotation vector) and joint lists [..] (rad),
 // given inline or through a variable assigned a literal earlier (`global Waypoint_1_p=p[...]`);
@@ -56,7 +56,7 @@ class UrParser {
       if (depth[i] == 0 && v_.Is(i + 1, "=") && !v_.Is(i + 2, "=") && i + 2 < n) {
         // The value ends at the end of its line (URScript statements are lines), or before a
         // separator at its depth. The line is found first, so that each assignment reads only its
-        // own tokens (parsing stays linear in the text; issue 40).
+        // own tokens (parsing stays linear in the text).
         int line_end = i + 2;
         while (line_end < n && v_[line_end].line == v_[i + 2].line) {
           line_end = v_[line_end].match > line_end ? v_[line_end].match + 1 : line_end + 1;
