@@ -44,7 +44,7 @@ else
 fi
 cmake --build "$build" -j2 --target lpoe_fuzz
 
-export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
+export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:detect_stack_use_after_return=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 failed=()
 # The targets run at the same time (they share the machine's cores; with 2 cores each gets
