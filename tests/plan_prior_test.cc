@@ -20,35 +20,17 @@
 #include "lpoe/recalibration.h"
 #include "lpoe/registration.h"
 #include "lpoe/simulation.h"
+#include "three_smr_cell.h"
 
 namespace lpoe {
 namespace {
 namespace plan_prior_test {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kNoise = 0.02;
 
-RobotModel Nominal() {
-  RobotModel m = MakeUr5Like();
-  m.tools.resize(3);
-  const Eigen::Vector3d points[3] = {{60, 0, 90}, {-30, 55, 90}, {-30, -55, 90}};
-  for (int t = 0; t < 3; ++t) {
-    m.tools[t].name = "smr" + std::to_string(t + 1);
-    m.tools[t].origin = SE3d(Eigen::Matrix3d::Identity(), points[t]);
-  }
-  return m;
-}
+RobotModel Nominal() { return testing::ThreeSmrUr5(); }
 
-SE3d Tracker(uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(-1, 1);
-  Vector6d xi;
-  xi << 0.3 * u(rng), 0.3 * u(rng), kPi * u(rng), 0, 0, 0;
-  SE3d T = ExpSE3(xi);
-  const double a = kPi * u(rng);
-  T.t = Eigen::Vector3d(3000 * std::cos(a), 3000 * std::sin(a), 200 * u(rng));
-  return T;
-}
+SE3d Tracker(uint64_t seed) { return testing::TrackerThreeMetresAway(seed, 0.3); }
 
 struct Robot {
   RobotModel with_errors;
