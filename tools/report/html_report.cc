@@ -158,6 +158,9 @@ class HtmlPage {
   Status ErrorAgainstJointsFigure(const Scatters& sc);
   Status WorkspaceFigure(const Scatters& sc);
   Status ResidualLayerFigure(const Scatters& sc);
+  static Figure TopAndSideFigure(const Scatters& sc, const std::vector<double>& value, double lo,
+                                 double hi, const std::string& top_title,
+                                 const std::string& side_title, const std::string& color_label);
   void Parameters();
   void JointErrors();
   void ResidualModel();
@@ -415,42 +418,33 @@ Status HtmlPage::ErrorAgainstJointsFigure(const Scatters& sc) {
   return Status::Ok();
 }
 
-Status HtmlPage::WorkspaceFigure(const Scatters& sc) {
-  std::string& h = html_;
-  int& figures = figures_;
-  const PlotInput& in = sc.in;
-  const std::vector<int>& rows_id = sc.rows_id;
-  const std::vector<int>& rows_ver = sc.rows_ver;
-  const SE3d& T_base_measurement = sc.T_base_measurement;
-  // The workspace from the top and from the side, points colored by the error.
+// Two views of the plotted points in the robot's base frame, from the top (x, y) and from the side
+// (x, z), coloured by value[r] on one scale [lo, hi] (one colour bar for both).
+Figure HtmlPage::TopAndSideFigure(const Scatters& sc, const std::vector<double>& value, double lo,
+                                  double hi, const std::string& top_title,
+                                  const std::string& side_title, const std::string& color_label) {
   Figure f;
   f.columns = 2;
   f.width = 1000;
   f.height = 460;
-  double lo = 1e300, hi = -1e300;
-  for (double e : in.after_norm) {
-    lo = std::min(lo, e);
-    hi = std::max(hi, e);
-  }
   Panel top, side;
-  top.title = "workspace from the top";
-  top.x_label = "x [mm]";
+  top.title = top_title;
+  side.title = side_title;
+  top.x_label = side.x_label = "x [mm]";
   top.y_label = "y [mm]";
-  side.title = "workspace from the side";
-  side.x_label = "x [mm]";
   side.y_label = "z [mm]";
   top.equal_axes = side.equal_axes = true;
-  top.color_label = "error after calibration [mm]";  // one bar: both views share the scale
+  top.color_label = color_label;
   Series ct = Scatter("", 0), cs = Scatter("", 0);
-  for (const std::vector<int>* rows : {&rows_id, &rows_ver}) {
+  for (const std::vector<int>* rows : {&sc.rows_id, &sc.rows_ver}) {
     for (int r : *rows) {
-      const Eigen::Vector3d pb = T_base_measurement * in.points[r]->measured;
+      const Eigen::Vector3d pb = sc.T_base_measurement * sc.in.points[r]->measured;
       ct.x.push_back(pb.x());
       ct.y.push_back(pb.y());
       cs.x.push_back(pb.x());
       cs.y.push_back(pb.z());
-      ct.color_value.push_back(in.after_norm[r]);
-      cs.color_value.push_back(in.after_norm[r]);
+      ct.color_value.push_back(value[r]);
+      cs.color_value.push_back(value[r]);
     }
   }
   for (Series* s : {&ct, &cs}) {
@@ -460,69 +454,52 @@ Status HtmlPage::WorkspaceFigure(const Scatters& sc) {
   top.series = {ct};
   side.series = {cs};
   f.panels = {top, side};
-  if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
-  h += "<p class=\"note\">Measured positions in the robot's base frame, identification and "
-       "verification points, colored by the error after calibration (one color scale for both "
-       "views).</p>\n";
+  return f;
+}
+
+// The workspace from the top and from the side, points colored by the error.
+Status HtmlPage::WorkspaceFigure(const Scatters& sc) {
+  double lo = 1e300, hi = -1e300;
+  for (double e : sc.in.after_norm) {
+    lo = std::min(lo, e);
+    hi = std::max(hi, e);
+  }
+  const Figure f = TopAndSideFigure(sc, sc.in.after_norm, lo, hi, "workspace from the top",
+                                    "workspace from the side", "error after calibration [mm]");
+  if (Status s = Svg(f, &figures_, &html_); !s.ok()) return s;
+  html_ +=
+      "<p class=\"note\">Measured positions in the robot's base frame, identification and "
+      "verification points, colored by the error after calibration (one color scale for both "
+      "views).</p>\n";
   return Status::Ok();
 }
 
+// The residual layer's predicted accuracy over the workspace: its predictive standard deviation
+// at each measured configuration (docs/residual_layer.md).
 Status HtmlPage::ResidualLayerFigure(const Scatters& sc) {
-  std::string& h = html_;
-  const RobotModel& model = model_;
-  int& figures = figures_;
-  const PlotInput& in = sc.in;
-  const std::vector<int>& rows_id = sc.rows_id;
-  const std::vector<int>& rows_ver = sc.rows_ver;
-  const SE3d& T_base_measurement = sc.T_base_measurement;
-  const ResidualLayer* layer = model.residual_layer.get();
+  const ResidualLayer* layer = model_.residual_layer.get();
   if (layer == nullptr) return Status::Ok();
-  // The residual layer's predicted accuracy over the workspace: its predictive standard
-  // deviation at each measured configuration (docs/residual_layer.md).
-  Figure f;
-  f.columns = 2;
-  f.width = 1000;
-  f.height = 460;
-  Panel top, side;
-  top.title = "residual layer: predicted accuracy, top";
-  side.title = "residual layer: predicted accuracy, side";
-  top.x_label = side.x_label = "x [mm]";
-  top.y_label = "y [mm]";
-  side.y_label = "z [mm]";
-  top.equal_axes = side.equal_axes = true;
-  top.color_label = "layer's predictive std. dev. per axis [mm]";
-  Series ct = Scatter("", 0), cs = Scatter("", 0);
+  std::vector<double> sd(sc.in.points.size(), 0.0);
   double lo = 1e300, hi = -1e300;
-  for (const std::vector<int>* rows : {&rows_id, &rows_ver}) {
+  for (const std::vector<int>* rows : {&sc.rows_id, &sc.rows_ver}) {
     for (int r : *rows) {
-      const PointResidual& pt = *in.points[r];
-      const Eigen::Vector3d pb = T_base_measurement * pt.measured;
-      const double sd = layer->Std(pt.q.data(), pt.target);
-      lo = std::min(lo, sd);
-      hi = std::max(hi, sd);
-      ct.x.push_back(pb.x());
-      ct.y.push_back(pb.y());
-      cs.x.push_back(pb.x());
-      cs.y.push_back(pb.z());
-      ct.color_value.push_back(sd);
-      cs.color_value.push_back(sd);
+      const PointResidual& pt = *sc.in.points[r];
+      sd[r] = layer->Std(pt.q.data(), pt.target);
+      lo = std::min(lo, sd[r]);
+      hi = std::max(hi, sd[r]);
     }
   }
   if (!(hi > lo)) hi = lo + 1e-9;
-  for (Series* sr : {&ct, &cs}) {
-    sr->color_min = lo;
-    sr->color_max = hi;
-  }
-  top.series = {ct};
-  side.series = {cs};
-  f.panels = {top, side};
-  if (Status s = Svg(f, &figures, &h); !s.ok()) return s;
-  h += "<p class=\"note\">The learned residual layer's predictive standard deviation (per axis, "
-       "mm) at the measured configurations: small where the identification data are dense, up "
-       "to " +
-       Fmt("%.4f", layer->signal_std) +
-       " mm (the layer's prior) far from them, where the correction fades and the parametric "
-       "model's accuracy applies.</p>\n";
+  const Figure f = TopAndSideFigure(sc, sd, lo, hi, "residual layer: predicted accuracy, top",
+                                    "residual layer: predicted accuracy, side",
+                                    "layer's predictive std. dev. per axis [mm]");
+  if (Status s = Svg(f, &figures_, &html_); !s.ok()) return s;
+  html_ += "<p class=\"note\">The learned residual layer's predictive standard deviation (per axis, "
+           "mm) at the measured configurations: small where the identification data are dense, "
+           "up to " +
+           Fmt("%.4f", layer->signal_std) +
+           " mm (the layer's prior) far from them, where the correction fades and the parametric "
+           "model's accuracy applies.</p>\n";
   return Status::Ok();
 }
 
