@@ -120,6 +120,13 @@ struct ContactCalibrationResult {
 Status InitialContactFeatures(const RobotModel& model, const ContactMeasurementSet& data,
                               ContactFeatures* features);
 
+// The start both contact solvers share: a result named after `solver` at the nominal model, the
+// features' initial values and the parameterization decided from the data. False, with the
+// reason in result->message, when either cannot be made.
+bool StartContactCalibration(const RobotModel& nominal, const ContactMeasurementSet& data,
+                             const ContactCalibrationOptions& options, const char* solver,
+                             ContactCalibrationResult* result);
+
 // The scale functional: the size of the robot as seen at the rows' configurations, relative to
 // the nominal model's,
 //   S(model) = sum_j (Pn_j - mean Pn) . P_j / sum_j |Pn_j - mean Pn|^2

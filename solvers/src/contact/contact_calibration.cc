@@ -575,21 +575,25 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
   return Status::Ok();
 }
 
+bool StartContactCalibration(const RobotModel& nominal, const ContactMeasurementSet& data,
+                             const ContactCalibrationOptions& options, const char* solver,
+                             ContactCalibrationResult* result) {
+  result->solver = solver;
+  result->model = nominal;
+  Status s = InitialContactFeatures(nominal, data, &result->features);
+  if (s.ok()) {
+    s = MakeContactParameterization(nominal, result->features, data, options,
+                                    &result->parameterization);
+  }
+  if (!s.ok()) result->message = s.message();
+  return s.ok();
+}
+
 ContactCalibrationResult CalibrateContactsLinear(const RobotModel& nominal,
                                                  const ContactMeasurementSet& data,
                                                  const ContactCalibrationOptions& options) {
   ContactCalibrationResult result;
-  result.solver = "linear";
-  result.model = nominal;
-  Status s = InitialContactFeatures(nominal, data, &result.features);
-  if (s.ok()) {
-    s = MakeContactParameterization(nominal, result.features, data, options,
-                                    &result.parameterization);
-  }
-  if (!s.ok()) {
-    result.message = s.message();
-    return result;
-  }
+  if (!StartContactCalibration(nominal, data, options, "linear", &result)) return result;
   const ContactParameterization& p = result.parameterization;
   for (const JointBlock& b : p.frames.joint_blocks) {
     result.features.joint_theta.push_back(Eigen::VectorXd::Zero(b.term->num_parameters()));

@@ -222,17 +222,7 @@ ContactCalibrationResult CalibrateContactsCeres(const RobotModel& nominal,
                                                 const ContactMeasurementSet& data,
                                                 const ContactCalibrationOptions& options) {
   ContactCalibrationResult result;
-  result.solver = "ceres";
-  result.model = nominal;
-  Status s = InitialContactFeatures(nominal, data, &result.features);
-  if (s.ok()) {
-    s = MakeContactParameterization(nominal, result.features, data, options,
-                                    &result.parameterization);
-  }
-  if (!s.ok()) {
-    result.message = s.message();
-    return result;
-  }
+  if (!StartContactCalibration(nominal, data, options, "ceres", &result)) return result;
   const ContactParameterization& p = result.parameterization;
   const int n = nominal.num_joints();
   const int frames = nominal.num_frames();
