@@ -17,6 +17,7 @@
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/simulation.h"
+#include "test_util.h"
 
 namespace lpoe {
 namespace {
@@ -164,17 +165,7 @@ Reference PlainLeastSquares(const RobotModel& nominal, const ContactFeatures& st
   ReferenceRows(ref, term, data, &r, &J);
   double mu = 1e-6;
   for (int it = 0; it < 100; ++it) {
-    Eigen::VectorXd D(J.cols());
-    for (int c = 0; c < J.cols(); ++c) D(c) = J.col(c).norm() > 0 ? 1.0 / J.col(c).norm() : 1.0;
-    const Eigen::MatrixXd Js = J * D.asDiagonal();
-    Eigen::JacobiSVD<Eigen::MatrixXd> svd(Js, Eigen::ComputeThinU | Eigen::ComputeThinV);
-    const Eigen::VectorXd& sv = svd.singularValues();
-    Eigen::VectorXd z = Eigen::VectorXd::Zero(Js.cols());
-    const Eigen::VectorXd ur = svd.matrixU().transpose() * r;
-    for (int k = 0; k < sv.size(); ++k) {
-      if (sv(k) > 1e-9 * sv(0)) z -= svd.matrixV().col(k) * (sv(k) * ur(k) / (sv(k) * sv(k) + mu));
-    }
-    Eigen::VectorXd x = D.asDiagonal() * z;
+    Eigen::VectorXd x = testing::DampedPseudoInverseStep(J, r, mu);
     bool lowered = false;
     for (int halving = 0; halving < 30 && !lowered; ++halving, x *= 0.5) {
       Reference next = ref;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/SVD>
 
 #include "lpoe/robot_model.h"
 #include "lpoe/se3.h"
@@ -117,6 +118,24 @@ inline RobotModel PerturbFrame(const RobotModel& model, int f, const Vector6d& d
 inline double RelativeMaxDifference(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
   const double scale = std::max(1.0, b.cwiseAbs().maxCoeff());
   return (a - b).cwiseAbs().maxCoeff() / scale;
+}
+
+// The step of the tests' plain least-squares references: Levenberg-Marquardt damping `mu` on the
+// column-scaled Jacobian, a pseudo-inverse (relative threshold 1e-9) for its null directions;
+// x minimises |r + J x| to first order.
+inline Eigen::VectorXd DampedPseudoInverseStep(const Eigen::MatrixXd& J, const Eigen::VectorXd& r,
+                                               double mu) {
+  Eigen::VectorXd D(J.cols());
+  for (int c = 0; c < J.cols(); ++c) D(c) = J.col(c).norm() > 0 ? 1.0 / J.col(c).norm() : 1.0;
+  const Eigen::MatrixXd Js = J * D.asDiagonal();
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(Js, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const Eigen::VectorXd& sv = svd.singularValues();
+  Eigen::VectorXd z = Eigen::VectorXd::Zero(Js.cols());
+  const Eigen::VectorXd ur = svd.matrixU().transpose() * r;
+  for (int k = 0; k < sv.size(); ++k) {
+    if (sv(k) > 1e-9 * sv(0)) z -= svd.matrixV().col(k) * (sv(k) * ur(k) / (sv(k) * sv(k) + mu));
+  }
+  return D.asDiagonal() * z;
 }
 
 }  // namespace testing
