@@ -6,8 +6,8 @@
 # sanitizer report fails the run (-fno-sanitize-recover=undefined, ASan aborts on the first error).
 # Ceres, glog, gflags and yaml-cpp are Debian's uninstrumented gcc builds; that is fine for ASan
 # (it intercepts malloc/free globally) and UBSan (checks only our code).
-# UBSan runs without its vptr, object-size and pointer-overflow checks, which double the compile
-# time; why that is a fair trade is written beside LPOE_SANITIZER_FLAGS in CMakeLists.txt.
+# UBSan runs without its vptr, object-size, pointer-overflow, alignment and null checks, which
+# quadruple the compile time; why that is a fair trade is written beside LPOE_SANITIZER_FLAGS in CMakeLists.txt.
 # It is a unity build (CMAKE_UNITY_BUILD, up to 16 files per translation unit): a third less compile
 # time; what that asks of the code is in docs/testing.md.
 # The Python tests run in Debian's python3 with the sanitizer runtime preloaded and leak detection off
