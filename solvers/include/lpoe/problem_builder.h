@@ -37,6 +37,7 @@
 #include "lpoe/joint_term.h"
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
+#include "lpoe/prior.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/se3_manifold.h"
 #include "lpoe/status.h"
@@ -46,6 +47,7 @@ namespace lpoe {
 namespace internal {
 struct JointSpaceRegressors;  // solvers/src/calibration/normal_equations.h
 struct NormalEquations;
+struct ProblemSetup;  // solvers/src/calibration/problem_setup.h
 }  // namespace internal
 
 struct CalibrationProblemOptions {
@@ -75,6 +77,10 @@ struct CalibrationProblemOptions {
   std::shared_ptr<const GravityTiltModel> gravity_tilt;
   // Values of joint_terms to start from (same order and terms; empty: zero).
   std::vector<JointTermValues> initial_joint_terms;
+  // A Gaussian prior (lpoe/prior.h), resolved once with the other decisions (identifiable
+  // parameterization only; its reference the nominal model unless it has one). The problem adds no
+  // residuals for it: the caller does (CalibrateCeres). Null: none.
+  std::shared_ptr<const ParameterPrior> prior;
   // Rows per residual block of AddTo(). 1: one block per row. More: position data without a loss
   // and without joint terms go in blocks of this many consecutive rows (the last one shorter), each
   // with the analytic Jacobian of the measurement model over all solved frames; otherwise one
@@ -182,7 +188,10 @@ class CalibrationProblem {
 
   // The solved parameters (unmeasured tools left out): the numbering of NormalEquations() and
   // Update().
-  Parameterization SolvedParameterization() const;
+  const Parameterization& SolvedParameterization() const;
+  // Every decision of the problem (internal, problem_setup.h): the parameterization, the frames
+  // solved, the structure reference, the prior; the same function makes CalibrateLinear's.
+  const internal::ProblemSetup& setup() const { return *setup_; }
 
   // (b) Normal equations at the current values (W = I / sigma^2).
   ProblemNormalEquations NormalEquations() const;
@@ -220,6 +229,7 @@ class CalibrationProblem {
   RobotModel nominal_;
   const MeasurementSet* data_;
   CalibrationProblemOptions options_;
+  std::shared_ptr<const internal::ProblemSetup> setup_;
   Parameterization parameterization_;
   std::vector<FrameBlock> frames_;
   std::vector<FrameBlock> initial_frames_;
@@ -227,12 +237,11 @@ class CalibrationProblem {
   std::vector<std::vector<double>> joint_blocks_;
   std::array<double, 2> tilt_ = {0.0, 0.0};
   Status tilt_status_;
-  // With joint-space terms, the reduction's by-products (solvers/src/calibration/normal_equations.h): the rows'
-  // regressors (slot basis of parameterization_'s blocks) and the normal equations at the nominal
-  // values with every term whole, in analysed_parameterization_.
+  // With joint-space terms, the reduction's by-products (setup_'s): the rows' regressors (slot
+  // basis of parameterization_'s blocks) and the normal equations at the nominal values with every
+  // term whole, in setup_->analysed_parameterization.
   std::shared_ptr<internal::JointSpaceRegressors> regressors_;
   std::shared_ptr<internal::NormalEquations> analysed_;
-  Parameterization analysed_parameterization_;
 };
 
 }  // namespace lpoe

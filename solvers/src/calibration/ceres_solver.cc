@@ -20,6 +20,7 @@
 #include "identifiability/identifiability.h"
 #include "lpoe/eigen_decompositions.h"
 #include "calibration/prior_terms.h"
+#include "calibration/problem_setup.h"
 #include "lpoe/problem_builder.h"
 #include "lpoe/statistics.h"
 
@@ -48,6 +49,7 @@ CalibrationProblemOptions ProblemOptions(const CeresSolverOptions& options) {
   o.gravity_tilt = options.gravity_tilt;
   o.initial_joint_terms = options.initial_joint_terms;
   o.structure_reference = options.structure_reference;
+  o.prior = options.prior;
   return o;
 }
 
@@ -353,6 +355,205 @@ std::string CeresLinearSolverFor(const CeresSolverOptions& options, double condi
   return normal_equations ? "dense_normal_cholesky" : "dense_qr";
 }
 
+namespace {
+
+// The stopping rules' watch of the solve (ConvergenceWatch): the step in the solved blocks'
+// coordinates (full: of the solved frames), the standard deviations from the check's J^T J.
+void SetUpWatch(const CalibrationProblem& builder, const ProblemAnalysis& analysis,
+                const CeresSolverOptions& options, ConvergenceWatch* watch) {
+  const Parameterization& all = builder.parameterization();
+  const bool full = options.parameterization == ParameterizationKind::kFull;
+  const int per_row = options.use_orientation ? 6 : 3;
+  watch->options = options.convergence;
+  watch->p = &all;
+  const std::vector<int> sizes = builder.tangent_sizes();
+  const std::vector<int> offsets = builder.tangent_offsets();
+  for (size_t b = 0; b < sizes.size(); ++b) {
+    if (full && offsets[b] >= all.num_frame_parameters()) break;
+    for (int c = 0; c < sizes[b]; ++c) watch->columns.push_back(offsets[b] + c);
+  }
+  watch->dof = static_cast<long>(per_row) * builder.data().size() - analysis.num_parameters;
+  if (!full) watch->H = analysis.normal_matrix;
+  if (full) FullParameterizationWatch(builder, options.sigma, analysis.rank, watch);
+}
+
+// The prior's residual blocks on the problem's parameter blocks, weighted with s / sigma
+// (*prior_weight, read at every evaluation): s from what the first Gauss-Newton step is expected to
+// leave (prior_terms.h), in *s2. The watch's J^T J gets the prior's information.
+void AddPriorResiduals(CalibrationProblem& builder, const CeresSolverOptions& options,
+                       ceres::Problem* problem, ConvergenceWatch* watch, double* prior_weight,
+                       double* s2) {
+  const internal::ResolvedPrior& prior = builder.setup().prior;
+  const Parameterization& all = builder.parameterization();
+  const Parameterization& solved = builder.SolvedParameterization();
+  const RobotModel& nominal = builder.nominal();
+  const bool full = options.parameterization == ParameterizationKind::kFull;
+  const ProblemNormalEquations ne = builder.NormalEquations();
+  const double c2 = options.sigma * options.sigma;
+  *s2 = internal::PriorStepDataVariance(
+      prior, c2 * ne.H, c2 * ne.g, c2 * ne.cost,
+      internal::LinearizePrior(prior, solved, nominal, builder.JointState()), watch->dof);
+  *prior_weight = std::sqrt(*s2) / options.sigma;
+  const int n = nominal.num_joints();
+  for (int f = 0; f < nominal.num_frames(); ++f) {
+    double* block = builder.frame_block(f);
+    if (block == nullptr || all.basis[f].cols() == 0) continue;
+    const SE3d& ref = f < n ? prior.reference.joints[f].origin : prior.reference.tools[f - n].origin;
+    problem->AddResidualBlock(new ceres::AutoDiffCostFunction<FramePriorResidual, 6, 7>(
+                                  new FramePriorResidual(ref, prior.frame_sqrt[f], prior_weight)),
+                              nullptr, block);
+  }
+  for (size_t b = 0; b < all.joint_blocks.size(); ++b) {
+    double* block = builder.joint_block(static_cast<int>(b));
+    if (block == nullptr || all.joint_blocks[b].basis.cols() == 0) continue;
+    problem->AddResidualBlock(
+        new JointPriorResidual(prior.term_sqrt[b] * all.joint_blocks[b].basis,
+                               prior.term_sqrt[b] * prior.term_reference[b], prior_weight),
+        nullptr, block);
+  }
+  if (!full && watch->H.rows() == solved.num_parameters) {
+    internal::AddPrior(internal::LinearizePrior(prior, solved, nominal, builder.JointState()), *s2,
+                       &watch->H, nullptr);
+  }
+}
+
+// Ceres's options of the solve: Levenberg-Marquardt with the linear solver CeresLinearSolverFor
+// picks, the state updated every iteration (the history callback reads it).
+ceres::Solver::Options SolverOptionsOf(const CeresSolverOptions& options, double condition_number,
+                                       int batched_rows) {
+  ceres::Solver::Options solver_options;
+  CHECK(ParseLinearSolver(CeresLinearSolverFor(options, condition_number, batched_rows),
+                          &solver_options.linear_solver_type));
+  solver_options.minimizer_type = ceres::TRUST_REGION;
+  solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.num_threads = options.num_threads;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.minimizer_progress_to_stdout = options.verbose;
+  solver_options.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
+  solver_options.update_state_every_iteration = true;
+  return solver_options;
+}
+
+// The prior's data variance at the solution: solved again (from the solution) until it settles,
+// the fixed point the linear solver's iterations reach (prior.h). Returns the prior's cost (in
+// units of s2) at the solution.
+double SettlePriorWeight(const CalibrationProblem& builder, const CeresSolverOptions& options,
+                         long prior_dof, const ceres::Solver::Options& solver_options,
+                         ceres::Problem* problem, ceres::Solver::Summary* summary,
+                         double* prior_weight, double* s2) {
+  const internal::ResolvedPrior& prior = builder.setup().prior;
+  const Parameterization& solved = builder.SolvedParameterization();
+  const double cost_scale = options.sigma * options.sigma;
+  auto prior_cost_now = [&]() {
+    return internal::LinearizePrior(prior, solved, builder.Model(), builder.JointState()).cost();
+  };
+  constexpr int kPriorRounds = 8;
+  for (int round = 0; round < kPriorRounds; ++round) {
+    const double prior_cost = prior_cost_now();
+    const double data_cost = summary->final_cost * cost_scale - *s2 * prior_cost;
+    const double s2_new = internal::PriorDataVariance(prior, data_cost, prior_dof);
+    if (MapTermination(summary->termination_type) != Termination::kConverged ||
+        std::abs(s2_new / *s2 - 1) <= 1e-4) {
+      break;
+    }
+    *s2 = s2_new;
+    *prior_weight = std::sqrt(*s2) / options.sigma;
+    ceres::Solve(solver_options, problem, summary);
+  }
+  return prior_cost_now();
+}
+
+// The posterior covariance with the prior: the data's J^T J and s2 times the prior's, in the
+// solved numbering; with what the prior contributed.
+Status PosteriorCovariance(const CalibrationProblem& builder, double cost_scale, double s2,
+                           double prior_cost, CalibrationResult* result) {
+  const internal::ResolvedPrior& prior = builder.setup().prior;
+  const ProblemNormalEquations ne = builder.NormalEquations();
+  const Eigen::MatrixXd H_data = cost_scale * ne.H;
+  const internal::PriorRows rows = internal::LinearizePrior(
+      prior, builder.SolvedParameterization(), builder.Model(), builder.JointState());
+  Eigen::MatrixXd H = H_data;
+  internal::AddPrior(rows, s2, &H, nullptr);
+  const Eigen::VectorXd d = internal::ColumnScale(H);
+  const Eigen::LLT<Eigen::MatrixXd> llt(d.asDiagonal() * H * d.asDiagonal());
+  Status s = Status::Ok();
+  if (llt.info() != Eigen::Success) {
+    s = Status::Error("the posterior's normal matrix is not positive definite");
+  } else {
+    result->covariance = cost_scale * (d.asDiagonal() *
+                                       InverseFromCholeskyFactor(llt.matrixLLT()) * d.asDiagonal());
+  }
+  result->prior_data_sigma = std::sqrt(s2);
+  result->prior_cost = s2 * prior_cost;
+  internal::PriorContribution(rows, H_data, s2, &result->prior_standard_deviation,
+                              &result->data_share);
+  return s;
+}
+
+// The covariance in the tangent spaces, in the parameterization's order (builder's numbering);
+// a failure is appended to *message.
+void SolutionCovariance(CalibrationProblem& builder, const CeresSolverOptions& options,
+                        ceres::Problem* problem, int rank, int identifiable, double s2,
+                        double prior_cost, CalibrationResult* result, std::string* message) {
+  const bool full = options.parameterization == ParameterizationKind::kFull;
+  const double cost_scale = options.sigma * options.sigma;
+  // From the normal equations when they are the whole problem (no robust loss) and full rank
+  // (identifiable parameterization), or for batched rows: ceres::Covariance would form the dense
+  // Jacobian of every row (650 MB for 10^6 rows) and take its SVD, the most expensive step of a
+  // 1000-row calibration with joint-space terms; the normal equations are formed by the joint
+  // blocks' structure, and the same rank test refuses a rank-deficient Jacobian.
+  // (A gravity tilt's bilinear block keeps ceres::Covariance: its a-priori form, as before.)
+  const bool normal_equations =
+      builder.BatchedRows() > 1 || (!full && options.loss == "none" && !options.gravity_tilt);
+  // Full parameterization: truncated to the identifiable rank, as the steps were measured.
+  int null_space_rank = -1;
+  if (full) {
+    int tangent = 0;
+    for (int s : builder.tangent_sizes()) tangent += s;
+    null_space_rank = std::max(0, tangent - rank);
+  }
+  Status s = Status::Ok();
+  if (builder.setup().prior.active) {
+    s = PosteriorCovariance(builder, cost_scale, s2, prior_cost, result);
+  } else {
+    s = normal_equations
+            ? builder.NormalEquationsCovariance(&result->covariance, null_space_rank)
+            : builder.Covariance(problem, options.num_threads, &result->covariance,
+                                 null_space_rank);
+  }
+  if (!s.ok()) {
+    *message += "; " + s.message();
+  } else if (options.a_posteriori_covariance) {
+    const int per_row = options.use_orientation ? 6 : 3;
+    const long dof = static_cast<long>(per_row) * builder.data().size() - identifiable;
+    if (dof > 0) {
+      result->covariance *= 2.0 * result->final_cost / cost_scale / static_cast<double>(dof);
+    }
+  }
+}
+
+// The gravity tilt's result; its standard deviation a posteriori as both solvers report it
+// (calibration.h), the a-priori one (sigma) kept beside it.
+void TiltResult(const CalibrationProblem& builder, const CeresSolverOptions& options,
+                int identifiable, double final_cost, CalibrationResult* result) {
+  const Parameterization& all = builder.parameterization();
+  internal::FillGravityTiltResult(all, builder.JointState(), result->covariance,
+                                  &result->gravity_tilt);
+  if (all.gravity_tilt && !options.a_posteriori_covariance &&
+      result->gravity_tilt.standard_deviation.maxCoeff() > 0) {
+    result->gravity_tilt.a_priori_standard_deviation = result->gravity_tilt.standard_deviation;
+    const int per_row = options.use_orientation ? 6 : 3;
+    const long dof = static_cast<long>(per_row) * builder.data().size() - identifiable;
+    result->gravity_tilt.standard_deviation *=
+        dof > 0 ? std::sqrt(2.0 * final_cost / static_cast<double>(dof)) : 0.0;
+  }
+}
+
+}  // namespace
+
 CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet& data,
                                  const CeresSolverOptions& options) {
   const auto start = std::chrono::steady_clock::now();
@@ -379,6 +580,7 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
       options.rows_per_block > 0                           ? options.rows_per_block
       : data.size() >= CeresSolverOptions::kBatchFromRows ? 1024
                                                            : 1;
+  // Every decision (parameterization, frames solved, prior) is the problem's (problem_setup.h).
   CalibrationProblem builder(nominal, data, problem_options);
   if (!builder.tilt_status().ok()) {
     return finish(Termination::kNotIdentifiable, builder.tilt_status().message());
@@ -388,8 +590,6 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   // is used during the solve and mapped at the end (SolvedCovariance).
   const Parameterization& all = builder.parameterization();
   result.parameterization = builder.SolvedParameterization();
-  const bool full = options.parameterization == ParameterizationKind::kFull;
-  const int per_row = options.use_orientation ? 6 : 3;
   result.joint_terms = builder.JointTerms();
 
   // ---- The identifiability check of the linear solver (same thresholds, same messages), on the
@@ -397,10 +597,8 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   const ProblemAnalysis analysis = builder.Analyze(options.max_condition_number);
   // The prior (lpoe/prior.h): identifiable parameterization only; an informative one lets rows
   // that cannot identify the model alone calibrate.
-  internal::ResolvedPrior prior;
-  if (options.prior && !full) prior = internal::ResolvePrior(*options.prior, nominal, data, all);
-  const bool use_prior = prior.active;
-  const bool informative = use_prior && prior.informative;
+  const bool use_prior = builder.setup().prior.active;
+  const bool informative = use_prior && builder.setup().prior.informative;
   if (analysis.num_equations < analysis.num_parameters && !informative) {
     return finish(Termination::kNotIdentifiable, analysis.message);
   }
@@ -414,19 +612,7 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   const int identifiable = analysis.num_parameters;
 
   ConvergenceWatch watch;
-  watch.options = options.convergence;
-  watch.p = &all;
-  // The step is measured in p's coordinates of the solved blocks (full: of the solved frames).
-  const std::vector<int> sizes = builder.tangent_sizes();
-  const std::vector<int> offsets = builder.tangent_offsets();
-  for (size_t b = 0; b < sizes.size(); ++b) {
-    if (full && offsets[b] >= all.num_frame_parameters()) break;
-    for (int c = 0; c < sizes[b]; ++c) watch.columns.push_back(offsets[b] + c);
-  }
-  watch.dof = static_cast<long>(per_row) * data.size() - identifiable;
-  if (!full) watch.H = analysis.normal_matrix;
-  if (full) FullParameterizationWatch(builder, options.sigma, analysis.rank, &watch);
-
+  SetUpWatch(builder, analysis, options, &watch);
   ceres::Problem problem;
   builder.AddTo(&problem);
   // The prior's residual blocks on the same parameter blocks, weighted with s / sigma: s from the
@@ -434,81 +620,22 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   const long prior_dof = watch.dof;
   double prior_weight = 0;
   double s2 = 0;
-  const Parameterization& solved = result.parameterization;
-  if (use_prior) {
-    // s for the first solve: what the first Gauss-Newton step is expected to leave (prior_terms.h).
-    const ProblemNormalEquations ne = builder.NormalEquations();
-    const double c2 = options.sigma * options.sigma;
-    s2 = internal::PriorStepDataVariance(
-        prior, c2 * ne.H, c2 * ne.g, c2 * ne.cost,
-        internal::LinearizePrior(prior, solved, nominal, builder.JointState()), prior_dof);
-    prior_weight = std::sqrt(s2) / options.sigma;
-    const int n = nominal.num_joints();
-    for (int f = 0; f < nominal.num_frames(); ++f) {
-      double* block = builder.frame_block(f);
-      if (block == nullptr || all.basis[f].cols() == 0) continue;
-      const SE3d& ref = f < n ? prior.reference.joints[f].origin : prior.reference.tools[f - n].origin;
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<FramePriorResidual, 6, 7>(
-                                   new FramePriorResidual(ref, prior.frame_sqrt[f], &prior_weight)),
-                               nullptr, block);
-    }
-    for (size_t b = 0; b < all.joint_blocks.size(); ++b) {
-      double* block = builder.joint_block(static_cast<int>(b));
-      if (block == nullptr || all.joint_blocks[b].basis.cols() == 0) continue;
-      problem.AddResidualBlock(
-          new JointPriorResidual(prior.term_sqrt[b] * all.joint_blocks[b].basis,
-                                 prior.term_sqrt[b] * prior.term_reference[b], &prior_weight),
-          nullptr, block);
-    }
-    if (!full && watch.H.rows() == solved.num_parameters) {
-      internal::AddPrior(internal::LinearizePrior(prior, solved, nominal, builder.JointState()), s2,
-                         &watch.H, nullptr);
-    }
-  }
+  if (use_prior) AddPriorResiduals(builder, options, &problem, &watch, &prior_weight, &s2);
 
   // ---- Solve.
-  ceres::Solver::Options solver_options;
-  CHECK(ParseLinearSolver(
-      CeresLinearSolverFor(options, analysis.condition_number, builder.BatchedRows()),
-      &solver_options.linear_solver_type));
-  solver_options.minimizer_type = ceres::TRUST_REGION;
-  solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.num_threads = options.num_threads;
-  solver_options.function_tolerance = options.function_tolerance;
-  solver_options.gradient_tolerance = options.gradient_tolerance;
-  solver_options.parameter_tolerance = options.parameter_tolerance;
-  solver_options.minimizer_progress_to_stdout = options.verbose;
-  solver_options.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
-  solver_options.update_state_every_iteration = true;
+  const ceres::Solver::Options solver_options =
+      SolverOptionsOf(options, analysis.condition_number, builder.BatchedRows());
   const double cost_scale = options.sigma * options.sigma;
   HistoryCallback callback(builder, cost_scale, &result.history, options.on_iteration, &watch);
-  solver_options.callbacks.push_back(&callback);
-
+  ceres::Solver::Options with_callback = solver_options;
+  with_callback.callbacks.push_back(&callback);
   ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &problem, &summary);
+  ceres::Solve(with_callback, &problem, &summary);
   if (options.verbose) LOG(INFO) << summary.FullReport();
-  // The prior's data variance at the solution: solved again (from the solution) until it settles,
-  // the fixed point the linear solver's iterations reach (prior.h).
   double prior_cost = 0;
-  auto prior_cost_now = [&]() {
-    return internal::LinearizePrior(prior, solved, builder.Model(), builder.JointState()).cost();
-  };
   if (use_prior) {
-    constexpr int kPriorRounds = 8;
-    for (int round = 0; round < kPriorRounds; ++round) {
-      prior_cost = prior_cost_now();
-      const double data_cost = summary.final_cost * cost_scale - s2 * prior_cost;
-      const double s2_new = internal::PriorDataVariance(prior, data_cost, prior_dof);
-      if (MapTermination(summary.termination_type) != Termination::kConverged ||
-          std::abs(s2_new / s2 - 1) <= 1e-4) {
-        break;
-      }
-      s2 = s2_new;
-      prior_weight = std::sqrt(s2) / options.sigma;
-      ceres::Solve(solver_options, &problem, &summary);
-    }
-    prior_cost = prior_cost_now();
+    prior_cost = SettlePriorWeight(builder, options, prior_dof, with_callback, &problem, &summary,
+                                   &prior_weight, &s2);
   }
 
   result.model = builder.Model();
@@ -522,73 +649,15 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
     message = "ceres: " + watch.decision.message;
   }
   if (termination == Termination::kNumericalFailure) {
-    internal::FillGravityTiltResult(builder.parameterization(), builder.JointState(),
-                                    Eigen::MatrixXd(), &result.gravity_tilt);
+    internal::FillGravityTiltResult(all, builder.JointState(), Eigen::MatrixXd(),
+                                    &result.gravity_tilt);
     return finish(termination, message);
   }
-
-  // ---- Covariance in the tangent spaces, in the parameterization's order.
   if (options.compute_covariance && termination == Termination::kConverged) {
-    // From the normal equations when they are the whole problem (no robust loss) and full rank
-    // (identifiable parameterization), or for batched rows: ceres::Covariance would form the dense
-    // Jacobian of every row (650 MB for 10^6 rows) and take its SVD, the most expensive step of a
-    // 1000-row calibration with joint-space terms; the normal equations are formed by the joint
-    // blocks' structure, and the same rank test refuses a rank-deficient Jacobian.
-    // (A gravity tilt's bilinear block keeps ceres::Covariance: its a-priori form, as before.)
-    const bool normal_equations =
-        builder.BatchedRows() > 1 || (!full && options.loss == "none" && !options.gravity_tilt);
-    // Full parameterization: truncated to the identifiable rank, as the steps were measured.
-    int null_space_rank = -1;
-    if (full) {
-      int tangent = 0;
-      for (int s : sizes) tangent += s;
-      null_space_rank = std::max(0, tangent - analysis.rank);
-    }
-    Status s = Status::Ok();
-    if (use_prior) {
-      // The posterior: the data's J^T J and s2 times the prior's, in the solved numbering.
-      const ProblemNormalEquations ne = builder.NormalEquations();
-      const Eigen::MatrixXd H_data = cost_scale * ne.H;
-      const internal::PriorRows rows =
-          internal::LinearizePrior(prior, solved, builder.Model(), builder.JointState());
-      Eigen::MatrixXd H = H_data;
-      internal::AddPrior(rows, s2, &H, nullptr);
-      const Eigen::VectorXd d = internal::ColumnScale(H);
-      const Eigen::LLT<Eigen::MatrixXd> llt(d.asDiagonal() * H * d.asDiagonal());
-      if (llt.info() != Eigen::Success) {
-        s = Status::Error("the posterior's normal matrix is not positive definite");
-      } else {
-        result.covariance = cost_scale * (d.asDiagonal() * InverseFromCholeskyFactor(llt.matrixLLT()) *
-                                          d.asDiagonal());
-      }
-      result.prior_data_sigma = std::sqrt(s2);
-      result.prior_cost = s2 * prior_cost;
-      internal::PriorContribution(rows, H_data, s2, &result.prior_standard_deviation,
-                                  &result.data_share);
-    } else {
-      s = normal_equations
-              ? builder.NormalEquationsCovariance(&result.covariance, null_space_rank)
-              : builder.Covariance(&problem, options.num_threads, &result.covariance,
-                                   null_space_rank);
-    }
-    if (!s.ok()) {
-      message += "; " + s.message();
-    } else if (options.a_posteriori_covariance) {
-      const long dof = static_cast<long>(per_row) * data.size() - identifiable;
-      if (dof > 0) result.covariance *= 2.0 * result.final_cost / cost_scale / static_cast<double>(dof);
-    }
+    SolutionCovariance(builder, options, &problem, analysis.rank, identifiable, s2, prior_cost,
+                       &result, &message);
   }
-  internal::FillGravityTiltResult(all, builder.JointState(), result.covariance,
-                                  &result.gravity_tilt);
-  if (all.gravity_tilt && !options.a_posteriori_covariance &&
-      result.gravity_tilt.standard_deviation.maxCoeff() > 0) {
-    // The tilt's standard deviation is reported a posteriori by both solvers (calibration.h): the
-    // a-priori one (sigma) is kept beside it, in the form of this covariance.
-    result.gravity_tilt.a_priori_standard_deviation = result.gravity_tilt.standard_deviation;
-    const long dof = static_cast<long>(per_row) * data.size() - identifiable;
-    result.gravity_tilt.standard_deviation *=
-        dof > 0 ? std::sqrt(2.0 * summary.final_cost / static_cast<double>(dof)) : 0.0;
-  }
+  TiltResult(builder, options, identifiable, summary.final_cost, &result);
   if (result.covariance.rows() == all.num_parameters) {
     result.covariance = SolvedCovariance(all, result.parameterization, result.covariance);
   }

@@ -15,6 +15,7 @@
 #include "calibration/gravity_tilt.h"
 #include "identifiability/identifiability.h"
 #include "calibration/prior_terms.h"
+#include "calibration/problem_setup.h"
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
 #include "identifiability/structural_identifiability.h"
@@ -149,23 +150,506 @@ const char* TerminationName(Termination t) {
   return "unknown";
 }
 
+namespace {
+
+// Frozen joint blocks (structured path): the joint-space columns J_q(q_eff) R change with the
+// geometry and the terms by about their relative size (1e-3), so the iterations form the frames'
+// block, the gradient and the cost exactly and keep the joint blocks of H (frames x joint,
+// joint x joint) from the last exact linearization: the step solves the exact gradient with a
+// slightly older H, which converges to the same solution (where the gradient is zero) with a
+// contraction of about that relative change per iteration. When the steps stop shrinking by
+// kFrozenContraction the blocks are formed again at the current point, and the covariance is
+// always computed from exact ones.
+constexpr double kFrozenContraction = 0.05;
+
+// One run of the linear solver on a problem's decisions (problem_setup.h): a Gauss-Newton loop with
+// backtracking over the problem's normal equations (plus the prior's rows), the state between
+// iterations in members. Run() is the loop; each stage a member function.
+class LinearSolve {
+ public:
+  LinearSolve(const RobotModel& nominal, const MeasurementSet& data,
+              const LinearSolverOptions& options, const internal::ProblemSetup& setup,
+              CalibrationResult* result, std::chrono::steady_clock::time_point start);
+  // Solves; the result as CalibrateLinear returns it.
+  CalibrationResult Run();
+
+ private:
+  CalibrationResult Finish(Termination t, const std::string& message);
+  // The first linearization (at the start model) and the identifiability check there; false with
+  // the result finished when the solve cannot go on.
+  bool Start();
+  bool CheckIdentifiability();
+  // The identifiable basis the full parameterization is analysed in, at `at`.
+  Parameterization IdentifiableBasis(const RobotModel& at) const;
+  internal::Identifiability Analyze(const RobotModel& at, const Linearization& l,
+                                    bool weakest) const;
+  Eigen::VectorXd JointValuesState() const;
+  std::vector<JointTermValues> JointValues() const;
+  internal::PriorRows PriorAt(const RobotModel& m, const Eigen::VectorXd& js) const;
+  Linearization WithPrior(const Linearization& l, const internal::PriorRows& pr) const;
+  double Total(const Linearization& l, const internal::PriorRows& pr) const;
+  // The step of the current linearization (with the prior's rows when there is one).
+  Eigen::VectorXd SolveCurrent(Eigen::LLT<Eigen::MatrixXd>* factor, Eigen::VectorXd* scale) const;
+  // The joint blocks of H kept from the last exact linearization (see kFrozenContraction).
+  void Freeze(const Linearization& l) { frozen_ = l.H.rightCols(K_); }
+  void Complete(Linearization* l) const;
+  Linearization Exact();
+  // The warm start (see LinearSolverOptions::warm_start_rows); the subsample's iterations taken,
+  // or -1 when it did not apply.
+  int WarmStart(const Eigen::VectorXd& x);
+  // The converged step x: the solution's model, statistics and covariance.
+  CalibrationResult Converged(const Eigen::VectorXd& x, const ConvergenceDecision& decision,
+                              int it);
+  void FinalLinearization(const Eigen::VectorXd& x);
+  void Covariance();
+  // The step x with backtracking (halved while it raises the cost); false when none is accepted.
+  bool TakeStep(const Eigen::VectorXd& x);
+  // The result at the current point when the solve stops without converging.
+  CalibrationResult Stopped(Termination t, int iterations, const std::string& message);
+
+  const RobotModel& nominal_;
+  const MeasurementSet& data_;
+  const LinearSolverOptions& options_;
+  const internal::ProblemSetup& setup_;
+  CalibrationResult& result_;
+  const Parameterization& p_;  // result_.parameterization
+  std::chrono::steady_clock::time_point start_;
+  // The rows' errors of every main linearization go to options.errors->final_errors; they are
+  // kept when the last one is that of the returned model.
+  PositionErrorRows* errors_;
+  bool errors_current_ = false;
+  const bool full_;
+  const bool use_prior_;
+  const int K_;  // the joint-space blocks' coordinates
+  const bool structured_;
+  const long dof_;
+  internal::JointSpaceRegressors no_regressors_;
+  Eigen::MatrixXd joint_rows_;
+  // The solve's linearizations: with every block exact, without the rows' errors, or with the
+  // joint blocks left out (the structured iterations' frozen blocks).
+  internal::NormalEquationsOptions exact_rows_;
+  internal::NormalEquationsOptions exact_no_errors_;
+  internal::NormalEquationsOptions gradient_only_;
+  RobotModel model_;
+  Eigen::VectorXd joint_state_;
+  Linearization lin_;
+  internal::PriorRows prior_rows_;
+  // The data variance the prior's rows are weighted with (prior_terms.h).
+  double s2_ = 0;
+  Eigen::MatrixXd frozen_;  // P x K: H's joint columns
+  double previous_cost_ = -1;
+  double previous_step_ = -1;
+};
+
+LinearSolve::LinearSolve(const RobotModel& nominal, const MeasurementSet& data,
+                         const LinearSolverOptions& options, const internal::ProblemSetup& setup,
+                         CalibrationResult* result, std::chrono::steady_clock::time_point start)
+    : nominal_(nominal),
+      data_(data),
+      options_(options),
+      setup_(setup),
+      result_(*result),
+      p_(result->parameterization),
+      start_(start),
+      errors_(options.errors ? &options.errors->final_errors : nullptr),
+      full_(setup.full),
+      use_prior_(setup.prior.active),
+      K_(setup.solved.num_joint_parameters()),
+      // The rows' joint regressors do not change during the solve: evaluated once. The full
+      // parameterization (stacked rows) and a gravity tilt's solve (bilinear columns,
+      // gravity_tilt.h) take the dense joint columns (JointRegressorRows); otherwise the normal
+      // equations are formed by the joint blocks' structure (normal_equations.h).
+      structured_(K_ > 0 && !full_ && !setup.solved.gravity_tilt),
+      dof_(setup.equations - setup.identifiable),
+      model_(nominal),
+      joint_state_(setup.initial_joint_state) {
+  if (!structured_) joint_rows_ = internal::JointRegressorRows(p_, data_);
+  exact_rows_ = RowsOf(options_);
+  exact_rows_.stack = full_;
+  exact_rows_.joint_rows = &joint_rows_;
+  exact_rows_.errors = errors_;
+  exact_rows_.joint.regressors = setup.regressors ? setup.regressors.get() : &no_regressors_;
+  exact_no_errors_ = exact_rows_;
+  exact_no_errors_.errors = nullptr;
+  gradient_only_ = exact_rows_;
+  gradient_only_.joint.gradient_only = true;
+}
+
+CalibrationResult LinearSolve::Finish(Termination t, const std::string& message) {
+  if (errors_ != nullptr && !(errors_current_ && (t == Termination::kConverged ||
+                                                  t == Termination::kMaxIterations))) {
+    errors_->Clear();
+  }
+  result_.termination = t;
+  result_.message = message;
+  result_.wall_time_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  return result_;
+}
+
+Eigen::VectorXd LinearSolve::JointValuesState() const {
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(p_.num_parameters);
+  x.tail(K_) = joint_state_;
+  return x;
+}
+
+std::vector<JointTermValues> LinearSolve::JointValues() const {
+  return JointValuesOf(p_, JointValuesState());
+}
+
+internal::PriorRows LinearSolve::PriorAt(const RobotModel& m, const Eigen::VectorXd& js) const {
+  return use_prior_ ? internal::LinearizePrior(setup_.prior, p_, m, js) : internal::PriorRows();
+}
+
+// The prior's rows at the current point and the data variance s2 they are weighted with (that of
+// the current point's residuals unless the prior fixes it): the step solves the data's normal
+// equations plus s2 A^T A, the cost compared is the data's plus s2 times the prior's.
+Linearization LinearSolve::WithPrior(const Linearization& l, const internal::PriorRows& pr) const {
+  Linearization c;
+  c.H = l.H;
+  c.g = l.g;
+  c.cost = l.cost;
+  c.finite = l.finite;
+  internal::AddPrior(pr, s2_, &c.H, &c.g);
+  return c;
+}
+
+double LinearSolve::Total(const Linearization& l, const internal::PriorRows& pr) const {
+  return l.cost + s2_ * pr.cost();
+}
+
+Eigen::VectorXd LinearSolve::SolveCurrent(Eigen::LLT<Eigen::MatrixXd>* factor,
+                                          Eigen::VectorXd* scale) const {
+  return use_prior_ ? SolveStep(WithPrior(lin_, prior_rows_), full_, setup_.identifiable, options_,
+                                factor, scale)
+                    : SolveStep(lin_, full_, setup_.identifiable, options_, factor, scale);
+}
+
+void LinearSolve::Complete(Linearization* l) const {
+  l->H.rightCols(K_) = frozen_;
+  l->H.bottomLeftCorner(K_, p_.num_parameters - K_) =
+      frozen_.topRows(p_.num_parameters - K_).transpose();
+}
+
+Linearization LinearSolve::Exact() {
+  Linearization l = internal::NormalEquationsOf(model_, data_, p_, joint_state_, exact_no_errors_);
+  Freeze(l);
+  return l;
+}
+
+Parameterization LinearSolve::IdentifiableBasis(const RobotModel& at) const {
+  const DataKind kind = options_.use_orientation ? DataKind::kPose : DataKind::kPosition;
+  Parameterization pi = MakeParameterization(at, ParameterizationKind::kIdentifiable, kind);
+  internal::LeaveOutStructurallyUnidentifiable(setup_.structure, data_, options_.use_orientation,
+                                               options_.orientation_weight, &pi);
+  CopyJointBlocks(p_, &pi);
+  internal::LeaveOutUnmeasuredTools(at, data_, &pi);
+  return pi;
+}
+
+// Identifiability in the calibrated directions. For the full parameterization this is analyzed in
+// the identifiable basis (the full J^T J is singular by construction).
+internal::Identifiability LinearSolve::Analyze(const RobotModel& at, const Linearization& l,
+                                               bool weakest) const {
+  if (!full_) return internal::Analyze(l.H, weakest);
+  const Parameterization pi = IdentifiableBasis(at);
+  return internal::Analyze(
+      internal::NormalEquationsOf(at, data_, pi, joint_state_, RowsOf(options_)).H, weakest);
+}
+
+bool LinearSolve::CheckIdentifiability() {
+  // At the nominal model. The eigenvalues decide; the weakest direction is computed only for the
+  // refusal's message.
+  const bool informative = use_prior_ && setup_.prior.informative;
+  internal::Identifiability id = informative
+                                     ? Analyze(model_, WithPrior(lin_, prior_rows_), false)
+                                     : Analyze(model_, lin_, false);
+  result_.rank = id.rank;
+  result_.condition_number = id.condition;
+  result_.singular_values = id.singular_values;
+  if (id.rank >= setup_.identifiable && id.condition <= options_.max_condition_number) return true;
+  id = informative ? Analyze(model_, WithPrior(lin_, prior_rows_), true)
+                   : Analyze(model_, lin_, true);
+  const Parameterization pi = full_ ? IdentifiableBasis(nominal_) : p_;
+  Finish(Termination::kNotIdentifiable,
+         internal::NotIdentifiableMessage(id, setup_.identifiable, options_.max_condition_number,
+                                          pi));
+  return false;
+}
+
+bool LinearSolve::Start() {
+  if (errors_ != nullptr) {
+    errors_->Clear();
+    options_.errors->have_start_statistics = false;
+  }
+  if (setup_.equations < setup_.identifiable && !(use_prior_ && setup_.prior.informative)) {
+    Finish(Termination::kNotIdentifiable,
+           internal::TooFewEquationsMessage(data_.size(), setup_.equations, setup_.identifiable,
+                                            setup_.per_row));
+    return false;
+  }
+  // With joint-space terms, the analysis that reduced them also gave the normal equations at the
+  // nominal model with every term whole: the first linearization is their projection onto the
+  // reduced blocks (no second pass over the rows).
+  lin_ = structured_ && setup_.analysed && joint_state_.isZero() &&
+                 internal::SameFrameDirections(setup_.analysed_parameterization, p_)
+             ? internal::ProjectJointBlocks(*setup_.analysed, p_)
+             : internal::NormalEquationsOf(model_, data_, p_, joint_state_, exact_rows_);
+  errors_current_ = errors_ != nullptr && !errors_->empty();
+  if (errors_current_ && options_.errors->want_start_statistics && lin_.finite) {
+    options_.errors->start_statistics = errors_->Statistics();
+    options_.errors->have_start_statistics = true;
+  }
+  if (!lin_.finite) {
+    Finish(Termination::kNumericalFailure,
+           "non-finite residuals or Jacobian at the nominal model (check the input values)");
+    return false;
+  }
+  result_.history.push_back(Record(0, lin_));
+  result_.joint_terms = JointValues();  // zero until solved
+  prior_rows_ = PriorAt(model_, joint_state_);
+  s2_ = use_prior_ ? internal::PriorDataVariance(setup_.prior, lin_.cost, dof_) : 0.0;
+  if (!CheckIdentifiability()) return false;
+  if (structured_) Freeze(lin_);
+  return true;
+}
+
+// The warm start: at the first iteration the step x computed on all rows at the start model is
+// taken, and the solve continues on every `every`-th row (kept in order) to its own convergence;
+// all rows are then linearized at that solution (its errors, when kept, replace the start's),
+// which must not raise the cost of the start model. Records the subsample's iterations (with
+// their row count) and the new linearization's; returns the number of subsample iterations
+// recorded, or -1 when the warm start did not apply (then nothing changed but the kept errors,
+// no longer current: the caller continues as without it).
+int LinearSolve::WarmStart(const Eigen::VectorXd& x) {
+  if (!x.allFinite()) return -1;
+  const int every = (data_.size() + options_.warm_start_rows - 1) / options_.warm_start_rows;
+  std::vector<int> rows;
+  rows.reserve(data_.size() / every + 1);
+  for (int r = 0; r < data_.size(); r += every) rows.push_back(r);
+  const MeasurementSet subset = data_.Subset(rows);
+  RobotModel first = model_;
+  ApplyUpdate(p_, x, &first);
+  LinearSolverOptions sub = options_;
+  sub.parameterization_override = &p_;  // the same directions (and no warm start of its own)
+  sub.structure_reference = nullptr;
+  sub.compute_covariance = false;
+  sub.verbose = false;
+  sub.on_iteration = nullptr;
+  sub.errors = nullptr;
+  sub.max_iterations = std::max(1, options_.max_iterations - 2);
+  sub.prior = setup_.anchored_prior;
+  const CalibrationResult s = CalibrateLinear(first, subset, sub);
+  if (!s.converged() || s.history.empty()) return -1;
+  Linearization at = internal::NormalEquationsOf(s.model, data_, p_, joint_state_, exact_rows_);
+  errors_current_ = false;
+  const internal::PriorRows at_prior = PriorAt(s.model, joint_state_);
+  if (!at.finite ||
+      !(Total(at, at_prior) <= Total(lin_, prior_rows_) * (1 + kCostIncreaseTolerance) + 1e-300)) {
+    return -1;
+  }
+  prior_rows_ = at_prior;
+  errors_current_ = errors_ != nullptr && !errors_->empty();
+  result_.history.back().step_norm = x.norm();
+  // The subsample's records but its last (the point linearized on all rows now).
+  const int taken = static_cast<int>(s.history.size()) - 1;
+  for (int k = 0; k < taken; ++k) {
+    IterationRecord r = s.history[k];
+    r.iteration = 1 + k;
+    r.rows = subset.size();
+    result_.history.push_back(r);
+    if (options_.on_iteration) options_.on_iteration(r);
+  }
+  result_.warm_start_rows = subset.size();
+  model_ = s.model;
+  lin_ = std::move(at);
+  result_.history.push_back(Record(1 + taken, lin_));
+  if (options_.on_iteration) options_.on_iteration(result_.history.back());
+  return taken;
+}
+
+// With frozen joint blocks the contraction per step is about their relative change, not
+// quadratic: the last (tiny) step is taken too, and the solution's normal equations are formed
+// exactly (the covariance's, and the final cost).
+void LinearSolve::FinalLinearization(const Eigen::VectorXd& x) {
+  RobotModel candidate = model_;
+  ApplyUpdate(p_, x, &candidate);
+  const Eigen::VectorXd candidate_joints = joint_state_ + x.tail(K_);
+  const RobotModel kept_model = model_;
+  const Eigen::VectorXd kept_joints = joint_state_;
+  model_ = std::move(candidate);
+  joint_state_ = candidate_joints;
+  Linearization last = Exact();
+  const internal::PriorRows last_prior = PriorAt(model_, joint_state_);
+  if (last.finite &&
+      Total(last, last_prior) <= Total(lin_, prior_rows_) * (1 + kCostIncreaseTolerance) + 1e-300) {
+    lin_ = std::move(last);
+    prior_rows_ = last_prior;
+  } else {
+    model_ = kept_model;
+    joint_state_ = kept_joints;
+    lin_ = Exact();
+  }
+}
+
+// s^2 (J^T J)^-1 (with the prior's rows: the posterior), column-scaled for accuracy.
+void LinearSolve::Covariance() {
+  if (!options_.compute_covariance || full_ || dof_ <= 0) return;
+  const double s2_post = 2.0 * lin_.cost / static_cast<double>(dof_);
+  const Eigen::MatrixXd Hc = use_prior_ ? WithPrior(lin_, prior_rows_).H : lin_.H;
+  const Eigen::VectorXd d = ColumnScale(Hc);
+  const Eigen::MatrixXd Hs = d.asDiagonal() * Hc * d.asDiagonal();
+  const Eigen::LLT<Eigen::MatrixXd> llt(Hs);
+  if (llt.info() == Eigen::Success) {
+    const Eigen::MatrixXd inv = InverseFromCholeskyFactor(llt.matrixLLT());
+    result_.covariance = s2_post * (d.asDiagonal() * inv * d.asDiagonal());
+  }
+}
+
+CalibrationResult LinearSolve::Converged(const Eigen::VectorXd& x,
+                                         const ConvergenceDecision& decision, int it) {
+  if (structured_ && !lin_.joint_blocks) FinalLinearization(x);
+  result_.stop_rule = decision.rule;
+  result_.model = model_;
+  result_.joint_terms = JointValues();
+  result_.iterations = it - 1;
+  result_.final_cost = lin_.cost;
+  if (use_prior_) {
+    // What the prior contributed (at the solution's residuals) and the posterior covariance.
+    s2_ = internal::PriorDataVariance(setup_.prior, lin_.cost, dof_);
+    result_.prior_data_sigma = std::sqrt(s2_);
+    result_.prior_cost = s2_ * prior_rows_.cost();
+    internal::PriorContribution(prior_rows_, lin_.H, s2_, &result_.prior_standard_deviation,
+                                &result_.data_share);
+  }
+  Covariance();
+  internal::FillGravityTiltResult(p_, joint_state_, result_.covariance, &result_.gravity_tilt);
+  return Finish(Termination::kConverged, decision.message);
+}
+
+// Gauss-Newton step with backtracking: a step that raises the cost is halved.
+bool LinearSolve::TakeStep(const Eigen::VectorXd& x) {
+  double alpha = 1.0;
+  for (int h = 0; h <= kMaxHalvings; ++h, alpha *= 0.5) {
+    RobotModel candidate = model_;
+    ApplyUpdate(p_, alpha * x, &candidate);
+    const Eigen::VectorXd candidate_joints = joint_state_ + alpha * x.tail(K_);
+    Linearization next = internal::NormalEquationsOf(candidate, data_, p_, candidate_joints,
+                                                     structured_ ? gradient_only_ : exact_rows_);
+    errors_current_ = false;
+    if (structured_) Complete(&next);
+    const internal::PriorRows next_prior = PriorAt(candidate, candidate_joints);
+    if (next.finite &&
+        Total(next, next_prior) <= Total(lin_, prior_rows_) * (1 + kCostIncreaseTolerance) + 1e-300) {
+      errors_current_ = errors_ != nullptr && !errors_->empty();
+      model_ = std::move(candidate);
+      joint_state_ = candidate_joints;
+      previous_cost_ = Total(lin_, prior_rows_);
+      lin_ = std::move(next);
+      prior_rows_ = next_prior;
+      return true;
+    }
+  }
+  return false;
+}
+
+CalibrationResult LinearSolve::Stopped(Termination t, int iterations,
+                                       const std::string& message) {
+  result_.model = model_;
+  result_.joint_terms = JointValues();
+  internal::FillGravityTiltResult(p_, joint_state_, Eigen::MatrixXd(), &result_.gravity_tilt);
+  result_.iterations = iterations;
+  result_.final_cost = lin_.cost;
+  return Finish(t, message);
+}
+
+CalibrationResult LinearSolve::Run() {
+  if (!Start()) return result_;
+  // Warm start (large data, linear_solver.h): the iterations that cross the model's large initial
+  // errors run on a subsample; all rows are linearized again only at its solution.
+  const bool warm_start = !full_ && !setup_.overridden && options_.joint_terms.empty() &&
+                          !options_.gravity_tilt && K_ == 0 && options_.warm_start_rows > 0 &&
+                          data_.size() >= options_.warm_start_min_rows &&
+                          data_.size() >= 2 * options_.warm_start_rows;
+  ConvergenceOptions stop = options_.convergence;
+  stop.step_tolerance = options_.step_tolerance;
+  for (int it = 1; it <= options_.max_iterations; ++it) {
+    // The step's factorization also gives the stopping rule's standard deviations.
+    Eigen::LLT<Eigen::MatrixXd> factor;
+    Eigen::VectorXd scale;
+    if (use_prior_) {
+      s2_ = internal::PriorStepDataVariance(setup_.prior, lin_.H, lin_.g, lin_.cost, prior_rows_,
+                                            dof_);
+    }
+    Eigen::VectorXd x = SolveCurrent(&factor, &scale);
+    if (structured_ && !lin_.joint_blocks &&
+        (!x.allFinite() ||
+         (previous_step_ >= 0 && x.norm() > kFrozenContraction * previous_step_))) {
+      lin_ = Exact();
+      scale.resize(0);
+      x = SolveCurrent(&factor, &scale);
+    }
+    previous_step_ = x.norm();
+    if (!x.allFinite()) {
+      return Finish(Termination::kNumericalFailure,
+                    "the least-squares step is not finite (numerically singular normal equations)");
+    }
+    const double step = x.norm();
+    result_.history.back().step_norm = step;
+    if (options_.verbose) {
+      LOG(INFO) << "iteration " << it - 1 << ": max " << lin_.max_error << " mm, mean "
+                << lin_.mean_error << " mm, |x| " << step;
+    }
+    ConvergenceState state;
+    state.step = x;
+    if (!full_) {
+      state.standard_deviation =
+          scale.size() == lin_.H.rows()
+              ? StandardDeviationsFromFactor(factor.matrixLLT(), scale, lin_.cost, dof_)
+              : StandardDeviations(use_prior_ ? WithPrior(lin_, prior_rows_).H : lin_.H,
+                                   lin_.cost, dof_);
+    }
+    state.parameter_scale = ParameterScale(model_);
+    state.cost = use_prior_ ? Total(lin_, prior_rows_) : lin_.cost;
+    state.previous_cost = previous_cost_;
+    const ConvergenceDecision decision = TestConvergence(stop, state);
+    if (decision.converged()) return Converged(x, decision, it);
+    if (it == 1 && warm_start) {
+      const int taken = WarmStart(x);
+      if (taken >= 0) {
+        previous_cost_ = result_.history.front().cost;
+        previous_step_ = -1;
+        it += taken;  // the subsample's iterations; the next one is on all rows
+        continue;
+      }
+    }
+    if (!TakeStep(x)) {
+      std::ostringstream os;
+      os << "no step along the least-squares direction reduces the cost (|x| = " << step
+         << "); the linearization is not valid here (check units, angle_unit and the base frame)";
+      return Stopped(Termination::kNumericalFailure, it - 1, os.str());
+    }
+    result_.history.push_back(Record(it, lin_));
+    if (options_.on_iteration) options_.on_iteration(result_.history.back());
+  }
+  std::ostringstream os;
+  os << "not converged after " << options_.max_iterations << " iterations (last |x| = "
+     << result_.history[result_.history.size() - 2].step_norm << ", tolerance "
+     << options_.step_tolerance << ")";
+  return Stopped(Termination::kMaxIterations, options_.max_iterations, os.str());
+}
+
+}  // namespace
+
 CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSet& data,
                                   const LinearSolverOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   CalibrationResult result;
   result.model = nominal;
-  // The rows' errors of every main linearization go to options.errors->final_errors; they are kept
-  // when the last one is that of the returned model.
-  PositionErrorRows* errors = options.errors ? &options.errors->final_errors : nullptr;
-  if (errors != nullptr) {
-    errors->Clear();
-    options.errors->have_start_statistics = false;
-  }
-  bool errors_current = false;
   auto finish = [&](Termination t, const std::string& message) {
-    if (errors != nullptr && !(errors_current && (t == Termination::kConverged ||
-                                                  t == Termination::kMaxIterations))) {
-      errors->Clear();
+    if (options.errors != nullptr) {
+      options.errors->final_errors.Clear();
+      options.errors->have_start_statistics = false;
     }
     result.termination = t;
     result.message = message;
@@ -173,8 +657,6 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return result;
   };
-
-  const DataKind kind = options.use_orientation ? DataKind::kPose : DataKind::kPosition;
   CHECK_EQ(data.num_joints(), nominal.num_joints()) << "measurements do not match the model";
   for (int r = 0; r < data.size(); ++r) {
     CHECK(data.target(r) >= 0 && data.target(r) < nominal.num_tools()) << "bad target in row " << r;
@@ -183,410 +665,15 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
     return finish(Termination::kNotIdentifiable,
                   "pose-based calibration needs measured orientations (quat_x..quat_w columns)");
   }
-  const bool override_basis = options.parameterization_override != nullptr;
-  CHECK(!override_basis || options.joint_terms.empty())
-      << "joint-space terms with a parameterization override";
-  // With joint-space terms, the analysis that reduces them also gives the rows' regressors and the
-  // normal equations at the nominal model with every term whole: the first linearization below is
-  // their projection onto the reduced blocks (no second pass over the rows).
-  internal::NormalEquations analysed;
-  internal::JointSpaceRegressors regressors;
-  Parameterization analysed_p;
-  internal::SolverParameterizationRequest request = internal::ParameterizationRequestOf(options);
-  request.analysed = &analysed;
-  request.regressors = &regressors;
-  request.analysed_parameterization = &analysed_p;
-  result.parameterization = override_basis
-                                ? *options.parameterization_override
-                                : internal::SolverParameterization(nominal, data, request);
-  if (!override_basis) internal::LeaveOutUnmeasuredTools(nominal, data, &result.parameterization);
-  if (options.gravity_tilt) {
-    CHECK(!override_basis) << "a gravity tilt with a parameterization override";
-    if (Status s = internal::AddSolverGravityTilt(options.gravity_tilt, &result.parameterization);
-        !s.ok()) {
-      return finish(Termination::kNotIdentifiable, s.message());
-    }
+  // Every decision once, as the Ceres solver's problem makes them (problem_setup.h).
+  internal::ProblemSetupRequest request = internal::ProblemSetupRequestOf(options);
+  request.parameterization_override = options.parameterization_override;
+  const internal::ProblemSetup setup = internal::SetUpProblem(nominal, data, request);
+  result.parameterization = setup.solved;
+  if (!setup.tilt_status.ok()) {
+    return finish(Termination::kNotIdentifiable, setup.tilt_status.message());
   }
-  const Parameterization& p = result.parameterization;
-  const bool full = !override_basis && options.parameterization == ParameterizationKind::kFull;
-  // Unknowns the data must determine: the identifiable count, whichever parameterization is solved.
-  int gauge = 0;  // the frames' unidentifiable directions solved anyway (full parameterization)
-  for (const Direction& d : p.unidentifiable) {  // those still in the basis (not left out)
-    gauge += full && d.joint_block < 0 && p.basis[d.frame].cols() > 0 &&
-             (p.basis[d.frame].transpose() * d.vector).norm() > 0.5;
-  }
-  const int identifiable = p.num_parameters - gauge;
-  const int per_row = options.use_orientation ? 6 : 3;
-  const long equations = static_cast<long>(per_row) * data.size();
-  // The prior (lpoe/prior.h): identifiable parameterization only. Its reference is fixed here (the
-  // start model unless given), so that the warm start's sub-solve keeps it.
-  std::shared_ptr<const ParameterPrior> anchored;
-  internal::ResolvedPrior prior;
-  if (options.prior && !full) {
-    if (options.prior->reference) {
-      anchored = options.prior;
-    } else {
-      auto copy = std::make_shared<ParameterPrior>(*options.prior);
-      copy->reference = std::make_shared<const RobotModel>(nominal);
-      anchored = copy;
-    }
-    prior = internal::ResolvePrior(*anchored, nominal, data, p);
-  }
-  const bool use_prior = prior.active;
-  if (equations < identifiable && !(use_prior && prior.informative)) {
-    return finish(Termination::kNotIdentifiable,
-                  internal::TooFewEquationsMessage(data.size(), equations, identifiable, per_row));
-  }
-
-  const bool stack = full;
-  RobotModel model = nominal;
-  const RobotModel& structure =
-      options.structure_reference ? *options.structure_reference : nominal;
-  // The joint-space blocks' coordinates (they start at zero: no joint error).
-  const int K = p.num_joint_parameters();
-  Eigen::VectorXd joint_state = internal::InitialJointState(p, options.initial_joint_terms);
-  // The rows' joint regressors do not change during the solve: evaluated once. The full
-  // parameterization (stacked rows) and a gravity tilt's solve (bilinear columns, gravity_tilt.h)
-  // take the dense joint columns (JointRegressorRows); otherwise the normal equations are formed by
-  // the joint blocks' structure (normal_equations.h).
-  const bool structured = K > 0 && !stack && !p.gravity_tilt;
-  const Eigen::MatrixXd joint_rows =
-      structured ? Eigen::MatrixXd() : internal::JointRegressorRows(p, data);
-  if (structured) internal::SetSlotBasis(p, &regressors);
-  // The solve's linearizations: with every block exact, without the rows' errors, or with the joint
-  // blocks left out (the structured iterations' frozen blocks).
-  internal::NormalEquationsOptions exact_rows = RowsOf(options);
-  exact_rows.stack = stack;
-  exact_rows.joint_rows = &joint_rows;
-  exact_rows.errors = errors;
-  exact_rows.joint.regressors = &regressors;
-  internal::NormalEquationsOptions exact_no_errors = exact_rows;
-  exact_no_errors.errors = nullptr;
-  internal::NormalEquationsOptions gradient_only = exact_rows;
-  gradient_only.joint.gradient_only = true;
-  auto joint_values = [&]() {
-    Eigen::VectorXd x = Eigen::VectorXd::Zero(p.num_parameters);
-    x.tail(K) = joint_state;
-    return JointValuesOf(p, x);
-  };
-  Linearization lin =
-      structured && joint_state.isZero() && internal::SameFrameDirections(analysed_p, p)
-          ? internal::ProjectJointBlocks(analysed, p)
-          : internal::NormalEquationsOf(model, data, p, joint_state, exact_rows);
-  errors_current = errors != nullptr && !errors->empty();
-  if (errors_current && options.errors->want_start_statistics && lin.finite) {
-    options.errors->start_statistics = errors->Statistics();
-    options.errors->have_start_statistics = true;
-  }
-  if (!lin.finite) {
-    return finish(Termination::kNumericalFailure,
-                  "non-finite residuals or Jacobian at the nominal model (check the input values)");
-  }
-  result.history.push_back(Record(0, lin));
-
-  result.joint_terms = joint_values();  // zero until solved
-
-  // The prior's rows at the current point and the data variance s2 they are weighted with (that of
-  // the current point's residuals unless the prior fixes it): the step solves the data's normal
-  // equations plus s2 A^T A, the cost compared is the data's plus s2 times the prior's.
-  const long dof_all = equations - identifiable;
-  auto prior_at = [&](const RobotModel& m, const Eigen::VectorXd& js) {
-    return use_prior ? internal::LinearizePrior(prior, p, m, js) : internal::PriorRows();
-  };
-  internal::PriorRows prior_rows = prior_at(model, joint_state);
-  double s2 = use_prior ? internal::PriorDataVariance(prior, lin.cost, dof_all) : 0.0;
-  auto with_prior = [&](const Linearization& l, const internal::PriorRows& pr) {
-    Linearization c;
-    c.H = l.H;
-    c.g = l.g;
-    c.cost = l.cost;
-    c.finite = l.finite;
-    internal::AddPrior(pr, s2, &c.H, &c.g);
-    return c;
-  };
-  auto total = [&](const Linearization& l, const internal::PriorRows& pr) {
-    return l.cost + s2 * pr.cost();
-  };
-
-  // Identifiability in the calibrated directions, at the nominal model. For the full
-  // parameterization this is analyzed in the identifiable basis (the full J^T J is singular by
-  // construction).
-  auto analyze = [&](const RobotModel& at, const Linearization& l, bool weakest) {
-    if (!full) return Analyze(l.H, weakest);
-    Parameterization pi = MakeParameterization(at, ParameterizationKind::kIdentifiable, kind);
-    internal::LeaveOutStructurallyUnidentifiable(structure, data, options.use_orientation,
-                                                 options.orientation_weight, &pi);
-    CopyJointBlocks(p, &pi);
-    internal::LeaveOutUnmeasuredTools(at, data, &pi);
-    return Analyze(internal::NormalEquationsOf(at, data, pi, joint_state, RowsOf(options)).H,
-                   weakest);
-  };
-  {
-    // The eigenvalues decide; the weakest direction is computed only for the refusal's message.
-    Identifiability id = use_prior && prior.informative
-                             ? analyze(model, with_prior(lin, prior_rows), false)
-                             : analyze(model, lin, false);
-    result.rank = id.rank;
-    result.condition_number = id.condition;
-    result.singular_values = id.singular_values;
-    if (id.rank < identifiable || !(id.condition <= options.max_condition_number)) {
-      id = use_prior && prior.informative ? analyze(model, with_prior(lin, prior_rows), true)
-                                          : analyze(model, lin, true);
-      Parameterization pi = p;
-      if (full) {
-        pi = MakeParameterization(nominal, ParameterizationKind::kIdentifiable, kind);
-        internal::LeaveOutStructurallyUnidentifiable(structure, data, options.use_orientation,
-                                                     options.orientation_weight, &pi);
-        CopyJointBlocks(p, &pi);
-        internal::LeaveOutUnmeasuredTools(nominal, data, &pi);
-      }
-      return finish(Termination::kNotIdentifiable,
-                    internal::NotIdentifiableMessage(id, identifiable,
-                                                     options.max_condition_number, pi));
-    }
-  }
-
-  // Frozen joint blocks (structured path): the joint-space columns J_q(q_eff) R change with the
-  // geometry and the terms by about their relative size (1e-3), so the iterations form the frames'
-  // block, the gradient and the cost exactly and keep the joint blocks of H (frames x joint,
-  // joint x joint) from the last exact linearization: the step solves the exact gradient with a
-  // slightly older H, which converges to the same solution (where the gradient is zero) with a
-  // contraction of about that relative change per iteration. When the steps stop shrinking by
-  // kFrozenContraction the blocks are formed again at the current point, and the covariance is
-  // always computed from exact ones.
-  constexpr double kFrozenContraction = 0.05;
-  Eigen::MatrixXd frozen;  // P x K: H's joint columns
-  auto freeze = [&](const Linearization& l) { frozen = l.H.rightCols(K); };
-  auto complete = [&](Linearization* l) {
-    l->H.rightCols(K) = frozen;
-    l->H.bottomLeftCorner(K, p.num_parameters - K) = frozen.topRows(p.num_parameters - K).transpose();
-  };
-  auto exact = [&]() {
-    Linearization l = internal::NormalEquationsOf(model, data, p, joint_state, exact_no_errors);
-    freeze(l);
-    return l;
-  };
-  if (structured) freeze(lin);
-
-  // The warm start: at the first iteration the step x computed on all rows at the start model is
-  // taken, and the solve continues on every `every`-th row (kept in order) to its own convergence;
-  // all rows are then linearized at that solution (its errors, when kept, replace the start's),
-  // which must not raise the cost of the start model. Records the subsample's iterations (with
-  // their row count) and the new linearization's; returns the number of subsample iterations
-  // recorded, or -1 when the warm start did not apply (then nothing changed but the kept errors,
-  // no longer current: the caller continues as without it).
-  const bool warm_start = !full && !override_basis && options.joint_terms.empty() &&
-                          !options.gravity_tilt && K == 0 && options.warm_start_rows > 0 &&
-                          data.size() >= options.warm_start_min_rows &&
-                          data.size() >= 2 * options.warm_start_rows;
-  auto WarmStart = [&](const Eigen::VectorXd& x, Linearization* current,
-                       RobotModel* current_model) -> int {
-    if (!x.allFinite()) return -1;
-    const int every = (data.size() + options.warm_start_rows - 1) / options.warm_start_rows;
-    std::vector<int> rows;
-    rows.reserve(data.size() / every + 1);
-    for (int r = 0; r < data.size(); r += every) rows.push_back(r);
-    const MeasurementSet subset = data.Subset(rows);
-    RobotModel first = *current_model;
-    ApplyUpdate(p, x, &first);
-    LinearSolverOptions sub = options;
-    sub.parameterization_override = &p;  // the same directions (and no warm start of its own)
-    sub.structure_reference = nullptr;
-    sub.compute_covariance = false;
-    sub.verbose = false;
-    sub.on_iteration = nullptr;
-    sub.errors = nullptr;
-    sub.max_iterations = std::max(1, options.max_iterations - 2);
-    sub.prior = anchored;
-    const CalibrationResult s = CalibrateLinear(first, subset, sub);
-    if (!s.converged() || s.history.empty()) return -1;
-    Linearization at = internal::NormalEquationsOf(s.model, data, p, joint_state, exact_rows);
-    errors_current = false;
-    const internal::PriorRows at_prior = prior_at(s.model, joint_state);
-    if (!at.finite || !(total(at, at_prior) <= total(*current, prior_rows) *
-                                                   (1 + kCostIncreaseTolerance) +
-                                               1e-300)) {
-      return -1;
-    }
-    prior_rows = at_prior;
-    errors_current = errors != nullptr && !errors->empty();
-    result.history.back().step_norm = x.norm();
-    // The subsample's records but its last (the point linearized on all rows now).
-    const int taken = static_cast<int>(s.history.size()) - 1;
-    for (int k = 0; k < taken; ++k) {
-      IterationRecord r = s.history[k];
-      r.iteration = 1 + k;
-      r.rows = subset.size();
-      result.history.push_back(r);
-      if (options.on_iteration) options.on_iteration(r);
-    }
-    result.warm_start_rows = subset.size();
-    *current_model = s.model;
-    *current = std::move(at);
-    result.history.push_back(Record(1 + taken, *current));
-    if (options.on_iteration) options.on_iteration(result.history.back());
-    return taken;
-  };
-
-  ConvergenceOptions stop = options.convergence;
-  stop.step_tolerance = options.step_tolerance;
-  const long dof = static_cast<long>(per_row) * data.size() - identifiable;
-  double previous_cost = -1;
-  double previous_step = -1;
-  for (int it = 1; it <= options.max_iterations; ++it) {
-    // The step's factorization also gives the stopping rule's standard deviations.
-    Eigen::LLT<Eigen::MatrixXd> factor;
-    Eigen::VectorXd scale;
-    if (use_prior) {
-      s2 = internal::PriorStepDataVariance(prior, lin.H, lin.g, lin.cost, prior_rows, dof_all);
-    }
-    Eigen::VectorXd x = use_prior
-                            ? SolveStep(with_prior(lin, prior_rows), full, identifiable, options,
-                                        &factor, &scale)
-                            : SolveStep(lin, full, identifiable, options, &factor, &scale);
-    if (structured && !lin.joint_blocks &&
-        (!x.allFinite() || (previous_step >= 0 && x.norm() > kFrozenContraction * previous_step))) {
-      lin = exact();
-      scale.resize(0);
-      x = use_prior ? SolveStep(with_prior(lin, prior_rows), full, identifiable, options, &factor,
-                                &scale)
-                    : SolveStep(lin, full, identifiable, options, &factor, &scale);
-    }
-    previous_step = x.norm();
-    if (!x.allFinite()) {
-      return finish(Termination::kNumericalFailure,
-                    "the least-squares step is not finite (numerically singular normal equations)");
-    }
-    const double step = x.norm();
-    result.history.back().step_norm = step;
-    if (options.verbose) {
-      LOG(INFO) << "iteration " << it - 1 << ": max " << lin.max_error << " mm, mean "
-                << lin.mean_error << " mm, |x| " << step;
-    }
-    ConvergenceState state;
-    state.step = x;
-    if (!full) {
-      state.standard_deviation =
-          scale.size() == lin.H.rows()
-              ? StandardDeviationsFromFactor(factor.matrixLLT(), scale, lin.cost, dof)
-              : StandardDeviations(use_prior ? with_prior(lin, prior_rows).H : lin.H, lin.cost,
-                                   dof);
-    }
-    state.parameter_scale = ParameterScale(model);
-    state.cost = use_prior ? total(lin, prior_rows) : lin.cost;
-    state.previous_cost = previous_cost;
-    const ConvergenceDecision decision = TestConvergence(stop, state);
-    if (decision.converged()) {
-      if (structured && !lin.joint_blocks) {
-        // With frozen joint blocks the contraction per step is about their relative change, not
-        // quadratic: the last (tiny) step is taken too, and the solution's normal equations are
-        // formed exactly (the covariance's, and the final cost).
-        RobotModel candidate = model;
-        ApplyUpdate(p, x, &candidate);
-        const Eigen::VectorXd candidate_joints = joint_state + x.tail(K);
-        const RobotModel kept_model = model;
-        const Eigen::VectorXd kept_joints = joint_state;
-        model = std::move(candidate);
-        joint_state = candidate_joints;
-        Linearization last = exact();
-        const internal::PriorRows last_prior = prior_at(model, joint_state);
-        if (last.finite && total(last, last_prior) <=
-                               total(lin, prior_rows) * (1 + kCostIncreaseTolerance) + 1e-300) {
-          lin = std::move(last);
-          prior_rows = last_prior;
-        } else {
-          model = kept_model;
-          joint_state = kept_joints;
-          lin = exact();
-        }
-      }
-      result.stop_rule = decision.rule;
-      result.model = model;
-      result.joint_terms = joint_values();
-      result.iterations = it - 1;
-      result.final_cost = lin.cost;
-      if (use_prior) {
-        // What the prior contributed (at the solution's residuals) and the posterior covariance.
-        s2 = internal::PriorDataVariance(prior, lin.cost, dof_all);
-        result.prior_data_sigma = std::sqrt(s2);
-        result.prior_cost = s2 * prior_rows.cost();
-        internal::PriorContribution(prior_rows, lin.H, s2, &result.prior_standard_deviation,
-                                    &result.data_share);
-      }
-      if (options.compute_covariance && !full) {
-        if (dof > 0) {
-          const double s2_post = 2.0 * lin.cost / static_cast<double>(dof);
-          const Eigen::MatrixXd Hc = use_prior ? with_prior(lin, prior_rows).H : lin.H;
-          const Eigen::VectorXd d = ColumnScale(Hc);
-          const Eigen::MatrixXd Hs = d.asDiagonal() * Hc * d.asDiagonal();
-          const Eigen::LLT<Eigen::MatrixXd> llt(Hs);
-          if (llt.info() == Eigen::Success) {
-            const Eigen::MatrixXd inv = InverseFromCholeskyFactor(llt.matrixLLT());
-            result.covariance = s2_post * (d.asDiagonal() * inv * d.asDiagonal());
-          }
-        }
-      }
-      internal::FillGravityTiltResult(p, joint_state, result.covariance, &result.gravity_tilt);
-      return finish(Termination::kConverged, decision.message);
-    }
-    // Warm start (large data, linear_solver.h): the iterations that cross the model's large
-    // initial errors run on a subsample; all rows are linearized again only at its solution.
-    if (it == 1 && warm_start) {
-      const int taken = WarmStart(x, &lin, &model);
-      if (taken >= 0) {
-        previous_cost = result.history.front().cost;
-        previous_step = -1;
-        it += taken;  // the subsample's iterations; the next one is on all rows
-        continue;
-      }
-    }
-    // Gauss-Newton step with backtracking: a step that raises the cost is halved.
-    bool accepted = false;
-    double alpha = 1.0;
-    for (int h = 0; h <= kMaxHalvings && !accepted; ++h, alpha *= 0.5) {
-      RobotModel candidate = model;
-      ApplyUpdate(p, alpha * x, &candidate);
-      const Eigen::VectorXd candidate_joints = joint_state + alpha * x.tail(K);
-      Linearization next = internal::NormalEquationsOf(candidate, data, p, candidate_joints,
-                                                       structured ? gradient_only : exact_rows);
-      errors_current = false;
-      if (structured) complete(&next);
-      const internal::PriorRows next_prior = prior_at(candidate, candidate_joints);
-      if (next.finite && total(next, next_prior) <=
-                             total(lin, prior_rows) * (1 + kCostIncreaseTolerance) + 1e-300) {
-        errors_current = errors != nullptr && !errors->empty();
-        model = std::move(candidate);
-        joint_state = candidate_joints;
-        previous_cost = total(lin, prior_rows);
-        lin = std::move(next);
-        prior_rows = next_prior;
-        accepted = true;
-      }
-    }
-    if (!accepted) {
-      result.model = model;
-      result.joint_terms = joint_values();
-      internal::FillGravityTiltResult(p, joint_state, Eigen::MatrixXd(), &result.gravity_tilt);
-      result.iterations = it - 1;
-      result.final_cost = lin.cost;
-      std::ostringstream os;
-      os << "no step along the least-squares direction reduces the cost (|x| = " << step
-         << "); the linearization is not valid here (check units, angle_unit and the base frame)";
-      return finish(Termination::kNumericalFailure, os.str());
-    }
-    result.history.push_back(Record(it, lin));
-    if (options.on_iteration) options.on_iteration(result.history.back());
-  }
-  result.model = model;
-  result.joint_terms = joint_values();
-  internal::FillGravityTiltResult(p, joint_state, Eigen::MatrixXd(), &result.gravity_tilt);
-  result.iterations = options.max_iterations;
-  result.final_cost = lin.cost;
-  std::ostringstream os;
-  os << "not converged after " << options.max_iterations << " iterations (last |x| = "
-     << result.history[result.history.size() - 2].step_norm << ", tolerance "
-     << options.step_tolerance << ")";
-  return finish(Termination::kMaxIterations, os.str());
+  return LinearSolve(nominal, data, options, setup, &result, start).Run();
 }
 
 }  // namespace lpoe

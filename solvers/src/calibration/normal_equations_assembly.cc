@@ -667,6 +667,90 @@ bool SlotSelection(const Eigen::MatrixXd& T, std::vector<int>* column) {
   return true;
 }
 
+// The slots' sums mapped to p's joint coordinates: Hall (frames and slots, symmetric) and gs (the
+// slots' gradient) into lin's joint rows and columns (H's frames block and g's frames part are
+// lin's already). `blocks` false: the gradient only.
+void MapSlotSumsToJointBlocks(const Eigen::MatrixXd& Hall, const Eigen::VectorXd& gs,
+                              const JointSpaceRegressors& regs, const Parameterization& p,
+                              bool blocks, NormalEquations* out) {
+  NormalEquations& lin = *out;
+  const int K = p.num_joint_parameters();
+  const int F = p.num_parameters - K;
+  const int S = regs.num_slots();
+  const Eigen::MatrixXd& T = regs.slot_basis;
+  std::vector<int> selected;
+  const bool select = SlotSelection(T, &selected);
+  if (select) {
+    // Every block with the identity basis (the reduction's analysis): T only picks each slot's
+    // column, so the products below are sums of the slots' entries (the same numbers exactly).
+    for (int t = 0; t < S; ++t) {
+      const int k = selected[t];
+      if (k < 0) continue;
+      lin.g(F + k) += gs(t);
+      if (!blocks) continue;
+      lin.H.col(F + k).head(F) += Hall.col(F + t).head(F);
+      for (int u = 0; u < S; ++u) {
+        if (selected[u] >= 0) lin.H(F + selected[u], F + k) += Hall(F + u, F + t);
+      }
+    }
+    if (blocks) {
+      lin.H.bottomLeftCorner(K, F) = lin.H.topRightCorner(F, K).transpose();
+      // Exactly symmetric (a column picked by several slots sums them in another order).
+      Eigen::MatrixXd Hkk = lin.H.bottomRightCorner(K, K);
+      lin.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
+    }
+  } else {
+    lin.g.tail(K).noalias() = T.transpose() * gs;
+  }
+  if (blocks && !select) {
+    // H_frames,K = H_frames,slots T, W T and T^T (W T) block by block: slot t's row of T has only
+    // its joint block's columns (SetSlotBasis), so per block b the rows of its slots and its
+    // columns form a dense T_b and every other entry is zero. The products run over those rows
+    // and columns only, the zero terms left out (half the multiply-adds with two blocks).
+    struct SlotPart {
+      int col = 0, cols = 0;
+      std::vector<int> rows;
+      Eigen::MatrixXd T;
+    };
+    std::vector<SlotPart> parts(p.joint_blocks.size());
+    for (size_t b = 0; b < parts.size(); ++b) {
+      parts[b].col = p.joint_blocks[b].offset - F;
+      parts[b].cols = static_cast<int>(p.joint_blocks[b].basis.cols());
+    }
+    for (int t = 0; t < S; ++t) {
+      size_t b = 0;
+      while (regs.slot_column[t] >= regs.column_offset[b + 1]) ++b;
+      parts[b].rows.push_back(t);
+    }
+    lin.H.topRightCorner(F, K).setZero();
+    Eigen::MatrixXd WT = Eigen::MatrixXd::Zero(S, K);
+    for (SlotPart& part : parts) {
+      const int nb = static_cast<int>(part.rows.size());
+      part.T.resize(nb, part.cols);
+      Eigen::MatrixXd Hf(F, nb), Wb(S, nb);
+      for (int i = 0; i < nb; ++i) {
+        const int t = part.rows[i];
+        part.T.row(i) = T.row(t).segment(part.col, part.cols);
+        Hf.col(i) = Hall.col(F + t).head(F);
+        Wb.col(i) = Hall.col(F + t).tail(S);
+      }
+      lin.H.block(0, F + part.col, F, part.cols).noalias() = Hf * part.T;
+      WT.middleCols(part.col, part.cols).noalias() = Wb * part.T;
+    }
+    lin.H.bottomLeftCorner(K, F) = lin.H.topRightCorner(F, K).transpose();
+    lin.H.bottomRightCorner(K, K).setZero();
+    for (const SlotPart& part : parts) {
+      const int nb = static_cast<int>(part.rows.size());
+      Eigen::MatrixXd WTb(nb, K);
+      for (int i = 0; i < nb; ++i) WTb.row(i) = WT.row(part.rows[i]);
+      lin.H.block(F + part.col, F, part.cols, K).noalias() = part.T.transpose() * WTb;
+    }
+    // Exactly symmetric (the product's two triangles round differently).
+    Eigen::MatrixXd Hkk = lin.H.bottomRightCorner(K, K);
+    lin.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
+  }
+}
+
 template <typename Kind>
 NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
                                      const MeasurementSet& data, const Parameterization& p,
@@ -759,78 +843,7 @@ NormalEquations AccumulateStructured(const Kind& kind, const RobotModel& model,
   }
   Hall.triangularView<Eigen::StrictlyUpper>() = Hall.transpose();
   lin.H.topLeftCorner(F, F) = Hall.topLeftCorner(F, F);
-  const Eigen::MatrixXd& T = regs.slot_basis;
-  std::vector<int> selected;
-  const bool select = SlotSelection(T, &selected);
-  if (select) {
-    // Every block with the identity basis (the reduction's analysis): T only picks each slot's
-    // column, so the products below are sums of the slots' entries (the same numbers exactly).
-    for (int t = 0; t < S; ++t) {
-      const int k = selected[t];
-      if (k < 0) continue;
-      lin.g(F + k) += gs(t);
-      if (!blocks) continue;
-      lin.H.col(F + k).head(F) += Hall.col(F + t).head(F);
-      for (int u = 0; u < S; ++u) {
-        if (selected[u] >= 0) lin.H(F + selected[u], F + k) += Hall(F + u, F + t);
-      }
-    }
-    if (blocks) {
-      lin.H.bottomLeftCorner(K, F) = lin.H.topRightCorner(F, K).transpose();
-      // Exactly symmetric (a column picked by several slots sums them in another order).
-      Eigen::MatrixXd Hkk = lin.H.bottomRightCorner(K, K);
-      lin.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
-    }
-  } else {
-    lin.g.tail(K).noalias() = T.transpose() * gs;
-  }
-  if (blocks && !select) {
-    // H_frames,K = H_frames,slots T, W T and T^T (W T) block by block: slot t's row of T has only
-    // its joint block's columns (SetSlotBasis), so per block b the rows of its slots and its
-    // columns form a dense T_b and every other entry is zero. The products run over those rows
-    // and columns only, the zero terms left out (half the multiply-adds with two blocks).
-    struct SlotPart {
-      int col = 0, cols = 0;
-      std::vector<int> rows;
-      Eigen::MatrixXd T;
-    };
-    std::vector<SlotPart> parts(p.joint_blocks.size());
-    for (size_t b = 0; b < parts.size(); ++b) {
-      parts[b].col = p.joint_blocks[b].offset - F;
-      parts[b].cols = static_cast<int>(p.joint_blocks[b].basis.cols());
-    }
-    for (int t = 0; t < S; ++t) {
-      size_t b = 0;
-      while (regs.slot_column[t] >= regs.column_offset[b + 1]) ++b;
-      parts[b].rows.push_back(t);
-    }
-    lin.H.topRightCorner(F, K).setZero();
-    Eigen::MatrixXd WT = Eigen::MatrixXd::Zero(S, K);
-    for (SlotPart& part : parts) {
-      const int nb = static_cast<int>(part.rows.size());
-      part.T.resize(nb, part.cols);
-      Eigen::MatrixXd Hf(F, nb), Wb(S, nb);
-      for (int i = 0; i < nb; ++i) {
-        const int t = part.rows[i];
-        part.T.row(i) = T.row(t).segment(part.col, part.cols);
-        Hf.col(i) = Hall.col(F + t).head(F);
-        Wb.col(i) = Hall.col(F + t).tail(S);
-      }
-      lin.H.block(0, F + part.col, F, part.cols).noalias() = Hf * part.T;
-      WT.middleCols(part.col, part.cols).noalias() = Wb * part.T;
-    }
-    lin.H.bottomLeftCorner(K, F) = lin.H.topRightCorner(F, K).transpose();
-    lin.H.bottomRightCorner(K, K).setZero();
-    for (const SlotPart& part : parts) {
-      const int nb = static_cast<int>(part.rows.size());
-      Eigen::MatrixXd WTb(nb, K);
-      for (int i = 0; i < nb; ++i) WTb.row(i) = WT.row(part.rows[i]);
-      lin.H.block(F + part.col, F, part.cols, K).noalias() = part.T.transpose() * WTb;
-    }
-    // Exactly symmetric (the product's two triangles round differently).
-    Eigen::MatrixXd Hkk = lin.H.bottomRightCorner(K, K);
-    lin.H.bottomRightCorner(K, K) = 0.5 * (Hkk + Hkk.transpose());
-  }
+  MapSlotSumsToJointBlocks(Hall, gs, regs, p, blocks, &lin);
   lin.mean_error = data.empty() ? 0.0 : sum_error / data.size();
   lin.finite = std::isfinite(lin.cost) && AllFinite(lin.H) && AllFinite(lin.g);
   return lin;

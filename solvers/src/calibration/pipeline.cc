@@ -99,265 +99,317 @@ struct SolveErrors {
   ErrorStatistics before;
 };
 
-// SolveCalibration; with `errors`, also fills them (the linear solver on position data without
-// joint-space terms; otherwise they stay empty).
-CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
-                        const PipelineOptions& options, const std::string& stage,
-                        RegistrationReport* registration, RobotModel* before,
-                        RobotModel* start_out, SolveErrors* errors) {
-  RobotModel start = nominal;
-  if (before) *before = nominal;
+// A failed solve before any solver ran (registration or a term refused), at `model`.
+CalibrationResult Refused(const RobotModel& model, const std::string& message) {
+  CalibrationResult failed;
+  failed.model = model;
+  failed.termination = Termination::kNotIdentifiable;
+  failed.message = message;
+  return failed;
+}
+
+// One calibration of the pipeline (SolveCalibration): the start (registered), the structural
+// decision, the prior's anchoring and the joint-space terms, made once here and handed to the
+// solver chosen; the solve repeated while the decision at the solution differs; the gravity tilt
+// solved from the compliance solution. Each stage a member function.
+class PipelineSolve {
+ public:
+  PipelineSolve(const RobotModel& nominal, const MeasurementSet& data,
+                const PipelineOptions& options, const std::string& stage, RobotModel* before,
+                RobotModel* start_out, SolveErrors* errors)
+      : nominal_(nominal),
+        data_(data),
+        options_(options),
+        stage_(stage),
+        before_(before),
+        start_out_(start_out),
+        errors_(errors),
+        start_(nominal),
+        measured_(nominal.num_tools(), false) {
+    for (int r = 0; r < data.size(); ++r) measured_[data.target(r)] = true;
+    orientation_weight_ = options.solver == SolverKind::kCeres ? options.ceres.orientation_weight
+                                                               : options.linear.orientation_weight;
+  }
+  CalibrationResult Run(RegistrationReport* registration);
+
+ private:
+  // The start: registered to the data (or the nominal model), joint-error terms and a residual
+  // layer dropped. False with *failed set when the registration refuses the data.
+  bool Register(RegistrationReport* registration, CalibrationResult* failed);
+  // The structurally unidentifiable directions decided at the start with the measured tool points
+  // where the fit put them (reference_, lost_), and the start's tool points moved there when its
+  // own would decide otherwise.
+  void DecideStructure();
+  // The measured, free tools' points of the start from `from`'s.
+  void StartToolsFrom(const RobotModel& from);
+  // The prior anchored at the start (its reference this start, or its own with this registration).
+  void AnchorPrior();
+  // The joint-space terms asked for, on the start; false with *failed set when one is refused.
+  bool MakeTerms(CalibrationResult* failed);
+  // One solve; with `tilt_model` the gravity tilt from the joint values `initial`.
+  CalibrationResult Once(std::shared_ptr<const GravityTiltModel> tilt_model,
+                         const std::vector<JointTermValues>& initial);
+  CalibrationResult OnceLinear(LinearSolverOptions o, bool tilt);
+  // Rounds of the decision at the solution, solved again while it differs.
+  void SettleStructure(CalibrationResult* result);
+  // The gravity tilt: checked at the compliance solution, then solved from it.
+  CalibrationResult SolveTilt(CalibrationResult result);
+
+  const RobotModel& nominal_;
+  const MeasurementSet& data_;
+  const PipelineOptions& options_;
+  const std::string& stage_;
+  RobotModel* before_;
+  RobotModel* start_out_;
+  SolveErrors* errors_;
+  RobotModel start_;
   // The tool points fitted to the data with the nominal joints (registration's stage 2) and the
-  // RMS residual per axis of that fit: where the structural decision starts (below).
-  RobotModel fitted;
-  double fitted_rms = 0;
-  bool have_fitted = false;
-  bool start_is_fitted = false;  // the start is the registered model (tool points fitted)
-  if (options.register_frames) {
-    if (options.on_stage) options.on_stage("registering");
+  // RMS residual per axis of that fit: where the structural decision starts.
+  RobotModel fitted_;
+  double fitted_rms_ = 0;
+  bool have_fitted_ = false;
+  bool start_is_fitted_ = false;  // the start is the registered model (tool points fitted)
+  double orientation_weight_ = 0;
+  std::vector<bool> measured_;
+  RobotModel reference_;
+  std::vector<Direction> lost_;
+  std::shared_ptr<const ParameterPrior> prior_;
+  std::vector<std::shared_ptr<const JointTerm>> terms_;
+  bool tilt_ = false;
+  std::function<void(const IterationRecord&)> progress_;
+};
+
+bool PipelineSolve::Register(RegistrationReport* registration, CalibrationResult* failed) {
+  if (before_) *before_ = nominal_;
+  if (options_.register_frames) {
+    if (options_.on_stage) options_.on_stage("registering");
     RegistrationReport local;
     RegistrationReport& rep = registration ? *registration : local;
-    if (Status s = RegisterToMeasurements(nominal, data, &start, &rep); !s.ok()) {
-      CalibrationResult failed;
-      failed.model = nominal;
-      failed.termination = Termination::kNotIdentifiable;
-      failed.message = s.message();
-      if (start_out) *start_out = nominal;
-      return failed;
+    if (Status s = RegisterToMeasurements(nominal_, data_, &start_, &rep); !s.ok()) {
+      *failed = Refused(nominal_, s.message());
+      if (start_out_) *start_out_ = nominal_;
+      return false;
     }
-    fitted = start;
-    fitted_rms = rep.rms_base_tools / std::sqrt(3.0);
-    have_fitted = true;
-    start_is_fitted = rep.moved;
+    fitted_ = start_;
+    fitted_rms_ = rep.rms_base_tools / std::sqrt(3.0);
+    have_fitted_ = true;
+    start_is_fitted_ = rep.moved;
     if (!rep.moved) {
       // The data are in the base frame already: start from the nominal model, as the paper does.
-      start = nominal;
+      start_ = nominal_;
     } else {
       // Gravity stays attached to the robot: turned with joint 1's frame as the registration left
       // it (rigid fit and base refit), so that an axis parallel to gravity in the nominal model
       // stays parallel (a vertical joint 1 keeps a zero compliance regressor instead of columns of
       // 1e-5 relative size that the column-scaled solvers would fit with huge cancelling values).
-      start.gravity = start.joints[0].origin.R * nominal.joints[0].origin.R.transpose() *
-                      nominal.gravity;
-      if (before) before->joints[0].origin = rep.T_measurement_base * nominal.joints[0].origin;
+      start_.gravity = start_.joints[0].origin.R * nominal_.joints[0].origin.R.transpose() *
+                       nominal_.gravity;
+      if (before_) before_->joints[0].origin = rep.T_measurement_base * nominal_.joints[0].origin;
     }
   }
   // The solvers fit the geometry (and the terms asked for) on the commanded joints: joint-error
   // terms the nominal model carries are not part of that cost, so they are not carried into the
   // calibrated model either (they would count twice, on a geometry they were not identified on).
-  start.joint_errors = JointErrorTerms();
+  start_.joint_errors = JointErrorTerms();
   // Likewise a residual layer (it was fitted on another model's residuals).
-  start.residual_layer = nullptr;
-  if (before) before->residual_layer = nullptr;
-  if (!options.register_frames) {
+  start_.residual_layer = nullptr;
+  if (before_) before_->residual_layer = nullptr;
+  if (!options_.register_frames) {
     // The start stays the nominal model; the tool points are fitted only for the decision below.
     RegistrationReport rep;
-    if (RegisterToMeasurements(nominal, data, &fitted, &rep).ok()) {
-      fitted_rms = rep.rms_base_tools / std::sqrt(3.0);
-      have_fitted = true;
+    if (RegisterToMeasurements(nominal_, data_, &fitted_, &rep).ok()) {
+      fitted_rms_ = rep.rms_base_tools / std::sqrt(3.0);
+      have_fitted_ = true;
     }
   }
-  // Which frame directions no data can determine is decided at an estimate, never at the nominal
-  // tool points alone (structural_identifiability.h, docs/identifiability.md): first at the start
-  // with the measured tool points where the fit put them, then again at each solution; when the
-  // decision there differs, the calibration is solved again with it (from the solution's tool
-  // points), until the decision a model was solved with is the one at that model.
-  const bool use_orientation = options.use_orientation;
-  const double orientation_weight = options.solver == SolverKind::kCeres
-                                        ? options.ceres.orientation_weight
-                                        : options.linear.orientation_weight;
-  std::vector<bool> measured(nominal.num_tools(), false);
-  for (int r = 0; r < data.size(); ++r) measured[data.target(r)] = true;
-  RobotModel reference = start;
-  if (have_fitted) {
-    for (int t = 0; t < start.num_tools(); ++t) {
-      if (measured[t] && !start.tools[t].fixed) {
-        reference.tools[t].origin.t = fitted.tools[t].origin.t;
+  return true;
+}
+
+void PipelineSolve::StartToolsFrom(const RobotModel& from) {
+  for (int t = 0; t < start_.num_tools(); ++t) {
+    if (measured_[t] && !start_.tools[t].fixed) start_.tools[t].origin.t = from.tools[t].origin.t;
+  }
+}
+
+// Which frame directions no data can determine is decided at an estimate, never at the nominal
+// tool points alone (structural_identifiability.h, docs/identifiability.md): first at the start
+// with the measured tool points where the fit put them, then again at each solution; when the
+// decision there differs, the calibration is solved again with it (from the solution's tool
+// points), until the decision a model was solved with is the one at that model.
+void PipelineSolve::DecideStructure() {
+  const bool use_orientation = options_.use_orientation;
+  reference_ = start_;
+  if (have_fitted_) {
+    for (int t = 0; t < start_.num_tools(); ++t) {
+      if (measured_[t] && !start_.tools[t].fixed) {
+        reference_.tools[t].origin.t = fitted_.tools[t].origin.t;
       }
     }
   }
-  reference = internal::StructureReference(reference, data, fitted_rms);
-  std::vector<Direction> lost =
-      internal::StructurallyUnidentifiable(reference, data, use_orientation, orientation_weight);
+  reference_ = internal::StructureReference(reference_, data_, fitted_rms_);
+  lost_ = internal::StructurallyUnidentifiable(reference_, data_, use_orientation,
+                                               orientation_weight_);
   // The start must let the solver see what the decision keeps: when its own tool points would
-  // decide otherwise (a nominal tool0 on the axis for an SMR off it), it starts from the reference's
-  // (the fitted ones, those within the noise of the axis on it).
-  auto start_tools_from = [&](const RobotModel& from) {
-    for (int t = 0; t < start.num_tools(); ++t) {
-      if (measured[t] && !start.tools[t].fixed) start.tools[t].origin.t = from.tools[t].origin.t;
-    }
-  };
-  // A registered start has the fitted tool points already: those put on the axis start there too.
-  if (have_fitted &&
-      (start_is_fitted ||
+  // decide otherwise (a nominal tool0 on the axis for an SMR off it), it starts from the
+  // reference's (the fitted ones, those within the noise of the axis on it). A registered start
+  // has the fitted tool points already: those put on the axis start there too.
+  if (have_fitted_ &&
+      (start_is_fitted_ ||
        !internal::SameDirections(internal::StructurallyUnidentifiable(
-                                     start, data, use_orientation, orientation_weight),
-                                 lost))) {
-    start_tools_from(reference);
+                                     start_, data_, use_orientation, orientation_weight_),
+                                 lost_))) {
+    StartToolsFrom(reference_);
   }
-  if (start_out) *start_out = start;
+  if (start_out_) *start_out_ = start_;
+}
+
+void PipelineSolve::AnchorPrior() {
   // The prior's reference: this start (registered, tool points fitted), for every solve below.
-  std::shared_ptr<const ParameterPrior> prior;
-  if (options.prior && options.parameterization == ParameterizationKind::kIdentifiable) {
-    if (options.prior->reference) {
-      // A prior of its own (a previous calibration, a fleet): its base frame is this data's
-      // registration (the tracker stood elsewhere), held by the tolerances only.
-      auto anchored = std::make_shared<ParameterPrior>(*options.prior);
-      auto reference = std::make_shared<RobotModel>(*options.prior->reference);
-      if (reference->num_frames() == start.num_frames() && start.num_joints() > 0) {
-        reference->joints[0].origin = start.joints[0].origin;
-        FreeRegistrationDirections(*reference, anchored.get());
-      }
-      anchored->reference = reference;
-      prior = anchored;
-    } else {
-      auto anchored = std::make_shared<ParameterPrior>(*options.prior);
-      anchored->reference = std::make_shared<const RobotModel>(start);
-      prior = anchored;
+  if (!options_.prior || options_.parameterization != ParameterizationKind::kIdentifiable) return;
+  if (options_.prior->reference) {
+    // A prior of its own (a previous calibration, a fleet): its base frame is this data's
+    // registration (the tracker stood elsewhere), held by the tolerances only.
+    auto anchored = std::make_shared<ParameterPrior>(*options_.prior);
+    auto reference = std::make_shared<RobotModel>(*options_.prior->reference);
+    if (reference->num_frames() == start_.num_frames() && start_.num_joints() > 0) {
+      reference->joints[0].origin = start_.joints[0].origin;
+      FreeRegistrationDirections(*reference, anchored.get());
     }
+    anchored->reference = reference;
+    prior_ = anchored;
+  } else {
+    auto anchored = std::make_shared<ParameterPrior>(*options_.prior);
+    anchored->reference = std::make_shared<const RobotModel>(start_);
+    prior_ = anchored;
   }
-  std::vector<std::shared_ptr<const JointTerm>> terms;
-  const bool tilt = std::find(options.joint_errors.begin(), options.joint_errors.end(),
-                              std::string(kGravityTiltName)) != options.joint_errors.end();
-  if (tilt && std::find(options.joint_errors.begin(), options.joint_errors.end(),
-                        std::string("compliance")) == options.joint_errors.end()) {
-    CalibrationResult failed;
-    failed.model = start;
-    failed.termination = Termination::kNotIdentifiable;
-    failed.message = kGravityTiltNeedsCompliance;
-    return failed;
+}
+
+bool PipelineSolve::MakeTerms(CalibrationResult* failed) {
+  const std::vector<std::string>& names = options_.joint_errors;
+  tilt_ = std::find(names.begin(), names.end(), std::string(kGravityTiltName)) != names.end();
+  if (tilt_ && std::find(names.begin(), names.end(), std::string("compliance")) == names.end()) {
+    *failed = Refused(start_, kGravityTiltNeedsCompliance);
+    return false;
   }
-  for (const std::string& name : options.joint_errors) {
+  for (const std::string& name : names) {
     if (name == kGravityTiltName) continue;
     std::shared_ptr<const JointTerm> term;
-    if (Status s = MakeJointTerm(name, start, &term); !s.ok()) {
-      CalibrationResult failed;
-      failed.model = start;
-      failed.termination = Termination::kNotIdentifiable;
-      failed.message = s.message();
-      return failed;
+    if (Status s = MakeJointTerm(name, start_, &term); !s.ok()) {
+      *failed = Refused(start_, s.message());
+      return false;
     }
-    terms.push_back(term);
+    terms_.push_back(term);
   }
-  std::function<void(const IterationRecord&)> progress;
-  if (options.on_iteration) {
-    progress = [&options, &stage](const IterationRecord& r) { options.on_iteration(stage, r); };
-  }
-  // One solve; with `tilt_model` the gravity tilt from the joint values `initial`. The tilt is a
-  // bilinear direction: Gauss-Newton converges on it linearly, so the statistical stopping rule
-  // (convergence.h) is tightened 100x there, which keeps the two solvers' tilts within 1e-4 of its
-  // standard deviation of each other (as the linear terms' one-step convergence does without it).
-  constexpr double kTiltSdFraction = 1e-2;
-  auto solve = [&](std::shared_ptr<const GravityTiltModel> tilt_model,
-                   const std::vector<JointTermValues>& initial) {
-    // The settings both solvers' options share (the same member names in each).
-    auto common = [&](auto& o) {
-      o.parameterization = options.parameterization;
-      o.use_orientation = options.use_orientation;
-      o.on_iteration = progress;
-      o.joint_terms = terms;
-      o.structure_reference = &reference;
-      o.gravity_tilt = tilt_model;
-      o.initial_joint_terms = initial;
-      o.prior = prior;
-      if (tilt_model) o.convergence.sd_fraction *= kTiltSdFraction;
-    };
-    if (options.solver == SolverKind::kCeres) {
-      CeresSolverOptions o = options.ceres;
-      common(o);
-      return CalibrateCeres(start, data, o);
-    }
-    LinearSolverOptions o = options.linear;
-    common(o);
-    if (errors != nullptr && before != nullptr && !options.use_orientation && terms.empty() &&
-        !tilt_model) {
-      // The errors before calibration come from the solver's first linearization when it starts
-      // there; otherwise from a pass of their own now, so that its 16 bytes a row are freed
-      // before the solver keeps its own.
-      if (SameGeometry(*before, start)) {
-        errors->solver.want_start_statistics = true;
-      } else {
-        errors->before = PositionErrorStatistics(*before, data);
-        errors->have_before = true;
-      }
-      o.errors = &errors->solver;
-    }
-    CalibrationResult r = CalibrateLinear(start, data, o);
-    if (errors != nullptr && errors->solver.have_start_statistics) {
-      errors->before = errors->solver.start_statistics;
-      errors->have_before = true;
-    }
-    return r;
+  return true;
+}
+
+// The tilt is a bilinear direction: Gauss-Newton converges on it linearly, so the statistical
+// stopping rule (convergence.h) is tightened 100x there, which keeps the two solvers' tilts within
+// 1e-4 of its standard deviation of each other (as the linear terms' one-step convergence does
+// without it).
+constexpr double kTiltSdFraction = 1e-2;
+
+CalibrationResult PipelineSolve::Once(std::shared_ptr<const GravityTiltModel> tilt_model,
+                                      const std::vector<JointTermValues>& initial) {
+  // The settings both solvers' options share (the same member names in each).
+  auto common = [&](auto& o) {
+    o.parameterization = options_.parameterization;
+    o.use_orientation = options_.use_orientation;
+    o.on_iteration = progress_;
+    o.joint_terms = terms_;
+    o.structure_reference = &reference_;
+    o.gravity_tilt = tilt_model;
+    o.initial_joint_terms = initial;
+    o.prior = prior_;
+    if (tilt_model) o.convergence.sd_fraction *= kTiltSdFraction;
   };
-  CalibrationResult result = solve(nullptr, {});
+  if (options_.solver == SolverKind::kCeres) {
+    CeresSolverOptions o = options_.ceres;
+    common(o);
+    return CalibrateCeres(start_, data_, o);
+  }
+  LinearSolverOptions o = options_.linear;
+  common(o);
+  return OnceLinear(std::move(o), tilt_model != nullptr);
+}
+
+CalibrationResult PipelineSolve::OnceLinear(LinearSolverOptions o, bool tilt) {
+  if (errors_ != nullptr && before_ != nullptr && !options_.use_orientation && terms_.empty() &&
+      !tilt) {
+    // The errors before calibration come from the solver's first linearization when it starts
+    // there; otherwise from a pass of their own now, so that its 16 bytes a row are freed
+    // before the solver keeps its own.
+    if (SameGeometry(*before_, start_)) {
+      errors_->solver.want_start_statistics = true;
+    } else {
+      errors_->before = PositionErrorStatistics(*before_, data_);
+      errors_->have_before = true;
+    }
+    o.errors = &errors_->solver;
+  }
+  CalibrationResult r = CalibrateLinear(start_, data_, o);
+  if (errors_ != nullptr && errors_->solver.have_start_statistics) {
+    errors_->before = errors_->solver.start_statistics;
+    errors_->have_before = true;
+  }
+  return r;
+}
+
+void PipelineSolve::SettleStructure(CalibrationResult* result) {
   // Rounds of the decision at the solution: one more solve is the rule (a tool point the fit left
   // on the axis that the calibration moves off it, or back); the limit only bounds a cycle.
   constexpr int kMaxDecisionRounds = 4;
+  const bool use_orientation = options_.use_orientation;
   for (int round = 1; round <= kMaxDecisionRounds; ++round) {
-    if (result.termination != Termination::kConverged &&
-        result.termination != Termination::kMaxIterations) {
+    if (result->termination != Termination::kConverged &&
+        result->termination != Termination::kMaxIterations) {
       break;
     }
     const RobotModel at = internal::StructureReference(
-        Geometric(result.model), data,
-        internal::RmsPerAxisOfCost(result.final_cost, data, use_orientation));
+        Geometric(result->model), data_,
+        internal::RmsPerAxisOfCost(result->final_cost, data_, use_orientation));
     std::vector<Direction> lost_at =
-        internal::StructurallyUnidentifiable(at, data, use_orientation, orientation_weight);
-    if (internal::SameDirections(lost_at, lost)) break;
+        internal::StructurallyUnidentifiable(at, data_, use_orientation, orientation_weight_);
+    if (internal::SameDirections(lost_at, lost_)) break;
     if (round == kMaxDecisionRounds) {
-      result.message += (result.message.empty() ? "" : "; ") +
-                        std::string("the directions left out did not settle after ") +
-                        std::to_string(kMaxDecisionRounds) +
-                        " solves: the data barely separate a tool point from the last axis";
+      result->message += (result->message.empty() ? "" : "; ") +
+                         std::string("the directions left out did not settle after ") +
+                         std::to_string(kMaxDecisionRounds) +
+                         " solves: the data barely separate a tool point from the last axis";
       break;
     }
-    reference = at;
-    lost = std::move(lost_at);
+    reference_ = at;
+    lost_ = std::move(lost_at);
     // From the solution's tool points, those within the noise of the axis on it (exactly what was
-    // decided: a full parameterization must not find the left-out tilt weakly present at its start).
-    start_tools_from(reference);
-    if (start_out) *start_out = start;
-    if (options.on_stage) options.on_stage(stage + " (directions decided at the solution)");
-    result = solve(nullptr, {});
+    // decided: a full parameterization must not find the left-out tilt weakly present at its
+    // start).
+    StartToolsFrom(reference_);
+    if (start_out_) *start_out_ = start_;
+    if (options_.on_stage) options_.on_stage(stage_ + " (directions decided at the solution)");
+    *result = Once(nullptr, {});
   }
-  // A data set with no more rows than parameters cannot check itself (lpoe/refusals.h, the check
-  // lpoe_plan and lpoe.plan make on a plan): the fit is exact whatever the errors, every residual
-  // zero and no standard deviation estimable. Refused as not identifiable (exit 3), not passed.
-  if (result.converged()) {
-    const int64_t rows = int64_t{data.size()} *
-                         (options.use_orientation && data.has_orientation() ? 6 : 3);
-    const int parameters = result.parameterization.num_parameters;
-    // An informative prior (a previous calibration, a fleet) checks what the rows alone cannot.
-    if (rows <= parameters && !(prior && prior->informative)) {
-      result.termination = Termination::kNotIdentifiable;
-      result.message = CheckRedundancy(static_cast<int>(rows), parameters,
-                                       "the data set of " + std::to_string(data.size()) + " points")
-                           .message();
-      return StoreJointErrors(std::move(result), start);
-    }
-  }
-  if (!tilt || !result.converged()) return StoreJointErrors(std::move(result), start);
-  // The gravity tilt: checked at the compliance solution, then solved from it.
+}
+
+CalibrationResult PipelineSolve::SolveTilt(CalibrationResult result) {
   GravityTiltResult check;
   check.requested = true;
-  const double tolerance = options.solver == SolverKind::kCeres
-                               ? options.ceres.joint_term_tolerance
-                               : options.linear.joint_term_tolerance;
-  const double weight = options.solver == SolverKind::kCeres ? options.ceres.orientation_weight
-                                                             : options.linear.orientation_weight;
-  if (!internal::CheckGravityTilt(start, data, result, options.use_orientation, weight, tolerance,
-                                  options.gravity_tilt_max_sigma, &check)) {
+  const double tolerance = options_.solver == SolverKind::kCeres
+                               ? options_.ceres.joint_term_tolerance
+                               : options_.linear.joint_term_tolerance;
+  if (!internal::CheckGravityTilt(start_, data_, result, options_.use_orientation,
+                                  orientation_weight_, tolerance, options_.gravity_tilt_max_sigma,
+                                  &check)) {
     result.gravity_tilt = check;
-    return StoreJointErrors(std::move(result), start);
+    return StoreJointErrors(std::move(result), start_);
   }
-  CalibrationResult tilted = solve(std::make_shared<const GravityTiltModel>(start),
-                                   result.joint_terms);
+  CalibrationResult tilted =
+      Once(std::make_shared<const GravityTiltModel>(start_), result.joint_terms);
   if (!tilted.converged()) {
     check.message = "gravity tilt: the solve with the tilt did not converge (" +
                     std::string(TerminationName(tilted.termination)) + ": " + tilted.message +
                     "); kept at the model's gravity";
     result.gravity_tilt = check;
-    return StoreJointErrors(std::move(result), start);
+    return StoreJointErrors(std::move(result), start_);
   }
   check.identified = true;
   check.tilt = tilted.gravity_tilt.tilt;
@@ -366,7 +418,48 @@ CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
   check.gravity_after = tilted.gravity_tilt.gravity_after;
   check.message.clear();
   tilted.gravity_tilt = check;
-  return StoreJointErrors(std::move(tilted), start);
+  return StoreJointErrors(std::move(tilted), start_);
+}
+
+CalibrationResult PipelineSolve::Run(RegistrationReport* registration) {
+  CalibrationResult failed;
+  if (!Register(registration, &failed)) return failed;
+  DecideStructure();
+  AnchorPrior();
+  if (!MakeTerms(&failed)) return failed;
+  if (options_.on_iteration) {
+    progress_ = [this](const IterationRecord& r) { options_.on_iteration(stage_, r); };
+  }
+  CalibrationResult result = Once(nullptr, {});
+  SettleStructure(&result);
+  // A data set with no more rows than parameters cannot check itself (lpoe/refusals.h, the check
+  // lpoe_plan and lpoe.plan make on a plan): the fit is exact whatever the errors, every residual
+  // zero and no standard deviation estimable. Refused as not identifiable (exit 3), not passed.
+  if (result.converged()) {
+    const int64_t rows = int64_t{data_.size()} *
+                         (options_.use_orientation && data_.has_orientation() ? 6 : 3);
+    const int parameters = result.parameterization.num_parameters;
+    // An informative prior (a previous calibration, a fleet) checks what the rows alone cannot.
+    if (rows <= parameters && !(prior_ && prior_->informative)) {
+      result.termination = Termination::kNotIdentifiable;
+      result.message = CheckRedundancy(static_cast<int>(rows), parameters,
+                                       "the data set of " + std::to_string(data_.size()) +
+                                           " points")
+                           .message();
+      return StoreJointErrors(std::move(result), start_);
+    }
+  }
+  if (!tilt_ || !result.converged()) return StoreJointErrors(std::move(result), start_);
+  return SolveTilt(std::move(result));
+}
+
+// SolveCalibration; with `errors`, also fills them (the linear solver on position data without
+// joint-space terms; otherwise they stay empty).
+CalibrationResult Solve(const RobotModel& nominal, const MeasurementSet& data,
+                        const PipelineOptions& options, const std::string& stage,
+                        RegistrationReport* registration, RobotModel* before,
+                        RobotModel* start_out, SolveErrors* errors) {
+  return PipelineSolve(nominal, data, options, stage, before, start_out, errors).Run(registration);
 }
 
 }  // namespace
@@ -377,6 +470,286 @@ CalibrationResult SolveCalibration(const RobotModel& nominal, const MeasurementS
                                    RobotModel* start) {
   return Solve(nominal, data, options, stage, registration, before, start, nullptr);
 }
+
+namespace {
+
+// Which tools some row of `data` measures.
+std::vector<bool> MeasuredTools(const RobotModel& model, const MeasurementSet& data) {
+  std::vector<bool> measured(model.num_tools(), false);
+  for (int r = 0; r < data.size(); ++r) measured[data.target(r)] = true;
+  return measured;
+}
+
+// Known SMR nests (Tool::fixed) the data never measure identify nothing: said, not refused. The
+// calibrated model does not record them as fixed (it would claim the flange identified,
+// docs/programs.md).
+void UnmeasuredFixedTools(const RobotModel& nominal, const MeasurementSet& identification,
+                          PipelineResult* out) {
+  const std::vector<bool> measured = MeasuredTools(nominal, identification);
+  for (int t = 0; t < out->result.model.num_tools(); ++t) {
+    if (out->result.model.tools[t].fixed && !measured[t]) out->result.model.tools[t].fixed = false;
+  }
+}
+
+void WarnUnmeasuredFixedTools(const RobotModel& nominal, const MeasurementSet& identification,
+                              PipelineResult* out) {
+  const std::vector<bool> measured = MeasuredTools(nominal, identification);
+  bool any_measured = false;
+  std::string unmeasured;
+  for (int t = 0; t < nominal.num_tools(); ++t) {
+    if (!nominal.tools[t].fixed) continue;
+    any_measured = any_measured || measured[t];
+    if (!measured[t]) unmeasured += (unmeasured.empty() ? "" : ", ") + nominal.tools[t].name;
+  }
+  if (unmeasured.empty()) return;
+  out->identifiability.warnings.push_back(
+      "fixed tool(s) " + unmeasured +
+      " not measured in these data (recorded as not fixed in the calibrated model): held as "
+      "given, they " +
+      (any_measured ? "add nothing to the calibration"
+                    : "identify nothing, and the last joint's zero and its translation along "
+                      "the axis stay a convention traded against the other tools' offsets"));
+}
+
+// The statistics before and after, the identifiability at the solution and the outliers; the
+// solver's kept errors (SolveErrors) serve them when they are those of the result.
+// `identification_eff`: the identification rows at the effective joint values of the result.
+void AnalyseSolution(const RobotModel& nominal, const MeasurementSet& identification,
+                     const MeasurementSet& identification_eff, const MeasurementSet& verification,
+                     const PipelineOptions& options, SolveErrors* errors, PipelineResult* out) {
+  const CalibrationResult& result = out->result;
+  out->geometric = Geometric(result.model);
+  out->identifiability = AnalyzeIdentifiability(nominal, identification_eff, result);
+  WarnUnmeasuredFixedTools(nominal, identification, out);
+  // The solver's last linearization is that of result.model, i.e. of `geometric` on the measured
+  // joint values (no joint terms): its errors serve the statistics and the outlier search.
+  PositionErrorRows& final_errors = errors->solver.final_errors;
+  const bool have_final = !final_errors.empty() && result.joint_terms.empty() &&
+                          final_errors.size() == identification.size();
+  out->identification_before = errors->have_before
+                                   ? errors->before
+                                   : PositionErrorStatistics(out->before, identification);
+  out->identification_after = have_final
+                                  ? final_errors.Statistics()
+                                  : PositionErrorStatistics(out->geometric, identification_eff);
+  if (!verification.empty()) {
+    out->has_verification = true;
+    out->verification_before = PositionErrorStatistics(out->before, verification);
+    out->verification_after = PositionErrorStatistics(
+        out->geometric, WithEffectiveJointValues(result.joint_terms, verification));
+  }
+  out->outliers = have_final ? FindOutliers(out->geometric, identification_eff, final_errors,
+                                            options.outlier_threshold, &out->robust_sigma)
+                             : FindOutliers(out->geometric, identification_eff,
+                                            options.outlier_threshold, &out->robust_sigma);
+  final_errors.Clear();
+}
+
+// The same calibration without the joint-space terms, for comparison.
+void GeometryOnlyRefit(const RobotModel& nominal, const MeasurementSet& identification,
+                       const MeasurementSet& verification, const PipelineOptions& chosen,
+                       PipelineResult* out) {
+  PipelineOptions geometric = chosen;
+  geometric.joint_errors.clear();
+  CalibrationResult g = SolveCalibration(nominal, identification, geometric,
+                                         "geometry-only re-fit", nullptr, nullptr, nullptr);
+  if (!g.converged()) return;
+  out->has_geometry_only = true;
+  g.model = Geometric(g.model);
+  out->geometry_only_identification = PositionErrorStatistics(g.model, identification);
+  if (!verification.empty()) {
+    out->geometry_only_verification = PositionErrorStatistics(g.model, verification);
+  }
+  out->geometry_only = std::move(g);
+}
+
+// The residual layer (docs/residual_layer.md): chosen by cross-validation (auto) or asked for
+// (gp), fitted on the identification residuals of the calibrated model; the verification errors
+// are then those of the model with its layer.
+void ResidualLayerStage(const RobotModel& nominal, const MeasurementSet& identification,
+                        const MeasurementSet& verification, const PipelineOptions& options,
+                        const PipelineOptions& chosen, PipelineResult* out) {
+  ResidualModelKind residual = options.residual_model;
+  out->residual_layer.requested = residual != ResidualModelKind::kNone;
+  if (residual == ResidualModelKind::kAuto) {
+    out->residual_model_selection = SelectResidualModel(nominal, identification, chosen);
+    const ResidualModelSelection& sel = out->residual_model_selection;
+    residual = sel.chosen >= 0 && sel.candidates[sel.chosen].label == "gp" ? ResidualModelKind::kGp
+                                                                          : ResidualModelKind::kNone;
+    if (residual == ResidualModelKind::kNone) {
+      out->residual_layer.message = "auto chose none (" + sel.reason + ")";
+    }
+  }
+  if (residual != ResidualModelKind::kGp) return;
+  if (options.on_stage) options.on_stage("fitting the residual layer");
+  auto layer = std::make_shared<ResidualLayer>();
+  const Status s = FitResidualLayerOn(out->result, identification, options.residual_layer,
+                                      layer.get(), &out->residual_layer.fit);
+  if (!s.ok()) {
+    out->residual_layer.message = "residual layer not fitted: " + s.message();
+    return;
+  }
+  out->residual_layer.fitted = true;
+  out->residual_layer.inducing = layer->num_inducing();
+  std::vector<Eigen::Vector3d> e = ParametricResiduals(out->result, identification);
+  for (int r = 0; r < identification.size(); ++r) {
+    e[r] -= layer->Mean(identification.q(r), identification.target(r));
+  }
+  out->residual_layer.identification_with_layer = ComputeStatistics(e);
+  if (!verification.empty()) {
+    out->residual_layer.verification_parametric = out->verification_after;
+    std::vector<Eigen::Vector3d> v = ParametricResiduals(out->result, verification);
+    for (int r = 0; r < verification.size(); ++r) {
+      v[r] -= layer->Mean(verification.q(r), verification.target(r));
+    }
+    out->verification_after = ComputeStatistics(v);
+  }
+  out->result.model.residual_layer = std::move(layer);
+}
+
+// Do the data agree with the fixed tools (`fixed`: their names)? The same calibration with them
+// free: holding them costs about chi^2(k) noise variances when they are right (k: the parameters
+// the free fit has more), much more when a nest is off. Significant: "check"; and when holding
+// them also costs more than the tracker noise per axis: "fail" (the flange then carries the nests'
+// error).
+void FixedToolsCheck(const RobotModel& nominal, const MeasurementSet& identification,
+                     const PipelineOptions& options, const PipelineOptions& chosen,
+                     const std::string& fixed, PipelineResult* out) {
+  const CalibrationResult& result = out->result;
+  RobotModel free_nominal = nominal;
+  for (Tool& t : free_nominal.tools) t.fixed = false;
+  PipelineOptions free_options = chosen;
+  free_options.kfold = 0;
+  const CalibrationResult g = SolveCalibration(free_nominal, identification, free_options,
+                                               "fixed tools against free ones", nullptr, nullptr,
+                                               nullptr);
+  const int per_row = options.use_orientation && identification.has_orientation() ? 6 : 3;
+  const long rows = static_cast<long>(per_row) * identification.size();
+  const int k = g.parameterization.num_parameters - result.parameterization.num_parameters;
+  if (!(g.converged() && k > 0 && rows > g.parameterization.num_parameters && g.final_cost > 0)) {
+    return;
+  }
+  const double s2 =
+      2.0 * g.final_cost / static_cast<double>(rows - g.parameterization.num_parameters);
+  const double chi2 = 2.0 * (result.final_cost - g.final_cost) / s2;
+  const double rms_fixed =
+      internal::RmsPerAxisOfCost(result.final_cost, identification, per_row == 6);
+  const double rms_free = internal::RmsPerAxisOfCost(g.final_cost, identification, per_row == 6);
+  // About 5 standard deviations of chi^2(k) above its mean.
+  const double significant = k + 5.0 * std::sqrt(2.0 * k);
+  VerdictCheck c;
+  c.name = "fixed_tools";
+  c.value = chi2;
+  c.limit = significant;
+  const bool costly = rms_fixed - rms_free > options.plausibility.noise_sigma;
+  c.level = !(chi2 > significant) ? VerdictLevel::kPass
+            : costly               ? VerdictLevel::kFail
+                                   : VerdictLevel::kCheck;
+  char buf[512];
+  std::snprintf(buf, sizeof(buf),
+                "the fixed tools (%s) %s the data: held as given the fit is %.4g mm per axis, "
+                "with them free %.4g mm (%.3g noise variances for %d parameters)%s",
+                fixed.c_str(), c.level == VerdictLevel::kPass ? "agree with" : "disagree with",
+                rms_fixed, rms_free, chi2, k,
+                c.level == VerdictLevel::kPass
+                    ? ""
+                    : ": a nest is not where the model puts it (check the drawing or CMM "
+                      "values; the flange frame takes that error)");
+  c.message = buf;
+  out->verdict.checks.push_back(c);
+  if (c.level > out->verdict.level) {
+    out->verdict.level = c.level;
+    out->verdict.reason = c.message;
+  }
+}
+
+// Appends `cause` to the residual check's message when it did not pass.
+void NameLikelyCause(const std::string& cause, Verdict* verdict) {
+  for (VerdictCheck& c : verdict->checks) {
+    if (c.name != "residual" || c.level == VerdictLevel::kPass) continue;
+    const bool was_reason = verdict->reason == c.message;
+    c.message += cause;
+    if (was_reason) verdict->reason = c.message;
+  }
+}
+
+// The plausibility verdict, with the fixed tools' check and the likely causes of a poor fit.
+void VerdictStage(const RobotModel& nominal, const MeasurementSet& identification,
+                  const MeasurementSet& identification_eff, const PipelineOptions& options,
+                  const PipelineOptions& chosen, PipelineResult* out) {
+  const CalibrationResult& result = out->result;
+  PlausibilityOptions plausibility = options.plausibility;
+  plausibility.use_orientation = options.use_orientation;
+  FrameChangeSigmas(out->result, out->start, out->geometric, &plausibility);
+  out->verdict = AssessPlausibility(out->start, out->geometric, identification_eff,
+                                    out->identification_after, plausibility);
+  // A fit much worse than the noise after directions were left out: name them as the likely cause
+  // (they are kept as given; if the data do determine them after all, the model is wrong there).
+  std::string left_out;
+  for (const Direction& d : result.parameterization.unidentifiable) {
+    if (IsStructurallyLost(d)) left_out += (left_out.empty() ? "" : ", ") + d.name;
+  }
+  // Fixed tools are held as given: a nest position that is wrong leaves an error nothing can take.
+  std::string fixed;
+  const std::vector<bool> measured = MeasuredTools(nominal, identification);
+  for (int t = 0; t < nominal.num_tools(); ++t) {
+    if (nominal.tools[t].fixed && measured[t]) {
+      fixed += (fixed.empty() ? "" : ", ") + nominal.tools[t].name;
+    }
+  }
+  if (!fixed.empty()) {
+    FixedToolsCheck(nominal, identification, options, chosen, fixed, out);
+    NameLikelyCause("; likely cause: the fixed tools (" + fixed +
+                        ") are held where the model puts them, and the data may not agree (a "
+                        "nest position off its drawing or CMM value shows here; calibrate "
+                        "without --fixed_tools to see where the data put them)",
+                    &out->verdict);
+  }
+  if (!left_out.empty()) {
+    NameLikelyCause("; likely cause: directions left out as not identifiable (" + left_out +
+                        ") are kept as given, and the data may not agree with them (a measured "
+                        "point off where the model puts it, or an axis the data cannot see)",
+                    &out->verdict);
+  }
+}
+
+// k-fold cross-validation: each fold calibrated on the others (with its own residual layer when
+// the pipeline fitted one) and predicted.
+void CrossValidate(const RobotModel& nominal, const MeasurementSet& identification,
+                   const PipelineOptions& options, const PipelineOptions& chosen,
+                   PipelineResult* out) {
+  const auto folds = KFolds(identification, options.kfold, options.split_seed, options.split);
+  std::vector<Eigen::Vector3d> pooled;
+  for (int f = 0; f < options.kfold; ++f) {
+    const MeasurementSet train =
+        identification.Subset(Complement(identification.size(), folds[f]));
+    const MeasurementSet test = identification.Subset(folds[f]);
+    const CalibrationResult r = SolveCalibration(nominal, train, chosen,
+                                                 "fold " + std::to_string(f + 1), nullptr,
+                                                 nullptr, nullptr);
+    FoldSummary fs;
+    fs.fold = f + 1;
+    fs.identification_rows = train.size();
+    fs.termination = r.termination;
+    std::vector<Eigen::Vector3d> e =
+        PositionErrors(Geometric(r.model), WithEffectiveJointValues(r.joint_terms, test));
+    if (out->residual_layer.fitted && r.converged()) {
+      // The fold's own layer, fitted on its training rows only.
+      ResidualLayer layer;
+      if (FitResidualLayerOn(r, train, options.residual_layer, &layer, nullptr).ok()) {
+        for (int row = 0; row < test.size(); ++row) {
+          e[row] -= layer.Mean(test.q(row), test.target(row));
+        }
+      }
+    }
+    pooled.insert(pooled.end(), e.begin(), e.end());
+    fs.verification_after = ComputeStatistics(e);
+    out->folds.push_back(fs);
+  }
+  out->folds_pooled = ComputeStatistics(pooled);
+}
+
+}  // namespace
 
 PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
                                       const MeasurementSet& identification,
@@ -394,260 +767,26 @@ PipelineResult RunCalibrationPipeline(const RobotModel& nominal,
   SolveErrors errors;
   out.result = Solve(nominal, identification, chosen, "calibrating", &out.registration, &out.before,
                      &out.start, &errors);
-  const CalibrationResult& result = out.result;
-  if (result.termination == Termination::kNotIdentifiable) return out;
+  if (out.result.termination == Termination::kNotIdentifiable) return out;
 
   if (options.on_stage) options.on_stage("analysing");
-  // A fixed tool the data never measure identified nothing: the calibrated model does not record
-  // it as fixed (it would claim the flange identified, docs/programs.md); said in the warning below.
-  for (int t = 0; t < out.result.model.num_tools(); ++t) {
-    if (!out.result.model.tools[t].fixed) continue;
-    bool measured = false;
-    for (int r = 0; r < identification.size() && !measured; ++r) {
-      measured = identification.target(r) == t;
-    }
-    if (!measured) out.result.model.tools[t].fixed = false;
-  }
-  out.geometric = Geometric(result.model);
+  UnmeasuredFixedTools(nominal, identification, &out);
   // Without joint terms the effective joint values are the measured ones: no copy (72 B a row).
   MeasurementSet with_joint_terms;
-  if (!result.joint_terms.empty()) {
-    with_joint_terms = WithEffectiveJointValues(result.joint_terms, identification);
+  if (!out.result.joint_terms.empty()) {
+    with_joint_terms = WithEffectiveJointValues(out.result.joint_terms, identification);
   }
   const MeasurementSet& identification_eff =
-      result.joint_terms.empty() ? identification : with_joint_terms;
-  out.identifiability = AnalyzeIdentifiability(nominal, identification_eff, result);
-  // Known SMR nests (Tool::fixed) the data never measure identify nothing: said, not refused.
-  {
-    std::vector<bool> measured(nominal.num_tools(), false);
-    for (int r = 0; r < identification.size(); ++r) measured[identification.target(r)] = true;
-    bool any_measured = false;
-    std::string unmeasured;
-    for (int t = 0; t < nominal.num_tools(); ++t) {
-      if (!nominal.tools[t].fixed) continue;
-      any_measured = any_measured || measured[t];
-      if (!measured[t]) unmeasured += (unmeasured.empty() ? "" : ", ") + nominal.tools[t].name;
-    }
-    if (!unmeasured.empty()) {
-      out.identifiability.warnings.push_back(
-          "fixed tool(s) " + unmeasured +
-          " not measured in these data (recorded as not fixed in the calibrated model): held as "
-          "given, they " +
-          (any_measured ? "add nothing to the calibration"
-                        : "identify nothing, and the last joint's zero and its translation along "
-                          "the axis stay a convention traded against the other tools' offsets"));
-    }
+      out.result.joint_terms.empty() ? identification : with_joint_terms;
+  AnalyseSolution(nominal, identification, identification_eff, verification, options, &errors,
+                  &out);
+  if (!out.result.converged()) return out;
+  if (options.refit_geometry && !out.result.joint_terms.empty()) {
+    GeometryOnlyRefit(nominal, identification, verification, chosen, &out);
   }
-  // The solver's last linearization is that of result.model, i.e. of `geometric` on the measured
-  // joint values (no joint terms): its errors serve the statistics and the outlier search.
-  PositionErrorRows& final_errors = errors.solver.final_errors;
-  const bool have_final = !final_errors.empty() && result.joint_terms.empty() &&
-                          final_errors.size() == identification.size();
-  out.identification_before = errors.have_before
-                                  ? errors.before
-                                  : PositionErrorStatistics(out.before, identification);
-  out.identification_after = have_final
-                                 ? final_errors.Statistics()
-                                 : PositionErrorStatistics(out.geometric, identification_eff);
-  if (!verification.empty()) {
-    out.has_verification = true;
-    out.verification_before = PositionErrorStatistics(out.before, verification);
-    out.verification_after = PositionErrorStatistics(
-        out.geometric, WithEffectiveJointValues(result.joint_terms, verification));
-  }
-  out.outliers = have_final ? FindOutliers(out.geometric, identification_eff, final_errors,
-                                           options.outlier_threshold, &out.robust_sigma)
-                             : FindOutliers(out.geometric, identification_eff,
-                                            options.outlier_threshold, &out.robust_sigma);
-  final_errors.Clear();
-  if (!result.converged()) return out;
-
-  if (options.refit_geometry && !result.joint_terms.empty()) {
-    PipelineOptions geometric = chosen;
-    geometric.joint_errors.clear();
-    CalibrationResult g = SolveCalibration(nominal, identification, geometric,
-                                           "geometry-only re-fit", nullptr, nullptr, nullptr);
-    if (g.converged()) {
-      out.has_geometry_only = true;
-      g.model = Geometric(g.model);
-      out.geometry_only_identification = PositionErrorStatistics(g.model, identification);
-      if (!verification.empty()) {
-        out.geometry_only_verification = PositionErrorStatistics(g.model, verification);
-      }
-      out.geometry_only = std::move(g);
-    }
-  }
-
-  // The residual layer (docs/residual_layer.md): chosen by cross-validation (auto) or asked for
-  // (gp), fitted on the identification residuals of the calibrated model; the verification errors
-  // are then those of the model with its layer.
-  ResidualModelKind residual = options.residual_model;
-  out.residual_layer.requested = residual != ResidualModelKind::kNone;
-  if (residual == ResidualModelKind::kAuto) {
-    out.residual_model_selection = SelectResidualModel(nominal, identification, chosen);
-    const ResidualModelSelection& sel = out.residual_model_selection;
-    residual = sel.chosen >= 0 && sel.candidates[sel.chosen].label == "gp" ? ResidualModelKind::kGp
-                                                                          : ResidualModelKind::kNone;
-    if (residual == ResidualModelKind::kNone) {
-      out.residual_layer.message = "auto chose none (" + sel.reason + ")";
-    }
-  }
-  if (residual == ResidualModelKind::kGp) {
-    if (options.on_stage) options.on_stage("fitting the residual layer");
-    auto layer = std::make_shared<ResidualLayer>();
-    const Status s = FitResidualLayerOn(out.result, identification, options.residual_layer,
-                                        layer.get(), &out.residual_layer.fit);
-    if (!s.ok()) {
-      out.residual_layer.message = "residual layer not fitted: " + s.message();
-    } else {
-      out.residual_layer.fitted = true;
-      out.residual_layer.inducing = layer->num_inducing();
-      std::vector<Eigen::Vector3d> e = ParametricResiduals(out.result, identification);
-      for (int r = 0; r < identification.size(); ++r) {
-        e[r] -= layer->Mean(identification.q(r), identification.target(r));
-      }
-      out.residual_layer.identification_with_layer = ComputeStatistics(e);
-      if (!verification.empty()) {
-        out.residual_layer.verification_parametric = out.verification_after;
-        std::vector<Eigen::Vector3d> v = ParametricResiduals(out.result, verification);
-        for (int r = 0; r < verification.size(); ++r) {
-          v[r] -= layer->Mean(verification.q(r), verification.target(r));
-        }
-        out.verification_after = ComputeStatistics(v);
-      }
-      out.result.model.residual_layer = std::move(layer);
-    }
-  }
-
-  PlausibilityOptions plausibility = options.plausibility;
-  plausibility.use_orientation = options.use_orientation;
-  FrameChangeSigmas(out.result, out.start, out.geometric, &plausibility);
-  out.verdict = AssessPlausibility(out.start, out.geometric, identification_eff,
-                                   out.identification_after, plausibility);
-  // A fit much worse than the noise after directions were left out: name them as the likely cause
-  // (they are kept as given; if the data do determine them after all, the model is wrong there).
-  std::string left_out;
-  for (const Direction& d : result.parameterization.unidentifiable) {
-    if (IsStructurallyLost(d)) {
-      left_out += (left_out.empty() ? "" : ", ") + d.name;
-    }
-  }
-  // Fixed tools are held as given: a nest position that is wrong leaves an error nothing can take.
-  std::string fixed;
-  {
-    std::vector<bool> measured(nominal.num_tools(), false);
-    for (int r = 0; r < identification.size(); ++r) measured[identification.target(r)] = true;
-    for (int t = 0; t < nominal.num_tools(); ++t) {
-      if (nominal.tools[t].fixed && measured[t]) {
-        fixed += (fixed.empty() ? "" : ", ") + nominal.tools[t].name;
-      }
-    }
-  }
-  if (!fixed.empty()) {
-    // Do the data agree with the fixed tools? The same calibration with them free: holding them
-    // costs about chi^2(k) noise variances when they are right (k: the parameters the free fit
-    // has more), much more when a nest is off. Significant: "check"; and when holding them also
-    // costs more than the tracker noise per axis: "fail" (the flange then carries the nests' error).
-    RobotModel free_nominal = nominal;
-    for (Tool& t : free_nominal.tools) t.fixed = false;
-    PipelineOptions free_options = chosen;
-    free_options.kfold = 0;
-    const CalibrationResult g = SolveCalibration(free_nominal, identification, free_options,
-                                                 "fixed tools against free ones", nullptr,
-                                                 nullptr, nullptr);
-    const int per_row = options.use_orientation && identification.has_orientation() ? 6 : 3;
-    const long rows = static_cast<long>(per_row) * identification.size();
-    const int k = g.parameterization.num_parameters - result.parameterization.num_parameters;
-    if (g.converged() && k > 0 && rows > g.parameterization.num_parameters && g.final_cost > 0) {
-      const double s2 =
-          2.0 * g.final_cost / static_cast<double>(rows - g.parameterization.num_parameters);
-      const double chi2 = 2.0 * (result.final_cost - g.final_cost) / s2;
-      const double rms_fixed = internal::RmsPerAxisOfCost(result.final_cost, identification,
-                                                          per_row == 6);
-      const double rms_free = internal::RmsPerAxisOfCost(g.final_cost, identification,
-                                                         per_row == 6);
-      // About 5 standard deviations of chi^2(k) above its mean.
-      const double significant = k + 5.0 * std::sqrt(2.0 * k);
-      VerdictCheck c;
-      c.name = "fixed_tools";
-      c.value = chi2;
-      c.limit = significant;
-      const bool costly = rms_fixed - rms_free > options.plausibility.noise_sigma;
-      c.level = !(chi2 > significant) ? VerdictLevel::kPass
-                : costly               ? VerdictLevel::kFail
-                                       : VerdictLevel::kCheck;
-      char buf[512];
-      std::snprintf(buf, sizeof(buf),
-                    "the fixed tools (%s) %s the data: held as given the fit is %.4g mm per axis, "
-                    "with them free %.4g mm (%.3g noise variances for %d parameters)%s",
-                    fixed.c_str(), c.level == VerdictLevel::kPass ? "agree with" : "disagree with",
-                    rms_fixed, rms_free, chi2, k,
-                    c.level == VerdictLevel::kPass
-                        ? ""
-                        : ": a nest is not where the model puts it (check the drawing or CMM "
-                          "values; the flange frame takes that error)");
-      c.message = buf;
-      out.verdict.checks.push_back(c);
-      if (c.level > out.verdict.level) {
-        out.verdict.level = c.level;
-        out.verdict.reason = c.message;
-      }
-    }
-  }
-  if (!fixed.empty()) {
-    for (VerdictCheck& c : out.verdict.checks) {
-      if (c.name != "residual" || c.level == VerdictLevel::kPass) continue;
-      const bool was_reason = out.verdict.reason == c.message;
-      c.message += "; likely cause: the fixed tools (" + fixed +
-                   ") are held where the model puts them, and the data may not agree (a nest "
-                   "position off its drawing or CMM value shows here; calibrate without "
-                   "--fixed_tools to see where the data put them)";
-      if (was_reason) out.verdict.reason = c.message;
-    }
-  }
-  if (!left_out.empty()) {
-    for (VerdictCheck& c : out.verdict.checks) {
-      if (c.name != "residual" || c.level == VerdictLevel::kPass) continue;
-      const bool was_reason = out.verdict.reason == c.message;
-      c.message += "; likely cause: directions left out as not identifiable (" + left_out +
-                   ") are kept as given, and the data may not agree with them (a measured point "
-                   "off where the model puts it, or an axis the data cannot see)";
-      if (was_reason) out.verdict.reason = c.message;
-    }
-  }
-
-  if (options.kfold >= 2) {
-    const auto folds = KFolds(identification, options.kfold, options.split_seed, options.split);
-    std::vector<Eigen::Vector3d> pooled;
-    const PipelineOptions& fold_options = chosen;
-    for (int f = 0; f < options.kfold; ++f) {
-      const MeasurementSet train =
-          identification.Subset(Complement(identification.size(), folds[f]));
-      const MeasurementSet test = identification.Subset(folds[f]);
-      const CalibrationResult r = SolveCalibration(nominal, train, fold_options,
-                                                   "fold " + std::to_string(f + 1), nullptr,
-                                                   nullptr, nullptr);
-      FoldSummary fs;
-      fs.fold = f + 1;
-      fs.identification_rows = train.size();
-      fs.termination = r.termination;
-      std::vector<Eigen::Vector3d> e =
-          PositionErrors(Geometric(r.model), WithEffectiveJointValues(r.joint_terms, test));
-      if (out.residual_layer.fitted && r.converged()) {
-        // The fold's own layer, fitted on its training rows only.
-        ResidualLayer layer;
-        if (FitResidualLayerOn(r, train, options.residual_layer, &layer, nullptr).ok()) {
-          for (int row = 0; row < test.size(); ++row) {
-            e[row] -= layer.Mean(test.q(row), test.target(row));
-          }
-        }
-      }
-      pooled.insert(pooled.end(), e.begin(), e.end());
-      fs.verification_after = ComputeStatistics(e);
-      out.folds.push_back(fs);
-    }
-    out.folds_pooled = ComputeStatistics(pooled);
-  }
+  ResidualLayerStage(nominal, identification, verification, options, chosen, &out);
+  VerdictStage(nominal, identification, identification_eff, options, chosen, &out);
+  if (options.kfold >= 2) CrossValidate(nominal, identification, options, chosen, &out);
   return out;
 }
 

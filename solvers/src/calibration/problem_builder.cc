@@ -16,6 +16,7 @@
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/measurement_residual.h"
 #include "calibration/normal_equations.h"
+#include "calibration/problem_setup.h"
 
 namespace lpoe {
 
@@ -76,31 +77,25 @@ CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const Measurem
     const Status s = ValidateCalibrationProblem(nominal, data, options);
     CHECK(s.ok()) << s.message();
   }
-  if (!options.joint_terms.empty()) {
-    regressors_ = std::make_shared<internal::JointSpaceRegressors>();
-    analysed_ = std::make_shared<internal::NormalEquations>();
-  }
-  internal::SolverParameterizationRequest request = internal::ParameterizationRequestOf(options);
-  request.analysed = analysed_.get();
-  request.regressors = regressors_.get();
-  request.analysed_parameterization = &analysed_parameterization_;
-  parameterization_ = internal::SolverParameterization(nominal, data, request);
-  if (regressors_) internal::SetSlotBasis(parameterization_, regressors_.get());
+  // Every decision (parameterization, frames solved, prior, structure) once, as CalibrateLinear
+  // makes them (problem_setup.h).
+  setup_ = std::make_shared<const internal::ProblemSetup>(
+      internal::SetUpProblem(nominal, data, internal::ProblemSetupRequestOf(options)));
+  const internal::ProblemSetup& setup = *setup_;
+  parameterization_ = setup.all;
+  tilt_status_ = setup.tilt_status;
+  solved_ = setup.frame_solved;
+  regressors_ = setup.regressors;
+  analysed_ = setup.analysed;
   const int n = nominal.num_joints();
   const int F = nominal.num_frames();
   frames_.resize(F);
-  solved_.assign(F, false);
   for (int f = 0; f < F; ++f) {
     Se3ToArray(f < n ? nominal.joints[f].origin : nominal.tools[f - n].origin, frames_[f].data());
   }
   initial_frames_ = frames_;
-  for (int i = 0; i < n; ++i) solved_[i] = true;
-  for (int r = 0; r < data.size(); ++r) solved_[n + data.target(r)] = true;
-  if (options.gravity_tilt) {
-    tilt_status_ = internal::AddSolverGravityTilt(options.gravity_tilt, &parameterization_);
-  }
   const Parameterization& p = parameterization_;
-  const Eigen::VectorXd initial = internal::InitialJointState(p, options.initial_joint_terms);
+  const Eigen::VectorXd& initial = setup.initial_joint_state;
   joint_blocks_.resize(p.joint_blocks.size());
   for (size_t b = 0; b < joint_blocks_.size(); ++b) {
     const JointBlock& block = p.joint_blocks[b];
@@ -379,10 +374,8 @@ std::vector<JointTermValues> CalibrationProblem::JointTerms() const {
   return JointValuesOf(p, all);
 }
 
-Parameterization CalibrationProblem::SolvedParameterization() const {
-  Parameterization p = parameterization_;
-  internal::LeaveOutUnmeasuredTools(nominal_, *data_, &p);
-  return p;
+const Parameterization& CalibrationProblem::SolvedParameterization() const {
+  return setup_->solved;
 }
 
 ProblemNormalEquations CalibrationProblem::NormalEquations() const {
@@ -471,7 +464,7 @@ ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
   }
   Eigen::MatrixXd H_all;
   if (at_start && !all.gravity_tilt &&
-      internal::SameFrameDirections(analysed_parameterization_, all)) {
+      internal::SameFrameDirections(setup_->analysed_parameterization, all)) {
     H_all = internal::ProjectJointBlocks(*analysed_, all).H;
   } else {
     H_all = internal::NormalEquationsOf(model, data, all, JointState(),
