@@ -473,7 +473,7 @@ TEST(JointErrors, YamlErrorsNameLineAndReason) {
       {"payload: {mass: -1}\n", "m.yaml:7: 'mass' is out of range"},
       {"payload: {mass: 1, com: [0, 0, 1e9]}\n", "m.yaml:7: 'com' is out of range"},
       {"gravity: [0, 0, 1e5]\n", "m.yaml:7: 'gravity' has magnitude 100000 m/s^2"},
-      // Issue 40: a gear-ratio error of 1e308 (NaN joints downstream), or one that moves joint b
+      // A gear-ratio error of 1e308 (NaN joints downstream), or one that moves joint b
       // by radians within its range, is not a joint-space error.
       {"joint_errors:\n  gear_ratio:\n    - {joint: b, s: 1e308}\n",
        "m.yaml:9: 's' '1e308' is out of range"},

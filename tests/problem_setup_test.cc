@@ -1,4 +1,4 @@
-// Issue 42, "one calibration problem": what is estimated is decided once (internal::SetUpProblem,
+// One calibration problem: what is estimated is decided once (internal::SetUpProblem,
 // solvers/src/calibration/problem_setup.h) and both solvers read it. With an unmeasured tool, the
 // compliance term and the gravity tilt, CalibrateLinear, CalibrateCeres and CalibrationProblem solve
 // the same directions (names, offsets, bases, the ones left out with their reasons); leaving the

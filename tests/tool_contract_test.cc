@@ -401,7 +401,7 @@ TEST(ToolContract, CalibrationWithoutRedundancyIsRefused) {
   EXPECT_EQ((r.out + r.err).find("cannot check itself"), std::string::npos) << r.out << r.err;
 }
 
-// ---- Issue 40: crashes, lost outputs and silent wrong results.
+// ---- Crashes, lost outputs and silent wrong results.
 
 constexpr int kExitOutput = 6;
 

@@ -159,7 +159,7 @@ UR5_CELL = os.path.join(os.path.dirname(__file__), "..", "..", "tests", "data", 
 
 
 def test_compensate_in_the_controller_base_for_a_tcp_on_tool0():
-    # Issue 41: targets in ur_description's `base` (base_link turned by pi), a TCP relative to the
+    # Targets in ur_description's `base` (base_link turned by pi), a TCP relative to the
     # flange tool0 (82.3 mm out of wrist_3_link and turned), as a UR controller gives them.
     smrs = ["smr1", "smr2", "smr3"]
     m = lpoe.read_model(UR5_CELL, tool_links=smrs)                          # base frame: world
