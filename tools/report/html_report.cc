@@ -546,9 +546,23 @@ void HtmlPage::Parameters() {
        "</p>\n";
   // The prior (docs/identifiability.md): what it held.
   if (j.contains("prior") && j["prior"].is_object()) {
+    // A prior file (--prior: a previous calibration or a fleet; then each weakly determined
+    // parameter's data share is given) or the start model's tolerances.
+    const bool given = j.contains("recalibration") && j["recalibration"].is_object() &&
+                       j["recalibration"].contains("prior");
     std::string weak;
-    for (const Json& d : j["prior"]["weakly_determined"]) weak += (weak.empty() ? "" : ", ") + Str(d);
-    h += "<p>Prior: the start model's tolerances, weighed against " +
+    for (const Json& d : j["prior"]["weakly_determined"]) {
+      weak += (weak.empty() ? "" : ", ") + Str(d);
+      for (const Json& p : idj["identified"]) {
+        if (given && p["name"] == d && p["data_share"].is_number()) {
+          weak += Fmt(" (data share %.0f %%)", 100 * p["data_share"].get<double>());
+        }
+      }
+    }
+    h += "<p>Prior: " +
+         (given ? Esc(Str(j["recalibration"]["prior"])) + " (informative)"
+                : std::string("the start model's tolerances")) +
+         ", weighed against " +
          Sci(j["prior"]["data_sigma"]) + " mm per axis. " +
          (weak.empty() ? std::string("Every direction is determined by the data.")
                        : "Weakly determined (held near the start model by the prior): " +

@@ -240,7 +240,9 @@ PlanQuality EvaluatePlan(const PlanningModel& pm, const CandidatePool& pool,
 // A prior's information on `pm`'s parameters in the units of J^T J (sigma^2 times it, sigma the
 // noise per axis of the data planned for): per frame B_f^T Lambda_f B_f (B_f the frame's
 // identifiable directions), the base's registration directions free (FreeRegistrationDirections:
-// the new data's tracker stands elsewhere); no information on joint-space combinations.
+// the new data's tracker stands elsewhere); per joint-space term the prior lists (its P x P
+// information Lambda_b) basis_b^T Lambda_b basis_b / scale^2 on the term's combinations, none on
+// terms it does not list and on the gravity tilt.
 Eigen::MatrixXd PlanningPriorInformation(const PlanningModel& pm, const ParameterPrior& prior,
                                          double sigma);
 

@@ -191,6 +191,177 @@ Status ReadPrior(const std::string& path, const PriorScales& scales, RobotModel*
   return Status::Ok();
 }
 
+namespace {
+
+// Recalibrate's state between rounds: per frame 0 held by the prior, 1 only the previous joint's
+// zero freed, 2 freed; the zero's direction of a frame whose group is "jointN zero".
+struct RecalibrationFrameState {
+  std::vector<int> state;
+  std::vector<Vector6d> zero_direction;
+};
+
+bool ChangedBeyondChance(double chi2, int dof) {
+  return chi2 > dof + 5 * std::sqrt(2.0 * dof) + 10;
+}
+
+// The frames whose prior discrepancy at `geometric` is far beyond chance (frame 0, the base, is
+// the registration's: not tested), each named "jointN frame", a tool's name, or "jointN zero" when
+// most of it lies along the previous joint's zero (its direction noted in `st`).
+std::vector<ChangedGroup> ChangedFrames(const RobotModel& reference, const ParameterPrior& prior,
+                                        const Parameterization& p, const RobotModel& geometric,
+                                        RecalibrationFrameState* st) {
+  std::vector<ChangedGroup> changed;
+  for (int f = 1; f < reference.num_frames() && f < static_cast<int>(p.basis.size()); ++f) {
+    if (p.basis[f].cols() == 0 || f >= static_cast<int>(prior.frame_information.size()) ||
+        st->state[f] == 2) {
+      continue;
+    }
+    const Matrix6d info = FrameInformation(prior, reference, f);
+    const Vector6d xi = FrameDeviation(reference, geometric, f);
+    // Only the identified directions count (the others are the start's, not estimated).
+    const Eigen::MatrixXd& B = p.basis[f];
+    const Eigen::VectorXd z = B.transpose() * xi;
+    const Eigen::MatrixXd I = B.transpose() * info * B;
+    const double chi2 = z.dot(I * z);
+    const int dof = static_cast<int>(B.cols());
+    if (!ChangedBeyondChance(chi2, dof)) continue;
+    ChangedGroup g;
+    g.frame = f;
+    g.chi2 = chi2;
+    g.dof = dof;
+    const int n = reference.num_joints();
+    g.name = RecalibrationFrameName(reference, f) + (f < n ? " frame" : "");
+    if (f < n && f >= 1 && st->state[f] == 0) {
+      // A zero shift of the joint before: the rotation about its axis, pushed into this frame
+      // (Ad of this frame's inverse applied to that joint's twist). When it carries most of the
+      // discrepancy, that zero alone is the group (freed first; the frame follows in a later
+      // round if the rest of its discrepancy stays).
+      const Vector6d u = Adjoint(reference.joints[f].origin.Inverse()) * reference.joints[f - 1].twist;
+      const Eigen::VectorXd uz = B.transpose() * u;
+      const double uIu = uz.dot(I * uz);
+      if (uIu > 0) {
+        const double along = std::pow(uz.dot(I * z), 2) / uIu;
+        if (along > 0.5 * chi2) {
+          g.name = reference.joints[f - 1].name + " zero";
+          st->zero_direction[f] = u;
+        }
+      }
+    }
+    changed.push_back(g);
+  }
+  return changed;
+}
+
+// Joint-space terms (--joint_errors) with a prior of their own: per joint, the marginal
+// discrepancy of that joint's parameters under the term's prior (parameters that may move several
+// joints form one group of the whole term), appended to `changed`.
+void ChangedJointTerms(const RobotModel& reference, const ParameterPrior& prior,
+                       const Parameterization& p, const RobotModel& model,
+                       std::vector<ChangedGroup>* changed) {
+  for (const JointBlock& b : p.joint_blocks) {
+    if (b.basis.cols() == 0) continue;
+    const std::string& name = b.term->name();
+    const int P = static_cast<int>(b.basis.rows());
+    const JointTermPrior* t = nullptr;
+    for (const JointTermPrior& given : prior.joint_terms) {
+      if (given.name == name && given.information.rows() == P) t = &given;
+    }
+    const std::vector<double>& v = model.joint_errors.Values(name);
+    if (t == nullptr || static_cast<int>(v.size()) != P) continue;
+    Eigen::VectorXd d = Eigen::Map<const Eigen::VectorXd>(v.data(), P);
+    if (t->reference.size() == P) d -= t->reference;
+    const Eigen::MatrixXd C = PseudoInverse(t->information / (prior.scale * prior.scale));
+    for (int j = -1; j < b.term->num_joints(); ++j) {
+      std::vector<int> K;
+      for (int k = 0; k < P; ++k) {
+        if (b.term->ParameterJoint(k) == j) K.push_back(k);
+      }
+      if (K.empty()) continue;
+      Eigen::VectorXd dk(K.size());
+      Eigen::MatrixXd Ck(K.size(), K.size());
+      for (size_t r = 0; r < K.size(); ++r) {
+        dk(r) = d(K[r]);
+        for (size_t c = 0; c < K.size(); ++c) Ck(r, c) = C(K[r], K[c]);
+      }
+      const double chi2 = dk.dot(PseudoInverse(Ck) * dk);
+      const int dof = static_cast<int>(K.size());
+      if (!ChangedBeyondChance(chi2, dof)) continue;
+      ChangedGroup g;
+      g.frame = -1;
+      g.term = name;
+      g.joint = j;
+      g.name = (j >= 0 ? reference.joints[j].name + " " : std::string()) + name;
+      g.chi2 = chi2;
+      g.dof = dof;
+      changed->push_back(g);
+    }
+  }
+}
+
+// A joint-space term's group freed: its parameters get the default joint-term tolerance (a
+// standard deviation of joint_term_mrad per parameter), the term's others keep their marginal
+// information.
+void FreeJointTermGroup(const ChangedGroup& worst, const Parameterization& p,
+                        ParameterPrior* prior) {
+  for (JointTermPrior& t : prior->joint_terms) {
+    if (t.name != worst.term) continue;
+    std::shared_ptr<const JointTerm> term;
+    for (const JointBlock& b : p.joint_blocks) {
+      if (b.term->name() == worst.term) term = b.term;
+    }
+    if (!term) break;
+    const int P = static_cast<int>(t.information.rows());
+    const Eigen::MatrixXd C = PseudoInverse(t.information);
+    std::vector<int> keep, freed;
+    for (int k = 0; k < P; ++k) (term->ParameterJoint(k) == worst.joint ? freed : keep).push_back(k);
+    Eigen::MatrixXd next = Eigen::MatrixXd::Zero(P, P);
+    if (!keep.empty()) {
+      Eigen::MatrixXd Ck(keep.size(), keep.size());
+      for (size_t r = 0; r < keep.size(); ++r) {
+        for (size_t c = 0; c < keep.size(); ++c) Ck(r, c) = C(keep[r], keep[c]);
+      }
+      const Eigen::MatrixXd Ik = PseudoInverse(Ck);
+      for (size_t r = 0; r < keep.size(); ++r) {
+        for (size_t c = 0; c < keep.size(); ++c) next(keep[r], keep[c]) = Ik(r, c);
+      }
+    }
+    const double sigma = 1e-3 * prior->scales.joint_term_mrad;
+    for (int k : freed) next(k, k) = 1.0 / (sigma * sigma);
+    t.information = next;
+  }
+}
+
+// A frame's group freed: a "jointN zero" group (first time) gives the zero's direction the
+// tolerances and keeps the frame's other directions' marginal information; otherwise the frame
+// gets the tolerances.
+void FreeFrameGroup(const ChangedGroup& worst, const RobotModel& reference,
+                    RecalibrationFrameState* st, ParameterPrior* prior) {
+  const double k2 = prior->scale * prior->scale;
+  const Matrix6d tolerances =
+      DefaultFrameInformation(reference, worst.frame, prior->scales, 1.0) * k2;
+  if (st->state[worst.frame] == 0 && worst.name.size() > 5 &&
+      worst.name.compare(worst.name.size() - 5, 5, " zero") == 0) {
+    const Eigen::Matrix<double, 6, 1> q = st->zero_direction[worst.frame].normalized();
+    const Eigen::MatrixXd qm = q;
+    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(qm);
+    const Eigen::MatrixXd full = qr.householderQ() * Eigen::MatrixXd::Identity(6, 6);
+    const Eigen::MatrixXd Bo = full.rightCols(5);
+    const Matrix6d& info = prior->frame_information[worst.frame];
+    const Eigen::LDLT<Matrix6d> ldlt(info);
+    const Eigen::MatrixXd C = ldlt.solve(Matrix6d::Identity());
+    const Eigen::MatrixXd qq = q * q.transpose();
+    Matrix6d next = Bo * (Bo.transpose() * C * Bo).inverse() * Bo.transpose() +
+                    qq * tolerances * qq;
+    prior->frame_information[worst.frame] = 0.5 * (next + next.transpose());
+    st->state[worst.frame] = 1;
+  } else {
+    prior->frame_information[worst.frame] = tolerances;
+    st->state[worst.frame] = 2;
+  }
+}
+
+}  // namespace
+
 RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet& identification,
                                 const MeasurementSet& verification,
                                 const PipelineOptions& options) {
@@ -205,93 +376,13 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
   // registration directions free).
   FreeRegistrationDirections(reference, prior.get());
   constexpr int kRounds = 6;
-  // Per frame: 0 held by the prior, 1 only the previous joint's zero freed, 2 freed.
-  std::vector<int> state(reference.num_frames(), 0);
-  std::vector<Vector6d> zero_direction(reference.num_frames(), Vector6d::Zero());
+  RecalibrationFrameState st;
+  st.state.assign(reference.num_frames(), 0);
+  st.zero_direction.assign(reference.num_frames(), Vector6d::Zero());
   for (int round = 0; round < kRounds && out.run.result.converged(); ++round) {
     const Parameterization& p = out.run.result.parameterization;
-    std::vector<ChangedGroup> changed;
-    // Frame 0 is the base: registration decides it (its prior is the tolerances, not tested).
-    for (int f = 1; f < reference.num_frames() && f < static_cast<int>(p.basis.size()); ++f) {
-      if (p.basis[f].cols() == 0 || f >= static_cast<int>(prior->frame_information.size()) ||
-          state[f] == 2) {
-        continue;
-      }
-      const Matrix6d info = FrameInformation(*prior, reference, f);
-      const Vector6d xi = FrameDeviation(reference, out.run.geometric, f);
-      // Only the identified directions count (the others are the start's, not estimated).
-      const Eigen::MatrixXd& B = p.basis[f];
-      const Eigen::VectorXd z = B.transpose() * xi;
-      const Eigen::MatrixXd I = B.transpose() * info * B;
-      const double chi2 = z.dot(I * z);
-      const int dof = static_cast<int>(B.cols());
-      if (!(chi2 > dof + 5 * std::sqrt(2.0 * dof) + 10)) continue;
-      ChangedGroup g;
-      g.frame = f;
-      g.chi2 = chi2;
-      g.dof = dof;
-      const int n = reference.num_joints();
-      g.name = RecalibrationFrameName(reference, f) + (f < n ? " frame" : "");
-      if (f < n && f >= 1 && state[f] == 0) {
-        // A zero shift of the joint before: the rotation about its axis, pushed into this frame
-        // (Ad of this frame's inverse applied to that joint's twist). When it carries most of the
-        // discrepancy, that zero alone is the group (freed first; the frame follows in a later
-        // round if the rest of its discrepancy stays).
-        const Vector6d u = Adjoint(reference.joints[f].origin.Inverse()) * reference.joints[f - 1].twist;
-        const Eigen::VectorXd uz = B.transpose() * u;
-        const double uIu = uz.dot(I * uz);
-        if (uIu > 0) {
-          const double along = std::pow(uz.dot(I * z), 2) / uIu;
-          if (along > 0.5 * chi2) {
-            g.name = reference.joints[f - 1].name + " zero";
-            zero_direction[f] = u;
-          }
-        }
-      }
-      changed.push_back(g);
-    }
-    // Joint-space terms (--joint_errors) with a prior of their own: per joint, the marginal
-    // discrepancy of that joint's parameters under the term's prior (parameters that may move
-    // several joints form one group of the whole term).
-    for (const JointBlock& b : p.joint_blocks) {
-      if (b.basis.cols() == 0) continue;
-      const std::string& name = b.term->name();
-      const int P = static_cast<int>(b.basis.rows());
-      const JointTermPrior* t = nullptr;
-      for (const JointTermPrior& given : prior->joint_terms) {
-        if (given.name == name && given.information.rows() == P) t = &given;
-      }
-      const std::vector<double>& v = out.run.result.model.joint_errors.Values(name);
-      if (t == nullptr || static_cast<int>(v.size()) != P) continue;
-      Eigen::VectorXd d = Eigen::Map<const Eigen::VectorXd>(v.data(), P);
-      if (t->reference.size() == P) d -= t->reference;
-      const Eigen::MatrixXd C =
-          PseudoInverse(t->information / (prior->scale * prior->scale));
-      for (int j = -1; j < b.term->num_joints(); ++j) {
-        std::vector<int> K;
-        for (int k = 0; k < P; ++k) {
-          if (b.term->ParameterJoint(k) == j) K.push_back(k);
-        }
-        if (K.empty()) continue;
-        Eigen::VectorXd dk(K.size());
-        Eigen::MatrixXd Ck(K.size(), K.size());
-        for (size_t r = 0; r < K.size(); ++r) {
-          dk(r) = d(K[r]);
-          for (size_t c = 0; c < K.size(); ++c) Ck(r, c) = C(K[r], K[c]);
-        }
-        const double chi2 = dk.dot(PseudoInverse(Ck) * dk);
-        const int dof = static_cast<int>(K.size());
-        if (!(chi2 > dof + 5 * std::sqrt(2.0 * dof) + 10)) continue;
-        ChangedGroup g;
-        g.frame = -1;
-        g.term = name;
-        g.joint = j;
-        g.name = (j >= 0 ? reference.joints[j].name + " " : std::string()) + name;
-        g.chi2 = chi2;
-        g.dof = dof;
-        changed.push_back(g);
-      }
-    }
+    std::vector<ChangedGroup> changed = ChangedFrames(reference, *prior, p, out.run.geometric, &st);
+    ChangedJointTerms(reference, *prior, p, out.run.result.model, &changed);
     if (changed.empty()) break;
     // The worst group only: a large change spreads its misfit over the neighbouring frames at the
     // MAP estimate, which are consistent again once it is freed.
@@ -301,63 +392,9 @@ RecalibrationResult Recalibrate(const RobotModel& nominal, const MeasurementSet&
         });
     out.changed.push_back(worst);
     if (worst.frame < 0) {
-      // A joint-space term's group: its parameters get the default joint-term tolerance (a
-      // standard deviation of joint_term_mrad per parameter), the term's others keep their
-      // marginal information.
-      for (JointTermPrior& t : prior->joint_terms) {
-        if (t.name != worst.term) continue;
-        std::shared_ptr<const JointTerm> term;
-        for (const JointBlock& b : p.joint_blocks) {
-          if (b.term->name() == worst.term) term = b.term;
-        }
-        if (!term) break;
-        const int P = static_cast<int>(t.information.rows());
-        const Eigen::MatrixXd C = PseudoInverse(t.information);
-        std::vector<int> keep, freed;
-        for (int k = 0; k < P; ++k) (term->ParameterJoint(k) == worst.joint ? freed : keep).push_back(k);
-        Eigen::MatrixXd next = Eigen::MatrixXd::Zero(P, P);
-        if (!keep.empty()) {
-          Eigen::MatrixXd Ck(keep.size(), keep.size());
-          for (size_t r = 0; r < keep.size(); ++r) {
-            for (size_t c = 0; c < keep.size(); ++c) Ck(r, c) = C(keep[r], keep[c]);
-          }
-          const Eigen::MatrixXd Ik = PseudoInverse(Ck);
-          for (size_t r = 0; r < keep.size(); ++r) {
-            for (size_t c = 0; c < keep.size(); ++c) next(keep[r], keep[c]) = Ik(r, c);
-          }
-        }
-        const double sigma = 1e-3 * prior->scales.joint_term_mrad;
-        for (int k : freed) next(k, k) = 1.0 / (sigma * sigma);
-        t.information = next;
-      }
-      o.prior = prior;
-      out.run = RunCalibrationPipeline(nominal, identification, verification, o);
-      ++out.solves;
-      continue;
-    }
-    const double k2 = prior->scale * prior->scale;
-    const Matrix6d tolerances =
-        DefaultFrameInformation(reference, worst.frame, prior->scales, 1.0) * k2;
-    if (state[worst.frame] == 0 && worst.name.size() > 5 &&
-        worst.name.compare(worst.name.size() - 5, 5, " zero") == 0) {
-      // The zero's direction gets the tolerances; the frame's other directions keep their
-      // marginal information.
-      const Eigen::Matrix<double, 6, 1> q = zero_direction[worst.frame].normalized();
-      const Eigen::MatrixXd qm = q;
-      const Eigen::HouseholderQR<Eigen::MatrixXd> qr(qm);
-      const Eigen::MatrixXd full = qr.householderQ() * Eigen::MatrixXd::Identity(6, 6);
-      const Eigen::MatrixXd Bo = full.rightCols(5);
-      const Matrix6d& info = prior->frame_information[worst.frame];
-      const Eigen::LDLT<Matrix6d> ldlt(info);
-      const Eigen::MatrixXd C = ldlt.solve(Matrix6d::Identity());
-      const Eigen::MatrixXd qq = q * q.transpose();
-      Matrix6d next = Bo * (Bo.transpose() * C * Bo).inverse() * Bo.transpose() +
-                      qq * tolerances * qq;
-      prior->frame_information[worst.frame] = 0.5 * (next + next.transpose());
-      state[worst.frame] = 1;
+      FreeJointTermGroup(worst, p, prior.get());
     } else {
-      prior->frame_information[worst.frame] = tolerances;
-      state[worst.frame] = 2;
+      FreeFrameGroup(worst, reference, &st, prior.get());
     }
     o.prior = prior;
     out.run = RunCalibrationPipeline(nominal, identification, verification, o);

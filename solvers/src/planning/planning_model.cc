@@ -197,6 +197,21 @@ Eigen::MatrixXd PlanningPriorInformation(const PlanningModel& pm, const Paramete
     M.block(p.offset[f], p.offset[f], k, k) =
         sigma * sigma * B.transpose() * FrameInformation(free, model, f) * B;
   }
+  // Joint-space terms the prior covers (a previous calibration with --joint_errors: its
+  // covariance block lists them): basis_b^T Lambda_b basis_b / scale^2 on the term's
+  // combinations, as the solvers weigh it (prior_terms.cc). Terms it does not list get none.
+  for (const JointBlock& b : p.joint_blocks) {
+    const Eigen::Index k = b.basis.cols();
+    if (k == 0) continue;
+    for (const JointTermPrior& t : prior.joint_terms) {
+      if (t.name != b.term->name() || t.information.rows() != b.basis.rows() ||
+          t.information.cols() != b.basis.rows()) {
+        continue;
+      }
+      M.block(b.offset, b.offset, k, k) = sigma * sigma / (prior.scale * prior.scale) *
+                                          b.basis.transpose() * t.information * b.basis;
+    }
+  }
   return M;
 }
 
