@@ -122,6 +122,45 @@ std::shared_ptr<const JointTerm> Term(const std::string& name, const RobotModel&
   return term;
 }
 
+// The simulation of a robot with joint-space terms (lpoe_simulate --joint_errors with
+// --measurement=ballbar|plane): each distance is read at the truth's effective joints, and the
+// probe stops where the true tip touches its face (one probe radius off), not where the geometric
+// robot's would; the terms move those points by micrometres.
+TEST(ContactJointErrors, SimulationMeasuresAtTheEffectiveJoints) {
+  const Arm a = MakeArm(false);
+  BallbarSimulationOptions bo;
+  bo.count = 60;
+  bo.noise = 0;
+  std::vector<Eigen::Vector3d> pivots;
+  ContactMeasurementSet bar;
+  ASSERT_TRUE(SimulateBallbar(a.truth, bo, &bar, &pivots).ok());
+  double largest_shift = 0;
+  for (int r = 0; r < bar.size(); ++r) {
+    const ContactRow& row = bar.rows[r];
+    EXPECT_NEAR(row.value, (Predict(a.truth, bar.joints(r)) - pivots[row.feature]).norm(), 1e-9);
+    largest_shift = std::max(
+        largest_shift,
+        std::abs(row.value - (ToolPosition(a.truth, bar.joints(r), 0) - pivots[row.feature]).norm()));
+  }
+  EXPECT_GT(largest_shift, 1e-3) << "mm: the terms' effect on the distances";
+  PlaneSimulationOptions po;
+  po.count = 60;
+  po.noise = 0;
+  std::vector<Eigen::Vector4d> planes;
+  ContactMeasurementSet cube;
+  ASSERT_TRUE(SimulatePlaneContacts(a.truth, po, &cube, &planes).ok());
+  largest_shift = 0;
+  for (int r = 0; r < cube.size(); ++r) {
+    const ContactRow& row = cube.rows[r];
+    const Eigen::Vector4d& plane = planes[row.feature];
+    EXPECT_NEAR(plane.head<3>().dot(Predict(a.truth, cube.joints(r))) - plane(3), row.value, 1e-8);
+    largest_shift = std::max(largest_shift,
+                             std::abs(plane.head<3>().dot(ToolPosition(a.truth, cube.joints(r), 0)) -
+                                      plane(3) - row.value));
+  }
+  EXPECT_GT(largest_shift, 1e-3) << "mm: where the geometric robot's tip would be";
+}
+
 // ---------------------------------------------------------------------------------------------
 // The plain least-squares reference with one joint-space term: every frame's six right
 // perturbations, the pivots and the term's parameters theta (all of them), Gauss-Newton with a
