@@ -25,6 +25,7 @@
 #include "lpoe/urdf.h"
 #include "output_files.h"
 #include "report/plot.h"
+#include "report/report.h"
 #include "report/text_safety.h"
 #include "tool_common.h"
 
@@ -204,6 +205,35 @@ bool ContactCalibrationRequested() {
   if (!DetectMeasurementFileKind(FLAGS_measurements, &kind).ok() || kind == nullptr) return false;
   return kind->id == MeasurementKindId::kDistance || kind->id == MeasurementKindId::kPlane;
 }
+
+namespace {
+
+// --joint_errors=auto's choice for the JSON report (the tracker report's joint_errors.selection).
+nlohmann::json ContactSelectionJson(const JointErrorSelection& sel) {
+  nlohmann::json candidates = nlohmann::json::array();
+  for (const JointErrorCandidate& c : sel.candidates) {
+    nlohmann::json j = {{"terms", c.label},
+                        {"converged", c.ok},
+                        {"failure", c.failure},
+                        {"identified_combinations", c.parameters},
+                        {"fold_rms", c.fold_rms}};
+    if (c.ok) {
+      j["cv_rms"] = c.cv_rms;
+      j["cv_mse"] = c.cv_mse;
+      j["cv_mse_standard_error"] = c.cv_mse_se;
+    }
+    candidates.push_back(j);
+  }
+  return {{"folds", sel.folds},
+          {"seed", sel.seed},
+          {"candidates", candidates},
+          {"best", sel.best >= 0 ? sel.candidates[sel.best].label : ""},
+          {"chosen", sel.candidates[sel.chosen].label},
+          {"reason", sel.reason},
+          {"tilt_message", sel.tilt_message}};
+}
+
+}  // namespace
 
 int RunContactCalibration() {
   // ---- Flags.
@@ -425,17 +455,26 @@ int RunContactCalibration() {
   // in k folds, shuffled by --split_seed + 1; each fold's rows predicted by the calibration of the
   // others, with the same options), the figures per kind (lpoe/contact_pipeline.h).
   // --joint_errors: the registry's terms, built on the start model (their regressors' geometry).
-  if (Status s = ContactJointTerms(FLAGS_joint_errors, start, &options.joint_terms); !s.ok()) {
+  // auto: chosen by cross-validation on the identification rows (SelectContactJointErrors).
+  const bool auto_terms = FLAGS_joint_errors == "auto";
+  if (Status s = ContactJointTerms(auto_terms ? "none" : FLAGS_joint_errors, start,
+                                   &options.joint_terms);
+      !s.ok()) {
     std::cerr << "error: --joint_errors=" << s.message() << " (docs/measurements.md)\n";
     return kExitUsage;
   }
   ContactPipelineOptions run_options;
+  run_options.joint_errors_auto = auto_terms;
   run_options.solver = FLAGS_solver;
   run_options.calibration = options;
   run_options.holdout = FLAGS_holdout;
   run_options.split_seed = FLAGS_split_seed;
   run_options.kfold = FLAGS_kfold;
   const ContactPipelineResult run = RunContactPipeline(start, data, verification, run_options);
+  if (run.joint_error_selection.ran && !FLAGS_quiet) {
+    std::cerr << JointErrorSelectionTable(run.joint_error_selection,
+                                          "distance and plane errors (mm)");
+  }
   const ContactCalibrationResult& result = run.calibration;
   const ContactMeasurementSet& identification = run.identification;
   if (!result.ok) {
@@ -612,6 +651,9 @@ int RunContactCalibration() {
         {"left_out", left_out},
         {"joint_errors", joint_json},
     };
+    if (run.joint_error_selection.ran) {
+      j["joint_error_selection"] = ContactSelectionJson(run.joint_error_selection);
+    }
     staged = outputs.Stage(FLAGS_report, j.dump(2) + "\n");
   }
   std::string errors_html;
