@@ -19,6 +19,7 @@
 #include "file_util.h"
 #include "lpoe/io.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 
 #ifndef LPOE_CALIBRATE_PATH
@@ -289,6 +290,20 @@ TEST_F(ContactTool, SimulatedJointErrorsRecovered) {
   ::testing::Test::RecordProperty("offset_error_ratio_permille",
                                   static_cast<int>(1000 * std::sqrt(diff / size)));
   EXPECT_LT(std::sqrt(diff / size), 0.5) << "RMS of the offsets' error over the true offsets' RMS";
+  // --joint_errors=auto on the same file: the cross-validation's table on stderr, the choice in
+  // the report, and the true term among the chosen.
+  const ToolOutput a = Run(LPOE_CALIBRATE_PATH,
+                           "--model=" + P("nominal.yaml") + " --measurements=" + P("bar.csv") +
+                               " --joint_errors=auto --output=" + P("auto.yaml") +
+                               " --report=" + P("report.json"));
+  ASSERT_EQ(a.exit_code, 0) << a.err << a.out;
+  EXPECT_NE(a.err.find("joint errors (auto): 5-fold cross-validation"), std::string::npos) << a.err;
+  const nlohmann::json r = Report();
+  const std::string chosen = r["joint_error_selection"]["chosen"];
+  ::testing::Test::RecordProperty("auto_chosen", chosen);
+  EXPECT_NE(chosen.find("harmonics"), std::string::npos) << a.err;
+  EXPECT_EQ(r["joint_error_selection"]["candidates"].size(), size_t{1} << JointTermNames().size());
+  EXPECT_LT(HeldOutRms("auto.yaml", false, &scale), 0.005) << "mm";
 }
 
 // --verify with a ballbar file of the same pivots (another seed, the same robot): its table per
