@@ -75,9 +75,9 @@ ContactMeasurementSet Ballbar(const RobotModel& truth, int count, uint64_t seed,
   return out;
 }
 
-// Probe contacts on three faces of a cube (3 mm probe): SimulatePlaneContacts's configurations,
-// each row's offset read as the signed distance of the truth's point at q_eff plus noise (the
-// point the geometric robot puts at 3 mm lies at 3 mm plus the joint errors' displacement).
+// Probe contacts on three faces of a cube (3 mm probe): SimulatePlaneContacts's configurations
+// (where the truth's tip, at q_eff, touches: 3 mm off its face), each row's offset read as the
+// signed distance of the truth's point at q_eff plus noise.
 ContactMeasurementSet Cube(const RobotModel& truth, int count, uint64_t seed, double noise) {
   PlaneSimulationOptions o;
   o.count = count;
