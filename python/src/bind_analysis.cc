@@ -626,6 +626,10 @@ py::object Plan(const RobotModel* model_arg, int count, const py::object& candid
                 double face_radius, double probe_radius, int samples_per_feature,
                 const py::object& contact_tool_obj, const py::object& prior_obj,
                 const py::object& prior_free_obj, double noise_sigma) {
+  if (measurement != "position" && (!prior_obj.is_none() || !prior_free_obj.is_none())) {
+    throw LpoeError("prior and prior_free plan a recalibration from tracker (position) "
+                    "measurements; a measurement='" + measurement + "' plan takes no prior");
+  }
   const std::shared_ptr<Prior> prior_file = PriorArgument(prior_obj);
   if (model_arg == nullptr && prior_file == nullptr) {
     throw LpoeError("model: None needs prior= (the prior's model is then the model)");
@@ -682,10 +686,6 @@ py::object Plan(const RobotModel* model_arg, int count, const py::object& candid
                       (measurement == "ballbar" ? "pivots' spheres" : "planes") +
                       " (docs/measurements.md)");
     }
-  }
-  if (prior_file != nullptr || !prior_free_obj.is_none()) {
-    throw LpoeError("prior and prior_free plan a recalibration from tracker (position) "
-                    "measurements; a measurement='" + measurement + "' plan takes no prior");
   }
   ContactPlanOptions o;
   o.bar_length = bar_length;
