@@ -714,6 +714,57 @@ py::object Plan(const RobotModel* model_arg, int count, const py::object& candid
                               face_centres_obj, random_draws));
 }
 
+// lpoe.ContactPlan: what lpoe.plan(measurement='ballbar' | 'plane') returns.
+void BindContactPlanClass(py::module_& m) {
+  py::class_<PyContactPlan>(m, "ContactPlan",
+                            "The result of lpoe.plan(measurement='ballbar' | 'plane').")
+      .def_readonly("measurement", &PyContactPlan::measurement)
+      .def_readonly("q", &PyContactPlan::q, "(count, N) the planned configurations (rad / mm)")
+      .def_readonly("features", &PyContactPlan::features,
+                    "the pivot (ballbar) or plane (probe) of each planned pose, as lpoe_plan names "
+                    "them: pivot1, ... in the order given; face_x, face_y, face_z for three "
+                    "planes, else plane1, ...")
+      .def_readonly("candidate_rows", &PyContactPlan::candidate_rows,
+                    "row of each planned pose in `candidates`")
+      .def_readonly("candidates", &PyContactPlan::candidates,
+                    "(C, N) the feasible candidates (random configurations projected onto the "
+                    "pivots' spheres or the planes)")
+      .def_readonly("candidate_features", &PyContactPlan::candidate_features)
+      .def_readonly("num_parameters", &PyContactPlan::num_parameters,
+                    "the parameters the calibration would estimate from such rows")
+      .def_readonly("exchanges", &PyContactPlan::exchanges)
+      .def_readonly("log_det", &PyContactPlan::log_det,
+                    "log det of the plan's column-scaled information")
+      .def_readonly("random_log_det", &PyContactPlan::random_log_det,
+                    "the random plans' log det, ascending (seeds seed + 1000 + k)")
+      .def_readonly("random_mean_log_det", &PyContactPlan::random_mean_log_det)
+      .def_readonly("random_best_log_det", &PyContactPlan::random_best_log_det)
+      .def_property_readonly(
+          "pool",
+          [](const PyContactPlan& p) {
+            py::dict d;
+            d["sampled"] = p.sampled;
+            d["feasible"] = p.feasible;
+            d["not_reached"] = p.not_reached;
+            d["outside_limits"] = p.outside_limits;
+            d["outside_cell"] = p.outside_cell;
+            d["near_singular"] = p.near_singular;
+            d["outside_stroke"] = p.outside_stroke;
+            return d;
+          },
+          "how many candidates were sampled, kept and why the others were dropped (lpoe_plan's "
+          "report: candidates)")
+      .def("__len__", [](const PyContactPlan& p) { return static_cast<size_t>(p.q.rows()); })
+      .def("__repr__", [](const PyContactPlan& p) {
+        std::ostringstream os;
+        os << "<lpoe.ContactPlan: " << p.q.rows() << " " << p.measurement << " poses of "
+           << p.feasible << " candidates, log det " << p.log_det << " (random best "
+           << p.random_best_log_det << ")>";
+        return os.str();
+      });
+
+}
+
 }  // namespace
 
 void BindAnalysis(py::module_& m) {
@@ -960,53 +1011,7 @@ void BindAnalysis(py::module_& m) {
         return os.str();
       });
 
-  py::class_<PyContactPlan>(m, "ContactPlan",
-                            "The result of lpoe.plan(measurement='ballbar' | 'plane').")
-      .def_readonly("measurement", &PyContactPlan::measurement)
-      .def_readonly("q", &PyContactPlan::q, "(count, N) the planned configurations (rad / mm)")
-      .def_readonly("features", &PyContactPlan::features,
-                    "the pivot (ballbar) or plane (probe) of each planned pose, as lpoe_plan names "
-                    "them: pivot1, ... in the order given; face_x, face_y, face_z for three "
-                    "planes, else plane1, ...")
-      .def_readonly("candidate_rows", &PyContactPlan::candidate_rows,
-                    "row of each planned pose in `candidates`")
-      .def_readonly("candidates", &PyContactPlan::candidates,
-                    "(C, N) the feasible candidates (random configurations projected onto the "
-                    "pivots' spheres or the planes)")
-      .def_readonly("candidate_features", &PyContactPlan::candidate_features)
-      .def_readonly("num_parameters", &PyContactPlan::num_parameters,
-                    "the parameters the calibration would estimate from such rows")
-      .def_readonly("exchanges", &PyContactPlan::exchanges)
-      .def_readonly("log_det", &PyContactPlan::log_det,
-                    "log det of the plan's column-scaled information")
-      .def_readonly("random_log_det", &PyContactPlan::random_log_det,
-                    "the random plans' log det, ascending (seeds seed + 1000 + k)")
-      .def_readonly("random_mean_log_det", &PyContactPlan::random_mean_log_det)
-      .def_readonly("random_best_log_det", &PyContactPlan::random_best_log_det)
-      .def_property_readonly(
-          "pool",
-          [](const PyContactPlan& p) {
-            py::dict d;
-            d["sampled"] = p.sampled;
-            d["feasible"] = p.feasible;
-            d["not_reached"] = p.not_reached;
-            d["outside_limits"] = p.outside_limits;
-            d["outside_cell"] = p.outside_cell;
-            d["near_singular"] = p.near_singular;
-            d["outside_stroke"] = p.outside_stroke;
-            return d;
-          },
-          "how many candidates were sampled, kept and why the others were dropped (lpoe_plan's "
-          "report: candidates)")
-      .def("__len__", [](const PyContactPlan& p) { return static_cast<size_t>(p.q.rows()); })
-      .def("__repr__", [](const PyContactPlan& p) {
-        std::ostringstream os;
-        os << "<lpoe.ContactPlan: " << p.q.rows() << " " << p.measurement << " poses of "
-           << p.feasible << " candidates, log det " << p.log_det << " (random best "
-           << p.random_best_log_det << ")>";
-        return os.str();
-      });
-
+  BindContactPlanClass(m);
   const ContactPlanOptions contact;
   m.def("plan", &Plan, py::arg("model").none(true), py::arg("count"), py::kw_only(),
         py::arg("candidates") = py::none(),
