@@ -183,9 +183,9 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
 
 std::string ContactRefusalReason(const std::string& option) {
   if (option == "joint_errors_auto") {
-    return "the automatic choice of joint-space terms with distance or plane rows is made by the "
-           "contact pipeline (ContactPipelineOptions::joint_errors_auto), not from a list of "
-           "terms";
+    return "the automatic choice is made by lpoe_calibrate and lpoe.calibrate (it prints the "
+           "chosen terms); comparing the two solvers takes the terms by name, e.g. "
+           "--joint_errors=harmonics";
   }
   if (option == "joint_errors_tilt") {
     return "the gravity tilt is bilinear with the compliance term's parameters and is identified "
