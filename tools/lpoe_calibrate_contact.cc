@@ -25,6 +25,7 @@
 #include "lpoe/urdf.h"
 #include "output_files.h"
 #include "report/plot.h"
+#include "report/report.h"
 #include "report/text_safety.h"
 #include "tool_common.h"
 
@@ -205,8 +206,67 @@ bool ContactCalibrationRequested() {
   return kind->id == MeasurementKindId::kDistance || kind->id == MeasurementKindId::kPlane;
 }
 
-int RunContactCalibration() {
-  // ---- Flags.
+namespace {
+
+// --joint_errors=auto's choice for the JSON report (the tracker report's joint_errors.selection).
+nlohmann::json ContactSelectionJson(const JointErrorSelection& sel) {
+  nlohmann::json candidates = nlohmann::json::array();
+  for (const JointErrorCandidate& c : sel.candidates) {
+    nlohmann::json j = {{"terms", c.label},
+                        {"converged", c.ok},
+                        {"failure", c.failure},
+                        {"identified_combinations", c.parameters},
+                        {"fold_rms", c.fold_rms}};
+    if (c.ok) {
+      j["cv_rms"] = c.cv_rms;
+      j["cv_mse"] = c.cv_mse;
+      j["cv_mse_standard_error"] = c.cv_mse_se;
+    }
+    candidates.push_back(j);
+  }
+  return {{"folds", sel.folds},
+          {"seed", sel.seed},
+          {"candidates", candidates},
+          {"best", sel.best >= 0 ? sel.candidates[sel.best].label : ""},
+          {"chosen", sel.candidates[sel.chosen].label},
+          {"reason", sel.reason},
+          {"tilt_message", sel.tilt_message}};
+}
+
+}  // namespace
+
+namespace {
+
+// What the steps of a contact calibration share: the options and files from the flags, the inputs
+// read, the run, and the tables and JSON the summary builds for the outputs.
+struct ContactRun {
+  ContactCalibrationOptions options;
+  UrdfOptions urdf_options;
+  const MeasurementKindInfo* forced = nullptr;  // --data_kind (null: auto)
+  std::vector<std::string> files, verify_files;
+  std::vector<double> sigmas;
+  AngleUnit angle;
+  LengthUnit length;
+  OutputSet outputs;
+  RobotModel nominal;
+  UrdfSource urdf_source;  // a URDF --model, for the URDF and UR write-back
+  bool from_urdf = false;
+  CsvOptions csv;
+  ContactInputs inputs;
+  ContactMeasurementSet verification;
+  RobotModel start;
+  ContactPipelineResult run;
+  const char* verify_label = "held-out RMS";
+  // Built by the summary for the report and the HTML page.
+  nlohmann::json kinds_json = nlohmann::json::array();
+  nlohmann::json pivots = nlohmann::json::array(), planes = nlohmann::json::array();
+  nlohmann::json joint_json = nlohmann::json::array();
+  nlohmann::json left_out = nlohmann::json::array();
+  std::string html_rows, html_feature_rows;
+};
+
+// The options of the calibration from the flags; what these kinds do not take refused.
+int ContactOptionsFromFlags(ContactRun* job) {
   struct Unsupported {
     bool set;
     const char* flag;
@@ -226,7 +286,7 @@ int RunContactCalibration() {
     std::cerr << "error: --solver must be linear or ceres, got '" << FLAGS_solver << "'\n";
     return kExitUsage;
   }
-  ContactCalibrationOptions options;
+  ContactCalibrationOptions& options = job->options;
   if (!ParseScaleHold(FLAGS_hold_scale, &options.hold_scale)) {
     std::cerr << "error: --hold_scale must be auto, on or off, got '" << FLAGS_hold_scale << "'\n";
     return kExitUsage;
@@ -248,30 +308,37 @@ int RunContactCalibration() {
     std::cerr << "error: give either --verify or --holdout, not both\n";
     return kExitUsage;
   }
-  UrdfOptions urdf_options;
-  if (!UrdfOptionsFromFlags(FLAGS_model, &urdf_options) ||
+  if (!UrdfOptionsFromFlags(FLAGS_model, &job->urdf_options) ||
       (!FLAGS_ur_kinematics_output.empty() && !IsUrdfPath(FLAGS_model))) {
     std::cerr << "error: --base_link, --tip_link, --tool_links and --ur_kinematics_output need a "
                  "URDF --model (a name ending in .urdf)\n";
     return kExitUsage;
   }
-  const MeasurementKindInfo* forced = nullptr;
   if (FLAGS_data_kind != "auto") {
-    forced = FindMeasurementKind(FLAGS_data_kind);
-    if (forced == nullptr) {
+    job->forced = FindMeasurementKind(FLAGS_data_kind);
+    if (job->forced == nullptr) {
       std::cerr << "error: --data_kind must be auto or one of " << MeasurementKindNames()
                 << ", got '" << FLAGS_data_kind << "'\n";
       return kExitUsage;
     }
   }
-  const std::vector<std::string> files = SplitList(FLAGS_measurements);
+  job->verify_label = FLAGS_verify.empty() ? "held-out RMS" : "verify RMS";
+  return kExitOk;
+}
+
+// The files and their noise, the units, and every output checked against the inputs and each
+// other before any work.
+int ContactFilesFromFlags(ContactRun* job) {
+  std::vector<std::string>& files = job->files;
+  files = SplitList(FLAGS_measurements);
   for (const std::string& f : files) {
     if (f.empty()) {
       std::cerr << "error: --measurements has an empty file name\n";
       return kExitUsage;
     }
   }
-  std::vector<double> sigmas(files.size(), SigmaGiven() ? FLAGS_sigma : 0.0);
+  std::vector<double>& sigmas = job->sigmas;
+  sigmas.assign(files.size(), SigmaGiven() ? FLAGS_sigma : 0.0);
   if (!FLAGS_sigmas.empty()) {
     const std::vector<std::string> items = SplitList(FLAGS_sigmas);
     if (items.size() != files.size()) {
@@ -292,19 +359,17 @@ int RunContactCalibration() {
     std::cerr << "error: --sigma must be in (0, 1000] mm\n";
     return kExitUsage;
   }
-  AngleUnit angle;
-  LengthUnit length;
-  if (!UnitsFromFlags(&angle, &length, nullptr)) return kExitUsage;
+  if (!UnitsFromFlags(&job->angle, &job->length, nullptr)) return kExitUsage;
   if (FLAGS_model.empty()) {
     std::cerr << "error: --model is required with distance or plane data\n";
     return kExitUsage;
   }
-  OutputSet outputs;
+  OutputSet& outputs = job->outputs;
   outputs.AddInput("--model", FLAGS_model);
   for (const std::string& f : files) outputs.AddInput("--measurements", f);
-  const std::vector<std::string> verify_files =
+  job->verify_files =
       FLAGS_verify.empty() ? std::vector<std::string>() : SplitList(FLAGS_verify);
-  for (const std::string& f : verify_files) {
+  for (const std::string& f : job->verify_files) {
     if (f.empty()) {
       std::cerr << "error: --verify has an empty file name\n";
       return kExitUsage;
@@ -320,84 +385,93 @@ int RunContactCalibration() {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
+  return kExitOk;
+}
 
-  // ---- Inputs.
-  RobotModel nominal;
-  UrdfSource urdf_source;  // a URDF --model, for the URDF and UR write-back
-  const bool from_urdf = IsUrdfPath(FLAGS_model);
-  if (from_urdf) {
-    if (Status s = ReadRobotModelUrdf(FLAGS_model, &nominal, urdf_options, &urdf_source); !s.ok()) {
+// The model (checked for the UR file before solving) and the measurement files.
+int ReadContactModelAndData(ContactRun* job) {
+  job->from_urdf = IsUrdfPath(FLAGS_model);
+  if (job->from_urdf) {
+    if (Status s = ReadRobotModelUrdf(FLAGS_model, &job->nominal, job->urdf_options,
+                                      &job->urdf_source);
+        !s.ok()) {
       std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
-  } else if (int code = ReadModelFlag(&nominal); code != kExitOk) {
+  } else if (int code = ReadModelFlag(&job->nominal); code != kExitOk) {
     return code;
   }
   // The UR file needs a UR arm with z axes: checked on the nominal model before solving.
   if (!FLAGS_ur_kinematics_output.empty()) {
     std::string ur_yaml;
-    if (Status s = UrKinematicsYaml(urdf_source, nominal, {}, &ur_yaml); !s.ok()) {
+    if (Status s = UrKinematicsYaml(job->urdf_source, job->nominal, {}, &ur_yaml); !s.ok()) {
       std::cerr << "error: --ur_kinematics_output: " << s.message() << "\n";
       return kExitUsage;
     }
   }
-  CsvOptions csv;
-  csv.angle_unit = angle;
-  csv.length_unit = length;
+  job->csv.angle_unit = job->angle;
+  job->csv.length_unit = job->length;
   ContactInputOptions input_options;
-  input_options.units = csv;
-  input_options.forced_kind = forced;
-  input_options.sigmas = sigmas;
-  ContactInputs inputs;
+  input_options.units = job->csv;
+  input_options.forced_kind = job->forced;
+  input_options.sigmas = job->sigmas;
   bool usage_error = false;
-  if (Status s = ReadContactInputs(files, nominal, input_options, &inputs, &usage_error); !s.ok()) {
+  if (Status s = ReadContactInputs(job->files, job->nominal, input_options, &job->inputs,
+                                   &usage_error);
+      !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return usage_error ? kExitUsage : kExitInput;
   }
-  const ContactMeasurementSet& data = inputs.data;
-  const MeasurementSet& tracker = inputs.tracker;
-  const std::vector<std::string>& kinds_of_files = inputs.kinds;
+  const ContactMeasurementSet& data = job->inputs.data;
   if (data.Count(MeasurementKindId::kDistance) + data.Count(MeasurementKindId::kPlane) == 0) {
     std::cerr << "error: no distance or plane file among --measurements (tracker data alone: "
                  "give one file, as always)\n";
     return kExitUsage;
   }
-  // ---- --verify: distance and plane files of the calibration's pivots and planes, evaluated with
-  // the features it estimates.
-  ContactMeasurementSet verification;
-  if (!verify_files.empty()) {
-    std::vector<ContactMeasurementSet> parts;
-    for (const std::string& f : verify_files) {
-      const MeasurementKindInfo* kind = nullptr;
-      if (Status s = DetectMeasurementFileKind(f, &kind); !s.ok()) {
-        std::cerr << "error: " << s.message() << "\n";
-        return kExitInput;
-      }
-      if (kind->id != MeasurementKindId::kDistance && kind->id != MeasurementKindId::kPlane) {
-        std::cerr << "error: --verify " << f << ": a " << kind->name
-                  << " file; with distance or plane data --verify takes distance or plane files "
-                     "(tracker rows: use --holdout)\n";
-        return kExitUsage;
-      }
-      ContactCsvOptions o;
-      o.units = csv;
-      o.kind = kind;
-      o.sigma = SigmaGiven() ? FLAGS_sigma : 0.0;
-      ContactMeasurementSet part;
-      if (Status s = ReadContactMeasurements(f, nominal, o, &part); !s.ok()) {
-        std::cerr << "error: " << s.message() << "\n";
-        return kExitInput;
-      }
-      parts.push_back(std::move(part));
-    }
-    if (Status s = ContactVerificationSet(data, parts, &verification); !s.ok()) {
-      std::cerr << "error: --verify names a pivot or plane that --measurements does not (its "
-                   "position is estimated from the calibration's rows): "
-                << s.message() << "\n";
+  return kExitOk;
+}
+
+// --verify: distance and plane files of the calibration's pivots and planes, evaluated with the
+// features it estimates.
+int ReadContactVerification(ContactRun* job) {
+  if (job->verify_files.empty()) return kExitOk;
+  std::vector<ContactMeasurementSet> parts;
+  for (const std::string& f : job->verify_files) {
+    const MeasurementKindInfo* kind = nullptr;
+    if (Status s = DetectMeasurementFileKind(f, &kind); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
       return kExitInput;
     }
+    if (kind->id != MeasurementKindId::kDistance && kind->id != MeasurementKindId::kPlane) {
+      std::cerr << "error: --verify " << f << ": a " << kind->name
+                << " file; with distance or plane data --verify takes distance or plane files "
+                   "(tracker rows: use --holdout)\n";
+      return kExitUsage;
+    }
+    ContactCsvOptions o;
+    o.units = job->csv;
+    o.kind = kind;
+    o.sigma = SigmaGiven() ? FLAGS_sigma : 0.0;
+    ContactMeasurementSet part;
+    if (Status s = ReadContactMeasurements(f, job->nominal, o, &part); !s.ok()) {
+      std::cerr << "error: " << s.message() << "\n";
+      return kExitInput;
+    }
+    parts.push_back(std::move(part));
   }
-  RobotModel start = nominal;
+  if (Status s = ContactVerificationSet(job->inputs.data, parts, &job->verification); !s.ok()) {
+    std::cerr << "error: --verify names a pivot or plane that --measurements does not (its "
+                 "position is estimated from the calibration's rows): "
+              << s.message() << "\n";
+    return kExitInput;
+  }
+  return kExitOk;
+}
+
+// The start model (registered to the tracker's frame when tracker files are among the files)
+// and the joint-space terms built on it.
+int ContactStartAndTerms(ContactRun* job) {
+  job->start = job->nominal;
   if (!FLAGS_joint_errors.empty() && FLAGS_joint_errors != "none" &&
       (!FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty())) {
     std::cerr << "error: --urdf_output and --ur_kinematics_output are not available with "
@@ -406,7 +480,7 @@ int RunContactCalibration() {
                  "calibrate the geometry alone for them (docs/measurements.md)\n";
     return kExitUsage;
   }
-  if (tracker.size() > 0) {
+  if (job->inputs.tracker.size() > 0) {
     if (!FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty()) {
       std::cerr << "error: --urdf_output and --ur_kinematics_output are not available with "
                    "tracker files among distance or plane files: "
@@ -416,28 +490,40 @@ int RunContactCalibration() {
     // The tracker's frame: the model is registered to it first, so that the pivots and planes are
     // estimated in the tracker's frame and the base is seen.
     RegistrationReport report;
-    if (Status s = RegisterToMeasurements(nominal, tracker, &start, &report); !s.ok()) {
+    if (Status s = RegisterToMeasurements(job->nominal, job->inputs.tracker, &job->start, &report);
+        !s.ok()) {
       std::cerr << "error: registration to the tracker data: " << s.message() << "\n";
       return kExitNumerical;
     }
   }
-  // ---- The run: hold-out rows (or --verify's), calibration, --kfold (the identification rows
-  // in k folds, shuffled by --split_seed + 1; each fold's rows predicted by the calibration of the
-  // others, with the same options), the figures per kind (lpoe/contact_pipeline.h).
-  // --joint_errors: the registry's terms, built on the start model (their regressors' geometry).
-  if (Status s = ContactJointTerms(FLAGS_joint_errors, start, &options.joint_terms); !s.ok()) {
+  // --joint_errors: the registry's terms, built on the start model (their regressors' geometry);
+  // auto: chosen by cross-validation on the identification rows (SelectContactJointErrors).
+  const std::string terms = FLAGS_joint_errors == "auto" ? "none" : FLAGS_joint_errors;
+  if (Status s = ContactJointTerms(terms, job->start, &job->options.joint_terms); !s.ok()) {
     std::cerr << "error: --joint_errors=" << s.message() << " (docs/measurements.md)\n";
     return kExitUsage;
   }
+  return kExitOk;
+}
+
+// The run: hold-out rows (or --verify's), calibration, --kfold (the identification rows in k
+// folds, shuffled by --split_seed + 1; each fold's rows predicted by the calibration of the
+// others, with the same options), the figures per kind (lpoe/contact_pipeline.h).
+int RunContactJob(ContactRun* job) {
   ContactPipelineOptions run_options;
+  run_options.joint_errors_auto = FLAGS_joint_errors == "auto";
   run_options.solver = FLAGS_solver;
-  run_options.calibration = options;
+  run_options.calibration = job->options;
   run_options.holdout = FLAGS_holdout;
   run_options.split_seed = FLAGS_split_seed;
   run_options.kfold = FLAGS_kfold;
-  const ContactPipelineResult run = RunContactPipeline(start, data, verification, run_options);
+  job->run = RunContactPipeline(job->start, job->inputs.data, job->verification, run_options);
+  const ContactPipelineResult& run = job->run;
+  if (run.joint_error_selection.ran && !FLAGS_quiet) {
+    std::cerr << JointErrorSelectionTable(run.joint_error_selection,
+                                          "distance and plane errors (mm)");
+  }
   const ContactCalibrationResult& result = run.calibration;
-  const ContactMeasurementSet& identification = run.identification;
   if (!result.ok) {
     std::cerr << "error: " << (result.iterations == 0 ? "not identifiable: " : "") << result.message
               << "\n";
@@ -452,26 +538,26 @@ int RunContactCalibration() {
               << run.message << "\n";
     return ExitFor(run.fold_failure);
   }
-  const char* verify_label = FLAGS_verify.empty() ? "held-out RMS" : "verify RMS";
   if (Status s = CheckModelFinite(result.model); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitNumerical;
   }
+  return kExitOk;
+}
 
-  // ---- Summary.
-  std::ostream& out = std::cout;
-  const ContactParameterization& p = result.parameterization;
-  out << "lpoe_calibrate: " << identification.size() << " rows (";
-  for (size_t i = 0; i < files.size(); ++i) {
-    out << (i ? ", " : "") << files[i] << ": " << kinds_of_files[i];
+// The table per kind (printed, and as JSON and HTML rows for the reports).
+void ContactKindTables(ContactRun* job, std::ostream& out) {
+  const ContactPipelineResult& run = job->run;
+  const ContactCalibrationResult& result = run.calibration;
+  out << "lpoe_calibrate: " << run.identification.size() << " rows (";
+  for (size_t i = 0; i < job->files.size(); ++i) {
+    out << (i ? ", " : "") << job->files[i] << ": " << job->inputs.kinds[i];
   }
   out << "), solver " << result.solver << ", " << result.iterations << " iterations, cost "
       << result.initial_cost << " -> " << result.cost << "\n";
-  nlohmann::json kinds_json = nlohmann::json::array();
-  std::string html_rows, html_feature_rows;
   out << std::left << std::setw(10) << "kind" << std::right << std::setw(7) << "rows"
       << std::setw(14) << "RMS (mm)" << std::setw(14) << "max (mm)" << std::setw(16)
-      << "expected (mm)" << std::setw(9) << "verdict" << std::setw(16) << verify_label
+      << "expected (mm)" << std::setw(9) << "verdict" << std::setw(16) << job->verify_label
       << (FLAGS_kfold > 0 ? "     k-fold RMS" : "") << "\n";
   for (const ContactKindSummary& summary : run.kinds) {
     const MeasurementKindInfo& kind = *summary.kind;
@@ -513,32 +599,40 @@ int RunContactCalibration() {
              << fs.fit.max_abs << "</td><td>" << fs.fit.sigma << "</td><td>"
              << ContactKindVerdict(fs.fit) << "</td><td>"
              << (fs.held.rows > 0 ? std::to_string(fs.held.rms) : "-") << "</td></tr>\n";
-        html_feature_rows += frow.str();
+        job->html_feature_rows += frow.str();
       }
       // The kind's table per pivot (distance) or per plane (plane).
       k["features"] = features;
     }
-    kinds_json.push_back(k);
+    job->kinds_json.push_back(k);
     std::ostringstream row;
     row << "<tr><td>" << kind.report_table << "</td><td>" << f.rows << "</td><td>" << f.rms
         << "</td><td>" << f.max_abs << "</td><td>" << f.sigma << "</td><td>"
         << ContactKindVerdict(f) << "</td><td>" << (h.rows > 0 ? std::to_string(h.rms) : "-")
         << "</td></tr>\n";
-    html_rows += row.str();
+    job->html_rows += row.str();
   }
-  nlohmann::json pivots = nlohmann::json::array(), planes = nlohmann::json::array();
+}
+
+// The pivots and planes, the parameters, the joint-space terms, the base and the scale (printed,
+// and as JSON for the report).
+void ContactEstimates(ContactRun* job, std::ostream& out) {
+  const ContactCalibrationResult& result = job->run.calibration;
+  const ContactMeasurementSet& identification = job->run.identification;
+  const ContactParameterization& p = result.parameterization;
   for (size_t k = 0; k < result.features.pivots.size(); ++k) {
     const Eigen::Vector3d& c = result.features.pivots[k];
     out << "pivot " << ValidUtf8(identification.pivots[k]) << ": " << c.transpose() << " mm\n";
-    pivots.push_back({{"name", ValidUtf8(identification.pivots[k])}, {"xyz_mm", {c(0), c(1), c(2)}}});
+    job->pivots.push_back(
+        {{"name", ValidUtf8(identification.pivots[k])}, {"xyz_mm", {c(0), c(1), c(2)}}});
   }
   for (size_t k = 0; k < result.features.planes.size(); ++k) {
     const Eigen::Vector4d& pl = result.features.planes[k];
     out << "plane " << ValidUtf8(identification.planes[k]) << ": normal " << pl.head<3>().transpose()
         << ", n.x = " << pl(3) << " mm\n";
-    planes.push_back({{"name", ValidUtf8(identification.planes[k])},
-                      {"normal", {pl(0), pl(1), pl(2)}},
-                      {"offset_mm", pl(3)}});
+    job->planes.push_back({{"name", ValidUtf8(identification.planes[k])},
+                           {"normal", {pl(0), pl(1), pl(2)}},
+                           {"offset_mm", pl(3)}});
   }
   const int joint_parameters = p.frames.num_joint_parameters();
   out << "parameters: " << p.frames.num_parameters - joint_parameters << " of the robot, "
@@ -546,7 +640,6 @@ int RunContactCalibration() {
   if (!p.frames.joint_blocks.empty()) out << ", " << joint_parameters << " of joint-space terms";
   out << "\n";
   // The joint-space terms' values (what the YAML's joint_errors carries).
-  nlohmann::json joint_json = nlohmann::json::array();
   for (size_t b = 0; b < result.joint_terms.size(); ++b) {
     const JointTermValues& t = result.joint_terms[b];
     const int kept = static_cast<int>(p.frames.joint_blocks[b].basis.cols());
@@ -558,22 +651,27 @@ int RunContactCalibration() {
       values[t.term->ParameterName(k)] = t.theta(k);
     }
     out << "\n";
-    joint_json.push_back({{"term", t.term->name()},
-                          {"parameters", t.term->num_parameters()},
-                          {"identified_combinations", kept},
-                          {"values", values}});
+    job->joint_json.push_back({{"term", t.term->name()},
+                               {"parameters", t.term->num_parameters()},
+                               {"identified_combinations", kept},
+                               {"values", values}});
   }
   if (p.num_base_directions > 0) {
     out << "not identified (" << p.num_base_directions << " directions of the base): "
         << p.base_reason << "\n";
   }
   out << "scale: " << p.scale_reason << " (S = " << result.scale << ")\n";
-  nlohmann::json left_out = nlohmann::json::array();
   for (const Direction& d : p.frames.unidentifiable) {
-    left_out.push_back({{"name", ValidUtf8(d.name)}, {"reason", d.reason}});
+    job->left_out.push_back({{"name", ValidUtf8(d.name)}, {"reason", d.reason}});
   }
+}
 
-  // ---- Outputs (nothing is written unless every one is staged).
+// The model, its URDF and UR kinematics files and the JSON report, staged.
+Status StageContactModelAndReport(ContactRun* job) {
+  const ContactPipelineResult& run = job->run;
+  const ContactCalibrationResult& result = run.calibration;
+  const ContactParameterization& p = result.parameterization;
+  OutputSet& outputs = job->outputs;
   Status staged;
   if (!FLAGS_output.empty()) {
     RobotModel calibrated = result.model;
@@ -583,8 +681,8 @@ int RunContactCalibration() {
   // frame (the base is left out and kept as given), so joint 1 keeps its URDF origin.
   if (staged.ok() && !FLAGS_urdf_output.empty()) {
     std::string xml;
-    if (from_urdf) {
-      staged = CalibratedUrdfOverlay(urdf_source, result.model, UrdfOverlayOptions(), &xml);
+    if (job->from_urdf) {
+      staged = CalibratedUrdfOverlay(job->urdf_source, result.model, UrdfOverlayOptions(), &xml);
     } else {
       xml = RobotModelToUrdf(result.model);
     }
@@ -592,44 +690,54 @@ int RunContactCalibration() {
   }
   if (staged.ok() && !FLAGS_ur_kinematics_output.empty()) {
     std::string ur_yaml;
-    staged = UrKinematicsYaml(urdf_source, result.model, UrdfOverlayOptions(), &ur_yaml);
+    staged = UrKinematicsYaml(job->urdf_source, result.model, UrdfOverlayOptions(), &ur_yaml);
     if (staged.ok()) staged = outputs.Stage(FLAGS_ur_kinematics_output, ur_yaml);
   }
   if (staged.ok() && !FLAGS_report.empty()) {
     nlohmann::json j = {
         {"tool", "lpoe_calibrate"},
-        {"measurements", files},
-        {"file_kinds", kinds_of_files},
+        {"measurements", job->files},
+        {"file_kinds", job->inputs.kinds},
         {"solver", result.solver},
         {"iterations", result.iterations},
         {"cost_before", result.initial_cost},
         {"cost_after", result.cost},
-        {"measurement_kinds", kinds_json},
-        {"features", {{"pivots", pivots}, {"planes", planes}}},
+        {"measurement_kinds", job->kinds_json},
+        {"features", {{"pivots", job->pivots}, {"planes", job->planes}}},
         {"parameters", p.frames.num_parameters + 3 * p.num_pivots + 3 * p.num_planes},
         {"base", {{"directions_left_out", p.num_base_directions}, {"reason", p.base_reason}}},
         {"scale", {{"held", p.scale_held}, {"reason", p.scale_reason}, {"value", result.scale}}},
-        {"left_out", left_out},
-        {"joint_errors", joint_json},
+        {"left_out", job->left_out},
+        {"joint_errors", job->joint_json},
     };
+    if (run.joint_error_selection.ran) {
+      j["joint_error_selection"] = ContactSelectionJson(run.joint_error_selection);
+    }
     staged = outputs.Stage(FLAGS_report, j.dump(2) + "\n");
   }
+  return staged;
+}
+
+// The HTML page: the table per kind, per pivot and plane, the plot and the terms' values.
+Status StageContactHtml(ContactRun* job) {
+  const ContactPipelineResult& run = job->run;
+  const ContactCalibrationResult& result = run.calibration;
+  const ContactParameterization& p = result.parameterization;
+  const std::string verify_label = job->verify_label;
   std::string errors_html;
-  if (staged.ok() && !FLAGS_html_report.empty()) {
-    // The errors per pivot and plane, and their plot.
-    if (!html_feature_rows.empty()) {
-      errors_html = "<h2>Errors per pivot and plane</h2>\n<table border=\"1\">\n<tr><th>feature</th>"
-                    "<th>name</th><th>rows</th><th>RMS (mm)</th><th>max (mm)</th><th>expected "
-                    "noise (mm)</th><th>verdict</th><th>" + std::string(verify_label) +
-                    " (mm)</th></tr>\n" + html_feature_rows + "</table>\n";
-    }
-    std::string svg;
-    staged = RenderFigure(ContactErrorFigure(run, FLAGS_verify.empty() ? "held out" : "verify"),
-                          ImageFormat::kSvg, &svg);
-    if (staged.ok()) {
-      errors_html += "<h2>Plots</h2>\n<figure>" + svg + "</figure>\n";
-    }
+  // The errors per pivot and plane, and their plot.
+  if (!job->html_feature_rows.empty()) {
+    errors_html = "<h2>Errors per pivot and plane</h2>\n<table border=\"1\">\n<tr><th>feature</th>"
+                  "<th>name</th><th>rows</th><th>RMS (mm)</th><th>max (mm)</th><th>expected "
+                  "noise (mm)</th><th>verdict</th><th>" + verify_label +
+                  " (mm)</th></tr>\n" + job->html_feature_rows + "</table>\n";
   }
+  std::string svg;
+  Status staged = RenderFigure(
+      ContactErrorFigure(run, FLAGS_verify.empty() ? "held out" : "verify"), ImageFormat::kSvg,
+      &svg);
+  if (!staged.ok()) return staged;
+  errors_html += "<h2>Plots</h2>\n<figure>" + svg + "</figure>\n";
   // The joint-space terms' values (the YAML's joint_errors).
   std::string joint_html;
   for (const JointTermValues& t : result.joint_terms) {
@@ -641,17 +749,32 @@ int RunContactCalibration() {
     h << "</p>\n";
     joint_html += h.str();
   }
-  if (staged.ok() && !FLAGS_html_report.empty()) {
-    const std::string html =
-        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>lpoe_calibrate</title></head>"
-        "<body>\n<h1>Calibration from distances and planes</h1>\n<table border=\"1\">\n"
-        "<tr><th>table</th><th>rows</th><th>RMS (mm)</th><th>max (mm)</th><th>expected noise "
-        "(mm)</th><th>verdict</th><th>" + std::string(verify_label) + " (mm)</th></tr>\n" +
-        html_rows + "</table>\n<p>" + HtmlEscape(p.base_reason) + "</p>\n<p>Scale: " +
-        HtmlEscape(p.scale_reason) + "</p>\n" + joint_html + errors_html + "</body></html>\n";
-    staged = outputs.Stage(FLAGS_html_report, html);
-  }
-  return CommitOutputs(staged, &outputs, FLAGS_quiet);
+  const std::string html =
+      "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>lpoe_calibrate</title></head>"
+      "<body>\n<h1>Calibration from distances and planes</h1>\n<table border=\"1\">\n"
+      "<tr><th>table</th><th>rows</th><th>RMS (mm)</th><th>max (mm)</th><th>expected noise "
+      "(mm)</th><th>verdict</th><th>" + verify_label + " (mm)</th></tr>\n" +
+      job->html_rows + "</table>\n<p>" + HtmlEscape(p.base_reason) + "</p>\n<p>Scale: " +
+      HtmlEscape(p.scale_reason) + "</p>\n" + joint_html + errors_html + "</body></html>\n";
+  return job->outputs.Stage(FLAGS_html_report, html);
+}
+
+}  // namespace
+
+int RunContactCalibration() {
+  ContactRun job;
+  if (int rc = ContactOptionsFromFlags(&job); rc != kExitOk) return rc;
+  if (int rc = ContactFilesFromFlags(&job); rc != kExitOk) return rc;
+  if (int rc = ReadContactModelAndData(&job); rc != kExitOk) return rc;
+  if (int rc = ReadContactVerification(&job); rc != kExitOk) return rc;
+  if (int rc = ContactStartAndTerms(&job); rc != kExitOk) return rc;
+  if (int rc = RunContactJob(&job); rc != kExitOk) return rc;
+  ContactKindTables(&job, std::cout);
+  ContactEstimates(&job, std::cout);
+  // Nothing is written unless every output is staged.
+  Status staged = StageContactModelAndReport(&job);
+  if (staged.ok() && !FLAGS_html_report.empty()) staged = StageContactHtml(&job);
+  return CommitOutputs(staged, &job.outputs, FLAGS_quiet);
 }
 
 }  // namespace tools

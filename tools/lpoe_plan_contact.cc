@@ -16,6 +16,7 @@
 #include "report/json_text.h"
 #include "lpoe/contact_planning.h"
 #include "lpoe/planning.h"
+#include "lpoe/planning_workflow.h"
 #include "output_files.h"
 #include "io/parse_util.h"
 #include "report/text_safety.h"
@@ -81,13 +82,10 @@ std::string ContactPlanNumber(double v) {
 
 }  // namespace
 
-int RunContactPlan() {
-  const bool ballbar = FLAGS_measurement == "ballbar";
-  if (!ballbar && FLAGS_measurement != "plane") {
-    std::cerr << "error: --measurement must be position, ballbar or plane, got '"
-              << FLAGS_measurement << "'\n";
-    return kExitUsage;
-  }
+namespace {
+
+// The request from the flags (lpoe/contact_planning.h), checked as the library checks it.
+int ContactPlanRequestFromFlags(bool ballbar, ContactPlanRequest* request) {
   // The tracker plan's flags that this plan does not use: refused by name rather than ignored.
   for (const char* flag : {"criterion", "tracker", "max_range", "acceptance_angle", "smr_facing",
                            "candidates", "candidate_count", "workspace", "workspace_count",
@@ -105,7 +103,7 @@ int RunContactPlan() {
     std::cerr << "error: --model, --count and --output are required (see --help)\n";
     return kExitUsage;
   }
-  int count = 0;
+  int& count = request->count;
   {
     const auto r = std::from_chars(FLAGS_count.data(), FLAGS_count.data() + FLAGS_count.size(),
                                    count);
@@ -115,7 +113,7 @@ int RunContactPlan() {
       return kExitUsage;
     }
   }
-  ContactPlanOptions o;
+  ContactPlanOptions& o = request->options;
   std::vector<Eigen::VectorXd> items;
   if (ballbar) {
     if (!FLAGS_planes.empty() || !FLAGS_face_centres.empty()) {
@@ -129,11 +127,6 @@ int RunContactPlan() {
       return kExitUsage;
     }
     for (const Eigen::VectorXd& v : items) o.pivots.push_back(v);
-    if (!(FLAGS_bar_length > 0 && FLAGS_bar_length < 1e5) ||
-        !(FLAGS_stroke >= 0 && FLAGS_stroke < FLAGS_bar_length)) {
-      std::cerr << "error: --bar_length must be positive (mm) and --stroke in [0, bar length)\n";
-      return kExitUsage;
-    }
   } else {
     if (!FLAGS_pivots.empty()) {
       std::cerr << "error: --pivots is for --measurement=ballbar\n";
@@ -145,26 +138,12 @@ int RunContactPlan() {
                 << FLAGS_planes << "'\n";
       return kExitUsage;
     }
-    for (const Eigen::VectorXd& v : items) {
-      if (std::abs(v.head<3>().norm() - 1) > 1e-6) {
-        std::cerr << "error: --planes: a normal of length " << v.head<3>().norm()
-                  << "; give unit normals\n";
-        return kExitUsage;
-      }
-      o.planes.push_back(v);
-    }
+    for (const Eigen::VectorXd& v : items) o.planes.push_back(v);
     if (!FLAGS_face_centres.empty()) {
-      if (!ParseContactPlanVectors(FLAGS_face_centres, 3, &items) ||
-          items.size() != o.planes.size()) {
-        std::cerr << "error: --face_centres: 'x,y,z' (mm) per plane separated by ';', one per "
-                     "plane\n";
-        return kExitUsage;
-      }
+      if (!ParseContactPlanVectors(FLAGS_face_centres, 3, &items)) items.clear();
+      // An empty list where one was given: refused with the count's message.
+      if (items.empty()) items.resize(o.planes.size() + 1, Eigen::VectorXd::Zero(3));
       for (const Eigen::VectorXd& v : items) o.plane_centres.push_back(v);
-    }
-    if (!(FLAGS_face_radius > 0) || !(FLAGS_probe_radius >= 0)) {
-      std::cerr << "error: --face_radius must be positive and --probe_radius not negative (mm)\n";
-      return kExitUsage;
     }
   }
   o.bar_length = FLAGS_bar_length;
@@ -174,10 +153,6 @@ int RunContactPlan() {
   o.target = FLAGS_contact_tool;
   o.seed = FLAGS_seed;
   o.min_singularity = FLAGS_min_singularity;
-  if (FLAGS_samples_per_feature < 1 || FLAGS_samples_per_feature > 100000) {
-    std::cerr << "error: --samples_per_feature must be in [1, 100000]\n";
-    return kExitUsage;
-  }
   o.samples_per_feature = FLAGS_samples_per_feature;
   if (FLAGS_min_z != -1e300) {
     if (!std::isfinite(FLAGS_min_z)) {
@@ -192,10 +167,99 @@ int RunContactPlan() {
       return kExitUsage;
     }
   }
-  if (FLAGS_random_draws < 0 || FLAGS_random_draws > 10000) {
-    std::cerr << "error: --random_draws must be in [0, 10000]\n";
+  request->random_draws = FLAGS_random_draws;
+  if (Status s = CheckContactPlanRequest(*request); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
+  return kExitOk;
+}
+
+// The plan's CSV: joint values (in --angle_unit / --length_unit) and the pivot or plane; the
+// distance or contact is what is measured there.
+std::string ContactPlanCsv(const RobotModel& model, const ContactPlanRequest& request,
+                           const ContactPlanningResult& planned, AngleUnit unit,
+                           LengthUnit length_unit) {
+  const bool ballbar = !request.options.pivots.empty();
+  const ContactPlanOptions& o = request.options;
+  const int n = model.num_joints();
+  const ContactMeasurementSet& set = planned.candidates.set;
+  std::string csv = "# lpoe_plan: model " + CommentText(model.name) + ", " +
+                    (ballbar ? "ballbar, bar " + ContactPlanNumber(o.bar_length) + " mm +- " +
+                                   ContactPlanNumber(o.stroke) + " mm"
+                             : "probe, radius " + ContactPlanNumber(o.probe_radius) + " mm") +
+                    ", " + std::to_string(request.count) + " poses of " +
+                    std::to_string(set.size()) + " candidates, D-optimal over " +
+                    std::to_string(planned.plan.num_parameters) + " parameters; joints in " +
+                    FLAGS_angle_unit + (length_unit == LengthUnit::kMetres ? " and m" : "") + "\n";
+  csv += ballbar ? "# measure the distance at each pose (add a distance column) and calibrate "
+                   "with lpoe_calibrate --measurements\n"
+                 : "# touch the plane at each pose (the probe's contact) and calibrate with "
+                   "lpoe_calibrate --measurements\n";
+  for (int j = 0; j < n; ++j) csv += (j ? ",q" : "q") + std::to_string(j + 1);
+  csv += ballbar ? ",pivot\n" : ",plane,offset\n";
+  for (int c : planned.plan.selected) {
+    const ContactRow& row = set.rows[c];
+    for (int j = 0; j < n; ++j) {
+      double v = set.joints(c)[j];
+      if (model.joints[j].type == JointType::kRevolute) {
+        if (unit == AngleUnit::kDegrees) v *= 180.0 / kPi;
+      } else {
+        v /= MillimetresPer(length_unit);
+      }
+      csv += (j ? "," : "") + ContactPlanNumber(v);
+    }
+    const std::string& name = ballbar ? set.pivots[row.feature] : set.planes[row.feature];
+    csv += "," + name + (ballbar ? "" : "," + ContactPlanNumber(o.probe_radius)) + "\n";
+  }
+  return csv;
+}
+
+nlohmann::json ContactPlanReport(const ContactPlanRequest& request,
+                                 const ContactPlanningResult& planned) {
+  const bool ballbar = !request.options.pivots.empty();
+  const ContactPlanOptions& o = request.options;
+  const ContactCandidates& candidates = planned.candidates;
+  const ContactMeasurementSet& set = candidates.set;
+  nlohmann::json per_feature = nlohmann::json::object();
+  for (int c : planned.plan.selected) {
+    const ContactRow& row = set.rows[c];
+    const std::string& name = ballbar ? set.pivots[row.feature] : set.planes[row.feature];
+    per_feature[name] = per_feature.value(name, 0) + 1;
+  }
+  return {{"tool", "lpoe_plan"},
+          {"measurement", FLAGS_measurement},
+          {"poses", request.count},
+          {"parameters", planned.plan.num_parameters},
+          {"poses_per_feature", per_feature},
+          {"candidates",
+           {{"sampled",
+             o.samples_per_feature * static_cast<int>(o.pivots.size() + o.planes.size())},
+            {"feasible", set.size()},
+            {"not_reached", candidates.not_converged},
+            {"outside_limits", candidates.outside_limits},
+            {"outside_cell", candidates.outside_cell},
+            {"near_singular", candidates.near_singular},
+            {"outside_stroke", candidates.outside_stroke}}},
+          {"exchanges", planned.plan.exchanges},
+          {"plan", {{"D_log_det", planned.plan.log_det}}},
+          {"random_plans",
+           {{"draws", request.random_draws},
+            {"mean_D_log_det", planned.random_mean_log_det},
+            {"best_D_log_det", planned.random_best_log_det}}}};
+}
+
+}  // namespace
+
+int RunContactPlan() {
+  const bool ballbar = FLAGS_measurement == "ballbar";
+  if (!ballbar && FLAGS_measurement != "plane") {
+    std::cerr << "error: --measurement must be position, ballbar or plane, got '"
+              << FLAGS_measurement << "'\n";
+    return kExitUsage;
+  }
+  ContactPlanRequest request;
+  if (int rc = ContactPlanRequestFromFlags(ballbar, &request); rc != kExitOk) return rc;
   std::string report_path = FLAGS_report;
   if (report_path.empty()) {
     const size_t slash = FLAGS_output.find_last_of('/');
@@ -219,104 +283,23 @@ int RunContactPlan() {
   if (!UnitsFromFlags(&unit, &length_unit, nullptr)) return kExitUsage;
   RobotModel model;
   if (const int code = ReadModelFlag(&model); code != kExitOk) return code;
-  if (o.target < 0 || o.target >= model.num_tools()) {
-    std::cerr << "error: --contact_tool=" << o.target << ": the model has " << model.num_tools()
-              << " tools\n";
-    return kExitUsage;
-  }
 
-  ContactCandidates candidates;
-  if (Status s = ContactPlanCandidates(model, o, &candidates); !s.ok()) {
+  ContactPlanningResult planned;
+  PlanFailure failure = PlanFailure::kNone;
+  if (Status s = RunContactPlanning(model, request, &planned, &failure); !s.ok()) {
     std::cerr << "error: " << s.message() << "\n";
-    return kExitNotIdentifiable;
+    return failure == PlanFailure::kUsage ? kExitUsage : kExitNotIdentifiable;
   }
-  ContactPlanResult plan;
-  if (Status s = PlanContacts(model, candidates, count, 4, &plan); !s.ok()) {
-    std::cerr << "error: " << s.message() << " (" << candidates.set.size()
-              << " candidates; dropped: " << candidates.not_converged << " not reached, "
-              << candidates.outside_limits << " outside the joint limits, "
-              << candidates.outside_cell << " outside the cell, " << candidates.near_singular
-              << " near a singularity, " << candidates.outside_stroke << " outside the stroke)\n";
-    return kExitNotIdentifiable;
-  }
-  Eigen::MatrixXd rows;
-  if (Status s = ContactInformationRows(model, candidates, &rows); !s.ok()) {
-    std::cerr << "error: " << s.message() << "\n";
-    return kExitNotIdentifiable;
-  }
-  // Random plans of as many candidates: their log det, against the plan's.
-  std::vector<double> random_log_det;
-  for (int d = 0; d < FLAGS_random_draws; ++d) {
-    random_log_det.push_back(
-        ContactPlanLogDet(rows, RandomPlan(candidates.set.size(), count, FLAGS_seed + 1000 + d)));
-  }
-  std::sort(random_log_det.begin(), random_log_det.end());
-  const double random_best = random_log_det.empty() ? 0 : random_log_det.back();
-  double random_mean = 0;
-  for (double v : random_log_det) random_mean += v / random_log_det.size();
-
-  // ---- The plan: joint values (in --angle_unit / --length_unit) and the pivot or plane; the
-  // distance or contact is what is measured there.
-  const int n = model.num_joints();
-  const ContactMeasurementSet& set = candidates.set;
-  std::string csv = "# lpoe_plan: model " + CommentText(model.name) + ", " +
-                    (ballbar ? "ballbar, bar " + ContactPlanNumber(o.bar_length) + " mm +- " +
-                                   ContactPlanNumber(o.stroke) + " mm"
-                             : "probe, radius " + ContactPlanNumber(o.probe_radius) + " mm") +
-                    ", " + std::to_string(count) + " poses of " + std::to_string(set.size()) +
-                    " candidates, D-optimal over " + std::to_string(plan.num_parameters) +
-                    " parameters; joints in " + FLAGS_angle_unit +
-                    (length_unit == LengthUnit::kMetres ? " and m" : "") + "\n";
-  csv += ballbar ? "# measure the distance at each pose (add a distance column) and calibrate "
-                   "with lpoe_calibrate --measurements\n"
-                 : "# touch the plane at each pose (the probe's contact) and calibrate with "
-                   "lpoe_calibrate --measurements\n";
-  for (int j = 0; j < n; ++j) csv += (j ? ",q" : "q") + std::to_string(j + 1);
-  csv += ballbar ? ",pivot\n" : ",plane,offset\n";
-  nlohmann::json per_feature = nlohmann::json::object();
-  for (int c : plan.selected) {
-    const ContactRow& row = set.rows[c];
-    for (int j = 0; j < n; ++j) {
-      double v = set.joints(c)[j];
-      if (model.joints[j].type == JointType::kRevolute) {
-        if (unit == AngleUnit::kDegrees) v *= 180.0 / kPi;
-      } else {
-        v /= MillimetresPer(length_unit);
-      }
-      csv += (j ? "," : "") + ContactPlanNumber(v);
-    }
-    const std::string& name = ballbar ? set.pivots[row.feature] : set.planes[row.feature];
-    csv += "," + name + (ballbar ? "" : "," + ContactPlanNumber(o.probe_radius)) + "\n";
-    per_feature[name] = per_feature.value(name, 0) + 1;
-  }
-  nlohmann::json report = {
-      {"tool", "lpoe_plan"},
-      {"measurement", FLAGS_measurement},
-      {"poses", count},
-      {"parameters", plan.num_parameters},
-      {"poses_per_feature", per_feature},
-      {"candidates",
-       {{"sampled", o.samples_per_feature * static_cast<int>(o.pivots.size() + o.planes.size())},
-        {"feasible", set.size()},
-        {"not_reached", candidates.not_converged},
-        {"outside_limits", candidates.outside_limits},
-        {"outside_cell", candidates.outside_cell},
-        {"near_singular", candidates.near_singular},
-        {"outside_stroke", candidates.outside_stroke}}},
-      {"exchanges", plan.exchanges},
-      {"plan", {{"D_log_det", plan.log_det}}},
-      {"random_plans",
-       {{"draws", FLAGS_random_draws},
-        {"mean_D_log_det", random_mean},
-        {"best_D_log_det", random_best}}}};
   if (!FLAGS_quiet) {
-    std::cout << "lpoe_plan: " << count << " " << FLAGS_measurement << " poses of "
-              << set.size() << " candidates, D-optimal over " << plan.num_parameters
-              << " parameters: log det " << plan.log_det << " (" << FLAGS_random_draws
-              << " random plans: mean " << random_mean << ", best " << random_best << ")\n";
+    std::cout << "lpoe_plan: " << request.count << " " << FLAGS_measurement << " poses of "
+              << planned.candidates.set.size() << " candidates, D-optimal over "
+              << planned.plan.num_parameters << " parameters: log det " << planned.plan.log_det
+              << " (" << FLAGS_random_draws << " random plans: mean "
+              << planned.random_mean_log_det << ", best " << planned.random_best_log_det << ")\n";
   }
-  Status staged = outputs.Stage(FLAGS_output, csv);
-  if (staged.ok()) staged = outputs.Stage(report_path, JsonText(report));
+  Status staged =
+      outputs.Stage(FLAGS_output, ContactPlanCsv(model, request, planned, unit, length_unit));
+  if (staged.ok()) staged = outputs.Stage(report_path, JsonText(ContactPlanReport(request, planned)));
   return CommitOutputs(staged, &outputs, FLAGS_quiet);
 }
 

@@ -316,12 +316,10 @@ int CheckContactFlags(const Simulation& sim) {
     return kExitUsage;
   }
   if (!FLAGS_joints.empty() || FLAGS_verify_count > 0 || FLAGS_pose || FLAGS_all_tools ||
-      !sim.joint_error_kinds.empty() || sim.unit != AngleUnit::kRadians ||
-      sim.length_unit != LengthUnit::kMillimetres) {
+      sim.unit != AngleUnit::kRadians || sim.length_unit != LengthUnit::kMillimetres) {
     std::cerr << "error: --measurement=" << FLAGS_measurement
-              << " writes radians and millimetres for a geometric robot: --joints, "
-                 "--verify_count, --pose, --all_tools, --joint_errors and the unit flags are "
-                 "not available with it\n";
+              << " writes radians and millimetres: --joints, --verify_count, --pose, "
+                 "--all_tools and the unit flags are not available with it\n";
     return kExitUsage;
   }
   if (FLAGS_count > 100000 || FLAGS_pivots < 1 || FLAGS_pivots > 20 ||
@@ -377,6 +375,7 @@ int SimulateContacts(Simulation* sim) {
   RobotModel actual_model = truth;
   actual_model.name = nominal.name + "_actual";
   std::string text = "# lpoe_simulate: robot " + nominal.name + ", errors " + FLAGS_errors +
+                     (sim->joint_error_kinds.empty() ? "" : ", joint errors " + FLAGS_joint_errors) +
                      ", noise sigma " + std::to_string(FLAGS_noise_sigma) + " mm, seed " +
                      std::to_string(FLAGS_seed) + "\n" + what.str() + "\n" +
                      ContactMeasurementsCsv(nominal, contacts,

@@ -16,6 +16,7 @@
 
 #include "lpoe/analysis.h"
 #include "lpoe/compensation.h"
+#include "lpoe/contact_planning.h"
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/options.h"
 #include "lpoe/joint_errors.h"
@@ -26,6 +27,7 @@
 #include "lpoe/planning_workflow.h"
 #include "lpoe/refusals.h"
 #include "lpoe/problem_builder.h"
+#include "lpoe/recalibration.h"
 #include "python_api.h"
 
 namespace py = pybind11;
@@ -321,18 +323,65 @@ std::vector<double> RowMajor(const RowArray& a, int n, const std::string& what) 
   return std::vector<double>(a.data(), a.data() + m * n);
 }
 
-PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj,
-            int candidate_count, const py::object& workspace_obj, int workspace_count,
-            uint64_t seed, const std::string& criterion, const py::object& tracker_obj,
-            double max_range, double acceptance_angle, const py::object& smr_facing_obj,
-            double min_singularity, int random_draws, const std::string& joint_errors,
-            const py::object& min_z_obj, const py::object& box_obj, const py::object& keep_out_obj,
-            const py::object& joint_ranges_obj) {
+// lpoe_plan --prior and --prior_free: the prior's information (ReadPrior's: the file's
+// covariance, the default tolerances elsewhere), the freed frames at the nominal tolerances.
+std::shared_ptr<const ParameterPrior> PlanPrior(const RobotModel& model, const Prior& file,
+                                                const std::vector<std::string>& freed) {
+  const RobotModel& prior_model = file.model;
+  if (prior_model.num_joints() != model.num_joints() ||
+      prior_model.num_tools() != model.num_tools()) {
+    throw LpoeError("prior=" + file.source + ": its chain (" +
+                    std::to_string(prior_model.num_joints()) + " joints, " +
+                    std::to_string(prior_model.num_tools()) + " tools) is not the model's");
+  }
+  auto prior = std::make_shared<ParameterPrior>(
+      PriorFromCovariance(prior_model, file.covariance, PriorScales()));
+  for (const std::string& name : freed) {
+    int frame = -1;
+    for (int f = 0; f < prior_model.num_frames(); ++f) {
+      const int n = prior_model.num_joints();
+      if ((f < n ? prior_model.joints[f].name : prior_model.tools[f - n].name) == name) frame = f;
+    }
+    if (frame < 0) {
+      throw LpoeError("prior_free: '" + name + "' is no joint or tool of " + file.source);
+    }
+    prior->frame_information[frame] =
+        DefaultFrameInformation(prior_model, frame, prior->scales, 1.0);
+  }
+  return prior;
+}
+
+// prior_free: a list of names or "a,b" (as --prior_free).
+std::vector<std::string> NameList(const py::object& obj, const std::string& what) {
+  std::vector<std::string> out;
+  if (obj.is_none()) return out;
+  if (py::isinstance<py::str>(obj)) {
+    std::stringstream ss(obj.cast<std::string>());
+    for (std::string name; std::getline(ss, name, ',');) out.push_back(name);
+    return out;
+  }
+  try {
+    return obj.cast<std::vector<std::string>>();
+  } catch (const py::cast_error&) {
+    throw LpoeError(what + ": expected a list of names or 'a,b'");
+  }
+}
+
+PyPlan TrackerPlan(const RobotModel& model, int count, const py::object& candidates_obj,
+                   int candidate_count, const py::object& workspace_obj, int workspace_count,
+                   uint64_t seed, const std::string& criterion, const py::object& tracker_obj,
+                   double max_range, double acceptance_angle, const py::object& smr_facing_obj,
+                   double min_singularity, int random_draws, const std::string& joint_errors,
+                   const py::object& min_z_obj, const py::object& box_obj,
+                   const py::object& keep_out_obj, const py::object& joint_ranges_obj,
+                   const std::shared_ptr<Prior>& prior_file, const py::object& prior_free_obj,
+                   double noise_sigma) {
   // The workflow of lpoe_plan (lpoe/planning_workflow.h): the same request, checks and plan.
   Check(model.Validate());
   PlanRequest request;
   request.model = model;
   request.model_source = "model '" + model.name + "'";
+  request.noise_sigma = noise_sigma;
   request.count = count;
   request.candidate_count = candidate_count;
   request.workspace_count = workspace_count;
@@ -408,6 +457,11 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
     Check(NarrowJointRanges(ranges, &request.model));
   }
   Check(CheckPlanRequest(request));
+  if (prior_file != nullptr) {
+    request.prior = PlanPrior(model, *prior_file, NameList(prior_free_obj, "prior_free"));
+  } else if (!prior_free_obj.is_none()) {
+    throw LpoeError("prior_free needs prior");
+  }
   if (!candidates_obj.is_none()) {
     request.has_candidates = true;
     request.candidates = RowMajor(candidates_obj.cast<RowArray>(), n, "candidates");
@@ -451,6 +505,264 @@ PyPlan Plan(const RobotModel& model, int count, const py::object& candidates_obj
       planned.candidates.data(), out.offered, n);
   out.criterion = PlanCriterionName(request.options.criterion);
   return out;
+}
+
+// ---- Ballbar and probe plans (lpoe_plan --measurement=ballbar|plane; lpoe/contact_planning.h).
+
+struct PyContactPlan {
+  std::string measurement;
+  Eigen::MatrixXd q;                  // (count, N) the planned configurations
+  std::vector<std::string> features;  // the pivot or plane of each planned pose
+  std::vector<int> candidate_rows;    // rows of `candidates`
+  Eigen::MatrixXd candidates;         // (C, N) the feasible candidates
+  std::vector<std::string> candidate_features;
+  int num_parameters = 0, exchanges = 0;
+  double log_det = 0, random_mean_log_det = 0, random_best_log_det = 0;
+  std::vector<double> random_log_det;
+  int sampled = 0, feasible = 0, not_reached = 0, outside_limits = 0, outside_cell = 0;
+  int near_singular = 0, outside_stroke = 0;
+};
+
+// (K, cols) rows of a finite array as vectors.
+template <int Cols>
+std::vector<Eigen::Matrix<double, Cols, 1>> FixedRows(const py::object& obj, const std::string& what) {
+  std::vector<Eigen::Matrix<double, Cols, 1>> out;
+  if (obj.is_none()) return out;
+  const RowArray a = obj.cast<RowArray>();
+  const py::ssize_t k = RowsOf(a, Cols, what);
+  for (py::ssize_t r = 0; r < k; ++r) {
+    out.push_back(Eigen::Map<const Eigen::Matrix<double, Cols, 1>>(a.data() + Cols * r));
+    if (!out.back().allFinite()) throw LpoeError(what + ": row " + std::to_string(r) + " is not finite");
+  }
+  return out;
+}
+
+PyContactPlan ContactPlan(const RobotModel& model, int count, const std::string& measurement,
+                          const ContactPlanOptions& given, const py::object& pivots_obj,
+                          const py::object& planes_obj, const py::object& face_centres_obj,
+                          int random_draws) {
+  Check(model.Validate());
+  const bool ballbar = measurement == "ballbar";
+  ContactPlanRequest request;
+  request.count = count;
+  request.random_draws = random_draws;
+  ContactPlanOptions& o = request.options;
+  o = given;
+  if (ballbar) {
+    if (!planes_obj.is_none() || !face_centres_obj.is_none()) {
+      throw LpoeError("planes and face_centres are for measurement='plane'");
+    }
+    if (pivots_obj.is_none()) {
+      throw LpoeError("measurement='ballbar' needs pivots: (K, 3) the pivots' positions (mm, "
+                      "the model's base frame)");
+    }
+    for (const Eigen::Vector3d& c : FixedRows<3>(pivots_obj, "pivots")) o.pivots.push_back(c);
+  } else {
+    if (!pivots_obj.is_none()) throw LpoeError("pivots is for measurement='ballbar'");
+    if (planes_obj.is_none()) {
+      throw LpoeError("measurement='plane' needs planes: (K, 4) [nx, ny, nz, d] per plane "
+                      "(outward unit normal, n.x = d in mm)");
+    }
+    for (const Eigen::Vector4d& v : FixedRows<4>(planes_obj, "planes")) o.planes.push_back(v);
+    for (const Eigen::Vector3d& c : FixedRows<3>(face_centres_obj, "face_centres")) {
+      o.plane_centres.push_back(c);
+    }
+  }
+  ContactPlanningResult planned;
+  Status status;
+  {
+    py::gil_scoped_release release;
+    status = RunContactPlanning(model, request, &planned);
+  }
+  Check(status);
+  PyContactPlan out;
+  out.measurement = measurement;
+  const ContactCandidates& candidates = planned.candidates;
+  const ContactMeasurementSet& set = candidates.set;
+  const int n = model.num_joints();
+  auto feature_name = [&](int c) {
+    const ContactRow& row = set.rows[c];
+    return ballbar ? set.pivots[row.feature] : set.planes[row.feature];
+  };
+  out.candidates.resize(set.size(), n);
+  for (int c = 0; c < set.size(); ++c) {
+    for (int j = 0; j < n; ++j) out.candidates(c, j) = set.joints(c)[j];
+    out.candidate_features.push_back(feature_name(c));
+  }
+  out.q.resize(static_cast<int>(planned.plan.selected.size()), n);
+  for (size_t k = 0; k < planned.plan.selected.size(); ++k) {
+    const int c = planned.plan.selected[k];
+    out.q.row(k) = out.candidates.row(c);
+    out.candidate_rows.push_back(c);
+    out.features.push_back(feature_name(c));
+  }
+  out.num_parameters = planned.plan.num_parameters;
+  out.exchanges = planned.plan.exchanges;
+  out.log_det = planned.plan.log_det;
+  out.random_log_det = planned.random_log_det;
+  out.random_mean_log_det = planned.random_mean_log_det;
+  out.random_best_log_det = planned.random_best_log_det;
+  out.sampled = o.samples_per_feature * static_cast<int>(o.pivots.size() + o.planes.size());
+  out.feasible = set.size();
+  out.not_reached = candidates.not_converged;
+  out.outside_limits = candidates.outside_limits;
+  out.outside_cell = candidates.outside_cell;
+  out.near_singular = candidates.near_singular;
+  out.outside_stroke = candidates.outside_stroke;
+  return out;
+}
+
+// lpoe.plan: a tracker plan (measurement='position') or a ballbar / probe plan; each refuses the
+// other's options by name, as lpoe_plan does.
+py::object Plan(const RobotModel* model_arg, int count, const py::object& candidates_obj,
+                int candidate_count, const py::object& workspace_obj, int workspace_count,
+                uint64_t seed, const std::string& criterion, const py::object& tracker_obj,
+                double max_range, double acceptance_angle, const py::object& smr_facing_obj,
+                double min_singularity, int random_draws, const std::string& joint_errors,
+                const py::object& min_z_obj, const py::object& box_obj,
+                const py::object& keep_out_obj, const py::object& joint_ranges_obj,
+                const std::string& measurement, const py::object& pivots_obj, double bar_length,
+                double stroke, const py::object& planes_obj, const py::object& face_centres_obj,
+                double face_radius, double probe_radius, int samples_per_feature,
+                const py::object& contact_tool_obj, const py::object& prior_obj,
+                const py::object& prior_free_obj, double noise_sigma) {
+  if (measurement != "position" && (!prior_obj.is_none() || !prior_free_obj.is_none())) {
+    throw LpoeError("prior and prior_free plan a recalibration from tracker (position) "
+                    "measurements; a measurement='" + measurement + "' plan takes no prior");
+  }
+  const std::shared_ptr<Prior> prior_file = PriorArgument(prior_obj);
+  if (model_arg == nullptr && prior_file == nullptr) {
+    throw LpoeError("model: None needs prior= (the prior's model is then the model)");
+  }
+  const RobotModel& model = model_arg != nullptr ? *model_arg : prior_file->model;
+  const ContactPlanOptions defaults;
+  if (measurement == "position") {
+    // The ballbar and probe options, not used by a tracker plan: refused by name.
+    const std::vector<std::pair<const char*, bool>> contact_only = {
+        {"pivots", !pivots_obj.is_none()},
+        {"planes", !planes_obj.is_none()},
+        {"face_centres", !face_centres_obj.is_none()},
+        {"bar_length", bar_length != defaults.bar_length},
+        {"stroke", stroke != defaults.stroke},
+        {"face_radius", face_radius != defaults.face_radius},
+        {"probe_radius", probe_radius != defaults.probe_radius},
+        {"samples_per_feature", samples_per_feature != defaults.samples_per_feature},
+        {"contact_tool", !contact_tool_obj.is_none()}};
+    for (const auto& [name, given] : contact_only) {
+      if (given) {
+        throw LpoeError(std::string(name) +
+                        " is for measurement='ballbar' or 'plane' (docs/measurements.md)");
+      }
+    }
+    return py::cast(TrackerPlan(model, count, candidates_obj, candidate_count, workspace_obj,
+                                workspace_count, seed, criterion, tracker_obj, max_range,
+                                acceptance_angle, smr_facing_obj, min_singularity, random_draws,
+                                joint_errors, min_z_obj, box_obj, keep_out_obj, joint_ranges_obj,
+                                prior_file, prior_free_obj, noise_sigma));
+  }
+  if (measurement != "ballbar" && measurement != "plane") {
+    throw LpoeError("measurement must be position, ballbar or plane, got '" + measurement + "'");
+  }
+  const char* kPlanTool = "lpoe_plan";
+  // The tracker plan's options that this plan does not use: refused by name (as lpoe_plan).
+  const std::vector<std::pair<const char*, bool>> tracker_only = {
+      {"candidates", !candidates_obj.is_none()},
+      {"candidate_count", candidate_count != OptionDefault(kPlanTool, "candidate_count")},
+      {"workspace", !workspace_obj.is_none()},
+      {"workspace_count", workspace_count != OptionDefault(kPlanTool, "workspace_count")},
+      {"criterion", criterion != "D"},
+      {"tracker", !tracker_obj.is_none()},
+      {"max_range", max_range != OptionDefault(kPlanTool, "max_range")},
+      {"acceptance_angle", acceptance_angle != OptionDefault(kPlanTool, "acceptance_angle")},
+      {"smr_facing", !smr_facing_obj.is_none()},
+      {"joint_errors", joint_errors != "none"},
+      {"keep_out", !keep_out_obj.is_none()},
+      {"joint_ranges", !joint_ranges_obj.is_none()},
+      {"noise_sigma", noise_sigma != OptionDefault(kPlanTool, "noise_sigma")}};
+  for (const auto& [name, given] : tracker_only) {
+    if (given) {
+      throw LpoeError(std::string(name) + " is for tracker plans; with measurement='" +
+                      measurement + "' the plan is D-optimal over candidates projected onto the " +
+                      (measurement == "ballbar" ? "pivots' spheres" : "planes") +
+                      " (docs/measurements.md)");
+    }
+  }
+  ContactPlanOptions o;
+  o.bar_length = bar_length;
+  o.stroke = stroke;
+  o.face_radius = face_radius;
+  o.probe_radius = probe_radius;
+  o.samples_per_feature = samples_per_feature;
+  o.seed = seed;
+  o.min_singularity = min_singularity;
+  o.target = contact_tool_obj.is_none() ? 0 : ToolIndexOf(model, contact_tool_obj);
+  if (!min_z_obj.is_none()) {
+    o.cell.min_z = min_z_obj.cast<double>();
+    if (!std::isfinite(o.cell.min_z)) throw LpoeError("min_z must be a finite height in mm");
+  }
+  if (!box_obj.is_none()) {
+    const RowArray b = box_obj.cast<RowArray>();
+    if (b.size() != 6) throw LpoeError("box: expected 6 numbers, got shape " + ShapeText(b));
+    const Eigen::Vector3d lo(b.data()[0], b.data()[1], b.data()[2]);
+    const Eigen::Vector3d hi(b.data()[3], b.data()[4], b.data()[5]);
+    if (!lo.allFinite() || !hi.allFinite() || !(lo.array() <= hi.array()).all()) {
+      throw LpoeError("box: expected finite xmin, ymin, zmin, xmax, ymax, zmax with min <= max");
+    }
+    o.cell.box = Eigen::AlignedBox3d(lo, hi);
+  }
+  return py::cast(ContactPlan(model, count, measurement, o, pivots_obj, planes_obj,
+                              face_centres_obj, random_draws));
+}
+
+// lpoe.ContactPlan: what lpoe.plan(measurement='ballbar' | 'plane') returns.
+void BindContactPlanClass(py::module_& m) {
+  py::class_<PyContactPlan>(m, "ContactPlan",
+                            "The result of lpoe.plan(measurement='ballbar' | 'plane').")
+      .def_readonly("measurement", &PyContactPlan::measurement)
+      .def_readonly("q", &PyContactPlan::q, "(count, N) the planned configurations (rad / mm)")
+      .def_readonly("features", &PyContactPlan::features,
+                    "the pivot (ballbar) or plane (probe) of each planned pose, as lpoe_plan names "
+                    "them: pivot1, ... in the order given; face_x, face_y, face_z for three "
+                    "planes, else plane1, ...")
+      .def_readonly("candidate_rows", &PyContactPlan::candidate_rows,
+                    "row of each planned pose in `candidates`")
+      .def_readonly("candidates", &PyContactPlan::candidates,
+                    "(C, N) the feasible candidates (random configurations projected onto the "
+                    "pivots' spheres or the planes)")
+      .def_readonly("candidate_features", &PyContactPlan::candidate_features)
+      .def_readonly("num_parameters", &PyContactPlan::num_parameters,
+                    "the parameters the calibration would estimate from such rows")
+      .def_readonly("exchanges", &PyContactPlan::exchanges)
+      .def_readonly("log_det", &PyContactPlan::log_det,
+                    "log det of the plan's column-scaled information")
+      .def_readonly("random_log_det", &PyContactPlan::random_log_det,
+                    "the random plans' log det, ascending (seeds seed + 1000 + k)")
+      .def_readonly("random_mean_log_det", &PyContactPlan::random_mean_log_det)
+      .def_readonly("random_best_log_det", &PyContactPlan::random_best_log_det)
+      .def_property_readonly(
+          "pool",
+          [](const PyContactPlan& p) {
+            py::dict d;
+            d["sampled"] = p.sampled;
+            d["feasible"] = p.feasible;
+            d["not_reached"] = p.not_reached;
+            d["outside_limits"] = p.outside_limits;
+            d["outside_cell"] = p.outside_cell;
+            d["near_singular"] = p.near_singular;
+            d["outside_stroke"] = p.outside_stroke;
+            return d;
+          },
+          "how many candidates were sampled, kept and why the others were dropped (lpoe_plan's "
+          "report: candidates)")
+      .def("__len__", [](const PyContactPlan& p) { return static_cast<size_t>(p.q.rows()); })
+      .def("__repr__", [](const PyContactPlan& p) {
+        std::ostringstream os;
+        os << "<lpoe.ContactPlan: " << p.q.rows() << " " << p.measurement << " poses of "
+           << p.feasible << " candidates, log det " << p.log_det << " (random best "
+           << p.random_best_log_det << ")>";
+        return os.str();
+      });
+
 }
 
 }  // namespace
@@ -699,7 +1011,9 @@ void BindAnalysis(py::module_& m) {
         return os.str();
       });
 
-  m.def("plan", &Plan, py::arg("model"), py::arg("count"), py::kw_only(),
+  BindContactPlanClass(m);
+  const ContactPlanOptions contact;
+  m.def("plan", &Plan, py::arg("model").none(true), py::arg("count"), py::kw_only(),
         py::arg("candidates") = py::none(),
         py::arg("candidate_count") = static_cast<int>(OptionDefault(kPlan, "candidate_count")),
         py::arg("workspace") = py::none(),
@@ -712,7 +1026,15 @@ void BindAnalysis(py::module_& m) {
         py::arg("random_draws") = static_cast<int>(OptionDefault(kPlan, "random_draws")),
         py::arg("joint_errors") = "none", py::arg("min_z") = py::none(),
         py::arg("box") = py::none(), py::arg("keep_out") = py::none(),
-        py::arg("joint_ranges") = py::none(),
+        py::arg("joint_ranges") = py::none(), py::arg("measurement") = "position",
+        py::arg("pivots") = py::none(), py::arg("bar_length") = contact.bar_length,
+        py::arg("stroke") = contact.stroke, py::arg("planes") = py::none(),
+        py::arg("face_centres") = py::none(), py::arg("face_radius") = contact.face_radius,
+        py::arg("probe_radius") = contact.probe_radius,
+        py::arg("samples_per_feature") = contact.samples_per_feature,
+        py::arg("contact_tool") = py::none(), py::arg("prior") = py::none(),
+        py::arg("prior_free") = py::none(),
+        py::arg("noise_sigma") = OptionDefault(kPlan, "noise_sigma"),
         "chooses `count` poses to measure (as lpoe_plan): candidates (C, N) rad/mm or "
         "candidate_count sampled within the limits; criterion D | A | E | I | O1 | O3; optional "
         "tracker (3,) mm with max_range (mm), acceptance_angle (degrees), smr_facing (3,) or "
@@ -720,8 +1042,16 @@ void BindAnalysis(py::module_& m) {
         "parameters to determine; 'tilt' after compliance needs a model that carries compliance "
         "values); the cell: min_z (mm), box [xmin, ymin, zmin, xmax, ymax, zmax] (mm), keep_out "
         "(K, 6) boxes, joint_ranges (N, 2) [lo, hi] per joint (NaN, NaN: the limits), all in the "
-        "base frame as lpoe_plan's flags. The same workflow as lpoe_plan "
-        "(lpoe/planning_workflow.h): the same seeds give the same plan.");
+        "base frame as lpoe_plan's flags. prior= (a file or an lpoe.Prior; model=None: its "
+        "model) and prior_free (joint or tool names) plan a recalibration as --prior and "
+        "--prior_free, the prior's information weighed against noise_sigma (mm; 0: the "
+        "prior's). The same workflow as lpoe_plan (lpoe/planning_workflow.h): the same seeds "
+        "give the same plan. measurement='ballbar' (pivots (K, 3) mm, bar_length, stroke) or "
+        "'plane' (planes (K, 4) [nx, ny, nz, d], face_centres (K, 3), face_radius, probe_radius) "
+        "plans ballbar or probe poses as lpoe_plan --measurement (samples_per_feature, "
+        "contact_tool, seed, min_singularity, min_z, box, random_draws as its flags; "
+        "lpoe/contact_planning.h) and returns an lpoe.ContactPlan; the tracker options are "
+        "refused there by name.");
 }
 
 }  // namespace python

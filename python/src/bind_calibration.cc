@@ -52,13 +52,25 @@ struct Calibration {
   std::vector<ChangedGroup> changed;
 };
 
-// A prior read from a file or built by lpoe.fleet_prior: a model and its covariance block.
-struct Prior {
-  RobotModel model;
-  ModelCovariance covariance;
-  std::string source;  // the file, or "fleet prior of N models"
-  std::string yaml;    // the file's text (lpoe_prior's for a fleet)
-};
+// prior= (python_api.h): a file (a calibrated model with its covariance block, or lpoe_prior's
+// fleet prior) or an lpoe.Prior; null when not given.
+std::shared_ptr<Prior> PriorArgument(const py::object& prior) {
+  if (prior.is_none()) return nullptr;
+  if (py::isinstance<Prior>(prior)) return std::make_shared<Prior>(prior.cast<Prior>());
+  const py::object os_path = py::module_::import("os").attr("fspath");
+  std::string path;
+  try {
+    path = os_path(prior).cast<std::string>();
+  } catch (const py::error_already_set&) {
+    throw LpoeError("prior: expected a file name or an lpoe.Prior, got " +
+                    py::str(prior.get_type().attr("__name__")).cast<std::string>());
+  }
+  auto out = std::make_shared<Prior>();
+  out->source = path;
+  Check(ReadRobotModel(path, &out->model));
+  Check(ReadModelCovariance(path, out->model, &out->covariance));
+  return out;
+}
 
 namespace {
 
@@ -101,25 +113,6 @@ class KeywordOptions {
   std::vector<std::string> known_;
 };
 
-// prior=: a file (a calibrated model with its covariance block, or lpoe_prior's fleet prior) or an
-// lpoe.Prior; null when not given.
-std::shared_ptr<Prior> PriorArgument(const py::object& prior) {
-  if (prior.is_none()) return nullptr;
-  if (py::isinstance<Prior>(prior)) return std::make_shared<Prior>(prior.cast<Prior>());
-  const py::object os_path = py::module_::import("os").attr("fspath");
-  std::string path;
-  try {
-    path = os_path(prior).cast<std::string>();
-  } catch (const py::error_already_set&) {
-    throw LpoeError("prior: expected a file name or an lpoe.Prior, got " +
-                    py::str(prior.get_type().attr("__name__")).cast<std::string>());
-  }
-  auto out = std::make_shared<Prior>();
-  out->source = path;
-  Check(ReadRobotModel(path, &out->model));
-  Check(ReadModelCovariance(path, out->model, &out->covariance));
-  return out;
-}
 
 Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_data,
                       const MeasurementSet* given_verify, const py::kwargs& kwargs,
@@ -494,8 +487,11 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
       throw LpoeError("registration to the tracker data: " + s.message());
     }
   }
-  // joint_errors: the registry's terms on the start model, as lpoe_calibrate --joint_errors.
-  if (Status s = ContactJointTerms(joint_errors, start, &options.joint_terms); !s.ok()) {
+  // joint_errors: the registry's terms on the start model, or "auto" (chosen by cross-validation
+  // on the identification rows), as lpoe_calibrate --joint_errors.
+  const bool auto_terms = joint_errors == "auto";
+  if (Status s = ContactJointTerms(auto_terms ? "none" : joint_errors, start, &options.joint_terms);
+      !s.ok()) {
     throw LpoeError("joint_errors: " + s.message() + " (docs/measurements.md)");
   }
   // verify: distance and plane sets of the calibration's pivots and planes (as --verify).
@@ -536,6 +532,7 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
   run_options.holdout = holdout;
   run_options.split_seed = split_seed;
   run_options.kfold = kfold;
+  run_options.joint_errors_auto = auto_terms;
   ContactPipelineResult run;
   {
     py::gil_scoped_release release;
@@ -675,6 +672,34 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
     joint_terms.append(e);
   }
   report["joint_errors"] = joint_terms;
+  if (run.joint_error_selection.ran) {
+    // joint_errors='auto': the choice, as lpoe_calibrate's report writes it.
+    const JointErrorSelection& sel = run.joint_error_selection;
+    py::list candidates;
+    for (const JointErrorCandidate& cand : sel.candidates) {
+      py::dict d;
+      d["terms"] = cand.label;
+      d["converged"] = cand.ok;
+      d["failure"] = cand.failure;
+      d["identified_combinations"] = cand.parameters;
+      d["fold_rms"] = cand.fold_rms;
+      if (cand.ok) {
+        d["cv_rms"] = cand.cv_rms;
+        d["cv_mse"] = cand.cv_mse;
+        d["cv_mse_standard_error"] = cand.cv_mse_se;
+      }
+      candidates.append(d);
+    }
+    py::dict selection;
+    selection["folds"] = sel.folds;
+    selection["seed"] = sel.seed;
+    selection["candidates"] = candidates;
+    selection["best"] = sel.best >= 0 ? sel.candidates[sel.best].label : std::string();
+    selection["chosen"] = sel.candidates[sel.chosen].label;
+    selection["reason"] = sel.reason;
+    selection["tilt_message"] = sel.tilt_message;
+    report["joint_error_selection"] = selection;
+  }
   c.verdict = run.verdict;
   c.verdict_reason = "the worst of the kinds' verdicts (RMS within 2x the expected noise: pass, "
                      "5x: check)";

@@ -5,11 +5,13 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "lpoe/measurements.h"
+#include "lpoe/model_covariance.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/status.h"
@@ -65,6 +67,18 @@ void PredictPositionsInto(const RobotModel& model, const double* q, long rows, i
 // The same with the tool of each row (`tools`, `rows` entries).
 void PredictPositionsInto(const RobotModel& model, const double* q, long rows, const int* tools,
                           double* out);
+
+// A prior read from a file or built by lpoe.fleet_prior: a model and its covariance block.
+struct Prior {
+  RobotModel model;
+  ModelCovariance covariance;
+  std::string source;  // the file, or "fleet prior of N models"
+  std::string yaml;    // the file's text (lpoe_prior's for a fleet)
+};
+
+// prior= of lpoe.calibrate and lpoe.plan: a file (a calibrated model with its covariance block, or
+// lpoe_prior's fleet prior) or an lpoe.Prior; null when None.
+std::shared_ptr<Prior> PriorArgument(const pybind11::object& prior);
 
 }  // namespace python
 }  // namespace lpoe

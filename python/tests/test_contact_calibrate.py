@@ -3,6 +3,7 @@ by lpoe_simulate for a truth robot with frame errors of about 1 mm and 3 mrad an
 0.01 rad, calibrated with the defaults, and judged on held-out configurations after the best rigid
 (planes alone: similarity) alignment of the predicted and true tool points -- the base is not seen
 by such data. Also: the same model bytes as lpoe_calibrate, both solvers agree, refusals."""
+import json
 import os
 import subprocess
 
@@ -130,8 +131,6 @@ def test_refusals(sim):
         lpoe.calibrate(nominal, bar, verify=bar, holdout=0.2)
     with pytest.raises(lpoe.Error, match="verify names a pivot or plane that data does not"):
         lpoe.calibrate(nominal, bar, verify=cube)
-    with pytest.raises(lpoe.Error, match="joint_errors: 'auto' is not available with distance"):
-        lpoe.calibrate(nominal, bar, joint_errors="auto")
     with pytest.raises(lpoe.Error, match="gravity tilt is not available with distance"):
         lpoe.calibrate(nominal, bar, joint_errors="compliance,tilt")
     with pytest.raises(lpoe.Error, match="hold_scale: expected 'auto', 'on' or 'off'"):
@@ -198,3 +197,23 @@ def test_verify_and_kfold_as_the_tool(sim):
         assert len(k["features"]) == 3
         assert sum(f["rows"] for f in k["features"]) == k["rows"]
         assert k["features"] == cli[name]["features"]
+
+
+def test_joint_errors_auto(sim, tmp_path):
+    """joint_errors='auto' with ballbar rows of the geometric truth (no joint-space error): the
+    cross-validation keeps the geometry alone (the one-standard-error rule: no term lowers the
+    held-out error by a standard error), and calibrate writes the model lpoe_calibrate
+    --joint_errors=auto writes, with the same choice in the report."""
+    nominal, _, bar, _, d = sim
+    r = lpoe.calibrate(nominal, bar, joint_errors="auto")
+    sel = r.report["joint_error_selection"]
+    assert sel["folds"] == 5 and len(sel["candidates"]) == 2 ** len(lpoe.joint_error_terms())
+    assert sel["chosen"] == "none", sel
+    assert r.report["joint_errors"] == []
+    out = tmp_path / "auto.yaml"
+    report = tmp_path / "auto.json"
+    subprocess.run([CLI, f"--model={os.path.join(DATA, 'cobot6.yaml')}",
+                    f"--measurements={d / 'bar.csv'}", "--joint_errors=auto", f"--output={out}",
+                    f"--report={report}", "--quiet"], check=True, stdout=subprocess.DEVNULL)
+    assert out.read_text() == r.model.to_yaml()
+    assert json.loads(report.read_text())["joint_error_selection"] == sel

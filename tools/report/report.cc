@@ -223,12 +223,13 @@ Json ResidualModelJson(const RunSummary& s) {
 
 // "<k>-fold cross-validation<how> on the identification rows (<seed or contiguous folds>),
 // held-out position error\n": the first line of a selection's table.
-std::string FoldsHeading(const CrossValidationChoice& sel, const char* how) {
+std::string FoldsHeading(const CrossValidationChoice& sel, const char* how,
+                         const std::string& error = "position error") {
   return std::to_string(sel.folds) + "-fold cross-validation" + how +
          " on the identification rows (" +
          (sel.split == SplitKind::kSequential ? std::string("contiguous folds")
                                               : "seed " + std::to_string(sel.seed)) +
-         "), held-out position error\n";
+         "), held-out " + error + "\n";
 }
 
 }  // namespace
@@ -364,8 +365,8 @@ void AddPipelineResult(const PipelineResult& run, RunSummary* s) {
   static_cast<PipelineResult&>(*s) = run;
 }
 
-std::string JointErrorSelectionTable(const JointErrorSelection& sel) {
-  std::string out = "joint errors (auto): " + FoldsHeading(sel, "");
+std::string JointErrorSelectionTable(const JointErrorSelection& sel, const std::string& error) {
+  std::string out = "joint errors (auto): " + FoldsHeading(sel, "", error);
   // The terms column: 25 wide, wider when a label needs it (every registry subset is a candidate).
   int width = 25;
   for (const JointErrorCandidate& c : sel.candidates) {

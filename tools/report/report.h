@@ -107,7 +107,9 @@ void AddPointResiduals(const RobotModel& before, const RobotModel& after,
 
 // --joint_errors=auto: the cross-validation table and the choice, as text (lpoe_calibrate prints it
 // to stderr).
-std::string JointErrorSelectionTable(const JointErrorSelection& selection);
+// `error`: what the held-out error is (the heading's "held-out position error").
+std::string JointErrorSelectionTable(const JointErrorSelection& selection,
+                                     const std::string& error = "position error");
 // --residual_model=auto: the cross-validation table and the choice, as text.
 std::string ResidualModelSelectionTable(const ResidualModelSelection& selection);
 // The fitted layer in a line or two (or why there is none); "" when none was asked for.

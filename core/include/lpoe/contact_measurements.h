@@ -86,7 +86,9 @@ std::string ContactMeasurementsCsv(const RobotModel& model, const ContactMeasure
                                    MeasurementKindId kind);
 
 // Simulation (lpoe_simulate --measurement=ballbar|plane). `truth` predicts what is measured at
-// the commanded joint values (FoldJointZeros of the actual robot). Configurations are drawn around
+// the commanded joint values (FoldJointZeros of the actual robot; with joint-space terms, at its
+// effective joint values: the distance is read there, and the probe stops where the true tip
+// touches). Configurations are drawn around
 // a seed configuration per pivot / per face and moved by Gauss-Newton until the ball (probe tip)
 // sits where it must; rows that do not converge or leave the joint limits are drawn again.
 struct BallbarSimulationOptions {

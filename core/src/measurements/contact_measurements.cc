@@ -14,6 +14,7 @@
 #include "io/file_util.h"
 #include "lpoe/csv_rules.h"
 #include "lpoe/distance_measurement.h"
+#include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/plane_measurement.h"
 #include "io/parse_util.h"
@@ -409,6 +410,30 @@ bool MoveToolTo(const RobotModel& model, int tool, const Eigen::Vector3d& target
   return false;
 }
 
+// Where the truth's tool really is at commanded joints q: at its effective joint values when it
+// carries joint-space terms (lpoe_simulate --joint_errors), else FK(q).
+Eigen::Vector3d TrueContactPoint(const RobotModel& truth, const std::vector<double>& q, int tool) {
+  if (truth.joint_errors.empty()) return ToolPosition(truth, q.data(), tool);
+  std::vector<double> q_eff(q.size());
+  EffectiveJoints(truth, q.data(), q_eff.data());
+  return ToolPosition(truth, q_eff.data(), tool);
+}
+
+// The probe stops where the truth's tip (at its effective joint values) touches: moves the
+// commanded joints q along the normal n until the true point's height n.P is the target's (the
+// geometric target shifted by the joint terms' displacement, a few micrometres; a few rounds).
+bool ContactWithJointErrors(const RobotModel& truth, int tool, const Eigen::Vector3d& n,
+                            const Eigen::Vector3d& target, std::vector<double>* q) {
+  Eigen::Vector3d aim = target;
+  for (int it = 0; it < 10; ++it) {
+    const double off = n.dot(TrueContactPoint(truth, *q, tool) - target);
+    if (std::abs(off) < 1e-10) return true;
+    aim -= off * n;
+    if (!MoveToolTo(truth, tool, aim, q)) return false;
+  }
+  return false;
+}
+
 class ContactRandom {
  public:
   explicit ContactRandom(uint64_t seed) : engine_(seed) {}
@@ -508,7 +533,7 @@ Status SimulateBallbar(const RobotModel& truth, const BallbarSimulationOptions& 
       row.feature = k;
       row.target = options.target;
       row.sigma = options.noise > 0 ? options.noise : 0.001;
-      row.value = DistanceMeasurement::Simulate(ToolPosition(truth, q.data(), options.target),
+      row.value = DistanceMeasurement::Simulate(TrueContactPoint(truth, q, options.target),
                                                 pivots[k]) +
                   options.noise * rng.Normal();
       set.rows.push_back(row);
@@ -563,6 +588,10 @@ Status SimulatePlaneContacts(const RobotModel& truth, const PlaneSimulationOptio
         if (a != k) target(a) += rng.Uniform(-0.9 * h, 0.9 * h);
       }
       if (!MoveToolTo(truth, options.target, target, &q)) continue;
+      if (!truth.joint_errors.empty() &&
+          !ContactWithJointErrors(truth, options.target, n, target, &q)) {
+        continue;
+      }
       if (!WithinLimits(truth, q)) continue;
       ContactRow row;
       row.kind = MeasurementKindId::kPlane;

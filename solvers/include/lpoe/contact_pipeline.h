@@ -15,6 +15,7 @@
 #include "lpoe/contact_measurements.h"
 #include "lpoe/measurement_kinds.h"
 #include "lpoe/measurements.h"
+#include "lpoe/pipeline.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/status.h"
 
@@ -56,7 +57,13 @@ struct ContactPipelineOptions {
   double holdout = 0;       // fraction of the rows held out, [0, 1)
   uint64_t split_seed = 0;  // the hold-out draw; the k-fold draw uses split_seed + 1
   int kfold = 0;            // 0: off, else the number of folds (>= 2)
+  // --joint_errors=auto: the terms chosen by SelectContactJointErrors (calibration.joint_terms
+  // is then ignored); the choice is in ContactPipelineResult::joint_error_selection.
+  bool joint_errors_auto = false;
 };
+
+// The folds of --joint_errors=auto with distance and plane rows when --kfold is not given.
+constexpr int kContactAutoFolds = 5;
 
 struct ContactPipelineResult {
   // ok false: `message` says why; failed_fold >= 0 when a k-fold fit failed (its result in
@@ -75,6 +82,9 @@ struct ContactPipelineResult {
   std::vector<ContactKindSummary> kinds;
   // The worst of the kinds' verdicts on the identification rows ("pass" when every kind passes).
   std::string verdict;
+  // With joint_errors_auto: every candidate's cross-validated error and the choice (ran false
+  // otherwise).
+  JointErrorSelection joint_error_selection;
 };
 
 // The rows of the verification sets `parts` (distance or plane rows of the pivots and planes that
@@ -91,9 +101,25 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
                                          const ContactMeasurementSet& verification,
                                          const ContactPipelineOptions& options);
 
+// --joint_errors=auto with distance and plane rows: the tracker's choice (SelectJointErrors,
+// docs/joint_errors.md "Choosing the terms") on these rows. Every subset of the registry is a
+// candidate (the gravity tilt is not: ContactRefusalReason("joint_errors_tilt")); the
+// identification rows are shuffled (options.split_seed + 1, the draw of --kfold) into
+// options.kfold folds (kContactAutoFolds when 0); each fold is calibrated with the candidate's
+// terms by options.solver (its own pivots and planes, options.calibration otherwise) and its
+// held-out rows predicted; the candidate's score is the pooled mean squared held-out error (mm^2:
+// distances, plane offsets, tracker |e|). Candidates are ordered by the identified joint-space
+// combinations (what a kind cannot separate is left out of a candidate's count as the contact
+// calibration leaves it out: e.g. the first joint's compliance with ballbar data), and the
+// one-standard-error rule chooses. Cost: 2^T k contact calibrations.
+JointErrorSelection SelectContactJointErrors(const RobotModel& start,
+                                             const ContactMeasurementSet& identification,
+                                             const ContactPipelineOptions& options);
+
 // The joint-space terms of a --joint_errors text (Python's joint_errors=) for distance or plane
 // data, built on `reference` (the start model): "none" (no terms) or a list of the registry's
-// terms, in registry order. "auto" and the gravity tilt are refused with their reasons.
+// terms, in registry order. "auto" (ContactPipelineOptions::joint_errors_auto chooses them) and
+// the gravity tilt are refused with their reasons.
 Status ContactJointTerms(const std::string& text, const RobotModel& reference,
                          std::vector<std::shared_ptr<const JointTerm>>* terms);
 

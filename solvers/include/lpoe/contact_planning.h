@@ -29,6 +29,7 @@
 #include "lpoe/contact_calibration.h"
 #include "lpoe/contact_measurements.h"
 #include "lpoe/planning.h"
+#include "lpoe/planning_workflow.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/status.h"
 
@@ -93,6 +94,36 @@ double ContactPlanLogDet(const Eigen::MatrixXd& rows, const std::vector<int>& se
 // identify every parameter and have rows to spare).
 Status PlanContacts(const RobotModel& model, const ContactCandidates& candidates, int count,
                     int max_exchange_passes, ContactPlanResult* result);
+
+// ---- The workflow: lpoe_plan --measurement=ballbar|plane and lpoe.plan(measurement=...) as one
+// library call (as RunPlanning is for tracker plans): the candidates, the D-optimal plan of `count`
+// of them and `random_draws` random plans of as many candidates (seeds seed + 1000 + k) for
+// comparison. It reads and writes no file.
+struct ContactPlanRequest {
+  ContactPlanOptions options;  // pivots (ballbar) or planes (probe), the bar, the probe, the cell
+  int count = 0;               // poses to plan
+  int random_draws = 30;       // random plans compared (lpoe_plan --random_draws)
+};
+
+struct ContactPlanningResult {
+  ContactCandidates candidates;
+  ContactPlanResult plan;
+  std::vector<double> random_log_det;  // the random plans' log det, ascending
+  double random_mean_log_det = 0;      // their mean (0 without any)
+  double random_best_log_det = 0;      // their largest (0 without any)
+};
+
+// The request's numbers, as lpoe_plan checks its flags (a usage error naming the flag): pivots or
+// planes (not both), a bar length in (0, 1e5) mm and a stroke in [0, bar length), unit normals,
+// one face centre per plane when given, a positive face radius and a probe radius not negative,
+// samples per feature in [1, 100000], random draws in lpoe_plan's range (lpoe/options.h), a finite floor, count >= 1.
+Status CheckContactPlanRequest(const ContactPlanRequest& request);
+
+// The whole workflow on `model` (the request checked first; the contact tool must be one of the
+// model's). On failure `failure` (optional) says which kind (kUsage: the request; kNoPlan: no
+// candidates, or too few to plan `count`, the message counting why candidates were dropped).
+Status RunContactPlanning(const RobotModel& model, const ContactPlanRequest& request,
+                          ContactPlanningResult* result, PlanFailure* failure = nullptr);
 
 }  // namespace lpoe
 

@@ -5,11 +5,14 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <sstream>
+#include <string>
 
 #include <Eigen/Dense>
 
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/options.h"
 
 namespace lpoe {
 
@@ -294,6 +297,90 @@ Status PlanContacts(const RobotModel& model, const ContactCandidates& candidates
   result->num_parameters = P;
   result->exchanges = exchanges;
   result->log_det = LogDetOfRows(A, selected);
+  return Status::Ok();
+}
+
+}  // namespace lpoe
+
+namespace lpoe {
+
+Status CheckContactPlanRequest(const ContactPlanRequest& request) {
+  const ContactPlanOptions& o = request.options;
+  if (o.pivots.empty() == o.planes.empty()) {
+    return Status::Error(o.pivots.empty() ? "give --pivots (ballbar) or --planes (probe)"
+                                          : "--pivots (ballbar) and --planes (probe): give one");
+  }
+  if (!o.pivots.empty()) {
+    if (!(o.bar_length > 0 && o.bar_length < 1e5) || !(o.stroke >= 0 && o.stroke < o.bar_length)) {
+      return Status::Error("--bar_length must be positive (mm) and --stroke in [0, bar length)");
+    }
+    for (const Eigen::Vector3d& c : o.pivots) {
+      if (!c.allFinite()) return Status::Error("--pivots: expected finite x,y,z (mm) per pivot");
+    }
+  } else {
+    for (const Eigen::Vector4d& v : o.planes) {
+      if (!v.allFinite()) return Status::Error("--planes: expected finite nx,ny,nz,d per plane");
+      if (std::abs(v.head<3>().norm() - 1) > 1e-6) {
+        std::ostringstream os;
+        os << "--planes: a normal of length " << v.head<3>().norm() << "; give unit normals";
+        return Status::Error(os.str());
+      }
+    }
+    bool centres_finite = true;
+    for (const Eigen::Vector3d& c : o.plane_centres) centres_finite = centres_finite && c.allFinite();
+    if ((!o.plane_centres.empty() && o.plane_centres.size() != o.planes.size()) || !centres_finite) {
+      return Status::Error("--face_centres: 'x,y,z' (mm) per plane separated by ';', one per plane");
+    }
+    if (!(o.face_radius > 0) || !(o.probe_radius >= 0)) {
+      return Status::Error("--face_radius must be positive and --probe_radius not negative (mm)");
+    }
+  }
+  if (o.samples_per_feature < 1 || o.samples_per_feature > 100000) {
+    return Status::Error("--samples_per_feature must be in [1, 100000]");
+  }
+  if (std::isnan(o.cell.min_z) || o.cell.min_z == std::numeric_limits<double>::infinity()) {
+    return Status::Error("--min_z must be a finite height in mm");
+  }
+  if (Status s = CheckOption("lpoe_plan", "random_draws", request.random_draws); !s.ok()) return s;
+  if (request.count < 1) return Status::Error("--count must be a number of poses (1 or more)");
+  return Status::Ok();
+}
+
+Status RunContactPlanning(const RobotModel& model, const ContactPlanRequest& request,
+                          ContactPlanningResult* result, PlanFailure* failure) {
+  PlanFailure ignored;
+  PlanFailure& why = failure != nullptr ? *failure : ignored;
+  why = PlanFailure::kUsage;
+  if (Status s = CheckContactPlanRequest(request); !s.ok()) return s;
+  const ContactPlanOptions& o = request.options;
+  if (o.target < 0 || o.target >= model.num_tools()) {
+    return Status::Error("--contact_tool=" + std::to_string(o.target) + ": the model has " +
+                         std::to_string(model.num_tools()) + " tools");
+  }
+  why = PlanFailure::kNoPlan;
+  ContactPlanningResult out;
+  ContactCandidates& candidates = out.candidates;
+  if (Status s = ContactPlanCandidates(model, o, &candidates); !s.ok()) return s;
+  if (Status s = PlanContacts(model, candidates, request.count, 4, &out.plan); !s.ok()) {
+    return Status::Error(
+        s.message() + " (" + std::to_string(candidates.set.size()) + " candidates; dropped: " +
+        std::to_string(candidates.not_converged) + " not reached, " +
+        std::to_string(candidates.outside_limits) + " outside the joint limits, " +
+        std::to_string(candidates.outside_cell) + " outside the cell, " +
+        std::to_string(candidates.near_singular) + " near a singularity, " +
+        std::to_string(candidates.outside_stroke) + " outside the stroke)");
+  }
+  Eigen::MatrixXd rows;
+  if (Status s = ContactInformationRows(model, candidates, &rows); !s.ok()) return s;
+  for (int d = 0; d < request.random_draws; ++d) {
+    out.random_log_det.push_back(ContactPlanLogDet(
+        rows, RandomPlan(candidates.set.size(), request.count, o.seed + 1000 + d)));
+  }
+  std::sort(out.random_log_det.begin(), out.random_log_det.end());
+  if (!out.random_log_det.empty()) out.random_best_log_det = out.random_log_det.back();
+  for (double v : out.random_log_det) out.random_mean_log_det += v / out.random_log_det.size();
+  *result = std::move(out);
+  why = PlanFailure::kNone;
   return Status::Ok();
 }
 
