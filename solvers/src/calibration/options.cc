@@ -33,40 +33,12 @@ OptionSpec Number(const char* scope, const char* name, const char* default_text,
   return s;
 }
 
-std::vector<OptionSpec> MakeOptions() {
-  const char* kCompensate = "lpoe_compensate";
-  const char* kPlan = "lpoe_plan";
+// lpoe_calibrate's options that lpoe.calibrate shares, in the order of lpoe.calibrate's keywords
+// (the default prior's standard deviations, lpoe/prior.h and docs/identifiability.md "The prior",
+// among them): default, range and help of the flag and of the keyword argument.
+std::vector<OptionSpec> CalibrateOptions() {
   const char* kCalibrate = "lpoe_calibrate";
-  const char* kCompare = "lpoe_compare";
-  const char* kSimulate = "lpoe_simulate";
   return {
-      // ---- Every tool: the model, its chain, the units of the files, quiet, the main output.
-      Text("", "model", "",
-           "Robot model: YAML, or URDF when the name ends in .urdf (metres converted to mm, fixed "
-           "joints folded in; --base_link, --tip_link and --tool_links select the chain). Which "
-           "model (nominal or calibrated) and its default: see the usage above."),
-      Text("", "base_link", "",
-           "URDF --model: the link whose frame is the model's base frame. Default: the root link."),
-      Text("", "tip_link", "",
-           "URDF --model: the link that ends the chain (e.g. tool0). Needed when moving joints "
-           "lead to several leaf links (the error lists them). Default: the one candidate tip."),
-      Text("", "tool_links", "",
-           "URDF --model: comma-separated links fixed to the last moving link that are the "
-           "measured tools (CSV target names). Default: the tip link."),
-      Text("", "angle_unit", "rad",
-           "Unit of revolute joint values in every CSV file the tool reads or writes: rad | deg."),
-      Text("", "length_unit", "mm",
-           "Unit of positions (x, y, z columns) and prismatic joint values in every CSV file the "
-           "tool reads or writes: mm | m. Flags that are lengths stay in mm."),
-      Text("", "quiet", "false",
-           "No progress display and no informational messages; results, warnings and errors "
-           "still print."),
-      Text("", "output", "",
-           "The tool's main output file (what it holds: see the usage above). Checked before any "
-           "work, written atomically, never over an input."),
-      // ---- lpoe_calibrate and lpoe.calibrate (in the order of lpoe.calibrate's keywords; the
-      // default prior's standard deviations, lpoe/prior.h and docs/identifiability.md "The prior",
-      // among them): default, range and help of the flag and of the keyword argument.
       Text(kCalibrate, "solver", "linear",
            "linear: the paper's iterative least squares; ceres: Levenberg-Marquardt on SE(3) "
            "manifolds (robust losses, a-priori covariance)."),
@@ -165,6 +137,39 @@ std::vector<OptionSpec> MakeOptions() {
            "Distance and plane data: auto | on | off. auto holds the robot's scale at the "
            "nominal model's when no file measures a length (probe contacts on planes alone: "
            "the scale is not determined by them; docs/identifiability.md)."),
+  };
+}
+
+std::vector<OptionSpec> MakeOptions() {
+  const char* kCompensate = "lpoe_compensate";
+  const char* kPlan = "lpoe_plan";
+  const char* kCompare = "lpoe_compare";
+  const char* kSimulate = "lpoe_simulate";
+  std::vector<OptionSpec> options = {
+      // ---- Every tool: the model, its chain, the units of the files, quiet, the main output.
+      Text("", "model", "",
+           "Robot model: YAML, or URDF when the name ends in .urdf (metres converted to mm, fixed "
+           "joints folded in; --base_link, --tip_link and --tool_links select the chain). Which "
+           "model (nominal or calibrated) and its default: see the usage above."),
+      Text("", "base_link", "",
+           "URDF --model: the link whose frame is the model's base frame. Default: the root link."),
+      Text("", "tip_link", "",
+           "URDF --model: the link that ends the chain (e.g. tool0). Needed when moving joints "
+           "lead to several leaf links (the error lists them). Default: the one candidate tip."),
+      Text("", "tool_links", "",
+           "URDF --model: comma-separated links fixed to the last moving link that are the "
+           "measured tools (CSV target names). Default: the tip link."),
+      Text("", "angle_unit", "rad",
+           "Unit of revolute joint values in every CSV file the tool reads or writes: rad | deg."),
+      Text("", "length_unit", "mm",
+           "Unit of positions (x, y, z columns) and prismatic joint values in every CSV file the "
+           "tool reads or writes: mm | m. Flags that are lengths stay in mm."),
+      Text("", "quiet", "false",
+           "No progress display and no informational messages; results, warnings and errors "
+           "still print."),
+      Text("", "output", "",
+           "The tool's main output file (what it holds: see the usage above). Checked before any "
+           "work, written atomically, never over an input."),
       // ---- lpoe_compare.
       Number(kCompare, "tolerance_mm", "1e-6", 0, 1000, ""),
       Number(kCompare, "noise_sigma", "0.03", 1e-6, 100, ""),
@@ -219,6 +224,10 @@ std::vector<OptionSpec> MakeOptions() {
              "Measurement noise per axis (mm): scales the predicted accuracy into mm; required "
              "with --count=auto.", false, true),
   };
+  // ---- lpoe_calibrate (and lpoe.calibrate).
+  const std::vector<OptionSpec> calibrate = CalibrateOptions();
+  options.insert(options.end(), calibrate.begin(), calibrate.end());
+  return options;
 }
 
 }  // namespace
