@@ -76,6 +76,25 @@ TEST(Options, TableIsConsistentAndChecksRanges) {
   EXPECT_EQ(FindOption("lpoe_predict", "restarts"), nullptr);
 }
 
+// lpoe_calibrate's flags and lpoe.calibrate's keywords read their text and flag defaults and their
+// help from the table (python/tests/test_options.py compares both with it).
+TEST(Options, CalibrateDefaultsAsWrittenWithHelp) {
+  EXPECT_STREQ(OptionDefaultText("lpoe_calibrate", "solver"), "linear");
+  EXPECT_STREQ(OptionDefaultText("lpoe_calibrate", "fixed_tools"), "");
+  EXPECT_STREQ(OptionDefaultText("lpoe_calibrate", "angle_unit"), "rad");  // the shared one
+  EXPECT_TRUE(OptionDefaultBool("lpoe_calibrate", "register"));
+  EXPECT_FALSE(OptionDefaultBool("lpoe_calibrate", "quiet"));
+  EXPECT_EQ(OptionDefault("lpoe_calibrate", "outlier_threshold"), 5.0);
+  EXPECT_EQ(OptionDefault("lpoe_calibrate", "split_seed"), 1.0);
+  int calibrate_options = 0;
+  for (const OptionSpec& s : Options()) {
+    if (std::string(s.scope) != "lpoe_calibrate") continue;
+    ++calibrate_options;
+    EXPECT_GT(std::string(s.help).size(), 10u) << s.name;
+  }
+  EXPECT_GE(calibrate_options, 27);
+}
+
 class CompensationWorkflow : public ::testing::Test {
  protected:
   void SetUp() override {

@@ -21,6 +21,7 @@
 #include "lpoe/ceres_solver.h"
 #include "lpoe/io.h"
 #include "lpoe/linear_solver.h"
+#include "lpoe/options.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/pipeline.h"
@@ -38,6 +39,12 @@
 #include "lpoe_calibrate_contact.h"
 #include "tool_common.h"
 
+// The options lpoe.calibrate shares: default, range and help from the table (lpoe/options.h).
+#define LPOE_DEFAULT(name) lpoe::OptionDefault("lpoe_calibrate", #name)
+#define LPOE_TEXT(name) lpoe::OptionDefaultText("lpoe_calibrate", #name)
+#define LPOE_FLAG(name) lpoe::OptionDefaultBool("lpoe_calibrate", #name)
+#define LPOE_HELP(name) lpoe::OptionHelp("lpoe_calibrate", #name)
+
 DEFINE_string(measurements, "",
               "Identification measurements (CSV: q1..qN,x,y,z[,target][,quat_x..quat_w]); or "
               "ballbar (q1..qN,distance[,pivot]) and touch-probe (q1..qN,plane[,offset]) files, "
@@ -46,20 +53,10 @@ DEFINE_string(measurements, "",
 DEFINE_string(verify, "",
               "Verification measurements (CSV), never used for identification. Default with the "
               "default measurements: data/section4/verification.csv.");
-DEFINE_double(holdout, 0.0,
-              "Instead of --verify: hold out this fraction of the measurements (0 <= f < 1) "
-              "for verification, chosen as --split says.");
-DEFINE_string(split, "random",
-              "How --holdout, --kfold and --joint_errors=auto split the data, always by "
-              "configuration (rows with the same joint values, e.g. several SMRs at one pose, stay "
-              "on one side): random (seeded by "
-              "--split_seed) | sequential (the held-out fraction is the last rows of the file and "
-              "the folds are contiguous blocks: the honest choice when the rows were measured one "
-              "after another and the cell drifts).");
-DEFINE_int32(kfold, 0,
-             "Also run k-fold cross-validation with this many folds (>= 2; 0 = off) on the "
-             "identification set and report each fold's held-out errors.");
-DEFINE_uint64(split_seed, 1, "Seed of the --holdout and --kfold splits.");
+DEFINE_double(holdout, LPOE_DEFAULT(holdout), LPOE_HELP(holdout));
+DEFINE_string(split, LPOE_TEXT(split), LPOE_HELP(split));
+DEFINE_int32(kfold, static_cast<int32_t>(LPOE_DEFAULT(kfold)), LPOE_HELP(kfold));
+DEFINE_uint64(split_seed, static_cast<uint64_t>(LPOE_DEFAULT(split_seed)), LPOE_HELP(split_seed));
 DEFINE_string(urdf_output, "",
               "Also write the calibrated model as URDF. When --model is a URDF: that same file with "
               "only the calibrated joint origins (and axes) changed, every name, limit, mesh, "
@@ -77,92 +74,42 @@ DEFINE_string(html_report, "",
 DEFINE_string(plots_dir, "lpoe_plots",
               "Directory for the PNG plots (convergence, per-axis errors, histogram); created if "
               "missing. Empty: no plots.");
-DEFINE_string(solver, "linear",
-              "linear: the paper's iterative least squares; ceres: Levenberg-Marquardt on SE(3) "
-              "manifolds (robust losses, a-priori covariance).");
-DEFINE_string(joint_errors, "none",
-              "Joint-space error terms identified with the geometry: none | a comma-separated list "
-              "of the registry's terms (compliance, harmonics, ...: docs/joint_errors.md lists "
-              "them; e.g. compliance,harmonics) | auto (gravity and payload from the model; the identified "
-              "values are written to the model's joint_errors). Add tilt to a list with compliance "
-              "(compliance,tilt) to identify the tilt of the model's gravity too, when the data "
-              "determine it (the tilted gravity goes into the calibrated model). auto: k-fold "
-              "cross-validation on the identification rows (--kfold folds, 5 when not given; "
-              "--split_seed) picks the simplest set within one standard error of the lowest "
-              "held-out error among every subset of the terms, with the tilt among the "
-              "candidates when identifiable (docs/joint_errors.md).");
-DEFINE_string(residual_model, "none",
-              "Learned residual layer after the parametric solve (docs/residual_layer.md): none | "
-              "gp (a sparse Gaussian process over the joint configuration and the SMR, fitted on "
-              "the identification residuals, stored in --output and used by every prediction) | "
-              "auto (k-fold cross-validation by configuration, --kfold folds or 5, picks none or "
-              "gp by the one-standard-error rule). Held-out figures include a layer fitted on the "
-              "training rows only.");
-DEFINE_string(loss, "none",
-              "Ceres solver: robust loss against gross errors in the data: none | huber | cauchy.");
-DEFINE_double(loss_scale, 1.0,
-              "Ceres solver: scale of the robust loss in mm (errors above it are down-weighted).");
-DEFINE_double(sigma, 1.0,
-              "Ceres solver: measurement noise per axis in mm (residual whitening; sets the scale "
-              "of the covariance), in [1e-6, 1e3]. Default (not given): estimated, the covariance "
-              "scaled by the noise estimated from the residuals as with the linear solver (the "
-              "default value 1 printed below is then only the whitening unit).");
-DEFINE_int32(threads, 0, "Ceres solver: threads (0: all hardware threads; at most 256).");
-DEFINE_string(parameterization, "identifiable",
-              "identifiable: only the directions the data can see (27 for a 6R arm with position "
-              "data); full: 6 per local frame, solved as a minimum-norm pseudo-inverse (the "
-              "paper's 42).");
-DEFINE_string(data_kind, "auto",
-              "position | pose | distance | plane | auto (distance: ballbar, plane: touch probe; "
-              "docs/measurements.md): pose-based calibration (paper eqs. 17-24) uses the measured "
-              "orientations; auto picks pose when the CSV has quat_* columns.");
-DEFINE_bool(register, true,
-            "Register the model to the measurement frame first when the measurements are not in "
-            "its base frame (a rigid fit that moves the base by more than 50 mm or 0.05 rad): "
-            "rigid fit, then base and tool frames, then everything.");
-DEFINE_double(outlier_threshold, 5.0,
-              "List points whose error after the fit exceeds this many robust sigmas.");
-DEFINE_int32(max_iterations, 30, "Iteration limit.");
-DEFINE_double(step_tolerance, 1e-10,
-              "Convergence (linear solver): stop when |x| falls below this (mm or rad; at most "
-              "1e-3). Large-residual data also stop when the step is below --sd_fraction standard "
-              "deviations of every parameter or no longer reduces the cost (docs/pipeline.md).");
-DEFINE_double(sd_fraction, 1e-2,
-              "Convergence (both solvers): stop when the step is below this fraction of every "
-              "parameter's standard deviation (0 = off, at most 0.5).");
-DEFINE_double(noise_sigma, 0.03,
-              "Expected tracker noise per axis (mm) for the plausibility verdict: residuals far "
-              "above it (plus the ~0.3 mm a geometric model leaves on a real robot) fail.");
+DEFINE_string(solver, LPOE_TEXT(solver), LPOE_HELP(solver));
+DEFINE_string(joint_errors, LPOE_TEXT(joint_errors), LPOE_HELP(joint_errors));
+DEFINE_string(residual_model, LPOE_TEXT(residual_model), LPOE_HELP(residual_model));
+DEFINE_string(loss, LPOE_TEXT(loss), LPOE_HELP(loss));
+DEFINE_double(loss_scale, LPOE_DEFAULT(loss_scale), LPOE_HELP(loss_scale));
+DEFINE_double(sigma, LPOE_DEFAULT(sigma), LPOE_HELP(sigma));
+DEFINE_int32(threads, static_cast<int32_t>(LPOE_DEFAULT(threads)), LPOE_HELP(threads));
+DEFINE_string(parameterization, LPOE_TEXT(parameterization), LPOE_HELP(parameterization));
+DEFINE_string(data_kind, LPOE_TEXT(data_kind), LPOE_HELP(data_kind));
+DEFINE_bool(register, LPOE_FLAG(register), LPOE_HELP(register));
+DEFINE_double(outlier_threshold, LPOE_DEFAULT(outlier_threshold), LPOE_HELP(outlier_threshold));
+DEFINE_int32(max_iterations, static_cast<int32_t>(LPOE_DEFAULT(max_iterations)),
+             LPOE_HELP(max_iterations));
+DEFINE_double(step_tolerance, LPOE_DEFAULT(step_tolerance), LPOE_HELP(step_tolerance));
+DEFINE_double(sd_fraction, LPOE_DEFAULT(sd_fraction), LPOE_HELP(sd_fraction));
+DEFINE_double(noise_sigma, LPOE_DEFAULT(noise_sigma), LPOE_HELP(noise_sigma));
 DEFINE_string(prior, "",
               "Recalibration (docs/recalibration.md): a calibrated model with its covariance block "
               "(lpoe_calibrate --output, or lpoe_prior's fleet prior) as the prior; the start "
               "model unless --model is given. Groups the new data show changed (a joint's zero, a "
               "joint's frame, a tool) are freed and named.");
-DEFINE_double(prior_scale, 1.0,
-              "The prior on weakly determined directions (docs/identifiability.md): every standard "
-              "deviation below multiplied by this (larger: looser); 0: no prior, plain least "
-              "squares.");
-DEFINE_double(prior_translation, 5.0,
-              "Prior standard deviation of the joint frames' translations (mm).");
-DEFINE_double(prior_rotation, 20.0,
-              "Prior standard deviation of the joint frames' rotations, joint zeros included "
-              "(mrad).");
-DEFINE_double(prior_tool_translation, 20.0,
-              "Prior standard deviation of the tool points (SMRs) about their fitted start (mm).");
-DEFINE_double(prior_joint_terms, 5.0,
-              "Prior standard deviation of each joint-space term parameter, as its RMS effect on "
-              "the joint values over the data (mrad).");
+DEFINE_double(prior_scale, LPOE_DEFAULT(prior_scale), LPOE_HELP(prior_scale));
+DEFINE_double(prior_translation, LPOE_DEFAULT(prior_translation), LPOE_HELP(prior_translation));
+DEFINE_double(prior_rotation, LPOE_DEFAULT(prior_rotation), LPOE_HELP(prior_rotation));
+DEFINE_double(prior_tool_translation, LPOE_DEFAULT(prior_tool_translation),
+              LPOE_HELP(prior_tool_translation));
+DEFINE_double(prior_joint_terms, LPOE_DEFAULT(prior_joint_terms), LPOE_HELP(prior_joint_terms));
 DEFINE_bool(force, false,
             "Write the outputs even when the plausibility verdict fails; the exit code is still 8, "
             "so that a script can tell a forced result.");
-DEFINE_string(fixed_tools, "",
-              "Comma-separated tools of the model whose frames are known (SMR nests measured on "
-              "the fixture, e.g. smr1,smr2,smr3): held as given, so that the flange frame is "
-              "identified in full, the last joint's zero and the rotation about its axis included "
-              "(docs/identifiability.md, 'Known SMR nests'). The model's tools with fixed: true "
-              "are held too; the calibrated model records them.");
-DEFINE_double(max_condition, 1e8,
-              "Refuse data whose column-scaled Jacobian has a larger condition number.");
+DEFINE_string(fixed_tools, LPOE_TEXT(fixed_tools), LPOE_HELP(fixed_tools));
+DEFINE_double(max_condition, LPOE_DEFAULT(max_condition), LPOE_HELP(max_condition));
+#undef LPOE_DEFAULT
+#undef LPOE_TEXT
+#undef LPOE_FLAG
+#undef LPOE_HELP
 
 namespace lpoe {
 namespace {

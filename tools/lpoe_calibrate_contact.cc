@@ -20,6 +20,7 @@
 #include "lpoe/contact_pipeline.h"
 #include "lpoe/io.h"
 #include "lpoe/measurement_kinds.h"
+#include "lpoe/options.h"
 #include "lpoe/refusals.h"
 #include "lpoe/registration.h"
 #include "lpoe/urdf.h"
@@ -52,10 +53,8 @@ DEFINE_string(sigmas, "",
               "One noise (mm, standard deviation) per --measurements file, comma-separated, for "
               "files without a sigma column (ballbar distances, probe contacts, tracker positions "
               "per axis). Default: --sigma when given, else each file's sigma column.");
-DEFINE_string(hold_scale, "auto",
-              "Distance and plane data: auto | on | off. auto holds the robot's scale at the "
-              "nominal model's when no file measures a length (probe contacts on planes alone: "
-              "the scale is not determined by them; docs/identifiability.md).");
+DEFINE_string(hold_scale, lpoe::OptionDefaultText("lpoe_calibrate", "hold_scale"),
+              lpoe::OptionHelp("lpoe_calibrate", "hold_scale"));
 
 namespace lpoe {
 namespace tools {

@@ -8,11 +8,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <memory>
 #include <random>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "lpoe/analysis.h"
@@ -74,8 +76,23 @@ std::shared_ptr<Prior> PriorArgument(const py::object& prior) {
 
 namespace {
 
+constexpr const char* kCalibrateTool = "lpoe_calibrate";
+
+// The default of lpoe_calibrate's option `name` in the option table, as T.
+template <typename T>
+T TableDefault(const char* name) {
+  if constexpr (std::is_same_v<T, std::string>) {
+    return OptionDefaultText(kCalibrateTool, name);
+  } else if constexpr (std::is_same_v<T, bool>) {
+    return OptionDefaultBool(kCalibrateTool, name);
+  } else {
+    return static_cast<T>(OptionDefault(kCalibrateTool, name));
+  }
+}
+
 // Keyword options named as lpoe_calibrate's flags: every Get names a known option (with its
-// default); Finish() rejects the others, listing the known ones. A new CLI option is one Get here.
+// default; Option: the table's); Finish() rejects the others, listing the known ones. A new CLI
+// option is one entry in the table and one Option here.
 class KeywordOptions {
  public:
   explicit KeywordOptions(const py::kwargs& kwargs) : kwargs_(kwargs) {}
@@ -93,6 +110,11 @@ class KeywordOptions {
                       py::str(value.get_type().attr("__name__")).cast<std::string>() +
                       " value " + py::repr(value).cast<std::string>());
     }
+  }
+  // An option of lpoe_calibrate's: the option table's default when not given (lpoe/options.h).
+  template <typename T>
+  T Option(const char* name) {
+    return Get<T>(name, TableDefault<T>(name));
   }
   bool Given(const char* name) const { return kwargs_.contains(name) && !kwargs_[name].is_none(); }
 
@@ -114,61 +136,83 @@ class KeywordOptions {
 };
 
 
-Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_data,
-                      const MeasurementSet* given_verify, const py::kwargs& kwargs,
-                      const Prior* prior_file = nullptr) {
+// The keyword options of lpoe.calibrate, read with the option table's defaults (lpoe/options.h).
+struct CalibrateSettings {
+  std::string solver, parameterization, data_kind, joint_errors, residual_model, split_name, loss,
+      angle_unit;
+  bool register_frames = true;
+  double holdout = 0;
+  int kfold = 0;
+  uint64_t split_seed = 1;
+  double outlier_threshold = 0, step_tolerance = 0, sd_fraction = 0, max_condition = 0,
+         noise_sigma = 0, loss_scale = 0, sigma = 0;
+  int max_iterations = 0, threads = 0;
+  bool sigma_given = false;
+  py::object fixed_tools;
+  double prior_scale = 0;
+  PriorScales prior_scales;
+};
+
+CalibrateSettings ReadCalibrateSettings(const py::kwargs& kwargs) {
   KeywordOptions k(kwargs);
-  const std::string solver = k.Get<std::string>("solver", "linear");
-  const std::string parameterization = k.Get<std::string>("parameterization", "identifiable");
-  const std::string data_kind = k.Get<std::string>("data_kind", "auto");
-  const std::string joint_errors = k.Get<std::string>("joint_errors", "none");
-  const std::string residual_model = k.Get<std::string>("residual_model", "none");
-  const bool register_frames = k.Get<bool>("register", true);
-  const double holdout = k.Get<double>("holdout", 0.0);
-  const int kfold = k.Get<int>("kfold", 0);
-  const uint64_t split_seed = k.Get<uint64_t>("split_seed", 1);
-  const std::string split_name = k.Get<std::string>("split", "random");
-  const double outlier_threshold = k.Get<double>("outlier_threshold", 5.0);
-  const int max_iterations = k.Get<int>("max_iterations", 30);
-  const double step_tolerance = k.Get<double>("step_tolerance", 1e-10);
-  const double sd_fraction = k.Get<double>("sd_fraction", 1e-2);
-  const double max_condition = k.Get<double>("max_condition", 1e8);
-  const double noise_sigma = k.Get<double>("noise_sigma", 0.03);
-  const std::string loss = k.Get<std::string>("loss", "none");
-  const double loss_scale = k.Get<double>("loss_scale", 1.0);
-  const bool sigma_given = k.Given("sigma");
-  const double sigma = k.Get<double>("sigma", 1.0);
-  const int threads = k.Get<int>("threads", 0);
-  const std::string angle_unit = k.Get<std::string>("angle_unit", "rad");
+  CalibrateSettings s;
+  s.solver = k.Option<std::string>("solver");
+  s.parameterization = k.Option<std::string>("parameterization");
+  s.data_kind = k.Option<std::string>("data_kind");
+  s.joint_errors = k.Option<std::string>("joint_errors");
+  s.residual_model = k.Option<std::string>("residual_model");
+  s.register_frames = k.Option<bool>("register");
+  s.holdout = k.Option<double>("holdout");
+  s.kfold = k.Option<int>("kfold");
+  s.split_seed = k.Option<uint64_t>("split_seed");
+  s.split_name = k.Option<std::string>("split");
+  s.outlier_threshold = k.Option<double>("outlier_threshold");
+  s.max_iterations = k.Option<int>("max_iterations");
+  s.step_tolerance = k.Option<double>("step_tolerance");
+  s.sd_fraction = k.Option<double>("sd_fraction");
+  s.max_condition = k.Option<double>("max_condition");
+  s.noise_sigma = k.Option<double>("noise_sigma");
+  s.loss = k.Option<std::string>("loss");
+  s.loss_scale = k.Option<double>("loss_scale");
+  s.sigma_given = k.Given("sigma");
+  s.sigma = k.Option<double>("sigma");
+  s.threads = k.Option<int>("threads");
+  s.angle_unit = k.Option<std::string>("angle_unit");
   // Known SMR nests: a list of tool names (or one comma-separated string, as --fixed_tools).
-  const py::object fixed_tools = k.Get<py::object>("fixed_tools", py::none());
+  s.fixed_tools = k.Get<py::object>("fixed_tools", py::none());
   // The default prior (docs/identifiability.md "The prior"), as lpoe_calibrate's --prior_* flags.
-  const double prior_scale = k.Get<double>("prior_scale", 1.0);
-  const double prior_translation = k.Get<double>("prior_translation", 5.0);
-  const double prior_rotation = k.Get<double>("prior_rotation", 20.0);
-  const double prior_tool_translation = k.Get<double>("prior_tool_translation", 20.0);
-  const double prior_joint_terms = k.Get<double>("prior_joint_terms", 5.0);
+  s.prior_scale = k.Option<double>("prior_scale");
+  s.prior_scales.frame_translation_mm = k.Option<double>("prior_translation");
+  s.prior_scales.frame_rotation_mrad = k.Option<double>("prior_rotation");
+  s.prior_scales.tool_translation_mm = k.Option<double>("prior_tool_translation");
+  s.prior_scales.joint_term_mrad = k.Option<double>("prior_joint_terms");
   k.Finish("calibrate");
   // The ranges lpoe_calibrate's flags have (lpoe/options.h), with the same messages.
-  for (const auto& [name, value] :
-       std::vector<std::pair<const char*, double>>{{"max_iterations", max_iterations},
-                                                   {"step_tolerance", step_tolerance},
-                                                   {"sd_fraction", sd_fraction},
-                                                   {"max_condition", max_condition},
-                                                   {"outlier_threshold", outlier_threshold},
-                                                   {"sigma", sigma},
-                                                   {"loss_scale", loss_scale},
-                                                   {"threads", threads},
-                                                   {"noise_sigma", noise_sigma},
-                                                   {"prior_scale", prior_scale},
-                                                   {"prior_translation", prior_translation},
-                                                   {"prior_rotation", prior_rotation},
-                                                   {"prior_tool_translation", prior_tool_translation},
-                                                   {"prior_joint_terms", prior_joint_terms}}) {
-    if (Status s = CheckOption("lpoe_calibrate", name, value); !s.ok()) throw LpoeError(s.message());
+  const PriorScales& p = s.prior_scales;
+  for (const auto& [name, value] : std::vector<std::pair<const char*, double>>{
+           {"max_iterations", s.max_iterations},
+           {"step_tolerance", s.step_tolerance},
+           {"sd_fraction", s.sd_fraction},
+           {"max_condition", s.max_condition},
+           {"outlier_threshold", s.outlier_threshold},
+           {"sigma", s.sigma},
+           {"loss_scale", s.loss_scale},
+           {"threads", s.threads},
+           {"noise_sigma", s.noise_sigma},
+           {"prior_scale", s.prior_scale},
+           {"prior_translation", p.frame_translation_mm},
+           {"prior_rotation", p.frame_rotation_mrad},
+           {"prior_tool_translation", p.tool_translation_mm},
+           {"prior_joint_terms", p.joint_term_mrad}}) {
+    if (Status st = CheckOption(kCalibrateTool, name, value); !st.ok()) {
+      throw LpoeError(st.message());
+    }
   }
+  return s;
+}
 
-  if (Status s = nominal.Validate(); !s.ok()) throw LpoeError(s.message());
+// fixed_tools=: a list of tool names or one comma-separated string, held on a copy of `nominal`.
+RobotModel WithFixedTools(const RobotModel& nominal, const py::object& fixed_tools) {
   std::vector<std::string> fixed_names;
   if (!fixed_tools.is_none()) {
     if (py::isinstance<py::str>(fixed_tools)) {
@@ -188,143 +232,120 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   if (Status s = SetFixedTools(fixed_names, &with_fixed); !s.ok()) {
     throw LpoeError("fixed_tools: " + s.message());
   }
-  if (given_data.num_joints() != nominal.num_joints() ||
-      (given_verify != nullptr && given_verify->num_joints() != nominal.num_joints())) {
+  return with_fixed;
+}
+
+// The data's joint count and every row's tool a tool of the model (data read with another model):
+// refused here, never the solvers' internal check (an abort of the interpreter).
+void CheckRowsFitModel(const RobotModel& nominal, const MeasurementSet& data,
+                       const MeasurementSet* verify) {
+  if (data.num_joints() != nominal.num_joints() ||
+      (verify != nullptr && verify->num_joints() != nominal.num_joints())) {
     throw LpoeError("the measurements have a different number of joints than the model");
   }
-  // Every row's tool a tool of the model (data read with another model): refused here, never the
-  // solvers' internal check (an abort of the interpreter).
-  for (const MeasurementSet* set : {&given_data, given_verify}) {
+  for (const MeasurementSet* set : {&data, verify}) {
     if (set == nullptr) continue;
     for (int r = 0; r < set->size(); ++r) {
       if (set->target(r) < 0 || set->target(r) >= nominal.num_tools()) {
-        throw LpoeError(std::string(set == &given_data ? "data" : "verify") + ": row " +
+        throw LpoeError(std::string(set == &data ? "data" : "verify") + ": row " +
                         std::to_string(r) + " measures tool " + std::to_string(set->target(r)) +
                         ", the model has " + std::to_string(nominal.num_tools()) + " tools");
       }
     }
   }
-  if (!(holdout >= 0 && holdout <= 0.95)) throw LpoeError("holdout: expected 0..0.95");
-  SplitKind split = SplitKind::kRandom;
-  if (!ParseSplitKind(split_name, &split)) {
-    throw LpoeError("split: expected 'random' or 'sequential', got '" + split_name + "'");
-  }
-  if (holdout > 0 && given_verify != nullptr) {
-    throw LpoeError("give either verify= or holdout=, not both");
-  }
-  // --holdout: the rows held out for verification, as lpoe_calibrate splits them.
-  MeasurementSet held_data(nominal.num_joints()), held_verify(nominal.num_joints());
-  if (holdout > 0) {
-    std::vector<int> id_rows, ver_rows;
-    HoldoutSplit(given_data, holdout, split_seed, &id_rows, &ver_rows, split);
-    held_data = given_data.Subset(id_rows);
-    held_verify = given_data.Subset(ver_rows);
-    if (Status s = tools::CheckHoldoutSplit(holdout, held_data.size(), held_verify.size());
-        !s.ok()) {
-      throw LpoeError(s.message());
-    }
-  }
-  const MeasurementSet& data = holdout > 0 ? held_data : given_data;
-  const MeasurementSet* verify = holdout > 0 ? &held_verify : given_verify;
+}
 
+// The pipeline's options from the keyword options (as lpoe_calibrate's PipelineOptionsFromFlags),
+// with the refusals of the values the table's ranges do not cover.
+PipelineOptions CalibratePipelineOptions(const CalibrateSettings& s, SplitKind split,
+                                         const MeasurementSet& data) {
   PipelineOptions o;
-  if (solver != "linear" && solver != "ceres") {
-    throw LpoeError("solver: expected 'linear' or 'ceres', got '" + solver + "'");
+  if (s.solver != "linear" && s.solver != "ceres") {
+    throw LpoeError("solver: expected 'linear' or 'ceres', got '" + s.solver + "'");
   }
-  o.solver = solver == "ceres" ? SolverKind::kCeres : SolverKind::kLinear;
-  o.parameterization = ParseParameterizationOption(parameterization);
-  o.use_orientation = ParseDataKindOption(data_kind, data);
+  o.solver = s.solver == "ceres" ? SolverKind::kCeres : SolverKind::kLinear;
+  o.parameterization = ParseParameterizationOption(s.parameterization);
+  o.use_orientation = ParseDataKindOption(s.data_kind, data);
   // joint_errors: "none", a comma-separated list or "auto" (chosen by cross-validation), as
   // lpoe_calibrate --joint_errors.
-  o.joint_errors_auto = joint_errors == "auto";
-  o.joint_error_folds = kfold >= 2 ? kfold : 5;
-  if (!o.joint_errors_auto) o.joint_errors = JointErrorNames(joint_errors, true);
-  if (!ParseResidualModelKind(residual_model, &o.residual_model)) {
-    throw LpoeError("residual_model: expected 'none', 'gp' or 'auto', got '" + residual_model +
+  o.joint_errors_auto = s.joint_errors == "auto";
+  o.joint_error_folds = s.kfold >= 2 ? s.kfold : 5;
+  if (!o.joint_errors_auto) o.joint_errors = JointErrorNames(s.joint_errors, true);
+  if (!ParseResidualModelKind(s.residual_model, &o.residual_model)) {
+    throw LpoeError("residual_model: expected 'none', 'gp' or 'auto', got '" + s.residual_model +
                     "'");
   }
-  if (angle_unit != "rad" && angle_unit != "deg") {
-    throw LpoeError("angle_unit: expected 'rad' or 'deg', got '" + angle_unit + "'");
+  if (s.angle_unit != "rad" && s.angle_unit != "deg") {
+    throw LpoeError("angle_unit: expected 'rad' or 'deg', got '" + s.angle_unit + "'");
   }
   std::vector<int> configuration_of_row;
-  if (kfold != 0 && !(kfold >= 2 && kfold <= 100 &&
-                      kfold <= ConfigurationGroups(data, &configuration_of_row))) {
+  if (s.kfold != 0 && !(s.kfold >= 2 && s.kfold <= 100 &&
+                        s.kfold <= ConfigurationGroups(data, &configuration_of_row))) {
     throw LpoeError("kfold: expected 0 (off) or 2..100 and at most the configurations, got " +
-                    std::to_string(kfold));
+                    std::to_string(s.kfold));
   }
-  if (!(max_iterations >= 1 && max_iterations <= 10000) || !(step_tolerance > 0) ||
-      !(sd_fraction >= 0 && sd_fraction <= 0.5) || !(max_condition >= 10) ||
-      !(noise_sigma > 0 && noise_sigma <= 100) || !(outlier_threshold >= 1) ||
-      !(threads >= 0 && threads <= 256)) {
-    throw LpoeError("an option is out of range (see lpoe_calibrate --help for the ranges)");
-  }
-  if (solver == "linear" && loss != "none") {
+  if (s.solver == "linear" && s.loss != "none") {
     throw LpoeError("loss needs solver='ceres' (the linear solver is plain least squares)");
   }
-  o.register_frames = register_frames;
-  o.kfold = kfold;
-  o.split_seed = split_seed;
-  o.residual_layer.seed = split_seed;
+  o.register_frames = s.register_frames;
+  o.kfold = s.kfold;
+  o.split_seed = s.split_seed;
+  o.residual_layer.seed = s.split_seed;
   o.split = split;
-  o.outlier_threshold = outlier_threshold;
-  o.plausibility.noise_sigma = noise_sigma;
-  o.plausibility.joint_values_in_degrees = angle_unit == "deg";
-  if (prior_scale > 0) {
+  o.outlier_threshold = s.outlier_threshold;
+  o.plausibility.noise_sigma = s.noise_sigma;
+  o.plausibility.joint_values_in_degrees = s.angle_unit == "deg";
+  if (s.prior_scale > 0) {
     auto prior = std::make_shared<ParameterPrior>();
-    prior->scale = prior_scale;
-    prior->scales.frame_translation_mm = prior_translation;
-    prior->scales.frame_rotation_mrad = prior_rotation;
-    prior->scales.tool_translation_mm = prior_tool_translation;
-    prior->scales.joint_term_mrad = prior_joint_terms;
+    prior->scale = s.prior_scale;
+    prior->scales = s.prior_scales;
     o.prior = prior;
   } else {
     o.prior = nullptr;
   }
-  o.linear.max_iterations = max_iterations;
-  o.linear.step_tolerance = step_tolerance;
-  o.linear.max_condition_number = max_condition;
-  o.linear.convergence.sd_fraction = sd_fraction;
-  o.ceres.max_iterations = max_iterations;
-  o.ceres.max_condition_number = max_condition;
-  o.ceres.loss = loss;
-  o.ceres.loss_scale = loss_scale;
+  o.linear.max_iterations = s.max_iterations;
+  o.linear.step_tolerance = s.step_tolerance;
+  o.linear.max_condition_number = s.max_condition;
+  o.linear.convergence.sd_fraction = s.sd_fraction;
+  o.ceres.max_iterations = s.max_iterations;
+  o.ceres.max_condition_number = s.max_condition;
+  o.ceres.loss = s.loss;
+  o.ceres.loss_scale = s.loss_scale;
   // Without a stated noise level, estimate it from the residuals (as lpoe_calibrate does).
-  o.ceres.a_posteriori_covariance = !sigma_given;
-  o.ceres.sigma = sigma;
-  o.ceres.convergence.sd_fraction = sd_fraction;
-  if (threads > 0) o.ceres.num_threads = threads;
-  if (Status s = ValidateCeresSolverOptions(o.ceres); !s.ok()) throw LpoeError(s.message());
+  o.ceres.a_posteriori_covariance = !s.sigma_given;
+  o.ceres.sigma = s.sigma;
+  o.ceres.convergence.sd_fraction = s.sd_fraction;
+  if (s.threads > 0) o.ceres.num_threads = s.threads;
+  if (Status st = ValidateCeresSolverOptions(o.ceres); !st.ok()) throw LpoeError(st.message());
+  return o;
+}
 
-  const MeasurementSet empty(nominal.num_joints());
-  const MeasurementSet& verification = verify != nullptr ? *verify : empty;
-    RecalibrationResult recalibration;
-  if (prior_file != nullptr) {
-    // lpoe_calibrate --prior: the file's model and covariance, the --prior_* tolerances on the
-    // directions it does not cover, every standard deviation times prior_scale; the groups the new
-    // data show changed are freed (Recalibrate).
-    if (!(prior_scale > 0)) throw LpoeError("prior needs prior_scale > 0");
-    if (prior_file->model.num_frames() != nominal.num_frames() ||
-        prior_file->model.num_joints() != nominal.num_joints()) {
-      throw LpoeError("prior=" + prior_file->source + ": its chain (" +
-                      std::to_string(prior_file->model.num_joints()) + " joints, " +
-                      std::to_string(prior_file->model.num_tools()) + " tools) is not the model's");
-    }
-    ParameterPrior prior = PriorFromCovariance(prior_file->model, prior_file->covariance,
-                                               o.prior ? o.prior->scales : PriorScales());
-    prior.scale = prior_scale;
-    o.prior = std::make_shared<const ParameterPrior>(prior);
+// lpoe_calibrate --prior: the file's model and covariance, the --prior_* tolerances on the
+// directions it does not cover, every standard deviation times prior_scale.
+std::shared_ptr<const ParameterPrior> RecalibrationPrior(const RobotModel& nominal,
+                                                         const Prior& prior_file,
+                                                         const PipelineOptions& o,
+                                                         double prior_scale) {
+  if (!(prior_scale > 0)) throw LpoeError("prior needs prior_scale > 0");
+  if (prior_file.model.num_frames() != nominal.num_frames() ||
+      prior_file.model.num_joints() != nominal.num_joints()) {
+    throw LpoeError("prior=" + prior_file.source + ": its chain (" +
+                    std::to_string(prior_file.model.num_joints()) + " joints, " +
+                    std::to_string(prior_file.model.num_tools()) + " tools) is not the model's");
   }
-  {
-    py::gil_scoped_release release;
-    if (prior_file != nullptr) {
-      recalibration = Recalibrate(with_fixed, data, verification, o);
-    } else {
-      recalibration.run = RunCalibrationPipeline(with_fixed, data, verification, o);
-    }
-  }
-  PipelineResult& run = recalibration.run;
+  ParameterPrior prior = PriorFromCovariance(prior_file.model, prior_file.covariance,
+                                             o.prior ? o.prior->scales : PriorScales());
+  prior.scale = prior_scale;
+  return std::make_shared<const ParameterPrior>(prior);
+}
+
+// What lpoe.calibrate returns from the run, with the JSON report filled as lpoe_calibrate fills it.
+Calibration CalibrationOf(const RecalibrationResult& recalibration, const CalibrateSettings& s,
+                          const PipelineOptions& o, const MeasurementSet& data,
+                          const MeasurementSet& verification, const char* verification_source,
+                          const Prior* prior_file) {
+  const PipelineResult& run = recalibration.run;
   const CalibrationResult& result = run.result;
-
   Calibration c;
   c.converged = result.converged();
   c.termination = TerminationName(result.termination);
@@ -340,17 +361,16 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   c.data_share = run.identifiability.data_share;
   c.yaml = CalibratedModelYaml(c.model, result);
 
-  // The JSON report, filled as lpoe_calibrate fills it.
   tools::RunSummary summary;
-  summary.solver = solver;
+  summary.solver = s.solver;
   summary.parameterization = ParameterizationName(o.parameterization);
   summary.data_kind = o.use_orientation ? "pose" : "position";
-  summary.angle_unit = angle_unit;
-  summary.verification_source = holdout > 0 ? "holdout" : verify != nullptr ? "array" : "";
+  summary.angle_unit = s.angle_unit;
+  summary.verification_source = verification_source;
   tools::AddPipelineResult(run, &summary);
   tools::AddPointResiduals(run.before, result.model, data, verification, &summary);
-  summary.joint_errors_requested = joint_errors;
-  summary.residual_model_requested = residual_model;
+  summary.joint_errors_requested = s.joint_errors;
+  summary.residual_model_requested = s.residual_model;
   summary.tool_name = "lpoe (Python)";
   if (prior_file != nullptr) {
     summary.prior_path = prior_file->source;
@@ -360,6 +380,53 @@ Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_dat
   return c;
 }
 
+Calibration Calibrate(const RobotModel& nominal, const MeasurementSet& given_data,
+                      const MeasurementSet* given_verify, const py::kwargs& kwargs,
+                      const Prior* prior_file = nullptr) {
+  const CalibrateSettings s = ReadCalibrateSettings(kwargs);
+  if (Status st = nominal.Validate(); !st.ok()) throw LpoeError(st.message());
+  const RobotModel with_fixed = WithFixedTools(nominal, s.fixed_tools);
+  CheckRowsFitModel(nominal, given_data, given_verify);
+  if (!(s.holdout >= 0 && s.holdout <= 0.95)) throw LpoeError("holdout: expected 0..0.95");
+  SplitKind split = SplitKind::kRandom;
+  if (!ParseSplitKind(s.split_name, &split)) {
+    throw LpoeError("split: expected 'random' or 'sequential', got '" + s.split_name + "'");
+  }
+  if (s.holdout > 0 && given_verify != nullptr) {
+    throw LpoeError("give either verify= or holdout=, not both");
+  }
+  // holdout=: the rows held out for verification, as lpoe_calibrate splits them.
+  MeasurementSet held_data(nominal.num_joints()), held_verify(nominal.num_joints());
+  if (s.holdout > 0) {
+    std::vector<int> id_rows, ver_rows;
+    HoldoutSplit(given_data, s.holdout, s.split_seed, &id_rows, &ver_rows, split);
+    held_data = given_data.Subset(id_rows);
+    held_verify = given_data.Subset(ver_rows);
+    if (Status st = tools::CheckHoldoutSplit(s.holdout, held_data.size(), held_verify.size());
+        !st.ok()) {
+      throw LpoeError(st.message());
+    }
+  }
+  const MeasurementSet& data = s.holdout > 0 ? held_data : given_data;
+  const MeasurementSet* verify = s.holdout > 0 ? &held_verify : given_verify;
+  PipelineOptions o = CalibratePipelineOptions(s, split, data);
+
+  const MeasurementSet empty(nominal.num_joints());
+  const MeasurementSet& verification = verify != nullptr ? *verify : empty;
+  // prior=: the groups the new data show changed are freed (Recalibrate).
+  if (prior_file != nullptr) o.prior = RecalibrationPrior(nominal, *prior_file, o, s.prior_scale);
+  RecalibrationResult recalibration;
+  {
+    py::gil_scoped_release release;
+    if (prior_file != nullptr) {
+      recalibration = Recalibrate(with_fixed, data, verification, o);
+    } else {
+      recalibration.run = RunCalibrationPipeline(with_fixed, data, verification, o);
+    }
+  }
+  const char* source = s.holdout > 0 ? "holdout" : verify != nullptr ? "array" : "";
+  return CalibrationOf(recalibration, s, o, data, verification, source, prior_file);
+}
 
 // ---- Ballbar distances and probe contacts (docs/measurements.md), as lpoe_calibrate runs them
 // (tools/lpoe_calibrate_contact.cc): the same options, hold-out split and report table.
@@ -420,35 +487,43 @@ bool GatherContactData(const RobotModel& nominal, const py::object& data, double
   return true;
 }
 
-Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasurementSet& data,
-                              const MeasurementSet& tracker, const py::kwargs& kwargs) {
+// The keyword options of lpoe.calibrate that apply to distance and plane data (defaults from the
+// option table), with lpoe_calibrate's refusals for these kinds.
+struct ContactSettings {
+  std::string solver, hold_scale, data_kind, joint_errors;
+  double holdout = 0;
+  uint64_t split_seed = 1;
+  int max_iterations = 0, kfold = 0;
+  py::object verify;
+};
+
+ContactSettings ReadContactSettings(const py::kwargs& kwargs) {
   KeywordOptions k(kwargs);
-  const std::string solver = k.Get<std::string>("solver", "linear");
-  const std::string hold_scale = k.Get<std::string>("hold_scale", "auto");
-  const double holdout = k.Get<double>("holdout", 0.0);
-  const uint64_t split_seed = k.Get<uint64_t>("split_seed", 1);
-  const int max_iterations = k.Get<int>("max_iterations", 30);
-  const std::string data_kind = k.Get<std::string>("data_kind", "auto");
-  k.Get<double>("sigma", 1.0);  // the tracker rows' noise (GatherContactData)
+  ContactSettings s;
+  s.solver = k.Option<std::string>("solver");
+  s.hold_scale = k.Option<std::string>("hold_scale");
+  s.holdout = k.Option<double>("holdout");
+  s.split_seed = k.Option<uint64_t>("split_seed");
+  s.max_iterations = k.Option<int>("max_iterations");
+  s.data_kind = k.Option<std::string>("data_kind");
+  k.Option<double>("sigma");  // the tracker rows' noise (GatherContactData)
+  s.joint_errors = k.Option<std::string>("joint_errors");
   // What lpoe_calibrate refuses with these kinds (docs/measurements.md), refused here too.
-  const std::vector<std::pair<const char*, std::string>> defaults = {
-      {"parameterization", "identifiable"}, {"residual_model", "none"}, {"loss", "none"}};
-  const std::string joint_errors = k.Get<std::string>("joint_errors", "none");
-  for (const auto& [name, fallback] : defaults) {
-    if (k.Get<std::string>(name, fallback) != fallback) {
+  for (const char* name : {"parameterization", "residual_model", "loss"}) {
+    if (k.Option<std::string>(name) != TableDefault<std::string>(name)) {
       throw LpoeError(std::string(name) + " is not available with distance or plane data: " +
                       ContactRefusalReason(name) + " (docs/measurements.md)");
     }
   }
-  const int kfold = k.Get<int>("kfold", 0);
-  if (kfold != 0 && !(kfold >= 2 && kfold <= 100)) {
-    throw LpoeError("kfold: expected 0 (off) or 2..100, got " + std::to_string(kfold));
+  s.kfold = k.Option<int>("kfold");
+  if (s.kfold != 0 && !(s.kfold >= 2 && s.kfold <= 100)) {
+    throw LpoeError("kfold: expected 0 (off) or 2..100, got " + std::to_string(s.kfold));
   }
   if (!k.Get<py::object>("fixed_tools", py::none()).is_none()) {
     throw LpoeError("fixed_tools is not available with distance or plane data: " +
                     ContactRefusalReason("fixed_tools") + " (docs/measurements.md)");
   }
-  const py::object verify = k.Get<py::object>("verify", py::none());
+  s.verify = k.Get<py::object>("verify", py::none());
   // Accepted and without effect here, as lpoe_calibrate's run for these kinds ignores them.
   for (const char* name : {"register", "split", "outlier_threshold", "step_tolerance",
                            "sd_fraction", "max_condition", "noise_sigma", "loss_scale", "threads",
@@ -457,164 +532,111 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
     k.Get<py::object>(name, py::none());
   }
   k.Finish("calibrate");
-  if (solver != "linear" && solver != "ceres") {
-    throw LpoeError("solver: expected 'linear' or 'ceres', got '" + solver + "'");
+  if (s.solver != "linear" && s.solver != "ceres") {
+    throw LpoeError("solver: expected 'linear' or 'ceres', got '" + s.solver + "'");
   }
-  ContactCalibrationOptions options;
-  if (!ParseScaleHold(hold_scale, &options.hold_scale)) {
-    throw LpoeError("hold_scale: expected 'auto', 'on' or 'off', got '" + hold_scale + "'");
-  }
-  if (!(max_iterations >= 1 && max_iterations <= 10000)) {
-    throw LpoeError("max_iterations: expected 1..10000");
-  }
-  options.max_iterations = std::max(max_iterations, 30);
-  if (!(holdout >= 0 && holdout < 1)) throw LpoeError("holdout: expected 0 <= holdout < 1");
-  if (data_kind != "auto") {
-    const MeasurementKindInfo* kind = FindMeasurementKind(data_kind);
-    if (kind == nullptr || data.Count(kind->id) != data.size()) {
-      throw LpoeError("data_kind: '" + data_kind + "' is not the kind of every row");
-    }
-  }
-  if (data.Count(MeasurementKindId::kDistance) + data.Count(MeasurementKindId::kPlane) == 0) {
-    throw LpoeError("data: no distance or plane rows");
-  }
-  if (Status s = nominal.Validate(); !s.ok()) throw LpoeError(s.message());
+  return s;
+}
 
-  RobotModel start = nominal;
-  if (tracker.size() > 0) {
-    RegistrationReport report;
-    if (Status s = RegisterToMeasurements(nominal, tracker, &start, &report); !s.ok()) {
-      throw LpoeError("registration to the tracker data: " + s.message());
-    }
-  }
-  // joint_errors: the registry's terms on the start model, or "auto" (chosen by cross-validation
-  // on the identification rows), as lpoe_calibrate --joint_errors.
-  const bool auto_terms = joint_errors == "auto";
-  if (Status s = ContactJointTerms(auto_terms ? "none" : joint_errors, start, &options.joint_terms);
-      !s.ok()) {
-    throw LpoeError("joint_errors: " + s.message() + " (docs/measurements.md)");
-  }
-  // verify: distance and plane sets of the calibration's pivots and planes (as --verify).
+// verify=: distance and plane sets of the calibration's pivots and planes (as --verify).
+ContactMeasurementSet ContactVerificationOf(const py::object& verify, double holdout,
+                                            const RobotModel& nominal,
+                                            const ContactMeasurementSet& data) {
   ContactMeasurementSet verification;
-  if (!verify.is_none()) {
-    if (holdout > 0) throw LpoeError("give either verify= or holdout=, not both");
-    std::vector<py::object> parts;
-    if (py::isinstance<py::list>(verify) || py::isinstance<py::tuple>(verify)) {
-      for (const py::handle& h : verify) parts.push_back(py::reinterpret_borrow<py::object>(h));
-    } else {
-      parts.push_back(verify);
-    }
-    std::vector<ContactMeasurementSet> sets;
-    for (const py::object& part : parts) {
-      if (!py::isinstance<ContactMeasurementSet>(part)) {
-        throw LpoeError("verify: with distance or plane data, expected lpoe.ContactMeasurements "
-                        "(tracker rows: use holdout=), got " +
-                        py::str(part.get_type().attr("__name__")).cast<std::string>());
-      }
-      const ContactMeasurementSet& c = part.cast<const ContactMeasurementSet&>();
-      if (c.num_joints != nominal.num_joints()) {
-        throw LpoeError("verify: a different number of joints than the model");
-      }
-      sets.push_back(c);
-    }
-    if (Status s = ContactVerificationSet(data, sets, &verification); !s.ok()) {
-      throw LpoeError(
-          "verify names a pivot or plane that data does not (its position is estimated from the "
-          "calibration's rows): " +
-          s.message());
-    }
+  if (verify.is_none()) return verification;
+  if (holdout > 0) throw LpoeError("give either verify= or holdout=, not both");
+  std::vector<py::object> parts;
+  if (py::isinstance<py::list>(verify) || py::isinstance<py::tuple>(verify)) {
+    for (const py::handle& h : verify) parts.push_back(py::reinterpret_borrow<py::object>(h));
+  } else {
+    parts.push_back(verify);
   }
-  // The run as lpoe_calibrate's (lpoe/contact_pipeline.h): the same hold-out draw, k-fold and
-  // figures per kind.
-  ContactPipelineOptions run_options;
-  run_options.solver = solver;
-  run_options.calibration = options;
-  run_options.holdout = holdout;
-  run_options.split_seed = split_seed;
-  run_options.kfold = kfold;
-  run_options.joint_errors_auto = auto_terms;
-  ContactPipelineResult run;
-  {
-    py::gil_scoped_release release;
-    run = RunContactPipeline(start, data, verification, run_options);
+  std::vector<ContactMeasurementSet> sets;
+  for (const py::object& part : parts) {
+    if (!py::isinstance<ContactMeasurementSet>(part)) {
+      throw LpoeError("verify: with distance or plane data, expected lpoe.ContactMeasurements "
+                      "(tracker rows: use holdout=), got " +
+                      py::str(part.get_type().attr("__name__")).cast<std::string>());
+    }
+    const ContactMeasurementSet& c = part.cast<const ContactMeasurementSet&>();
+    if (c.num_joints != nominal.num_joints()) {
+      throw LpoeError("verify: a different number of joints than the model");
+    }
+    sets.push_back(c);
   }
+  if (Status s = ContactVerificationSet(data, sets, &verification); !s.ok()) {
+    throw LpoeError(
+        "verify names a pivot or plane that data does not (its position is estimated from the "
+        "calibration's rows): " +
+        s.message());
+  }
+  return verification;
+}
+
+// One kind's entry of the report: lpoe_calibrate's table per kind (lpoe_calibrate_contact.cc).
+py::dict ContactKindReport(const ContactKindSummary& summary, bool verify_given, int kfold) {
+  const MeasurementKindInfo& kind = *summary.kind;
+  const ContactKindFigures& f = summary.fit;
+  py::dict d;
+  d["kind"] = kind.name;
+  d["table"] = kind.report_table;
+  d["rows"] = f.rows;
+  d["rms_mm"] = f.rms;
+  d["max_abs_mm"] = f.max_abs;
+  d["expected_noise_mm"] = f.sigma;
+  d["verdict"] = ContactKindVerdict(f);
+  const ContactKindFigures& h = summary.held;
+  if (h.rows > 0) {
+    d["held_out_rows"] = h.rows;
+    d["held_out_rms_mm"] = h.rms;
+    py::dict v;
+    v["source"] = verify_given ? "verify" : "holdout";
+    v["rows"] = h.rows;
+    v["rms_mm"] = h.rms;
+    v["max_abs_mm"] = h.max_abs;
+    v["expected_noise_mm"] = h.sigma;
+    v["verdict"] = ContactKindVerdict(h);
+    d["verification"] = v;
+  }
+  if (kfold > 0) {
+    const ContactKindFigures& cv = summary.kfold;
+    py::dict k;
+    k["folds"] = kfold;
+    k["rows"] = cv.rows;
+    k["rms_mm"] = cv.rms;
+    k["max_abs_mm"] = cv.max_abs;
+    d["kfold"] = k;
+  }
+  if (!summary.features.empty()) {
+    // The kind's figures per pivot (distance) or per plane (plane), as the tool's report.
+    py::list features;
+    for (const ContactFeatureSummary& fs : summary.features) {
+      py::dict e;
+      e["name"] = fs.name;
+      e["rows"] = fs.fit.rows;
+      e["rms_mm"] = fs.fit.rms;
+      e["max_abs_mm"] = fs.fit.max_abs;
+      e["expected_noise_mm"] = fs.fit.sigma;
+      e["verdict"] = ContactKindVerdict(fs.fit);
+      if (fs.held.rows > 0) {
+        e["held_out_rows"] = fs.held.rows;
+        e["held_out_rms_mm"] = fs.held.rms;
+      }
+      if (kfold > 0) e["kfold_rms_mm"] = fs.kfold.rms;
+      features.append(e);
+    }
+    d["features"] = features;
+  }
+  return d;
+}
+
+// The JSON report of a contact calibration, as lpoe_calibrate's for these kinds.
+std::string ContactReportJson(const ContactPipelineResult& run, bool verify_given, int kfold) {
   const ContactCalibrationResult& result = run.calibration;
   const ContactMeasurementSet& identification = run.identification;
-  Calibration c;
-  c.converged = result.ok;
-  c.iterations = result.iterations;
-  c.final_cost = result.cost;
-  c.message = result.message;
-  c.model = result.model;
-  if (!result.ok) {
-    c.termination = result.iterations == 0 ? "not_identifiable" : "failed";
-    return c;
-  }
-  c.termination = "converged";
-  if (Status s = CheckModelFinite(result.model); !s.ok()) throw LpoeError(s.message());
-  if (run.kfold_too_large) {
-    throw LpoeError("kfold=" + std::to_string(kfold) + " " + run.message);
-  }
-  if (run.failed_fold >= 0) {
-    throw LpoeError("kfold: fold " + std::to_string(run.failed_fold + 1) + " of " +
-                    std::to_string(kfold) + ": " + run.message);
-  }
-  // The report: lpoe_calibrate's table per kind (tools/lpoe_calibrate_contact.cc), as JSON.
   py::list kinds;
   for (const ContactKindSummary& summary : run.kinds) {
-    const MeasurementKindInfo& kind = *summary.kind;
-    const ContactKindFigures& f = summary.fit;
-    py::dict d;
-    d["kind"] = kind.name;
-    d["table"] = kind.report_table;
-    d["rows"] = f.rows;
-    d["rms_mm"] = f.rms;
-    d["max_abs_mm"] = f.max_abs;
-    d["expected_noise_mm"] = f.sigma;
-    d["verdict"] = ContactKindVerdict(f);
-    const ContactKindFigures& h = summary.held;
-    if (h.rows > 0) {
-      d["held_out_rows"] = h.rows;
-      d["held_out_rms_mm"] = h.rms;
-      py::dict v;
-      v["source"] = verify.is_none() ? "holdout" : "verify";
-      v["rows"] = h.rows;
-      v["rms_mm"] = h.rms;
-      v["max_abs_mm"] = h.max_abs;
-      v["expected_noise_mm"] = h.sigma;
-      v["verdict"] = ContactKindVerdict(h);
-      d["verification"] = v;
-    }
-    if (kfold > 0) {
-      const ContactKindFigures& cv = summary.kfold;
-      py::dict k;
-      k["folds"] = kfold;
-      k["rows"] = cv.rows;
-      k["rms_mm"] = cv.rms;
-      k["max_abs_mm"] = cv.max_abs;
-      d["kfold"] = k;
-    }
-    if (!summary.features.empty()) {
-      // The kind's figures per pivot (distance) or per plane (plane), as the tool's report.
-      py::list features;
-      for (const ContactFeatureSummary& fs : summary.features) {
-        py::dict e;
-        e["name"] = fs.name;
-        e["rows"] = fs.fit.rows;
-        e["rms_mm"] = fs.fit.rms;
-        e["max_abs_mm"] = fs.fit.max_abs;
-        e["expected_noise_mm"] = fs.fit.sigma;
-        e["verdict"] = ContactKindVerdict(fs.fit);
-        if (fs.held.rows > 0) {
-          e["held_out_rows"] = fs.held.rows;
-          e["held_out_rms_mm"] = fs.held.rms;
-        }
-        if (kfold > 0) e["kfold_rms_mm"] = fs.kfold.rms;
-        features.append(e);
-      }
-      d["features"] = features;
-    }
-    kinds.append(d);
+    kinds.append(ContactKindReport(summary, verify_given, kfold));
   }
   const ContactParameterization& p = result.parameterization;
   py::list pivots, planes, left_out;
@@ -700,12 +722,160 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
     selection["tilt_message"] = sel.tilt_message;
     report["joint_error_selection"] = selection;
   }
+  return py::module_::import("json").attr("dumps")(report, py::arg("indent") = 2)
+      .cast<std::string>();
+}
+
+Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasurementSet& data,
+                              const MeasurementSet& tracker, const py::kwargs& kwargs) {
+  const ContactSettings s = ReadContactSettings(kwargs);
+  ContactCalibrationOptions options;
+  if (!ParseScaleHold(s.hold_scale, &options.hold_scale)) {
+    throw LpoeError("hold_scale: expected 'auto', 'on' or 'off', got '" + s.hold_scale + "'");
+  }
+  if (!(s.max_iterations >= 1 && s.max_iterations <= 10000)) {
+    throw LpoeError("max_iterations: expected 1..10000");
+  }
+  options.max_iterations = std::max(s.max_iterations, 30);
+  if (!(s.holdout >= 0 && s.holdout < 1)) throw LpoeError("holdout: expected 0 <= holdout < 1");
+  if (s.data_kind != "auto") {
+    const MeasurementKindInfo* kind = FindMeasurementKind(s.data_kind);
+    if (kind == nullptr || data.Count(kind->id) != data.size()) {
+      throw LpoeError("data_kind: '" + s.data_kind + "' is not the kind of every row");
+    }
+  }
+  if (data.Count(MeasurementKindId::kDistance) + data.Count(MeasurementKindId::kPlane) == 0) {
+    throw LpoeError("data: no distance or plane rows");
+  }
+  if (Status st = nominal.Validate(); !st.ok()) throw LpoeError(st.message());
+
+  RobotModel start = nominal;
+  if (tracker.size() > 0) {
+    RegistrationReport report;
+    if (Status st = RegisterToMeasurements(nominal, tracker, &start, &report); !st.ok()) {
+      throw LpoeError("registration to the tracker data: " + st.message());
+    }
+  }
+  // joint_errors: the registry's terms on the start model, or "auto" (chosen by cross-validation
+  // on the identification rows), as lpoe_calibrate --joint_errors.
+  const bool auto_terms = s.joint_errors == "auto";
+  if (Status st = ContactJointTerms(auto_terms ? "none" : s.joint_errors, start,
+                                    &options.joint_terms);
+      !st.ok()) {
+    throw LpoeError("joint_errors: " + st.message() + " (docs/measurements.md)");
+  }
+  const ContactMeasurementSet verification =
+      ContactVerificationOf(s.verify, s.holdout, nominal, data);
+  // The run as lpoe_calibrate's (lpoe/contact_pipeline.h): the same hold-out draw, k-fold and
+  // figures per kind.
+  ContactPipelineOptions run_options;
+  run_options.solver = s.solver;
+  run_options.calibration = options;
+  run_options.holdout = s.holdout;
+  run_options.split_seed = s.split_seed;
+  run_options.kfold = s.kfold;
+  run_options.joint_errors_auto = auto_terms;
+  ContactPipelineResult run;
+  {
+    py::gil_scoped_release release;
+    run = RunContactPipeline(start, data, verification, run_options);
+  }
+  const ContactCalibrationResult& result = run.calibration;
+  Calibration c;
+  c.converged = result.ok;
+  c.iterations = result.iterations;
+  c.final_cost = result.cost;
+  c.message = result.message;
+  c.model = result.model;
+  if (!result.ok) {
+    c.termination = result.iterations == 0 ? "not_identifiable" : "failed";
+    return c;
+  }
+  c.termination = "converged";
+  if (Status st = CheckModelFinite(result.model); !st.ok()) throw LpoeError(st.message());
+  if (run.kfold_too_large) {
+    throw LpoeError("kfold=" + std::to_string(s.kfold) + " " + run.message);
+  }
+  if (run.failed_fold >= 0) {
+    throw LpoeError("kfold: fold " + std::to_string(run.failed_fold + 1) + " of " +
+                    std::to_string(s.kfold) + ": " + run.message);
+  }
   c.verdict = run.verdict;
   c.verdict_reason = "the worst of the kinds' verdicts (RMS within 2x the expected noise: pass, "
                      "5x: check)";
-  c.report_json = py::module_::import("json").attr("dumps")(report, py::arg("indent") = 2)
-                      .cast<std::string>();
+  c.report_json = ContactReportJson(run, !s.verify.is_none(), s.kfold);
   return c;
+}
+
+// lpoe.calibrate's keyword arguments that are lpoe_calibrate's flags, in the signature's order.
+constexpr const char* kCalibrateKeywords[] = {
+    "solver", "parameterization", "data_kind", "joint_errors", "residual_model", "register",
+    "holdout", "kfold", "split", "split_seed", "outlier_threshold", "max_iterations",
+    "step_tolerance", "sd_fraction", "max_condition", "noise_sigma", "loss", "loss_scale", "sigma",
+    "threads", "angle_unit", "fixed_tools", "prior_scale", "prior_translation", "prior_rotation",
+    "prior_tool_translation", "prior_joint_terms", "hold_scale"};
+
+// lpoe.calibrate's docstring: every keyword argument that is a flag with its default, range and
+// help from the option table (what lpoe_calibrate --help prints), then what Python adds.
+std::string CalibrateDoc() {
+  std::string doc =
+      "Calibrates `model` from `data` (and verifies on `verify`) as lpoe_calibrate does, through "
+      "the same pipeline (registration, solver, analysis, cross-validation, verdict). The keyword "
+      "arguments are its flags, with the defaults, ranges and help of the one option table "
+      "(lpoe/options.h; lpoe.options('lpoe_calibrate')):\n";
+  for (const char* name : kCalibrateKeywords) {
+    const OptionSpec& spec = *FindOption(kCalibrateTool, name);
+    // As Python writes the default: a number as it is, True / False, a string quoted.
+    const std::string text = spec.default_text;
+    char* end = nullptr;
+    std::strtod(text.c_str(), &end);
+    const bool number = !text.empty() && *end == '\0';
+    std::string value = number ? text : "'" + text + "'";
+    if (text == "true" || text == "false") value = text == "true" ? "True" : "False";
+    if (name == std::string("sigma") || name == std::string("fixed_tools")) value = "None";
+    const std::string range = OptionRangeText(spec);
+    doc += std::string("  ") + name + "=" + value + (range.empty() ? "" : " " + range) + ": " +
+           spec.help + "\n";
+  }
+  doc +=
+      "In Python: sigma=None is the flag not given (the noise estimated from the residuals); "
+      "fixed_tools=None holds no tool, a list of names or one comma-separated string; angle_unit "
+      "names the unit the joint values were read in (the data are converted when read, "
+      "lpoe.read_measurements(angle_unit=...); here it names the unit in the report and enables "
+      "the degrees hint of the verdict); the option table's ranges are checked with the tool's "
+      "messages.\n"
+      "  prior=None: a recalibration (docs/recalibration.md, lpoe_calibrate --prior): a file "
+      "written by Calibration.write or lpoe_calibrate --output (a model with its covariance "
+      "block), lpoe_prior's fleet prior, or an lpoe.Prior (lpoe.fleet_prior); its model is the "
+      "start when `model` is None; the groups the new data show changed are freed "
+      "(Calibration.changed), Calibration.data_share says per parameter how much came from the "
+      "data; prior_scale multiplies its standard deviations.\n"
+      "Ballbar distances and probe contacts (docs/measurements.md): `data` is an "
+      "lpoe.ContactMeasurements or a list of data sets (distance, plane and tracker sets; tracker "
+      "rows need sigma=, their noise per axis in mm), calibrated as lpoe_calibrate "
+      "--measurements=a.csv,b.csv does: solver, holdout, split_seed, max_iterations and "
+      "hold_scale, verify (distance or plane sets of the same pivots and planes) and kfold "
+      "apply, and joint_errors (a list of the registry's terms or 'auto', chosen by cross-"
+      "validation on the contact rows; the gravity tilt is refused); residual_model, loss, fixed_tools and parameterization='full' are refused.\n"
+      "An unknown keyword raises lpoe.Error naming it.";
+  return doc;
+}
+
+// lpoe.options(tool): the option table's entries `tool` has (its own and the shared ones), as
+// dicts of name, scope, default (as written), range (as the tools print it) and help.
+py::list OptionTable(const std::string& tool) {
+  py::list out;
+  for (const OptionSpec& spec : Options()) {
+    if (FindOption(tool, spec.name) != &spec) continue;
+    py::dict d;
+    d["name"] = spec.name;
+    d["scope"] = spec.scope;
+    d["default"] = spec.default_text;
+    d["range"] = OptionRangeText(spec);
+    d["help"] = spec.help;
+    out.append(d);
+  }
+  return out;
 }
 
 // lpoe.fleet_prior: lpoe_prior's fleet prior of calibrated models (files or lpoe.Model), with its
@@ -897,7 +1067,14 @@ void BindCalibration(py::module_& m) {
       });
 
   // Explicit keyword-only arguments (visible in help() and inspect.signature), named as
-  // lpoe_calibrate's flags with the same defaults; passed on as the options KeywordOptions reads.
+  // lpoe_calibrate's flags with the option table's defaults and help (CalibrateDoc); passed on as
+  // the options KeywordOptions reads.
+  m.def("options", &OptionTable, py::arg("tool"),
+        "The option table's entries of `tool` (e.g. 'lpoe_calibrate'; its own and the shared "
+        "ones): a list of dicts {name, scope, default (as written), range, help}, the defaults "
+        "and help of the tool's flags and of the lpoe function's keyword arguments.");
+  static const std::string doc = CalibrateDoc();
+  const auto text_default = [](const char* name) { return TableDefault<std::string>(name); };
   m.def(
       "calibrate",
       [](const py::object& model_arg, const py::object& data, const py::object& verify,
@@ -961,7 +1138,7 @@ void BindCalibration(py::module_& m) {
           }
           return CalibrateContacts(model, contacts, tracker, k);
         }
-        if (hold_scale != "auto") {
+        if (hold_scale != TableDefault<std::string>("hold_scale")) {
           throw LpoeError("hold_scale applies to distance and plane data only");
         }
         if (!py::isinstance<MeasurementSet>(data)) {
@@ -973,66 +1150,32 @@ void BindCalibration(py::module_& m) {
         return Calibrate(model, data.cast<const MeasurementSet&>(), v, k, prior.get());
       },
       py::arg("model"), py::arg("data"), py::arg("verify") = py::none(), py::kw_only(),
-      py::arg("solver") = "linear", py::arg("parameterization") = "identifiable",
-      py::arg("data_kind") = "auto", py::arg("joint_errors") = "none",
-      py::arg("residual_model") = "none", py::arg("register") = true, py::arg("holdout") = 0.0, py::arg("kfold") = 0,
-      py::arg("split") = "random", py::arg("split_seed") = 1,
-      py::arg("outlier_threshold") = OptionDefault("lpoe_calibrate", "outlier_threshold"),
-      py::arg("max_iterations") =
-          static_cast<int>(OptionDefault("lpoe_calibrate", "max_iterations")),
-      py::arg("step_tolerance") = OptionDefault("lpoe_calibrate", "step_tolerance"),
-      py::arg("sd_fraction") = OptionDefault("lpoe_calibrate", "sd_fraction"),
-      py::arg("max_condition") = OptionDefault("lpoe_calibrate", "max_condition"),
-      py::arg("noise_sigma") = OptionDefault("lpoe_calibrate", "noise_sigma"),
-      py::arg("loss") = "none", py::arg("loss_scale") = OptionDefault("lpoe_calibrate", "loss_scale"),
-      py::arg("sigma") = py::none(),
-      py::arg("threads") = static_cast<int>(OptionDefault("lpoe_calibrate", "threads")),
-      py::arg("angle_unit") = "rad", py::arg("fixed_tools") = py::none(),
-      py::arg("prior_scale") = OptionDefault("lpoe_calibrate", "prior_scale"),
-      py::arg("prior_translation") = OptionDefault("lpoe_calibrate", "prior_translation"),
-      py::arg("prior_rotation") = OptionDefault("lpoe_calibrate", "prior_rotation"),
-      py::arg("prior_tool_translation") = OptionDefault("lpoe_calibrate", "prior_tool_translation"),
-      py::arg("prior_joint_terms") = OptionDefault("lpoe_calibrate", "prior_joint_terms"),
-      py::arg("hold_scale") = "auto", py::arg("prior") = py::none(),
-      "Calibrates `model` from `data` (and verifies on `verify`) as lpoe_calibrate does, through "
-      "the same pipeline (registration, solver, analysis, cross-validation, verdict). The keyword "
-      "arguments are named as its flags, with the same defaults and ranges (lpoe/options.h):\n"
-      "  solver='linear' | 'ceres'; parameterization='identifiable' | 'full';\n"
-      "  data_kind='auto' | 'position' | 'pose'; joint_errors='none' | a comma-separated "
-      "list of lpoe.joint_error_terms() (e.g. 'compliance,harmonics') | 'auto';\n"
-      "  residual_model='none' | 'gp' | 'auto' (the learned residual layer, "
-      "docs/residual_layer.md: the model carries it and predict uses it);\n"
-      "  register: register the model to the measurement frame first; holdout: fraction held out "
-      "(instead of verify); kfold: k-fold cross-validation (0: off); split: 'random' | "
-      "'sequential' folds and hold-out, seeded by split_seed;\n"
-      "  outlier_threshold (robust sigmas), max_iterations, step_tolerance, sd_fraction, "
-      "max_condition: as the flags; noise_sigma: expected tracker noise (mm) of the plausibility "
-      "verdict; loss='none' | 'huber' | 'cauchy' with loss_scale (mm);\n"
-      "  sigma=None: Ceres noise per axis (mm), None estimates it from the residuals; threads "
-      "(0: all); angle_unit: the unit the joint values were read in ('rad' | 'deg': the data "
-      "are converted when read, lpoe.read_measurements(angle_unit=...); here it only names the "
-      "unit in the report and enables the degrees hint of the verdict);\n"
-      "  fixed_tools=None: tool names held as given (a list, or one comma-separated string): "
-      "known SMR nests, so that the flange frame is identified in full; the model's fixed: true "
-      "tools are held too;\n"
-      "  prior_scale=1 (0: no prior, plain least squares), prior_translation (mm), prior_rotation "
-      "(mrad), prior_tool_translation (mm), prior_joint_terms (mrad): the prior that holds weakly "
-      "determined directions near the start model (docs/identifiability.md);\n"
-      "  prior=None: a recalibration (docs/recalibration.md, lpoe_calibrate --prior): a file "
-      "written by Calibration.write or lpoe_calibrate --output (a model with its covariance "
-      "block), lpoe_prior's fleet prior, or an lpoe.Prior (lpoe.fleet_prior); its model is the "
-      "start when `model` is None; the groups the new data show changed are freed "
-      "(Calibration.changed), Calibration.data_share says per parameter how much came from the "
-      "data; prior_scale multiplies its standard deviations.\n"
-      "Ballbar distances and probe contacts (docs/measurements.md): `data` is an "
-      "lpoe.ContactMeasurements or a list of data sets (distance, plane and tracker sets; tracker "
-      "rows need sigma=, their noise per axis in mm), calibrated as lpoe_calibrate "
-      "--measurements=a.csv,b.csv does: solver, holdout, split_seed, max_iterations and "
-      "hold_scale='auto' | 'on' | 'off' (auto holds the robot's scale when no row measures a "
-      "length), verify (distance or plane sets of the same pivots and planes) and kfold "
-      "apply, and joint_errors (a list of the registry's terms; 'auto' and the gravity tilt are "
-      "refused); residual_model, loss, fixed_tools and parameterization='full' are refused.\n"
-      "An unknown keyword raises lpoe.Error naming it.");
+      py::arg("solver") = text_default("solver"),
+      py::arg("parameterization") = text_default("parameterization"),
+      py::arg("data_kind") = text_default("data_kind"),
+      py::arg("joint_errors") = text_default("joint_errors"),
+      py::arg("residual_model") = text_default("residual_model"),
+      py::arg("register") = TableDefault<bool>("register"),
+      py::arg("holdout") = TableDefault<double>("holdout"),
+      py::arg("kfold") = TableDefault<int>("kfold"), py::arg("split") = text_default("split"),
+      py::arg("split_seed") = TableDefault<uint64_t>("split_seed"),
+      py::arg("outlier_threshold") = TableDefault<double>("outlier_threshold"),
+      py::arg("max_iterations") = TableDefault<int>("max_iterations"),
+      py::arg("step_tolerance") = TableDefault<double>("step_tolerance"),
+      py::arg("sd_fraction") = TableDefault<double>("sd_fraction"),
+      py::arg("max_condition") = TableDefault<double>("max_condition"),
+      py::arg("noise_sigma") = TableDefault<double>("noise_sigma"),
+      py::arg("loss") = text_default("loss"),
+      py::arg("loss_scale") = TableDefault<double>("loss_scale"), py::arg("sigma") = py::none(),
+      py::arg("threads") = TableDefault<int>("threads"),
+      py::arg("angle_unit") = text_default("angle_unit"), py::arg("fixed_tools") = py::none(),
+      py::arg("prior_scale") = TableDefault<double>("prior_scale"),
+      py::arg("prior_translation") = TableDefault<double>("prior_translation"),
+      py::arg("prior_rotation") = TableDefault<double>("prior_rotation"),
+      py::arg("prior_tool_translation") = TableDefault<double>("prior_tool_translation"),
+      py::arg("prior_joint_terms") = TableDefault<double>("prior_joint_terms"),
+      py::arg("hold_scale") = text_default("hold_scale"), py::arg("prior") = py::none(),
+      doc.c_str());
 }
 
 }  // namespace python

@@ -146,173 +146,230 @@ ContactMeasurementSet ContactSetFromPositions(const MeasurementSet& data, double
   return out;
 }
 
-Status ParseContactMeasurementsCsv(const std::string& text, const std::string& source,
-                                   const RobotModel& model, const ContactCsvOptions& options,
-                                   ContactMeasurementSet* out) {
-  const int n = model.num_joints();
-  ContactMeasurementSet set;
-  set.num_joints = n;
-  set.files.push_back(source);
-  CsvHeader header;
-  const MeasurementKindInfo* kind = nullptr;
-  std::vector<int> joint_column(n, -1);
-  int value_column = -1, feature_column = -1, offset_column = -1, target_column = -1,
-      sigma_column = -1;
-  bool have_header = false;
-  const Status status = ForEachLine(text, [&](std::string_view line, int64_t number) -> Status {
+namespace {
+
+// The rows of one distance or plane CSV file: the header picks the kind and the columns, every
+// row after it one ContactRow (its joints in set.q).
+class ContactCsvParser {
+ public:
+  ContactCsvParser(const std::string& source, const RobotModel& model,
+                   const ContactCsvOptions& options)
+      : source_(source), model_(model), options_(options), n_(model.num_joints()),
+        joint_column_(n_, -1) {
+    set.num_joints = n_;
+    set.files.push_back(source);
+  }
+
+  Status Line(std::string_view line, int64_t number) {
     if (line.find('\0') != std::string_view::npos) {
-      return LineError(source, number, "a NUL byte", "CSV text");
+      return LineError(source_, number, "a NUL byte", "CSV text");
     }
     if (CommentOrBlank(line)) return Status::Ok();
     const std::vector<std::string_view> fields = internal::SplitFields(line);
-    if (!have_header) {
-      Status s = ParseCsvHeader(fields, source, number, &header);
-      if (!s.ok()) return s;
-      have_header = true;
-      std::string ambiguous;
-      const MeasurementKindInfo* detected = DetectMeasurementKind(header.names, &ambiguous);
-      if (detected == nullptr && !ambiguous.empty()) {
-        return LineError(source, number, ambiguous, "one of " + MeasurementKindNames());
-      }
-      kind = options.kind != nullptr ? options.kind : detected;
-      if (kind == nullptr || (kind->id != MeasurementKindId::kDistance &&
-                              kind->id != MeasurementKindId::kPlane)) {
-        return LineError(source, number,
-                         "no 'distance' or 'plane' column" +
-                             (detected != nullptr ? std::string(" (a ") + detected->name + " file)"
-                                                  : std::string()),
-                         "q1..qN,distance[,pivot][,target][,sigma] or "
-                         "q1..qN,plane[,offset][,target][,sigma]");
-      }
-      if (detected != kind) {
-        return LineError(source, number,
-                         std::string("--data_kind=") + kind->name + " but the columns are " +
-                             (detected != nullptr ? std::string("a ") + detected->name + " file's"
-                                                  : std::string("of no known kind")),
-                         std::string("the columns ") + kind->columns);
-      }
-      for (int j = 0; j < n; ++j) {
-        joint_column[j] = header.Find("q" + std::to_string(j + 1));
-        if (joint_column[j] < 0) joint_column[j] = header.Find(model.joints[j].name);
-        if (joint_column[j] < 0) {
-          return LineError(source, number, "no column for joint " + std::to_string(j + 1),
-                           "q" + std::to_string(j + 1) + " or " + Quote(model.joints[j].name));
-        }
-      }
-      if (kind->id == MeasurementKindId::kDistance) {
-        value_column = header.Find("distance");
-        feature_column = header.Find("pivot");
-      } else {
-        feature_column = header.Find("plane");
-        offset_column = header.Find("offset");
-      }
-      target_column = header.Find("target");
-      sigma_column = header.Find("sigma");
-      if (sigma_column < 0 && !(options.sigma > 0)) {
-        return LineError(source, number, "no 'sigma' column and no noise given",
-                         "a 'sigma' column (mm) or --sigma for this file");
-      }
-      return Status::Ok();
-    }
-    Status s = CheckCsvRowFields(fields.size(), header, source, number);
+    if (!have_header) return Header(fields, number);
+    return Row(fields, number);
+  }
+
+  ContactMeasurementSet set;
+  CsvHeader header;
+  bool have_header = false;
+
+ private:
+  Status Header(const std::vector<std::string_view>& fields, int64_t number) {
+    Status s = ParseCsvHeader(fields, source_, number, &header);
     if (!s.ok()) return s;
-    if (set.size() >= (1 << 30)) return LineError(source, number, "too many rows", "at most 2^30");
-    auto number_of = [&](int column, const char* what, double* v) -> Status {
-      const std::string_view f = fields[column];
-      const internal::NumberParse p = internal::ParseNumber(f, v);
-      if (p != internal::NumberParse::kOk) {
-        return LineError(source, number,
-                         std::string("column '") + header.names[column] + "': " + Quote(f) +
-                             (p == internal::NumberParse::kNonFinite ? " is not finite" : ""),
-                         what);
+    have_header = true;
+    std::string ambiguous;
+    const MeasurementKindInfo* detected = DetectMeasurementKind(header.names, &ambiguous);
+    if (detected == nullptr && !ambiguous.empty()) {
+      return LineError(source_, number, ambiguous, "one of " + MeasurementKindNames());
+    }
+    kind_ = options_.kind != nullptr ? options_.kind : detected;
+    if (kind_ == nullptr || (kind_->id != MeasurementKindId::kDistance &&
+                             kind_->id != MeasurementKindId::kPlane)) {
+      return LineError(source_, number,
+                       "no 'distance' or 'plane' column" +
+                           (detected != nullptr ? std::string(" (a ") + detected->name + " file)"
+                                                : std::string()),
+                       "q1..qN,distance[,pivot][,target][,sigma] or "
+                       "q1..qN,plane[,offset][,target][,sigma]");
+    }
+    if (detected != kind_) {
+      return LineError(source_, number,
+                       std::string("--data_kind=") + kind_->name + " but the columns are " +
+                           (detected != nullptr ? std::string("a ") + detected->name + " file's"
+                                                : std::string("of no known kind")),
+                       std::string("the columns ") + kind_->columns);
+    }
+    for (int j = 0; j < n_; ++j) {
+      joint_column_[j] = header.Find("q" + std::to_string(j + 1));
+      if (joint_column_[j] < 0) joint_column_[j] = header.Find(model_.joints[j].name);
+      if (joint_column_[j] < 0) {
+        return LineError(source_, number, "no column for joint " + std::to_string(j + 1),
+                         "q" + std::to_string(j + 1) + " or " + Quote(model_.joints[j].name));
       }
-      return Status::Ok();
-    };
-    ContactRow row;
-    row.kind = kind->id;
-    row.file = 0;
-    row.line = number;
-    for (int j = 0; j < n; ++j) {
+    }
+    if (kind_->id == MeasurementKindId::kDistance) {
+      value_column_ = header.Find("distance");
+      feature_column_ = header.Find("pivot");
+    } else {
+      feature_column_ = header.Find("plane");
+      offset_column_ = header.Find("offset");
+    }
+    target_column_ = header.Find("target");
+    sigma_column_ = header.Find("sigma");
+    if (sigma_column_ < 0 && !(options_.sigma > 0)) {
+      return LineError(source_, number, "no 'sigma' column and no noise given",
+                       "a 'sigma' column (mm) or --sigma for this file");
+    }
+    return Status::Ok();
+  }
+
+  Status NumberOf(const std::vector<std::string_view>& fields, int64_t number, int column,
+                  const char* what, double* v) const {
+    const std::string_view f = fields[column];
+    const internal::NumberParse p = internal::ParseNumber(f, v);
+    if (p != internal::NumberParse::kOk) {
+      return LineError(source_, number,
+                       std::string("column '") + header.names[column] + "': " + Quote(f) +
+                           (p == internal::NumberParse::kNonFinite ? " is not finite" : ""),
+                       what);
+    }
+    return Status::Ok();
+  }
+
+  // The row's joint values, in the model's units (rad, mm), appended to set.q.
+  Status Joints(const std::vector<std::string_view>& fields, int64_t number) {
+    for (int j = 0; j < n_; ++j) {
       double v = 0;
-      s = number_of(joint_column[j], "a finite joint value", &v);
-      if (!s.ok()) return s;
+      if (Status s = NumberOf(fields, number, joint_column_[j], "a finite joint value", &v);
+          !s.ok()) {
+        return s;
+      }
       if (std::abs(v) > kMaxAbsCsvJointValue) {
-        return LineError(source, number,
-                         "column '" + header.names[joint_column[j]] + "': " +
-                             Quote(fields[joint_column[j]]) + " is out of range",
+        return LineError(source_, number,
+                         "column '" + header.names[joint_column_[j]] + "': " +
+                             Quote(fields[joint_column_[j]]) + " is out of range",
                          "a joint value of magnitude at most 1e4");
       }
-      if (model.joints[j].type == JointType::kRevolute &&
-          options.units.angle_unit == AngleUnit::kDegrees) {
+      if (model_.joints[j].type == JointType::kRevolute &&
+          options_.units.angle_unit == AngleUnit::kDegrees) {
         v *= kPiContact / 180.0;
       }
-      if (model.joints[j].type == JointType::kPrismatic &&
-          options.units.length_unit == LengthUnit::kMetres) {
+      if (model_.joints[j].type == JointType::kPrismatic &&
+          options_.units.length_unit == LengthUnit::kMetres) {
         v *= 1000.0;
       }
       set.q.push_back(v);
     }
-    const double length_scale = options.units.length_unit == LengthUnit::kMetres ? 1000.0 : 1.0;
-    if (kind->id == MeasurementKindId::kDistance) {
-      s = number_of(value_column, "a distance (mm), positive", &row.value);
+    return Status::Ok();
+  }
+
+  // The distance (ballbar) or the probe tip's offset (plane) into row->value, in mm.
+  Status Value(const std::vector<std::string_view>& fields, int64_t number, double length_scale,
+               ContactRow* row) const {
+    if (kind_->id == MeasurementKindId::kDistance) {
+      Status s = NumberOf(fields, number, value_column_, "a distance (mm), positive", &row->value);
       if (!s.ok()) return s;
-      row.value *= length_scale;
-      if (!(row.value > 0) || row.value > kMaxAbsCsvPositionMm) {
-        return LineError(source, number,
-                         "column 'distance': " + Quote(fields[value_column]) + " is not a length",
+      row->value *= length_scale;
+      if (!(row->value > 0) || row->value > kMaxAbsCsvPositionMm) {
+        return LineError(source_, number,
+                         "column 'distance': " + Quote(fields[value_column_]) + " is not a length",
                          "a distance above 0 and at most 1e6 mm");
       }
-    } else if (offset_column >= 0) {
-      s = number_of(offset_column, "an offset (mm): the probe tip's radius", &row.value);
+    } else if (offset_column_ >= 0) {
+      Status s = NumberOf(fields, number, offset_column_,
+                          "an offset (mm): the probe tip's radius", &row->value);
       if (!s.ok()) return s;
-      row.value *= length_scale;
-      if (std::abs(row.value) > kMaxAbsCsvPositionMm) {
-        return LineError(source, number, "column 'offset': " + Quote(fields[offset_column]) +
-                                             " is out of range",
+      row->value *= length_scale;
+      if (std::abs(row->value) > kMaxAbsCsvPositionMm) {
+        return LineError(source_, number, "column 'offset': " + Quote(fields[offset_column_]) +
+                                              " is out of range",
                          "an offset of magnitude at most 1e6 mm");
       }
     }
-    std::string feature = kind->id == MeasurementKindId::kDistance ? "pivot1" : "";
-    if (feature_column >= 0) feature = std::string(fields[feature_column]);
+    return Status::Ok();
+  }
+
+  // The pivot or plane, the tool and the noise of the row.
+  Status FeatureToolSigma(const std::vector<std::string_view>& fields, int64_t number,
+                          double length_scale, ContactRow* row) {
+    std::string feature = kind_->id == MeasurementKindId::kDistance ? "pivot1" : "";
+    if (feature_column_ >= 0) feature = std::string(fields[feature_column_]);
     if (!ValidFeatureName(feature)) {
-      return LineError(source, number,
-                       std::string("column '") + kind->feature_column + "': " + Quote(feature) +
+      return LineError(source_, number,
+                       std::string("column '") + kind_->feature_column + "': " + Quote(feature) +
                            " is not a name",
-                       std::string("the ") + kind->feature_noun +
+                       std::string("the ") + kind_->feature_noun +
                            "'s name (1 to 64 printable characters)");
     }
-    row.feature = set.Feature(kind->id, feature);
-    if (target_column >= 0) {
-      row.target = ContactTarget(fields[target_column], model);
-      if (row.target < 0) {
-        return LineError(source, number,
-                         "column 'target': unknown tool " + Quote(fields[target_column]),
+    row->feature = set.Feature(kind_->id, feature);
+    if (target_column_ >= 0) {
+      row->target = ContactTarget(fields[target_column_], model_);
+      if (row->target < 0) {
+        return LineError(source_, number,
+                         "column 'target': unknown tool " + Quote(fields[target_column_]),
                          "a tool of the model (name or 0-based index)");
       }
     }
-    row.sigma = options.sigma;
-    if (sigma_column >= 0) {
-      s = number_of(sigma_column, "a noise (mm), positive", &row.sigma);
+    row->sigma = options_.sigma;
+    if (sigma_column_ >= 0) {
+      Status s = NumberOf(fields, number, sigma_column_, "a noise (mm), positive", &row->sigma);
       if (!s.ok()) return s;
-      row.sigma *= length_scale;
-      if (!(row.sigma > 0) || row.sigma > 1e3) {
-        return LineError(source, number,
-                         "column 'sigma': " + Quote(fields[sigma_column]) + " is not a noise",
+      row->sigma *= length_scale;
+      if (!(row->sigma > 0) || row->sigma > 1e3) {
+        return LineError(source_, number,
+                         "column 'sigma': " + Quote(fields[sigma_column_]) + " is not a noise",
                          "a standard deviation above 0 and at most 1000 mm");
       }
     }
+    return Status::Ok();
+  }
+
+  Status Row(const std::vector<std::string_view>& fields, int64_t number) {
+    Status s = CheckCsvRowFields(fields.size(), header, source_, number);
+    if (!s.ok()) return s;
+    if (set.size() >= (1 << 30)) return LineError(source_, number, "too many rows", "at most 2^30");
+    ContactRow row;
+    row.kind = kind_->id;
+    row.file = 0;
+    row.line = number;
+    if (s = Joints(fields, number); !s.ok()) return s;
+    const double length_scale = options_.units.length_unit == LengthUnit::kMetres ? 1000.0 : 1.0;
+    if (s = Value(fields, number, length_scale, &row); !s.ok()) return s;
+    if (s = FeatureToolSigma(fields, number, length_scale, &row); !s.ok()) return s;
     set.rows.push_back(row);
     return Status::Ok();
+  }
+
+  const std::string& source_;
+  const RobotModel& model_;
+  const ContactCsvOptions& options_;
+  const int n_;
+  const MeasurementKindInfo* kind_ = nullptr;
+  std::vector<int> joint_column_;
+  int value_column_ = -1, feature_column_ = -1, offset_column_ = -1, target_column_ = -1,
+      sigma_column_ = -1;
+};
+
+}  // namespace
+
+Status ParseContactMeasurementsCsv(const std::string& text, const std::string& source,
+                                   const RobotModel& model, const ContactCsvOptions& options,
+                                   ContactMeasurementSet* out) {
+  ContactCsvParser parser(source, model, options);
+  const Status status = ForEachLine(text, [&](std::string_view line, int64_t number) -> Status {
+    return parser.Line(line, number);
   });
   if (!status.ok()) return status;
-  if (!have_header) {
+  if (!parser.have_header) {
     return LineError(source, 1, "no header", "a header naming q1..qN and 'distance' or 'plane'");
   }
-  if (set.rows.empty()) {
-    return LineError(source, header.line > 0 ? header.line : 1, "no data rows",
+  if (parser.set.rows.empty()) {
+    return LineError(source, parser.header.line > 0 ? parser.header.line : 1, "no data rows",
                      "at least one measurement");
   }
-  *out = std::move(set);
+  *out = std::move(parser.set);
   return Status::Ok();
 }
 

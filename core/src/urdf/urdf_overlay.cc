@@ -284,17 +284,8 @@ Status Mismatch(const UrdfSource& src, const std::string& what) {
   return Status::Error(src.source + ": the calibrated model does not match this URDF: " + what);
 }
 
-}  // namespace
-
-Status urdf_internal::OverlayImpl(const UrdfSource& src, const RobotModel& cal, const UrdfOverlayOptions& options,
-                                 std::string* xml, std::vector<OverlayJoint>* moved) {
-  XMLDocument doc;
-  UrdfTree tree;
-  if (Status s = ReadTree(src.xml, src.source, &doc, &tree); !s.ok()) return s;
-  UrdfChain chain;
-  if (Status s = SelectChain(tree, src.options, &chain); !s.ok()) return s;
-  RobotModel nominal;
-  if (Status s = BuildModel(tree, chain, &nominal); !s.ok()) return s;
+// The calibrated model's joints those of the URDF's chain (count, names, types).
+Status CheckOverlayJoints(const UrdfSource& src, const RobotModel& cal, const RobotModel& nominal) {
   if (Status s = cal.Validate(); !s.ok()) return Mismatch(src, s.message());
   if (cal.num_joints() != nominal.num_joints()) {
     return Mismatch(src, std::to_string(cal.num_joints()) + " joints instead of " +
@@ -309,47 +300,45 @@ Status urdf_internal::OverlayImpl(const UrdfSource& src, const RobotModel& cal, 
                                JointTypeName(nominal.joints[i].type) + ")");
     }
   }
-  // The source text's elements: the robot's <joint> children in document order are tree.joints.
-  const std::string& text = src.xml;
-  std::vector<TextElement> elements;
-  if (!ScanElements(text, &elements)) {
-    return Status::Error(src.source + ": cannot locate the elements in the text for the overlay");
-  }
-  int robot = -1;
-  for (int e = 0; e < static_cast<int>(elements.size()) && robot < 0; ++e) {
-    if (elements[e].parent == -1 && elements[e].name == "robot") robot = e;
-  }
-  std::vector<int> joint_element;
-  for (int e = 0; e < static_cast<int>(elements.size()); ++e) {
-    if (elements[e].parent == robot && elements[e].name == "joint") joint_element.push_back(e);
-  }
-  if (robot < 0 || elements[robot].self_closing ||
-      joint_element.size() != tree.joints.size()) {
-    return Status::Error(src.source + ": cannot locate the joints in the text for the overlay");
-  }
-  auto child_of = [&](int parent, const char* name) {
-    for (int e = parent + 1; e < static_cast<int>(elements.size()); ++e) {
-      if (elements[e].begin >= elements[parent].close_begin) break;
-      if (elements[e].parent == parent && elements[e].name == name) return e;
+  return Status::Ok();
+}
+
+// The source text's elements and the edits made to it: the robot's <joint> children in document
+// order are tree.joints.
+class OverlayText {
+ public:
+  explicit OverlayText(const std::string& text) : text_(text) {}
+
+  // Finds the elements; false when the robot or its joints cannot be located.
+  Status Locate(const UrdfSource& src, size_t num_joints) {
+    if (!ScanElements(text_, &elements_)) {
+      return Status::Error(src.source + ": cannot locate the elements in the text for the overlay");
     }
-    return -1;
-  };
-  std::set<std::string> link_names, joint_names;
-  for (const UrdfLink& l : tree.links) link_names.insert(l.name);
-  for (const UrdfJoint& j : tree.joints) joint_names.insert(j.name);
-  TextEdits edits;
+    for (int e = 0; e < static_cast<int>(elements_.size()) && robot_ < 0; ++e) {
+      if (elements_[e].parent == -1 && elements_[e].name == "robot") robot_ = e;
+    }
+    for (int e = 0; e < static_cast<int>(elements_.size()); ++e) {
+      if (elements_[e].parent == robot_ && elements_[e].name == "joint") {
+        joint_element_.push_back(e);
+      }
+    }
+    if (robot_ < 0 || elements_[robot_].self_closing || joint_element_.size() != num_joints) {
+      return Status::Error(src.source + ": cannot locate the joints in the text for the overlay");
+    }
+    return Status::Ok();
+  }
 
   // A joint's origin written into its <origin> element: unchanged numbers keep their text, the
   // rotation is written as the roll, pitch, yaw nearest the file's. `written` (may be null)
   // receives the six numbers' text.
-  auto write_origin = [&](int ji, const SE3d& T, std::array<std::string, 6>* written) {
-    const int je = joint_element[ji];
-    const int oe = child_of(je, "origin");
-    const TextAttribute* xyz_attr = oe >= 0 ? elements[oe].Attribute("xyz") : nullptr;
-    const TextAttribute* rpy_attr = oe >= 0 ? elements[oe].Attribute("rpy") : nullptr;
+  void WriteOrigin(int ji, const SE3d& T, std::array<std::string, 6>* written) {
+    const int je = joint_element_[ji];
+    const int oe = ChildOf(je, "origin");
+    const TextAttribute* xyz_attr = oe >= 0 ? elements_[oe].Attribute("xyz") : nullptr;
+    const TextAttribute* rpy_attr = oe >= 0 ? elements_[oe].Attribute("rpy") : nullptr;
     const auto raw = [&](const TextAttribute* a) {
       return a == nullptr ? std::string("0 0 0")
-                          : text.substr(a->value_begin, a->value_end - a->value_begin);
+                          : text_.substr(a->value_begin, a->value_end - a->value_begin);
     };
     Eigen::Vector3d old_rpy = Eigen::Vector3d::Zero();
     const std::vector<std::string> rpy_tokens = SplitSpace(raw(rpy_attr));
@@ -369,44 +358,117 @@ Status urdf_internal::OverlayImpl(const UrdfSource& src, const RobotModel& cal, 
     }
     if (oe < 0) {
       if (!xyz_changed && !rpy_changed) return;
-      const TextElement& j = elements[je];
-      edits.Replace(j.end, j.end,
-                    "\n" + IndentOf(text, j.begin) + "  <origin xyz=\"" + xyz_text + "\" rpy=\"" +
-                        rpy_text + "\"/>");
+      AppendChild(je, "<origin xyz=\"" + xyz_text + "\" rpy=\"" + rpy_text + "\"/>");
       return;
     }
-    const TextElement& o = elements[oe];
+    const TextElement& o = elements_[oe];
     const size_t insert_at = o.self_closing ? o.end - 2 : o.end - 1;
     for (const auto& [attr, changed, value, name] :
          {std::tuple{xyz_attr, xyz_changed, xyz_text, "xyz"},
           std::tuple{rpy_attr, rpy_changed, rpy_text, "rpy"}}) {
       if (!changed) continue;
       if (attr != nullptr) {
-        edits.Replace(attr->value_begin, attr->value_end, value);
+        edits_.Replace(attr->value_begin, attr->value_end, value);
       } else {
-        edits.Replace(insert_at, insert_at, std::string(" ") + name + "=\"" + value + "\"");
+        edits_.Replace(insert_at, insert_at, std::string(" ") + name + "=\"" + value + "\"");
       }
     }
-  };
-
-  // The calibrated base frame is the measurement frame: the registration recorded with the model
-  // (T_measurement_base, lpoe_calibrate) places the measurement frame in the base frame, so that
-  // the URDF predicts in its base frame what the YAML model predicts there; without a recorded
-  // registration joint 1 keeps its URDF origin and the measurement frame takes
-  // T_measurement_base = C_1 N_1^-1 (the two are not separable).
-  SE3d T_measurement_base;
-  if (options.in_measurement_frame) {
-    const bool recorded =
-        !cal.T_measurement_base.R.isIdentity(0) || !cal.T_measurement_base.t.isZero(0);
-    T_measurement_base = recorded ? cal.T_measurement_base
-                                  : cal.joints[0].origin * nominal.joints[0].origin.Inverse();
   }
 
-  // Moving joints: origin = (fixed joints folded before it)^-1 * calibrated local frame.
+  void WriteAxis(int ji, const Eigen::Vector3d& axis) {
+    const int je = joint_element_[ji];
+    const int ae = ChildOf(je, "axis");
+    const TextAttribute* a = ae >= 0 ? elements_[ae].Attribute("xyz") : nullptr;
+    if (a != nullptr) {
+      edits_.Replace(a->value_begin, a->value_end, Triple(axis));
+    } else {
+      AppendChild(je, "<axis xyz=\"" + Triple(axis) + "\"/>");
+    }
+  }
+
+  // The limits (in the file's units) into the joint's <limit>, or a new <limit>.
+  void WriteLimits(int ji, double lower, double upper) {
+    const int je = joint_element_[ji];
+    const int le = ChildOf(je, "limit");
+    const std::pair<const char*, double> bounds[2] = {{"lower", lower}, {"upper", upper}};
+    if (le < 0) {
+      AppendChild(je, "<limit lower=\"" + Number(lower) + "\" upper=\"" + Number(upper) +
+                          "\" effort=\"0\" velocity=\"0\"/>");
+      return;
+    }
+    const TextElement& l = elements_[le];
+    for (const auto& [name, value] : bounds) {
+      if (const TextAttribute* a = l.Attribute(name)) {
+        edits_.Replace(a->value_begin, a->value_end, Number(value));
+      } else {
+        const size_t at = l.self_closing ? l.end - 2 : l.end - 1;
+        edits_.Replace(at, at, std::string(" ") + name + "=\"" + Number(value) + "\"");
+      }
+    }
+  }
+
+  // `added` at the start of the line of </robot> (after its indentation when it has its own
+  // line); the edited text.
+  std::string Finish(std::string added) {
+    size_t close = elements_[robot_].close_begin;
+    const size_t line_start = text_.rfind('\n', close == 0 ? 0 : close - 1);
+    bool own_line = line_start != std::string::npos;
+    for (size_t b = own_line ? line_start + 1 : close; b < close; ++b) {
+      own_line = own_line && (text_[b] == ' ' || text_[b] == '\t');
+    }
+    if (own_line) {
+      close = line_start + 1;
+    } else {
+      added = "\n" + added;
+    }
+    edits_.Replace(close, close, added);
+    return edits_.Apply(text_);
+  }
+
+ private:
+  int ChildOf(int parent, const char* name) const {
+    for (int e = parent + 1; e < static_cast<int>(elements_.size()); ++e) {
+      if (elements_[e].begin >= elements_[parent].close_begin) break;
+      if (elements_[e].parent == parent && elements_[e].name == name) return e;
+    }
+    return -1;
+  }
+  // A new child element's text after the start tag of element `e`, on its own line.
+  void AppendChild(int e, const std::string& markup) {
+    const TextElement& el = elements_[e];
+    edits_.Replace(el.end, el.end, "\n" + IndentOf(text_, el.begin) + "  " + markup);
+  }
+
+  const std::string& text_;
+  std::vector<TextElement> elements_;
+  int robot_ = -1;
+  std::vector<int> joint_element_;
+  TextEdits edits_;
+};
+
+// The calibrated base frame is the measurement frame: the registration recorded with the model
+// (T_measurement_base, lpoe_calibrate) places the measurement frame in the base frame, so that
+// the URDF predicts in its base frame what the YAML model predicts there; without a recorded
+// registration joint 1 keeps its URDF origin and the measurement frame takes
+// T_measurement_base = C_1 N_1^-1 (the two are not separable).
+SE3d OverlayMeasurementFrame(const RobotModel& cal, const RobotModel& nominal,
+                             const UrdfOverlayOptions& options) {
+  if (!options.in_measurement_frame) return SE3d();
+  const bool recorded =
+      !cal.T_measurement_base.R.isIdentity(0) || !cal.T_measurement_base.t.isZero(0);
+  return recorded ? cal.T_measurement_base
+                  : cal.joints[0].origin * nominal.joints[0].origin.Inverse();
+}
+
+// Moving joints: origin = (fixed joints folded before it)^-1 * calibrated local frame, the axis
+// and the limits where they changed.
+Status OverlayMovingJoints(const UrdfSource& src, const RobotModel& cal, const UrdfChain& chain,
+                           const SE3d& T_measurement_base, UrdfTree* tree, OverlayText* out,
+                           std::vector<OverlayJoint>* moved) {
   SE3d folded = chain.base_up;
   int k = 0;
   for (int ji : chain.path) {
-    UrdfJoint& j = tree.joints[ji];
+    UrdfJoint& j = tree->joints[ji];
     if (j.kind == Kind::kFixed) {
       folded = folded * j.origin;
       continue;
@@ -426,62 +488,37 @@ Status urdf_internal::OverlayImpl(const UrdfSource& src, const RobotModel& cal, 
     const Eigen::Vector3d axis = (revolute ? w : v).normalized();
     j.origin = folded.Inverse() * local;
     OverlayJoint written{j.name, j.origin, axis, {}};
-    write_origin(ji, j.origin, &written.text);
-    const int je = joint_element[ji];
+    out->WriteOrigin(ji, j.origin, &written.text);
     if ((axis - j.axis).norm() > 1e-12) {
-      const int ae = child_of(je, "axis");
-      const TextAttribute* a = ae >= 0 ? elements[ae].Attribute("xyz") : nullptr;
-      if (a != nullptr) {
-        edits.Replace(a->value_begin, a->value_end, Triple(axis));
-      } else {
-        const TextElement& je_text = elements[je];
-        edits.Replace(je_text.end, je_text.end,
-                      "\n" + IndentOf(text, je_text.begin) + "  <axis xyz=\"" + Triple(axis) +
-                          "\"/>");
-      }
+      out->WriteAxis(ji, axis);
       j.axis = axis;
     }
     // The model's limits where they differ from the file's.
     if (!j.continuous && std::isfinite(c.lower) && std::isfinite(c.upper) &&
         (c.lower != j.lower || c.upper != j.upper)) {
       const double scale = j.kind == Kind::kPrismatic ? kMmToMetres : 1.0;
-      const int le = child_of(je, "limit");
-      const std::pair<const char*, double> bounds[2] = {{"lower", c.lower * scale},
-                                                        {"upper", c.upper * scale}};
-      if (le < 0) {
-        const TextElement& je_text = elements[je];
-        edits.Replace(je_text.end, je_text.end,
-                      "\n" + IndentOf(text, je_text.begin) + "  <limit lower=\"" +
-                          Number(bounds[0].second) + "\" upper=\"" + Number(bounds[1].second) +
-                          "\" effort=\"0\" velocity=\"0\"/>");
-      } else {
-        const TextElement& l = elements[le];
-        for (const auto& [name, value] : bounds) {
-          if (const TextAttribute* a = l.Attribute(name)) {
-            edits.Replace(a->value_begin, a->value_end, Number(value));
-          } else {
-            const size_t at = l.self_closing ? l.end - 2 : l.end - 1;
-            edits.Replace(at, at, std::string(" ") + name + "=\"" + Number(value) + "\"");
-          }
-        }
-      }
+      out->WriteLimits(ji, c.lower * scale, c.upper * scale);
     }
     if (moved != nullptr) moved->push_back(written);
     folded = SE3d();
     if (++k == cal.num_joints()) break;
   }
+  return Status::Ok();
+}
 
-  // Tools that are links fixed after the flange take the calibrated pose in their own fixed joint
-  // (ancestors first); the others become new links on the tip.
+// Tools that are links fixed after the flange take the calibrated pose in their own fixed joint
+// (ancestors first); the others (returned) become new links on the tip.
+std::vector<int> OverlayLinkTools(const RobotModel& cal, const UrdfChain& chain, UrdfTree* tree,
+                                  OverlayText* out) {
   std::vector<std::pair<int, int>> link_tools;  // depth below the flange, tool index
   std::vector<int> new_tools;
   for (int t = 0; t < cal.num_tools(); ++t) {
-    const auto it = tree.link_index.find(cal.tools[t].name);
-    bool fixed = it != tree.link_index.end() && it->second != chain.flange &&
-                 IsAncestorOrSelf(tree, chain.flange, it->second);
+    const auto it = tree->link_index.find(cal.tools[t].name);
+    bool fixed = it != tree->link_index.end() && it->second != chain.flange &&
+                 IsAncestorOrSelf(*tree, chain.flange, it->second);
     const std::vector<int> path =
-        fixed ? PathBetween(tree, chain.flange, it->second) : std::vector<int>();
-    for (int ji : path) fixed = fixed && tree.joints[ji].kind == Kind::kFixed;
+        fixed ? PathBetween(*tree, chain.flange, it->second) : std::vector<int>();
+    for (int ji : path) fixed = fixed && tree->joints[ji].kind == Kind::kFixed;
     if (fixed) {
       link_tools.push_back({static_cast<int>(path.size()), t});
     } else {
@@ -490,13 +527,22 @@ Status urdf_internal::OverlayImpl(const UrdfSource& src, const RobotModel& cal, 
   }
   std::sort(link_tools.begin(), link_tools.end());
   for (const auto& [depth, t] : link_tools) {
-    const int ji = tree.links[tree.link_index.at(cal.tools[t].name)].parent_joint;
-    UrdfJoint& j = tree.joints[ji];
-    j.origin = PoseInFlange(tree, chain, j.parent).Inverse() * cal.tools[t].origin;
-    write_origin(ji, j.origin, nullptr);
+    const int ji = tree->links[tree->link_index.at(cal.tools[t].name)].parent_joint;
+    UrdfJoint& j = tree->joints[ji];
+    j.origin = PoseInFlange(*tree, chain, j.parent).Inverse() * cal.tools[t].origin;
+    out->WriteOrigin(ji, j.origin, nullptr);
   }
+  return new_tools;
+}
 
-  // What the calibration adds goes before </robot>, one block.
+// What the calibration adds before </robot>, one block: a comment, the new tools as fixed links
+// on the tip and the measurement frame as a fixed link on the base.
+std::string OverlayAddedText(const RobotModel& cal, const UrdfTree& tree, const UrdfChain& chain,
+                             const std::vector<int>& new_tools, const SE3d& T_measurement_base,
+                             const UrdfOverlayOptions& options) {
+  std::set<std::string> link_names, joint_names;
+  for (const UrdfLink& l : tree.links) link_names.insert(l.name);
+  for (const UrdfJoint& j : tree.joints) joint_names.insert(j.name);
   const std::string indent = "  ";
   auto fixed_joint_text = [&](const std::string& name, const std::string& parent,
                               const std::string& child, const SE3d& T) {
@@ -531,20 +577,31 @@ Status urdf_internal::OverlayImpl(const UrdfSource& src, const RobotModel& cal, 
   const std::string frame = Unique(options.measurement_link, link_names);
   added += fixed_joint_text(Unique(frame + "_joint", joint_names), tree.links[chain.base].name,
                             frame, T_measurement_base.Inverse());
-  // At the start of the line of </robot> (after its indentation when it has its own line).
-  size_t close = elements[robot].close_begin;
-  const size_t line_start = text.rfind('\n', close == 0 ? 0 : close - 1);
-  bool own_line = line_start != std::string::npos;
-  for (size_t b = own_line ? line_start + 1 : close; b < close; ++b) {
-    own_line = own_line && (text[b] == ' ' || text[b] == '\t');
+  return added;
+}
+
+}  // namespace
+
+Status urdf_internal::OverlayImpl(const UrdfSource& src, const RobotModel& cal,
+                                  const UrdfOverlayOptions& options, std::string* xml,
+                                  std::vector<OverlayJoint>* moved) {
+  XMLDocument doc;
+  UrdfTree tree;
+  if (Status s = ReadTree(src.xml, src.source, &doc, &tree); !s.ok()) return s;
+  UrdfChain chain;
+  if (Status s = SelectChain(tree, src.options, &chain); !s.ok()) return s;
+  RobotModel nominal;
+  if (Status s = BuildModel(tree, chain, &nominal); !s.ok()) return s;
+  if (Status s = CheckOverlayJoints(src, cal, nominal); !s.ok()) return s;
+  OverlayText text(src.xml);
+  if (Status s = text.Locate(src, tree.joints.size()); !s.ok()) return s;
+  const SE3d T_measurement_base = OverlayMeasurementFrame(cal, nominal, options);
+  if (Status s = OverlayMovingJoints(src, cal, chain, T_measurement_base, &tree, &text, moved);
+      !s.ok()) {
+    return s;
   }
-  if (own_line) {
-    close = line_start + 1;
-  } else {
-    added = "\n" + added;
-  }
-  edits.Replace(close, close, added);
-  *xml = edits.Apply(text);
+  const std::vector<int> new_tools = OverlayLinkTools(cal, chain, &tree, &text);
+  *xml = text.Finish(OverlayAddedText(cal, tree, chain, new_tools, T_measurement_base, options));
   return Status::Ok();
 }
 

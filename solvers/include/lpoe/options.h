@@ -35,6 +35,10 @@ const OptionSpec* FindOption(const std::string& tool, const std::string& name);
 // The help text of an option (CHECK-fails when the table has none: a programming error).
 const char* OptionHelp(const std::string& tool, const std::string& name);
 double OptionDefault(const std::string& tool, const std::string& name);
+// The default as written ("linear", "" for none); a flag's "true" / "false" as a bool (CHECK-fails
+// on any other text).
+const char* OptionDefaultText(const std::string& tool, const std::string& name);
+bool OptionDefaultBool(const std::string& tool, const std::string& name);
 // "[1, 10000]", "(0, 90]", "[0, inf)"; empty without a range.
 std::string OptionRangeText(const OptionSpec& spec);
 // "--name must be in [lo, hi], got v" unless the value is in the option's range (NaN fails).

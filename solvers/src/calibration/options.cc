@@ -33,13 +33,119 @@ OptionSpec Number(const char* scope, const char* name, const char* default_text,
   return s;
 }
 
+// lpoe_calibrate's options that lpoe.calibrate shares, in the order of lpoe.calibrate's keywords
+// (the default prior's standard deviations, lpoe/prior.h and docs/identifiability.md "The prior",
+// among them): default, range and help of the flag and of the keyword argument.
+std::vector<OptionSpec> CalibrateOptions() {
+  const char* kCalibrate = "lpoe_calibrate";
+  return {
+      Text(kCalibrate, "solver", "linear",
+           "linear: the paper's iterative least squares; ceres: Levenberg-Marquardt on SE(3) "
+           "manifolds (robust losses, a-priori covariance)."),
+      Text(kCalibrate, "parameterization", "identifiable",
+           "identifiable: only the directions the data can see (27 for a 6R arm with position "
+           "data); full: 6 per local frame, solved as a minimum-norm pseudo-inverse (the "
+           "paper's 42)."),
+      Text(kCalibrate, "data_kind", "auto",
+           "position | pose | distance | plane | auto (distance: ballbar, plane: touch probe; "
+           "docs/measurements.md): pose-based calibration (paper eqs. 17-24) uses the measured "
+           "orientations; auto picks pose when the CSV has quat_* columns."),
+      Text(kCalibrate, "joint_errors", "none",
+           "Joint-space error terms identified with the geometry: none | a comma-separated list "
+           "of the registry's terms (compliance, harmonics, ...: docs/joint_errors.md lists "
+           "them; e.g. compliance,harmonics) | auto (gravity and payload from the model; the identified "
+           "values are written to the model's joint_errors). Add tilt to a list with compliance "
+           "(compliance,tilt) to identify the tilt of the model's gravity too, when the data "
+           "determine it (the tilted gravity goes into the calibrated model). auto: k-fold "
+           "cross-validation on the identification rows (--kfold folds, 5 when not given; "
+           "--split_seed) picks the simplest set within one standard error of the lowest "
+           "held-out error among every subset of the terms, with the tilt among the "
+           "candidates when identifiable (docs/joint_errors.md)."),
+      Text(kCalibrate, "residual_model", "none",
+           "Learned residual layer after the parametric solve (docs/residual_layer.md): none | "
+           "gp (a sparse Gaussian process over the joint configuration and the SMR, fitted on "
+           "the identification residuals, stored in --output and used by every prediction) | "
+           "auto (k-fold cross-validation by configuration, --kfold folds or 5, picks none or "
+           "gp by the one-standard-error rule). Held-out figures include a layer fitted on the "
+           "training rows only."),
+      Text(kCalibrate, "register", "true",
+           "Register the model to the measurement frame first when the measurements are not in "
+           "its base frame (a rigid fit that moves the base by more than 50 mm or 0.05 rad): "
+           "rigid fit, then base and tool frames, then everything."),
+      Text(kCalibrate, "holdout", "0",
+           "Instead of --verify: hold out this fraction of the measurements (0 <= f < 1) "
+           "for verification, chosen as --split says."),
+      Text(kCalibrate, "kfold", "0",
+           "Also run k-fold cross-validation with this many folds (>= 2; 0 = off) on the "
+           "identification set and report each fold's held-out errors."),
+      Text(kCalibrate, "split", "random",
+           "How --holdout, --kfold and --joint_errors=auto split the data, always by "
+           "configuration (rows with the same joint values, e.g. several SMRs at one pose, stay "
+           "on one side): random (seeded by "
+           "--split_seed) | sequential (the held-out fraction is the last rows of the file and "
+           "the folds are contiguous blocks: the honest choice when the rows were measured one "
+           "after another and the cell drifts)."),
+      Text(kCalibrate, "split_seed", "1", "Seed of the --holdout and --kfold splits."),
+      Number(kCalibrate, "outlier_threshold", "5", 1, 1e6,
+             "List points whose error after the fit exceeds this many robust sigmas."),
+      Number(kCalibrate, "max_iterations", "30", 1, 10000, "Iteration limit."),
+      Number(kCalibrate, "step_tolerance", "1e-10", 1e-300, 1e-3,
+             "Convergence (linear solver): stop when |x| falls below this (mm or rad; at most "
+             "1e-3). Large-residual data also stop when the step is below --sd_fraction standard "
+             "deviations of every parameter or no longer reduces the cost (docs/pipeline.md).",
+             true),
+      Number(kCalibrate, "sd_fraction", "0.01", 0, 0.5,
+             "Convergence (both solvers): stop when the step is below this fraction of every "
+             "parameter's standard deviation (0 = off, at most 0.5)."),
+      Number(kCalibrate, "max_condition", "1e8", 10, 1e16,
+             "Refuse data whose column-scaled Jacobian has a larger condition number."),
+      Number(kCalibrate, "noise_sigma", "0.03", 1e-6, 100,
+             "Expected tracker noise per axis (mm) for the plausibility verdict: residuals far "
+             "above it (plus the ~0.3 mm a geometric model leaves on a real robot) fail."),
+      Text(kCalibrate, "loss", "none",
+           "Ceres solver: robust loss against gross errors in the data: none | huber | cauchy."),
+      Number(kCalibrate, "loss_scale", "1", 1e-6, 1e4,
+             "Ceres solver: scale of the robust loss in mm (errors above it are down-weighted)."),
+      Number(kCalibrate, "sigma", "1", 1e-6, 1e3,
+             "Ceres solver: measurement noise per axis in mm (residual whitening; sets the scale "
+             "of the covariance), in [1e-6, 1e3]. Default (not given): estimated, the covariance "
+             "scaled by the noise estimated from the residuals as with the linear solver (the "
+             "default value 1 printed below is then only the whitening unit)."),
+      Number(kCalibrate, "threads", "0", 0, 256,
+             "Ceres solver: threads (0: all hardware threads; at most 256)."),
+      Text(kCalibrate, "fixed_tools", "",
+           "Comma-separated tools of the model whose frames are known (SMR nests measured on "
+           "the fixture, e.g. smr1,smr2,smr3): held as given, so that the flange frame is "
+           "identified in full, the last joint's zero and the rotation about its axis included "
+           "(docs/identifiability.md, 'Known SMR nests'). The model's tools with fixed: true "
+           "are held too; the calibrated model records them."),
+      Number(kCalibrate, "prior_scale", "1", 0, 1e6,
+             "The prior on weakly determined directions (docs/identifiability.md): every standard "
+             "deviation below multiplied by this (larger: looser); 0: no prior, plain least "
+             "squares."),
+      Number(kCalibrate, "prior_translation", "5", 1e-3, 1e4,
+             "Prior standard deviation of the joint frames' translations (mm)."),
+      Number(kCalibrate, "prior_rotation", "20", 1e-3, 1e4,
+             "Prior standard deviation of the joint frames' rotations, joint zeros included "
+             "(mrad)."),
+      Number(kCalibrate, "prior_tool_translation", "20", 1e-3, 1e4,
+             "Prior standard deviation of the tool points (SMRs) about their fitted start (mm)."),
+      Number(kCalibrate, "prior_joint_terms", "5", 1e-3, 1e4,
+             "Prior standard deviation of each joint-space term parameter, as its RMS effect on "
+             "the joint values over the data (mrad)."),
+      Text(kCalibrate, "hold_scale", "auto",
+           "Distance and plane data: auto | on | off. auto holds the robot's scale at the "
+           "nominal model's when no file measures a length (probe contacts on planes alone: "
+           "the scale is not determined by them; docs/identifiability.md)."),
+  };
+}
+
 std::vector<OptionSpec> MakeOptions() {
   const char* kCompensate = "lpoe_compensate";
   const char* kPlan = "lpoe_plan";
-  const char* kCalibrate = "lpoe_calibrate";
   const char* kCompare = "lpoe_compare";
   const char* kSimulate = "lpoe_simulate";
-  return {
+  std::vector<OptionSpec> options = {
       // ---- Every tool: the model, its chain, the units of the files, quiet, the main output.
       Text("", "model", "",
            "Robot model: YAML, or URDF when the name ends in .urdf (metres converted to mm, fixed "
@@ -64,23 +170,6 @@ std::vector<OptionSpec> MakeOptions() {
       Text("", "output", "",
            "The tool's main output file (what it holds: see the usage above). Checked before any "
            "work, written atomically, never over an input."),
-      // ---- lpoe_calibrate (and lpoe.calibrate): the ranges; the help is the flags'.
-      Number(kCalibrate, "max_iterations", "30", 1, 10000, "Iteration limit."),
-      Number(kCalibrate, "step_tolerance", "1e-10", 1e-300, 1e-3, "", true),
-      Number(kCalibrate, "sd_fraction", "0.01", 0, 0.5, ""),
-      Number(kCalibrate, "max_condition", "1e8", 10, 1e16, ""),
-      Number(kCalibrate, "outlier_threshold", "5", 1, 1e6, ""),
-      Number(kCalibrate, "sigma", "1", 1e-6, 1e3, ""),
-      Number(kCalibrate, "loss_scale", "1", 1e-6, 1e4, ""),
-      Number(kCalibrate, "threads", "0", 0, 256, ""),
-      Number(kCalibrate, "noise_sigma", "0.03", 1e-6, 100, ""),
-      // The default prior (lpoe/prior.h, docs/identifiability.md "The prior"): its standard
-      // deviations, and one factor on all of them (0: no prior, plain least squares).
-      Number(kCalibrate, "prior_scale", "1", 0, 1e6, ""),
-      Number(kCalibrate, "prior_translation", "5", 1e-3, 1e4, ""),
-      Number(kCalibrate, "prior_rotation", "20", 1e-3, 1e4, ""),
-      Number(kCalibrate, "prior_tool_translation", "20", 1e-3, 1e4, ""),
-      Number(kCalibrate, "prior_joint_terms", "5", 1e-3, 1e4, ""),
       // ---- lpoe_compare.
       Number(kCompare, "tolerance_mm", "1e-6", 0, 1000, ""),
       Number(kCompare, "noise_sigma", "0.03", 1e-6, 100, ""),
@@ -135,6 +224,10 @@ std::vector<OptionSpec> MakeOptions() {
              "Measurement noise per axis (mm): scales the predicted accuracy into mm; required "
              "with --count=auto.", false, true),
   };
+  // ---- lpoe_calibrate (and lpoe.calibrate).
+  const std::vector<OptionSpec> calibrate = CalibrateOptions();
+  options.insert(options.end(), calibrate.begin(), calibrate.end());
+  return options;
 }
 
 }  // namespace
@@ -166,6 +259,18 @@ double OptionDefault(const std::string& tool, const std::string& name) {
   double v = 0;
   CHECK(internal::ParseNumber(s->default_text, &v) == internal::NumberParse::kOk) << name;
   return v;
+}
+
+const char* OptionDefaultText(const std::string& tool, const std::string& name) {
+  const OptionSpec* s = FindOption(tool, name);
+  CHECK(s != nullptr) << "no option " << name << " of " << tool;
+  return s->default_text;
+}
+
+bool OptionDefaultBool(const std::string& tool, const std::string& name) {
+  const std::string text = OptionDefaultText(tool, name);
+  CHECK(text == "true" || text == "false") << name << ": not a flag's default: " << text;
+  return text == "true";
 }
 
 std::string OptionRangeText(const OptionSpec& s) {

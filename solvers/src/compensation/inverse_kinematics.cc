@@ -451,6 +451,264 @@ IkResult InverseKinematics::SolveParametric(const IkTarget& target, const double
   return SolveTask<3, Eigen::Dynamic>(target, seed, q);
 }
 
+namespace {
+
+// One damped Newton run (InverseKinematics::Run) on the solver's chain, joint map and options: the
+// limits, step caps and seed of the solve, the iterates' evaluation (chain, task error, Jacobian),
+// the step and the result.
+template <int M, int N>
+struct IkRun {
+  static constexpr int kMaxN = N == Eigen::Dynamic ? kMax : N;
+  using MatJ = Eigen::Matrix<double, M, N, 0, M, kMaxN>;
+  using VecN = Eigen::Matrix<double, N, 1, 0, kMaxN, 1>;
+  using VecM = Eigen::Matrix<double, M, 1>;
+  using MatM = Eigen::Matrix<double, M, M>;
+
+  // One iterate: joints, the chain's joint values x (q, or g(q) with joint-space terms) with their
+  // sin/cos, frames, weighted task error and Jacobian.
+  struct Iterate {
+    VecN q;
+    double x[kMax], sin_x[kMax], cos_x[kMax];
+    int age[kMax];  // incremental sin/cos updates since the last sincos
+    FrameRt frames[kMax + 1];
+    VecM e;
+    MatJ J;
+    double merit = 0;
+    // Square pose tasks with a joint map: J before the chain rule, and dg/dq (the second order).
+    double Jx[M == 6 && N == 6 ? 36 : 1], dg_dq[M == 6 && N == 6 ? 36 : 1];
+  };
+
+  IkRun(const RobotModel& model, const KinematicChain& kinematic_chain,
+        const EffectiveJointMap* joint_map, const bool* revolute_z, const IkOptions& options,
+        const IkTarget& task, const double* seed_in)
+      : chain(kinematic_chain),
+        effective(joint_map),
+        z_revolute(revolute_z),
+        target(task),
+        o(options),
+        n(kinematic_chain.num_joints()),
+        L(o.orientation_weight),
+        redundant(n > M) {
+    lower.resize(n);
+    upper.resize(n);
+    max_step.resize(n);
+    seed.resize(n);
+    for (int j = 0; j < n; ++j) {
+      const Joint& joint = model.joints[j];
+      lower(j) = o.respect_limits ? joint.lower : -HUGE_VAL;
+      upper(j) = o.respect_limits ? joint.upper : HUGE_VAL;
+      max_step(j) = joint.type == JointType::kRevolute ? o.max_step_revolute : o.max_step_prismatic;
+      seed(j) = std::min(std::max(seed_in[j], lower(j)), upper(j));
+    }
+  }
+
+  bool TaskOk(const VecM& e) const {
+    if (e.template head<3>().norm() > o.position_tolerance) return false;
+    if constexpr (M == 6) {
+      if (e.template tail<3>().norm() > L * o.orientation_tolerance) return false;
+    }
+    return true;
+  }
+
+  // Evaluates `it` at it->q; `from` (or null) is the iterate whose sin/cos are carried over.
+  void Evaluate(const Iterate* from, Iterate* it) const {
+    double dg_dq[kMax * kMax];
+    if (effective != nullptr) {
+      effective->Evaluate(it->q.data(), it->x, dg_dq);
+    } else {
+      for (int j = 0; j < n; ++j) it->x[j] = it->q(j);
+    }
+    int fresh[kMax], count = 0;  // joints whose sin/cos are computed afresh
+    for (int j = 0; j < n; ++j) {
+      if (!z_revolute[j]) continue;
+      const double delta = from != nullptr ? it->x[j] - from->x[j] : HUGE_VAL;
+      if (std::abs(delta) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
+        double sd, cd;
+        SinCosStep(delta, &sd, &cd);
+        it->sin_x[j] = from->sin_x[j] * cd + from->cos_x[j] * sd;
+        it->cos_x[j] = from->cos_x[j] * cd - from->sin_x[j] * sd;
+        it->age[j] = from->age[j] + 1;
+      } else {
+        fresh[count++] = j;
+        it->age[j] = 0;
+      }
+    }
+    SinCosOf(it->x, fresh, count, it->sin_x, it->cos_x);
+    chain.Frames(it->x, it->sin_x, it->cos_x, target.tool, it->frames);
+    const FrameRt& T = it->frames[n];
+    it->e.template head<3>() = target.position - T.t;
+    it->J.resize(M, n);
+    if constexpr (M == 6) {
+      chain.ToolJointJacobian(it->frames, it->J.data(), 6);
+      it->J.template bottomRows<3>() *= L;
+      it->e.template tail<3>() = L * RotationError(target.rotation, T.R);
+    } else {
+      chain.ToolJointJacobian(it->frames, it->J.data(), 3, 3);
+    }
+    if (effective != nullptr) ApplyJointMap(dg_dq, it);
+    it->merit = it->e.squaredNorm();
+  }
+
+  // J <- J dg/dq (the chain rule of the joint map); square pose tasks keep J and dg/dq.
+  void ApplyJointMap(const double* dg_dq, Iterate* it) const {
+    if constexpr (M == 6 && N == 6) {
+      std::copy(dg_dq, dg_dq + 36, it->dg_dq);
+      std::copy(it->J.data(), it->J.data() + 36, it->Jx);
+      double* J = it->J.data();
+      for (int c = 0; c < 6; ++c) {
+        for (int r = 0; r < 6; ++r) {
+          double v = 0;
+          for (int k = 0; k < 6; ++k) v += it->Jx[6 * k + r] * dg_dq[6 * c + k];
+          J[6 * c + r] = v;
+        }
+      }
+    } else {
+      const Eigen::Map<const Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN>> G(dg_dq, n, n);
+      const MatJ Jq = it->J * G;
+      it->J = Jq;
+    }
+  }
+
+  // A square task, undamped, no joint held: Newton's step J d = e (the pull toward the seed has
+  // no null space to act in); false when J is singular to round-off.
+  bool NewtonStep(const Iterate& cur, VecN* d) const {
+    if constexpr (N == M) {
+      const MatJ& J = cur.J;
+      const double tiny = 1e-9 * std::max(J.template lpNorm<Eigen::Infinity>(), 1e-30);
+      const SquareLu<M> lu(J.data(), tiny);
+      if (!lu.Ok()) return false;
+      if constexpr (M == 6) {  // with the second-order correction
+        const bool mapped = effective != nullptr;
+        CorrectedNewtonStep6(lu, cur.e.data(), mapped ? cur.Jx : J.data(),
+                             mapped ? cur.dg_dq : nullptr, L, d->data());
+      } else {
+        lu.Solve(cur.e.data(), d->data());
+      }
+      return true;
+    } else {
+      return false;
+    }
+  }
+
+  // The damped step (see the header) with the joints in `locked` held at q + fixed.
+  void DampedStep(const Iterate& cur, double lambda2, double beta, const bool* locked,
+                  bool any_locked, const VecN& fixed, MatJ* Jf, VecN* d) const {
+    const MatJ& J = cur.J;
+    if (any_locked) *Jf = J;
+    const MatJ& Ju = any_locked ? *Jf : J;  // columns of the joints still free
+    VecM rhs = cur.e;
+    VecN r = beta * (seed - cur.q);
+    if (any_locked) {
+      for (int j = 0; j < n; ++j) {
+        if (!locked[j]) continue;
+        rhs -= J.col(j) * fixed(j);
+        Jf->col(j).setZero();
+        r(j) = 0;
+      }
+    }
+    MatM A = Ju * Ju.transpose();
+    const double trace = A.trace();
+    A.diagonal().array() += lambda2 + (trace > 0 ? 1e-13 * trace / M : 1e-30);
+    VecM y = rhs - Ju * r;
+    SolveRegularized(&A, trace, &y);
+    *d = r + Ju.transpose() * y;
+    for (int j = 0; j < n; ++j) {
+      if (locked[j]) (*d)(j) = fixed(j);
+    }
+  }
+
+  // One damped step with the active set of limits (see the header) from `cur`, into *d.
+  void ComputeStep(const Iterate& cur, double lambda2, double beta, VecN* d) {
+    const VecN& q = cur.q;
+    bool locked[kMax] = {};
+    bool any_locked = false;
+    VecN fixed = VecN::Zero(n);
+    MatJ Jf;
+    for (int round = 0; round <= n; ++round) {
+      const bool solved = !any_locked && lambda2 == 0 && NewtonStep(cur, d);
+      if (!solved) DampedStep(cur, lambda2, beta, locked, any_locked, fixed, &Jf, d);
+      // Trust region: scale the whole step (a move toward a limit stays inside when scaled).
+      double scale = 1.0;
+      for (int j = 0; j < n; ++j) {
+        const double a = std::abs((*d)(j));
+        if (a > max_step(j)) scale = std::min(scale, max_step(j) / a);
+      }
+      if (scale < 1.0) *d *= scale;
+      if (!o.respect_limits) return;
+      bool changed = false;
+      for (int j = 0; j < n; ++j) {
+        if (locked[j]) continue;
+        const double x = q(j) + (*d)(j);
+        if (x > upper(j) || x < lower(j)) {
+          locked[j] = true;
+          any_locked = true;
+          fixed(j) = (x > upper(j) ? upper(j) : lower(j)) - q(j);
+          changed = true;
+          limit_hit = true;
+        }
+      }
+      if (!changed) return;
+    }
+  }
+
+  // The result at the final iterate: errors, sigma_min, branch, status; the joints into q_out.
+  IkResult Finish(const Iterate& cur, bool converged, int iterations, bool check_branch,
+                  const int seed_signs[2], const double* seed_in, double* q_out) const {
+    IkResult result;
+    // Smallest singular value of the weighted task Jacobian at q.
+    const MatJ& J = cur.J;
+    if (M <= n) {
+      result.sigma_min = std::sqrt(SmallestEigenvalueOfGram<M>(J.data(), n));
+    } else {
+      const Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN> A = J.transpose() * J;
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN>> eig(
+          A, Eigen::EigenvaluesOnly);
+      result.sigma_min = std::sqrt(std::max(0.0, eig.eigenvalues()(0)));
+    }
+    result.position_error = cur.e.template head<3>().norm();
+    if constexpr (M == 6) result.orientation_error = cur.e.template tail<3>().norm() / L;
+    result.iterations = iterations;
+    double corr2 = 0;
+    for (int j = 0; j < n; ++j) {
+      const double qj = cur.q(j);
+      q_out[j] = qj;
+      if (qj == lower(j) || qj == upper(j)) result.at_limit = true;
+      corr2 += (qj - seed_in[j]) * (qj - seed_in[j]);
+    }
+    result.correction = std::sqrt(corr2);
+    if (check_branch) {
+      int signs[2];
+      BranchSignsOf(chain, cur.frames, signs);
+      result.branch_changed = (seed_signs[0] != 0 && signs[0] != seed_signs[0]) ||
+                              (seed_signs[1] != 0 && signs[1] != seed_signs[1]);
+    }
+    const bool singular = result.sigma_min < o.singular_threshold;
+    if (converged) {
+      result.status = singular                ? IkStatus::kSingular
+                      : result.branch_changed ? IkStatus::kBranch
+                                              : IkStatus::kOk;
+    } else {
+      result.status = result.at_limit || limit_hit ? IkStatus::kLimit
+                      : singular                   ? IkStatus::kSingular
+                                                   : IkStatus::kUnreachable;
+    }
+    return result;
+  }
+
+  const KinematicChain& chain;
+  const EffectiveJointMap* effective;
+  const bool* z_revolute;
+  const IkTarget& target;
+  const IkOptions& o;
+  const int n;
+  const double L;
+  const bool redundant;
+  VecN lower, upper, max_step, seed;
+  bool limit_hit = false;  // some step of this run was cut at a joint limit
+};
+
+}  // namespace
+
 template <int M, int N>
 IkResult InverseKinematics::SolveTask(const IkTarget& target, const double* seed,
                                       double* q_out) const {
@@ -496,201 +754,31 @@ IkResult InverseKinematics::SolveTask(const IkTarget& target, const double* seed
 template <int M, int N>
 IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
                                 const double* start_in, double* q_out) const {
-  constexpr int kMaxN = N == Eigen::Dynamic ? kMax : N;
-  using MatJ = Eigen::Matrix<double, M, N, 0, M, kMaxN>;
-  using VecN = Eigen::Matrix<double, N, 1, 0, kMaxN, 1>;
-  using VecM = Eigen::Matrix<double, M, 1>;
-  using MatM = Eigen::Matrix<double, M, M>;
-  const RobotModel& model = *model_;
+  using Context = IkRun<M, N>;
+  using VecN = typename Context::VecN;
+  Context ctx(*model_, chain_, effective_, z_revolute_, options_, target, seed_in);
   const IkOptions& o = options_;
-  const int n = chain_.num_joints();
-  const double L = o.orientation_weight;
-  const bool redundant = n > M;
-
-  VecN lower, upper, max_step, seed;
-  lower.resize(n);
-  upper.resize(n);
-  max_step.resize(n);
-  seed.resize(n);
-  for (int j = 0; j < n; ++j) {
-    const Joint& joint = model.joints[j];
-    lower(j) = o.respect_limits ? joint.lower : -HUGE_VAL;
-    upper(j) = o.respect_limits ? joint.upper : HUGE_VAL;
-    max_step(j) = joint.type == JointType::kRevolute ? o.max_step_revolute : o.max_step_prismatic;
-    seed(j) = std::min(std::max(seed_in[j], lower(j)), upper(j));
-  }
-
-  // One iterate: joints, the chain's joint values x (q, or g(q) with joint-space terms) with their
-  // sin/cos, frames, weighted task error and Jacobian.
-  struct Iterate {
-    VecN q;
-    double x[kMax], sin_x[kMax], cos_x[kMax];
-    int age[kMax];  // incremental sin/cos updates since the last sincos
-    FrameRt frames[kMax + 1];
-    VecM e;
-    MatJ J;
-    double merit = 0;
-    // Square pose tasks with a joint map: J before the chain rule, and dg/dq (the second order).
-    double Jx[M == 6 && N == 6 ? 36 : 1], dg_dq[M == 6 && N == 6 ? 36 : 1];
-  };
-  Iterate iterates[2];
-  Iterate* cur = &iterates[0];
-  Iterate* trial = &iterates[1];
-
-  // Evaluates `it` at it->q; `from` (or null) is the iterate whose sin/cos are carried over.
-  auto evaluate = [&](const Iterate* from, Iterate* it) {
-    double dg_dq[kMax * kMax];
-    if (effective_ != nullptr) {
-      effective_->Evaluate(it->q.data(), it->x, dg_dq);
-    } else {
-      for (int j = 0; j < n; ++j) it->x[j] = it->q(j);
-    }
-    int fresh[kMax], count = 0;  // joints whose sin/cos are computed afresh
-    for (int j = 0; j < n; ++j) {
-      if (!z_revolute_[j]) continue;
-      const double delta = from != nullptr ? it->x[j] - from->x[j] : HUGE_VAL;
-      if (std::abs(delta) <= kIncrementalStep && from->age[j] < kIncrementalRefresh) {
-        double sd, cd;
-        SinCosStep(delta, &sd, &cd);
-        it->sin_x[j] = from->sin_x[j] * cd + from->cos_x[j] * sd;
-        it->cos_x[j] = from->cos_x[j] * cd - from->sin_x[j] * sd;
-        it->age[j] = from->age[j] + 1;
-      } else {
-        fresh[count++] = j;
-        it->age[j] = 0;
-      }
-    }
-    SinCosOf(it->x, fresh, count, it->sin_x, it->cos_x);
-    chain_.Frames(it->x, it->sin_x, it->cos_x, target.tool, it->frames);
-    const FrameRt& T = it->frames[n];
-    it->e.template head<3>() = target.position - T.t;
-    it->J.resize(M, n);
-    if constexpr (M == 6) {
-      chain_.ToolJointJacobian(it->frames, it->J.data(), 6);
-      it->J.template bottomRows<3>() *= L;
-      it->e.template tail<3>() = L * RotationError(target.rotation, T.R);
-    } else {
-      chain_.ToolJointJacobian(it->frames, it->J.data(), 3, 3);
-    }
-    if (effective_ != nullptr) {
-      if constexpr (M == 6 && N == 6) {
-        std::copy(dg_dq, dg_dq + 36, it->dg_dq);
-        std::copy(it->J.data(), it->J.data() + 36, it->Jx);
-        double* J = it->J.data();
-        for (int c = 0; c < 6; ++c) {
-          for (int r = 0; r < 6; ++r) {
-            double v = 0;
-            for (int k = 0; k < 6; ++k) v += it->Jx[6 * k + r] * dg_dq[6 * c + k];
-            J[6 * c + r] = v;
-          }
-        }
-      } else {
-        const Eigen::Map<const Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN>> G(dg_dq, n, n);
-        const MatJ Jq = it->J * G;
-        it->J = Jq;
-      }
-    }
-    it->merit = it->e.squaredNorm();
-  };
-  auto task_ok = [&](const VecM& e) {
-    if (e.template head<3>().norm() > o.position_tolerance) return false;
-    if constexpr (M == 6) {
-      if (e.template tail<3>().norm() > L * o.orientation_tolerance) return false;
-    }
-    return true;
-  };
+  const int n = ctx.n;
+  typename Context::Iterate iterates[2];
+  typename Context::Iterate* cur = &iterates[0];
+  typename Context::Iterate* trial = &iterates[1];
 
   cur->q.resize(n);
   trial->q.resize(n);
-  for (int j = 0; j < n; ++j) cur->q(j) = std::min(std::max(start_in[j], lower(j)), upper(j));
-  evaluate(nullptr, cur);
+  for (int j = 0; j < n; ++j) {
+    cur->q(j) = std::min(std::max(start_in[j], ctx.lower(j)), ctx.upper(j));
+  }
+  ctx.Evaluate(nullptr, cur);
   int seed_signs[2] = {0, 0};
   const bool check_branch = o.check_branch && branch_defined_;
   if (check_branch) {
     if (start_in == seed_in) {
       BranchSignsOf(chain_, cur->frames, seed_signs);
     } else {
-      BranchSigns(seed.data(), seed_signs);
+      BranchSigns(ctx.seed.data(), seed_signs);
     }
   }
 
-  // One damped step with the active set of limits (see the header) from `cur`, into *d.
-  bool limit_hit = false;  // some step of this run was cut at a joint limit
-  auto compute_step = [&](double lambda2, double beta, VecN* d) {
-    const MatJ& J = cur->J;
-    const VecN& q = cur->q;
-    bool locked[kMax] = {};
-    bool any_locked = false;
-    VecN fixed = VecN::Zero(n);
-    MatJ Jf;
-    for (int round = 0; round <= n; ++round) {
-      // A square task, undamped, no joint held: Newton's step J d = e (the pull toward the seed
-      // has no null space to act in).
-      bool solved = false;
-      if constexpr (N == M) {
-        if (!any_locked && lambda2 == 0) {
-          const double tiny = 1e-9 * std::max(J.template lpNorm<Eigen::Infinity>(), 1e-30);
-          const SquareLu<M> lu(J.data(), tiny);
-          solved = lu.Ok();
-          if (solved) {
-            if constexpr (M == 6) {  // with the second-order correction
-              const bool mapped = effective_ != nullptr;
-              CorrectedNewtonStep6(lu, cur->e.data(), mapped ? cur->Jx : J.data(),
-                                   mapped ? cur->dg_dq : nullptr, L, d->data());
-            } else {
-              lu.Solve(cur->e.data(), d->data());
-            }
-          }
-        }
-      }
-      if (!solved) {
-        if (any_locked) Jf = J;
-        const MatJ& Ju = any_locked ? Jf : J;  // columns of the joints still free
-        VecM rhs = cur->e;
-        VecN r = beta * (seed - q);
-        if (any_locked) {
-          for (int j = 0; j < n; ++j) {
-            if (!locked[j]) continue;
-            rhs -= J.col(j) * fixed(j);
-            Jf.col(j).setZero();
-            r(j) = 0;
-          }
-        }
-        MatM A = Ju * Ju.transpose();
-        const double trace = A.trace();
-        A.diagonal().array() += lambda2 + (trace > 0 ? 1e-13 * trace / M : 1e-30);
-        VecM y = rhs - Ju * r;
-        SolveRegularized(&A, trace, &y);
-        *d = r + Ju.transpose() * y;
-        for (int j = 0; j < n; ++j) {
-          if (locked[j]) (*d)(j) = fixed(j);
-        }
-      }
-      // Trust region: scale the whole step (a move toward a limit stays inside when scaled).
-      double scale = 1.0;
-      for (int j = 0; j < n; ++j) {
-        const double a = std::abs((*d)(j));
-        if (a > max_step(j)) scale = std::min(scale, max_step(j) / a);
-      }
-      if (scale < 1.0) *d *= scale;
-      if (!o.respect_limits) return;
-      bool changed = false;
-      for (int j = 0; j < n; ++j) {
-        if (locked[j]) continue;
-        const double x = q(j) + (*d)(j);
-        if (x > upper(j) || x < lower(j)) {
-          locked[j] = true;
-          any_locked = true;
-          fixed(j) = (x > upper(j) ? upper(j) : lower(j)) - q(j);
-          changed = true;
-          limit_hit = true;
-        }
-      }
-      if (!changed) return;
-    }
-  };
-
-  IkResult result;
   bool converged = false;
   double lambda2 = 0, pull = 1, beta = 1;
   VecN d, d_prev;
@@ -698,30 +786,30 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
   d_prev.setZero(n);
   int it = 0;
   for (; it < o.max_iterations; ++it) {
-    const bool ok = task_ok(cur->e);
-    if (ok && !redundant) {
+    const bool ok = ctx.TaskOk(cur->e);
+    if (ok && !ctx.redundant) {
       converged = true;
       break;
     }
-    compute_step(lambda2, beta, &d);
+    ctx.ComputeStep(*cur, lambda2, beta, &d);
     if (ok && d.template lpNorm<Eigen::Infinity>() < o.step_tolerance) {
       converged = true;
       break;
     }
     for (int j = 0; j < n; ++j) {
-      trial->q(j) = std::min(std::max(cur->q(j) + d(j), lower(j)), upper(j));
+      trial->q(j) = std::min(std::max(cur->q(j) + d(j), ctx.lower(j)), ctx.upper(j));
     }
     // Square tasks, damped steps: the linear model's merit after the step (see kGoodModel).
     double predicted = 0;
     if constexpr (N == M) {
       if (lambda2 > 0) predicted = (cur->e - cur->J * d).squaredNorm();
     }
-    evaluate(cur, trial);
+    ctx.Evaluate(cur, trial);
     // Near the target, a step toward the seed in the null space may raise the task error at
     // second order; the next step removes that, so such steps are accepted (kNullSpaceSlack).
     if (trial->merit <= cur->merit || trial->merit <= kNullSpaceSlack * kNullSpaceSlack ||
-        task_ok(trial->e)) {
-      const bool model_good = N == M && lambda2 > 0 && !limit_hit &&
+        ctx.TaskOk(trial->e)) {
+      const bool model_good = N == M && lambda2 > 0 && !ctx.limit_hit &&
                               cur->merit - trial->merit >= kGoodModel * (cur->merit - predicted);
       std::swap(cur, trial);
       lambda2 *= 0.1;
@@ -729,7 +817,7 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
       // The pull toward the seed is a fixed-point iteration that overshoots (successive steps
       // reverse) where the task's curvature times its multiplier exceeds one, e.g. near a
       // singularity: halve it for the rest of the run.
-      if (redundant && d.dot(d_prev) < -0.5 * d.norm() * d_prev.norm()) {
+      if (ctx.redundant && d.dot(d_prev) < -0.5 * d.norm() * d_prev.norm()) {
         pull = std::max(pull * 0.5, kMinPull);
       }
       d_prev = d;
@@ -742,46 +830,8 @@ IkResult InverseKinematics::Run(const IkTarget& target, const double* seed_in,
     }
   }
   // A redundant task whose null-space pull has not settled still reached the target.
-  if (!converged && task_ok(cur->e) && redundant) converged = true;
-
-  // Smallest singular value of the weighted task Jacobian at q.
-  const MatJ& J = cur->J;
-  if (M <= n) {
-    result.sigma_min = std::sqrt(SmallestEigenvalueOfGram<M>(J.data(), n));
-  } else {
-    const Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN> A = J.transpose() * J;
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N, 0, kMaxN, kMaxN>> eig(
-        A, Eigen::EigenvaluesOnly);
-    result.sigma_min = std::sqrt(std::max(0.0, eig.eigenvalues()(0)));
-  }
-  result.position_error = cur->e.template head<3>().norm();
-  if constexpr (M == 6) result.orientation_error = cur->e.template tail<3>().norm() / L;
-  result.iterations = it;
-  double corr2 = 0;
-  for (int j = 0; j < n; ++j) {
-    const double qj = cur->q(j);
-    q_out[j] = qj;
-    if (qj == lower(j) || qj == upper(j)) result.at_limit = true;
-    corr2 += (qj - seed_in[j]) * (qj - seed_in[j]);
-  }
-  result.correction = std::sqrt(corr2);
-  if (check_branch) {
-    int signs[2];
-    BranchSignsOf(chain_, cur->frames, signs);
-    result.branch_changed = (seed_signs[0] != 0 && signs[0] != seed_signs[0]) ||
-                            (seed_signs[1] != 0 && signs[1] != seed_signs[1]);
-  }
-  const bool singular = result.sigma_min < o.singular_threshold;
-  if (converged) {
-    result.status = singular                ? IkStatus::kSingular
-                    : result.branch_changed ? IkStatus::kBranch
-                                            : IkStatus::kOk;
-  } else {
-    result.status = result.at_limit || limit_hit ? IkStatus::kLimit
-                    : singular                   ? IkStatus::kSingular
-                                                 : IkStatus::kUnreachable;
-  }
-  return result;
+  if (!converged && ctx.TaskOk(cur->e) && ctx.redundant) converged = true;
+  return ctx.Finish(*cur, converged, it, check_branch, seed_signs, seed_in, q_out);
 }
 
 }  // namespace lpoe

@@ -90,6 +90,73 @@ void ApplyTargetUses(const std::vector<TargetUse>& uses, const TargetUseRules& r
   }
 }
 
+namespace {
+
+// Not valid UTF-8 at byte `at`.
+Status InvalidUtf8(int line, size_t at) {
+  return Status::Error(
+      LineError(line, "the text is not valid UTF-8 (byte " + std::to_string(at) + ")"));
+}
+
+// A quoted string from its opening quote at *at to after its closing one (*at moved there): a
+// backslash escapes the next character, a doubled quote stands for one; it ends on its line.
+Status ScanQuotedText(std::string_view text, int line, size_t* at) {
+  const size_t n = text.size();
+  size_t i = *at;
+  const char quote = text[i++];
+  while (i < n && text[i] != '\n') {
+    if (text[i] == '\\' && i + 1 < n && text[i + 1] != '\n') {
+      i += 2;
+      continue;
+    }
+    if (text[i] == quote) {
+      if (i + 1 < n && text[i + 1] == quote) {  // "" inside a string
+        i += 2;
+        continue;
+      }
+      *at = i + 1;
+      return Status::Ok();
+    }
+    const int len = Utf8Length(text, i);
+    if (len == 0) return InvalidUtf8(line, i);
+    i += len;
+  }
+  return Status::Error(LineError(line, "unterminated string"));
+}
+
+// A number from *at (digits, fraction, exponent; *at moved after it) and its finite value.
+Status ScanNumberText(std::string_view text, int line, size_t* at, double* value) {
+  const size_t n = text.size();
+  const size_t b = *at;
+  size_t i = b;
+  while (i < n && std::isdigit(static_cast<unsigned char>(text[i]))) ++i;
+  if (i < n && text[i] == '.') {
+    ++i;
+    while (i < n && std::isdigit(static_cast<unsigned char>(text[i]))) ++i;
+  }
+  if (i < n && (text[i] == 'e' || text[i] == 'E')) {
+    size_t k = i + 1;
+    if (k < n && (text[k] == '+' || text[k] == '-')) ++k;
+    if (k < n && std::isdigit(static_cast<unsigned char>(text[k]))) {
+      i = k;
+      while (i < n && std::isdigit(static_cast<unsigned char>(text[i]))) ++i;
+    }
+  }
+  if (i < n && IdentChar(static_cast<unsigned char>(text[i]))) {
+    return Status::Error(
+        LineError(line, "malformed number '" + std::string(text.substr(b, i + 1 - b)) + "'"));
+  }
+  *at = i;
+  const auto r = std::from_chars(text.data() + b, text.data() + i, *value);
+  if (r.ec != std::errc() || !std::isfinite(*value)) {
+    return Status::Error(
+        LineError(line, "number out of range '" + std::string(text.substr(b, i - b)) + "'"));
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
 Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<Token>* tokens) {
   tokens->clear();
   int line = 1;
@@ -120,10 +187,7 @@ Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<
       continue;
     }
     if (c >= 0x80) {
-      if (Utf8Length(text, i) == 0) {
-        return Status::Error(
-            LineError(line, "the text is not valid UTF-8 (byte " + std::to_string(i) + ")"));
-      }
+      if (Utf8Length(text, i) == 0) return InvalidUtf8(line, i);
     } else if (c < 0x20 && c != '\t' && c != '\r' && c != '\f' && c != '\v') {
       return Status::Error(
           LineError(line, "control character " + std::to_string(c) + " in the program text"));
@@ -135,69 +199,23 @@ Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<
     if (c == static_cast<unsigned char>(options.comment)) {
       while (i < n && text[i] != '\n') {
         const int len = Utf8Length(text, i);
-        if (len == 0) {
-          return Status::Error(
-              LineError(line, "the text is not valid UTF-8 (byte " + std::to_string(i) + ")"));
-        }
+        if (len == 0) return InvalidUtf8(line, i);
         i += len;
       }
       continue;
     }
     if (c == '"' || (options.single_quotes && c == '\'')) {
-      const size_t b = i++;
-      bool closed = false;
-      while (i < n && text[i] != '\n') {
-        if (text[i] == '\\' && i + 1 < n && text[i + 1] != '\n') {
-          i += 2;
-          continue;
-        }
-        if (text[i] == static_cast<char>(c)) {
-          if (i + 1 < n && text[i + 1] == static_cast<char>(c)) {  // "" inside a string
-            i += 2;
-            continue;
-          }
-          closed = true;
-          ++i;
-          break;
-        }
-        const int len = Utf8Length(text, i);
-        if (len == 0) {
-          return Status::Error(
-              LineError(line, "the text is not valid UTF-8 (byte " + std::to_string(i) + ")"));
-        }
-        i += len;
-      }
-      if (!closed) return Status::Error(LineError(line, "unterminated string"));
+      const size_t b = i;
+      if (Status s = ScanQuotedText(text, line, &i); !s.ok()) return s;
       push(Token::kString, b, i);
       continue;
     }
     if (std::isdigit(c) ||
         (c == '.' && i + 1 < n && std::isdigit(static_cast<unsigned char>(text[i + 1])))) {
       const size_t b = i;
-      while (i < n && std::isdigit(static_cast<unsigned char>(text[i]))) ++i;
-      if (i < n && text[i] == '.') {
-        ++i;
-        while (i < n && std::isdigit(static_cast<unsigned char>(text[i]))) ++i;
-      }
-      if (i < n && (text[i] == 'e' || text[i] == 'E')) {
-        size_t k = i + 1;
-        if (k < n && (text[k] == '+' || text[k] == '-')) ++k;
-        if (k < n && std::isdigit(static_cast<unsigned char>(text[k]))) {
-          i = k;
-          while (i < n && std::isdigit(static_cast<unsigned char>(text[i]))) ++i;
-        }
-      }
-      if (i < n && IdentChar(static_cast<unsigned char>(text[i]))) {
-        return Status::Error(
-            LineError(line, "malformed number '" + std::string(text.substr(b, i + 1 - b)) + "'"));
-      }
-      push(Token::kNumber, b, i);
       double v = 0;
-      const auto r = std::from_chars(text.data() + b, text.data() + i, v);
-      if (r.ec != std::errc() || !std::isfinite(v)) {
-        return Status::Error(
-            LineError(line, "number out of range '" + std::string(text.substr(b, i - b)) + "'"));
-      }
+      if (Status s = ScanNumberText(text, line, &i, &v); !s.ok()) return s;
+      push(Token::kNumber, b, i);
       tokens->back().value = v;
       continue;
     }
@@ -205,10 +223,7 @@ Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<
       const size_t b = i;
       while (i < n && IdentChar(static_cast<unsigned char>(text[i]))) {
         const int len = Utf8Length(text, i);
-        if (len == 0) {
-          return Status::Error(
-              LineError(line, "the text is not valid UTF-8 (byte " + std::to_string(i) + ")"));
-        }
+        if (len == 0) return InvalidUtf8(line, i);
         i += len;
       }
       push(Token::kIdent, b, i);
