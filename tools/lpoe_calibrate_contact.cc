@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
@@ -24,6 +25,7 @@
 #include "lpoe/registration.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
+#include "report/contact_layer_report.h"
 #include "report/plot.h"
 #include "report/text_safety.h"
 #include "tool_common.h"
@@ -212,8 +214,7 @@ int RunContactCalibration() {
     const char* flag;
   };
   for (const Unsupported& u :
-       {Unsupported{FLAGS_residual_model != "none", "residual_model"},
-        Unsupported{FLAGS_loss != "none", "loss"},
+       {Unsupported{FLAGS_loss != "none", "loss"},
         Unsupported{!FLAGS_fixed_tools.empty(), "fixed_tools"},
         Unsupported{FLAGS_parameterization != "identifiable", "parameterization"}}) {
     if (u.set) {
@@ -221,6 +222,17 @@ int RunContactCalibration() {
                 << ContactRefusalReason(u.flag) << " (docs/measurements.md)\n";
       return kExitUsage;
     }
+  }
+  ResidualModelKind residual_model = ResidualModelKind::kNone;
+  if (!ParseResidualModelKind(FLAGS_residual_model, &residual_model)) {
+    std::cerr << "error: --residual_model must be none, gp or auto, got '" << FLAGS_residual_model
+              << "'\n";
+    return kExitUsage;
+  }
+  if (residual_model == ResidualModelKind::kAuto) {
+    std::cerr << "error: --residual_model=auto is not available with distance or plane data: "
+              << ContactRefusalReason("residual_model_auto") << " (docs/residual_layer.md)\n";
+    return kExitUsage;
   }
   if (FLAGS_solver != "linear" && FLAGS_solver != "ceres") {
     std::cerr << "error: --solver must be linear or ceres, got '" << FLAGS_solver << "'\n";
@@ -435,6 +447,7 @@ int RunContactCalibration() {
   run_options.holdout = FLAGS_holdout;
   run_options.split_seed = FLAGS_split_seed;
   run_options.kfold = FLAGS_kfold;
+  run_options.residual_model = residual_model;
   const ContactPipelineResult run = RunContactPipeline(start, data, verification, run_options);
   const ContactCalibrationResult& result = run.calibration;
   const ContactMeasurementSet& identification = run.identification;
@@ -563,6 +576,8 @@ int RunContactCalibration() {
                           {"identified_combinations", kept},
                           {"values", values}});
   }
+  const std::string layer_text = ContactLayerText(run, FLAGS_kfold);
+  out << layer_text;
   if (p.num_base_directions > 0) {
     out << "not identified (" << p.num_base_directions << " directions of the base): "
         << p.base_reason << "\n";
@@ -611,6 +626,7 @@ int RunContactCalibration() {
         {"scale", {{"held", p.scale_held}, {"reason", p.scale_reason}, {"value", result.scale}}},
         {"left_out", left_out},
         {"joint_errors", joint_json},
+        {"residual_layer", nlohmann::json::parse(ContactLayerJsonText(run, FLAGS_residual_model))},
     };
     staged = outputs.Stage(FLAGS_report, j.dump(2) + "\n");
   }
@@ -648,8 +664,17 @@ int RunContactCalibration() {
         "<tr><th>table</th><th>rows</th><th>RMS (mm)</th><th>max (mm)</th><th>expected noise "
         "(mm)</th><th>verdict</th><th>" + std::string(verify_label) + " (mm)</th></tr>\n" +
         html_rows + "</table>\n<p>" + HtmlEscape(p.base_reason) + "</p>\n<p>Scale: " +
-        HtmlEscape(p.scale_reason) + "</p>\n" + joint_html + errors_html + "</body></html>\n";
+        HtmlEscape(p.scale_reason) + "</p>\n" + joint_html +
+        (layer_text.empty() ? "" : "<h2>Residual layer</h2>\n<pre>" + HtmlEscape(layer_text) +
+                                       "</pre>\n") +
+        errors_html + "</body></html>\n";
     staged = outputs.Stage(FLAGS_html_report, html);
+  }
+  if (staged.ok() && result.model.residual_layer &&
+      (!FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty())) {
+    std::cerr << "warning: URDF and UR kinematics cannot carry the residual layer "
+                 "(docs/residual_layer.md): they predict without its correction. Predict or "
+                 "compensate with the YAML model (--output), which keeps it\n";
   }
   return CommitOutputs(staged, &outputs, FLAGS_quiet);
 }

@@ -28,6 +28,7 @@
 #include "lpoe/refusals.h"
 #include "fleet_prior_text.h"
 #include "python_api.h"
+#include "report/contact_layer_report.h"
 #include "report/report.h"
 #include "tool_common.h"
 
@@ -439,13 +440,23 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
   k.Get<double>("sigma", 1.0);  // the tracker rows' noise (GatherContactData)
   // What lpoe_calibrate refuses with these kinds (docs/measurements.md), refused here too.
   const std::vector<std::pair<const char*, std::string>> defaults = {
-      {"parameterization", "identifiable"}, {"residual_model", "none"}, {"loss", "none"}};
+      {"parameterization", "identifiable"}, {"loss", "none"}};
   const std::string joint_errors = k.Get<std::string>("joint_errors", "none");
   for (const auto& [name, fallback] : defaults) {
     if (k.Get<std::string>(name, fallback) != fallback) {
       throw LpoeError(std::string(name) + " is not available with distance or plane data: " +
                       ContactRefusalReason(name) + " (docs/measurements.md)");
     }
+  }
+  const std::string residual_model = k.Get<std::string>("residual_model", "none");
+  ResidualModelKind residual_kind = ResidualModelKind::kNone;
+  if (!ParseResidualModelKind(residual_model, &residual_kind)) {
+    throw LpoeError("residual_model: expected 'none', 'gp' or 'auto', got '" + residual_model +
+                    "'");
+  }
+  if (residual_kind == ResidualModelKind::kAuto) {
+    throw LpoeError("residual_model='auto' is not available with distance or plane data: " +
+                    ContactRefusalReason("residual_model_auto") + " (docs/residual_layer.md)");
   }
   const int kfold = k.Get<int>("kfold", 0);
   if (kfold != 0 && !(kfold >= 2 && kfold <= 100)) {
@@ -536,6 +547,7 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
   run_options.holdout = holdout;
   run_options.split_seed = split_seed;
   run_options.kfold = kfold;
+  run_options.residual_model = residual_kind;
   ContactPipelineResult run;
   {
     py::gil_scoped_release release;
@@ -675,6 +687,9 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
     joint_terms.append(e);
   }
   report["joint_errors"] = joint_terms;
+  // The residual layer as lpoe_calibrate's report gives it (report/contact_layer_report.h).
+  report["residual_layer"] = py::module_::import("json").attr("loads")(
+      tools::ContactLayerJsonText(run, residual_model));
   c.verdict = run.verdict;
   c.verdict_reason = "the worst of the kinds' verdicts (RMS within 2x the expected noise: pass, "
                      "5x: check)";
@@ -1006,7 +1021,9 @@ void BindCalibration(py::module_& m) {
       "hold_scale='auto' | 'on' | 'off' (auto holds the robot's scale when no row measures a "
       "length), verify (distance or plane sets of the same pivots and planes) and kfold "
       "apply, and joint_errors (a list of the registry's terms; 'auto' and the gravity tilt are "
-      "refused); residual_model, loss, fixed_tools and parameterization='full' are refused.\n"
+      "refused), and residual_model='gp' (a layer learned from the rows' projections, "
+      "docs/residual_layer.md; 'auto' is refused); loss, fixed_tools and "
+      "parameterization='full' are refused.\n"
       "An unknown keyword raises lpoe.Error naming it.");
 }
 

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <random>
 
 namespace lpoe {
@@ -66,6 +67,30 @@ ContactCalibrationResult CalibrateContactsWith(const std::string& solver, const 
                            : CalibrateContactsLinear(start, data, options);
 }
 
+RobotModel WithoutLayer(const RobotModel& model) {
+  RobotModel m = model;
+  m.residual_layer = nullptr;
+  return m;
+}
+
+// The layer of the run on its identification rows, stored in out->calibration.model.
+void FitContactLayer(const ContactPipelineOptions& options, ContactPipelineResult* out) {
+  out->residual_layer.requested = true;
+  auto fitted = std::make_shared<ResidualLayer>();
+  const Status s = FitContactResidualLayer(out->calibration, out->identification,
+                                           options.residual_layer, fitted.get(),
+                                           &out->residual_layer.fit);
+  if (!s.ok()) {
+    out->residual_layer.message = "residual layer not fitted: " + s.message();
+    return;
+  }
+  out->residual_layer.fitted = true;
+  out->residual_layer.inducing = fitted->num_inducing();
+  out->calibration.model.residual_layer = std::move(fitted);
+  out->errors_with_layer =
+      ContactErrors(out->calibration.model, out->calibration.features, out->identification);
+}
+
 }  // namespace
 
 ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactMeasurementSet& data,
@@ -91,15 +116,23 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
   }
   const ContactMeasurementSet& identification = out.identification;
 
-  // ---- Calibration.
+  // ---- Calibration (from the start model without a layer: the solvers' model is parametric).
+  RobotModel parametric_start = start;
+  parametric_start.residual_layer = nullptr;
   out.calibration =
-      CalibrateContactsWith(options.solver, start, identification, options.calibration);
+      CalibrateContactsWith(options.solver, parametric_start, identification, options.calibration);
   if (!out.calibration.ok) {
     out.message = out.calibration.message;
     return out;
   }
+  const bool layer = options.residual_model == ResidualModelKind::kGp;
+  if (layer) FitContactLayer(options, &out);
   if (out.held.size() > 0) {
     out.held_errors = ContactErrors(out.calibration.model, out.calibration.features, out.held);
+    if (out.residual_layer.fitted) {
+      out.held_errors_parametric =
+          ContactErrors(WithoutLayer(out.calibration.model), out.calibration.features, out.held);
+    }
   }
   // ---- k-fold: each fold's rows predicted by the calibration of the others, same options.
   if (options.kfold > 0) {
@@ -121,16 +154,33 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
       }
       std::sort(train.begin(), train.end());
       std::sort(test.begin(), test.end());
-      ContactCalibrationResult f = CalibrateContactsWith(
-          options.solver, start, identification.Subset(train), options.calibration);
+      const ContactMeasurementSet training = identification.Subset(train);
+      ContactCalibrationResult f =
+          CalibrateContactsWith(options.solver, parametric_start, training, options.calibration);
       if (!f.ok) {
         out.failed_fold = fold;
         out.message = f.message;
         out.fold_failure = std::move(f);
         return out;
       }
-      const std::vector<double> e = ContactErrors(f.model, f.features, identification.Subset(test));
+      const ContactMeasurementSet tested = identification.Subset(test);
+      const std::vector<double> e = ContactErrors(f.model, f.features, tested);
       for (size_t i = 0; i < test.size(); ++i) out.fold_errors[test[i]] = e[i];
+      // With a layer: the fold's own, fitted on its training rows (none when its fit fails: the
+      // fold's figure is then the parametric model's).
+      if (out.residual_layer.fitted) {
+        if (out.fold_errors_parametric.empty()) {
+          out.fold_errors_parametric.assign(identification.size(), 0.0);
+        }
+        for (size_t i = 0; i < test.size(); ++i) out.fold_errors_parametric[test[i]] = e[i];
+        auto fold_layer = std::make_shared<ResidualLayer>();
+        if (FitContactResidualLayer(f, training, options.residual_layer, fold_layer.get(), nullptr)
+                .ok()) {
+          f.model.residual_layer = std::move(fold_layer);
+          const std::vector<double> el = ContactErrors(f.model, f.features, tested);
+          for (size_t i = 0; i < test.size(); ++i) out.fold_errors[test[i]] = el[i];
+        }
+      }
     }
   }
 
@@ -144,6 +194,15 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
     if (k.fit.rows == 0) continue;
     if (out.held.size() > 0) k.held = ContactFigures(out.held, out.held_errors, kind.id);
     if (options.kfold > 0) k.kfold = ContactFigures(identification, out.fold_errors, kind.id);
+    if (out.residual_layer.fitted) {
+      k.fit_with_layer = ContactFigures(identification, out.errors_with_layer, kind.id);
+      if (out.held.size() > 0) {
+        k.held_parametric = ContactFigures(out.held, out.held_errors_parametric, kind.id);
+      }
+      if (options.kfold > 0) {
+        k.kfold_parametric = ContactFigures(identification, out.fold_errors_parametric, kind.id);
+      }
+    }
     const std::vector<std::string>* names =
         kind.id == MeasurementKindId::kDistance ? &identification.pivots
         : kind.id == MeasurementKindId::kPlane  ? &identification.planes
@@ -176,10 +235,10 @@ std::string ContactRefusalReason(const std::string& option) {
            "by the tracker solvers only; the contact solvers take the registry's linear terms "
            "(compliance, harmonics, ...) with gravity as the model gives it";
   }
-  if (option == "residual_model") {
-    return "the residual layer learns each pose's 3D position residual in the tracker's frame; "
-           "a distance or plane row gives one number along a direction that changes from row "
-           "to row, not such a residual";
+  if (option == "residual_model_auto") {
+    return "the automatic choice cross-validates the layer on tracker positions "
+           "(lpoe/pipeline.h); with distance or plane rows ask for it with gp and compare the "
+           "held-out or k-fold figures with and without it";
   }
   if (option == "loss") {
     return "both contact solvers minimise the plain whitened least-squares cost (the cost "
