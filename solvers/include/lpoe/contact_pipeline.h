@@ -132,7 +132,7 @@ Status ContactJointTerms(const std::string& text, const RobotModel& reference,
                          std::vector<std::shared_ptr<const JointTerm>>* terms);
 
 // Why an option of the position calibration is refused with distance or plane data (one text for
-// lpoe_calibrate and Python): "joint_errors_auto", "joint_errors_tilt", "residual_model", "loss", "fixed_tools",
+// lpoe_calibrate and Python): "joint_errors_auto", "joint_errors_tilt", "residual_model_auto", "loss", "fixed_tools",
 // "parameterization" (full), "urdf_with_tracker" (--urdf_output / --ur_kinematics_output with a
 // tracker file among the files). Empty for any other name.
 std::string ContactRefusalReason(const std::string& option);
