@@ -1,5 +1,6 @@
 // The residual layer learned from ballbar distances and probe contacts (docs/residual_layer.md,
-// "Projected observations"): the projected posterior against a dense reference written here,
+// "Projected observations"): the projected likelihood's gradient against finite differences, the
+// projected posterior against a dense reference written here,
 // nothing predicted along directions no row sees, and a simulated 6R arm with an error no model
 // term explains, calibrated from ballbar distances at three pivots: the layer lowers the held-out
 // distance error and the 3D position error (after rigid alignment) with both solvers, and a layer
@@ -172,6 +173,47 @@ TEST(ContactResidualLayer, ProjectedPosteriorEqualsADenseDtcReference) {
   EXPECT_GT(scale, 0.005);  // the layer predicts something
   EXPECT_LT(worst_mean, 1e-8 * scale);
   EXPECT_LT(worst_std, 1e-6 * layer.signal_std);
+}
+
+// The projected likelihood's gradient (kernel (u_a . u_b) k, the configuration's term too)
+// against central finite differences.
+TEST(ContactResidualLayer, ProjectedLikelihoodGradientMatchesFiniteDifferences) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> uni(-1.0, 1.0);
+  const int N = 36, n = 3;
+  Eigen::MatrixXd X(N, n), Y(N, 1), U(N, 3);
+  std::vector<int> tools(N), configuration(N);
+  for (int i = 0; i < N; ++i) {
+    for (int j = 0; j < n; ++j) X(i, j) = uni(rng);
+    U.row(i) = Eigen::RowVector3d(uni(rng), uni(rng), uni(rng)).normalized();
+    Y(i, 0) = 0.04 * std::sin(2 * X(i, 0)) * U(i, 0) + 0.02 * X(i, 1) * U(i, 2) + 0.005 * uni(rng);
+    tools[i] = i % 2;
+    configuration[i] = i / 2;  // pairs of rows at one stop
+  }
+  for (bool with_configuration : {false, true}) {
+    const std::vector<int>* groups = with_configuration ? &configuration : nullptr;
+    Eigen::VectorXd theta(n + 1 + 2 + (with_configuration ? 1 : 0));
+    theta.head(n) << std::log(0.6), std::log(1.1), std::log(0.5);
+    theta(n) = std::log(0.9);
+    theta(n + 1) = std::log(0.03);
+    theta(n + 2) = std::log(0.006);
+    if (with_configuration) theta(n + 3) = std::log(0.004);
+    Eigen::VectorXd gradient;
+    internal::GpLogMarginalLikelihood(theta, true, X, tools, Y, &gradient, groups, &U);
+    ASSERT_EQ(gradient.size(), theta.size());
+    for (int i = 0; i < theta.size(); ++i) {
+      const double h = 1e-6;
+      Eigen::VectorXd tp = theta, tm = theta;
+      tp(i) += h;
+      tm(i) -= h;
+      const double fd =
+          (internal::GpLogMarginalLikelihood(tp, true, X, tools, Y, nullptr, groups, &U) -
+           internal::GpLogMarginalLikelihood(tm, true, X, tools, Y, nullptr, groups, &U)) /
+          (2 * h);
+      EXPECT_NEAR(gradient(i), fd, 1e-5 * (1 + std::abs(fd)))
+          << "parameter " << i << " configurations " << with_configuration;
+    }
+  }
 }
 
 // Probe contacts on one plane see only its normal: the layer predicts nothing across it (a GP

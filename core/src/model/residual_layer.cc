@@ -354,7 +354,8 @@ double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
       if (with_tool && tools[a] != tools[b]) tool_sum += mk;
       mk_sum += mk;
       if (configuration != nullptr && (*configuration)[a] == (*configuration)[b]) {
-        configuration_sum += U == nullptr ? weight * m : weight * m * U->row(a).dot(U->row(b));
+        configuration_sum +=
+            U == nullptr ? weight * m : weight * m * U->row(a).dot(U->row(b));
       }
     }
   }
@@ -500,14 +501,14 @@ struct LayerRows {
 };
 
 // The configurations: rows with the same joint values (the tools measured at one stop).
-struct Configurations {
+struct LayerConfigurations {
   std::vector<int> of_row;
   std::vector<std::vector<int>> members;
   int count() const { return static_cast<int>(members.size()); }
 };
 
-Configurations GroupConfigurations(const LayerRows& d) {
-  Configurations c;
+LayerConfigurations GroupConfigurations(const LayerRows& d) {
+  LayerConfigurations c;
   c.of_row.resize(d.rows);
   std::map<std::vector<double>, int> ids;
   for (int r = 0; r < d.rows; ++r) {
@@ -540,7 +541,7 @@ struct FitSample {
 // The validation rows: the next configurations of the same order, as many rows at most, that
 // choose between the candidates of the search when there are at least kMinValidation
 // configurations.
-FitSample SampleFitRows(const LayerRows& d, const Configurations& configs,
+FitSample SampleFitRows(const LayerRows& d, const LayerConfigurations& configs,
                         const ResidualLayerOptions& options) {
   constexpr int kMinValidation = 30;
   const int C = configs.count();
@@ -802,7 +803,7 @@ void StoreVariance(const Eigen::MatrixXd& Lm, const Eigen::MatrixXd& Binv, Resid
 // s_c^2 between the rows of a configuration (block g: Lambda_g^-1 = s_n^-2 (I - gamma_g 1 1^T),
 // gamma_g = s_c^2 / (s_n^2 + b_g s_c^2)). Lm = chol(K_mm), V = Lm^-1 K_mn,
 // B = I + V Lambda^-1 V^T, alpha = Lm^-T B^-1 V Lambda^-1 Y.
-Status ResidualPosterior(const LayerRows& d, const Configurations& configs, const Hyper& h,
+Status ResidualPosterior(const LayerRows& d, const LayerConfigurations& configs, const Hyper& h,
                          ResidualLayer* out) {
   const int m = out->num_inducing();
   const std::vector<int>& tools = *d.tools;
@@ -873,7 +874,7 @@ Status ResidualPosterior(const LayerRows& d, const Configurations& configs, cons
 // direction has is neither in the right-hand side nor coupled to one that is: its weights are 0.
 // The stored W is the average over the three components of the component's own
 // Lm^-T (I - (B^-1)_cc) Lm^-1: Std is then the RMS over the axes of the components' deviations.
-Status ProjectedPosterior(const LayerRows& d, const Configurations& configs, const Hyper& h,
+Status ProjectedPosterior(const LayerRows& d, const LayerConfigurations& configs, const Hyper& h,
                           ResidualLayer* out) {
   const int m = out->num_inducing(), rows = d.rows;
   const std::vector<int>& tools = *d.tools;
@@ -978,7 +979,7 @@ Status FitLayerRows(const LayerRows& d, const std::vector<double>& q, int num_to
                     ResidualLayerFit* fit) {
   const int rows = d.rows, n = d.n;
   const std::vector<int>& tools = *d.tools;
-  const Configurations configs = GroupConfigurations(d);
+  const LayerConfigurations configs = GroupConfigurations(d);
   const FitSample sample = SampleFitRows(d, configs, options);
   const HyperparameterSearch search = SearchHyperparameters(sample, n, options);
   const Eigen::VectorXd& theta = search.theta;
