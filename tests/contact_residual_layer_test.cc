@@ -365,6 +365,15 @@ TEST(ContactResidualLayerStandIn, BallbarLayerLowersHeldOutDistanceAndPositionEr
     EXPECT_LT(d_gp, d_none - (d_none - floor_distance) / 3) << solver;
     EXPECT_LT(p_gp, p_none) << solver;
   }
+  // auto: the cross-validation of the identification rows chooses the layer.
+  const ContactPipelineResult automatic = s.Run(ResidualModelKind::kAuto, "linear");
+  ASSERT_TRUE(automatic.ok) << automatic.message;
+  const ResidualModelSelection& sel = automatic.residual_model_selection;
+  ASSERT_TRUE(sel.ran);
+  std::printf("auto: CV RMS none %.5f mm, gp %.5f mm; %s\n", sel.candidates[0].cv_rms,
+              sel.candidates[1].cv_rms, sel.reason.c_str());
+  EXPECT_EQ(sel.candidates[sel.chosen].label, "gp") << sel.reason;
+  EXPECT_TRUE(automatic.residual_layer.fitted);
 }
 
 // k-fold: each fold's figure with its own layer, beside the figure without it.
@@ -402,6 +411,15 @@ TEST(ContactResidualLayerStandIn, PureNoiseLayerDoesNotMakeHeldOutWorse) {
   // In 3D a signal learned from noise moves the prediction by a fraction of the rows' noise
   // (0.002 mm) at most.
   EXPECT_LE(p_gp, p_none + 0.25 * 0.002);
+  // auto keeps none.
+  const ContactPipelineResult automatic = s.Run(ResidualModelKind::kAuto, "linear");
+  ASSERT_TRUE(automatic.ok) << automatic.message;
+  const ResidualModelSelection& sel = automatic.residual_model_selection;
+  ASSERT_TRUE(sel.ran);
+  std::printf("pure noise, auto: CV RMS none %.5f mm, gp %.5f mm; %s\n", sel.candidates[0].cv_rms,
+              sel.candidates[1].cv_rms, sel.reason.c_str());
+  EXPECT_EQ(sel.candidates[sel.chosen].label, "none") << sel.reason;
+  EXPECT_FALSE(automatic.calibration.model.residual_layer);
 }
 
 }  // namespace contact_residual_layer_test

@@ -324,6 +324,21 @@ TEST_F(ContactTool, ResidualLayerFromBallbar) {
   ASSERT_TRUE(ReadRobotModel(dir_ / "cal.yaml", &cal).ok());
   ASSERT_TRUE(cal.residual_layer);
   EXPECT_EQ(cal.residual_layer->num_inducing(), layer["layer"]["inducing"].get<int>());
+  EXPECT_TRUE(layer["selection"].is_null());
+  // auto: the cross-validation's table; on a geometric arm the simpler candidate, none.
+  const ToolOutput a = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") +
+                                                    " --measurements=" + P("bar.csv") +
+                                                    " --residual_model=auto --report=" +
+                                                    P("auto.json"));
+  ASSERT_EQ(a.exit_code, 0) << a.err << a.out;
+  EXPECT_NE(a.out.find("residual model (auto): 5-fold cross-validation"), std::string::npos)
+      << a.out;
+  std::ifstream in(dir_ / "auto.json");
+  const nlohmann::json ra = nlohmann::json::parse(in);
+  const nlohmann::json& sel = ra["residual_layer"]["selection"];
+  ASSERT_EQ(sel["candidates"].size(), 2u) << sel.dump();
+  EXPECT_EQ(sel["candidates"][sel["chosen"].get<int>()]["model"], "none") << sel.dump();
+  EXPECT_FALSE(ra["residual_layer"]["fitted"].get<bool>());
 }
 
 // The URDF output of a ballbar calibration predicts what the calibrated YAML does.
@@ -537,17 +552,6 @@ TEST_F(ContactTool, BadRowsNameFileAndLine) {
     EXPECT_GT(v.err.size(), name.size() + 120) << v.err;
     EXPECT_FALSE(std::ifstream(dir_ / "cal.yaml").good());
   }
-  // The residual layer's automatic choice (gp is taken: ContactTool.ResidualLayerFromBallbar).
-  const ToolOutput a = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") +
-                                                    " --measurements=" + P("bar.csv") +
-                                                    " --residual_model=auto --output=" +
-                                                    P("cal.yaml"));
-  EXPECT_EQ(a.exit_code, 1);
-  EXPECT_NE(a.err.find("--residual_model=auto is not available with distance or plane data: "),
-            std::string::npos)
-      << a.err;
-  EXPECT_GT(a.err.size(), 150u) << a.err;
-  EXPECT_FALSE(std::ifstream(dir_ / "cal.yaml").good());
 }
 
 

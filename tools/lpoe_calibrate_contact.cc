@@ -229,11 +229,6 @@ int RunContactCalibration() {
               << "'\n";
     return kExitUsage;
   }
-  if (residual_model == ResidualModelKind::kAuto) {
-    std::cerr << "error: --residual_model=auto is not available with distance or plane data: "
-              << ContactRefusalReason("residual_model_auto") << " (docs/residual_layer.md)\n";
-    return kExitUsage;
-  }
   if (FLAGS_solver != "linear" && FLAGS_solver != "ceres") {
     std::cerr << "error: --solver must be linear or ceres, got '" << FLAGS_solver << "'\n";
     return kExitUsage;

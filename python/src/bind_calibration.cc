@@ -454,10 +454,6 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
     throw LpoeError("residual_model: expected 'none', 'gp' or 'auto', got '" + residual_model +
                     "'");
   }
-  if (residual_kind == ResidualModelKind::kAuto) {
-    throw LpoeError("residual_model='auto' is not available with distance or plane data: " +
-                    ContactRefusalReason("residual_model_auto") + " (docs/residual_layer.md)");
-  }
   const int kfold = k.Get<int>("kfold", 0);
   if (kfold != 0 && !(kfold >= 2 && kfold <= 100)) {
     throw LpoeError("kfold: expected 0 (off) or 2..100, got " + std::to_string(kfold));
@@ -1021,8 +1017,8 @@ void BindCalibration(py::module_& m) {
       "hold_scale='auto' | 'on' | 'off' (auto holds the robot's scale when no row measures a "
       "length), verify (distance or plane sets of the same pivots and planes) and kfold "
       "apply, and joint_errors (a list of the registry's terms; 'auto' and the gravity tilt are "
-      "refused), and residual_model='gp' (a layer learned from the rows' projections, "
-      "docs/residual_layer.md; 'auto' is refused); loss, fixed_tools and "
+      "refused), and residual_model='gp' or 'auto' (a layer learned from the rows' projections, "
+      "docs/residual_layer.md); loss, fixed_tools and "
       "parameterization='full' are refused.\n"
       "An unknown keyword raises lpoe.Error naming it.");
 }

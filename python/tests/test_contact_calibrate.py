@@ -203,7 +203,7 @@ def test_verify_and_kfold_as_the_tool(sim):
 def test_residual_layer_as_the_tool(sim):
     """residual_model='gp' with ballbar and plane rows: the model carries the layer learned from
     the rows' projections (docs/residual_layer.md), the report gives the held-out figures without
-    and with it, the model bytes are lpoe_calibrate --residual_model=gp's, and 'auto' is refused."""
+    and with it, the model bytes are lpoe_calibrate --residual_model=gp's, and 'auto' cross-validates."""
     nominal, _, bar, cube, d = sim
     r = lpoe.calibrate(nominal, [bar, cube], residual_model="gp", holdout=0.25, split_seed=4)
     assert r.converged, r.message
@@ -222,5 +222,6 @@ def test_residual_layer_as_the_tool(sim):
                     "--holdout=0.25", "--split_seed=4", f"--output={out}", "--quiet"], check=True,
                    stdout=subprocess.DEVNULL)
     assert out.read_text() == r.model.to_yaml()
-    with pytest.raises(lpoe.Error, match="residual_model='auto' is not available with distance"):
-        lpoe.calibrate(nominal, bar, residual_model="auto")
+    a = lpoe.calibrate(nominal, bar, residual_model="auto")
+    sel = a.report["residual_layer"]["selection"]
+    assert sel["folds"] == 5 and [c["model"] for c in sel["candidates"]] == ["none", "gp"]

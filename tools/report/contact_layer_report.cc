@@ -17,14 +17,37 @@ namespace tools {
 std::string ContactLayerText(const ContactPipelineResult& run, int kfold) {
   const ContactLayerSummary& l = run.residual_layer;
   if (!l.requested) return "";
-  if (!l.fitted) return "residual layer: none (" + l.message + ")\n";
-  const ResidualLayer& layer = *run.calibration.model.residual_layer;
   char line[512];
+  std::string selection;
+  const ResidualModelSelection& sel = run.residual_model_selection;
+  if (sel.ran) {
+    std::snprintf(line, sizeof(line),
+                  "residual model (auto): %d-fold cross-validation on the identification rows "
+                  "(seed %llu), held-out contact error\n  model   CV rms (mm)   CV mse (mm^2)   "
+                  "std error\n",
+                  sel.folds, static_cast<unsigned long long>(sel.seed));
+    selection = line;
+    for (size_t k = 0; k < sel.candidates.size(); ++k) {
+      const ResidualModelCandidate& c = sel.candidates[k];
+      if (!c.ok) {
+        std::snprintf(line, sizeof(line), "  %-5s   FAILED: %s\n", c.label.c_str(),
+                      c.failure.c_str());
+      } else {
+        std::snprintf(line, sizeof(line), "  %-5s   %11.5f   %13.6g   %9.3g%s\n",
+                      c.label.c_str(), c.cv_rms, c.cv_mse, c.cv_mse_se,
+                      static_cast<int>(k) == sel.chosen ? "   <- chosen" : "");
+      }
+      selection += line;
+    }
+    selection += "  " + sel.reason + "\n";
+  }
+  if (!l.fitted) return selection + "residual layer: none (" + l.message + ")\n";
+  const ResidualLayer& layer = *run.calibration.model.residual_layer;
   std::snprintf(line, sizeof(line),
                 "residual layer: Gaussian process on projected rows (docs/residual_layer.md), %d "
                 "inducing inputs, signal %.4g mm, noise %.4g mm\n",
                 l.inducing, layer.signal_std, layer.noise_std);
-  std::string out = line;
+  std::string out = selection + line;
   out += ResidualLayerLengthScalesText(layer, l.fit, run.calibration.model);
   for (const ContactKindSummary& k : run.kinds) {
     std::snprintf(line, sizeof(line), "  %s: RMS %.5f -> %.5f mm with the layer", k.kind->name,
@@ -48,6 +71,27 @@ std::string ContactLayerText(const ContactPipelineResult& run, int kfold) {
 std::string ContactLayerJsonText(const ContactPipelineResult& run, const std::string& requested) {
   const ContactLayerSummary& l = run.residual_layer;
   nlohmann::json j = {{"requested", requested}, {"fitted", l.fitted}, {"message", l.message}};
+  const ResidualModelSelection& sel = run.residual_model_selection;
+  if (sel.ran) {
+    nlohmann::json candidates = nlohmann::json::array();
+    for (const ResidualModelCandidate& c : sel.candidates) {
+      candidates.push_back({{"model", c.label},
+                            {"ok", c.ok},
+                            {"failure", c.failure},
+                            {"cv_rms", c.cv_rms},
+                            {"cv_mse", c.cv_mse},
+                            {"cv_mse_standard_error", c.cv_mse_se},
+                            {"fold_rms", c.fold_rms}});
+    }
+    j["selection"] = {{"folds", sel.folds},
+                      {"seed", sel.seed},
+                      {"candidates", candidates},
+                      {"best", sel.best},
+                      {"chosen", sel.chosen},
+                      {"reason", sel.reason}};
+  } else {
+    j["selection"] = nullptr;
+  }
   if (!l.fitted) {
     j["layer"] = nullptr;
     return j.dump();

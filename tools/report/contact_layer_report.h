@@ -11,12 +11,12 @@
 namespace lpoe {
 namespace tools {
 
-// The layer's lines: the fit, its length scales and, per kind, the RMS without and with it on the
+// The layer's lines: the auto choice's table (when it ran), the fit, its length scales and, per kind, the RMS without and with it on the
 // identification rows, the held-out rows and the k-fold folds (`kfold` > 0). Empty when no layer
 // was asked for; "residual layer: none (why)" when its fit failed.
 std::string ContactLayerText(const ContactPipelineResult& run, int kfold);
 // The report's "residual_layer" object (JSON text): requested (the option's text), fitted,
-// message, the layer's hyperparameters and figures, and per kind the RMS without and with it.
+// message, selection (auto: folds, seed, candidates, best, chosen, reason; else null), the layer's hyperparameters and figures, and per kind the RMS without and with it.
 std::string ContactLayerJsonText(const ContactPipelineResult& run, const std::string& requested);
 
 }  // namespace tools

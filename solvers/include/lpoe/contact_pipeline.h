@@ -64,7 +64,9 @@ struct ContactPipelineOptions {
   int kfold = 0;            // 0: off, else the number of folds (>= 2)
   // The learned residual layer (docs/residual_layer.md, "Projected observations"): kGp fits one
   // on the identification rows' residuals after the calibration, stored in calibration.model;
-  // every k-fold fold fits its own on its training rows. kAuto is refused by the callers.
+  // every k-fold fold fits its own on its training rows. kAuto chooses between none and gp by
+  // cross-validation on the identification rows (`kfold` folds, 5 when 0; drawn with
+  // split_seed + 2), the one-standard-error rule of the tracker path, none the simpler.
   ResidualModelKind residual_model = ResidualModelKind::kNone;
   ResidualLayerOptions residual_layer;
 };
@@ -95,6 +97,7 @@ struct ContactPipelineResult {
   std::vector<double> held_errors_parametric, fold_errors_parametric;
   std::vector<double> errors_with_layer;  // per identification row, with the layer
   ContactLayerSummary residual_layer;
+  ResidualModelSelection residual_model_selection;  // options.residual_model kAuto
   // The kinds with identification rows, in MeasurementKinds() order (pose is not a contact kind).
   std::vector<ContactKindSummary> kinds;
   // The worst of the kinds' verdicts on the identification rows ("pass" when every kind passes).
@@ -132,7 +135,7 @@ Status ContactJointTerms(const std::string& text, const RobotModel& reference,
                          std::vector<std::shared_ptr<const JointTerm>>* terms);
 
 // Why an option of the position calibration is refused with distance or plane data (one text for
-// lpoe_calibrate and Python): "joint_errors_auto", "joint_errors_tilt", "residual_model_auto", "loss", "fixed_tools",
+// lpoe_calibrate and Python): "joint_errors_auto", "joint_errors_tilt", "loss", "fixed_tools",
 // "parameterization" (full), "urdf_with_tracker" (--urdf_output / --ur_kinematics_output with a
 // tracker file among the files). Empty for any other name.
 std::string ContactRefusalReason(const std::string& option);

@@ -1,6 +1,8 @@
 // The calibration run for ballbar distances and probe contacts (lpoe/contact_pipeline.h).
 #include "lpoe/contact_pipeline.h"
 
+#include "identifiability/cross_validation.h"
+
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 
@@ -91,6 +93,62 @@ void FitContactLayer(const ContactPipelineOptions& options, ContactPipelineResul
       ContactErrors(out->calibration.model, out->calibration.features, out->identification);
 }
 
+// --residual_model=auto: none against gp on folds of the identification rows (each fold's
+// calibration and layer fitted on its training rows), the held-out errors in mm.
+ResidualModelSelection SelectContactResidualModel(const RobotModel& start,
+                                                  const ContactPipelineOptions& options,
+                                                  const ContactPipelineResult& run) {
+  const ContactMeasurementSet& identification = run.identification;
+  ResidualModelSelection sel;
+  sel.ran = true;
+  sel.folds = std::min(options.kfold > 0 ? options.kfold : 5, identification.size());
+  sel.seed = options.split_seed + 2;
+  std::mt19937_64 rng(sel.seed);
+  std::vector<int> order(identification.size());
+  for (int i = 0; i < identification.size(); ++i) order[i] = i;
+  std::shuffle(order.begin(), order.end(), rng);
+  std::vector<internal::FoldErrors> outcomes[2];
+  for (int fold = 0; fold < sel.folds; ++fold) {
+    internal::FoldErrors none, gp;
+    std::vector<int> train, test;
+    for (int i = 0; i < identification.size(); ++i) {
+      (i % sel.folds == fold ? test : train).push_back(order[i]);
+    }
+    std::sort(train.begin(), train.end());
+    std::sort(test.begin(), test.end());
+    const ContactMeasurementSet training = identification.Subset(train);
+    const ContactMeasurementSet tested = identification.Subset(test);
+    ContactCalibrationResult f =
+        CalibrateContactsWith(options.solver, start, training, options.calibration);
+    auto layer = std::make_shared<ResidualLayer>();
+    Status s = f.ok ? FitContactResidualLayer(f, training, options.residual_layer, layer.get(),
+                                              nullptr)
+                    : Status::Error(f.message);
+    if (!s.ok()) {
+      none.failure = gp.failure = "fold " + std::to_string(fold + 1) + ": " + s.message();
+    } else {
+      for (double e : ContactErrors(f.model, f.features, tested)) none.squared.push_back(e * e);
+      f.model.residual_layer = std::move(layer);
+      for (double e : ContactErrors(f.model, f.features, tested)) gp.squared.push_back(e * e);
+      none.ok = gp.ok = true;
+    }
+    outcomes[0].push_back(std::move(none));
+    outcomes[1].push_back(std::move(gp));
+  }
+  const char* const labels[2] = {"none", "gp"};
+  for (int which = 0; which < 2; ++which) {
+    ResidualModelCandidate c;
+    c.label = labels[which];
+    internal::ScoreFolds(outcomes[which], &c);
+    sel.candidates.push_back(c);
+  }
+  if (!internal::ChooseWithinOneStandardError(&sel)) {
+    sel.chosen = 0;
+    sel.reason = "cross-validation failed (" + sel.candidates[0].failure + "); no layer";
+  }
+  return sel;
+}
+
 }  // namespace
 
 ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactMeasurementSet& data,
@@ -125,8 +183,19 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
     out.message = out.calibration.message;
     return out;
   }
-  const bool layer = options.residual_model == ResidualModelKind::kGp;
-  if (layer) FitContactLayer(options, &out);
+  ResidualModelKind residual = options.residual_model;
+  if (residual == ResidualModelKind::kAuto) {
+    out.residual_model_selection = SelectContactResidualModel(parametric_start, options, out);
+    const ResidualModelSelection& sel = out.residual_model_selection;
+    residual = sel.chosen >= 0 && sel.candidates[sel.chosen].label == "gp"
+                   ? ResidualModelKind::kGp
+                   : ResidualModelKind::kNone;
+    if (residual == ResidualModelKind::kNone) {
+      out.residual_layer.requested = true;
+      out.residual_layer.message = "auto chose none (" + sel.reason + ")";
+    }
+  }
+  if (residual == ResidualModelKind::kGp) FitContactLayer(options, &out);
   if (out.held.size() > 0) {
     out.held_errors = ContactErrors(out.calibration.model, out.calibration.features, out.held);
     if (out.residual_layer.fitted) {
@@ -234,11 +303,6 @@ std::string ContactRefusalReason(const std::string& option) {
     return "the gravity tilt is bilinear with the compliance term's parameters and is identified "
            "by the tracker solvers only; the contact solvers take the registry's linear terms "
            "(compliance, harmonics, ...) with gravity as the model gives it";
-  }
-  if (option == "residual_model_auto") {
-    return "the automatic choice cross-validates the layer on tracker positions "
-           "(lpoe/pipeline.h); with distance or plane rows ask for it with gp and compare the "
-           "held-out or k-fold figures with and without it";
   }
   if (option == "loss") {
     return "both contact solvers minimise the plain whitened least-squares cost (the cost "
