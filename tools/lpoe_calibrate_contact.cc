@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
@@ -25,6 +26,7 @@
 #include "lpoe/registration.h"
 #include "lpoe/urdf.h"
 #include "output_files.h"
+#include "report/contact_layer_report.h"
 #include "report/plot.h"
 #include "report/report.h"
 #include "report/text_safety.h"
@@ -255,6 +257,8 @@ struct ContactRun {
   ContactMeasurementSet verification;
   RobotModel start;
   ContactPipelineResult run;
+  ResidualModelKind residual_model = ResidualModelKind::kNone;  // --residual_model
+  std::string layer_text;  // the residual layer's lines of the summary (empty without one)
   const char* verify_label = "held-out RMS";
   // Built by the summary for the report and the HTML page.
   nlohmann::json kinds_json = nlohmann::json::array();
@@ -271,8 +275,7 @@ int ContactOptionsFromFlags(ContactRun* job) {
     const char* flag;
   };
   for (const Unsupported& u :
-       {Unsupported{FLAGS_residual_model != "none", "residual_model"},
-        Unsupported{FLAGS_loss != "none", "loss"},
+       {Unsupported{FLAGS_loss != "none", "loss"},
         Unsupported{!FLAGS_fixed_tools.empty(), "fixed_tools"},
         Unsupported{FLAGS_parameterization != "identifiable", "parameterization"}}) {
     if (u.set) {
@@ -280,6 +283,11 @@ int ContactOptionsFromFlags(ContactRun* job) {
                 << ContactRefusalReason(u.flag) << " (docs/measurements.md)\n";
       return kExitUsage;
     }
+  }
+  if (!ParseResidualModelKind(FLAGS_residual_model, &job->residual_model)) {
+    std::cerr << "error: --residual_model must be none, gp or auto, got '" << FLAGS_residual_model
+              << "'\n";
+    return kExitUsage;
   }
   if (FLAGS_solver != "linear" && FLAGS_solver != "ceres") {
     std::cerr << "error: --solver must be linear or ceres, got '" << FLAGS_solver << "'\n";
@@ -516,6 +524,7 @@ int RunContactJob(ContactRun* job) {
   run_options.holdout = FLAGS_holdout;
   run_options.split_seed = FLAGS_split_seed;
   run_options.kfold = FLAGS_kfold;
+  run_options.residual_model = job->residual_model;
   job->run = RunContactPipeline(job->start, job->inputs.data, job->verification, run_options);
   const ContactPipelineResult& run = job->run;
   if (run.joint_error_selection.ran && !FLAGS_quiet) {
@@ -655,6 +664,8 @@ void ContactEstimates(ContactRun* job, std::ostream& out) {
                                {"identified_combinations", kept},
                                {"values", values}});
   }
+  job->layer_text = ContactLayerText(run, FLAGS_kfold);
+  out << job->layer_text;
   if (p.num_base_directions > 0) {
     out << "not identified (" << p.num_base_directions << " directions of the base): "
         << p.base_reason << "\n";
@@ -708,6 +719,8 @@ Status StageContactModelAndReport(ContactRun* job) {
         {"scale", {{"held", p.scale_held}, {"reason", p.scale_reason}, {"value", result.scale}}},
         {"left_out", job->left_out},
         {"joint_errors", job->joint_json},
+        {"residual_layer",
+         nlohmann::json::parse(ContactLayerJsonText(run, FLAGS_residual_model))},
     };
     if (run.joint_error_selection.ran) {
       j["joint_error_selection"] = ContactSelectionJson(run.joint_error_selection);
@@ -754,7 +767,11 @@ Status StageContactHtml(ContactRun* job) {
       "<tr><th>table</th><th>rows</th><th>RMS (mm)</th><th>max (mm)</th><th>expected noise "
       "(mm)</th><th>verdict</th><th>" + verify_label + " (mm)</th></tr>\n" +
       job->html_rows + "</table>\n<p>" + HtmlEscape(p.base_reason) + "</p>\n<p>Scale: " +
-      HtmlEscape(p.scale_reason) + "</p>\n" + joint_html + errors_html + "</body></html>\n";
+      HtmlEscape(p.scale_reason) + "</p>\n" + joint_html +
+      (job->layer_text.empty()
+           ? ""
+           : "<h2>Residual layer</h2>\n<pre>" + HtmlEscape(job->layer_text) + "</pre>\n") +
+      errors_html + "</body></html>\n";
   return job->outputs.Stage(FLAGS_html_report, html);
 }
 
@@ -773,6 +790,12 @@ int RunContactCalibration() {
   // Nothing is written unless every output is staged.
   Status staged = StageContactModelAndReport(&job);
   if (staged.ok() && !FLAGS_html_report.empty()) staged = StageContactHtml(&job);
+  if (staged.ok() && job.run.calibration.model.residual_layer &&
+      (!FLAGS_urdf_output.empty() || !FLAGS_ur_kinematics_output.empty())) {
+    std::cerr << "warning: URDF and UR kinematics cannot carry the residual layer "
+                 "(docs/residual_layer.md): they predict without its correction. Predict or "
+                 "compensate with the YAML model (--output), which keeps it\n";
+  }
   return CommitOutputs(staged, &job.outputs, FLAGS_quiet);
 }
 

@@ -30,6 +30,7 @@
 #include "lpoe/refusals.h"
 #include "fleet_prior_text.h"
 #include "python_api.h"
+#include "report/contact_layer_report.h"
 #include "report/report.h"
 #include "tool_common.h"
 
@@ -490,7 +491,8 @@ bool GatherContactData(const RobotModel& nominal, const py::object& data, double
 // The keyword options of lpoe.calibrate that apply to distance and plane data (defaults from the
 // option table), with lpoe_calibrate's refusals for these kinds.
 struct ContactSettings {
-  std::string solver, hold_scale, data_kind, joint_errors;
+  std::string solver, hold_scale, data_kind, joint_errors, residual_model;
+  ResidualModelKind residual_kind = ResidualModelKind::kNone;
   double holdout = 0;
   uint64_t split_seed = 1;
   int max_iterations = 0, kfold = 0;
@@ -509,11 +511,16 @@ ContactSettings ReadContactSettings(const py::kwargs& kwargs) {
   k.Option<double>("sigma");  // the tracker rows' noise (GatherContactData)
   s.joint_errors = k.Option<std::string>("joint_errors");
   // What lpoe_calibrate refuses with these kinds (docs/measurements.md), refused here too.
-  for (const char* name : {"parameterization", "residual_model", "loss"}) {
+  for (const char* name : {"parameterization", "loss"}) {
     if (k.Option<std::string>(name) != TableDefault<std::string>(name)) {
       throw LpoeError(std::string(name) + " is not available with distance or plane data: " +
                       ContactRefusalReason(name) + " (docs/measurements.md)");
     }
+  }
+  s.residual_model = k.Option<std::string>("residual_model");
+  if (!ParseResidualModelKind(s.residual_model, &s.residual_kind)) {
+    throw LpoeError("residual_model: expected 'none', 'gp' or 'auto', got '" + s.residual_model +
+                    "'");
   }
   s.kfold = k.Option<int>("kfold");
   if (s.kfold != 0 && !(s.kfold >= 2 && s.kfold <= 100)) {
@@ -631,7 +638,8 @@ py::dict ContactKindReport(const ContactKindSummary& summary, bool verify_given,
 }
 
 // The JSON report of a contact calibration, as lpoe_calibrate's for these kinds.
-std::string ContactReportJson(const ContactPipelineResult& run, bool verify_given, int kfold) {
+std::string ContactReportJson(const ContactPipelineResult& run, bool verify_given, int kfold,
+                              const std::string& residual_model) {
   const ContactCalibrationResult& result = run.calibration;
   const ContactMeasurementSet& identification = run.identification;
   py::list kinds;
@@ -722,6 +730,9 @@ std::string ContactReportJson(const ContactPipelineResult& run, bool verify_give
     selection["tilt_message"] = sel.tilt_message;
     report["joint_error_selection"] = selection;
   }
+  // The residual layer as lpoe_calibrate's report gives it (report/contact_layer_report.h).
+  report["residual_layer"] = py::module_::import("json").attr("loads")(
+      tools::ContactLayerJsonText(run, residual_model));
   return py::module_::import("json").attr("dumps")(report, py::arg("indent") = 2)
       .cast<std::string>();
 }
@@ -775,6 +786,7 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
   run_options.split_seed = s.split_seed;
   run_options.kfold = s.kfold;
   run_options.joint_errors_auto = auto_terms;
+  run_options.residual_model = s.residual_kind;
   ContactPipelineResult run;
   {
     py::gil_scoped_release release;
@@ -803,7 +815,7 @@ Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasuremen
   c.verdict = run.verdict;
   c.verdict_reason = "the worst of the kinds' verdicts (RMS within 2x the expected noise: pass, "
                      "5x: check)";
-  c.report_json = ContactReportJson(run, !s.verify.is_none(), s.kfold);
+  c.report_json = ContactReportJson(run, !s.verify.is_none(), s.kfold, s.residual_model);
   return c;
 }
 
@@ -856,7 +868,9 @@ std::string CalibrateDoc() {
       "--measurements=a.csv,b.csv does: solver, holdout, split_seed, max_iterations and "
       "hold_scale, verify (distance or plane sets of the same pivots and planes) and kfold "
       "apply, and joint_errors (a list of the registry's terms or 'auto', chosen by cross-"
-      "validation on the contact rows; the gravity tilt is refused); residual_model, loss, fixed_tools and parameterization='full' are refused.\n"
+      "validation on the contact rows; the gravity tilt is refused), and residual_model='gp' or "
+      "'auto' (a layer learned from the rows' projections, docs/residual_layer.md); loss, fixed_tools and "
+      "parameterization='full' are refused.\n"
       "An unknown keyword raises lpoe.Error naming it.";
   return doc;
 }

@@ -217,3 +217,28 @@ def test_joint_errors_auto(sim, tmp_path):
                     f"--report={report}", "--quiet"], check=True, stdout=subprocess.DEVNULL)
     assert out.read_text() == r.model.to_yaml()
     assert json.loads(report.read_text())["joint_error_selection"] == sel
+def test_residual_layer_as_the_tool(sim):
+    """residual_model='gp' with ballbar and plane rows: the model carries the layer learned from
+    the rows' projections (docs/residual_layer.md), the report gives the held-out figures without
+    and with it, the model bytes are lpoe_calibrate --residual_model=gp's, and 'auto' cross-validates."""
+    nominal, _, bar, cube, d = sim
+    r = lpoe.calibrate(nominal, [bar, cube], residual_model="gp", holdout=0.25, split_seed=4)
+    assert r.converged, r.message
+    layer = r.report["residual_layer"]
+    assert layer["requested"] == "gp" and layer["fitted"], layer
+    assert layer["layer"]["observations"] == "projected"
+    assert "residual_layer:" in r.model.to_yaml()
+    kinds = {k["kind"]: k for k in r.report["measurement_kinds"]}
+    for k in layer["kinds"]:
+        assert k["held_out_rms_mm_with_layer"] == kinds[k["kind"]]["held_out_rms_mm"]
+        # The simulated robot is geometric: the layer must not make held-out rows worse.
+        assert k["held_out_rms_mm_with_layer"] <= 1.01 * k["held_out_rms_mm_without_layer"]
+    out = d / "cli_layer.yaml"
+    subprocess.run([CLI, f"--model={os.path.join(DATA, 'cobot6.yaml')}",
+                    f"--measurements={d / 'bar.csv'},{d / 'cube.csv'}", "--residual_model=gp",
+                    "--holdout=0.25", "--split_seed=4", f"--output={out}", "--quiet"], check=True,
+                   stdout=subprocess.DEVNULL)
+    assert out.read_text() == r.model.to_yaml()
+    a = lpoe.calibrate(nominal, bar, residual_model="auto")
+    sel = a.report["residual_layer"]["selection"]
+    assert sel["folds"] == 5 and [c["model"] for c in sel["candidates"]] == ["none", "gp"]

@@ -136,8 +136,27 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
                         int num_tools, const ResidualLayerOptions& options, ResidualLayer* layer,
                         ResidualLayerFit* fit = nullptr);
 
+// Fits the layer on projected observations: row r sees one number along a direction,
+//   values[r] = directions[r] . m(q_r, tools[r]) + noise
+// (a ballbar distance's residual along the bar, a probe contact's along the plane's normal;
+// docs/residual_layer.md, "Projected observations"). The kernel of the observations is
+// (u_a . u_b) k(x_a, x_b); hyperparameters, their choice and the inducing inputs as in
+// FitResidualLayer, then the DTC posterior of the three components of m at the inducing inputs
+// (3m inducing variables). The stored layer has the same form (m(x) = k_m(x)^T alpha, alpha m x 3);
+// its variance matrix gives the mean over the three axes of the components' posterior variances.
+// A component that no row's direction has gets weights exactly 0: the layer predicts nothing
+// along directions the data never observe. Fails as FitResidualLayer does, and on a zero direction.
+Status FitResidualLayerProjected(const std::vector<double>& q, const std::vector<int>& tools,
+                                 const std::vector<Eigen::Vector3d>& directions,
+                                 const std::vector<double>& values, int num_joints,
+                                 int num_tools, const ResidualLayerOptions& options,
+                                 ResidualLayer* layer, ResidualLayerFit* fit = nullptr);
+
 namespace internal {
 
+// Projected observations (FitResidualLayerProjected): with U (rows x 3) the rows observe
+// y_a = u_a . m(x_a) (Y has one column) and every kernel term between rows a and b is multiplied
+// by u_a . u_b (validation rows: their own directions Uv).
 // The hyperparameter vector of the fit: log l_1..log l_n, log l_tool (only when `with_tool`),
 // log s_f, log s_n, and log s_c (only with `configuration`: the standard deviation of an error
 // shared by the rows of one configuration).
@@ -147,7 +166,8 @@ namespace internal {
 double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
                                const Eigen::MatrixXd& X, const std::vector<int>& tools,
                                const Eigen::MatrixXd& Y, Eigen::VectorXd* gradient,
-                               const std::vector<int>* configuration = nullptr);
+                               const std::vector<int>* configuration = nullptr,
+                               const Eigen::MatrixXd* U = nullptr);
 
 // The exact GP's leave-one-configuration-out prediction errors at theta (same arguments; the rows
 // of a configuration left out together): the mean over rows of |y - prediction from the other
@@ -155,7 +175,8 @@ double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
 double GpLeaveOneConfigurationOut(const Eigen::VectorXd& theta, bool with_tool,
                                   const Eigen::MatrixXd& X, const std::vector<int>& tools,
                                   const Eigen::MatrixXd& Y,
-                                  const std::vector<int>* configuration);
+                                  const std::vector<int>* configuration,
+                                  const Eigen::MatrixXd* U = nullptr);
 
 // The exact GP's prediction errors at validation rows Xv (tools `validation_tools`, values Yv) from
 // the rows X (same arguments as above): mean over the validation rows of |y - prediction|^2 (mm^2).
@@ -163,7 +184,8 @@ double GpLeaveOneConfigurationOut(const Eigen::VectorXd& theta, bool with_tool,
 double GpValidationError(const Eigen::VectorXd& theta, bool with_tool, const Eigen::MatrixXd& X,
                          const std::vector<int>& tools, const Eigen::MatrixXd& Y,
                          const std::vector<int>* configuration, const Eigen::MatrixXd& Xv,
-                         const std::vector<int>& validation_tools, const Eigen::MatrixXd& Yv);
+                         const std::vector<int>& validation_tools, const Eigen::MatrixXd& Yv,
+                         const Eigen::MatrixXd* U = nullptr, const Eigen::MatrixXd* Uv = nullptr);
 
 }  // namespace internal
 }  // namespace lpoe

@@ -80,8 +80,11 @@ Hyper Unpack(const Eigen::VectorXd& theta, int n, bool with_tool, bool with_conf
 
 // The exact kernel matrix of the hyperparameter rows: K_se (signal part) and K = K_se + s_c^2 on
 // rows of one configuration + (s_n^2 + jitter) on the diagonal.
+// With `U` (rows x 3: projected observations u_a . m(x_a)), both terms between rows a and b are
+// multiplied by u_a . u_b.
 void ExactKernel(const Hyper& h, const Eigen::MatrixXd& X, const std::vector<int>& tools,
-                 const std::vector<int>* configuration, Eigen::MatrixXd* Kse, Eigen::MatrixXd* K) {
+                 const std::vector<int>* configuration, Eigen::MatrixXd* Kse, Eigen::MatrixXd* K,
+                 const Eigen::MatrixXd* U = nullptr) {
   const int N = static_cast<int>(X.rows()), n = static_cast<int>(X.cols());
   // The scaled inputs, a column per row (contiguous).
   const Eigen::MatrixXd Xst = (X * h.l.cwiseInverse().asDiagonal()).transpose();
@@ -94,6 +97,7 @@ void ExactKernel(const Hyper& h, const Eigen::MatrixXd& X, const std::vector<int
       for (int j = 0; j < n; ++j) d2 += (xa[j] - xb[j]) * (xa[j] - xb[j]);
       double k = h.sf2 * std::exp(-0.5 * d2);
       if (tools[a] != tools[b]) k *= h.rho;
+      if (U != nullptr) k *= U->row(a).dot(U->row(b));
       (*Kse)(a, b) = (*Kse)(b, a) = k;
     }
   }
@@ -101,7 +105,9 @@ void ExactKernel(const Hyper& h, const Eigen::MatrixXd& X, const std::vector<int
   if (configuration != nullptr) {
     for (int b = 0; b < N; ++b) {
       for (int a = 0; a < N; ++a) {
-        if ((*configuration)[a] == (*configuration)[b]) (*K)(a, b) += h.sc2;
+        if ((*configuration)[a] == (*configuration)[b]) {
+          (*K)(a, b) += U == nullptr ? h.sc2 : h.sc2 * U->row(a).dot(U->row(b));
+        }
       }
     }
   }
@@ -308,11 +314,11 @@ namespace internal {
 double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
                                const Eigen::MatrixXd& X, const std::vector<int>& tools,
                                const Eigen::MatrixXd& Y, Eigen::VectorXd* gradient,
-                               const std::vector<int>* configuration) {
+                               const std::vector<int>* configuration, const Eigen::MatrixXd* U) {
   const int N = static_cast<int>(X.rows()), n = static_cast<int>(X.cols());
   const Hyper h = Unpack(theta, n, with_tool, configuration != nullptr);
   GpWorkspace& w = ThreadGpWorkspace();
-  ExactKernel(h, X, tools, configuration, &w.Kse, &w.K);
+  ExactKernel(h, X, tools, configuration, &w.Kse, &w.K, U);
   w.llt.compute(w.K);
   if (w.llt.info() != Eigen::Success) return -std::numeric_limits<double>::infinity();
   const Eigen::MatrixXd A = w.llt.solve(Y);  // N x 3
@@ -348,7 +354,8 @@ double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
       if (with_tool && tools[a] != tools[b]) tool_sum += mk;
       mk_sum += mk;
       if (configuration != nullptr && (*configuration)[a] == (*configuration)[b]) {
-        configuration_sum += weight * m;
+        configuration_sum +=
+            U == nullptr ? weight * m : weight * m * U->row(a).dot(U->row(b));
       }
     }
   }
@@ -367,11 +374,11 @@ double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
 double GpLeaveOneConfigurationOut(const Eigen::VectorXd& theta, bool with_tool,
                                   const Eigen::MatrixXd& X, const std::vector<int>& tools,
                                   const Eigen::MatrixXd& Y,
-                                  const std::vector<int>* configuration) {
+                                  const std::vector<int>* configuration, const Eigen::MatrixXd* U) {
   const int N = static_cast<int>(X.rows()), n = static_cast<int>(X.cols());
   const Hyper h = Unpack(theta, n, with_tool, configuration != nullptr);
   Eigen::MatrixXd Kse, K;
-  ExactKernel(h, X, tools, configuration, &Kse, &K);
+  ExactKernel(h, X, tools, configuration, &Kse, &K, U);
   Eigen::LLT<Eigen::MatrixXd> llt(K);
   if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
   const Eigen::MatrixXd Kinv = llt.solve(Eigen::MatrixXd::Identity(N, N));
@@ -395,11 +402,12 @@ double GpLeaveOneConfigurationOut(const Eigen::VectorXd& theta, bool with_tool,
 double GpValidationError(const Eigen::VectorXd& theta, bool with_tool, const Eigen::MatrixXd& X,
                          const std::vector<int>& tools, const Eigen::MatrixXd& Y,
                          const std::vector<int>* configuration, const Eigen::MatrixXd& Xv,
-                         const std::vector<int>& validation_tools, const Eigen::MatrixXd& Yv) {
+                         const std::vector<int>& validation_tools, const Eigen::MatrixXd& Yv,
+                         const Eigen::MatrixXd* U, const Eigen::MatrixXd* Uv) {
   const int N = static_cast<int>(X.rows()), n = static_cast<int>(X.cols());
   const Hyper h = Unpack(theta, n, with_tool, configuration != nullptr);
   Eigen::MatrixXd Kse, K;
-  ExactKernel(h, X, tools, configuration, &Kse, &K);
+  ExactKernel(h, X, tools, configuration, &Kse, &K, U);
   Eigen::LLT<Eigen::MatrixXd> llt(K);
   if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
   const Eigen::MatrixXd alpha = llt.solve(Y);
@@ -414,6 +422,7 @@ double GpValidationError(const Eigen::VectorXd& theta, bool with_tool, const Eig
         d2 += d * d;
       }
       k(i) = h.sf2 * std::exp(-0.5 * d2) * (validation_tools[v] == tools[i] ? 1.0 : h.rho);
+      if (U != nullptr) k(i) *= Uv->row(v).dot(U->row(i));
     }
     sum += (Yv.row(v) - k * alpha).squaredNorm();
   }
@@ -478,59 +487,71 @@ Eigen::VectorXd ResidualLayerSpacing(const std::vector<double>& q, int n,
   return spacing;
 }
 
-Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& tools,
-                        const std::vector<Eigen::Vector3d>& residuals, int num_joints,
-                        int num_tools, const ResidualLayerOptions& options, ResidualLayer* layer,
-                        ResidualLayerFit* fit) {
-  const int rows = static_cast<int>(residuals.size());
-  const int n = num_joints;
-  if (n < 1 || num_tools < 1) return Status::Error("the residual layer needs joints and tools");
-  if (static_cast<int>(tools.size()) != rows || q.size() != static_cast<size_t>(rows) * n) {
-    return Status::Error("the residual layer's rows, tools and joint values differ in number");
-  }
-  if (rows < 3) return Status::Error("the residual layer needs at least 3 rows");
-  for (int r = 0; r < rows; ++r) {
-    if (tools[r] < 0 || tools[r] >= num_tools) {
-      return Status::Error("row " + std::to_string(r + 1) + ": tool index out of range");
-    }
-    if (!residuals[r].allFinite()) {
-      return Status::Error("row " + std::to_string(r + 1) + ": the residual is not finite");
-    }
-    for (int j = 0; j < n; ++j) {
-      if (!std::isfinite(q[static_cast<size_t>(r) * n + j])) {
-        return Status::Error("row " + std::to_string(r + 1) + ": a joint value is not finite");
-      }
-    }
-  }
-  const double* Q = q.data();
-  auto qrow = [&](int r) { return Q + static_cast<size_t>(r) * n; };
+namespace {
 
-  // The configurations: rows with the same joint values (the tools measured at one stop).
-  std::vector<int> configuration(rows);
+// The rows of a fit: joint values (rows x n, row-major), tools, and what each row observes: Y
+// (rows x 3, the residual) or, with U (rows x 3), Y (rows x 1) = u . m(q) + noise.
+struct LayerRows {
+  const double* Q = nullptr;
+  const std::vector<int>* tools = nullptr;
+  int rows = 0, n = 0;
+  Eigen::MatrixXd Y;
+  const Eigen::MatrixXd* U = nullptr;
+  const double* q(int r) const { return Q + static_cast<size_t>(r) * n; }
+};
+
+// The configurations: rows with the same joint values (the tools measured at one stop).
+struct LayerConfigurations {
+  std::vector<int> of_row;
   std::vector<std::vector<int>> members;
-  {
-    std::map<std::vector<double>, int> ids;
-    for (int r = 0; r < rows; ++r) {
-      const auto [it, added] =
-          ids.emplace(std::vector<double>(qrow(r), qrow(r) + n), static_cast<int>(members.size()));
-      if (added) members.emplace_back();
-      configuration[r] = it->second;
-      members[it->second].push_back(r);
-    }
-  }
-  const int C = static_cast<int>(members.size());
+  int count() const { return static_cast<int>(members.size()); }
+};
 
-  // The hyperparameter rows: whole configurations, all of them or a seeded sample, so that the
-  // likelihood sees the rows of a configuration together (what they share is not a signal).
-  // The validation rows: the next configurations of the same order, as many rows at most, that
-  // choose between the candidates below when there are at least kMinValidation configurations.
+LayerConfigurations GroupConfigurations(const LayerRows& d) {
+  LayerConfigurations c;
+  c.of_row.resize(d.rows);
+  std::map<std::vector<double>, int> ids;
+  for (int r = 0; r < d.rows; ++r) {
+    const auto [it, added] = ids.emplace(std::vector<double>(d.q(r), d.q(r) + d.n),
+                                         static_cast<int>(c.members.size()));
+    if (added) c.members.emplace_back();
+    c.of_row[r] = it->second;
+    c.members[it->second].push_back(r);
+  }
+  return c;
+}
+
+// The hyperparameter rows and the validation rows as matrices (the tools, configurations and, for
+// projected rows, directions of each).
+struct FitSample {
+  Eigen::MatrixXd X, Y, U, Xv, Yv, Uv;
+  std::vector<int> tools, configuration, validation_tools;
+  bool shared = false;     // some configuration has more than one row
+  bool with_tool = false;  // the rows have more than one tool
+  bool projected = false;
+  int N() const { return static_cast<int>(X.rows()); }
+  int V() const { return static_cast<int>(Xv.rows()); }
+  const std::vector<int>* groups() const { return shared ? &configuration : nullptr; }
+  const Eigen::MatrixXd* directions() const { return projected ? &U : nullptr; }
+  const Eigen::MatrixXd* validation_directions() const { return projected ? &Uv : nullptr; }
+};
+
+// The hyperparameter rows: whole configurations, all of them or a seeded sample, so that the
+// likelihood sees the rows of a configuration together (what they share is not a signal).
+// The validation rows: the next configurations of the same order, as many rows at most, that
+// choose between the candidates of the search when there are at least kMinValidation
+// configurations.
+FitSample SampleFitRows(const LayerRows& d, const LayerConfigurations& configs,
+                        const ResidualLayerOptions& options) {
   constexpr int kMinValidation = 30;
+  const int C = configs.count();
+  const auto& members = configs.members;
   std::vector<int> sub, validation;
   int validation_configurations = 0;
   {
     std::vector<int> order(C);
     std::iota(order.begin(), order.end(), 0);
-    if (rows > options.max_hyperparameter_rows) {
+    if (d.rows > options.max_hyperparameter_rows) {
       std::mt19937_64 rng(options.seed);
       for (int i = 0; i + 1 < C; ++i) {
         std::uniform_int_distribution<int> pick(i, C - 1);
@@ -557,35 +578,63 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
     std::sort(sub.begin(), sub.end());
     if (validation_configurations < kMinValidation) validation.clear();
   }
+  const int n = d.n, outputs = static_cast<int>(d.Y.cols());
+  const std::vector<int>& tools = *d.tools;
+  FitSample s;
+  s.projected = d.U != nullptr;
   const int N = static_cast<int>(sub.size());
-  Eigen::MatrixXd X(N, n), Y(N, 3);
-  std::vector<int> sub_tools(N), sub_configuration(N);
-  bool shared = false;  // some configuration has more than one row
+  s.X.resize(N, n);
+  s.Y.resize(N, outputs);
+  if (s.projected) s.U.resize(N, 3);
+  s.tools.resize(N);
+  s.configuration.resize(N);
   for (int i = 0; i < N; ++i) {
-    for (int j = 0; j < n; ++j) X(i, j) = qrow(sub[i])[j];
-    Y.row(i) = residuals[sub[i]].transpose();
-    sub_tools[i] = tools[sub[i]];
-    sub_configuration[i] = configuration[sub[i]];
-    shared = shared || (i > 0 && sub_configuration[i] == sub_configuration[i - 1]) ||
-             members[configuration[sub[i]]].size() > 1;
+    for (int j = 0; j < n; ++j) s.X(i, j) = d.q(sub[i])[j];
+    s.Y.row(i) = d.Y.row(sub[i]);
+    if (s.projected) s.U.row(i) = d.U->row(sub[i]);
+    s.tools[i] = tools[sub[i]];
+    s.configuration[i] = configs.of_row[sub[i]];
+    s.shared = s.shared || (i > 0 && s.configuration[i] == s.configuration[i - 1]) ||
+               members[configs.of_row[sub[i]]].size() > 1;
   }
-  bool with_tool = false;
-  for (int i = 1; i < N; ++i) with_tool = with_tool || sub_tools[i] != sub_tools[0];
+  for (int i = 1; i < N; ++i) s.with_tool = s.with_tool || s.tools[i] != s.tools[0];
   const int V = static_cast<int>(validation.size());
-  Eigen::MatrixXd Xv(V, n), Yv(V, 3);
-  std::vector<int> validation_tools(V);
+  s.Xv.resize(V, n);
+  s.Yv.resize(V, outputs);
+  if (s.projected) s.Uv.resize(V, 3);
+  s.validation_tools.resize(V);
   for (int i = 0; i < V; ++i) {
-    for (int j = 0; j < n; ++j) Xv(i, j) = qrow(validation[i])[j];
-    Yv.row(i) = residuals[validation[i]].transpose();
-    validation_tools[i] = tools[validation[i]];
+    for (int j = 0; j < n; ++j) s.Xv(i, j) = d.q(validation[i])[j];
+    s.Yv.row(i) = d.Y.row(validation[i]);
+    if (s.projected) s.Uv.row(i) = d.U->row(validation[i]);
+    s.validation_tools[i] = tools[validation[i]];
   }
-  const std::vector<int>* groups = shared ? &sub_configuration : nullptr;
+  return s;
+}
 
-  // Bounds and weak log-normal priors (a factor e^2 wide): each length scale centred on the
-  // spread of its joint, the signal, the noise and the configuration's error on the residuals'
-  // spread. They decide only where the likelihood cannot (a joint that does not matter, a signal
-  // that cannot be told from noise); with hundreds of rows of real structure the likelihood
-  // outweighs them.
+struct HyperparameterSearch {
+  Eigen::VectorXd theta;
+  int iterations = 0;
+  std::vector<double> start_loo;
+  int chosen_start = 0;
+};
+
+// Bounds and weak log-normal priors (a factor e^2 wide): each length scale centred on the spread
+// of its joint, the signal, the noise and the configuration's error on the residuals' spread. They
+// decide only where the likelihood cannot (a joint that does not matter, a signal that cannot be
+// told from noise); with hundreds of rows of real structure the likelihood outweighs them.
+// Two starts: long length scales (three times each joint's spread: nearly linear over the data)
+// and each joint's spread. The one whose exact GP predicts left-out configurations best is kept:
+// the likelihood alone can prefer length scales so short that the layer reproduces its rows and
+// predicts nothing between them. Then no signal (see below).
+HyperparameterSearch SearchHyperparameters(const FitSample& s, int n,
+                                           const ResidualLayerOptions& options) {
+  const Eigen::MatrixXd& X = s.X;
+  const Eigen::MatrixXd& Y = s.Y;
+  const int N = s.N(), V = s.V();
+  const bool with_tool = s.with_tool, shared = s.shared;
+  const std::vector<int>* groups = s.groups();
+  const Eigen::MatrixXd* U = s.directions();
   const int p = n + (with_tool ? 1 : 0) + 2 + (shared ? 1 : 0);
   Eigen::VectorXd lower(p), upper(p), centre(p);
   Eigen::VectorXd spread(n);
@@ -614,7 +663,8 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
   constexpr double kPriorWidth = 2.0;
   auto prior = [&](int i) { return i != tool_index; };
   auto objective = [&](const Eigen::VectorXd& t, Eigen::VectorXd* g) {
-    const double L = internal::GpLogMarginalLikelihood(t, with_tool, X, sub_tools, Y, g, groups);
+    const double L =
+        internal::GpLogMarginalLikelihood(t, with_tool, X, s.tools, Y, g, groups, U);
     if (!std::isfinite(L)) return std::numeric_limits<double>::infinity();
     double penalty = 0;
     *g *= -1.0 / N;
@@ -626,26 +676,20 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
     }
     return (-L + penalty) / N;
   };
-
-  // Two starts: long length scales (three times each joint's spread: nearly linear over the data)
-  // and each joint's spread. The one whose exact GP predicts left-out configurations best is kept:
-  // the likelihood alone can prefer length scales so short that the layer reproduces its rows and
-  // predicts nothing between them.
   // The held-out error of the exact GP at theta: on the validation rows (predicted from the
   // hyperparameter rows), else leave-one-configuration-out on the hyperparameter rows (which
   // favours what was fitted to them).
   auto held_out_error = [&](const Eigen::VectorXd& t) {
-    if (V == 0) return internal::GpLeaveOneConfigurationOut(t, with_tool, X, sub_tools, Y, groups);
-    return internal::GpValidationError(t, with_tool, X, sub_tools, Y, groups, Xv,
-                                       validation_tools, Yv);
+    if (V == 0) {
+      return internal::GpLeaveOneConfigurationOut(t, with_tool, X, s.tools, Y, groups, U);
+    }
+    return internal::GpValidationError(t, with_tool, X, s.tools, Y, groups, s.Xv,
+                                       s.validation_tools, s.Yv, U, s.validation_directions());
   };
   const double start_factor[2] = {3.0, 1.0};
   const double start_noise[2] = {0.5, 1.0 / 3};
-  Eigen::VectorXd theta;
-  int iterations = 0;
+  HyperparameterSearch out;
   double best_loo = std::numeric_limits<double>::infinity();
-  std::vector<double> start_loo;
-  int chosen_start = 0;
   for (int start = 0; start < 2; ++start) {
     Eigen::VectorXd t(p);
     for (int j = 0; j < n; ++j) t(j) = std::log(start_factor[start] * spread(j));
@@ -656,12 +700,12 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
     t = t.cwiseMax(lower).cwiseMin(upper);
     const int it = MinimizeBounded(objective, lower, upper, options.max_iterations, &t);
     const double loo = held_out_error(t);
-    start_loo.push_back(std::sqrt(loo));
+    out.start_loo.push_back(std::sqrt(loo));
     if (start == 0 || loo < best_loo) {
       best_loo = loo;
-      theta = t;
-      iterations = it;
-      chosen_start = start;
+      out.theta = t;
+      out.iterations = it;
+      out.chosen_start = start;
     }
   }
   // And no signal at all: the chosen optimum with its signal variance moved to the noise. When it
@@ -669,33 +713,30 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
   // predict (the likelihood of hundreds of rows of noise can still prefer a small signal of short
   // length scales: ten hyperparameters fitted to noise), and the layer is that of no signal.
   {
+    const Eigen::VectorXd& theta = out.theta;
     Eigen::VectorXd t = theta;
     t(noise_index) = 0.5 * std::log(std::exp(2 * theta(noise_index)) +
                                     std::exp(2 * theta(signal_index)));
     t(signal_index) = kLogStdMin;
     const double loo = held_out_error(t);
-    start_loo.push_back(std::sqrt(loo));
+    out.start_loo.push_back(std::sqrt(loo));
     if (loo <= best_loo) {
-      best_loo = loo;
-      theta = t;
-      iterations = 0;
-      chosen_start = 2;
+      out.theta = t;
+      out.iterations = 0;
+      out.chosen_start = 2;
     }
   }
-  const Hyper h = Unpack(theta, n, with_tool, shared);
+  return out;
+}
 
-  ResidualLayer out;
-  out.num_joints = n;
-  out.num_tools = num_tools;
-  out.length_scales = h.l;
-  out.tool_correlation = h.rho;
-  out.signal_std = std::sqrt(h.sf2);
-  out.noise_std = std::sqrt(h.sn2);
-  out.fitted_rows = rows;
-
-  // Inducing inputs: farthest-point sampling in length-scale units (the tool's one-hot distance
-  // -2 log rho between different tools), from row 0, until every row is within
-  // options.inducing_radius of one or there are options.max_inducing.
+// Inducing inputs: farthest-point sampling in length-scale units (the tool's one-hot distance
+// -2 log rho between different tools), from row 0, until every row is within
+// options.inducing_radius of one or there are options.max_inducing. *far: the largest squared
+// distance of a row to its nearest inducing input.
+std::vector<int> ChooseInducing(const LayerRows& d, const Hyper& h, bool with_tool,
+                                const ResidualLayerOptions& options, double* far_out) {
+  const int rows = d.rows, n = d.n;
+  const std::vector<int>& tools = *d.tools;
   const Eigen::VectorXd inv_l = h.l.cwiseInverse();
   const double tool_d2 = with_tool ? 2.0 / (h.lt * h.lt) : 0.0;
   const double radius2 = options.inducing_radius * options.inducing_radius;
@@ -706,14 +747,14 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
   const int max_m = std::max(1, std::min(options.max_inducing, rows));
   while (static_cast<int>(chosen.size()) < max_m) {
     chosen.push_back(next);
-    const double* z = qrow(next);
+    const double* z = d.q(next);
     const int zt = tools[next];
     far = -1;
     int far_row = -1;
     for (int r = 0; r < rows; ++r) {
-      double d = ScaledSquaredDistance(qrow(r), z, inv_l.data(), n);
-      if (tools[r] != zt) d += tool_d2;
-      nearest[r] = std::min(nearest[r], d);
+      double dist = ScaledSquaredDistance(d.q(r), z, inv_l.data(), n);
+      if (tools[r] != zt) dist += tool_d2;
+      nearest[r] = std::min(nearest[r], dist);
       if (nearest[r] > far) {
         far = nearest[r];
         far_row = r;
@@ -723,25 +764,18 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
     if (!(far > 1e-12) || far <= radius2) break;
     next = far_row;
   }
-  const int m = static_cast<int>(chosen.size());
-  out.inducing_q.resize(m, n);
-  out.inducing_tool.resize(m);
-  for (int i = 0; i < m; ++i) {
-    for (int j = 0; j < n; ++j) out.inducing_q(i, j) = qrow(chosen[i])[j];
-    out.inducing_tool[i] = tools[chosen[i]];
-  }
+  *far_out = far;
+  return chosen;
+}
 
-  // The DTC posterior with the noise of the rows, Lambda: s_n^2 I plus s_c^2 between the rows of a
-  // configuration (block g: Lambda_g^-1 = s_n^-2 (I - gamma_g 1 1^T),
-  // gamma_g = s_c^2 / (s_n^2 + b_g s_c^2)). Lm = chol(K_mm), V = Lm^-1 K_mn,
-  // B = I + V Lambda^-1 V^T, alpha = Lm^-T B^-1 V Lambda^-1 Y.
-  out.weights = Eigen::MatrixXd::Zero(m, 3);
-  out.variance = Eigen::MatrixXd::Zero(m, m);
+// K_mm of the layer's inducing inputs (with its jitter) and its Cholesky factor's L.
+Status InducingFactor(const ResidualLayer& out, const Hyper& h, Eigen::MatrixXd* Lm) {
+  const int m = out.num_inducing();
   Eigen::MatrixXd Kmm(m, m);
   {
     Eigen::VectorXd k_col;
     for (int a = 0; a < m; ++a) {
-      out.KernelVector(qrow(chosen[a]), out.inducing_tool[a], &k_col);
+      out.KernelVector(out.inducing_q.row(a).eval().data(), out.inducing_tool[a], &k_col);
       Kmm.col(a) = k_col;
     }
   }
@@ -751,9 +785,33 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
   if (lm.info() != Eigen::Success) {
     return Status::Error("the residual layer's inducing kernel matrix is not positive definite");
   }
-  const Eigen::MatrixXd Lm = lm.matrixL();
+  *Lm = lm.matrixL();
+  return Status::Ok();
+}
+
+// W = Lm^-T (I - Binv) Lm^-1 into out->variance.
+void StoreVariance(const Eigen::MatrixXd& Lm, const Eigen::MatrixXd& Binv, ResidualLayer* out) {
+  const int m = static_cast<int>(Lm.rows());
+  Eigen::MatrixXd inner = Eigen::MatrixXd::Identity(m, m) - Binv;
+  Eigen::MatrixXd T = Lm.transpose().triangularView<Eigen::Upper>().solve(inner);
+  out->variance =
+      Lm.transpose().triangularView<Eigen::Upper>().solve(T.transpose()).transpose();
+  out->variance = 0.5 * (out->variance + out->variance.transpose());
+}
+
+// The DTC posterior of residual rows (3 outputs) with the noise of the rows, Lambda: s_n^2 I plus
+// s_c^2 between the rows of a configuration (block g: Lambda_g^-1 = s_n^-2 (I - gamma_g 1 1^T),
+// gamma_g = s_c^2 / (s_n^2 + b_g s_c^2)). Lm = chol(K_mm), V = Lm^-1 K_mn,
+// B = I + V Lambda^-1 V^T, alpha = Lm^-T B^-1 V Lambda^-1 Y.
+Status ResidualPosterior(const LayerRows& d, const LayerConfigurations& configs, const Hyper& h,
+                         ResidualLayer* out) {
+  const int m = out->num_inducing();
+  const std::vector<int>& tools = *d.tools;
+  const auto& members = configs.members;
+  Eigen::MatrixXd Lm;
+  if (Status s = InducingFactor(*out, h, &Lm); !s.ok()) return s;
   // Fixed chunks of configurations (the result does not depend on the number of threads).
-  const RowChunks chunks = PartitionRows(C, 512, 64);
+  const RowChunks chunks = PartitionRows(configs.count(), 512, 64);
   std::vector<Eigen::MatrixXd> VVt(chunks.chunks), VY(chunks.chunks);
   ForEachTask(chunks.chunks, ThreadsFor(chunks.chunks), [&](int c, int /*thread*/) {
     int count = 0;
@@ -763,9 +821,9 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
     int col = 0;
     for (int g = chunks.begin(c); g < chunks.end(c); ++g) {
       for (int r : members[g]) {
-        out.KernelVector(qrow(r), tools[r], &k_col);
+        out->KernelVector(d.q(r), tools[r], &k_col);
         Kmn.col(col) = k_col;
-        Yc.row(col++) = residuals[r].transpose();
+        Yc.row(col++) = d.Y.row(r);
       }
     }
     Lm.triangularView<Eigen::Lower>().solveInPlace(Kmn);  // V
@@ -801,38 +859,248 @@ Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& to
     return Status::Error("the residual layer's posterior matrix is not positive definite");
   }
   const Eigen::MatrixXd Binv = lb.solve(Eigen::MatrixXd::Identity(m, m));
-  out.weights = beta * Lm.transpose().triangularView<Eigen::Upper>().solve(Binv * VYs);
-  Eigen::MatrixXd inner = Eigen::MatrixXd::Identity(m, m) - Binv;
-  // W = Lm^-T (I - B^-1) Lm^-1.
-  Eigen::MatrixXd T = Lm.transpose().triangularView<Eigen::Upper>().solve(inner);
-  out.variance =
-      Lm.transpose().triangularView<Eigen::Upper>().solve(T.transpose()).transpose();
-  out.variance = 0.5 * (out.variance + out.variance.transpose());
+  out->weights = beta * Lm.transpose().triangularView<Eigen::Upper>().solve(Binv * VYs);
+  StoreVariance(Lm, Binv, out);
+  return Status::Ok();
+}
+
+// The DTC posterior of projected rows y_r = u_r . m(q_r) + noise. The inducing variables are the
+// three components of m at each inducing input, whitened: m(z) = (Lm (x) I3) v, v ~ N(0, I_3m).
+// Row r's design row is kron(V_r, u_r) (V = Lm^-1 K_mn), so, with v's entries ordered component
+// first (c m + i) and Vc = V diag(U_c):
+//   B_cd = delta_cd I + Vc Lambda^-1 Vd^T,   v = B^-1 [Vc Lambda^-1 y]_c,
+//   alpha (m x 3, column c) = Lm^-T v_c,
+// Lambda = s_n^2 I plus s_c^2 u_a . u_b between the rows of a configuration. A component no row's
+// direction has is neither in the right-hand side nor coupled to one that is: its weights are 0.
+// The stored W is the average over the three components of the component's own
+// Lm^-T (I - (B^-1)_cc) Lm^-1: Std is then the RMS over the axes of the components' deviations.
+Status ProjectedPosterior(const LayerRows& d, const LayerConfigurations& configs, const Hyper& h,
+                          ResidualLayer* out) {
+  const int m = out->num_inducing(), rows = d.rows;
+  const std::vector<int>& tools = *d.tools;
+  const Eigen::MatrixXd& U = *d.U;
+  Eigen::MatrixXd Lm;
+  if (Status s = InducingFactor(*out, h, &Lm); !s.ok()) return s;
+  Eigen::MatrixXd Vt(rows, m);  // V^T
+  {
+    Eigen::MatrixXd Kmn(m, rows);
+    Eigen::VectorXd k_col;
+    for (int r = 0; r < rows; ++r) {
+      out->KernelVector(d.q(r), tools[r], &k_col);
+      Kmn.col(r) = k_col;
+    }
+    Lm.triangularView<Eigen::Lower>().solveInPlace(Kmn);
+    Vt = Kmn.transpose();
+  }
+  // Lambda^-1 applied to the columns of a rows x k matrix, configuration by configuration.
+  std::vector<Eigen::LLT<Eigen::MatrixXd>> blocks(configs.count());
+  for (int g = 0; g < configs.count(); ++g) {
+    const std::vector<int>& rs = configs.members[g];
+    const int b = static_cast<int>(rs.size());
+    Eigen::MatrixXd Lg = Eigen::MatrixXd::Zero(b, b);
+    for (int a = 0; a < b; ++a) {
+      for (int c = 0; c < b; ++c) Lg(a, c) = h.sc2 * U.row(rs[a]).dot(U.row(rs[c]));
+      Lg(a, a) += h.sn2;
+    }
+    blocks[g].compute(Lg);
+  }
+  auto apply_inverse_noise = [&](const Eigen::MatrixXd& A) {
+    Eigen::MatrixXd out_a(A.rows(), A.cols());
+    for (int g = 0; g < configs.count(); ++g) {
+      const std::vector<int>& rs = configs.members[g];
+      const int b = static_cast<int>(rs.size());
+      Eigen::MatrixXd Ag(b, A.cols());
+      for (int a = 0; a < b; ++a) Ag.row(a) = A.row(rs[a]);
+      Ag = blocks[g].solve(Ag);
+      for (int a = 0; a < b; ++a) out_a.row(rs[a]) = Ag.row(a);
+    }
+    return out_a;
+  };
+  Eigen::MatrixXd B = Eigen::MatrixXd::Identity(3 * m, 3 * m);
+  Eigen::VectorXd rhs(3 * m);
+  const Eigen::VectorXd y = d.Y.col(0);
+  const Eigen::VectorXd Ly = apply_inverse_noise(y);
+  for (int dd = 0; dd < 3; ++dd) {
+    const Eigen::MatrixXd Vd = U.col(dd).asDiagonal() * Vt;  // rows x m
+    const Eigen::MatrixXd LVd = apply_inverse_noise(Vd);
+    rhs.segment(dd * m, m) = Vd.transpose() * Ly;
+    for (int c = 0; c <= dd; ++c) {
+      const Eigen::MatrixXd Vc = U.col(c).asDiagonal() * Vt;
+      const Eigen::MatrixXd Bcd = Vc.transpose() * LVd;
+      B.block(c * m, dd * m, m, m) += Bcd;
+      if (c != dd) B.block(dd * m, c * m, m, m) += Bcd.transpose();
+    }
+  }
+  B = 0.5 * (B + B.transpose());
+  Eigen::LLT<Eigen::MatrixXd> lb(B);
+  if (lb.info() != Eigen::Success) {
+    return Status::Error("the residual layer's posterior matrix is not positive definite");
+  }
+  const Eigen::VectorXd v = lb.solve(rhs);
+  out->weights.resize(m, 3);
+  for (int c = 0; c < 3; ++c) {
+    out->weights.col(c) =
+        Lm.transpose().triangularView<Eigen::Upper>().solve(v.segment(c * m, m));
+  }
+  Eigen::MatrixXd Binv_mean = Eigen::MatrixXd::Zero(m, m);
+  for (int c = 0; c < 3; ++c) {
+    Eigen::MatrixXd E = Eigen::MatrixXd::Zero(3 * m, m);
+    E.middleRows(c * m, m).setIdentity();
+    Binv_mean += lb.solve(E).middleRows(c * m, m);
+  }
+  StoreVariance(Lm, Binv_mean / 3.0, out);
+  return Status::Ok();
+}
+
+// The rows' checks shared by both fits.
+Status CheckLayerRows(const LayerRows& d, int num_tools) {
+  if (d.n < 1 || num_tools < 1) return Status::Error("the residual layer needs joints and tools");
+  if (d.rows < 3) return Status::Error("the residual layer needs at least 3 rows");
+  for (int r = 0; r < d.rows; ++r) {
+    const int tool = (*d.tools)[r];
+    if (tool < 0 || tool >= num_tools) {
+      return Status::Error("row " + std::to_string(r + 1) + ": tool index out of range");
+    }
+    if (!d.Y.row(r).allFinite() || (d.U != nullptr && !d.U->row(r).allFinite())) {
+      return Status::Error("row " + std::to_string(r + 1) + ": the residual is not finite");
+    }
+    for (int j = 0; j < d.n; ++j) {
+      if (!std::isfinite(d.q(r)[j])) {
+        return Status::Error("row " + std::to_string(r + 1) + ": a joint value is not finite");
+      }
+    }
+  }
+  return Status::Ok();
+}
+
+// The fit on checked rows (FitResidualLayer, FitResidualLayerProjected).
+Status FitLayerRows(const LayerRows& d, const std::vector<double>& q, int num_tools,
+                    const ResidualLayerOptions& options, ResidualLayer* layer,
+                    ResidualLayerFit* fit) {
+  const int rows = d.rows, n = d.n;
+  const std::vector<int>& tools = *d.tools;
+  const LayerConfigurations configs = GroupConfigurations(d);
+  const FitSample sample = SampleFitRows(d, configs, options);
+  const HyperparameterSearch search = SearchHyperparameters(sample, n, options);
+  const Eigen::VectorXd& theta = search.theta;
+  const Hyper h = Unpack(theta, n, sample.with_tool, sample.shared);
+
+  ResidualLayer out;
+  out.num_joints = n;
+  out.num_tools = num_tools;
+  out.length_scales = h.l;
+  out.tool_correlation = h.rho;
+  out.signal_std = std::sqrt(h.sf2);
+  out.noise_std = std::sqrt(h.sn2);
+  out.fitted_rows = rows;
+  double far = 0;
+  const std::vector<int> chosen = ChooseInducing(d, h, sample.with_tool, options, &far);
+  const int m = static_cast<int>(chosen.size());
+  out.inducing_q.resize(m, n);
+  out.inducing_tool.resize(m);
+  for (int i = 0; i < m; ++i) {
+    for (int j = 0; j < n; ++j) out.inducing_q(i, j) = d.q(chosen[i])[j];
+    out.inducing_tool[i] = tools[chosen[i]];
+  }
+  out.weights = Eigen::MatrixXd::Zero(m, 3);
+  out.variance = Eigen::MatrixXd::Zero(m, m);
+  const Status posterior = d.U == nullptr ? ResidualPosterior(d, configs, h, &out)
+                                          : ProjectedPosterior(d, configs, h, &out);
+  if (!posterior.ok()) return posterior;
   if (!out.weights.allFinite() || !out.variance.allFinite()) {
     return Status::Error("the residual layer's posterior is not finite");
   }
   if (fit != nullptr) {
-    fit->hyperparameter_rows = N;
-    fit->iterations = iterations;
-    fit->log_marginal_likelihood =
-        internal::GpLogMarginalLikelihood(theta, with_tool, X, sub_tools, Y, nullptr, groups);
-    fit->start_loo_rms = start_loo;
-    fit->chosen_start = chosen_start;
+    fit->hyperparameter_rows = sample.N();
+    fit->iterations = search.iterations;
+    fit->log_marginal_likelihood = internal::GpLogMarginalLikelihood(
+        theta, sample.with_tool, sample.X, sample.tools, sample.Y, nullptr, sample.groups(),
+        sample.directions());
+    fit->start_loo_rms = search.start_loo;
+    fit->chosen_start = search.chosen_start;
     fit->configuration_std = std::sqrt(h.sc2);
-    fit->configurations = C;
-    fit->validation_rows = V;
+    fit->configurations = configs.count();
+    fit->validation_rows = sample.V();
     fit->spacing = ResidualLayerSpacing(q, n, h.l);
     fit->inducing_coverage = std::sqrt(std::max(0.0, far));
     double before = 0, after = 0;
     for (int r = 0; r < rows; ++r) {
-      before += residuals[r].squaredNorm();
-      after += (residuals[r] - out.Mean(qrow(r), tools[r])).squaredNorm();
+      const Eigen::Vector3d mean = out.Mean(d.q(r), tools[r]);
+      if (d.U == nullptr) {
+        const Eigen::Vector3d e = d.Y.row(r).transpose();
+        before += e.squaredNorm();
+        after += (e - mean).squaredNorm();
+      } else {
+        const double y = d.Y(r, 0);
+        before += y * y;
+        after += std::pow(y - d.U->row(r).dot(mean), 2);
+      }
     }
     fit->residual_rms_before = std::sqrt(before / rows);
     fit->residual_rms_after = std::sqrt(after / rows);
   }
   *layer = std::move(out);
   return Status::Ok();
+}
+
+}  // namespace
+
+Status FitResidualLayer(const std::vector<double>& q, const std::vector<int>& tools,
+                        const std::vector<Eigen::Vector3d>& residuals, int num_joints,
+                        int num_tools, const ResidualLayerOptions& options, ResidualLayer* layer,
+                        ResidualLayerFit* fit) {
+  const int rows = static_cast<int>(residuals.size());
+  if (num_joints < 1 || num_tools < 1) {
+    return Status::Error("the residual layer needs joints and tools");
+  }
+  if (static_cast<int>(tools.size()) != rows ||
+      q.size() != static_cast<size_t>(rows) * num_joints) {
+    return Status::Error("the residual layer's rows, tools and joint values differ in number");
+  }
+  LayerRows d;
+  d.Q = q.data();
+  d.tools = &tools;
+  d.rows = rows;
+  d.n = num_joints;
+  d.Y.resize(rows, 3);
+  for (int r = 0; r < rows; ++r) d.Y.row(r) = residuals[r].transpose();
+  if (Status s = CheckLayerRows(d, num_tools); !s.ok()) return s;
+  return FitLayerRows(d, q, num_tools, options, layer, fit);
+}
+
+Status FitResidualLayerProjected(const std::vector<double>& q, const std::vector<int>& tools,
+                                 const std::vector<Eigen::Vector3d>& directions,
+                                 const std::vector<double>& values, int num_joints,
+                                 int num_tools, const ResidualLayerOptions& options,
+                                 ResidualLayer* layer, ResidualLayerFit* fit) {
+  const int rows = static_cast<int>(values.size());
+  if (num_joints < 1 || num_tools < 1) {
+    return Status::Error("the residual layer needs joints and tools");
+  }
+  if (static_cast<int>(tools.size()) != rows || static_cast<int>(directions.size()) != rows ||
+      q.size() != static_cast<size_t>(rows) * num_joints) {
+    return Status::Error(
+        "the residual layer's rows, tools, directions and joint values differ in number");
+  }
+  LayerRows d;
+  d.Q = q.data();
+  d.tools = &tools;
+  d.rows = rows;
+  d.n = num_joints;
+  d.Y.resize(rows, 1);
+  Eigen::MatrixXd U(rows, 3);
+  for (int r = 0; r < rows; ++r) {
+    d.Y(r, 0) = values[r];
+    U.row(r) = directions[r].transpose();
+  }
+  d.U = &U;
+  if (Status s = CheckLayerRows(d, num_tools); !s.ok()) return s;
+  for (int r = 0; r < rows; ++r) {
+    if (!(U.row(r).norm() > 0)) {
+      return Status::Error("row " + std::to_string(r + 1) + ": the direction is zero");
+    }
+  }
+  return FitLayerRows(d, q, num_tools, options, layer, fit);
 }
 
 }  // namespace lpoe

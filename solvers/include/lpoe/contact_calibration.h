@@ -153,7 +153,8 @@ void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
                       const ContactMeasurementSet& data, const ContactCalibrationOptions& options,
                       Eigen::VectorXd* r, Eigen::MatrixXd* J);
 
-// Per row, mm (see ContactCalibrationResult::errors); at q_eff when `model` carries joint errors.
+// Per row, mm (see ContactCalibrationResult::errors); at q_eff when `model` carries joint errors,
+// plus the correction of a residual layer it carries (at the commanded q, as PredictToolPosition).
 std::vector<double> ContactErrors(const RobotModel& model, const ContactFeatures& features,
                                   const ContactMeasurementSet& data);
 

@@ -16,6 +16,7 @@
 #include "lpoe/measurement_kinds.h"
 #include "lpoe/measurements.h"
 #include "lpoe/pipeline.h"
+#include "lpoe/residual_layer.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/status.h"
 
@@ -48,6 +49,10 @@ struct ContactKindSummary {
   ContactKindFigures fit;    // on the identification rows
   ContactKindFigures held;   // on the held-out or verification rows (rows 0 when none)
   ContactKindFigures kfold;  // cross-validated, on the identification rows (when k-fold ran)
+  // With a residual layer, `held` and `kfold` include it (each fold's own layer); these are the
+  // same rows' figures without it (rows 0 without a layer), and `fit_with_layer` the
+  // identification rows' with it (`fit` and the verdict stay the parametric model's).
+  ContactKindFigures held_parametric, kfold_parametric, fit_with_layer;
   std::vector<ContactFeatureSummary> features;  // distance: per pivot; plane: per plane
 };
 
@@ -60,6 +65,22 @@ struct ContactPipelineOptions {
   // --joint_errors=auto: the terms chosen by SelectContactJointErrors (calibration.joint_terms
   // is then ignored); the choice is in ContactPipelineResult::joint_error_selection.
   bool joint_errors_auto = false;
+  // The learned residual layer (docs/residual_layer.md, "Projected observations"): kGp fits one
+  // on the identification rows' residuals after the calibration, stored in calibration.model;
+  // every k-fold fold fits its own on its training rows. kAuto chooses between none and gp by
+  // cross-validation on the identification rows (`kfold` folds, 5 when 0; drawn with
+  // split_seed + 2), the one-standard-error rule of the tracker path, none the simpler.
+  ResidualModelKind residual_model = ResidualModelKind::kNone;
+  ResidualLayerOptions residual_layer;
+};
+
+// The residual layer of a contact run.
+struct ContactLayerSummary {
+  bool requested = false;
+  bool fitted = false;   // calibration.model carries a layer
+  std::string message;   // why not, when requested and not fitted
+  ResidualLayerFit fit;
+  int inducing = 0;
 };
 
 // The folds of --joint_errors=auto with distance and plane rows when --kfold is not given.
@@ -78,6 +99,11 @@ struct ContactPipelineResult {
   bool held_from_verification = false;
   std::vector<double> held_errors;  // per row of `held`
   std::vector<double> fold_errors;  // per row of `identification` (k-fold)
+  // With a layer: held_errors and fold_errors include it; these are without it.
+  std::vector<double> held_errors_parametric, fold_errors_parametric;
+  std::vector<double> errors_with_layer;  // per identification row, with the layer
+  ContactLayerSummary residual_layer;
+  ResidualModelSelection residual_model_selection;  // options.residual_model kAuto
   // The kinds with identification rows, in MeasurementKinds() order (pose is not a contact kind).
   std::vector<ContactKindSummary> kinds;
   // The worst of the kinds' verdicts on the identification rows ("pass" when every kind passes).
@@ -115,6 +141,15 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
 JointErrorSelection SelectContactJointErrors(const RobotModel& start,
                                              const ContactMeasurementSet& identification,
                                              const ContactPipelineOptions& options);
+// Fits a residual layer on the residuals of a contact calibration `result` on `data`: each
+// distance row observes the layer's correction along the bar (u = (p - c) / |p - c|, at the
+// model's prediction p), each plane row along its normal, each tracker position row every axis;
+// the value is minus the row's error (ContactErrors without a layer), rows weighted by their noise
+// relative to the median (lpoe/residual_layer.h, FitResidualLayerProjected).
+Status FitContactResidualLayer(const ContactCalibrationResult& result,
+                               const ContactMeasurementSet& data,
+                               const ResidualLayerOptions& options, ResidualLayer* layer,
+                               ResidualLayerFit* fit);
 
 // The joint-space terms of a --joint_errors text (Python's joint_errors=) for distance or plane
 // data, built on `reference` (the start model): "none" (no terms) or a list of the registry's
@@ -124,7 +159,7 @@ Status ContactJointTerms(const std::string& text, const RobotModel& reference,
                          std::vector<std::shared_ptr<const JointTerm>>* terms);
 
 // Why an option of the position calibration is refused with distance or plane data (one text for
-// lpoe_calibrate and Python): "joint_errors_auto", "joint_errors_tilt", "residual_model", "loss", "fixed_tools",
+// lpoe_calibrate and Python): "joint_errors_auto", "joint_errors_tilt", "loss", "fixed_tools",
 // "parameterization" (full), "urdf_with_tracker" (--urdf_output / --ur_kinematics_output with a
 // tracker file among the files). Empty for any other name.
 std::string ContactRefusalReason(const std::string& option);

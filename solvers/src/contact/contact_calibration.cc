@@ -17,6 +17,7 @@
 #include "lpoe/kinematics.h"
 #include "lpoe/plane_measurement.h"
 #include "lpoe/position_measurement.h"
+#include "lpoe/residual_layer.h"
 
 namespace lpoe {
 namespace {
@@ -315,7 +316,9 @@ std::vector<double> ContactErrors(const RobotModel& model, const ContactFeatures
       EffectiveJoints(model, q, q_eff.data());
       q = q_eff.data();
     }
-    const Eigen::Vector3d X = ToolPosition(model, q, row.target);
+    Eigen::Vector3d X = ToolPosition(model, q, row.target);
+    // A layer's correction at the commanded joint values (PredictToolPosition).
+    if (model.residual_layer) X += model.residual_layer->Mean(data.joints(i), row.target);
     switch (row.kind) {
       case MeasurementKindId::kDistance:
         out[i] = DistanceMeasurement::Error<double>(X, features.pivots[row.feature].data(), row.value);

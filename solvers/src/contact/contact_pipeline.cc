@@ -1,11 +1,14 @@
 // The calibration run for ballbar distances and probe contacts (lpoe/contact_pipeline.h).
 #include "lpoe/contact_pipeline.h"
 
+#include "identifiability/cross_validation.h"
+
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <random>
 
 namespace lpoe {
@@ -66,6 +69,87 @@ ContactCalibrationResult CalibrateContactsWith(const std::string& solver, const 
                            : CalibrateContactsLinear(start, data, options);
 }
 
+RobotModel WithoutLayer(const RobotModel& model) {
+  RobotModel m = model;
+  m.residual_layer = nullptr;
+  return m;
+}
+
+// The layer of the run on its identification rows, stored in out->calibration.model.
+void FitContactLayer(const ContactPipelineOptions& options, ContactPipelineResult* out) {
+  out->residual_layer.requested = true;
+  auto fitted = std::make_shared<ResidualLayer>();
+  const Status s = FitContactResidualLayer(out->calibration, out->identification,
+                                           options.residual_layer, fitted.get(),
+                                           &out->residual_layer.fit);
+  if (!s.ok()) {
+    out->residual_layer.message = "residual layer not fitted: " + s.message();
+    return;
+  }
+  out->residual_layer.fitted = true;
+  out->residual_layer.inducing = fitted->num_inducing();
+  out->calibration.model.residual_layer = std::move(fitted);
+  out->errors_with_layer =
+      ContactErrors(out->calibration.model, out->calibration.features, out->identification);
+}
+
+// --residual_model=auto: none against gp on folds of the identification rows (each fold's
+// calibration and layer fitted on its training rows), the held-out errors in mm.
+ResidualModelSelection SelectContactResidualModel(const RobotModel& start,
+                                                  const ContactPipelineOptions& options,
+                                                  const ContactCalibrationOptions& calibration,
+                                                  const ContactPipelineResult& run) {
+  const ContactMeasurementSet& identification = run.identification;
+  ResidualModelSelection sel;
+  sel.ran = true;
+  sel.folds = std::min(options.kfold > 0 ? options.kfold : 5, identification.size());
+  sel.seed = options.split_seed + 2;
+  std::mt19937_64 rng(sel.seed);
+  std::vector<int> order(identification.size());
+  for (int i = 0; i < identification.size(); ++i) order[i] = i;
+  std::shuffle(order.begin(), order.end(), rng);
+  std::vector<internal::FoldErrors> outcomes[2];
+  for (int fold = 0; fold < sel.folds; ++fold) {
+    internal::FoldErrors none, gp;
+    std::vector<int> train, test;
+    for (int i = 0; i < identification.size(); ++i) {
+      (i % sel.folds == fold ? test : train).push_back(order[i]);
+    }
+    std::sort(train.begin(), train.end());
+    std::sort(test.begin(), test.end());
+    const ContactMeasurementSet training = identification.Subset(train);
+    const ContactMeasurementSet tested = identification.Subset(test);
+    ContactCalibrationResult f =
+        CalibrateContactsWith(options.solver, start, training, calibration);
+    auto layer = std::make_shared<ResidualLayer>();
+    Status s = f.ok ? FitContactResidualLayer(f, training, options.residual_layer, layer.get(),
+                                              nullptr)
+                    : Status::Error(f.message);
+    if (!s.ok()) {
+      none.failure = gp.failure = "fold " + std::to_string(fold + 1) + ": " + s.message();
+    } else {
+      for (double e : ContactErrors(f.model, f.features, tested)) none.squared.push_back(e * e);
+      f.model.residual_layer = std::move(layer);
+      for (double e : ContactErrors(f.model, f.features, tested)) gp.squared.push_back(e * e);
+      none.ok = gp.ok = true;
+    }
+    outcomes[0].push_back(std::move(none));
+    outcomes[1].push_back(std::move(gp));
+  }
+  const char* const labels[2] = {"none", "gp"};
+  for (int which = 0; which < 2; ++which) {
+    ResidualModelCandidate c;
+    c.label = labels[which];
+    internal::ScoreFolds(outcomes[which], &c);
+    sel.candidates.push_back(c);
+  }
+  if (!internal::ChooseWithinOneStandardError(&sel)) {
+    sel.chosen = 0;
+    sel.reason = "cross-validation failed (" + sel.candidates[0].failure + "); no layer";
+  }
+  return sel;
+}
+
 }  // namespace
 
 ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactMeasurementSet& data,
@@ -91,16 +175,21 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
   }
   const ContactMeasurementSet& identification = out.identification;
 
+  // The start model without a layer: the solvers' model is parametric.
+  RobotModel parametric_start = start;
+  parametric_start.residual_layer = nullptr;
+
   // ---- --joint_errors=auto: the terms chosen on the identification rows.
   ContactCalibrationOptions calibration = options.calibration;
   if (options.joint_errors_auto) {
-    out.joint_error_selection = SelectContactJointErrors(start, identification, options);
+    out.joint_error_selection =
+        SelectContactJointErrors(parametric_start, identification, options);
     const JointErrorSelection& sel = out.joint_error_selection;
     std::string chosen;
     for (const std::string& t : sel.candidates[sel.chosen].terms) {
       chosen += (chosen.empty() ? "" : ",") + t;
     }
-    if (Status s = ContactJointTerms(chosen.empty() ? "none" : chosen, start,
+    if (Status s = ContactJointTerms(chosen.empty() ? "none" : chosen, parametric_start,
                                      &calibration.joint_terms);
         !s.ok()) {
       out.message = s.message();
@@ -109,13 +198,31 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
   }
 
   // ---- Calibration.
-  out.calibration = CalibrateContactsWith(options.solver, start, identification, calibration);
+  out.calibration =
+      CalibrateContactsWith(options.solver, parametric_start, identification, calibration);
   if (!out.calibration.ok) {
     out.message = out.calibration.message;
     return out;
   }
+  ResidualModelKind residual = options.residual_model;
+  if (residual == ResidualModelKind::kAuto) {
+    out.residual_model_selection = SelectContactResidualModel(parametric_start, options, calibration, out);
+    const ResidualModelSelection& sel = out.residual_model_selection;
+    residual = sel.chosen >= 0 && sel.candidates[sel.chosen].label == "gp"
+                   ? ResidualModelKind::kGp
+                   : ResidualModelKind::kNone;
+    if (residual == ResidualModelKind::kNone) {
+      out.residual_layer.requested = true;
+      out.residual_layer.message = "auto chose none (" + sel.reason + ")";
+    }
+  }
+  if (residual == ResidualModelKind::kGp) FitContactLayer(options, &out);
   if (out.held.size() > 0) {
     out.held_errors = ContactErrors(out.calibration.model, out.calibration.features, out.held);
+    if (out.residual_layer.fitted) {
+      out.held_errors_parametric =
+          ContactErrors(WithoutLayer(out.calibration.model), out.calibration.features, out.held);
+    }
   }
   // ---- k-fold: each fold's rows predicted by the calibration of the others, same options.
   if (options.kfold > 0) {
@@ -137,16 +244,33 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
       }
       std::sort(train.begin(), train.end());
       std::sort(test.begin(), test.end());
-      ContactCalibrationResult f = CalibrateContactsWith(
-          options.solver, start, identification.Subset(train), calibration);
+      const ContactMeasurementSet training = identification.Subset(train);
+      ContactCalibrationResult f =
+          CalibrateContactsWith(options.solver, parametric_start, training, calibration);
       if (!f.ok) {
         out.failed_fold = fold;
         out.message = f.message;
         out.fold_failure = std::move(f);
         return out;
       }
-      const std::vector<double> e = ContactErrors(f.model, f.features, identification.Subset(test));
+      const ContactMeasurementSet tested = identification.Subset(test);
+      const std::vector<double> e = ContactErrors(f.model, f.features, tested);
       for (size_t i = 0; i < test.size(); ++i) out.fold_errors[test[i]] = e[i];
+      // With a layer: the fold's own, fitted on its training rows (none when its fit fails: the
+      // fold's figure is then the parametric model's).
+      if (out.residual_layer.fitted) {
+        if (out.fold_errors_parametric.empty()) {
+          out.fold_errors_parametric.assign(identification.size(), 0.0);
+        }
+        for (size_t i = 0; i < test.size(); ++i) out.fold_errors_parametric[test[i]] = e[i];
+        auto fold_layer = std::make_shared<ResidualLayer>();
+        if (FitContactResidualLayer(f, training, options.residual_layer, fold_layer.get(), nullptr)
+                .ok()) {
+          f.model.residual_layer = std::move(fold_layer);
+          const std::vector<double> el = ContactErrors(f.model, f.features, tested);
+          for (size_t i = 0; i < test.size(); ++i) out.fold_errors[test[i]] = el[i];
+        }
+      }
     }
   }
 
@@ -160,6 +284,15 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
     if (k.fit.rows == 0) continue;
     if (out.held.size() > 0) k.held = ContactFigures(out.held, out.held_errors, kind.id);
     if (options.kfold > 0) k.kfold = ContactFigures(identification, out.fold_errors, kind.id);
+    if (out.residual_layer.fitted) {
+      k.fit_with_layer = ContactFigures(identification, out.errors_with_layer, kind.id);
+      if (out.held.size() > 0) {
+        k.held_parametric = ContactFigures(out.held, out.held_errors_parametric, kind.id);
+      }
+      if (options.kfold > 0) {
+        k.kfold_parametric = ContactFigures(identification, out.fold_errors_parametric, kind.id);
+      }
+    }
     const std::vector<std::string>* names =
         kind.id == MeasurementKindId::kDistance ? &identification.pivots
         : kind.id == MeasurementKindId::kPlane  ? &identification.planes
@@ -191,11 +324,6 @@ std::string ContactRefusalReason(const std::string& option) {
     return "the gravity tilt is bilinear with the compliance term's parameters and is identified "
            "by the tracker solvers only; the contact solvers take the registry's linear terms "
            "(compliance, harmonics, ...) with gravity as the model gives it";
-  }
-  if (option == "residual_model") {
-    return "the residual layer learns each pose's 3D position residual in the tracker's frame; "
-           "a distance or plane row gives one number along a direction that changes from row "
-           "to row, not such a residual";
   }
   if (option == "loss") {
     return "both contact solvers minimise the plain whitened least-squares cost (the cost "

@@ -1,0 +1,142 @@
+// The residual layer of a contact calibration in the reports (report/contact_layer_report.h).
+#include "report/contact_layer_report.h"
+
+#include <cstdio>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "lpoe/residual_layer.h"
+#include "report/report.h"
+
+namespace lpoe {
+namespace tools {
+
+// The residual layer's lines: the fit, its length scales and, per kind, the figures without and
+// with it (identification, held out, k-fold). Empty when no layer was asked for.
+std::string ContactLayerText(const ContactPipelineResult& run, int kfold) {
+  const ContactLayerSummary& l = run.residual_layer;
+  if (!l.requested) return "";
+  char line[512];
+  std::string selection;
+  const ResidualModelSelection& sel = run.residual_model_selection;
+  if (sel.ran) {
+    std::snprintf(line, sizeof(line),
+                  "residual model (auto): %d-fold cross-validation on the identification rows "
+                  "(seed %llu), held-out contact error\n  model   CV rms (mm)   CV mse (mm^2)   "
+                  "std error\n",
+                  sel.folds, static_cast<unsigned long long>(sel.seed));
+    selection = line;
+    for (size_t k = 0; k < sel.candidates.size(); ++k) {
+      const ResidualModelCandidate& c = sel.candidates[k];
+      if (!c.ok) {
+        std::snprintf(line, sizeof(line), "  %-5s   FAILED: %s\n", c.label.c_str(),
+                      c.failure.c_str());
+      } else {
+        std::snprintf(line, sizeof(line), "  %-5s   %11.5f   %13.6g   %9.3g%s\n",
+                      c.label.c_str(), c.cv_rms, c.cv_mse, c.cv_mse_se,
+                      static_cast<int>(k) == sel.chosen ? "   <- chosen" : "");
+      }
+      selection += line;
+    }
+    selection += "  " + sel.reason + "\n";
+  }
+  if (!l.fitted) return selection + "residual layer: none (" + l.message + ")\n";
+  const ResidualLayer& layer = *run.calibration.model.residual_layer;
+  std::snprintf(line, sizeof(line),
+                "residual layer: Gaussian process on projected rows (docs/residual_layer.md), %d "
+                "inducing inputs, signal %.4g mm, noise %.4g mm\n",
+                l.inducing, layer.signal_std, layer.noise_std);
+  std::string out = selection + line;
+  out += ResidualLayerLengthScalesText(layer, l.fit, run.calibration.model);
+  for (const ContactKindSummary& k : run.kinds) {
+    std::snprintf(line, sizeof(line), "  %s: RMS %.5f -> %.5f mm with the layer", k.kind->name,
+                  k.fit.rms, k.fit_with_layer.rms);
+    out += line;
+    if (k.held.rows > 0) {
+      std::snprintf(line, sizeof(line), "; held-out RMS %.5f mm without it, %.5f mm with it",
+                    k.held_parametric.rms, k.held.rms);
+      out += line;
+    }
+    if (kfold > 0) {
+      std::snprintf(line, sizeof(line), "; k-fold RMS %.5f mm without it, %.5f mm with it",
+                    k.kfold_parametric.rms, k.kfold.rms);
+      out += line;
+    }
+    out += "\n";
+  }
+  return out;
+}
+
+std::string ContactLayerJsonText(const ContactPipelineResult& run, const std::string& requested) {
+  const ContactLayerSummary& l = run.residual_layer;
+  nlohmann::json j = {{"requested", requested}, {"fitted", l.fitted}, {"message", l.message}};
+  const ResidualModelSelection& sel = run.residual_model_selection;
+  if (sel.ran) {
+    nlohmann::json candidates = nlohmann::json::array();
+    for (const ResidualModelCandidate& c : sel.candidates) {
+      candidates.push_back({{"model", c.label},
+                            {"ok", c.ok},
+                            {"failure", c.failure},
+                            {"cv_rms", c.cv_rms},
+                            {"cv_mse", c.cv_mse},
+                            {"cv_mse_standard_error", c.cv_mse_se},
+                            {"fold_rms", c.fold_rms}});
+    }
+    j["selection"] = {{"folds", sel.folds},
+                      {"seed", sel.seed},
+                      {"candidates", candidates},
+                      {"best", sel.best},
+                      {"chosen", sel.chosen},
+                      {"reason", sel.reason}};
+  } else {
+    j["selection"] = nullptr;
+  }
+  if (!l.fitted) {
+    j["layer"] = nullptr;
+    return j.dump();
+  }
+  const ResidualLayer& layer = *run.calibration.model.residual_layer;
+  std::vector<double> scales(layer.length_scales.data(),
+                             layer.length_scales.data() + layer.length_scales.size());
+  std::vector<double> spacing(l.fit.spacing.data(), l.fit.spacing.data() + l.fit.spacing.size());
+  std::vector<int> short_joints;
+  for (int joint : JointsBelowSpacing(layer.length_scales, l.fit.spacing)) {
+    short_joints.push_back(joint + 1);
+  }
+  j["layer"] = {{"kernel", ResidualLayer::kKernel},
+                {"frame", ResidualLayer::kFrame},
+                {"observations", "projected"},
+                {"inducing", layer.num_inducing()},
+                {"length_scales", scales},
+                {"tool_correlation", layer.tool_correlation},
+                {"signal_std", layer.signal_std},
+                {"noise_std", layer.noise_std},
+                {"hyperparameter_rows", l.fit.hyperparameter_rows},
+                {"log_marginal_likelihood", l.fit.log_marginal_likelihood},
+                {"start_loo_rms", l.fit.start_loo_rms},
+                {"chosen_start", l.fit.chosen_start},
+                {"inducing_coverage", l.fit.inducing_coverage},
+                {"spacing", spacing},
+                {"length_scales_below_spacing", short_joints}};
+  nlohmann::json kinds = nlohmann::json::array();
+  for (const ContactKindSummary& k : run.kinds) {
+    nlohmann::json e = {{"kind", k.kind->name},
+                        {"rms_mm_without_layer", k.fit.rms},
+                        {"rms_mm_with_layer", k.fit_with_layer.rms}};
+    if (k.held.rows > 0) {
+      e["held_out_rms_mm_without_layer"] = k.held_parametric.rms;
+      e["held_out_rms_mm_with_layer"] = k.held.rms;
+    }
+    if (k.kfold_parametric.rows > 0) {
+      e["kfold_rms_mm_without_layer"] = k.kfold_parametric.rms;
+      e["kfold_rms_mm_with_layer"] = k.kfold.rms;
+    }
+    kinds.push_back(e);
+  }
+  j["kinds"] = kinds;
+  return j.dump();
+}
+
+}  // namespace tools
+}  // namespace lpoe

@@ -1,0 +1,25 @@
+// The residual layer of a contact calibration (ballbar distances, probe contacts;
+// docs/residual_layer.md, "Projected observations") in the text output and the JSON report, one
+// text for lpoe_calibrate and Python's lpoe.calibrate.
+#ifndef LPOE_TOOLS_REPORT_CONTACT_LAYER_REPORT_H_
+#define LPOE_TOOLS_REPORT_CONTACT_LAYER_REPORT_H_
+
+#include <string>
+
+#include "lpoe/contact_pipeline.h"
+
+namespace lpoe {
+namespace tools {
+
+// The layer's lines: the auto choice's table (when it ran), the fit, its length scales and, per kind, the RMS without and with it on the
+// identification rows, the held-out rows and the k-fold folds (`kfold` > 0). Empty when no layer
+// was asked for; "residual layer: none (why)" when its fit failed.
+std::string ContactLayerText(const ContactPipelineResult& run, int kfold);
+// The report's "residual_layer" object (JSON text): requested (the option's text), fitted,
+// message, selection (auto: folds, seed, candidates, best, chosen, reason; else null), the layer's hyperparameters and figures, and per kind the RMS without and with it.
+std::string ContactLayerJsonText(const ContactPipelineResult& run, const std::string& requested);
+
+}  // namespace tools
+}  // namespace lpoe
+
+#endif  // LPOE_TOOLS_REPORT_CONTACT_LAYER_REPORT_H_
