@@ -664,7 +664,7 @@ void ContactEstimates(ContactRun* job, std::ostream& out) {
                                {"identified_combinations", kept},
                                {"values", values}});
   }
-  job->layer_text = ContactLayerText(run, FLAGS_kfold);
+  job->layer_text = ContactLayerText(job->run, FLAGS_kfold);
   out << job->layer_text;
   if (p.num_base_directions > 0) {
     out << "not identified (" << p.num_base_directions << " directions of the base): "
