@@ -115,17 +115,7 @@ JointErrorSelection SelectContactJointErrors(const RobotModel& start,
     internal::ScoreFolds(errors, &c);
     sel.candidates.push_back(c);
   }
-  // Simplest first (fewest identified combinations; ties keep the listed order).
-  std::stable_sort(sel.candidates.begin(), sel.candidates.end(),
-                   [](const JointErrorCandidate& a, const JointErrorCandidate& b) {
-                     return a.parameters < b.parameters;
-                   });
-  if (!internal::ChooseWithinOneStandardError(&sel)) {
-    for (size_t k = 0; k < sel.candidates.size(); ++k) {
-      if (sel.candidates[k].terms.empty()) sel.chosen = static_cast<int>(k);
-    }
-    sel.reason = "no candidate converged on every fold; geometry alone";
-  }
+  internal::ChooseJointErrors(&sel);
   return sel;
 }
 

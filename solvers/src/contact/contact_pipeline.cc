@@ -136,17 +136,7 @@ ResidualModelSelection SelectContactResidualModel(const RobotModel& start,
     outcomes[0].push_back(std::move(none));
     outcomes[1].push_back(std::move(gp));
   }
-  const char* const labels[2] = {"none", "gp"};
-  for (int which = 0; which < 2; ++which) {
-    ResidualModelCandidate c;
-    c.label = labels[which];
-    internal::ScoreFolds(outcomes[which], &c);
-    sel.candidates.push_back(c);
-  }
-  if (!internal::ChooseWithinOneStandardError(&sel)) {
-    sel.chosen = 0;
-    sel.reason = "cross-validation failed (" + sel.candidates[0].failure + "); no layer";
-  }
+  internal::ChooseResidualModel(outcomes, &sel);
   return sel;
 }
 

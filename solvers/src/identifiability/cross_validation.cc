@@ -109,5 +109,35 @@ bool ChooseWithinOneStandardError(const std::vector<const CrossValidatedCandidat
   return true;
 }
 
+void ChooseJointErrors(JointErrorSelection* selection) {
+  std::stable_sort(selection->candidates.begin(), selection->candidates.end(),
+                   [](const JointErrorCandidate& a, const JointErrorCandidate& b) {
+                     return a.parameters < b.parameters;
+                   });
+  if (!ChooseWithinOneStandardError(selection)) {
+    // Nothing converged on every fold: the geometric model (the main run reports its failure).
+    for (size_t k = 0; k < selection->candidates.size(); ++k) {
+      if (selection->candidates[k].terms.empty()) selection->chosen = static_cast<int>(k);
+    }
+    selection->reason = "no candidate converged on every fold; geometry alone";
+  }
+}
+
+void ChooseResidualModel(const std::vector<FoldErrors> outcomes[2],
+                         ResidualModelSelection* selection) {
+  const char* const labels[2] = {"none", "gp"};
+  for (int which = 0; which < 2; ++which) {
+    ResidualModelCandidate c;
+    c.label = labels[which];
+    ScoreFolds(outcomes[which], &c);
+    selection->candidates.push_back(c);
+  }
+  if (!ChooseWithinOneStandardError(selection)) {
+    selection->chosen = 0;
+    selection->reason =
+        "cross-validation failed (" + selection->candidates[0].failure + "); no layer";
+  }
+}
+
 }  // namespace internal
 }  // namespace lpoe

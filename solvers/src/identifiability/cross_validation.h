@@ -72,6 +72,16 @@ bool ChooseWithinOneStandardError(Selection* selection) {
   return ChooseWithinOneStandardError(list, selection);
 }
 
+// --joint_errors=auto's choice (tracker and contact rows alike): the candidates ordered simplest
+// first (fewest identified combinations; ties keep the listed order), then the one-standard-error
+// rule; when no candidate converged on every fold, the geometric model.
+void ChooseJointErrors(JointErrorSelection* selection);
+
+// --residual_model=auto's choice from the folds' errors without (outcomes[0]) and with
+// (outcomes[1]) the layer: the one-standard-error rule, none when cross-validation failed.
+void ChooseResidualModel(const std::vector<FoldErrors> outcomes[2],
+                         ResidualModelSelection* selection);
+
 }  // namespace internal
 }  // namespace lpoe
 

@@ -147,18 +147,7 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
     }
   }
   sel.candidates = CrossValidateAll(nominal, identification, folds, options, sets);
-  // Simplest first (fewest identified combinations; ties keep the listed order).
-  std::stable_sort(sel.candidates.begin(), sel.candidates.end(),
-                   [](const JointErrorCandidate& a, const JointErrorCandidate& b) {
-                     return a.parameters < b.parameters;
-                   });
-  if (!internal::ChooseWithinOneStandardError(&sel)) {
-    // Nothing converged on every fold: the geometric model (the main run reports its failure).
-    for (size_t k = 0; k < sel.candidates.size(); ++k) {
-      if (sel.candidates[k].terms.empty()) sel.chosen = static_cast<int>(k);
-    }
-    sel.reason = "no candidate converged on every fold; geometry alone";
-  }
+  internal::ChooseJointErrors(&sel);
   return sel;
 }
 

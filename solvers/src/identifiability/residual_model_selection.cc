@@ -101,17 +101,7 @@ ResidualModelSelection SelectResidualModel(const RobotModel& nominal,
     }
     none.ok = gp.ok = true;
   });
-  const char* const labels[2] = {"none", "gp"};
-  for (int which = 0; which < 2; ++which) {
-    ResidualModelCandidate c;
-    c.label = labels[which];
-    internal::ScoreFolds(outcomes[which], &c);
-    sel.candidates.push_back(c);
-  }
-  if (!internal::ChooseWithinOneStandardError(&sel)) {
-    sel.chosen = 0;
-    sel.reason = "cross-validation failed (" + sel.candidates[0].failure + "); no layer";
-  }
+  internal::ChooseResidualModel(outcomes, &sel);
   return sel;
 }
 
