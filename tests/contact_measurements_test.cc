@@ -40,6 +40,34 @@ TEST(ContactCsv, DetectsTheKindFromTheColumns) {
   EXPECT_EQ(FindMeasurementKind("laser"), nullptr);
 }
 
+// A file's kind from its header line: comments and blank lines before it, a header without a final
+// newline, a header beyond the first read piece (64 KiB of comments), and a file without one.
+TEST(ContactCsv, DetectsAFilesKindFromItsHeaderLine) {
+  const std::string dir = ::testing::TempDir();
+  const auto kind_of = [&](const std::string& name, const std::string& text,
+                           const MeasurementKindInfo** kind) {
+    const std::string path = dir + "/" + name;
+    std::ofstream(path, std::ios::binary) << text;
+    return DetectMeasurementFileKind(path, kind);
+  };
+  const MeasurementKindInfo* kind = nullptr;
+  ASSERT_TRUE(kind_of("a.csv", "# ballbar\n\n  \nq1,q2,distance,pivot\n1,2,150,a\n", &kind).ok());
+  EXPECT_EQ(kind->id, MeasurementKindId::kDistance);
+  ASSERT_TRUE(kind_of("b.csv", "q1,plane", &kind).ok());
+  EXPECT_EQ(kind->id, MeasurementKindId::kPlane);
+  std::string long_comments;
+  while (long_comments.size() < 200000) long_comments += "# a comment line of the cell's log\n";
+  ASSERT_TRUE(kind_of("c.csv", long_comments + "q1,x,y,z\n0,1,2,3\n", &kind).ok());
+  EXPECT_EQ(kind->id, MeasurementKindId::kPosition);
+  const Status none = kind_of("d.csv", "# only a comment\n\n", &kind);
+  ASSERT_FALSE(none.ok());
+  EXPECT_NE(none.message().find("d.csv:1"), std::string::npos) << none.message();
+  EXPECT_NE(none.message().find("no header"), std::string::npos) << none.message();
+  const Status bad = kind_of("e.csv", "# log\nq1,time\n", &kind);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.message().find("e.csv:2"), std::string::npos) << bad.message();
+}
+
 TEST(ContactCsv, ReadsDistancesAndPlanes) {
   const RobotModel model = MakeCobot6();
   ContactCsvOptions o;

@@ -381,10 +381,50 @@ Status ReadContactMeasurements(const std::string& path, const RobotModel& model,
   return ParseContactMeasurementsCsv(text, path, model, options, out);
 }
 
+namespace {
+
+// Whether `text` holds a complete line (ended by '\n') that is neither blank nor a comment, from
+// *scanned on; *scanned moves past the complete lines looked at.
+bool HasHeaderLine(const std::string& text, size_t* scanned) {
+  while (true) {
+    const size_t end = text.find('\n', *scanned);
+    if (end == std::string::npos) return false;
+    const std::string_view line(text.data() + *scanned, end - *scanned);
+    *scanned = end + 1;
+    if (!CommentOrBlank(line)) return true;
+  }
+}
+
+// The file's text up to its header line (all of it when it has none): a tracker file of 10^6 rows
+// is not read whole to learn its kind. Bounded by kMaxContactFileBytes like the readers.
+Status ReadUpToHeader(const std::string& path, std::string* text) {
+  try {
+    internal::InputFile file;
+    if (Status s = file.Open(path); !s.ok()) return s;
+    char buf[1 << 16];
+    size_t scanned = 0;
+    while (!HasHeaderLine(*text, &scanned)) {
+      size_t got = 0;
+      if (Status s = file.Read(buf, sizeof(buf), &got); !s.ok()) return s;
+      if (got == 0) break;
+      if (text->size() + got > kMaxContactFileBytes) {
+        return Status::Error(path + ": no header in the first " +
+                             std::to_string(kMaxContactFileBytes) + " bytes");
+      }
+      text->append(buf, got);
+    }
+    return Status::Ok();
+  } catch (const std::exception& e) {  // std::bad_alloc
+    return Status::Error(path + ": cannot read: " + e.what());
+  }
+}
+
+}  // namespace
+
 Status DetectMeasurementFileKind(const std::string& path, const MeasurementKindInfo** kind) {
   *kind = nullptr;
   std::string text;
-  Status s = internal::ReadFileBounded(path, kMaxContactFileBytes, &text);
+  Status s = ReadUpToHeader(path, &text);
   if (!s.ok()) return s;
   const MeasurementKindInfo* found = nullptr;
   bool done = false;
