@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lpoe/program.h"
@@ -237,7 +238,7 @@ class RapidParser {
       qd.number = conf[k];
       r.quadrants.push_back(qd);
     }
-    *record = Add(r);
+    *record = Add(std::move(r));
     return Status::Ok();
   }
 
@@ -265,12 +266,12 @@ class RapidParser {
     r.kind = ProgramTargetKind::kJoint;
     r.joint_encoding = JointEncoding::kDegrees;
     r.numbers = j;
-    *record = Add(r);
+    *record = Add(std::move(r));
     return Status::Ok();
   }
 
-  int Add(const ProgramTarget& r) {
-    program_->targets.push_back(r);
+  int Add(ProgramTarget r) {
+    program_->targets.push_back(std::move(r));
     uses_.emplace_back();
     return static_cast<int>(program_->targets.size()) - 1;
   }
@@ -542,7 +543,7 @@ class RapidParser {
     t.line = line;
     t.compensable = false;
     t.reason = reason;
-    Add(t);
+    Add(std::move(t));
   }
 
   Status Finish() {

@@ -167,6 +167,11 @@ Status Tokenize(std::string_view text, const LexerOptions& options, std::vector<
                                              std::to_string(kMaxProgramBytes >> 20) +
                                              " MB (its size here exceeds the limit)"));
   }
+  // Programs have about one token per three to four bytes (a number or name and its separator):
+  // reserving one per two bytes once keeps the list from being copied as it grows (only a text
+  // of mostly one-byte tokens grows it), and what a program leaves unfilled is address space the
+  // system never backs with memory.
+  tokens->reserve(text.size() / 2 + 16);
   std::vector<int> open;  // token indices of open brackets
   size_t i = 0;
   const size_t n = text.size();

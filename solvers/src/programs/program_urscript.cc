@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lpoe/program.h"
@@ -213,7 +214,7 @@ class UrParser {
     t.joint_encoding = JointEncoding::kRadians;
     t.tcp_name = "flange";
     t.frame_name = "base";
-    program_->targets.push_back(t);
+    program_->targets.push_back(std::move(t));
     uses_.emplace_back();
     frame_use_.push_back(0);
     return static_cast<int>(program_->targets.size()) - 1;
@@ -225,7 +226,7 @@ class UrParser {
     t.line = line;
     t.compensable = false;
     t.reason = reason;
-    program_->targets.push_back(t);
+    program_->targets.push_back(std::move(t));
     uses_.emplace_back();
     frame_use_.push_back(0);
     return static_cast<int>(program_->targets.size()) - 1;
@@ -321,6 +322,7 @@ class UrParser {
   // Resolves each record's context from its uses; drops the literals no motion uses.
   Status Finish() {
     std::vector<ProgramTarget> kept;
+    kept.reserve(program_->targets.size());
     for (size_t k = 0; k < program_->targets.size(); ++k) {
       ProgramTarget& t = program_->targets[k];
       const std::vector<Use>& uses = uses_[k];
