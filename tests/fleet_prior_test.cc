@@ -535,7 +535,8 @@ TEST(FleetPrior, NewRobotOfAKnownTypeFromTwentyPosesInItsCell) {
     }
     std::cout << "robot " << k + 9 << ": held out over the workspace: fleet prior + 20 poses "
               << e_fleet << " mm, least squares of the 20 poses " << e_ls
-              << " mm, the fleet mean alone " << e_mean << " mm; " << from_prior << " of "
+              << " mm, the fleet mean alone " << e_mean << " mm (the data weighed with s = "
+              << fleet.run.result.prior_data_sigma << " mm); " << from_prior << " of "
               << share.size() << " parameters mostly from the fleet:" << names << "\n";
     EXPECT_LT(e_fleet, e_mean);
     EXPECT_GT(from_prior, 0);
