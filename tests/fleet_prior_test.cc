@@ -6,6 +6,9 @@
 // joint harmonics of a few hundredths of a mrad that no calibration here models (always present),
 // and a fleet whose deviation from the drawing is partly the type's (shared) and partly each
 // robot's own.
+// The linear theory also measures a likelihood with correlated unmodelled error (generalized least
+// squares; docs/recalibration.md, "A likelihood with correlated unmodelled error"), which is not in
+// the library because it does not pay here.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
