@@ -166,11 +166,17 @@ TEST(BlockKind, TiltColumnsMatchFiniteDifferencesOfThePredictedOffsets) {
 struct Simulated {
   RobotModel nominal = LoadedCobot();
   MeasurementSet data;
+  Eigen::Vector2d true_tilt;
   Simulated() {
     const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, 5);
     RobotModel actual = ApplyErrors(nominal, errors);
     const double t[2] = {0.3 * kDeg, -0.2 * kDeg};
     actual.gravity = TiltedGravity<double>(nominal.gravity, t);
+    // What the calibration can find: gravity relative to the actual base (joint 1's frame carries
+    // a geometric error), seen in the nominal model's.
+    true_tilt = GravityTiltBetween(nominal.gravity, nominal.joints[0].origin.R *
+                                                        actual.joints[0].origin.R.transpose() *
+                                                        actual.gravity);
     ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), {"compliance"},
                            &actual);
     SimulationOptions options;
@@ -209,7 +215,8 @@ Eigen::VectorXd Residuals(const RobotModel& model, const MeasurementSet& data) {
 // Both solvers, asked for compliance and the tilt from a compliance solution, estimate the tilt a
 // plain Gauss-Newton on finite-difference Jacobians of the predicted positions finds (in the same
 // parameterization, from the same start) to 1% of its standard deviation, and recover the true
-// tilt within 4 standard deviations.
+// tilt within 4 standard deviations. (At the minimum the residuals are noise, so this checks the
+// solvers' cost and convergence; their columns are checked against differences above.)
 TEST(BlockKind, BothSolversEstimateTheTiltOfAPlainLeastSquaresReference) {
   const Simulated s;
   LinearSolverOptions first;
@@ -263,7 +270,6 @@ TEST(BlockKind, BothSolversEstimateTheTiltOfAPlainLeastSquaresReference) {
     if (step.cwiseAbs().maxCoeff() < 1e-14) break;
   }
   const Eigen::Vector2d reference = GravityTiltOf(p, x);
-  const Eigen::Vector2d truth(0.3 * kDeg, -0.2 * kDeg);
   for (int a = 0; a < 2; ++a) {
     const double sd = linear.gravity_tilt.standard_deviation(a);
     ASSERT_GT(sd, 0);
@@ -272,9 +278,8 @@ TEST(BlockKind, BothSolversEstimateTheTiltOfAPlainLeastSquaresReference) {
         << "linear, tilt " << a << ": " << linear.gravity_tilt.tilt(a) << " vs " << reference(a);
     EXPECT_LT(std::abs(ceres.gravity_tilt.tilt(a) - reference(a)), 0.01 * sd)
         << "ceres, tilt " << a << ": " << ceres.gravity_tilt.tilt(a) << " vs " << reference(a);
-    // The true tilt relative to the actual base differs from `truth` by joint 1's geometric error
-    // (about 0.1 deg at most here): a loose check that the estimate is the physical tilt.
-    EXPECT_LT(std::abs(reference(a) - truth(a)), 4 * sd + 0.15 * kDeg) << "tilt " << a;
+    EXPECT_LT(std::abs(reference(a) - s.true_tilt(a)), 4 * sd)
+        << "tilt " << a << ": " << reference(a) / kDeg << " deg, true " << s.true_tilt(a) / kDeg;
   }
   // And the same cost: the reference's residuals are not smaller than the solvers'.
   const double reference_cost = 0.5 * Residuals(ModelAt(s.nominal, p, x), s.data).squaredNorm();
