@@ -189,7 +189,8 @@ struct Simulated {
 
 // The model of parameterization p's coordinates x about `nominal`: frames moved by x, compliance
 // values from x's compliance coordinates, gravity tilted by x's tilt (the calibrated model's form).
-RobotModel ModelAt(const RobotModel& nominal, const Parameterization& p, const Eigen::VectorXd& x) {
+RobotModel ModelAt(const RobotModel& nominal, const Parameterization& p,
+                   const Eigen::VectorXd& x) {
   RobotModel m = nominal;
   ApplyUpdate(p, x, &m);
   for (const JointBlock& block : p.joint_blocks) {
