@@ -16,7 +16,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
-#include "calibration/gravity_tilt.h"
+#include "calibration/block_kind.h"
 #include "identifiability/identifiability.h"
 #include "lpoe/eigen_decompositions.h"
 #include "calibration/prior_terms.h"
@@ -505,9 +505,11 @@ void SolutionCovariance(CalibrationProblem& builder, const CeresSolverOptions& o
   // Jacobian of every row (650 MB for 10^6 rows) and take its SVD, the most expensive step of a
   // 1000-row calibration with joint-space terms; the normal equations are formed by the joint
   // blocks' structure, and the same rank test refuses a rank-deficient Jacobian.
-  // (A gravity tilt's bilinear block keeps ceres::Covariance: its a-priori form, as before.)
+  // (A block kind's block, block_kind.h: the gravity tilt's bilinear one, keeps ceres::Covariance:
+  // its a-priori form, as before.)
   const bool normal_equations =
-      builder.BatchedRows() > 1 || (!full && options.loss == "none" && !options.gravity_tilt);
+      builder.BatchedRows() > 1 || (!full && options.loss == "none" &&
+                                    !internal::HasNonlinearBlocks(builder.parameterization()));
   // Full parameterization: truncated to the identifiable rank, as the steps were measured.
   int null_space_rank = -1;
   if (full) {
@@ -540,8 +542,7 @@ void SolutionCovariance(CalibrationProblem& builder, const CeresSolverOptions& o
 void TiltResult(const CalibrationProblem& builder, const CeresSolverOptions& options,
                 int identifiable, double final_cost, CalibrationResult* result) {
   const Parameterization& all = builder.parameterization();
-  internal::FillGravityTiltResult(all, builder.JointState(), result->covariance,
-                                  &result->gravity_tilt);
+  internal::FillBlockKindResults(all, builder.JointState(), result->covariance, result);
   if (all.gravity_tilt && !options.a_posteriori_covariance &&
       result->gravity_tilt.standard_deviation.maxCoeff() > 0) {
     result->gravity_tilt.a_priori_standard_deviation = result->gravity_tilt.standard_deviation;
@@ -649,8 +650,7 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
     message = "ceres: " + watch.decision.message;
   }
   if (termination == Termination::kNumericalFailure) {
-    internal::FillGravityTiltResult(all, builder.JointState(), Eigen::MatrixXd(),
-                                    &result.gravity_tilt);
+    internal::FillBlockKindResults(all, builder.JointState(), Eigen::MatrixXd(), &result);
     return finish(termination, message);
   }
   if (options.compute_covariance && termination == Termination::kConverged) {

@@ -7,6 +7,8 @@
 #include <Eigen/Eigenvalues>
 #include <glog/logging.h>
 
+#include "calibration/block_kind.h"
+#include "calibration/problem_setup.h"
 #include "identifiability/identifiability.h"
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/joint_errors.h"
@@ -14,6 +16,14 @@
 
 namespace lpoe {
 namespace internal {
+namespace {
+
+// The term the tilt is bilinear with and the message without it (the kind's, below).
+constexpr char kTiltPartner[] = "compliance";
+constexpr char kTiltNeedsPartner[] =
+    "the gravity tilt is identified with the compliance term (joint errors compliance,tilt)";
+
+}  // namespace
 
 void GravityTiltRowRegressors(const Parameterization& p, const double* q, Eigen::MatrixXd Z[3]) {
   CHECK(p.gravity_tilt != nullptr);
@@ -85,7 +95,7 @@ void ApplyGravityTiltColumns(const Parameterization& p, const double* q,
 
 Status AddSolverGravityTilt(std::shared_ptr<const GravityTiltModel> tilt, Parameterization* p) {
   for (size_t b = 0; b < p->joint_blocks.size(); ++b) {
-    if (p->joint_blocks[b].term->name() != "compliance") continue;
+    if (p->joint_blocks[b].term->name() != kTiltPartner) continue;
     if (p->joint_blocks[b].basis.cols() == 0) {
       return Status::Error("the gravity tilt needs identified compliance combinations; these data "
                            "identify none");
@@ -93,8 +103,7 @@ Status AddSolverGravityTilt(std::shared_ptr<const GravityTiltModel> tilt, Parame
     AddGravityTilt(std::move(tilt), static_cast<int>(b), p);
     return Status::Ok();
   }
-  return Status::Error("the gravity tilt is identified with the compliance term (joint errors "
-                       "compliance,tilt)");
+  return Status::Error(kTiltNeedsPartner);
 }
 
 Eigen::VectorXd InitialJointState(const Parameterization& p,
@@ -195,6 +204,54 @@ bool CheckGravityTilt(const RobotModel& start, const MeasurementSet& data,
   }
   out->message.clear();
   return true;
+}
+
+namespace {
+
+// The gravity tilt as a block kind (block_kind.h): two parameters after the joint blocks, bilinear
+// with the compliance block; the functions above are its columns, result and rule.
+class GravityTiltKind : public BlockKind {
+ public:
+  const char* name() const override { return kGravityTiltName; }
+  const char* partner_term() const override { return kTiltPartner; }
+  const char* needs_partner_message() const override { return kTiltNeedsPartner; }
+  bool Requested(const ProblemSetupRequest& request) const override {
+    return request.gravity_tilt != nullptr;
+  }
+  bool In(const Parameterization& p) const override { return p.gravity_tilt != nullptr; }
+  Status Add(const ProblemSetupRequest& request, Parameterization* p) const override {
+    return AddSolverGravityTilt(request.gravity_tilt, p);
+  }
+  void RowColumns(const Parameterization& p, const double* q, const Eigen::VectorXd& joint_state,
+                  Eigen::Ref<Eigen::MatrixXd> R, Eigen::VectorXd* q_eff) const override {
+    ApplyGravityTiltColumns(p, q, joint_state, R, q_eff);
+  }
+  std::shared_ptr<const GravityTiltRow> CeresRow(const Parameterization& p, const double* q,
+                                                 int partner_block) const override {
+    auto row = std::make_shared<GravityTiltRow>();
+    row->block = partner_block;
+    row->gravity = p.gravity_tilt->gravity();
+    row->axes = p.gravity_tilt->axes();
+    GravityTiltRowRegressors(p, q, row->Z);
+    return row;
+  }
+  void FillResult(const Parameterization& p, const Eigen::VectorXd& joint_state,
+                  const Eigen::MatrixXd& covariance, CalibrationResult* out) const override {
+    FillGravityTiltResult(p, joint_state, covariance, &out->gravity_tilt);
+  }
+  bool Identifiable(const RobotModel& start, const MeasurementSet& data,
+                    const CalibrationResult& r0, bool use_orientation, double orientation_weight,
+                    double tolerance, double max_sigma, CalibrationResult* out) const override {
+    return CheckGravityTilt(start, data, r0, use_orientation, orientation_weight, tolerance,
+                            max_sigma, &out->gravity_tilt);
+  }
+};
+
+}  // namespace
+
+const BlockKind& GravityTiltBlockKind() {
+  static const GravityTiltKind kind;
+  return kind;
 }
 
 }  // namespace internal

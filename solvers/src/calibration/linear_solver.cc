@@ -12,6 +12,7 @@
 #include <Eigen/SVD>
 #include <glog/logging.h>
 
+#include "calibration/block_kind.h"
 #include "calibration/gravity_tilt.h"
 #include "identifiability/identifiability.h"
 #include "calibration/prior_terms.h"
@@ -256,10 +257,11 @@ LinearSolve::LinearSolve(const RobotModel& nominal, const MeasurementSet& data,
       use_prior_(setup.prior.active),
       K_(setup.solved.num_joint_parameters()),
       // The rows' joint regressors do not change during the solve: evaluated once. The full
-      // parameterization (stacked rows) and a gravity tilt's solve (bilinear columns,
-      // gravity_tilt.h) take the dense joint columns (JointRegressorRows); otherwise the normal
-      // equations are formed by the joint blocks' structure (normal_equations.h).
-      structured_(K_ > 0 && !full_ && !setup.solved.gravity_tilt),
+      // parameterization (stacked rows) and a block kind's solve (columns that change with the
+      // state, block_kind.h: the gravity tilt) take the dense joint columns (JointRegressorRows);
+      // otherwise the normal equations are formed by the joint blocks' structure
+      // (normal_equations.h).
+      structured_(K_ > 0 && !full_ && !internal::HasNonlinearBlocks(setup.solved)),
       dof_(setup.equations - setup.identifiable),
       model_(nominal),
       joint_state_(setup.initial_joint_state) {
@@ -523,7 +525,7 @@ CalibrationResult LinearSolve::Converged(const Eigen::VectorXd& x,
                                 &result_.data_share);
   }
   Covariance();
-  internal::FillGravityTiltResult(p_, joint_state_, result_.covariance, &result_.gravity_tilt);
+  internal::FillBlockKindResults(p_, joint_state_, result_.covariance, &result_);
   return Finish(Termination::kConverged, decision.message);
 }
 
@@ -557,7 +559,7 @@ CalibrationResult LinearSolve::Stopped(Termination t, int iterations,
                                        const std::string& message) {
   result_.model = model_;
   result_.joint_terms = JointValues();
-  internal::FillGravityTiltResult(p_, joint_state_, Eigen::MatrixXd(), &result_.gravity_tilt);
+  internal::FillBlockKindResults(p_, joint_state_, Eigen::MatrixXd(), &result_);
   result_.iterations = iterations;
   result_.final_cost = lin_.cost;
   return Finish(t, message);

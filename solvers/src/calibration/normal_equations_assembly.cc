@@ -11,7 +11,7 @@
 
 #include <glog/logging.h>
 
-#include "calibration/gravity_tilt.h"
+#include "calibration/block_kind.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kernels.h"
 #include "lpoe/kinematics.h"
@@ -72,7 +72,7 @@ struct Scratch {
   std::vector<bool> identity;  // basis_b is the identity, per block (filled on first use)
   Eigen::MatrixXd J_q;        // m x n
   Eigen::VectorXd q_eff;      // n
-  Eigen::MatrixXd R_tilt;     // R with the gravity tilt's columns (gravity_tilt.h)
+  Eigen::MatrixXd R_tilt;     // R with the block kinds' columns (block_kind.h)
 };
 
 // The joint-space side of one row: s->R = [Y_b(q) basis_b].
@@ -110,7 +110,7 @@ void EvaluateJointRegressor(const Parameterization& p, const double* q, Scratch*
     }
     column += kb;
   }
-  // The gravity tilt's columns are not linear: zero here, filled by ApplyGravityTiltColumns.
+  // The block kinds' columns change with the state: zero here, set by AddNonlinearRowColumns.
   s->R_t.bottomRows(s->R_t.rows() - column).setZero();
   s->R = s->R_t.transpose();
 }
@@ -183,6 +183,7 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
   const int frame_columns = p.num_parameters - K;
   const int n = data.num_joints();
   const bool cached = joint_rows != nullptr && joint_rows->size() > 0;
+  const bool nonlinear = K > 0 && HasNonlinearBlocks(p);
   double* A = scratch->A.data();
   double* Y = scratch->Y.data();
   FrameRt* frames = scratch->frames.data();
@@ -214,13 +215,13 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
             n, K);
         scratch->q_eff = Eigen::Map<const Eigen::VectorXd>(q, n);
         if (joint_state.size() > 0) scratch->q_eff.noalias() += R * joint_state;
-        if (p.gravity_tilt) {  // bilinear: extra joint-space columns (gravity_tilt.h)
+        if (nonlinear) {  // the block kinds' columns at the current values (block_kind.h)
           scratch->R_tilt = R;
-          ApplyGravityTiltColumns(p, q, joint_state, scratch->R_tilt, &scratch->q_eff);
+          AddNonlinearRowColumns(p, q, joint_state, scratch->R_tilt, &scratch->q_eff);
         }
         const Eigen::Ref<const Eigen::MatrixXd> Rj =
-            p.gravity_tilt ? Eigen::Ref<const Eigen::MatrixXd>(scratch->R_tilt)
-                           : Eigen::Ref<const Eigen::MatrixXd>(R);
+            nonlinear ? Eigen::Ref<const Eigen::MatrixXd>(scratch->R_tilt)
+                      : Eigen::Ref<const Eigen::MatrixXd>(R);
         e = kind.Linearize(bj, scratch->q_eff.data(), data.target(r), measured, Jr, ld,
                            scratch->J_q.data(), m, frames, y);
         // The joint blocks' columns, by the chain rule through q_eff.
@@ -859,8 +860,8 @@ NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet&
   const JointColumnsOptions& joint = options.joint;
   const Eigen::MatrixXd* joint_rows = options.joint_rows;
   PositionErrorRows* errors = options.errors;
-  // A gravity tilt's columns are bilinear (gravity_tilt.h): its solve takes the dense rows.
-  if (p.num_joint_parameters() > 0 && !stack && !joint.dense && !p.gravity_tilt) {
+  // A block kind's columns change with the state (block_kind.h): its solve takes the dense rows.
+  if (p.num_joint_parameters() > 0 && !stack && !joint.dense && !HasNonlinearBlocks(p)) {
     JointSpaceRegressors local;
     const JointSpaceRegressors* regs = joint.regressors;
     if (regs == nullptr) {

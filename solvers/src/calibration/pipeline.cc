@@ -9,6 +9,7 @@
 #include <Eigen/Cholesky>
 #include <glog/logging.h>
 
+#include "calibration/block_kind.h"
 #include "calibration/gravity_tilt.h"
 #include "identifiability/structural_identifiability.h"
 #include "lpoe/joint_errors.h"
@@ -287,7 +288,9 @@ void PipelineSolve::AnchorPrior() {
 bool PipelineSolve::MakeTerms(CalibrationResult* failed) {
   const std::vector<std::string>& names = options_.joint_errors;
   tilt_ = std::find(names.begin(), names.end(), std::string(kGravityTiltName)) != names.end();
-  if (tilt_ && std::find(names.begin(), names.end(), std::string("compliance")) == names.end()) {
+  // The term the tilt's block kind is bilinear with (block_kind.h).
+  const std::string partner = internal::FindBlockKind(kGravityTiltName)->partner_term();
+  if (tilt_ && std::find(names.begin(), names.end(), partner) == names.end()) {
     *failed = Refused(start_, kGravityTiltNeedsCompliance);
     return false;
   }
@@ -391,14 +394,18 @@ void PipelineSolve::SettleStructure(CalibrationResult* result) {
 }
 
 CalibrationResult PipelineSolve::SolveTilt(CalibrationResult result) {
-  GravityTiltResult check;
-  check.requested = true;
   const double tolerance = options_.solver == SolverKind::kCeres
                                ? options_.ceres.joint_term_tolerance
                                : options_.linear.joint_term_tolerance;
-  if (!internal::CheckGravityTilt(start_, data_, result, options_.use_orientation,
-                                  orientation_weight_, tolerance, options_.gravity_tilt_max_sigma,
-                                  &check)) {
+  // The tilt's block kind's rule at the compliance solution (block_kind.h).
+  CalibrationResult checked;
+  checked.gravity_tilt.requested = true;
+  const bool identifiable = internal::FindBlockKind(kGravityTiltName)
+                                ->Identifiable(start_, data_, result, options_.use_orientation,
+                                               orientation_weight_, tolerance,
+                                               options_.gravity_tilt_max_sigma, &checked);
+  GravityTiltResult check = checked.gravity_tilt;
+  if (!identifiable) {
     result.gravity_tilt = check;
     return StoreJointErrors(std::move(result), start_);
   }

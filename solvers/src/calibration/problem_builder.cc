@@ -10,7 +10,7 @@
 #include <glog/logging.h>
 
 #include "calibration/batched_residual.h"
-#include "calibration/gravity_tilt.h"
+#include "calibration/block_kind.h"
 #include "identifiability/identifiability.h"
 #include "identifiability/structural_identifiability.h"
 #include "lpoe/eigen_decompositions.h"
@@ -37,16 +37,12 @@ Status ValidateCalibrationProblemOptions(const CalibrationProblemOptions& option
   if (!(options.joint_term_tolerance > 0 && options.joint_term_tolerance < 1)) {
     return Status::Error("joint_term_tolerance must be in (0, 1)");
   }
-  bool compliance = false;
   for (const auto& term : options.joint_terms) {
     if (term == nullptr) return Status::Error("a joint-space term is null");
-    compliance = compliance || term->name() == "compliance";
   }
-  if (options.gravity_tilt && !compliance) {
-    return Status::Error("the gravity tilt is identified with the compliance term (joint errors "
-                         "compliance,tilt)");
-  }
-  return Status::Ok();
+  // Each block kind asked for (block_kind.h: the gravity tilt) with the term it needs.
+  return internal::CheckBlockKindPartners(options.joint_terms,
+                                          internal::ProblemSetupRequestOf(options));
 }
 
 Status ValidateCalibrationProblem(const RobotModel& nominal, const MeasurementSet& data,
@@ -165,7 +161,8 @@ namespace {
 const internal::JointSpaceRegressors* UsableSlots(const internal::JointSpaceRegressors* slots,
                                                   const Parameterization& p, int n, int rows,
                                                   Eigen::Index K) {
-  const bool usable = K > 0 && !p.gravity_tilt && slots != nullptr && slots->num_joints == n &&
+  const bool usable = K > 0 && !internal::HasNonlinearBlocks(p) && slots != nullptr &&
+                      slots->num_joints == n &&
                       slots->values.cols() == rows &&
                       slots->values.rows() == slots->num_slots() &&
                       slots->slot_basis.rows() == slots->num_slots() &&
@@ -210,8 +207,13 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
     block_sizes.push_back(static_cast<int>(joint_blocks_[b].size()));
     K += block_sizes.back();
   }
-  if (p.gravity_tilt) {
+  // The block kind after the joint blocks (one today: the residual takes one such block).
+  const internal::BlockKind* tilt_kind = nullptr;
+  for (const internal::BlockKind* kind : internal::BlockKinds()) {
+    if (!kind->In(p)) continue;
+    CHECK(tilt_kind == nullptr) << "the Ceres residual takes one block kind's block";
     CHECK_GE(tilt_block, 0);
+    tilt_kind = kind;
     parameters.push_back(tilt_.data());
   }
   std::vector<ceres::ResidualBlockId> ids;
@@ -273,14 +275,9 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
         column += static_cast<int>(block.basis.cols());
       }
     }
-    std::shared_ptr<GravityTiltRow> tilt;
-    if (p.gravity_tilt) {
-      tilt = std::make_shared<GravityTiltRow>();
-      tilt->block = tilt_block;
-      tilt->gravity = p.gravity_tilt->gravity();
-      tilt->axes = p.gravity_tilt->axes();
-      internal::GravityTiltRowRegressors(p, data.q(r), tilt->Z);
-    }
+    // The block kind's row data (block_kind.h: the gravity tilt's, bilinear with compliance).
+    const std::shared_ptr<const GravityTiltRow> tilt =
+        tilt_kind != nullptr ? tilt_kind->CeresRow(p, data.q(r), tilt_block) : nullptr;
     ceres::CostFunction* cost =
         options_.use_orientation
             ? PoseResidual::Create(shared_model, pose_kind, data.q(r), data.pose(r), R,

@@ -4,6 +4,7 @@
 
 #include <glog/logging.h>
 
+#include "calibration/block_kind.h"
 #include "calibration/gravity_tilt.h"
 #include "identifiability/identifiability.h"
 
@@ -35,9 +36,11 @@ void DecideParameterization(const RobotModel& nominal, const MeasurementSet& dat
   if (s->regressors) SetSlotBasis(s->all, s->regressors.get());
   s->solved = s->all;
   LeaveOutUnmeasuredTools(nominal, data, &s->solved);
-  if (request.gravity_tilt) {
-    s->tilt_status = AddSolverGravityTilt(request.gravity_tilt, &s->all);
-    if (s->tilt_status.ok()) s->tilt_status = AddSolverGravityTilt(request.gravity_tilt, &s->solved);
+  // The block kinds asked for (block_kind.h: the gravity tilt), after the joint blocks.
+  for (const BlockKind* kind : BlockKinds()) {
+    if (!kind->Requested(request) || !s->tilt_status.ok()) continue;
+    s->tilt_status = kind->Add(request, &s->all);
+    if (s->tilt_status.ok()) s->tilt_status = kind->Add(request, &s->solved);
   }
 }
 

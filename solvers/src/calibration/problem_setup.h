@@ -66,7 +66,8 @@ struct ProblemSetup {
   Parameterization solved;
   // Frame f (joints, then tools) is solved: a joint, or a tool some row measures.
   std::vector<bool> frame_solved;
-  // Why the gravity tilt could not be added (no identified compliance combination); ok otherwise.
+  // Why a requested block kind (block_kind.h: the gravity tilt) could not be added (no identified
+  // compliance combination); ok otherwise.
   Status tilt_status;
   bool full = false;       // the full parameterization (gauge directions solved too)
   bool overridden = false;  // request.parameterization_override

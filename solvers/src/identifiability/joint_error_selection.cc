@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "calibration/block_kind.h"
 #include "identifiability/cross_validation.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
@@ -139,7 +140,9 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
                                  r.message + ")";
     if (sel.tilt_candidates) {
       for (size_t k = 0; k < num_sets; ++k) {
-        if (std::find(sets[k].begin(), sets[k].end(), "compliance") == sets[k].end()) continue;
+        // The sets holding the term the tilt's block kind is bilinear with (block_kind.h).
+        const std::string partner = internal::FindBlockKind(kGravityTiltName)->partner_term();
+        if (std::find(sets[k].begin(), sets[k].end(), partner) == sets[k].end()) continue;
         std::vector<std::string> with_tilt = sets[k];
         with_tilt.push_back(kGravityTiltName);
         sets.push_back(with_tilt);

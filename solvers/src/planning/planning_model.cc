@@ -19,6 +19,7 @@
 #include <Eigen/SVD>
 #include <glog/logging.h>
 
+#include "calibration/block_kind.h"
 #include "identifiability/identifiability.h"
 #include "planning/planning_internal.h"
 #include "lpoe/analysis.h"
@@ -71,10 +72,12 @@ PlanningModel::PlanningModel(const RobotModel& model)
 
 Status PlanningGravityTiltStatus(const RobotModel& model,
                                  const std::vector<std::shared_ptr<const JointTerm>>& terms) {
+  // The term the tilt's block kind is bilinear with (calibration/block_kind.h).
+  const std::string partner = internal::FindBlockKind(kGravityTiltName)->partner_term();
   bool compliance = false;
-  for (const auto& term : terms) compliance = compliance || term->name() == "compliance";
+  for (const auto& term : terms) compliance = compliance || term->name() == partner;
   if (!compliance) return Status::Error(kGravityTiltNeedsCompliance);
-  const std::vector<double>& c = model.joint_errors.Values("compliance");
+  const std::vector<double>& c = model.joint_errors.Values(partner);
   if (std::all_of(c.begin(), c.end(), [](double v) { return v == 0; })) {
     return Status::Error(
         "the gravity tilt cannot be planned for with a model that carries no compliance values: "
@@ -99,7 +102,8 @@ PlanningModel::PlanningModel(const RobotModel& model,
   if (gravity_tilt_) {
     const Status s = PlanningGravityTiltStatus(model_, terms);
     CHECK(s.ok()) << s.message();
-    const std::vector<double>& c = model_.joint_errors.Values("compliance");
+    const std::vector<double>& c =
+        model_.joint_errors.Values(internal::FindBlockKind(kGravityTiltName)->partner_term());
     compliance_ = Eigen::Map<const Eigen::VectorXd>(c.data(), static_cast<Eigen::Index>(c.size()));
     const double zero[2] = {0.0, 0.0};
     gravity_tilt_jacobian_ =
