@@ -182,7 +182,8 @@ TEST(MeasurementKindTable, ContactRowsAreTheKindsHeaderFunctions) {
         const int first = internal::ContactFeatureColumn<Kind>(p, row.feature);
         const double own = rows.middleCols(first, Kind::kFeatureTangent).norm();
         EXPECT_GT(own, 0) << kind.name << " row " << i;
-        EXPECT_NEAR(rows.rightCols(features).norm(), own, 1e-12) << kind.name << " row " << i;
+        EXPECT_NEAR(rows.rightCols(features).norm(), own, 1e-12 * own)
+            << kind.name << " row " << i;
       } else {
         EXPECT_EQ(rows.rightCols(features).norm(), 0) << kind.name << " row " << i;
       }
@@ -217,7 +218,8 @@ TEST(MeasurementKindTable, LeftOutReasonIsTheKindsRule) {
     ContactFeatures f;
     EXPECT_TRUE(InitialContactFeatures(t.nominal, data, &f).ok());
     ContactParameterization p;
-    EXPECT_TRUE(MakeContactParameterization(t.nominal, f, data, ContactCalibrationOptions(), &p).ok());
+    const ContactCalibrationOptions o;
+    EXPECT_TRUE(MakeContactParameterization(t.nominal, f, data, o, &p).ok());
     EXPECT_GT(p.num_base_directions, 0);
     return p.base_reason;
   };

@@ -437,9 +437,9 @@ CalibrationResult PipelineSolve::Run(RegistrationReport* registration) {
   // lpoe_plan and lpoe.plan make on a plan): the fit is exact whatever the errors, every residual
   // zero and no standard deviation estimable. Refused as not identifiable (exit 3), not passed.
   if (result.converged()) {
-    const int64_t rows =
-        int64_t{data_.size()} *
-        MeasurementKind(TrackerKindId(options_.use_orientation && data_.has_orientation())).residuals;
+    const MeasurementKindId kind =
+        TrackerKindId(options_.use_orientation && data_.has_orientation());
+    const int64_t rows = int64_t{data_.size()} * MeasurementKind(kind).residuals;
     const int parameters = result.parameterization.num_parameters;
     // An informative prior (a previous calibration, a fleet) checks what the rows alone cannot.
     if (rows <= parameters && !(prior_ && prior_->informative)) {
