@@ -389,8 +389,8 @@ void LayoutContactColumns(ContactParameterization* p) {
 }
 
 // Tools no row measures: no columns (their directions left out with the reason).
-void LeaveOutUnmeasuredTools(const RobotModel& model, const ContactMeasurementSet& data,
-                             Parameterization* frames) {
+void LeaveOutUnmeasuredContactTools(const RobotModel& model, const ContactMeasurementSet& data,
+                                    Parameterization* frames) {
   const int n = model.num_joints();
   std::vector<bool> measured(model.num_tools(), false);
   for (const ContactRow& row : data.rows) measured[row.target] = true;
@@ -605,7 +605,7 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
                                    ContactParameterization* out) {
   ContactParameterization p;
   p.frames = MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
-  LeaveOutUnmeasuredTools(model, data, &p.frames);
+  LeaveOutUnmeasuredContactTools(model, data, &p.frames);
   DecideContactScaleHold(model, data, options, &p);
   p.num_pivots = static_cast<int>(features.pivots.size());
   p.num_planes = static_cast<int>(features.planes.size());
