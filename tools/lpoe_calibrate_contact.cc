@@ -209,35 +209,6 @@ bool ContactCalibrationRequested() {
 
 namespace {
 
-// --joint_errors=auto's choice for the JSON report (the tracker report's joint_errors.selection).
-nlohmann::json ContactSelectionJson(const JointErrorSelection& sel) {
-  nlohmann::json candidates = nlohmann::json::array();
-  for (const JointErrorCandidate& c : sel.candidates) {
-    nlohmann::json j = {{"terms", c.label},
-                        {"converged", c.ok},
-                        {"failure", c.failure},
-                        {"identified_combinations", c.parameters},
-                        {"fold_rms", c.fold_rms}};
-    if (c.ok) {
-      j["cv_rms"] = c.cv_rms;
-      j["cv_mse"] = c.cv_mse;
-      j["cv_mse_standard_error"] = c.cv_mse_se;
-    }
-    candidates.push_back(j);
-  }
-  return {{"folds", sel.folds},
-          {"seed", sel.seed},
-          {"candidates", candidates},
-          {"best", sel.best >= 0 ? sel.candidates[sel.best].label : ""},
-          {"chosen", sel.candidates[sel.chosen].label},
-          {"reason", sel.reason},
-          {"tilt_message", sel.tilt_message}};
-}
-
-}  // namespace
-
-namespace {
-
 // What the steps of a contact calibration share: the options and files from the flags, the inputs
 // read, the run, and the tables and JSON the summary builds for the outputs.
 struct ContactRun {
@@ -723,7 +694,8 @@ Status StageContactModelAndReport(ContactRun* job) {
          nlohmann::json::parse(ContactLayerJsonText(run, FLAGS_residual_model))},
     };
     if (run.joint_error_selection.ran) {
-      j["joint_error_selection"] = ContactSelectionJson(run.joint_error_selection);
+      j["joint_error_selection"] =
+          nlohmann::json::parse(ContactSelectionJsonText(run.joint_error_selection));
     }
     staged = outputs.Stage(FLAGS_report, j.dump(2) + "\n");
   }

@@ -703,32 +703,10 @@ std::string ContactReportJson(const ContactPipelineResult& run, bool verify_give
   }
   report["joint_errors"] = joint_terms;
   if (run.joint_error_selection.ran) {
-    // joint_errors='auto': the choice, as lpoe_calibrate's report writes it.
-    const JointErrorSelection& sel = run.joint_error_selection;
-    py::list candidates;
-    for (const JointErrorCandidate& cand : sel.candidates) {
-      py::dict d;
-      d["terms"] = cand.label;
-      d["converged"] = cand.ok;
-      d["failure"] = cand.failure;
-      d["identified_combinations"] = cand.parameters;
-      d["fold_rms"] = cand.fold_rms;
-      if (cand.ok) {
-        d["cv_rms"] = cand.cv_rms;
-        d["cv_mse"] = cand.cv_mse;
-        d["cv_mse_standard_error"] = cand.cv_mse_se;
-      }
-      candidates.append(d);
-    }
-    py::dict selection;
-    selection["folds"] = sel.folds;
-    selection["seed"] = sel.seed;
-    selection["candidates"] = candidates;
-    selection["best"] = sel.best >= 0 ? sel.candidates[sel.best].label : std::string();
-    selection["chosen"] = sel.candidates[sel.chosen].label;
-    selection["reason"] = sel.reason;
-    selection["tilt_message"] = sel.tilt_message;
-    report["joint_error_selection"] = selection;
+    // joint_errors='auto': the choice, as lpoe_calibrate's report writes it (one text for both,
+    // report/contact_layer_report.h).
+    report["joint_error_selection"] = py::module_::import("json").attr("loads")(
+        tools::ContactSelectionJsonText(run.joint_error_selection));
   }
   // The residual layer as lpoe_calibrate's report gives it (report/contact_layer_report.h).
   report["residual_layer"] = py::module_::import("json").attr("loads")(

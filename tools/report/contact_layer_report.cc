@@ -138,5 +138,34 @@ std::string ContactLayerJsonText(const ContactPipelineResult& run, const std::st
   return j.dump();
 }
 
+// Keys in insertion order (ordered_json): Python's report keeps them as written; the tool's
+// nlohmann::json sorts them as it sorts the rest of its report.
+std::string ContactSelectionJsonText(const JointErrorSelection& sel) {
+  nlohmann::ordered_json candidates = nlohmann::ordered_json::array();
+  for (const JointErrorCandidate& c : sel.candidates) {
+    nlohmann::ordered_json j;
+    j["terms"] = c.label;
+    j["converged"] = c.ok;
+    j["failure"] = c.failure;
+    j["identified_combinations"] = c.parameters;
+    j["fold_rms"] = c.fold_rms;
+    if (c.ok) {
+      j["cv_rms"] = c.cv_rms;
+      j["cv_mse"] = c.cv_mse;
+      j["cv_mse_standard_error"] = c.cv_mse_se;
+    }
+    candidates.push_back(std::move(j));
+  }
+  nlohmann::ordered_json out;
+  out["folds"] = sel.folds;
+  out["seed"] = sel.seed;
+  out["candidates"] = std::move(candidates);
+  out["best"] = sel.best >= 0 ? sel.candidates[sel.best].label : std::string();
+  out["chosen"] = sel.candidates[sel.chosen].label;
+  out["reason"] = sel.reason;
+  out["tilt_message"] = sel.tilt_message;
+  return out.dump();
+}
+
 }  // namespace tools
 }  // namespace lpoe

@@ -1,4 +1,4 @@
-// The residual layer of a contact calibration (ballbar distances, probe contacts;
+// The residual layer and the joint-error choice of a contact calibration (ballbar distances, probe contacts;
 // docs/residual_layer.md, "Projected observations") in the text output and the JSON report, one
 // text for lpoe_calibrate and Python's lpoe.calibrate.
 #ifndef LPOE_TOOLS_REPORT_CONTACT_LAYER_REPORT_H_
@@ -18,6 +18,12 @@ std::string ContactLayerText(const ContactPipelineResult& run, int kfold);
 // The report's "residual_layer" object (JSON text): requested (the option's text), fitted,
 // message, selection (auto: folds, seed, candidates, best, chosen, reason; else null), the layer's hyperparameters and figures, and per kind the RMS without and with it.
 std::string ContactLayerJsonText(const ContactPipelineResult& run, const std::string& requested);
+// The report's "joint_error_selection" object (JSON text) of --joint_errors=auto / joint_errors=
+// 'auto' (the tracker report's joint_errors.selection, for contact data): folds, seed, candidates
+// (terms, converged, failure, identified_combinations, fold_rms and, when converged, cv_rms,
+// cv_mse, cv_mse_standard_error), best, chosen, reason, tilt_message; keys in that order. `sel`
+// must have run.
+std::string ContactSelectionJsonText(const JointErrorSelection& sel);
 
 }  // namespace tools
 }  // namespace lpoe

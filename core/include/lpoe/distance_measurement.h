@@ -25,6 +25,7 @@ namespace lpoe {
 struct DistanceMeasurement {
   static constexpr int kResiduals = 1;
   static constexpr int kFeatureSize = 3;
+  static constexpr int kFeatureTangent = 3;  // the pivot's local coordinates: its xyz
   static constexpr MeasurementKindId kKind = MeasurementKindId::kDistance;
   using Observation = double;  // the measured distance (mm)
   static constexpr const char* kLeftOutReason =
@@ -62,6 +63,19 @@ struct DistanceMeasurement {
     }
     for (int k = 0; k < 3; ++k) feature_row[k] = -inverse_sigma * u(k);
     return (length - measured) * inverse_sigma;
+  }
+
+  // The residual layer's projected observation (docs/residual_layer.md, "Projected observations"):
+  // |P + m - c| - d ~ |P - c| - d + u . m, so the row sees u . m = -error along the unit u. False
+  // when u is not defined (the ball at its pivot).
+  static bool Projection(const Eigen::Vector3d& P, const double* pivot, double distance,
+                         Eigen::Vector3d* u, double* error) {
+    const Eigen::Vector3d d = P - Eigen::Vector3d(pivot[0], pivot[1], pivot[2]);
+    const double length = d.norm();
+    if (!(length > 0)) return false;
+    *u = d / length;
+    *error = length - distance;
+    return true;
   }
 
   // Simulation: what the bar reads with the ball at P (before noise).

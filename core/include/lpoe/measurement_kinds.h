@@ -34,9 +34,15 @@ struct MeasurementKindInfo {
   bool sees_base;
   const char* report_table;  // title of the kind's error table in the reports
   const char* noise_unit;    // "mm" (per axis for position and pose)
+  // The kind's left-out rule: why the directions its data cannot see (the base relative to the
+  // features, when !sees_base) are left out, as the reports give it; null when it sees the base.
+  // From the kind's header (kLeftOutReason).
+  const char* left_out_reason;
 };
 
-// position, pose, distance, plane (in MeasurementKindId order).
+// position, pose, distance, plane (in MeasurementKindId order). Each line of the table is checked at
+// compile time against its kind's header (residuals, feature size, kind id); the solvers reach a
+// kind's computation from its id with VisitMeasurementKind (measurement_kind_dispatch.h).
 const std::vector<MeasurementKindInfo>& MeasurementKinds();
 const MeasurementKindInfo& MeasurementKind(MeasurementKindId id);
 // By name ("distance", also "ballbar"; "plane", also "planes"); null when unknown.

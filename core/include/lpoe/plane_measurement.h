@@ -90,6 +90,16 @@ struct PlaneMeasurement {
     out[3] = plane[3] + step[2];
   }
 
+  // The residual layer's projected observation (see DistanceMeasurement::Projection): the contact
+  // sees n . m = -error along the plane's normal.
+  static bool Projection(const Eigen::Vector3d& P, const double* feature, double offset,
+                         Eigen::Vector3d* u, double* error) {
+    const Eigen::Vector4d plane(feature[0], feature[1], feature[2], feature[3]);
+    *u = plane.head<3>();
+    *error = plane.head<3>().dot(P) - plane(3) - offset;
+    return true;
+  }
+
   // Simulation: the offset measured with the tip's centre at P (before noise): its signed distance.
   static double Simulate(const Eigen::Vector3d& P, const Eigen::Vector4d& plane) {
     return plane.head<3>().dot(P) - plane(3);

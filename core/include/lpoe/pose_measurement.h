@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_kinds.h"
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
 
@@ -23,6 +24,9 @@ namespace lpoe {
 
 struct PoseMeasurement {
   static constexpr int kResiduals = 6;
+  static constexpr int kFeatureSize = 0;  // no unknown feature: the tracker sees the base
+  static constexpr MeasurementKindId kKind = MeasurementKindId::kPose;
+  static constexpr const char* kLeftOutReason = nullptr;
   static constexpr DataKind kData = DataKind::kPose;
   using Observation = SE3d;
 

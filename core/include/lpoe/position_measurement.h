@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_kinds.h"
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
 
@@ -21,6 +22,9 @@ namespace lpoe {
 
 struct PositionMeasurement {
   static constexpr int kResiduals = 3;
+  static constexpr int kFeatureSize = 0;  // no unknown feature: the tracker sees the base
+  static constexpr MeasurementKindId kKind = MeasurementKindId::kPosition;
+  static constexpr const char* kLeftOutReason = nullptr;
   static constexpr DataKind kData = DataKind::kPosition;
   using Observation = Eigen::Vector3d;
 

@@ -2,6 +2,8 @@
 
 #include <cctype>
 
+#include "lpoe/measurement_kind_dispatch.h"
+
 namespace lpoe {
 namespace {
 
@@ -27,17 +29,28 @@ bool HeaderHas(const std::vector<std::string>& header, std::string_view name) {
 
 const std::vector<MeasurementKindInfo>& MeasurementKinds() {
   static const std::vector<MeasurementKindInfo> kinds = {
-      {MeasurementKindId::kPosition, "position", "q1..qN,x,y,z[,target]", "x", 3, 0, "", "", true,
-       true, "position errors (tracker)", "mm per axis"},
+      {MeasurementKindId::kPosition, "position", "q1..qN,x,y,z[,target]", "x",
+       PositionMeasurement::kResiduals, PositionMeasurement::kFeatureSize, "", "", true, true,
+       "position errors (tracker)", "mm per axis", PositionMeasurement::kLeftOutReason},
       {MeasurementKindId::kPose, "pose", "q1..qN,x,y,z,quat_x,quat_y,quat_z,quat_w[,target]",
-       "quat_w", 6, 0, "", "", true, true, "pose errors (6D tracker)", "mm per axis"},
+       "quat_w", PoseMeasurement::kResiduals, PoseMeasurement::kFeatureSize, "", "", true, true,
+       "pose errors (6D tracker)", "mm per axis", PoseMeasurement::kLeftOutReason},
       {MeasurementKindId::kDistance, "distance", "q1..qN,distance[,pivot][,target][,sigma]",
-       "distance", 1, 3, "pivot", "pivot", true, false, "distance errors (ballbar)", "mm"},
-      {MeasurementKindId::kPlane, "plane", "q1..qN,plane[,offset][,target][,sigma]", "plane", 1, 4,
-       "plane", "plane", false, false, "plane contact errors (touch probe)", "mm"},
+       "distance", DistanceMeasurement::kResiduals, DistanceMeasurement::kFeatureSize, "pivot",
+       "pivot", true, false, "distance errors (ballbar)", "mm",
+       DistanceMeasurement::kLeftOutReason},
+      {MeasurementKindId::kPlane, "plane", "q1..qN,plane[,offset][,target][,sigma]", "plane",
+       PlaneMeasurement::kResiduals, PlaneMeasurement::kFeatureSize, "plane", "plane", false, false,
+       "plane contact errors (touch probe)", "mm", PlaneMeasurement::kLeftOutReason},
   };
   return kinds;
 }
+
+// Each table line is its kind's: the dispatch reaches the header the line names.
+static_assert(KindOf<MeasurementKindId::kPosition>::kKind == MeasurementKindId::kPosition, "");
+static_assert(KindOf<MeasurementKindId::kPose>::kKind == MeasurementKindId::kPose, "");
+static_assert(KindOf<MeasurementKindId::kDistance>::kKind == MeasurementKindId::kDistance, "");
+static_assert(KindOf<MeasurementKindId::kPlane>::kKind == MeasurementKindId::kPlane, "");
 
 const MeasurementKindInfo& MeasurementKind(MeasurementKindId id) {
   return MeasurementKinds()[static_cast<int>(id)];

@@ -14,6 +14,7 @@
 #include "identifiability/structural_identifiability.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/refusals.h"
 
 namespace lpoe {
@@ -443,8 +444,9 @@ CalibrationResult PipelineSolve::Run(RegistrationReport* registration) {
   // lpoe_plan and lpoe.plan make on a plan): the fit is exact whatever the errors, every residual
   // zero and no standard deviation estimable. Refused as not identifiable (exit 3), not passed.
   if (result.converged()) {
-    const int64_t rows = int64_t{data_.size()} *
-                         (options_.use_orientation && data_.has_orientation() ? 6 : 3);
+    const MeasurementKindId kind =
+        TrackerKindId(options_.use_orientation && data_.has_orientation());
+    const int64_t rows = int64_t{data_.size()} * MeasurementKind(kind).residuals;
     const int parameters = result.parameterization.num_parameters;
     // An informative prior (a previous calibration, a fleet) checks what the rows alone cannot.
     if (rows <= parameters && !(prior_ && prior_->informative)) {
@@ -630,7 +632,9 @@ void FixedToolsCheck(const RobotModel& nominal, const MeasurementSet& identifica
   const CalibrationResult g = SolveCalibration(free_nominal, identification, free_options,
                                                "fixed tools against free ones", nullptr, nullptr,
                                                nullptr);
-  const int per_row = options.use_orientation && identification.has_orientation() ? 6 : 3;
+  const int per_row =
+      MeasurementKind(TrackerKindId(options.use_orientation && identification.has_orientation()))
+          .residuals;
   const long rows = static_cast<long>(per_row) * identification.size();
   const int k = g.parameterization.num_parameters - result.parameterization.num_parameters;
   if (!(g.converged() && k > 0 && rows > g.parameterization.num_parameters && g.final_cost > 0)) {

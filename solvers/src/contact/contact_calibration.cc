@@ -11,6 +11,7 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
+#include "contact/contact_kinds.h"
 #include "identifiability/identifiability.h"
 #include "lpoe/distance_measurement.h"
 #include "lpoe/joint_errors.h"
@@ -245,39 +246,28 @@ void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
       }
     }
     const double w = 1.0 / row.sigma;
-    switch (row.kind) {
-      case MeasurementKindId::kDistance: {
-        DistanceMeasurement kind{w};
-        (*r)(at) = kind.Linearize(X, Jp.data(), P, features.pivots[row.feature].data(), row.value,
-                                  frame_row.data(), feature_row);
+    const int used = internal::VisitContactRowKind(row.kind, [&](auto tag) -> int {
+      using Kind = typename decltype(tag)::type;
+      if constexpr (Kind::kFeatureSize > 0) {
+        const Kind kind{w};
+        (*r)(at) = kind.Linearize(X, Jp.data(), P,
+                                  internal::ContactFeatureData<Kind>(features, row.feature),
+                                  row.value, frame_row.data(), feature_row);
         if (J != nullptr) {
           J->row(at).head(P) = frame_row.head(P);
-          for (int k = 0; k < 3; ++k) (*J)(at, p.pivot_offset + 3 * row.feature + k) = feature_row[k];
+          const int column = internal::ContactFeatureColumn<Kind>(p, row.feature);
+          for (int k = 0; k < Kind::kFeatureTangent; ++k) (*J)(at, column + k) = feature_row[k];
         }
-        at += 1;
-        break;
-      }
-      case MeasurementKindId::kPlane: {
-        PlaneMeasurement kind{w};
-        (*r)(at) = kind.Linearize(X, Jp.data(), P, features.planes[row.feature].data(), row.value,
-                                  frame_row.data(), feature_row);
-        if (J != nullptr) {
-          J->row(at).head(P) = frame_row.head(P);
-          for (int k = 0; k < 3; ++k) (*J)(at, p.plane_offset + 3 * row.feature + k) = feature_row[k];
-        }
-        at += 1;
-        break;
-      }
-      case MeasurementKindId::kPosition:
-      case MeasurementKindId::kPose: {
+        return Kind::kResiduals;
+      } else {
         for (int k = 0; k < 3; ++k) {
           (*r)(at + k) = (X(k) - row.position(k)) * w;
           if (J != nullptr) J->row(at + k).head(P) = w * Jp.row(k).head(P);
         }
-        at += 3;
-        break;
+        return 3;
       }
-    }
+    });
+    at += used;
   }
   if (gauge > 0) {
     (*r).segment(at, gauge) = (p.gauge_rows * FeatureVector(features) - p.gauge_values) / p.gauge_sigma;
@@ -319,16 +309,15 @@ std::vector<double> ContactErrors(const RobotModel& model, const ContactFeatures
     Eigen::Vector3d X = ToolPosition(model, q, row.target);
     // A layer's correction at the commanded joint values (PredictToolPosition).
     if (model.residual_layer) X += model.residual_layer->Mean(data.joints(i), row.target);
-    switch (row.kind) {
-      case MeasurementKindId::kDistance:
-        out[i] = DistanceMeasurement::Error<double>(X, features.pivots[row.feature].data(), row.value);
-        break;
-      case MeasurementKindId::kPlane:
-        out[i] = PlaneMeasurement::Error<double>(X, features.planes[row.feature].data(), row.value);
-        break;
-      default:
-        out[i] = (X - row.position).norm();
-    }
+    out[i] = internal::VisitContactRowKind(row.kind, [&](auto tag) -> double {
+      using Kind = typename decltype(tag)::type;
+      if constexpr (Kind::kFeatureSize > 0) {
+        return Kind::template Error<double>(
+            X, internal::ContactFeatureData<Kind>(features, row.feature), row.value);
+      } else {
+        return (X - row.position).norm();
+      }
+    });
   }
   return out;
 }
@@ -390,18 +379,23 @@ void StoreContactJointTerms(const ContactParameterization& p, const ContactFeatu
   }
 }
 
-Status MakeContactParameterization(const RobotModel& model, const ContactFeatures& features,
-                                   const ContactMeasurementSet& data,
-                                   const ContactCalibrationOptions& options,
-                                   ContactParameterization* out) {
-  ContactParameterization p;
-  p.frames = MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
-  // Tools no row measures: no columns.
+namespace {
+
+// The column layout after the frames: pivots (3 each), then planes (3 local coordinates each).
+void LayoutContactColumns(ContactParameterization* p) {
+  p->pivot_offset = p->frames.num_parameters;
+  p->plane_offset = p->pivot_offset + 3 * p->num_pivots;
+  p->num_parameters = p->plane_offset + 3 * p->num_planes;
+}
+
+// Tools no row measures: no columns (their directions left out with the reason).
+void LeaveOutUnmeasuredContactTools(const RobotModel& model, const ContactMeasurementSet& data,
+                                    Parameterization* frames) {
   const int n = model.num_joints();
   std::vector<bool> measured(model.num_tools(), false);
   for (const ContactRow& row : data.rows) measured[row.target] = true;
   for (int t = 0; t < model.num_tools(); ++t) {
-    Eigen::MatrixXd& B = p.frames.basis[n + t];
+    Eigen::MatrixXd& B = frames->basis[n + t];
     if (measured[t] || B.cols() == 0) continue;
     for (int c = 0; c < B.cols(); ++c) {
       Direction d;
@@ -409,37 +403,42 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
       d.vector = B.col(c);
       d.name = ContactFrameName(model, n + t) + "." + ContactDirectionName(d.vector);
       d.reason = "tool never measured in these data: not identified, kept as given";
-      p.frames.unidentifiable.push_back(d);
+      frames->unidentifiable.push_back(d);
     }
     B.resize(6, 0);
   }
-  RenumberContactFrames(model, &p.frames);
+  RenumberContactFrames(model, frames);
+}
+
+// Whether the robot's scale is held (a prior on ScaleOf) and why: asked for, or no row of a kind
+// that measures a length (the kind table's measures_length).
+void DecideContactScaleHold(const RobotModel& model, const ContactMeasurementSet& data,
+                            const ContactCalibrationOptions& options, ContactParameterization* p) {
   const bool length = AnyLengthRow(data);
-  p.scale_held = options.hold_scale == ScaleHold::kOn ||
-                 (options.hold_scale == ScaleHold::kAuto && !length);
-  if (p.scale_held) {
-    p.scale_weights = ScaleWeights(model, data);
-    p.scale_reason =
+  p->scale_held = options.hold_scale == ScaleHold::kOn ||
+                  (options.hold_scale == ScaleHold::kAuto && !length);
+  if (p->scale_held) {
+    p->scale_weights = ScaleWeights(model, data);
+    p->scale_reason =
         length ? "the robot's scale is held at the nominal model's (asked for)"
                : "no row measures a length (planes alone): scaling the robot and the planes "
                  "together leaves the contacts (nearly) unchanged, so the robot's scale is held at "
                  "the nominal model's (a prior on the scale; add a ballbar or a known length to "
                  "measure it)";
   } else {
-    p.scale_reason = length ? "the robot's scale is measured (distances or tracker positions)"
-                            : "the robot's scale is not held (--hold_scale=off) although no row "
-                              "measures a length: it is weakly determined";
+    p->scale_reason = length ? "the robot's scale is measured (distances or tracker positions)"
+                             : "the robot's scale is not held (--hold_scale=off) although no row "
+                               "measures a length: it is weakly determined";
   }
-  auto layout = [&p]() {
-    p.pivot_offset = p.frames.num_parameters;
-    p.plane_offset = p.pivot_offset + 3 * p.num_pivots;
-    p.num_parameters = p.plane_offset + 3 * p.num_planes;
-  };
-  p.num_pivots = static_cast<int>(features.pivots.size());
-  p.num_planes = static_cast<int>(features.planes.size());
-  layout();
+}
 
-  // The null space of the column-scaled Jacobian at the start.
+// The null space of the column-scaled Jacobian at the start, orthonormal, in unscaled
+// coordinates. Fewer residuals than unknowns leaves directions undetermined that are not the
+// base's (at most six): refused with the counts, before the null space is split among frames and
+// features.
+Status ContactNullSpace(const RobotModel& model, const ContactFeatures& features,
+                        const ContactMeasurementSet& data, const ContactCalibrationOptions& options,
+                        const ContactParameterization& p, Eigen::MatrixXd* null_space) {
   Eigen::VectorXd r;
   Eigen::MatrixXd J;
   ContactLinearize(model, features, p, model, data, options, &r, &J);
@@ -453,75 +452,90 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
   const Eigen::VectorXd& s = svd.singularValues();
   int rank = 0;
   while (rank < s.size() && s(rank) > options.null_tolerance * s(0)) ++rank;
-  // Fewer residuals than unknowns leaves directions undetermined that are not the base's (at most
-  // six): refused with the counts, before the null space is split among frames and features.
   if (J.rows() < J.cols() && J.cols() - rank > 6) {
     return Status::Error(std::to_string(data.size()) + " rows (" + std::to_string(J.rows()) +
                          " residuals) cannot determine the " + std::to_string(J.cols()) +
                          " unknowns of the robot's frames, pivots and planes: give more rows");
   }
-  // Null vectors in the unscaled coordinates, orthonormalized.
   Eigen::MatrixXd N = scale.asDiagonal() * svd.matrixV().rightCols(J.cols() - rank);
   if (N.cols() > 0) N = Eigen::HouseholderQR<Eigen::MatrixXd>(N).householderQ() *
                         Eigen::MatrixXd::Identity(N.rows(), N.cols());
-  // Left out frame by frame from the base: the directions of frame f that null vectors move,
-  // then the null vectors that do not move it.
+  *null_space = std::move(N);
+  return Status::Ok();
+}
+
+// Why the base's directions are left out: the left-out rule of the one kind in the data that does
+// not see the base (the kind table's left_out_reason), or the joint reason when several are.
+const char* ContactLeftOutReason(const ContactMeasurementSet& data) {
   const char* reason = nullptr;
-  for (const ContactRow& row : data.rows) {
-    if (row.kind == MeasurementKindId::kDistance && reason == nullptr) reason = DistanceMeasurement::kLeftOutReason;
+  int blind_kinds = 0;
+  for (const MeasurementKindInfo& kind : MeasurementKinds()) {
+    if (kind.left_out_reason == nullptr || data.Count(kind.id) == 0) continue;
+    if (reason == nullptr) reason = kind.left_out_reason;
+    ++blind_kinds;
   }
-  if (reason == nullptr) reason = PlaneMeasurement::kLeftOutReason;
-  if (data.Count(MeasurementKindId::kDistance) > 0 && data.Count(MeasurementKindId::kPlane) > 0) {
-    reason = "distances and probe contacts do not see the robot's base relative to the pivots and "
-             "planes (moving the base with every pivot and plane leaves every residual unchanged): "
-             "not identified, kept as given";
+  if (blind_kinds > 1) {
+    return "distances and probe contacts do not see the robot's base relative to the pivots and "
+           "planes (moving the base with every pivot and plane leaves every residual unchanged): "
+           "not identified, kept as given";
   }
-  for (int f = 0; f < model.num_frames() && N.cols() > 0; ++f) {
-    const int k = static_cast<int>(p.frames.basis[f].cols());
-    if (k == 0) continue;
-    if (f > 0 && N.cols() > 0) {
-      // Past the base frame: hold what is left on the features when they see all of it (a frame
-      // block's reduced basis would depend on the path the solver takes through the later
-      // frames, a function of the features does not).
-      const int feature_cols = p.num_parameters - p.pivot_offset;
-      Eigen::MatrixXd M(3 * p.num_pivots + 4 * p.num_planes, N.cols());  // ambient
-      for (int j = 0; j < N.cols(); ++j) {
-        for (int q = 0; q < p.num_pivots; ++q) {
-          M.block<3, 1>(3 * q, j) = N.block<3, 1>(p.pivot_offset + 3 * q, j);
-        }
-        for (int q = 0; q < p.num_planes; ++q) {
-          const Eigen::Matrix<double, 3, 2> B = PlaneTangentBasis(features.planes[q].head<3>());
-          const int a = 3 * p.num_pivots + 4 * q;
-          M.block<3, 1>(a, j) = B * N.block<2, 1>(p.plane_offset + 3 * q, j);
-          M(a + 3, j) = N(p.plane_offset + 3 * q + 2, j);
-        }
-      }
-      Eigen::JacobiSVD<Eigen::MatrixXd> m(M, Eigen::ComputeThinU);
-      if (feature_cols > 0 && M.rows() >= N.cols() &&
-          m.singularValues()(m.singularValues().size() - 1) > 1e-3 * m.singularValues()(0)) {
-        p.gauge_rows = m.matrixU().leftCols(N.cols()).transpose();
-        p.gauge_values = p.gauge_rows * FeatureVector(features);
-        p.num_base_directions += static_cast<int>(N.cols());
-        N.resize(N.rows(), 0);
-        break;
-      }
+  return reason != nullptr ? reason : MeasurementKind(MeasurementKindId::kPlane).left_out_reason;
+}
+
+// Past the base frame: the null vectors N held on the features, when the features see all of
+// them (a frame block's reduced basis would depend on the path the solver takes through the later
+// frames, a function of the features does not). True when held (N is then empty).
+bool HoldNullSpaceOnFeatures(const ContactFeatures& features, Eigen::MatrixXd* N,
+                             ContactParameterization* p) {
+  const int feature_cols = p->num_parameters - p->pivot_offset;
+  Eigen::MatrixXd M(3 * p->num_pivots + 4 * p->num_planes, N->cols());  // ambient
+  for (int j = 0; j < N->cols(); ++j) {
+    for (int q = 0; q < p->num_pivots; ++q) {
+      M.block<3, 1>(3 * q, j) = N->block<3, 1>(p->pivot_offset + 3 * q, j);
     }
-    const Eigen::MatrixXd A = N.middleRows(p.frames.offset[f], k);
+    for (int q = 0; q < p->num_planes; ++q) {
+      const Eigen::Matrix<double, 3, 2> B = PlaneTangentBasis(features.planes[q].head<3>());
+      const int a = 3 * p->num_pivots + 4 * q;
+      M.block<3, 1>(a, j) = B * N->block<2, 1>(p->plane_offset + 3 * q, j);
+      M(a + 3, j) = (*N)(p->plane_offset + 3 * q + 2, j);
+    }
+  }
+  Eigen::JacobiSVD<Eigen::MatrixXd> m(M, Eigen::ComputeThinU);
+  if (feature_cols > 0 && M.rows() >= N->cols() &&
+      m.singularValues()(m.singularValues().size() - 1) > 1e-3 * m.singularValues()(0)) {
+    p->gauge_rows = m.matrixU().leftCols(N->cols()).transpose();
+    p->gauge_values = p->gauge_rows * FeatureVector(features);
+    p->num_base_directions += static_cast<int>(N->cols());
+    N->resize(N->rows(), 0);
+    return true;
+  }
+  return false;
+}
+
+// The base's directions left out frame by frame from the base: the directions of frame f that null
+// vectors move, then the null vectors that do not move it; what no frame takes is refused.
+Status LeaveOutBaseDirections(const RobotModel& model, const ContactFeatures& features,
+                              const char* reason, Eigen::MatrixXd N, ContactParameterization* p) {
+  for (int f = 0; f < model.num_frames() && N.cols() > 0; ++f) {
+    const int k = static_cast<int>(p->frames.basis[f].cols());
+    if (k == 0) continue;
+    if (f > 0 && N.cols() > 0 && HoldNullSpaceOnFeatures(features, &N, p)) break;
+    const Eigen::MatrixXd A = N.middleRows(p->frames.offset[f], k);
     Eigen::JacobiSVD<Eigen::MatrixXd> a(A, Eigen::ComputeFullU | Eigen::ComputeFullV);
     int moved = 0;
     while (moved < a.singularValues().size() && a.singularValues()(moved) > 1e-6) ++moved;
     if (moved == 0) continue;
-    const Eigen::MatrixXd B = p.frames.basis[f];
+    const Eigen::MatrixXd B = p->frames.basis[f];
     for (int c = 0; c < moved; ++c) {
       Direction d;
       d.frame = f;
       d.vector = B * a.matrixU().col(c);
       d.name = ContactFrameName(model, f) + "." + ContactDirectionName(d.vector);
       d.reason = reason;
-      p.frames.unidentifiable.push_back(d);
+      p->frames.unidentifiable.push_back(d);
     }
-    p.num_base_directions += moved;
-    p.frames.basis[f] = B * a.matrixU().rightCols(k - moved);
+    p->num_base_directions += moved;
+    p->frames.basis[f] = B * a.matrixU().rightCols(k - moved);
     N = N * a.matrixV().rightCols(N.cols() - moved);
   }
   if (N.cols() > 0) {
@@ -529,51 +543,80 @@ Status MakeContactParameterization(const RobotModel& model, const ContactFeature
                          " combinations of the pivots and planes are not determined by these data "
                          "(a pivot or plane with too few or degenerate rows)");
   }
-  p.base_reason = p.num_base_directions > 0 ? reason : "";
-  if (p.num_gauge_rows() > 0) {
-    p.base_reason += "; " + std::to_string(p.num_base_directions - p.num_gauge_rows()) +
-                     " directions of the first frame are left out and " +
-                     std::to_string(p.num_gauge_rows()) +
-                     " (the first joint's zero and position along its axis, relative to the " +
-                     "features) are held on the pivots and planes";
+  p->base_reason = p->num_base_directions > 0 ? reason : "";
+  if (p->num_gauge_rows() > 0) {
+    p->base_reason += "; " + std::to_string(p->num_base_directions - p->num_gauge_rows()) +
+                      " directions of the first frame are left out and " +
+                      std::to_string(p->num_gauge_rows()) +
+                      " (the first joint's zero and position along its axis, relative to the " +
+                      "features) are held on the pivots and planes";
   }
-  RenumberContactFrames(model, &p.frames);
-  layout();
-  if (!options.joint_terms.empty()) {
-    // The joint-space blocks, whole, after the frames; then each reduced to the combinations the
-    // data separate from the frames, the features (pivots, planes: with the gauge and scale rows,
-    // every direction of theirs is determined) and the earlier blocks (JointBlockBases of the
-    // tracker solvers, on the normal matrix reordered as [frames, features, joint blocks]).
-    for (const auto& term : options.joint_terms) {
-      if (term->num_joints() != model.num_joints()) {
-        return Status::Error("joint-space term '" + term->name() + "' was built for " +
-                             std::to_string(term->num_joints()) + " joints, the model has " +
-                             std::to_string(model.num_joints()));
-      }
-      AddJointBlock(term, &p.frames);
+  RenumberContactFrames(model, &p->frames);
+  LayoutContactColumns(p);
+  return Status::Ok();
+}
+
+// The joint-space blocks, whole, after the frames; then each reduced to the combinations the
+// data separate from the frames, the features (pivots, planes: with the gauge and scale rows,
+// every direction of theirs is determined) and the earlier blocks (JointBlockBases of the
+// tracker solvers, on the normal matrix reordered as [frames, features, joint blocks]).
+Status AddContactJointBlocks(const RobotModel& model, const ContactFeatures& features,
+                             const ContactMeasurementSet& data,
+                             const ContactCalibrationOptions& options, ContactParameterization* p) {
+  for (const auto& term : options.joint_terms) {
+    if (term->num_joints() != model.num_joints()) {
+      return Status::Error("joint-space term '" + term->name() + "' was built for " +
+                           std::to_string(term->num_joints()) + " joints, the model has " +
+                           std::to_string(model.num_joints()));
     }
-    layout();
-    ContactLinearize(model, features, p, model, data, options, &r, &J);
-    const int Pf = p.frames.num_frame_parameters();
-    const int Pj = p.frames.num_parameters - Pf;
-    const int Fc = p.num_parameters - p.pivot_offset;
-    Eigen::MatrixXd Jr(J.rows(), J.cols());
-    Jr << J.leftCols(Pf), J.rightCols(Fc), J.middleCols(Pf, Pj);
-    Parameterization pa;
-    pa.num_parameters = p.num_parameters;
-    pa.joint_blocks = p.frames.joint_blocks;
-    for (JointBlock& b : pa.joint_blocks) b.offset += Fc;
-    const Eigen::MatrixXd H = Jr.transpose() * Jr;
-    const std::vector<Eigen::MatrixXd> bases =
-        internal::JointBlockBases(H, pa, options.joint_term_tolerance);
-    for (size_t b = 0; b < bases.size(); ++b) {
-      SetJointBlockBasis(static_cast<int>(b), bases[b],
-                         "not separable from the geometry, the pivots and planes or the earlier "
-                         "joint-space terms with these data",
-                         &p.frames);
-    }
-    layout();
+    AddJointBlock(term, &p->frames);
   }
+  LayoutContactColumns(p);
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+  ContactLinearize(model, features, *p, model, data, options, &r, &J);
+  const int Pf = p->frames.num_frame_parameters();
+  const int Pj = p->frames.num_parameters - Pf;
+  const int Fc = p->num_parameters - p->pivot_offset;
+  Eigen::MatrixXd Jr(J.rows(), J.cols());
+  Jr << J.leftCols(Pf), J.rightCols(Fc), J.middleCols(Pf, Pj);
+  Parameterization pa;
+  pa.num_parameters = p->num_parameters;
+  pa.joint_blocks = p->frames.joint_blocks;
+  for (JointBlock& b : pa.joint_blocks) b.offset += Fc;
+  const Eigen::MatrixXd H = Jr.transpose() * Jr;
+  const std::vector<Eigen::MatrixXd> bases =
+      internal::JointBlockBases(H, pa, options.joint_term_tolerance);
+  for (size_t b = 0; b < bases.size(); ++b) {
+    SetJointBlockBasis(static_cast<int>(b), bases[b],
+                       "not separable from the geometry, the pivots and planes or the earlier "
+                       "joint-space terms with these data",
+                       &p->frames);
+  }
+  LayoutContactColumns(p);
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status MakeContactParameterization(const RobotModel& model, const ContactFeatures& features,
+                                   const ContactMeasurementSet& data,
+                                   const ContactCalibrationOptions& options,
+                                   ContactParameterization* out) {
+  ContactParameterization p;
+  p.frames = MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
+  LeaveOutUnmeasuredContactTools(model, data, &p.frames);
+  DecideContactScaleHold(model, data, options, &p);
+  p.num_pivots = static_cast<int>(features.pivots.size());
+  p.num_planes = static_cast<int>(features.planes.size());
+  LayoutContactColumns(&p);
+  Eigen::MatrixXd N;
+  Status s = ContactNullSpace(model, features, data, options, p, &N);
+  if (s.ok()) s = LeaveOutBaseDirections(model, features, ContactLeftOutReason(data), N, &p);
+  if (s.ok() && !options.joint_terms.empty()) {
+    s = AddContactJointBlocks(model, features, data, options, &p);
+  }
+  if (!s.ok()) return s;
   *out = std::move(p);
   return Status::Ok();
 }

@@ -8,6 +8,7 @@
 #include <ceres/product_manifold.h>
 #include <ceres/sphere_manifold.h>
 
+#include "contact/contact_kinds.h"
 #include "lpoe/contact_calibration.h"
 #include "lpoe/distance_measurement.h"
 #include "lpoe/kinematics.h"
@@ -216,6 +217,118 @@ ceres::CostFunction* MakeRowCost(std::shared_ptr<const RobotModel> model, const 
   return cost;
 }
 
+// The problem's unknowns, as Ceres blocks: the frames (7 each), the pivots (3), the planes (4) and
+// the joint-space blocks' x_b (theta_b = basis_b x_b, from zero; a block with nothing left has no
+// columns and no parameter block).
+struct ContactCeresBlocks {
+  std::vector<double> frames, pivots, planes;
+  std::vector<std::vector<double>> joint_x;
+  std::vector<int> joint_sizes;  // of the joint blocks with columns
+  double* frame(int f) { return frames.data() + kSe3AmbientSize * f; }
+  // The Ceres block of feature k of a kind with a feature.
+  template <typename Kind>
+  double* feature(int k) {
+    return (Kind::kKind == MeasurementKindId::kDistance ? pivots : planes).data() +
+           Kind::kFeatureSize * k;
+  }
+};
+
+ContactCeresBlocks MakeContactCeresBlocks(const RobotModel& nominal,
+                                          const ContactCalibrationResult& start,
+                                          ceres::Problem* problem) {
+  const ContactParameterization& p = start.parameterization;
+  const int n = nominal.num_joints();
+  const int frames = nominal.num_frames();
+  ContactCeresBlocks x;
+  x.frames.resize(static_cast<size_t>(kSe3AmbientSize) * frames);
+  for (int f = 0; f < frames; ++f) {
+    Se3ToArray(f < n ? nominal.joints[f].origin : nominal.tools[f - n].origin, x.frame(f));
+  }
+  x.pivots.resize(3 * p.num_pivots);
+  x.planes.resize(4 * p.num_planes);
+  for (int k = 0; k < p.num_pivots; ++k) {
+    for (int a = 0; a < 3; ++a) x.pivots[3 * k + a] = start.features.pivots[k](a);
+  }
+  for (int k = 0; k < p.num_planes; ++k) {
+    for (int a = 0; a < 4; ++a) x.planes[4 * k + a] = start.features.planes[k](a);
+  }
+  for (int f = 0; f < frames; ++f) problem->AddParameterBlock(x.frame(f), kSe3AmbientSize);
+  for (int k = 0; k < p.num_pivots; ++k) problem->AddParameterBlock(x.pivots.data() + 3 * k, 3);
+  for (int k = 0; k < p.num_planes; ++k) {
+    problem->AddParameterBlock(
+        x.planes.data() + 4 * k, 4,
+        new ceres::ProductManifold<ceres::SphereManifold<3>, ceres::EuclideanManifold<1>>());
+  }
+  const std::vector<JointBlock>& joint_blocks = p.frames.joint_blocks;
+  x.joint_x.resize(joint_blocks.size());
+  for (size_t b = 0; b < joint_blocks.size(); ++b) {
+    const int k = static_cast<int>(joint_blocks[b].basis.cols());
+    x.joint_x[b].assign(k, 0.0);
+    if (k == 0) continue;
+    problem->AddParameterBlock(x.joint_x[b].data(), k);
+    x.joint_sizes.push_back(k);
+  }
+  return x;
+}
+
+// R = [Y_b(q) basis_b] over the joint blocks with columns (n x sum of their columns).
+Eigen::MatrixXd ContactJointRegressor(const std::vector<JointBlock>& joint_blocks,
+                                      const std::vector<int>& joint_sizes, int n, const double* q) {
+  int K = 0;
+  for (int k : joint_sizes) K += k;
+  Eigen::MatrixXd R(n, K), Y;
+  int column = 0;
+  for (const JointBlock& block : joint_blocks) {
+    const int k = static_cast<int>(block.basis.cols());
+    if (k == 0) continue;
+    Y.resize(n, block.term->num_parameters());
+    block.term->Regressor(q, Y.data());
+    R.middleCols(column, k) = Y * block.basis;
+    column += k;
+  }
+  return R;
+}
+
+// Row i's residual block: its kind's cost (the kind's templated Residual, through the kind table's
+// dispatch) on the n joint frames, its tool's frame, its feature (distance, plane) and the joint
+// blocks.
+void AddContactRowResidual(const std::shared_ptr<const RobotModel>& model_ptr,
+                           const ContactParameterization& p, const ContactMeasurementSet& data,
+                           int i, ContactCeresBlocks* x, ceres::Problem* problem) {
+  const ContactRow& row = data.rows[i];
+  const int n = model_ptr->num_joints();
+  std::vector<double*> b;
+  for (int f = 0; f < n; ++f) b.push_back(x->frame(f));
+  b.push_back(x->frame(n + row.target));
+  const double w = 1.0 / row.sigma;
+  const bool joint = !x->joint_sizes.empty();
+  const Eigen::MatrixXd R =
+      joint ? ContactJointRegressor(p.frames.joint_blocks, x->joint_sizes, n, data.joints(i))
+            : Eigen::MatrixXd();
+  ceres::CostFunction* cost =
+      internal::VisitContactRowKind(row.kind, [&](auto tag) -> ceres::CostFunction* {
+        using Kind = typename decltype(tag)::type;
+        if constexpr (Kind::kFeatureSize > 0) {
+          b.push_back(x->feature<Kind>(row.feature));
+          return joint ? MakeJointRowCost(model_ptr, Kind{w}, data.joints(i), row.value,
+                                          Kind::kFeatureSize, R, x->joint_sizes)
+                       : MakeRowCost(model_ptr, Kind{w}, data.joints(i), row.value,
+                                     Kind::kFeatureSize);
+        } else {
+          const Eigen::Vector3d position(row.position);
+          return joint ? MakeJointRowCost(model_ptr, Kind{w}, data.joints(i), position, 0, R,
+                                          x->joint_sizes)
+                       : MakeRowCost(model_ptr, Kind{w}, data.joints(i), position, 0);
+        }
+      });
+  if (joint) {
+    for (std::vector<double>& xb : x->joint_x) {
+      if (!xb.empty()) b.push_back(xb.data());
+    }
+  }
+  problem->AddResidualBlock(cost, nullptr, b);
+}
+
 }  // namespace
 
 ContactCalibrationResult CalibrateContactsCeres(const RobotModel& nominal,
@@ -226,99 +339,17 @@ ContactCalibrationResult CalibrateContactsCeres(const RobotModel& nominal,
   const ContactParameterization& p = result.parameterization;
   const int n = nominal.num_joints();
   const int frames = nominal.num_frames();
-  std::vector<double> blocks(static_cast<size_t>(kSe3AmbientSize) * frames);
-  for (int f = 0; f < frames; ++f) {
-    Se3ToArray(f < n ? nominal.joints[f].origin : nominal.tools[f - n].origin,
-               blocks.data() + kSe3AmbientSize * f);
-  }
-  std::vector<double> pivots(3 * p.num_pivots), planes(4 * p.num_planes);
-  for (int k = 0; k < p.num_pivots; ++k) {
-    for (int a = 0; a < 3; ++a) pivots[3 * k + a] = result.features.pivots[k](a);
-  }
-  for (int k = 0; k < p.num_planes; ++k) {
-    for (int a = 0; a < 4; ++a) planes[4 * k + a] = result.features.planes[k](a);
-  }
   auto model_ptr = std::make_shared<const RobotModel>(nominal);
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
-  auto frame_block = [&](int f) { return blocks.data() + kSe3AmbientSize * f; };
-  for (int f = 0; f < frames; ++f) problem.AddParameterBlock(frame_block(f), kSe3AmbientSize);
-  for (int k = 0; k < p.num_pivots; ++k) problem.AddParameterBlock(pivots.data() + 3 * k, 3);
-  for (int k = 0; k < p.num_planes; ++k) {
-    problem.AddParameterBlock(
-        planes.data() + 4 * k, 4,
-        new ceres::ProductManifold<ceres::SphereManifold<3>, ceres::EuclideanManifold<1>>());
-  }
-  // The joint-space blocks (joint_term.h): x_b, theta_b = basis_b x_b, from zero; a block with
-  // nothing left has no columns and no parameter block.
+  ContactCeresBlocks x = MakeContactCeresBlocks(nominal, result, &problem);
+  std::vector<double>& pivots = x.pivots;
+  std::vector<double>& planes = x.planes;
+  std::vector<std::vector<double>>& joint_x = x.joint_x;
   const std::vector<JointBlock>& joint_blocks = p.frames.joint_blocks;
-  std::vector<std::vector<double>> joint_x(joint_blocks.size());
-  std::vector<int> joint_sizes;
-  for (size_t b = 0; b < joint_blocks.size(); ++b) {
-    const int k = static_cast<int>(joint_blocks[b].basis.cols());
-    joint_x[b].assign(k, 0.0);
-    if (k == 0) continue;
-    problem.AddParameterBlock(joint_x[b].data(), k);
-    joint_sizes.push_back(k);
-  }
-  for (int i = 0; i < data.size(); ++i) {
-    const ContactRow& row = data.rows[i];
-    std::vector<double*> b;
-    for (int f = 0; f < n; ++f) b.push_back(frame_block(f));
-    b.push_back(frame_block(n + row.target));
-    const double w = 1.0 / row.sigma;
-    ceres::CostFunction* cost = nullptr;
-    if (!joint_sizes.empty()) {
-      // R = [Y_b(q) basis_b] over the blocks with columns.
-      int K = 0;
-      for (int k : joint_sizes) K += k;
-      Eigen::MatrixXd R(n, K), Y;
-      int column = 0;
-      for (const JointBlock& block : joint_blocks) {
-        const int k = static_cast<int>(block.basis.cols());
-        if (k == 0) continue;
-        Y.resize(n, block.term->num_parameters());
-        block.term->Regressor(data.joints(i), Y.data());
-        R.middleCols(column, k) = Y * block.basis;
-        column += k;
-      }
-      switch (row.kind) {
-        case MeasurementKindId::kDistance:
-          cost = MakeJointRowCost(model_ptr, DistanceMeasurement{w}, data.joints(i), row.value, 3,
-                                  R, joint_sizes);
-          b.push_back(pivots.data() + 3 * row.feature);
-          break;
-        case MeasurementKindId::kPlane:
-          cost = MakeJointRowCost(model_ptr, PlaneMeasurement{w}, data.joints(i), row.value, 4, R,
-                                  joint_sizes);
-          b.push_back(planes.data() + 4 * row.feature);
-          break;
-        default:
-          cost = MakeJointRowCost(model_ptr, PositionMeasurement{w}, data.joints(i),
-                                  Eigen::Vector3d(row.position), 0, R, joint_sizes);
-      }
-      for (size_t k = 0; k < joint_blocks.size(); ++k) {
-        if (!joint_x[k].empty()) b.push_back(joint_x[k].data());
-      }
-      problem.AddResidualBlock(cost, nullptr, b);
-      continue;
-    }
-    switch (row.kind) {
-      case MeasurementKindId::kDistance:
-        cost = MakeRowCost(model_ptr, DistanceMeasurement{w}, data.joints(i), row.value, 3);
-        b.push_back(pivots.data() + 3 * row.feature);
-        break;
-      case MeasurementKindId::kPlane:
-        cost = MakeRowCost(model_ptr, PlaneMeasurement{w}, data.joints(i), row.value, 4);
-        b.push_back(planes.data() + 4 * row.feature);
-        break;
-      default:
-        cost = MakeRowCost(model_ptr, PositionMeasurement{w}, data.joints(i),
-                           Eigen::Vector3d(row.position), 0);
-    }
-    problem.AddResidualBlock(cost, nullptr, b);
-  }
+  auto frame_block = [&x](int f) { return x.frame(f); };
+  for (int i = 0; i < data.size(); ++i) AddContactRowResidual(model_ptr, p, data, i, &x, &problem);
   if (p.num_gauge_rows() > 0) {
     std::vector<double*> b;
     for (int k = 0; k < p.num_pivots; ++k) b.push_back(pivots.data() + 3 * k);

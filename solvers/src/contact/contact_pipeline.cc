@@ -140,17 +140,15 @@ ResidualModelSelection SelectContactResidualModel(const RobotModel& start,
   return sel;
 }
 
-}  // namespace
-
-ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactMeasurementSet& data,
-                                         const ContactMeasurementSet& verification,
-                                         const ContactPipelineOptions& options) {
-  ContactPipelineResult out;
-  // ---- Hold-out rows.
-  out.identification = data;
-  out.held = verification;
-  out.held_from_verification = verification.size() > 0;
-  if (options.holdout > 0 && !out.held_from_verification) {
+// ---- Hold-out rows: the verification rows given, else options.holdout of the rows drawn with
+// options.split_seed.
+void SplitContactHoldout(const ContactMeasurementSet& data,
+                         const ContactMeasurementSet& verification,
+                         const ContactPipelineOptions& options, ContactPipelineResult* out) {
+  out->identification = data;
+  out->held = verification;
+  out->held_from_verification = verification.size() > 0;
+  if (options.holdout > 0 && !out->held_from_verification) {
     std::mt19937_64 rng(options.split_seed);
     std::vector<int> order(data.size());
     for (int i = 0; i < data.size(); ++i) order[i] = i;
@@ -160,146 +158,185 @@ ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactM
         test(order.begin(), order.begin() + count);
     std::sort(train.begin(), train.end());
     std::sort(test.begin(), test.end());
-    out.identification = data.Subset(train);
-    out.held = data.Subset(test);
+    out->identification = data.Subset(train);
+    out->held = data.Subset(test);
   }
-  const ContactMeasurementSet& identification = out.identification;
+}
 
-  // The start model without a layer: the solvers' model is parametric.
-  RobotModel parametric_start = start;
-  parametric_start.residual_layer = nullptr;
-
-  // ---- --joint_errors=auto: the terms chosen on the identification rows.
-  ContactCalibrationOptions calibration = options.calibration;
-  if (options.joint_errors_auto) {
-    out.joint_error_selection =
-        SelectContactJointErrors(parametric_start, identification, options);
-    const JointErrorSelection& sel = out.joint_error_selection;
-    std::string chosen;
-    for (const std::string& t : sel.candidates[sel.chosen].terms) {
-      chosen += (chosen.empty() ? "" : ",") + t;
-    }
-    if (Status s = ContactJointTerms(chosen.empty() ? "none" : chosen, parametric_start,
-                                     &calibration.joint_terms);
-        !s.ok()) {
-      out.message = s.message();
-      return out;
-    }
+// ---- --joint_errors=auto: the terms chosen on the identification rows, into
+// calibration->joint_terms. False (out->message says why) when they cannot be made.
+bool ChooseContactJointTerms(const RobotModel& parametric_start,
+                             const ContactPipelineOptions& options,
+                             ContactCalibrationOptions* calibration, ContactPipelineResult* out) {
+  out->joint_error_selection =
+      SelectContactJointErrors(parametric_start, out->identification, options);
+  const JointErrorSelection& sel = out->joint_error_selection;
+  std::string chosen;
+  for (const std::string& t : sel.candidates[sel.chosen].terms) {
+    chosen += (chosen.empty() ? "" : ",") + t;
   }
-
-  // ---- Calibration.
-  out.calibration =
-      CalibrateContactsWith(options.solver, parametric_start, identification, calibration);
-  if (!out.calibration.ok) {
-    out.message = out.calibration.message;
-    return out;
+  if (Status s = ContactJointTerms(chosen.empty() ? "none" : chosen, parametric_start,
+                                   &calibration->joint_terms);
+      !s.ok()) {
+    out->message = s.message();
+    return false;
   }
+  return true;
+}
+
+// ---- The residual model: --residual_model=auto's choice, then the layer when it is "gp"; the
+// held rows' errors with (and without) it.
+void FitContactResidualModel(const RobotModel& parametric_start,
+                             const ContactPipelineOptions& options,
+                             const ContactCalibrationOptions& calibration,
+                             ContactPipelineResult* out) {
   ResidualModelKind residual = options.residual_model;
   if (residual == ResidualModelKind::kAuto) {
-    out.residual_model_selection = SelectContactResidualModel(parametric_start, options, calibration, out);
-    const ResidualModelSelection& sel = out.residual_model_selection;
+    out->residual_model_selection =
+        SelectContactResidualModel(parametric_start, options, calibration, *out);
+    const ResidualModelSelection& sel = out->residual_model_selection;
     residual = sel.chosen >= 0 && sel.candidates[sel.chosen].label == "gp"
                    ? ResidualModelKind::kGp
                    : ResidualModelKind::kNone;
     if (residual == ResidualModelKind::kNone) {
-      out.residual_layer.requested = true;
-      out.residual_layer.message = "auto chose none (" + sel.reason + ")";
+      out->residual_layer.requested = true;
+      out->residual_layer.message = "auto chose none (" + sel.reason + ")";
     }
   }
-  if (residual == ResidualModelKind::kGp) FitContactLayer(options, &out);
-  if (out.held.size() > 0) {
-    out.held_errors = ContactErrors(out.calibration.model, out.calibration.features, out.held);
-    if (out.residual_layer.fitted) {
-      out.held_errors_parametric =
-          ContactErrors(WithoutLayer(out.calibration.model), out.calibration.features, out.held);
+  if (residual == ResidualModelKind::kGp) FitContactLayer(options, out);
+  if (out->held.size() > 0) {
+    out->held_errors = ContactErrors(out->calibration.model, out->calibration.features, out->held);
+    if (out->residual_layer.fitted) {
+      out->held_errors_parametric =
+          ContactErrors(WithoutLayer(out->calibration.model), out->calibration.features, out->held);
     }
   }
-  // ---- k-fold: each fold's rows predicted by the calibration of the others, same options.
-  if (options.kfold > 0) {
-    if (options.kfold > identification.size()) {
-      out.kfold_too_large = true;
-      out.message = "is larger than the " + std::to_string(identification.size()) +
-                    " identification rows";
-      return out;
-    }
-    std::mt19937_64 rng(options.split_seed + 1);
-    std::vector<int> order(identification.size());
-    for (int i = 0; i < identification.size(); ++i) order[i] = i;
-    std::shuffle(order.begin(), order.end(), rng);
-    out.fold_errors.assign(identification.size(), 0.0);
-    for (int fold = 0; fold < options.kfold; ++fold) {
-      std::vector<int> train, test;
-      for (int i = 0; i < identification.size(); ++i) {
-        (i % options.kfold == fold ? test : train).push_back(order[i]);
-      }
-      std::sort(train.begin(), train.end());
-      std::sort(test.begin(), test.end());
-      const ContactMeasurementSet training = identification.Subset(train);
-      ContactCalibrationResult f =
-          CalibrateContactsWith(options.solver, parametric_start, training, calibration);
-      if (!f.ok) {
-        out.failed_fold = fold;
-        out.message = f.message;
-        out.fold_failure = std::move(f);
-        return out;
-      }
-      const ContactMeasurementSet tested = identification.Subset(test);
-      const std::vector<double> e = ContactErrors(f.model, f.features, tested);
-      for (size_t i = 0; i < test.size(); ++i) out.fold_errors[test[i]] = e[i];
-      // With a layer: the fold's own, fitted on its training rows (none when its fit fails: the
-      // fold's figure is then the parametric model's).
-      if (out.residual_layer.fitted) {
-        if (out.fold_errors_parametric.empty()) {
-          out.fold_errors_parametric.assign(identification.size(), 0.0);
-        }
-        for (size_t i = 0; i < test.size(); ++i) out.fold_errors_parametric[test[i]] = e[i];
-        auto fold_layer = std::make_shared<ResidualLayer>();
-        if (FitContactResidualLayer(f, training, options.residual_layer, fold_layer.get(), nullptr)
-                .ok()) {
-          f.model.residual_layer = std::move(fold_layer);
-          const std::vector<double> el = ContactErrors(f.model, f.features, tested);
-          for (size_t i = 0; i < test.size(); ++i) out.fold_errors[test[i]] = el[i];
-        }
-      }
-    }
-  }
+}
 
-  // ---- Figures per kind and per feature.
-  out.verdict = "pass";
+// ---- k-fold: each fold's rows predicted by the calibration of the others, same options. False
+// (out says why) when a fold fails or there are fewer rows than folds.
+bool RunContactKFold(const RobotModel& parametric_start, const ContactPipelineOptions& options,
+                     const ContactCalibrationOptions& calibration, ContactPipelineResult* out) {
+  const ContactMeasurementSet& identification = out->identification;
+  if (options.kfold > identification.size()) {
+    out->kfold_too_large = true;
+    out->message = "is larger than the " + std::to_string(identification.size()) +
+                   " identification rows";
+    return false;
+  }
+  std::mt19937_64 rng(options.split_seed + 1);
+  std::vector<int> order(identification.size());
+  for (int i = 0; i < identification.size(); ++i) order[i] = i;
+  std::shuffle(order.begin(), order.end(), rng);
+  out->fold_errors.assign(identification.size(), 0.0);
+  for (int fold = 0; fold < options.kfold; ++fold) {
+    std::vector<int> train, test;
+    for (int i = 0; i < identification.size(); ++i) {
+      (i % options.kfold == fold ? test : train).push_back(order[i]);
+    }
+    std::sort(train.begin(), train.end());
+    std::sort(test.begin(), test.end());
+    const ContactMeasurementSet training = identification.Subset(train);
+    ContactCalibrationResult f =
+        CalibrateContactsWith(options.solver, parametric_start, training, calibration);
+    if (!f.ok) {
+      out->failed_fold = fold;
+      out->message = f.message;
+      out->fold_failure = std::move(f);
+      return false;
+    }
+    const ContactMeasurementSet tested = identification.Subset(test);
+    const std::vector<double> e = ContactErrors(f.model, f.features, tested);
+    for (size_t i = 0; i < test.size(); ++i) out->fold_errors[test[i]] = e[i];
+    // With a layer: the fold's own, fitted on its training rows (none when its fit fails: the
+    // fold's figure is then the parametric model's).
+    if (out->residual_layer.fitted) {
+      if (out->fold_errors_parametric.empty()) {
+        out->fold_errors_parametric.assign(identification.size(), 0.0);
+      }
+      for (size_t i = 0; i < test.size(); ++i) out->fold_errors_parametric[test[i]] = e[i];
+      auto fold_layer = std::make_shared<ResidualLayer>();
+      if (FitContactResidualLayer(f, training, options.residual_layer, fold_layer.get(), nullptr)
+              .ok()) {
+        f.model.residual_layer = std::move(fold_layer);
+        const std::vector<double> el = ContactErrors(f.model, f.features, tested);
+        for (size_t i = 0; i < test.size(); ++i) out->fold_errors[test[i]] = el[i];
+      }
+    }
+  }
+  return true;
+}
+
+// The names of a kind's features in a set (pivots, planes), null for a kind without features.
+const std::vector<std::string>* ContactFeatureNames(const ContactMeasurementSet& set,
+                                                    const MeasurementKindInfo& kind) {
+  if (kind.feature_size == 0) return nullptr;
+  return kind.id == MeasurementKindId::kDistance ? &set.pivots : &set.planes;
+}
+
+// ---- Figures per kind (of the kind table) and per feature, and the run's verdict.
+void SummarizeContactKinds(const ContactPipelineOptions& options, ContactPipelineResult* out) {
+  const ContactMeasurementSet& identification = out->identification;
+  out->verdict = "pass";
   for (const MeasurementKindInfo& kind : MeasurementKinds()) {
     if (kind.id == MeasurementKindId::kPose) continue;  // tracker rows are position rows here
     ContactKindSummary k;
     k.kind = &kind;
-    k.fit = ContactFigures(identification, out.calibration.errors, kind.id);
+    k.fit = ContactFigures(identification, out->calibration.errors, kind.id);
     if (k.fit.rows == 0) continue;
-    if (out.held.size() > 0) k.held = ContactFigures(out.held, out.held_errors, kind.id);
-    if (options.kfold > 0) k.kfold = ContactFigures(identification, out.fold_errors, kind.id);
-    if (out.residual_layer.fitted) {
-      k.fit_with_layer = ContactFigures(identification, out.errors_with_layer, kind.id);
-      if (out.held.size() > 0) {
-        k.held_parametric = ContactFigures(out.held, out.held_errors_parametric, kind.id);
+    if (out->held.size() > 0) k.held = ContactFigures(out->held, out->held_errors, kind.id);
+    if (options.kfold > 0) k.kfold = ContactFigures(identification, out->fold_errors, kind.id);
+    if (out->residual_layer.fitted) {
+      k.fit_with_layer = ContactFigures(identification, out->errors_with_layer, kind.id);
+      if (out->held.size() > 0) {
+        k.held_parametric = ContactFigures(out->held, out->held_errors_parametric, kind.id);
       }
       if (options.kfold > 0) {
-        k.kfold_parametric = ContactFigures(identification, out.fold_errors_parametric, kind.id);
+        k.kfold_parametric = ContactFigures(identification, out->fold_errors_parametric, kind.id);
       }
     }
-    const std::vector<std::string>* names =
-        kind.id == MeasurementKindId::kDistance ? &identification.pivots
-        : kind.id == MeasurementKindId::kPlane  ? &identification.planes
-                                                : nullptr;
+    const std::vector<std::string>* names = ContactFeatureNames(identification, kind);
     for (int i = 0; names != nullptr && i < static_cast<int>(names->size()); ++i) {
       ContactFeatureSummary s;
       s.name = (*names)[i];
-      s.fit = ContactFigures(identification, out.calibration.errors, kind.id, i);
+      s.fit = ContactFigures(identification, out->calibration.errors, kind.id, i);
       if (s.fit.rows == 0) continue;
-      if (out.held.size() > 0) s.held = ContactFigures(out.held, out.held_errors, kind.id, i);
-      if (options.kfold > 0) s.kfold = ContactFigures(identification, out.fold_errors, kind.id, i);
+      if (out->held.size() > 0) s.held = ContactFigures(out->held, out->held_errors, kind.id, i);
+      if (options.kfold > 0) s.kfold = ContactFigures(identification, out->fold_errors, kind.id, i);
       k.features.push_back(s);
     }
     const std::string v = ContactKindVerdict(k.fit);
-    if (v == "fail" || (v == "check" && out.verdict == "pass")) out.verdict = v;
-    out.kinds.push_back(std::move(k));
+    if (v == "fail" || (v == "check" && out->verdict == "pass")) out->verdict = v;
+    out->kinds.push_back(std::move(k));
   }
+}
+
+}  // namespace
+
+ContactPipelineResult RunContactPipeline(const RobotModel& start, const ContactMeasurementSet& data,
+                                         const ContactMeasurementSet& verification,
+                                         const ContactPipelineOptions& options) {
+  ContactPipelineResult out;
+  SplitContactHoldout(data, verification, options, &out);
+  // The start model without a layer: the solvers' model is parametric.
+  RobotModel parametric_start = start;
+  parametric_start.residual_layer = nullptr;
+  ContactCalibrationOptions calibration = options.calibration;
+  if (options.joint_errors_auto &&
+      !ChooseContactJointTerms(parametric_start, options, &calibration, &out)) {
+    return out;
+  }
+  out.calibration =
+      CalibrateContactsWith(options.solver, parametric_start, out.identification, calibration);
+  if (!out.calibration.ok) {
+    out.message = out.calibration.message;
+    return out;
+  }
+  FitContactResidualModel(parametric_start, options, calibration, &out);
+  if (options.kfold > 0 && !RunContactKFold(parametric_start, options, calibration, &out)) {
+    return out;
+  }
+  SummarizeContactKinds(options, &out);
   out.ok = true;
   return out;
 }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <vector>
 
+#include "contact/contact_kinds.h"
 #include "lpoe/contact_pipeline.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/kinematics.h"
@@ -46,23 +47,24 @@ Status FitContactResidualLayer(const ContactCalibrationResult& result,
       directions.push_back(w * u);
       values.push_back(w * y);
     };
-    switch (row.kind) {
-      case MeasurementKindId::kDistance: {
-        // |P + m - c| - d ~ |P - c| - d + u . m: the measured distance sees u . m = -error.
-        const Eigen::Vector3d d = P - result.features.pivots[row.feature];
-        const double length = d.norm();
-        if (!(length > 0)) return Status::Error(data.Where(i) + ": the ball is at its pivot");
-        add(d / length, -(length - row.value));
-        break;
-      }
-      case MeasurementKindId::kPlane: {
-        const Eigen::Vector4d& plane = result.features.planes[row.feature];
-        add(plane.head<3>(), -(plane.head<3>().dot(P) - plane(3) - row.value));
-        break;
-      }
-      default:
+    // Through the kind table (contact_kinds.h): a feature's kind is seen along its Projection,
+    // a tracker row along each axis.
+    const bool projected = internal::VisitContactRowKind(row.kind, [&](auto tag) {
+      using Kind = typename decltype(tag)::type;
+      if constexpr (Kind::kFeatureSize > 0) {
+        Eigen::Vector3d u;
+        double error = 0;
+        if (!Kind::Projection(P, internal::ContactFeatureData<Kind>(result.features, row.feature),
+                              row.value, &u, &error)) {
+          return false;
+        }
+        add(u, -error);
+      } else {
         for (int c = 0; c < 3; ++c) add(Eigen::Vector3d::Unit(c), row.position(c) - P(c));
-    }
+      }
+      return true;
+    });
+    if (!projected) return Status::Error(data.Where(i) + ": the ball is at its pivot");
   }
   return FitResidualLayerProjected(q, tools, directions, values, n, model.num_tools(), options,
                                    layer, fit);
