@@ -1,0 +1,77 @@
+// A row's joint-term columns (joint_term_columns.h).
+#include "calibration/joint_term_columns.h"
+
+#include <glog/logging.h>
+
+#include "calibration/normal_equations.h"
+#include "lpoe/joint_term.h"
+
+namespace lpoe {
+namespace internal {
+
+JointTermColumns::JointTermColumns(const Parameterization& p, int num_joints, int num_columns)
+    : n_(num_joints) {
+  int column = 0;
+  for (const JointBlock& block : p.joint_blocks) {
+    const int kb = static_cast<int>(block.basis.cols());
+    if (kb == 0) continue;
+    CHECK_EQ(block.term->num_joints(), n_) << block.term->name();
+    CHECK_EQ(block.basis.rows(), block.term->num_parameters()) << block.term->name();
+    blocks_.push_back({&block, column, block.basis.rows() == kb && block.basis.isIdentity(0),
+                       block.basis.transpose()});
+    column += kb;
+  }
+  columns_ = num_columns < 0 ? column : num_columns;
+  CHECK_GE(columns_, column);
+  R_t_.setZero(columns_, n_);
+}
+
+void JointTermColumns::UseSlots(const JointSpaceRegressors* slots) {
+  slots_ = slots;
+  if (slots == nullptr) {
+    slot_basis_t_.resize(0, 0);
+    return;
+  }
+  CHECK_EQ(slots->num_joints, n_);
+  CHECK_LE(slots->slot_basis.cols(), columns_);
+  slot_basis_t_ = slots->slot_basis.transpose();
+}
+
+void JointTermColumns::Evaluate(int r, const double* q, Eigen::MatrixXd* R) {
+  if (slots_ != nullptr) {
+    const JointSpaceRegressors& s = *slots_;
+    R_t_.setZero();
+    const Eigen::Index k = slot_basis_t_.rows();
+    for (int j = 0; j < n_; ++j) {
+      for (int t = s.slot_begin[j]; t < s.slot_begin[j + 1]; ++t) {
+        const double v = s.values(t, r);
+        if (v != 0) R_t_.col(j).head(k) += v * slot_basis_t_.col(t);
+      }
+    }
+    *R = R_t_.transpose();
+    return;
+  }
+  for (const Block& b : blocks_) {
+    const JointTerm& term = *b.block->term;
+    term_Y_.resize(n_, term.num_parameters());
+    term.Regressor(q, term_Y_.data());
+    const int kb = static_cast<int>(b.basis_t.rows());
+    auto Rt = R_t_.middleRows(b.column, kb);
+    if (b.identity) {
+      Rt = term_Y_.transpose();
+      continue;
+    }
+    Rt.setZero();
+    for (int c = 0; c < term_Y_.cols(); ++c) {
+      for (int j = 0; j < n_; ++j) {
+        const double y = term_Y_(j, c);
+        if (y != 0) Rt.col(j) += y * b.basis_t.col(c);
+      }
+    }
+  }
+  // Columns past the blocks' (the block kinds') stay zero: set once in the constructor.
+  *R = R_t_.transpose();
+}
+
+}  // namespace internal
+}  // namespace lpoe
