@@ -30,7 +30,8 @@ struct JointSpaceRegressors;
 class JointTermColumns {
  public:
   JointTermColumns() = default;
-  // p's joint blocks for num_joints joints; num_columns < 0: the blocks' columns alone.
+  // p's joint blocks for num_joints joints; num_columns < 0: the blocks' columns alone. It keeps
+  // pointers to p's blocks: p outlives it.
   JointTermColumns(const Parameterization& p, int num_joints, int num_columns = -1);
   // Read the rows' columns from these slots (null: from the terms' regressors). They must be of
   // this parameterization's joint blocks (slot_basis num_slots x the blocks' columns).

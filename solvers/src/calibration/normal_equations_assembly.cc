@@ -1,7 +1,8 @@
 // The linearized problem accumulated as normal equations (normal_equations.h: NormalEquationsOf,
 // JointRegressorRows): rows one at a time (BasisJacobian), or four at a time through the kernels of
 // core/src/kernels/ (lpoe/kernels.h), and the joint-space blocks by their structure. The regressors
-// in slot form and the projections of joint blocks are in normal_equations_regressors.cc.
+// in slot form and the projections of joint blocks are in normal_equations_regressors.cc, a row's
+// joint-term columns in joint_term_columns.cc (shared with the Ceres problem).
 #include "calibration/normal_equations.h"
 
 #include <algorithm>
