@@ -18,7 +18,8 @@ JointTermColumns::JointTermColumns(const Parameterization& p, int num_joints, in
     CHECK_EQ(block.term->num_joints(), n_) << block.term->name();
     CHECK_EQ(block.basis.rows(), block.term->num_parameters()) << block.term->name();
     blocks_.push_back({&block, column, block.basis.rows() == kb && block.basis.isIdentity(0),
-                       block.basis.transpose()});
+                       block.basis.transpose(),
+                       Eigen::MatrixXd(n_, block.term->num_parameters())});
     column += kb;
   }
   columns_ = num_columns < 0 ? column : num_columns;
@@ -51,20 +52,18 @@ void JointTermColumns::Evaluate(int r, const double* q, Eigen::MatrixXd* R) {
     *R = R_t_.transpose();
     return;
   }
-  for (const Block& b : blocks_) {
-    const JointTerm& term = *b.block->term;
-    term_Y_.resize(n_, term.num_parameters());
-    term.Regressor(q, term_Y_.data());
+  for (Block& b : blocks_) {
+    b.block->term->Regressor(q, b.Y.data());
     const int kb = static_cast<int>(b.basis_t.rows());
     auto Rt = R_t_.middleRows(b.column, kb);
     if (b.identity) {
-      Rt = term_Y_.transpose();
+      Rt = b.Y.transpose();
       continue;
     }
     Rt.setZero();
-    for (int c = 0; c < term_Y_.cols(); ++c) {
+    for (int c = 0; c < b.Y.cols(); ++c) {
       for (int j = 0; j < n_; ++j) {
-        const double y = term_Y_(j, c);
+        const double y = b.Y(j, c);
         if (y != 0) Rt.col(j) += y * b.basis_t.col(c);
       }
     }

@@ -18,7 +18,8 @@ struct JointSpaceRegressors;
 // R = [Y_b(q) basis_b], the blocks in order (a block without columns adds none), then zero columns
 // up to num_columns (the block kinds', set at the current values elsewhere: block_kind.h). Y_b(q)
 // is data (the recorded joint values), so R is too. Built once per call and thread (the bases
-// transposed, which are the identity); Evaluate allocates nothing after its first row.
+// transposed, which of them are the identity, a regressor buffer per block): Evaluate allocates
+// nothing but R on its first call (none when R has its size).
 //
 // Y_b basis_b is formed over the non-zero entries of Y_b only: a physical regressor is sparse (a
 // joint's offset depends on its own parameters), and a dense product per row would repack the
@@ -49,13 +50,13 @@ class JointTermColumns {
     int column;     // first column in R
     bool identity;  // basis is the identity
     Eigen::MatrixXd basis_t;
+    Eigen::MatrixXd Y;  // n x P_b: the term's regressor at the row (its own: no resize per row)
   };
   int n_ = 0;
   int columns_ = 0;
   std::vector<Block> blocks_;  // the blocks with columns
   const JointSpaceRegressors* slots_ = nullptr;
   Eigen::MatrixXd slot_basis_t_;  // slots_->slot_basis^T: slot s's row contiguous
-  Eigen::MatrixXd term_Y_;        // n x P_b: one term's regressor
   Eigen::MatrixXd R_t_;           // R transposed, accumulated first
 };
 
