@@ -1,7 +1,8 @@
 // The linearized problem accumulated as normal equations (normal_equations.h: NormalEquationsOf,
 // JointRegressorRows): rows one at a time (BasisJacobian), or four at a time through the kernels of
 // core/src/kernels/ (lpoe/kernels.h), and the joint-space blocks by their structure. The regressors
-// in slot form and the projections of joint blocks are in normal_equations_regressors.cc.
+// in slot form and the projections of joint blocks are in normal_equations_regressors.cc, a row's
+// joint-term columns in joint_term_columns.cc (shared with the Ceres problem).
 #include "calibration/normal_equations.h"
 
 #include <algorithm>
@@ -12,6 +13,7 @@
 #include <glog/logging.h>
 
 #include "calibration/block_kind.h"
+#include "calibration/joint_term_columns.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kernels.h"
 #include "lpoe/kinematics.h"
@@ -65,55 +67,12 @@ struct Scratch {
   // sin and cos of the joint values of a block of rows (SinCosMany; no joint-space blocks).
   std::vector<double> sin_q, cos_q;
   // Joint-space blocks only.
-  Eigen::MatrixXd term_Y;     // n x P_b: one term's regressor
+  JointTermColumns columns;   // the rows' joint-term columns (joint_term_columns.h)
   Eigen::MatrixXd R;          // n x K: [Y_b(q) basis_b] of the row
-  Eigen::MatrixXd R_t;        // its transpose, accumulated first
-  std::vector<Eigen::MatrixXd> basis_t;  // basis_b^T per block (filled on first use)
-  std::vector<bool> identity;  // basis_b is the identity, per block (filled on first use)
   Eigen::MatrixXd J_q;        // m x n
   Eigen::VectorXd q_eff;      // n
   Eigen::MatrixXd R_tilt;     // R with the block kinds' columns (block_kind.h)
 };
-
-// The joint-space side of one row: s->R = [Y_b(q) basis_b].
-void EvaluateJointRegressor(const Parameterization& p, const double* q, Scratch* s) {
-  const int n = static_cast<int>(s->q_eff.size());
-  int column = 0;
-  s->R_t.resize(s->R.cols(), n);
-  for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
-    const JointBlock& block = p.joint_blocks[b];
-    s->term_Y.resize(n, block.term->num_parameters());
-    block.term->Regressor(q, s->term_Y.data());
-    // R_b = Y_b basis_b over the non-zero entries of Y_b only: a physical regressor is sparse (a
-    // joint's offset depends on its own parameters), and a dense product per row would repack the
-    // basis every time (most of the cost of a calibration with joint-space terms). Accumulated
-    // transposed, on basis_b^T, so that the inner loop runs over contiguous memory. An identity
-    // basis (every parameter identifiable, or the whole block analysed) copies Y_b: the same
-    // numbers, since y * 1 + 0 = y.
-    const int kb = static_cast<int>(block.basis.cols());
-    if (s->basis_t.size() <= b) {
-      s->basis_t.push_back(block.basis.transpose());
-      s->identity.push_back(block.basis.rows() == kb && block.basis.isIdentity(0));
-    }
-    const Eigen::MatrixXd& Bt = s->basis_t[b];
-    auto Rt = s->R_t.middleRows(column, kb);
-    if (s->identity[b]) {
-      Rt = s->term_Y.transpose();
-    } else {
-      Rt.setZero();
-      for (int c = 0; c < s->term_Y.cols(); ++c) {
-        for (int j = 0; j < n; ++j) {
-          const double y = s->term_Y(j, c);
-          if (y != 0) Rt.col(j) += y * Bt.col(c);
-        }
-      }
-    }
-    column += kb;
-  }
-  // The block kinds' columns change with the state: zero here, set by AddNonlinearRowColumns.
-  s->R_t.bottomRows(s->R_t.rows() - column).setZero();
-  s->R = s->R_t.transpose();
-}
 
 // H (lower triangle) += A^T A for the first `rows` rows and `cols` columns of A (J^T J written once:
 // the AVX2 kernel or Eigen's rank update, lpoe/kernels.h).
@@ -208,7 +167,7 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
                            s, c);
       } else {
         const double* q = data.q(r);
-        if (!cached) EvaluateJointRegressor(p, q, scratch);
+        if (!cached) scratch->columns.Evaluate(r, q, &scratch->R);
         const Eigen::Map<const Eigen::MatrixXd> R(
             cached ? joint_rows->data() + static_cast<std::ptrdiff_t>(r) * n * K
                    : scratch->R.data(),
@@ -332,6 +291,9 @@ NormalEquations Accumulate(const Kind& kind, const RobotModel& model, const Meas
       s.cos_q.resize(static_cast<size_t>(n) * (kBlockPoses + 4));
     }
     if (K > 0) {
+      // The block kinds' columns (past the joint blocks') are zero here, set by
+      // AddNonlinearRowColumns.
+      s.columns = JointTermColumns(p, n, K);
       s.R.resize(n, K);
       s.J_q.resize(m, n);
       s.q_eff.resize(n);
@@ -891,12 +853,11 @@ Eigen::MatrixXd JointRegressorRows(const Parameterization& p, const MeasurementS
   const double bytes = 8.0 * n * K * static_cast<double>(data.size());
   if (K == 0 || bytes > kMaxJointRowsBytes) return Eigen::MatrixXd();
   Eigen::MatrixXd rows(n, static_cast<Eigen::Index>(K) * data.size());
-  Scratch s;
-  s.R.resize(n, K);
-  s.q_eff.resize(n);
+  JointTermColumns columns(p, n, K);
+  Eigen::MatrixXd R(n, K);
   for (int r = 0; r < data.size(); ++r) {
-    EvaluateJointRegressor(p, data.q(r), &s);
-    rows.middleCols(static_cast<Eigen::Index>(r) * K, K) = s.R;
+    columns.Evaluate(r, data.q(r), &R);
+    rows.middleCols(static_cast<Eigen::Index>(r) * K, K) = R;
   }
   return rows;
 }

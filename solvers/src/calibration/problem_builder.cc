@@ -11,6 +11,7 @@
 
 #include "calibration/batched_residual.h"
 #include "calibration/block_kind.h"
+#include "calibration/joint_term_columns.h"
 #include "identifiability/identifiability.h"
 #include "identifiability/structural_identifiability.h"
 #include "lpoe/eigen_decompositions.h"
@@ -240,41 +241,18 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
   PoseMeasurement pose_kind;
   pose_kind.inverse_sigma = 1.0 / options_.sigma;
   pose_kind.orientation_weight = options_.orientation_weight;
-  Eigen::MatrixXd term_Y;
-  // The rows' regressors from the reduction's slots when it stored them (regressors_: the non-zero
-  // entries of d(dq)/d(theta) per row, slot_basis mapping x to the slots' parameters): joint j's
-  // row of R is sum_{s in j} values(s, r) slot_basis row s, about 89 x K multiply-adds per row on
-  // cobot6 instead of each term's n x P regressor and its product with the basis.
-  const internal::JointSpaceRegressors* slots =
-      UsableSlots(regressors_.get(), p, n, data.size(), K);
-  const bool from_slots = slots != nullptr;
-  // slot_basis transposed (K x slots): slot s's row contiguous.
-  const Eigen::MatrixXd slot_basis_t =
-      from_slots ? Eigen::MatrixXd(slots->slot_basis.transpose()) : Eigen::MatrixXd();
+  // The rows' joint-term columns [Y_b(q) basis_b] (joint_term_columns.h), from the reduction's
+  // slots when it stored them (regressors_: the non-zero entries of d(dq)/d(theta) per row), about
+  // 89 x K multiply-adds per row on cobot6 instead of each term's n x P regressor.
+  internal::JointTermColumns columns(p, n);
+  CHECK_EQ(columns.num_columns(), K);
+  columns.UseSlots(UsableSlots(regressors_.get(), p, n, data.size(), K));
   if (batch == 1) ids.reserve(data.size());
   for (int r = 0; batch == 1 && r < data.size(); ++r) {
     parameters[n] = frames_[n + data.target(r)].data();
-    // This row's joint regressor [Y_b(q) basis_b] (data: evaluated once).
+    // This row's joint columns (data: evaluated once).
     Eigen::MatrixXd R(n, K);
-    if (from_slots) {
-      Eigen::MatrixXd R_t = Eigen::MatrixXd::Zero(K, n);  // R transposed: joint j's row contiguous
-      for (int j = 0; j < n; ++j) {
-        for (int s = slots->slot_begin[j]; s < slots->slot_begin[j + 1]; ++s) {
-          const double v = slots->values(s, r);
-          if (v != 0) R_t.col(j) += v * slot_basis_t.col(s);
-        }
-      }
-      R = R_t.transpose();
-    } else {
-      int column = 0;
-      for (int b : solved_joint_blocks) {
-        const JointBlock& block = p.joint_blocks[b];
-        term_Y.resize(n, block.term->num_parameters());
-        block.term->Regressor(data.q(r), term_Y.data());
-        R.middleCols(column, block.basis.cols()) = term_Y * block.basis;
-        column += static_cast<int>(block.basis.cols());
-      }
-    }
+    columns.Evaluate(r, data.q(r), &R);
     // The block kind's row data (block_kind.h: the gravity tilt's, bilinear with compliance).
     const std::shared_ptr<const GravityTiltRow> tilt =
         tilt_kind != nullptr ? tilt_kind->CeresRow(p, data.q(r), tilt_block) : nullptr;
