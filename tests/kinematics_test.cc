@@ -225,7 +225,7 @@ void ExpectJointModelIsItsTwistsExponential(uint64_t seed) {
     Xj.Set(G);
     Model::ApplyRight(data_j, &Xj);
     const Eigen::Matrix4d DG = G.Matrix() * D;  // d(G M)/dq
-    const Eigen::Vector3d Dx = D.topLeftCorner<3, 3>() * x;  // d(M x)/dq
+    const Eigen::Vector3d Dx = D.topLeftCorner<3, 3>() * x + D.topRightCorner<3, 1>();  // d(M x)/dq
     for (int r = 0; r < 3; ++r) {
       EXPECT_LT(std::abs(pj(r).a - p(r)), 1e-12 * std::max(1.0, x.norm())) << at;
       EXPECT_NEAR(pj(r).v(0), Dx(r), 1e-12 * std::max(1.0, Dx.norm())) << at;
@@ -273,7 +273,7 @@ TEST(JointModels, EveryDispatchGivesTheProductOfExponentials) {
     j.origin = rng.Pose(300);
     j.twist = id == JointModelId::kRevoluteZ ? TwistOf<RevoluteZJoint>(&rng, false)
               : id == JointModelId::kPrismatic ? TwistOf<PrismaticJoint>(&rng, false)
-                                               : TwistOf<RevoluteJoint>(&rng, true);
+                                               : TwistOf<RevoluteJoint>(&rng, false);
     model.joints.push_back(j);
   }
   Tool tool;

@@ -236,7 +236,7 @@ struct GeneralMotionJoint {
   }
 };
 
-// Revolute about any axis (a general screw, with or without pitch): exp(s^ q).
+// Revolute about any axis: exp(s^ q) (any screw; RobotModel::Validate admits zero pitch only).
 struct RevoluteJoint : GeneralMotionJoint {
   static constexpr JointModelId kId = JointModelId::kRevolute;
   template <typename S>
