@@ -8,6 +8,7 @@
 #include <cmath>
 #include <iostream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <ceres/jet.h>
@@ -107,6 +108,206 @@ TEST(Kinematics, JointMotionIsTheExponentialOfTheTwist) {
             << robot.name << " " << joint.name << " q = " << q;
       }
     }
+  }
+}
+
+// ---- Each joint model type on its own (kinematics.h, "Joint models"): its motion is the exponential
+// of its twist, its data applied left and right is that motion, its derivative and Jacobian columns
+// are the finite differences of the motion, on doubles and on Jets (whose derivative parts give
+// d/dq exactly).
+
+using JetQ = ceres::Jet<double, 1>;
+
+// Central differences of a function of q with values ~1e3 (translations in mm): step 1e-5 rad or
+// mm leaves truncation ~1e-10 and round-off ~1e-8 relative.
+constexpr double kJointFdStep = 1e-5;
+constexpr double kJointFdTolerance = 1e-7;
+
+// A twist of each model: RevoluteZJoint's is e_z; RevoluteJoint's an axis through a point off the
+// origin, with a pitch when `pitch`; PrismaticJoint's a unit direction.
+template <typename Model>
+Vector6d TwistOf(TestRandom* rng, bool pitch);
+template <>
+Vector6d TwistOf<RevoluteZJoint>(TestRandom*, bool) {
+  return (Vector6d() << 0, 0, 1, 0, 0, 0).finished();
+}
+template <>
+Vector6d TwistOf<RevoluteJoint>(TestRandom* rng, bool pitch) {
+  const Eigen::Vector3d w = rng->UnitVector();
+  const Eigen::Vector3d point = rng->Vector3(300);
+  Vector6d s;
+  s << w, -w.cross(point) + (pitch ? rng->Uniform(-5, 5) : 0.0) * w;
+  return s;
+}
+template <>
+Vector6d TwistOf<PrismaticJoint>(TestRandom* rng, bool) {
+  Vector6d s;
+  s << Eigen::Vector3d::Zero(), rng->UnitVector();
+  return s;
+}
+
+JointType TypeOf(JointModelId id) {
+  return id == JointModelId::kPrismatic ? JointType::kPrismatic : JointType::kRevolute;
+}
+
+template <typename Model>
+void ExpectJointModelIsItsTwistsExponential(uint64_t seed) {
+  TestRandom rng(seed);
+  const bool prismatic = Model::kId == JointModelId::kPrismatic;
+  for (int trial = 0; trial < kConfigurations; ++trial) {
+    const Vector6d s = TwistOf<Model>(&rng, trial % 2 == 1);
+    const double q = prismatic ? rng.Uniform(-500, 500) : rng.Uniform(-kPi, kPi);
+    const SE3d G = rng.Pose(800);             // the joint's frame before it moves
+    const Eigen::Vector3d x = rng.Vector3(400);  // a point beyond the joint, in its moved frame
+    const std::string at = "trial " + std::to_string(trial) + " q = " + std::to_string(q);
+
+    // The classification and the one switch reach this type.
+    Joint joint;
+    joint.type = TypeOf(Model::kId);
+    joint.twist = s;
+    EXPECT_EQ(JointModelOf(joint), Model::kId) << at;
+    const bool reached = VisitJointModel(JointModelOf(joint), [](auto m) {
+      return std::is_same_v<decltype(m), Model>;
+    });
+    EXPECT_TRUE(reached) << at;
+
+    // Motion = exp(s^ q), and JointMotion gives it.
+    const SE3d M = Model::Motion(s, q);
+    const SE3d expected = ExpSE3(Vector6d(s * q));
+    EXPECT_LT(testing::RelativeMaxDifference(M.Matrix(), expected.Matrix()), 1e-12) << at;
+    EXPECT_EQ(JointMotion(joint, q).Matrix(), M.Matrix()) << at;
+
+    // Its data applied to a point (BackwardChain) and to a running transform (ForwardChain).
+    const auto data = Model::DataAt(s, q);
+    Eigen::Vector3d p = x;
+    Model::ApplyLeft(data, &p);
+    EXPECT_LT((p - M * x).norm(), 1e-12 * std::max(1.0, x.norm())) << at;
+    SE3Accumulator<double> X;
+    X.Set(G);
+    Model::ApplyRight(data, &X);
+    EXPECT_LT(testing::RelativeMaxDifference(X.X.Matrix(), (G * M).Matrix()), 1e-12) << at;
+
+    // Derivative = d exp(s^ q)/dq = exp(s^ q) s^, against central differences.
+    const Eigen::Matrix4d D = Model::Derivative(s, data);
+    const Eigen::Matrix4d fd = (Model::Motion(s, q + kJointFdStep).Matrix() -
+                         Model::Motion(s, q - kJointFdStep).Matrix()) /
+                        (2 * kJointFdStep);
+    EXPECT_LT(testing::RelativeMaxDifference(D, fd), kJointFdTolerance) << at << "\n" << D << "\n" << fd;
+    EXPECT_LT(testing::RelativeMaxDifference(D, M.Matrix() * Hat6(s)), 1e-12) << at;
+
+    // The Jacobian columns at G: dP/dq of P = G M(q) x, and d log(T(q + h) T(q)^-1)/dh of
+    // T = G M(q) (Ad_G s), against central differences; BaseAxis is the pose column's rotation.
+    const Eigen::Vector3d P = G * (M * x);
+    const Eigen::Vector3d d = P - G.t;
+    Eigen::Vector3d column;
+    Model::PositionColumn(G.R.data(), d.data(), s, column.data());
+    const Eigen::Vector3d fd_column = (G * (Model::Motion(s, q + kJointFdStep) * x) -
+                                       G * (Model::Motion(s, q - kJointFdStep) * x)) /
+                                      (2 * kJointFdStep);
+    EXPECT_LT(testing::RelativeMaxDifference(column, fd_column), kJointFdTolerance) << at;
+    Vector6d pose_column;
+    Model::PoseColumn(G.R.data(), G.t.data(), s, pose_column.data());
+    const SE3d T_inverse = (G * M).Inverse();
+    const Vector6d fd_pose = (LogSE3(G * Model::Motion(s, q + kJointFdStep) * T_inverse) -
+                              LogSE3(G * Model::Motion(s, q - kJointFdStep) * T_inverse)) /
+                             (2 * kJointFdStep);
+    EXPECT_LT(testing::RelativeMaxDifference(pose_column, fd_pose), kJointFdTolerance) << at;
+    EXPECT_LT((Model::BaseAxis(G.R, s) - pose_column.head<3>()).norm(), 1e-12) << at;
+
+    // On Jets: the same values, and the derivative part of the motion (one infinitesimal on q) is
+    // the Derivative; applied left and right, the derivative parts are Derivative's action.
+    const JetQ qj(q, 0);
+    const SE3<JetQ> Mj = Model::Motion(s, qj);
+    const auto data_j = Model::DataAt(s, qj);
+    Vector3<JetQ> pj = x.cast<JetQ>();
+    Model::ApplyLeft(data_j, &pj);
+    SE3Accumulator<JetQ> Xj;
+    Xj.Set(G);
+    Model::ApplyRight(data_j, &Xj);
+    const Eigen::Matrix4d DG = G.Matrix() * D;  // d(G M)/dq
+    const Eigen::Vector3d Dx = D.topLeftCorner<3, 3>() * x + D.topRightCorner<3, 1>();  // d(M x)/dq
+    for (int r = 0; r < 3; ++r) {
+      EXPECT_LT(std::abs(pj(r).a - p(r)), 1e-12 * std::max(1.0, x.norm())) << at;
+      EXPECT_NEAR(pj(r).v(0), Dx(r), 1e-12 * std::max(1.0, Dx.norm())) << at;
+      EXPECT_NEAR(Mj.t(r).v(0), D(r, 3), 1e-12 * std::max(1.0, D.col(3).norm())) << at;
+      EXPECT_NEAR(Xj.X.t(r).v(0), DG(r, 3), 1e-12 * std::max(1.0, DG.col(3).norm())) << at;
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(Mj.R(r, c).a, M.R(r, c), 1e-15) << at;
+        EXPECT_NEAR(Mj.R(r, c).v(0), D(r, c), 1e-12) << at;
+        EXPECT_NEAR(Xj.X.R(r, c).v(0), DG(r, c), 1e-12) << at;
+      }
+    }
+    // The Jet motion's derivative is the Derivative of the Jet data (same values).
+    const Matrix4<JetQ> Dj = Model::Derivative(s, data_j);
+    for (int r = 0; r < 4; ++r) {
+      for (int c = 0; c < 4; ++c) EXPECT_NEAR(Dj(r, c).a, D(r, c), 1e-12 * std::max(1.0, D.norm()));
+    }
+  }
+}
+
+TEST(JointModels, RevoluteZIsItsTwistsExponentialOnDoublesAndJets) {
+  ExpectJointModelIsItsTwistsExponential<RevoluteZJoint>(kSeed + 40);
+}
+
+TEST(JointModels, RevoluteIsItsTwistsExponentialOnDoublesAndJets) {
+  ExpectJointModelIsItsTwistsExponential<RevoluteJoint>(kSeed + 41);
+}
+
+TEST(JointModels, PrismaticIsItsTwistsExponentialOnDoublesAndJets) {
+  ExpectJointModelIsItsTwistsExponential<PrismaticJoint>(kSeed + 42);
+}
+
+// The chain's dispatch: a model mixing the three types gives, through KinematicChain (ids decided
+// once), ToolPose/ToolPosition (classified per call) and JointMotions (stored data), the product of
+// the joints' exponentials.
+TEST(JointModels, EveryDispatchGivesTheProductOfExponentials) {
+  TestRandom rng(kSeed + 43);
+  RobotModel model;
+  const JointModelId ids[] = {JointModelId::kRevoluteZ, JointModelId::kPrismatic,
+                              JointModelId::kRevolute, JointModelId::kRevoluteZ,
+                              JointModelId::kRevolute};
+  for (JointModelId id : ids) {
+    Joint j;
+    j.name = "j" + std::to_string(model.joints.size());
+    j.type = TypeOf(id);
+    j.origin = rng.Pose(300);
+    j.twist = id == JointModelId::kRevoluteZ ? TwistOf<RevoluteZJoint>(&rng, false)
+              : id == JointModelId::kPrismatic ? TwistOf<PrismaticJoint>(&rng, false)
+                                               : TwistOf<RevoluteJoint>(&rng, false);
+    model.joints.push_back(j);
+  }
+  Tool tool;
+  tool.name = "tool";
+  tool.origin = rng.Pose(100);
+  model.tools.push_back(tool);
+  ASSERT_TRUE(model.Validate().ok()) << model.Validate().message();
+  const KinematicChain chain(model);
+  for (int i = 0; i < model.num_joints(); ++i) EXPECT_EQ(chain.joint_model(i), ids[i]);
+  for (int trial = 0; trial < kConfigurations; ++trial) {
+    std::vector<double> q;
+    for (JointModelId id : ids) {
+      q.push_back(id == JointModelId::kPrismatic ? rng.Uniform(-300, 300) : rng.Uniform(-kPi, kPi));
+    }
+    SE3d expected;
+    for (int i = 0; i < model.num_joints(); ++i) {
+      expected = expected * model.joints[i].origin * ExpSE3(Vector6d(model.joints[i].twist * q[i]));
+    }
+    expected = expected * tool.origin;
+    EXPECT_LT(testing::RelativeMaxDifference(chain.Pose(q.data()).Matrix(), expected.Matrix()), 1e-12);
+    EXPECT_LT(testing::RelativeMaxDifference(ToolPose(model, q.data()).Matrix(), expected.Matrix()),
+              1e-12);
+    EXPECT_LT((chain.Position(q.data()) - expected.t).norm(), 1e-12 * expected.t.norm());
+    EXPECT_LT((ToolPosition(model, q.data()) - expected.t).norm(), 1e-12 * expected.t.norm());
+    std::vector<SE3d> origins;
+    for (const Joint& j : model.joints) origins.push_back(j.origin);
+    const JointMotions<double> motions(model, q.data());
+    EXPECT_LT(testing::RelativeMaxDifference(
+                  ChainPose(motions, model.num_joints(), origins.data(), tool.origin).Matrix(),
+                  expected.Matrix()),
+              1e-12);
+    EXPECT_LT((ChainPosition(motions, model.num_joints(), origins.data(), tool.origin.t) -
+               expected.t).norm(),
+              1e-12 * expected.t.norm());
   }
 }
 

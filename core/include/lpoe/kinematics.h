@@ -48,14 +48,6 @@ inline void SinCos(const S& x, S* s, S* c) {
   *c = cos(x);
 }
 
-// True for a revolute joint whose twist is exactly (0, 0, 1, 0, 0, 0): its motion is Rz(q) with no
-// translation, which every chain below applies as a plane rotation of two coordinates.
-inline bool IsRevoluteZ(const Joint& joint) {
-  const Vector6d& s = joint.twist;
-  return joint.type == JointType::kRevolute && s(0) == 0 && s(1) == 0 && s(2) == 1 && s(3) == 0 &&
-         s(4) == 0 && s(5) == 0;
-}
-
 namespace internal {
 
 // The revolute-about-z update, written once for every chain, scalar and register type:
@@ -72,59 +64,277 @@ inline void PlaneRotation(const C& c, const C& s, A* x, A* y) {
 
 }  // namespace internal
 
-// ---- Joint models (as Pinocchio's JointModel types): the three kinds of joint the chain knows. Each
-// gives its motion exp(s^ q) for any scalar of the joint value (double, Jet); the revolute-z model
-// also its updates from (sin q, cos q), the form every chain below applies it in.
+// ---- Jacobian columns, written once for every scalar and lane type V (double, or the lanes of the
+// four-row kernel). A frame G = (R, t) is given by R column-major (R[3 k + r]) and t; d = P - t is the
+// tool point P seen from the frame's origin.
 
-// Revolute about the joint frame's z axis, twist exactly (0, 0, 1, 0, 0, 0): Rz(q), no translation.
-struct JointModelRevoluteZ {
+// Column k of the 3 x 6 position Jacobian of a right perturbation (omega, v) of G (eq. (29) without
+// the adjoint): k < 3: d/d omega_k = R_k x d (= -(P - t)^ R e_k); k >= 3: d/d v_k = R_{k-3}. The
+// position column of a joint revolute about its frame's z is k = 2.
+template <typename V>
+inline void PositionColumn(const V* R, const V* d, int k, V* out) {
+  if (k < 3) {
+    const V* Rk = R + 3 * k;
+    out[0] = Rk[1] * d[2] - Rk[2] * d[1];
+    out[1] = Rk[2] * d[0] - Rk[0] * d[2];
+    out[2] = Rk[0] * d[1] - Rk[1] * d[0];
+  } else {
+    const V* Rk = R + 3 * (k - 3);
+    out[0] = Rk[0];
+    out[1] = Rk[1];
+    out[2] = Rk[2];
+  }
+}
+
+// Column k of Ad_G = [[R, 0], [t^ R, R]] (eq. (18)): k < 3: (R_k, t x R_k); k >= 3: (0, R_{k-3}).
+template <typename V>
+inline void AdjointColumn(const V* R, const V* t, int k, V* out) {
+  if (k < 3) {
+    const V* Rk = R + 3 * k;
+    out[0] = Rk[0];
+    out[1] = Rk[1];
+    out[2] = Rk[2];
+    out[3] = t[1] * Rk[2] - t[2] * Rk[1];
+    out[4] = t[2] * Rk[0] - t[0] * Rk[2];
+    out[5] = t[0] * Rk[1] - t[1] * Rk[0];
+  } else {
+    const V* Rk = R + 3 * (k - 3);
+    out[0] = out[1] = out[2] = V();
+    out[3] = Rk[0];
+    out[4] = Rk[1];
+    out[5] = Rk[2];
+  }
+}
+
+// ---- Joint models, as Pinocchio's JointModel types: each kind of joint the chain knows is a type,
+// and all of its math is in that type's static functions, for any scalar S of the joint value
+// (double, ceres::Jet) and any lane type (the kernels). `s` is the joint's twist (omega, v) in its
+// own frame, always double.
+//   Data<S>              what one value q leaves for the chain (Pinocchio's JointData);
+//   DataAt(s, q)         that data at q;
+//   Motion(s, q)         exp(s^ q) as an SE3<S>;
+//   ApplyLeft(d, &p)     p <- exp(s^ q) p (BackwardChain);
+//   ApplyRight(d, &X)    X <- X exp(s^ q) on a running transform (ForwardChain's accumulators);
+//   Derivative(s, d)     d exp(s^ q) / dq = exp(s^ q) s^, 4 x 4;
+//   PositionColumn(R, d, s, out), PoseColumn(R, t, s, out): the joint's column of the position and
+//                        pose Jacobians at its frame G = (R, t) (Ad_G s, the derivative as the chain
+//                        uses it; d = P - t);
+//   BaseAxis(R, s)       R omega, the joint's rotation rate in the base frame;
+//   kTakesSinCos         true when Data is (sin q, cos q), which callers may compute ahead (SinCosMany).
+// JointModelOf classifies a Joint (the one place the kinematics reads its JointType and twist) and
+// VisitJointModel is the one switch from that classification to the type. The chains, the Jacobian
+// columns and the kernels reach the types only through a dispatcher (JointModelIds, ClassifiedJoints,
+// AllJoints below), never by testing a joint's kind. docs/architecture.md: how to add a joint type.
+
+// The classification: one value per joint model type.
+enum class JointModelId : unsigned char { kRevoluteZ, kRevolute, kPrismatic };
+
+// (sin q, cos q): the data of a revolute-z joint (S a scalar, a Jet or a lane type).
+template <typename S>
+struct SinCosData {
+  S s, c;
+};
+
+// Revolute about the joint frame's z axis, twist exactly (0, 0, 1, 0, 0, 0): Rz(q), no translation,
+// applied as a plane rotation of two coordinates (9 + 4 multiplications per joint on a point, 12 on
+// a running transform).
+struct RevoluteZJoint {
+  static constexpr JointModelId kId = JointModelId::kRevoluteZ;
+  static constexpr bool kTakesSinCos = true;
   template <typename S>
-  static SE3<S> Motion(const S& q) {
-    S sn, c;
-    SinCos(q, &sn, &c);
+  using Data = SinCosData<S>;
+
+  template <typename S>
+  static Data<S> DataAt(const Vector6d& /*s*/, const S& q) {
+    Data<S> d;
+    SinCos(q, &d.s, &d.c);
+    return d;
+  }
+  template <typename S>
+  static SE3<S> Motion(const Vector6d& s, const S& q) {
+    const Data<S> d = DataAt(s, q);
     SE3<S> X;
     X.R.setIdentity();
-    internal::PlaneRotation(c, S(-sn), &X.R(0, 0), &X.R(0, 1));
-    internal::PlaneRotation(c, S(-sn), &X.R(1, 0), &X.R(1, 1));
+    internal::PlaneRotation(d.c, S(-d.s), &X.R(0, 0), &X.R(0, 1));
+    internal::PlaneRotation(d.c, S(-d.s), &X.R(1, 0), &X.R(1, 1));
     return X;
   }
   // p <- Rz(q) p.
   template <typename T, typename C>
-  static void ApplyLeft(const C& c, const C& s, Vector3<T>* p) {
-    internal::PlaneRotation(c, s, &(*p)(0), &(*p)(1));
+  static void ApplyLeft(const SinCosData<C>& d, Vector3<T>* p) {
+    internal::PlaneRotation(d.c, d.s, &(*p)(0), &(*p)(1));
   }
   // X <- X Rz(q) (the accumulator's two-column update).
   template <typename Accumulator, typename C>
-  static void ApplyRight(const C& c, const C& s, Accumulator* X) {
-    X->RotZ(c, s);
+  static void ApplyRight(const SinCosData<C>& d, Accumulator* X) {
+    X->RotZ(d.c, d.s);
+  }
+  template <typename S>
+  static Matrix4<S> Derivative(const Vector6d& /*s*/, const SinCosData<S>& d) {
+    Matrix4<S> D = Matrix4<S>::Zero();
+    D(0, 0) = -d.s;
+    D(0, 1) = -d.c;
+    D(1, 0) = d.c;
+    D(1, 1) = -d.s;
+    return D;
+  }
+  // The rotation column about the frame's z (k = 2).
+  template <typename V>
+  static void PositionColumn(const V* R, const V* d, const Vector6d& /*s*/, V* out) {
+    lpoe::PositionColumn(R, d, 2, out);
+  }
+  static void PoseColumn(const double* R, const double* t, const Vector6d& /*s*/, double* out) {
+    AdjointColumn(R, t, 2, out);
+  }
+  static Eigen::Vector3d BaseAxis(const Eigen::Matrix3d& R, const Vector6d& /*s*/) {
+    return R.col(2);
   }
 };
 
-// Revolute about any axis (a general screw of zero pitch, or with pitch): exp(s^ q).
-struct JointModelRevolute {
+// What the joints with a general motion share: their data is the motion itself, applied as a rigid
+// transform, and their Jacobian columns are the twist's combination of the frame's columns.
+struct GeneralMotionJoint {
+  static constexpr bool kTakesSinCos = false;
   template <typename S>
-  static SE3<S> Motion(const Vector6d& twist, const S& q) {
-    return ExpSE3(Vector6<S>(twist.template cast<S>() * q));
+  using Data = SE3<S>;
+
+  template <typename T, typename S>
+  static void ApplyLeft(const SE3<S>& M, Vector3<T>* p) {
+    *p = M.R.template cast<T>() * *p + M.t.template cast<T>();
+  }
+  template <typename Accumulator, typename S>
+  static void ApplyRight(const SE3<S>& M, Accumulator* X) {
+    X->RightMultiply(M);
+  }
+  template <typename S>
+  static Matrix4<S> Derivative(const Vector6d& s, const SE3<S>& M) {
+    return M.Matrix() * Hat6(Vector6<S>(s.template cast<S>()));
+  }
+  // w x d + R v.
+  template <typename V>
+  static void PositionColumn(const V* R, const V* d, const Vector6d& s, V* out) {
+    out[0] = out[1] = out[2] = V();
+    V c[3];
+    for (int k = 0; k < 6; ++k) {
+      if (s(k) == 0.0) continue;
+      lpoe::PositionColumn(R, d, k, c);
+      for (int r = 0; r < 3; ++r) out[r] += s(k) * c[r];
+    }
+  }
+  // Ad_G s.
+  static void PoseColumn(const double* R, const double* t, const Vector6d& s, double* out) {
+    for (int r = 0; r < 6; ++r) out[r] = 0.0;
+    double c[6];
+    for (int k = 0; k < 6; ++k) {
+      if (s(k) == 0.0) continue;
+      AdjointColumn(R, t, k, c);
+      for (int r = 0; r < 6; ++r) out[r] += s(k) * c[r];
+    }
+  }
+  static Eigen::Vector3d BaseAxis(const Eigen::Matrix3d& R, const Vector6d& s) {
+    return R * s.head<3>();
+  }
+};
+
+// Revolute about any axis: exp(s^ q) (any screw; RobotModel::Validate admits zero pitch only).
+struct RevoluteJoint : GeneralMotionJoint {
+  static constexpr JointModelId kId = JointModelId::kRevolute;
+  template <typename S>
+  static SE3<S> DataAt(const Vector6d& s, const S& q) {
+    return ExpSE3(Vector6<S>(s.template cast<S>() * q));
+  }
+  template <typename S>
+  static SE3<S> Motion(const Vector6d& s, const S& q) {
+    return DataAt(s, q);
   }
 };
 
 // Prismatic along the twist's v: t = v q, no rotation.
-struct JointModelPrismatic {
+struct PrismaticJoint : GeneralMotionJoint {
+  static constexpr JointModelId kId = JointModelId::kPrismatic;
   template <typename S>
-  static SE3<S> Motion(const Vector6d& twist, const S& q) {
+  static SE3<S> DataAt(const Vector6d& s, const S& q) {
     SE3<S> X;
-    X.t = twist.tail<3>().template cast<S>() * q;
+    X.t = s.tail<3>().template cast<S>() * q;
     return X;
+  }
+  template <typename S>
+  static SE3<S> Motion(const Vector6d& s, const S& q) {
+    return DataAt(s, q);
   }
 };
 
-// exp(s^ q) for a joint of the given twist, for any scalar of the joint value (double, Jet): the
-// joint's model's motion.
+// The model of a joint: prismatic joints are PrismaticJoint, revolute joints of twist exactly
+// (0, 0, 1, 0, 0, 0) RevoluteZJoint, other revolute joints RevoluteJoint.
+inline JointModelId JointModelOf(const Joint& joint) {
+  if (joint.type == JointType::kPrismatic) return JointModelId::kPrismatic;
+  const Vector6d& s = joint.twist;
+  const bool z = s(0) == 0 && s(1) == 0 && s(2) == 1 && s(3) == 0 && s(4) == 0 && s(5) == 0;
+  return z ? JointModelId::kRevoluteZ : JointModelId::kRevolute;
+}
+
+// True for a joint of model RevoluteZJoint (the solvers' four-row kernel needs every joint so).
+inline bool IsRevoluteZ(const Joint& joint) {
+  return JointModelOf(joint) == JointModelId::kRevoluteZ;
+}
+
+// The one switch: f(Model()) with the type of `id` (an empty object: its static functions are the
+// joint's math). Every case returns the same type.
+template <typename F>
+inline decltype(auto) VisitJointModel(JointModelId id, F&& f) {
+  switch (id) {
+    case JointModelId::kRevoluteZ:
+      return f(RevoluteZJoint());
+    case JointModelId::kRevolute:
+      return f(RevoluteJoint());
+    case JointModelId::kPrismatic:
+      break;
+  }
+  return f(PrismaticJoint());
+}
+
+// Dispatchers: which model each joint of a chain has. `Visit(i, f)` calls f with joint i's model.
+//   JointModelIds:    one id per joint, classified once (KinematicChain, JointMotions): a switch per
+//                     joint;
+//   ClassifiedJoints: classified as the chain reaches each joint (the one-call forms: ToolPose,
+//                     ChainPose, ...);
+//   AllJoints<M>:     every joint is an M, known at compile time: no switch (the chains of revolute-z
+//                     joints, decided once per chain by KinematicChain; the four-row kernel).
+struct JointModelIds {
+  const JointModelId* ids;
+  template <typename F>
+  decltype(auto) Visit(int i, F&& f) const {
+    return VisitJointModel(ids[i], f);
+  }
+};
+
+struct ClassifiedJoints {
+  const Joint* joints;
+  template <typename F>
+  decltype(auto) Visit(int i, F&& f) const {
+    return VisitJointModel(JointModelOf(joints[i]), f);
+  }
+};
+
+template <typename Model>
+struct AllJoints {
+  template <typename F>
+  decltype(auto) Visit(int, F&& f) const {
+    return f(Model());
+  }
+};
+
+// Whether joint i's data is (sin q_i, cos q_i).
+template <typename Models>
+inline bool TakesSinCos(const Models& models, int i) {
+  return models.Visit(i, [](auto model) { return decltype(model)::kTakesSinCos; });
+}
+
+// exp(s^ q) for a joint, for any scalar of the joint value (double, Jet): its model's motion.
 template <typename S>
 SE3<S> JointMotion(const Joint& joint, const S& q) {
-  if (joint.type == JointType::kPrismatic) return JointModelPrismatic::Motion(joint.twist, q);
-  if (IsRevoluteZ(joint)) return JointModelRevoluteZ::Motion(q);
-  return JointModelRevolute::Motion(joint.twist, q);
+  return VisitJointModel(JointModelOf(joint),
+                         [&](auto model) { return decltype(model)::Motion(joint.twist, q); });
 }
 
 // ---- One forward-kinematics template.
@@ -142,157 +352,146 @@ SE3<S> JointMotion(const Joint& joint, const S& q) {
 //     a column in one SSE2 register: 1.1-1.2x faster IK than LaneAccumulator<double>, measured);
 //   * the local frames (`origin(i)`): the model's own frames, or parameter blocks (SE3<T>, or
 //     QuaternionTransform<T> acting on a point straight from the quaternion);
-//   * the joint motions (`Motions`): precomputed once per configuration (JointMotions, the
-//     "Data" of one q: sin/cos up front), or computed on the fly (OnTheFlyMotions);
-//   * which joints are revolute about z: checked per call, or once (KinematicChain).
+//   * the joint motions (`Motions`): where each joint's Data comes from: precomputed once per
+//     configuration (JointMotions, sin/cos up front), computed on the fly (OnTheFlyMotions), or
+//     sin/cos given by the caller (GivenSinCosMotions, RevoluteZMotions);
+//   * the dispatcher of the joint models (above): per joint, or once per chain (AllJoints).
 // Joint values are of any scalar S (double, or Jet when a joint-space term shifts them).
+
+// The two operations every joint-motions policy gives the chain, written once: joint i's model
+// (from the policy's dispatcher, models()) applied to joint i's data (the policy's DataOf(model, i)).
+template <typename Policy>
+class JointMotionsBase {
+ public:
+  // p <- exp(s_i^ q_i) p.
+  template <typename T>
+  void ApplyLeft(int i, Vector3<T>* p) const {
+    const Policy& self = static_cast<const Policy&>(*this);
+    self.models().Visit(i, [&](auto model) {
+      decltype(model)::ApplyLeft(self.DataOf(model, i), p);
+    });
+  }
+  // X <- X exp(s_i^ q_i).
+  template <typename Accumulator>
+  void ApplyRight(int i, Accumulator* X) const {
+    const Policy& self = static_cast<const Policy&>(*this);
+    self.models().Visit(i, [&](auto model) {
+      decltype(model)::ApplyRight(self.DataOf(model, i), X);
+    });
+  }
+};
 
 // The motions exp(s_i^ q_i) of one configuration, computed once (the per-call Data of the chain):
 // revolute-z joints keep (sin, cos), other joints their motion. The autodiff residuals evaluate the
 // chain many times per Jacobian at a fixed q, and the sin/cos calls would otherwise dominate.
 template <typename S = double>
-class JointMotions {
+class JointMotions : public JointMotionsBase<JointMotions<S>> {
  public:
-  JointMotions(const RobotModel& model, const S* q) : motions_(model.num_joints()) {
+  JointMotions() = default;
+  JointMotions(const RobotModel& model, const S* q) { Set(model, q); }
+
+  void Set(const RobotModel& model, const S* q) {
+    motions_.resize(model.num_joints());
     for (int i = 0; i < model.num_joints(); ++i) {
+      const Joint& joint = model.joints[i];
       Motion& m = motions_[i];
-      m.revolute_z = IsRevoluteZ(model.joints[i]);
-      if (m.revolute_z) {
-        SinCos(q[i], &m.s, &m.c);
-      } else {
-        m.general = JointMotion(model.joints[i], q[i]);
-      }
+      m.id = JointModelOf(joint);
+      VisitJointModel(m.id,
+                      [&](auto type) { Store(decltype(type)::DataAt(joint.twist, q[i]), &m); });
     }
   }
 
-  // p <- exp(s_i^ q_i) p.
-  template <typename T>
-  void ApplyLeft(int i, Vector3<T>* p) const {
-    const Motion& m = motions_[i];
-    if (m.revolute_z) {
-      JointModelRevoluteZ::ApplyLeft(m.c, m.s, p);
-    } else {
-      *p = m.general.R.template cast<T>() * *p + m.general.t.template cast<T>();
+  // The dispatcher and the data (JointMotionsBase).
+  struct Models {
+    const JointMotions* motions;
+    template <typename F>
+    decltype(auto) Visit(int i, F&& f) const {
+      return VisitJointModel(motions->motions_[i].id, f);
     }
-  }
-  // X <- X exp(s_i^ q_i).
-  template <typename Accumulator>
-  void ApplyRight(int i, Accumulator* X) const {
-    const Motion& m = motions_[i];
-    if (m.revolute_z) {
-      JointModelRevoluteZ::ApplyRight(m.c, m.s, X);
-    } else {
-      X->RightMultiply(m.general);
-    }
+  };
+  Models models() const { return Models{this}; }
+  const SinCosData<S>& DataOf(RevoluteZJoint, int i) const { return motions_[i].sin_cos; }
+  template <typename Model>
+  const SE3<S>& DataOf(Model, int i) const {
+    return motions_[i].general;
   }
 
  private:
   struct Motion {
-    bool revolute_z = false;
-    S s = S(0), c = S(1);
+    JointModelId id = JointModelId::kRevoluteZ;
+    SinCosData<S> sin_cos = {S(0), S(1)};
     SE3<S> general;
   };
+  static void Store(const SinCosData<S>& d, Motion* m) { m->sin_cos = d; }
+  static void Store(const SE3<S>& M, Motion* m) { m->general = M; }
   std::vector<Motion> motions_;
 };
 
 // The joint motions computed as the chain reaches each joint (no set-up, nothing stored): sin/cos
-// interleaved with the chain. `is_z(i)` tells which joints are revolute about z.
-template <typename IsZ, typename S = double>
-class OnTheFlyMotions {
+// interleaved with the chain. `models` is the chain's dispatcher.
+template <typename Models, typename S = double>
+class OnTheFlyMotions : public JointMotionsBase<OnTheFlyMotions<Models, S>> {
  public:
-  OnTheFlyMotions(const Joint* joints, const S* q, IsZ is_z) : joints_(joints), q_(q), is_z_(is_z) {}
+  OnTheFlyMotions(const Joint* joints, const S* q, Models models)
+      : joints_(joints), q_(q), models_(models) {}
 
-  template <typename T>
-  void ApplyLeft(int i, Vector3<T>* p) const {
-    if (is_z_(i)) {
-      S s, c;
-      SinCos(q_[i], &s, &c);
-      JointModelRevoluteZ::ApplyLeft(c, s, p);
-    } else {
-      const SE3<S> M = JointMotion(joints_[i], q_[i]);
-      *p = M.R.template cast<T>() * *p + M.t.template cast<T>();
-    }
-  }
-  template <typename Accumulator>
-  void ApplyRight(int i, Accumulator* X) const {
-    if (is_z_(i)) {
-      S s, c;
-      SinCos(q_[i], &s, &c);
-      JointModelRevoluteZ::ApplyRight(c, s, X);
-    } else {
-      X->RightMultiply(JointMotion(joints_[i], q_[i]));
-    }
+  const Models& models() const { return models_; }
+  template <typename Model>
+  auto DataOf(Model, int i) const {
+    return Model::DataAt(joints_[i].twist, q_[i]);
   }
 
  private:
   const Joint* joints_;
   const S* q_;
-  IsZ is_z_;
+  Models models_;
 };
 
-template <typename S, typename IsZ>
-OnTheFlyMotions<IsZ, S> MakeOnTheFlyMotions(const Joint* joints, const S* q, IsZ is_z) {
-  return OnTheFlyMotions<IsZ, S>(joints, q, is_z);
+template <typename S, typename Models>
+OnTheFlyMotions<Models, S> MakeOnTheFlyMotions(const Joint* joints, const S* q, Models models) {
+  return OnTheFlyMotions<Models, S>(joints, q, models);
 }
 
-// The joint motions with sin(q_i) and cos(q_i) of the revolute-z joints given (computed for many
-// values at once by SinCosMany, or kept up to date by the caller); other joints as OnTheFlyMotions.
-template <typename IsZ>
-class GivenSinCosMotions {
+// The joint motions with sin(q_i) and cos(q_i) of the revolute-z joints given as values of C
+// (computed for many values at once by SinCosMany, kept up to date by the caller, or a vector of
+// lanes: one configuration per lane); other joints as OnTheFlyMotions (joints and q may be null when
+// the dispatcher has revolute-z joints only).
+template <typename Models, typename C = double>
+class GivenSinCosMotions : public JointMotionsBase<GivenSinCosMotions<Models, C>> {
  public:
-  GivenSinCosMotions(const Joint* joints, const double* q, IsZ is_z, const double* sin_q,
-                     const double* cos_q)
-      : other_(joints, q, is_z), is_z_(is_z), s_(sin_q), c_(cos_q) {}
+  GivenSinCosMotions(const Joint* joints, const double* q, Models models, const C* sin_q,
+                     const C* cos_q)
+      : joints_(joints), q_(q), models_(models), s_(sin_q), c_(cos_q) {}
 
-  template <typename T>
-  void ApplyLeft(int i, Vector3<T>* p) const {
-    if (is_z_(i)) {
-      JointModelRevoluteZ::ApplyLeft(c_[i], s_[i], p);
-    } else {
-      other_.ApplyLeft(i, p);
-    }
-  }
-  template <typename Accumulator>
-  void ApplyRight(int i, Accumulator* X) const {
-    if (is_z_(i)) {
-      JointModelRevoluteZ::ApplyRight(c_[i], s_[i], X);
-    } else {
-      other_.ApplyRight(i, X);
-    }
+  const Models& models() const { return models_; }
+  SinCosData<C> DataOf(RevoluteZJoint, int i) const { return SinCosData<C>{s_[i], c_[i]}; }
+  template <typename Model>
+  auto DataOf(Model, int i) const {
+    return Model::DataAt(joints_[i].twist, q_[i]);
   }
 
  private:
-  OnTheFlyMotions<IsZ, double> other_;
-  IsZ is_z_;
-  const double* s_;
-  const double* c_;
-};
-
-template <typename IsZ>
-GivenSinCosMotions<IsZ> MakeGivenSinCosMotions(const Joint* joints, const double* q, IsZ is_z,
-                                               const double* sin_q, const double* cos_q) {
-  return GivenSinCosMotions<IsZ>(joints, q, is_z, sin_q, cos_q);
-}
-
-// The joint motions of a chain whose joints are all revolute about z, with sin(q_i) and cos(q_i) given
-// as values of C (double, or a vector of lanes: one configuration per lane).
-template <typename C>
-class RevoluteZMotions {
- public:
-  RevoluteZMotions(const C* sin_q, const C* cos_q) : s_(sin_q), c_(cos_q) {}
-  template <typename T>
-  void ApplyLeft(int i, Vector3<T>* p) const {
-    JointModelRevoluteZ::ApplyLeft(c_[i], s_[i], p);
-  }
-  template <typename Accumulator>
-  void ApplyRight(int i, Accumulator* X) const {
-    JointModelRevoluteZ::ApplyRight(c_[i], s_[i], X);
-  }
-
- private:
+  const Joint* joints_;
+  const double* q_;
+  Models models_;
   const C* s_;
   const C* c_;
 };
+
+template <typename Models>
+GivenSinCosMotions<Models> MakeGivenSinCosMotions(const Joint* joints, const double* q,
+                                                  Models models, const double* sin_q,
+                                                  const double* cos_q) {
+  return GivenSinCosMotions<Models>(joints, q, models, sin_q, cos_q);
+}
+
+// The joint motions of a chain whose joints are all revolute about z, with sin(q_i) and cos(q_i)
+// given as values of C (double, or a vector of lanes: one configuration per lane).
+template <typename C>
+GivenSinCosMotions<AllJoints<RevoluteZJoint>, C> RevoluteZMotions(const C* sin_q, const C* cos_q) {
+  return GivenSinCosMotions<AllJoints<RevoluteZJoint>, C>(nullptr, nullptr,
+                                                          AllJoints<RevoluteZJoint>(), sin_q, cos_q);
+}
 
 // Scratch for one value per joint: on the stack for up to N joints, else on the heap (the autodiff
 // residuals build their frames in it on every evaluation).
@@ -415,8 +614,7 @@ SE3<T> ChainPose(const RobotModel& model, const SE3<T>* joint_origins, const SE3
                  const Q* q) {
   SE3Accumulator<T> X;
   ForwardChain(model.num_joints(), [&](int i) -> const SE3<T>& { return joint_origins[i]; },
-               MakeOnTheFlyMotions(model.joints.data(), q,
-                                   [&](int i) { return IsRevoluteZ(model.joints[i]); }),
+               MakeOnTheFlyMotions(model.joints.data(), q, ClassifiedJoints{model.joints.data()}),
                &X, [](int, const SE3Accumulator<T>&) {});
   return X.X * tool_origin;
 }
@@ -439,8 +637,7 @@ Vector3<T> ChainPosition(const RobotModel& model, const Frame* joint_origins,
                          const Vector3<T>& tool_point, const Q* q) {
   return BackwardChain<T>(
       model.num_joints(), [&](int i) -> const Frame& { return joint_origins[i]; },
-      MakeOnTheFlyMotions(model.joints.data(), q,
-                          [&](int i) { return IsRevoluteZ(model.joints[i]); }),
+      MakeOnTheFlyMotions(model.joints.data(), q, ClassifiedJoints{model.joints.data()}),
       tool_point);
 }
 
@@ -450,77 +647,6 @@ Vector3<T> ChainPosition(const JointMotions<S>& motions, int num_joints, const F
                          const Vector3<T>& tool_point) {
   return BackwardChain<T>(
       num_joints, [&](int i) -> const Frame& { return joint_origins[i]; }, motions, tool_point);
-}
-
-// ---- Jacobian columns, written once for every scalar and lane type V (double, or the lanes of the
-// four-row kernel). A frame G = (R, t) is given by R column-major (R[3 k + r]) and t; d = P - t is the
-// tool point P seen from the frame's origin.
-
-// Column k of the 3 x 6 position Jacobian of a right perturbation (omega, v) of G (eq. (29) without
-// the adjoint): k < 3: d/d omega_k = R_k x d (= -(P - t)^ R e_k); k >= 3: d/d v_k = R_{k-3}. The
-// position column of a joint revolute about its frame's z is k = 2.
-template <typename V>
-inline void PositionColumn(const V* R, const V* d, int k, V* out) {
-  if (k < 3) {
-    const V* Rk = R + 3 * k;
-    out[0] = Rk[1] * d[2] - Rk[2] * d[1];
-    out[1] = Rk[2] * d[0] - Rk[0] * d[2];
-    out[2] = Rk[0] * d[1] - Rk[1] * d[0];
-  } else {
-    const V* Rk = R + 3 * (k - 3);
-    out[0] = Rk[0];
-    out[1] = Rk[1];
-    out[2] = Rk[2];
-  }
-}
-
-// Column k of Ad_G = [[R, 0], [t^ R, R]] (eq. (18)): k < 3: (R_k, t x R_k); k >= 3: (0, R_{k-3}).
-template <typename V>
-inline void AdjointColumn(const V* R, const V* t, int k, V* out) {
-  if (k < 3) {
-    const V* Rk = R + 3 * k;
-    out[0] = Rk[0];
-    out[1] = Rk[1];
-    out[2] = Rk[2];
-    out[3] = t[1] * Rk[2] - t[2] * Rk[1];
-    out[4] = t[2] * Rk[0] - t[0] * Rk[2];
-    out[5] = t[0] * Rk[1] - t[1] * Rk[0];
-  } else {
-    const V* Rk = R + 3 * (k - 3);
-    out[0] = out[1] = out[2] = V();
-    out[3] = Rk[0];
-    out[4] = Rk[1];
-    out[5] = Rk[2];
-  }
-}
-
-// The column of a joint whose twist in its own frame is s (revolute about z when `z`) at its frame
-// G = (R, t): Ad_G s (6 rows; the pose Jacobian, and the joint's twist in the base frame), the
-// twist's combination of the frame's AdjointColumns.
-inline void JointPoseColumn(const double* R, const double* t, const Vector6d& s, bool z,
-                            double* out) {
-  if (z) return AdjointColumn(R, t, 2, out);
-  for (int r = 0; r < 6; ++r) out[r] = 0.0;
-  double c[6];
-  for (int k = 0; k < 6; ++k) {
-    if (s(k) == 0.0) continue;
-    AdjointColumn(R, t, k, c);
-    for (int r = 0; r < 6; ++r) out[r] += s(k) * c[r];
-  }
-}
-
-// The same joint's column in the position Jacobian at the tool point (d = P - t): w x d + R v, the
-// twist's combination of the frame's PositionColumns.
-inline void JointPositionColumn(const double* R, const double* d, const Vector6d& s, bool z,
-                                double* out) {
-  if (z) return PositionColumn(R, d, 2, out);
-  out[0] = out[1] = out[2] = 0.0;
-  double c[3];
-  for (int k = 0; k < 6; ++k) {
-    if (s(k) == 0.0) continue;
-    PositionColumn(R, d, k, c);
-    for (int r = 0; r < 3; ++r) out[r] += s(k) * c[r];
-  }
 }
 
 // Convenience forms on the model's own frames (double).
@@ -567,8 +693,8 @@ struct FrameRt {
   Eigen::Vector3d t;
 };
 
-// A robot model prepared for many evaluations: which joints are revolute about local z is decided
-// once (the model-independent checks leave the loop). Like Pinocchio's Model/Data split, it refers to
+// A robot model prepared for many evaluations: each joint's model (JointModelOf) is decided once,
+// and whether one model serves the whole chain (the model-independent checks leave the loop). Like Pinocchio's Model/Data split, it refers to
 // `model` without owning it: the model must outlive the chain; its frames may change between calls,
 // its joint types and twists may not. Evaluation allocates nothing and gives the values of ToolPose,
 // ToolPosition and PerturbationFrames to round-off.
@@ -577,7 +703,9 @@ class KinematicChain {
   explicit KinematicChain(const RobotModel& model);
 
   const RobotModel& model() const { return *model_; }
-  int num_joints() const { return static_cast<int>(z_revolute_.size()); }
+  int num_joints() const { return static_cast<int>(models_.size()); }
+  // Joint i's model (JointModelOf, decided once).
+  JointModelId joint_model(int i) const { return models_[i]; }
 
   SE3d Pose(const double* q, int tool = 0) const;
   Eigen::Vector3d Position(const double* q, int tool = 0) const;
@@ -600,10 +728,19 @@ class KinematicChain {
   // With rows = 3 only the position rows (ld >= 3).
   void ToolJointJacobian(const FrameRt* frames, double* J, int ld, int rows = 6) const;
 
+  // Calls f with the chain's dispatcher of the joint models, chosen once per call:
+  // AllJoints<RevoluteZJoint> when every joint is revolute about z (the loops inline the plane
+  // rotations with no per-joint switch), else the joints' ids (JointModelIds).
+  template <typename F>
+  decltype(auto) WithModels(F&& f) const {
+    if (all_z_) return f(AllJoints<RevoluteZJoint>());
+    return f(JointModelIds{models_.data()});
+  }
+
  private:
   const RobotModel* model_;
-  std::vector<unsigned char> z_revolute_;
-  bool all_z_ = false;  // every joint revolute about z: the loops take no per-joint branch
+  std::vector<JointModelId> models_;
+  bool all_z_ = false;  // every joint revolute about z
 };
 
 // The error-model Jacobians restricted to a parameterization's bases, dP/dx = J_p_frames

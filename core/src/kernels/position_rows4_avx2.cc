@@ -98,12 +98,12 @@ __attribute__((target("avx2,fma"), flatten)) void PositionRows4(
       store_column(col, mask, out + static_cast<std::ptrdiff_t>(k) * ld);
     }
   }
-  if (jq_column >= 0) {  // joint j revolute about its frame's z: the position column k = 2
+  if (jq_column >= 0) {  // every joint revolute about its frame's z (the plan): its model's column
     for (int j = 0; j < n; ++j) {
       const LaneAccumulator<Lane4>& G = F[j];
       const Lane4 d[3] = {p[0] - G.t[0], p[1] - G.t[1], p[2] - G.t[2]};
       Lane4 col[3];
-      PositionColumn(G.R, d, 2, col);
+      RevoluteZJoint::PositionColumn(G.R, d, joints[j].twist, col);
       store_column(col, valid_mask, A + static_cast<std::ptrdiff_t>(jq_column + j) * ld);
     }
   }

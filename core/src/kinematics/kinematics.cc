@@ -71,11 +71,10 @@ struct Accumulator {
 constexpr int kSinCosUpFront = kMaxGivenSinCosJoints;
 
 // The forward pass shared by every double path (ForwardChain with the accumulator above):
-// X = prod_i T_{i-1,i}(0) exp(s_i^ q_i) * tail, with `is_z(i)` telling which joints take the
-// 2-column update. When `frames` is given, frames[i] receives G_i = T_0,i-1(q) T_{i-1,i}(0) (before
-// joint i moves).
-template <typename IsZ>
-inline void ForwardPass(const RobotModel& model, const double* q, IsZ is_z, const SE3d* tail,
+// X = prod_i T_{i-1,i}(0) exp(s_i^ q_i) * tail, `models` the dispatcher of the joint models. When
+// `frames` is given, frames[i] receives G_i = T_0,i-1(q) T_{i-1,i}(0) (before joint i moves).
+template <typename Models>
+inline void ForwardPass(const RobotModel& model, const double* q, Models models, const SE3d* tail,
                         Eigen::Matrix3d* R, Eigen::Vector3d* t, FrameRt* frames,
                         const double* sin_q = nullptr, const double* cos_q = nullptr) {
   const int n = model.num_joints();
@@ -90,15 +89,15 @@ inline void ForwardPass(const RobotModel& model, const double* q, IsZ is_z, cons
     double own_s[kSinCosUpFront], own_c[kSinCosUpFront];
     if (sin_q == nullptr) {
       for (int i = 0; i < n; ++i) {
-        if (is_z(i)) SinCos(q[i], &own_s[i], &own_c[i]);
+        if (TakesSinCos(models, i)) SinCos(q[i], &own_s[i], &own_c[i]);
       }
       sin_q = own_s;
       cos_q = own_c;
     }
-    ForwardChain(n, origin, MakeGivenSinCosMotions(joints, q, is_z, sin_q, cos_q), &X, sink);
+    ForwardChain(n, origin, MakeGivenSinCosMotions(joints, q, models, sin_q, cos_q), &X, sink);
   } else {
     CHECK(sin_q == nullptr) << "given sin/cos: at most " << kSinCosUpFront << " joints";
-    ForwardChain(n, origin, MakeOnTheFlyMotions(joints, q, is_z), &X, sink);
+    ForwardChain(n, origin, MakeOnTheFlyMotions(joints, q, models), &X, sink);
   }
   if (tail != nullptr) X.RightMultiply(*tail);
   X.Store(R, t);
@@ -107,39 +106,39 @@ inline void ForwardPass(const RobotModel& model, const double* q, IsZ is_z, cons
 // P = T_0,n(q) p, from the tool back to the base with vectors only (BackwardChain). Here the
 // sin/cos calls stay interleaved with the chain (measured faster than computing them first: only
 // three values are live across each call, and the chain of one joint overlaps the next call).
-template <typename IsZ>
-inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q, IsZ is_z,
+template <typename Models>
+inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q, Models models,
                                         const Eigen::Vector3d& tool_point) {
   const Joint* joints = model.joints.data();
   return BackwardChain<double>(
       model.num_joints(), [joints](int i) -> const SE3d& { return joints[i].origin; },
-      MakeOnTheFlyMotions(joints, q, is_z), tool_point);
+      MakeOnTheFlyMotions(joints, q, models), tool_point);
 }
 
-template <typename IsZ>
-inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q, IsZ is_z,
+template <typename Models>
+inline Eigen::Vector3d BackwardPosition(const RobotModel& model, const double* q, Models models,
                                         const double* sin_q, const double* cos_q,
                                         const Eigen::Vector3d& tool_point) {
   const Joint* joints = model.joints.data();
   return BackwardChain<double>(
       model.num_joints(), [joints](int i) -> const SE3d& { return joints[i].origin; },
-      MakeGivenSinCosMotions(joints, q, is_z, sin_q, cos_q), tool_point);
+      MakeGivenSinCosMotions(joints, q, models, sin_q, cos_q), tool_point);
 }
 
-template <typename IsZ>
-inline SE3d PoseOf(const RobotModel& model, const double* q, int tool, IsZ is_z) {
+template <typename Models>
+inline SE3d PoseOf(const RobotModel& model, const double* q, int tool, Models models) {
   Eigen::Matrix3d R;  // uninitialized, unlike SE3d's members
   Eigen::Vector3d t;
-  ForwardPass(model, q, is_z, &model.tools[tool].origin, &R, &t, nullptr);
+  ForwardPass(model, q, models, &model.tools[tool].origin, &R, &t, nullptr);
   return SE3d(R, t);
 }
 
-template <typename IsZ>
-inline void FramesOf(const RobotModel& model, const double* q, int tool, IsZ is_z,
+template <typename Models>
+inline void FramesOf(const RobotModel& model, const double* q, int tool, Models models,
                      FrameRt* frames, const double* sin_q = nullptr,
                      const double* cos_q = nullptr) {
   const int n = model.num_joints();
-  ForwardPass(model, q, is_z, &model.tools[tool].origin, &frames[n].R, &frames[n].t, frames, sin_q,
+  ForwardPass(model, q, models, &model.tools[tool].origin, &frames[n].R, &frames[n].t, frames, sin_q,
               cos_q);
 }
 
@@ -147,7 +146,7 @@ inline void FramesOf(const RobotModel& model, const double* q, int tool, IsZ is_
 template <typename Use>
 inline auto WithFrames(const RobotModel& model, const double* q, int tool, const Use& use) {
   JointScratch<FrameRt> frames(model.num_joints() + 1);
-  FramesOf(model, q, tool, [&](int i) { return IsRevoluteZ(model.joints[i]); }, frames.data());
+  FramesOf(model, q, tool, ClassifiedJoints{model.joints.data()}, frames.data());
   return use(frames.data());
 }
 
@@ -160,19 +159,26 @@ inline void AdjointColumn(const FrameRt& G, int k, double* out) {
 }
 
 // The 3 x n (6 x n) joint Jacobian at the frames G_0..G_n of one configuration, column-major with
-// leading dimension ld: column i is joint i's twist at G_i.
-void PositionJointColumns(const RobotModel& model, const FrameRt* G, double* J, int ld) {
+// leading dimension ld: column i is joint i's model's column of its twist at G_i.
+template <typename Models>
+void PositionJointColumns(const RobotModel& model, Models models, const FrameRt* G, double* J,
+                          int ld) {
   const int n = model.num_joints();
   for (int i = 0; i < n; ++i) {
-    const Joint& j = model.joints[i];
+    const Vector6d& s = model.joints[i].twist;
     const Eigen::Vector3d d = G[n].t - G[i].t;
-    JointPositionColumn(G[i].R.data(), d.data(), j.twist, IsRevoluteZ(j), J + i * ld);
+    models.Visit(i, [&](auto m) {
+      decltype(m)::PositionColumn(G[i].R.data(), d.data(), s, J + i * ld);
+    });
   }
 }
-void PoseJointColumns(const RobotModel& model, const FrameRt* G, double* J, int ld) {
+template <typename Models>
+void PoseJointColumns(const RobotModel& model, Models models, const FrameRt* G, double* J, int ld) {
   for (int i = 0; i < model.num_joints(); ++i) {
-    const Joint& j = model.joints[i];
-    JointPoseColumn(G[i].R.data(), G[i].t.data(), j.twist, IsRevoluteZ(j), J + i * ld);
+    const Vector6d& s = model.joints[i].twist;
+    models.Visit(i, [&](auto m) {
+      decltype(m)::PoseColumn(G[i].R.data(), G[i].t.data(), s, J + i * ld);
+    });
   }
 }
 
@@ -180,12 +186,12 @@ void PoseJointColumns(const RobotModel& model, const FrameRt* G, double* J, int 
 
 SE3d ToolPose(const RobotModel& model, const double* q, int tool) {
   DCHECK(tool >= 0 && tool < model.num_tools());
-  return PoseOf(model, q, tool, [&](int i) { return IsRevoluteZ(model.joints[i]); });
+  return PoseOf(model, q, tool, ClassifiedJoints{model.joints.data()});
 }
 
 Eigen::Vector3d ToolPosition(const RobotModel& model, const double* q, int tool) {
   DCHECK(tool >= 0 && tool < model.num_tools());
-  return BackwardPosition(model, q, [&](int i) { return IsRevoluteZ(model.joints[i]); },
+  return BackwardPosition(model, q, ClassifiedJoints{model.joints.data()},
                           model.tools[tool].origin.t);
 }
 
@@ -234,7 +240,7 @@ Eigen::Vector3d PositionJointJacobianInto(const RobotModel& model, const double*
   const int n = model.num_joints();
   return WithFrames(model, q, tool, [&](const FrameRt* G) {
     J_p_q->resize(3, n);
-    PositionJointColumns(model, G, J_p_q->data(), 3);
+    PositionJointColumns(model, ClassifiedJoints{model.joints.data()}, G, J_p_q->data(), 3);
     return Eigen::Vector3d(G[n].t);
   });
 }
@@ -254,7 +260,7 @@ SE3d ToolPoseJointJacobian(const RobotModel& model, const double* q, int tool,
   const int n = model.num_joints();
   return WithFrames(model, q, tool, [&](const FrameRt* G) {
     J_pose_q->resize(6, n);
-    PoseJointColumns(model, G, J_pose_q->data(), 6);
+    PoseJointColumns(model, ClassifiedJoints{model.joints.data()}, G, J_pose_q->data(), 6);
     return SE3d(G[n].R, G[n].t);
   });
 }
@@ -283,76 +289,66 @@ void SinCosMany(const double* x, int count, double* s, double* c) {
 
 KinematicChain::KinematicChain(const RobotModel& model) : model_(&model) {
   CHECK_GT(model.num_joints(), 0);
-  z_revolute_.resize(model.num_joints());
+  models_.resize(model.num_joints());
   all_z_ = true;
   for (int i = 0; i < model.num_joints(); ++i) {
-    z_revolute_[i] = IsRevoluteZ(model.joints[i]);
-    all_z_ = all_z_ && z_revolute_[i];
+    models_[i] = JointModelOf(model.joints[i]);
+    all_z_ = all_z_ && models_[i] == JointModelId::kRevoluteZ;
   }
 }
 
 SE3d KinematicChain::Pose(const double* q, int tool) const {
   DCHECK(tool >= 0 && tool < model_->num_tools());
-  if (all_z_) return PoseOf(*model_, q, tool, [](int) { return true; });
-  const unsigned char* z = z_revolute_.data();
-  return PoseOf(*model_, q, tool, [z](int i) { return z[i] != 0; });
+  return WithModels([&](auto models) { return PoseOf(*model_, q, tool, models); });
 }
 
 Eigen::Vector3d KinematicChain::Position(const double* q, int tool) const {
   DCHECK(tool >= 0 && tool < model_->num_tools());
-  if (all_z_) {
-    return BackwardPosition(*model_, q, [](int) { return true; }, model_->tools[tool].origin.t);
-  }
-  const unsigned char* z = z_revolute_.data();
-  return BackwardPosition(*model_, q, [z](int i) { return z[i] != 0; },
-                          model_->tools[tool].origin.t);
+  return WithModels([&](auto models) {
+    return BackwardPosition(*model_, q, models, model_->tools[tool].origin.t);
+  });
 }
 
 Eigen::Vector3d KinematicChain::Position(const double* q, const double* sin_q,
                                          const double* cos_q, int tool) const {
   DCHECK(tool >= 0 && tool < model_->num_tools());
-  if (all_z_) {
-    return BackwardPosition(*model_, q, [](int) { return true; }, sin_q, cos_q,
-                            model_->tools[tool].origin.t);
-  }
-  const unsigned char* z = z_revolute_.data();
-  return BackwardPosition(*model_, q, [z](int i) { return z[i] != 0; }, sin_q, cos_q,
-                          model_->tools[tool].origin.t);
+  return WithModels([&](auto models) {
+    return BackwardPosition(*model_, q, models, sin_q, cos_q, model_->tools[tool].origin.t);
+  });
 }
 
 void KinematicChain::Frames(const double* q, int tool, FrameRt* frames) const {
   DCHECK(tool >= 0 && tool < model_->num_tools());
-  if (all_z_) return FramesOf(*model_, q, tool, [](int) { return true; }, frames);
-  const unsigned char* z = z_revolute_.data();
-  FramesOf(*model_, q, tool, [z](int i) { return z[i] != 0; }, frames);
+  WithModels([&](auto models) { FramesOf(*model_, q, tool, models, frames); });
 }
 
 void KinematicChain::Frames(const double* q, const double* sin_q, const double* cos_q, int tool,
                             FrameRt* frames) const {
   DCHECK(tool >= 0 && tool < model_->num_tools());
-  if (all_z_) return FramesOf(*model_, q, tool, [](int) { return true; }, frames, sin_q, cos_q);
-  const unsigned char* z = z_revolute_.data();
-  FramesOf(*model_, q, tool, [z](int i) { return z[i] != 0; }, frames, sin_q, cos_q);
+  WithModels([&](auto models) { FramesOf(*model_, q, tool, models, frames, sin_q, cos_q); });
 }
 
 void KinematicChain::ToolJointJacobian(const FrameRt* frames, double* J, int ld, int rows) const {
   DCHECK(rows == 3 || rows == 6);
   const int n = num_joints();
   const Eigen::Vector3d& P = frames[n].t;
-  for (int i = 0; i < n; ++i) {
-    const Joint& joint = model_->joints[i];
-    const FrameRt& G = frames[i];
-    double* col = J + static_cast<std::ptrdiff_t>(i) * ld;
-    const bool z = z_revolute_[i] != 0;
-    const Eigen::Vector3d d = P - G.t;
-    JointPositionColumn(G.R.data(), d.data(), joint.twist, z, col);
-    if (rows == 3) continue;
-    const Eigen::Vector3d w = z ? Eigen::Vector3d(G.R.col(2))
-                                : Eigen::Vector3d(G.R * joint.twist.head<3>());
-    col[3] = w(0);
-    col[4] = w(1);
-    col[5] = w(2);
-  }
+  WithModels([&](auto models) {
+    for (int i = 0; i < n; ++i) {
+      const Vector6d& s = model_->joints[i].twist;
+      const FrameRt& G = frames[i];
+      double* col = J + static_cast<std::ptrdiff_t>(i) * ld;
+      const Eigen::Vector3d d = P - G.t;
+      models.Visit(i, [&](auto m) {
+        using Model = decltype(m);
+        Model::PositionColumn(G.R.data(), d.data(), s, col);
+        if (rows == 3) return;
+        const Eigen::Vector3d w = Model::BaseAxis(G.R, s);
+        col[3] = w(0);
+        col[4] = w(1);
+        col[5] = w(2);
+      });
+    }
+  });
 }
 
 // ---- BasisJacobian.
@@ -463,11 +459,11 @@ SE3d BasisJacobian::Pose(const double* q, const double* sin_q, const double* cos
 }
 
 void BasisJacobian::PositionJointJacobian(const FrameRt* frames, double* J, int ld) const {
-  PositionJointColumns(*model_, frames, J, ld);
+  chain_.WithModels([&](auto models) { PositionJointColumns(*model_, models, frames, J, ld); });
 }
 
 void BasisJacobian::PoseJointJacobian(const FrameRt* frames, double* J, int ld) const {
-  PoseJointColumns(*model_, frames, J, ld);
+  chain_.WithModels([&](auto models) { PoseJointColumns(*model_, models, frames, J, ld); });
 }
 
 // The forward-kinematics templates, instantiated for double here (the tests instantiate them for

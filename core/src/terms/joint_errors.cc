@@ -36,10 +36,12 @@ void ComputeChainState(const RobotModel& model, const double* q, ChainState* sta
   auto origin = [&](int i) -> const SE3d& {
     return origins != nullptr ? (*origins)[i] : model.joints[i].origin;
   };
-  auto is_z = [&](int i) { return IsRevoluteZ(model.joints[i]); };
-  auto twist = [&](int i, const SE3Accumulator<double>& G) {  // Ad_G s_i
-    JointPoseColumn(G.X.R.data(), G.X.t.data(), model.joints[i].twist, is_z(i),
-                    state->twist[i].data());
+  const ClassifiedJoints models{model.joints.data()};
+  auto twist = [&](int i, const SE3Accumulator<double>& G) {  // Ad_G s_i: the model's pose column
+    models.Visit(i, [&](auto m) {
+      decltype(m)::PoseColumn(G.X.R.data(), G.X.t.data(), model.joints[i].twist,
+                              state->twist[i].data());
+    });
   };
   auto link = [&](int i, const SE3Accumulator<double>& X) { state->link[i] = X.X; };
   SE3Accumulator<double> X;
@@ -49,10 +51,10 @@ void ComputeChainState(const RobotModel& model, const double* q, ChainState* sta
   if (n <= kMaxGivenSinCosJoints) {
     double sin_q[kMaxGivenSinCosJoints], cos_q[kMaxGivenSinCosJoints];
     SinCosMany(q, n, sin_q, cos_q);
-    ForwardChain(n, origin, MakeGivenSinCosMotions(model.joints.data(), q, is_z, sin_q, cos_q), &X,
+    ForwardChain(n, origin, MakeGivenSinCosMotions(model.joints.data(), q, models, sin_q, cos_q), &X,
                  twist, link);
   } else {
-    ForwardChain(n, origin, MakeOnTheFlyMotions(model.joints.data(), q, is_z), &X, twist, link);
+    ForwardChain(n, origin, MakeOnTheFlyMotions(model.joints.data(), q, models), &X, twist, link);
   }
 }
 

@@ -50,25 +50,14 @@ struct GravityTiltRow {
 };
 
 // The joint motions exp(s_i^ q_i) at one q_eff in double, kept by the functor of a row with
-// joint-space blocks (MeasurementResidual::MotionsAt): revolute-z joints their (sin, cos), other
-// joints their motion. A Motions policy of kinematics.h for the passes that do not seed q_eff.
-class JointValueMotions {
+// joint-space blocks (MeasurementResidual::MotionsAt): JointMotions<double> (revolute-z joints their
+// (sin, cos), other joints their motion) that remembers its q. A Motions policy of kinematics.h for
+// the passes that do not seed q_eff.
+class JointValueMotions : public JointMotions<double> {
  public:
   void Set(const RobotModel& model, const double* q) {
-    const int n = model.num_joints();
-    q_.assign(q, q + n);
-    revolute_z_.resize(n);
-    s_.resize(n);
-    c_.resize(n);
-    general_.resize(n);
-    for (int i = 0; i < n; ++i) {
-      revolute_z_[i] = IsRevoluteZ(model.joints[i]);
-      if (revolute_z_[i]) {
-        SinCos(q[i], &s_[i], &c_[i]);
-      } else {
-        general_[i] = JointMotion(model.joints[i], q[i]);
-      }
-    }
+    q_.assign(q, q + model.num_joints());
+    JointMotions<double>::Set(model, q);
   }
   // Whether these are the motions at q (n values, compared exactly).
   bool At(const double* q, int n) const {
@@ -79,68 +68,35 @@ class JointValueMotions {
     return true;
   }
 
-  template <typename T>
-  void ApplyLeft(int i, Vector3<T>* p) const {
-    if (revolute_z_[i]) {
-      internal::PlaneRotation(c_[i], s_[i], &(*p)(0), &(*p)(1));
-    } else {
-      *p = general_[i].R.template cast<T>() * *p + general_[i].t.template cast<T>();
-    }
-  }
-  template <typename Accumulator>
-  void ApplyRight(int i, Accumulator* X) const {
-    if (revolute_z_[i]) {
-      X->RotZ(c_[i], s_[i]);
-    } else {
-      X->RightMultiply(general_[i]);
-    }
-  }
-
-  bool revolute_z(int i) const { return revolute_z_[i] != 0; }
-  double s(int i) const { return s_[i]; }
-  double c(int i) const { return c_[i]; }
-
  private:
   std::vector<double> q_;
-  std::vector<char> revolute_z_;
-  std::vector<double> s_, c_;
-  std::vector<SE3d> general_;
 };
 
 // The motions of a pass that seeds q_eff directions (Jets `q` with derivative parts): a revolute-z
 // joint's sin and cos lifted from their values in double, (sin q, cos q dq) and (cos q, -sin q dq)
 // -- the Jets Ceres's sin and cos return -- with no sin/cos call; other joints' motions computed on
-// the Jets as the chain reaches them.
+// the Jets by their models as the chain reaches them.
 template <typename J>
-class LiftedMotions {
+class LiftedMotions : public JointMotionsBase<LiftedMotions<J>> {
  public:
   LiftedMotions(const RobotModel& model, const JointValueMotions& values, const J* q)
-      : model_(model), values_(values), q_(q), s_(model.num_joints()), c_(model.num_joints()) {
+      : model_(model), values_(values), q_(q), lifted_(model.num_joints()) {
     for (int i = 0; i < model.num_joints(); ++i) {
-      if (!values.revolute_z(i)) continue;
-      s_[i].a = values.s(i);
-      s_[i].v = values.c(i) * q[i].v;
-      c_[i].a = values.c(i);
-      c_[i].v = -values.s(i) * q[i].v;
+      if (!TakesSinCos(values.models(), i)) continue;
+      const SinCosData<double>& d = values.DataOf(RevoluteZJoint(), i);
+      lifted_[i].s.a = d.s;
+      lifted_[i].s.v = d.c * q[i].v;
+      lifted_[i].c.a = d.c;
+      lifted_[i].c.v = -d.s * q[i].v;
     }
   }
 
-  template <typename T>
-  void ApplyLeft(int i, Vector3<T>* p) const {
-    if (values_.revolute_z(i)) {
-      internal::PlaneRotation(c_[i], s_[i], &(*p)(0), &(*p)(1));
-    } else {
-      const SE3<J> M = JointMotion(model_.joints[i], q_[i]);
-      *p = M.R.template cast<T>() * *p + M.t.template cast<T>();
-    }
-  }
-  template <typename Accumulator>
-  void ApplyRight(int i, Accumulator* X) const {
-    if (values_.revolute_z(i)) {
-      X->RotZ(c_[i], s_[i]);
-    } else {
-      X->RightMultiply(JointMotion(model_.joints[i], q_[i]));
-    }
+  // The dispatcher and the data (JointMotionsBase).
+  JointValueMotions::Models models() const { return values_.models(); }
+  const SinCosData<J>& DataOf(RevoluteZJoint, int i) const { return lifted_[i]; }
+  template <typename Model>
+  SE3<J> DataOf(Model, int i) const {
+    return Model::DataAt(model_.joints[i].twist, q_[i]);
   }
 
  private:
@@ -148,7 +104,7 @@ class LiftedMotions {
   const JointValueMotions& values_;
   const J* q_;
   // Set by the constructor, read only after (JointScratch has no const access).
-  mutable JointScratch<J> s_, c_;
+  mutable JointScratch<SinCosData<J>> lifted_;
 };
 
 template <typename Kind>
