@@ -184,15 +184,26 @@ void PoseJointColumns(const RobotModel& model, Models models, const FrameRt* G, 
 
 }  // namespace
 
+// f(dispatcher) for the one-call forms: AllJoints<RevoluteZJoint> when every joint is revolute
+// about z (most arms: no switch per joint in the pass), else classified per joint.
+template <typename F>
+decltype(auto) WithJointModelsOf(const RobotModel& model, F&& f) {
+  for (const Joint& joint : model.joints) {
+    if (!IsRevoluteZ(joint)) return f(ClassifiedJoints{model.joints.data()});
+  }
+  return f(AllJoints<RevoluteZJoint>());
+}
+
 SE3d ToolPose(const RobotModel& model, const double* q, int tool) {
   DCHECK(tool >= 0 && tool < model.num_tools());
-  return PoseOf(model, q, tool, ClassifiedJoints{model.joints.data()});
+  return WithJointModelsOf(model, [&](auto models) { return PoseOf(model, q, tool, models); });
 }
 
 Eigen::Vector3d ToolPosition(const RobotModel& model, const double* q, int tool) {
   DCHECK(tool >= 0 && tool < model.num_tools());
-  return BackwardPosition(model, q, ClassifiedJoints{model.joints.data()},
-                          model.tools[tool].origin.t);
+  return WithJointModelsOf(model, [&](auto models) {
+    return BackwardPosition(model, q, models, model.tools[tool].origin.t);
+  });
 }
 
 void PerturbationFrames(const RobotModel& model, const double* q, int tool,
