@@ -40,16 +40,16 @@ TEST(MeasurementKindTable, EachLineIsItsKindsHeader) {
     EXPECT_EQ(f.id, kind.id) << kind.name;
     EXPECT_EQ(f.residuals, kind.residuals) << kind.name;
     EXPECT_EQ(f.feature_size, kind.feature_size) << kind.name;
-    EXPECT_EQ(f.left_out_reason, kind.left_out_reason) << kind.name;
+    EXPECT_STREQ(f.left_out_reason, kind.left_out_reason) << kind.name;  // text, not address
     // A kind that does not see the base has a rule for what it leaves out, and only such a kind.
     EXPECT_EQ(kind.sees_base, kind.left_out_reason == nullptr) << kind.name;
     // A kind with a feature names it.
     EXPECT_EQ(kind.feature_size > 0, std::string(kind.feature_column) != "") << kind.name;
   }
-  EXPECT_EQ(MeasurementKind(MeasurementKindId::kDistance).left_out_reason,
-            DistanceMeasurement::kLeftOutReason);
-  EXPECT_EQ(MeasurementKind(MeasurementKindId::kPlane).left_out_reason,
-            PlaneMeasurement::kLeftOutReason);
+  EXPECT_STREQ(MeasurementKind(MeasurementKindId::kDistance).left_out_reason,
+               DistanceMeasurement::kLeftOutReason);
+  EXPECT_STREQ(MeasurementKind(MeasurementKindId::kPlane).left_out_reason,
+               PlaneMeasurement::kLeftOutReason);
 }
 
 struct Truth {
