@@ -8,6 +8,7 @@
 #include <ceres/product_manifold.h>
 #include <ceres/sphere_manifold.h>
 
+#include "calibration/joint_term_columns.h"
 #include "contact/contact_kinds.h"
 #include "lpoe/contact_calibration.h"
 #include "lpoe/distance_measurement.h"
@@ -271,30 +272,12 @@ ContactCeresBlocks MakeContactCeresBlocks(const RobotModel& nominal,
   return x;
 }
 
-// R = [Y_b(q) basis_b] over the joint blocks with columns (n x sum of their columns).
-Eigen::MatrixXd ContactJointRegressor(const std::vector<JointBlock>& joint_blocks,
-                                      const std::vector<int>& joint_sizes, int n, const double* q) {
-  int K = 0;
-  for (int k : joint_sizes) K += k;
-  Eigen::MatrixXd R(n, K), Y;
-  int column = 0;
-  for (const JointBlock& block : joint_blocks) {
-    const int k = static_cast<int>(block.basis.cols());
-    if (k == 0) continue;
-    Y.resize(n, block.term->num_parameters());
-    block.term->Regressor(q, Y.data());
-    R.middleCols(column, k) = Y * block.basis;
-    column += k;
-  }
-  return R;
-}
-
 // Row i's residual block: its kind's cost (the kind's templated Residual, through the kind table's
 // dispatch) on the n joint frames, its tool's frame, its feature (distance, plane) and the joint
 // blocks.
 void AddContactRowResidual(const std::shared_ptr<const RobotModel>& model_ptr,
-                           const ContactParameterization& p, const ContactMeasurementSet& data,
-                           int i, ContactCeresBlocks* x, ceres::Problem* problem) {
+                           const ContactMeasurementSet& data, int i, ContactCeresBlocks* x,
+                           internal::JointTermColumns* joint_columns, ceres::Problem* problem) {
   const ContactRow& row = data.rows[i];
   const int n = model_ptr->num_joints();
   std::vector<double*> b;
@@ -302,9 +285,8 @@ void AddContactRowResidual(const std::shared_ptr<const RobotModel>& model_ptr,
   b.push_back(x->frame(n + row.target));
   const double w = 1.0 / row.sigma;
   const bool joint = !x->joint_sizes.empty();
-  const Eigen::MatrixXd R =
-      joint ? ContactJointRegressor(p.frames.joint_blocks, x->joint_sizes, n, data.joints(i))
-            : Eigen::MatrixXd();
+  Eigen::MatrixXd R;  // [Y_b(q) basis_b]: the tracker solvers' columns (joint_term_columns.h)
+  if (joint) joint_columns->Evaluate(i, data.joints(i), &R);
   ceres::CostFunction* cost =
       internal::VisitContactRowKind(row.kind, [&](auto tag) -> ceres::CostFunction* {
         using Kind = typename decltype(tag)::type;
@@ -349,7 +331,10 @@ ContactCalibrationResult CalibrateContactsCeres(const RobotModel& nominal,
   std::vector<std::vector<double>>& joint_x = x.joint_x;
   const std::vector<JointBlock>& joint_blocks = p.frames.joint_blocks;
   auto frame_block = [&x](int f) { return x.frame(f); };
-  for (int i = 0; i < data.size(); ++i) AddContactRowResidual(model_ptr, p, data, i, &x, &problem);
+  internal::JointTermColumns joint_columns(p.frames, n);
+  for (int i = 0; i < data.size(); ++i) {
+    AddContactRowResidual(model_ptr, data, i, &x, &joint_columns, &problem);
+  }
   if (p.num_gauge_rows() > 0) {
     std::vector<double*> b;
     for (int k = 0; k < p.num_pivots; ++k) b.push_back(pivots.data() + 3 * k);
