@@ -47,6 +47,7 @@ namespace lpoe {
 namespace internal {
 struct JointSpaceRegressors;  // solvers/src/calibration/normal_equations.h
 struct NormalEquations;
+struct NormalEquationsOptions;
 struct ProblemSetup;  // solvers/src/calibration/problem_setup.h
 }  // namespace internal
 
@@ -137,6 +138,12 @@ class CalibrationProblem {
   // reduction (a pass over the data) happens here.
   CalibrationProblem(const RobotModel& nominal, const MeasurementSet& data,
                      const CalibrationProblemOptions& options);
+  // A problem on decisions already made (internal, problem_setup.h): `setup` is
+  // internal::SetUpProblem's on these data with the options' request (the linear solver's, whose
+  // options are checked by its own rules); the options are not validated again.
+  CalibrationProblem(const RobotModel& nominal, const MeasurementSet& data,
+                     const CalibrationProblemOptions& options,
+                     std::shared_ptr<const internal::ProblemSetup> setup);
   CalibrationProblem(const CalibrationProblem&) = delete;
   CalibrationProblem& operator=(const CalibrationProblem&) = delete;
 
@@ -199,9 +206,38 @@ class CalibrationProblem {
   // (eq. (19)) for each solved frame, x_b added to each joint block.
   void Update(const Eigen::VectorXd& x);
 
+  // The linear solver's access (linear_solver.cc, a Gauss-Newton loop over this problem; internal:
+  // normal_equations.h). The linearization at the current values in SolvedParameterization()'s
+  // numbering, unweighted (W = I; NormalEquations() is this times 1 / sigma^2), assembled as `o`
+  // asks (stacked rows, cached joint rows, the rows' errors, frozen joint blocks); the measurement
+  // fields (orientation, its weight) are the problem's, and the joint regressors the reduction's
+  // unless `o` gives its own.
+  internal::NormalEquations Linearize(const internal::NormalEquationsOptions& o) const;
+  // The blocks' values (and the model they stand for), to go back to after a trial step.
+  struct Values {
+    std::vector<FrameBlock> frames;
+    std::vector<std::vector<double>> joint_blocks;
+    std::array<double, 2> tilt = {0.0, 0.0};
+    RobotModel model;
+    std::vector<FrameBlock> model_frames;
+  };
+  Values values() const;
+  void SetValues(const Values& v);
+  // Every frame of the model to `model`'s (a solution found elsewhere: the linear solver's warm
+  // start on a subsample); the joint blocks are kept.
+  void SetFrames(const RobotModel& model);
+
   // (c) Identifiability at the current values (for the full parameterization: in the identifiable
   // basis, whose rank is what the data can determine). `max_condition_number` as the solvers'.
   ProblemAnalysis Analyze(double max_condition_number = 1e8) const;
+  // The same check on the caller's normal matrix `H` of the solved parameters at the current values
+  // (SolvedParameterization()'s numbering, e.g. with a prior's information added: the linear
+  // solver's; for the full parameterization H is not used, its identifiable basis is linearized).
+  // The eigenvalues decide; the weakest direction (eigenvectors) is computed only for a refusal's
+  // message. With too few equations the rank is still computed (an informative prior may make up
+  // for them: the caller decides).
+  ProblemAnalysis AnalyzeNormalMatrix(const Eigen::MatrixXd& H,
+                                      double max_condition_number = 1e8) const;
 
   // Covariance of the solved parameters from ceres::Covariance (DENSE_SVD; pseudo-inverse for the
   // full parameterization) on `problem` (which may carry the caller's residuals, priors and
@@ -225,6 +261,8 @@ class CalibrationProblem {
  private:
   // C (parameter_blocks() order) in parameterization()'s numbering.
   Eigen::MatrixXd ScatterCovariance(const Eigen::MatrixXd& C) const;
+  // Analyze() and AnalyzeNormalMatrix(): `H_solved` null, formed here.
+  ProblemAnalysis AnalyzeWith(const Eigen::MatrixXd* H_solved, double max_condition_number) const;
 
   RobotModel nominal_;
   const MeasurementSet* data_;
@@ -233,6 +271,12 @@ class CalibrationProblem {
   Parameterization parameterization_;
   std::vector<FrameBlock> frames_;
   std::vector<FrameBlock> initial_frames_;
+  // The model the frames' values stand for, exactly (the steps of Update() applied to the frames'
+  // matrices, no quaternion round trip), and the values it was written as: Model() takes a frame
+  // from it while its block still holds those values (the nominal model and initial_frames_ until
+  // Update() or SetFrames()).
+  RobotModel current_;
+  std::vector<FrameBlock> current_frames_;
   std::vector<bool> solved_;
   std::vector<std::vector<double>> joint_blocks_;
   std::array<double, 2> tilt_ = {0.0, 0.0};

@@ -21,6 +21,7 @@
 #include "lpoe/eigen_decompositions.h"
 #include "calibration/prior_terms.h"
 #include "calibration/problem_setup.h"
+#include "calibration/solve_on_problem.h"
 #include "lpoe/problem_builder.h"
 #include "lpoe/statistics.h"
 
@@ -35,8 +36,11 @@ bool ParseLinearSolver(const std::string& name, ceres::LinearSolverType* type) {
   return ceres::StringToLinearSolverType(name, type);
 }
 
-// The builder's share of the options.
-CalibrationProblemOptions ProblemOptions(const CeresSolverOptions& options) {
+}  // namespace
+
+namespace internal {
+
+CalibrationProblemOptions CeresProblemOptions(const CeresSolverOptions& options, int rows) {
   CalibrationProblemOptions o;
   o.parameterization = options.parameterization;
   o.use_orientation = options.use_orientation;
@@ -50,8 +54,15 @@ CalibrationProblemOptions ProblemOptions(const CeresSolverOptions& options) {
   o.initial_joint_terms = options.initial_joint_terms;
   o.structure_reference = options.structure_reference;
   o.prior = options.prior;
+  o.rows_per_block = options.rows_per_block > 0                   ? options.rows_per_block
+                     : rows >= CeresSolverOptions::kBatchFromRows ? 1024
+                                                                   : 1;
   return o;
 }
+
+}  // namespace internal
+
+namespace {
 
 // The stopping rules of convergence.h on Ceres's accepted steps: the step is the difference of the
 // models before and after it in the solved directions, the standard deviations come from J^T J at
@@ -323,7 +334,10 @@ Status ValidateCeresSolverOptions(const CeresSolverOptions& options) {
       return Status::Error("Ceres linear solver '" + options.linear_solver + "': " + error);
     }
   }
-  if (Status s = ValidateCalibrationProblemOptions(ProblemOptions(options)); !s.ok()) return s;
+  if (Status s = ValidateCalibrationProblemOptions(internal::CeresProblemOptions(options, 0));
+      !s.ok()) {
+    return s;
+  }
   if (options.max_iterations < 1) return Status::Error("max_iterations must be >= 1");
   if (options.num_threads < 1) return Status::Error("num_threads must be >= 1");
   if (options.rows_per_block < 0) return Status::Error("rows_per_block must be >= 0");
@@ -557,9 +571,52 @@ void TiltResult(const CalibrationProblem& builder, const CeresSolverOptions& opt
 
 CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet& data,
                                  const CeresSolverOptions& options) {
+  {
+    const Status s = ValidateCeresSolverOptions(options);
+    CHECK(s.ok()) << s.message();
+  }
+  if (options.use_orientation && !data.has_orientation()) {
+    CalibrationResult result;
+    result.model = nominal;
+    result.termination = Termination::kNotIdentifiable;
+    result.message = "pose-based calibration needs measured orientations (quat_x..quat_w columns)";
+    return result;
+  }
+  // Every decision (parameterization, frames solved, prior) is the problem's (problem_setup.h).
+  CalibrationProblem builder(nominal, data, internal::CeresProblemOptions(options, data.size()));
+  return internal::CalibrateCeresOn(&builder, options);
+}
+
+namespace internal {
+
+CalibrationResult CalibrateCeresOn(CalibrationProblem* problem_in,
+                                   const CeresSolverOptions& options_in) {
   const auto start = std::chrono::steady_clock::now();
+  CHECK(problem_in != nullptr);
+  CalibrationProblem& builder = *problem_in;
+  {
+    const Status s = ValidateCeresSolverOptions(options_in);
+    CHECK(s.ok()) << s.message();
+  }
+  // The problem's decisions, sigma and loss, read below through `options` as before.
+  CeresSolverOptions options = options_in;
+  {
+    const CalibrationProblemOptions& po = builder.options();
+    options.parameterization = po.parameterization;
+    options.use_orientation = po.use_orientation;
+    options.orientation_weight = po.orientation_weight;
+    options.sigma = po.sigma;
+    options.loss = po.loss;
+    options.loss_scale = po.loss_scale;
+    options.joint_terms = po.joint_terms;
+    options.joint_term_tolerance = po.joint_term_tolerance;
+    options.gravity_tilt = po.gravity_tilt;
+    options.initial_joint_terms = po.initial_joint_terms;
+    options.structure_reference = po.structure_reference;
+    options.prior = po.prior;
+  }
   CalibrationResult result;
-  result.model = nominal;
+  result.model = builder.Model();
   auto finish = [&](Termination t, const std::string& message) {
     result.termination = t;
     result.message = message;
@@ -567,22 +624,6 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return result;
   };
-
-  {
-    const Status s = ValidateCeresSolverOptions(options);
-    CHECK(s.ok()) << s.message();
-  }
-  if (options.use_orientation && !data.has_orientation()) {
-    return finish(Termination::kNotIdentifiable,
-                  "pose-based calibration needs measured orientations (quat_x..quat_w columns)");
-  }
-  CalibrationProblemOptions problem_options = ProblemOptions(options);
-  problem_options.rows_per_block =
-      options.rows_per_block > 0                           ? options.rows_per_block
-      : data.size() >= CeresSolverOptions::kBatchFromRows ? 1024
-                                                           : 1;
-  // Every decision (parameterization, frames solved, prior) is the problem's (problem_setup.h).
-  CalibrationProblem builder(nominal, data, problem_options);
   if (!builder.tilt_status().ok()) {
     return finish(Termination::kNotIdentifiable, builder.tilt_status().message());
   }
@@ -663,5 +704,7 @@ CalibrationResult CalibrateCeres(const RobotModel& nominal, const MeasurementSet
   }
   return finish(termination, message);
 }
+
+}  // namespace internal
 
 }  // namespace lpoe

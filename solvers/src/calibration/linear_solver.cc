@@ -19,6 +19,8 @@
 #include "calibration/problem_setup.h"
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/problem_builder.h"
+#include "calibration/solve_on_problem.h"
 #include "identifiability/structural_identifiability.h"
 
 namespace lpoe {
@@ -87,10 +89,7 @@ internal::NormalEquationsOptions RowsOf(const LinearSolverOptions& options) {
   return o;
 }
 
-// The identifiability check shared with the Ceres solver (identifiability.h).
-using internal::Analyze;
 using internal::ColumnScale;
-using internal::Identifiability;
 
 // Least-squares step x of J x = y. Full parameterization: at most `rank` singular directions (the
 // identifiable count): the gauge directions are null at the start, but a structurally lost one
@@ -163,13 +162,16 @@ namespace {
 // always computed from exact ones.
 constexpr double kFrozenContraction = 0.05;
 
-// One run of the linear solver on a problem's decisions (problem_setup.h): a Gauss-Newton loop with
-// backtracking over the problem's normal equations (plus the prior's rows), the state between
-// iterations in members. Run() is the loop; each stage a member function.
+// One run of the linear solver on a CalibrationProblem (problem_builder.h): a Gauss-Newton loop
+// with backtracking over the problem's normal equations (plus the prior's rows). Every decision is
+// the problem's (its setup(), problem_setup.h), and so is the state: the model and the joint and
+// tilt blocks are the problem's values, linearized by CalibrationProblem::Linearize and moved by
+// CalibrationProblem::Update (a rejected trial step is undone with SetValues). What the solver
+// keeps is the loop's own: the current linearization, the prior's rows, the frozen joint blocks.
+// Run() is the loop; each stage a member function.
 class LinearSolve {
  public:
-  LinearSolve(const RobotModel& nominal, const MeasurementSet& data,
-              const LinearSolverOptions& options, const internal::ProblemSetup& setup,
+  LinearSolve(CalibrationProblem* problem, const LinearSolverOptions& options,
               CalibrationResult* result, std::chrono::steady_clock::time_point start);
   // Solves; the result as CalibrateLinear returns it.
   CalibrationResult Run();
@@ -180,13 +182,10 @@ class LinearSolve {
   // the result finished when the solve cannot go on.
   bool Start();
   bool CheckIdentifiability();
-  // The identifiable basis the full parameterization is analysed in, at `at`.
-  Parameterization IdentifiableBasis(const RobotModel& at) const;
-  internal::Identifiability Analyze(const RobotModel& at, const Linearization& l,
-                                    bool weakest) const;
   Eigen::VectorXd JointValuesState() const;
   std::vector<JointTermValues> JointValues() const;
-  internal::PriorRows PriorAt(const RobotModel& m, const Eigen::VectorXd& js) const;
+  // The prior's rows at the problem's current values.
+  internal::PriorRows PriorAt() const;
   Linearization WithPrior(const Linearization& l, const internal::PriorRows& pr) const;
   double Total(const Linearization& l, const internal::PriorRows& pr) const;
   // The step of the current linearization (with the prior's rows when there is one).
@@ -208,7 +207,7 @@ class LinearSolve {
   // The result at the current point when the solve stops without converging.
   CalibrationResult Stopped(Termination t, int iterations, const std::string& message);
 
-  const RobotModel& nominal_;
+  CalibrationProblem& problem_;
   const MeasurementSet& data_;
   const LinearSolverOptions& options_;
   const internal::ProblemSetup& setup_;
@@ -231,8 +230,6 @@ class LinearSolve {
   internal::NormalEquationsOptions exact_rows_;
   internal::NormalEquationsOptions exact_no_errors_;
   internal::NormalEquationsOptions gradient_only_;
-  RobotModel model_;
-  Eigen::VectorXd joint_state_;
   Linearization lin_;
   internal::PriorRows prior_rows_;
   // The data variance the prior's rows are weighted with (prior_terms.h).
@@ -242,35 +239,32 @@ class LinearSolve {
   double previous_step_ = -1;
 };
 
-LinearSolve::LinearSolve(const RobotModel& nominal, const MeasurementSet& data,
-                         const LinearSolverOptions& options, const internal::ProblemSetup& setup,
+LinearSolve::LinearSolve(CalibrationProblem* problem, const LinearSolverOptions& options,
                          CalibrationResult* result, std::chrono::steady_clock::time_point start)
-    : nominal_(nominal),
-      data_(data),
+    : problem_(*problem),
+      data_(problem->data()),
       options_(options),
-      setup_(setup),
+      setup_(problem->setup()),
       result_(*result),
       p_(result->parameterization),
       start_(start),
       errors_(options.errors ? &options.errors->final_errors : nullptr),
-      full_(setup.full),
-      use_prior_(setup.prior.active),
-      K_(setup.solved.num_joint_parameters()),
+      full_(setup_.full),
+      use_prior_(setup_.prior.active),
+      K_(setup_.solved.num_joint_parameters()),
       // The rows' joint regressors do not change during the solve: evaluated once. The full
       // parameterization (stacked rows) and a block kind's solve (columns that change with the
       // state, block_kind.h: the gravity tilt) take the dense joint columns (JointRegressorRows);
       // otherwise the normal equations are formed by the joint blocks' structure
       // (normal_equations.h).
-      structured_(K_ > 0 && !full_ && !internal::HasNonlinearBlocks(setup.solved)),
-      dof_(setup.equations - setup.identifiable),
-      model_(nominal),
-      joint_state_(setup.initial_joint_state) {
+      structured_(K_ > 0 && !full_ && !internal::HasNonlinearBlocks(setup_.solved)),
+      dof_(setup_.equations - setup_.identifiable) {
   if (!structured_) joint_rows_ = internal::JointRegressorRows(p_, data_);
   exact_rows_ = RowsOf(options_);
   exact_rows_.stack = full_;
   exact_rows_.joint_rows = &joint_rows_;
   exact_rows_.errors = errors_;
-  exact_rows_.joint.regressors = setup.regressors ? setup.regressors.get() : &no_regressors_;
+  exact_rows_.joint.regressors = setup_.regressors ? setup_.regressors.get() : &no_regressors_;
   exact_no_errors_ = exact_rows_;
   exact_no_errors_.errors = nullptr;
   gradient_only_ = exact_rows_;
@@ -291,7 +285,7 @@ CalibrationResult LinearSolve::Finish(Termination t, const std::string& message)
 
 Eigen::VectorXd LinearSolve::JointValuesState() const {
   Eigen::VectorXd x = Eigen::VectorXd::Zero(p_.num_parameters);
-  x.tail(K_) = joint_state_;
+  x.tail(K_) = problem_.JointState();
   return x;
 }
 
@@ -299,8 +293,10 @@ std::vector<JointTermValues> LinearSolve::JointValues() const {
   return JointValuesOf(p_, JointValuesState());
 }
 
-internal::PriorRows LinearSolve::PriorAt(const RobotModel& m, const Eigen::VectorXd& js) const {
-  return use_prior_ ? internal::LinearizePrior(setup_.prior, p_, m, js) : internal::PriorRows();
+internal::PriorRows LinearSolve::PriorAt() const {
+  return use_prior_ ? internal::LinearizePrior(setup_.prior, p_, problem_.Model(),
+                                               problem_.JointState())
+                    : internal::PriorRows();
 }
 
 // The prior's rows at the current point and the data variance s2 they are weighted with (that of
@@ -334,48 +330,22 @@ void LinearSolve::Complete(Linearization* l) const {
 }
 
 Linearization LinearSolve::Exact() {
-  Linearization l = internal::NormalEquationsOf(model_, data_, p_, joint_state_, exact_no_errors_);
+  Linearization l = problem_.Linearize(exact_no_errors_);
   Freeze(l);
   return l;
 }
 
-Parameterization LinearSolve::IdentifiableBasis(const RobotModel& at) const {
-  const DataKind kind = options_.use_orientation ? DataKind::kPose : DataKind::kPosition;
-  Parameterization pi = MakeParameterization(at, ParameterizationKind::kIdentifiable, kind);
-  internal::LeaveOutStructurallyUnidentifiable(setup_.structure, data_, options_.use_orientation,
-                                               options_.orientation_weight, &pi);
-  CopyJointBlocks(p_, &pi);
-  internal::LeaveOutUnmeasuredTools(at, data_, &pi);
-  return pi;
-}
-
-// Identifiability in the calibrated directions. For the full parameterization this is analyzed in
-// the identifiable basis (the full J^T J is singular by construction).
-internal::Identifiability LinearSolve::Analyze(const RobotModel& at, const Linearization& l,
-                                               bool weakest) const {
-  if (!full_) return internal::Analyze(l.H, weakest);
-  const Parameterization pi = IdentifiableBasis(at);
-  return internal::Analyze(
-      internal::NormalEquationsOf(at, data_, pi, joint_state_, RowsOf(options_)).H, weakest);
-}
-
 bool LinearSolve::CheckIdentifiability() {
-  // At the nominal model. The eigenvalues decide; the weakest direction is computed only for the
-  // refusal's message.
+  // At the start values, by the problem's check (CalibrationProblem::AnalyzeNormalMatrix, the Ceres
+  // solver's too) on this linearization, with the prior's information when it is informative.
   const bool informative = use_prior_ && setup_.prior.informative;
-  internal::Identifiability id = informative
-                                     ? Analyze(model_, WithPrior(lin_, prior_rows_), false)
-                                     : Analyze(model_, lin_, false);
-  result_.rank = id.rank;
-  result_.condition_number = id.condition;
-  result_.singular_values = id.singular_values;
-  if (id.rank >= setup_.identifiable && id.condition <= options_.max_condition_number) return true;
-  id = informative ? Analyze(model_, WithPrior(lin_, prior_rows_), true)
-                   : Analyze(model_, lin_, true);
-  const Parameterization pi = full_ ? IdentifiableBasis(nominal_) : p_;
-  Finish(Termination::kNotIdentifiable,
-         internal::NotIdentifiableMessage(id, setup_.identifiable, options_.max_condition_number,
-                                          pi));
+  const ProblemAnalysis a = problem_.AnalyzeNormalMatrix(
+      informative ? WithPrior(lin_, prior_rows_).H : lin_.H, options_.max_condition_number);
+  result_.rank = a.rank;
+  result_.condition_number = a.condition_number;
+  result_.singular_values = a.singular_values;
+  if (a.identifiable) return true;
+  Finish(Termination::kNotIdentifiable, a.message);
   return false;
 }
 
@@ -393,10 +363,10 @@ bool LinearSolve::Start() {
   // With joint-space terms, the analysis that reduced them also gave the normal equations at the
   // nominal model with every term whole: the first linearization is their projection onto the
   // reduced blocks (no second pass over the rows).
-  lin_ = structured_ && setup_.analysed && joint_state_.isZero() &&
+  lin_ = structured_ && setup_.analysed && problem_.JointState().isZero() &&
                  internal::SameFrameDirections(setup_.analysed_parameterization, p_)
              ? internal::ProjectJointBlocks(*setup_.analysed, p_)
-             : internal::NormalEquationsOf(model_, data_, p_, joint_state_, exact_rows_);
+             : problem_.Linearize(exact_rows_);
   errors_current_ = errors_ != nullptr && !errors_->empty();
   if (errors_current_ && options_.errors->want_start_statistics && lin_.finite) {
     options_.errors->start_statistics = errors_->Statistics();
@@ -409,7 +379,7 @@ bool LinearSolve::Start() {
   }
   result_.history.push_back(Record(0, lin_));
   result_.joint_terms = JointValues();  // zero until solved
-  prior_rows_ = PriorAt(model_, joint_state_);
+  prior_rows_ = PriorAt();
   s2_ = use_prior_ ? internal::PriorDataVariance(setup_.prior, lin_.cost, dof_) : 0.0;
   if (!CheckIdentifiability()) return false;
   if (structured_) Freeze(lin_);
@@ -430,10 +400,13 @@ int LinearSolve::WarmStart(const Eigen::VectorXd& x) {
   rows.reserve(data_.size() / every + 1);
   for (int r = 0; r < data_.size(); r += every) rows.push_back(r);
   const MeasurementSet subset = data_.Subset(rows);
-  RobotModel first = model_;
+  RobotModel first = problem_.Model();
   ApplyUpdate(p_, x, &first);
   LinearSolverOptions sub = options_;
   sub.parameterization_override = &p_;  // the same directions (and no warm start of its own)
+  sub.parameterization = problem_.options().parameterization;
+  sub.use_orientation = problem_.options().use_orientation;
+  sub.orientation_weight = problem_.options().orientation_weight;
   sub.structure_reference = nullptr;
   sub.compute_covariance = false;
   sub.verbose = false;
@@ -443,11 +416,15 @@ int LinearSolve::WarmStart(const Eigen::VectorXd& x) {
   sub.prior = setup_.anchored_prior;
   const CalibrationResult s = CalibrateLinear(first, subset, sub);
   if (!s.converged() || s.history.empty()) return -1;
-  Linearization at = internal::NormalEquationsOf(s.model, data_, p_, joint_state_, exact_rows_);
+  // The subsample's solution, linearized on every row.
+  const CalibrationProblem::Values kept = problem_.values();
+  problem_.SetFrames(s.model);
+  Linearization at = problem_.Linearize(exact_rows_);
   errors_current_ = false;
-  const internal::PriorRows at_prior = PriorAt(s.model, joint_state_);
+  const internal::PriorRows at_prior = PriorAt();
   if (!at.finite ||
       !(Total(at, at_prior) <= Total(lin_, prior_rows_) * (1 + kCostIncreaseTolerance) + 1e-300)) {
+    problem_.SetValues(kept);
     return -1;
   }
   prior_rows_ = at_prior;
@@ -463,7 +440,6 @@ int LinearSolve::WarmStart(const Eigen::VectorXd& x) {
     if (options_.on_iteration) options_.on_iteration(r);
   }
   result_.warm_start_rows = subset.size();
-  model_ = s.model;
   lin_ = std::move(at);
   result_.history.push_back(Record(1 + taken, lin_));
   if (options_.on_iteration) options_.on_iteration(result_.history.back());
@@ -474,22 +450,16 @@ int LinearSolve::WarmStart(const Eigen::VectorXd& x) {
 // quadratic: the last (tiny) step is taken too, and the solution's normal equations are formed
 // exactly (the covariance's, and the final cost).
 void LinearSolve::FinalLinearization(const Eigen::VectorXd& x) {
-  RobotModel candidate = model_;
-  ApplyUpdate(p_, x, &candidate);
-  const Eigen::VectorXd candidate_joints = joint_state_ + x.tail(K_);
-  const RobotModel kept_model = model_;
-  const Eigen::VectorXd kept_joints = joint_state_;
-  model_ = std::move(candidate);
-  joint_state_ = candidate_joints;
+  const CalibrationProblem::Values kept = problem_.values();
+  problem_.Update(x);
   Linearization last = Exact();
-  const internal::PriorRows last_prior = PriorAt(model_, joint_state_);
+  const internal::PriorRows last_prior = PriorAt();
   if (last.finite &&
       Total(last, last_prior) <= Total(lin_, prior_rows_) * (1 + kCostIncreaseTolerance) + 1e-300) {
     lin_ = std::move(last);
     prior_rows_ = last_prior;
   } else {
-    model_ = kept_model;
-    joint_state_ = kept_joints;
+    problem_.SetValues(kept);
     lin_ = Exact();
   }
 }
@@ -512,7 +482,7 @@ CalibrationResult LinearSolve::Converged(const Eigen::VectorXd& x,
                                          const ConvergenceDecision& decision, int it) {
   if (structured_ && !lin_.joint_blocks) FinalLinearization(x);
   result_.stop_rule = decision.rule;
-  result_.model = model_;
+  result_.model = problem_.Model();
   result_.joint_terms = JointValues();
   result_.iterations = it - 1;
   result_.final_cost = lin_.cost;
@@ -525,41 +495,40 @@ CalibrationResult LinearSolve::Converged(const Eigen::VectorXd& x,
                                 &result_.data_share);
   }
   Covariance();
-  internal::FillBlockKindResults(p_, joint_state_, result_.covariance, &result_);
+  internal::FillBlockKindResults(p_, problem_.JointState(), result_.covariance, &result_);
   return Finish(Termination::kConverged, decision.message);
 }
 
 // Gauss-Newton step with backtracking: a step that raises the cost is halved.
+// The trial point is the problem's (CalibrationProblem::Update); a rejected one is undone.
 bool LinearSolve::TakeStep(const Eigen::VectorXd& x) {
+  const CalibrationProblem::Values kept = problem_.values();
   double alpha = 1.0;
   for (int h = 0; h <= kMaxHalvings; ++h, alpha *= 0.5) {
-    RobotModel candidate = model_;
-    ApplyUpdate(p_, alpha * x, &candidate);
-    const Eigen::VectorXd candidate_joints = joint_state_ + alpha * x.tail(K_);
-    Linearization next = internal::NormalEquationsOf(candidate, data_, p_, candidate_joints,
-                                                     structured_ ? gradient_only_ : exact_rows_);
+    if (h > 0) problem_.SetValues(kept);
+    problem_.Update(alpha * x);
+    Linearization next = problem_.Linearize(structured_ ? gradient_only_ : exact_rows_);
     errors_current_ = false;
     if (structured_) Complete(&next);
-    const internal::PriorRows next_prior = PriorAt(candidate, candidate_joints);
+    const internal::PriorRows next_prior = PriorAt();
     if (next.finite &&
         Total(next, next_prior) <= Total(lin_, prior_rows_) * (1 + kCostIncreaseTolerance) + 1e-300) {
       errors_current_ = errors_ != nullptr && !errors_->empty();
-      model_ = std::move(candidate);
-      joint_state_ = candidate_joints;
       previous_cost_ = Total(lin_, prior_rows_);
       lin_ = std::move(next);
       prior_rows_ = next_prior;
       return true;
     }
   }
+  problem_.SetValues(kept);
   return false;
 }
 
 CalibrationResult LinearSolve::Stopped(Termination t, int iterations,
                                        const std::string& message) {
-  result_.model = model_;
+  result_.model = problem_.Model();
   result_.joint_terms = JointValues();
-  internal::FillBlockKindResults(p_, joint_state_, Eigen::MatrixXd(), &result_);
+  internal::FillBlockKindResults(p_, problem_.JointState(), Eigen::MatrixXd(), &result_);
   result_.iterations = iterations;
   result_.final_cost = lin_.cost;
   return Finish(t, message);
@@ -569,8 +538,10 @@ CalibrationResult LinearSolve::Run() {
   if (!Start()) return result_;
   // Warm start (large data, linear_solver.h): the iterations that cross the model's large initial
   // errors run on a subsample; all rows are linearized again only at its solution.
-  const bool warm_start = !full_ && !setup_.overridden && options_.joint_terms.empty() &&
-                          !options_.gravity_tilt && K_ == 0 && options_.warm_start_rows > 0 &&
+  const bool warm_start = !full_ && !setup_.overridden &&
+                          problem_.options().joint_terms.empty() &&
+                          !problem_.options().gravity_tilt && K_ == 0 &&
+                          options_.warm_start_rows > 0 &&
                           data_.size() >= options_.warm_start_min_rows &&
                           data_.size() >= 2 * options_.warm_start_rows;
   ConvergenceOptions stop = options_.convergence;
@@ -611,7 +582,7 @@ CalibrationResult LinearSolve::Run() {
               : StandardDeviations(use_prior_ ? WithPrior(lin_, prior_rows_).H : lin_.H,
                                    lin_.cost, dof_);
     }
-    state.parameter_scale = ParameterScale(model_);
+    state.parameter_scale = ParameterScale(problem_.Model());
     state.cost = use_prior_ ? Total(lin_, prior_rows_) : lin_.cost;
     state.previous_cost = previous_cost_;
     const ConvergenceDecision decision = TestConvergence(stop, state);
@@ -639,6 +610,21 @@ CalibrationResult LinearSolve::Run() {
      << result_.history[result_.history.size() - 2].step_norm << ", tolerance "
      << options_.step_tolerance << ")";
   return Stopped(Termination::kMaxIterations, options_.max_iterations, os.str());
+}
+
+// The problem's options of the linear solver's (sigma 1: the linear solver's cost is in mm^2).
+CalibrationProblemOptions ProblemOptionsOf(const LinearSolverOptions& options) {
+  CalibrationProblemOptions o;
+  o.parameterization = options.parameterization;
+  o.use_orientation = options.use_orientation;
+  o.orientation_weight = options.orientation_weight;
+  o.structure_reference = options.structure_reference;
+  o.joint_terms = options.joint_terms;
+  o.joint_term_tolerance = options.joint_term_tolerance;
+  o.gravity_tilt = options.gravity_tilt;
+  o.initial_joint_terms = options.initial_joint_terms;
+  o.prior = options.prior;
+  return o;
 }
 
 }  // namespace
@@ -670,12 +656,39 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   // Every decision once, as the Ceres solver's problem makes them (problem_setup.h).
   internal::ProblemSetupRequest request = internal::ProblemSetupRequestOf(options);
   request.parameterization_override = options.parameterization_override;
-  const internal::ProblemSetup setup = internal::SetUpProblem(nominal, data, request);
-  result.parameterization = setup.solved;
-  if (!setup.tilt_status.ok()) {
-    return finish(Termination::kNotIdentifiable, setup.tilt_status.message());
+  auto setup = std::make_shared<const internal::ProblemSetup>(
+      internal::SetUpProblem(nominal, data, request));
+  result.parameterization = setup->solved;
+  if (!setup->tilt_status.ok()) {
+    return finish(Termination::kNotIdentifiable, setup->tilt_status.message());
   }
-  return LinearSolve(nominal, data, options, setup, &result, start).Run();
+  CalibrationProblem problem(nominal, data, ProblemOptionsOf(options), std::move(setup));
+  return LinearSolve(&problem, options, &result, start).Run();
 }
+
+namespace internal {
+
+CalibrationResult CalibrateLinearOn(CalibrationProblem* problem,
+                                    const LinearSolverOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  CHECK(problem != nullptr);
+  CalibrationResult result;
+  result.model = problem->Model();
+  result.parameterization = problem->SolvedParameterization();
+  if (!problem->tilt_status().ok()) {
+    if (options.errors != nullptr) {
+      options.errors->final_errors.Clear();
+      options.errors->have_start_statistics = false;
+    }
+    result.termination = Termination::kNotIdentifiable;
+    result.message = problem->tilt_status().message();
+    result.wall_time_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return result;
+  }
+  return LinearSolve(problem, options, &result, start).Run();
+}
+
+}  // namespace internal
 
 }  // namespace lpoe

@@ -15,6 +15,8 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/problem_builder.h"
+#include "calibration/solve_on_problem.h"
 #include "lpoe/refusals.h"
 
 namespace lpoe {
@@ -151,7 +153,11 @@ class PipelineSolve {
   // One solve; with `tilt_model` the gravity tilt from the joint values `initial`.
   CalibrationResult Once(std::shared_ptr<const GravityTiltModel> tilt_model,
                          const std::vector<JointTermValues>& initial);
-  CalibrationResult OnceLinear(LinearSolverOptions o, bool tilt);
+  // The one problem of a solve, for either solver (null when the options do not pass
+  // ValidateCalibrationProblem: the solver's own entry then reports why, as it always did).
+  std::unique_ptr<CalibrationProblem> Problem(std::shared_ptr<const GravityTiltModel> tilt_model,
+                                              const std::vector<JointTermValues>& initial) const;
+  CalibrationResult OnceLinear(CalibrationProblem* problem, LinearSolverOptions o, bool tilt);
   // Rounds of the decision at the solution, solved again while it differs.
   void SettleStructure(CalibrationResult* result);
   // The gravity tilt: checked at the compliance solution, then solved from it.
@@ -327,17 +333,40 @@ CalibrationResult PipelineSolve::Once(std::shared_ptr<const GravityTiltModel> ti
     o.prior = prior_;
     if (tilt_model) o.convergence.sd_fraction *= kTiltSdFraction;
   };
+  // Every decision once, in one problem, whichever solver takes it.
+  const std::unique_ptr<CalibrationProblem> problem = Problem(tilt_model, initial);
   if (options_.solver == SolverKind::kCeres) {
     CeresSolverOptions o = options_.ceres;
     common(o);
-    return CalibrateCeres(start_, data_, o);
+    return problem ? internal::CalibrateCeresOn(problem.get(), o) : CalibrateCeres(start_, data_, o);
   }
   LinearSolverOptions o = options_.linear;
   common(o);
-  return OnceLinear(std::move(o), tilt_model != nullptr);
+  return OnceLinear(problem.get(), std::move(o), tilt_model != nullptr);
 }
 
-CalibrationResult PipelineSolve::OnceLinear(LinearSolverOptions o, bool tilt) {
+std::unique_ptr<CalibrationProblem> PipelineSolve::Problem(
+    std::shared_ptr<const GravityTiltModel> tilt_model,
+    const std::vector<JointTermValues>& initial) const {
+  const bool ceres = options_.solver == SolverKind::kCeres;
+  // Ceres's share (sigma, loss, rows per block) is read by the Ceres solver only.
+  CalibrationProblemOptions o = internal::CeresProblemOptions(options_.ceres, data_.size());
+  o.parameterization = options_.parameterization;
+  o.use_orientation = options_.use_orientation;
+  o.orientation_weight = orientation_weight_;
+  o.joint_term_tolerance =
+      ceres ? options_.ceres.joint_term_tolerance : options_.linear.joint_term_tolerance;
+  o.joint_terms = terms_;
+  o.structure_reference = &reference_;
+  o.gravity_tilt = std::move(tilt_model);
+  o.initial_joint_terms = initial;
+  o.prior = prior_;
+  if (!ValidateCalibrationProblem(start_, data_, o).ok()) return nullptr;
+  return std::make_unique<CalibrationProblem>(start_, data_, o);
+}
+
+CalibrationResult PipelineSolve::OnceLinear(CalibrationProblem* problem, LinearSolverOptions o,
+                                            bool tilt) {
   if (errors_ != nullptr && before_ != nullptr && !options_.use_orientation && terms_.empty() &&
       !tilt) {
     // The errors before calibration come from the solver's first linearization when it starts
@@ -351,7 +380,8 @@ CalibrationResult PipelineSolve::OnceLinear(LinearSolverOptions o, bool tilt) {
     }
     o.errors = &errors_->solver;
   }
-  CalibrationResult r = CalibrateLinear(start_, data_, o);
+  CalibrationResult r =
+      problem != nullptr ? internal::CalibrateLinearOn(problem, o) : CalibrateLinear(start_, data_, o);
   if (errors_ != nullptr && errors_->solver.have_start_statistics) {
     errors_->before = errors_->solver.start_statistics;
     errors_->have_before = true;

@@ -67,17 +67,30 @@ Status ValidateCalibrationProblem(const RobotModel& nominal, const MeasurementSe
   return Status::Ok();
 }
 
+namespace {
+
+// Every decision (parameterization, frames solved, prior, structure) once (problem_setup.h), for
+// options that pass ValidateCalibrationProblem (CHECKed).
+std::shared_ptr<const internal::ProblemSetup> ValidatedSetup(
+    const RobotModel& nominal, const MeasurementSet& data,
+    const CalibrationProblemOptions& options) {
+  const Status s = ValidateCalibrationProblem(nominal, data, options);
+  CHECK(s.ok()) << s.message();
+  return std::make_shared<const internal::ProblemSetup>(
+      internal::SetUpProblem(nominal, data, internal::ProblemSetupRequestOf(options)));
+}
+
+}  // namespace
+
 CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const MeasurementSet& data,
                                        const CalibrationProblemOptions& options)
-    : nominal_(nominal), data_(&data), options_(options) {
-  {
-    const Status s = ValidateCalibrationProblem(nominal, data, options);
-    CHECK(s.ok()) << s.message();
-  }
-  // Every decision (parameterization, frames solved, prior, structure) once, as CalibrateLinear
-  // makes them (problem_setup.h).
-  setup_ = std::make_shared<const internal::ProblemSetup>(
-      internal::SetUpProblem(nominal, data, internal::ProblemSetupRequestOf(options)));
+    : CalibrationProblem(nominal, data, options, ValidatedSetup(nominal, data, options)) {}
+
+CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const MeasurementSet& data,
+                                       const CalibrationProblemOptions& options,
+                                       std::shared_ptr<const internal::ProblemSetup> setup_in)
+    : nominal_(nominal), data_(&data), options_(options), setup_(std::move(setup_in)) {
+  CHECK(setup_ != nullptr);
   const internal::ProblemSetup& setup = *setup_;
   parameterization_ = setup.all;
   tilt_status_ = setup.tilt_status;
@@ -91,6 +104,8 @@ CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const Measurem
     Se3ToArray(f < n ? nominal.joints[f].origin : nominal.tools[f - n].origin, frames_[f].data());
   }
   initial_frames_ = frames_;
+  current_ = nominal_;
+  current_frames_ = frames_;
   const Parameterization& p = parameterization_;
   const Eigen::VectorXd& initial = setup.initial_joint_state;
   joint_blocks_.resize(p.joint_blocks.size());
@@ -285,11 +300,12 @@ int CalibrationProblem::BatchedRows() const {
 }
 
 RobotModel CalibrationProblem::Model() const {
-  RobotModel model = nominal_;
+  RobotModel model = current_;
   const int n = model.num_joints();
   for (int f = 0; f < model.num_frames(); ++f) {
-    // An unchanged block keeps the nominal frame bit for bit (no quaternion round trip).
-    if (!solved_[f] || frames_[f] == initial_frames_[f]) continue;
+    // A block still holding the values current_ was written as keeps current_'s frame bit for bit
+    // (no quaternion round trip): the nominal frame until Update() or SetFrames().
+    if (!solved_[f] || frames_[f] == current_frames_[f]) continue;
     SE3d& T = f < n ? model.joints[f].origin : model.tools[f - n].origin;
     T = Se3FromArray(frames_[f].data());
   }
@@ -353,12 +369,52 @@ const Parameterization& CalibrationProblem::SolvedParameterization() const {
   return setup_->solved;
 }
 
+internal::NormalEquations CalibrationProblem::Linearize(
+    const internal::NormalEquationsOptions& o) const {
+  internal::NormalEquationsOptions with = o;
+  with.use_orientation = options_.use_orientation;
+  with.orientation_weight = options_.orientation_weight;
+  if (with.joint.regressors == nullptr) with.joint.regressors = regressors_.get();
+  return internal::NormalEquationsOf(Model(), *data_, SolvedParameterization(), JointState(), with);
+}
+
+CalibrationProblem::Values CalibrationProblem::values() const {
+  Values v;
+  v.frames = frames_;
+  v.joint_blocks = joint_blocks_;
+  v.tilt = tilt_;
+  v.model = current_;
+  v.model_frames = current_frames_;
+  return v;
+}
+
+void CalibrationProblem::SetValues(const Values& v) {
+  CHECK_EQ(v.frames.size(), frames_.size());
+  CHECK_EQ(v.joint_blocks.size(), joint_blocks_.size());
+  frames_ = v.frames;
+  joint_blocks_ = v.joint_blocks;
+  tilt_ = v.tilt;
+  current_ = v.model;
+  current_frames_ = v.model_frames;
+}
+
+void CalibrationProblem::SetFrames(const RobotModel& model) {
+  CHECK_EQ(model.num_frames(), current_.num_frames());
+  const int n = model.num_joints();
+  current_ = Model();
+  for (int f = 0; f < model.num_frames(); ++f) {
+    const SE3d& T = f < n ? model.joints[f].origin : model.tools[f - n].origin;
+    (f < n ? current_.joints[f].origin : current_.tools[f - n].origin) = T;
+    if (solved_[f]) Se3ToArray(T, frames_[f].data());
+  }
+  current_frames_ = frames_;
+}
+
 ProblemNormalEquations CalibrationProblem::NormalEquations() const {
   ProblemNormalEquations out;
   out.parameterization = SolvedParameterization();
   const internal::NormalEquations lin =
-      internal::NormalEquationsOf(Model(), *data_, out.parameterization, JointState(),
-                                  LinearizationOptions(options_, regressors_.get()));
+      Linearize(LinearizationOptions(options_, regressors_.get()));
   const double w = 1.0 / (options_.sigma * options_.sigma);
   out.H = w * lin.H;
   out.g = w * lin.g;
@@ -369,7 +425,7 @@ ProblemNormalEquations CalibrationProblem::NormalEquations() const {
 }
 
 void CalibrationProblem::Update(const Eigen::VectorXd& x) {
-  const Parameterization solved = SolvedParameterization();
+  const Parameterization& solved = SolvedParameterization();
   CHECK_EQ(x.size(), solved.num_parameters) << "step of the wrong size";
   RobotModel model = Model();
   ApplyUpdate(solved, x, &model);
@@ -379,6 +435,9 @@ void CalibrationProblem::Update(const Eigen::VectorXd& x) {
     const int fi = static_cast<int>(f);
     Se3ToArray(fi < n ? model.joints[fi].origin : model.tools[fi - n].origin, frames_[f].data());
   }
+  // The model the new values stand for, exactly (Model() returns it while the blocks hold them).
+  current_ = std::move(model);
+  current_frames_ = frames_;
   for (size_t b = 0; b < joint_blocks_.size(); ++b) {
     const int offset = solved.joint_blocks[b].offset;
     for (size_t c = 0; c < joint_blocks_[b].size(); ++c) joint_blocks_[b][c] += x(offset + c);
@@ -390,6 +449,19 @@ void CalibrationProblem::Update(const Eigen::VectorXd& x) {
 }
 
 ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
+  return AnalyzeWith(nullptr, max_condition_number);
+}
+
+ProblemAnalysis CalibrationProblem::AnalyzeNormalMatrix(const Eigen::MatrixXd& H,
+                                                        double max_condition_number) const {
+  return AnalyzeWith(&H, max_condition_number);
+}
+
+// The one identifiability check of both solvers: Analyze() (the Ceres solver's, H formed here,
+// the weakest direction always computed) and AnalyzeNormalMatrix() (the linear solver's, on its
+// own linearization with the prior's information).
+ProblemAnalysis CalibrationProblem::AnalyzeWith(const Eigen::MatrixXd* H_solved,
+                                                double max_condition_number) const {
   const Parameterization& p = parameterization_;
   const MeasurementSet& data = *data_;
   const bool full = options_.parameterization == ParameterizationKind::kFull;
@@ -409,25 +481,32 @@ ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
   }
   Parameterization analysed;
   std::vector<int> columns;
-  for (int f = 0; f < model.num_frames(); ++f) {
-    if (!solved_[f]) continue;
-    for (int c = 0; c < all.basis[f].cols(); ++c) {
-      columns.push_back(all.offset[f] + c);
-      analysed.parameters.push_back(all.parameters[all.offset[f] + c]);
+  const bool given = H_solved != nullptr && !full;
+  if (given) {
+    // The caller's H is in the solved numbering (SolvedParameterization(): the same columns, or
+    // a given parameterization's, setup().overridden).
+    analysed.parameters = SolvedParameterization().parameters;
+  } else {
+    for (int f = 0; f < model.num_frames(); ++f) {
+      if (!solved_[f]) continue;
+      for (int c = 0; c < all.basis[f].cols(); ++c) {
+        columns.push_back(all.offset[f] + c);
+        analysed.parameters.push_back(all.parameters[all.offset[f] + c]);
+      }
+    }
+    for (int k = all.num_frame_parameters(); k < all.num_parameters; ++k) {
+      columns.push_back(k);
+      analysed.parameters.push_back(all.parameters[k]);
     }
   }
-  for (int k = all.num_frame_parameters(); k < all.num_parameters; ++k) {
-    columns.push_back(k);
-    analysed.parameters.push_back(all.parameters[k]);
-  }
-  analysed.num_parameters = static_cast<int>(columns.size());
+  analysed.num_parameters = static_cast<int>(analysed.parameters.size());
   out.num_parameters = analysed.num_parameters;
   for (const Direction& d : analysed.parameters) out.parameter_names.push_back(d.name);
   Parameterization left_out = all;
   internal::LeaveOutUnmeasuredTools(model, data, &left_out);
   out.unidentifiable = left_out.unidentifiable;
   out.num_equations = static_cast<long>(per_row) * data.size();
-  if (out.num_equations < out.num_parameters) {
+  if (out.num_equations < out.num_parameters && H_solved == nullptr) {
     out.message = internal::TooFewEquationsMessage(data.size(), out.num_equations,
                                                    out.num_parameters, per_row);
     return out;
@@ -438,7 +517,10 @@ ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
     for (double v : b) at_start = at_start && v == 0;
   }
   Eigen::MatrixXd H_all;
-  if (at_start && !all.gravity_tilt &&
+  if (given) {
+    CHECK_EQ(H_solved->rows(), out.num_parameters);
+    out.normal_matrix = *H_solved;
+  } else if (at_start && !all.gravity_tilt &&
       internal::SameFrameDirections(setup_->analysed_parameterization, all)) {
     H_all = internal::ProjectJointBlocks(*analysed_, all).H;
   } else {
@@ -447,21 +529,26 @@ ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
                 .H;
   }
   Eigen::MatrixXd& H = out.normal_matrix;
-  H.resize(out.num_parameters, out.num_parameters);
-  for (int a = 0; a < out.num_parameters; ++a) {
-    for (int b = 0; b < out.num_parameters; ++b) H(a, b) = H_all(columns[a], columns[b]);
+  if (H_all.size() > 0) {
+    H.resize(out.num_parameters, out.num_parameters);
+    for (int a = 0; a < out.num_parameters; ++a) {
+      for (int b = 0; b < out.num_parameters; ++b) H(a, b) = H_all(columns[a], columns[b]);
+    }
   }
   if (!H.allFinite()) {
     out.finite = false;
     out.message = "non-finite residuals or Jacobian at the nominal model (check the input values)";
     return out;
   }
-  const internal::Identifiability id = internal::Analyze(H);
+  // Analyze(): the weakest direction always; AnalyzeNormalMatrix(): the eigenvalues decide, the
+  // eigenvectors only for a refusal's message.
+  internal::Identifiability id = internal::Analyze(H, H_solved == nullptr);
   out.rank = id.rank;
   out.condition_number = id.condition;
   out.singular_values = id.singular_values;
-  out.weakest = internal::WeakestDirections(analysed, id.weakest);
-  out.identifiable = id.rank == out.num_parameters && id.condition <= max_condition_number;
+  out.identifiable = id.rank >= out.num_parameters && id.condition <= max_condition_number;
+  if (!out.identifiable && id.weakest.size() == 0) id = internal::Analyze(H, true);
+  if (id.weakest.size() > 0) out.weakest = internal::WeakestDirections(analysed, id.weakest);
   if (!out.identifiable) {
     out.message = internal::NotIdentifiableMessage(id, out.num_parameters, max_condition_number,
                                                    analysed);
