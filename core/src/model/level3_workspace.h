@@ -1,0 +1,115 @@
+// Eigen's triangular solve and triangular product on dense column-major blocks, with their packing
+// buffers kept between calls (internal to the library; used by the residual layer's likelihood).
+//
+// Eigen's level-3 kernels pack their operands into two buffers sized by the cache blocking of the
+// call (kc x mc and kc x cols doubles). Above EIGEN_STACK_ALLOCATION_LIMIT (128 KB, a few hundred
+// rows) each call allocates them afresh and frees them on return. The likelihood's hyperparameter
+// search makes hundreds of such calls per fit, each on matrices of the same size: about 10,000
+// allocations of 100-500 KB in one residual-layer test. Under AddressSanitizer every one of them is
+// its own mapping (mmap, page faults on every page, munmap), a third of that test's run time
+// (docs/testing.md).
+//
+// These functions call the very kernels Eigen's expressions dispatch to, with the blocking sizes
+// those expressions compute (gemm_blocking_space with the same rows, columns, depth and one
+// thread), so each performs the same operations in the same order as the expression named beside
+// it and the results are bit-identical (tests/residual_layer_test.cc, Level3Workspace.*); only
+// the buffers come from the workspace, grown to the largest size asked for and kept.
+// This uses Eigen's internal interface of Eigen 3.4 (Debian 12's libeigen3-dev).
+#ifndef LPOE_CORE_MODEL_LEVEL3_WORKSPACE_H_
+#define LPOE_CORE_MODEL_LEVEL3_WORKSPACE_H_
+
+#include <type_traits>
+
+#include <Eigen/Core>
+
+namespace lpoe {
+namespace internal {
+
+static_assert(EIGEN_WORLD_VERSION == 3 && EIGEN_MAJOR_VERSION == 4,
+              "level3_workspace.h calls Eigen 3.4's internal level-3 kernels");
+
+class Level3Workspace {
+ public:
+  // other := L^-1 other, L the lower triangle of `tri` (square):
+  // tri.triangularView<Eigen::Lower>().solveInPlace(other).
+  template <typename Tri, typename Other>
+  void LowerSolveInPlace(const Tri& tri, Other&& other) {
+    SolveInPlace<Eigen::Lower, Eigen::ColMajor>(tri.data(), tri.outerStride(), tri.rows(), other);
+  }
+
+  // other := L^-T other, L the lower triangle of `tri`:
+  // tri.transpose().triangularView<Eigen::Upper>().solveInPlace(other).
+  template <typename Tri, typename Other>
+  void LowerTransposeSolveInPlace(const Tri& tri, Other&& other) {
+    SolveInPlace<Eigen::Upper, Eigen::RowMajor>(tri.data(), tri.outerStride(), tri.rows(), other);
+  }
+
+  // dst := U^T rhs, U^T the upper triangle of lower^T (lower square, its strict upper triangle not
+  // read): dst.noalias() = lower.transpose().triangularView<Eigen::Upper>() * rhs.
+  template <typename Lower, typename Rhs, typename Dst>
+  void LowerTransposeTimes(const Lower& lower, const Rhs& rhs, Dst&& dst) {
+    static_assert(!(Eigen::internal::traits<std::decay_t<Rhs>>::Flags & Eigen::RowMajorBit) &&
+                      !(Eigen::internal::traits<std::decay_t<Dst>>::Flags & Eigen::RowMajorBit),
+                  "column-major operands");
+    eigen_assert(lower.rows() == lower.cols() && rhs.rows() == lower.rows() &&
+                 dst.rows() == lower.rows() && dst.cols() == rhs.cols() && rhs.innerStride() == 1 &&
+                 dst.innerStride() == 1);
+    dst.setZero();  // as Eigen's product evaluator does before adding the product
+    if (lower.rows() == 0 || rhs.cols() == 0) return;
+    const Eigen::Index rows = lower.rows(), cols = rhs.cols(), depth = lower.rows();
+    Blocking blocking(rows, cols, depth, this);
+    Eigen::internal::product_triangular_matrix_matrix<
+        double, Eigen::Index, Eigen::Upper, true, Eigen::RowMajor, false, Eigen::ColMajor, false,
+        Eigen::ColMajor, 1>::run(rows, cols, depth, lower.data(), lower.outerStride(), rhs.data(),
+                                 rhs.outerStride(), dst.data(), 1, dst.outerStride(), 1.0,
+                                 blocking);
+  }
+
+ private:
+  // The blocking Eigen's triangular expressions construct (KcFactor 4, one thread, no L3
+  // blocking), lending the workspace's buffers; handed back (not freed) on destruction.
+  using BlockingBase = Eigen::internal::gemm_blocking_space<Eigen::ColMajor, double, double,
+                                                            Eigen::Dynamic, Eigen::Dynamic,
+                                                            Eigen::Dynamic, 4>;
+  class Blocking : public BlockingBase {
+   public:
+    Blocking(Eigen::Index rows, Eigen::Index cols, Eigen::Index depth, Level3Workspace* w)
+        : BlockingBase(rows, cols, depth, 1, false) {
+      // The kernels use kc x min(rows, mc) doubles of A and at most kc x cols + one aligned
+      // packet of B.
+      this->m_blockA = Grow(&w->a_, this->kc() * this->mc());
+      this->m_blockB = Grow(&w->b_, this->kc() * cols + EIGEN_MAX_ALIGN_BYTES / sizeof(double));
+    }
+    ~Blocking() {
+      this->m_blockA = nullptr;
+      this->m_blockB = nullptr;
+    }
+    Blocking(const Blocking&) = delete;
+    Blocking& operator=(const Blocking&) = delete;
+
+   private:
+    static double* Grow(Eigen::VectorXd* buffer, Eigen::Index size) {
+      if (buffer->size() < size) buffer->resize(size);
+      return buffer->data();
+    }
+  };
+
+  template <int Mode, int TriStorage, typename Other>
+  void SolveInPlace(const double* tri, Eigen::Index tri_stride, Eigen::Index size, Other& other) {
+    static_assert(!(Eigen::internal::traits<std::decay_t<Other>>::Flags & Eigen::RowMajorBit),
+                  "column-major right-hand side");
+    eigen_assert(other.rows() == size && other.innerStride() == 1);
+    if (size == 0 || other.cols() == 0) return;
+    Blocking blocking(other.rows(), other.cols(), size, this);
+    Eigen::internal::triangular_solve_matrix<double, Eigen::Index, Eigen::OnTheLeft, Mode, false,
+                                             TriStorage, Eigen::ColMajor, 1>::run(
+        size, other.cols(), tri, tri_stride, other.data(), 1, other.outerStride(), blocking);
+  }
+
+  Eigen::VectorXd a_, b_;
+};
+
+}  // namespace internal
+}  // namespace lpoe
+
+#endif  // LPOE_CORE_MODEL_LEVEL3_WORKSPACE_H_
