@@ -581,8 +581,9 @@ TEST(ResidualLayerStandIn, PureNoiseAndRepeatabilityMakeAutoChooseNone) {
   EXPECT_LE(gp.verification_after.norm.rms, 1.01 * automatic.verification_after.norm.rms);
 }
 
-// The likelihood's triangular solves and products with packing buffers kept between calls
-// (core/src/model/level3_workspace.h) give bit for bit what Eigen's expressions give, at sizes
+// The likelihood's triangular solves and products and the planning selector's general products
+// with packing buffers kept between calls (core/src/model/level3_workspace.h) give bit for bit what
+// Eigen's expressions give, at sizes
 // below and above Eigen's stack limit for those buffers (128 KB), on blocks with an outer stride
 // as the likelihood uses them, and with one workspace reused over growing and shrinking sizes.
 TEST(Level3Workspace, BitIdenticalToEigensExpressions) {
@@ -653,6 +654,31 @@ TEST(Level3Workspace, BitIdenticalToEigensExpressions) {
     }
   }
   EXPECT_EQ(compared, 30);
+  // The general product (the planning selector's chunk updates): a row-major block of rows times a
+  // column-major matrix, and column-major times column-major, at sizes Eigen evaluates
+  // coefficient by coefficient, as matrix-vector products and by its blocked kernel.
+  using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  int products = 0;
+  for (const int rows : {3, 1, 4000, 700, 1500}) {
+    for (const int depth : {1, 6, 40}) {
+      for (const int cols : {1, 2, 6}) {
+        const RowMatrix J = random(rows + 5, depth);
+        const Eigen::MatrixXd U = random(depth, cols);
+        const Eigen::MatrixXd expected = J.middleRows(2, rows) * U;
+        Eigen::MatrixXd got = random(3, 3);  // resized
+        w.Product(J.middleRows(2, rows), U, &got);
+        EXPECT_TRUE(same_bits(expected, got))
+            << "product " << rows << " x " << depth << " x " << cols;
+        const Eigen::MatrixXd K = random(cols, cols);
+        const Eigen::MatrixXd expected_k = expected * K;
+        Eigen::MatrixXd got_k;
+        w.Product(got, K, &got_k);
+        EXPECT_TRUE(same_bits(expected_k, got_k)) << "product by " << cols << " x " << cols;
+        ++products;
+      }
+    }
+  }
+  EXPECT_EQ(products, 45);
 }
 
 }  // namespace residual_layer_test

@@ -1,5 +1,6 @@
-// Eigen's triangular solve and triangular product on dense column-major blocks, with their packing
-// buffers kept between calls (internal to the library; used by the residual layer's likelihood).
+// Eigen's triangular solve, triangular product and general matrix product on dense blocks, with
+// their packing buffers kept between calls (internal to the library; used by the residual layer's
+// likelihood and the planning selector's updates).
 //
 // Eigen's level-3 kernels pack their operands into two buffers sized by the cache blocking of the
 // call (kc x mc and kc x cols doubles). Above EIGEN_STACK_ALLOCATION_LIMIT (128 KB, a few hundred
@@ -8,6 +9,9 @@
 // allocations of 100-500 KB in one residual-layer test. Under AddressSanitizer every one of them is
 // its own mapping (mmap, page faults on every page, munmap), a third of that test's run time
 // (docs/testing.md).
+//
+// The planning selector's rank updates multiply each chunk of 256 candidates' rows by a P x r
+// matrix, hundreds of times per plan, with buffers of the same kind.
 //
 // These functions call the very kernels Eigen's expressions dispatch to, with the blocking sizes
 // those expressions compute (gemm_blocking_space with the same rows, columns, depth and one
@@ -65,7 +69,59 @@ class Level3Workspace {
                                  blocking);
   }
 
+  // *dst := lhs * rhs, as `*dst = lhs * rhs` evaluates it (dst column-major, lhs and rhs of either
+  // storage order, inner stride 1). Where Eigen runs its blocked matrix product the packing buffers
+  // come from the workspace; the sizes it evaluates otherwise (a coefficient-based product when
+  // depth + rows + columns < EIGEN_GEMM_TO_COEFFBASED_THRESHOLD, matrix-vector for one row or
+  // column, an empty operand) are left to the expression itself.
+  template <typename Lhs, typename Rhs>
+  void Product(const Lhs& lhs, const Rhs& rhs, Eigen::MatrixXd* dst) {
+    using LhsTraits = Eigen::internal::traits<std::decay_t<Lhs>>;
+    using RhsTraits = Eigen::internal::traits<std::decay_t<Rhs>>;
+    constexpr int kLhsOrder = (LhsTraits::Flags & Eigen::RowMajorBit) ? Eigen::RowMajor : Eigen::ColMajor;
+    constexpr int kRhsOrder = (RhsTraits::Flags & Eigen::RowMajorBit) ? Eigen::RowMajor : Eigen::ColMajor;
+    eigen_assert(lhs.cols() == rhs.rows() && lhs.innerStride() == 1 && rhs.innerStride() == 1);
+    const Eigen::Index rows = lhs.rows(), cols = rhs.cols(), depth = lhs.cols();
+    if (depth + rows + cols < EIGEN_GEMM_TO_COEFFBASED_THRESHOLD || rows <= 1 || cols <= 1 ||
+        depth == 0) {
+      dst->noalias() = lhs * rhs;
+      return;
+    }
+    dst->resize(rows, cols);
+    dst->setZero();  // as Eigen's product evaluator does before adding the product
+    GemmBlocking blocking(rows, cols, depth, this);
+    Eigen::internal::general_matrix_matrix_product<Eigen::Index, double, kLhsOrder, false, double,
+                                                   kRhsOrder, false, Eigen::ColMajor, 1>::
+        run(rows, cols, depth, lhs.data(), lhs.outerStride(), rhs.data(), rhs.outerStride(),
+            dst->data(), 1, dst->outerStride(), 1.0, blocking, nullptr);
+  }
+
  private:
+  static double* Grow(Eigen::VectorXd* buffer, Eigen::Index size) {
+    if (buffer->size() < size) buffer->resize(size);
+    return buffer->data();
+  }
+
+  // The blocking Eigen's general product constructs (KcFactor 1, one thread, L3 blocking), lending
+  // the workspace's buffers (kc x mc and kc x nc doubles).
+  using GemmBlockingBase = Eigen::internal::gemm_blocking_space<Eigen::ColMajor, double, double,
+                                                                Eigen::Dynamic, Eigen::Dynamic,
+                                                                Eigen::Dynamic, 1>;
+  class GemmBlocking : public GemmBlockingBase {
+   public:
+    GemmBlocking(Eigen::Index rows, Eigen::Index cols, Eigen::Index depth, Level3Workspace* w)
+        : GemmBlockingBase(rows, cols, depth, 1, true) {
+      this->m_blockA = Grow(&w->a_, this->kc() * this->mc());
+      this->m_blockB = Grow(&w->b_, this->kc() * this->nc());
+    }
+    ~GemmBlocking() {
+      this->m_blockA = nullptr;
+      this->m_blockB = nullptr;
+    }
+    GemmBlocking(const GemmBlocking&) = delete;
+    GemmBlocking& operator=(const GemmBlocking&) = delete;
+  };
+
   // The blocking Eigen's triangular expressions construct (KcFactor 4, one thread, no L3
   // blocking), lending the workspace's buffers; handed back (not freed) on destruction.
   using BlockingBase = Eigen::internal::gemm_blocking_space<Eigen::ColMajor, double, double,
@@ -86,12 +142,6 @@ class Level3Workspace {
     }
     Blocking(const Blocking&) = delete;
     Blocking& operator=(const Blocking&) = delete;
-
-   private:
-    static double* Grow(Eigen::VectorXd* buffer, Eigen::Index size) {
-      if (buffer->size() < size) buffer->resize(size);
-      return buffer->data();
-    }
   };
 
   template <int Mode, int TriStorage, typename Other>
