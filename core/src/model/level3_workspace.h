@@ -82,8 +82,13 @@ class Level3Workspace {
     constexpr int kRhsOrder = (RhsTraits::Flags & Eigen::RowMajorBit) ? Eigen::RowMajor : Eigen::ColMajor;
     eigen_assert(lhs.cols() == rhs.rows() && lhs.innerStride() == 1 && rhs.innerStride() == 1);
     const Eigen::Index rows = lhs.rows(), cols = rhs.cols(), depth = lhs.cols();
-    if (depth + rows + cols < EIGEN_GEMM_TO_COEFFBASED_THRESHOLD || rows <= 1 || cols <= 1 ||
-        depth == 0) {
+#ifdef EIGEN_HAS_OPENMP
+    constexpr bool kEigenParallel = true;  // Eigen may split its product over OpenMP's threads
+#else
+    constexpr bool kEigenParallel = false;
+#endif
+    if (kEigenParallel || depth + rows + cols < EIGEN_GEMM_TO_COEFFBASED_THRESHOLD || rows <= 1 ||
+        cols <= 1 || depth == 0) {
       dst->noalias() = lhs * rhs;
       return;
     }
