@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <random>
 #include <string>
@@ -24,6 +25,7 @@
 #include "lpoe/robot_model.h"
 #include "lpoe/simulation.h"
 #include "lpoe/statistics.h"
+#include "model/level3_workspace.h"
 #include "unmodelled_arm.h"
 
 namespace lpoe {
@@ -577,6 +579,106 @@ TEST(ResidualLayerStandIn, PureNoiseAndRepeatabilityMakeAutoChooseNone) {
               gp.residual_layer.fit.start_loo_rms[2], gp.residual_layer.fit.chosen_start,
               gp.verification_after.norm.rms, automatic.verification_after.norm.rms);
   EXPECT_LE(gp.verification_after.norm.rms, 1.01 * automatic.verification_after.norm.rms);
+}
+
+// The likelihood's triangular solves and products and the planning selector's general products
+// with packing buffers kept between calls (core/src/model/level3_workspace.h) give bit for bit what
+// Eigen's expressions give, at sizes
+// below and above Eigen's stack limit for those buffers (128 KB), on blocks with an outer stride
+// as the likelihood uses them, and with one workspace reused over growing and shrinking sizes.
+TEST(Level3Workspace, BitIdenticalToEigensExpressions) {
+  std::mt19937_64 rng(23);
+  std::normal_distribution<double> g(0.0, 1.0);
+  auto random = [&](Eigen::Index rows, Eigen::Index cols) {
+    Eigen::MatrixXd m(rows, cols);
+    for (Eigen::Index i = 0; i < m.size(); ++i) m.data()[i] = g(rng);
+    return m;
+  };
+  auto same_bits = [](const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+    if (a.rows() != b.rows() || a.cols() != b.cols()) return false;
+    for (Eigen::Index i = 0; i < a.size(); ++i) {
+      if (std::memcmp(&a.data()[i], &b.data()[i], sizeof(double)) != 0) return false;
+    }
+    return true;
+  };
+  internal::Level3Workspace w;
+  int compared = 0;
+  for (const int N : {7, 300, 40, 613, 130}) {
+    const Eigen::MatrixXd R = random(N, N);
+    Eigen::MatrixXd K = R * R.transpose() / N;
+    K.diagonal().array() += 0.5;
+    const Eigen::LLT<Eigen::MatrixXd> llt(K);
+    ASSERT_EQ(llt.info(), Eigen::Success);
+    const Eigen::MatrixXd& L = llt.matrixLLT();  // its strict upper triangle holds K's
+    for (const int cols : {1, 3, 48}) {
+      for (const int j0 : {0, N / 3}) {
+        const Eigen::Index size = N - j0;
+        const Eigen::MatrixXd start = random(N, cols);
+        // Lower solve on a block of L with the outer stride of L, in place in a block of a larger
+        // matrix.
+        Eigen::MatrixXd expected = start, got = start;
+        L.block(j0, j0, size, size)
+            .triangularView<Eigen::Lower>()
+            .solveInPlace(expected.bottomRows(size));
+        w.LowerSolveInPlace(L.block(j0, j0, size, size), got.bottomRows(size));
+        EXPECT_TRUE(same_bits(expected, got)) << "lower solve N " << N << " cols " << cols;
+        // Transposed lower solve (the second half of LLT::solve).
+        expected = start;
+        got = start;
+        L.block(j0, j0, size, size)
+            .transpose()
+            .triangularView<Eigen::Upper>()
+            .solveInPlace(expected.bottomRows(size));
+        w.LowerTransposeSolveInPlace(L.block(j0, j0, size, size), got.bottomRows(size));
+        EXPECT_TRUE(same_bits(expected, got)) << "transposed solve N " << N << " cols " << cols;
+        // The whole solve equals LLT::solve.
+        if (j0 == 0) {
+          got = start;
+          w.LowerSolveInPlace(L, got);
+          w.LowerTransposeSolveInPlace(L, got);
+          EXPECT_TRUE(same_bits(llt.solve(start), got)) << "LLT solve N " << N << " cols " << cols;
+        }
+        // Transposed lower triangle times a block, into a block of a larger matrix (the strict
+        // upper triangle of L is not read: it holds K's entries).
+        if (cols <= size) {
+          Eigen::MatrixXd expected_dst = random(N, N), got_dst = expected_dst;
+          expected_dst.block(j0, j0, size, cols).noalias() =
+              L.block(j0, j0, size, size).transpose().triangularView<Eigen::Upper>() *
+              start.block(j0, 0, size, cols);
+          w.LowerTransposeTimes(L.block(j0, j0, size, size), start.block(j0, 0, size, cols),
+                                got_dst.block(j0, j0, size, cols));
+          EXPECT_TRUE(same_bits(expected_dst, got_dst)) << "product N " << N << " cols " << cols;
+        }
+        ++compared;
+      }
+    }
+  }
+  EXPECT_EQ(compared, 30);
+  // The general product (the planning selector's chunk updates): a row-major block of rows times a
+  // column-major matrix, and column-major times column-major, at sizes Eigen evaluates
+  // coefficient by coefficient, as matrix-vector products and by its blocked kernel.
+  using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  int products = 0;
+  for (const int rows : {3, 1, 4000, 700, 1500}) {
+    for (const int depth : {1, 6, 40}) {
+      for (const int cols : {1, 2, 6}) {
+        const RowMatrix J = random(rows + 5, depth);
+        const Eigen::MatrixXd U = random(depth, cols);
+        const Eigen::MatrixXd expected = J.middleRows(2, rows) * U;
+        Eigen::MatrixXd got = random(3, 3);  // resized
+        w.Product(J.middleRows(2, rows), U, &got);
+        EXPECT_TRUE(same_bits(expected, got))
+            << "product " << rows << " x " << depth << " x " << cols;
+        const Eigen::MatrixXd K = random(cols, cols);
+        const Eigen::MatrixXd expected_k = expected * K;
+        Eigen::MatrixXd got_k;
+        w.Product(got, K, &got_k);
+        EXPECT_TRUE(same_bits(expected_k, got_k)) << "product by " << cols << " x " << cols;
+        ++products;
+      }
+    }
+  }
+  EXPECT_EQ(products, 45);
 }
 
 }  // namespace residual_layer_test

@@ -18,6 +18,7 @@
 
 #include "lpoe/kernels.h"
 #include "lpoe/parallel.h"
+#include "model/level3_workspace.h"
 
 namespace lpoe {
 namespace {
@@ -116,10 +117,13 @@ void ExactKernel(const Hyper& h, const Eigen::MatrixXd& X, const std::vector<int
 
 // The N x N matrices of the exact GP's likelihood, kept per thread between evaluations: the fit
 // evaluates the likelihood hundreds of times at one size, and allocating megabytes afresh each
-// time costs a page fault per page (about a third of the fit's time in the dev build).
+// time costs a page fault per page (about a third of the fit's time in the dev build). So are
+// the packing buffers of its triangular solves and products (level3_workspace.h): Eigen
+// allocated them afresh at every call, the same cost again under AddressSanitizer.
 struct GpWorkspace {
-  Eigen::MatrixXd Kse, K, Linv, Kinv;
+  Eigen::MatrixXd Kse, K, Linv, Kinv, A;
   Eigen::LLT<Eigen::MatrixXd> llt;
+  internal::Level3Workspace level3;
 };
 
 GpWorkspace& ThreadGpWorkspace() {
@@ -133,7 +137,7 @@ GpWorkspace& ThreadGpWorkspace() {
 // block J of K^-1 = L^-T L^-1 needs only the rows of L^-1 from j0 on (a triangular product). About
 // N^3 / 3 multiply-adds where solving K X = I takes N^3.
 void LowerInverseFromCholesky(const Eigen::MatrixXd& llt, Eigen::MatrixXd* Linv,
-                              Eigen::MatrixXd* Kinv) {
+                              Eigen::MatrixXd* Kinv, internal::Level3Workspace* level3) {
   const Eigen::Index N = llt.rows();
   constexpr Eigen::Index kBlock = 48;
   Linv->setZero(N, N);
@@ -141,14 +145,15 @@ void LowerInverseFromCholesky(const Eigen::MatrixXd& llt, Eigen::MatrixXd* Linv,
     const Eigen::Index b = std::min(kBlock, N - j0);
     auto block = Linv->block(j0, j0, N - j0, b);
     block.topRows(b).setIdentity();
-    llt.block(j0, j0, N - j0, N - j0).triangularView<Eigen::Lower>().solveInPlace(block);
+    // block := L[j0:, j0:]^-1 block
+    level3->LowerSolveInPlace(llt.block(j0, j0, N - j0, N - j0), block);
   }
   Kinv->resize(N, N);
   for (Eigen::Index j0 = 0; j0 < N; j0 += kBlock) {
     const Eigen::Index b = std::min(kBlock, N - j0);
-    Kinv->block(j0, j0, N - j0, b).noalias() =
-        Linv->block(j0, j0, N - j0, N - j0).transpose().triangularView<Eigen::Upper>() *
-        Linv->block(j0, j0, N - j0, b);
+    // Kinv[j0:, j0:j0+b] := (L^-1)[j0:, j0:]^T (L^-1)[j0:, j0:j0+b], the transpose upper triangular
+    level3->LowerTransposeTimes(Linv->block(j0, j0, N - j0, N - j0),
+                                Linv->block(j0, j0, N - j0, b), Kinv->block(j0, j0, N - j0, b));
   }
 }
 
@@ -321,7 +326,11 @@ double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
   ExactKernel(h, X, tools, configuration, &w.Kse, &w.K, U);
   w.llt.compute(w.K);
   if (w.llt.info() != Eigen::Success) return -std::numeric_limits<double>::infinity();
-  const Eigen::MatrixXd A = w.llt.solve(Y);  // N x 3
+  // A = K^-1 Y (N x 3), as w.llt.solve(Y) computes it: L^-T L^-1 Y.
+  w.A = Y;
+  w.level3.LowerSolveInPlace(w.llt.matrixLLT(), w.A);
+  w.level3.LowerTransposeSolveInPlace(w.llt.matrixLLT(), w.A);
+  const Eigen::MatrixXd& A = w.A;
   const int outputs = static_cast<int>(Y.cols());
   double log_det = 0;
   for (int i = 0; i < N; ++i) log_det += 2 * std::log(w.llt.matrixLLT()(i, i));
@@ -330,7 +339,7 @@ double GpLogMarginalLikelihood(const Eigen::VectorXd& theta, bool with_tool,
   if (gradient == nullptr) return L;
   // dL/dtheta = 1/2 tr(M dK/dtheta), M = A A^T - outputs K^-1: M and dK/dtheta are symmetric, so
   // one pass over the lower triangle, the terms off the diagonal counted twice.
-  LowerInverseFromCholesky(w.llt.matrixLLT(), &w.Linv, &w.Kinv);
+  LowerInverseFromCholesky(w.llt.matrixLLT(), &w.Linv, &w.Kinv, &w.level3);
   const Eigen::MatrixXd At = A.transpose();                                     // 3 x N
   const Eigen::MatrixXd Xst = (X * h.l.cwiseInverse().asDiagonal()).transpose();  // n x N
   const int p = static_cast<int>(theta.size());

@@ -21,6 +21,7 @@
 #include <glog/logging.h>
 
 #include "identifiability/identifiability.h"
+#include "model/level3_workspace.h"
 #include "planning/planning_internal.h"
 #include "lpoe/analysis.h"
 #include "lpoe/eigen_decompositions.h"
@@ -100,13 +101,26 @@ constexpr int kMinCandidatesForThreads = 1000;
 // Calls fn(begin, end) over [0, n) in fixed chunks of kChunk on up to `max_threads` threads (0: the
 // hardware's). fn must write only the entries of its own chunk, computed from its own data alone:
 // the results are then the same, bit for bit, whatever the number of threads.
+// The threads of ForEachChunk(n, max_threads, ...).
+int ChunkThreads(int n, int max_threads) {
+  const int chunks = (n + kChunk - 1) / kChunk;
+  return n < kMinCandidatesForThreads
+             ? 1
+             : (max_threads > 0 ? std::min(max_threads, chunks) : ThreadsFor(chunks));
+}
+
+// As ForEachChunk, calling fn(begin, end, thread) with the index of the thread running the chunk
+// (below ChunkThreads(n, max_threads)), for scratch space kept per thread.
+template <typename Fn>
+void ForEachChunkOnThread(int n, int max_threads, const Fn& fn) {
+  const int chunks = (n + kChunk - 1) / kChunk;
+  ForEachTask(chunks, ChunkThreads(n, max_threads),
+              [&](int k, int thread) { fn(k * kChunk, std::min(n, (k + 1) * kChunk), thread); });
+}
+
 template <typename Fn>
 void ForEachChunk(int n, int max_threads, const Fn& fn) {
-  const int chunks = (n + kChunk - 1) / kChunk;
-  const int threads =
-      n < kMinCandidatesForThreads ? 1 : (max_threads > 0 ? std::min(max_threads, chunks)
-                                                          : ThreadsFor(chunks));
-  ForEachTask(chunks, threads, [&](int k, int) { fn(k * kChunk, std::min(n, (k + 1) * kChunk)); });
+  ForEachChunkOnThread(n, max_threads, [&](int begin, int end, int) { fn(begin, end); });
 }
 
 // The greedy / exchange state, in pool-scaled coordinates: M = delta I + sum of the plan's J^T J,
@@ -257,13 +271,20 @@ class Selector {
     const bool trace = objective_ == Objective::kTrace;
     Eigen::MatrixXd UtF;
     if (trace) UtF = U.transpose() * F_;  // r x P
-    ForEachChunk(pool_.size(), num_threads_, [&](int begin, int end) {
+    const size_t threads = ChunkThreads(pool_.size(), num_threads_);
+    if (chunk_scratch_.size() < threads) chunk_scratch_.resize(threads);
+    ForEachChunkOnThread(pool_.size(), num_threads_, [&](int begin, int end, int thread) {
       // The chunk's rows against U and Kinv as two matrix products (blocked and vectorized), not a
       // small lazy product per candidate; only each candidate's own r_c x r_c block of S is formed.
+      // The products and their packing buffers are kept per thread between updates (hundreds per
+      // plan, each of the same sizes; level3_workspace.h, the same results bit for bit).
       const int o = pool_.row_offset[begin];
       const int rows = pool_.row_offset[end] - o;
-      const Eigen::MatrixXd V = Js_.middleRows(o, rows) * U;  // rows x r
-      const Eigen::MatrixXd VK = V * Kinv;
+      ChunkScratch& scratch = chunk_scratch_[thread];
+      scratch.level3.Product(Js_.middleRows(o, rows), U, &scratch.V);  // rows x r
+      scratch.level3.Product(scratch.V, Kinv, &scratch.VK);
+      const Eigen::MatrixXd& V = scratch.V;
+      const Eigen::MatrixXd& VK = scratch.VK;
       // S_c -= VK_c V_c^T: r_c x r_c entries of r-long dot products (r, r_c <= 6), as plain loops:
       // an Eigen product expression per candidate cost more to set up than these few multiply-adds.
       for (int c = begin; c < end; ++c) {
@@ -341,6 +362,12 @@ class Selector {
   std::vector<char> in_plan_;
   int removal_ = -1;
   Eigen::MatrixXd u_;
+  // Update's per-thread products and their packing buffers.
+  struct ChunkScratch {
+    internal::Level3Workspace level3;
+    Eigen::MatrixXd V, VK;
+  };
+  std::vector<ChunkScratch> chunk_scratch_;
 };
 
 
