@@ -5,7 +5,10 @@
 //     measures), 7 numbers [qx qy qz qw tx ty tz] with an Se3Manifold (right perturbation, eq. (19),
 //     restricted to the frame's basis of the parameterization);
 //   * one block per joint-space term that keeps identifiable combinations (joint_term.h), k_b
-//     numbers x_b, theta_b = basis_b x_b, starting at zero.
+//     numbers x_b, theta_b = basis_b x_b, starting at zero (or options' initial values);
+//   * with options.gravity_tilt, one block of 2 (the tilt, rad).
+// one list (blocks()), each block of a kind of the block-kind registry
+// (solvers/src/calibration/block_kind.h), which supplies its manifold, step and columns;
 // and offers three ways in:
 //   (a) AddTo(problem): adds those blocks and one residual block per measurement
 //         position data: r = (P_model(q) - P_measured) / sigma                       (eq. (29))

@@ -406,7 +406,7 @@ ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
   bool at_start = analysed_ != nullptr;
   for (const ProblemBlock& b : blocks_) at_start = at_start && b.kind->AtReductionPoint(b);
   Eigen::MatrixXd H_all;
-  if (at_start && !all.gravity_tilt &&
+  if (at_start && !internal::HasNonlinearBlocks(all) &&
       internal::SameFrameDirections(setup_->analysed_parameterization, all)) {
     H_all = internal::ProjectJointBlocks(*analysed_, all).H;
   } else {
