@@ -14,17 +14,17 @@ namespace lpoe {
 namespace internal {
 namespace {
 
-SE3d& FrameOf(RobotModel* model, int f) {
+SE3d& FrameBlockOrigin(RobotModel* model, int f) {
   const int n = model->num_joints();
   return f < n ? model->joints[f].origin : model->tools[f - n].origin;
 }
 
-const SE3d& FrameOf(const RobotModel& model, int f) {
+const SE3d& FrameBlockOrigin(const RobotModel& model, int f) {
   const int n = model.num_joints();
   return f < n ? model.joints[f].origin : model.tools[f - n].origin;
 }
 
-class FrameKind : public BlockKind {
+class FrameBlockKindImpl : public BlockKind {
  public:
   const char* name() const override { return "frame"; }
   bool joint_space() const override { return false; }
@@ -40,7 +40,7 @@ class FrameKind : public BlockKind {
       b.offset = p.offset[f];
       b.tangent_size = static_cast<int>(p.basis[f].cols());
       b.values.resize(kSe3AmbientSize);
-      Se3ToArray(FrameOf(nominal, f), b.values.data());
+      Se3ToArray(FrameBlockOrigin(nominal, f), b.values.data());
       b.initial = b.values;
       out->push_back(std::move(b));
     }
@@ -61,7 +61,7 @@ class FrameKind : public BlockKind {
             int offset, ProblemBlock* block) const override {
     // T_f <- T_f exp((B_f x_f)^) (eq. (19)), from the nominal frame itself while the block holds
     // its start value (no quaternion round trip), as ApplyUpdate on Model().
-    SE3d T = FrameOf(nominal, block->index);
+    SE3d T = FrameBlockOrigin(nominal, block->index);
     if (block->values != block->initial) T = Se3FromArray(block->values.data());
     const Eigen::MatrixXd& B = p.basis[block->index];
     if (B.cols() > 0) {
@@ -74,7 +74,7 @@ class FrameKind : public BlockKind {
   void WriteModel(const ProblemBlock& block, RobotModel* model) const override {
     // An unchanged block keeps the nominal frame bit for bit (no quaternion round trip).
     if (block.values == block.initial) return;
-    FrameOf(model, block.index) = Se3FromArray(block.values.data());
+    FrameBlockOrigin(model, block.index) = Se3FromArray(block.values.data());
   }
 
   void WriteCoordinates(const ProblemBlock& /*block*/, Eigen::VectorXd* /*x*/) const override {}
@@ -94,7 +94,7 @@ class FrameKind : public BlockKind {
 }  // namespace
 
 const BlockKind& FrameBlockKind() {
-  static const FrameKind kind;
+  static const FrameBlockKindImpl kind;
   return kind;
 }
 

@@ -9,7 +9,7 @@ namespace lpoe {
 namespace internal {
 namespace {
 
-class JointTermKind : public BlockKind {
+class JointTermBlockKindImpl : public BlockKind {
  public:
   const char* name() const override { return "joint_term"; }
 
@@ -45,7 +45,7 @@ class JointTermKind : public BlockKind {
 }  // namespace
 
 const BlockKind& JointTermBlockKind() {
-  static const JointTermKind kind;
+  static const JointTermBlockKindImpl kind;
   return kind;
 }
 
