@@ -20,6 +20,7 @@
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"
+#include "lpoe/measurement_model.h"
 #include "lpoe/problem_builder.h"
 #include "lpoe/simulation.h"
 
@@ -285,6 +286,262 @@ TEST(BlockKind, BothSolversEstimateTheTiltOfAPlainLeastSquaresReference) {
   // And the same cost: the reference's residuals are not smaller than the solvers'.
   const double reference_cost = 0.5 * Residuals(ModelAt(s.nominal, p, x), s.data).squaredNorm();
   EXPECT_NEAR(linear.final_cost, reference_cost, 1e-6 * reference_cost);
+}
+
+// A problem with every kind: cobot6 loaded, a second tool no row measures, compliance and
+// harmonics starting from realistic values (the small arm's compliance, 0.1 mrad harmonics), and
+// the gravity tilt; position (or pose) data of 40 poses of tool 0.
+struct EveryKind {
+  RobotModel nominal = LoadedCobot();
+  MeasurementSet data;
+  std::vector<JointTermValues> initial;
+  explicit EveryKind(bool pose) {
+    Tool second = nominal.tools[0];
+    second.name = "smr2";
+    second.origin.t = Eigen::Vector3d(-30.0, 20.0, 70.0);
+    nominal.tools.push_back(second);
+    const KinematicErrors errors = RandomErrors(nominal, 2e-3, 0.5, 1e-3, 2e-3, 7);
+    RobotModel actual = ApplyErrors(nominal, errors);
+    ApplyJointErrorPhysics(SmallArmJointErrors(nominal, SmallArmOptions()), {"compliance"},
+                           &actual);
+    SimulationOptions options;
+    options.count = 40;
+    options.noise_sigma = 0.01;
+    options.pose = pose;
+    options.orientation_noise_sigma = pose ? 1e-5 : 0.0;
+    options.seed = 11;
+    data = SimulateMeasurements(actual, errors.joint_zero, options);
+    std::shared_ptr<const JointTerm> harmonics;
+    EXPECT_TRUE(MakeJointTerm("harmonics", nominal, &harmonics).ok());
+    const std::vector<double> theta =
+        CompliancePhysicsParameters(SmallArmJointErrors(nominal, SmallArmOptions()));
+    auto compliance = Compliance(nominal);
+    initial.push_back({compliance, Eigen::Map<const Eigen::VectorXd>(theta.data(), theta.size())});
+    Eigen::VectorXd h(harmonics->num_parameters());
+    for (int k = 0; k < h.size(); ++k) h(k) = 1e-4 * std::sin(1.7 * k + 0.3);
+    initial.push_back({harmonics, h});
+  }
+  CalibrationProblemOptions Options(bool pose) const {
+    CalibrationProblemOptions o;
+    o.use_orientation = pose;
+    o.joint_terms = {initial[0].term, initial[1].term};
+    o.initial_joint_terms = initial;
+    o.gravity_tilt = std::make_shared<const GravityTiltModel>(nominal);
+    return o;
+  }
+};
+
+// Moves every block of `problem` off its start: frames by 1e-3 (rad, mm) per direction,
+// joint-space coordinates by 1e-5, the tilt by (0.4, -0.3) deg.
+void MoveEveryBlock(CalibrationProblem* problem) {
+  Eigen::VectorXd x(problem->SolvedParameterization().num_parameters);
+  for (int k = 0; k < x.size(); ++k) x(k) = std::cos(2.3 * k + 0.1);
+  for (const ProblemBlock& b : problem->blocks()) {
+    auto seg = x.segment(b.solved_offset, b.tangent_size);
+    if (b.kind == &internal::FrameBlockKind()) seg *= 1e-3;
+    if (b.kind == &internal::JointTermBlockKind()) seg *= 1e-5;
+    if (b.kind == internal::FindBlockKind(kGravityTiltName)) seg << 0.4 * kDeg, -0.3 * kDeg;
+  }
+  problem->Update(x);
+}
+
+internal::BlockColumnsContext ColumnsContext(const CalibrationProblem& problem,
+                                             const RobotModel& model,
+                                             const Eigen::VectorXd& joint_state) {
+  internal::BlockColumnsContext ctx;
+  ctx.model = &model;
+  ctx.p = &problem.parameterization();
+  ctx.joint_state = &joint_state;
+  ctx.use_orientation = problem.options().use_orientation;
+  ctx.orientation_weight = problem.options().orientation_weight;
+  return ctx;
+}
+
+// The problem's blocks are one list from the registry: the solved frames (the unmeasured tool
+// left out), a block per joint-space term, the tilt, in that order; each block's offset and
+// tangent size are the parameterization's numbering, its solved offset the solved one's (the
+// numbering of NormalEquations and Update), and parameter_blocks / tangent_sizes /
+// tangent_offsets / Update / JointState follow the list.
+TEST(BlockKind, ProblemBlocksAreOneListInTheParameterizationsNumbering) {
+  const EveryKind s(false);
+  const CalibrationProblemOptions options = s.Options(false);
+  ASSERT_TRUE(ValidateCalibrationProblem(s.nominal, s.data, options).ok());
+  CalibrationProblem problem(s.nominal, s.data, options);
+  ASSERT_TRUE(problem.tilt_status().ok()) << problem.tilt_status().message();
+  const Parameterization& p = problem.parameterization();
+  const Parameterization& solved = problem.SolvedParameterization();
+  const int n = s.nominal.num_joints();
+  const std::vector<ProblemBlock>& blocks = problem.blocks();
+  ASSERT_EQ(p.joint_blocks.size(), 2u);
+  ASSERT_GT(p.joint_blocks[0].basis.cols(), 0);
+  ASSERT_GT(p.joint_blocks[1].basis.cols(), 0);
+  // n joints + the measured tool, two joint-space blocks, the tilt.
+  ASSERT_EQ(blocks.size(), static_cast<size_t>(n + 1 + 2 + 1));
+  EXPECT_TRUE(problem.frame_solved(n));
+  EXPECT_FALSE(problem.frame_solved(n + 1));
+  EXPECT_EQ(problem.frame_block(n + 1), nullptr);
+  EXPECT_GT(p.basis[n + 1].cols(), 0);  // the unmeasured tool keeps its basis in p, but no block
+  const std::vector<double*> pointers = problem.parameter_blocks();
+  const std::vector<int> sizes = problem.tangent_sizes();
+  const std::vector<int> offsets = problem.tangent_offsets();
+  int solved_offset = 0;
+  for (size_t i = 0; i < blocks.size(); ++i) {
+    const ProblemBlock& b = blocks[i];
+    SCOPED_TRACE("block " + std::to_string(i) + " (" + b.kind->name() + ")");
+    if (i <= static_cast<size_t>(n)) {
+      ASSERT_EQ(b.kind, &internal::FrameBlockKind());
+      EXPECT_EQ(b.index, static_cast<int>(i));
+      EXPECT_EQ(b.offset, p.offset[i]);
+      EXPECT_EQ(b.tangent_size, p.basis[i].cols());
+      EXPECT_EQ(b.solved_offset, solved.offset[i]);
+      EXPECT_EQ(b.values.size(), static_cast<size_t>(kSe3AmbientSize));
+      EXPECT_EQ(problem.frame_block(static_cast<int>(i)), b.values.data());
+    } else if (i < static_cast<size_t>(n + 3)) {
+      const int jb = static_cast<int>(i) - n - 1;
+      ASSERT_EQ(b.kind, &internal::JointTermBlockKind());
+      EXPECT_EQ(b.index, jb);
+      EXPECT_EQ(b.offset, p.joint_blocks[jb].offset);
+      EXPECT_EQ(b.tangent_size, p.joint_blocks[jb].basis.cols());
+      EXPECT_EQ(b.solved_offset, solved.joint_blocks[jb].offset);
+      EXPECT_EQ(problem.joint_block(jb), b.values.data());
+    } else {
+      ASSERT_EQ(b.kind, internal::FindBlockKind(kGravityTiltName));
+      EXPECT_EQ(b.offset, p.tilt_offset);
+      EXPECT_EQ(b.tangent_size, 2);
+      EXPECT_EQ(b.solved_offset, solved.tilt_offset);
+      EXPECT_EQ(problem.tilt_block(), b.values.data());
+    }
+    EXPECT_EQ(b.solved_offset, solved_offset);
+    solved_offset += b.tangent_size;
+    EXPECT_EQ(pointers[i], b.values.data());
+    EXPECT_EQ(sizes[i], b.tangent_size);
+    EXPECT_EQ(offsets[i], b.offset);
+  }
+  EXPECT_EQ(solved_offset, solved.num_parameters);
+  // The joint-space blocks start at the initial values: JointState is their coordinates.
+  const Eigen::VectorXd start = problem.JointState();
+  ASSERT_EQ(start.size(), p.num_joint_parameters());
+  const Eigen::VectorXd x0 =
+      p.joint_blocks[0].basis.transpose() * s.initial[0].theta;
+  EXPECT_LT((start.head(x0.size()) - x0).cwiseAbs().maxCoeff(), 1e-12 * x0.cwiseAbs().maxCoeff());
+  // Update moves each joint-space block by its segment of the step, and the model's frames.
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(solved.num_parameters);
+  for (int k = 0; k < x.size(); ++k) x(k) = 1e-4 * (k + 1);
+  problem.Update(x);
+  const Eigen::VectorXd moved = problem.JointState();
+  const int F = solved.num_frame_parameters();
+  EXPECT_LT((moved - start - x.tail(solved.num_joint_parameters())).cwiseAbs().maxCoeff(), 1e-15);
+  RobotModel expected = s.nominal;
+  ApplyUpdate(solved, x, &expected);
+  const RobotModel model = problem.Model();
+  for (int f = 0; f <= n; ++f) {
+    const SE3d& a = f < n ? model.joints[f].origin : model.tools[0].origin;
+    const SE3d& e = f < n ? expected.joints[f].origin : expected.tools[0].origin;
+    EXPECT_LT(LogSE3(a.Inverse() * e).norm(), 1e-12) << "frame " << f;
+  }
+  EXPECT_EQ((model.tools[1].origin.t - s.nominal.tools[1].origin.t).norm(), 0);  // not solved
+  EXPECT_EQ(F, p.num_frame_parameters() - static_cast<int>(p.basis[n + 1].cols()));
+}
+
+// Each kind's columns of a row, at a state off the start (every block moved, the tilt 0.4 deg),
+// equal central differences of the predicted tool position: a frame's along its manifold's
+// directions (T_f exp((B_f e_k h)^)), a joint-space block's and the tilt's along its coordinates.
+TEST(BlockKind, EachKindsColumnsAreCentralDifferencesOfThePrediction) {
+  const EveryKind s(false);
+  CalibrationProblem problem(s.nominal, s.data, s.Options(false));
+  ASSERT_TRUE(problem.tilt_status().ok());
+  MoveEveryBlock(&problem);
+  const Parameterization& p = problem.parameterization();
+  const RobotModel model = problem.Model();
+  const Eigen::VectorXd joint_state = problem.JointState();
+  const internal::BlockColumnsContext ctx = ColumnsContext(problem, model, joint_state);
+  const int F = p.num_frame_parameters();
+  // The prediction at a perturbation dx of every coordinate (p's numbering) about the state.
+  Eigen::VectorXd coordinates = Eigen::VectorXd::Zero(p.num_parameters);
+  coordinates.tail(p.num_joint_parameters()) = joint_state;
+  auto predicted = [&](const Eigen::VectorXd& dx, int r) {
+    RobotModel m = model;
+    ApplyUpdate(p, dx, &m);
+    return PredictPosition(m, JointValuesOf(p, coordinates + dx), s.data.q(r), s.data.target(r));
+  };
+  std::vector<int> checked(3, 0);
+  for (int r : {0, 17, 33}) {
+    for (const ProblemBlock& b : problem.blocks()) {
+      Eigen::MatrixXd J;
+      b.kind->Columns(ctx, b, s.data, r, &J);
+      ASSERT_EQ(J.rows(), 3);
+      ASSERT_EQ(J.cols(), b.tangent_size);
+      const int kind = b.kind == &internal::FrameBlockKind()       ? 0
+                       : b.kind == &internal::JointTermBlockKind() ? 1
+                                                                    : 2;
+      for (int c = 0; c < b.tangent_size; ++c) {
+        // Steps: 1e-6 rad or mm of a frame, of the tilt; a joint-space coordinate moving the
+        // position by about 1e-6 mm.
+        const double column = J.col(c).norm();
+        double h = 1e-6;
+        if (kind == 1) {
+          if (column == 0) continue;  // a combination this row does not move
+          h = 1e-6 / column;
+        }
+        Eigen::VectorXd dx = Eigen::VectorXd::Zero(p.num_parameters);
+        dx(b.offset + c) = h;
+        const Eigen::Vector3d fd = (predicted(dx, r) - predicted(-dx, r)) / (2 * h);
+        const double scale = std::max(fd.norm(), column);
+        ASSERT_GT(scale, 0) << b.kind->name() << " column " << c;
+        EXPECT_LT((J.col(c) - fd).norm(), 1e-5 * scale)
+            << b.kind->name() << " block at " << b.offset << " column " << c << " row " << r;
+        ++checked[kind];
+      }
+    }
+  }
+  EXPECT_GT(checked[0], 30);
+  EXPECT_GT(checked[1], 10);
+  EXPECT_EQ(checked[2], 6);
+  (void)F;
+}
+
+// The kinds' columns, stacked over every row in the blocks' solved numbering, are the problem's
+// normal equations: sum_r J_r^T J_r / sigma^2 = NormalEquations().H (the bulk assembly), for
+// position and for pose data, at a state off the start.
+TEST(BlockKind, KindsColumnsStackToTheProblemsNormalEquations) {
+  for (bool pose : {false, true}) {
+    SCOPED_TRACE(pose ? "pose" : "position");
+    const EveryKind s(pose);
+    CalibrationProblemOptions options = s.Options(pose);
+    options.sigma = 0.02;
+    CalibrationProblem problem(s.nominal, s.data, options);
+    ASSERT_TRUE(problem.tilt_status().ok());
+    MoveEveryBlock(&problem);
+    const RobotModel model = problem.Model();
+    const Eigen::VectorXd joint_state = problem.JointState();
+    const internal::BlockColumnsContext ctx = ColumnsContext(problem, model, joint_state);
+    const int P = problem.SolvedParameterization().num_parameters;
+    const int m = pose ? 6 : 3;
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
+    for (int r = 0; r < s.data.size(); ++r) {
+      Eigen::MatrixXd Jr = Eigen::MatrixXd::Zero(m, P);
+      for (const ProblemBlock& b : problem.blocks()) {
+        Eigen::MatrixXd J;
+        b.kind->Columns(ctx, b, s.data, r, &J);
+        Jr.middleCols(b.solved_offset, b.tangent_size) = J;
+      }
+      H.noalias() += Jr.transpose() * Jr;
+    }
+    H /= options.sigma * options.sigma;
+    const ProblemNormalEquations ne = problem.NormalEquations();
+    ASSERT_EQ(ne.H.rows(), P);
+    ASSERT_TRUE(ne.finite);
+    // Relative to each entry's scale sqrt(H_aa H_bb).
+    double worst = 0;
+    for (int a = 0; a < P; ++a) {
+      for (int c = 0; c < P; ++c) {
+        const double scale = std::sqrt(ne.H(a, a) * ne.H(c, c));
+        if (scale > 0) worst = std::max(worst, std::abs(H(a, c) - ne.H(a, c)) / scale);
+      }
+    }
+    EXPECT_LT(worst, 1e-9);
+    EXPECT_GT(H.rightCols(2).norm(), 0);  // the tilt's columns are not zero
+  }
 }
 
 }  // namespace block_kind_test

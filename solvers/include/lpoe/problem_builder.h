@@ -5,7 +5,10 @@
 //     measures), 7 numbers [qx qy qz qw tx ty tz] with an Se3Manifold (right perturbation, eq. (19),
 //     restricted to the frame's basis of the parameterization);
 //   * one block per joint-space term that keeps identifiable combinations (joint_term.h), k_b
-//     numbers x_b, theta_b = basis_b x_b, starting at zero.
+//     numbers x_b, theta_b = basis_b x_b, starting at zero (or options' initial values);
+//   * with options.gravity_tilt, one block of 2 (the tilt, rad).
+// one list (blocks()), each block of a kind of the block-kind registry
+// (solvers/src/calibration/block_kind.h), which supplies its manifold, step and columns;
 // and offers three ways in:
 //   (a) AddTo(problem): adds those blocks and one residual block per measurement
 //         position data: r = (P_model(q) - P_measured) / sigma                       (eq. (29))
@@ -45,6 +48,7 @@
 namespace lpoe {
 
 namespace internal {
+class BlockKind;  // solvers/src/calibration/block_kind.h
 struct JointSpaceRegressors;  // solvers/src/calibration/normal_equations.h
 struct NormalEquations;
 struct NormalEquationsOptions;
@@ -129,6 +133,20 @@ struct ProblemAnalysis {
   std::string message;  // why not (the solvers' message); empty when identifiable
 };
 
+// One parameter block of a CalibrationProblem: a local frame (7 numbers, Se3Manifold), a
+// joint-space term's coordinates (k_b numbers) or the gravity tilt (2 numbers), each of one kind of
+// the block-kind registry (solvers/src/calibration/block_kind.h), which supplies its manifold, its
+// step, where its values go and its columns.
+struct ProblemBlock {
+  const internal::BlockKind* kind = nullptr;
+  int index = 0;          // the kind's own index: frame f, joint block b, 0 for the tilt
+  int offset = 0;         // first parameter in parameterization()'s numbering
+  int solved_offset = 0;  // first parameter in SolvedParameterization()'s (NormalEquations, Update)
+  int tangent_size = 0;
+  std::vector<double> values;   // the block Ceres sees (ambient numbers)
+  std::vector<double> initial;  // its values at construction
+};
+
 class CalibrationProblem {
  public:
   using FrameBlock = std::array<double, kSe3AmbientSize>;
@@ -154,7 +172,7 @@ class CalibrationProblem {
   const Parameterization& parameterization() const { return parameterization_; }
 
   // Frame f (joints 0..n-1, then tools) is solved: a joint, or a tool some row measures.
-  bool frame_solved(int f) const { return solved_[f]; }
+  bool frame_solved(int f) const { return frame_blocks_[f] >= 0; }
   // The parameter block of frame f (7 numbers), nullptr when the frame is not solved.
   double* frame_block(int f);
   // The parameter block of joint-space term b (k_b numbers), nullptr when it keeps no combination.
@@ -164,7 +182,10 @@ class CalibrationProblem {
   // Why options().gravity_tilt could not be added (no identified compliance combination); ok
   // otherwise.
   const Status& tilt_status() const { return tilt_status_; }
-  // Every solved block in covariance order: solved frames in model order, then joint blocks.
+  // Every block, in the registry's order of kinds (solved frames in model order, then joint
+  // blocks, then the tilt): the covariance order, and the order of the columns of NormalEquations().
+  const std::vector<ProblemBlock>& blocks() const { return blocks_; }
+  // Every solved block's values in blocks() order.
   std::vector<double*> parameter_blocks();
   // Tangent size of each block of parameter_blocks(), and its first parameter in
   // parameterization()'s numbering.
@@ -215,11 +236,9 @@ class CalibrationProblem {
   internal::NormalEquations Linearize(const internal::NormalEquationsOptions& o) const;
   // The blocks' values (and the model they stand for), to go back to after a trial step.
   struct Values {
-    std::vector<FrameBlock> frames;
-    std::vector<std::vector<double>> joint_blocks;
-    std::array<double, 2> tilt = {0.0, 0.0};
+    std::vector<std::vector<double>> blocks;  // each block's values, in blocks() order
     RobotModel model;
-    std::vector<FrameBlock> model_frames;
+    std::vector<std::vector<double>> model_values;
   };
   Values values() const;
   void SetValues(const Values& v);
@@ -269,17 +288,16 @@ class CalibrationProblem {
   CalibrationProblemOptions options_;
   std::shared_ptr<const internal::ProblemSetup> setup_;
   Parameterization parameterization_;
-  std::vector<FrameBlock> frames_;
-  std::vector<FrameBlock> initial_frames_;
-  // The model the frames' values stand for, exactly (the steps of Update() applied to the frames'
+  std::vector<ProblemBlock> blocks_;  // built once: the values' addresses are Ceres's blocks
+  std::vector<int> frame_blocks_;     // frame f's index in blocks_, -1 when not solved
+  std::vector<int> joint_blocks_;     // joint block b's, -1 when it keeps no combination
+  int tilt_block_ = -1;               // the tilt's, -1 without
+  // The model the blocks' values stand for, exactly (the steps of Update() applied to the frames'
   // matrices, no quaternion round trip), and the values it was written as: Model() takes a frame
-  // from it while its block still holds those values (the nominal model and initial_frames_ until
-  // Update() or SetFrames()).
+  // from it while its block still holds those values (the nominal model and the initial values
+  // until Update() or SetFrames()).
   RobotModel current_;
-  std::vector<FrameBlock> current_frames_;
-  std::vector<bool> solved_;
-  std::vector<std::vector<double>> joint_blocks_;
-  std::array<double, 2> tilt_ = {0.0, 0.0};
+  std::vector<std::vector<double>> current_values_;
   Status tilt_status_;
   // With joint-space terms, the reduction's by-products (setup_'s): the rows' regressors (slot
   // basis of parameterization_'s blocks) and the normal equations at the nominal values with every

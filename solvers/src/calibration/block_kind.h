@@ -1,22 +1,32 @@
-// Internal to lpoe_solvers: the registry of parameter-block kinds whose columns are not linear in
-// the calibration state (docs/architecture.md, "Where to add a block kind"). Such a kind's Jacobian
-// columns depend on the current values of other blocks (the gravity tilt: bilinear with the
-// compliance coordinates), so neither the frames' linearisation nor a joint-space term's fixed
-// regressor can supply them. Each kind supplies, through this one interface:
+// Internal to lpoe_solvers: the registry of parameter-block kinds (docs/architecture.md, "Where to
+// add a block kind"). Every parameter block of a CalibrationProblem is of one kind of this registry,
+// in registry order (block_kind_registry.inc): the local frames (joints, then the tools some row
+// measures: frame_block_kind.cc), the joint-space terms' blocks (joint_term_block_kind.cc), the
+// gravity tilt (gravity_tilt.cc). Every kind supplies, through this one interface:
+//
+//   - its blocks in a problem (offset in the numbering, tangent size, start values);
+//   - its manifold in a Ceres problem (none: Euclidean), its step (Update) and where its values go
+//     (the model's frames, or the joint-space coordinates);
+//   - its columns of a row given the current values (Columns: the frames' J B_f, a joint-space
+//     term's J_q Y_b(q) basis_b, the tilt's J_q d(dq)/dt). The linear solver's normal equations do
+//     not call it per row: they are assembled in bulk for every kind at once (NormalEquationsOf,
+//     the frames' optimised assembly with the joint-space columns from JointTermColumns), the same
+//     columns; Columns is each kind's statement of them (tested against central differences).
+//
+// A kind whose columns change with the state (the gravity tilt: bilinear with the compliance
+// coordinates; neither the frames' linearisation nor a joint-space term's fixed regressor can
+// supply them) supplies in addition:
 //
 //   - whether a calibration asks for it, and the joint-space term it needs (checked once);
 //   - its block in the parameterization (ProblemSetup makes it, both solvers use it);
-//   - its columns given the current values (the linear solver's normal equations);
+//   - its columns given the current values in the linear solver's per-row form (RowColumns);
 //   - its per-row data for the Ceres residual;
 //   - its entry in the result (value, standard deviation);
 //   - its identifiability rule at a solution without it.
+// The frames and the joint-space terms keep the defaults (not asked for, never In(p)).
 //
 // Adding a kind: one source file that defines a BlockKind and a function returning it, plus one
-// line in block_kind_registry.inc (gravity_tilt.cc is the one kind today).
-//
-// Not kinds of this registry (yet): the frames (their columns come from the kinematics'
-// linearisation, measurement kind by measurement kind) and the linear joint-space terms (their
-// columns are the JointTerm registry's regressors times the block's basis, core/src/terms).
+// line in block_kind_registry.inc.
 #ifndef LPOE_SOLVERS_SRC_CALIBRATION_BLOCK_KIND_H_
 #define LPOE_SOLVERS_SRC_CALIBRATION_BLOCK_KIND_H_
 
@@ -25,12 +35,14 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <ceres/problem.h>
 
 #include "lpoe/calibration.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/measurement_residual.h"
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
+#include "lpoe/problem_builder.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/status.h"
 
@@ -38,56 +50,127 @@ namespace lpoe {
 namespace internal {
 
 struct ProblemSetupRequest;  // problem_setup.h
+struct ProblemSetup;
+
+// What a kind's Columns needs of the problem at its current values.
+struct BlockColumnsContext {
+  const RobotModel* model = nullptr;        // the model at the current values (Model())
+  const Parameterization* p = nullptr;      // parameterization() (every frame's basis)
+  const Eigen::VectorXd* joint_state = nullptr;  // JointState()
+  bool use_orientation = false;
+  double orientation_weight = 1000.0;
+};
 
 class BlockKind {
  public:
   virtual ~BlockKind() = default;
 
-  // The `--joint_errors` item that asks for the kind ("tilt").
+  // The kind's name: for a kind a calibration asks for, the `--joint_errors` item that asks for it
+  // ("tilt"); "frame" and "joint_term" otherwise.
   virtual const char* name() const = 0;
+
+  // --- Every kind: its blocks in a CalibrationProblem ---
+
+  // Appends the kind's blocks of a problem with these decisions to `out` (kind, index, offset in
+  // setup.all's numbering, tangent size, start values; solved_offset is set by the caller).
+  virtual void AppendBlocks(const ProblemSetup& setup, const RobotModel& nominal,
+                            std::vector<ProblemBlock>* out) const = 0;
+  // A joint-space block (the residuals' joint-space parameters after the chain's frames, part of
+  // JointState()); false: a frame of the chain.
+  virtual bool joint_space() const { return true; }
+  // Gives the block its manifold in `problem` (after the residual blocks were added), or holds it
+  // constant. Default (Euclidean): nothing.
+  virtual void AddManifold(const Parameterization& p, ProblemBlock* block,
+                           ceres::Problem* problem) const;
+  // Applies the step x.segment(offset, block->tangent_size) to the block's values; `model` is the
+  // model the values stand for, exactly (CalibrationProblem::Model()), and a kind that lives in
+  // the model (a frame) applies the step to it too, so that the model is the step's result without
+  // a round trip through the block's numbers. Default: added to the values.
+  virtual void Plus(const Parameterization& p, const Eigen::VectorXd& x, int offset,
+                    ProblemBlock* block, RobotModel* model) const;
+  // Writes the block's values into `model` (a frame: its origin from the 7 numbers). Default:
+  // nothing.
+  virtual void WriteModel(const ProblemBlock& block, RobotModel* model) const;
+  // Writes the block's coordinates into `x` (num_parameters, at block.offset). Default: the values.
+  virtual void WriteCoordinates(const ProblemBlock& block, Eigen::VectorXd* x) const;
+  // Whether the block is where the reduction's normal equations were taken (the frames at their
+  // start, the joint-space coordinates zero). Default: every value zero.
+  virtual bool AtReductionPoint(const ProblemBlock& block) const;
+  // The block's columns of row `r` of `data` at the current values (ctx): rows = the row's
+  // residuals (3 position, 6 pose: the solvers' residual, unweighted by sigma), block.tangent_size
+  // columns, into J (resized).
+  virtual void Columns(const BlockColumnsContext& ctx, const ProblemBlock& block,
+                       const MeasurementSet& data, int r, Eigen::MatrixXd* J) const = 0;
+
+  // --- Kinds whose columns change with the state (the defaults: never asked, never in p) ---
+
   // The joint-space term whose values the kind's columns need (nullptr: none).
-  virtual const char* partner_term() const = 0;
+  virtual const char* partner_term() const { return nullptr; }
   // The message when the kind is asked for without its partner term.
-  virtual const char* needs_partner_message() const = 0;
+  virtual const char* needs_partner_message() const { return ""; }
 
   // Whether the solvers' request asks for the kind.
-  virtual bool Requested(const ProblemSetupRequest& request) const = 0;
+  virtual bool Requested(const ProblemSetupRequest& /*request*/) const { return false; }
   // Whether `p` holds the kind's block (after the joint blocks).
-  virtual bool In(const Parameterization& p) const = 0;
+  virtual bool In(const Parameterization& /*p*/) const { return false; }
   // Appends the kind's block to `p`. An error (the reason) when the data leave nothing for it.
-  virtual Status Add(const ProblemSetupRequest& request, Parameterization* p) const = 0;
+  virtual Status Add(const ProblemSetupRequest& /*request*/, Parameterization* /*p*/) const {
+    return Status::Ok();
+  }
 
   // The linear solver's columns of one row at commanded joints q, given the current joint-space
   // coordinates `joint_state` (p's order; empty: zero): `R` (n x K) holds the linear joint-space
   // columns with this kind's zero; on return it holds the kind's columns and the partner's at the
   // current values, and `q_eff` (q + R x) the kind's change of the joint offsets.
-  virtual void RowColumns(const Parameterization& p, const double* q,
-                          const Eigen::VectorXd& joint_state, Eigen::Ref<Eigen::MatrixXd> R,
-                          Eigen::VectorXd* q_eff) const = 0;
+  virtual void RowColumns(const Parameterization& /*p*/, const double* /*q*/,
+                          const Eigen::VectorXd& /*joint_state*/, Eigen::Ref<Eigen::MatrixXd> /*R*/,
+                          Eigen::VectorXd* /*q_eff*/) const {}
   // The Ceres residual's data of one row; `partner_block`: the partner's index among the row's
   // joint-space parameter blocks.
-  virtual std::shared_ptr<const GravityTiltRow> CeresRow(const Parameterization& p, const double* q,
-                                                         int partner_block) const = 0;
+  virtual std::shared_ptr<const GravityTiltRow> CeresRow(const Parameterization& /*p*/,
+                                                         const double* /*q*/,
+                                                         int /*partner_block*/) const {
+    return nullptr;
+  }
 
   // The kind's entry of `out` at the joint-space coordinates `joint_state`, standard deviations
   // from `covariance` (p's numbering; empty: none). Called only when In(p).
-  virtual void FillResult(const Parameterization& p, const Eigen::VectorXd& joint_state,
-                          const Eigen::MatrixXd& covariance, CalibrationResult* out) const = 0;
+  virtual void FillResult(const Parameterization& /*p*/, const Eigen::VectorXd& /*joint_state*/,
+                          const Eigen::MatrixXd& /*covariance*/, CalibrationResult* /*out*/) const {}
   // The kind's rule, asked at a solution `r0` without the kind: whether the data determine it.
   // Fills the kind's entry of `out` (the reason when not).
-  virtual bool Identifiable(const RobotModel& start, const MeasurementSet& data,
-                            const CalibrationResult& r0, bool use_orientation,
-                            double orientation_weight, double tolerance, double max_sigma,
-                            CalibrationResult* out) const = 0;
+  virtual bool Identifiable(const RobotModel& /*start*/, const MeasurementSet& /*data*/,
+                            const CalibrationResult& /*r0*/, bool /*use_orientation*/,
+                            double /*orientation_weight*/, double /*tolerance*/,
+                            double /*max_sigma*/, CalibrationResult* /*out*/) const {
+    return true;
+  }
 };
+
+// The frames' kind and the joint-space terms' kind (registry entries; for tests and the problem).
+const BlockKind& FrameBlockKind();
+const BlockKind& JointTermBlockKind();
+
+// Row r of `data` linearised at ctx's values, as the linear solver's assembly does it: the frame
+// columns of every frame in ctx.p's bases (rows x p.num_parameters; the joint-space columns left
+// zero), the Jacobian with respect to the effective joint values J_q (rows x n) and the joint-space
+// columns R = d(q_eff)/d(joint state) (n x K) at the current values (the block kinds' included).
+// What the kinds' Columns pick their columns from (not a hot path: a BasisJacobian per call).
+struct RowLinearization {
+  Eigen::MatrixXd J;
+  Eigen::MatrixXd J_q;
+  Eigen::MatrixXd R;
+};
+void LinearizeRow(const BlockColumnsContext& ctx, const MeasurementSet& data, int r,
+                  RowLinearization* out);
 
 // The registry's entries, in registry order (block_kind_registry.inc).
 const std::vector<const BlockKind*>& BlockKinds();
 // The entry named `name`, nullptr when there is none.
 const BlockKind* FindBlockKind(const std::string& name);
 
-// Whether p holds a block of any registered kind (columns that change with the state: the
-// solvers' linear shortcuts, which evaluate the rows' columns once, are off then).
+// Whether p holds a block of any registered kind whose columns change with the state (the solvers'
+// linear shortcuts, which evaluate the rows' columns once, are off then).
 bool HasNonlinearBlocks(const Parameterization& p);
 // Each registered kind asked for with its partner term among `terms`; the first kind's message
 // otherwise.

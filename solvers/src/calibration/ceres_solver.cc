@@ -199,25 +199,18 @@ class HistoryCallback : public ceres::IterationCallback {
   std::function<void(const IterationRecord&)> on_iteration_;
 };
 
-// The covariance C in `all`'s numbering (every tool) restricted to `solved` (all with unmeasured
-// tools left out, LeaveOutUnmeasuredTools: the same frames, joint blocks and tilt in the same order).
-Eigen::MatrixXd SolvedCovariance(const Parameterization& all, const Parameterization& solved,
-                                 const Eigen::MatrixXd& C) {
-  std::vector<int> index(solved.num_parameters);
-  for (size_t f = 0; f < solved.basis.size(); ++f) {
-    for (int c = 0; c < solved.basis[f].cols(); ++c) index[solved.offset[f] + c] = all.offset[f] + c;
+// The covariance C in `all`'s numbering (every tool) restricted to the solved parameters (all
+// with unmeasured tools left out, LeaveOutUnmeasuredTools): each of the problem's blocks, whatever
+// its kind, from its offset in `all` to its offset in the solved numbering.
+Eigen::MatrixXd SolvedCovariance(const CalibrationProblem& builder, const Eigen::MatrixXd& C) {
+  const int P = builder.SolvedParameterization().num_parameters;
+  std::vector<int> index(P);
+  for (const ProblemBlock& b : builder.blocks()) {
+    for (int c = 0; c < b.tangent_size; ++c) index[b.solved_offset + c] = b.offset + c;
   }
-  for (size_t b = 0; b < solved.joint_blocks.size(); ++b) {
-    for (int c = 0; c < solved.joint_blocks[b].basis.cols(); ++c) {
-      index[solved.joint_blocks[b].offset + c] = all.joint_blocks[b].offset + c;
-    }
-  }
-  for (int a = 0; a < solved.num_tilt_parameters(); ++a) {
-    index[solved.tilt_offset + a] = all.tilt_offset + a;
-  }
-  Eigen::MatrixXd out(solved.num_parameters, solved.num_parameters);
-  for (int i = 0; i < solved.num_parameters; ++i) {
-    for (int j = 0; j < solved.num_parameters; ++j) out(i, j) = C(index[i], index[j]);
+  Eigen::MatrixXd out(P, P);
+  for (int i = 0; i < P; ++i) {
+    for (int j = 0; j < P; ++j) out(i, j) = C(index[i], index[j]);
   }
   return out;
 }
@@ -700,7 +693,7 @@ CalibrationResult CalibrateCeresOn(CalibrationProblem* problem_in,
   }
   TiltResult(builder, options, identifiable, summary.final_cost, &result);
   if (result.covariance.rows() == all.num_parameters) {
-    result.covariance = SolvedCovariance(all, result.parameterization, result.covariance);
+    result.covariance = SolvedCovariance(builder, result.covariance);
   }
   return finish(termination, message);
 }

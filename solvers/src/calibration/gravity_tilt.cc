@@ -219,6 +219,27 @@ class GravityTiltKind : public BlockKind {
     return request.gravity_tilt != nullptr;
   }
   bool In(const Parameterization& p) const override { return p.gravity_tilt != nullptr; }
+  // One block of two numbers (rad) after the joint blocks, from the request's initial values.
+  void AppendBlocks(const ProblemSetup& setup, const RobotModel& /*nominal*/,
+                    std::vector<ProblemBlock>* out) const override {
+    const Parameterization& p = setup.all;
+    if (!In(p)) return;
+    const int t0 = p.tilt_offset - p.num_frame_parameters();
+    ProblemBlock b;
+    b.kind = this;
+    b.offset = p.tilt_offset;
+    b.tangent_size = 2;
+    b.values = {setup.initial_joint_state(t0), setup.initial_joint_state(t0 + 1)};
+    b.initial = b.values;
+    out->push_back(std::move(b));
+  }
+  // J_q(q_eff) d(dq)/dt at the current compliance coordinates and tilt.
+  void Columns(const BlockColumnsContext& ctx, const ProblemBlock& block,
+               const MeasurementSet& data, int r, Eigen::MatrixXd* J) const override {
+    RowLinearization row;
+    LinearizeRow(ctx, data, r, &row);
+    *J = row.J_q * row.R.middleCols(block.offset - ctx.p->num_frame_parameters(), 2);
+  }
   Status Add(const ProblemSetupRequest& request, Parameterization* p) const override {
     return AddSolverGravityTilt(request.gravity_tilt, p);
   }

@@ -94,78 +94,75 @@ CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const Measurem
   const internal::ProblemSetup& setup = *setup_;
   parameterization_ = setup.all;
   tilt_status_ = setup.tilt_status;
-  solved_ = setup.frame_solved;
   regressors_ = setup.regressors;
   analysed_ = setup.analysed;
-  const int n = nominal.num_joints();
-  const int F = nominal.num_frames();
-  frames_.resize(F);
-  for (int f = 0; f < F; ++f) {
-    Se3ToArray(f < n ? nominal.joints[f].origin : nominal.tools[f - n].origin, frames_[f].data());
+  // The blocks, kind by kind in registry order (block_kind.h): solved frames, joint blocks, the
+  // tilt. Their solved numbering is their order: check it against the setup's.
+  for (const internal::BlockKind* kind : internal::BlockKinds()) {
+    kind->AppendBlocks(setup, nominal_, &blocks_);
   }
-  initial_frames_ = frames_;
+  frame_blocks_.assign(nominal.num_frames(), -1);
+  joint_blocks_.assign(parameterization_.joint_blocks.size(), -1);
+  const Parameterization& solved = setup.solved;
+  int solved_offset = 0;
+  for (size_t i = 0; i < blocks_.size(); ++i) {
+    ProblemBlock& b = blocks_[i];
+    b.solved_offset = solved_offset;
+    solved_offset += b.tangent_size;
+    const int k = static_cast<int>(i);
+    if (b.kind == &internal::FrameBlockKind()) {
+      frame_blocks_[b.index] = k;
+      CHECK_EQ(solved.offset[b.index], b.solved_offset);
+      CHECK_EQ(solved.basis[b.index].cols(), b.tangent_size);
+    } else if (b.kind == &internal::JointTermBlockKind()) {
+      joint_blocks_[b.index] = k;
+      CHECK_EQ(solved.joint_blocks[b.index].offset, b.solved_offset);
+    } else if (b.kind->In(parameterization_)) {
+      CHECK_EQ(tilt_block_, -1) << "one block of a state-dependent kind";
+      tilt_block_ = k;
+      CHECK_EQ(solved.tilt_offset, b.solved_offset);
+    }
+  }
+  CHECK_EQ(solved_offset, solved.num_parameters);
+  for (int f = 0; f < nominal.num_frames(); ++f) {
+    CHECK_EQ(frame_blocks_[f] >= 0, static_cast<bool>(setup.frame_solved[f])) << f;
+  }
   current_ = nominal_;
-  current_frames_ = frames_;
-  const Parameterization& p = parameterization_;
-  const Eigen::VectorXd& initial = setup.initial_joint_state;
-  joint_blocks_.resize(p.joint_blocks.size());
-  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
-    const JointBlock& block = p.joint_blocks[b];
-    const int first = block.offset - p.num_frame_parameters();
-    joint_blocks_[b].resize(block.basis.cols());
-    for (int c = 0; c < block.basis.cols(); ++c) joint_blocks_[b][c] = initial(first + c);
-  }
+  for (const ProblemBlock& b : blocks_) current_values_.push_back(b.values);
 }
 
 double* CalibrationProblem::tilt_block() {
-  return parameterization_.gravity_tilt ? tilt_.data() : nullptr;
+  return tilt_block_ >= 0 ? blocks_[tilt_block_].values.data() : nullptr;
 }
 
 double* CalibrationProblem::frame_block(int f) {
-  CHECK(f >= 0 && f < static_cast<int>(frames_.size()));
-  return solved_[f] ? frames_[f].data() : nullptr;
+  CHECK(f >= 0 && f < static_cast<int>(frame_blocks_.size()));
+  return frame_blocks_[f] >= 0 ? blocks_[frame_blocks_[f]].values.data() : nullptr;
 }
 
 double* CalibrationProblem::joint_block(int b) {
   CHECK(b >= 0 && b < static_cast<int>(joint_blocks_.size()));
-  return joint_blocks_[b].empty() ? nullptr : joint_blocks_[b].data();
+  return joint_blocks_[b] >= 0 ? blocks_[joint_blocks_[b]].values.data() : nullptr;
 }
 
 std::vector<double*> CalibrationProblem::parameter_blocks() {
   std::vector<double*> out;
-  for (size_t f = 0; f < frames_.size(); ++f) {
-    if (solved_[f]) out.push_back(frames_[f].data());
-  }
-  for (std::vector<double>& b : joint_blocks_) {
-    if (!b.empty()) out.push_back(b.data());
-  }
-  if (parameterization_.gravity_tilt) out.push_back(tilt_.data());
+  out.reserve(blocks_.size());
+  for (ProblemBlock& b : blocks_) out.push_back(b.values.data());
   return out;
 }
 
 std::vector<int> CalibrationProblem::tangent_sizes() const {
-  const Parameterization& p = parameterization_;
   std::vector<int> out;
-  for (size_t f = 0; f < frames_.size(); ++f) {
-    if (solved_[f]) out.push_back(static_cast<int>(p.basis[f].cols()));
-  }
-  for (const std::vector<double>& b : joint_blocks_) {
-    if (!b.empty()) out.push_back(static_cast<int>(b.size()));
-  }
-  if (p.gravity_tilt) out.push_back(2);
+  out.reserve(blocks_.size());
+  for (const ProblemBlock& b : blocks_) out.push_back(b.tangent_size);
   return out;
 }
 
 std::vector<int> CalibrationProblem::tangent_offsets() const {
-  const Parameterization& p = parameterization_;
   std::vector<int> out;
-  for (size_t f = 0; f < frames_.size(); ++f) {
-    if (solved_[f]) out.push_back(p.offset[f]);
-  }
-  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
-    if (!joint_blocks_[b].empty()) out.push_back(p.joint_blocks[b].offset);
-  }
-  if (p.gravity_tilt) out.push_back(p.tilt_offset);
+  out.reserve(blocks_.size());
+  for (const ProblemBlock& b : blocks_) out.push_back(b.offset);
   return out;
 }
 
@@ -208,29 +205,40 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
   if (options_.loss == "cauchy") loss = new ceres::CauchyLoss(whitened_scale);
 
   const auto shared_model = std::make_shared<const RobotModel>(nominal_);
+  // A row's blocks: the n joint frames, its tool's frame, then the joint-space blocks in order.
   std::vector<double*> parameters(n + 1);
-  for (int i = 0; i < n; ++i) parameters[i] = frames_[i].data();
-  std::vector<int> solved_joint_blocks, block_sizes;
+  for (int i = 0; i < n; ++i) parameters[i] = frame_block(i);
+  std::vector<int> block_sizes;
   int K = 0;
-  int tilt_block = -1;  // the compliance block among the solved ones
-  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
-    if (joint_blocks_[b].empty()) continue;
-    if (p.gravity_tilt && static_cast<int>(b) == p.tilt_block) {
-      tilt_block = static_cast<int>(solved_joint_blocks.size());
-    }
-    solved_joint_blocks.push_back(static_cast<int>(b));
-    parameters.push_back(joint_blocks_[b].data());
-    block_sizes.push_back(static_cast<int>(joint_blocks_[b].size()));
-    K += block_sizes.back();
-  }
-  // The block kind after the joint blocks (one today: the residual takes one such block).
+  // The state-dependent kind's block after the linear joint blocks (one today: the residual takes
+  // one such block) and its partner's index among the joint-space blocks.
   const internal::BlockKind* tilt_kind = nullptr;
-  for (const internal::BlockKind* kind : internal::BlockKinds()) {
-    if (!kind->In(p)) continue;
-    CHECK(tilt_kind == nullptr) << "the Ceres residual takes one block kind's block";
+  int tilt_block = -1;
+  for (ProblemBlock& b : blocks_) {
+    if (!b.kind->joint_space()) continue;
+    if (b.kind->In(p)) {
+      CHECK(tilt_kind == nullptr) << "the Ceres residual takes one block kind's block";
+      tilt_kind = b.kind;
+      parameters.push_back(b.values.data());
+      continue;
+    }
+    CHECK(tilt_kind == nullptr) << "the state-dependent kinds' blocks come last";
+    parameters.push_back(b.values.data());
+    block_sizes.push_back(b.tangent_size);
+    K += b.tangent_size;
+  }
+  if (tilt_kind != nullptr) {
+    const std::string partner = tilt_kind->partner_term();
+    int k = 0;
+    for (const ProblemBlock& b : blocks_) {
+      if (!b.kind->joint_space() || b.kind->In(p)) continue;
+      if (tilt_block < 0 && b.kind == &internal::JointTermBlockKind() &&
+          p.joint_blocks[b.index].term->name() == partner) {
+        tilt_block = k;
+      }
+      ++k;
+    }
     CHECK_GE(tilt_block, 0);
-    tilt_kind = kind;
-    parameters.push_back(tilt_.data());
   }
   std::vector<ceres::ResidualBlockId> ids;
   const int batch = BatchedRows();
@@ -238,10 +246,10 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
     // Every solved frame in each block: the joints, then the measured tools.
     std::vector<int> frames;
     std::vector<double*> blocks;
-    for (int f = 0; f < static_cast<int>(frames_.size()); ++f) {
-      if (!solved_[f]) continue;
-      frames.push_back(f);
-      blocks.push_back(frames_[f].data());
+    for (ProblemBlock& b : blocks_) {
+      if (b.kind != &internal::FrameBlockKind()) continue;
+      frames.push_back(b.index);
+      blocks.push_back(b.values.data());
     }
     for (int begin = 0; begin < data.size(); begin += batch) {
       const int end = std::min(data.size(), begin + batch);
@@ -264,7 +272,7 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
   columns.UseSlots(UsableSlots(regressors_.get(), p, n, data.size(), K));
   if (batch == 1) ids.reserve(data.size());
   for (int r = 0; batch == 1 && r < data.size(); ++r) {
-    parameters[n] = frames_[n + data.target(r)].data();
+    parameters[n] = frame_block(n + data.target(r));
     // This row's joint columns (data: evaluated once).
     Eigen::MatrixXd R(n, K);
     columns.Evaluate(r, data.q(r), &R);
@@ -279,50 +287,33 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
                                        R, block_sizes, tilt);
     ids.push_back(problem->AddResidualBlock(cost, loss, parameters));
   }
-  for (size_t f = 0; f < frames_.size(); ++f) {
-    if (!solved_[f]) continue;
-    // A solved frame no row reaches (cannot happen for joints with data) is added explicitly.
-    problem->AddParameterBlock(frames_[f].data(), kSe3AmbientSize);
-    if (p.basis[f].cols() == 0) {  // every direction left out (structurally unidentifiable)
-      problem->SetParameterBlockConstant(frames_[f].data());
-      continue;
-    }
-    problem->SetManifold(frames_[f].data(), new Se3Manifold(p.basis[f]));
-  }
+  // Each block's manifold (the frames' Se3Manifold; the Euclidean kinds add nothing).
+  for (ProblemBlock& b : blocks_) b.kind->AddManifold(p, &b, problem);
   return ids;
 }
 
 int CalibrationProblem::BatchedRows() const {
   bool joint_blocks = false;
-  for (const std::vector<double>& b : joint_blocks_) joint_blocks = joint_blocks || !b.empty();
+  for (const ProblemBlock& b : blocks_) joint_blocks = joint_blocks || b.kind->joint_space();
   const bool batchable = !options_.use_orientation && options_.loss == "none" && !joint_blocks;
   return batchable ? std::max(1, options_.rows_per_block) : 1;
 }
 
 RobotModel CalibrationProblem::Model() const {
   RobotModel model = current_;
-  const int n = model.num_joints();
-  for (int f = 0; f < model.num_frames(); ++f) {
-    // A block still holding the values current_ was written as keeps current_'s frame bit for bit
-    // (no quaternion round trip): the nominal frame until Update() or SetFrames().
-    if (!solved_[f] || frames_[f] == current_frames_[f]) continue;
-    SE3d& T = f < n ? model.joints[f].origin : model.tools[f - n].origin;
-    T = Se3FromArray(frames_[f].data());
+  // A block still holding the values current_ was written as keeps current_'s frame bit for bit
+  // (no quaternion round trip): the nominal frame until Update() or SetFrames().
+  for (size_t i = 0; i < blocks_.size(); ++i) {
+    if (blocks_[i].values != current_values_[i]) blocks_[i].kind->WriteModel(blocks_[i], &model);
   }
   return model;
 }
 
 Eigen::VectorXd CalibrationProblem::JointState() const {
-  Eigen::VectorXd x(parameterization_.num_joint_parameters());
-  int k = 0;
-  for (const std::vector<double>& b : joint_blocks_) {
-    for (double v : b) x(k++) = v;
-  }
-  if (parameterization_.gravity_tilt) {
-    x(k++) = tilt_[0];
-    x(k++) = tilt_[1];
-  }
-  return x;
+  const Parameterization& p = parameterization_;
+  Eigen::VectorXd all = Eigen::VectorXd::Zero(p.num_parameters);
+  for (const ProblemBlock& b : blocks_) b.kind->WriteCoordinates(b, &all);
+  return all.tail(p.num_joint_parameters());
 }
 
 std::vector<double> CalibrationProblem::EffectiveJointValues() const {
@@ -357,11 +348,7 @@ std::vector<double> CalibrationProblem::EffectiveJointValues() const {
 std::vector<JointTermValues> CalibrationProblem::JointTerms() const {
   const Parameterization& p = parameterization_;
   Eigen::VectorXd all = Eigen::VectorXd::Zero(p.num_parameters);
-  for (size_t b = 0; b < p.joint_blocks.size(); ++b) {
-    const JointBlock& block = p.joint_blocks[b];
-    for (int c = 0; c < block.basis.cols(); ++c) all(block.offset + c) = joint_blocks_[b][c];
-  }
-  if (p.gravity_tilt) all.segment<2>(p.tilt_offset) << tilt_[0], tilt_[1];
+  for (const ProblemBlock& b : blocks_) b.kind->WriteCoordinates(b, &all);
   return JointValuesOf(p, all);
 }
 
@@ -380,22 +367,21 @@ internal::NormalEquations CalibrationProblem::Linearize(
 
 CalibrationProblem::Values CalibrationProblem::values() const {
   Values v;
-  v.frames = frames_;
-  v.joint_blocks = joint_blocks_;
-  v.tilt = tilt_;
+  for (const ProblemBlock& b : blocks_) v.blocks.push_back(b.values);
   v.model = current_;
-  v.model_frames = current_frames_;
+  v.model_values = current_values_;
   return v;
 }
 
 void CalibrationProblem::SetValues(const Values& v) {
-  CHECK_EQ(v.frames.size(), frames_.size());
-  CHECK_EQ(v.joint_blocks.size(), joint_blocks_.size());
-  frames_ = v.frames;
-  joint_blocks_ = v.joint_blocks;
-  tilt_ = v.tilt;
+  CHECK_EQ(v.blocks.size(), blocks_.size());
+  // Into the blocks' own storage: their addresses are Ceres's parameter blocks.
+  for (size_t i = 0; i < blocks_.size(); ++i) {
+    CHECK_EQ(v.blocks[i].size(), blocks_[i].values.size());
+    std::copy(v.blocks[i].begin(), v.blocks[i].end(), blocks_[i].values.begin());
+  }
   current_ = v.model;
-  current_frames_ = v.model_frames;
+  current_values_ = v.model_values;
 }
 
 void CalibrationProblem::SetFrames(const RobotModel& model) {
@@ -405,9 +391,9 @@ void CalibrationProblem::SetFrames(const RobotModel& model) {
   for (int f = 0; f < model.num_frames(); ++f) {
     const SE3d& T = f < n ? model.joints[f].origin : model.tools[f - n].origin;
     (f < n ? current_.joints[f].origin : current_.tools[f - n].origin) = T;
-    if (solved_[f]) Se3ToArray(T, frames_[f].data());
+    if (frame_blocks_[f] >= 0) Se3ToArray(T, blocks_[frame_blocks_[f]].values.data());
   }
-  current_frames_ = frames_;
+  for (size_t i = 0; i < blocks_.size(); ++i) current_values_[i] = blocks_[i].values;
 }
 
 ProblemNormalEquations CalibrationProblem::NormalEquations() const {
@@ -427,25 +413,13 @@ ProblemNormalEquations CalibrationProblem::NormalEquations() const {
 void CalibrationProblem::Update(const Eigen::VectorXd& x) {
   const Parameterization& solved = SolvedParameterization();
   CHECK_EQ(x.size(), solved.num_parameters) << "step of the wrong size";
+  // Each block's step (its kind's: T_f exp((B_f x_f)^) for a frame, on the model's matrix; added
+  // for a Euclidean block); the model the new values stand for, exactly, is kept (Model() returns
+  // it while the blocks hold them).
   RobotModel model = Model();
-  ApplyUpdate(solved, x, &model);
-  const int n = model.num_joints();
-  for (size_t f = 0; f < frames_.size(); ++f) {
-    if (!solved_[f]) continue;
-    const int fi = static_cast<int>(f);
-    Se3ToArray(fi < n ? model.joints[fi].origin : model.tools[fi - n].origin, frames_[f].data());
-  }
-  // The model the new values stand for, exactly (Model() returns it while the blocks hold them).
+  for (ProblemBlock& b : blocks_) b.kind->Plus(solved, x, b.solved_offset, &b, &model);
   current_ = std::move(model);
-  current_frames_ = frames_;
-  for (size_t b = 0; b < joint_blocks_.size(); ++b) {
-    const int offset = solved.joint_blocks[b].offset;
-    for (size_t c = 0; c < joint_blocks_[b].size(); ++c) joint_blocks_[b][c] += x(offset + c);
-  }
-  if (solved.gravity_tilt) {
-    tilt_[0] += x(solved.tilt_offset);
-    tilt_[1] += x(solved.tilt_offset + 1);
-  }
+  for (size_t i = 0; i < blocks_.size(); ++i) current_values_[i] = blocks_[i].values;
 }
 
 ProblemAnalysis CalibrationProblem::Analyze(double max_condition_number) const {
@@ -488,7 +462,7 @@ ProblemAnalysis CalibrationProblem::AnalyzeWith(const Eigen::MatrixXd* H_solved,
     analysed.parameters = SolvedParameterization().parameters;
   } else {
     for (int f = 0; f < model.num_frames(); ++f) {
-      if (!solved_[f]) continue;
+      if (!frame_solved(f)) continue;
       for (int c = 0; c < all.basis[f].cols(); ++c) {
         columns.push_back(all.offset[f] + c);
         analysed.parameters.push_back(all.parameters[all.offset[f] + c]);
@@ -512,15 +486,13 @@ ProblemAnalysis CalibrationProblem::AnalyzeWith(const Eigen::MatrixXd* H_solved,
     return out;
   }
   // At the start values the reduction's normal equations give H by projection (no pass).
-  bool at_start = analysed_ != nullptr && frames_ == initial_frames_;
-  for (const std::vector<double>& b : joint_blocks_) {
-    for (double v : b) at_start = at_start && v == 0;
-  }
+  bool at_start = analysed_ != nullptr;
+  for (const ProblemBlock& b : blocks_) at_start = at_start && b.kind->AtReductionPoint(b);
   Eigen::MatrixXd H_all;
   if (given) {
     CHECK_EQ(H_solved->rows(), out.num_parameters);
     out.normal_matrix = *H_solved;
-  } else if (at_start && !all.gravity_tilt &&
+  } else if (at_start && !internal::HasNonlinearBlocks(all) &&
       internal::SameFrameDirections(setup_->analysed_parameterization, all)) {
     H_all = internal::ProjectJointBlocks(*analysed_, all).H;
   } else {
