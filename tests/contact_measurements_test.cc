@@ -16,6 +16,7 @@
 #include "lpoe/measurement_kinds.h"
 #include "lpoe/plane_measurement.h"
 #include "lpoe/simulation.h"
+#include "contact_arm.h"
 #include "test_util.h"
 
 namespace lpoe {
@@ -157,45 +158,14 @@ TEST(ContactCsv, RefusesBadInputNamingFileAndLine) {
 // ---------------------------------------------------------------------------------------------
 // A simulated arm.
 
-struct Truth {
-  RobotModel nominal;
-  RobotModel truth;  // the actual robot with its joint zeros folded in
-};
-
-Truth MakeTruth() {
-  Truth t;
-  t.nominal = MakeCobot6();
-  // Frame errors of about 1 mm and 3 mrad, joint zeros 0.01 rad.
-  const KinematicErrors e = RandomErrors(t.nominal, 0.003, 1.0, 0.0, 0.01, 44);
-  t.truth = FoldJointZeros(ApplyErrors(t.nominal, e), e.joint_zero);
-  return t;
-}
-
-ContactMeasurementSet Ballbar(const RobotModel& truth, int count, uint64_t seed) {
-  BallbarSimulationOptions o;
-  o.count = count;
-  o.bar_length = 150;
-  o.noise = 0.002;
-  o.num_pivots = 3;
-  o.seed = seed;
-  ContactMeasurementSet out;
-  EXPECT_TRUE(SimulateBallbar(truth, o, &out, nullptr).ok());
-  return out;
-}
-
-ContactMeasurementSet Cube(const RobotModel& truth, int count, uint64_t seed) {
-  PlaneSimulationOptions o;
-  o.count = count;
-  o.probe_radius = 3;
-  o.noise = 0.003;
-  o.seed = seed;
-  ContactMeasurementSet out;
-  EXPECT_TRUE(SimulatePlaneContacts(truth, o, &out, nullptr).ok());
-  return out;
-}
+// The arm of these tests (contact_arm.h, seed 44) and its rows.
+using testing::BallbarRows;
+using testing::ContactArm;
+using testing::CubeRows;
+using testing::MakeContactArm;
 
 TEST(ContactSimulation, RowsSitWhereTheyMust) {
-  const Truth t = MakeTruth();
+  const ContactArm t = MakeContactArm(44);
   std::vector<Eigen::Vector3d> pivots;
   BallbarSimulationOptions o;
   o.count = 30;
@@ -223,9 +193,9 @@ TEST(ContactSimulation, RowsSitWhereTheyMust) {
 // The analytic rows (ContactLinearize) against central differences of the residuals through the
 // same steps (ApplyUpdate, ApplyFeatureStep).
 TEST(ContactLinearize, MatchesFiniteDifferences) {
-  const Truth t = MakeTruth();
-  ContactMeasurementSet data = Ballbar(t.truth, 24, 3);
-  data.Append(Cube(t.truth, 24, 4));
+  const ContactArm t = MakeContactArm(44);
+  ContactMeasurementSet data = BallbarRows(t.truth, 24, 3, 3);
+  data.Append(CubeRows(t.truth, 24, 4));
   ContactFeatures f;
   ASSERT_TRUE(InitialContactFeatures(t.nominal, data, &f).ok());
   ContactCalibrationOptions o;
@@ -240,13 +210,9 @@ TEST(ContactLinearize, MatchesFiniteDifferences) {
   for (int c = 0; c < p.num_parameters; ++c) {
     Eigen::VectorXd rp, rm;
     for (int sgn : {1, -1}) {
-      Eigen::VectorXd x = Eigen::VectorXd::Zero(p.num_parameters);
-      x(c) = sgn * h;
-      RobotModel m = t.nominal;
-      ApplyUpdate(p.frames, x.head(p.frames.num_parameters), &m);
-      ContactFeatures g = f;
-      ApplyFeatureStep(p, x, &g);
-      ContactLinearize(m, g, p, t.nominal, data, o, sgn > 0 ? &rp : &rm, nullptr);
+      const testing::MovedContactState s =
+          testing::MoveAlongContactColumn(t.nominal, f, p, c, sgn * h);
+      ContactLinearize(s.model, s.features, p, t.nominal, data, o, sgn > 0 ? &rp : &rm, nullptr);
     }
     const Eigen::VectorXd fd = (rp - rm) / (2 * h);
     EXPECT_LT((fd - J.col(c)).norm(), 1e-5 * std::max(1.0, fd.norm())) << "column " << c;
@@ -415,10 +381,10 @@ int NullDimension(const Eigen::MatrixXd& J, double tolerance) {
 
 void CalibrateAndCompare(const ContactMeasurementSet& data, bool planes_only,
                          int expected_left_out) {
-  const Truth t = MakeTruth();
+  const ContactArm t = MakeContactArm(44);
   // Held-out configurations of the same kinds, never used by the calibrations.
-  ContactMeasurementSet held = Ballbar(t.truth, 60, 901);
-  held.Append(Cube(t.truth, 60, 902));
+  ContactMeasurementSet held = BallbarRows(t.truth, 60, 3, 901);
+  held.Append(CubeRows(t.truth, 60, 902));
   const std::vector<Eigen::Vector3d> truth = Positions(t.truth, held);
 
   ContactCalibrationOptions o;  // defaults
@@ -515,8 +481,8 @@ void CalibrateAndCompare(const ContactMeasurementSet& data, bool planes_only,
 // The warning, shown: plain least squares on planes alone, with nothing holding the
 // scale, shrinks the robot (the residuals shrink with it), however small the noise.
 TEST(ContactCalibration, ReferenceWithoutScaleShrinksOnPlanes) {
-  const Truth t = MakeTruth();
-  const ContactMeasurementSet data = Cube(t.truth, 120, 2);  // fewer rows: only the trend matters here
+  const ContactArm t = MakeContactArm(44);
+  const ContactMeasurementSet data = CubeRows(t.truth, 120, 2);  // fewer rows: only the trend matters here
   ContactFeatures start;
   ASSERT_TRUE(InitialContactFeatures(t.nominal, data, &start).ok());
   Eigen::MatrixXd J;
@@ -529,27 +495,27 @@ TEST(ContactCalibration, ReferenceWithoutScaleShrinksOnPlanes) {
 }
 
 TEST(ContactCalibration, BallbarThreePivots) {
-  const Truth t = MakeTruth();
-  CalibrateAndCompare(Ballbar(t.truth, 300, 1), false, 6);
+  const ContactArm t = MakeContactArm(44);
+  CalibrateAndCompare(BallbarRows(t.truth, 300, 3, 1), false, 6);
 }
 
 TEST(ContactCalibration, ProbeOnThreeFacesOfACube) {
-  const Truth t = MakeTruth();
-  CalibrateAndCompare(Cube(t.truth, 300, 2), true, 6);
+  const ContactArm t = MakeContactArm(44);
+  CalibrateAndCompare(CubeRows(t.truth, 300, 2), true, 6);
 }
 
 TEST(ContactCalibration, BallbarAndProbeTogether) {
-  const Truth t = MakeTruth();
-  ContactMeasurementSet data = Ballbar(t.truth, 300, 1);
-  data.Append(Cube(t.truth, 300, 2));
+  const ContactArm t = MakeContactArm(44);
+  ContactMeasurementSet data = BallbarRows(t.truth, 300, 3, 1);
+  data.Append(CubeRows(t.truth, 300, 2));
   CalibrateAndCompare(data, false, 6);
 }
 
 // Fewer rows than unknowns: refused before solving, with the counts and what to do (it was an
 // Eigen assertion when the null space was split among the frames and features).
 TEST(ContactCalibration, FewerRowsThanUnknownsRefusedWithTheCounts) {
-  const Truth t = MakeTruth();
-  const ContactMeasurementSet data = Ballbar(t.truth, 20, 5);
+  const ContactArm t = MakeContactArm(44);
+  const ContactMeasurementSet data = BallbarRows(t.truth, 20, 3, 5);
   for (const ContactCalibrationResult& r :
        {CalibrateContactsLinear(t.nominal, data, ContactCalibrationOptions()),
         CalibrateContactsCeres(t.nominal, data, ContactCalibrationOptions())}) {

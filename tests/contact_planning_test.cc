@@ -18,6 +18,7 @@
 #include "lpoe/kinematics.h"
 #include "lpoe/planning.h"
 #include "lpoe/simulation.h"
+#include "contact_arm.h"
 
 namespace lpoe {
 namespace {
@@ -31,10 +32,10 @@ struct PlanningTruth {
 
 PlanningTruth MakePlanningTruth() {
   PlanningTruth t;
-  t.nominal = MakeCobot6();
   // Frame errors of about 1 mm and 3 mrad, joint zeros 0.01 rad (the robot).
-  const KinematicErrors e = RandomErrors(t.nominal, 0.003, 1.0, 0.0, 0.01, 44);
-  t.truth = FoldJointZeros(ApplyErrors(t.nominal, e), e.joint_zero);
+  const testing::ContactArm arm = testing::MakeContactArm(44);
+  t.nominal = arm.nominal;
+  t.truth = arm.truth;
   // Three pivots where the ballbar simulation puts them (apart in front of the robot).
   BallbarSimulationOptions o;
   o.count = 3;

@@ -22,6 +22,7 @@
 #include "lpoe/parameterization.h"
 #include "lpoe/simulation.h"
 #include "calibration/normal_equations.h"
+#include "coupled_joint_term.h"
 
 namespace lpoe {
 namespace {
@@ -43,26 +44,6 @@ internal::NormalEquationsOptions Rows(bool pose, const internal::JointColumnsOpt
 }
 
 constexpr double kRelative = 1e-9;
-
-// A test-only term whose parameters move several joints: dq_j = sum_k (1 + 0.1 j k) q_j
-// q_(j+k+1 mod n) theta_k / n, a coupling of every joint with every parameter (ParameterJoint -1, the default),
-// like a gravity tilt acting through every joint's compliance torque.
-class CoupledTerm : public JointTerm {
- public:
-  explicit CoupledTerm(int n) : n_(n) {}
-  std::string name() const override { return "coupled"; }
-  int num_joints() const override { return n_; }
-  int num_parameters() const override { return 3; }
-  std::string ParameterName(int k) const override { return "c" + std::to_string(k); }
-  void Regressor(const double* q, double* Y) const override {
-    for (int k = 0; k < 3; ++k) {
-      for (int j = 0; j < n_; ++j) Y[k * n_ + j] = (1 + 0.1 * j * k) * q[j] * q[(j + k + 1) % n_] / n_;
-    }
-  }
-
- private:
-  int n_;
-};
 
 // Declares one joint per parameter but moves another one (a wrong ParameterJoint).
 class LyingTerm : public JointTerm {
@@ -105,7 +86,8 @@ struct Data {
       EXPECT_TRUE(MakeJointTerm(name, nominal, &t).ok());
       terms.push_back(t);
     }
-    terms.push_back(std::make_shared<CoupledTerm>(nominal.num_joints()));
+    terms.push_back(std::make_shared<testing::CoupledJointTerm>(
+        nominal.num_joints(), testing::CoupledJointTerm::Form::kProduct));
   }
 };
 

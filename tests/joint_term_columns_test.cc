@@ -16,6 +16,7 @@
 
 #include "calibration/joint_term_columns.h"
 #include "calibration/normal_equations.h"
+#include "coupled_joint_term.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
@@ -25,24 +26,6 @@
 namespace lpoe {
 namespace {
 namespace joint_term_columns_test {
-
-// A test-only term whose parameters move several joints (ParameterJoint -1, the default).
-class CoupledColumnsTerm : public JointTerm {
- public:
-  explicit CoupledColumnsTerm(int n) : n_(n) {}
-  std::string name() const override { return "coupled"; }
-  int num_joints() const override { return n_; }
-  int num_parameters() const override { return 3; }
-  std::string ParameterName(int k) const override { return "c" + std::to_string(k); }
-  void Regressor(const double* q, double* Y) const override {
-    for (int k = 0; k < 3; ++k) {
-      for (int j = 0; j < n_; ++j) Y[k * n_ + j] = (1 + 0.1 * j * k) * std::sin(q[j] + q[(j + k + 1) % n_]);
-    }
-  }
-
- private:
-  int n_;
-};
 
 struct ColumnsSetup {
   RobotModel nominal = MakeCobot6();
@@ -61,7 +44,9 @@ struct ColumnsSetup {
       EXPECT_TRUE(MakeJointTerm(name, nominal, &t).ok()) << name;
       AddJointBlock(t, &p);
     }
-    AddJointBlock(std::make_shared<CoupledColumnsTerm>(nominal.num_joints()), &p);
+    AddJointBlock(std::make_shared<testing::CoupledJointTerm>(
+                      nominal.num_joints(), testing::CoupledJointTerm::Form::kSine),
+                  &p);
     // compliance: reduced (random orthonormal combinations); harmonics: the identity (as added);
     // gear_ratio: no columns; coupled: reduced.
     std::mt19937 rng(17);

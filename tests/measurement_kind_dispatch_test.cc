@@ -17,6 +17,7 @@
 #include "lpoe/measurement_kinds.h"
 #include "lpoe/se3_manifold.h"
 #include "lpoe/simulation.h"
+#include "contact_arm.h"
 #include "test_util.h"
 
 namespace lpoe {
@@ -52,37 +53,13 @@ TEST(MeasurementKindTable, EachLineIsItsKindsHeader) {
                PlaneMeasurement::kLeftOutReason);
 }
 
-struct Truth {
-  RobotModel nominal, truth;
-};
-
-Truth MakeTruth() {
-  Truth t;
-  t.nominal = MakeCobot6();
-  // Frame errors of about 1 mm and 3 mrad, joint zeros 0.01 rad.
-  const KinematicErrors e = RandomErrors(t.nominal, 0.003, 1.0, 0.0, 0.01, 45);
-  t.truth = FoldJointZeros(ApplyErrors(t.nominal, e), e.joint_zero);
-  return t;
-}
+using testing::ContactArm;
+using testing::MakeContactArm;
 
 // Ballbar distances, probe contacts and tracker positions (sigma 0.01 mm) of the true robot.
 ContactMeasurementSet MixedRows(const RobotModel& truth) {
-  BallbarSimulationOptions b;
-  b.count = 24;
-  b.bar_length = 150;
-  b.noise = 0.002;
-  b.num_pivots = 2;
-  b.seed = 5;
-  ContactMeasurementSet data;
-  EXPECT_TRUE(SimulateBallbar(truth, b, &data, nullptr).ok());
-  PlaneSimulationOptions c;
-  c.count = 24;
-  c.probe_radius = 3;
-  c.noise = 0.003;
-  c.seed = 6;
-  ContactMeasurementSet cube;
-  EXPECT_TRUE(SimulatePlaneContacts(truth, c, &cube, nullptr).ok());
-  data.Append(cube);
+  ContactMeasurementSet data = testing::BallbarRows(truth, 24, 2, 5);
+  data.Append(testing::CubeRows(truth, 24, 6));
   SimulationOptions so;
   so.count = 12;
   so.noise_sigma = 0.01;
@@ -98,7 +75,7 @@ ContactMeasurementSet MixedRows(const RobotModel& truth) {
 // table), ContactErrors the header's Error, and each row's Jacobian the central differences of the
 // kind's own Residual along the solver's columns.
 TEST(MeasurementKindTable, ContactRowsAreTheKindsHeaderFunctions) {
-  const Truth t = MakeTruth();
+  const ContactArm t = MakeContactArm(45);
   const ContactMeasurementSet data = MixedRows(t.truth);
   ASSERT_GT(data.Count(MeasurementKindId::kDistance), 0);
   ASSERT_GT(data.Count(MeasurementKindId::kPlane), 0);
@@ -147,13 +124,11 @@ TEST(MeasurementKindTable, ContactRowsAreTheKindsHeaderFunctions) {
   }
   for (int c = 0; c < p.num_parameters; ++c) {
     for (int sgn : {1, -1}) {
-      Eigen::VectorXd x = Eigen::VectorXd::Zero(p.num_parameters);
-      x(c) = sgn * h;
-      RobotModel m = t.nominal;
-      ApplyUpdate(p.frames, x.head(p.frames.num_parameters), &m);
-      ContactFeatures g = f;
-      ApplyFeatureStep(p, x, &g);
-      for (int i = 0; i < data.size(); ++i) (sgn > 0 ? plus : minus)[i] = kind_residual(m, g, i);
+      const testing::MovedContactState s =
+          testing::MoveAlongContactColumn(t.nominal, f, p, c, sgn * h);
+      for (int i = 0; i < data.size(); ++i) {
+        (sgn > 0 ? plus : minus)[i] = kind_residual(s.model, s.features, i);
+      }
     }
     for (int i = 0; i < data.size(); ++i) fd[i].col(c) = (plus[i] - minus[i]) / (2 * h);
   }
@@ -199,19 +174,9 @@ TEST(MeasurementKindTable, ContactRowsAreTheKindsHeaderFunctions) {
 // The left-out rule comes from the table: a kind that does not see the base gives its own reason
 // to the base's directions; both kinds together give the joint one.
 TEST(MeasurementKindTable, LeftOutReasonIsTheKindsRule) {
-  const Truth t = MakeTruth();
-  BallbarSimulationOptions b;
-  b.count = 40;
-  b.noise = 0.002;
-  b.seed = 8;
-  ContactMeasurementSet bar;
-  ASSERT_TRUE(SimulateBallbar(t.truth, b, &bar, nullptr).ok());
-  PlaneSimulationOptions c;
-  c.count = 40;
-  c.noise = 0.003;
-  c.seed = 9;
-  ContactMeasurementSet cube;
-  ASSERT_TRUE(SimulatePlaneContacts(t.truth, c, &cube, nullptr).ok());
+  const ContactArm t = MakeContactArm(45);
+  const ContactMeasurementSet bar = testing::BallbarRows(t.truth, 40, 3, 8);
+  const ContactMeasurementSet cube = testing::CubeRows(t.truth, 40, 9);
   ContactMeasurementSet both = bar;
   both.Append(cube);
   auto base_reason = [&](const ContactMeasurementSet& data) {

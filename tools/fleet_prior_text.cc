@@ -69,5 +69,22 @@ std::string FleetPriorFileText(int robots, const RobotModel& mean,
   return text + RobotModelToYaml(mean) + ModelCovarianceYaml(mean, covariance);
 }
 
+std::string FleetPriorCountRefusal(int robots) {
+  return "a fleet prior needs at least 2 calibrated models (got " + std::to_string(robots) +
+         "); a frame's full 6x6 covariance needs " + std::to_string(kRobotsForFullCovariance);
+}
+
+Status MakeFleetPriorFile(const std::vector<RobotModel>& models,
+                          const std::vector<std::string>& names, FleetPriorFile* out) {
+  const int robots = static_cast<int>(models.size());
+  if (robots < 2) return Status::Error(FleetPriorCountRefusal(robots));
+  if (Status s = FleetPrior(models, &out->mean, &out->covariance); !s.ok()) {
+    return Status::Error(FleetPriorRefusal(s, names));
+  }
+  out->warnings = FleetPriorWarnings(robots, out->mean, out->covariance);
+  out->text = FleetPriorFileText(robots, out->mean, out->covariance);
+  return Status::Ok();
+}
+
 }  // namespace tools
 }  // namespace lpoe

@@ -27,6 +27,22 @@ std::vector<std::string> FleetPriorWarnings(int robots, const RobotModel& mean,
 std::string FleetPriorFileText(int robots, const RobotModel& mean,
                                const ModelCovariance& covariance);
 
+// "a fleet prior needs at least 2 calibrated models (got N); a frame's full 6x6 covariance needs
+// K" (each front end names its list first).
+std::string FleetPriorCountRefusal(int robots);
+
+// What lpoe_prior and lpoe.fleet_prior make of the models (named by `names`, files or "model k"):
+// the mean and covariance (FleetPrior), its warnings and the file text. An error: fewer than 2
+// models (FleetPriorCountRefusal), or FleetPrior's refusal (FleetPriorRefusal).
+struct FleetPriorFile {
+  RobotModel mean;
+  ModelCovariance covariance;
+  std::vector<std::string> warnings;
+  std::string text;
+};
+Status MakeFleetPriorFile(const std::vector<RobotModel>& models,
+                          const std::vector<std::string>& names, FleetPriorFile* out);
+
 }  // namespace tools
 }  // namespace lpoe
 

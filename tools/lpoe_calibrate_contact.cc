@@ -89,18 +89,6 @@ std::string HtmlEscape(const std::string& text) {
 }
 
 // The figures of one pivot or plane as JSON (the kind's table per feature).
-nlohmann::json FeatureJson(const ContactFeatureSummary& s, bool kfold) {
-  nlohmann::json j = {{"name", ValidUtf8(s.name)},       {"rows", s.fit.rows},
-                      {"rms_mm", s.fit.rms},             {"max_abs_mm", s.fit.max_abs},
-                      {"expected_noise_mm", s.fit.sigma}, {"verdict", ContactKindVerdict(s.fit)}};
-  if (s.held.rows > 0) {
-    j["held_out_rows"] = s.held.rows;
-    j["held_out_rms_mm"] = s.held.rms;
-  }
-  if (kfold) j["kfold_rms_mm"] = s.kfold.rms;
-  return j;
-}
-
 // Okabe-Ito colours for the pivots' and planes' series (after the held-out grey).
 const uint32_t kContactFeatureColors[] = {0x0072B2, 0xD55E00, 0x009E73, 0xCC79A7,
                                           0xE69F00, 0x56B4E9, 0x000000};
@@ -231,11 +219,7 @@ struct ContactRun {
   ResidualModelKind residual_model = ResidualModelKind::kNone;  // --residual_model
   std::string layer_text;  // the residual layer's lines of the summary (empty without one)
   const char* verify_label = "held-out RMS";
-  // Built by the summary for the report and the HTML page.
-  nlohmann::json kinds_json = nlohmann::json::array();
-  nlohmann::json pivots = nlohmann::json::array(), planes = nlohmann::json::array();
-  nlohmann::json joint_json = nlohmann::json::array();
-  nlohmann::json left_out = nlohmann::json::array();
+  // Built by the summary for the HTML page.
   std::string html_rows, html_feature_rows;
 };
 
@@ -524,7 +508,8 @@ int RunContactJob(ContactRun* job) {
   return kExitOk;
 }
 
-// The table per kind (printed, and as JSON and HTML rows for the reports).
+// The table per kind (printed, and as HTML rows for the page; the report's JSON:
+// ContactReportJsonText).
 void ContactKindTables(ContactRun* job, std::ostream& out) {
   const ContactPipelineResult& run = job->run;
   const ContactCalibrationResult& result = run.calibration;
@@ -549,41 +534,16 @@ void ContactKindTables(ContactRun* job, std::ostream& out) {
         << (h.rows > 0 ? std::to_string(h.rms) : std::string("-"));
     if (FLAGS_kfold > 0) out << std::setw(15) << cv.rms;
     out << "\n";
-    nlohmann::json k = {{"kind", kind.name},          {"table", kind.report_table},
-                        {"rows", f.rows},             {"rms_mm", f.rms},
-                        {"max_abs_mm", f.max_abs},    {"expected_noise_mm", f.sigma},
-                        {"verdict", ContactKindVerdict(f)}};
-    if (h.rows > 0) {
-      k["held_out_rows"] = h.rows;
-      k["held_out_rms_mm"] = h.rms;
-      // The verification table (--verify or --holdout): the kind's figures on rows not fitted.
-      k["verification"] = {{"source", FLAGS_verify.empty() ? "holdout" : "verify"},
-                           {"rows", h.rows},
-                           {"rms_mm", h.rms},
-                           {"max_abs_mm", h.max_abs},
-                           {"expected_noise_mm", h.sigma},
-                           {"verdict", ContactKindVerdict(h)}};
+    // The kind's table per pivot (distance) or per plane (plane).
+    for (const ContactFeatureSummary& fs : summary.features) {
+      std::ostringstream frow;
+      frow << "<tr><td>" << kind.feature_noun << "</td><td>" << HtmlEscape(fs.name)
+           << "</td><td>" << fs.fit.rows << "</td><td>" << fs.fit.rms << "</td><td>"
+           << fs.fit.max_abs << "</td><td>" << fs.fit.sigma << "</td><td>"
+           << ContactKindVerdict(fs.fit) << "</td><td>"
+           << (fs.held.rows > 0 ? std::to_string(fs.held.rms) : "-") << "</td></tr>\n";
+      job->html_feature_rows += frow.str();
     }
-    if (FLAGS_kfold > 0) {
-      k["kfold"] = {{"folds", FLAGS_kfold}, {"rows", cv.rows}, {"rms_mm", cv.rms},
-                    {"max_abs_mm", cv.max_abs}};
-    }
-    if (!summary.features.empty()) {
-      nlohmann::json features = nlohmann::json::array();
-      for (const ContactFeatureSummary& fs : summary.features) {
-        features.push_back(FeatureJson(fs, FLAGS_kfold > 0));
-        std::ostringstream frow;
-        frow << "<tr><td>" << kind.feature_noun << "</td><td>" << HtmlEscape(fs.name)
-             << "</td><td>" << fs.fit.rows << "</td><td>" << fs.fit.rms << "</td><td>"
-             << fs.fit.max_abs << "</td><td>" << fs.fit.sigma << "</td><td>"
-             << ContactKindVerdict(fs.fit) << "</td><td>"
-             << (fs.held.rows > 0 ? std::to_string(fs.held.rms) : "-") << "</td></tr>\n";
-        job->html_feature_rows += frow.str();
-      }
-      // The kind's table per pivot (distance) or per plane (plane).
-      k["features"] = features;
-    }
-    job->kinds_json.push_back(k);
     std::ostringstream row;
     row << "<tr><td>" << kind.report_table << "</td><td>" << f.rows << "</td><td>" << f.rms
         << "</td><td>" << f.max_abs << "</td><td>" << f.sigma << "</td><td>"
@@ -593,8 +553,7 @@ void ContactKindTables(ContactRun* job, std::ostream& out) {
   }
 }
 
-// The pivots and planes, the parameters, the joint-space terms, the base and the scale (printed,
-// and as JSON for the report).
+// The pivots and planes, the parameters, the joint-space terms, the base and the scale (printed).
 void ContactEstimates(ContactRun* job, std::ostream& out) {
   const ContactCalibrationResult& result = job->run.calibration;
   const ContactMeasurementSet& identification = job->run.identification;
@@ -602,16 +561,11 @@ void ContactEstimates(ContactRun* job, std::ostream& out) {
   for (size_t k = 0; k < result.features.pivots.size(); ++k) {
     const Eigen::Vector3d& c = result.features.pivots[k];
     out << "pivot " << ValidUtf8(identification.pivots[k]) << ": " << c.transpose() << " mm\n";
-    job->pivots.push_back(
-        {{"name", ValidUtf8(identification.pivots[k])}, {"xyz_mm", {c(0), c(1), c(2)}}});
   }
   for (size_t k = 0; k < result.features.planes.size(); ++k) {
     const Eigen::Vector4d& pl = result.features.planes[k];
     out << "plane " << ValidUtf8(identification.planes[k]) << ": normal " << pl.head<3>().transpose()
         << ", n.x = " << pl(3) << " mm\n";
-    job->planes.push_back({{"name", ValidUtf8(identification.planes[k])},
-                           {"normal", {pl(0), pl(1), pl(2)}},
-                           {"offset_mm", pl(3)}});
   }
   const int joint_parameters = p.frames.num_joint_parameters();
   out << "parameters: " << p.frames.num_parameters - joint_parameters << " of the robot, "
@@ -624,16 +578,10 @@ void ContactEstimates(ContactRun* job, std::ostream& out) {
     const int kept = static_cast<int>(p.frames.joint_blocks[b].basis.cols());
     out << "joint-space term " << t.term->name() << ": " << kept << " of "
         << t.term->num_parameters() << " combinations identified; values:";
-    nlohmann::json values = nlohmann::json::object();
     for (int k = 0; k < t.theta.size(); ++k) {
       out << " " << t.term->ParameterName(k) << "=" << t.theta(k);
-      values[t.term->ParameterName(k)] = t.theta(k);
     }
     out << "\n";
-    job->joint_json.push_back({{"term", t.term->name()},
-                               {"parameters", t.term->num_parameters()},
-                               {"identified_combinations", kept},
-                               {"values", values}});
   }
   job->layer_text = ContactLayerText(job->run, FLAGS_kfold);
   out << job->layer_text;
@@ -642,16 +590,12 @@ void ContactEstimates(ContactRun* job, std::ostream& out) {
         << p.base_reason << "\n";
   }
   out << "scale: " << p.scale_reason << " (S = " << result.scale << ")\n";
-  for (const Direction& d : p.frames.unidentifiable) {
-    job->left_out.push_back({{"name", ValidUtf8(d.name)}, {"reason", d.reason}});
-  }
 }
 
 // The model, its URDF and UR kinematics files and the JSON report, staged.
 Status StageContactModelAndReport(ContactRun* job) {
   const ContactPipelineResult& run = job->run;
   const ContactCalibrationResult& result = run.calibration;
-  const ContactParameterization& p = result.parameterization;
   OutputSet& outputs = job->outputs;
   Status staged;
   if (!FLAGS_output.empty()) {
@@ -675,28 +619,13 @@ Status StageContactModelAndReport(ContactRun* job) {
     if (staged.ok()) staged = outputs.Stage(FLAGS_ur_kinematics_output, ur_yaml);
   }
   if (staged.ok() && !FLAGS_report.empty()) {
-    nlohmann::json j = {
-        {"tool", "lpoe_calibrate"},
-        {"measurements", job->files},
-        {"file_kinds", job->inputs.kinds},
-        {"solver", result.solver},
-        {"iterations", result.iterations},
-        {"cost_before", result.initial_cost},
-        {"cost_after", result.cost},
-        {"measurement_kinds", job->kinds_json},
-        {"features", {{"pivots", job->pivots}, {"planes", job->planes}}},
-        {"parameters", p.frames.num_parameters + 3 * p.num_pivots + 3 * p.num_planes},
-        {"base", {{"directions_left_out", p.num_base_directions}, {"reason", p.base_reason}}},
-        {"scale", {{"held", p.scale_held}, {"reason", p.scale_reason}, {"value", result.scale}}},
-        {"left_out", job->left_out},
-        {"joint_errors", job->joint_json},
-        {"residual_layer",
-         nlohmann::json::parse(ContactLayerJsonText(run, FLAGS_residual_model))},
-    };
-    if (run.joint_error_selection.ran) {
-      j["joint_error_selection"] =
-          nlohmann::json::parse(ContactSelectionJsonText(run.joint_error_selection));
-    }
+    // The report's body as lpoe.calibrate writes it (report/contact_layer_report.h); the keys
+    // sorted, as the rest of the tool's reports.
+    nlohmann::json j = nlohmann::json::parse(
+        ContactReportJsonText(run, !FLAGS_verify.empty(), FLAGS_kfold, FLAGS_residual_model));
+    j["tool"] = "lpoe_calibrate";
+    j["measurements"] = job->files;
+    j["file_kinds"] = job->inputs.kinds;
     staged = outputs.Stage(FLAGS_report, j.dump(2) + "\n");
   }
   return staged;

@@ -41,6 +41,10 @@
 #include "common_flags.h"
 #include "tool_common.h"
 
+// Defaults and help of the options lpoe.compensate shares from the option table (lpoe/options.h).
+#define LPOE_DEFAULT(name) lpoe::OptionDefault("lpoe_compensate", #name)
+#define LPOE_DEFAULT_TEXT(name) lpoe::OptionDefaultText("lpoe_compensate", #name)
+#define LPOE_HELP(name) lpoe::OptionHelp("lpoe_compensate", #name)
 DEFINE_string(targets, "",
               "Targets CSV: q1..qN (the seed: the joints the program would use), x,y,z (desired "
               "tool position in --length_unit, in --frame), optional target (tool name or index), optional "
@@ -49,18 +53,11 @@ DEFINE_string(joints, "",
               "Joint-program CSV (q1..qN, optional target), planned with --nominal: the output "
               "makes the calibrated robot reach the nominal model's tool poses. Instead of "
               "--targets; needs --nominal.");
-DEFINE_string(joints_target, "pose",
-              "Joint-program mode: reach the nominal tool 'pose' or only its 'position'.");
+DEFINE_string(joints_target, LPOE_DEFAULT_TEXT(joints_target), LPOE_HELP(joints_target));
 DEFINE_string(nominal, "",
               "Nominal model (YAML or URDF): adds the nominal tool pose at the compensated joints "
               "(the target to send to a controller using nominal kinematics).");
-DEFINE_string(frame, "base",
-              "Frame of the --targets poses and of a --program's poses: base (the model's base "
-              "frame, the chain's base link; carried into the calibrated model's frame by its "
-              "recorded registration) | measurement (the frame of the calibration's measurements, "
-              "e.g. the tracker's) | link:NAME (a base frame of the models, e.g. link:base, "
-              "ur_description's UR controller Base). --program default: link:base for URScript "
-              "when the models have it, else base.");
+DEFINE_string(frame, LPOE_DEFAULT_TEXT(frame), LPOE_HELP(frame));
 DEFINE_string(tcp, "",
               "The TCP the targets are for, when it was not measured: a tool of the models, or "
               "x,y,z[,roll,pitch,yaw] (mm, rad) relative to the flange (--flange), as a "
@@ -70,8 +67,6 @@ DEFINE_string(report, "", "JSON summary to write (counts per status, largest cor
 DEFINE_bool(strict, false, "Exit 8 when any row is not 'ok' (the output is written anyway).");
 // The IK options: defaults, ranges and help from the option table (lpoe/options.h), shared with
 // lpoe.compensate.
-#define LPOE_DEFAULT(name) lpoe::OptionDefault("lpoe_compensate", #name)
-#define LPOE_HELP(name) lpoe::OptionHelp("lpoe_compensate", #name)
 DEFINE_int32(threads, static_cast<int>(LPOE_DEFAULT(threads)), LPOE_HELP(threads));
 DEFINE_int32(max_iterations, static_cast<int>(LPOE_DEFAULT(max_iterations)),
              LPOE_HELP(max_iterations));
@@ -81,6 +76,7 @@ DEFINE_double(orientation_tolerance, LPOE_DEFAULT(orientation_tolerance),
               LPOE_HELP(orientation_tolerance));
 DEFINE_double(singular_threshold, LPOE_DEFAULT(singular_threshold), LPOE_HELP(singular_threshold));
 #undef LPOE_DEFAULT
+#undef LPOE_DEFAULT_TEXT
 #undef LPOE_HELP
 
 namespace lpoe {

@@ -39,6 +39,7 @@
 // with lpoe.plan.
 #define LPOE_DEFAULT(name) lpoe::OptionDefault("lpoe_plan", #name)
 #define LPOE_HELP(name) lpoe::OptionHelp("lpoe_plan", #name)
+#define LPOE_DEFAULT_TEXT(name) lpoe::OptionDefaultText("lpoe_plan", #name)
 DEFINE_string(count, "",
               "Number of poses to plan, or 'auto': the smallest plan predicted to reach "
               "--target_accuracy with --noise_sigma. Required.");
@@ -51,10 +52,8 @@ DEFINE_string(workspace, "",
               "Configurations where the accuracy matters (CSV with q1..qN), for criterion I and "
               "the predicted accuracy. Default: --workspace_count samples within the joint limits.");
 DEFINE_int32(workspace_count, static_cast<int>(LPOE_DEFAULT(workspace_count)), LPOE_HELP(workspace_count));
-DEFINE_uint64(seed, 1, "Seed of the sampled candidates, workspace and random comparison plans.");
-DEFINE_string(criterion, "D",
-              "D (default: parameters) | A | E | I (average position variance over the workspace) "
-              "| O1 | O3 (observability indices; see docs/planning.md).");
+DEFINE_uint64(seed, static_cast<uint64_t>(LPOE_DEFAULT(seed)), LPOE_HELP(seed));
+DEFINE_string(criterion, LPOE_DEFAULT_TEXT(criterion), LPOE_HELP(criterion));
 DEFINE_string(tracker, "", "Tracker position x,y,z in the model's base frame (mm). Enables the "
                            "visibility constraints (--max_range, --acceptance_angle, --smr_facing).");
 DEFINE_double(max_range, LPOE_DEFAULT(max_range), LPOE_HELP(max_range));
@@ -90,22 +89,11 @@ DEFINE_string(prior_free, "",
               "With --prior: frames whose prior is replaced by the nominal tolerances (what "
               "maintenance changed), comma-separated joint or tool names, e.g. joint5,joint3.");
 DEFINE_double(unmodelled_length, LPOE_DEFAULT(unmodelled_length), LPOE_HELP(unmodelled_length));
-DEFINE_string(joint_errors, "none",
-              "Joint-space error terms the calibration will identify: none | a comma-separated "
-              "list of the registry's terms (compliance, harmonics, ...: docs/joint_errors.md) | "
-              "auto, with ',tilt' in a list with compliance for the "
-              "gravity tilt. Their identifiable combinations join the parameters the plan must "
-              "determine (and the predicted accuracy). 'auto' plans for every term lpoe_calibrate "
-              "--joint_errors=auto may choose (all of them; the tilt too when the model carries "
-              "compliance values): a plan that identifies the richest model identifies each of its "
-              "subsets. The tilt's information is proportional to the compliance values, so "
-              "'tilt' needs a --model that carries them (a calibrated model's YAML); with a "
-              "nominal model it is refused (docs/planning.md).");
-DEFINE_string(measurement, "position",
-              "position (a tracker) | ballbar (poses on the --pivots' spheres within the bar's "
-              "stroke) | plane (probe contacts on the --planes' faces); docs/measurements.md.");
+DEFINE_string(joint_errors, LPOE_DEFAULT_TEXT(joint_errors), LPOE_HELP(joint_errors));
+DEFINE_string(measurement, LPOE_DEFAULT_TEXT(measurement), LPOE_HELP(measurement));
 #undef LPOE_DEFAULT
 #undef LPOE_HELP
+#undef LPOE_DEFAULT_TEXT
 
 namespace lpoe {
 namespace {
@@ -326,14 +314,7 @@ int PlanRequestFromFlags(PlanJob* job) {
 int CheckPlanOutputs(PlanJob* job) {
   std::string& report_path = job->report_path;
   report_path = FLAGS_report;
-  if (report_path.empty()) {
-    const size_t slash = FLAGS_output.find_last_of('/');
-    const size_t dot = FLAGS_output.find_last_of('.');
-    report_path = (dot != std::string::npos && (slash == std::string::npos || dot > slash)
-                       ? FLAGS_output.substr(0, dot)
-                       : FLAGS_output) +
-                  ".json";
-  }
+  if (report_path.empty()) report_path = tools::JsonBeside(FLAGS_output);
   tools::OutputSet& outputs = job->outputs;
   outputs.AddInput("--model", FLAGS_model);
   if (!FLAGS_prior.empty()) outputs.AddInput("--prior", FLAGS_prior);

@@ -261,14 +261,7 @@ int RunContactPlan() {
   ContactPlanRequest request;
   if (int rc = ContactPlanRequestFromFlags(ballbar, &request); rc != kExitOk) return rc;
   std::string report_path = FLAGS_report;
-  if (report_path.empty()) {
-    const size_t slash = FLAGS_output.find_last_of('/');
-    const size_t dot = FLAGS_output.find_last_of('.');
-    report_path = (dot != std::string::npos && (slash == std::string::npos || dot > slash)
-                       ? FLAGS_output.substr(0, dot)
-                       : FLAGS_output) +
-                  ".json";
-  }
+  if (report_path.empty()) report_path = JsonBeside(FLAGS_output);
   OutputSet outputs;
   outputs.AddInput("--model", FLAGS_model);
   outputs.AddOutput("--output", FLAGS_output);

@@ -74,9 +74,8 @@ int Run() {
     }
   }
   if (paths.size() < 2) {
-    std::cerr << "error: --models: a fleet prior needs at least 2 calibrated models (got "
-              << paths.size() << "); a frame's full 6x6 covariance needs "
-              << kRobotsForFullCovariance << "\n";
+    std::cerr << "error: --models: "
+              << tools::FleetPriorCountRefusal(static_cast<int>(paths.size())) << "\n";
     return kExitUsage;
   }
   for (size_t a = 0; a < paths.size(); ++a) {
@@ -102,22 +101,17 @@ int Run() {
       return kExitInput;
     }
   }
-  RobotModel mean;
-  ModelCovariance covariance;
-  if (Status s = FleetPrior(models, &mean, &covariance); !s.ok()) {
-    std::cerr << "error: " << tools::FleetPriorRefusal(s, paths) << "\n";
+  tools::FleetPriorFile prior;
+  if (Status s = tools::MakeFleetPriorFile(models, paths, &prior); !s.ok()) {
+    std::cerr << "error: " << s.message() << "\n";
     return kExitInput;
   }
-  const int robots = static_cast<int>(models.size());
-  for (const std::string& w : tools::FleetPriorWarnings(robots, mean, covariance)) {
-    std::cerr << "warning: " << w << "\n";
-  }
-  const std::string text = tools::FleetPriorFileText(robots, mean, covariance);
-  const Status staged = outputs.Stage(FLAGS_output, text);
+  for (const std::string& w : prior.warnings) std::cerr << "warning: " << w << "\n";
+  const Status staged = outputs.Stage(FLAGS_output, prior.text);
   if (tools::CommitOutputs(staged, &outputs, true) != kExitOk) return kExitOutput;
   if (!FLAGS_quiet) {
-    std::cout << "fleet prior of " << robots << " robots (" << mean.num_joints() << " joints, "
-              << mean.num_tools() << " tools)\n";
+    std::cout << "fleet prior of " << models.size() << " robots (" << prior.mean.num_joints()
+              << " joints, " << prior.mean.num_tools() << " tools)\n";
     std::cout << "wrote " << FLAGS_output << "\n";
   }
   return kExitOk;

@@ -224,6 +224,13 @@ Status ParseInputFlags(const InputFlags& flags, InputSettings* settings) {
   return Status::Ok();
 }
 
+std::string JsonBeside(const std::string& path) {
+  const size_t slash = path.find_last_of('/');
+  const size_t dot = path.find_last_of('.');
+  const bool extension = dot != std::string::npos && (slash == std::string::npos || dot > slash);
+  return (extension ? path.substr(0, dot) : path) + ".json";
+}
+
 bool SameFile(const std::string& a, const std::string& b) {
   if (a.empty() || b.empty()) return false;
   if (a == b) return true;

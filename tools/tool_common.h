@@ -142,6 +142,10 @@ void AddInputs(const InputPaths& paths, OutputSet* outputs);
 // True when both paths name the same existing file (same device and inode), or are equal strings.
 bool SameFile(const std::string& a, const std::string& b);
 
+// `path` with its extension (after the last '.' of its last component) replaced by ".json", or
+// ".json" appended (lpoe_plan's default --report).
+std::string JsonBeside(const std::string& path);
+
 // Exit code for a calibration termination.
 int ExitCodeFor(Termination t);
 

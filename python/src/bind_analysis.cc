@@ -670,12 +670,12 @@ py::object Plan(const RobotModel* model_arg, int count, const py::object& candid
       {"candidate_count", candidate_count != OptionDefault(kPlanTool, "candidate_count")},
       {"workspace", !workspace_obj.is_none()},
       {"workspace_count", workspace_count != OptionDefault(kPlanTool, "workspace_count")},
-      {"criterion", criterion != "D"},
+      {"criterion", criterion != OptionDefaultText(kPlanTool, "criterion")},
       {"tracker", !tracker_obj.is_none()},
       {"max_range", max_range != OptionDefault(kPlanTool, "max_range")},
       {"acceptance_angle", acceptance_angle != OptionDefault(kPlanTool, "acceptance_angle")},
       {"smr_facing", !smr_facing_obj.is_none()},
-      {"joint_errors", joint_errors != "none"},
+      {"joint_errors", joint_errors != OptionDefaultText(kPlanTool, "joint_errors")},
       {"keep_out", !keep_out_obj.is_none()},
       {"joint_ranges", !joint_ranges_obj.is_none()},
       {"noise_sigma", noise_sigma != OptionDefault(kPlanTool, "noise_sigma")}};
@@ -770,6 +770,7 @@ void BindContactPlanClass(py::module_& m) {
 void BindAnalysis(py::module_& m) {
   const char* kCompensate = "lpoe_compensate";
   const char* kPlan = "lpoe_plan";
+  const char* kCalibrate = "lpoe_calibrate";
   py::class_<PyNormalEquations>(
       m, "NormalEquations",
       "Normal equations of the calibration at the problem's current values: H = J^T W J, "
@@ -820,10 +821,14 @@ void BindAnalysis(py::module_& m) {
       "the current parameters, updates, identifiability. Keyword options as lpoe_calibrate's "
       "flags.")
       .def(py::init(&MakeProblem), py::arg("model"), py::arg("data"), py::kw_only(),
-           py::arg("parameterization") = "identifiable", py::arg("data_kind") = "auto",
-           py::arg("sigma") = 1.0, py::arg("orientation_weight") = 1000.0,
-           py::arg("joint_errors") = "none", py::arg("loss") = "none",
-           py::arg("loss_scale") = 1.0, py::keep_alive<1, 3>())
+           py::arg("parameterization") = OptionDefaultText(kCalibrate, "parameterization"),
+           py::arg("data_kind") = OptionDefaultText(kCalibrate, "data_kind"),
+           py::arg("sigma") = OptionDefault(kCalibrate, "sigma"),
+           py::arg("orientation_weight") = CalibrationProblemOptions().orientation_weight,
+           py::arg("joint_errors") = OptionDefaultText(kCalibrate, "joint_errors"),
+           py::arg("loss") = OptionDefaultText(kCalibrate, "loss"),
+           py::arg("loss_scale") = OptionDefault(kCalibrate, "loss_scale"),
+           py::keep_alive<1, 3>())
       .def(
           "normal_equations",
           [](const PyProblem& p) {
@@ -882,7 +887,8 @@ void BindAnalysis(py::module_& m) {
             r.a = p.problem->Analyze(max_condition);
             return r;
           },
-          py::arg("max_condition") = 1e8, "identifiability at the current parameters")
+          py::arg("max_condition") = OptionDefault(kCalibrate, "max_condition"),
+          "identifiability at the current parameters")
       .def("__repr__", [](const PyProblem& p) {
         return "<lpoe.Problem: " + std::to_string(p.problem->data().size()) + " rows, " +
                std::to_string(p.problem->SolvedParameterization().num_parameters) +
@@ -893,16 +899,22 @@ void BindAnalysis(py::module_& m) {
       "identifiability",
       [](const RobotModel& model, const MeasurementSet& data, const std::string& parameterization,
          const std::string& data_kind, const std::string& joint_errors, double max_condition) {
-        const PyProblem p = MakeProblem(model, data, parameterization, data_kind, 1.0, 1000.0,
-                                        joint_errors, "none", 1.0);
+        // The problem's other options at lpoe_calibrate's defaults.
+        const char* calibrate = "lpoe_calibrate";
+        const PyProblem p = MakeProblem(
+            model, data, parameterization, data_kind, OptionDefault(calibrate, "sigma"),
+            CalibrationProblemOptions().orientation_weight, joint_errors,
+            OptionDefaultText(calibrate, "loss"), OptionDefault(calibrate, "loss_scale"));
         PyIdentifiability r;
         py::gil_scoped_release release;
         r.a = p.problem->Analyze(max_condition);
         return r;
       },
       py::arg("model"), py::arg("data"), py::kw_only(),
-      py::arg("parameterization") = "identifiable", py::arg("data_kind") = "auto",
-      py::arg("joint_errors") = "none", py::arg("max_condition") = 1e8,
+      py::arg("parameterization") = OptionDefaultText(kCalibrate, "parameterization"),
+      py::arg("data_kind") = OptionDefaultText(kCalibrate, "data_kind"),
+      py::arg("joint_errors") = OptionDefaultText(kCalibrate, "joint_errors"),
+      py::arg("max_condition") = OptionDefault(kCalibrate, "max_condition"),
       "identifiability of `model`'s parameters by `data` (at the model as given: register it "
       "first when the data are in another frame): rank, condition number, and the directions "
       "not identifiable, named, with the reason");
@@ -938,8 +950,9 @@ void BindAnalysis(py::module_& m) {
   m.def("compensate", &Compensate, py::arg("model"), py::arg("targets") = py::none(),
         py::kw_only(), py::arg("seeds") = py::none(), py::arg("orientations") = py::none(),
         py::arg("joints") = py::none(), py::arg("nominal") = py::none(),
-        py::arg("joints_target") = "pose", py::arg("tool") = py::none(),
-        py::arg("frame") = "base", py::arg("tcp") = py::none(), py::arg("flange") = "",
+        py::arg("joints_target") = OptionDefaultText(kCompensate, "joints_target"),
+        py::arg("tool") = py::none(), py::arg("frame") = OptionDefaultText(kCompensate, "frame"),
+        py::arg("tcp") = py::none(), py::arg("flange") = "",
         py::arg("threads") = static_cast<int>(OptionDefault(kCompensate, "threads")),
         py::arg("max_iterations") = static_cast<int>(OptionDefault(kCompensate, "max_iterations")),
         py::arg("restarts") = static_cast<int>(OptionDefault(kCompensate, "restarts")),
@@ -1018,15 +1031,19 @@ void BindAnalysis(py::module_& m) {
         py::arg("candidate_count") = static_cast<int>(OptionDefault(kPlan, "candidate_count")),
         py::arg("workspace") = py::none(),
         py::arg("workspace_count") = static_cast<int>(OptionDefault(kPlan, "workspace_count")),
-        py::arg("seed") = 1, py::arg("criterion") = "D", py::arg("tracker") = py::none(),
+        py::arg("seed") = static_cast<uint64_t>(OptionDefault(kPlan, "seed")),
+        py::arg("criterion") = OptionDefaultText(kPlan, "criterion"),
+        py::arg("tracker") = py::none(),
         py::arg("max_range") = OptionDefault(kPlan, "max_range"),
         py::arg("acceptance_angle") = OptionDefault(kPlan, "acceptance_angle"),
         py::arg("smr_facing") = py::none(),
         py::arg("min_singularity") = OptionDefault(kPlan, "min_singularity"),
         py::arg("random_draws") = static_cast<int>(OptionDefault(kPlan, "random_draws")),
-        py::arg("joint_errors") = "none", py::arg("min_z") = py::none(),
+        py::arg("joint_errors") = OptionDefaultText(kPlan, "joint_errors"),
+        py::arg("min_z") = py::none(),
         py::arg("box") = py::none(), py::arg("keep_out") = py::none(),
-        py::arg("joint_ranges") = py::none(), py::arg("measurement") = "position",
+        py::arg("joint_ranges") = py::none(),
+        py::arg("measurement") = OptionDefaultText(kPlan, "measurement"),
         py::arg("pivots") = py::none(), py::arg("bar_length") = contact.bar_length,
         py::arg("stroke") = contact.stroke, py::arg("planes") = py::none(),
         py::arg("face_centres") = py::none(), py::arg("face_radius") = contact.face_radius,

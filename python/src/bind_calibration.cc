@@ -580,139 +580,16 @@ ContactMeasurementSet ContactVerificationOf(const py::object& verify, double hol
   return verification;
 }
 
-// One kind's entry of the report: lpoe_calibrate's table per kind (lpoe_calibrate_contact.cc).
-py::dict ContactKindReport(const ContactKindSummary& summary, bool verify_given, int kfold) {
-  const MeasurementKindInfo& kind = *summary.kind;
-  const ContactKindFigures& f = summary.fit;
-  py::dict d;
-  d["kind"] = kind.name;
-  d["table"] = kind.report_table;
-  d["rows"] = f.rows;
-  d["rms_mm"] = f.rms;
-  d["max_abs_mm"] = f.max_abs;
-  d["expected_noise_mm"] = f.sigma;
-  d["verdict"] = ContactKindVerdict(f);
-  const ContactKindFigures& h = summary.held;
-  if (h.rows > 0) {
-    d["held_out_rows"] = h.rows;
-    d["held_out_rms_mm"] = h.rms;
-    py::dict v;
-    v["source"] = verify_given ? "verify" : "holdout";
-    v["rows"] = h.rows;
-    v["rms_mm"] = h.rms;
-    v["max_abs_mm"] = h.max_abs;
-    v["expected_noise_mm"] = h.sigma;
-    v["verdict"] = ContactKindVerdict(h);
-    d["verification"] = v;
-  }
-  if (kfold > 0) {
-    const ContactKindFigures& cv = summary.kfold;
-    py::dict k;
-    k["folds"] = kfold;
-    k["rows"] = cv.rows;
-    k["rms_mm"] = cv.rms;
-    k["max_abs_mm"] = cv.max_abs;
-    d["kfold"] = k;
-  }
-  if (!summary.features.empty()) {
-    // The kind's figures per pivot (distance) or per plane (plane), as the tool's report.
-    py::list features;
-    for (const ContactFeatureSummary& fs : summary.features) {
-      py::dict e;
-      e["name"] = fs.name;
-      e["rows"] = fs.fit.rows;
-      e["rms_mm"] = fs.fit.rms;
-      e["max_abs_mm"] = fs.fit.max_abs;
-      e["expected_noise_mm"] = fs.fit.sigma;
-      e["verdict"] = ContactKindVerdict(fs.fit);
-      if (fs.held.rows > 0) {
-        e["held_out_rows"] = fs.held.rows;
-        e["held_out_rms_mm"] = fs.held.rms;
-      }
-      if (kfold > 0) e["kfold_rms_mm"] = fs.kfold.rms;
-      features.append(e);
-    }
-    d["features"] = features;
-  }
-  return d;
-}
-
-// The JSON report of a contact calibration, as lpoe_calibrate's for these kinds.
+// The JSON report of a contact calibration: lpoe_calibrate's (report/contact_layer_report.h), the
+// tool named "lpoe (Python)".
 std::string ContactReportJson(const ContactPipelineResult& run, bool verify_given, int kfold,
                               const std::string& residual_model) {
-  const ContactCalibrationResult& result = run.calibration;
-  const ContactMeasurementSet& identification = run.identification;
-  py::list kinds;
-  for (const ContactKindSummary& summary : run.kinds) {
-    kinds.append(ContactKindReport(summary, verify_given, kfold));
-  }
-  const ContactParameterization& p = result.parameterization;
-  py::list pivots, planes, left_out;
-  for (size_t i = 0; i < result.features.pivots.size(); ++i) {
-    const Eigen::Vector3d& x = result.features.pivots[i];
-    py::dict d;
-    d["name"] = identification.pivots[i];
-    d["xyz_mm"] = std::vector<double>{x(0), x(1), x(2)};
-    pivots.append(d);
-  }
-  for (size_t i = 0; i < result.features.planes.size(); ++i) {
-    const Eigen::Vector4d& x = result.features.planes[i];
-    py::dict d;
-    d["name"] = identification.planes[i];
-    d["normal"] = std::vector<double>{x(0), x(1), x(2)};
-    d["offset_mm"] = x(3);
-    planes.append(d);
-  }
-  for (const Direction& d : p.frames.unidentifiable) {
-    py::dict e;
-    e["name"] = d.name;
-    e["reason"] = d.reason;
-    left_out.append(e);
-  }
+  py::module_ json = py::module_::import("json");
   py::dict report;
   report["tool"] = "lpoe (Python)";
-  report["solver"] = result.solver;
-  report["iterations"] = result.iterations;
-  report["cost_before"] = result.initial_cost;
-  report["cost_after"] = result.cost;
-  report["measurement_kinds"] = kinds;
-  py::dict features;
-  features["pivots"] = pivots;
-  features["planes"] = planes;
-  report["features"] = features;
-  report["parameters"] = p.frames.num_parameters + 3 * p.num_pivots + 3 * p.num_planes;
-  py::dict base, scale;
-  base["directions_left_out"] = p.num_base_directions;
-  base["reason"] = p.base_reason;
-  report["base"] = base;
-  scale["held"] = p.scale_held;
-  scale["reason"] = p.scale_reason;
-  scale["value"] = result.scale;
-  report["scale"] = scale;
-  report["left_out"] = left_out;
-  py::list joint_terms;
-  for (size_t b = 0; b < result.joint_terms.size(); ++b) {
-    const JointTermValues& t = result.joint_terms[b];
-    py::dict e, values;
-    e["term"] = t.term->name();
-    e["parameters"] = t.term->num_parameters();
-    e["identified_combinations"] = static_cast<int>(p.frames.joint_blocks[b].basis.cols());
-    for (int i = 0; i < t.theta.size(); ++i) values[py::str(t.term->ParameterName(i))] = t.theta(i);
-    e["values"] = values;
-    joint_terms.append(e);
-  }
-  report["joint_errors"] = joint_terms;
-  if (run.joint_error_selection.ran) {
-    // joint_errors='auto': the choice, as lpoe_calibrate's report writes it (one text for both,
-    // report/contact_layer_report.h).
-    report["joint_error_selection"] = py::module_::import("json").attr("loads")(
-        tools::ContactSelectionJsonText(run.joint_error_selection));
-  }
-  // The residual layer as lpoe_calibrate's report gives it (report/contact_layer_report.h).
-  report["residual_layer"] = py::module_::import("json").attr("loads")(
-      tools::ContactLayerJsonText(run, residual_model));
-  return py::module_::import("json").attr("dumps")(report, py::arg("indent") = 2)
-      .cast<std::string>();
+  report.attr("update")(json.attr("loads")(
+      tools::ContactReportJsonText(run, verify_given, kfold, residual_model)));
+  return json.attr("dumps")(report, py::arg("indent") = 2).cast<std::string>();
 }
 
 Calibration CalibrateContacts(const RobotModel& nominal, const ContactMeasurementSet& data,
@@ -903,19 +780,20 @@ Prior FleetPriorOf(const py::sequence& models, const py::object& output) {
     names.push_back(path);
   }
   if (read.size() < 2) {
-    throw LpoeError("models: a fleet prior needs at least 2 calibrated models (got " +
-                    std::to_string(read.size()) + "); a frame's full 6x6 covariance needs " +
-                    std::to_string(kRobotsForFullCovariance));
+    throw LpoeError("models: " + tools::FleetPriorCountRefusal(static_cast<int>(read.size())));
   }
-  Prior out;
-  if (Status s = FleetPrior(read, &out.model, &out.covariance); !s.ok()) {
-    throw LpoeError(tools::FleetPriorRefusal(s, names));
+  tools::FleetPriorFile prior;
+  if (Status s = tools::MakeFleetPriorFile(read, names, &prior); !s.ok()) {
+    throw LpoeError(s.message());
   }
-  const int robots = static_cast<int>(read.size());
-  for (const std::string& w : tools::FleetPriorWarnings(robots, out.model, out.covariance)) {
+  for (const std::string& w : prior.warnings) {
     if (PyErr_WarnEx(PyExc_UserWarning, w.c_str(), 1) != 0) throw py::error_already_set();
   }
-  out.yaml = tools::FleetPriorFileText(robots, out.model, out.covariance);
+  const int robots = static_cast<int>(read.size());
+  Prior out;
+  out.model = std::move(prior.mean);
+  out.covariance = std::move(prior.covariance);
+  out.yaml = std::move(prior.text);
   out.source = "fleet prior of " + std::to_string(robots) + " models";
   if (!output.is_none()) {
     const std::string path = fspath(output).cast<std::string>();

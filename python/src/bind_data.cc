@@ -18,6 +18,7 @@
 #include "lpoe/kinematics.h"
 #include "lpoe/measurement_model.h"
 #include "lpoe/measurements.h"
+#include "lpoe/options.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/urdf.h"
 #include "python_api.h"
@@ -364,8 +365,10 @@ void BindMeasurements(py::module_& m) {
         Check(ReadMeasurements(path, model, options, &data, nullptr));
         return py::cast(std::move(data));
       },
-      py::arg("path"), py::arg("model"), py::arg("angle_unit") = "rad",
-      py::arg("length_unit") = "mm", py::arg("sigma") = 0.0,
+      py::arg("path"), py::arg("model"),
+      py::arg("angle_unit") = OptionDefaultText("lpoe_calibrate", "angle_unit"),
+      py::arg("length_unit") = OptionDefaultText("lpoe_calibrate", "length_unit"),
+      py::arg("sigma") = 0.0,
       "reads a measurement CSV for `model` (as lpoe_calibrate's --angle_unit and --length_unit "
       "read it); lost-beam rows are skipped. The kind comes from the columns: tracker files give "
       "lpoe.Measurements (kind 'position' or 'pose'), ballbar and probe files "
@@ -487,7 +490,7 @@ void BindJacobians(py::module_& m) {
         return py::make_tuple(J, names);
       },
       py::arg("model"), py::arg("q"), py::arg("tool") = 0,
-      py::arg("parameterization") = "identifiable",
+      py::arg("parameterization") = OptionDefaultText("lpoe_calibrate", "parameterization"),
       "(dP/dx (3, P), names): the tool position's Jacobian with respect to the right "
       "perturbations x of the local frames in the chosen parameterization (paper eq. 29)");
 }

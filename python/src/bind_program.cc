@@ -4,8 +4,10 @@
 #include <pybind11/stl.h>
 
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "lpoe/options.h"
 #include "lpoe/program.h"
 #include "python_api.h"
 
@@ -33,8 +35,12 @@ PyProgramCompensation CompensateProgramPy(const RobotModel& model, const RobotMo
     throw LpoeError("compensate_program: language must be 'urscript' or 'rapid', not '" + language +
                     "'");
   }
-  if (max_iterations < 1 || max_iterations > 10000 || restarts < 0 || restarts > 100) {
-    throw LpoeError("compensate_program: need 1 <= max_iterations <= 10000, 0 <= restarts <= 100");
+  // lpoe_compensate's ranges (the option table, lpoe/options.h).
+  for (const auto& [name, value] : {std::pair<const char*, double>{"max_iterations", max_iterations},
+                                    {"restarts", restarts}}) {
+    if (Status s = CheckOption("lpoe_compensate", name, value); !s.ok()) {
+      throw LpoeError("compensate_program: " + s.message());
+    }
   }
   ProgramOptions options;
   options.flange = flange;
@@ -89,8 +95,10 @@ void BindProgram(py::module_& m) {
                     "correction_deg");
   m.def("compensate_program", &CompensateProgramPy, py::arg("model"), py::arg("nominal"),
         py::arg("program"), py::kw_only(), py::arg("language"), py::arg("flange") = "",
-        py::arg("frame") = "", py::arg("targets_only") = "", py::arg("max_iterations") = 100,
-        py::arg("restarts") = 8,
+        py::arg("frame") = "", py::arg("targets_only") = "",
+        py::arg("max_iterations") =
+            static_cast<int>(OptionDefault("lpoe_compensate", "max_iterations")),
+        py::arg("restarts") = static_cast<int>(OptionDefault("lpoe_compensate", "restarts")),
         "a robot program (URScript or RAPID text) compensated with the calibrated `model` for a "
         "controller running `nominal` (as lpoe_compensate --program; docs/programs.md). flange: "
         "the controller's flange its TCPs are relative to (a tool or flange frame; default tool0, "

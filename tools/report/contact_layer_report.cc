@@ -8,6 +8,7 @@
 
 #include "lpoe/residual_layer.h"
 #include "report/report.h"
+#include "report/text_safety.h"
 
 namespace lpoe {
 namespace tools {
@@ -165,6 +166,140 @@ std::string ContactSelectionJsonText(const JointErrorSelection& sel) {
   out["reason"] = sel.reason;
   out["tilt_message"] = sel.tilt_message;
   return out.dump();
+}
+
+namespace {
+
+// One pivot's or plane's figures in a kind's entry.
+nlohmann::ordered_json ContactFeatureJson(const ContactFeatureSummary& s, int kfold) {
+  nlohmann::ordered_json j;
+  j["name"] = ValidUtf8(s.name);
+  j["rows"] = s.fit.rows;
+  j["rms_mm"] = s.fit.rms;
+  j["max_abs_mm"] = s.fit.max_abs;
+  j["expected_noise_mm"] = s.fit.sigma;
+  j["verdict"] = ContactKindVerdict(s.fit);
+  if (s.held.rows > 0) {
+    j["held_out_rows"] = s.held.rows;
+    j["held_out_rms_mm"] = s.held.rms;
+  }
+  if (kfold > 0) j["kfold_rms_mm"] = s.kfold.rms;
+  return j;
+}
+
+// One kind's entry: the figures of lpoe_calibrate's table per kind.
+nlohmann::ordered_json ContactKindJson(const ContactKindSummary& summary, bool verify_given,
+                                       int kfold) {
+  const ContactKindFigures& f = summary.fit;
+  const ContactKindFigures& h = summary.held;
+  nlohmann::ordered_json j;
+  j["kind"] = summary.kind->name;
+  j["table"] = summary.kind->report_table;
+  j["rows"] = f.rows;
+  j["rms_mm"] = f.rms;
+  j["max_abs_mm"] = f.max_abs;
+  j["expected_noise_mm"] = f.sigma;
+  j["verdict"] = ContactKindVerdict(f);
+  if (h.rows > 0) {
+    j["held_out_rows"] = h.rows;
+    j["held_out_rms_mm"] = h.rms;
+    // The verification table (verify or holdout): the kind's figures on rows not fitted.
+    nlohmann::ordered_json v;
+    v["source"] = verify_given ? "verify" : "holdout";
+    v["rows"] = h.rows;
+    v["rms_mm"] = h.rms;
+    v["max_abs_mm"] = h.max_abs;
+    v["expected_noise_mm"] = h.sigma;
+    v["verdict"] = ContactKindVerdict(h);
+    j["verification"] = std::move(v);
+  }
+  if (kfold > 0) {
+    const ContactKindFigures& cv = summary.kfold;
+    nlohmann::ordered_json k;
+    k["folds"] = kfold;
+    k["rows"] = cv.rows;
+    k["rms_mm"] = cv.rms;
+    k["max_abs_mm"] = cv.max_abs;
+    j["kfold"] = std::move(k);
+  }
+  if (!summary.features.empty()) {
+    // The kind's figures per pivot (distance) or per plane (plane).
+    nlohmann::ordered_json features = nlohmann::ordered_json::array();
+    for (const ContactFeatureSummary& s : summary.features) {
+      features.push_back(ContactFeatureJson(s, kfold));
+    }
+    j["features"] = std::move(features);
+  }
+  return j;
+}
+
+}  // namespace
+
+std::string ContactReportJsonText(const ContactPipelineResult& run, bool verify_given, int kfold,
+                                  const std::string& residual_model) {
+  using Json = nlohmann::ordered_json;
+  const ContactCalibrationResult& result = run.calibration;
+  const ContactMeasurementSet& identification = run.identification;
+  const ContactParameterization& p = result.parameterization;
+  Json kinds = Json::array(), pivots = Json::array(), planes = Json::array();
+  for (const ContactKindSummary& summary : run.kinds) {
+    kinds.push_back(ContactKindJson(summary, verify_given, kfold));
+  }
+  for (size_t k = 0; k < result.features.pivots.size(); ++k) {
+    const Eigen::Vector3d& c = result.features.pivots[k];
+    Json e;
+    e["name"] = ValidUtf8(identification.pivots[k]);
+    e["xyz_mm"] = {c(0), c(1), c(2)};
+    pivots.push_back(std::move(e));
+  }
+  for (size_t k = 0; k < result.features.planes.size(); ++k) {
+    const Eigen::Vector4d& pl = result.features.planes[k];
+    Json e;
+    e["name"] = ValidUtf8(identification.planes[k]);
+    e["normal"] = {pl(0), pl(1), pl(2)};
+    e["offset_mm"] = pl(3);
+    planes.push_back(std::move(e));
+  }
+  Json left_out = Json::array();
+  for (const Direction& d : p.frames.unidentifiable) {
+    Json e;
+    e["name"] = ValidUtf8(d.name);
+    e["reason"] = d.reason;
+    left_out.push_back(std::move(e));
+  }
+  // The joint-space terms' values (what the YAML's joint_errors carries).
+  Json joint_terms = Json::array();
+  for (size_t b = 0; b < result.joint_terms.size(); ++b) {
+    const JointTermValues& t = result.joint_terms[b];
+    Json e, values = Json::object();
+    e["term"] = t.term->name();
+    e["parameters"] = t.term->num_parameters();
+    e["identified_combinations"] = static_cast<int>(p.frames.joint_blocks[b].basis.cols());
+    for (int k = 0; k < t.theta.size(); ++k) values[t.term->ParameterName(k)] = t.theta(k);
+    e["values"] = std::move(values);
+    joint_terms.push_back(std::move(e));
+  }
+  Json j;
+  j["solver"] = result.solver;
+  j["iterations"] = result.iterations;
+  j["cost_before"] = result.initial_cost;
+  j["cost_after"] = result.cost;
+  j["measurement_kinds"] = std::move(kinds);
+  j["features"]["pivots"] = std::move(pivots);
+  j["features"]["planes"] = std::move(planes);
+  j["parameters"] = p.frames.num_parameters + 3 * p.num_pivots + 3 * p.num_planes;
+  j["base"]["directions_left_out"] = p.num_base_directions;
+  j["base"]["reason"] = p.base_reason;
+  j["scale"]["held"] = p.scale_held;
+  j["scale"]["reason"] = p.scale_reason;
+  j["scale"]["value"] = result.scale;
+  j["left_out"] = std::move(left_out);
+  j["joint_errors"] = std::move(joint_terms);
+  if (run.joint_error_selection.ran) {
+    j["joint_error_selection"] = Json::parse(ContactSelectionJsonText(run.joint_error_selection));
+  }
+  j["residual_layer"] = Json::parse(ContactLayerJsonText(run, residual_model));
+  return j.dump();
 }
 
 }  // namespace tools

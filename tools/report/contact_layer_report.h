@@ -24,6 +24,15 @@ std::string ContactLayerJsonText(const ContactPipelineResult& run, const std::st
 // cv_mse, cv_mse_standard_error), best, chosen, reason, tilt_message; keys in that order. `sel`
 // must have run.
 std::string ContactSelectionJsonText(const JointErrorSelection& sel);
+// The body of a contact calibration's JSON report (JSON text), lpoe_calibrate's and
+// lpoe.calibrate's (each adds its own "tool" and the tool its files): solver, iterations,
+// cost_before, cost_after, measurement_kinds (per kind: the table's figures, the held-out rows'
+// as "verification" with `verify_given` naming its source, the k-fold figures when `kfold` > 0,
+// per pivot or plane), features (pivots, planes), parameters, base, scale, left_out, joint_errors,
+// joint_error_selection (when it ran) and residual_layer (`residual_model`: the option's text);
+// keys in that order. Names are written as valid UTF-8 (ValidUtf8).
+std::string ContactReportJsonText(const ContactPipelineResult& run, bool verify_given, int kfold,
+                                  const std::string& residual_model);
 
 }  // namespace tools
 }  // namespace lpoe

@@ -170,6 +170,11 @@ void ApplyFeatureStep(const ContactParameterization& p, const Eigen::VectorXd& x
 // `nominal`'s joint origins (the geometry the terms' regressors were evaluated on).
 void StoreContactJointTerms(const ContactParameterization& p, const ContactFeatures& features,
                             const RobotModel& nominal, ContactCalibrationResult* result);
+// The end both contact solvers share, at the solution in result->model and result->features: the
+// joint terms stored (StoreContactJointTerms), the rows' errors (ContactErrors) and the scale
+// (ScaleOf against `nominal`).
+void FinishContactCalibration(const RobotModel& nominal, const ContactMeasurementSet& data,
+                              ContactCalibrationResult* result);
 
 ContactCalibrationResult CalibrateContactsLinear(const RobotModel& nominal,
                                                  const ContactMeasurementSet& data,

@@ -181,6 +181,15 @@ std::vector<OptionSpec> MakeOptions() {
       Number(kSimulate, "error_tilt", "0.03", 0, 1, ""),
       Number(kSimulate, "error_zero", "0.03", 0, 1e3, ""),
       // ---- lpoe_compensate.
+      Text(kCompensate, "joints_target", "pose",
+           "Joint-program mode: reach the nominal tool 'pose' or only its 'position'."),
+      Text(kCompensate, "frame", "base",
+           "Frame of the --targets poses and of a --program's poses: base (the model's base "
+           "frame, the chain's base link; carried into the calibrated model's frame by its "
+           "recorded registration) | measurement (the frame of the calibration's measurements, "
+           "e.g. the tracker's) | link:NAME (a base frame of the models, e.g. link:base, "
+           "ur_description's UR controller Base). --program default: link:base for URScript "
+           "when the models have it, else base."),
       Number(kCompensate, "threads", "0", 0, 256,
              "Worker threads (0: all cores; the output order is the input's)."),
       Number(kCompensate, "max_iterations", "100", 1, 10000, "Newton iterations per attempt."),
@@ -194,6 +203,25 @@ std::vector<OptionSpec> MakeOptions() {
              "Smallest singular value (mm per rad; rotation rows weighted 100 mm/rad) below which "
              "a row is 'singular'.", false, true),
       // ---- lpoe_plan.
+      Text(kPlan, "seed", "1",
+           "Seed of the sampled candidates, workspace and random comparison plans."),
+      Text(kPlan, "criterion", "D",
+           "D (default: parameters) | A | E | I (average position variance over the workspace) "
+           "| O1 | O3 (observability indices; see docs/planning.md)."),
+      Text(kPlan, "joint_errors", "none",
+           "Joint-space error terms the calibration will identify: none | a comma-separated "
+           "list of the registry's terms (compliance, harmonics, ...: docs/joint_errors.md) | "
+           "auto, with ',tilt' in a list with compliance for the "
+           "gravity tilt. Their identifiable combinations join the parameters the plan must "
+           "determine (and the predicted accuracy). 'auto' plans for every term lpoe_calibrate "
+           "--joint_errors=auto may choose (all of them; the tilt too when the model carries "
+           "compliance values): a plan that identifies the richest model identifies each of its "
+           "subsets. The tilt's information is proportional to the compliance values, so "
+           "'tilt' needs a --model that carries them (a calibrated model's YAML); with a "
+           "nominal model it is refused (docs/planning.md)."),
+      Text(kPlan, "measurement", "position",
+           "position (a tracker) | ballbar (poses on the --pivots' spheres within the bar's "
+           "stroke) | plane (probe contacts on the --planes' faces); docs/measurements.md."),
       Number(kPlan, "candidate_count", "5000", 1, 1000000,
              "Configurations sampled when no --candidates file is given."),
       Number(kPlan, "workspace_count", "1000", 1, 1000000,

@@ -11,6 +11,7 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
+#include "calibration/joint_term_columns.h"
 #include "contact/contact_kinds.h"
 #include "identifiability/identifiability.h"
 #include "lpoe/distance_measurement.h"
@@ -207,7 +208,17 @@ void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
   int at = 0;
   double S = 0;
   Eigen::RowVectorXd dS = Eigen::RowVectorXd::Zero(std::max(P, 1));
-  std::vector<Eigen::MatrixXd> Y(blocks.size());
+  // The terms' values at the features' state (q_eff = q + sum_b Y_b(q) theta_b, joint_term.h) and
+  // the rows' joint-term columns [Y_b(q) basis_b] (joint_term_columns.h): the tracker solvers' own.
+  std::vector<JointTermValues> theta;
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    if (b < features.joint_theta.size() && features.joint_theta[b].size() > 0) {
+      theta.push_back({blocks[b].term, features.joint_theta[b]});
+    }
+  }
+  internal::JointTermColumns joint_columns;
+  if (!blocks.empty()) joint_columns = internal::JointTermColumns(p.frames, n);
+  Eigen::MatrixXd R;
   Eigen::VectorXd q_eff(n);
   for (int i = 0; i < data.size(); ++i) {
     const ContactRow& row = data.rows[i];
@@ -226,23 +237,12 @@ void ContactLinearize(const RobotModel& model, const ContactFeatures& features,
         S += p.scale_weights.col(i).dot(Xs);
         if (J != nullptr) dS.head(Pf) += p.scale_weights.col(i).transpose() * Jraw.leftCols(Pf);
       }
-      q_eff = Eigen::Map<const Eigen::VectorXd>(q, n);
-      for (size_t b = 0; b < blocks.size(); ++b) {
-        const JointTerm& term = *blocks[b].term;
-        Y[b].resize(n, term.num_parameters());
-        term.Regressor(q, Y[b].data());
-        if (b < features.joint_theta.size() && features.joint_theta[b].size() > 0) {
-          q_eff += Y[b] * features.joint_theta[b];
-        }
-      }
+      EffectiveJointValues(theta, n, q, q_eff.data());
       X = bj.Position(q_eff.data(), row.target, Jp.data(), 3, scratch.data());
       if (J != nullptr) {
         bj.PositionJointJacobian(scratch.data(), Jq.data(), 3);
-        for (size_t b = 0; b < blocks.size(); ++b) {
-          const int k = static_cast<int>(blocks[b].basis.cols());
-          if (k == 0) continue;
-          Jp.middleCols(blocks[b].offset, k) = Jq.leftCols(n) * (Y[b] * blocks[b].basis);
-        }
+        joint_columns.Evaluate(i, q, &R);
+        if (R.cols() > 0) Jp.middleCols(Pf, R.cols()) = Jq.leftCols(n) * R;
       }
     }
     const double w = 1.0 / row.sigma;
@@ -635,6 +635,13 @@ bool StartContactCalibration(const RobotModel& nominal, const ContactMeasurement
   return s.ok();
 }
 
+void FinishContactCalibration(const RobotModel& nominal, const ContactMeasurementSet& data,
+                              ContactCalibrationResult* result) {
+  StoreContactJointTerms(result->parameterization, result->features, nominal, result);
+  result->errors = ContactErrors(result->model, result->features, data);
+  result->scale = ScaleOf(result->model, nominal, data);
+}
+
 ContactCalibrationResult CalibrateContactsLinear(const RobotModel& nominal,
                                                  const ContactMeasurementSet& data,
                                                  const ContactCalibrationOptions& options) {
@@ -710,9 +717,7 @@ ContactCalibrationResult CalibrateContactsLinear(const RobotModel& nominal,
     ContactLinearize(result.model, result.features, p, nominal, data, options, &r, &J);
   }
   result.cost = cost;
-  StoreContactJointTerms(p, result.features, nominal, &result);
-  result.errors = ContactErrors(result.model, result.features, data);
-  result.scale = ScaleOf(result.model, nominal, data);
+  FinishContactCalibration(nominal, data, &result);
   result.ok = converged;
   result.message = converged ? "converged" : "not converged (iteration limit)";
   return result;

@@ -383,12 +383,10 @@ ContactCalibrationResult CalibrateContactsCeres(const RobotModel& nominal,
                                 Eigen::Map<const Eigen::VectorXd>(joint_x[b].data(), k))
               : Eigen::VectorXd::Zero(joint_blocks[b].term->num_parameters()));
   }
-  StoreContactJointTerms(p, result.features, nominal, &result);
   result.iterations = static_cast<int>(summary.iterations.size());
   result.initial_cost = summary.initial_cost;
   result.cost = summary.final_cost;
-  result.errors = ContactErrors(result.model, result.features, data);
-  result.scale = ScaleOf(result.model, nominal, data);
+  FinishContactCalibration(nominal, data, &result);
   result.ok = summary.IsSolutionUsable() && summary.termination_type == ceres::CONVERGENCE;
   result.message = result.ok ? "converged" : summary.message;
   return result;

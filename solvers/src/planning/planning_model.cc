@@ -20,6 +20,7 @@
 #include <glog/logging.h>
 
 #include "calibration/block_kind.h"
+#include "calibration/joint_term_columns.h"
 #include "identifiability/identifiability.h"
 #include "planning/planning_internal.h"
 #include "lpoe/analysis.h"
@@ -136,14 +137,12 @@ void PlanningModel::Rows(const double* q, const std::vector<int>& tools, Eigen::
   J->resize(rows, num_parameters());
   const int n = model_.num_joints();
   std::vector<FrameRt> frames(n + 1);
-  const std::vector<JointBlock>& blocks = parameterization_.joint_blocks;
-  // Y(q) basis per block (num_joints x k_b): the same for every tool.
-  std::vector<Eigen::MatrixXd> Yb(blocks.size());
-  for (size_t b = 0; b < blocks.size(); ++b) {
-    Eigen::MatrixXd Y(n, blocks[b].term->num_parameters());
-    blocks[b].term->Regressor(q, Y.data());
-    Yb[b] = Y * blocks[b].basis;
-  }
+  const bool joint_blocks = !parameterization_.joint_blocks.empty();
+  // The joint-term columns [Y_b(q) basis_b] (num_joints x the blocks' columns), the solvers' own
+  // (joint_term_columns.h): the same for every tool.
+  const int joint_offset = parameterization_.num_frame_parameters();
+  Eigen::MatrixXd R;
+  if (joint_blocks) internal::JointTermColumns(parameterization_, n).Evaluate(0, q, &R);
   // The gravity tilt's joint-space columns at zero tilt and the model's compliance values:
   // d(dq)/dt = sum_a (dg/dt)_a Y_a(q) theta (n x 2), as the solvers' (gravity_tilt.h) at their
   // linearisation point.
@@ -159,11 +158,9 @@ void PlanningModel::Rows(const double* q, const std::vector<int>& tools, Eigen::
   Eigen::Matrix<double, 3, Eigen::Dynamic> J_q(3, n);
   for (size_t k = 0; k < tools.size(); ++k) {
     basis_.Position(q, tools[k], J->data() + 3 * k, rows, frames.data());
-    if (blocks.empty() && !gravity_tilt_) continue;
+    if (!joint_blocks && !gravity_tilt_) continue;
     basis_.PositionJointJacobian(frames.data(), J_q.data(), 3);
-    for (size_t b = 0; b < blocks.size(); ++b) {
-      J->block(3 * k, blocks[b].offset, 3, Yb[b].cols()).noalias() = J_q * Yb[b];
-    }
+    if (R.cols() > 0) J->block(3 * k, joint_offset, 3, R.cols()).noalias() = J_q * R;
     if (gravity_tilt_) J->block(3 * k, tilt_offset, 3, 2).noalias() = J_q * D;
   }
 }
