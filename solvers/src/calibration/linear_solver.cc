@@ -19,6 +19,7 @@
 #include "calibration/problem_setup.h"
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "identifiability/structural_identifiability.h"
 
 namespace lpoe {
@@ -340,7 +341,7 @@ Linearization LinearSolve::Exact() {
 }
 
 Parameterization LinearSolve::IdentifiableBasis(const RobotModel& at) const {
-  const DataKind kind = options_.use_orientation ? DataKind::kPose : DataKind::kPosition;
+  const DataKind kind = TrackerDataKind(TrackerKindId(options_.use_orientation));
   Parameterization pi = MakeParameterization(at, ParameterizationKind::kIdentifiable, kind);
   internal::LeaveOutStructurallyUnidentifiable(setup_.structure, data_, options_.use_orientation,
                                                options_.orientation_weight, &pi);
