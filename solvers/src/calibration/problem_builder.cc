@@ -1,4 +1,3 @@
-#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/problem_builder.h"
 
 #include <algorithm>
@@ -16,6 +15,7 @@
 #include "identifiability/identifiability.h"
 #include "identifiability/structural_identifiability.h"
 #include "lpoe/eigen_decompositions.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/measurement_residual.h"
 #include "calibration/normal_equations.h"
 #include "calibration/problem_setup.h"

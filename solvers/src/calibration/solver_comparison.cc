@@ -1,5 +1,4 @@
 // The linear and the Ceres solver on the same problem (lpoe/solver_comparison.h).
-#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/solver_comparison.h"
 
 #include <algorithm>
@@ -7,6 +6,7 @@
 #include <Eigen/Core>
 
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/parameterization.h"
 
 namespace lpoe {

@@ -156,7 +156,8 @@ std::vector<Direction> StructurallyUnidentifiable(const RobotModel& model,
         if (std::abs(c(idx[j])) < 1e-3) break;
         reason << (j ? ", " : " ") << p.parameters[kept[idx[j]]].name;
       }
-      reason << " with " << (use_orientation ? "pose" : "position") << " data on this chain";
+      reason << " with " << MeasurementKind(TrackerKindId(use_orientation)).name
+             << " data on this chain";
     }
     reason << ": not identified, kept as given";
     // The common case named: a target on the last axis (a UR robot's tool0 measured directly).
