@@ -21,6 +21,7 @@
 #include "lpoe/ceres_solver.h"
 #include "lpoe/io.h"
 #include "lpoe/linear_solver.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/options.h"
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
@@ -482,7 +483,7 @@ void PrintRunHeader(const CalibrationRun& r) {
   }
   std::cout << "solver:         " << FLAGS_solver << ", "
             << ParameterizationName(r.settings.parameterization) << " parameterization, "
-            << (r.use_orientation ? "pose" : "position") << " data\n";
+            << MeasurementKind(TrackerKindId(r.use_orientation)).name << " data\n";
 }
 
 // --prior: the calibrated model's covariance as the pipeline's prior (its chain checked).
@@ -782,7 +783,7 @@ Status StageReports(CalibrationRun* r, bool implausible, Status staged) {
   summary.measurements_path = r->paths.measurements;
   summary.solver = FLAGS_solver;
   summary.parameterization = ParameterizationName(r->settings.parameterization);
-  summary.data_kind = r->use_orientation ? "pose" : "position";
+  summary.data_kind = MeasurementKind(TrackerKindId(r->use_orientation)).name;
   summary.angle_unit = FLAGS_angle_unit;
   const std::string& plot_dir = r->plot_dir;
   if (!plot_dir.empty() && staged.ok()) {

@@ -100,15 +100,17 @@ Figure ContactErrorFigure(const ContactPipelineResult& run, const std::string& h
   Figure figure;
   for (const ContactKindSummary& summary : run.kinds) {
     const MeasurementKindId id = summary.kind->id;
+    // From the kind's line of the table: a kind with a feature (a pivot, a plane) has one signed
+    // residual per row and a series per feature; a tracker kind (no feature) the length of its
+    // error, one series.
+    const bool per_feature = summary.kind->feature_size > 0;
     Panel panel;
     panel.title = summary.kind->report_table;
     panel.x_label = "row";
-    panel.y_label = id == MeasurementKindId::kPosition ? "|error| [mm]" : "error [mm]";
-    panel.zero_line = id != MeasurementKindId::kPosition;
+    panel.y_label = per_feature ? "error [mm]" : "|error| [mm]";
+    panel.zero_line = per_feature;
     panel.integer_x = true;
-    const int num_features = id == MeasurementKindId::kPosition
-                                 ? 1
-                                 : static_cast<int>(summary.features.size());
+    const int num_features = per_feature ? static_cast<int>(summary.features.size()) : 1;
     std::vector<Series> series(num_features);
     Series held;
     held.label = held_label;
@@ -122,7 +124,8 @@ Figure ContactErrorFigure(const ContactPipelineResult& run, const std::string& h
         if (!is_held) {
           // The feature's series (features with identification rows, in the summary's order).
           int k = 0;
-          if (id != MeasurementKindId::kPosition) {
+          if (per_feature) {
+            // The set keeps each feature kind's names apart (pivots, planes).
             const std::vector<std::string>& names =
                 id == MeasurementKindId::kDistance ? set.pivots : set.planes;
             while (k < num_features && summary.features[k].name != names[set.rows[r].feature]) ++k;
@@ -138,10 +141,9 @@ Figure ContactErrorFigure(const ContactPipelineResult& run, const std::string& h
     add(run.identification, run.calibration.errors, false, &index);
     if (!run.held_errors.empty()) add(run.held, run.held_errors, true, &index);
     for (int k = 0; k < num_features; ++k) {
-      series[k].label = id == MeasurementKindId::kPosition
-                            ? std::string("tracker")
-                            : std::string(summary.kind->feature_noun) + " " +
-                                  ValidUtf8(summary.features[k].name);
+      series[k].label = per_feature ? std::string(summary.kind->feature_noun) + " " +
+                                          ValidUtf8(summary.features[k].name)
+                                    : std::string("tracker");
       series[k].rgb = kContactFeatureColors[k % (sizeof(kContactFeatureColors) /
                                                   sizeof(kContactFeatureColors[0]))];
     }

@@ -18,6 +18,7 @@
 #include "lpoe/io.h"
 #include "lpoe/kinematics.h"
 #include "lpoe/linear_solver.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/registration.h"
 #include "lpoe/solver_comparison.h"
@@ -277,7 +278,7 @@ int Run() {
             << " (" << check.size() << " rows)\n"
             << "parameters:     " << c.linear.result.parameterization.num_parameters << " ("
             << ParameterizationName(settings.parameterization) << "), "
-            << (use_orientation ? "pose" : "position") << " data\n\n";
+            << MeasurementKind(TrackerKindId(use_orientation)).name << " data\n\n";
   if (int rc = CheckBothSolved(c); rc != kExitOk) return rc;
 
   const std::vector<tools::RunSummary::ComparisonRow> rows = ComparisonRows(c);

@@ -21,6 +21,7 @@
 #include "lpoe/contact_calibration.h"
 #include "lpoe/contact_measurements.h"
 #include "lpoe/contact_pipeline.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/measurement_kinds.h"
 #include "lpoe/registration.h"
 #include "lpoe/io.h"
@@ -365,7 +366,7 @@ Calibration CalibrationOf(const RecalibrationResult& recalibration, const Calibr
   tools::RunSummary summary;
   summary.solver = s.solver;
   summary.parameterization = ParameterizationName(o.parameterization);
-  summary.data_kind = o.use_orientation ? "pose" : "position";
+  summary.data_kind = MeasurementKind(TrackerKindId(o.use_orientation)).name;
   summary.angle_unit = s.angle_unit;
   summary.verification_source = verification_source;
   tools::AddPipelineResult(run, &summary);

@@ -16,6 +16,7 @@
 #include "lpoe/residual_layer.h"
 #include "lpoe/joint_term.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/measurement_model.h"
 #include "lpoe/measurements.h"
 #include "lpoe/options.h"
@@ -224,7 +225,10 @@ void BindMeasurements(py::module_& m) {
       .def_property_readonly("num_joints", &MeasurementSet::num_joints)
       .def_property_readonly("has_orientation", &MeasurementSet::has_orientation)
       .def_property_readonly(
-          "kind", [](const MeasurementSet& d) { return d.has_orientation() ? "pose" : "position"; },
+          "kind",
+          [](const MeasurementSet& d) {
+            return std::string(MeasurementKind(TrackerKindId(d.has_orientation())).name);
+          },
           "the measurement kind: 'position' or 'pose' (docs/measurements.md)")
       .def_property_readonly("q",
                              [](const MeasurementSet& d) {

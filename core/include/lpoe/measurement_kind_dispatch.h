@@ -50,7 +50,9 @@ template <MeasurementKindId Id>
 using KindOf = typename KindOfId<Id>::type;
 
 // The kind a tracker's rows are solved as: pose when orientations are measured and used, else
-// position.
+// position. This is the one place the user-facing option use_orientation becomes a kind; the
+// tracker solvers then take the kind's residual count, data kind, residual, Jacobian and
+// identifiability rule from it (VisitTrackerKind below, the table's line).
 inline MeasurementKindId TrackerKindId(bool use_orientation) {
   return use_orientation ? MeasurementKindId::kPose : MeasurementKindId::kPosition;
 }
@@ -69,6 +71,30 @@ decltype(auto) VisitMeasurementKind(MeasurementKindId id, F&& f) {
     default:
       return std::forward<F>(f)(KindTag<PositionMeasurement>{});
   }
+}
+
+// The tracker kinds (position, pose: a tool frame measured in the robot's base frame, no unknown
+// feature): f(KindTag<PositionMeasurement or PoseMeasurement>{}). For the code that only tracker
+// kinds have (Observe, Linearize on a BasisJacobian, Make, Simulate): both branches must compile
+// for both tracker kinds only. Dispatch once per solve (one kind per tracker file), not per row.
+template <typename F>
+decltype(auto) VisitTrackerKind(MeasurementKindId id, F&& f) {
+  if (id == MeasurementKindId::kPose) return std::forward<F>(f)(KindTag<PoseMeasurement>{});
+  return std::forward<F>(f)(KindTag<PositionMeasurement>{});
+}
+
+// Whether `id` is a tracker kind (VisitTrackerKind).
+constexpr bool IsTrackerKind(MeasurementKindId id) {
+  return id == MeasurementKindId::kPosition || id == MeasurementKindId::kPose;
+}
+
+// The tracker kind's residuals per row (the table's line: 3 position, 6 pose).
+inline int TrackerResiduals(MeasurementKindId id) { return MeasurementKind(id).residuals; }
+
+// The data kind the tracker kind's parameterization is made for (its header's kData): which frame
+// directions its rows can see (parameterization.h).
+inline DataKind TrackerDataKind(MeasurementKindId id) {
+  return VisitTrackerKind(id, [](auto kind) { return decltype(kind)::type::kData; });
 }
 
 }  // namespace lpoe

@@ -29,9 +29,21 @@ struct PoseMeasurement {
   static constexpr const char* kLeftOutReason = nullptr;
   static constexpr DataKind kData = DataKind::kPose;
   using Observation = SE3d;
+  // The CSV columns of a row's measured values: the position's, then the orientation's unit
+  // quaternion (all four or none; a file with them is pose data).
+  static constexpr const char* kColumns[] = {"x",      "y",      "z",     "quat_x",
+                                             "quat_y", "quat_z", "quat_w"};
 
   double inverse_sigma = 1.0;
   double orientation_weight = 1000.0;
+
+  // The kind with the solver's weights (see PositionMeasurement::Make).
+  static PoseMeasurement Make(double inverse_sigma, double orientation_weight) {
+    PoseMeasurement kind;
+    kind.inverse_sigma = inverse_sigma;
+    kind.orientation_weight = orientation_weight;
+    return kind;
+  }
 
   static Observation Observe(const MeasurementSet& data, int row) { return data.pose(row); }
 
@@ -80,6 +92,26 @@ struct PoseMeasurement {
     if (J_q != nullptr) weigh(J_q, bj.num_joints(), ld_q);
     for (int i = 0; i < 6; ++i) y[i] = e(i);
     return (measured.t - T.t).norm();
+  }
+
+  // Simulation of a row (see PositionMeasurement::Simulate): noise_sigma mm per axis on the
+  // position (three draws), then orientation_noise_sigma rad per axis on the orientation (three
+  // draws, applied in the tool's frame: R exp(w^)).
+  template <typename Gaussian>
+  static void Simulate(const SE3d& actual, const double* q, int target, double noise_sigma,
+                       double orientation_noise_sigma, Gaussian&& gaussian, MeasurementSet* data) {
+    SE3d pose = actual;
+    for (int k = 0; k < 3; ++k) pose.t(k) += noise_sigma * gaussian();
+    Eigen::Vector3d w;
+    for (int k = 0; k < 3; ++k) w(k) = orientation_noise_sigma * gaussian();
+    pose.R = pose.R * ExpSO3(w);
+    data->AddPose(q, pose, target);
+  }
+
+  // The row a perfect tracker gives at q on `model` (see PositionMeasurement::MeasureExactly).
+  static void MeasureExactly(const RobotModel& model, const double* q, int target,
+                             MeasurementSet* data) {
+    data->AddPose(q, ToolPose(model, q, target), target);
   }
 };
 

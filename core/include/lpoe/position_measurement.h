@@ -27,8 +27,19 @@ struct PositionMeasurement {
   static constexpr const char* kLeftOutReason = nullptr;
   static constexpr DataKind kData = DataKind::kPosition;
   using Observation = Eigen::Vector3d;
+  // The CSV columns of a row's measured values (docs/file_formats.md; the table's line lists them
+  // after the joint values): a tracker file with these and no quat_* column is position data.
+  static constexpr const char* kColumns[] = {"x", "y", "z"};
 
   double inverse_sigma = 1.0;  // 1 / sigma (mm): whitening of the Ceres residuals
+
+  // The kind with the solver's weights (the same signature for every tracker kind, so that the
+  // solvers make whichever VisitTrackerKind gives them): position rows have no orientation weight.
+  static PositionMeasurement Make(double inverse_sigma, double /*orientation_weight*/) {
+    PositionMeasurement kind;
+    kind.inverse_sigma = inverse_sigma;
+    return kind;
+  }
 
   static Observation Observe(const MeasurementSet& data, int row) { return data.position(row); }
 
@@ -66,6 +77,25 @@ struct PositionMeasurement {
     y[1] = e(1);
     y[2] = e(2);
     return e.norm();
+  }
+
+  // Simulation of a row: the tracker reads the tool frame `actual` (the true pose at q, eq. (34))
+  // with noise_sigma mm of noise per axis (three draws of gaussian(), N(0, 1), x then y then z),
+  // appended to `data`. (orientation_noise_sigma: the pose kind's; not drawn here.)
+  template <typename Gaussian>
+  static void Simulate(const SE3d& actual, const double* q, int target, double noise_sigma,
+                       double /*orientation_noise_sigma*/, Gaussian&& gaussian,
+                       MeasurementSet* data) {
+    Eigen::Vector3d P = actual.t;
+    for (int k = 0; k < 3; ++k) P(k) += noise_sigma * gaussian();
+    data->Add(q, P, target);
+  }
+
+  // The row a perfect tracker gives at q on `model` (the structural identifiability check's
+  // generic data: only its Jacobian is used).
+  static void MeasureExactly(const RobotModel& model, const double* q, int target,
+                             MeasurementSet* data) {
+    data->Add(q, ToolPosition(model, q, target), target);
   }
 };
 

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstring>
 #include <exception>
+#include <iterator>
 #include <limits>
 #include <string>
 #include <string_view>
@@ -17,6 +18,7 @@
 
 #include "io/file_util.h"
 #include "lpoe/io.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/parallel.h"
 #include "lpoe/csv_rules.h"
 #include "io/parse_util.h"
@@ -52,6 +54,29 @@ constexpr size_t kBlockBytes = size_t{4} << 20;
 constexpr size_t kMinParallelBytes = size_t{64} << 10;
 
 enum class ColumnKind { kQ, kX, kY, kZ, kTarget, kQuatX, kQuatY, kQuatZ, kQuatW, kIgnored };
+
+// The tracker kinds' measured columns are their headers' (kColumns): the position's x, y, z, and
+// the pose's, which are the position's followed by quat_x..quat_w.
+constexpr bool SameColumnName(const char* a, const char* b) {
+  return *a == *b && (*a == '\0' || SameColumnName(a + 1, b + 1));
+}
+constexpr int kNumPositionColumns = static_cast<int>(std::size(PositionMeasurement::kColumns));
+constexpr int kNumPoseColumns = static_cast<int>(std::size(PoseMeasurement::kColumns));
+static_assert(kNumPositionColumns == 3 && kNumPoseColumns == 7,
+              "the reader stores x, y, z and a quaternion");
+static_assert(SameColumnName(PoseMeasurement::kColumns[0], PositionMeasurement::kColumns[0]) &&
+                  SameColumnName(PoseMeasurement::kColumns[1], PositionMeasurement::kColumns[1]) &&
+                  SameColumnName(PoseMeasurement::kColumns[2], PositionMeasurement::kColumns[2]),
+              "pose rows hold the position's columns first");
+
+// Index of `lower` (a lower-case header name) in PoseMeasurement::kColumns within [begin, end);
+// -1 when not there.
+int TrackerColumnIndex(const std::string& lower, int begin, int end) {
+  for (int k = begin; k < end; ++k) {
+    if (lower == PoseMeasurement::kColumns[k]) return k;
+  }
+  return -1;
+}
 
 struct Column {
   ColumnKind kind = ColumnKind::kQ;
@@ -142,7 +167,7 @@ class MeasurementHeader {
     std::vector<int> q_column(num_joints, -1);
     int xyz_column[3] = {-1, -1, -1};
     int quat_column[4] = {-1, -1, -1, -1};
-    static const char* const kQuatNames[4] = {"quat_x", "quat_y", "quat_z", "quat_w"};
+    const char* const* kQuatNames = PoseMeasurement::kColumns + kNumPositionColumns;
     for (size_t c = 0; c < fields.size(); ++c) {
       const std::string_view raw = Trim(fields[c]);
       Column col;
@@ -174,8 +199,7 @@ class MeasurementHeader {
         col.kind = ColumnKind::kQ;
         col.joint = k - 1;
         slot = &q_column[k - 1];
-      } else if (lower == "x" || lower == "y" || lower == "z") {
-        const int axis = lower[0] - 'x';
+      } else if (const int axis = TrackerColumnIndex(lower, 0, kNumPositionColumns); axis >= 0) {
         col.kind = static_cast<ColumnKind>(static_cast<int>(ColumnKind::kX) + axis);
         slot = &xyz_column[axis];
       } else if (lower == "target") {
@@ -185,13 +209,11 @@ class MeasurementHeader {
         col.kind = ColumnKind::kQ;
         col.joint = joint->second;
         slot = &q_column[joint->second];
-      } else {
-        for (int k = 0; k < 4; ++k) {
-          if (lower == kQuatNames[k]) {
-            col.kind = static_cast<ColumnKind>(static_cast<int>(ColumnKind::kQuatX) + k);
-            slot = &quat_column[k];
-          }
-        }
+      } else if (const int k = TrackerColumnIndex(lower, kNumPositionColumns, kNumPoseColumns);
+                 k >= 0) {
+        col.kind = static_cast<ColumnKind>(static_cast<int>(ColumnKind::kQuatX) + k -
+                                           kNumPositionColumns);
+        slot = &quat_column[k - kNumPositionColumns];
       }
       if (slot == nullptr) {
         col.kind = ColumnKind::kIgnored;
@@ -221,8 +243,8 @@ class MeasurementHeader {
     for (int k = 0; k < num_joints; ++k) {
       if (q_column[k] < 0) add_missing("q" + std::to_string(k + 1));
     }
-    for (int a = 0; a < 3; ++a) {
-      if (xyz_column[a] < 0) add_missing(std::string(1, static_cast<char>('x' + a)));
+    for (int a = 0; a < kNumPositionColumns; ++a) {
+      if (xyz_column[a] < 0) add_missing(PositionMeasurement::kColumns[a]);
     }
     if (!missing.empty()) {
       return LineError(source, line_number,
@@ -240,18 +262,19 @@ class MeasurementHeader {
       return LineError(source, line_number, "incomplete orientation: missing " + missing,
                        "all four of quat_x, quat_y, quat_z, quat_w, or none");
     }
-    has_orientation_ = num_quat == 4;
+    // The file's kind (measurement_kinds.h): pose with the quaternion's columns, else position.
+    kind_ = TrackerKindId(num_quat == 4);
     return Status::Ok();
   }
 
   const std::vector<Column>& columns() const { return columns_; }
   const std::vector<std::string>& ignored() const { return ignored_; }
-  bool has_orientation() const { return has_orientation_; }
+  bool has_orientation() const { return kind_ == MeasurementKindId::kPose; }
 
  private:
   std::vector<Column> columns_;
   std::vector<std::string> ignored_;
-  bool has_orientation_ = false;
+  MeasurementKindId kind_ = MeasurementKindId::kPosition;
   int target_column_ = -1;
 };
 
@@ -821,9 +844,18 @@ std::string MeasurementsToCsv(const RobotModel& model, const MeasurementSet& dat
     out += std::to_string(j + 1);
     out += ',';
   }
-  out += "x,y,z,target";
+  // The kind's columns (its header's kColumns): the position's, the target, then the pose's others.
   const bool pose = data.has_orientation();
-  if (pose) out += ",quat_x,quat_y,quat_z,quat_w";
+  const int num_columns = pose ? kNumPoseColumns : kNumPositionColumns;
+  for (int k = 0; k < kNumPositionColumns; ++k) {
+    out += PoseMeasurement::kColumns[k];
+    out += ',';
+  }
+  out += "target";
+  for (int k = kNumPositionColumns; k < num_columns; ++k) {
+    out += ',';
+    out += PoseMeasurement::kColumns[k];
+  }
   out += '\n';
 
   std::vector<std::string> target_text(std::max(model.num_tools(), 0));

@@ -209,11 +209,12 @@ class ContactCsvParser {
                          "q" + std::to_string(j + 1) + " or " + Quote(model_.joints[j].name));
       }
     }
+    // The feature's column (pivot, plane) from the kind's line of the table; the measured value's
+    // (a distance, required; a probe's offset, optional) and its checks are the kind's (Value).
+    feature_column_ = header.Find(kind_->feature_column);
     if (kind_->id == MeasurementKindId::kDistance) {
       value_column_ = header.Find("distance");
-      feature_column_ = header.Find("pivot");
     } else {
-      feature_column_ = header.Find("plane");
       offset_column_ = header.Find("offset");
     }
     target_column_ = header.Find("target");

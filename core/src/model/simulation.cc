@@ -8,6 +8,7 @@
 
 #include "terms/joint_term_kind.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_kind_dispatch.h"
 
 namespace lpoe {
 namespace {
@@ -226,24 +227,22 @@ MeasurementSet SimulateMeasurements(const RobotModel& actual, const std::vector<
   const int count = given.empty() ? options.count : static_cast<int>(given.size() / n) * tools_per_pose;
   data.Reserve(count);
   std::vector<double> q(n), q_actual(n), q_effective(n);
-  for (int r = 0; r < count; ++r) {
-    for (int i = 0; i < n; ++i) {
-      q[i] = given.empty() ? rng.Uniform(lo[i], hi[i]) : given[(r / tools_per_pose) * n + i];
-      q_actual[i] = q[i] + (joint_zero.empty() ? 0.0 : joint_zero[i]);
+  // The rows' measurement kind (position, or pose with options.pose) simulates each row's reading
+  // (its header's Simulate): chosen once.
+  VisitTrackerKind(TrackerKindId(options.pose), [&](auto tag) {
+    using Kind = typename decltype(tag)::type;
+    for (int r = 0; r < count; ++r) {
+      for (int i = 0; i < n; ++i) {
+        q[i] = given.empty() ? rng.Uniform(lo[i], hi[i]) : given[(r / tools_per_pose) * n + i];
+        q_actual[i] = q[i] + (joint_zero.empty() ? 0.0 : joint_zero[i]);
+      }
+      const int target = options.all_tools ? r % actual.num_tools() : 0;
+      EffectiveJoints(actual, q_actual.data(), q_effective.data());
+      Kind::Simulate(ToolPose(actual, q_effective.data(), target),  // eq. (34)
+                     q.data(), target, options.noise_sigma, options.orientation_noise_sigma,
+                     [&rng] { return rng.Gaussian(); }, &data);
     }
-    const int target = options.all_tools ? r % actual.num_tools() : 0;
-    EffectiveJoints(actual, q_actual.data(), q_effective.data());
-    SE3d pose = ToolPose(actual, q_effective.data(), target);  // eq. (34)
-    for (int k = 0; k < 3; ++k) pose.t(k) += options.noise_sigma * rng.Gaussian();
-    if (options.pose) {
-      Eigen::Vector3d w;
-      for (int k = 0; k < 3; ++k) w(k) = options.orientation_noise_sigma * rng.Gaussian();
-      pose.R = pose.R * ExpSO3(w);
-      data.AddPose(q.data(), pose, target);
-    } else {
-      data.Add(q.data(), pose.t, target);
-    }
-  }
+  });
   return data;
 }
 

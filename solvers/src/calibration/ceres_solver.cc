@@ -22,6 +22,7 @@
 #include "calibration/prior_terms.h"
 #include "calibration/problem_setup.h"
 #include "calibration/solve_on_problem.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/problem_builder.h"
 #include "lpoe/statistics.h"
 
@@ -370,7 +371,7 @@ void SetUpWatch(const CalibrationProblem& builder, const ProblemAnalysis& analys
                 const CeresSolverOptions& options, ConvergenceWatch* watch) {
   const Parameterization& all = builder.parameterization();
   const bool full = options.parameterization == ParameterizationKind::kFull;
-  const int per_row = options.use_orientation ? 6 : 3;
+  const int per_row = TrackerResiduals(TrackerKindId(options.use_orientation));
   watch->options = options.convergence;
   watch->p = &all;
   const std::vector<int> sizes = builder.tangent_sizes();
@@ -536,7 +537,7 @@ void SolutionCovariance(CalibrationProblem& builder, const CeresSolverOptions& o
   if (!s.ok()) {
     *message += "; " + s.message();
   } else if (options.a_posteriori_covariance) {
-    const int per_row = options.use_orientation ? 6 : 3;
+    const int per_row = TrackerResiduals(TrackerKindId(options.use_orientation));
     const long dof = static_cast<long>(per_row) * builder.data().size() - identifiable;
     if (dof > 0) {
       result->covariance *= 2.0 * result->final_cost / cost_scale / static_cast<double>(dof);
@@ -553,7 +554,7 @@ void TiltResult(const CalibrationProblem& builder, const CeresSolverOptions& opt
   if (all.gravity_tilt && !options.a_posteriori_covariance &&
       result->gravity_tilt.standard_deviation.maxCoeff() > 0) {
     result->gravity_tilt.a_priori_standard_deviation = result->gravity_tilt.standard_deviation;
-    const int per_row = options.use_orientation ? 6 : 3;
+    const int per_row = TrackerResiduals(TrackerKindId(options.use_orientation));
     const long dof = static_cast<long>(per_row) * builder.data().size() - identifiable;
     result->gravity_tilt.standard_deviation *=
         dof > 0 ? std::sqrt(2.0 * final_cost / static_cast<double>(dof)) : 0.0;

@@ -12,6 +12,7 @@
 #include "identifiability/identifiability.h"
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/joint_errors.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "calibration/normal_equations.h"
 
 namespace lpoe {
@@ -179,7 +180,7 @@ bool CheckGravityTilt(const RobotModel& start, const MeasurementSet& data,
   const Eigen::Matrix2d M = Hs.bottomRightCorner<2, 2>() - B.transpose() * inv.asDiagonal() * B;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> m_eig(M);
   out->kept_fraction = std::sqrt(std::max(0.0, m_eig.eigenvalues()(0)));
-  const int per_row = use_orientation ? 6 : 3;
+  const int per_row = TrackerResiduals(TrackerKindId(use_orientation));
   const long dof = static_cast<long>(per_row) * data.size() - P;
   const double s2 = dof > 0 ? 2.0 * lin.cost / static_cast<double>(dof) : 0.0;
   if (out->kept_fraction >= tolerance && m_eig.eigenvalues()(0) > 0) {

@@ -21,6 +21,7 @@
 #include "lpoe/kinematics.h"
 #include "lpoe/problem_builder.h"
 #include "calibration/solve_on_problem.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "identifiability/structural_identifiability.h"
 
 namespace lpoe {

@@ -17,6 +17,7 @@
 #include "lpoe/joint_term.h"
 #include "lpoe/kernels.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/parallel.h"
 #include "lpoe/pose_measurement.h"
 #include "lpoe/position_measurement.h"
@@ -830,21 +831,19 @@ NormalEquations NormalEquationsOf(const RobotModel& model, const MeasurementSet&
       local = BuildJointSpaceRegressors(p, data);
       regs = &local;
     }
-    if (use_orientation) {
-      PoseMeasurement kind;
-      kind.orientation_weight = orientation_weight;
-      return AccumulateStructured(kind, model, data, p, joint_state, *regs, joint.gradient_only,
-                                  joint.four_rows);
-    }
-    return AccumulateStructured(PositionMeasurement(), model, data, p, joint_state, *regs,
-                                joint.gradient_only, joint.four_rows);
+    // The rows' measurement kind (measurement_kind_dispatch.h), once per solve: each branch is
+    // the kind's inlined Linearize in the loop over the rows.
+    return VisitTrackerKind(TrackerKindId(use_orientation), [&](auto tag) {
+      using Kind = typename decltype(tag)::type;
+      return AccumulateStructured(Kind::Make(1.0, orientation_weight), model, data, p,
+                                  joint_state, *regs, joint.gradient_only, joint.four_rows);
+    });
   }
-  if (use_orientation) {
-    PoseMeasurement kind;
-    kind.orientation_weight = orientation_weight;
-    return Accumulate(kind, model, data, p, joint_state, stack, joint_rows, errors);
-  }
-  return Accumulate(PositionMeasurement(), model, data, p, joint_state, stack, joint_rows, errors);
+  return VisitTrackerKind(TrackerKindId(use_orientation), [&](auto tag) {
+    using Kind = typename decltype(tag)::type;
+    return Accumulate(Kind::Make(1.0, orientation_weight), model, data, p, joint_state, stack,
+                      joint_rows, errors);
+  });
 }
 
 Eigen::MatrixXd JointRegressorRows(const Parameterization& p, const MeasurementSet& data) {

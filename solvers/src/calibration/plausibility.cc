@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/parameterization.h"
 
 namespace lpoe {
@@ -230,7 +231,10 @@ void CheckParameterChanges(const RobotModel& start, const RobotModel& calibrated
     const SE3d& b = f < n ? aligned.joints[f].origin : aligned.tools[f - n].origin;
     const std::string name = f < n ? start.joints[f].name : start.tools[f - n].name;
     const double rot = LogSO3(Eigen::Matrix3d(a.R.transpose() * b.R)).norm();
-    if (rot > worst_rot && (f < n || options.use_orientation)) {
+    // A tool's rotation counts only where the tracker kind sees it (the pose kind's data).
+    const bool sees_rotation =
+        f < n || TrackerDataKind(TrackerKindId(options.use_orientation)) == DataKind::kPose;
+    if (rot > worst_rot && sees_rotation) {
       worst_rot = rot, rot_name = name, rot_f = f;
     }
     if (f < n) {

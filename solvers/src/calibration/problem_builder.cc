@@ -15,6 +15,7 @@
 #include "identifiability/identifiability.h"
 #include "identifiability/structural_identifiability.h"
 #include "lpoe/eigen_decompositions.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/measurement_residual.h"
 #include "calibration/normal_equations.h"
 #include "calibration/problem_setup.h"
@@ -259,11 +260,6 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
           nullptr, blocks));
     }
   }
-  PositionMeasurement position_kind;
-  position_kind.inverse_sigma = 1.0 / options_.sigma;
-  PoseMeasurement pose_kind;
-  pose_kind.inverse_sigma = 1.0 / options_.sigma;
-  pose_kind.orientation_weight = options_.orientation_weight;
   // The rows' joint-term columns [Y_b(q) basis_b] (joint_term_columns.h), from the reduction's
   // slots when it stored them (regressors_: the non-zero entries of d(dq)/d(theta) per row), about
   // 89 x K multiply-adds per row on cobot6 instead of each term's n x P regressor.
@@ -271,22 +267,24 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
   CHECK_EQ(columns.num_columns(), K);
   columns.UseSlots(UsableSlots(regressors_.get(), p, n, data.size(), K));
   if (batch == 1) ids.reserve(data.size());
-  for (int r = 0; batch == 1 && r < data.size(); ++r) {
-    parameters[n] = frame_block(n + data.target(r));
-    // This row's joint columns (data: evaluated once).
-    Eigen::MatrixXd R(n, K);
-    columns.Evaluate(r, data.q(r), &R);
-    // The block kind's row data (block_kind.h: the gravity tilt's, bilinear with compliance).
-    const std::shared_ptr<const GravityTiltRow> tilt =
-        tilt_kind != nullptr ? tilt_kind->CeresRow(p, data.q(r), tilt_block) : nullptr;
-    ceres::CostFunction* cost =
-        options_.use_orientation
-            ? PoseResidual::Create(shared_model, pose_kind, data.q(r), data.pose(r), R,
-                                   block_sizes, tilt)
-            : PositionResidual::Create(shared_model, position_kind, data.q(r), data.position(r),
-                                       R, block_sizes, tilt);
-    ids.push_back(problem->AddResidualBlock(cost, loss, parameters));
-  }
+  // The rows' measurement kind (measurement_kind_dispatch.h): its templated residual, once per
+  // solve.
+  VisitTrackerKind(TrackerKindId(options_.use_orientation), [&](auto tag) {
+    using Kind = typename decltype(tag)::type;
+    const Kind kind = Kind::Make(1.0 / options_.sigma, options_.orientation_weight);
+    for (int r = 0; batch == 1 && r < data.size(); ++r) {
+      parameters[n] = frame_block(n + data.target(r));
+      // This row's joint columns (data: evaluated once).
+      Eigen::MatrixXd R(n, K);
+      columns.Evaluate(r, data.q(r), &R);
+      // The block kind's row data (block_kind.h: the gravity tilt's, bilinear with compliance).
+      const std::shared_ptr<const GravityTiltRow> tilt =
+          tilt_kind != nullptr ? tilt_kind->CeresRow(p, data.q(r), tilt_block) : nullptr;
+      ceres::CostFunction* cost = MeasurementResidual<Kind>::Create(
+          shared_model, kind, data.q(r), Kind::Observe(data, r), R, block_sizes, tilt);
+      ids.push_back(problem->AddResidualBlock(cost, loss, parameters));
+    }
+  });
   // Each block's manifold (the frames' Se3Manifold; the Euclidean kinds add nothing).
   for (ProblemBlock& b : blocks_) b.kind->AddManifold(p, &b, problem);
   return ids;
@@ -439,8 +437,9 @@ ProblemAnalysis CalibrationProblem::AnalyzeWith(const Eigen::MatrixXd* H_solved,
   const Parameterization& p = parameterization_;
   const MeasurementSet& data = *data_;
   const bool full = options_.parameterization == ParameterizationKind::kFull;
-  const DataKind kind = options_.use_orientation ? DataKind::kPose : DataKind::kPosition;
-  const int per_row = options_.use_orientation ? 6 : 3;
+  const MeasurementKindId tracker_kind = TrackerKindId(options_.use_orientation);
+  const DataKind kind = TrackerDataKind(tracker_kind);
+  const int per_row = TrackerResiduals(tracker_kind);
   const RobotModel model = Model();
   ProblemAnalysis out;
   // The identifiable directions of the solved frames (for the full parameterization, its

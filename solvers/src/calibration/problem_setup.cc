@@ -7,6 +7,7 @@
 #include "calibration/block_kind.h"
 #include "calibration/gravity_tilt.h"
 #include "identifiability/identifiability.h"
+#include "lpoe/measurement_kind_dispatch.h"
 
 namespace lpoe {
 namespace internal {
@@ -68,7 +69,7 @@ ProblemSetup SetUpProblem(const RobotModel& nominal, const MeasurementSet& data,
   for (int i = 0; i < n; ++i) s.frame_solved[i] = true;
   for (int r = 0; r < data.size(); ++r) s.frame_solved[n + data.target(r)] = true;
   s.structure = request.structure_reference ? *request.structure_reference : nominal;
-  s.per_row = request.use_orientation ? 6 : 3;
+  s.per_row = TrackerResiduals(TrackerKindId(request.use_orientation));
   s.equations = static_cast<long>(s.per_row) * data.size();
   s.identifiable = s.solved.num_parameters - GaugeDirections(s.solved, s.full);
   s.initial_joint_state = InitialJointState(s.solved, request.initial_joint_terms);

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "lpoe/parameterization.h"
 
 namespace lpoe {
@@ -42,7 +43,7 @@ SolverComparison CompareSolvers(const RobotModel& nominal, const MeasurementSet&
   c.position_difference = MaxPredictionDifference(lin.model, cer.model, check);
   const Parameterization pi = MakeParameterization(
       c.linear.start, ParameterizationKind::kIdentifiable,
-      linear_options.use_orientation ? DataKind::kPose : DataKind::kPosition);
+      TrackerDataKind(TrackerKindId(linear_options.use_orientation)));
   const Eigen::VectorXd dx = ParameterDifference(pi, lin.model, cer.model);
   Eigen::Index worst = 0;
   c.parameter_difference = dx.size() ? dx.cwiseAbs().maxCoeff(&worst) : 0.0;

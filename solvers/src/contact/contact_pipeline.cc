@@ -5,6 +5,7 @@
 
 #include "lpoe/joint_errors.h"
 #include "lpoe/joint_term.h"
+#include "lpoe/measurement_kind_dispatch.h"
 
 #include <algorithm>
 #include <cmath>
@@ -23,9 +24,9 @@ ContactKindFigures ContactFigures(const ContactMeasurementSet& data,
     if (data.rows[r].kind != kind) continue;
     if (feature >= 0 && data.rows[r].feature != feature) continue;
     ++f.rows;
-    // Position rows: |e| over three axes; the RMS per axis.
+    // |e| over the kind's residuals (three axes for position rows); the RMS per residual.
     const double e = errors[r];
-    sum += kind == MeasurementKindId::kPosition ? e * e / 3 : e * e;
+    sum += e * e / MeasurementKind(kind).residuals;
     f.max_abs = std::max(f.max_abs, std::abs(e));
     sigmas.push_back(data.rows[r].sigma);
   }
@@ -421,7 +422,7 @@ Status ReadContactInputs(const std::vector<std::string>& files, const RobotModel
     }
     out->kinds.push_back(kind->name);
     ContactMeasurementSet part;
-    if (kind->id == MeasurementKindId::kDistance || kind->id == MeasurementKindId::kPlane) {
+    if (!IsTrackerKind(kind->id)) {  // a kind with a feature: the contact reader
       ContactCsvOptions o;
       o.units = options.units;
       o.kind = kind;

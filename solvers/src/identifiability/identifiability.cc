@@ -14,6 +14,7 @@
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/householder.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "identifiability/structural_identifiability.h"
 
 namespace lpoe {
@@ -176,7 +177,7 @@ Parameterization SolverParameterization(const RobotModel& nominal, const Measure
   NormalEquations* analysed = request.analysed;
   JointSpaceRegressors* regressors = request.regressors;
   Parameterization* analysed_parameterization = request.analysed_parameterization;
-  const DataKind data_kind = use_orientation ? DataKind::kPose : DataKind::kPosition;
+  const DataKind data_kind = TrackerDataKind(TrackerKindId(use_orientation));
   Parameterization p = MakeParameterization(nominal, kind, data_kind);
   // The structural check (a Jacobian at generic configurations and its Gram-Schmidt) once for both
   // parameterizations below: its result depends on the chain, the data's tools and the data kind.

@@ -14,6 +14,7 @@
 #include "lpoe/analysis.h"
 #include "lpoe/eigen_decompositions.h"
 #include "lpoe/kinematics.h"
+#include "lpoe/measurement_kind_dispatch.h"
 #include "calibration/normal_equations.h"
 
 namespace lpoe {
@@ -37,18 +38,15 @@ MeasurementSet GenericMeasurements(const RobotModel& model, const std::vector<in
   std::mt19937_64 rng(20220901);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   std::vector<double> q(n);
-  for (int c = 0; c < configurations; ++c) {
-    for (int i = 0; i < n; ++i) {
-      q[i] = unit(rng) * (model.joints[i].type == JointType::kRevolute ? M_PI : kGenericStrokeMm);
-    }
-    for (int t : tools) {
-      if (use_orientation) {
-        g.AddPose(q.data(), ToolPose(model, q.data(), t), t);
-      } else {
-        g.Add(q.data(), ToolPosition(model, q.data(), t), t);
+  VisitTrackerKind(TrackerKindId(use_orientation), [&](auto tag) {
+    using Kind = typename decltype(tag)::type;
+    for (int c = 0; c < configurations; ++c) {
+      for (int i = 0; i < n; ++i) {
+        q[i] = unit(rng) * (model.joints[i].type == JointType::kRevolute ? M_PI : kGenericStrokeMm);
       }
+      for (int t : tools) Kind::MeasureExactly(model, q.data(), t, &g);
     }
-  }
+  });
   return g;
 }
 
@@ -81,7 +79,7 @@ std::vector<Direction> StructurallyUnidentifiable(const RobotModel& model,
   for (int t = 0; t < model.num_tools(); ++t) {
     if (measured[t]) tools.push_back(t);
   }
-  const DataKind kind = use_orientation ? DataKind::kPose : DataKind::kPosition;
+  const DataKind kind = TrackerDataKind(TrackerKindId(use_orientation));
   const Parameterization p = MakeParameterization(model, ParameterizationKind::kIdentifiable, kind);
   const MeasurementSet g = GenericMeasurements(model, tools, use_orientation,
                                                std::max(kGenericConfigurations, p.num_parameters));
@@ -158,7 +156,8 @@ std::vector<Direction> StructurallyUnidentifiable(const RobotModel& model,
         if (std::abs(c(idx[j])) < 1e-3) break;
         reason << (j ? ", " : " ") << p.parameters[kept[idx[j]]].name;
       }
-      reason << " with " << (use_orientation ? "pose" : "position") << " data on this chain";
+      reason << " with " << MeasurementKind(TrackerKindId(use_orientation)).name
+             << " data on this chain";
     }
     reason << ": not identified, kept as given";
     // The common case named: a target on the last axis (a UR robot's tool0 measured directly).
@@ -205,7 +204,7 @@ RobotModel StructureReference(const RobotModel& estimate, const MeasurementSet& 
 }
 
 double RmsPerAxisOfCost(double cost, const MeasurementSet& data, bool use_orientation) {
-  const double per_row = use_orientation ? 6.0 : 3.0;
+  const double per_row = TrackerResiduals(TrackerKindId(use_orientation));
   if (data.empty() || !(cost >= 0)) return INFINITY;
   return std::sqrt(2.0 * cost / (per_row * data.size()));
 }
