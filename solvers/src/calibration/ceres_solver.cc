@@ -42,18 +42,7 @@ namespace internal {
 
 CalibrationProblemOptions CeresProblemOptions(const CeresSolverOptions& options, int rows) {
   CalibrationProblemOptions o;
-  o.parameterization = options.parameterization;
-  o.use_orientation = options.use_orientation;
-  o.orientation_weight = options.orientation_weight;
-  o.sigma = options.sigma;
-  o.loss = options.loss;
-  o.loss_scale = options.loss_scale;
-  o.joint_terms = options.joint_terms;
-  o.joint_term_tolerance = options.joint_term_tolerance;
-  o.gravity_tilt = options.gravity_tilt;
-  o.initial_joint_terms = options.initial_joint_terms;
-  o.structure_reference = options.structure_reference;
-  o.prior = options.prior;
+  static_cast<ProblemCostOptions&>(o) = options;  // the decisions, sigma and the loss
   o.rows_per_block = options.rows_per_block > 0                   ? options.rows_per_block
                      : rows >= CeresSolverOptions::kBatchFromRows ? 1024
                                                                    : 1;
