@@ -589,21 +589,7 @@ CalibrationResult CalibrateCeresOn(CalibrationProblem* problem_in,
   }
   // The problem's decisions, sigma and loss, read below through `options` as before.
   CeresSolverOptions options = options_in;
-  {
-    const CalibrationProblemOptions& po = builder.options();
-    options.parameterization = po.parameterization;
-    options.use_orientation = po.use_orientation;
-    options.orientation_weight = po.orientation_weight;
-    options.sigma = po.sigma;
-    options.loss = po.loss;
-    options.loss_scale = po.loss_scale;
-    options.joint_terms = po.joint_terms;
-    options.joint_term_tolerance = po.joint_term_tolerance;
-    options.gravity_tilt = po.gravity_tilt;
-    options.initial_joint_terms = po.initial_joint_terms;
-    options.structure_reference = po.structure_reference;
-    options.prior = po.prior;
-  }
+  static_cast<ProblemCostOptions&>(options) = builder.options();
   CalibrationResult result;
   result.model = builder.Model();
   auto finish = [&](Termination t, const std::string& message) {
