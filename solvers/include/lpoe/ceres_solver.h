@@ -29,21 +29,15 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/convergence.h"
 #include "lpoe/prior.h"
+#include "lpoe/problem_options.h"
 #include "lpoe/status.h"
 
 namespace lpoe {
 
-struct CeresSolverOptions {
-  ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
-  // Pose residuals (needs measured orientations); else position residuals.
-  bool use_orientation = false;
-  // 1 rad of orientation error counts as this many mm (pose data), as in LinearSolverOptions.
-  double orientation_weight = 1000.0;
-  // The chain whose structurally unidentifiable directions are left out
-  // (solvers/src/identifiability/structural_identifiability.h); null: the model solved. The pipeline passes the
-  // nominal model: registration moves the tools by the noise, so that a tool on the last axis would
-  // look slightly off it, and the axis' tilt weakly "identified" from noise. Not owned.
-  const RobotModel* structure_reference = nullptr;
+// The problem's decisions and its cost (parameterization, use_orientation, orientation_weight,
+// structure_reference, joint_terms, joint_term_tolerance, gravity_tilt, initial_joint_terms, prior;
+// sigma, loss, loss_scale) are the bases' (problem_options.h); the fields below are how to solve.
+struct CeresSolverOptions : ProblemCostOptions {
   // Ceres linear solver: auto | dense_qr | dense_normal_cholesky | sparse_normal_cholesky |
   // dense_schur | sparse_schur | iterative_schur | cgnr. The problem is small and dense (every
   // residual touches every joint frame). `auto` (CeresLinearSolverFor) takes
@@ -61,15 +55,7 @@ struct CeresSolverOptions {
   // terms), where the per-row blocks' overhead dominates; the result is the same either way.
   int rows_per_block = 0;
   static constexpr int kBatchFromRows = 20000;
-  // Robust loss on each measurement's squared whitened residual: none | huber | cauchy.
-  std::string loss = "none";
-  // Scale of the robust loss, in mm: errors well below it count as least squares, errors above it
-  // are down-weighted. Passed to Ceres as loss_scale / sigma (the residuals are whitened).
-  double loss_scale = 1.0;
   int max_iterations = 100;
-  // Standard deviation of the measurement noise per axis (mm): the residuals are divided by it, so
-  // the cost is a chi-square and the covariance is that of the parameters (a priori).
-  double sigma = 1.0;
   // Covariance of the identified parameters at the solution (ceres::Covariance, DENSE_SVD).
   bool compute_covariance = true;
   // Scale the covariance by the a-posteriori variance factor s^2 = 2 cost / (m - p) (cost in
@@ -89,28 +75,10 @@ struct CeresSolverOptions {
   // Refuse data whose column-scaled Jacobian (identifiable basis, nominal model) has a larger
   // condition number, as CalibrateLinear does.
   double max_condition_number = 1e8;
-  // Joint-space error terms identified with the frames (joint_term.h): each becomes a parameter
-  // block reduced to the combinations the data separate from the geometry and from the earlier
-  // terms; a combination keeping less than `joint_term_tolerance` of its column's norm (column
-  // scaled, once the geometry is projected out) is left out and reported in
-  // result.parameterization.unidentifiable.
-  std::vector<std::shared_ptr<const JointTerm>> joint_terms;
-  double joint_term_tolerance = 1e-4;
-  // The gravity tilt (docs/joint_errors.md, "Gravity tilt"), identified with the term named
-  // "compliance" in joint_terms (required), which must be built on gravity_tilt->reference(). Its
-  // columns vanish where the compliance values are zero, so start from a compliance solution
-  // (initial_joint_terms). Null: gravity as the model gives it.
-  std::shared_ptr<const GravityTiltModel> gravity_tilt;
-  // Values of joint_terms to start from (same order and terms; empty: zero).
-  std::vector<JointTermValues> initial_joint_terms;
   // Ceres's per-iteration progress on stdout.
   // Called after every accepted iteration (e.g. for a progress line).
   std::function<void(const IterationRecord&)> on_iteration;
   bool verbose = false;
-  // A Gaussian prior on the parameters' deviation from a reference model (lpoe/prior.h), as in
-  // LinearSolverOptions: one prior residual block per solved frame and joint block, weighted so
-  // that both solvers minimise the same cost. Identifiable parameterization only.
-  std::shared_ptr<const ParameterPrior> prior;
 };
 
 // Checks the string options and ranges (user input): linear_solver and loss names, sigma > 0,

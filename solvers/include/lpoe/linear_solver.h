@@ -23,6 +23,7 @@
 #include "lpoe/joint_errors.h"
 #include "lpoe/convergence.h"
 #include "lpoe/prior.h"
+#include "lpoe/problem_options.h"
 #include "lpoe/statistics.h"
 
 namespace lpoe {
@@ -42,13 +43,10 @@ struct LinearSolverErrors {
   PositionErrorRows final_errors;
 };
 
-struct LinearSolverOptions {
-  ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
-  // Use the measured orientations too (pose-based model, eqs. (17)-(24)); requires pose data.
-  bool use_orientation = false;
-  // Weight of the orientation residual (rad) against the position residual (mm) in pose mode: an
-  // orientation error of 1 rad counts as `orientation_weight` mm. Default: 1000 mm per rad (a 1 m arm).
-  double orientation_weight = 1000.0;
+// The problem's decisions (parameterization, use_orientation, orientation_weight,
+// structure_reference, joint_terms, joint_term_tolerance, gravity_tilt, initial_joint_terms, prior)
+// are the base's (problem_options.h); the fields below are how to solve.
+struct LinearSolverOptions : ProblemDefinitionOptions {
   int max_iterations = 30;
   // Stop when ||x|| < step_tolerance (x mixes rad and mm; both are small near convergence), or on
   // one of the rules of convergence.h that fit large-residual data (convergence.step_tolerance is
@@ -65,28 +63,9 @@ struct LinearSolverOptions {
   // Solve only these directions instead of `parameterization` (e.g. the base and tool frames during
   // registration, see registration.h). Not owned; must outlive the call.
   const Parameterization* parameterization_override = nullptr;
-  // The chain whose structurally unidentifiable directions are left out
-  // (solvers/src/identifiability/structural_identifiability.h); null: the model solved. The pipeline passes the
-  // nominal model: registration moves the tools by the noise, so that a tool on the last axis would
-  // look slightly off it, and the axis' tilt weakly "identified" from noise. Not owned.
-  const RobotModel* structure_reference = nullptr;
   // Estimate the covariance of the identified parameters at the solution:
   // s^2 (J^T J)^-1 with the a-posteriori variance factor s^2 = |y|^2 / (rows - parameters).
   bool compute_covariance = true;
-  // Joint-space error terms identified with the frames (joint_term.h): each becomes a parameter
-  // block reduced to the combinations the data separate from the geometry and from the earlier
-  // terms; a combination keeping less than `joint_term_tolerance` of its column's norm (column
-  // scaled, once the geometry is projected out) is left out and reported in
-  // result.parameterization.unidentifiable.
-  std::vector<std::shared_ptr<const JointTerm>> joint_terms;
-  double joint_term_tolerance = 1e-4;
-  // The gravity tilt (docs/joint_errors.md, "Gravity tilt"), identified with the term named
-  // "compliance" in joint_terms (required), which must be built on gravity_tilt->reference(). Its
-  // columns vanish where the compliance values are zero, so start from a compliance solution
-  // (initial_joint_terms). Null: gravity as the model gives it.
-  std::shared_ptr<const GravityTiltModel> gravity_tilt;
-  // Values of joint_terms to start from (same order and terms; empty: zero).
-  std::vector<JointTermValues> initial_joint_terms;
   // Called after every iteration (e.g. for a progress line).
   std::function<void(const IterationRecord&)> on_iteration;
   // When not null: filled as described there. Not owned.
@@ -101,10 +80,6 @@ struct LinearSolverOptions {
   // are in the history with their row count (IterationRecord::rows). The solution is that of the
   // solve without it to within the convergence tolerance. warm_start_rows = 0: never.
   int warm_start_min_rows = 100000;
-  // A Gaussian prior on the parameters' deviation from a reference model (lpoe/prior.h): the
-  // solve is then a maximum-a-posteriori estimate. Null: plain least squares. Identifiable
-  // parameterization only (the full one stays the paper's pseudo-inverse: CHECKed).
-  std::shared_ptr<const ParameterPrior> prior;
   int warm_start_rows = 20000;
 };
 

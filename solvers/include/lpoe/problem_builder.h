@@ -41,6 +41,7 @@
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/prior.h"
+#include "lpoe/problem_options.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/se3_manifold.h"
 #include "lpoe/status.h"
@@ -55,37 +56,11 @@ struct NormalEquationsOptions;
 struct ProblemSetup;  // solvers/src/calibration/problem_setup.h
 }  // namespace internal
 
-struct CalibrationProblemOptions {
-  ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
-  // Pose residuals (needs measured orientations); else position residuals.
-  bool use_orientation = false;
-  // 1 rad of orientation error counts as this many mm (pose data).
-  double orientation_weight = 1000.0;
-  // The chain whose structurally unidentifiable directions are left out (as in
-  // CeresSolverOptions); null: the model solved. Not owned.
-  const RobotModel* structure_reference = nullptr;
-  // Standard deviation of the measurement noise per axis (mm): residuals are divided by it.
-  double sigma = 1.0;
-  // Robust loss of each residual block: none | huber | cauchy, with its scale in mm.
-  std::string loss = "none";
-  double loss_scale = 1.0;
-  // Joint-space error terms (joint_term.h), each reduced to the combinations the data separate
-  // from the geometry (identifiability.h); a combination keeping less than `joint_term_tolerance`
-  // of its column's norm is left out and listed in parameterization().unidentifiable.
-  std::vector<std::shared_ptr<const JointTerm>> joint_terms;
-  double joint_term_tolerance = 1e-4;
-  // The gravity tilt (docs/joint_errors.md, "Gravity tilt"), identified with the term named
-  // "compliance" in joint_terms (required), which must be built on gravity_tilt->reference(). Its
-  // columns vanish where the compliance values are zero, so start from a compliance solution
-  // (initial_joint_terms); one more parameter block of 2
-  // (tilt_block()). Null: gravity as the model gives it.
-  std::shared_ptr<const GravityTiltModel> gravity_tilt;
-  // Values of joint_terms to start from (same order and terms; empty: zero).
-  std::vector<JointTermValues> initial_joint_terms;
-  // A Gaussian prior (lpoe/prior.h), resolved once with the other decisions (identifiable
-  // parameterization only; its reference the nominal model unless it has one). The problem adds no
-  // residuals for it: the caller does (CalibrateCeres). Null: none.
-  std::shared_ptr<const ParameterPrior> prior;
+// The problem's decisions and its cost are the bases' (problem_options.h), shared with the solvers'
+// options: a solver passes its share by assigning the base. The prior is resolved once with the
+// other decisions (its reference the nominal model unless it has one); the problem adds no
+// residuals for it: the caller does (CalibrateCeres).
+struct CalibrationProblemOptions : ProblemCostOptions {
   // Rows per residual block of AddTo(). 1: one block per row. More: position data without a loss
   // and without joint terms go in blocks of this many consecutive rows (the last one shorter), each
   // with the analytic Jacobian of the measurement model over all solved frames; otherwise one

@@ -43,18 +43,7 @@ namespace internal {
 
 CalibrationProblemOptions CeresProblemOptions(const CeresSolverOptions& options, int rows) {
   CalibrationProblemOptions o;
-  o.parameterization = options.parameterization;
-  o.use_orientation = options.use_orientation;
-  o.orientation_weight = options.orientation_weight;
-  o.sigma = options.sigma;
-  o.loss = options.loss;
-  o.loss_scale = options.loss_scale;
-  o.joint_terms = options.joint_terms;
-  o.joint_term_tolerance = options.joint_term_tolerance;
-  o.gravity_tilt = options.gravity_tilt;
-  o.initial_joint_terms = options.initial_joint_terms;
-  o.structure_reference = options.structure_reference;
-  o.prior = options.prior;
+  static_cast<ProblemCostOptions&>(o) = options;  // the decisions, sigma and the loss
   o.rows_per_block = options.rows_per_block > 0                   ? options.rows_per_block
                      : rows >= CeresSolverOptions::kBatchFromRows ? 1024
                                                                    : 1;
@@ -594,21 +583,7 @@ CalibrationResult CalibrateCeresOn(CalibrationProblem* problem_in,
   }
   // The problem's decisions, sigma and loss, read below through `options` as before.
   CeresSolverOptions options = options_in;
-  {
-    const CalibrationProblemOptions& po = builder.options();
-    options.parameterization = po.parameterization;
-    options.use_orientation = po.use_orientation;
-    options.orientation_weight = po.orientation_weight;
-    options.sigma = po.sigma;
-    options.loss = po.loss;
-    options.loss_scale = po.loss_scale;
-    options.joint_terms = po.joint_terms;
-    options.joint_term_tolerance = po.joint_term_tolerance;
-    options.gravity_tilt = po.gravity_tilt;
-    options.initial_joint_terms = po.initial_joint_terms;
-    options.structure_reference = po.structure_reference;
-    options.prior = po.prior;
-  }
+  static_cast<ProblemCostOptions&>(options) = builder.options();
   CalibrationResult result;
   result.model = builder.Model();
   auto finish = [&](Termination t, const std::string& message) {

@@ -613,22 +613,17 @@ CalibrationResult LinearSolve::Run() {
   return Stopped(Termination::kMaxIterations, options_.max_iterations, os.str());
 }
 
-// The problem's options of the linear solver's (sigma 1: the linear solver's cost is in mm^2).
-CalibrationProblemOptions ProblemOptionsOf(const LinearSolverOptions& options) {
+}  // namespace
+
+namespace internal {
+
+CalibrationProblemOptions LinearProblemOptions(const LinearSolverOptions& options) {
   CalibrationProblemOptions o;
-  o.parameterization = options.parameterization;
-  o.use_orientation = options.use_orientation;
-  o.orientation_weight = options.orientation_weight;
-  o.structure_reference = options.structure_reference;
-  o.joint_terms = options.joint_terms;
-  o.joint_term_tolerance = options.joint_term_tolerance;
-  o.gravity_tilt = options.gravity_tilt;
-  o.initial_joint_terms = options.initial_joint_terms;
-  o.prior = options.prior;
+  static_cast<ProblemDefinitionOptions&>(o) = options;  // sigma 1, no loss: ProblemCostOptions' defaults
   return o;
 }
 
-}  // namespace
+}  // namespace internal
 
 CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSet& data,
                                   const LinearSolverOptions& options) {
@@ -663,7 +658,7 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   if (!setup->tilt_status.ok()) {
     return finish(Termination::kNotIdentifiable, setup->tilt_status.message());
   }
-  CalibrationProblem problem(nominal, data, ProblemOptionsOf(options), std::move(setup));
+  CalibrationProblem problem(nominal, data, internal::LinearProblemOptions(options), std::move(setup));
   return LinearSolve(&problem, options, &result, start).Run();
 }
 

@@ -131,8 +131,7 @@ class PipelineSolve {
         start_(nominal),
         measured_(nominal.num_tools(), false) {
     for (int r = 0; r < data.size(); ++r) measured_[data.target(r)] = true;
-    orientation_weight_ = options.solver == SolverKind::kCeres ? options.ceres.orientation_weight
-                                                               : options.linear.orientation_weight;
+    orientation_weight_ = Chosen().orientation_weight;
   }
   CalibrationResult Run(RegistrationReport* registration);
 
@@ -150,13 +149,23 @@ class PipelineSolve {
   void AnchorPrior();
   // The joint-space terms asked for, on the start; false with *failed set when one is refused.
   bool MakeTerms(CalibrationResult* failed);
+  // The chosen solver's share of the options (problem_options.h): where the problem's decisions
+  // the pipeline does not make itself (orientation_weight, joint_term_tolerance) are read.
+  const ProblemDefinitionOptions& Chosen() const {
+    if (options_.solver == SolverKind::kCeres) return options_.ceres;
+    return options_.linear;
+  }
+  // Every decision of one solve, in one place: Chosen() with the pipeline's own (parameterization,
+  // orientation, terms, structure reference, prior; with `tilt_model` the gravity tilt from the
+  // joint values `initial`). Both the problem and the solver's options take it whole.
+  ProblemDefinitionOptions Decisions(std::shared_ptr<const GravityTiltModel> tilt_model,
+                                     const std::vector<JointTermValues>& initial) const;
   // One solve; with `tilt_model` the gravity tilt from the joint values `initial`.
   CalibrationResult Once(std::shared_ptr<const GravityTiltModel> tilt_model,
                          const std::vector<JointTermValues>& initial);
   // The one problem of a solve, for either solver (null when the options do not pass
   // ValidateCalibrationProblem: the solver's own entry then reports why, as it always did).
-  std::unique_ptr<CalibrationProblem> Problem(std::shared_ptr<const GravityTiltModel> tilt_model,
-                                              const std::vector<JointTermValues>& initial) const;
+  std::unique_ptr<CalibrationProblem> Problem(const ProblemDefinitionOptions& decisions) const;
   CalibrationResult OnceLinear(CalibrationProblem* problem, LinearSolverOptions o, bool tilt);
   // Rounds of the decision at the solution, solved again while it differs.
   void SettleStructure(CalibrationResult* result);
@@ -321,20 +330,16 @@ constexpr double kTiltSdFraction = 1e-2;
 
 CalibrationResult PipelineSolve::Once(std::shared_ptr<const GravityTiltModel> tilt_model,
                                       const std::vector<JointTermValues>& initial) {
-  // The settings both solvers' options share (the same member names in each).
+  // Every decision once, in one problem, whichever solver takes it; the solver's options carry the
+  // same decisions (their ProblemDefinitionOptions base), for a solver's own entry when the problem
+  // is refused.
+  const ProblemDefinitionOptions decisions = Decisions(tilt_model, initial);
   auto common = [&](auto& o) {
-    o.parameterization = options_.parameterization;
-    o.use_orientation = options_.use_orientation;
+    static_cast<ProblemDefinitionOptions&>(o) = decisions;
     o.on_iteration = progress_;
-    o.joint_terms = terms_;
-    o.structure_reference = &reference_;
-    o.gravity_tilt = tilt_model;
-    o.initial_joint_terms = initial;
-    o.prior = prior_;
     if (tilt_model) o.convergence.sd_fraction *= kTiltSdFraction;
   };
-  // Every decision once, in one problem, whichever solver takes it.
-  const std::unique_ptr<CalibrationProblem> problem = Problem(tilt_model, initial);
+  const std::unique_ptr<CalibrationProblem> problem = Problem(decisions);
   if (options_.solver == SolverKind::kCeres) {
     CeresSolverOptions o = options_.ceres;
     common(o);
@@ -345,22 +350,25 @@ CalibrationResult PipelineSolve::Once(std::shared_ptr<const GravityTiltModel> ti
   return OnceLinear(problem.get(), std::move(o), tilt_model != nullptr);
 }
 
-std::unique_ptr<CalibrationProblem> PipelineSolve::Problem(
+ProblemDefinitionOptions PipelineSolve::Decisions(
     std::shared_ptr<const GravityTiltModel> tilt_model,
     const std::vector<JointTermValues>& initial) const {
-  const bool ceres = options_.solver == SolverKind::kCeres;
+  ProblemDefinitionOptions d = Chosen();
+  d.parameterization = options_.parameterization;
+  d.use_orientation = options_.use_orientation;
+  d.joint_terms = terms_;
+  d.structure_reference = &reference_;
+  d.gravity_tilt = std::move(tilt_model);
+  d.initial_joint_terms = initial;
+  d.prior = prior_;
+  return d;
+}
+
+std::unique_ptr<CalibrationProblem> PipelineSolve::Problem(
+    const ProblemDefinitionOptions& decisions) const {
   // Ceres's share (sigma, loss, rows per block) is read by the Ceres solver only.
   CalibrationProblemOptions o = internal::CeresProblemOptions(options_.ceres, data_.size());
-  o.parameterization = options_.parameterization;
-  o.use_orientation = options_.use_orientation;
-  o.orientation_weight = orientation_weight_;
-  o.joint_term_tolerance =
-      ceres ? options_.ceres.joint_term_tolerance : options_.linear.joint_term_tolerance;
-  o.joint_terms = terms_;
-  o.structure_reference = &reference_;
-  o.gravity_tilt = std::move(tilt_model);
-  o.initial_joint_terms = initial;
-  o.prior = prior_;
+  static_cast<ProblemDefinitionOptions&>(o) = decisions;
   if (!ValidateCalibrationProblem(start_, data_, o).ok()) return nullptr;
   return std::make_unique<CalibrationProblem>(start_, data_, o);
 }
@@ -425,9 +433,7 @@ void PipelineSolve::SettleStructure(CalibrationResult* result) {
 }
 
 CalibrationResult PipelineSolve::SolveTilt(CalibrationResult result) {
-  const double tolerance = options_.solver == SolverKind::kCeres
-                               ? options_.ceres.joint_term_tolerance
-                               : options_.linear.joint_term_tolerance;
+  const double tolerance = Chosen().joint_term_tolerance;
   // The tilt's block kind's rule at the compliance solution (block_kind.h).
   CalibrationResult checked;
   checked.gravity_tilt.requested = true;

@@ -19,41 +19,25 @@
 #include "lpoe/measurements.h"
 #include "lpoe/parameterization.h"
 #include "lpoe/prior.h"
+#include "lpoe/problem_options.h"
 #include "lpoe/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {
 namespace internal {
 
-// What decides (the solvers' options share these field names: ProblemSetupRequestOf).
-struct ProblemSetupRequest {
-  ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
-  bool use_orientation = false;
-  double orientation_weight = 1000.0;
-  const RobotModel* structure_reference = nullptr;  // null: the nominal model
-  std::vector<std::shared_ptr<const JointTerm>> joint_terms;
-  double joint_term_tolerance = 1e-4;
-  std::shared_ptr<const GravityTiltModel> gravity_tilt;
-  std::vector<JointTermValues> initial_joint_terms;
-  // Identifiable parameterization only (ignored for the full one).
-  std::shared_ptr<const ParameterPrior> prior;
+// What decides: the problem's decisions (problem_options.h, the base of both solvers' options and
+// of CalibrationProblemOptions) and the directions given.
+struct ProblemSetupRequest : ProblemDefinitionOptions {
   // The directions solved, given (frames only; the linear solver's registration and warm start):
   // no reduction, no tools left out, no tilt. Not owned.
   const Parameterization* parameterization_override = nullptr;
 };
 
-template <typename Options>
-ProblemSetupRequest ProblemSetupRequestOf(const Options& options) {
+// The request of a solver's or the problem's options: their decisions, assigned whole.
+inline ProblemSetupRequest ProblemSetupRequestOf(const ProblemDefinitionOptions& options) {
   ProblemSetupRequest r;
-  r.parameterization = options.parameterization;
-  r.use_orientation = options.use_orientation;
-  r.orientation_weight = options.orientation_weight;
-  r.structure_reference = options.structure_reference;
-  r.joint_terms = options.joint_terms;
-  r.joint_term_tolerance = options.joint_term_tolerance;
-  r.gravity_tilt = options.gravity_tilt;
-  r.initial_joint_terms = options.initial_joint_terms;
-  r.prior = options.prior;
+  static_cast<ProblemDefinitionOptions&>(r) = options;
   return r;
 }
 

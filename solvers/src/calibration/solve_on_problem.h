@@ -20,6 +20,10 @@ namespace internal {
 // warm start, callbacks, errors.
 CalibrationResult CalibrateLinearOn(CalibrationProblem* problem, const LinearSolverOptions& options);
 
+// The problem's share of the linear solver's options (its ProblemDefinitionOptions base; sigma 1 and
+// no loss: the linear solver's cost is in mm^2).
+CalibrationProblemOptions LinearProblemOptions(const LinearSolverOptions& options);
+
 // The problem's share of Ceres's options (the decisions, sigma, the loss) with the rows per
 // residual block picked for `rows` rows (rows_per_block 0: 1024 from kBatchFromRows on).
 CalibrationProblemOptions CeresProblemOptions(const CeresSolverOptions& options, int rows);
