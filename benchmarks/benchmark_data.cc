@@ -6,7 +6,7 @@
 #include <mutex>
 #include <random>
 
-#include "lpoe/simulation.h"
+#include "lpoe/model/simulation.h"
 
 namespace lpoe {
 namespace bench {

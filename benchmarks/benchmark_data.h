@@ -6,8 +6,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "lpoe/measurements.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/robot_model.h"
 
 namespace lpoe {
 namespace bench {

@@ -14,8 +14,8 @@
 #include <benchmark/benchmark.h>
 
 #include "lpoe/inverse_kinematics.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/model/robot_model.h"
 
 #ifdef LPOE_HAVE_KDL
 #include <kdl/chainiksolverpos_lma.hpp>

@@ -11,11 +11,11 @@
 
 #include "identifiability/identifiability.h"
 #include "loaded_cobot6.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
 #include "lpoe/pipeline.h"
-#include "lpoe/simulation.h"
-#include "calibration/normal_equations.h"
+#include "lpoe/model/simulation.h"
+#include "linearization/normal_equations.h"
 
 namespace lpoe {
 namespace {

@@ -11,7 +11,7 @@
 #include <kdl/chain.hpp>
 #include <kdl/frames.hpp>
 
-#include "lpoe/robot_model.h"
+#include "lpoe/model/robot_model.h"
 
 namespace lpoe {
 namespace bench {

@@ -15,9 +15,9 @@
 #include <ceres/jet.h>
 
 #include "benchmark_data.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/robot_model.h"
 
 #ifdef LPOE_HAVE_KDL
 #include <kdl/chain.hpp>

@@ -13,7 +13,7 @@
 #include <benchmark/benchmark.h>
 #include <glog/logging.h>
 
-#include "lpoe/joint_term.h"
+#include "lpoe/terms/joint_term.h"
 #include "lpoe/planning.h"
 
 namespace lpoe {

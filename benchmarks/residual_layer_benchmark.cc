@@ -8,11 +8,11 @@
 
 #include <benchmark/benchmark.h>
 
-#include "lpoe/joint_errors.h"
+#include "lpoe/terms/joint_errors.h"
 #include "lpoe/pipeline.h"
-#include "lpoe/residual_layer.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/simulation.h"
+#include "lpoe/model/residual_layer.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/model/simulation.h"
 
 namespace lpoe {
 namespace {

@@ -9,7 +9,7 @@
 
 #include "benchmark_data.h"
 #include "lpoe/ceres_solver.h"
-#include "lpoe/io.h"
+#include "lpoe/io/io.h"
 #include "lpoe/linear_solver.h"
 #include "lpoe/registration.h"
 

@@ -9,9 +9,9 @@
 #include <string>
 
 #include "fuzz_common.h"
-#include "lpoe/contact_measurements.h"
-#include "lpoe/measurement_kinds.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/measurements/contact_measurements.h"
+#include "lpoe/measurements/measurement_kinds.h"
+#include "lpoe/model/robot_model.h"
 
 namespace {
 

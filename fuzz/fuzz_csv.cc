@@ -9,8 +9,8 @@
 #include <string>
 
 #include "fuzz_common.h"
-#include "lpoe/io.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/io/io.h"
+#include "lpoe/model/robot_model.h"
 
 namespace {
 

@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "fuzz_common.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/urdf.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/io/urdf.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* bytes, size_t size) {
   const std::string xml(reinterpret_cast<const char*>(bytes), size);

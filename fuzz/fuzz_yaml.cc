@@ -9,9 +9,9 @@
 #include <vector>
 
 #include "fuzz_common.h"
-#include "lpoe/io.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/io/io.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/model/robot_model.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* bytes, size_t size) {
   const std::string text(reinterpret_cast<const char*>(bytes), size);

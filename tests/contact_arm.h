@@ -9,10 +9,10 @@
 #include <gtest/gtest.h>
 
 #include "lpoe/contact_calibration.h"
-#include "lpoe/contact_measurements.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/simulation.h"
+#include "lpoe/measurements/contact_measurements.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/model/simulation.h"
 
 namespace lpoe {
 namespace testing {

@@ -8,7 +8,7 @@
 #include <cmath>
 #include <string>
 
-#include "lpoe/joint_term.h"
+#include "lpoe/terms/joint_term.h"
 
 namespace lpoe {
 namespace testing {

@@ -2,7 +2,7 @@
 """Help text, README and behaviour agree.
 
 Runs every tool's --helpxml and --help and checks them against README.md and docs/guide.md:
-  - every flag of a tool (its own file or tools/common_flags.cc) is documented in the README as
+  - every flag of a tool (its own file or tools/common/common_flags.cc) is documented in the README as
     `--name`, and every `--name` the README or the guide gives is a flag of some tool (or gflags');
   - the defaults the README gives in brackets in a tool's table ([30], [0.03], [rad]) are the
     tool's defaults, compared as numbers where both are numbers;

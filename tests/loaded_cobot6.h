@@ -9,9 +9,9 @@
 
 #include <Eigen/Core>
 
-#include "lpoe/measurements.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/simulation.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/model/simulation.h"
 
 namespace lpoe {
 namespace testing {

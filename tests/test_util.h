@@ -13,9 +13,9 @@
 #include <Eigen/Core>
 #include <Eigen/SVD>
 
-#include "lpoe/robot_model.h"
-#include "lpoe/se3.h"
-#include "lpoe/simulation.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/kinematics/se3.h"
+#include "lpoe/model/simulation.h"
 
 namespace lpoe {
 namespace testing {

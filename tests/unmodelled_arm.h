@@ -1,5 +1,5 @@
 // The stand-in for a real arm whose error the model cannot fully explain, shared by
-// tests/residual_layer_test.cc and tests/planning_test.cc: cobot6 with three SMRs on the flange,
+// tests/model/residual_layer_test.cc and tests/planning/planning_test.cc: cobot6 with three SMRs on the flange,
 // random frame errors and joint zeros, tracker noise per row, the arm's repeatability (an error
 // shared by the SMRs of one configuration, independent between configurations) and an unmodelled
 // error U(q): a smooth configuration-dependent position error (mm, base frame) that no registry
@@ -21,10 +21,10 @@
 
 #include <Eigen/Core>
 
-#include "lpoe/kinematics.h"
-#include "lpoe/measurements.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/simulation.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/model/simulation.h"
 
 namespace lpoe {
 namespace testing {

@@ -19,26 +19,26 @@
 
 #include "lpoe/analysis.h"
 #include "lpoe/ceres_solver.h"
-#include "lpoe/io.h"
+#include "lpoe/io/io.h"
 #include "lpoe/linear_solver.h"
-#include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
 #include "lpoe/options.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/recalibration.h"
-#include "lpoe/refusals.h"
+#include "lpoe/model/refusals.h"
 #include "lpoe/registration.h"
-#include "lpoe/statistics.h"
-#include "lpoe/urdf.h"
-#include "output_files.h"
+#include "lpoe/model/statistics.h"
+#include "lpoe/io/urdf.h"
+#include "common/output_files.h"
 #include "report/plot.h"
-#include "progress.h"
+#include "common/progress.h"
 #include "report/report.h"
-#include "common_flags.h"
-#include "input_flags.h"
+#include "common/common_flags.h"
+#include "common/input_flags.h"
 #include "lpoe_calibrate_contact.h"
-#include "tool_common.h"
+#include "common/tool_common.h"
 
 // The options lpoe.calibrate shares: default, range and help from the table (lpoe/options.h).
 #define LPOE_DEFAULT(name) lpoe::OptionDefault("lpoe_calibrate", #name)
@@ -674,7 +674,7 @@ int JudgeVerdict(const Verdict& verdict) {
 int StageModelYaml(const PipelineResult& run, tools::OutputSet* outputs, Status* staged) {
   // The registration goes with the model: compensation carries nominal poses into its frame.
   const RobotModel calibrated = CalibratedModel(run);
-  // Non-finite values are written nowhere (lpoe/refusals.h): exit 5, nothing committed.
+  // Non-finite values are written nowhere (lpoe/model/refusals.h): exit 5, nothing committed.
   if (Status s = CheckModelFinite(calibrated); !s.ok()) {
     std::cerr << "error: --output=" << FLAGS_output << ": " << s.message() << "\n";
     return tools::kExitNumerical;

@@ -15,22 +15,22 @@
 
 #include <nlohmann/json.hpp>
 
-#include "common_flags.h"
+#include "common/common_flags.h"
 #include "lpoe/contact_calibration.h"
-#include "lpoe/contact_measurements.h"
+#include "lpoe/measurements/contact_measurements.h"
 #include "lpoe/contact_pipeline.h"
-#include "lpoe/io.h"
-#include "lpoe/measurement_kinds.h"
+#include "lpoe/io/io.h"
+#include "lpoe/measurements/measurement_kinds.h"
 #include "lpoe/options.h"
-#include "lpoe/refusals.h"
+#include "lpoe/model/refusals.h"
 #include "lpoe/registration.h"
-#include "lpoe/urdf.h"
-#include "output_files.h"
+#include "lpoe/io/urdf.h"
+#include "common/output_files.h"
 #include "report/contact_layer_report.h"
 #include "report/plot.h"
 #include "report/report.h"
 #include "report/text_safety.h"
-#include "tool_common.h"
+#include "common/tool_common.h"
 
 DECLARE_string(measurements);
 DECLARE_string(data_kind);

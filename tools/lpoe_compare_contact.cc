@@ -10,14 +10,14 @@
 #include <string>
 #include <vector>
 
-#include "common_flags.h"
+#include "common/common_flags.h"
 #include "lpoe/contact_calibration.h"
-#include "lpoe/contact_measurements.h"
+#include "lpoe/measurements/contact_measurements.h"
 #include "lpoe/contact_pipeline.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/measurement_kinds.h"
-#include "tool_common.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/measurement_kinds.h"
+#include "common/tool_common.h"
 
 DECLARE_string(measurements);
 DECLARE_double(tolerance_mm);

@@ -26,20 +26,20 @@
 #include <nlohmann/json.hpp>
 
 #include "lpoe/compensation.h"
-#include "lpoe/csv_rules.h"
+#include "lpoe/io/csv_rules.h"
 #include "lpoe/options.h"
 #include "lpoe/inverse_kinematics.h"
-#include "lpoe/residual_layer.h"
-#include "lpoe/io.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/refusals.h"
-#include "lpoe/se3.h"
+#include "lpoe/model/residual_layer.h"
+#include "lpoe/io/io.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/model/refusals.h"
+#include "lpoe/kinematics/se3.h"
 #include "report/json_text.h"
-#include "output_files.h"
+#include "common/output_files.h"
 #include "lpoe_compensate_program.h"
 #include "io/parse_util.h"
-#include "common_flags.h"
-#include "tool_common.h"
+#include "common/common_flags.h"
+#include "common/tool_common.h"
 
 // Defaults and help of the options lpoe.compensate shares from the option table (lpoe/options.h).
 #define LPOE_DEFAULT(name) lpoe::OptionDefault("lpoe_compensate", #name)
@@ -132,7 +132,7 @@ class RowReader {
     const int n = model_.num_joints();
     std::string_view l;
     while (NextLine(&l)) {
-      // The header by the rules every reader shares (lpoe/csv_rules.h): no column twice.
+      // The header by the rules every reader shares (lpoe/io/csv_rules.h): no column twice.
       if (Status s = ParseCsvHeader(internal::SplitFields(l), path_, line_, &header_); !s.ok()) {
         return s;
       }
@@ -331,7 +331,7 @@ int RequestFromFlags(Compensation* c) {
     return kExitUsage;
   }
   // Every output against every input and the other output, and its directory writable, before
-  // any work (tools/output_files.h); both are committed together at the end or neither.
+  // any work (tools/common/output_files.h); both are committed together at the end or neither.
   tools::OutputSet& outputs = c->outputs;
   outputs.AddInput("--model", FLAGS_model);
   outputs.AddInput("--targets", FLAGS_targets);

@@ -10,11 +10,11 @@
 #include <vector>
 
 #include "lpoe/compensation.h"
-#include "lpoe/io.h"
+#include "lpoe/io/io.h"
 #include "lpoe/program.h"
-#include "output_files.h"
-#include "common_flags.h"
-#include "tool_common.h"
+#include "common/output_files.h"
+#include "common/common_flags.h"
+#include "common/tool_common.h"
 
 DEFINE_string(program, "",
               "Robot program to compensate (URScript .script/.urscript, RAPID .mod/.modx/.prg): "

@@ -19,21 +19,21 @@
 #include <glog/logging.h>
 #include <nlohmann/json.hpp>
 
-#include "lpoe/io.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_table.h"
-#include "lpoe/joint_term.h"
+#include "lpoe/io/io.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/io/joint_table.h"
+#include "lpoe/terms/joint_term.h"
 #include "lpoe/options.h"
 #include "lpoe/planning.h"
 #include "lpoe/planning_workflow.h"
 #include "lpoe/recalibration.h"
-#include "lpoe/refusals.h"
+#include "lpoe/model/refusals.h"
 #include "report/json_text.h"
-#include "output_files.h"
+#include "common/output_files.h"
 #include "io/parse_util.h"
-#include "common_flags.h"
+#include "common/common_flags.h"
 #include "lpoe_plan_contact.h"
-#include "tool_common.h"
+#include "common/tool_common.h"
 
 // Defaults, ranges and help of the numeric options from the option table (lpoe/options.h), shared
 // with lpoe.plan.
@@ -310,7 +310,7 @@ int PlanRequestFromFlags(PlanJob* job) {
 }
 
 // Every output against every input and the other output, and its directory writable, before
-// any work (tools/output_files.h); both are committed together at the end or neither.
+// any work (tools/common/output_files.h); both are committed together at the end or neither.
 int CheckPlanOutputs(PlanJob* job) {
   std::string& report_path = job->report_path;
   report_path = FLAGS_report;

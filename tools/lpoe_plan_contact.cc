@@ -12,15 +12,15 @@
 #include <gflags/gflags.h>
 #include <nlohmann/json.hpp>
 
-#include "common_flags.h"
+#include "common/common_flags.h"
 #include "report/json_text.h"
 #include "lpoe/contact_planning.h"
 #include "lpoe/planning.h"
 #include "lpoe/planning_workflow.h"
-#include "output_files.h"
+#include "common/output_files.h"
 #include "io/parse_util.h"
 #include "report/text_safety.h"
-#include "tool_common.h"
+#include "common/tool_common.h"
 
 DECLARE_string(measurement);
 DECLARE_string(count);

@@ -20,15 +20,15 @@
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 
-#include "lpoe/csv_rules.h"
-#include "lpoe/io.h"
-#include "lpoe/joint_errors.h"
+#include "lpoe/io/csv_rules.h"
+#include "lpoe/io/io.h"
+#include "lpoe/terms/joint_errors.h"
 #include "lpoe/compensation.h"
-#include "lpoe/residual_layer.h"
-#include "lpoe/urdf.h"
-#include "output_files.h"
-#include "common_flags.h"
-#include "tool_common.h"
+#include "lpoe/model/residual_layer.h"
+#include "lpoe/io/urdf.h"
+#include "common/output_files.h"
+#include "common/common_flags.h"
+#include "common/tool_common.h"
 
 DEFINE_string(joints, "",
               "CSV of joint values: header with q1..qN, optional target column (required).");
@@ -72,7 +72,7 @@ int Run() {
   double mm_per_unit = 1;
   if (!tools::UnitsFromFlags(&unit, &length_unit, &mm_per_unit)) return kExitUsage;
   // The output against the inputs, and its directory writable, before any work
-  // (tools/output_files.h).
+  // (tools/common/output_files.h).
   tools::OutputSet outputs;
   outputs.AddInput("--model", FLAGS_model);
   outputs.AddInput("--joints", FLAGS_joints);
@@ -130,7 +130,7 @@ int Run() {
     return kExitInput;
   }
   tools::ScalePrismaticJoints(model, length_unit, &q);  // --length_unit: prismatic values to mm
-  if (unit == AngleUnit::kRadians) {  // the hint every joint reader gives (lpoe/csv_rules.h)
+  if (unit == AngleUnit::kRadians) {  // the hint every joint reader gives (lpoe/io/csv_rules.h)
     const int n = model.num_joints();
     std::vector<double> max_abs(n, 0.0);
     for (size_t k = 0; k < q.size(); ++k) max_abs[k % n] = std::max(max_abs[k % n], std::abs(q[k]));

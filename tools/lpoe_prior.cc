@@ -15,13 +15,13 @@
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 
-#include "lpoe/io.h"
-#include "lpoe/model_covariance.h"
+#include "lpoe/io/io.h"
+#include "lpoe/model/model_covariance.h"
 #include "lpoe/recalibration.h"
-#include "common_flags.h"
-#include "fleet_prior_text.h"
-#include "output_files.h"
-#include "tool_common.h"
+#include "common/common_flags.h"
+#include "common/fleet_prior_text.h"
+#include "common/output_files.h"
+#include "common/tool_common.h"
 
 DEFINE_string(models, "",
               "Comma-separated calibrated models (YAML, as lpoe_calibrate --output writes) of "

@@ -14,19 +14,19 @@
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 
-#include "lpoe/contact_measurements.h"
-#include "lpoe/io.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/joint_table.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/refusals.h"
-#include "lpoe/simulation.h"
-#include "lpoe/urdf.h"
-#include "output_files.h"
+#include "lpoe/measurements/contact_measurements.h"
+#include "lpoe/io/io.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/io/joint_table.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/model/refusals.h"
+#include "lpoe/model/simulation.h"
+#include "lpoe/io/urdf.h"
+#include "common/output_files.h"
 #include "io/parse_util.h"
-#include "common_flags.h"
-#include "tool_common.h"
+#include "common/common_flags.h"
+#include "common/tool_common.h"
 
 DEFINE_string(robot, "cobot6",
               "Built-in nominal robot: cobot6 (paper Table 1) | ur5 | arm7 | prismatic. Ignored "
@@ -476,7 +476,7 @@ int SimulatePositions(Simulation* sim) {
   if (!FLAGS_actual_out.empty()) {
     outputs.push_back({FLAGS_actual_out, RobotModelToYaml(actual_out)});
   }
-  // Non-finite values are written nowhere (lpoe/refusals.h).
+  // Non-finite values are written nowhere (lpoe/model/refusals.h).
   for (const auto& [path, m] :
        {std::pair<const std::string*, const RobotModel*>{&FLAGS_model_out, &nominal},
         {&FLAGS_actual_out, &actual_out}}) {

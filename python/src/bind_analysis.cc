@@ -19,13 +19,13 @@
 #include "lpoe/contact_planning.h"
 #include "lpoe/inverse_kinematics.h"
 #include "lpoe/options.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/csv_rules.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/kinematics.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/io/csv_rules.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/kinematics/kinematics.h"
 #include "lpoe/planning.h"
 #include "lpoe/planning_workflow.h"
-#include "lpoe/refusals.h"
+#include "lpoe/model/refusals.h"
 #include "lpoe/problem_builder.h"
 #include "lpoe/recalibration.h"
 #include "python_api.h"
@@ -36,7 +36,7 @@ namespace lpoe {
 namespace python {
 namespace {
 
-// Finite values of magnitude at most `limit`: the limits of the CSV readers (lpoe/csv_rules.h),
+// Finite values of magnitude at most `limit`: the limits of the CSV readers (lpoe/io/csv_rules.h),
 // the same for arrays as for the tools' files.
 void CheckFinite(const RowArray& a, const std::string& what, double limit) {
   const double* d = a.data();

@@ -19,21 +19,21 @@
 
 #include "lpoe/analysis.h"
 #include "lpoe/contact_calibration.h"
-#include "lpoe/contact_measurements.h"
+#include "lpoe/measurements/contact_measurements.h"
 #include "lpoe/contact_pipeline.h"
-#include "lpoe/measurement_kind_dispatch.h"
-#include "lpoe/measurement_kinds.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
+#include "lpoe/measurements/measurement_kinds.h"
 #include "lpoe/registration.h"
-#include "lpoe/io.h"
+#include "lpoe/io/io.h"
 #include "lpoe/options.h"
 #include "lpoe/pipeline.h"
 #include "lpoe/recalibration.h"
-#include "lpoe/refusals.h"
-#include "fleet_prior_text.h"
+#include "lpoe/model/refusals.h"
+#include "common/fleet_prior_text.h"
 #include "python_api.h"
 #include "report/contact_layer_report.h"
 #include "report/report.h"
-#include "tool_common.h"
+#include "common/tool_common.h"
 
 namespace py = pybind11;
 

@@ -9,19 +9,19 @@
 #include <string>
 #include <vector>
 
-#include "lpoe/contact_measurements.h"
-#include "lpoe/csv_rules.h"
-#include "lpoe/io.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/residual_layer.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/measurement_kind_dispatch.h"
-#include "lpoe/measurement_model.h"
-#include "lpoe/measurements.h"
+#include "lpoe/measurements/contact_measurements.h"
+#include "lpoe/io/csv_rules.h"
+#include "lpoe/io/io.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/model/residual_layer.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
+#include "lpoe/measurements/measurement_model.h"
+#include "lpoe/measurements/measurements.h"
 #include "lpoe/options.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/urdf.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/io/urdf.h"
 #include "python_api.h"
 
 namespace py = pybind11;
@@ -198,12 +198,12 @@ void PredictPositionsInto(const RobotModel& model, const double* q, long rows, c
   std::vector<double> q_eff(n);
   for (long r = 0; r < rows; ++r) {
     const double* qr = q + r * n;
-    if (!model.joint_errors.empty()) {  // the registry's terms (lpoe/joint_term.h)
+    if (!model.joint_errors.empty()) {  // the registry's terms (lpoe/terms/joint_term.h)
       EffectiveJoints(model, qr, q_eff.data());
       qr = q_eff.data();
     }
     Eigen::Vector3d p = chain.Position(qr, tools[r]);
-    // The residual layer at the commanded joints (lpoe/residual_layer.h).
+    // The residual layer at the commanded joints (lpoe/model/residual_layer.h).
     if (model.residual_layer) p += model.residual_layer->Mean(q + r * n, tools[r]);
     out[3 * r + 0] = p.x();
     out[3 * r + 1] = p.y();
@@ -426,7 +426,7 @@ void BindMeasurements(py::module_& m) {
             if (!std::isfinite(qr[j])) {
               throw LpoeError("q: row " + std::to_string(r) + ": non-finite joint value");
             }
-            // The CSV reader's limits (lpoe/csv_rules.h), the same for arrays.
+            // The CSV reader's limits (lpoe/io/csv_rules.h), the same for arrays.
             if (std::abs(qr[j]) > kMaxAbsCsvJointValue) {
               throw LpoeError("q: row " + std::to_string(r) + ": joint value of magnitude above 1e4");
             }

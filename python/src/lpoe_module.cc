@@ -15,15 +15,15 @@
 #include <string>
 #include <vector>
 
-#include "lpoe/io.h"
-#include "lpoe/model_limits.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/measurements.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/residual_layer.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/urdf.h"
+#include "lpoe/io/io.h"
+#include "lpoe/model/model_limits.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/residual_layer.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/io/urdf.h"
 #include "python_api.h"
 
 namespace py = pybind11;

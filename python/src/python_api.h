@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "lpoe/measurements.h"
-#include "lpoe/model_covariance.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/model_covariance.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {
@@ -46,7 +46,7 @@ Status WriteAnyRobotModel(const std::string& path, const RobotModel& model);
 
 // Options shared by several functions, parsed as the tools parse their flags (raising lpoe.Error):
 // --parameterization; --data_kind (auto | position | pose; returns use_orientation);
-// --joint_errors (none | a comma-separated list of registry terms, lpoe/joint_term.h; returned in
+// --joint_errors (none | a comma-separated list of registry terms, lpoe/terms/joint_term.h; returned in
 // registry order, compliance first); a tool by index or name.
 ParameterizationKind ParseParameterizationOption(const std::string& text);
 bool ParseDataKindOption(const std::string& text, const MeasurementSet& data);

@@ -7,7 +7,7 @@
 #include <ceres/jet.h>
 #include <glog/logging.h>
 
-#include "lpoe/joint_errors.h"
+#include "lpoe/terms/joint_errors.h"
 #include "lpoe/measurement_residual.h"
 
 namespace lpoe {

@@ -8,9 +8,9 @@
 #include "lpoe/ceres_solver.h"
 #include "lpoe/linear_solver.h"
 #include "lpoe/problem_builder.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/simulation.h"
-#include "lpoe/statistics.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/model/simulation.h"
+#include "lpoe/model/statistics.h"
 
 namespace {
 

@@ -6,7 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "lpoe/residual_layer.h"
+#include "lpoe/model/residual_layer.h"
 #include "report/report.h"
 #include "report/text_safety.h"
 

@@ -9,9 +9,9 @@
 #include <vector>
 
 #include "report/plot.h"
-#include "lpoe/residual_layer.h"
+#include "lpoe/model/residual_layer.h"
 #include "report/report.h"
-#include "tool_common.h"
+#include "common/tool_common.h"
 
 namespace lpoe {
 namespace tools {

@@ -10,8 +10,8 @@
 #include <cstring>
 #include <limits>
 
-#include "lpoe/io.h"
-#include "tool_common.h"
+#include "lpoe/io/io.h"
+#include "common/tool_common.h"
 
 namespace lpoe {
 namespace tools {

@@ -1,6 +1,6 @@
 #include "report/report.h"
 
-#include "lpoe/residual_layer.h"
+#include "lpoe/model/residual_layer.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,9 +13,9 @@
 #include <tinyxml2.h>
 
 #include "lpoe/analysis.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/kinematics.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/kinematics/kinematics.h"
 #include "lpoe/version.h"
 #include "report/json_text.h"
 #include "report/plot.h"

@@ -8,13 +8,13 @@
 
 #include "lpoe/analysis.h"
 #include "lpoe/calibration.h"
-#include "lpoe/io.h"
+#include "lpoe/io/io.h"
 #include "lpoe/pipeline.h"
-#include "lpoe/urdf.h"
+#include "lpoe/io/urdf.h"
 #include "lpoe/plausibility.h"
 #include "lpoe/recalibration.h"
 #include "lpoe/registration.h"
-#include "lpoe/statistics.h"
+#include "lpoe/model/statistics.h"
 
 namespace lpoe {
 namespace tools {

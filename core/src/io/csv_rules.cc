@@ -1,4 +1,4 @@
-#include "lpoe/csv_rules.h"
+#include "lpoe/io/csv_rules.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-// File utilities of lpoe/io.h: bounded, non-blocking-safe reading and atomic writing.
+// File utilities of lpoe/io/io.h: bounded, non-blocking-safe reading and atomic writing.
 #include "io/file_util.h"
 
 #include <fcntl.h>
@@ -10,7 +10,7 @@
 #include <exception>
 #include <string>
 
-#include "lpoe/io.h"
+#include "lpoe/io/io.h"
 
 namespace lpoe {
 namespace internal {

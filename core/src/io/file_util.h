@@ -1,5 +1,5 @@
 // Internal file access for the readers and writers: inputs opened with a bound and refused when
-// they cannot be files (directories), read in chunks; outputs written atomically (lpoe/io.h).
+// they cannot be files (directories), read in chunks; outputs written atomically (lpoe/io/io.h).
 #ifndef LPOE_CORE_SRC_FILE_UTIL_H_
 #define LPOE_CORE_SRC_FILE_UTIL_H_
 

@@ -19,8 +19,8 @@
 #include <vector>
 
 #include "terms/joint_term_kind.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/model_limits.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/model/model_limits.h"
 #include "io/parse_util.h"
 
 namespace lpoe {

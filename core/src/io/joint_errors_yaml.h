@@ -11,7 +11,7 @@
 #include <utility>
 #include <vector>
 
-#include "lpoe/robot_model.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {

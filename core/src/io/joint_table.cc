@@ -1,10 +1,10 @@
-#include "lpoe/joint_table.h"
+#include "lpoe/io/joint_table.h"
 
 #include <cctype>
 #include <cmath>
 #include <string_view>
 
-#include "lpoe/csv_rules.h"
+#include "lpoe/io/csv_rules.h"
 #include "io/parse_util.h"
 
 namespace lpoe {
@@ -41,7 +41,7 @@ Status ParseJointTable(const std::string& text, const std::string& source, const
     if (!have_header) {
       have_header = true;
       out.header = std::string(line);
-      CsvHeader header;  // the shared rules (lpoe/csv_rules.h): no column twice
+      CsvHeader header;  // the shared rules (lpoe/io/csv_rules.h): no column twice
       if (Status s = ParseCsvHeader(fields, source, line_number, &header); !s.ok()) return s;
       out.names = header.names;
       csv_header = std::move(header);

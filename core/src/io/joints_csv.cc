@@ -5,8 +5,8 @@
 #include <string_view>
 #include <vector>
 
-#include "lpoe/csv_rules.h"
-#include "lpoe/joint_errors.h"
+#include "lpoe/io/csv_rules.h"
+#include "lpoe/terms/joint_errors.h"
 #include "io/parse_util.h"
 
 namespace lpoe {
@@ -46,7 +46,7 @@ Status ParseJointsCsv(const std::string& text, const std::string& source, const 
     ++line_number;
     if (line.empty() || line[0] == '#') continue;
     const std::vector<std::string_view> fields = internal::SplitFields(line);
-    if (column.empty()) {  // the header, by the shared rules (lpoe/csv_rules.h)
+    if (column.empty()) {  // the header, by the shared rules (lpoe/io/csv_rules.h)
       if (Status s = ParseCsvHeader(fields, source, line_number, &header); !s.ok()) return s;
       column.assign(n, -1);
       target_column = header.Find("target");

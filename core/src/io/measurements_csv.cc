@@ -1,4 +1,4 @@
-// Measurements as CSV (docs/file_formats.md; lpoe/io.h), read as a stream: the file is parsed in
+// Measurements as CSV (docs/file_formats.md; lpoe/io/io.h), read as a stream: the file is parsed in
 // chunks while it is read, so memory holds the kept rows (MeasurementSet) and one chunk, never the
 // file's text. Every error is "<file>:<line>: <what is wrong>; expected <what>", line 64-bit.
 #include <algorithm>
@@ -17,10 +17,10 @@
 #include <vector>
 
 #include "io/file_util.h"
-#include "lpoe/io.h"
-#include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/io/io.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
 #include "lpoe/parallel.h"
-#include "lpoe/csv_rules.h"
+#include "lpoe/io/csv_rules.h"
 #include "io/parse_util.h"
 
 namespace lpoe {
@@ -496,7 +496,7 @@ class CsvReader {
   }
 
   Status FieldCountError(std::string_view line, int64_t line_number) const {
-    // The rule every CSV reader shares (lpoe/csv_rules.h): the count, and the first column a short
+    // The rule every CSV reader shares (lpoe/io/csv_rules.h): the count, and the first column a short
     // row lacks ("the row has 5 fields, no 'q6'").
     const size_t fields = static_cast<size_t>(std::count(line.begin(), line.end(), ',')) + 1;
     ::lpoe::CsvHeader header;

@@ -1,5 +1,5 @@
-// The `covariance:` block of a calibrated model (lpoe/model_covariance.h, docs/file_formats.md).
-#include "lpoe/model_covariance.h"
+// The `covariance:` block of a calibrated model (lpoe/model/model_covariance.h, docs/file_formats.md).
+#include "lpoe/model/model_covariance.h"
 
 #include <yaml-cpp/yaml.h>
 
@@ -9,7 +9,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "io/file_util.h"
-#include "lpoe/eigen_decompositions.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
 #include "io/parse_util.h"
 
 namespace lpoe {

@@ -1,4 +1,4 @@
-// The robot model as YAML (docs/file_formats.md; lpoe/io.h). Every error is a Status whose message
+// The robot model as YAML (docs/file_formats.md; lpoe/io/io.h). Every error is a Status whose message
 // reads "<file>:<line>: <what is wrong>; expected <what>" with 1-based line numbers; yaml-cpp
 // exceptions are caught at the top of the reader.
 #include <yaml-cpp/yaml.h>
@@ -14,11 +14,11 @@
 #include <utility>
 #include <vector>
 
-#include "lpoe/io.h"
-#include "lpoe/model_limits.h"
-#include "lpoe/urdf.h"
+#include "lpoe/io/io.h"
+#include "lpoe/model/model_limits.h"
+#include "lpoe/io/urdf.h"
 #include "io/joint_errors_yaml.h"
-#include "lpoe/refusals.h"
+#include "lpoe/model/refusals.h"
 #include "io/parse_util.h"
 
 namespace lpoe {

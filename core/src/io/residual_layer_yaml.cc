@@ -26,8 +26,8 @@
 
 #include "io/joint_errors_yaml.h"
 #include "terms/joint_term_kind.h"
-#include "lpoe/model_limits.h"
-#include "lpoe/residual_layer.h"
+#include "lpoe/model/model_limits.h"
+#include "lpoe/model/residual_layer.h"
 #include "io/parse_util.h"
 
 namespace lpoe {

@@ -1,11 +1,11 @@
-// The one CPU dispatch of the kernels (lpoe/kernels.h).
+// The one CPU dispatch of the kernels (lpoe/kinematics/kernels.h).
 #include <atomic>
 #include <cstdlib>
 #include <cstring>
 
 #include <glog/logging.h>
 
-#include "lpoe/kernels.h"
+#include "lpoe/kinematics/kernels.h"
 
 namespace lpoe {
 namespace kernels {

@@ -1,7 +1,7 @@
-// The dot-product kernels (lpoe/kernels.h): J^T J (SYRK) and weighted column dot products in 2 x 4
+// The dot-product kernels (lpoe/kinematics/kernels.h): J^T J (SYRK) and weighted column dot products in 2 x 4
 // tiles of 4-wide fused multiply-adds, for the linear solver's normal equations. The reference path
 // is Eigen's rank update and matrix products (compiled for baseline x86-64: two lanes, no FMA);
-// tests/kernels_test.cc compares the two.
+// tests/kinematics/kernels_test.cc compares the two.
 #include <algorithm>
 #include <cstddef>
 
@@ -12,7 +12,7 @@
 #include <glog/logging.h>
 #endif
 
-#include "lpoe/kernels.h"
+#include "lpoe/kinematics/kernels.h"
 
 namespace lpoe {
 namespace kernels {

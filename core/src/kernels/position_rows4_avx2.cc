@@ -1,7 +1,7 @@
-// The four-row position kernels (lpoe/kernels.h): the forward pass of four configurations at once,
+// The four-row position kernels (lpoe/kinematics/kernels.h): the forward pass of four configurations at once,
 // one per AVX2 lane, and the per-pose products of the joint-space slots, for the linear solver's
-// normal equations (solvers/src/calibration/normal_equations_assembly.cc). The reference path is the same
-// algebra one row at a time (BasisJacobian::Position, then Eigen's rank update); tests/kernels_test.cc
+// normal equations (solvers/src/linearization/normal_equations_assembly.cc). The reference path is the same
+// algebra one row at a time (BasisJacobian::Position, then Eigen's rank update); tests/kinematics/kernels_test.cc
 // compares the two.
 #include <cstddef>
 #include <cstring>
@@ -17,9 +17,9 @@
 // crosses an ABI boundary with them (GCC warns where such templates are instantiated).
 #pragma GCC diagnostic ignored "-Wpsabi"
 
-#include "lpoe/kernels.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/kinematics/kernels.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/model/robot_model.h"
 
 namespace lpoe {
 namespace kernels {

@@ -1,15 +1,15 @@
-// SinCos4Avx2 and ExpAvx2 (lpoe/kernels.h): thin adapters to SLEEF's AVX2 functions (Debian's
+// SinCos4Avx2 and ExpAvx2 (lpoe/kinematics/kernels.h): thin adapters to SLEEF's AVX2 functions (Debian's
 // libsleef-dev), the vectorized libm the project uses instead of polynomial code of its own.
 //   sin, cos: Sleef_sincosd4_u10avx2, within 1.0 ulp of the exact value for every double
 //             (Payne-Hanek reduction for large arguments); NaN for NaN and +-inf; sin(-0.0) = -0.0.
 //   exp:      Sleef_expd4_u10avx2, within 1.0 ulp (subnormal results included); +inf above about
 //             709.78, NaN for NaN. Arguments below -708 then give 0 here (the kernel of a far
 //             point: no subnormal operands in the products that follow).
-// The reference paths (libm's sincos, std::exp) stay with the callers; tests/kernels_test.cc runs
+// The reference paths (libm's sincos, std::exp) stay with the callers; tests/kinematics/kernels_test.cc runs
 // both. This file is compiled with -mavx2 -mfma (LPOE_SLEEF_ADAPTER_FLAGS: SLEEF declares its AVX2
 // functions only where __AVX__ is defined), so it must not define any inline function or template
 // shared with other files: the linker could keep this file's AVX2 copy for every caller.
-#include "lpoe/kernels.h"
+#include "lpoe/kinematics/kernels.h"
 
 #if defined(__x86_64__)
 #if !defined(__AVX2__) || !defined(__FMA__)

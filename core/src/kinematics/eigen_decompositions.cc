@@ -1,5 +1,5 @@
-// The one instantiation of the decompositions declared extern in lpoe/eigen_decompositions.h.
-#include "lpoe/eigen_decompositions.h"
+// The one instantiation of the decompositions declared extern in lpoe/kinematics/eigen_decompositions.h.
+#include "lpoe/kinematics/eigen_decompositions.h"
 
 template class Eigen::BDCSVD<Eigen::MatrixXd>;
 template class Eigen::JacobiSVD<Eigen::MatrixXd>;

@@ -1,10 +1,10 @@
-#include "lpoe/householder.h"
+#include "lpoe/kinematics/householder.h"
 
 #include <algorithm>
 
 #include <glog/logging.h>
 
-#include "lpoe/eigen_decompositions.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
 
 namespace lpoe {
 

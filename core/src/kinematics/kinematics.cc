@@ -1,6 +1,6 @@
-#include "lpoe/kinematics.h"
+#include "lpoe/kinematics/kinematics.h"
 
-#include "lpoe/kernels.h"
+#include "lpoe/kinematics/kernels.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "lpoe/se3.h"
+#include "lpoe/kinematics/se3.h"
 
 #include <cmath>
 

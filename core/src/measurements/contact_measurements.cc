@@ -1,6 +1,6 @@
 // Distance and plane measurements: the set, its CSV reader and writer, and their simulation
-// (lpoe/contact_measurements.h, docs/measurements.md).
-#include "lpoe/contact_measurements.h"
+// (lpoe/measurements/contact_measurements.h, docs/measurements.md).
+#include "lpoe/measurements/contact_measurements.h"
 
 #include <algorithm>
 #include <cctype>
@@ -12,11 +12,11 @@
 #include <Eigen/Dense>
 
 #include "io/file_util.h"
-#include "lpoe/csv_rules.h"
-#include "lpoe/distance_measurement.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/plane_measurement.h"
+#include "lpoe/io/csv_rules.h"
+#include "lpoe/measurements/distance_measurement.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/plane_measurement.h"
 #include "io/parse_util.h"
 
 namespace lpoe {

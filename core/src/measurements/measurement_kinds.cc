@@ -1,8 +1,8 @@
-#include "lpoe/measurement_kinds.h"
+#include "lpoe/measurements/measurement_kinds.h"
 
 #include <cctype>
 
-#include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
 
 namespace lpoe {
 namespace {

@@ -1,4 +1,4 @@
-#include "lpoe/measurement_model.h"
+#include "lpoe/measurements/measurement_model.h"
 
 #include <glog/logging.h>
 

@@ -1,4 +1,4 @@
-#include "lpoe/measurements.h"
+#include "lpoe/measurements/measurements.h"
 
 #include <glog/logging.h>
 

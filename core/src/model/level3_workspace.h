@@ -16,7 +16,7 @@
 // These functions call the very kernels Eigen's expressions dispatch to, with the blocking sizes
 // those expressions compute (gemm_blocking_space with the same rows, columns, depth and one
 // thread), so each performs the same operations in the same order as the expression named beside
-// it and the results are bit-identical (tests/residual_layer_test.cc, Level3Workspace.*); only
+// it and the results are bit-identical (tests/model/residual_layer_test.cc, Level3Workspace.*); only
 // the buffers come from the workspace, grown to the largest size asked for and kept.
 // This uses Eigen's internal interface of Eigen 3.4 (Debian 12's libeigen3-dev).
 #ifndef LPOE_CORE_MODEL_LEVEL3_WORKSPACE_H_

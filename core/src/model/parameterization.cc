@@ -1,4 +1,4 @@
-#include "lpoe/parameterization.h"
+#include "lpoe/model/parameterization.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,9 +13,9 @@
 #include <Eigen/SVD>
 #include <glog/logging.h>
 
-#include "lpoe/eigen_decompositions.h"
-#include "lpoe/householder.h"
-#include "lpoe/joint_errors.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
+#include "lpoe/kinematics/householder.h"
+#include "lpoe/terms/joint_errors.h"
 
 namespace lpoe {
 namespace {

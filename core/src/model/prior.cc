@@ -1,10 +1,10 @@
-#include "lpoe/prior.h"
+#include "lpoe/model/prior.h"
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <glog/logging.h>
 
-#include "lpoe/parameterization.h"
+#include "lpoe/model/parameterization.h"
 
 namespace lpoe {
 

@@ -1,4 +1,4 @@
-#include "lpoe/refusals.h"
+#include "lpoe/model/refusals.h"
 
 #include <algorithm>
 

@@ -1,6 +1,6 @@
 // The learned residual layer: kernel, prediction, hyperparameters by the marginal likelihood and
-// the sparse posterior (lpoe/residual_layer.h, docs/residual_layer.md).
-#include "lpoe/residual_layer.h"
+// the sparse posterior (lpoe/model/residual_layer.h, docs/residual_layer.md).
+#include "lpoe/model/residual_layer.h"
 
 #include <algorithm>
 #include <cmath>
@@ -16,7 +16,7 @@
 
 #include <LBFGSB.h>
 
-#include "lpoe/kernels.h"
+#include "lpoe/kinematics/kernels.h"
 #include "lpoe/parallel.h"
 #include "model/level3_workspace.h"
 

@@ -1,7 +1,7 @@
-#include "lpoe/robot_model.h"
+#include "lpoe/model/robot_model.h"
 
-#include "lpoe/joint_errors.h"
-#include "lpoe/residual_layer.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/model/residual_layer.h"
 
 #include <cmath>
 #include <limits>

@@ -1,4 +1,4 @@
-#include "lpoe/simulation.h"
+#include "lpoe/model/simulation.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,8 +7,8 @@
 #include <glog/logging.h>
 
 #include "terms/joint_term_kind.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
 
 namespace lpoe {
 namespace {

@@ -1,4 +1,4 @@
-#include "lpoe/statistics.h"
+#include "lpoe/model/statistics.h"
 
 #include <algorithm>
 #include <array>
@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <cstring>
 
-#include "lpoe/kinematics.h"
+#include "lpoe/kinematics/kinematics.h"
 #include "lpoe/parallel.h"
 
 namespace lpoe {

@@ -10,7 +10,7 @@
 
 #include "io/joint_errors_yaml.h"
 #include "terms/joint_term_kind.h"
-#include "lpoe/joint_errors.h"
+#include "lpoe/terms/joint_errors.h"
 #include "io/parse_util.h"
 
 namespace lpoe {

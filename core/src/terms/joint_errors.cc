@@ -1,4 +1,4 @@
-#include "lpoe/joint_errors.h"
+#include "lpoe/terms/joint_errors.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,11 +7,11 @@
 #include <Eigen/SVD>
 #include <glog/logging.h>
 
-#include "lpoe/eigen_decompositions.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/kinematics.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/kinematics/kinematics.h"
 #include "lpoe/parallel.h"
-#include "lpoe/residual_layer.h"
+#include "lpoe/model/residual_layer.h"
 
 namespace lpoe {
 namespace {

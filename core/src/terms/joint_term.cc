@@ -1,11 +1,11 @@
-#include "lpoe/joint_term.h"
+#include "lpoe/terms/joint_term.h"
 
 #include <algorithm>
 
 #include <glog/logging.h>
 
 #include "terms/joint_term_kind.h"
-#include "lpoe/joint_errors.h"
+#include "lpoe/terms/joint_errors.h"
 
 namespace lpoe {
 

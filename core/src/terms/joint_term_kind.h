@@ -1,4 +1,4 @@
-// A registry entry of a joint-space term (lpoe/joint_term.h): everything the library knows about one
+// A registry entry of a joint-space term (lpoe/terms/joint_term.h): everything the library knows about one
 // term, in the term's own source file. The registry (joint_term_registry.inc) lists the entries; the
 // rest of the library reaches them through joint_term.h's name-based functions, through
 // JointErrorOffsets (prediction) and through the YAML reader and writer (joint_errors_yaml.cc).
@@ -16,9 +16,9 @@
 
 #include <Eigen/Core>
 
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {

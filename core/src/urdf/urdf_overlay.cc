@@ -1,4 +1,4 @@
-// The calibrated URDF overlay (see lpoe/urdf.h): the source document with the calibrated origins
+// The calibrated URDF overlay (see lpoe/io/urdf.h): the source document with the calibrated origins
 // (and limits) written into it, every other byte of markup as it was.
 #include <tinyxml2.h>
 
@@ -18,9 +18,9 @@
 #include <utility>
 #include <vector>
 
-#include "lpoe/io.h"
-#include "lpoe/se3.h"
-#include "lpoe/urdf.h"
+#include "lpoe/io/io.h"
+#include "lpoe/kinematics/se3.h"
+#include "lpoe/io/urdf.h"
 #include "lpoe/version.h"
 #include "io/parse_util.h"
 #include "urdf/urdf_tree.h"

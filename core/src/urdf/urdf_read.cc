@@ -1,4 +1,4 @@
-// URDF import of serial-chain robot models (see lpoe/urdf.h): the document, its link/joint tree,
+// URDF import of serial-chain robot models (see lpoe/io/urdf.h): the document, its link/joint tree,
 // the chain from the base link to the tip and its tools, the LPoE model. Errors read
 //   <file>:<line>: <what is wrong>; expected <what>
 // with the line of the XML element at fault. Nothing throws out of the API.
@@ -17,10 +17,10 @@
 #include <utility>
 #include <vector>
 
-#include "lpoe/io.h"
-#include "lpoe/model_limits.h"
-#include "lpoe/se3.h"
-#include "lpoe/urdf.h"
+#include "lpoe/io/io.h"
+#include "lpoe/model/model_limits.h"
+#include "lpoe/kinematics/se3.h"
+#include "lpoe/io/urdf.h"
 #include "lpoe/version.h"
 #include "io/parse_util.h"
 #include "urdf/urdf_tree.h"

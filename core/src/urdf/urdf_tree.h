@@ -16,11 +16,11 @@
 #include <string_view>
 #include <vector>
 
-#include "lpoe/io.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/se3.h"
+#include "lpoe/io/io.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/kinematics/se3.h"
 #include "lpoe/status.h"
-#include "lpoe/urdf.h"
+#include "lpoe/io/urdf.h"
 
 namespace lpoe {
 namespace urdf_internal {

@@ -1,4 +1,4 @@
-// ROS-Industrial's UR kinematics file from the calibrated URDF overlay (see lpoe/urdf.h).
+// ROS-Industrial's UR kinematics file from the calibrated URDF overlay (see lpoe/io/urdf.h).
 #include <tinyxml2.h>
 
 #include <algorithm>
@@ -14,9 +14,9 @@
 #include <utility>
 #include <vector>
 
-#include "lpoe/io.h"
-#include "lpoe/se3.h"
-#include "lpoe/urdf.h"
+#include "lpoe/io/io.h"
+#include "lpoe/kinematics/se3.h"
+#include "lpoe/io/urdf.h"
 #include "lpoe/version.h"
 #include "io/parse_util.h"
 #include "urdf/urdf_tree.h"

@@ -32,10 +32,10 @@
 #include <Eigen/Core>
 #include <ceres/dynamic_autodiff_cost_function.h>
 
-#include "lpoe/kinematics.h"
-#include "lpoe/pose_measurement.h"
-#include "lpoe/position_measurement.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/pose_measurement.h"
+#include "lpoe/measurements/position_measurement.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/se3_manifold.h"
 
 namespace lpoe {

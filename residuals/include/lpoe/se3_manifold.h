@@ -26,7 +26,7 @@
 #include <Eigen/Core>
 #include <ceres/manifold.h>
 
-#include "lpoe/se3.h"
+#include "lpoe/kinematics/se3.h"
 
 namespace lpoe {
 

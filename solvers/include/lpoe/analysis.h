@@ -11,9 +11,9 @@
 #include <Eigen/Core>
 
 #include "lpoe/calibration.h"
-#include "lpoe/measurements.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/statistics.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/model/statistics.h"
 
 namespace lpoe {
 
@@ -33,7 +33,7 @@ struct IdentifiabilityReport {
                                               // when no covariance was computed
   std::vector<CorrelatedPair> most_correlated;  // largest |correlation| first
   std::vector<std::string> warnings;          // poorly exciting data, e.g. a joint that barely moves
-  // The prior (lpoe/prior.h) when the calibration used one (empty otherwise): per identified
+  // The prior (lpoe/model/prior.h) when the calibration used one (empty otherwise): per identified
   // direction the prior's standard deviation and the data's share of the information (1: the
   // data alone), the directions the prior held (share below kWeaklyDeterminedShare, "weakly
   // determined": they stay near the start model) and the data's standard deviation per axis the

@@ -14,12 +14,12 @@
 
 #include <Eigen/Core>
 
-#include "lpoe/joint_term.h"
+#include "lpoe/terms/joint_term.h"
 #include "lpoe/convergence.h"
-#include "lpoe/measurements.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/statistics.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/model/statistics.h"
 
 namespace lpoe {
 
@@ -99,7 +99,7 @@ struct CalibrationResult {
   double wall_time_seconds = 0;
   GravityTiltResult gravity_tilt;
 
-  // The prior (lpoe/prior.h, docs/identifiability.md) when the solve used one; empty otherwise.
+  // The prior (lpoe/model/prior.h, docs/identifiability.md) when the solve used one; empty otherwise.
   // Per parameter: the prior's standard deviation (x units; infinity without one) and the data's
   // share of the information, 1 - posterior variance / prior variance (1: the data alone; near 0:
   // the prior holds the direction, "weakly determined"). `covariance` is the posterior's.

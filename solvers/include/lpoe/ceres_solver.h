@@ -26,9 +26,9 @@
 #include <vector>
 
 #include "lpoe/calibration.h"
-#include "lpoe/joint_errors.h"
+#include "lpoe/terms/joint_errors.h"
 #include "lpoe/convergence.h"
-#include "lpoe/prior.h"
+#include "lpoe/model/prior.h"
 #include "lpoe/problem_options.h"
 #include "lpoe/status.h"
 

@@ -18,10 +18,10 @@
 #include <vector>
 
 #include "lpoe/inverse_kinematics.h"
-#include "lpoe/kinematics.h"
+#include "lpoe/kinematics/kinematics.h"
 #include "lpoe/parallel.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/se3.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/kinematics/se3.h"
 #include "lpoe/status.h"
 
 namespace lpoe {

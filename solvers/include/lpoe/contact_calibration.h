@@ -27,10 +27,10 @@
 
 #include <Eigen/Core>
 
-#include "lpoe/contact_measurements.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/measurements/contact_measurements.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {

@@ -12,12 +12,12 @@
 #include <vector>
 
 #include "lpoe/contact_calibration.h"
-#include "lpoe/contact_measurements.h"
-#include "lpoe/measurement_kinds.h"
-#include "lpoe/measurements.h"
+#include "lpoe/measurements/contact_measurements.h"
+#include "lpoe/measurements/measurement_kinds.h"
+#include "lpoe/measurements/measurements.h"
 #include "lpoe/pipeline.h"
-#include "lpoe/residual_layer.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/model/residual_layer.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {
@@ -145,7 +145,7 @@ JointErrorSelection SelectContactJointErrors(const RobotModel& start,
 // distance row observes the layer's correction along the bar (u = (p - c) / |p - c|, at the
 // model's prediction p), each plane row along its normal, each tracker position row every axis;
 // the value is minus the row's error (ContactErrors without a layer), rows weighted by their noise
-// relative to the median (lpoe/residual_layer.h, FitResidualLayerProjected).
+// relative to the median (lpoe/model/residual_layer.h, FitResidualLayerProjected).
 Status FitContactResidualLayer(const ContactCalibrationResult& result,
                                const ContactMeasurementSet& data,
                                const ResidualLayerOptions& options, ResidualLayer* layer,

@@ -27,10 +27,10 @@
 #include <Eigen/Core>
 
 #include "lpoe/contact_calibration.h"
-#include "lpoe/contact_measurements.h"
+#include "lpoe/measurements/contact_measurements.h"
 #include "lpoe/planning.h"
 #include "lpoe/planning_workflow.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {

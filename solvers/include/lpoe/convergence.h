@@ -23,7 +23,7 @@
 
 #include <Eigen/Core>
 
-#include "lpoe/robot_model.h"
+#include "lpoe/model/robot_model.h"
 
 namespace lpoe {
 

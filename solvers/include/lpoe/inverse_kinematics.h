@@ -46,8 +46,8 @@
 
 #include <Eigen/Core>
 
-#include "lpoe/kinematics.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {
@@ -142,7 +142,7 @@ class InverseKinematics {
  private:
   // Solve without the model's residual layer (the chain with its joint-error terms).
   IkResult SolveParametric(const IkTarget& target, const double* seed, double* q) const;
-  // With a residual layer m(q, tool) (lpoe/residual_layer.h): the chain solved for the target
+  // With a residual layer m(q, tool) (lpoe/model/residual_layer.h): the chain solved for the target
   // moved by -m at the previous solution until m settles (inverse_kinematics_layer.cc).
   IkResult SolveThroughLayer(const IkTarget& target, const double* seed, double* q) const;
   // M task rows (3 or 6), N joints (6, 7, or Eigen::Dynamic for other counts: fixed-size types for

@@ -18,14 +18,14 @@
 #include "lpoe/linear_solver.h"
 #include "lpoe/plausibility.h"
 #include "lpoe/registration.h"
-#include "lpoe/residual_layer.h"
-#include "lpoe/statistics.h"
+#include "lpoe/model/residual_layer.h"
+#include "lpoe/model/statistics.h"
 
 namespace lpoe {
 
 enum class SolverKind { kLinear, kCeres };
 
-// The learned residual layer after the parametric solve (lpoe/residual_layer.h,
+// The learned residual layer after the parametric solve (lpoe/model/residual_layer.h,
 // docs/residual_layer.md): none, a Gaussian process, or chosen by k-fold cross-validation.
 enum class ResidualModelKind { kNone, kGp, kAuto };
 bool ParseResidualModelKind(const std::string& text, ResidualModelKind* kind);  // none|gp|auto
@@ -39,7 +39,7 @@ struct PipelineOptions {
   CeresSolverOptions ceres;
   ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
   bool use_orientation = false;
-  // The prior both solvers use (lpoe/prior.h, docs/identifiability.md "The prior"): by default the
+  // The prior both solvers use (lpoe/model/prior.h, docs/identifiability.md "The prior"): by default the
   // nominal model's tolerances about the registered start model, which holds the directions the
   // data determine only weakly and moves nothing the data determine. Null: plain least squares.
   // With a null reference, the reference is the start model (registered, tool points fitted).

@@ -35,12 +35,12 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "lpoe/refusals.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/prior.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/model/refusals.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/prior.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {
@@ -246,7 +246,7 @@ PlanQuality EvaluatePlan(const PlanningModel& pm, const CandidatePool& pool,
 Eigen::MatrixXd PlanningPriorInformation(const PlanningModel& pm, const ParameterPrior& prior,
                                          double sigma);
 
-// The refusals of a plan, shared by lpoe_plan and lpoe.plan (lpoe/refusals.h): a plan of `count`
+// The refusals of a plan, shared by lpoe_plan and lpoe.plan (lpoe/model/refusals.h): a plan of `count`
 // poses must identify every parameter (rank) and have more rows than parameters (redundancy: with
 // no more, it cannot check itself). The message says which and why.
 inline Status PlanRefusal(const PlanQuality& quality, int parameters, int count) {

@@ -16,7 +16,7 @@
 #include <Eigen/Core>
 
 #include "lpoe/planning.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {

@@ -24,9 +24,9 @@
 #include <string>
 #include <vector>
 
-#include "lpoe/measurements.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/statistics.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/model/statistics.h"
 
 namespace lpoe {
 

@@ -36,13 +36,13 @@
 #include <Eigen/Core>
 #include <ceres/problem.h>
 
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/measurements.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/prior.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/prior.h"
 #include "lpoe/problem_options.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/se3_manifold.h"
 #include "lpoe/status.h"
 
@@ -50,7 +50,7 @@ namespace lpoe {
 
 namespace internal {
 class BlockKind;  // solvers/src/calibration/block_kind.h
-struct JointSpaceRegressors;  // solvers/src/calibration/normal_equations.h
+struct JointSpaceRegressors;  // solvers/src/linearization/normal_equations.h
 struct NormalEquations;
 struct NormalEquationsOptions;
 struct ProblemSetup;  // solvers/src/calibration/problem_setup.h

@@ -15,11 +15,11 @@
 #include <string>
 #include <vector>
 
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/prior.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/prior.h"
+#include "lpoe/model/robot_model.h"
 
 namespace lpoe {
 
@@ -51,7 +51,7 @@ struct ProblemDefinitionOptions {
   std::shared_ptr<const GravityTiltModel> gravity_tilt;
   // Values of joint_terms to start from (same order and terms; empty: zero).
   std::vector<JointTermValues> initial_joint_terms;
-  // A Gaussian prior on the parameters' deviation from a reference model (lpoe/prior.h): the solve
+  // A Gaussian prior on the parameters' deviation from a reference model (lpoe/model/prior.h): the solve
   // is then a maximum-a-posteriori estimate; both solvers minimise the same cost (Ceres: one prior
   // residual block per solved frame and joint block). Null: plain least squares. Identifiable
   // parameterization only (the full one stays the paper's pseudo-inverse: CHECKed).

@@ -23,8 +23,8 @@
 #include <vector>
 
 #include "lpoe/inverse_kinematics.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/se3.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/kinematics/se3.h"
 #include "lpoe/status.h"
 
 namespace re2 {

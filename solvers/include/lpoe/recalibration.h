@@ -1,4 +1,4 @@
-// Recalibration and fleet priors (docs/recalibration.md): the prior of lpoe/prior.h built
+// Recalibration and fleet priors (docs/recalibration.md): the prior of lpoe/model/prior.h built
 // from calibrated models, written with them and read back.
 //
 //   * A calibrated model's YAML carries the estimate's covariance (`covariance:`, docs/file_formats.md):
@@ -20,10 +20,10 @@
 #include <Eigen/Core>
 
 #include "lpoe/calibration.h"
-#include "lpoe/model_covariance.h"
+#include "lpoe/model/model_covariance.h"
 #include "lpoe/pipeline.h"
-#include "lpoe/prior.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/model/prior.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {

@@ -13,8 +13,8 @@
 
 #include <Eigen/Core>
 
-#include "lpoe/measurements.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {

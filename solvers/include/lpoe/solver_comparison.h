@@ -6,10 +6,10 @@
 
 #include <string>
 
-#include "lpoe/measurements.h"
+#include "lpoe/measurements/measurements.h"
 #include "lpoe/pipeline.h"
-#include "lpoe/robot_model.h"
-#include "lpoe/statistics.h"
+#include "lpoe/model/robot_model.h"
+#include "lpoe/model/statistics.h"
 
 namespace lpoe {
 

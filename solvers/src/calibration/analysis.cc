@@ -11,11 +11,11 @@
 
 #include <glog/logging.h>
 
-#include "lpoe/kinematics.h"
-#include "lpoe/measurement_model.h"
-#include "lpoe/parameterization.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/measurement_model.h"
+#include "lpoe/model/parameterization.h"
 #include "lpoe/parallel.h"
-#include "lpoe/statistics.h"
+#include "lpoe/model/statistics.h"
 
 namespace lpoe {
 namespace {

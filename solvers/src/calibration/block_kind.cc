@@ -2,11 +2,11 @@
 
 #include <glog/logging.h>
 
-#include "calibration/joint_term_columns.h"
+#include "linearization/joint_term_columns.h"
 #include "calibration/problem_setup.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/pose_measurement.h"
-#include "lpoe/position_measurement.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/pose_measurement.h"
+#include "lpoe/measurements/position_measurement.h"
 
 namespace lpoe {
 namespace internal {

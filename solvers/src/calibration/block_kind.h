@@ -38,12 +38,12 @@
 #include <ceres/problem.h>
 
 #include "lpoe/calibration.h"
-#include "lpoe/joint_term.h"
+#include "lpoe/terms/joint_term.h"
 #include "lpoe/measurement_residual.h"
-#include "lpoe/measurements.h"
-#include "lpoe/parameterization.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/parameterization.h"
 #include "lpoe/problem_builder.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {

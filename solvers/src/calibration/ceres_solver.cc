@@ -18,13 +18,13 @@
 
 #include "calibration/block_kind.h"
 #include "identifiability/identifiability.h"
-#include "lpoe/eigen_decompositions.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
 #include "calibration/prior_terms.h"
 #include "calibration/problem_setup.h"
 #include "calibration/solve_on_problem.h"
-#include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
 #include "lpoe/problem_builder.h"
-#include "lpoe/statistics.h"
+#include "lpoe/model/statistics.h"
 
 namespace lpoe {
 namespace {
@@ -606,7 +606,7 @@ CalibrationResult CalibrateCeresOn(CalibrationProblem* problem_in,
   // ---- The identifiability check of the linear solver (same thresholds, same messages), on the
   // identifiable directions of the frames that are solved (unmeasured tools are not).
   const ProblemAnalysis analysis = builder.Analyze(options.max_condition_number);
-  // The prior (lpoe/prior.h): identifiable parameterization only; an informative one lets rows
+  // The prior (lpoe/model/prior.h): identifiable parameterization only; an informative one lets rows
   // that cannot identify the model alone calibrate.
   const bool use_prior = builder.setup().prior.active;
   const bool informative = use_prior && builder.setup().prior.informative;

@@ -7,7 +7,7 @@
 
 #include "calibration/block_kind.h"
 #include "calibration/problem_setup.h"
-#include "lpoe/se3.h"
+#include "lpoe/kinematics/se3.h"
 #include "lpoe/se3_manifold.h"
 
 namespace lpoe {

@@ -10,10 +10,10 @@
 #include "calibration/block_kind.h"
 #include "calibration/problem_setup.h"
 #include "identifiability/identifiability.h"
-#include "lpoe/eigen_decompositions.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/measurement_kind_dispatch.h"
-#include "calibration/normal_equations.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
+#include "linearization/normal_equations.h"
 
 namespace lpoe {
 namespace internal {

@@ -21,10 +21,10 @@
 #include <Eigen/Core>
 
 #include "lpoe/calibration.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/measurements.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {

@@ -17,11 +17,11 @@
 #include "identifiability/identifiability.h"
 #include "calibration/prior_terms.h"
 #include "calibration/problem_setup.h"
-#include "lpoe/eigen_decompositions.h"
-#include "lpoe/kinematics.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
+#include "lpoe/kinematics/kinematics.h"
 #include "lpoe/problem_builder.h"
 #include "calibration/solve_on_problem.h"
-#include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
 #include "identifiability/structural_identifiability.h"
 
 namespace lpoe {

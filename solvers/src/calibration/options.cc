@@ -34,7 +34,7 @@ OptionSpec Number(const char* scope, const char* name, const char* default_text,
 }
 
 // lpoe_calibrate's options that lpoe.calibrate shares, in the order of lpoe.calibrate's keywords
-// (the default prior's standard deviations, lpoe/prior.h and docs/identifiability.md "The prior",
+// (the default prior's standard deviations, lpoe/model/prior.h and docs/identifiability.md "The prior",
 // among them): default, range and help of the flag and of the keyword argument.
 std::vector<OptionSpec> CalibrateOptions() {
   const char* kCalibrate = "lpoe_calibrate";

@@ -12,12 +12,12 @@
 #include "calibration/block_kind.h"
 #include "calibration/gravity_tilt.h"
 #include "identifiability/structural_identifiability.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
 #include "lpoe/problem_builder.h"
 #include "calibration/solve_on_problem.h"
-#include "lpoe/refusals.h"
+#include "lpoe/model/refusals.h"
 
 namespace lpoe {
 namespace {
@@ -476,7 +476,7 @@ CalibrationResult PipelineSolve::Run(RegistrationReport* registration) {
   }
   CalibrationResult result = Once(nullptr, {});
   SettleStructure(&result);
-  // A data set with no more rows than parameters cannot check itself (lpoe/refusals.h, the check
+  // A data set with no more rows than parameters cannot check itself (lpoe/model/refusals.h, the check
   // lpoe_plan and lpoe.plan make on a plan): the fit is exact whatever the errors, every residual
   // zero and no standard deviation estimable. Refused as not identifiable (exit 3), not passed.
   if (result.converged()) {

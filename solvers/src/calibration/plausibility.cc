@@ -5,9 +5,9 @@
 #include <cstdio>
 #include <vector>
 
-#include "lpoe/kinematics.h"
-#include "lpoe/measurement_kind_dispatch.h"
-#include "lpoe/parameterization.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
+#include "lpoe/model/parameterization.h"
 
 namespace lpoe {
 namespace {

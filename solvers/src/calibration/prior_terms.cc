@@ -7,7 +7,7 @@
 #include <Eigen/Cholesky>
 #include <glog/logging.h>
 
-#include "lpoe/eigen_decompositions.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
 
 namespace lpoe {
 namespace internal {

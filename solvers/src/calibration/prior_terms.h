@@ -1,4 +1,4 @@
-// The prior (lpoe/prior.h) in a solver's coordinates: the whitened prior rows of the identified
+// The prior (lpoe/model/prior.h) in a solver's coordinates: the whitened prior rows of the identified
 // parameters (the linear solver adds them to its normal equations; the Ceres solver adds the same
 // rows as residual blocks on its parameter blocks), and what the prior contributed per parameter.
 #ifndef LPOE_SOLVERS_PRIOR_TERMS_H_
@@ -9,10 +9,10 @@
 
 #include <Eigen/Core>
 
-#include "lpoe/measurements.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/prior.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/prior.h"
+#include "lpoe/model/robot_model.h"
 
 namespace lpoe {
 namespace internal {

@@ -9,15 +9,15 @@
 #include <ceres/ceres.h>
 #include <glog/logging.h>
 
-#include "calibration/batched_residual.h"
+#include "linearization/batched_residual.h"
 #include "calibration/block_kind.h"
-#include "calibration/joint_term_columns.h"
+#include "linearization/joint_term_columns.h"
 #include "identifiability/identifiability.h"
 #include "identifiability/structural_identifiability.h"
-#include "lpoe/eigen_decompositions.h"
-#include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
 #include "lpoe/measurement_residual.h"
-#include "calibration/normal_equations.h"
+#include "linearization/normal_equations.h"
 #include "calibration/problem_setup.h"
 
 namespace lpoe {

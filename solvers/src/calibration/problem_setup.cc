@@ -7,7 +7,7 @@
 #include "calibration/block_kind.h"
 #include "calibration/gravity_tilt.h"
 #include "identifiability/identifiability.h"
-#include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
 
 namespace lpoe {
 namespace internal {

@@ -12,15 +12,15 @@
 
 #include <Eigen/Core>
 
-#include "calibration/normal_equations.h"
+#include "linearization/normal_equations.h"
 #include "calibration/prior_terms.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/measurements.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/prior.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/prior.h"
 #include "lpoe/problem_options.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {

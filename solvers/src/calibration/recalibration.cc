@@ -11,10 +11,10 @@
 #include <Eigen/LU>
 #include <Eigen/QR>
 
-#include "lpoe/eigen_decompositions.h"
-#include "lpoe/io.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/se3.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
+#include "lpoe/io/io.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/kinematics/se3.h"
 
 namespace lpoe {
 namespace {

@@ -10,11 +10,11 @@
 
 #include "identifiability/identifiability.h"
 
-#include "lpoe/eigen_decompositions.h"
-#include "lpoe/kinematics.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
+#include "lpoe/kinematics/kinematics.h"
 #include "lpoe/linear_solver.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/statistics.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/statistics.h"
 
 namespace lpoe {
 namespace {

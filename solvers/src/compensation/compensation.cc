@@ -1,6 +1,6 @@
 #include "lpoe/compensation.h"
 
-#include "lpoe/residual_layer.h"
+#include "lpoe/model/residual_layer.h"
 
 #include <algorithm>
 #include <charconv>
@@ -10,10 +10,10 @@
 #include <thread>
 #include <vector>
 
-#include "lpoe/io.h"
-#include "lpoe/model_limits.h"
+#include "lpoe/io/io.h"
+#include "lpoe/model/model_limits.h"
 #include "lpoe/options.h"
-#include "lpoe/refusals.h"
+#include "lpoe/model/refusals.h"
 #include "io/parse_util.h"
 
 namespace lpoe {
@@ -137,7 +137,7 @@ Status CheckCompensationRequest(const CompensationRequest& r) {
       return Status::Error("--tcp=" + r.tcp +
                            ": expected x,y,z or x,y,z,roll,pitch,yaw (mm, rad), or a tool name");
     }
-    // A TCP is on the tool: lengths and angles in the range of a model file (lpoe/model_limits.h).
+    // A TCP is on the tool: lengths and angles in the range of a model file (lpoe/model/model_limits.h).
     for (size_t k = 0; k < numbers.size(); ++k) {
       const double limit = k < 3 ? kMaxModelLengthMm : kMaxModelAngleRad;
       if (!(std::abs(numbers[k]) <= limit)) {

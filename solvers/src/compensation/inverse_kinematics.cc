@@ -11,7 +11,7 @@
 #include <glog/logging.h>
 
 
-#include "lpoe/joint_errors.h"
+#include "lpoe/terms/joint_errors.h"
 
 namespace lpoe {
 namespace {

@@ -4,8 +4,8 @@
 #include <cmath>
 
 #include "lpoe/inverse_kinematics.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/residual_layer.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/model/residual_layer.h"
 
 namespace lpoe {
 

@@ -11,15 +11,15 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
-#include "calibration/joint_term_columns.h"
+#include "linearization/joint_term_columns.h"
 #include "contact/contact_kinds.h"
 #include "identifiability/identifiability.h"
-#include "lpoe/distance_measurement.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/plane_measurement.h"
-#include "lpoe/position_measurement.h"
-#include "lpoe/residual_layer.h"
+#include "lpoe/measurements/distance_measurement.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/plane_measurement.h"
+#include "lpoe/measurements/position_measurement.h"
+#include "lpoe/model/residual_layer.h"
 
 namespace lpoe {
 namespace {

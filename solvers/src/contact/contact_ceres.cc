@@ -8,13 +8,13 @@
 #include <ceres/product_manifold.h>
 #include <ceres/sphere_manifold.h>
 
-#include "calibration/joint_term_columns.h"
+#include "linearization/joint_term_columns.h"
 #include "contact/contact_kinds.h"
 #include "lpoe/contact_calibration.h"
-#include "lpoe/distance_measurement.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/plane_measurement.h"
-#include "lpoe/position_measurement.h"
+#include "lpoe/measurements/distance_measurement.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/plane_measurement.h"
+#include "lpoe/measurements/position_measurement.h"
 #include "lpoe/se3_manifold.h"
 
 namespace lpoe {

@@ -11,8 +11,8 @@
 
 #include "identifiability/cross_validation.h"
 #include "lpoe/contact_pipeline.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
 #include "lpoe/parallel.h"
 
 namespace lpoe {

@@ -8,7 +8,7 @@
 #include <utility>
 
 #include "lpoe/contact_calibration.h"
-#include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
 
 namespace lpoe {
 namespace internal {

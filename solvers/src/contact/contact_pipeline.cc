@@ -3,9 +3,9 @@
 
 #include "identifiability/cross_validation.h"
 
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
-#include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
 
 #include <algorithm>
 #include <cmath>

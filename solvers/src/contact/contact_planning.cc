@@ -11,7 +11,7 @@
 #include <Eigen/Dense>
 
 #include "lpoe/inverse_kinematics.h"
-#include "lpoe/kinematics.h"
+#include "lpoe/kinematics/kinematics.h"
 #include "lpoe/options.h"
 
 namespace lpoe {

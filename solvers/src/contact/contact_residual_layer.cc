@@ -6,8 +6,8 @@
 
 #include "contact/contact_kinds.h"
 #include "lpoe/contact_pipeline.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/kinematics.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/kinematics/kinematics.h"
 
 namespace lpoe {
 

@@ -11,10 +11,10 @@
 #include <Eigen/QR>
 #include <glog/logging.h>
 
-#include "lpoe/eigen_decompositions.h"
-#include "lpoe/householder.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/measurement_kind_dispatch.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
+#include "lpoe/kinematics/householder.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
 #include "identifiability/structural_identifiability.h"
 
 namespace lpoe {

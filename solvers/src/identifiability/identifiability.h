@@ -9,10 +9,10 @@
 
 #include <Eigen/Core>
 
-#include "lpoe/measurements.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/robot_model.h"
-#include "calibration/normal_equations.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/robot_model.h"
+#include "linearization/normal_equations.h"
 
 namespace lpoe {
 namespace internal {

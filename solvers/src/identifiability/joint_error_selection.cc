@@ -7,8 +7,8 @@
 
 #include "calibration/block_kind.h"
 #include "identifiability/cross_validation.h"
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
 #include "lpoe/parallel.h"
 #include "lpoe/pipeline.h"
 

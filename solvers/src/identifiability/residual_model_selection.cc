@@ -9,8 +9,8 @@
 #include "identifiability/cross_validation.h"
 #include "lpoe/parallel.h"
 #include "lpoe/pipeline.h"
-#include "lpoe/residual_layer.h"
-#include "lpoe/statistics.h"
+#include "lpoe/model/residual_layer.h"
+#include "lpoe/model/statistics.h"
 
 namespace lpoe {
 

@@ -12,10 +12,10 @@
 
 #include "identifiability/identifiability.h"
 #include "lpoe/analysis.h"
-#include "lpoe/eigen_decompositions.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/measurement_kind_dispatch.h"
-#include "calibration/normal_equations.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/measurements/measurement_kind_dispatch.h"
+#include "linearization/normal_equations.h"
 
 namespace lpoe {
 namespace internal {

@@ -15,9 +15,9 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "lpoe/measurements.h"
-#include "lpoe/parameterization.h"
-#include "lpoe/robot_model.h"
+#include "lpoe/measurements/measurements.h"
+#include "lpoe/model/parameterization.h"
+#include "lpoe/model/robot_model.h"
 
 namespace lpoe {
 namespace internal {

@@ -22,10 +22,10 @@
 #include "identifiability/identifiability.h"
 #include "planning/planning_internal.h"
 #include "lpoe/analysis.h"
-#include "lpoe/eigen_decompositions.h"
-#include "lpoe/joint_errors.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
+#include "lpoe/terms/joint_errors.h"
 #include "lpoe/linear_solver.h"
-#include "lpoe/measurements.h"
+#include "lpoe/measurements/measurements.h"
 #include "io/parse_util.h"
 
 namespace lpoe {

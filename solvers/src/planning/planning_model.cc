@@ -20,14 +20,14 @@
 #include <glog/logging.h>
 
 #include "calibration/block_kind.h"
-#include "calibration/joint_term_columns.h"
+#include "linearization/joint_term_columns.h"
 #include "identifiability/identifiability.h"
 #include "planning/planning_internal.h"
 #include "lpoe/analysis.h"
-#include "lpoe/eigen_decompositions.h"
-#include "lpoe/joint_errors.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
+#include "lpoe/terms/joint_errors.h"
 #include "lpoe/linear_solver.h"
-#include "lpoe/measurements.h"
+#include "lpoe/measurements/measurements.h"
 
 namespace lpoe {
 using planning_internal::kRotationErrorScale;

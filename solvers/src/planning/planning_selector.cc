@@ -24,10 +24,10 @@
 #include "model/level3_workspace.h"
 #include "planning/planning_internal.h"
 #include "lpoe/analysis.h"
-#include "lpoe/eigen_decompositions.h"
-#include "lpoe/joint_errors.h"
+#include "lpoe/kinematics/eigen_decompositions.h"
+#include "lpoe/terms/joint_errors.h"
 #include "lpoe/linear_solver.h"
-#include "lpoe/measurements.h"
+#include "lpoe/measurements/measurements.h"
 #include "lpoe/parallel.h"
 
 namespace lpoe {

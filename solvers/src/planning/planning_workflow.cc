@@ -10,11 +10,11 @@
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
 
-#include "lpoe/joint_errors.h"
-#include "lpoe/joint_term.h"
+#include "lpoe/terms/joint_errors.h"
+#include "lpoe/terms/joint_term.h"
 #include "lpoe/options.h"
-#include "lpoe/residual_layer.h"
-#include "lpoe/refusals.h"
+#include "lpoe/model/residual_layer.h"
+#include "lpoe/model/refusals.h"
 
 namespace lpoe {
 namespace {
@@ -222,7 +222,7 @@ struct PlanningContext {
   int P = 0;
 
   // The refusals: full rank (with the prior's information), and without a prior more rows than
-  // parameters (lpoe/refusals.h).
+  // parameters (lpoe/model/refusals.h).
   Status Refusal(const PlanQuality& quality, int count) const {
     if (!request.prior) return PlanRefusal(quality, P, count);
     return CheckFullRank(quality.rank, P, "the plan of " + std::to_string(count) +

@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "lpoe/compensation.h"
-#include "lpoe/kinematics.h"
-#include "lpoe/refusals.h"
+#include "lpoe/kinematics/kinematics.h"
+#include "lpoe/model/refusals.h"
 
 namespace lpoe {
 
@@ -132,7 +132,7 @@ Status CheckProgramModels(const RobotModel& calibrated, const RobotModel& nomina
   for (const RobotModel* m : {&calibrated, &nominal}) {
     if (Status s = InverseKinematics::CheckModel(*m); !s.ok()) return s;
   }
-  // The same check as lpoe_compensate --targets (lpoe/refusals.h): the nominal model describes the
+  // The same check as lpoe_compensate --targets (lpoe/model/refusals.h): the nominal model describes the
   // calibrated arm.
   if (Status s = CheckNominalMatches(calibrated, nominal); !s.ok()) {
     return Status::Error("nominal: " + s.message());
