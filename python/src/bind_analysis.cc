@@ -375,7 +375,8 @@ PyPlan TrackerPlan(const RobotModel& model, int count, const py::object& candida
                    const py::object& min_z_obj, const py::object& box_obj,
                    const py::object& keep_out_obj, const py::object& joint_ranges_obj,
                    const std::shared_ptr<Prior>& prior_file, const py::object& prior_free_obj,
-                   double noise_sigma) {
+                   double noise_sigma, const py::object& unmodelled_error_obj,
+                   const py::object& unmodelled_length_obj) {
   // The workflow of lpoe_plan (lpoe/planning_workflow.h): the same request, checks and plan.
   Check(model.Validate());
   PlanRequest request;
@@ -388,6 +389,13 @@ PyPlan TrackerPlan(const RobotModel& model, int count, const py::object& candida
   request.seed = seed;
   request.random_draws = random_draws;
   request.joint_errors = joint_errors;
+  // As lpoe_plan's --unmodelled_error/--unmodelled_length: either given overrides the residual
+  // layer's (or the default) unmodelled error.
+  if (!unmodelled_error_obj.is_none()) request.unmodelled_error = unmodelled_error_obj.cast<double>();
+  if (!unmodelled_length_obj.is_none()) {
+    request.unmodelled_length = unmodelled_length_obj.cast<double>();
+  }
+  request.unmodelled_given = !unmodelled_error_obj.is_none() || !unmodelled_length_obj.is_none();
   if (!ParsePlanCriterion(criterion, &request.options.criterion)) {
     throw LpoeError("criterion: expected one of D, A, E, I, O1, O3, got '" + criterion + "'");
   }
@@ -625,7 +633,8 @@ py::object Plan(const RobotModel* model_arg, int count, const py::object& candid
                 double stroke, const py::object& planes_obj, const py::object& face_centres_obj,
                 double face_radius, double probe_radius, int samples_per_feature,
                 const py::object& contact_tool_obj, const py::object& prior_obj,
-                const py::object& prior_free_obj, double noise_sigma) {
+                const py::object& prior_free_obj, double noise_sigma,
+                const py::object& unmodelled_error_obj, const py::object& unmodelled_length_obj) {
   if (measurement != "position" && (!prior_obj.is_none() || !prior_free_obj.is_none())) {
     throw LpoeError("prior and prior_free plan a recalibration from tracker (position) "
                     "measurements; a measurement='" + measurement + "' plan takes no prior");
@@ -658,7 +667,8 @@ py::object Plan(const RobotModel* model_arg, int count, const py::object& candid
                                 workspace_count, seed, criterion, tracker_obj, max_range,
                                 acceptance_angle, smr_facing_obj, min_singularity, random_draws,
                                 joint_errors, min_z_obj, box_obj, keep_out_obj, joint_ranges_obj,
-                                prior_file, prior_free_obj, noise_sigma));
+                                prior_file, prior_free_obj, noise_sigma, unmodelled_error_obj,
+                                unmodelled_length_obj));
   }
   if (measurement != "ballbar" && measurement != "plane") {
     throw LpoeError("measurement must be position, ballbar or plane, got '" + measurement + "'");
@@ -678,7 +688,9 @@ py::object Plan(const RobotModel* model_arg, int count, const py::object& candid
       {"joint_errors", joint_errors != OptionDefaultText(kPlanTool, "joint_errors")},
       {"keep_out", !keep_out_obj.is_none()},
       {"joint_ranges", !joint_ranges_obj.is_none()},
-      {"noise_sigma", noise_sigma != OptionDefault(kPlanTool, "noise_sigma")}};
+      {"noise_sigma", noise_sigma != OptionDefault(kPlanTool, "noise_sigma")},
+      {"unmodelled_error", !unmodelled_error_obj.is_none()},
+      {"unmodelled_length", !unmodelled_length_obj.is_none()}};
   for (const auto& [name, given] : tracker_only) {
     if (given) {
       throw LpoeError(std::string(name) + " is for tracker plans; with measurement='" +
@@ -1052,6 +1064,7 @@ void BindAnalysis(py::module_& m) {
         py::arg("contact_tool") = py::none(), py::arg("prior") = py::none(),
         py::arg("prior_free") = py::none(),
         py::arg("noise_sigma") = OptionDefault(kPlan, "noise_sigma"),
+        py::arg("unmodelled_error") = py::none(), py::arg("unmodelled_length") = py::none(),
         "chooses `count` poses to measure (as lpoe_plan): candidates (C, N) rad/mm or "
         "candidate_count sampled within the limits; criterion D | A | E | I | O1 | O3; optional "
         "tracker (3,) mm with max_range (mm), acceptance_angle (degrees), smr_facing (3,) or "
@@ -1062,7 +1075,11 @@ void BindAnalysis(py::module_& m) {
         "base frame as lpoe_plan's flags. prior= (a file or an lpoe.Prior; model=None: its "
         "model) and prior_free (joint or tool names) plan a recalibration as --prior and "
         "--prior_free, the prior's information weighed against noise_sigma (mm; 0: the "
-        "prior's). The same workflow as lpoe_plan (lpoe/planning_workflow.h): the same seeds "
+        "prior's). unmodelled_error (mm per axis; 0: none) and unmodelled_length (rad or mm per "
+        "joint) as --unmodelled_error and --unmodelled_length: the error the calibrated model "
+        "will not explain, which the plan's predicted error includes and its exchange lowers "
+        "(default: the model's residual layer, else 0.03 mm over 1 rad; docs/planning.md). "
+        "The same workflow as lpoe_plan (lpoe/planning_workflow.h): the same seeds "
         "give the same plan. measurement='ballbar' (pivots (K, 3) mm, bar_length, stroke) or "
         "'plane' (planes (K, 4) [nx, ny, nz, d], face_centres (K, 3), face_radius, probe_radius) "
         "plans ballbar or probe poses as lpoe_plan --measurement (samples_per_feature, "

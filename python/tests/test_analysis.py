@@ -217,7 +217,8 @@ def test_gravity_tilt_in_problem_and_plan(inputs, tmp_path):
         lpoe.plan(m, 40, joint_errors="compliance,tilt")
     with pytest.raises(lpoe.Error, match="compliance"):
         lpoe.plan(mc, 40, joint_errors="harmonics,tilt")
-    opts = dict(candidate_count=600, workspace_count=200, random_draws=3)
+    # The tilt's columns are what this is about, not the exchange on an unmodelled error.
+    opts = dict(candidate_count=600, workspace_count=200, random_draws=3, unmodelled_error=0)
     tilted = lpoe.plan(mc, 60, joint_errors="compliance,tilt", **opts)
     plain = lpoe.plan(mc, 60, joint_errors="compliance", **opts)
     assert tilted.gravity_tilt and not plain.gravity_tilt
@@ -225,6 +226,29 @@ def test_gravity_tilt_in_problem_and_plan(inputs, tmp_path):
     assert tilted.quality["rank"] == tilted.num_parameters
     assert lpoe.plan(mc, 60, joint_errors="auto", **opts).gravity_tilt
     assert not lpoe.plan(m, 60, joint_errors="auto", **opts).gravity_tilt
+
+
+def test_plan_takes_the_unmodelled_error_as_lpoe_plan(inputs):
+    """unmodelled_error= and unmodelled_length= as lpoe_plan's flags: the default (no residual
+    layer) is 0.03 mm given, 0 plans for the noise alone, a larger error predicts a larger error;
+    out of range and contact plans refused."""
+    m, _, _ = inputs
+    opts = dict(candidate_count=300, workspace_count=100, random_draws=2, noise_sigma=0.01)
+    default = lpoe.plan(m, 30, **opts)
+    given = lpoe.plan(m, 30, unmodelled_error=0.03, **opts)
+    assert np.array_equal(default.q, given.q)
+    assert default.predicted_error == given.predicted_error
+    none = lpoe.plan(m, 30, unmodelled_error=0, **opts)
+    small = lpoe.plan(m, 30, unmodelled_error=0.01, **opts)
+    large = lpoe.plan(m, 30, unmodelled_error=0.1, unmodelled_length=0.5, **opts)
+    assert 0 < none.predicted_error < small.predicted_error < given.predicted_error
+    assert given.predicted_error < large.predicted_error
+    with pytest.raises(lpoe.Error, match="unmodelled_error"):
+        lpoe.plan(m, 30, unmodelled_error=-1, **opts)
+    with pytest.raises(lpoe.Error, match="unmodelled_length"):
+        lpoe.plan(m, 30, unmodelled_length=float("nan"), **opts)
+    with pytest.raises(lpoe.Error, match="unmodelled_error is for tracker plans"):
+        lpoe.plan(m, 30, measurement="ballbar", unmodelled_error=0)
 
 
 def test_joint_error_terms_come_from_the_registry(inputs, tmp_path):

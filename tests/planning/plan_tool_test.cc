@@ -217,7 +217,10 @@ TEST_F(PlanTool, CountAutoReturnsTheSmallestPlanReachingTheTarget) {
 // parameters, and a prediction that includes their uncertainty (larger than the geometric one for
 // the same number of poses). 'auto' plans for every term.
 TEST_F(PlanTool, JointErrorTermsJoinThePlannedParameters) {
-  const Output o = Plan("--count=30 --output=p.csv --joint_errors=harmonics,compliance");
+  // The parameters and the criterion are what this test is about, not the exchange on an
+  // unmodelled error (PlanningStandIn, PlanningUnmodelled): --unmodelled_error=0 throughout.
+  const Output o =
+      Plan("--count=30 --output=p.csv --joint_errors=harmonics,compliance --unmodelled_error=0");
   ASSERT_EQ(o.exit_code, kExitOk) << o.err;
   const nlohmann::json report = nlohmann::json::parse(ReadAll(dir_ / "p.json"));
   ASSERT_EQ(report["joint_errors"].size(), 2u);
@@ -235,13 +238,13 @@ TEST_F(PlanTool, JointErrorTermsJoinThePlannedParameters) {
   EXPECT_LT(with_terms, report["random_plan"]["predicted_rms_per_unit_noise"].get<double>());
   EXPECT_NE(ReadAll(dir_ / "p.csv").find("joint errors compliance,harmonics"), std::string::npos);
 
-  const Output g = Plan("--count=30 --output=g.csv");
+  const Output g = Plan("--count=30 --output=g.csv --unmodelled_error=0");
   ASSERT_EQ(g.exit_code, kExitOk) << g.err;
   const nlohmann::json geometric = nlohmann::json::parse(ReadAll(dir_ / "g.json"));
   EXPECT_TRUE(geometric["joint_errors"].empty());
   EXPECT_GT(with_terms, geometric["plan"]["predicted_rms_per_unit_noise"].get<double>());
 
-  const Output a = Plan("--count=30 --output=a.csv --joint_errors=auto");
+  const Output a = Plan("--count=30 --output=a.csv --joint_errors=auto --unmodelled_error=0");
   ASSERT_EQ(a.exit_code, kExitOk) << a.err;
   const nlohmann::json automatic = nlohmann::json::parse(ReadAll(dir_ / "a.json"));
   // auto plans for every registry term (compliance and harmonics first, then the others), each
@@ -309,7 +312,7 @@ TEST_F(PlanTool, GravityTiltNeedsAModelWithComplianceValues) {
   const Output a = Run(LPOE_PLAN_PATH, common + "--output=a.csv --joint_errors=auto");
   ASSERT_EQ(a.exit_code, kExitOk) << a.err;
   EXPECT_TRUE(nlohmann::json::parse(ReadAll(dir_ / "a.json"))["gravity_tilt"]["planned"].get<bool>());
-  const Output an = Plan("--count=40 --output=an.csv --joint_errors=auto");
+  const Output an = Plan("--count=40 --output=an.csv --joint_errors=auto --unmodelled_error=0");
   ASSERT_EQ(an.exit_code, kExitOk) << an.err;
   const nlohmann::json jn = nlohmann::json::parse(ReadAll(dir_ / "an.json"));
   EXPECT_FALSE(jn["gravity_tilt"]["planned"].get<bool>());

@@ -50,6 +50,8 @@ Status CheckPlanRequest(const PlanRequest& r) {
         CheckOption(kTool, "candidate_count", r.candidate_count),
         CheckOption(kTool, "workspace_count", r.workspace_count),
         CheckOption(kTool, "random_draws", r.random_draws),
+        CheckOption(kTool, "unmodelled_error", r.unmodelled_error),
+        CheckOption(kTool, "unmodelled_length", r.unmodelled_length),
         CheckOption(kTool, "min_singularity", r.constraints.min_singularity),
         CheckOption(kTool, "acceptance_angle", t.acceptance_angle * 180.0 / kPi),
         CheckOption(kTool, "max_range", std::isinf(t.max_range) ? 0.0 : t.max_range)}) {
