@@ -19,6 +19,7 @@
 #include "lpoe/terms/joint_term.h"
 #include "lpoe/kinematics/kinematics.h"
 #include "lpoe/model/simulation.h"
+#include "measurements/contact_reference.h"
 #include "test_util.h"
 
 namespace lpoe {
@@ -200,44 +201,17 @@ void ReferenceRows(const Reference& ref, const JointTerm& term, const ContactMea
 
 Reference PlainLeastSquares(const RobotModel& nominal, const ContactFeatures& start,
                             const JointTerm& term, const ContactMeasurementSet& data) {
-  Reference ref{nominal, start.pivots, Eigen::VectorXd::Zero(term.num_parameters())};
-  Eigen::VectorXd r;
-  Eigen::MatrixXd J;
-  ReferenceRows(ref, term, data, &r, &J);
-  double mu = 1e-6;
-  for (int it = 0; it < 100; ++it) {
-    Eigen::VectorXd x = testing::DampedPseudoInverseStep(J, r, mu);
-    bool lowered = false;
-    for (int halving = 0; halving < 30 && !lowered; ++halving, x *= 0.5) {
-      Reference next = ref;
-      const int F = nominal.num_frames();
-      const int n = nominal.num_joints();
-      for (int f = 0; f < F; ++f) {
-        SE3d& T = f < n ? next.model.joints[f].origin : next.model.tools[f - n].origin;
-        T = T * ExpSE3(Vector6d(x.segment<6>(6 * f)));
-      }
-      int at = 6 * F;
-      for (Eigen::Vector3d& c : next.pivots) {
-        c += x.segment<3>(at);
-        at += 3;
-      }
-      next.theta += x.tail(term.num_parameters());
-      Eigen::VectorXd r2;
-      Eigen::MatrixXd J2;
-      ReferenceRows(next, term, data, &r2, &J2);
-      if (r2.squaredNorm() <= r.squaredNorm()) {
-        mu = std::max(mu / 10, 1e-12);
-        ref = std::move(next);
-        r = std::move(r2);
-        J = std::move(J2);
-        lowered = true;
-      }
-    }
-    if (!lowered) mu *= 100;
-    if (lowered && x.norm() < 1e-11) break;
-    if (mu > 1e6) break;
-  }
-  return ref;
+  auto rows = [&](const Reference& s, Eigen::VectorXd* r, Eigen::MatrixXd* J) {
+    ReferenceRows(s, term, data, r, J);
+  };
+  auto step = [&](const Reference& s, const Eigen::VectorXd& x) {
+    Reference next = s;
+    testing::StepFramesAndPivots(x, &next.model, &next.pivots);
+    next.theta += x.tail(term.num_parameters());
+    return next;
+  };
+  return testing::DampedLeastSquares(
+      Reference{nominal, start.pivots, Eigen::VectorXd::Zero(term.num_parameters())}, rows, step);
 }
 
 std::vector<Eigen::Vector3d> ReferencePositions(const Reference& ref, const JointTerm& term,

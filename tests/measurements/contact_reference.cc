@@ -76,57 +76,43 @@ void ReferenceRows(const Reference& ref, const ContactMeasurementSet& data, Eige
   }
 }
 
+int StepFramesAndPivots(const Eigen::VectorXd& x, RobotModel* model,
+                        std::vector<Eigen::Vector3d>* pivots) {
+  const int F = model->num_frames();
+  const int n = model->num_joints();
+  for (int f = 0; f < F; ++f) {
+    SE3d& T = f < n ? model->joints[f].origin : model->tools[f - n].origin;
+    T = T * ExpSE3(Vector6d(x.segment<6>(6 * f)));
+  }
+  int at = 6 * F;
+  for (Eigen::Vector3d& c : *pivots) {
+    c += x.segment<3>(at);
+    at += 3;
+  }
+  return at;
+}
+
 Reference PlainLeastSquares(const RobotModel& nominal, const ContactFeatures& start,
                             const ContactMeasurementSet& data, bool hold_scale,
                             Eigen::MatrixXd* J_start) {
-  Reference ref{nominal, start.pivots, start.planes};
+  const Reference ref{nominal, start.pivots, start.planes};
   Eigen::VectorXd r;
-  Eigen::MatrixXd J;
-  ReferenceRows(ref, data, &r, &J);
-  *J_start = J;
-  if (hold_scale) AddReferenceScaleRow(nominal, ref, data, &r, &J);
-  double mu = 1e-6;
-  for (int it = 0; it < 100; ++it) {
-    // Levenberg-Marquardt damping on the column-scaled normal equations, a pseudo-inverse for
-    // the null directions.
-    Eigen::VectorXd x = DampedPseudoInverseStep(J, r, mu);
-    // The step, halved while it raises the cost (and damped more at the next iteration).
-    bool lowered = false;
-    for (int halving = 0; halving < 30 && !lowered; ++halving, x *= 0.5) {
-      Reference next = ref;
-      const int F = nominal.num_frames();
-      const int n = nominal.num_joints();
-      for (int f = 0; f < F; ++f) {
-        SE3d& T = f < n ? next.model.joints[f].origin : next.model.tools[f - n].origin;
-        T = T * ExpSE3(Vector6d(x.segment<6>(6 * f)));
-      }
-      int at = 6 * F;
-      for (Eigen::Vector3d& c : next.pivots) {
-        c += x.segment<3>(at);
-        at += 3;
-      }
-      for (Eigen::Vector4d& pl : next.planes) {
-        pl += x.segment<4>(at);
-        at += 4;
-        pl.head<3>().normalize();  // the same plane, unit normal
-      }
-      Eigen::VectorXd r2;
-      Eigen::MatrixXd J2;
-      ReferenceRows(next, data, &r2, &J2);
-      if (hold_scale) AddReferenceScaleRow(nominal, next, data, &r2, &J2);
-      if (r2.squaredNorm() <= r.squaredNorm()) {
-        mu = std::max(mu / 10, 1e-12);
-        ref = std::move(next);
-        r = std::move(r2);
-        J = std::move(J2);
-        lowered = true;
-      }
+  ReferenceRows(ref, data, &r, J_start);
+  auto rows = [&](const Reference& s, Eigen::VectorXd* r, Eigen::MatrixXd* J) {
+    ReferenceRows(s, data, r, J);
+    if (hold_scale) AddReferenceScaleRow(nominal, s, data, r, J);
+  };
+  auto step = [](const Reference& s, const Eigen::VectorXd& x) {
+    Reference next = s;
+    int at = StepFramesAndPivots(x, &next.model, &next.pivots);
+    for (Eigen::Vector4d& pl : next.planes) {
+      pl += x.segment<4>(at);
+      at += 4;
+      pl.head<3>().normalize();  // the same plane, unit normal
     }
-    if (!lowered) mu *= 100;
-    if (lowered && x.norm() < 1e-11) break;
-    if (mu > 1e6) break;
-  }
-  return ref;
+    return next;
+  };
+  return DampedLeastSquares(ref, rows, step);
 }
 
 }  // namespace testing
