@@ -108,7 +108,7 @@ PyProblem MakeProblem(const RobotModel& model, const MeasurementSet& data,
     o.joint_terms.push_back(term);
   }
   if (tilt) {
-    o.gravity_tilt = std::make_shared<const GravityTiltModel>(model);
+    o.bilinear_effects.push_back(std::make_shared<const GravityTiltModel>(model));
     for (const auto& term : o.joint_terms) {
       JointTermValues v;
       v.term = term;
@@ -124,7 +124,7 @@ PyProblem MakeProblem(const RobotModel& model, const MeasurementSet& data,
   PyProblem p;
   py::gil_scoped_release release;
   p.problem = std::make_unique<CalibrationProblem>(model, data, o);
-  if (tilt) Check(p.problem->tilt_status());
+  if (tilt) Check(p.problem->block_status());
   return p;
 }
 

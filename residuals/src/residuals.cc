@@ -7,7 +7,6 @@
 #include <ceres/jet.h>
 #include <glog/logging.h>
 
-#include "lpoe/terms/joint_errors.h"
 #include "lpoe/measurement_residual.h"
 
 namespace lpoe {
@@ -20,15 +19,17 @@ class JointSpaceCost : public ceres::CostFunction {
  public:
   JointSpaceCost(std::unique_ptr<ceres::CostFunction> inner, const double* q, int n,
                  const Eigen::MatrixXd& joint_regressor, const std::vector<int>& block_sizes,
-                 std::shared_ptr<const GravityTiltRow> tilt)
+                 std::vector<std::shared_ptr<const BilinearRow>> bilinear)
       : inner_(std::move(inner)),
         q_(q, q + n),
         regressor_t_(joint_regressor.transpose()),
         block_sizes_(block_sizes),
-        tilt_(std::move(tilt)) {
+        bilinear_(std::move(bilinear)) {
     for (int i = 0; i <= n; ++i) mutable_parameter_block_sizes()->push_back(kSe3AmbientSize);
     for (int k : block_sizes_) mutable_parameter_block_sizes()->push_back(k);
-    if (tilt_) mutable_parameter_block_sizes()->push_back(2);
+    for (const auto& e : bilinear_) {
+      mutable_parameter_block_sizes()->push_back(e->effect->num_parameters());
+    }
     set_num_residuals(inner_->num_residuals());
   }
 
@@ -55,34 +56,22 @@ class JointSpaceCost : public ceres::CostFunction {
       const Eigen::Map<const Eigen::VectorXd> x(x_all.data(), K);
       for (int j = 0; j < n; ++j) q_eff[j] = q_[j] + regressor_t_.col(j).dot(x);
     }
-    // The gravity tilt: the compliance offsets' change and its derivative in the tilt by Jets
-    // through the templated prediction of joint_errors.h; the compliance columns at the tilt.
-    const double* tilt = tilt_ ? parameters[n + 1 + blocks] : nullptr;
-    std::vector<double> tilt_dq;      // n x 2, row-major: d(dq)/dt
-    Eigen::MatrixXd compliance_dR;    // n x k_c: sum_a (g' - g)_a Z_a
-    if (tilt_) {
-      using Jet = ceres::Jet<double, 2>;
-      const double* x = parameters[n + 1 + tilt_->block];
-      const int k = block_sizes_[tilt_->block];
-      const Jet t[2] = {Jet(tilt[0], 0), Jet(tilt[1], 1)};
-      const Vector3<Jet> dg =
-          TiltedGravity<Jet>(tilt_->gravity, tilt_->axes, t) - tilt_->gravity.cast<Jet>();
-      const std::vector<Jet> x_jet(x, x + k);
-      std::vector<Jet> ddq(n);
-      ComplianceOffsets<Jet>(tilt_->Z, dg, x_jet.data(), ddq.data());
-      tilt_dq.resize(static_cast<size_t>(2) * n);
-      for (int j = 0; j < n; ++j) {
-        q_eff[j] += ddq[j].a;
-        tilt_dq[2 * j] = ddq[j].v(0);
-        tilt_dq[2 * j + 1] = ddq[j].v(1);
-      }
-      compliance_dR = dg(0).a * tilt_->Z[0] + dg(1).a * tilt_->Z[1] + dg(2).a * tilt_->Z[2];
+    // The bilinear blocks: their change of the partners' offsets, the partners' columns at their
+    // values and their own columns d(dq)/dt (BilinearJointColumns, as the linear solver).
+    const int E = static_cast<int>(bilinear_.size());
+    std::vector<Eigen::VectorXd> ddq(E);
+    std::vector<Eigen::MatrixXd> partner_dR(E), D(E);
+    for (int e = 0; e < E; ++e) {
+      const BilinearRow& row = *bilinear_[e];
+      BilinearJointColumns(*row.effect, parameters[n + 1 + blocks + e], row.Z,
+                           parameters[n + 1 + row.block], &ddq[e], &partner_dR[e], &D[e]);
+      for (int j = 0; j < n; ++j) q_eff[j] += ddq[e](j);
     }
     JointScratch<const double*, kStackJoints + 2> inner_parameters(n + 2);
     inner_parameters[0] = q_eff.data();
     for (int i = 0; i <= n; ++i) inner_parameters[i + 1] = parameters[i];
     bool need_q = false;
-    for (int b = 0; jacobians != nullptr && b < blocks + (tilt_ ? 1 : 0); ++b) {
+    for (int b = 0; jacobians != nullptr && b < blocks + E; ++b) {
       need_q = need_q || jacobians[n + 1 + b] != nullptr;
     }
     JointScratch<double, 6 * kStackJoints> J_q(need_q ? m * n : 0);  // row-major m x n
@@ -103,12 +92,17 @@ class JointSpaceCost : public ceres::CostFunction {
       const int k = block_sizes_[b];
       double* J = jacobians[n + 1 + b];
       if (J != nullptr) {
-        const bool tilted = tilt_ && b == tilt_->block;
-        JointScratch<double, 256> R(tilted ? k * n : 0);  // R_c + dR, row-major n x k
-        if (tilted) {
+        bool bilinear_partner = false;
+        for (int e = 0; e < E; ++e) bilinear_partner = bilinear_partner || bilinear_[e]->block == b;
+        JointScratch<double, 256> R(bilinear_partner ? k * n : 0);  // R_p + dR, row-major n x k
+        if (bilinear_partner) {
           for (int j = 0; j < n; ++j) {
             for (int c = 0; c < k; ++c) {
-              R[j * k + c] = regressor_t_(column + c, j) + compliance_dR(j, c);
+              double v = regressor_t_(column + c, j);
+              for (int e = 0; e < E; ++e) {
+                if (bilinear_[e]->block == b) v += partner_dR[e](j, c);
+              }
+              R[j * k + c] = v;
             }
           }
         }
@@ -117,20 +111,22 @@ class JointSpaceCost : public ceres::CostFunction {
           for (int c = 0; c < k; ++c) Ji[c] = 0;
           for (int j = 0; j < n; ++j) {
             const double a = J_q[i * n + j];
-            const double* Rj = tilted ? &R[j * k] : &regressor_t_(column, j);
+            const double* Rj = bilinear_partner ? &R[j * k] : &regressor_t_(column, j);
             for (int c = 0; c < k; ++c) Ji[c] += a * Rj[c];
           }
         }
       }
       column += k;
     }
-    if (tilt_ && jacobians[n + 1 + blocks] != nullptr) {
-      double* J = jacobians[n + 1 + blocks];  // row-major m x 2
+    for (int e = 0; e < E; ++e) {
+      double* J = jacobians[n + 1 + blocks + e];  // row-major m x t
+      if (J == nullptr) continue;
+      const int t = static_cast<int>(D[e].cols());
       for (int i = 0; i < m; ++i) {
-        for (int a = 0; a < 2; ++a) {
+        for (int a = 0; a < t; ++a) {
           double sum = 0;
-          for (int j = 0; j < n; ++j) sum += J_q[i * n + j] * tilt_dq[2 * j + a];
-          J[i * 2 + a] = sum;
+          for (int j = 0; j < n; ++j) sum += J_q[i * n + j] * D[e](j, a);
+          J[i * t + a] = sum;
         }
       }
     }
@@ -142,7 +138,7 @@ class JointSpaceCost : public ceres::CostFunction {
   std::vector<double> q_;
   Eigen::MatrixXd regressor_t_;  // sum(block_sizes) x n: R transposed
   std::vector<int> block_sizes_;
-  std::shared_ptr<const GravityTiltRow> tilt_;
+  std::vector<std::shared_ptr<const BilinearRow>> bilinear_;
 };
 
 }  // namespace
@@ -151,7 +147,7 @@ template <typename Kind>
 ceres::CostFunction* MeasurementResidual<Kind>::Create(
     std::shared_ptr<const RobotModel> model, const Kind& kind, const double* q,
     const typename Kind::Observation& observation, Eigen::MatrixXd joint_regressor,
-    std::vector<int> block_sizes, std::shared_ptr<const GravityTiltRow> tilt) {
+    std::vector<int> block_sizes, std::vector<std::shared_ptr<const BilinearRow>> bilinear) {
   CHECK(model != nullptr);
   const int n = model->num_joints();
   int columns = 0;
@@ -161,10 +157,13 @@ ceres::CostFunction* MeasurementResidual<Kind>::Create(
   }
   CHECK(block_sizes.empty() || (joint_regressor.rows() == n && joint_regressor.cols() == columns))
       << "the joint regressor must be n x sum(block_sizes)";
-  CHECK(tilt == nullptr ||
-        (tilt->block >= 0 && tilt->block < static_cast<int>(block_sizes.size()) &&
-         tilt->Z[0].rows() == n && tilt->Z[0].cols() == block_sizes[tilt->block]))
-      << "the gravity tilt needs the compliance block's Z_a (n x k_c)";
+  for (const auto& e : bilinear) {
+    CHECK(e != nullptr && e->effect != nullptr && e->block >= 0 &&
+          e->block < static_cast<int>(block_sizes.size()) &&
+          static_cast<int>(e->Z.size()) == e->effect->num_weights() && e->Z[0].rows() == n &&
+          e->Z[0].cols() == block_sizes[e->block])
+        << "a bilinear block needs its partner block's Z_a (n x k_p)";
+  }
   const bool joint_space = !block_sizes.empty();
   auto cost = std::make_unique<CostFunction>(
       new MeasurementResidual(std::move(model), kind, q, observation, joint_space));
@@ -173,7 +172,7 @@ ceres::CostFunction* MeasurementResidual<Kind>::Create(
   cost->SetNumResiduals(Kind::kResiduals);
   if (!joint_space) return cost.release();
   return new JointSpaceCost(std::move(cost), q, n, joint_regressor, block_sizes,
-                            std::move(tilt));
+                            std::move(bilinear));
 }
 
 template class MeasurementResidual<PositionMeasurement>;

@@ -54,7 +54,8 @@ TEST(BlockKind, RegistryHoldsTheTiltAndRefusesItWithoutItsPartner) {
   EXPECT_EQ(internal::FindBlockKind("compliance"), nullptr);
   const RobotModel model = LoadedCobot();
   internal::ProblemSetupRequest request;
-  request.gravity_tilt = std::make_shared<const GravityTiltModel>(model);
+  const auto tilt = std::make_shared<const GravityTiltModel>(model);
+  request.bilinear_effects = {tilt};
   EXPECT_TRUE(kind->Requested(request));
   std::shared_ptr<const JointTerm> harmonics;
   ASSERT_TRUE(MakeJointTerm("harmonics", model, &harmonics).ok());
@@ -66,7 +67,7 @@ TEST(BlockKind, RegistryHoldsTheTiltAndRefusesItWithoutItsPartner) {
   // Through the Ceres problem's validation as well.
   CalibrationProblemOptions o;
   o.joint_terms = {harmonics};
-  o.gravity_tilt = request.gravity_tilt;
+  o.bilinear_effects = request.bilinear_effects;
   const Status s = ValidateCalibrationProblemOptions(o);
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.message(), kind->needs_partner_message());
@@ -91,7 +92,8 @@ TEST(BlockKind, TiltColumnsMatchFiniteDifferencesOfThePredictedOffsets) {
       MakeParameterization(model, ParameterizationKind::kIdentifiable, DataKind::kPosition);
   AddJointBlock(term, &p);
   internal::ProblemSetupRequest request;
-  request.gravity_tilt = std::make_shared<const GravityTiltModel>(model);
+  const auto tilt = std::make_shared<const GravityTiltModel>(model);
+  request.bilinear_effects = {tilt};
   const internal::BlockKind* kind = internal::FindBlockKind(kGravityTiltName);
   ASSERT_TRUE(kind->Add(request, &p).ok());
   ASSERT_TRUE(kind->In(p));
@@ -107,7 +109,7 @@ TEST(BlockKind, TiltColumnsMatchFiniteDifferencesOfThePredictedOffsets) {
   // The core's prediction: the model carrying the values, its gravity tilted.
   auto predicted = [&](const Eigen::VectorXd& s, const double* q) {
     RobotModel m = model;
-    m.gravity = request.gravity_tilt->Tilted(s.data() + P);
+    m.gravity = tilt->Tilted(s.data() + P);
     *m.joint_errors.MutableValues("compliance") = std::vector<double>(s.data(), s.data() + P);
     Eigen::VectorXd dq = Eigen::VectorXd::Zero(n);
     JointErrorOffsets(m, q, dq.data());
@@ -152,9 +154,10 @@ TEST(BlockKind, TiltColumnsMatchFiniteDifferencesOfThePredictedOffsets) {
     // The tilt moves the offsets (a vertical joint 1 gains a gravity torque).
     EXPECT_GT(R.rightCols(2).norm(), 0);
     // The Ceres residual's data of the same row: its Z_a give the same compliance columns.
-    const auto row = kind->CeresRow(p, q, 0);
+    const auto row = internal::BilinearRowOf(p, 0, q, 0);
     ASSERT_NE(row, nullptr);
-    const Eigen::Vector3d dg = request.gravity_tilt->Tilted(state.data() + P) - model.gravity;
+    ASSERT_EQ(row->Z.size(), 3u);
+    const Eigen::Vector3d dg = tilt->Tilted(state.data() + P) - model.gravity;
     const Eigen::MatrixXd compliance =
         Y + dg(0) * row->Z[0] + dg(1) * row->Z[1] + dg(2) * row->Z[2];
     EXPECT_LT((compliance - R.leftCols(P)).cwiseAbs().maxCoeff(),
@@ -201,8 +204,8 @@ RobotModel ModelAt(const RobotModel& nominal, const Parameterization& p,
   }
   m.joint_errors.regressor_origins.clear();
   for (const Joint& j : nominal.joints) m.joint_errors.regressor_origins.push_back(j.origin);
-  const Eigen::Vector2d t = GravityTiltOf(p, x);
-  m.gravity = p.gravity_tilt->Tilted(t.data());
+  const Eigen::VectorXd t = BilinearValuesOf(p, 0, x);
+  m.gravity = static_cast<const GravityTiltModel&>(*p.bilinear_blocks[0].effect).Tilted(t.data());
   return m;
 }
 
@@ -227,13 +230,13 @@ TEST(BlockKind, BothSolversEstimateTheTiltOfAPlainLeastSquaresReference) {
   ASSERT_TRUE(without.converged()) << without.message;
   const auto tilt_model = std::make_shared<const GravityTiltModel>(s.nominal);
   LinearSolverOptions lo = first;
-  lo.gravity_tilt = tilt_model;
+  lo.bilinear_effects = {tilt_model};
   lo.initial_joint_terms = without.joint_terms;
   const CalibrationResult linear = CalibrateLinear(s.nominal, s.data, lo);
   ASSERT_TRUE(linear.converged()) << linear.message;
   CeresSolverOptions co;
   co.joint_terms = lo.joint_terms;
-  co.gravity_tilt = tilt_model;
+  co.bilinear_effects = {tilt_model};
   co.initial_joint_terms = without.joint_terms;
   const CalibrationResult ceres = CalibrateCeres(s.nominal, s.data, co);
   ASSERT_TRUE(ceres.converged()) << ceres.message;
@@ -242,7 +245,7 @@ TEST(BlockKind, BothSolversEstimateTheTiltOfAPlainLeastSquaresReference) {
 
   // The reference: the linear solver's parameterization, started where the solvers start.
   const Parameterization& p = linear.parameterization;
-  ASSERT_TRUE(p.gravity_tilt != nullptr);
+  ASSERT_EQ(p.bilinear_blocks.size(), 1u);
   Eigen::VectorXd x = Eigen::VectorXd::Zero(p.num_parameters);
   for (const JointBlock& block : p.joint_blocks) {
     for (const JointTermValues& v : without.joint_terms) {
@@ -271,7 +274,7 @@ TEST(BlockKind, BothSolversEstimateTheTiltOfAPlainLeastSquaresReference) {
     x += step;
     if (step.cwiseAbs().maxCoeff() < 1e-14) break;
   }
-  const Eigen::Vector2d reference = GravityTiltOf(p, x);
+  const Eigen::VectorXd reference = BilinearValuesOf(p, 0, x);
   for (int a = 0; a < 2; ++a) {
     const double sd = linear.gravity_tilt.standard_deviation(a);
     ASSERT_GT(sd, 0);
@@ -326,7 +329,7 @@ struct EveryKind {
     o.use_orientation = pose;
     o.joint_terms = {initial[0].term, initial[1].term};
     o.initial_joint_terms = initial;
-    o.gravity_tilt = std::make_shared<const GravityTiltModel>(nominal);
+    o.bilinear_effects = {std::make_shared<const GravityTiltModel>(nominal)};
     return o;
   }
 };
@@ -367,7 +370,7 @@ TEST(BlockKind, ProblemBlocksAreOneListInTheParameterizationsNumbering) {
   const CalibrationProblemOptions options = s.Options(false);
   ASSERT_TRUE(ValidateCalibrationProblem(s.nominal, s.data, options).ok());
   CalibrationProblem problem(s.nominal, s.data, options);
-  ASSERT_TRUE(problem.tilt_status().ok()) << problem.tilt_status().message();
+  ASSERT_TRUE(problem.block_status().ok()) << problem.block_status().message();
   const Parameterization& p = problem.parameterization();
   const Parameterization& solved = problem.SolvedParameterization();
   const int n = s.nominal.num_joints();
@@ -406,10 +409,11 @@ TEST(BlockKind, ProblemBlocksAreOneListInTheParameterizationsNumbering) {
       EXPECT_EQ(problem.joint_block(jb), b.values.data());
     } else {
       ASSERT_EQ(b.kind, internal::FindBlockKind(kGravityTiltName));
-      EXPECT_EQ(b.offset, p.tilt_offset);
+      EXPECT_EQ(b.index, 0);
+      EXPECT_EQ(b.offset, p.bilinear_blocks[0].offset);
       EXPECT_EQ(b.tangent_size, 2);
-      EXPECT_EQ(b.solved_offset, solved.tilt_offset);
-      EXPECT_EQ(problem.tilt_block(), b.values.data());
+      EXPECT_EQ(b.solved_offset, solved.bilinear_blocks[0].offset);
+      EXPECT_EQ(problem.bilinear_block(), b.values.data());
     }
     EXPECT_EQ(b.solved_offset, solved_offset);
     solved_offset += b.tangent_size;
@@ -449,7 +453,7 @@ TEST(BlockKind, ProblemBlocksAreOneListInTheParameterizationsNumbering) {
 TEST(BlockKind, EachKindsColumnsAreCentralDifferencesOfThePrediction) {
   const EveryKind s(false);
   CalibrationProblem problem(s.nominal, s.data, s.Options(false));
-  ASSERT_TRUE(problem.tilt_status().ok());
+  ASSERT_TRUE(problem.block_status().ok());
   MoveEveryBlock(&problem);
   const Parameterization& p = problem.parameterization();
   const RobotModel model = problem.Model();
@@ -510,7 +514,7 @@ TEST(BlockKind, KindsColumnsStackToTheProblemsNormalEquations) {
     CalibrationProblemOptions options = s.Options(pose);
     options.sigma = 0.02;
     CalibrationProblem problem(s.nominal, s.data, options);
-    ASSERT_TRUE(problem.tilt_status().ok());
+    ASSERT_TRUE(problem.block_status().ok());
     MoveEveryBlock(&problem);
     const RobotModel model = problem.Model();
     const Eigen::VectorXd joint_state = problem.JointState();

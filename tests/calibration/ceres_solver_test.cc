@@ -382,7 +382,7 @@ TEST(CeresSolver, AutoLinearSolverRule) {
   o.loss = "huber";
   EXPECT_EQ(CeresLinearSolverFor(o, 20.0, 1), "dense_qr");
   o = CeresSolverOptions();
-  o.gravity_tilt = std::make_shared<const GravityTiltModel>(MakeCobot6());
+  o.bilinear_effects = {std::make_shared<const GravityTiltModel>(MakeCobot6())};
   EXPECT_EQ(CeresLinearSolverFor(o, 20.0, 1), "dense_qr");
   o = CeresSolverOptions();
   o.linear_solver = "dense_qr";

@@ -13,7 +13,7 @@
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
 
-#include "calibration/gravity_tilt.h"
+#include "calibration/block_kind.h"
 #include "lpoe/io/io.h"
 #include "lpoe/terms/joint_errors.h"
 #include "lpoe/terms/joint_term.h"
@@ -46,7 +46,7 @@ struct Loaded {
     EXPECT_TRUE(MakeJointTerm("compliance", model, &term).ok());
     AddJointBlock(term, &p);
     tilt_model = std::make_shared<const GravityTiltModel>(model);
-    AddGravityTilt(tilt_model, 0, &p);
+    AddBilinearBlock(tilt_model, 0, &p);
   }
 };
 
@@ -91,7 +91,7 @@ TEST(GravityTilt, AxesArePerpendicularAndTheJacobianIsExact) {
   EXPECT_LT((U.col(1) - Eigen::Vector3d::UnitY()).norm(), 1e-15);
 }
 
-// GravityTiltRowRegressors forms Z_a = Y_a(q) B from Y_a's entries at their joints only
+// GravityTiltModel::RowRegressors forms Z_a = Y_a(q) B from Y_a's entries at their joints only
 // (ComplianceValuesGravityAxes): equal to the dense product of ComplianceRegressorGravityAxes'
 // matrices with a general (not selecting) basis, and the values are those matrices' entries.
 TEST(GravityTilt, RowRegressorsEqualTheDenseProducts) {
@@ -111,9 +111,11 @@ TEST(GravityTilt, RowRegressorsEqualTheDenseProducts) {
   double* const y[3] = {values.data(), values.data() + P, values.data() + 2 * P};
   for (uint64_t trial = 0; trial < 5; ++trial) {
     const std::vector<double> q = Configuration(trial + 11);
-    Eigen::MatrixXd Y[3], Z[3];
+    Eigen::MatrixXd Y[3];
+    std::vector<Eigen::MatrixXd> Z;
     ComplianceRegressorGravityAxes(l.model, q.data(), Y);
-    internal::GravityTiltRowRegressors(p, q.data(), Z);
+    l.tilt_model->RowRegressors(p.joint_blocks[0].basis, q.data(), &Z);
+    ASSERT_EQ(Z.size(), 3u);
     ComplianceValuesGravityAxes(l.model, q.data(), y);
     for (int a = 0; a < 3; ++a) {
       const Eigen::MatrixXd expected = Y[a] * B;
@@ -135,7 +137,7 @@ TEST(GravityTilt, RowRegressorsEqualTheDenseProducts) {
   }
 }
 
-// The extra joint-space columns of the linear solver (ApplyGravityTiltColumns): d(dq)/dt and the
+// The extra joint-space columns of the linear solver (AddNonlinearRowColumns): d(dq)/dt and the
 // compliance columns at the tilt, against central differences of the offsets and against Jets
 // through the templated TiltedGravity / ComplianceOffsets (what the Ceres residual uses); the
 // offsets themselves are those of the model with the tilted gravity.
@@ -160,7 +162,7 @@ TEST(GravityTilt, JointColumnsMatchFiniteDifferencesAndAutodiff) {
       term->Regressor(q.data(), Y.data());
       R.leftCols(P) = Y;
       Eigen::VectorXd q_eff = Eigen::Map<const Eigen::VectorXd>(q.data(), n) + R * s;
-      internal::ApplyGravityTiltColumns(p, q.data(), s, R, &q_eff);
+      internal::AddNonlinearRowColumns(p, q.data(), s, R, &q_eff);
       if (columns != nullptr) *columns = R;
       return Eigen::VectorXd(q_eff - Eigen::Map<const Eigen::VectorXd>(q.data(), n));
     };
@@ -291,12 +293,12 @@ TEST(GravityTilt, SolverJacobiansAgreeWithFiniteDifferences) {
     ASSERT_TRUE(MakeJointTerm(name, f.nominal, &term).ok());
     o.joint_terms.push_back(term);
   }
-  o.gravity_tilt = std::make_shared<const GravityTiltModel>(f.nominal);
+  o.bilinear_effects = {std::make_shared<const GravityTiltModel>(f.nominal)};
   o.initial_joint_terms = first.result.joint_terms;
   CalibrationProblem builder(f.nominal, f.identification, o);
-  ASSERT_TRUE(builder.tilt_status().ok()) << builder.tilt_status().message();
-  builder.tilt_block()[0] = 0.2 * kDeg;
-  builder.tilt_block()[1] = -0.1 * kDeg;
+  ASSERT_TRUE(builder.block_status().ok()) << builder.block_status().message();
+  builder.bilinear_block()[0] = 0.2 * kDeg;
+  builder.bilinear_block()[1] = -0.1 * kDeg;
   ceres::Problem problem;
   builder.AddTo(&problem);
   std::vector<double*> blocks = builder.parameter_blocks();
@@ -314,13 +316,13 @@ TEST(GravityTilt, SolverJacobiansAgreeWithFiniteDifferences) {
   // Tilt columns (the last two) against differences of the residuals.
   const int T = crs.num_cols - 2;
   for (int a = 0; a < 2; ++a) {
-    const double h = 1e-6, saved = builder.tilt_block()[a];
+    const double h = 1e-6, saved = builder.bilinear_block()[a];
     std::vector<double> plus, minus;
-    builder.tilt_block()[a] = saved + h;
+    builder.bilinear_block()[a] = saved + h;
     ASSERT_TRUE(problem.Evaluate(eval, nullptr, &plus, nullptr, nullptr));
-    builder.tilt_block()[a] = saved - h;
+    builder.bilinear_block()[a] = saved - h;
     ASSERT_TRUE(problem.Evaluate(eval, nullptr, &minus, nullptr, nullptr));
-    builder.tilt_block()[a] = saved;
+    builder.bilinear_block()[a] = saved;
     const Eigen::VectorXd fd = (Eigen::Map<const Eigen::VectorXd>(plus.data(), plus.size()) -
                                 Eigen::Map<const Eigen::VectorXd>(minus.data(), minus.size())) /
                                (2 * h);

@@ -44,7 +44,7 @@ void ExpectSameDecisions(const ProblemDefinitionOptions& a, const ProblemDefinit
   ASSERT_EQ(a.joint_terms.size(), b.joint_terms.size());
   for (size_t i = 0; i < a.joint_terms.size(); ++i) EXPECT_EQ(a.joint_terms[i], b.joint_terms[i]);
   EXPECT_EQ(a.joint_term_tolerance, b.joint_term_tolerance);
-  EXPECT_EQ(a.gravity_tilt, b.gravity_tilt);
+  EXPECT_EQ(a.bilinear_effects, b.bilinear_effects);
   EXPECT_EQ(a.initial_joint_terms.size(), b.initial_joint_terms.size());
   EXPECT_EQ(a.prior, b.prior);
 }

@@ -10,7 +10,6 @@
 
 #include <gtest/gtest.h>
 
-#include "calibration/gravity_tilt.h"
 #include "calibration/problem_setup.h"
 #include "identifiability/identifiability.h"
 #include "lpoe/ceres_solver.h"
@@ -63,9 +62,11 @@ void ExpectSameDirections(const Parameterization& a, const Parameterization& b) 
     ASSERT_EQ(a.joint_blocks[k].basis.cols(), b.joint_blocks[k].basis.cols());
     EXPECT_TRUE(a.joint_blocks[k].basis == b.joint_blocks[k].basis);
   }
-  EXPECT_EQ(a.gravity_tilt != nullptr, b.gravity_tilt != nullptr);
-  if (a.gravity_tilt && b.gravity_tilt) {
-    EXPECT_EQ(a.tilt_offset, b.tilt_offset);
+  ASSERT_EQ(a.bilinear_blocks.size(), b.bilinear_blocks.size());
+  for (size_t i = 0; i < a.bilinear_blocks.size(); ++i) {
+    EXPECT_EQ(a.bilinear_blocks[i].effect, b.bilinear_blocks[i].effect);
+    EXPECT_EQ(a.bilinear_blocks[i].partner, b.bilinear_blocks[i].partner);
+    EXPECT_EQ(a.bilinear_blocks[i].offset, b.bilinear_blocks[i].offset);
   }
   ASSERT_EQ(a.parameters.size(), b.parameters.size());
   for (size_t k = 0; k < a.parameters.size(); ++k) {
@@ -94,24 +95,24 @@ TEST(ProblemSetup, BothSolversEstimateTheSameDirections) {
   const CalibrationResult first = CalibrateLinear(f.nominal, f.data, lo);
   ASSERT_TRUE(first.converged()) << first.message;
   EXPECT_EQ(ListedAsNeverMeasured(first.parameterization), 3);  // the spare tool's translations
-  lo.gravity_tilt = std::make_shared<const GravityTiltModel>(f.nominal);
+  lo.bilinear_effects = {std::make_shared<const GravityTiltModel>(f.nominal)};
   lo.initial_joint_terms = first.joint_terms;
   CeresSolverOptions co;
   co.joint_terms = lo.joint_terms;
-  co.gravity_tilt = lo.gravity_tilt;
+  co.bilinear_effects = lo.bilinear_effects;
   co.initial_joint_terms = lo.initial_joint_terms;
   const CalibrationResult lin = CalibrateLinear(f.nominal, f.data, lo);
   const CalibrationResult cer = CalibrateCeres(f.nominal, f.data, co);
-  ASSERT_TRUE(lin.parameterization.gravity_tilt != nullptr) << lin.message;
+  ASSERT_EQ(lin.parameterization.bilinear_blocks.size(), 1u) << lin.message;
   EXPECT_EQ(ListedAsNeverMeasured(lin.parameterization), 3);
   ExpectSameDirections(lin.parameterization, cer.parameterization);
 
   CalibrationProblemOptions po;
   po.joint_terms = lo.joint_terms;
-  po.gravity_tilt = lo.gravity_tilt;
+  po.bilinear_effects = lo.bilinear_effects;
   po.initial_joint_terms = lo.initial_joint_terms;
   const CalibrationProblem problem(f.nominal, f.data, po);
-  ASSERT_TRUE(problem.tilt_status().ok()) << problem.tilt_status().message();
+  ASSERT_TRUE(problem.block_status().ok()) << problem.block_status().message();
   ExpectSameDirections(problem.SolvedParameterization(), lin.parameterization);
   // The spare tool is not solved; every joint and the measured tool are.
   const int n = f.nominal.num_joints();
@@ -124,11 +125,11 @@ TEST(ProblemSetup, UnmeasuredToolsLeftOutBeforeOrAfterTheTilt) {
   const Fixture f;
   LinearSolverOptions lo;
   lo.joint_terms = {f.compliance};
-  lo.gravity_tilt = std::make_shared<const GravityTiltModel>(f.nominal);
+  lo.bilinear_effects = {std::make_shared<const GravityTiltModel>(f.nominal)};
   const internal::ProblemSetup s =
       internal::SetUpProblem(f.nominal, f.data, internal::ProblemSetupRequestOf(lo));
-  ASSERT_TRUE(s.tilt_status.ok()) << s.tilt_status.message();
-  ASSERT_TRUE(s.all.gravity_tilt != nullptr);
+  ASSERT_TRUE(s.block_status.ok()) << s.block_status.message();
+  ASSERT_EQ(s.all.bilinear_blocks.size(), 1u);
   // `all` keeps the spare tool's basis; the solved list has it left out, as if it were left out
   // after the tilt was added.
   EXPECT_GT(s.all.num_parameters, s.solved.num_parameters);

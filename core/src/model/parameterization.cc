@@ -256,14 +256,14 @@ void RenumberJointBlocks(Parameterization* p, size_t first_changed = 0) {
     }
     if (!keep) DistinguishNames(static_cast<int>(b), block.offset, p);
   }
-  if (p->gravity_tilt) {
-    p->tilt_offset = p->num_parameters;
-    p->num_parameters += 2;
-    for (int a = 0; a < 2; ++a) {
+  for (BilinearBlock& block : p->bilinear_blocks) {
+    block.offset = p->num_parameters;
+    p->num_parameters += block.effect->num_parameters();
+    for (int a = 0; a < block.effect->num_parameters(); ++a) {
       Direction d;
       d.frame = -1;
       d.joint_block = -1;
-      d.name = "gravity.tilt" + std::to_string(a + 1);
+      d.name = block.effect->parameter_name(a);
       p->parameters.push_back(d);
     }
   }
@@ -302,18 +302,21 @@ void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& 
   RenumberJointBlocks(p, static_cast<size_t>(b));
 }
 
-void AddGravityTilt(std::shared_ptr<const GravityTiltModel> tilt, int block, Parameterization* p) {
-  CHECK(tilt != nullptr);
-  CHECK(block >= 0 && block < static_cast<int>(p->joint_blocks.size()));
-  p->gravity_tilt = std::move(tilt);
-  p->tilt_block = block;
+void AddBilinearBlock(std::shared_ptr<const BilinearJointEffect> effect, int partner,
+                      Parameterization* p) {
+  CHECK(effect != nullptr);
+  CHECK(partner >= 0 && partner < static_cast<int>(p->joint_blocks.size()));
+  CHECK_EQ(p->joint_blocks[partner].term->name(), effect->partner());
+  BilinearBlock block;
+  block.effect = std::move(effect);
+  block.partner = partner;
+  p->bilinear_blocks.push_back(std::move(block));
   RenumberJointBlocks(p);
 }
 
 void CopyJointBlocks(const Parameterization& from, Parameterization* to) {
   to->joint_blocks = from.joint_blocks;
-  to->gravity_tilt = from.gravity_tilt;
-  to->tilt_block = from.tilt_block;
+  to->bilinear_blocks = from.bilinear_blocks;
   std::vector<Direction> lost;
   for (const Direction& d : to->unidentifiable) {
     if (d.joint_block < 0) lost.push_back(d);
@@ -334,22 +337,21 @@ std::vector<JointTermValues> JointValuesOf(const Parameterization& p, const Eige
     v.theta = block.basis * x.segment(block.offset, block.basis.cols());
     out.push_back(std::move(v));
   }
-  if (p.gravity_tilt) {
-    RobotModel tilted = p.gravity_tilt->reference();
-    const Eigen::Vector2d t = GravityTiltOf(p, x);
-    tilted.gravity = p.gravity_tilt->Tilted(t.data());
+  for (size_t b = 0; b < p.bilinear_blocks.size(); ++b) {
+    const BilinearBlock& block = p.bilinear_blocks[b];
+    const Eigen::VectorXd t = BilinearValuesOf(p, static_cast<int>(b), x);
     std::shared_ptr<const JointTerm> term;
-    const Status s = MakeJointTerm(out[p.tilt_block].term->name(), tilted, &term);
+    const Status s = block.effect->PartnerAt(*out[block.partner].term, t.data(), &term);
     CHECK(s.ok()) << s.message();
-    out[p.tilt_block].term = std::move(term);
+    out[block.partner].term = std::move(term);
   }
   return out;
 }
 
-Eigen::Vector2d GravityTiltOf(const Parameterization& p, const Eigen::VectorXd& x) {
-  if (!p.gravity_tilt) return Eigen::Vector2d::Zero();
+Eigen::VectorXd BilinearValuesOf(const Parameterization& p, int b, const Eigen::VectorXd& x) {
   CHECK_EQ(x.size(), p.num_parameters);
-  return x.segment<2>(p.tilt_offset);
+  const BilinearBlock& block = p.bilinear_blocks[b];
+  return x.segment(block.offset, block.effect->num_parameters());
 }
 
 void ApplyUpdate(const Parameterization& p, const Eigen::VectorXd& x, RobotModel* model) {

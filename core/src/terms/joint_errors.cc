@@ -349,18 +349,79 @@ void GravityTiltModel::AxisValues(const double* q, double* const y[3]) const {
   ComplianceValuesGravityAxes(reference_, q, y);
 }
 
-void GravityTiltJointColumns(const Eigen::Vector3d& gravity,
-                             const Eigen::Matrix<double, 3, 2>& axes, const double* tilt,
-                             const Eigen::MatrixXd Z[3], const double* x, Eigen::VectorXd* ddq,
-                             Eigen::MatrixXd* dR, Eigen::MatrixXd* D) {
-  const Eigen::Vector3d dg = TiltedGravity<double>(gravity, axes, tilt) - gravity;
+const char* GravityTiltModel::partner() const { return "compliance"; }
+
+std::string GravityTiltModel::parameter_name(int i) const {
+  return "gravity.tilt" + std::to_string(i + 1);
+}
+
+void GravityTiltModel::Weights(const double* t, Eigen::VectorXd* dw,
+                               Eigen::MatrixXd* dw_dt) const {
+  if (dw != nullptr) *dw = Tilted(t) - gravity();
+  if (dw_dt != nullptr) *dw_dt = TiltedGravityJacobian(gravity(), axes_, t);
+}
+
+void GravityTiltModel::RowRegressors(const Eigen::MatrixXd& basis, const double* q,
+                                     std::vector<Eigen::MatrixXd>* Z) const {
+  const int n = reference_.num_joints();
+  const int P = NumComplianceParameters(n);
+  CHECK_EQ(basis.rows(), P) << "the tilt's partner block is not the compliance term";
+  const Eigen::Index k = basis.cols();
+  thread_local std::vector<double> values;
+  values.resize(3 * static_cast<size_t>(P));
+  double* const y[3] = {values.data(), values.data() + P, values.data() + 2 * P};
+  AxisValues(q, y);
+  Z->resize(3);
+  for (int a = 0; a < 3; ++a) (*Z)[a].resize(n, k);
+  // Z_a(j, i) = basis column i's joint-j segment . y_a's joint-j segment: contiguous in both, the
+  // three axes in one pass over the basis.
+  const double* B = basis.data();
+  for (int j = 0; j < n; ++j) {
+    const int first = ComplianceLinkIndex(n, j, j);
+    const int count = CompliancePayloadIndex(n, j) - first + 1;
+    const double* y0 = y[0] + first;
+    const double* y1 = y[1] + first;
+    const double* y2 = y[2] + first;
+    for (Eigen::Index i = 0; i < k; ++i) {
+      const double* b = B + i * P + first;
+      double z0 = 0, z1 = 0, z2 = 0;
+      for (int c = 0; c < count; ++c) {
+        z0 += b[c] * y0[c];
+        z1 += b[c] * y1[c];
+        z2 += b[c] * y2[c];
+      }
+      (*Z)[0](j, i) = z0;
+      (*Z)[1](j, i) = z1;
+      (*Z)[2](j, i) = z2;
+    }
+  }
+}
+
+Status GravityTiltModel::PartnerAt(const JointTerm& partner, const double* t,
+                                   std::shared_ptr<const JointTerm>* out) const {
+  RobotModel tilted = reference_;
+  tilted.gravity = Tilted(t);
+  return MakeJointTerm(partner.name(), tilted, out);
+}
+
+void BilinearJointColumns(const BilinearJointEffect& effect, const double* t,
+                          const std::vector<Eigen::MatrixXd>& Z, const double* x,
+                          Eigen::VectorXd* ddq, Eigen::MatrixXd* dR, Eigen::MatrixXd* D) {
+  thread_local Eigen::VectorXd dw;
+  thread_local Eigen::MatrixXd dw_dt, Zx;
+  effect.Weights(t, &dw, D != nullptr ? &dw_dt : nullptr);
+  const int A = effect.num_weights();
+  CHECK_EQ(static_cast<int>(Z.size()), A);
   const Eigen::Index n = Z[0].rows(), k = Z[0].cols();
   const Eigen::Map<const Eigen::VectorXd> xv(x, k);
-  Eigen::MatrixXd Zx(n, 3);  // Z[a] x
-  for (int a = 0; a < 3; ++a) Zx.col(a).noalias() = Z[a] * xv;
-  if (ddq != nullptr) *ddq = Zx * dg;
-  if (dR != nullptr) *dR = dg(0) * Z[0] + dg(1) * Z[1] + dg(2) * Z[2];
-  if (D != nullptr) *D = Zx * TiltedGravityJacobian(gravity, axes, tilt);
+  Zx.resize(n, A);  // Z[a] x
+  for (int a = 0; a < A; ++a) Zx.col(a).noalias() = Z[a] * xv;
+  if (ddq != nullptr) *ddq = Zx * dw;
+  if (dR != nullptr) {
+    *dR = dw(0) * Z[0];
+    for (int a = 1; a < A; ++a) *dR += dw(a) * Z[a];
+  }
+  if (D != nullptr) *D = Zx * dw_dt;
 }
 
 void HarmonicsRegressor(const RobotModel& model, const double* q, Eigen::MatrixXd* Y) {

@@ -15,12 +15,11 @@
 // per q_eff, in double, for every autodiff pass (lifted to Jets in the passes that seed a q_eff
 // direction: operator()).
 //
-// With a gravity tilt (GravityTiltRow, docs/joint_errors.md) one more block of 2 follows the
-// joint-space blocks: the compliance block's offsets become bilinear,
-//   q_eff += sum_a (g'(t) - g)_a Z_a x_c,
-// its columns R_c + sum_a (g'(t) - g)_a Z_a, and the tilt's columns (dr/dq_eff) d(dq)/dt with
-// d(dq)/dt by automatic differentiation (Jets) through the templated TiltedGravity and
-// ComplianceOffsets of joint_errors.h.
+// With bilinear blocks (BilinearRow, lpoe/terms/bilinear_term.h: the gravity tilt) one more block
+// per effect follows the joint-space blocks: its partner block's offsets become bilinear,
+//   q_eff += sum_a (w(t) - w(0))_a Z_a x_p,
+// the partner's columns R_p + sum_a (w(t) - w(0))_a Z_a, and the effect's columns
+// (dr/dq_eff) sum_a (dw/dt)_a Z_a x_p (BilinearJointColumns: the linear solver's arithmetic).
 #ifndef LPOE_MEASUREMENT_RESIDUAL_H_
 #define LPOE_MEASUREMENT_RESIDUAL_H_
 
@@ -37,16 +36,16 @@
 #include "lpoe/measurements/position_measurement.h"
 #include "lpoe/model/robot_model.h"
 #include "lpoe/se3_manifold.h"
+#include "lpoe/terms/bilinear_term.h"
 
 namespace lpoe {
 
-// One row's data for the gravity tilt: Z_a = Y_a(q) B_c (n x k_c, a = x, y, z of the base, B_c the
-// compliance block's basis), the model's gravity and the tilt axes.
-struct GravityTiltRow {
-  int block = -1;  // the compliance block's index among the joint-space blocks
-  Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
-  Eigen::Matrix<double, 3, 2> axes = Eigen::Matrix<double, 3, 2>::Zero();
-  Eigen::MatrixXd Z[3];
+// One row's data for a bilinear block: the effect, Z_a = Y_a(q) B_p (n x k_p, B_p the partner
+// block's basis; BilinearJointEffect::RowRegressors).
+struct BilinearRow {
+  int block = -1;  // the partner block's index among the joint-space blocks
+  std::shared_ptr<const BilinearJointEffect> effect;
+  std::vector<Eigen::MatrixXd> Z;
 };
 
 // The joint motions exp(s_i^ q_i) at one q_eff in double, kept by the functor of a row with
@@ -162,15 +161,15 @@ class MeasurementResidual {
     return true;
   }
 
-  // The cost function: n + 1 blocks of 7, one block of block_sizes[b] per joint-space term, with
-  // `tilt` one block of 2 (the gravity tilt) after them, and Kind::kResiduals residuals (defined in
-  // residuals.cc, the one translation unit that instantiates the autodiff).
+  // The cost function: n + 1 blocks of 7, one block of block_sizes[b] per joint-space term, one
+  // block per entry of `bilinear` after them (its effect's parameters), and Kind::kResiduals
+  // residuals (defined in residuals.cc, the one translation unit that instantiates the autodiff).
   static ceres::CostFunction* Create(std::shared_ptr<const RobotModel> model, const Kind& kind,
                                      const double* q,
                                      const typename Kind::Observation& observation,
                                      Eigen::MatrixXd joint_regressor = Eigen::MatrixXd(),
                                      std::vector<int> block_sizes = {},
-                                     std::shared_ptr<const GravityTiltRow> tilt = nullptr);
+                                     std::vector<std::shared_ptr<const BilinearRow>> bilinear = {});
 
  private:
   template <typename J>

@@ -6,7 +6,8 @@
 //     restricted to the frame's basis of the parameterization);
 //   * one block per joint-space term that keeps identifiable combinations (joint_term.h), k_b
 //     numbers x_b, theta_b = basis_b x_b, starting at zero (or options' initial values);
-//   * with options.gravity_tilt, one block of 2 (the tilt, rad).
+//   * one block per effect of options.bilinear_effects (lpoe/terms/bilinear_term.h; the gravity
+//     tilt: 2 numbers, rad).
 // one list (blocks()), each block of a kind of the block-kind registry
 // (solvers/src/calibration/block_kind.h), which supplies its manifold, step and columns;
 // and offers three ways in:
@@ -109,12 +110,12 @@ struct ProblemAnalysis {
 };
 
 // One parameter block of a CalibrationProblem: a local frame (7 numbers, Se3Manifold), a
-// joint-space term's coordinates (k_b numbers) or the gravity tilt (2 numbers), each of one kind of
-// the block-kind registry (solvers/src/calibration/block_kind.h), which supplies its manifold, its
-// step, where its values go and its columns.
+// joint-space term's coordinates (k_b numbers) or a bilinear effect's (the gravity tilt: 2 numbers),
+// each of one kind of the block-kind registry (solvers/src/calibration/block_kind.h), which
+// supplies its manifold, its step, where its values go and its columns.
 struct ProblemBlock {
   const internal::BlockKind* kind = nullptr;
-  int index = 0;          // the kind's own index: frame f, joint block b, 0 for the tilt
+  int index = 0;          // the kind's own index: frame f, joint block b, bilinear block b
   int offset = 0;         // first parameter in parameterization()'s numbering
   int solved_offset = 0;  // first parameter in SolvedParameterization()'s (NormalEquations, Update)
   int tangent_size = 0;
@@ -152,13 +153,14 @@ class CalibrationProblem {
   double* frame_block(int f);
   // The parameter block of joint-space term b (k_b numbers), nullptr when it keeps no combination.
   double* joint_block(int b);
-  // The gravity tilt's block (2 numbers, rad), nullptr without a tilt (see tilt_status()).
-  double* tilt_block();
-  // Why options().gravity_tilt could not be added (no identified compliance combination); ok
-  // otherwise.
-  const Status& tilt_status() const { return tilt_status_; }
+  // The block of parameterization().bilinear_blocks[b] (options().bilinear_effects: the gravity
+  // tilt's 2 numbers, rad), nullptr without it (see block_status()).
+  double* bilinear_block(int b = 0);
+  // Why an effect of options().bilinear_effects could not be added (no identified combination of
+  // its partner); ok otherwise.
+  const Status& block_status() const { return block_status_; }
   // Every block, in the registry's order of kinds (solved frames in model order, then joint
-  // blocks, then the tilt): the covariance order, and the order of the columns of NormalEquations().
+  // blocks, then the bilinear blocks): the covariance order, and the order of the columns of NormalEquations().
   const std::vector<ProblemBlock>& blocks() const { return blocks_; }
   // Every solved block's values in blocks() order.
   std::vector<double*> parameter_blocks();
@@ -181,7 +183,7 @@ class CalibrationProblem {
   RobotModel Model() const;
   // The joint-space terms' values theta_b = basis_b x_b (options().joint_terms order).
   std::vector<JointTermValues> JointTerms() const;
-  // The joint blocks' coordinates, concatenated, then the tilt (num_joint_parameters()).
+  // The joint blocks' coordinates, concatenated, then the bilinear blocks' (num_joint_parameters()).
   Eigen::VectorXd JointState() const;
   // The joint values the chain is evaluated at for every row (rows x n, row-major): data().q
   // shifted by the joint-space terms at their current values, q + sum_b Y_b(q) theta_b (as
@@ -266,14 +268,14 @@ class CalibrationProblem {
   std::vector<ProblemBlock> blocks_;  // built once: the values' addresses are Ceres's blocks
   std::vector<int> frame_blocks_;     // frame f's index in blocks_, -1 when not solved
   std::vector<int> joint_blocks_;     // joint block b's, -1 when it keeps no combination
-  int tilt_block_ = -1;               // the tilt's, -1 without
+  std::vector<int> bilinear_blocks_;  // bilinear block b's index in blocks_
   // The model the blocks' values stand for, exactly (the steps of Update() applied to the frames'
   // matrices, no quaternion round trip), and the values it was written as: Model() takes a frame
   // from it while its block still holds those values (the nominal model and the initial values
   // until Update() or SetFrames()).
   RobotModel current_;
   std::vector<std::vector<double>> current_values_;
-  Status tilt_status_;
+  Status block_status_;
   // With joint-space terms, the reduction's by-products (setup_'s): the rows' regressors (slot
   // basis of parameterization_'s blocks) and the normal equations at the nominal values with every
   // term whole, in setup_->analysed_parameterization.

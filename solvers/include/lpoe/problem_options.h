@@ -43,12 +43,13 @@ struct ProblemDefinitionOptions {
   // result.parameterization.unidentifiable.
   std::vector<std::shared_ptr<const JointTerm>> joint_terms;
   double joint_term_tolerance = 1e-4;
-  // The gravity tilt (docs/joint_errors.md, "Gravity tilt"), identified with the term named
-  // "compliance" in joint_terms (required), which must be built on gravity_tilt->reference(). Its
-  // columns vanish where the compliance values are zero, so start from a compliance solution
-  // (initial_joint_terms); one more parameter block of 2 (CalibrationProblem::tilt_block()). Null:
-  // gravity as the model gives it.
-  std::shared_ptr<const GravityTiltModel> gravity_tilt;
+  // Effects bilinear with a term of joint_terms, their partner (lpoe/terms/bilinear_term.h; each
+  // of a registered block kind, at most one per kind). The gravity tilt (docs/joint_errors.md,
+  // "Gravity tilt"): a GravityTiltModel, with "compliance" in joint_terms built on its reference().
+  // Their columns vanish where the partner's values are zero, so start from a solution with the
+  // partner (initial_joint_terms); one more parameter block each after the joint-space terms'
+  // (CalibrationProblem::bilinear_block()). Empty: none (gravity as the model gives it).
+  std::vector<std::shared_ptr<const BilinearJointEffect>> bilinear_effects;
   // Values of joint_terms to start from (same order and terms; empty: zero).
   std::vector<JointTermValues> initial_joint_terms;
   // A Gaussian prior on the parameters' deviation from a reference model (lpoe/model/prior.h): the solve

@@ -88,32 +88,6 @@ void LinearizeRow(const BlockColumnsContext& ctx, const MeasurementSet& data, in
   out->J.rightCols(K).setZero();
 }
 
-bool HasNonlinearBlocks(const Parameterization& p) {
-  for (const BlockKind* kind : BlockKinds()) {
-    if (kind->In(p)) return true;
-  }
-  return false;
-}
-
-Status CheckBlockKindPartners(const std::vector<std::shared_ptr<const JointTerm>>& terms,
-                              const ProblemSetupRequest& request) {
-  for (const BlockKind* kind : BlockKinds()) {
-    if (!kind->Requested(request) || kind->partner_term() == nullptr) continue;
-    bool found = false;
-    for (const auto& term : terms) found = found || (term && term->name() == kind->partner_term());
-    if (!found) return Status::Error(kind->needs_partner_message());
-  }
-  return Status::Ok();
-}
-
-void AddNonlinearRowColumns(const Parameterization& p, const double* q,
-                            const Eigen::VectorXd& joint_state, Eigen::Ref<Eigen::MatrixXd> R,
-                            Eigen::VectorXd* q_eff) {
-  for (const BlockKind* kind : BlockKinds()) {
-    if (kind->In(p)) kind->RowColumns(p, q, joint_state, R, q_eff);
-  }
-}
-
 void FillBlockKindResults(const Parameterization& p, const Eigen::VectorXd& joint_state,
                           const Eigen::MatrixXd& covariance, CalibrationResult* out) {
   for (const BlockKind* kind : BlockKinds()) {

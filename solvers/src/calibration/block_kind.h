@@ -13,20 +13,19 @@
 //     the frames' optimised assembly with the joint-space columns from JointTermColumns), the same
 //     columns; Columns is each kind's statement of them (tested against central differences).
 //
-// A kind whose columns change with the state (the gravity tilt: bilinear with the compliance
-// coordinates; neither the frames' linearisation nor a joint-space term's fixed regressor can
-// supply them) supplies in addition:
+// A kind of an effect bilinear with a joint-space term (lpoe/terms/bilinear_term.h: the gravity
+// tilt) derives from BilinearBlockKind below, which does everything the solvers need from the
+// effect alone: its blocks (the parameterization's bilinear_blocks made from the request's
+// bilinear_effects of the kind's name), its columns for both solvers (BilinearJointColumns), the
+// partner check. The kind itself supplies:
 //
-//   - whether a calibration asks for it, and the joint-space term it needs (checked once);
-//   - its block in the parameterization (ProblemSetup makes it, both solvers use it);
-//   - its columns given the current values in the linear solver's per-row form (RowColumns);
-//   - its per-row data for the Ceres residual;
-//   - its entry in the result (value, standard deviation);
-//   - its identifiability rule at a solution without it.
-// The frames and the joint-space terms keep the defaults (not asked for, never In(p)).
+//   - its name (the effect's, the `--joint_errors` item that asks for it) and its partner term;
+//   - its entry in the result (FillResult, ScaleToAPosteriori);
+//   - its identifiability rule at a solution without it (Identifiable; BilinearInformation does
+//     the arithmetic).
 //
-// Adding a kind: one source file that defines a BlockKind and a function returning it, plus one
-// line in block_kind_registry.inc.
+// Adding a kind: one source file that defines the effect, a BlockKind and a function returning it,
+// plus one line in block_kind_registry.inc.
 #ifndef LPOE_SOLVERS_SRC_CALIBRATION_BLOCK_KIND_H_
 #define LPOE_SOLVERS_SRC_CALIBRATION_BLOCK_KIND_H_
 
@@ -38,19 +37,20 @@
 #include <ceres/problem.h>
 
 #include "lpoe/calibration.h"
+#include "lpoe/terms/bilinear_term.h"
 #include "lpoe/terms/joint_term.h"
 #include "lpoe/measurement_residual.h"
 #include "lpoe/measurements/measurements.h"
 #include "lpoe/model/parameterization.h"
 #include "lpoe/problem_builder.h"
+#include "lpoe/problem_options.h"
 #include "lpoe/model/robot_model.h"
 #include "lpoe/status.h"
 
 namespace lpoe {
 namespace internal {
 
-struct ProblemSetupRequest;  // problem_setup.h
-struct ProblemSetup;
+struct ProblemSetup;  // problem_setup.h
 
 // What a kind's Columns needs of the problem at its current values.
 struct BlockColumnsContext {
@@ -68,6 +68,8 @@ class BlockKind {
   // The kind's name: for a kind a calibration asks for, the `--joint_errors` item that asks for it
   // ("tilt"); "frame" and "joint_term" otherwise.
   virtual const char* name() const = 0;
+  // What messages call it ("gravity tilt"); the name by default.
+  virtual const char* description() const { return name(); }
 
   // --- Every kind: its blocks in a CalibrationProblem ---
 
@@ -102,41 +104,30 @@ class BlockKind {
   virtual void Columns(const BlockColumnsContext& ctx, const ProblemBlock& block,
                        const MeasurementSet& data, int r, Eigen::MatrixXd* J) const = 0;
 
-  // --- Kinds whose columns change with the state (the defaults: never asked, never in p) ---
+  // --- Kinds of bilinear effects (BilinearBlockKind; the defaults: never asked, never in p) ---
 
   // The joint-space term whose values the kind's columns need (nullptr: none).
   virtual const char* partner_term() const { return nullptr; }
   // The message when the kind is asked for without its partner term.
   virtual const char* needs_partner_message() const { return ""; }
 
-  // Whether the solvers' request asks for the kind.
-  virtual bool Requested(const ProblemSetupRequest& /*request*/) const { return false; }
-  // Whether `p` holds the kind's block (after the joint blocks).
+  // Whether the options ask for the kind.
+  virtual bool Requested(const ProblemDefinitionOptions& /*options*/) const { return false; }
+  // Whether `p` holds a block of the kind (after the joint blocks).
   virtual bool In(const Parameterization& /*p*/) const { return false; }
-  // Appends the kind's block to `p`. An error (the reason) when the data leave nothing for it.
-  virtual Status Add(const ProblemSetupRequest& /*request*/, Parameterization* /*p*/) const {
+  // Appends the kind's blocks the options ask for to `p`. An error (the reason) when the data
+  // leave nothing for one.
+  virtual Status Add(const ProblemDefinitionOptions& /*options*/, Parameterization* /*p*/) const {
     return Status::Ok();
-  }
-
-  // The linear solver's columns of one row at commanded joints q, given the current joint-space
-  // coordinates `joint_state` (p's order; empty: zero): `R` (n x K) holds the linear joint-space
-  // columns with this kind's zero; on return it holds the kind's columns and the partner's at the
-  // current values, and `q_eff` (q + R x) the kind's change of the joint offsets.
-  virtual void RowColumns(const Parameterization& /*p*/, const double* /*q*/,
-                          const Eigen::VectorXd& /*joint_state*/, Eigen::Ref<Eigen::MatrixXd> /*R*/,
-                          Eigen::VectorXd* /*q_eff*/) const {}
-  // The Ceres residual's data of one row; `partner_block`: the partner's index among the row's
-  // joint-space parameter blocks.
-  virtual std::shared_ptr<const GravityTiltRow> CeresRow(const Parameterization& /*p*/,
-                                                         const double* /*q*/,
-                                                         int /*partner_block*/) const {
-    return nullptr;
   }
 
   // The kind's entry of `out` at the joint-space coordinates `joint_state`, standard deviations
   // from `covariance` (p's numbering; empty: none). Called only when In(p).
   virtual void FillResult(const Parameterization& /*p*/, const Eigen::VectorXd& /*joint_state*/,
                           const Eigen::MatrixXd& /*covariance*/, CalibrationResult* /*out*/) const {}
+  // Scales the standard deviations of the kind's entry, from a covariance with the given noise
+  // (sigma) to the one the residuals estimate (factor), keeping the a-priori ones beside them.
+  virtual void ScaleToAPosteriori(double /*factor*/, CalibrationResult* /*out*/) const {}
   // The kind's rule, asked at a solution `r0` without the kind: whether the data determine it.
   // Fills the kind's entry of `out` (the reason when not).
   virtual bool Identifiable(const RobotModel& /*start*/, const MeasurementSet& /*data*/,
@@ -146,6 +137,34 @@ class BlockKind {
     return true;
   }
 };
+
+// The kinds of effects bilinear with a joint-space term: blocks, columns and partner from the
+// effect (lpoe/terms/bilinear_term.h), one block per effect of the request's bilinear_effects whose
+// name() is the kind's; ProblemBlock::index is the block's index in p.bilinear_blocks.
+class BilinearBlockKind : public BlockKind {
+ public:
+  bool Requested(const ProblemDefinitionOptions& options) const override;
+  bool In(const Parameterization& p) const override;
+  Status Add(const ProblemDefinitionOptions& options, Parameterization* p) const override;
+  void AppendBlocks(const ProblemSetup& setup, const RobotModel& nominal,
+                    std::vector<ProblemBlock>* out) const override;
+  // J_q(q_eff) d(dq)/dt at the current values.
+  void Columns(const BlockColumnsContext& ctx, const ProblemBlock& block,
+               const MeasurementSet& data, int r, Eigen::MatrixXd* J) const override;
+};
+
+// What the data say about a bilinear block of `effect` at a solution `r0` with its partner term
+// (its columns vanish without the partner's values, so this is asked after that solve): the
+// block's columns at r0's frames and partner values, everything else projected out (Schur
+// complement of the column-scaled normal equations, a pseudo-inverse for the gauge of the full
+// parameterization). `kept_fraction`: the square root of the smallest eigenvalue of the projected
+// column-scaled information (the joint terms' rule); `covariance`: its inverse with the noise
+// estimated from r0's residuals (m x m; empty when the projection is singular). An error (the
+// reason) when the block cannot be formed or moves no measured point.
+Status BilinearInformation(std::shared_ptr<const BilinearJointEffect> effect,
+                           const MeasurementSet& data, const CalibrationResult& r0,
+                           bool use_orientation, double orientation_weight, double* kept_fraction,
+                           Eigen::MatrixXd* covariance);
 
 // The frames' kind and the joint-space terms' kind (registry entries; for tests and the problem).
 const BlockKind& FrameBlockKind();
@@ -169,17 +188,29 @@ const std::vector<const BlockKind*>& BlockKinds();
 // The entry named `name`, nullptr when there is none.
 const BlockKind* FindBlockKind(const std::string& name);
 
-// Whether p holds a block of any registered kind whose columns change with the state (the solvers'
-// linear shortcuts, which evaluate the rows' columns once, are off then).
-bool HasNonlinearBlocks(const Parameterization& p);
-// Each registered kind asked for with its partner term among `terms`; the first kind's message
-// otherwise.
+// Whether p holds a bilinear block (lpoe/terms/bilinear_term.h; the solvers' linear shortcuts,
+// which evaluate the rows' columns once, are off then).
+inline bool HasNonlinearBlocks(const Parameterization& p) { return !p.bilinear_blocks.empty(); }
+// Whether the options ask for a bilinear block.
+inline bool RequestsNonlinearBlocks(const ProblemDefinitionOptions& o) {
+  return !o.bilinear_effects.empty();
+}
+// Each effect of the request with its partner term among `terms` and a registered kind; the
+// first failing kind's message otherwise.
 Status CheckBlockKindPartners(const std::vector<std::shared_ptr<const JointTerm>>& terms,
-                              const ProblemSetupRequest& request);
-// Every kind in p: RowColumns in registry order.
+                              const ProblemDefinitionOptions& options);
+// For one row at commanded joints q: `R` (n x K) holds the linear joint-space columns with the
+// bilinear blocks' zero; on return every bilinear block's partner columns are taken at its current
+// values, its own columns hold d(dq)/dt, and `q_eff` (q + R x, from the linear columns) gains the
+// blocks' change of the partners' offsets. `joint_state`: the K joint-space coordinates (p's order;
+// empty: zero). No-op without bilinear blocks.
 void AddNonlinearRowColumns(const Parameterization& p, const double* q,
                             const Eigen::VectorXd& joint_state, Eigen::Ref<Eigen::MatrixXd> R,
                             Eigen::VectorXd* q_eff);
+// The Ceres residual's data of one row for bilinear block b of p; `partner_block`: its partner's
+// index among the row's joint-space parameter blocks.
+std::shared_ptr<const BilinearRow> BilinearRowOf(const Parameterization& p, int b, const double* q,
+                                                 int partner_block);
 // Every kind in p: FillResult.
 void FillBlockKindResults(const Parameterization& p, const Eigen::VectorXd& joint_state,
                           const Eigen::MatrixXd& covariance, CalibrationResult* out);

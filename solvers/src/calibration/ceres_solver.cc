@@ -347,7 +347,7 @@ std::string CeresLinearSolverFor(const CeresSolverOptions& options, double condi
   // the solve) and the gravity tilt (a bilinear block whose columns change with the compliance).
   const bool normal_equations =
       options.parameterization == ParameterizationKind::kIdentifiable && options.loss == "none" &&
-      options.gravity_tilt == nullptr &&
+      !internal::RequestsNonlinearBlocks(options) &&
       condition_number <= CeresSolverOptions::kNormalEquationsMaxCondition;
   return normal_equations ? "dense_normal_cholesky" : "dense_qr";
 }
@@ -534,19 +534,18 @@ void SolutionCovariance(CalibrationProblem& builder, const CeresSolverOptions& o
   }
 }
 
-// The gravity tilt's result; its standard deviation a posteriori as both solvers report it
-// (calibration.h), the a-priori one (sigma) kept beside it.
-void TiltResult(const CalibrationProblem& builder, const CeresSolverOptions& options,
-                int identifiable, double final_cost, CalibrationResult* result) {
+// The bilinear blocks' results (block_kind.h: the gravity tilt's); their standard deviations a
+// posteriori as both solvers report them (calibration.h), the a-priori ones (sigma) kept beside.
+void BlockKindResults(const CalibrationProblem& builder, const CeresSolverOptions& options,
+                      int identifiable, double final_cost, CalibrationResult* result) {
   const Parameterization& all = builder.parameterization();
   internal::FillBlockKindResults(all, builder.JointState(), result->covariance, result);
-  if (all.gravity_tilt && !options.a_posteriori_covariance &&
-      result->gravity_tilt.standard_deviation.maxCoeff() > 0) {
-    result->gravity_tilt.a_priori_standard_deviation = result->gravity_tilt.standard_deviation;
-    const int per_row = TrackerResiduals(TrackerKindId(options.use_orientation));
-    const long dof = static_cast<long>(per_row) * builder.data().size() - identifiable;
-    result->gravity_tilt.standard_deviation *=
-        dof > 0 ? std::sqrt(2.0 * final_cost / static_cast<double>(dof)) : 0.0;
+  if (options.a_posteriori_covariance) return;
+  const int per_row = TrackerResiduals(TrackerKindId(options.use_orientation));
+  const long dof = static_cast<long>(per_row) * builder.data().size() - identifiable;
+  const double factor = dof > 0 ? std::sqrt(2.0 * final_cost / static_cast<double>(dof)) : 0.0;
+  for (const internal::BlockKind* kind : internal::BlockKinds()) {
+    if (kind->In(all)) kind->ScaleToAPosteriori(factor, result);
   }
 }
 
@@ -593,8 +592,8 @@ CalibrationResult CalibrateCeresOn(CalibrationProblem* problem_in,
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return result;
   };
-  if (!builder.tilt_status().ok()) {
-    return finish(Termination::kNotIdentifiable, builder.tilt_status().message());
+  if (!builder.block_status().ok()) {
+    return finish(Termination::kNotIdentifiable, builder.block_status().message());
   }
   // The result's parameterization is the solved one, unmeasured tools left out and listed as not
   // identifiable (with the reason), as the linear solver's; the builder's numbering (every tool)
@@ -667,7 +666,7 @@ CalibrationResult CalibrateCeresOn(CalibrationProblem* problem_in,
     SolutionCovariance(builder, options, &problem, analysis.rank, identifiable, s2, prior_cost,
                        &result, &message);
   }
-  TiltResult(builder, options, identifiable, summary.final_cost, &result);
+  BlockKindResults(builder, options, identifiable, summary.final_cost, &result);
   if (result.covariance.rows() == all.num_parameters) {
     result.covariance = SolvedCovariance(builder, result.covariance);
   }

@@ -13,7 +13,6 @@
 #include <glog/logging.h>
 
 #include "calibration/block_kind.h"
-#include "calibration/gravity_tilt.h"
 #include "identifiability/identifiability.h"
 #include "calibration/prior_terms.h"
 #include "calibration/problem_setup.h"
@@ -70,10 +69,12 @@ void LeaveOutUnmeasuredTools(const RobotModel& model, const MeasurementSet& data
     for (int c = 0; c < b.basis.cols(); ++c) out.parameters.push_back(p->parameters[old_offset + c]);
     out.num_parameters += static_cast<int>(b.basis.cols());
   }
-  if (out.gravity_tilt) {  // after the joint blocks
-    out.tilt_offset = out.num_parameters;
-    for (int a = 0; a < 2; ++a) out.parameters.push_back(p->parameters[p->tilt_offset + a]);
-    out.num_parameters += 2;
+  for (BilinearBlock& b : out.bilinear_blocks) {  // after the joint blocks
+    const int old_offset = b.offset;
+    b.offset = out.num_parameters;
+    const int m = b.effect->num_parameters();
+    for (int a = 0; a < m; ++a) out.parameters.push_back(p->parameters[old_offset + a]);
+    out.num_parameters += m;
   }
   *p = std::move(out);
 }
@@ -541,7 +542,7 @@ CalibrationResult LinearSolve::Run() {
   // errors run on a subsample; all rows are linearized again only at its solution.
   const bool warm_start = !full_ && !setup_.overridden &&
                           problem_.options().joint_terms.empty() &&
-                          !problem_.options().gravity_tilt && K_ == 0 &&
+                          !internal::RequestsNonlinearBlocks(problem_.options()) && K_ == 0 &&
                           options_.warm_start_rows > 0 &&
                           data_.size() >= options_.warm_start_min_rows &&
                           data_.size() >= 2 * options_.warm_start_rows;
@@ -655,8 +656,8 @@ CalibrationResult CalibrateLinear(const RobotModel& nominal, const MeasurementSe
   auto setup = std::make_shared<const internal::ProblemSetup>(
       internal::SetUpProblem(nominal, data, request));
   result.parameterization = setup->solved;
-  if (!setup->tilt_status.ok()) {
-    return finish(Termination::kNotIdentifiable, setup->tilt_status.message());
+  if (!setup->block_status.ok()) {
+    return finish(Termination::kNotIdentifiable, setup->block_status.message());
   }
   CalibrationProblem problem(nominal, data, internal::LinearProblemOptions(options), std::move(setup));
   return LinearSolve(&problem, options, &result, start).Run();
@@ -671,13 +672,13 @@ CalibrationResult CalibrateLinearOn(CalibrationProblem* problem,
   CalibrationResult result;
   result.model = problem->Model();
   result.parameterization = problem->SolvedParameterization();
-  if (!problem->tilt_status().ok()) {
+  if (!problem->block_status().ok()) {
     if (options.errors != nullptr) {
       options.errors->final_errors.Clear();
       options.errors->have_start_statistics = false;
     }
     result.termination = Termination::kNotIdentifiable;
-    result.message = problem->tilt_status().message();
+    result.message = problem->block_status().message();
     result.wall_time_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return result;

@@ -10,7 +10,6 @@
 #include <glog/logging.h>
 
 #include "calibration/block_kind.h"
-#include "calibration/gravity_tilt.h"
 #include "identifiability/structural_identifiability.h"
 #include "lpoe/terms/joint_errors.h"
 #include "lpoe/terms/joint_term.h"
@@ -358,7 +357,7 @@ ProblemDefinitionOptions PipelineSolve::Decisions(
   d.use_orientation = options_.use_orientation;
   d.joint_terms = terms_;
   d.structure_reference = &reference_;
-  d.gravity_tilt = std::move(tilt_model);
+  if (tilt_model) d.bilinear_effects.push_back(std::move(tilt_model));
   d.initial_joint_terms = initial;
   d.prior = prior_;
   return d;

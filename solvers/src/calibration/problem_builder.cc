@@ -94,16 +94,17 @@ CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const Measurem
   CHECK(setup_ != nullptr);
   const internal::ProblemSetup& setup = *setup_;
   parameterization_ = setup.all;
-  tilt_status_ = setup.tilt_status;
+  block_status_ = setup.block_status;
   regressors_ = setup.regressors;
   analysed_ = setup.analysed;
   // The blocks, kind by kind in registry order (block_kind.h): solved frames, joint blocks, the
-  // tilt. Their solved numbering is their order: check it against the setup's.
+  // bilinear blocks. Their solved numbering is their order: check it against the setup's.
   for (const internal::BlockKind* kind : internal::BlockKinds()) {
     kind->AppendBlocks(setup, nominal_, &blocks_);
   }
   frame_blocks_.assign(nominal.num_frames(), -1);
   joint_blocks_.assign(parameterization_.joint_blocks.size(), -1);
+  bilinear_blocks_.assign(parameterization_.bilinear_blocks.size(), -1);
   const Parameterization& solved = setup.solved;
   int solved_offset = 0;
   for (size_t i = 0; i < blocks_.size(); ++i) {
@@ -118,10 +119,10 @@ CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const Measurem
     } else if (b.kind == &internal::JointTermBlockKind()) {
       joint_blocks_[b.index] = k;
       CHECK_EQ(solved.joint_blocks[b.index].offset, b.solved_offset);
-    } else if (b.kind->In(parameterization_)) {
-      CHECK_EQ(tilt_block_, -1) << "one block of a state-dependent kind";
-      tilt_block_ = k;
-      CHECK_EQ(solved.tilt_offset, b.solved_offset);
+    } else {
+      CHECK(b.kind->In(parameterization_)) << b.kind->name();
+      bilinear_blocks_[b.index] = k;
+      CHECK_EQ(solved.bilinear_blocks[b.index].offset, b.solved_offset);
     }
   }
   CHECK_EQ(solved_offset, solved.num_parameters);
@@ -132,8 +133,9 @@ CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const Measurem
   for (const ProblemBlock& b : blocks_) current_values_.push_back(b.values);
 }
 
-double* CalibrationProblem::tilt_block() {
-  return tilt_block_ >= 0 ? blocks_[tilt_block_].values.data() : nullptr;
+double* CalibrationProblem::bilinear_block(int b) {
+  if (b < 0 || b >= static_cast<int>(bilinear_blocks_.size())) return nullptr;
+  return blocks_[bilinear_blocks_[b]].values.data();
 }
 
 double* CalibrationProblem::frame_block(int f) {
@@ -211,35 +213,29 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
   for (int i = 0; i < n; ++i) parameters[i] = frame_block(i);
   std::vector<int> block_sizes;
   int K = 0;
-  // The state-dependent kind's block after the linear joint blocks (one today: the residual takes
-  // one such block) and its partner's index among the joint-space blocks.
-  const internal::BlockKind* tilt_kind = nullptr;
-  int tilt_block = -1;
+  // The bilinear blocks after the linear joint blocks (p.bilinear_blocks' indices) and their
+  // partners' indices among the joint-space blocks.
+  std::vector<int> bilinear, partners;
   for (ProblemBlock& b : blocks_) {
     if (!b.kind->joint_space()) continue;
-    if (b.kind->In(p)) {
-      CHECK(tilt_kind == nullptr) << "the Ceres residual takes one block kind's block";
-      tilt_kind = b.kind;
-      parameters.push_back(b.values.data());
+    parameters.push_back(b.values.data());
+    if (b.kind != &internal::JointTermBlockKind()) {
+      bilinear.push_back(b.index);
       continue;
     }
-    CHECK(tilt_kind == nullptr) << "the state-dependent kinds' blocks come last";
-    parameters.push_back(b.values.data());
+    CHECK(bilinear.empty()) << "the bilinear blocks come last";
     block_sizes.push_back(b.tangent_size);
     K += b.tangent_size;
   }
-  if (tilt_kind != nullptr) {
-    const std::string partner = tilt_kind->partner_term();
-    int k = 0;
+  for (int i : bilinear) {
+    int k = 0, partner = -1;
     for (const ProblemBlock& b : blocks_) {
-      if (!b.kind->joint_space() || b.kind->In(p)) continue;
-      if (tilt_block < 0 && b.kind == &internal::JointTermBlockKind() &&
-          p.joint_blocks[b.index].term->name() == partner) {
-        tilt_block = k;
-      }
+      if (b.kind != &internal::JointTermBlockKind()) continue;
+      if (b.index == p.bilinear_blocks[i].partner) partner = k;
       ++k;
     }
-    CHECK_GE(tilt_block, 0);
+    CHECK_GE(partner, 0);
+    partners.push_back(partner);
   }
   std::vector<ceres::ResidualBlockId> ids;
   const int batch = BatchedRows();
@@ -277,11 +273,13 @@ std::vector<ceres::ResidualBlockId> CalibrationProblem::AddTo(ceres::Problem* pr
       // This row's joint columns (data: evaluated once).
       Eigen::MatrixXd R(n, K);
       columns.Evaluate(r, data.q(r), &R);
-      // The block kind's row data (block_kind.h: the gravity tilt's, bilinear with compliance).
-      const std::shared_ptr<const GravityTiltRow> tilt =
-          tilt_kind != nullptr ? tilt_kind->CeresRow(p, data.q(r), tilt_block) : nullptr;
+      // The bilinear blocks' row data (block_kind.h: the gravity tilt's, with compliance).
+      std::vector<std::shared_ptr<const BilinearRow>> rows;
+      for (size_t i = 0; i < bilinear.size(); ++i) {
+        rows.push_back(internal::BilinearRowOf(p, bilinear[i], data.q(r), partners[i]));
+      }
       ceres::CostFunction* cost = MeasurementResidual<Kind>::Create(
-          shared_model, kind, data.q(r), Kind::Observe(data, r), R, block_sizes, tilt);
+          shared_model, kind, data.q(r), Kind::Observe(data, r), R, block_sizes, std::move(rows));
       ids.push_back(problem->AddResidualBlock(cost, loss, parameters));
     }
   });

@@ -5,7 +5,6 @@
 #include <glog/logging.h>
 
 #include "calibration/block_kind.h"
-#include "calibration/gravity_tilt.h"
 #include "identifiability/identifiability.h"
 #include "lpoe/measurements/measurement_kind_dispatch.h"
 
@@ -19,7 +18,7 @@ void DecideParameterization(const RobotModel& nominal, const MeasurementSet& dat
                             const ProblemSetupRequest& request, ProblemSetup* s) {
   if (request.parameterization_override != nullptr) {
     CHECK(request.joint_terms.empty()) << "joint-space terms with a parameterization override";
-    CHECK(!request.gravity_tilt) << "a gravity tilt with a parameterization override";
+    CHECK(!RequestsNonlinearBlocks(request)) << "a bilinear effect with a parameterization override";
     s->all = *request.parameterization_override;
     s->solved = s->all;
     return;
@@ -37,11 +36,11 @@ void DecideParameterization(const RobotModel& nominal, const MeasurementSet& dat
   if (s->regressors) SetSlotBasis(s->all, s->regressors.get());
   s->solved = s->all;
   LeaveOutUnmeasuredTools(nominal, data, &s->solved);
-  // The block kinds asked for (block_kind.h: the gravity tilt), after the joint blocks.
+  // The bilinear blocks asked for (block_kind.h: the gravity tilt), after the joint blocks.
   for (const BlockKind* kind : BlockKinds()) {
-    if (!kind->Requested(request) || !s->tilt_status.ok()) continue;
-    s->tilt_status = kind->Add(request, &s->all);
-    if (s->tilt_status.ok()) s->tilt_status = kind->Add(request, &s->solved);
+    if (!kind->Requested(request) || !s->block_status.ok()) continue;
+    s->block_status = kind->Add(request, &s->all);
+    if (s->block_status.ok()) s->block_status = kind->Add(request, &s->solved);
   }
 }
 
@@ -57,6 +56,20 @@ int GaugeDirections(const Parameterization& p, bool full) {
 }
 
 }  // namespace
+
+Eigen::VectorXd InitialJointState(const Parameterization& p,
+                                  const std::vector<JointTermValues>& initial) {
+  const int F = p.num_frame_parameters();
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(p.num_joint_parameters());
+  for (const JointBlock& block : p.joint_blocks) {
+    for (const JointTermValues& v : initial) {
+      if (v.term == nullptr || v.term->name() != block.term->name()) continue;
+      CHECK_EQ(v.theta.size(), block.basis.rows()) << block.term->name();
+      x.segment(block.offset - F, block.basis.cols()) = block.basis.transpose() * v.theta;
+    }
+  }
+  return x;
+}
 
 ProblemSetup SetUpProblem(const RobotModel& nominal, const MeasurementSet& data,
                           const ProblemSetupRequest& request) {

@@ -50,9 +50,9 @@ struct ProblemSetup {
   Parameterization solved;
   // Frame f (joints, then tools) is solved: a joint, or a tool some row measures.
   std::vector<bool> frame_solved;
-  // Why a requested block kind (block_kind.h: the gravity tilt) could not be added (no identified
-  // compliance combination); ok otherwise.
-  Status tilt_status;
+  // Why a requested bilinear block (block_kind.h: the gravity tilt) could not be added (no
+  // identified combination of its partner); ok otherwise.
+  Status block_status;
   bool full = false;       // the full parameterization (gauge directions solved too)
   bool overridden = false;  // request.parameterization_override
   // The model whose chain decides the structurally unidentifiable directions.
@@ -79,6 +79,11 @@ struct ProblemSetup {
 
 // The decisions for a calibration of `nominal` on `data` (the data must fit the model: CHECKed by
 // the callers). One pass over the rows with joint-space terms (the reduction), none without.
+// The joint-space coordinates (p.num_joint_parameters(), the bilinear blocks' zero) of `initial`
+// (values of p's joint blocks' terms, matched by name; empty: zero): x_b = basis_b^T theta_b.
+Eigen::VectorXd InitialJointState(const Parameterization& p,
+                                  const std::vector<JointTermValues>& initial);
+
 ProblemSetup SetUpProblem(const RobotModel& nominal, const MeasurementSet& data,
                           const ProblemSetupRequest& request);
 

@@ -21,12 +21,12 @@
 
 #include <Eigen/Core>
 
+#include "lpoe/terms/bilinear_term.h"
 #include "lpoe/terms/joint_term.h"
 #include "lpoe/model/robot_model.h"
 
 namespace lpoe {
 
-class GravityTiltModel;  // joint_errors.h
 
 enum class ParameterizationKind { kIdentifiable, kFull };
 enum class DataKind { kPosition, kPose };
@@ -58,6 +58,13 @@ struct JointBlock {
   int offset = 0;  // first parameter of the block in x
 };
 
+// A block of an effect bilinear with joint block `partner` (lpoe/terms/bilinear_term.h).
+struct BilinearBlock {
+  std::shared_ptr<const BilinearJointEffect> effect;
+  int partner = -1;  // index in joint_blocks
+  int offset = 0;    // first parameter of the block in x
+};
+
 struct Parameterization {
   ParameterizationKind kind = ParameterizationKind::kIdentifiable;
   DataKind data = DataKind::kPosition;
@@ -69,17 +76,18 @@ struct Parameterization {
   std::vector<Direction> unidentifiable;  // the directions left out (identifiable kind only)
   // Joint-space blocks, after all frame parameters.
   std::vector<JointBlock> joint_blocks;
-  // The gravity tilt (joint_errors.h, docs/joint_errors.md): two parameters (rad) after the joint
-  // blocks, identified with joint block `tilt_block` (the compliance term, whose offsets are
-  // bilinear in the tilt and its coordinates). Null: gravity as the model gives it.
-  std::shared_ptr<const GravityTiltModel> gravity_tilt;
-  int tilt_block = -1;
-  int tilt_offset = 0;  // first tilt parameter in x
+  // Blocks of effects bilinear with a joint block (lpoe/terms/bilinear_term.h; the gravity tilt),
+  // after the joint blocks.
+  std::vector<BilinearBlock> bilinear_blocks;
 
-  int num_tilt_parameters() const { return gravity_tilt ? 2 : 0; }
-  // The joint-space columns: every joint block's, then the tilt's.
+  int num_bilinear_parameters() const {
+    int k = 0;
+    for (const BilinearBlock& b : bilinear_blocks) k += b.effect->num_parameters();
+    return k;
+  }
+  // The joint-space columns: every joint block's, then the bilinear blocks'.
   int num_joint_parameters() const {
-    int k = num_tilt_parameters();
+    int k = num_bilinear_parameters();
     for (const JointBlock& b : joint_blocks) k += static_cast<int>(b.basis.cols());
     return k;
   }
@@ -110,24 +118,25 @@ void AddJointBlock(std::shared_ptr<const JointTerm> term, Parameterization* p);
 void SetJointBlockBasis(int b, const Eigen::MatrixXd& basis, const std::string& reason,
                         Parameterization* p);
 
-// Appends the gravity tilt (two parameters "gravity.tilt1", "gravity.tilt2" after the joint
-// blocks), bilinear with joint block `block` (the compliance term built on tilt->reference()).
-void AddGravityTilt(std::shared_ptr<const GravityTiltModel> tilt, int block, Parameterization* p);
+// Appends a block of `effect`'s parameters (named by the effect) after the joint blocks, bilinear
+// with joint block `partner` (a block of the effect's partner term).
+void AddBilinearBlock(std::shared_ptr<const BilinearJointEffect> effect, int partner,
+                      Parameterization* p);
 
-// Replaces to's joint blocks (and their left-out combinations, and the gravity tilt) by from's.
+// Replaces to's joint blocks (and their left-out combinations, and the bilinear blocks) by from's.
 void CopyJointBlocks(const Parameterization& from, Parameterization* to);
 
 // Applies an update x (num_parameters) to the model: T_f <- T_f exp((basis_f x_f)^) (eq. (19)).
 // The joint-space part of x is not used (see JointValuesOf).
 void ApplyUpdate(const Parameterization& p, const Eigen::VectorXd& x, RobotModel* model);
 
-// The terms' values theta_b = basis_b x_b from the joint-space part of x (num_parameters). With a
-// gravity tilt the compliance block's term is rebuilt on the tilted gravity (its regressor then
-// gives the bilinear offsets exactly).
+// The terms' values theta_b = basis_b x_b from the joint-space part of x (num_parameters). A joint
+// block with a bilinear block has its term rebuilt at the bilinear block's values
+// (BilinearJointEffect::PartnerAt: its regressor then gives the bilinear offsets exactly).
 std::vector<JointTermValues> JointValuesOf(const Parameterization& p, const Eigen::VectorXd& x);
 
-// The tilt (rad, 2) in x; zero without a gravity tilt.
-Eigen::Vector2d GravityTiltOf(const Parameterization& p, const Eigen::VectorXd& x);
+// Bilinear block b's values in x (num_parameters).
+Eigen::VectorXd BilinearValuesOf(const Parameterization& p, int b, const Eigen::VectorXd& x);
 
 // Coordinates of the difference between two models in the calibrated directions:
 // x_f = basis_f^T log(a_f^-1 b_f). Used to compare two calibrations.

@@ -44,6 +44,7 @@
 #include "lpoe/model/robot_model.h"
 #include "lpoe/kinematics/se3.h"
 #include "lpoe/status.h"
+#include "lpoe/terms/bilinear_term.h"
 
 namespace lpoe {
 
@@ -152,9 +153,10 @@ Eigen::Matrix<double, 3, 2> TiltedGravityJacobian(const Eigen::Vector3d& gravity
 // directions, about from's axes), for reporting a simulated or stored tilt in the same angles.
 Eigen::Vector2d GravityTiltBetween(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
 
-// The compliance regressor's gravity axes on a fixed reference model (the calibration's start
-// model, as the compliance term's regressor): what a solver needs to identify the tilt.
-class GravityTiltModel {
+// The gravity tilt as a bilinear effect with the compliance term (lpoe/terms/bilinear_term.h):
+// the weights are the tilted gravity, w(t) = g'(t), and Y_a the compliance regressor's gravity axes
+// on a fixed reference model (the calibration's start model, as the compliance term's regressor).
+class GravityTiltModel : public BilinearJointEffect {
  public:
   explicit GravityTiltModel(const RobotModel& reference);
   const RobotModel& reference() const { return reference_; }
@@ -168,22 +170,25 @@ class GravityTiltModel {
     return TiltedGravity<double>(gravity(), axes_, tilt);
   }
 
+  // BilinearJointEffect: named "tilt", partner "compliance", two parameters (rad, "gravity.tilt1", "...2"),
+  // three weights (g'(t), dg'/dt analytic).
+  const char* name() const override { return kGravityTiltName; }
+  const char* partner() const override;
+  int num_parameters() const override { return 2; }
+  std::string parameter_name(int i) const override;
+  int num_weights() const override { return 3; }
+  void Weights(const double* t, Eigen::VectorXd* dw, Eigen::MatrixXd* dw_dt) const override;
+  // Z_a from Y_a's entries at their own joints only (the dense n x P product's zeros skipped).
+  void RowRegressors(const Eigen::MatrixXd& basis, const double* q,
+                     std::vector<Eigen::MatrixXd>* Z) const override;
+  // The partner term rebuilt on the reference with the tilted gravity.
+  Status PartnerAt(const JointTerm& partner, const double* t,
+                   std::shared_ptr<const JointTerm>* out) const override;
+
  private:
   RobotModel reference_;
   Eigen::Matrix<double, 3, 2> axes_;
 };
-
-// The joint-space columns of the tilt for one configuration (both solvers use this, the linear
-// solver directly, Ceres through Jets for the tilt's derivative). With Z[a] = Y_a(q) B (n x k, B
-// the compliance block's basis), x the block's coordinates (k) and t the tilt:
-//   ddq = sum_a (g'(t) - g)_a Z[a] x      added to q_eff (the compliance offsets' change),
-//   dR  = sum_a (g'(t) - g)_a Z[a]        added to the compliance block's columns d(dq)/dx,
-//   D   = d(dq)/dt = sum_a (dg'/dt)_a Z[a] x   (n x 2), the tilt's columns before J_q.
-// Any output may be null.
-void GravityTiltJointColumns(const Eigen::Vector3d& gravity,
-                             const Eigen::Matrix<double, 3, 2>& axes, const double* tilt,
-                             const Eigen::MatrixXd Z[3], const double* x, Eigen::VectorXd* ddq,
-                             Eigen::MatrixXd* dR, Eigen::MatrixXd* D);
 
 // dq = sum_a g_a Y_a theta (the compliance offsets for gravity g), for double or ceres::Jet.
 template <typename T>
