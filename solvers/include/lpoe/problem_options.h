@@ -23,6 +23,8 @@
 
 namespace lpoe {
 
+using BilinearEffects = std::vector<std::shared_ptr<const BilinearJointEffect>>;
+
 struct ProblemDefinitionOptions {
   ParameterizationKind parameterization = ParameterizationKind::kIdentifiable;
   // Use the measured orientations too (pose-based model, eqs. (17)-(24); pose residuals); requires
@@ -49,7 +51,7 @@ struct ProblemDefinitionOptions {
   // Their columns vanish where the partner's values are zero, so start from a solution with the
   // partner (initial_joint_terms); one more parameter block each after the joint-space terms'
   // (CalibrationProblem::bilinear_block()). Empty: none (gravity as the model gives it).
-  std::vector<std::shared_ptr<const BilinearJointEffect>> bilinear_effects;
+  BilinearEffects bilinear_effects;
   // Values of joint_terms to start from (same order and terms; empty: zero).
   std::vector<JointTermValues> initial_joint_terms;
   // A Gaussian prior on the parameters' deviation from a reference model (lpoe/model/prior.h): the solve

@@ -22,7 +22,9 @@
 //   - its name (the effect's, the `--joint_errors` item that asks for it) and its partner term;
 //   - its entry in the result (FillResult, ScaleToAPosteriori);
 //   - its identifiability rule at a solution without it (Identifiable; BilinearInformation does
-//     the arithmetic).
+//     the arithmetic);
+//   - the pipeline's staged solve: the effect on the start model, its entry after the stages, its
+//     values in the calibrated model (MakeEffect, Record, ApplyToModel).
 //
 // Adding a kind: one source file that defines the effect, a BlockKind and a function returning it,
 // plus one line in block_kind_registry.inc.
@@ -129,13 +131,28 @@ class BlockKind {
   // (sigma) to the one the residuals estimate (factor), keeping the a-priori ones beside them.
   virtual void ScaleToAPosteriori(double /*factor*/, CalibrationResult* /*out*/) const {}
   // The kind's rule, asked at a solution `r0` without the kind: whether the data determine it.
-  // Fills the kind's entry of `out` (the reason when not).
+  // Fills the kind's entry of `out` (marked requested; the reason when not).
   virtual bool Identifiable(const RobotModel& /*start*/, const MeasurementSet& /*data*/,
                             const CalibrationResult& /*r0*/, bool /*use_orientation*/,
                             double /*orientation_weight*/, double /*tolerance*/,
                             double /*max_sigma*/, CalibrationResult* /*out*/) const {
     return true;
   }
+
+  // The pipeline's staged solve (pipeline.cc: a solve with the partner term, the kind's rule at
+  // its solution, then a solve with the effect from there):
+  //   - the effect on the calibration's start model (nullptr: not a bilinear kind);
+  virtual std::shared_ptr<const BilinearJointEffect> MakeEffect(const RobotModel& /*start*/) const {
+    return nullptr;
+  }
+  //   - copies the kind's entry of `check` (Identifiable's) into `out`'s; with `solved` (a
+  //     converged solve with the kind, may be `out`) its values and standard deviations as well;
+  //     a non-empty `why_not`: why the kind's values were not solved;
+  virtual void Record(const CalibrationResult& /*check*/, const CalibrationResult* /*solved*/,
+                      const std::string& /*why_not*/, CalibrationResult* /*out*/) const {}
+  //   - writes the identified values of `result`'s entry into the calibrated model (the tilt:
+  //     its gravity).
+  virtual void ApplyToModel(const CalibrationResult& /*result*/, RobotModel* /*model*/) const {}
 };
 
 // The kinds of effects bilinear with a joint-space term: blocks, columns and partner from the

@@ -13,9 +13,6 @@ namespace lpoe {
 namespace internal {
 namespace {
 
-constexpr char kTiltNeedsPartner[] =
-    "the gravity tilt is identified with the compliance term (joint errors compliance,tilt)";
-
 // The tilt's block of p, nullptr without one.
 const BilinearBlock* TiltBlock(const Parameterization& p) {
   for (const BilinearBlock& b : p.bilinear_blocks) {
@@ -29,7 +26,7 @@ class GravityTiltKind : public BilinearBlockKind {
   const char* name() const override { return kGravityTiltName; }
   const char* description() const override { return "gravity tilt"; }
   const char* partner_term() const override { return "compliance"; }
-  const char* needs_partner_message() const override { return kTiltNeedsPartner; }
+  const char* needs_partner_message() const override { return kGravityTiltNeedsCompliance; }
 
   // The solved tilt at the joint-space coordinates, with standard deviations from `covariance`.
   void FillResult(const Parameterization& p, const Eigen::VectorXd& joint_state,
@@ -70,6 +67,7 @@ class GravityTiltKind : public BilinearBlockKind {
                     const CalibrationResult& r0, bool use_orientation, double orientation_weight,
                     double tolerance, double max_sigma, CalibrationResult* result) const override {
     GravityTiltResult* out = &result->gravity_tilt;
+    out->requested = true;
     auto tilt = std::make_shared<const GravityTiltModel>(start);
     out->axes = tilt->axes();
     out->gravity_before = tilt->gravity();
@@ -104,6 +102,32 @@ class GravityTiltKind : public BilinearBlockKind {
     }
     out->message.clear();
     return true;
+  }
+
+  std::shared_ptr<const BilinearJointEffect> MakeEffect(const RobotModel& start) const override {
+    return std::make_shared<const GravityTiltModel>(start);
+  }
+
+  // The check's analysis (kept fraction, predicted standard deviations, axes, gravity before)
+  // with the solve's tilt, standard deviations and gravity after.
+  void Record(const CalibrationResult& check, const CalibrationResult* solved,
+              const std::string& why_not, CalibrationResult* out) const override {
+    GravityTiltResult entry = check.gravity_tilt;
+    if (!why_not.empty()) entry.message = why_not + "; kept at the model's gravity";
+    if (solved != nullptr) {
+      const GravityTiltResult& s = solved->gravity_tilt;
+      entry.identified = true;
+      entry.tilt = s.tilt;
+      entry.standard_deviation = s.standard_deviation;
+      entry.a_priori_standard_deviation = s.a_priori_standard_deviation;
+      entry.gravity_after = s.gravity_after;
+      entry.message.clear();
+    }
+    out->gravity_tilt = entry;
+  }
+
+  void ApplyToModel(const CalibrationResult& result, RobotModel* model) const override {
+    if (result.gravity_tilt.identified) model->gravity = result.gravity_tilt.gravity_after;
   }
 };
 

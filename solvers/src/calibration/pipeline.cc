@@ -34,8 +34,11 @@ CalibrationResult StoreJointErrors(CalibrationResult result, const RobotModel& s
       result.model.joint_errors.regressor_origins.push_back(j.origin);
     }
   }
-  // The identified tilt is the calibrated model's gravity (the compliance values belong to it).
-  if (result.gravity_tilt.identified) result.model.gravity = result.gravity_tilt.gravity_after;
+  // The identified bilinear effects go into the model (block_kind.h: the tilt is the calibrated
+  // model's gravity, the compliance values belong to it).
+  for (const internal::BlockKind* kind : internal::BlockKinds()) {
+    kind->ApplyToModel(result, &result.model);
+  }
   return result;
 }
 
@@ -155,21 +158,22 @@ class PipelineSolve {
     return options_.linear;
   }
   // Every decision of one solve, in one place: Chosen() with the pipeline's own (parameterization,
-  // orientation, terms, structure reference, prior; with `tilt_model` the gravity tilt from the
-  // joint values `initial`). Both the problem and the solver's options take it whole.
-  ProblemDefinitionOptions Decisions(std::shared_ptr<const GravityTiltModel> tilt_model,
+  // orientation, terms, structure reference, prior; with `effects` those bilinear effects from
+  // the joint values `initial`). Both the problem and the solver's options take it whole.
+  ProblemDefinitionOptions Decisions(const BilinearEffects& effects,
                                      const std::vector<JointTermValues>& initial) const;
-  // One solve; with `tilt_model` the gravity tilt from the joint values `initial`.
-  CalibrationResult Once(std::shared_ptr<const GravityTiltModel> tilt_model,
+  // One solve; with `effects` those bilinear effects from the joint values `initial`.
+  CalibrationResult Once(const BilinearEffects& effects,
                          const std::vector<JointTermValues>& initial);
   // The one problem of a solve, for either solver (null when the options do not pass
   // ValidateCalibrationProblem: the solver's own entry then reports why, as it always did).
   std::unique_ptr<CalibrationProblem> Problem(const ProblemDefinitionOptions& decisions) const;
-  CalibrationResult OnceLinear(CalibrationProblem* problem, LinearSolverOptions o, bool tilt);
+  CalibrationResult OnceLinear(CalibrationProblem* problem, LinearSolverOptions o, bool bilinear);
   // Rounds of the decision at the solution, solved again while it differs.
   void SettleStructure(CalibrationResult* result);
-  // The gravity tilt: checked at the compliance solution, then solved from it.
-  CalibrationResult SolveTilt(CalibrationResult result);
+  // A bilinear kind (block_kind.h: the gravity tilt): its rule at the solution with its partner
+  // term (`result`), then solved from there when the data determine it.
+  CalibrationResult SolveBilinear(const internal::BlockKind& kind, CalibrationResult result);
 
   const RobotModel& nominal_;
   const MeasurementSet& data_;
@@ -191,7 +195,8 @@ class PipelineSolve {
   std::vector<Direction> lost_;
   std::shared_ptr<const ParameterPrior> prior_;
   std::vector<std::shared_ptr<const JointTerm>> terms_;
-  bool tilt_ = false;
+  // The bilinear kinds asked for in the joint errors, in their order.
+  std::vector<const internal::BlockKind*> bilinear_;
   std::function<void(const IterationRecord&)> progress_;
 };
 
@@ -302,15 +307,17 @@ void PipelineSolve::AnchorPrior() {
 
 bool PipelineSolve::MakeTerms(CalibrationResult* failed) {
   const std::vector<std::string>& names = options_.joint_errors;
-  tilt_ = std::find(names.begin(), names.end(), std::string(kGravityTiltName)) != names.end();
-  // The term the tilt's block kind is bilinear with (block_kind.h).
-  const std::string partner = internal::FindBlockKind(kGravityTiltName)->partner_term();
-  if (tilt_ && std::find(names.begin(), names.end(), partner) == names.end()) {
-    *failed = Refused(start_, kGravityTiltNeedsCompliance);
-    return false;
-  }
   for (const std::string& name : names) {
-    if (name == kGravityTiltName) continue;
+    // A bilinear kind (block_kind.h: the tilt) needs its partner term in the list.
+    const internal::BlockKind* kind = internal::FindBlockKind(name);
+    if (kind != nullptr && kind->partner_term() != nullptr) {
+      if (std::find(names.begin(), names.end(), kind->partner_term()) == names.end()) {
+        *failed = Refused(start_, kind->needs_partner_message());
+        return false;
+      }
+      bilinear_.push_back(kind);
+      continue;
+    }
     std::shared_ptr<const JointTerm> term;
     if (Status s = MakeJointTerm(name, start_, &term); !s.ok()) {
       *failed = Refused(start_, s.message());
@@ -321,22 +328,22 @@ bool PipelineSolve::MakeTerms(CalibrationResult* failed) {
   return true;
 }
 
-// The tilt is a bilinear direction: Gauss-Newton converges on it linearly, so the statistical
-// stopping rule (convergence.h) is tightened 100x there, which keeps the two solvers' tilts within
-// 1e-4 of its standard deviation of each other (as the linear terms' one-step convergence does
-// without it).
-constexpr double kTiltSdFraction = 1e-2;
+// A bilinear block (the tilt) is a curved direction: Gauss-Newton converges on it linearly, so the
+// statistical stopping rule (convergence.h) is tightened 100x there, which keeps the two solvers'
+// tilts within 1e-4 of its standard deviation of each other (as the linear terms' one-step
+// convergence does without it).
+constexpr double kBilinearSdFraction = 1e-2;
 
-CalibrationResult PipelineSolve::Once(std::shared_ptr<const GravityTiltModel> tilt_model,
+CalibrationResult PipelineSolve::Once(const BilinearEffects& effects,
                                       const std::vector<JointTermValues>& initial) {
   // Every decision once, in one problem, whichever solver takes it; the solver's options carry the
   // same decisions (their ProblemDefinitionOptions base), for a solver's own entry when the problem
   // is refused.
-  const ProblemDefinitionOptions decisions = Decisions(tilt_model, initial);
+  const ProblemDefinitionOptions decisions = Decisions(effects, initial);
   auto common = [&](auto& o) {
     static_cast<ProblemDefinitionOptions&>(o) = decisions;
     o.on_iteration = progress_;
-    if (tilt_model) o.convergence.sd_fraction *= kTiltSdFraction;
+    if (!effects.empty()) o.convergence.sd_fraction *= kBilinearSdFraction;
   };
   const std::unique_ptr<CalibrationProblem> problem = Problem(decisions);
   if (options_.solver == SolverKind::kCeres) {
@@ -346,18 +353,17 @@ CalibrationResult PipelineSolve::Once(std::shared_ptr<const GravityTiltModel> ti
   }
   LinearSolverOptions o = options_.linear;
   common(o);
-  return OnceLinear(problem.get(), std::move(o), tilt_model != nullptr);
+  return OnceLinear(problem.get(), std::move(o), !effects.empty());
 }
 
 ProblemDefinitionOptions PipelineSolve::Decisions(
-    std::shared_ptr<const GravityTiltModel> tilt_model,
-    const std::vector<JointTermValues>& initial) const {
+    const BilinearEffects& effects, const std::vector<JointTermValues>& initial) const {
   ProblemDefinitionOptions d = Chosen();
   d.parameterization = options_.parameterization;
   d.use_orientation = options_.use_orientation;
   d.joint_terms = terms_;
   d.structure_reference = &reference_;
-  if (tilt_model) d.bilinear_effects.push_back(std::move(tilt_model));
+  d.bilinear_effects = effects;
   d.initial_joint_terms = initial;
   d.prior = prior_;
   return d;
@@ -373,9 +379,9 @@ std::unique_ptr<CalibrationProblem> PipelineSolve::Problem(
 }
 
 CalibrationResult PipelineSolve::OnceLinear(CalibrationProblem* problem, LinearSolverOptions o,
-                                            bool tilt) {
+                                            bool bilinear) {
   if (errors_ != nullptr && before_ != nullptr && !options_.use_orientation && terms_.empty() &&
-      !tilt) {
+      !bilinear) {
     // The errors before calibration come from the solver's first linearization when it starts
     // there; otherwise from a pass of their own now, so that its 16 bytes a row are freed
     // before the solver keeps its own.
@@ -427,41 +433,33 @@ void PipelineSolve::SettleStructure(CalibrationResult* result) {
     StartToolsFrom(reference_);
     if (start_out_) *start_out_ = start_;
     if (options_.on_stage) options_.on_stage(stage_ + " (directions decided at the solution)");
-    *result = Once(nullptr, {});
+    *result = Once({}, {});
   }
 }
 
-CalibrationResult PipelineSolve::SolveTilt(CalibrationResult result) {
+CalibrationResult PipelineSolve::SolveBilinear(const internal::BlockKind& kind,
+                                                CalibrationResult result) {
   const double tolerance = Chosen().joint_term_tolerance;
-  // The tilt's block kind's rule at the compliance solution (block_kind.h).
-  CalibrationResult checked;
-  checked.gravity_tilt.requested = true;
-  const bool identifiable = internal::FindBlockKind(kGravityTiltName)
-                                ->Identifiable(start_, data_, result, options_.use_orientation,
-                                               orientation_weight_, tolerance,
-                                               options_.gravity_tilt_max_sigma, &checked);
-  GravityTiltResult check = checked.gravity_tilt;
+  // The kind's rule at the solution with its partner (block_kind.h).
+  CalibrationResult check;
+  const bool identifiable =
+      kind.Identifiable(start_, data_, result, options_.use_orientation, orientation_weight_,
+                        tolerance, options_.gravity_tilt_max_sigma, &check);
   if (!identifiable) {
-    result.gravity_tilt = check;
-    return StoreJointErrors(std::move(result), start_);
+    kind.Record(check, nullptr, "", &result);
+    return result;
   }
-  CalibrationResult tilted =
-      Once(std::make_shared<const GravityTiltModel>(start_), result.joint_terms);
-  if (!tilted.converged()) {
-    check.message = "gravity tilt: the solve with the tilt did not converge (" +
-                    std::string(TerminationName(tilted.termination)) + ": " + tilted.message +
-                    "); kept at the model's gravity";
-    result.gravity_tilt = check;
-    return StoreJointErrors(std::move(result), start_);
+  CalibrationResult solved = Once({kind.MakeEffect(start_)}, result.joint_terms);
+  if (!solved.converged()) {
+    kind.Record(check, nullptr,
+                std::string(kind.description()) + ": the solve with the " + kind.name() +
+                    " did not converge (" + TerminationName(solved.termination) + ": " +
+                    solved.message + ")",
+                &result);
+    return result;
   }
-  check.identified = true;
-  check.tilt = tilted.gravity_tilt.tilt;
-  check.standard_deviation = tilted.gravity_tilt.standard_deviation;
-  check.a_priori_standard_deviation = tilted.gravity_tilt.a_priori_standard_deviation;
-  check.gravity_after = tilted.gravity_tilt.gravity_after;
-  check.message.clear();
-  tilted.gravity_tilt = check;
-  return StoreJointErrors(std::move(tilted), start_);
+  kind.Record(check, &solved, "", &solved);
+  return solved;
 }
 
 CalibrationResult PipelineSolve::Run(RegistrationReport* registration) {
@@ -473,7 +471,7 @@ CalibrationResult PipelineSolve::Run(RegistrationReport* registration) {
   if (options_.on_iteration) {
     progress_ = [this](const IterationRecord& r) { options_.on_iteration(stage_, r); };
   }
-  CalibrationResult result = Once(nullptr, {});
+  CalibrationResult result = Once({}, {});
   SettleStructure(&result);
   // A data set with no more rows than parameters cannot check itself (lpoe/model/refusals.h, the check
   // lpoe_plan and lpoe.plan make on a plan): the fit is exact whatever the errors, every residual
@@ -493,8 +491,11 @@ CalibrationResult PipelineSolve::Run(RegistrationReport* registration) {
       return StoreJointErrors(std::move(result), start_);
     }
   }
-  if (!tilt_ || !result.converged()) return StoreJointErrors(std::move(result), start_);
-  return SolveTilt(std::move(result));
+  for (const internal::BlockKind* kind : bilinear_) {
+    if (!result.converged()) break;
+    result = SolveBilinear(*kind, std::move(result));
+  }
+  return StoreJointErrors(std::move(result), start_);
 }
 
 // SolveCalibration; with `errors`, also fills them (the linear solver on position data without
