@@ -77,6 +77,15 @@ TEST(BlockKind, RegistryHoldsTheTiltAndRefusesItWithoutItsPartner) {
   EXPECT_FALSE(kind->Add(request, &p).ok());
   EXPECT_FALSE(kind->In(p));
   EXPECT_FALSE(internal::HasNonlinearBlocks(p));
+  // An effect given twice, or a null one, is refused by the same check.
+  o.joint_terms = {Compliance(model)};
+  ASSERT_TRUE(ValidateCalibrationProblemOptions(o).ok());
+  o.bilinear_effects = {tilt, std::make_shared<const GravityTiltModel>(model)};
+  const Status twice = ValidateCalibrationProblemOptions(o);
+  ASSERT_FALSE(twice.ok());
+  EXPECT_NE(twice.message().find("'tilt' is given twice"), std::string::npos) << twice.message();
+  o.bilinear_effects = {nullptr};
+  EXPECT_FALSE(ValidateCalibrationProblemOptions(o).ok());
 }
 
 // The kind's columns of a row at a tilt of (0.4, -0.3) deg and the small arm's compliance: every
