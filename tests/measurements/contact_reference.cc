@@ -54,7 +54,6 @@ void ReferenceRows(const Reference& ref, const ContactMeasurementSet& data, Eige
   for (int i = 0; i < data.size(); ++i) {
     const ContactRow& row = data.rows[i];
     const Eigen::Vector3d P = ToolPositionJacobian(ref.model, data.joints(i), row.target, &Jf);
-    Eigen::RowVectorXd a;
     if (row.kind == MeasurementKindId::kDistance) {
       const Eigen::Vector3d c = ref.pivots[row.feature];
       const Eigen::Vector3d u = (P - c).normalized();
