@@ -79,7 +79,7 @@ class PlanningModel {
     return parameterization_.num_joint_parameters() + num_tilt_parameters();
   }
   // 2 when the gravity tilt is planned for (the last two parameters), else 0.
-  int num_tilt_parameters() const { return gravity_tilt_ ? 2 : 0; }
+  int num_tilt_parameters() const { return tilt_ ? tilt_->num_parameters() : 0; }
 
   // The position Jacobians (eq. (29), restricted to the identifiable directions, and the
   // joint-space columns J_q(q) Y(q) basis) of the listed tools at q, stacked: 3 rows per tool,
@@ -96,9 +96,12 @@ class PlanningModel {
   Parameterization parameterization_;
   BasisJacobian basis_;
   Eigen::VectorXd joint_error_scale_;  // ErrorScale of the joint-space combinations
-  bool gravity_tilt_ = false;
-  Eigen::VectorXd compliance_;          // the model's compliance products (the tilt's columns)
-  Eigen::Matrix<double, 3, 2> gravity_tilt_jacobian_ = Eigen::Matrix<double, 3, 2>::Zero();
+  // The gravity tilt as a bilinear effect (lpoe/terms/bilinear_term.h), null when not planned for;
+  // its columns at zero tilt and the partner's (compliance's) values in the model, every parameter
+  // (identity basis).
+  std::shared_ptr<const BilinearJointEffect> tilt_;
+  Eigen::MatrixXd tilt_partner_basis_;
+  Eigen::VectorXd tilt_partner_values_;
 };
 
 // Whether a plan can account for the gravity tilt (docs/planning.md, "Gravity tilt"). The tilt's

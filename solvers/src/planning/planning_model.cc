@@ -99,16 +99,16 @@ PlanningModel::PlanningModel(const RobotModel& model,
     : model_(model),
       parameterization_(PlanningParameterization(model_, terms, reference)),
       basis_(model_, parameterization_),
-      gravity_tilt_(gravity_tilt) {
-  if (gravity_tilt_) {
+      tilt_(gravity_tilt ? internal::FindBlockKind(kGravityTiltName)->MakeEffect(model_)
+                         : nullptr) {
+  if (tilt_) {
     const Status s = PlanningGravityTiltStatus(model_, terms);
     CHECK(s.ok()) << s.message();
-    const std::vector<double>& c =
-        model_.joint_errors.Values(internal::FindBlockKind(kGravityTiltName)->partner_term());
-    compliance_ = Eigen::Map<const Eigen::VectorXd>(c.data(), static_cast<Eigen::Index>(c.size()));
-    const double zero[2] = {0.0, 0.0};
-    gravity_tilt_jacobian_ =
-        TiltedGravityJacobian(model_.gravity, GravityTiltAxes(model_.gravity), zero);
+    const std::vector<double>& c = model_.joint_errors.Values(tilt_->partner());
+    tilt_partner_values_ =
+        Eigen::Map<const Eigen::VectorXd>(c.data(), static_cast<Eigen::Index>(c.size()));
+    tilt_partner_basis_ = Eigen::MatrixXd::Identity(tilt_partner_values_.size(),
+                                                    tilt_partner_values_.size());
   }
   // O3's scale of the joint-space combinations: RMS tool effect of each column over the reference.
   const int frames = parameterization_.num_frame_parameters();
@@ -144,24 +144,24 @@ void PlanningModel::Rows(const double* q, const std::vector<int>& tools, Eigen::
   Eigen::MatrixXd R;
   if (joint_blocks) internal::JointTermColumns(parameterization_, n).Evaluate(0, q, &R);
   // The gravity tilt's joint-space columns at zero tilt and the model's compliance values:
-  // d(dq)/dt = sum_a (dg/dt)_a Y_a(q) theta (n x 2), as the solvers' (gravity_tilt.h) at their
-  // linearisation point.
+  // d(dq)/dt = sum_a (dg/dt)_a Y_a(q) theta (n x 2), the solvers' own (BilinearJointColumns) at
+  // their linearisation point.
   Eigen::MatrixXd D;
-  if (gravity_tilt_) {
-    Eigen::MatrixXd Ya[3];
-    ComplianceRegressorGravityAxes(model_, q, Ya);
-    Eigen::MatrixXd offsets(n, 3);
-    for (int a = 0; a < 3; ++a) offsets.col(a) = Ya[a] * compliance_;
-    D = offsets * gravity_tilt_jacobian_;
+  if (tilt_) {
+    thread_local std::vector<Eigen::MatrixXd> Z;
+    tilt_->RowRegressors(tilt_partner_basis_, q, &Z);
+    const std::vector<double> zero(tilt_->num_parameters(), 0.0);
+    BilinearJointColumns(*tilt_, zero.data(), Z, tilt_partner_values_.data(), nullptr, nullptr,
+                         &D);
   }
   const int tilt_offset = parameterization_.num_parameters;
   Eigen::Matrix<double, 3, Eigen::Dynamic> J_q(3, n);
   for (size_t k = 0; k < tools.size(); ++k) {
     basis_.Position(q, tools[k], J->data() + 3 * k, rows, frames.data());
-    if (!joint_blocks && !gravity_tilt_) continue;
+    if (!joint_blocks && !tilt_) continue;
     basis_.PositionJointJacobian(frames.data(), J_q.data(), 3);
     if (R.cols() > 0) J->block(3 * k, joint_offset, 3, R.cols()).noalias() = J_q * R;
-    if (gravity_tilt_) J->block(3 * k, tilt_offset, 3, 2).noalias() = J_q * D;
+    if (tilt_) J->block(3 * k, tilt_offset, 3, D.cols()).noalias() = J_q * D;
   }
 }
 
