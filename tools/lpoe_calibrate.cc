@@ -17,6 +17,7 @@
 #include <gflags/gflags.h>
 #include <glog/logging.h>
 
+#include "lpoe/joint_error_list.h"
 #include "lpoe/analysis.h"
 #include "lpoe/ceres_solver.h"
 #include "lpoe/io/io.h"
@@ -146,12 +147,12 @@ PipelineOptions PipelineOptionsFromFlags(ParameterizationKind kind, bool use_ori
   std::vector<std::string> kinds;
   o.joint_errors_auto = FLAGS_joint_errors == "auto";
   o.joint_error_folds = FLAGS_kfold >= 2 ? FLAGS_kfold : 5;
-  bool tilt = false;
-  if (std::string error; ParseJointErrorList(FLAGS_joint_errors, &kinds, &tilt, &error)) {
+  std::vector<std::string> effects;
+  if (std::string error; ParseJointErrorList(FLAGS_joint_errors, &kinds, &effects, &error)) {
     // In registry order, compliance first (docs/joint_errors.md): it keeps the combinations both
-    // terms could explain.
+    // terms could explain; the bilinear effects (the tilt) after them.
     o.joint_errors = InRegistryOrder(kinds);
-    if (tilt) o.joint_errors.push_back(kGravityTiltName);
+    o.joint_errors.insert(o.joint_errors.end(), effects.begin(), effects.end());
   }
   o.kfold = FLAGS_kfold;
   ParseResidualModelKind(FLAGS_residual_model, &o.residual_model);  // checked in Run()
@@ -337,13 +338,12 @@ int CheckCalibrateFlags(CalibrationRun* r) {
     std::cerr << "error: " << s.message() << "\n";
     return kExitUsage;
   }
-  if (std::vector<std::string> kinds; FLAGS_joint_errors != "auto") {
-    bool tilt = false;
+  if (std::vector<std::string> kinds, effects; FLAGS_joint_errors != "auto") {
     std::string error;
-    if (!ParseJointErrorList(FLAGS_joint_errors, &kinds, &tilt, &error)) {
+    if (!ParseJointErrorList(FLAGS_joint_errors, &kinds, &effects, &error)) {
       std::cerr << "error: --joint_errors='" << FLAGS_joint_errors << "': " << error
-                << " (expected none, a comma-separated list of " << JointTermNameList()
-                << ", with tilt in a list with compliance (compliance,tilt), or auto)\n";
+                << " (expected none, a comma-separated list of " << JointTermNameList() << ", "
+                << BilinearEffectsHelp(/*example=*/true) << ", or auto)\n";
       return kExitUsage;
     }
   }

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "lpoe/joint_error_list.h"
 #include "lpoe/analysis.h"
 #include "lpoe/compensation.h"
 #include "lpoe/contact_planning.h"
@@ -94,21 +95,21 @@ PyProblem MakeProblem(const RobotModel& model, const MeasurementSet& data,
   o.orientation_weight = orientation_weight;
   o.loss = loss;
   o.loss_scale = loss_scale;
-  // "tilt" (after compliance): the gravity tilt's block of 2, with the compliance term built on
-  // the same model; the terms start from the values the model carries (zero when none: the
-  // tilt's columns are then zero, so identify the compliance first, docs/joint_errors.md).
-  bool tilt = false;
+  // A bilinear effect ("tilt", after compliance: the gravity tilt's block of 2) with its partner
+  // term built on the same model; the terms start from the values the model carries (zero when
+  // none: the tilt's columns are then zero, so identify the compliance first,
+  // docs/joint_errors.md).
   for (const std::string& name : JointErrorNames(joint_errors, /*allow_tilt=*/true)) {
-    if (name == kGravityTiltName) {
-      tilt = true;
+    if (auto effect = MakeBilinearEffect(name, model)) {
+      o.bilinear_effects.push_back(std::move(effect));
       continue;
     }
     std::shared_ptr<const JointTerm> term;
     Check(MakeJointTerm(name, model, &term));
     o.joint_terms.push_back(term);
   }
-  if (tilt) {
-    o.bilinear_effects.push_back(std::make_shared<const GravityTiltModel>(model));
+  const bool bilinear = !o.bilinear_effects.empty();
+  if (bilinear) {
     for (const auto& term : o.joint_terms) {
       JointTermValues v;
       v.term = term;
@@ -124,7 +125,7 @@ PyProblem MakeProblem(const RobotModel& model, const MeasurementSet& data,
   PyProblem p;
   py::gil_scoped_release release;
   p.problem = std::make_unique<CalibrationProblem>(model, data, o);
-  if (tilt) Check(p.problem->block_status());
+  if (bilinear) Check(p.problem->block_status());
   return p;
 }
 

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "lpoe/joint_error_list.h"
 #include "lpoe/measurements/contact_measurements.h"
 #include "lpoe/io/csv_rules.h"
 #include "lpoe/io/io.h"
@@ -85,12 +86,12 @@ bool ParseDataKindOption(const std::string& text, const MeasurementSet& data) {
 
 std::vector<std::string> JointErrorNames(const std::string& text, bool allow_tilt) {
   std::vector<std::string> kinds;
-  bool tilt = false;
+  std::vector<std::string> effects;
   std::string error;
-  if (allow_tilt && !ParseJointErrorList(text, &kinds, &tilt, &error)) {
+  if (allow_tilt && !ParseJointErrorList(text, &kinds, &effects, &error)) {
     throw LpoeError("joint_errors: '" + text + "': " + error +
-                    " (expected none, a comma-separated list of " + JointTermNameList() +
-                    ", with tilt in a list with compliance, or auto)");
+                    " (expected none, a comma-separated list of " + JointTermNameList() + ", " +
+                    BilinearEffectsHelp(/*example=*/false) + ", or auto)");
   }
   if (!allow_tilt && !ParseJointTermList(text, &kinds, &error)) {
     throw LpoeError("joint_errors: expected none or a comma-separated list of " +
@@ -99,7 +100,7 @@ std::vector<std::string> JointErrorNames(const std::string& text, bool allow_til
   }
   // In registry order, compliance first (docs/joint_errors.md), as lpoe_calibrate orders them.
   std::vector<std::string> names = InRegistryOrder(kinds);
-  if (tilt) names.push_back(kGravityTiltName);
+  names.insert(names.end(), effects.begin(), effects.end());
   return names;
 }
 

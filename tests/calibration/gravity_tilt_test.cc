@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include "calibration/block_kind.h"
+#include "lpoe/joint_error_list.h"
 #include "lpoe/io/io.h"
 #include "lpoe/terms/joint_errors.h"
 #include "lpoe/terms/joint_term.h"
@@ -575,24 +576,38 @@ TEST(GravityTilt, AutoAddsTiltCandidatesOnlyWhenIdentifiable) {
 
 // Bad use: the tilt without compliance.
 TEST(GravityTilt, RejectedWithoutCompliance) {
-  std::vector<std::string> kinds;
-  bool tilt = false;
+  std::vector<std::string> kinds, effects;
   std::string error;
-  ASSERT_TRUE(ParseJointErrorList("compliance,tilt", &kinds, &tilt, &error)) << error;
-  EXPECT_TRUE(tilt);
+  const std::vector<std::string> tilt = {kGravityTiltName};
+  ASSERT_TRUE(ParseJointErrorList("compliance,tilt", &kinds, &effects, &error)) << error;
+  EXPECT_EQ(effects, tilt);
   ASSERT_EQ(kinds.size(), 1u);
-  ASSERT_TRUE(ParseJointErrorList("tilt,harmonics,compliance", &kinds, &tilt, &error)) << error;
-  EXPECT_TRUE(tilt);
+  ASSERT_TRUE(ParseJointErrorList("tilt,harmonics,compliance", &kinds, &effects, &error)) << error;
+  EXPECT_EQ(effects, tilt);
   EXPECT_EQ(kinds.size(), 2u);
-  ASSERT_TRUE(ParseJointErrorList("compliance,harmonics", &kinds, &tilt, &error)) << error;
-  EXPECT_FALSE(tilt);
+  ASSERT_TRUE(ParseJointErrorList("compliance,harmonics", &kinds, &effects, &error)) << error;
+  EXPECT_TRUE(effects.empty());
+  ASSERT_TRUE(ParseJointErrorList("none", &kinds, &effects, &error)) << error;
+  EXPECT_TRUE(kinds.empty() && effects.empty());
   for (const char* bad : {"tilt", "harmonics,tilt", "none,tilt"}) {
-    EXPECT_FALSE(ParseJointErrorList(bad, &kinds, &tilt, &error)) << bad;
+    EXPECT_FALSE(ParseJointErrorList(bad, &kinds, &effects, &error)) << bad;
     EXPECT_EQ(error, kGravityTiltNeedsCompliance) << bad;
   }
-  EXPECT_FALSE(ParseJointErrorList("compliance,tilt,tilt", &kinds, &tilt, &error));
-  EXPECT_FALSE(ParseJointErrorList("compliance,tilt,", &kinds, &tilt, &error));
-  EXPECT_FALSE(ParseJointErrorList("compliance,tlit", &kinds, &tilt, &error));
+  EXPECT_FALSE(ParseJointErrorList("compliance,tilt,tilt", &kinds, &effects, &error));
+  EXPECT_EQ(error, "'tilt' is listed more than once");
+  // A comma at either end, an empty item, a misspelt name.
+  for (const char* bad : {"compliance,tilt,", "compliance,", ",compliance", "compliance,,tilt",
+                          "compliance,tlit"}) {
+    EXPECT_FALSE(ParseJointErrorList(bad, &kinds, &effects, &error)) << bad;
+    EXPECT_EQ(error.rfind("not a comma-separated list of", 0), 0u) << bad << ": " << error;
+  }
+  // The list's vocabulary comes from the block kinds: the tilt, bilinear with compliance.
+  const BilinearEffectName* name = FindBilinearEffectName(kGravityTiltName);
+  ASSERT_NE(name, nullptr);
+  EXPECT_EQ(name->partner, "compliance");
+  EXPECT_EQ(BilinearEffectsHelp(true), "with tilt in a list with compliance (compliance,tilt)");
+  EXPECT_NE(MakeBilinearEffect(kGravityTiltName, MakeCobot6()), nullptr);
+  EXPECT_EQ(MakeBilinearEffect("compliance", MakeCobot6()), nullptr);
 
   const TiltFixture f(0.3, 0, true, 60);
   const PipelineResult r = RunTilt(f, SolverKind::kLinear, {"harmonics", "tilt"});

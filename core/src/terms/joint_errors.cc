@@ -173,47 +173,6 @@ bool ParseJointTermList(const std::string& text, std::vector<std::string>* names
   return true;
 }
 
-bool ParseJointErrorList(const std::string& text, std::vector<std::string>* names, bool* tilt,
-                         std::string* error) {
-  const std::string expected =
-      "not a comma-separated list of " + JointTermNameList() + ", " + kGravityTiltName;
-  std::stringstream ss(text);
-  std::string item, rest;
-  int tilts = 0;
-  while (std::getline(ss, item, ',')) {
-    if (item == kGravityTiltName) {
-      ++tilts;
-      continue;
-    }
-    rest += (rest.empty() ? "" : ",") + item;
-  }
-  if (tilts > 1) {
-    *error = "'tilt' is listed more than once";
-    return false;
-  }
-  if (tilts == 1 && (text.back() == ',' || text.front() == ',')) {
-    *error = expected;
-    return false;
-  }
-  if (tilts == 1 && (rest.empty() || rest == "none")) {
-    *error = kGravityTiltNeedsCompliance;
-    return false;
-  }
-  std::vector<std::string> out;
-  std::string why;
-  if ((tilts == 0 || !rest.empty()) && !ParseJointTermList(rest, &out, &why)) {
-    *error = expected + ": " + why;
-    return false;
-  }
-  if (tilts == 1 && std::find(out.begin(), out.end(), "compliance") == out.end()) {
-    *error = kGravityTiltNeedsCompliance;
-    return false;
-  }
-  *names = out;
-  *tilt = tilts == 1;
-  return true;
-}
-
 int NumComplianceParameters(int num_joints) {
   // sum_{j<n} 4 (n - j) + 1 = 2 n (n + 1) + n.
   return 2 * num_joints * (num_joints + 1) + num_joints;

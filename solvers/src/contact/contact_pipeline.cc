@@ -1,4 +1,5 @@
 // The calibration run for ballbar distances and probe contacts (lpoe/contact_pipeline.h).
+#include "lpoe/joint_error_list.h"
 #include "lpoe/contact_pipeline.h"
 
 #include "identifiability/cross_validation.h"
@@ -382,16 +383,17 @@ Status ContactJointTerms(const std::string& text, const RobotModel& reference,
     return Status::Error("'auto' is not available with distance or plane data: " +
                          ContactRefusalReason("joint_errors_auto"));
   }
-  std::vector<std::string> names;
-  bool tilt = false;
+  std::vector<std::string> names, effects;
   std::string error;
-  if (!ParseJointErrorList(text, &names, &tilt, &error)) {
+  if (!ParseJointErrorList(text, &names, &effects, &error)) {
     return Status::Error("'" + text + "': " + error + " (expected none or a comma-separated list "
                          "of " + JointTermNameList() + ")");
   }
-  if (tilt) {
-    return Status::Error("'" + text + "': the gravity tilt is not available with distance or "
-                         "plane data: " + ContactRefusalReason("joint_errors_tilt"));
+  if (!effects.empty()) {
+    return Status::Error("'" + text + "': the " +
+                         FindBilinearEffectName(effects.front())->description +
+                         " is not available with distance or plane data: " +
+                         ContactRefusalReason("joint_errors_tilt"));
   }
   for (const std::string& name : InRegistryOrder(names)) {
     std::shared_ptr<const JointTerm> term;

@@ -1,3 +1,4 @@
+#include "lpoe/joint_error_list.h"
 #include "lpoe/planning_workflow.h"
 
 #include <algorithm>
@@ -109,13 +110,23 @@ Status PlannedTermNames(const PlanRequest& request, PlanningResult* out, bool* t
     out->term_names = JointTermNames();
     return Status::Ok();
   }
-  std::vector<std::string> kinds;
+  std::vector<std::string> kinds, effects;
   std::string error;
-  if (!ParseJointErrorList(request.joint_errors, &kinds, tilt, &error)) {
+  if (!ParseJointErrorList(request.joint_errors, &kinds, &effects, &error)) {
     return Fail(PlanFailure::kUsage, failure,
                 "--joint_errors=" + request.joint_errors + ": " + error +
                     " (expected none, a comma-separated list of " + JointTermNameList() +
-                    " or auto, with tilt in a list with compliance)");
+                    " or auto, " + BilinearEffectsHelp(/*example=*/false) + ")");
+  }
+  // The planning model accounts for the gravity tilt (PlanningModel), no other bilinear effect.
+  *tilt = false;
+  for (const std::string& e : effects) {
+    if (e != kGravityTiltName) {
+      return Fail(PlanFailure::kUsage, failure,
+                  "--joint_errors=" + request.joint_errors + ": a plan cannot account for '" + e +
+                      "' (of the bilinear effects, only the gravity tilt)");
+    }
+    *tilt = true;
   }
   out->term_names = InRegistryOrder(kinds);
   return Status::Ok();

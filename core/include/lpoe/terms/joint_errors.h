@@ -60,11 +60,6 @@ constexpr const char kGravityTiltName[] = "tilt";
 constexpr const char kGravityTiltNeedsCompliance[] =
     "the gravity tilt ('tilt' in the joint errors) is identified with the compliance term and "
     "needs it in the list, e.g. compliance,tilt or compliance,harmonics,tilt";
-// ParseJointTermList with the gravity tilt allowed once anywhere in the list: `tilt` tells
-// whether it was there. Returns false (and `error`) on unknown or repeated names and on a tilt
-// without compliance.
-bool ParseJointErrorList(const std::string& text, std::vector<std::string>* names, bool* tilt,
-                         std::string* error);
 
 // ---- Parameter layout of the compliance and harmonics terms (their values in
 // RobotModel::joint_errors, see robot_model.h).
