@@ -99,7 +99,7 @@ PyProblem MakeProblem(const RobotModel& model, const MeasurementSet& data,
   // term built on the same model; the terms start from the values the model carries (zero when
   // none: the tilt's columns are then zero, so identify the compliance first,
   // docs/joint_errors.md).
-  for (const std::string& name : JointErrorNames(joint_errors, /*allow_tilt=*/true)) {
+  for (const std::string& name : JointErrorNames(joint_errors, /*allow_bilinear=*/true)) {
     if (auto effect = MakeBilinearEffect(name, model)) {
       o.bilinear_effects.push_back(std::move(effect));
       continue;

@@ -84,16 +84,16 @@ bool ParseDataKindOption(const std::string& text, const MeasurementSet& data) {
   throw LpoeError("data_kind: expected 'auto', 'position' or 'pose', got '" + text + "'");
 }
 
-std::vector<std::string> JointErrorNames(const std::string& text, bool allow_tilt) {
+std::vector<std::string> JointErrorNames(const std::string& text, bool allow_bilinear) {
   std::vector<std::string> kinds;
   std::vector<std::string> effects;
   std::string error;
-  if (allow_tilt && !ParseJointErrorList(text, &kinds, &effects, &error)) {
+  if (allow_bilinear && !ParseJointErrorList(text, &kinds, &effects, &error)) {
     throw LpoeError("joint_errors: '" + text + "': " + error +
                     " (expected none, a comma-separated list of " + JointTermNameList() + ", " +
                     BilinearEffectsHelp(/*example=*/false) + ", or auto)");
   }
-  if (!allow_tilt && !ParseJointTermList(text, &kinds, &error)) {
+  if (!allow_bilinear && !ParseJointTermList(text, &kinds, &error)) {
     throw LpoeError("joint_errors: expected none or a comma-separated list of " +
                     JointTermNameList() + " (or auto where the tool accepts it), got '" + text +
                     "': " + error);

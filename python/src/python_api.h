@@ -50,8 +50,9 @@ Status WriteAnyRobotModel(const std::string& path, const RobotModel& model);
 // registry order, compliance first); a tool by index or name.
 ParameterizationKind ParseParameterizationOption(const std::string& text);
 bool ParseDataKindOption(const std::string& text, const MeasurementSet& data);
-// `allow_tilt`: the gravity tilt ("compliance,tilt") is accepted and listed last as "tilt".
-std::vector<std::string> JointErrorNames(const std::string& text, bool allow_tilt = false);
+// `allow_bilinear`: the bilinear effects (lpoe/joint_error_list.h: "compliance,tilt") are accepted
+// and listed last ("tilt").
+std::vector<std::string> JointErrorNames(const std::string& text, bool allow_bilinear = false);
 int ToolIndexOf(const RobotModel& model, const pybind11::object& tool);
 // One tool for every row: a name, an integer (any with __index__) or a 0-d array.
 bool IsOneTool(const pybind11::object& tool);

@@ -546,17 +546,22 @@ TEST(GravityTilt, AutoAddsTiltCandidatesOnlyWhenIdentifiable) {
       RunCalibrationPipeline(tilted.nominal, tilted.identification, tilted.verification, o);
   ASSERT_TRUE(a.result.converged()) << a.result.message;
   const std::vector<std::string> with = labels(a);
-  EXPECT_TRUE(a.joint_error_selection.tilt_candidates) << a.joint_error_selection.tilt_message;
+  ASSERT_EQ(a.joint_error_selection.bilinear.size(), 1u);
+  EXPECT_EQ(a.joint_error_selection.bilinear[0].name, kGravityTiltName);
+  EXPECT_TRUE(a.joint_error_selection.bilinear[0].candidates)
+      << a.joint_error_selection.bilinear[0].message;
   EXPECT_NE(std::find(with.begin(), with.end(), "compliance,tilt"), with.end());
   EXPECT_NE(std::find(with.begin(), with.end(), "compliance,harmonics,tilt"), with.end());
   const JointErrorSelection& sel = a.joint_error_selection;
   for (const JointErrorCandidate& c : sel.candidates) {
     const bool with_tilt = c.label.find("tilt") != std::string::npos;
-    EXPECT_TRUE(c.tilt_folds >= 0 && c.tilt_folds <= (with_tilt ? sel.folds : 0)) << c.label;
+    const int tilt_folds = c.IdentifiedFolds(kGravityTiltName);
+    EXPECT_TRUE(tilt_folds >= 0 && tilt_folds <= (with_tilt ? sel.folds : 0)) << c.label;
+    EXPECT_EQ(c.identified_folds.size(), with_tilt && tilt_folds > 0 ? 1u : 0u) << c.label;
     // The tilt identified on all rows (the check above, with every registry term): on each fold's
     // too with compliance and harmonics.
     if (c.label == "compliance,harmonics,tilt") {
-      EXPECT_EQ(c.tilt_folds, sel.folds);
+      EXPECT_EQ(tilt_folds, sel.folds);
     }
   }
   std::cout << "auto on a 1 deg tilt chose " << sel.candidates[sel.chosen].label << " ("
@@ -566,12 +571,12 @@ TEST(GravityTilt, AutoAddsTiltCandidatesOnlyWhenIdentifiable) {
       RunCalibrationPipeline(level.nominal, level.identification, level.verification, o);
   ASSERT_TRUE(b.result.converged()) << b.result.message;
   const std::vector<std::string> without = labels(b);
-  EXPECT_FALSE(b.joint_error_selection.tilt_candidates);
+  EXPECT_FALSE(b.joint_error_selection.Bilinear(kGravityTiltName).candidates);
   EXPECT_EQ(without.size(), size_t{1} << JointTermNames().size());  // every registry subset
-  EXPECT_NE(b.joint_error_selection.tilt_message.find(
+  EXPECT_NE(b.joint_error_selection.Bilinear(kGravityTiltName).message.find(
                 "gravity tilt not identifiable from these data; kept at the model's gravity"),
             std::string::npos)
-      << b.joint_error_selection.tilt_message;
+      << b.joint_error_selection.Bilinear(kGravityTiltName).message;
 }
 
 // Bad use: the tilt without compliance.

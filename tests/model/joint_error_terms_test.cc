@@ -247,8 +247,8 @@ TEST(JointErrorAuto, ChoosesTheTermsAndRecoversTheDeflection) {
   // Every subset of the registry's T terms (2^T), and the 2^(T-1) with compliance once more with
   // the gravity tilt when the data determine it (they do here: the compliance torques are large;
   // the level base keeps the simpler set chosen above).
-  ASSERT_TRUE(automatic.joint_error_selection.tilt_candidates)
-      << automatic.joint_error_selection.tilt_message;
+  ASSERT_TRUE(automatic.joint_error_selection.Bilinear(kGravityTiltName).candidates)
+      << automatic.joint_error_selection.Bilinear(kGravityTiltName).message;
   const size_t T = JointTermNames().size();
   ASSERT_EQ(automatic.joint_error_selection.candidates.size(),
             (size_t{1} << T) + (size_t{1} << (T - 1)));

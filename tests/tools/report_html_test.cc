@@ -330,7 +330,7 @@ TEST(JointErrorSelectionTable, SaysWhenTheTiltWasNotIdentifiedInTheFolds) {
   JointErrorSelection sel;
   sel.ran = true;
   sel.folds = 5;
-  sel.tilt_candidates = true;
+  sel.bilinear = {{kGravityTiltName, true, ""}};
   auto candidate = [](std::vector<std::string> terms, const std::string& label, int tilt_folds) {
     JointErrorCandidate c;
     c.terms = std::move(terms);
@@ -339,7 +339,7 @@ TEST(JointErrorSelectionTable, SaysWhenTheTiltWasNotIdentifiedInTheFolds) {
     c.parameters = 30;
     c.cv_rms = 0.06;
     c.cv_mse = 0.0036;
-    c.tilt_folds = tilt_folds;
+    c.identified_folds[kGravityTiltName] = tilt_folds;
     return c;
   };
   sel.candidates = {candidate({"compliance"}, "compliance", 0),
@@ -352,7 +352,7 @@ TEST(JointErrorSelectionTable, SaysWhenTheTiltWasNotIdentifiedInTheFolds) {
             std::string::npos)
       << table;
   EXPECT_EQ(table.find("compliance,harmonics,tilt: the gravity tilt"), std::string::npos) << table;
-  sel.candidates[1].tilt_folds = 3;
+  sel.candidates[1].identified_folds[kGravityTiltName] = 3;
   table = JointErrorSelectionTable(sel);
   EXPECT_NE(table.find("compliance,tilt: the gravity tilt was identified in 3 of 5 folds (the "
                        "others kept the model's gravity)\n"),

@@ -164,7 +164,7 @@ std::string ContactSelectionJsonText(const JointErrorSelection& sel) {
   out["best"] = sel.best >= 0 ? sel.candidates[sel.best].label : std::string();
   out["chosen"] = sel.candidates[sel.chosen].label;
   out["reason"] = sel.reason;
-  out["tilt_message"] = sel.tilt_message;
+  out["tilt_message"] = sel.Bilinear(kGravityTiltName).message;
   return out.dump();
 }
 

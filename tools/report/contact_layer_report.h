@@ -21,8 +21,8 @@ std::string ContactLayerJsonText(const ContactPipelineResult& run, const std::st
 // The report's "joint_error_selection" object (JSON text) of --joint_errors=auto / joint_errors=
 // 'auto' (the tracker report's joint_errors.selection, for contact data): folds, seed, candidates
 // (terms, converged, failure, identified_combinations, fold_rms and, when converged, cv_rms,
-// cv_mse, cv_mse_standard_error), best, chosen, reason, tilt_message; keys in that order. `sel`
-// must have run.
+// cv_mse, cv_mse_standard_error), best, chosen, reason, tilt_message (the tilt's candidacy); keys
+// in that order. `sel` must have run.
 std::string ContactSelectionJsonText(const JointErrorSelection& sel);
 // The body of a contact calibration's JSON report (JSON text), lpoe_calibrate's and
 // lpoe.calibrate's (each adds its own "tool" and the tool its files): solver, iterations,

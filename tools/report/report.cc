@@ -165,10 +165,12 @@ Json JointErrorsJson(const RunSummary& s) {
   j["selection"] = SelectionJson(sel, [](const JointErrorCandidate& c) {
     return CandidateJson(c, "terms", "converged",
                          Json::object({{"identified_combinations", c.parameters}}),
-                         Json::object({{"tilt_identified_folds", c.tilt_folds}}));
+                         Json::object({{"tilt_identified_folds",
+                                        c.IdentifiedFolds(kGravityTiltName)}}));
   });
-  j["selection"]["tilt_candidates"] = sel.tilt_candidates;
-  j["selection"]["tilt_message"] = sel.tilt_message;
+  const BilinearCandidacy tilt = sel.Bilinear(kGravityTiltName);
+  j["selection"]["tilt_candidates"] = tilt.candidates;
+  j["selection"]["tilt_message"] = tilt.message;
   return j;
 }
 
@@ -391,16 +393,18 @@ std::string JointErrorSelectionTable(const JointErrorSelection& sel, const std::
   for (const JointErrorCandidate& c : sel.candidates) {
     const bool with_tilt =
         std::find(c.terms.begin(), c.terms.end(), kGravityTiltName) != c.terms.end();
-    if (!with_tilt || !c.ok || c.tilt_folds == sel.folds) continue;
+    const int tilt_folds = c.IdentifiedFolds(kGravityTiltName);
+    if (!with_tilt || !c.ok || tilt_folds == sel.folds) continue;
     out += "  " + c.label +
-           (c.tilt_folds == 0
+           (tilt_folds == 0
                 ? ": the gravity tilt was identified in none of the " + std::to_string(sel.folds) +
                       " folds, which kept the model's gravity: the same model as without the tilt\n"
-                : ": the gravity tilt was identified in " + std::to_string(c.tilt_folds) + " of " +
+                : ": the gravity tilt was identified in " + std::to_string(tilt_folds) + " of " +
                       std::to_string(sel.folds) + " folds (the others kept the model's gravity)\n");
   }
   out += "  " + sel.reason + "\n";
-  if (!sel.tilt_candidates && !sel.tilt_message.empty()) out += "  " + sel.tilt_message + "\n";
+  const BilinearCandidacy tilt = sel.Bilinear(kGravityTiltName);
+  if (!tilt.candidates && !tilt.message.empty()) out += "  " + tilt.message + "\n";
   return out;
 }
 

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -108,11 +109,26 @@ struct CrossValidatedCandidate {
 // --joint_errors=auto: one candidate set of terms and its cross-validated held-out error; label
 // "none", "compliance", "harmonics", "compliance,tilt", ...
 struct JointErrorCandidate : CrossValidatedCandidate {
-  std::vector<std::string> terms;  // registry names; empty: the geometry alone
+  // Registry names, then bilinear effects (lpoe/joint_error_list.h); empty: the geometry alone.
+  std::vector<std::string> terms;
   int parameters = 0;              // identified joint-error combinations (largest over the folds)
-  // With the gravity tilt among the terms: the folds whose calibration identified it (the others
-  // kept the model's gravity, as a calibration with these terms does when the tilt check fails).
-  int tilt_folds = 0;
+  // Per bilinear effect among the terms (the gravity tilt): the folds whose calibration identified
+  // it (the others kept it out, as a calibration with these terms does when its check fails).
+  std::map<std::string, int> identified_folds;
+  int IdentifiedFolds(const std::string& effect) const {
+    const auto it = identified_folds.find(effect);
+    return it == identified_folds.end() ? 0 : it->second;
+  }
+};
+
+// --joint_errors=auto and one bilinear effect (lpoe/joint_error_list.h; the gravity tilt): it joins
+// the candidates that have its partner ("compliance,tilt", "compliance,harmonics,tilt", ...) only
+// when the identification rows determine it (its check at the solution with every registry term
+// and it); else why not.
+struct BilinearCandidacy {
+  std::string name;         // "tilt"
+  bool candidates = false;  // joined the candidates
+  std::string message;      // why not
 };
 
 // How an automatic choice cross-validated (its folds) and what it chose: indices into its
@@ -129,11 +145,15 @@ struct CrossValidationChoice {
 
 struct JointErrorSelection : CrossValidationChoice {
   std::vector<JointErrorCandidate> candidates;  // in order of increasing parameters
-  // The gravity tilt joins the candidates that have compliance ("compliance,tilt",
-  // "compliance,harmonics,tilt", ...) only when the identification rows determine it (the check of
-  // PipelineOptions::joint_errors "tilt" at the compliance solution); else why not.
-  bool tilt_candidates = false;
-  std::string tilt_message;
+  // Each bilinear effect's candidacy, in the registry's order.
+  std::vector<BilinearCandidacy> bilinear;
+  // The entry of effect `name`; an empty one (not a candidate, no message) when there is none.
+  BilinearCandidacy Bilinear(const std::string& name) const {
+    for (const BilinearCandidacy& b : bilinear) {
+      if (b.name == name) return b;
+    }
+    return BilinearCandidacy{name, false, ""};
+  }
 };
 
 // Cross-validates each candidate set of terms on options.joint_error_folds seeded folds of

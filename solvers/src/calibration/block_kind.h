@@ -153,6 +153,11 @@ class BlockKind {
   //   - writes the identified values of `result`'s entry into the calibrated model (the tilt:
   //     its gravity).
   virtual void ApplyToModel(const CalibrationResult& /*result*/, RobotModel* /*model*/) const {}
+  // Whether `result` (a calibration that asked for the kind) identified it; else `why_not` (may
+  // be null) says why (the joint-error selection's candidacy and folds).
+  virtual bool Identified(const CalibrationResult& /*result*/, std::string* /*why_not*/) const {
+    return false;
+  }
 };
 
 // The kinds of effects bilinear with a joint-space term: blocks, columns and partner from the

@@ -129,6 +129,17 @@ class GravityTiltKind : public BilinearBlockKind {
   void ApplyToModel(const CalibrationResult& result, RobotModel* model) const override {
     if (result.gravity_tilt.identified) model->gravity = result.gravity_tilt.gravity_after;
   }
+
+  bool Identified(const CalibrationResult& result, std::string* why_not) const override {
+    if (why_not != nullptr && !result.gravity_tilt.identified) {
+      *why_not = !result.gravity_tilt.message.empty()
+                     ? result.gravity_tilt.message
+                     : "gravity tilt not identifiable from these data; kept at the model's gravity "
+                       "(the compliance calibration did not converge: " +
+                           result.message + ")";
+    }
+    return result.gravity_tilt.identified;
+  }
 };
 
 }  // namespace

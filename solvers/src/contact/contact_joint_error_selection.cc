@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "identifiability/cross_validation.h"
+#include "lpoe/joint_error_list.h"
 #include "lpoe/contact_pipeline.h"
 #include "lpoe/terms/joint_errors.h"
 #include "lpoe/terms/joint_term.h"
@@ -54,8 +55,12 @@ JointErrorSelection SelectContactJointErrors(const RobotModel& start,
                                    identification.size()));
   sel.seed = options.split_seed + 1;
   sel.split = SplitKind::kRandom;
-  sel.tilt_message = "the gravity tilt is not a candidate with distance or plane data: " +
-                     ContactRefusalReason("joint_errors_tilt");
+  for (const BilinearEffectName& effect : BilinearEffectNames()) {
+    sel.bilinear.push_back({effect.name, false,
+                            "the " + effect.description +
+                                " is not a candidate with distance or plane data: " +
+                                ContactRefusalReason("joint_errors_tilt")});
+  }
   const std::vector<std::vector<int>> folds = ContactFolds(identification.size(), sel.folds, sel.seed);
   // Every subset of the registry, in registry order, listed by the binary count of its bits (as
   // SelectJointErrors lists them).

@@ -10,6 +10,7 @@
 #include "lpoe/terms/joint_errors.h"
 #include "lpoe/terms/joint_term.h"
 #include "lpoe/parallel.h"
+#include "lpoe/joint_error_list.h"
 #include "lpoe/pipeline.h"
 
 namespace lpoe {
@@ -23,11 +24,11 @@ std::string Label(const std::vector<std::string>& terms) {
 }
 
 // One candidate's errors on one fold's held-out rows, calibrated on the fold's training rows; and
-// whether the gravity tilt was identified and how many joint-space combinations were.
+// which bilinear effects were identified and how many joint-space combinations were.
 struct FoldOutcome {
   internal::FoldErrors errors;
-  int parameters = 0;  // identified joint-space combinations
-  bool tilt = false;   // the gravity tilt was identified
+  int parameters = 0;                 // identified joint-space combinations
+  std::vector<std::string> bilinear;  // the bilinear effects identified (the gravity tilt)
 };
 
 FoldOutcome SolveFold(const RobotModel& nominal, const MeasurementSet& identification,
@@ -43,7 +44,10 @@ FoldOutcome SolveFold(const RobotModel& nominal, const MeasurementSet& identific
   }
   out.errors.ok = true;
   out.parameters = f.result.parameterization.num_joint_parameters();
-  out.tilt = f.result.gravity_tilt.identified;
+  for (const std::string& name : options.joint_errors) {
+    const internal::BlockKind* kind = internal::FindBlockKind(name);
+    if (kind != nullptr && kind->Identified(f.result, nullptr)) out.bilinear.push_back(name);
+  }
   for (const Eigen::Vector3d& v : ParametricResiduals(f.result, f.test)) {
     out.errors.squared.push_back(v.squaredNorm());
   }
@@ -61,7 +65,7 @@ JointErrorCandidate Combine(const std::vector<std::string>& terms,
     errors.push_back(o.errors);
     if (!o.errors.ok) break;
     c.parameters = std::max(c.parameters, o.parameters);
-    if (o.tilt) ++c.tilt_folds;
+    for (const std::string& name : o.bilinear) ++c.identified_folds[name];
   }
   internal::ScoreFolds(errors, &c);
   return c;
@@ -107,8 +111,8 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
   // Every subset of the registry (JointTermNames(), 2^T sets for T terms), each in registry order
   // (compliance first: it keeps the combinations both terms could explain, joint_errors.md), listed
   // by the binary count of registry bits: none, compliance, harmonics, compliance,harmonics, then
-  // the sets with the next term, and so on. With the gravity tilt, every set that has compliance
-  // once more with the tilt (2^(T-1) sets). Each candidate is one solve per fold.
+  // the sets with the next term, and so on. With a bilinear effect (the gravity tilt), every set
+  // that has its partner once more with it (2^(T-1) sets). Each candidate is one solve per fold.
   const std::vector<std::string> registry = JointTermNames();
   const size_t num_sets = size_t{1} << registry.size();
   std::vector<std::vector<std::string>> sets;
@@ -119,34 +123,31 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
     }
     sets.push_back(set);
   }
-  {
-    // The gravity tilt joins the compliance candidates only when these rows determine it (its
-    // check at the solution with every registry term of all identification rows: the fullest
-    // model, whose residuals estimate the noise best).
-    if (options.on_stage) options.on_stage("checking the gravity tilt");
+  // Each bilinear effect (the gravity tilt) joins the candidates that have its partner only when
+  // these rows determine it: its check at the solution with every registry term and it, on all
+  // identification rows (the fullest model, whose residuals estimate the noise best).
+  const size_t num_term_sets = sets.size();
+  for (const BilinearEffectName& effect : BilinearEffectNames()) {
+    const internal::BlockKind* kind = internal::FindBlockKind(effect.name);
+    if (options.on_stage) options.on_stage("checking the " + effect.description);
     PipelineOptions check = options;
     check.joint_errors = registry;
-    check.joint_errors.push_back(kGravityTiltName);
+    check.joint_errors.push_back(effect.name);
     check.joint_errors_auto = false;
     const CalibrationResult r = SolveCalibration(nominal, identification, check,
-                                                 "auto gravity tilt check", nullptr, nullptr,
-                                                 nullptr);
-    sel.tilt_candidates = r.gravity_tilt.identified;
-    sel.tilt_message = r.gravity_tilt.identified ? std::string()
-                       : !r.gravity_tilt.message.empty()
-                           ? r.gravity_tilt.message
-                           : "gravity tilt not identifiable from these data; kept at the model's "
-                             "gravity (the compliance calibration did not converge: " +
-                                 r.message + ")";
-    if (sel.tilt_candidates) {
-      for (size_t k = 0; k < num_sets; ++k) {
-        // The sets holding the term the tilt's block kind is bilinear with (block_kind.h).
-        const std::string partner = internal::FindBlockKind(kGravityTiltName)->partner_term();
-        if (std::find(sets[k].begin(), sets[k].end(), partner) == sets[k].end()) continue;
-        std::vector<std::string> with_tilt = sets[k];
-        with_tilt.push_back(kGravityTiltName);
-        sets.push_back(with_tilt);
-      }
+                                                 "auto " + effect.description + " check", nullptr,
+                                                 nullptr, nullptr);
+    BilinearCandidacy candidacy;
+    candidacy.name = effect.name;
+    candidacy.candidates = kind->Identified(r, &candidacy.message);
+    sel.bilinear.push_back(candidacy);
+    if (!candidacy.candidates) continue;
+    for (size_t k = 0; k < num_term_sets; ++k) {
+      // The term sets holding the effect's partner.
+      if (std::find(sets[k].begin(), sets[k].end(), effect.partner) == sets[k].end()) continue;
+      std::vector<std::string> with = sets[k];
+      with.push_back(effect.name);
+      sets.push_back(with);
     }
   }
   sel.candidates = CrossValidateAll(nominal, identification, folds, options, sets);

@@ -72,7 +72,7 @@ struct Scratch {
   Eigen::MatrixXd R;          // n x K: [Y_b(q) basis_b] of the row
   Eigen::MatrixXd J_q;        // m x n
   Eigen::VectorXd q_eff;      // n
-  Eigen::MatrixXd R_tilt;     // R with the block kinds' columns (block_kind.h)
+  Eigen::MatrixXd R_bilinear;  // R with the block kinds' columns (block_kind.h)
 };
 
 // H (lower triangle) += A^T A for the first `rows` rows and `cols` columns of A (J^T J written once:
@@ -176,11 +176,11 @@ void AccumulateRows(const Kind& kind, const BasisJacobian& bj, const Parameteriz
         scratch->q_eff = Eigen::Map<const Eigen::VectorXd>(q, n);
         if (joint_state.size() > 0) scratch->q_eff.noalias() += R * joint_state;
         if (nonlinear) {  // the block kinds' columns at the current values (block_kind.h)
-          scratch->R_tilt = R;
-          AddNonlinearRowColumns(p, q, joint_state, scratch->R_tilt, &scratch->q_eff);
+          scratch->R_bilinear = R;
+          AddNonlinearRowColumns(p, q, joint_state, scratch->R_bilinear, &scratch->q_eff);
         }
         const Eigen::Ref<const Eigen::MatrixXd> Rj =
-            nonlinear ? Eigen::Ref<const Eigen::MatrixXd>(scratch->R_tilt)
+            nonlinear ? Eigen::Ref<const Eigen::MatrixXd>(scratch->R_bilinear)
                       : Eigen::Ref<const Eigen::MatrixXd>(R);
         e = kind.Linearize(bj, scratch->q_eff.data(), data.target(r), measured, Jr, ld,
                            scratch->J_q.data(), m, frames, y);
