@@ -618,6 +618,11 @@ TEST(GravityTilt, RejectedWithoutCompliance) {
   const PipelineResult r = RunTilt(f, SolverKind::kLinear, {"harmonics", "tilt"});
   EXPECT_EQ(r.result.termination, Termination::kNotIdentifiable);
   EXPECT_EQ(r.result.message, kGravityTiltNeedsCompliance);
+  // The library's list (no parser in between): one bilinear effect per calibration.
+  const PipelineResult twice = RunTilt(f, SolverKind::kLinear, {"compliance", "tilt", "tilt"});
+  EXPECT_EQ(twice.result.termination, Termination::kNotIdentifiable);
+  EXPECT_NE(twice.result.message.find("one bilinear effect per calibration"), std::string::npos)
+      << twice.result.message;
 }
 
 }  // namespace gravity_tilt_test

@@ -315,6 +315,14 @@ bool PipelineSolve::MakeTerms(CalibrationResult* failed) {
         *failed = Refused(start_, kind->needs_partner_message());
         return false;
       }
+      // One bilinear effect per calibration: its stage checks it at the solution with its partner
+      // and solves from there; a second one's stage would check it at the first's start values.
+      if (!bilinear_.empty()) {
+        *failed = Refused(start_, std::string("one bilinear effect per calibration: '") +
+                                      bilinear_.front()->name() + "' and '" + name + "' are both "
+                                      "listed");
+        return false;
+      }
       bilinear_.push_back(kind);
       continue;
     }
