@@ -124,7 +124,7 @@ Status Svg(const Figure& f, int* figures, std::string* html) {
 class HtmlPage {
  public:
   explicit HtmlPage(const RunSummary& summary)
-      : summary_(summary), j_(Json::parse(RunSummaryToJson(summary))), model_(summary.result.model) {
+      : summary_(summary), j_(Json::parse(RunSummaryToJsonWithoutPoints(summary))), model_(summary.result.model) {
     html_.reserve(1 << 20);
   }
   Status Write(std::string* out) {
@@ -345,11 +345,10 @@ Status HtmlPage::Plots() {
   }
   std::vector<Eigen::Vector3d> eb, ea;
   std::vector<double> nb, na;
-  for (const Json& p : j["points"][set_name]) {
-    eb.emplace_back(p["before"][0].get<double>(), p["before"][1].get<double>(),
-                    p["before"][2].get<double>());
-    ea.emplace_back(p["after"][0].get<double>(), p["after"][1].get<double>(),
-                    p["after"][2].get<double>());
+  for (const PointResidual& p :
+       HasVerification() ? summary.verification_points : summary.identification_points) {
+    eb.push_back(p.before);
+    ea.push_back(p.after);
     nb.push_back(eb.back().norm());
     na.push_back(ea.back().norm());
   }

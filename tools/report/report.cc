@@ -75,7 +75,7 @@ const SE3d& FrameOrigin(const RobotModel& m, int f) {
   return f < m.num_joints() ? m.joints[f].origin : m.tools[f - m.num_joints()].origin;
 }
 
-Json BuildJson(const RunSummary& s);
+Json BuildJson(const RunSummary& s, bool with_points);
 
 constexpr double kDegrees = 180.0 / M_PI;
 
@@ -459,7 +459,11 @@ std::string JointTermsIdentifiability(const CalibrationResult& result) {
   return out;
 }
 
-std::string RunSummaryToJson(const RunSummary& s) { return JsonText(BuildJson(s)); }
+std::string RunSummaryToJson(const RunSummary& s) { return JsonText(BuildJson(s, true)); }
+
+std::string RunSummaryToJsonWithoutPoints(const RunSummary& s) {
+  return JsonText(BuildJson(s, false));
+}
 
 Status RenderPlotFiles(const RunSummary& s, std::vector<std::pair<std::string, std::string>>* files) {
   std::vector<int> it;
@@ -773,8 +777,9 @@ Json ComparisonJson(const RunSummary& s) {
   return {{"agree", s.solvers_agree}, {"rows", rows}};
 }
 
-// The report, section by section, in the order of docs/report.md.
-Json BuildJson(const RunSummary& s) {
+// The report, section by section, in the order of docs/report.md; `with_points` false leaves the
+// per-point arrays empty.
+Json BuildJson(const RunSummary& s, bool with_points) {
   Json j;
   j["schema"] = "lpoe-calib/report/2";
   j["tool"] = {{"name", s.tool_name}, {"version", kLpoeVersion}};
@@ -812,8 +817,12 @@ Json BuildJson(const RunSummary& s) {
   j["per_smr"] = PerSmrJson(s);
   j["parameter_changes"] = ParameterChangesJson(s);
   if (!s.comparison.empty()) j["comparison"] = ComparisonJson(s);
-  j["points"] = {{"identification", PointsJson(s.result.model, s.identification_points)},
-                 {"verification", PointsJson(s.result.model, s.verification_points)}};
+  if (with_points) {
+    j["points"] = {{"identification", PointsJson(s.result.model, s.identification_points)},
+                   {"verification", PointsJson(s.result.model, s.verification_points)}};
+  } else {
+    j["points"] = {{"identification", Json::array()}, {"verification", Json::array()}};
+  }
   return j;
 }
 

@@ -129,10 +129,15 @@ std::string JointTermsIdentifiability(const CalibrationResult& result);
 
 // Pretty-printed JSON, numbers with full precision, keys in a fixed order.
 std::string RunSummaryToJson(const RunSummary& summary);
+// The same document with the per-point arrays ("points") empty: every figure of the report at a
+// size independent of the number of points (the HTML page reads this and draws the points from
+// the summary itself).
+std::string RunSummaryToJsonWithoutPoints(const RunSummary& summary);
 
-// The self-contained HTML report (inline SVG plots, no scripts), rendered from the same JSON
-// document plus the per-point arrays. Deterministic; plots are decimated so 10^5 points stay
-// well below 5 MB. Fails only when a plot cannot be rendered.
+// The self-contained HTML report (inline SVG plots, no scripts), rendered from the JSON document
+// without its per-point arrays (RunSummaryToJsonWithoutPoints) and the summary's points.
+// Deterministic; plots are decimated so 10^5 points stay well below 5 MB. Fails only when a plot
+// cannot be rendered.
 Status RunSummaryToHtml(const RunSummary& summary, std::string* html);
 
 // The plot files of a run: the paper's Fig. 6, Figs. 7/9 and the error histogram, as PNG.
