@@ -338,12 +338,17 @@ class UnmodelledPlanning {
   int Exchange(std::vector<int>* selected, int max_passes, int shortlist, uint64_t seed) const;
 
  private:
+  // The matrices of one evaluation of the total and of one candidate's rows, kept between
+  // evaluations (one per thread; planning_unmodelled.cc).
+  struct Scratch;
+  Scratch NewScratch() const;
   // Correlation of u between candidates a and b (pose part; tools by `tool_factor`).
   double PoseCorrelation(const double* qa, const double* qb) const;
-  // C_{a,b} J_b for candidate rows a (tools of a) and b: (rows_a x P).
-  Eigen::MatrixXd CorrelatedRows(int a, int b) const;
+  // C_{a,b} J_b for candidate rows a (tools of a) and b, written to the first rows_a rows of
+  // `out` (P columns); false (and `out` untouched) when the poses are uncorrelated (C = 0).
+  bool CorrelatedRows(int a, int b, Eigen::MatrixXd* out) const;
   double Total(const Eigen::MatrixXd& M, const Eigen::MatrixXd& H, const Eigen::MatrixXd& G,
-               PlanErrorPrediction* out) const;
+               Scratch* scratch, PlanErrorPrediction* out) const;
 
   const PlanningModel& pm_;
   const CandidatePool& pool_;

@@ -19,6 +19,26 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 }  // namespace
 
+// Kept per thread so that evaluating a candidate allocates nothing (the exchange evaluates
+// thousands, each with P x P matrices of the same size); every product writes the same values in
+// the same order as the temporaries it replaces.
+struct UnmodelledPlanning::Scratch {
+  Eigen::MatrixXd rows, other;     // (at least) a candidate's rows x P
+  Eigen::MatrixXd M, H, G;         // a candidate's plan (P x P)
+  Eigen::MatrixXd Ms, A, LA, ALA;  // Total's (P x P)
+  Eigen::VectorXd d;
+  Eigen::LLT<Eigen::MatrixXd> llt;
+};
+
+UnmodelledPlanning::Scratch UnmodelledPlanning::NewScratch() const {
+  int max_rows = 0;
+  for (int c = 0; c < pool_.size(); ++c) max_rows = std::max(max_rows, pool_.rows(c));
+  Scratch s;
+  s.rows.resize(max_rows, pool_.num_parameters);
+  s.other.resize(max_rows, pool_.num_parameters);
+  return s;
+}
+
 UnmodelledPlanning::UnmodelledPlanning(const PlanningModel& pm, const CandidatePool& pool,
                                        const std::vector<double>& workspace,
                                        const Eigen::MatrixXd& L,
@@ -79,42 +99,49 @@ double UnmodelledPlanning::PoseCorrelation(const double* qa, const double* qb) c
   return std::exp(-0.5 * d2);
 }
 
-Eigen::MatrixXd UnmodelledPlanning::CorrelatedRows(int a, int b) const {
-  const int n = pool_.num_joints, P = pool_.num_parameters;
+bool UnmodelledPlanning::CorrelatedRows(int a, int b, Eigen::MatrixXd* out) const {
+  const int n = pool_.num_joints;
   const double k = PoseCorrelation(pool_.q.data() + static_cast<size_t>(a) * n,
                                    pool_.q.data() + static_cast<size_t>(b) * n);
-  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(pool_.rows(a), P);
-  if (k < 1e-12) return out;
+  if (k < 1e-12) return false;
+  auto rows = out->topRows(pool_.rows(a));
+  rows.setZero();
   const std::vector<int>& ta = pool_.visible[a];
   const std::vector<int>& tb = pool_.visible[b];
   for (size_t i = 0; i < ta.size(); ++i) {
     for (size_t j = 0; j < tb.size(); ++j) {
       const double f = ta[i] == tb[j] ? 1.0 : u_.tool_correlation;
-      out.middleRows(3 * i, 3) += k * f * pool_.J.middleRows(pool_.row_offset[b] + 3 * j, 3);
+      rows.middleRows(3 * i, 3) += k * f * pool_.J.middleRows(pool_.row_offset[b] + 3 * j, 3);
     }
   }
-  return out;
+  return true;
 }
 
 double UnmodelledPlanning::Total(const Eigen::MatrixXd& M, const Eigen::MatrixXd& H,
-                                 const Eigen::MatrixXd& G, PlanErrorPrediction* out) const {
+                                 const Eigen::MatrixXd& G, Scratch* scratch,
+                                 PlanErrorPrediction* out) const {
   const int P = static_cast<int>(M.rows());
+  Scratch& sc = *scratch;
   // A = M^-1 with Jacobi scaling (columns of rotations carry lever arms of a metre).
-  const Eigen::VectorXd d = M.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
-  const Eigen::MatrixXd Ms = d.asDiagonal() * M * d.asDiagonal();
-  const Eigen::LLT<Eigen::MatrixXd> llt(Ms);
+  sc.d = M.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  sc.Ms.noalias() = sc.d.asDiagonal() * M * sc.d.asDiagonal();
+  sc.llt.compute(sc.Ms);
   PlanErrorPrediction p;
-  if (llt.info() != Eigen::Success) {
+  if (sc.llt.info() != Eigen::Success) {
     if (out != nullptr) *out = p;
     return kInfinity;
   }
-  const Eigen::MatrixXd A =
-      d.asDiagonal() * llt.solve(Eigen::MatrixXd::Identity(P, P)) * d.asDiagonal();
+  sc.A.setIdentity(P, P);
+  sc.llt.solveInPlace(sc.A);
+  sc.A = sc.d.asDiagonal() * sc.A * sc.d.asDiagonal();  // coefficient-wise: no aliasing
+  const Eigen::MatrixXd& A = sc.A;
   const double noise = sigma2_ * L_.cwiseProduct(A).sum();
   double unmodelled = 0;
   if (s2_ > 0) {
-    const Eigen::MatrixXd ALA = A * L_ * A;
-    unmodelled = s2_ * (ALA.cwiseProduct(H).sum() - 2 * A.cwiseProduct(G.transpose()).sum() + 3);
+    sc.LA.noalias() = A * L_;
+    sc.ALA.noalias() = sc.LA * A;
+    unmodelled =
+        s2_ * (sc.ALA.cwiseProduct(H).sum() - 2 * A.cwiseProduct(G.transpose()).sum() + 3);
     unmodelled = std::max(0.0, unmodelled);
   }
   p.noise_rms = std::sqrt(std::max(0.0, noise));
@@ -126,21 +153,24 @@ double UnmodelledPlanning::Total(const Eigen::MatrixXd& M, const Eigen::MatrixXd
 
 PlanErrorPrediction UnmodelledPlanning::Predict(const std::vector<int>& selected) const {
   const int P = pool_.num_parameters;
+  Scratch sc = NewScratch();
   Eigen::MatrixXd M = Eigen::MatrixXd::Zero(P, P), H = M, G = M;
-  Eigen::MatrixXd Ya;
   for (int a : selected) {
     const auto Ja = pool_.J.middleRows(pool_.row_offset[a], pool_.rows(a));
     M.noalias() += Ja.transpose() * Ja;
     if (s2_ > 0) {
       G.noalias() += Ja.transpose() * R_.middleRows(pool_.row_offset[a], pool_.rows(a));
       // H = sum over a of J_a^T Y_a, Y_a = sum over b of C_{a,b} J_b: one product per pose.
-      Ya.setZero(pool_.rows(a), P);
-      for (int b : selected) Ya += CorrelatedRows(a, b);
+      auto Ya = sc.other.topRows(pool_.rows(a));
+      Ya.setZero();
+      for (int b : selected) {
+        if (CorrelatedRows(a, b, &sc.rows)) Ya += sc.rows.topRows(pool_.rows(a));
+      }
       H.noalias() += Ja.transpose() * Ya;
     }
   }
   PlanErrorPrediction out;
-  Total(M, H, G, &out);
+  Total(M, H, G, &sc, &out);
   return out;
 }
 
@@ -156,10 +186,15 @@ int UnmodelledPlanning::Exchange(std::vector<int>* selected, int max_passes, int
   // The plan's M, H, G and, for every candidate x, Y_x = sum over the plan of C_{x,s} J_s.
   Eigen::MatrixXd M = Eigen::MatrixXd::Zero(P, P), H = M, G = M;
   Eigen::MatrixXd Y = Eigen::MatrixXd::Zero(pool_.J.rows(), P);
+  std::vector<Scratch> scratch(std::max(ThreadsFor(N), ThreadsFor(shortlist)));
+  for (Scratch& sc : scratch) sc = NewScratch();
   auto add_to_y = [&](int s, double sign) {
     if (s2_ == 0) return;
-    ForEachTask(N, ThreadsFor(N), [&](int x, int /*thread*/) {
-      Y.middleRows(pool_.row_offset[x], pool_.rows(x)) += sign * CorrelatedRows(x, s);
+    ForEachTask(N, ThreadsFor(N), [&](int x, int thread) {
+      Eigen::MatrixXd& rows = scratch[thread].rows;
+      if (CorrelatedRows(x, s, &rows)) {
+        Y.middleRows(pool_.row_offset[x], pool_.rows(x)) += sign * rows.topRows(pool_.rows(x));
+      }
     });
   };
   for (int s : plan) {
@@ -170,7 +205,7 @@ int UnmodelledPlanning::Exchange(std::vector<int>* selected, int max_passes, int
   for (int s : plan) {
     H.noalias() += rows_of(s).transpose() * Y.middleRows(pool_.row_offset[s], pool_.rows(s));
   }
-  double current = Total(M, H, G, nullptr);
+  double current = Total(M, H, G, &scratch[0], nullptr);
   std::mt19937_64 rng(seed);
   std::uniform_int_distribution<int> pick(0, N - 1);
   int swaps = 0;
@@ -180,9 +215,10 @@ int UnmodelledPlanning::Exchange(std::vector<int>* selected, int max_passes, int
       const int s = plan[i];
       const auto Js = rows_of(s);
       const Eigen::MatrixXd Ys = Y.middleRows(pool_.row_offset[s], pool_.rows(s));
-      const Eigen::MatrixXd Css = CorrelatedRows(s, s);
       Eigen::MatrixXd H_without = H - Js.transpose() * Ys - Ys.transpose() * Js;
-      H_without.noalias() += Js.transpose() * Css;
+      if (CorrelatedRows(s, s, &scratch[0].rows)) {  // C_{s,s}: always (correlation 1)
+        H_without.noalias() += Js.transpose() * scratch[0].rows.topRows(pool_.rows(s));
+      }
       const Eigen::MatrixXd M_without = M - Js.transpose() * Js;
       const Eigen::MatrixXd G_without = G - Js.transpose() * r_of(s);
       // The shortlist: distinct candidates outside the plan.
@@ -196,21 +232,28 @@ int UnmodelledPlanning::Exchange(std::vector<int>* selected, int max_passes, int
       }
       std::vector<double> totals(list.size(), kInfinity);
       ForEachTask(static_cast<int>(list.size()), ThreadsFor(static_cast<int>(list.size())),
-                  [&](int k, int /*thread*/) {
+                  [&](int k, int thread) {
                     const int c = list[k];
+                    const int rc = pool_.rows(c);
                     const auto Jc = rows_of(c);
-                    Eigen::MatrixXd Mc = M_without;
-                    Mc.noalias() += Jc.transpose() * Jc;
-                    Eigen::MatrixXd Hc = H_without, Gc = G_without;
+                    Scratch& sc = scratch[thread];
+                    sc.M = M_without;
+                    sc.M.noalias() += Jc.transpose() * Jc;
+                    sc.H = H_without;
+                    sc.G = G_without;
                     if (s2_ > 0) {
-                      const Eigen::MatrixXd Yc =
-                          Y.middleRows(pool_.row_offset[c], pool_.rows(c)) - CorrelatedRows(c, s);
-                      Hc.noalias() += Jc.transpose() * Yc;
-                      Hc.noalias() += Yc.transpose() * Jc;
-                      Hc.noalias() += Jc.transpose() * CorrelatedRows(c, c);
-                      Gc.noalias() += Jc.transpose() * r_of(c);
+                      // Y_c without the removed member s: Y_c - C_{c,s} J_s.
+                      auto Yc = sc.other.topRows(rc);
+                      Yc = Y.middleRows(pool_.row_offset[c], rc);
+                      if (CorrelatedRows(c, s, &sc.rows)) Yc -= sc.rows.topRows(rc);
+                      sc.H.noalias() += Jc.transpose() * Yc;
+                      sc.H.noalias() += Yc.transpose() * Jc;
+                      if (CorrelatedRows(c, c, &sc.rows)) {
+                        sc.H.noalias() += Jc.transpose() * sc.rows.topRows(rc);
+                      }
+                      sc.G.noalias() += Jc.transpose() * r_of(c);
                     }
-                    totals[k] = Total(Mc, Hc, Gc, nullptr);
+                    totals[k] = Total(sc.M, sc.H, sc.G, &sc, nullptr);
                   });
       int best = -1;
       for (size_t k = 0; k < list.size(); ++k) {
@@ -233,7 +276,7 @@ int UnmodelledPlanning::Exchange(std::vector<int>* selected, int max_passes, int
       for (int t : plan) {
         H.noalias() += rows_of(t).transpose() * Y.middleRows(pool_.row_offset[t], pool_.rows(t));
       }
-      current = Total(M, H, G, nullptr);
+      current = Total(M, H, G, &scratch[0], nullptr);
       ++pass_swaps;
     }
     swaps += pass_swaps;
