@@ -47,11 +47,15 @@ RobotModel LoadedCobot() {
 // The registry holds the tilt, with the term it is bilinear with; asked for without that term it
 // is refused with the kind's message, by the check both solvers' validation uses.
 TEST(BlockKind, RegistryHoldsTheTiltAndRefusesItWithoutItsPartner) {
-  const internal::BlockKind* kind = internal::FindBlockKind(kGravityTiltName);
+  const internal::BilinearBlockKind* kind = internal::FindBilinearBlockKind(kGravityTiltName);
   ASSERT_NE(kind, nullptr);
+  EXPECT_EQ(internal::FindBlockKind(kGravityTiltName), kind);
   EXPECT_EQ(std::string(kind->name()), "tilt");
   EXPECT_EQ(std::string(kind->partner_term()), "compliance");
   EXPECT_EQ(internal::FindBlockKind("compliance"), nullptr);
+  // The frames' and the terms' kinds are not bilinear.
+  EXPECT_EQ(internal::FrameBlockKind().bilinear(), nullptr);
+  EXPECT_EQ(internal::JointTermBlockKind().bilinear(), nullptr);
   const RobotModel model = LoadedCobot();
   internal::ProblemSetupRequest request;
   const auto tilt = std::make_shared<const GravityTiltModel>(model);
@@ -103,7 +107,7 @@ TEST(BlockKind, TiltColumnsMatchFiniteDifferencesOfThePredictedOffsets) {
   internal::ProblemSetupRequest request;
   const auto tilt = std::make_shared<const GravityTiltModel>(model);
   request.bilinear_effects = {tilt};
-  const internal::BlockKind* kind = internal::FindBlockKind(kGravityTiltName);
+  const internal::BilinearBlockKind* kind = internal::FindBilinearBlockKind(kGravityTiltName);
   ASSERT_TRUE(kind->Add(request, &p).ok());
   ASSERT_TRUE(kind->In(p));
   ASSERT_TRUE(internal::HasNonlinearBlocks(p));

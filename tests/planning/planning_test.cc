@@ -1010,24 +1010,31 @@ TEST(PlanningUnmodelled, PredictionIsTheExpectedErrorOverTheWorkspace) {
   const Eigen::MatrixXd fit = (J.transpose() * J).ldlt().solve(J.transpose());  // P x rows
   std::mt19937_64 rng(234);
   std::normal_distribution<double> normal(0.0, 1.0);
-  const int draws = 4000;
+  // 4000 draws in batches of 500 (the draws of each in the order of one draw at a time: its field's
+  // normals, then its noise), each step one matrix product over the batch.
+  const int draws = 4000, batch = 500;
   double sum = 0;
-  for (int d = 0; d < draws; ++d) {
-    Eigen::MatrixXd z(points, 3);
-    for (int i = 0; i < points; ++i) {
-      for (int a = 0; a < 3; ++a) z(i, a) = normal(rng);
+  Eigen::MatrixXd z(points, 3 * batch), noise(plan_points * 3, batch), y(J.rows(), batch);
+  for (int first = 0; first < draws; first += batch) {
+    for (int d = 0; d < batch; ++d) {
+      for (int i = 0; i < points; ++i) {
+        for (int a = 0; a < 3; ++a) z(i, 3 * d + a) = normal(rng);
+      }
+      for (int r = 0; r < plan_points * 3; ++r) noise(r, d) = normal(rng);
     }
-    const Eigen::MatrixXd field = F * z;  // points x 3
-    Eigen::VectorXd y(J.rows());
-    for (int i = 0; i < plan_points; ++i) {
-      for (int a = 0; a < 3; ++a) y(3 * i + a) = field(i, a) + sigma * normal(rng);
+    const Eigen::MatrixXd field = F * z;  // points x 3 per draw
+    for (int d = 0; d < batch; ++d) {
+      for (int i = 0; i < plan_points; ++i) {
+        for (int a = 0; a < 3; ++a) y(3 * i + a, d) = field(i, 3 * d + a) + sigma * noise(3 * i + a, d);
+      }
     }
-    const Eigen::VectorXd dx = fit * y;
-    const Eigen::VectorXd e = Jw * dx;
-    for (int i = 0; i < T * W; ++i) {
-      for (int a = 0; a < 3; ++a) {
-        const double v = e(3 * i + a) - field(plan_points + i, a);
-        sum += v * v;
+    const Eigen::MatrixXd e = Jw * (fit * y);  // workspace rows x draws
+    for (int d = 0; d < batch; ++d) {
+      for (int i = 0; i < T * W; ++i) {
+        for (int a = 0; a < 3; ++a) {
+          const double v = e(3 * i + a, d) - field(plan_points + i, 3 * d + a);
+          sum += v * v;
+        }
       }
     }
   }

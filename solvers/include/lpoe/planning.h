@@ -350,7 +350,6 @@ class UnmodelledPlanning {
   double Total(const Eigen::MatrixXd& M, const Eigen::MatrixXd& H, const Eigen::MatrixXd& G,
                Scratch* scratch, PlanErrorPrediction* out) const;
 
-  const PlanningModel& pm_;
   const CandidatePool& pool_;
   Eigen::MatrixXd L_;
   UnmodelledErrorModel u_;

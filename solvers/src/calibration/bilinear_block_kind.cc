@@ -138,7 +138,7 @@ Status CheckBlockKindPartners(const std::vector<std::shared_ptr<const JointTerm>
                              "' is given twice");
       }
     }
-    const BlockKind* kind = FindBlockKind(effect->name());
+    const BilinearBlockKind* kind = FindBilinearBlockKind(effect->name());
     if (kind == nullptr) {
       return Status::Error(std::string("no block kind for the bilinear effect '") +
                            effect->name() + "'");

@@ -31,6 +31,11 @@ const BlockKind* FindBlockKind(const std::string& name) {
   return nullptr;
 }
 
+const BilinearBlockKind* FindBilinearBlockKind(const std::string& name) {
+  const BlockKind* kind = FindBlockKind(name);
+  return kind != nullptr ? kind->bilinear() : nullptr;
+}
+
 void BlockKind::AddManifold(const Parameterization& /*p*/, ProblemBlock* /*block*/,
                             ceres::Problem* /*problem*/) const {}
 
@@ -91,7 +96,8 @@ void LinearizeRow(const BlockColumnsContext& ctx, const MeasurementSet& data, in
 void FillBlockKindResults(const Parameterization& p, const Eigen::VectorXd& joint_state,
                           const Eigen::MatrixXd& covariance, CalibrationResult* out) {
   for (const BlockKind* kind : BlockKinds()) {
-    if (kind->In(p)) kind->FillResult(p, joint_state, covariance, out);
+    const BilinearBlockKind* bilinear = kind->bilinear();
+    if (bilinear != nullptr && bilinear->In(p)) bilinear->FillResult(p, joint_state, covariance, out);
   }
 }
 

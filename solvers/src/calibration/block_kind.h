@@ -53,6 +53,7 @@ namespace lpoe {
 namespace internal {
 
 struct ProblemSetup;  // problem_setup.h
+class BilinearBlockKind;
 
 // What a kind's Columns needs of the problem at its current values.
 struct BlockColumnsContext {
@@ -106,58 +107,9 @@ class BlockKind {
   virtual void Columns(const BlockColumnsContext& ctx, const ProblemBlock& block,
                        const MeasurementSet& data, int r, Eigen::MatrixXd* J) const = 0;
 
-  // --- Kinds of bilinear effects (BilinearBlockKind; the defaults: never asked, never in p) ---
-
-  // The joint-space term whose values the kind's columns need (nullptr: none).
-  virtual const char* partner_term() const { return nullptr; }
-  // The message when the kind is asked for without its partner term.
-  virtual const char* needs_partner_message() const { return ""; }
-
-  // Whether the options ask for the kind.
-  virtual bool Requested(const ProblemDefinitionOptions& /*options*/) const { return false; }
-  // Whether `p` holds a block of the kind (after the joint blocks).
-  virtual bool In(const Parameterization& /*p*/) const { return false; }
-  // Appends the kind's blocks the options ask for to `p`. An error (the reason) when the data
-  // leave nothing for one.
-  virtual Status Add(const ProblemDefinitionOptions& /*options*/, Parameterization* /*p*/) const {
-    return Status::Ok();
-  }
-
-  // The kind's entry of `out` at the joint-space coordinates `joint_state`, standard deviations
-  // from `covariance` (p's numbering; empty: none). Called only when In(p).
-  virtual void FillResult(const Parameterization& /*p*/, const Eigen::VectorXd& /*joint_state*/,
-                          const Eigen::MatrixXd& /*covariance*/, CalibrationResult* /*out*/) const {}
-  // Scales the standard deviations of the kind's entry, from a covariance with the given noise
-  // (sigma) to the one the residuals estimate (factor), keeping the a-priori ones beside them.
-  virtual void ScaleToAPosteriori(double /*factor*/, CalibrationResult* /*out*/) const {}
-  // The kind's rule, asked at a solution `r0` without the kind: whether the data determine it.
-  // Fills the kind's entry of `out` (marked requested; the reason when not).
-  virtual bool Identifiable(const RobotModel& /*start*/, const MeasurementSet& /*data*/,
-                            const CalibrationResult& /*r0*/, bool /*use_orientation*/,
-                            double /*orientation_weight*/, double /*tolerance*/,
-                            double /*max_sigma*/, CalibrationResult* /*out*/) const {
-    return true;
-  }
-
-  // The pipeline's staged solve (pipeline.cc: a solve with the partner term, the kind's rule at
-  // its solution, then a solve with the effect from there):
-  //   - the effect on the calibration's start model (nullptr: not a bilinear kind);
-  virtual std::shared_ptr<const BilinearJointEffect> MakeEffect(const RobotModel& /*start*/) const {
-    return nullptr;
-  }
-  //   - copies the kind's entry of `check` (Identifiable's) into `out`'s; with `solved` (a
-  //     converged solve with the kind, may be `out`) its values and standard deviations as well;
-  //     a non-empty `why_not`: why the kind's values were not solved;
-  virtual void Record(const CalibrationResult& /*check*/, const CalibrationResult* /*solved*/,
-                      const std::string& /*why_not*/, CalibrationResult* /*out*/) const {}
-  //   - writes the identified values of `result`'s entry into the calibrated model (the tilt:
-  //     its gravity).
-  virtual void ApplyToModel(const CalibrationResult& /*result*/, RobotModel* /*model*/) const {}
-  // Whether `result` (a calibration that asked for the kind) identified it; else `why_not` (may
-  // be null) says why (the joint-error selection's candidacy and folds).
-  virtual bool Identified(const CalibrationResult& /*result*/, std::string* /*why_not*/) const {
-    return false;
-  }
+  // The kind as a bilinear effect's kind (BilinearBlockKind, below: its request, its result entry,
+  // its rule and the pipeline's staged solve); nullptr for the frames' and the terms' kinds.
+  virtual const BilinearBlockKind* bilinear() const { return nullptr; }
 };
 
 // The kinds of effects bilinear with a joint-space term: blocks, columns and partner from the
@@ -165,14 +117,59 @@ class BlockKind {
 // name() is the kind's; ProblemBlock::index is the block's index in p.bilinear_blocks.
 class BilinearBlockKind : public BlockKind {
  public:
-  bool Requested(const ProblemDefinitionOptions& options) const override;
-  bool In(const Parameterization& p) const override;
-  Status Add(const ProblemDefinitionOptions& options, Parameterization* p) const override;
+  const BilinearBlockKind* bilinear() const final { return this; }
+
+  // --- Its blocks, from the effect (bilinear_block_kind.cc) ---
+
+  // Whether the options ask for the kind.
+  bool Requested(const ProblemDefinitionOptions& options) const;
+  // Whether `p` holds a block of the kind (after the joint blocks).
+  bool In(const Parameterization& p) const;
+  // Appends the kind's blocks the options ask for to `p`. An error (the reason) when the data
+  // leave nothing for one.
+  Status Add(const ProblemDefinitionOptions& options, Parameterization* p) const;
   void AppendBlocks(const ProblemSetup& setup, const RobotModel& nominal,
                     std::vector<ProblemBlock>* out) const override;
   // J_q(q_eff) d(dq)/dt at the current values.
   void Columns(const BlockColumnsContext& ctx, const ProblemBlock& block,
                const MeasurementSet& data, int r, Eigen::MatrixXd* J) const override;
+
+  // --- What is particular to the effect (the kind's own source file) ---
+
+  // The joint-space term whose values the kind's columns need.
+  virtual const char* partner_term() const = 0;
+  // The message when the kind is asked for without its partner term.
+  virtual const char* needs_partner_message() const = 0;
+  // The effect on the calibration's start model.
+  virtual std::shared_ptr<const BilinearJointEffect> MakeEffect(const RobotModel& start) const = 0;
+
+  // The kind's entry of `out` at the joint-space coordinates `joint_state`, standard deviations
+  // from `covariance` (p's numbering; empty: none). Called only when In(p).
+  virtual void FillResult(const Parameterization& p, const Eigen::VectorXd& joint_state,
+                          const Eigen::MatrixXd& covariance, CalibrationResult* out) const = 0;
+  // Scales the standard deviations of the kind's entry, from a covariance with the given noise
+  // (sigma) to the one the residuals estimate (factor), keeping the a-priori ones beside them.
+  virtual void ScaleToAPosteriori(double factor, CalibrationResult* out) const = 0;
+  // The kind's rule, asked at a solution `r0` without the kind: whether the data determine it.
+  // Fills the kind's entry of `out` (marked requested; the reason when not).
+  virtual bool Identifiable(const RobotModel& start, const MeasurementSet& data,
+                            const CalibrationResult& r0, bool use_orientation,
+                            double orientation_weight, double tolerance, double max_sigma,
+                            CalibrationResult* out) const = 0;
+
+  // The pipeline's staged solve (pipeline.cc: a solve with the partner term, the kind's rule at
+  // its solution, then a solve with the effect from there):
+  //   - copies the kind's entry of `check` (Identifiable's) into `out`'s; with `solved` (a
+  //     converged solve with the kind, may be `out`) its values and standard deviations as well;
+  //     a non-empty `why_not`: why the kind's values were not solved;
+  virtual void Record(const CalibrationResult& check, const CalibrationResult* solved,
+                      const std::string& why_not, CalibrationResult* out) const = 0;
+  //   - writes the identified values of `result`'s entry into the calibrated model (the tilt:
+  //     its gravity).
+  virtual void ApplyToModel(const CalibrationResult& result, RobotModel* model) const = 0;
+  // Whether `result` (a calibration that asked for the kind) identified it; else `why_not` (may
+  // be null) says why (the joint-error selection's candidacy and folds).
+  virtual bool Identified(const CalibrationResult& result, std::string* why_not) const = 0;
 };
 
 // What the data say about a bilinear block of `effect` at a solution `r0` with its partner term
@@ -209,6 +206,8 @@ void LinearizeRow(const BlockColumnsContext& ctx, const MeasurementSet& data, in
 const std::vector<const BlockKind*>& BlockKinds();
 // The entry named `name`, nullptr when there is none.
 const BlockKind* FindBlockKind(const std::string& name);
+// The bilinear kind named `name`, nullptr when there is none.
+const BilinearBlockKind* FindBilinearBlockKind(const std::string& name);
 
 // Whether p holds a bilinear block (lpoe/terms/bilinear_term.h; the solvers' linear shortcuts,
 // which evaluate the rows' columns once, are off then).

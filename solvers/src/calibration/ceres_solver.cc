@@ -545,7 +545,8 @@ void BlockKindResults(const CalibrationProblem& builder, const CeresSolverOption
   const long dof = static_cast<long>(per_row) * builder.data().size() - identifiable;
   const double factor = dof > 0 ? std::sqrt(2.0 * final_cost / static_cast<double>(dof)) : 0.0;
   for (const internal::BlockKind* kind : internal::BlockKinds()) {
-    if (kind->In(all)) kind->ScaleToAPosteriori(factor, result);
+    const internal::BilinearBlockKind* bilinear = kind->bilinear();
+    if (bilinear != nullptr && bilinear->In(all)) bilinear->ScaleToAPosteriori(factor, result);
   }
 }
 

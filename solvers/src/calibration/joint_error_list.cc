@@ -12,9 +12,10 @@ const std::vector<BilinearEffectName>& BilinearEffectNames() {
   static const std::vector<BilinearEffectName> names = [] {
     std::vector<BilinearEffectName> out;
     for (const internal::BlockKind* kind : internal::BlockKinds()) {
-      if (kind->partner_term() == nullptr) continue;
-      out.push_back({kind->name(), kind->description(), kind->partner_term(),
-                     kind->needs_partner_message()});
+      const internal::BilinearBlockKind* bilinear = kind->bilinear();
+      if (bilinear == nullptr) continue;
+      out.push_back({bilinear->name(), bilinear->description(), bilinear->partner_term(),
+                     bilinear->needs_partner_message()});
     }
     return out;
   }();
@@ -85,7 +86,7 @@ bool ParseJointErrorList(const std::string& text, std::vector<std::string>* term
 
 std::shared_ptr<const BilinearJointEffect> MakeBilinearEffect(const std::string& name,
                                                               const RobotModel& start) {
-  const internal::BlockKind* kind = internal::FindBlockKind(name);
+  const internal::BilinearBlockKind* kind = internal::FindBilinearBlockKind(name);
   return kind != nullptr ? kind->MakeEffect(start) : nullptr;
 }
 

@@ -37,7 +37,7 @@ CalibrationResult StoreJointErrors(CalibrationResult result, const RobotModel& s
   // The identified bilinear effects go into the model (block_kind.h: the tilt is the calibrated
   // model's gravity, the compliance values belong to it).
   for (const internal::BlockKind* kind : internal::BlockKinds()) {
-    kind->ApplyToModel(result, &result.model);
+    if (kind->bilinear() != nullptr) kind->bilinear()->ApplyToModel(result, &result.model);
   }
   return result;
 }
@@ -173,7 +173,8 @@ class PipelineSolve {
   void SettleStructure(CalibrationResult* result);
   // A bilinear kind (block_kind.h: the gravity tilt): its rule at the solution with its partner
   // term (`result`), then solved from there when the data determine it.
-  CalibrationResult SolveBilinear(const internal::BlockKind& kind, CalibrationResult result);
+  CalibrationResult SolveBilinear(const internal::BilinearBlockKind& kind,
+                                  CalibrationResult result);
 
   const RobotModel& nominal_;
   const MeasurementSet& data_;
@@ -196,7 +197,7 @@ class PipelineSolve {
   std::shared_ptr<const ParameterPrior> prior_;
   std::vector<std::shared_ptr<const JointTerm>> terms_;
   // The bilinear kinds asked for in the joint errors, in their order.
-  std::vector<const internal::BlockKind*> bilinear_;
+  std::vector<const internal::BilinearBlockKind*> bilinear_;
   std::function<void(const IterationRecord&)> progress_;
 };
 
@@ -309,8 +310,8 @@ bool PipelineSolve::MakeTerms(CalibrationResult* failed) {
   const std::vector<std::string>& names = options_.joint_errors;
   for (const std::string& name : names) {
     // A bilinear kind (block_kind.h: the tilt) needs its partner term in the list.
-    const internal::BlockKind* kind = internal::FindBlockKind(name);
-    if (kind != nullptr && kind->partner_term() != nullptr) {
+    const internal::BilinearBlockKind* kind = internal::FindBilinearBlockKind(name);
+    if (kind != nullptr) {
       if (std::find(names.begin(), names.end(), kind->partner_term()) == names.end()) {
         *failed = Refused(start_, kind->needs_partner_message());
         return false;
@@ -445,7 +446,7 @@ void PipelineSolve::SettleStructure(CalibrationResult* result) {
   }
 }
 
-CalibrationResult PipelineSolve::SolveBilinear(const internal::BlockKind& kind,
+CalibrationResult PipelineSolve::SolveBilinear(const internal::BilinearBlockKind& kind,
                                                 CalibrationResult result) {
   const double tolerance = Chosen().joint_term_tolerance;
   // The kind's rule at the solution with its partner (block_kind.h).
@@ -499,7 +500,7 @@ CalibrationResult PipelineSolve::Run(RegistrationReport* registration) {
       return StoreJointErrors(std::move(result), start_);
     }
   }
-  for (const internal::BlockKind* kind : bilinear_) {
+  for (const internal::BilinearBlockKind* kind : bilinear_) {
     if (!result.converged()) break;
     result = SolveBilinear(*kind, std::move(result));
   }

@@ -120,7 +120,8 @@ CalibrationProblem::CalibrationProblem(const RobotModel& nominal, const Measurem
       joint_blocks_[b.index] = k;
       CHECK_EQ(solved.joint_blocks[b.index].offset, b.solved_offset);
     } else {
-      CHECK(b.kind->In(parameterization_)) << b.kind->name();
+      CHECK(b.kind->bilinear() != nullptr && b.kind->bilinear()->In(parameterization_))
+          << b.kind->name();
       bilinear_blocks_[b.index] = k;
       CHECK_EQ(solved.bilinear_blocks[b.index].offset, b.solved_offset);
     }

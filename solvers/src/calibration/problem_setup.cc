@@ -38,9 +38,10 @@ void DecideParameterization(const RobotModel& nominal, const MeasurementSet& dat
   LeaveOutUnmeasuredTools(nominal, data, &s->solved);
   // The bilinear blocks asked for (block_kind.h: the gravity tilt), after the joint blocks.
   for (const BlockKind* kind : BlockKinds()) {
-    if (!kind->Requested(request) || !s->block_status.ok()) continue;
-    s->block_status = kind->Add(request, &s->all);
-    if (s->block_status.ok()) s->block_status = kind->Add(request, &s->solved);
+    const BilinearBlockKind* bilinear = kind->bilinear();
+    if (bilinear == nullptr || !bilinear->Requested(request) || !s->block_status.ok()) continue;
+    s->block_status = bilinear->Add(request, &s->all);
+    if (s->block_status.ok()) s->block_status = bilinear->Add(request, &s->solved);
   }
 }
 

@@ -45,7 +45,7 @@ FoldOutcome SolveFold(const RobotModel& nominal, const MeasurementSet& identific
   out.errors.ok = true;
   out.parameters = f.result.parameterization.num_joint_parameters();
   for (const std::string& name : options.joint_errors) {
-    const internal::BlockKind* kind = internal::FindBlockKind(name);
+    const internal::BilinearBlockKind* kind = internal::FindBilinearBlockKind(name);
     if (kind != nullptr && kind->Identified(f.result, nullptr)) out.bilinear.push_back(name);
   }
   for (const Eigen::Vector3d& v : ParametricResiduals(f.result, f.test)) {
@@ -128,7 +128,7 @@ JointErrorSelection SelectJointErrors(const RobotModel& nominal,
   // identification rows (the fullest model, whose residuals estimate the noise best).
   const size_t num_term_sets = sets.size();
   for (const BilinearEffectName& effect : BilinearEffectNames()) {
-    const internal::BlockKind* kind = internal::FindBlockKind(effect.name);
+    const internal::BilinearBlockKind* kind = internal::FindBilinearBlockKind(effect.name);
     if (options.on_stage) options.on_stage("checking the " + effect.description);
     PipelineOptions check = options;
     check.joint_errors = registry;

@@ -74,7 +74,7 @@ PlanningModel::PlanningModel(const RobotModel& model)
 Status PlanningGravityTiltStatus(const RobotModel& model,
                                  const std::vector<std::shared_ptr<const JointTerm>>& terms) {
   // The term the tilt's block kind is bilinear with (calibration/block_kind.h).
-  const std::string partner = internal::FindBlockKind(kGravityTiltName)->partner_term();
+  const std::string partner = internal::FindBilinearBlockKind(kGravityTiltName)->partner_term();
   bool compliance = false;
   for (const auto& term : terms) compliance = compliance || term->name() == partner;
   if (!compliance) return Status::Error(kGravityTiltNeedsCompliance);
@@ -99,7 +99,7 @@ PlanningModel::PlanningModel(const RobotModel& model,
     : model_(model),
       parameterization_(PlanningParameterization(model_, terms, reference)),
       basis_(model_, parameterization_),
-      tilt_(gravity_tilt ? internal::FindBlockKind(kGravityTiltName)->MakeEffect(model_)
+      tilt_(gravity_tilt ? internal::FindBilinearBlockKind(kGravityTiltName)->MakeEffect(model_)
                          : nullptr) {
   if (tilt_) {
     const Status s = PlanningGravityTiltStatus(model_, terms);

@@ -44,7 +44,7 @@ UnmodelledPlanning::UnmodelledPlanning(const PlanningModel& pm, const CandidateP
                                        const Eigen::MatrixXd& L,
                                        const UnmodelledErrorModel& unmodelled, double sigma,
                                        int max_workspace)
-    : pm_(pm), pool_(pool), L_(L), u_(unmodelled), sigma2_(sigma * sigma),
+    : pool_(pool), L_(L), u_(unmodelled), sigma2_(sigma * sigma),
       s2_(unmodelled.std * unmodelled.std) {
   const int n = pool.num_joints, P = pool.num_parameters;
   inv_l_ = Eigen::VectorXd::Zero(n);
