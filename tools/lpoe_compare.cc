@@ -42,7 +42,10 @@ DEFINE_string(split, "random",
               "How --holdout splits the rows: random (seeded by --split_seed) | sequential (the "
               "last rows of the file are held out).");
 DEFINE_uint64(split_seed, 1, "Seed of the --holdout split.");
-DECLARE_string(joint_errors);  // lpoe_compare_contact.cc
+DEFINE_string(joint_errors, "none",
+              "Distance or plane data: joint-space terms identified with the geometry by both "
+              "solvers, none or a comma-separated list of the registry's terms (as "
+              "lpoe_calibrate's; compliance, harmonics, ...).");
 DEFINE_string(parameterization, "identifiable", "identifiable | full (see lpoe_calibrate).");
 DEFINE_bool(register, true,
             "Register the model to the measurement frame first (as lpoe_calibrate); both solvers "

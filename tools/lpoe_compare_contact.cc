@@ -25,10 +25,7 @@ DEFINE_string(sigmas, "",
               "Ballbar and probe files without a sigma column: one noise (mm) per --measurements "
               "file, comma-separated (as lpoe_calibrate's).");
 
-DEFINE_string(joint_errors, "none",
-              "Distance or plane data: joint-space terms identified with the geometry by both "
-              "solvers, none or a comma-separated list of the registry's terms (as "
-              "lpoe_calibrate's; compliance, harmonics, ...).");
+DECLARE_string(joint_errors);  // lpoe_compare.cc
 
 namespace lpoe {
 namespace tools {
