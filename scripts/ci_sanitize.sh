@@ -26,7 +26,7 @@ CC=clang CXX=clang++ cmake "${gen[@]}" -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWi
   -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld -DCMAKE_SHARED_LINKER_FLAGS=-fuse-ld=lld \
   -DCMAKE_MODULE_LINKER_FLAGS=-fuse-ld=lld \
   -DBUILD_TESTING=ON -DLPOE_BUILD_BENCHMARKS=ON -DLPOE_BUILD_TOOLS=ON -DLPOE_FUZZ=ON \
-  -DLPOE_BUILD_PYTHON=ON -DLPOE_PRECOMPILED_HEADERS=ON -DCMAKE_UNITY_BUILD=ON -DCMAKE_UNITY_BUILD_BATCH_SIZE=16 >/dev/null
+  -DLPOE_BUILD_PYTHON=ON -DLPOE_PRECOMPILED_HEADERS=OFF -DCMAKE_UNITY_BUILD=ON -DCMAKE_UNITY_BUILD_BATCH_SIZE=16 >/dev/null
 cmake --build "$build" -j2
 
 # Without detect_stack_use_after_return: its fake stack frames (one heap frame per call with
