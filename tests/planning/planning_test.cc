@@ -1025,7 +1025,9 @@ TEST(PlanningUnmodelled, PredictionIsTheExpectedErrorOverTheWorkspace) {
     const Eigen::MatrixXd field = F * z;  // points x 3 per draw
     for (int d = 0; d < batch; ++d) {
       for (int i = 0; i < plan_points; ++i) {
-        for (int a = 0; a < 3; ++a) y(3 * i + a, d) = field(i, 3 * d + a) + sigma * noise(3 * i + a, d);
+        for (int a = 0; a < 3; ++a) {
+          y(3 * i + a, d) = field(i, 3 * d + a) + sigma * noise(3 * i + a, d);
+        }
       }
     }
     const Eigen::MatrixXd e = Jw * (fit * y);  // workspace rows x draws

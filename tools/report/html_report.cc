@@ -124,7 +124,9 @@ Status Svg(const Figure& f, int* figures, std::string* html) {
 class HtmlPage {
  public:
   explicit HtmlPage(const RunSummary& summary)
-      : summary_(summary), j_(Json::parse(RunSummaryToJsonWithoutPoints(summary))), model_(summary.result.model) {
+      : summary_(summary),
+        j_(Json::parse(RunSummaryToJsonWithoutPoints(summary))),
+        model_(summary.result.model) {
     html_.reserve(1 << 20);
   }
   Status Write(std::string* out) {

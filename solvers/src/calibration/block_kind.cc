@@ -97,7 +97,9 @@ void FillBlockKindResults(const Parameterization& p, const Eigen::VectorXd& join
                           const Eigen::MatrixXd& covariance, CalibrationResult* out) {
   for (const BlockKind* kind : BlockKinds()) {
     const BilinearBlockKind* bilinear = kind->bilinear();
-    if (bilinear != nullptr && bilinear->In(p)) bilinear->FillResult(p, joint_state, covariance, out);
+    if (bilinear != nullptr && bilinear->In(p)) {
+      bilinear->FillResult(p, joint_state, covariance, out);
+    }
   }
 }
 

@@ -45,12 +45,13 @@ struct NormalEquations {
 //
 // Joint-space parameters (p's joint blocks) are handled by their structure unless `stack` or
 // `joint.dense` is set or p has a bilinear block (the gravity tilt: its columns change with the
-// state, lpoe/terms/bilinear_term.h; that solve takes the dense rows): every joint-space parameter acts through the effective joint values, and a
-// row's d(dq)/d(theta) is sparse (JointSpaceRegressors), so each row's joint part is written in
-// slot coordinates (J_q col j times the slot's regressor entry, S columns beside the frames'), one
-// symmetric rank-k update per block of poses gives the frames', the frames x slots and the slots'
-// blocks, mapped to p's joint coordinates once per pass (docs/joint_errors.md, Cost), instead of
-// rows with every joint column. Same numbers up to rounding.
+// state, lpoe/terms/bilinear_term.h; that solve takes the dense rows): every joint-space parameter
+// acts through the effective joint values, and a row's d(dq)/d(theta) is sparse
+// (JointSpaceRegressors), so each row's joint part is written in slot coordinates (J_q col j times
+// the slot's regressor entry, S columns beside the frames'), one symmetric rank-k update per block
+// of poses gives the frames', the frames x slots and the slots' blocks, mapped to p's joint
+// coordinates once per pass (docs/joint_errors.md, Cost), instead of rows with every joint column.
+// Same numbers up to rounding.
 struct JointSpaceRegressors;
 struct JointColumnsOptions {
   // The rows' sparse regressors for p (BuildJointSpaceRegressors, or SetSlotBasis for p after a
