@@ -170,6 +170,7 @@ TEST_F(ContactTool, BallbarAndPlanesEachWithItsNoise) {
 // Tracker positions and ballbar distances together: the tracker sees the base, so nothing is left
 // out, and the pivots are estimated in the tracker's frame.
 TEST_F(ContactTool, TrackerAndBallbar) {
+  testing::ScopedToolLeakCheck leak_check;  // the contact kinds' paths, with the leak check at exit
   Simulate("ballbar", 0.002, "bar.csv");
   Simulate("position", 0.03, "track.csv");
   const ToolOutput o = Run(LPOE_CALIBRATE_PATH, "--model=" + P("nominal.yaml") + " --measurements=" +

@@ -47,6 +47,8 @@ class CalibrateReport : public ::testing::Test {
 };
 
 TEST_F(CalibrateReport, DefaultRunWritesPlotsAndJson) {
+  // The report's plots and JSON, with the leak check at exit.
+  lpoe::testing::ScopedToolLeakCheck leak_check;
   const std::string cmd = "cd " + dir_ + " && " LPOE_CALIBRATE_PATH " --report=report.json > out.txt 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << ReadAll(dir_ + "/out.txt");
   struct Expected {

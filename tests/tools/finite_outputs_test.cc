@@ -55,6 +55,7 @@ std::string FirstNonFinite(const std::string& text, bool yaml) {
 std::string Tool(const char* path) { return std::string(path) + " "; }
 
 TEST(FiniteOutputs, EveryToolWritesOnlyFiniteNumbersOnRandomModels) {
+  testing::ScopedToolLeakCheck leak_check;  // every tool's main path, with the leak check at exit
   const std::vector<testing::NamedRobot> robots = testing::TestRobotsWithTiltedVariants(40);
   // Three of the tilted variants: a 6R, the 7-joint arm and the arm with a prismatic joint.
   for (const char* want : {"cobot6_tilted", "arm7_tilted", "arm_prismatic_tilted"}) {

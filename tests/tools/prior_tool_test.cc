@@ -59,6 +59,7 @@ double JointFrameSpread(const RobotModel& reference, const RobotModel& model) {
 }
 
 TEST(PriorTool, WritesTheFleetMeanAndCovarianceReadBackAsAPrior) {
+  testing::ScopedToolLeakCheck leak_check;  // lpoe_prior's main path, with the leak check at exit
   testing::TempDir dir("prior_tool_test");
   const RobotModel type = TypeModel();
   std::vector<std::string> paths;
