@@ -1,10 +1,13 @@
 // Tests of the error statistics (statistics.h): the one-pass, 16-bytes-a-row statistics of large data
 // sets against a direct recomputation from the stored double errors, and the percentile selection
-// against nth_element.
+// against nth_element, and its two ways against each other and a sort.
 #include "lpoe/model/statistics.h"
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -127,6 +130,43 @@ TEST(Statistics, SelectionIsNthElement) {
   EXPECT_NEAR(rows.Statistics().norm.p95_abs, sorted[k], kPercentileTolerance * sorted[k]);
   for (int r = 0; r < kRows; r += 101) {
     EXPECT_NEAR(rows.norm(r), norms[r], kPercentileTolerance * norms[r]) << "row " << r;
+  }
+}
+
+// The two ways of selecting (counting passes from kKthSmallestByCounting values on, a selection on
+// the bit patterns below) give the same value for every k tried, on values with repeats, zeros,
+// infinity and NaN (which counts as the largest), on either side of the switch, and that value is
+// the k-th of the values sorted (NaN last).
+TEST(Statistics, BothSelectionsAgreeWithSorting) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> uniform(0.0f, 2.0f);
+  const size_t at = internal::kKthSmallestByCounting;
+  for (const size_t n : {size_t{1}, size_t{2}, size_t{7}, size_t{1000}, at - 1, at, at + 5}) {
+    std::vector<float> v(n);
+    for (size_t i = 0; i < n; ++i) {
+      const unsigned kind = rng() % 20;
+      v[i] = kind == 0   ? 0.0f
+             : kind == 1 ? std::numeric_limits<float>::infinity()
+             : kind == 2 ? std::numeric_limits<float>::quiet_NaN()
+             : kind < 6  ? 0.25f  // repeats
+                         : uniform(rng);
+    }
+    std::vector<float> sorted = v;
+    std::sort(sorted.begin(), sorted.end(), [](float a, float b) {
+      return std::isnan(b) ? !std::isnan(a) : (!std::isnan(a) && a < b);
+    });
+    const std::vector<float> before = v;
+    for (const size_t k : {size_t{0}, n / 2, n - 1, (n * 95) / 100, n / 3}) {
+      const float counting = internal::KthSmallestNonNegativeByCounting(v.data(), n, k);
+      const float selection = internal::KthSmallestNonNegativeBySelection(v.data(), n, k);
+      const float used = internal::KthSmallestNonNegative(v.data(), n, k);
+      const auto same = [](float a, float b) { return (std::isnan(a) && std::isnan(b)) || a == b; };
+      EXPECT_TRUE(same(counting, selection)) << "n " << n << " k " << k << ": " << counting
+                                             << " against " << selection;
+      EXPECT_TRUE(same(used, sorted[k])) << "n " << n << " k " << k << ": " << used << " against "
+                                         << sorted[k];
+    }
+    EXPECT_EQ(std::memcmp(v.data(), before.data(), n * sizeof(float)), 0);  // v not reordered
   }
 }
 

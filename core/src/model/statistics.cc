@@ -12,37 +12,62 @@
 namespace lpoe {
 namespace {
 
-// The k-th smallest (0-based) of v[0..n), all non-negative (or NaN, which counts as largest),
-// without reordering them: the bit patterns of non-negative floats order like their values, so two
-// counting passes over the high and the low 16 bits find it exactly (the value nth_element finds).
+uint32_t Bits(float f) {
+  uint32_t b;
+  std::memcpy(&b, &f, sizeof(b));
+  return b;
+}
+
+float FromBits(uint32_t b) {
+  float f;
+  std::memcpy(&f, &b, sizeof(f));
+  return f;
+}
+
+// The bit patterns of non-negative floats order like their values, so two counting passes over
+// the high and the low 16 bits find the k-th smallest exactly.
 template <typename Count>
-float KthSmallestNonNegative(const float* v, size_t n, size_t k) {
+float KthSmallestByCounting(const float* v, size_t n, size_t k) {
   std::vector<Count> count(size_t{1} << 16, 0);
-  auto bits = [](float f) {
-    uint32_t b;
-    std::memcpy(&b, &f, sizeof(b));
-    return b;
-  };
-  for (size_t i = 0; i < n; ++i) ++count[bits(v[i]) >> 16];
+  for (size_t i = 0; i < n; ++i) ++count[Bits(v[i]) >> 16];
   uint32_t high = 0;
   for (; k >= count[high]; ++high) k -= count[high];
   std::fill(count.begin(), count.end(), Count(0));
   for (size_t i = 0; i < n; ++i) {
-    const uint32_t b = bits(v[i]);
+    const uint32_t b = Bits(v[i]);
     if ((b >> 16) == high) ++count[b & 0xFFFFu];
   }
   uint32_t low = 0;
   for (; k >= count[low]; ++low) k -= count[low];
-  const uint32_t b = (high << 16) | low;
-  float out;
-  std::memcpy(&out, &b, sizeof(out));
-  return out;
+  return FromBits((high << 16) | low);
+}
+
+}  // namespace
+
+namespace internal {
+
+float KthSmallestNonNegativeByCounting(const float* v, size_t n, size_t k) {
+  return n <= UINT32_MAX ? KthSmallestByCounting<uint32_t>(v, n, k)
+                         : KthSmallestByCounting<uint64_t>(v, n, k);
+}
+
+float KthSmallestNonNegativeBySelection(const float* v, size_t n, size_t k) {
+  std::vector<uint32_t> bits(n);
+  for (size_t i = 0; i < n; ++i) bits[i] = Bits(v[i]);
+  std::nth_element(bits.begin(), bits.begin() + static_cast<std::ptrdiff_t>(k), bits.end());
+  return FromBits(bits[k]);
 }
 
 float KthSmallestNonNegative(const float* v, size_t n, size_t k) {
-  return n <= UINT32_MAX ? KthSmallestNonNegative<uint32_t>(v, n, k)
-                         : KthSmallestNonNegative<uint64_t>(v, n, k);
+  return n < kKthSmallestByCounting ? KthSmallestNonNegativeBySelection(v, n, k)
+                                    : KthSmallestNonNegativeByCounting(v, n, k);
 }
+
+}  // namespace internal
+
+namespace {
+
+using internal::KthSmallestNonNegative;
 
 // Index of the nearest-rank 95th percentile among n values.
 size_t P95Index(size_t n) {

@@ -99,6 +99,22 @@ AxisStatistics PositionErrorNormMoments(const RobotModel& model, const Measureme
 void CollectPositionErrors(const RobotModel& model, const MeasurementSet& data,
                            PositionErrorRows* rows);
 
+namespace internal {
+
+// The k-th smallest (0-based, k < n) of v[0..n), all non-negative or NaN (a NaN counts as larger
+// than every number), without reordering v: the value std::nth_element finds when the values are
+// ordered by their bit patterns, which for non-negative floats is their order. What the
+// percentiles and the median of PositionErrorRows use. From kKthSmallestByCounting values on, two
+// counting passes over the high and the low 16 bits (linear in n, a table of 2^16 counts, 256 KB);
+// below, std::nth_element on a copy of the bit patterns (the table, allocated and cleared at each
+// call, cost more than the selection there). Both are exact, so both give the same value.
+float KthSmallestNonNegative(const float* v, size_t n, size_t k);
+constexpr size_t kKthSmallestByCounting = size_t{1} << 14;
+// The two ways, each for any n (tests/model/statistics_test.cc compares them).
+float KthSmallestNonNegativeByCounting(const float* v, size_t n, size_t k);
+float KthSmallestNonNegativeBySelection(const float* v, size_t n, size_t k);
+
+}  // namespace internal
 }  // namespace lpoe
 
 #endif  // LPOE_STATISTICS_H_
