@@ -116,7 +116,7 @@ struct ToolOutput {
 // The tools a test starts (through the shell: RunInDir, RunCapture, std::system) and their
 // LeakSanitizer check. In the sanitizer build every process checks for leaks at exit, and for a
 // tool that check (stopping the process, scanning its globals, stacks and heap) took about a third
-// of the tool tests' time: 115 -> 80 CPU seconds for ten tool-heavy suites, ~1,400 tool runs in
+// of the tool tests' time: 115 -> 78 CPU seconds for ten tool-heavy suites, of ~560 tool runs in
 // the whole suite (docs/testing.md). A tool is a short-lived process whose memory goes back to the
 // system when it exits; the leaks that matter are the library's, which the test program checks in
 // its own process (its exit check covers every library call of every test). So the test program

@@ -1,10 +1,10 @@
 // The tools the test program starts run without LeakSanitizer's exit check in the sanitizer build,
 // except inside a ScopedToolLeakCheck (file_util.h says why). This file sets that up when the
 // program starts, and checks what a started tool sees.
-#include <gtest/gtest.h>
-
 #include <cstdlib>
 #include <string>
+
+#include <gtest/gtest.h>
 
 #include "file_util.h"
 
